@@ -1,0 +1,86 @@
+"""flexmodal command line: a thin dispatcher over the packages.
+
+Every sub-command is registered by its package's ``cli`` module (``register(subparsers)``), which
+imports its heavy dependencies only when the command runs.  Errors raised by a package's own error
+type, and missing or unreadable files, become one line on stderr and exit code 2 (CONTRACT §1).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Sequence
+
+COMMAND_MODULES = (
+    "fixtures.cli", "daq.cli", "modal.cli", "models.cli",
+    "compare.cli", "compare.diagnosis_cli", "reports.cli",
+)
+ERROR_TYPES = (
+    ("daq.errors", "DaqError"),
+    ("modal.errors", "ModalError"),
+    ("models.errors", "ModelError"),
+    ("compare.errors", "CompareError"),
+    ("reports.errors", "ReportError"),
+    ("fixtures.errors", "FixtureError"),
+)
+
+
+class UsageError(Exception):
+    """A command-line usage mistake (unknown option, bad option value)."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """ArgumentParser whose errors are one line (no usage block) and exit 2."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        raise UsageError(f"{self.prog}: error: {message}")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(
+        prog="flexmodal",
+        description="Experimental modal analysis and data acquisition for flexible robot arms.",
+    )
+    parser.add_argument("--quiet", action="store_true", help="silence progress output on stderr")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub.required = True
+    for name in COMMAND_MODULES:
+        importlib.import_module(name).register(sub)
+    for command in sub.choices.values():  # `flexmodal CMD --quiet` works as well as `flexmodal --quiet CMD`
+        if "--quiet" not in command._option_string_actions:
+            command.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
+                                 help="silence progress output on stderr")
+    return parser
+
+
+def _package_errors() -> tuple[type[BaseException], ...]:
+    return tuple(getattr(importlib.import_module(mod), cls) for mod, cls in ERROR_TYPES)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the CLI; returns the process exit code (0 ok, 2 bad input, 1 internal error).
+
+    Handlers registered by the packages take the parsed namespace and return an exit code; they
+    must write results only to stdout and progress/logs only to stderr (CONTRACT §1).
+    """
+    try:
+        args = build_parser().parse_args(argv)
+        return int(args.func(args) or 0)
+    except UsageError as exc:
+        print(exc, file=sys.stderr)
+        return 2
+    except _package_errors() as exc:
+        print(f"flexmodal: error: {exc}", file=sys.stderr)
+        return 2
+    except (FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError) as exc:
+        where = exc.filename if exc.filename is not None else ""
+        print(f"flexmodal: error: {where}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("flexmodal: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""Acquisition: device drivers, session configs and the HDF5 run store."""

@@ -1,0 +1,1 @@
+"""Modal engine: FRFs, coherence, damping, identification and mode shapes."""

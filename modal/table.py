@@ -1,0 +1,159 @@
+"""Modal table (CONTRACT §3): one row per (configuration, mode), read from and written to CSV.
+
+Required columns ``config`` (str), ``mode`` (1-based int), ``freq_hz``; optional ``damping_ratio``,
+``source``, ``pose.<name>`` and ``shape.<sensor>`` (real, or complex written as ``0.1+0.2j``).
+Extra columns are kept.  The table is shared by the modal engine (measured), the model packages
+(predicted) and the comparison layer.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from modal.errors import ModalError
+
+REQUIRED = ("config", "mode", "freq_hz")
+POSE_PREFIX = "pose."
+SHAPE_PREFIX = "shape."
+
+
+def _parse_complex(value: object) -> complex:
+    if isinstance(value, int | float | complex | np.number):
+        return complex(value)
+    text = str(value).strip().replace(" ", "").replace("i", "j")
+    if text.startswith("(") and text.endswith(")"):
+        text = text[1:-1]
+    return complex(text)
+
+
+@dataclass(frozen=True)
+class ModalTable:
+    """A validated modal table; ``frame`` is sorted by config then mode and must not be mutated."""
+
+    frame: pd.DataFrame
+    source: str = "<table>"
+
+    # -- construction -------------------------------------------------------------------------
+    @classmethod
+    def from_frame(cls, frame: pd.DataFrame, source: str = "<table>") -> ModalTable:
+        """Validate a DataFrame with the contract's columns (raises ModalError naming the problem)."""
+        df = frame.copy()
+        for col in REQUIRED:
+            if col not in df.columns:
+                raise ModalError(f"{source}: missing required column {col!r}")
+        df["config"] = df["config"].astype(str)
+        for col in ("mode", "freq_hz"):
+            values = pd.to_numeric(df[col], errors="coerce")
+            bad = values.isna() | ~np.isfinite(values.astype(float))
+            if bad.any():
+                row = int(np.flatnonzero(bad.to_numpy())[0])
+                raise ModalError(f"{source}: row {row + 2}: column {col!r} is not a number "
+                                 f"({df[col].iloc[row]!r})")
+            df[col] = values
+        df["mode"] = df["mode"].astype(int)
+        if (df["mode"] < 1).any():
+            raise ModalError(f"{source}: column 'mode' must be 1-based (found {int(df['mode'].min())})")
+        if (df["freq_hz"] < 0).any():
+            raise ModalError(f"{source}: column 'freq_hz' has a negative frequency")
+        dup = df.duplicated(["config", "mode"])
+        if dup.any():
+            r = df[dup].iloc[0]
+            raise ModalError(f"{source}: config {r['config']!r} lists mode {int(r['mode'])} twice")
+        if "damping_ratio" in df.columns:
+            df["damping_ratio"] = pd.to_numeric(df["damping_ratio"], errors="coerce")
+        for col in [c for c in df.columns if c.startswith(POSE_PREFIX)]:
+            converted = pd.to_numeric(df[col], errors="coerce")
+            if not converted.isna().all():
+                df[col] = converted
+        for col in [c for c in df.columns if c.startswith(SHAPE_PREFIX)]:
+            try:
+                values = np.array([_parse_complex(v) for v in df[col]], dtype=complex)
+            except ValueError:
+                raise ModalError(f"{source}: column {col!r} holds a value that is not a number") from None
+            df[col] = values.real if np.all(values.imag == 0) else values
+        df = df.sort_values(["config", "mode"], kind="stable").reset_index(drop=True)
+        return cls(df, source)
+
+    @classmethod
+    def from_records(cls, records: Iterable[Mapping[str, object]], source: str = "<table>") -> ModalTable:
+        return cls.from_frame(pd.DataFrame(list(records)), source)
+
+    @classmethod
+    def read_csv(cls, path: str | Path) -> ModalTable:
+        p = Path(path)
+        if not p.is_file():
+            raise ModalError(f"{p}: modal table not found")
+        try:
+            df = pd.read_csv(p, dtype={"config": str})
+        except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+            raise ModalError(f"{p}: not a readable CSV ({exc})") from None
+        return cls.from_frame(df, str(p))
+
+    def to_csv(self, path: str | Path) -> None:
+        """Write CSV; complex shapes as ``a+bj`` text, floats with full precision."""
+        df = self.frame.copy()
+        for col in self.shape_columns:
+            if np.iscomplexobj(df[col].to_numpy()):
+                df[col] = [f"{v.real:.9g}{v.imag:+.9g}j" for v in df[col].to_numpy()]
+        df.to_csv(path, index=False, float_format="%.9g")
+
+    # -- views ---------------------------------------------------------------------------------
+    @property
+    def configs(self) -> list[str]:
+        """Configuration ids in order of first appearance."""
+        return list(dict.fromkeys(self.frame["config"]))
+
+    @property
+    def pose_columns(self) -> list[str]:
+        return [c for c in self.frame.columns if c.startswith(POSE_PREFIX)]
+
+    @property
+    def shape_columns(self) -> list[str]:
+        return [c for c in self.frame.columns if c.startswith(SHAPE_PREFIX)]
+
+    @property
+    def sensors(self) -> list[str]:
+        return [c[len(SHAPE_PREFIX):] for c in self.shape_columns]
+
+    def rows(self, config: str) -> pd.DataFrame:
+        return self.frame[self.frame["config"] == config]
+
+    def freq_hz(self, config: str) -> np.ndarray:
+        return self.rows(config)["freq_hz"].to_numpy(float)
+
+    def pose(self, config: str) -> dict[str, float]:
+        """Pose of a configuration as {variable: value} without the ``pose.`` prefix."""
+        row = self.rows(config).iloc[0]
+        return {c[len(POSE_PREFIX):]: row[c] for c in self.pose_columns if pd.notna(row[c])}
+
+    def shapes(self, config: str, sensors: Sequence[str] | None = None) -> np.ndarray:
+        """Mode shapes [n_sensors, n_modes] of one configuration (NaN where absent)."""
+        cols = [SHAPE_PREFIX + s for s in (sensors if sensors is not None else self.sensors)]
+        rows = self.rows(config)
+        return np.array([rows[c].to_numpy() if c in rows else np.full(len(rows), np.nan) for c in cols])
+
+
+def poses_from_csv(path: str | Path) -> dict[str, dict[str, float]]:
+    """Read POSES.csv (CONTRACT §3 without mode/freq_hz): {config: {pose variable: value}}."""
+    p = Path(path)
+    if not p.is_file():
+        raise ModalError(f"{p}: poses file not found")
+    df = pd.read_csv(p, dtype={"config": str})
+    if "config" not in df.columns:
+        raise ModalError(f"{p}: missing required column 'config'")
+    cols = [c for c in df.columns if c.startswith(POSE_PREFIX)]
+    out: dict[str, dict[str, float]] = {}
+    for _, row in df.iterrows():
+        pose = {}
+        for c in cols:
+            value = pd.to_numeric(row[c], errors="coerce")
+            if pd.isna(value):
+                raise ModalError(f"{p}: config {row['config']!r}: {c} is not a number ({row[c]!r})")
+            pose[c[len(POSE_PREFIX):]] = float(value)
+        out[str(row["config"])] = pose
+    return out
