@@ -1,0 +1,282 @@
+"""HDF5 run store (CONTRACT §6): write runs block by block with SWMR, list them and read them back.
+
+A file holds one or more runs under ``/runs/<run_id>``.  Each run has a chunked, resizable ``samples``
+dataset [n_samples, n_channels] in physical units, a ``channels`` compound table, a resizable
+``events`` compound table and the attributes ``sample_rate_hz``, ``start_time`` (ISO 8601),
+``excitation`` and ``pose`` (JSON object string).  The writer opens the file with
+``libver="latest"``, creates every dataset of the run, then switches to SWMR mode, so another process
+can read the run while it grows (``h5py.File(path, "r", swmr=True)``) and a killed writer leaves a
+readable file holding everything up to the last flush (at most ``flush_interval_s`` old).  Strings in
+the tables are fixed-length UTF-8 because variable-length data cannot be appended under SWMR.
+See docs/hdf5-format.md.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from daq.errors import DaqError
+
+CHANNEL_KINDS = ("acceleration", "force", "strain", "encoder", "voltage", "other")
+EVENT_KINDS = ("trigger", "gap", "overload", "corrupt", "reconnect", "note")
+EXCITATIONS = ("impact", "random", "sweep", "free-decay", "operational")
+CHANNEL_FIELDS = ("name", "kind", "unit", "sensitivity", "sensitivity_unit", "location", "direction")
+EVENT_DETAIL_BYTES = 200
+CHUNK_BYTES = 1 << 20  # target size of one samples chunk
+
+
+@dataclass(frozen=True)
+class Channel:
+    """One measured channel: ``sensitivity`` is in ``sensitivity_unit`` (e.g. 10.2 mV/g, 2.25 pC/N)."""
+
+    name: str
+    kind: str
+    unit: str
+    sensitivity: float = 1.0
+    sensitivity_unit: str = ""
+    location: str = ""
+    direction: str = ""
+
+    def __post_init__(self) -> None:
+        if not self.name:
+            raise DaqError("channel: empty name")
+        if self.kind not in CHANNEL_KINDS:
+            raise DaqError(f"channel {self.name!r}: kind {self.kind!r} is not one of "
+                           f"{', '.join(CHANNEL_KINDS)}")
+
+
+@dataclass(frozen=True)
+class Event:
+    """Something that happened at ``sample_index`` of a run; ``count`` samples or frames involved."""
+
+    kind: str
+    sample_index: int
+    count: int = 1
+    detail: str = ""
+
+    def __post_init__(self) -> None:
+        if self.kind not in EVENT_KINDS:
+            raise DaqError(f"event kind {self.kind!r} is not one of {', '.join(EVENT_KINDS)}")
+        if self.sample_index < 0 or self.count < 0:
+            raise DaqError(f"event {self.kind}: negative sample_index or count")
+
+
+@dataclass(frozen=True)
+class Run:
+    """A stored run read back by :func:`read_run`; ``samples`` [n_samples, n_channels] physical units."""
+
+    path: Path
+    run_id: str
+    sample_rate_hz: float
+    start_time: str
+    excitation: str
+    pose: dict
+    channels: tuple[Channel, ...]
+    events: tuple[Event, ...]
+    samples: np.ndarray
+    attrs: dict = field(default_factory=dict)
+
+
+def _utf8(n_bytes: int) -> np.dtype:
+    return h5py.string_dtype("utf-8", max(int(n_bytes), 1))
+
+
+def _channel_table(channels: tuple[Channel, ...]) -> np.ndarray:
+    """Channels as a compound array; string widths fit the longest UTF-8 value (at least 16 bytes)."""
+    widths = {
+        f: max(16, *(len(str(getattr(c, f)).encode()) for c in channels))
+        for f in CHANNEL_FIELDS if f != "sensitivity"
+    }
+    dtype = np.dtype([(f, "f8") if f == "sensitivity" else (f, _utf8(widths[f])) for f in CHANNEL_FIELDS])
+    table = np.zeros(len(channels), dtype=dtype)
+    for f in CHANNEL_FIELDS:
+        values = [getattr(c, f) for c in channels]
+        table[f] = values if f == "sensitivity" else [str(v).encode() for v in values]
+    return table
+
+
+EVENT_DTYPE = np.dtype([("kind", _utf8(16)), ("sample_index", "i8"), ("count", "i8"),
+                        ("detail", _utf8(EVENT_DETAIL_BYTES))])
+
+
+def _truncate_utf8(text: str, n_bytes: int) -> bytes:
+    return text.encode()[:n_bytes].decode("utf-8", "ignore").encode()
+
+
+def _iso_now() -> str:
+    return datetime.now(UTC).isoformat(timespec="microseconds")
+
+
+class RunWriter:
+    """Append one run to an HDF5 file (created if missing) under SWMR; a context manager.
+
+    ``append(block)`` takes [n, n_channels] physical-unit samples; data and events are flushed to disk
+    at least every ``flush_interval_s`` seconds (and on ``flush()``/``close()``).  ``attrs`` are extra
+    run attributes (numbers or strings; anything else is stored as JSON).
+    """
+
+    def __init__(self, path: str | Path, run_id: str, *, sample_rate_hz: float, channels, excitation: str,
+                 pose: dict, start_time: str | None = None, attrs: dict | None = None,
+                 dtype: str = "float32", flush_interval_s: float = 0.5) -> None:
+        self.path = Path(path)
+        self.run_id = str(run_id)
+        self.channels = tuple(channels)
+        self._validate(sample_rate_hz, excitation, pose)
+        self.n_channels = len(self.channels)
+        self.flush_interval_s = float(flush_interval_s)
+        self._file = self._open()
+        try:
+            group = self._file.require_group("runs").create_group(self.run_id)
+            group.attrs["sample_rate_hz"] = float(sample_rate_hz)
+            group.attrs["start_time"] = start_time or _iso_now()
+            group.attrs["excitation"] = excitation
+            group.attrs["pose"] = json.dumps(pose)
+            for key, value in (attrs or {}).items():
+                ok = isinstance(value, (str, int, float, bool, np.number))
+                group.attrs[key] = value if ok else json.dumps(value)
+            group.create_dataset("channels", data=_channel_table(self.channels))
+            rows = int(max(256, min(65536, CHUNK_BYTES // (np.dtype(dtype).itemsize * self.n_channels))))
+            self._samples = group.create_dataset(
+                "samples", shape=(0, self.n_channels), maxshape=(None, self.n_channels),
+                chunks=(rows, self.n_channels), dtype=dtype)
+            self._events = group.create_dataset("events", shape=(0,), maxshape=(None,), chunks=(256,),
+                                                dtype=EVENT_DTYPE)
+            self._file.swmr_mode = True
+        except Exception:
+            self._file.close()
+            raise
+        self.n_samples = 0
+        self._n_events = 0
+        self._last_flush = time.monotonic()
+
+    def _validate(self, sample_rate_hz: float, excitation: str, pose: dict) -> None:
+        where = f"{self.path}: run {self.run_id!r}"
+        if not self.run_id or "/" in self.run_id:
+            raise DaqError(f"{self.path}: run id {self.run_id!r} must be non-empty without '/'")
+        if not self.channels or not all(isinstance(c, Channel) for c in self.channels):
+            raise DaqError(f"{where}: channels must be a non-empty sequence of Channel")
+        names = [c.name for c in self.channels]
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise DaqError(f"{where}: duplicate channel name {dup[0]!r}")
+        if not np.isfinite(sample_rate_hz) or sample_rate_hz <= 0:
+            raise DaqError(f"{where}: sample_rate_hz must be > 0, got {sample_rate_hz}")
+        if excitation not in EXCITATIONS:
+            raise DaqError(f"{where}: excitation {excitation!r} is not one of {', '.join(EXCITATIONS)}")
+        if not isinstance(pose, dict):
+            raise DaqError(f"{where}: pose must be a dict, got {type(pose).__name__}")
+
+    def _open(self) -> h5py.File:
+        try:
+            f = h5py.File(self.path, "a", libver="latest")
+        except OSError as exc:
+            if not self.path.parent.is_dir():
+                raise DaqError(f"{self.path}: directory {self.path.parent} does not exist") from exc
+            if "already open for write" in str(exc):
+                raise DaqError(f"{self.path}: file is open by another writer or was not closed cleanly "
+                               "(it stays readable with swmr=True; clear it with `h5clear -s`)") from exc
+            raise DaqError(f"{self.path}: cannot open for writing ({exc})") from exc
+        if f"runs/{self.run_id}" in f:
+            f.close()
+            raise DaqError(f"{self.path}: run {self.run_id!r} already exists")
+        return f
+
+    def __enter__(self) -> RunWriter:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def append(self, block: np.ndarray) -> None:
+        """Append samples [n, n_channels] (physical units)."""
+        block = np.asarray(block)
+        if block.ndim != 2 or block.shape[1] != self.n_channels:
+            raise DaqError(f"{self.path}: run {self.run_id!r}: block shape {block.shape} is not "
+                           f"[n, {self.n_channels}]")
+        n = block.shape[0]
+        if n:
+            self._samples.resize(self.n_samples + n, axis=0)
+            self._samples[self.n_samples:] = block
+            self.n_samples += n
+        self._maybe_flush()
+
+    def add_event(self, event: Event) -> None:
+        """Record an event (written at once, flushed with the samples)."""
+        self.add_events((event,))
+
+    def add_events(self, events) -> None:
+        """Record several events in one resize."""
+        events = tuple(events)
+        if not events:
+            return
+        rec = np.zeros(len(events), dtype=EVENT_DTYPE)
+        rec["kind"] = [e.kind.encode() for e in events]
+        rec["sample_index"] = [e.sample_index for e in events]
+        rec["count"] = [e.count for e in events]
+        rec["detail"] = [_truncate_utf8(e.detail, EVENT_DETAIL_BYTES) for e in events]
+        self._events.resize(self._n_events + len(events), axis=0)
+        self._events[self._n_events:] = rec
+        self._n_events += len(events)
+        self._maybe_flush()
+
+    def _maybe_flush(self) -> None:
+        if time.monotonic() - self._last_flush >= self.flush_interval_s:
+            self.flush()
+
+    def flush(self) -> None:
+        """Make everything appended so far visible to readers and durable against a crash."""
+        self._samples.flush()
+        self._events.flush()
+        self._file.flush()
+        self._last_flush = time.monotonic()
+
+    def close(self) -> None:
+        if self._file.id.valid:
+            self.flush()
+            self._file.close()
+
+
+def _open_read(path: str | Path) -> h5py.File:
+    """Open for reading; SWMR read works for files being written and for files of a killed writer."""
+    return h5py.File(path, "r", libver="latest", swmr=True)
+
+
+def list_runs(path: str | Path) -> list[str]:
+    """Run ids stored in ``path`` (sorted)."""
+    with _open_read(path) as f:
+        return sorted(f["runs"].keys()) if "runs" in f else []
+
+
+def _text(value) -> str:
+    return value.decode() if isinstance(value, bytes) else str(value)
+
+
+def read_run(path: str | Path, run_id: str) -> Run:
+    """Read one run completely into memory."""
+    with _open_read(path) as f:
+        key = f"runs/{run_id}"
+        if key not in f:
+            known = ", ".join(sorted(f["runs"])) if "runs" in f else "none"
+            raise DaqError(f"{path}: no run {run_id!r} (runs: {known})")
+        g = f[key]
+        for item in ("samples", "channels", "events"):
+            if item not in g:
+                raise DaqError(f"{path}: run {run_id!r} has no {item!r} dataset")
+        table = g["channels"][()]
+        channels = tuple(
+            Channel(**{k: float(r[k]) if k == "sensitivity" else _text(r[k]) for k in CHANNEL_FIELDS})
+            for r in table)
+        events = tuple(Event(_text(r["kind"]), int(r["sample_index"]), int(r["count"]), _text(r["detail"]))
+                       for r in g["events"][()])
+        attrs = {k: (_text(v) if isinstance(v, bytes) else v) for k, v in g.attrs.items()}
+        return Run(path=Path(path), run_id=run_id, sample_rate_hz=float(attrs.pop("sample_rate_hz")),
+                   start_time=_text(attrs.pop("start_time")), excitation=_text(attrs.pop("excitation")),
+                   pose=json.loads(attrs.pop("pose")), channels=channels, events=events,
+                   samples=g["samples"][()], attrs=attrs)
