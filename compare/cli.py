@@ -1,9 +1,52 @@
-"""CLI commands of the `compare` package (registered by app.py)."""
+"""CLI commands of the `compare` package (registered by app.py): ``flexmodal compare``."""
 
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this package's sub-commands to the flexmodal parser."""
+    p = sub.add_parser(
+        "compare",
+        help="table of measured vs predicted modes (paired by MAC or frequency order)",
+        description="Pair every predicted modal table with the measured one (by MAC where both have "
+                    "shapes at two or more common sensors, else by ascending frequency) and print a "
+                    "table: frequencies [Hz], measured damping ratio [%], error (pred - meas)/meas [%] "
+                    "and MAC [-]. Unpaired modes are listed, never dropped.",
+    )
+    p.add_argument("measured", metavar="MEASURED.csv", help="measured modal table (CONTRACT §3)")
+    p.add_argument("predicted", metavar="PRED.csv", nargs="+",
+                   help="predicted modal tables; each names its source by its 'source' column, "
+                        "else by its file name")
+    p.add_argument("--format", choices=("md", "csv", "tex", "html"), default="md",
+                   help="output format: Markdown, CSV, LaTeX booktabs table or HTML page (default md)")
+    p.add_argument("--layout", choices=("modes", "sources"), default="modes",
+                   help="modes: a row per mode, a column per source (seed 001 Table 3.1); "
+                        "sources: a row per source, a column per mode (seed 000 Table 2); default modes")
+    p.add_argument("--min-mac", type=float, default=0.5, metavar="MAC",
+                   help="reject MAC pairs below this value, 0..1 (default 0.5)")
+    p.add_argument("--caption", default="Measured and predicted natural frequencies",
+                   help="table caption (tex and html)")
+    p.add_argument("--out", metavar="FILE",
+                   help="write the table to FILE (prints the path) instead of stdout")
+    p.set_defaults(func=_run)
+
+
+def _run(args: argparse.Namespace) -> int:
+    from compare.errors import CompareError
+    from compare.tables import load_comparison, render
+
+    if not 0.0 <= args.min_mac <= 1.0:
+        raise CompareError(f"--min-mac: must lie in [0, 1] (got {args.min_mac})")
+    comp = load_comparison(args.measured, args.predicted, min_mac=args.min_mac)
+    text = render(comp, args.format, args.layout, args.caption)
+    if args.out:
+        out = Path(args.out)
+        out.write_text(text, encoding="utf-8")
+        print(out)
+    else:
+        sys.stdout.write(text)
+    return 0

@@ -1,0 +1,152 @@
+"""Pairing of measured and predicted modes, configuration by configuration.
+
+Where both tables hold mode shapes at two or more common sensors, modes are paired by an optimal
+assignment (Hungarian method, ``scipy.optimize.linear_sum_assignment``) on the cost ``1 - MAC`` plus a
+small frequency term ``freq_weight * |ln(f_pred / f_meas)|`` that breaks ties between shapes the sensors
+cannot tell apart; a pair whose MAC is below ``min_mac`` is rejected and both modes are listed as
+unpaired.  Without usable shapes the modes are paired in ascending frequency order (1st with 1st, ...).
+The Modal Assurance Criterion is Allemang & Brown (1982): MAC = |a^H b|^2 / ((a^H a)(b^H b)).
+
+Every mode ends up either in a pair or in one of the unpaired lists; nothing is dropped silently.
+Relative errors are fractions: (f_pred - f_meas) / f_meas.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from modal.table import ModalTable
+
+MIN_MAC = 0.5
+FREQ_WEIGHT = 1e-3
+
+
+def mac_matrix(phi_a: np.ndarray, phi_b: np.ndarray) -> np.ndarray:
+    """MAC between every column of ``phi_a`` [n_s, n_a] and of ``phi_b`` [n_s, n_b] -> [n_a, n_b].
+
+    Real or complex shapes; a zero-norm column gives MAC 0 against everything.
+    """
+    a = np.asarray(phi_a, dtype=complex)
+    b = np.asarray(phi_b, dtype=complex)
+    cross = np.abs(a.conj().T @ b) ** 2
+    norms = np.outer(np.sum(np.abs(a) ** 2, axis=0), np.sum(np.abs(b) ** 2, axis=0))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mac = np.where(norms > 0, cross / np.where(norms > 0, norms, 1.0), 0.0)
+    return mac.real
+
+
+@dataclass(frozen=True)
+class ModeRef:
+    """One mode of one table: configuration, 1-based mode number, frequency [Hz]."""
+
+    config: str
+    mode: int
+    freq_hz: float
+
+
+@dataclass(frozen=True)
+class Pair:
+    """A measured mode and the predicted mode paired with it; ``mac`` is NaN when paired by frequency."""
+
+    measured: ModeRef
+    predicted: ModeRef
+    mac: float
+    method: str  # "mac" | "frequency"
+
+    @property
+    def rel_error(self) -> float:
+        """(f_pred - f_meas) / f_meas, a fraction (NaN for a 0 Hz measured mode)."""
+        f = self.measured.freq_hz
+        return (self.predicted.freq_hz - f) / f if f > 0 else float("nan")
+
+
+@dataclass(frozen=True)
+class Pairing:
+    """The pairing of one predicted source against the measured table."""
+
+    source: str
+    pairs: tuple[Pair, ...]
+    unpaired_measured: tuple[ModeRef, ...]  # measured modes the source has no partner for
+    unpaired_predicted: tuple[ModeRef, ...]  # predicted modes matching no measured one (spurious/extra)
+
+    def pair_of(self, config: str, measured_mode: int) -> Pair | None:
+        for p in self.pairs:
+            if p.measured.config == config and p.measured.mode == measured_mode:
+                return p
+        return None
+
+
+def common_sensors(measured: ModalTable, predicted: ModalTable, config: str) -> list[str]:
+    """Sensors where both tables give a finite shape value for every mode of ``config``."""
+    out = []
+    for s in measured.sensors:
+        if s not in predicted.sensors:
+            continue
+        a = measured.shapes(config, [s])
+        b = predicted.shapes(config, [s])
+        if np.all(np.isfinite(a)) and np.all(np.isfinite(b)):
+            out.append(s)
+    return out
+
+
+def _refs(table: ModalTable, config: str) -> list[ModeRef]:
+    rows = table.rows(config)
+    return [ModeRef(config, int(m), float(f)) for m, f in zip(rows["mode"], rows["freq_hz"], strict=True)]
+
+
+def _pair_by_mac(meas: list[ModeRef], pred: list[ModeRef], mac: np.ndarray, min_mac: float,
+                 freq_weight: float) -> list[Pair]:
+    fm = np.array([r.freq_hz for r in meas])
+    fp = np.array([r.freq_hz for r in pred])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        spread = np.abs(np.log(np.maximum(fp[None, :], 1e-300) / np.maximum(fm[:, None], 1e-300)))
+    cost = 1.0 - mac + freq_weight * np.nan_to_num(spread, nan=1e3, posinf=1e3)
+    rows, cols = linear_sum_assignment(cost)
+    return [Pair(meas[i], pred[j], float(mac[i, j]), "mac")
+            for i, j in zip(rows, cols, strict=True) if mac[i, j] >= min_mac]
+
+
+def _pair_by_frequency(meas: list[ModeRef], pred: list[ModeRef]) -> list[Pair]:
+    ms = sorted(meas, key=lambda r: r.freq_hz)
+    ps = sorted(pred, key=lambda r: r.freq_hz)
+    return [Pair(a, b, float("nan"), "frequency") for a, b in zip(ms, ps, strict=False)]
+
+
+def pair_modes(measured: ModalTable, predicted: ModalTable, source: str = "prediction", *,
+               min_mac: float = MIN_MAC, freq_weight: float = FREQ_WEIGHT) -> Pairing:
+    """Pair the modes of ``predicted`` with those of ``measured`` in every configuration.
+
+    By MAC (optimal assignment on 1 - MAC, frequency tie-break) where both have shapes at two or more
+    common sensors, otherwise by ascending frequency.  Configurations present on one side only leave
+    all their modes unpaired.
+    """
+    pairs: list[Pair] = []
+    lone_meas: list[ModeRef] = []
+    lone_pred: list[ModeRef] = []
+    pred_configs = set(predicted.configs)
+    for config in measured.configs:
+        meas = _refs(measured, config)
+        if config not in pred_configs:
+            lone_meas += meas
+            continue
+        pred = _refs(predicted, config)
+        sensors = common_sensors(measured, predicted, config)
+        if len(sensors) >= 2:
+            mac = mac_matrix(measured.shapes(config, sensors), predicted.shapes(config, sensors))
+            found = _pair_by_mac(meas, pred, mac, min_mac, freq_weight)
+        else:
+            found = _pair_by_frequency(meas, pred)
+        pairs += found
+        used_m = {p.measured.mode for p in found}
+        used_p = {p.predicted.mode for p in found}
+        lone_meas += [r for r in meas if r.mode not in used_m]
+        lone_pred += [r for r in pred if r.mode not in used_p]
+    meas_configs = set(measured.configs)
+    for config in predicted.configs:
+        if config not in meas_configs:
+            lone_pred += _refs(predicted, config)
+    pairs.sort(key=lambda p: (measured.configs.index(p.measured.config), p.measured.mode))
+    return Pairing(source, tuple(pairs), tuple(lone_meas), tuple(lone_pred))

@@ -1,0 +1,299 @@
+"""Comparison tables of measured and predicted modes (the layouts of seed 001 Table 3.1 and seed 000 Table 2).
+
+``compare_tables`` pairs every predicted source with the measured table (compare.pairing) and
+``render`` writes the result as Markdown, CSV, LaTeX (booktabs) or an HTML table.  Two layouts:
+
+* ``modes`` (Table 3.1): a row per measured mode (per configuration), columns the predicted sources'
+  frequencies [Hz], the experiment [Hz], the measured damping ratio ζ [%], each source's error
+  Δf = (f_pred - f_meas) / f_meas [%] and, where pairing used shapes, its MAC.  Predicted modes that
+  pair with no measured mode get rows of their own with the experiment cells empty.
+* ``sources`` (Table 2): a row per source (experiment, ζ and errors included), a column per mode.
+
+Units sit in every header: f [Hz], ζ [%], Δf [%], MAC [-] (dimensionless, 0..1).  Modes that stay
+unpaired are listed in the notes under the table (and as rows in the ``modes`` layout).
+"""
+
+from __future__ import annotations
+
+import csv
+import html
+import io
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from compare.errors import CompareError
+from compare.pairing import MIN_MAC, Pairing, pair_modes
+from modal.table import ModalTable
+
+FORMATS = ("md", "csv", "tex", "html")
+LAYOUTS = ("modes", "sources")
+
+# per format: how each quantity is labelled (the unit is part of the label)
+_LABELS = {
+    "md": {"f": "f [Hz]", "zeta": "ζ [%]", "err": "Δf [%]", "mac": "MAC [-]", "mode": "mode"},
+    "html": {"f": "f [Hz]", "zeta": "ζ [%]", "err": "Δf [%]", "mac": "MAC [-]", "mode": "mode"},
+    "tex": {"f": "$f$ [Hz]", "zeta": r"$\zeta$ [\%]", "err": r"$\Delta f$ [\%]", "mac": "MAC [--]",
+            "mode": "mode"},
+    "csv": {"f": "freq_hz", "zeta": "damping_pct", "err": "err_pct", "mac": "mac", "mode": "mode"},
+}
+_DIGITS = {"f": "{:.2f}", "zeta": "{:.2f}", "err": "{:+.1f}", "mac": "{:.3f}", "mode": "{:d}"}
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """A measured table and the pairing of every predicted source against it."""
+
+    measured_name: str
+    measured: ModalTable
+    predictions: tuple[tuple[str, ModalTable], ...]
+    pairings: tuple[Pairing, ...]
+
+    @property
+    def configs(self) -> list[str]:
+        configs = list(self.measured.configs)
+        for _, table in self.predictions:
+            configs += [c for c in table.configs if c not in configs]
+        return configs
+
+    @property
+    def has_damping(self) -> bool:
+        df = self.measured.frame
+        return "damping_ratio" in df and bool(np.isfinite(df["damping_ratio"].to_numpy(float)).any())
+
+    def notes(self) -> list[str]:
+        """One line per unpaired mode, naming source, configuration, mode and frequency [Hz]."""
+        out = []
+        for p in self.pairings:
+            for r in p.unpaired_predicted:
+                out.append(f"{p.source}: mode {r.mode} of {r.config} ({r.freq_hz:.2f} Hz) "
+                           f"pairs with no measured mode")
+            for r in p.unpaired_measured:
+                out.append(f"{p.source}: no predicted mode pairs with measured mode {r.mode} of "
+                           f"{r.config} ({r.freq_hz:.2f} Hz)")
+        return out
+
+
+def table_name(table: ModalTable, fallback: str) -> str:
+    """The table's single ``source`` column value, else ``fallback`` (e.g. the file stem)."""
+    if "source" in table.frame:
+        values = table.frame["source"].dropna().astype(str).unique()
+        if len(values) == 1 and values[0].strip():
+            return str(values[0])
+    return fallback
+
+
+def compare_tables(measured: ModalTable, predictions: Sequence[tuple[str, ModalTable]], *,
+                   measured_name: str = "experiment", min_mac: float = MIN_MAC) -> Comparison:
+    """Pair each (name, predicted table) with ``measured``; repeated names get a ``#2``, ``#3`` suffix."""
+    if not predictions:
+        raise CompareError("compare needs at least one predicted modal table")
+    named: list[tuple[str, ModalTable]] = []
+    seen: dict[str, int] = {measured_name: 1}
+    for name, table in predictions:
+        seen[name] = seen.get(name, 0) + 1
+        named.append((name if seen[name] == 1 else f"{name}#{seen[name]}", table))
+    pairings = tuple(pair_modes(measured, t, n, min_mac=min_mac) for n, t in named)
+    return Comparison(measured_name, measured, tuple(named), pairings)
+
+
+# ---------------------------------------------------------------------------------------------
+# the grid: header cells (source, quantity) and rows of (quantity, value) cells
+
+
+@dataclass(frozen=True)
+class _Col:
+    source: str  # "" for config / mode columns
+    quantity: str  # config | mode | f | zeta | err | mac
+
+
+def _modes_grid(comp: Comparison) -> tuple[list[_Col], list[list[object]]]:
+    multi = len(comp.configs) > 1
+    cols = ([_Col("", "config")] if multi else []) + [_Col("", "mode")]
+    cols += [_Col(name, "f") for name, _ in comp.predictions]
+    cols += [_Col(comp.measured_name, "f")] + ([_Col(comp.measured_name, "zeta")] if comp.has_damping else [])
+    cols += [_Col(name, "err") for name, _ in comp.predictions]
+    cols += [_Col(p.source, "mac") for p in comp.pairings if any(q.method == "mac" for q in p.pairs)]
+    meas = comp.measured.frame
+    rows: list[list[object]] = []
+    for config in comp.configs:
+        for _, m in meas[meas["config"] == config].iterrows():
+            cells: dict[tuple[str, str], object] = {("", "config"): config, ("", "mode"): int(m["mode"]),
+                                                    (comp.measured_name, "f"): float(m["freq_hz"])}
+            if comp.has_damping:
+                cells[(comp.measured_name, "zeta")] = 100.0 * float(m["damping_ratio"])
+            for p in comp.pairings:
+                pair = p.pair_of(config, int(m["mode"]))
+                if pair is not None:
+                    cells[(p.source, "f")] = pair.predicted.freq_hz
+                    cells[(p.source, "err")] = 100.0 * pair.rel_error
+                    cells[(p.source, "mac")] = pair.mac
+            rows.append([cells.get((c.source, c.quantity)) for c in cols])
+        for p in comp.pairings:
+            for r in (r for r in p.unpaired_predicted if r.config == config):
+                cells = {("", "config"): config, (p.source, "f"): r.freq_hz}
+                rows.append([cells.get((c.source, c.quantity)) for c in cols])
+    return cols, rows
+
+
+def _sources_grid(comp: Comparison) -> tuple[list[_Col], list[list[object]]]:
+    meas = comp.measured.frame
+    modes = sorted(int(m) for m in meas["mode"].unique())
+    multi = len(comp.configs) > 1
+    cols = ([_Col("", "config")] if multi else []) + [_Col("", "source"), _Col("", "quantity")]
+    cols += [_Col(f"mode {m}", "cell") for m in modes]
+    rows: list[list[object]] = []
+    for config in comp.measured.configs:
+        sub = meas[meas["config"] == config].set_index("mode")
+        lines: list[tuple[str, str, dict[int, float]]] = []
+        for p in comp.pairings:
+            pairs = [q for q in p.pairs if q.measured.config == config]
+            lines.append((p.source, "f", {q.measured.mode: q.predicted.freq_hz for q in pairs}))
+        lines.append((comp.measured_name, "f", sub["freq_hz"].to_dict()))
+        if comp.has_damping:
+            lines.append((comp.measured_name, "zeta", (100.0 * sub["damping_ratio"]).to_dict()))
+        for p in comp.pairings:
+            pairs = [q for q in p.pairs if q.measured.config == config]
+            lines.append((p.source, "err", {q.measured.mode: 100.0 * q.rel_error for q in pairs}))
+        for source, quantity, values in lines:
+            head: list[object] = ([config] if multi else []) + [source, quantity]
+            rows.append(head + [(quantity, values.get(m)) for m in modes])
+    return cols, rows
+
+
+def _fmt(quantity: str, value: object) -> str:
+    if value is None or (isinstance(value, float) and not np.isfinite(value)):
+        return ""
+    if isinstance(value, tuple):  # (quantity, value) cell of the sources layout
+        return _fmt(*value)
+    if quantity in _DIGITS and not isinstance(value, str):
+        return _DIGITS[quantity].format(int(value) if quantity == "mode" else float(value))
+    return str(value)
+
+
+def _header(col: _Col, fmt: str) -> str:
+    """Header text, already safe for ``fmt`` (LaTeX-escaped for tex)."""
+    labels = _LABELS[fmt]
+    esc = _tex_escape if fmt == "tex" else str
+    if col.quantity in ("config", "source", "quantity"):
+        return col.quantity
+    if col.quantity == "cell":
+        return esc(col.source) + {"csv": "", "tex": r" [Hz, \%]"}.get(fmt, " [Hz, %]")
+    if not col.source:
+        return labels[col.quantity]
+    if fmt == "csv":
+        return f"{col.source}_{labels[col.quantity]}"
+    return f"{esc(col.source)} {labels[col.quantity]}"
+
+
+def _cells(cols: list[_Col], rows: list[list[object]], fmt: str) -> list[list[str]]:
+    """Body text, already safe for ``fmt`` (LaTeX-escaped for tex)."""
+    labels = _LABELS[fmt]
+    esc = _tex_escape if fmt == "tex" else str
+    return [[labels[str(v)] if c.quantity == "quantity" else esc(_fmt(c.quantity, v))
+             for c, v in zip(cols, row, strict=True)] for row in rows]
+
+
+# ---------------------------------------------------------------------------------------------
+# renderers
+
+
+def _tex_escape(text: str) -> str:
+    for a, b in (("\\", r"\textbackslash{}"), ("&", r"\&"), ("%", r"\%"), ("_", r"\_"), ("#", r"\#"),
+                 ("ζ", r"$\zeta$"), ("Δ", r"$\Delta$")):
+        text = text.replace(a, b)
+    return text
+
+
+def _render_md(head: list[str], body: list[list[str]], notes: list[str]) -> str:
+    align = ["---" if i == 0 else "---:" for i in range(len(head))]
+    lines = ["| " + " | ".join(r) + " |" for r in [head, align, *body]]
+    if notes:
+        lines += [""] + [f"- {n}" for n in notes]
+    return "\n".join(lines) + "\n"
+
+
+def _render_csv(head: list[str], body: list[list[str]]) -> str:
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(head)
+    writer.writerows(body)
+    return buf.getvalue()
+
+
+def _render_tex(head: list[str], body: list[list[str]], notes: list[str], caption: str) -> str:
+    spec = "l" + "r" * (len(head) - 1)
+    lines = [r"\begin{table}[htbp]", r"\centering", rf"\caption{{{_tex_escape(caption)}}}",
+             rf"\begin{{tabular}}{{{spec}}}", r"\toprule", " & ".join(head) + r" \\", r"\midrule"]
+    lines += [" & ".join(row) + r" \\" for row in body]
+    lines += [r"\bottomrule", r"\end{tabular}"]
+    if notes:
+        lines += [r"\par\smallskip\footnotesize", r"\begin{itemize}"]
+        lines += [rf"\item {_tex_escape(n)}" for n in notes] + [r"\end{itemize}"]
+    lines.append(r"\end{table}")
+    return "\n".join(lines) + "\n"
+
+
+def html_table(head: list[str], body: list[list[str]], notes: list[str], caption: str) -> str:
+    """An HTML ``<table>`` (plus a notes list); text escaped, numbers right-aligned by class."""
+    e = html.escape
+    parts = ['<table class="modal-table">', f"<caption>{e(caption)}</caption>", "<thead><tr>"]
+    parts += [f"<th>{e(h)}</th>" for h in head] + ["</tr></thead>", "<tbody>"]
+    for row in body:
+        cells = "".join(f'<td class="{"num" if i else "key"}">{e(c)}</td>' for i, c in enumerate(row))
+        parts.append(f"<tr>{cells}</tr>")
+    parts.append("</tbody></table>")
+    if notes:
+        parts.append('<ul class="notes">' + "".join(f"<li>{e(n)}</li>" for n in notes) + "</ul>")
+    return "\n".join(parts)
+
+
+_HTML_PAGE = """<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>{title}</title>
+<style>body{{font-family:sans-serif;margin:2em}} table{{border-collapse:collapse}}
+th,td{{border-bottom:1px solid #ccc;padding:.25em .6em}} td.num{{text-align:right}}</style>
+</head><body>
+{table}
+</body></html>
+"""
+
+
+def render(comp: Comparison, fmt: str = "md", layout: str = "modes",
+           caption: str = "Measured and predicted natural frequencies") -> str:
+    """The comparison as text in ``fmt`` (md | csv | tex | html); html is a complete page."""
+    if fmt not in FORMATS:
+        raise CompareError(f"--format: unknown format {fmt!r} (expected one of {', '.join(FORMATS)})")
+    if layout not in LAYOUTS:
+        raise CompareError(f"--layout: unknown layout {layout!r} (expected one of {', '.join(LAYOUTS)})")
+    cols, rows = _modes_grid(comp) if layout == "modes" else _sources_grid(comp)
+    label_fmt = "md" if fmt == "html" else fmt
+    head = [_header(c, label_fmt) for c in cols]
+    body = _cells(cols, rows, label_fmt)
+    notes = comp.notes()
+    if fmt == "md":
+        return _render_md(head, body, notes)
+    if fmt == "csv":
+        return _render_csv(head, body)
+    if fmt == "tex":
+        return _render_tex(head, body, notes, caption)
+    return _HTML_PAGE.format(title=html.escape(caption), table=html_table(head, body, notes, caption))
+
+
+def html_fragment(comp: Comparison, layout: str = "modes",
+                  caption: str = "Measured and predicted natural frequencies") -> str:
+    """The comparison as an HTML ``<table>`` fragment (used by the report)."""
+    cols, rows = _modes_grid(comp) if layout == "modes" else _sources_grid(comp)
+    return html_table([_header(c, "md") for c in cols], _cells(cols, rows, "md"), comp.notes(), caption)
+
+
+def load_comparison(measured_path: str | Path, pred_paths: Sequence[str | Path], *,
+                    min_mac: float = MIN_MAC) -> Comparison:
+    """Read the ModalTable CSVs and compare; names from each file's ``source`` column or file stem."""
+    measured = ModalTable.read_csv(measured_path)
+    preds = []
+    for path in pred_paths:
+        table = ModalTable.read_csv(path)
+        preds.append((table_name(table, Path(path).stem), table))
+    return compare_tables(measured, preds, measured_name=table_name(measured, "experiment"), min_mac=min_mac)

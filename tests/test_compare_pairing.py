@@ -1,0 +1,97 @@
+"""Mode pairing: MAC (known exact values), optimal assignment with shuffled and spurious modes, fallback."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from compare.pairing import mac_matrix, pair_modes
+from modal.table import ModalTable
+
+# clamped-free Euler-Bernoulli beam: beta_n L roots (Blevins 1979, table 8-1)
+BETA_L = np.array([1.87510407, 4.69409113, 7.85475744, 10.99554073, 14.13716839])
+
+
+def cantilever_shapes(x_over_l: np.ndarray) -> np.ndarray:
+    """Exact clamped-free bending shapes [n_points, 5] at fractions of the length."""
+    b = BETA_L[None, :]
+    x = x_over_l[:, None] * b
+    sigma = (np.cosh(b) + np.cos(b)) / (np.sinh(b) + np.sin(b))
+    return np.cosh(x) - np.cos(x) - sigma * (np.sinh(x) - np.sin(x))
+
+
+def table(config_freqs_shapes, sensors, source):
+    records = []
+    for config, modes in config_freqs_shapes.items():
+        for mode, (f, shape) in modes.items():
+            rec = {"config": config, "mode": mode, "freq_hz": f, "source": source}
+            rec.update({f"shape.{s}": v for s, v in zip(sensors, shape, strict=True)})
+            records.append(rec)
+    return ModalTable.from_records(records, source)
+
+
+def test_mac_known_values():
+    a = np.array([[1.0, 0.0], [0.0, 1.0], [0.0, 0.0]])
+    b = np.array([[2.0, 1.0], [0.0, 1.0], [0.0, 0.0]])
+    mac = mac_matrix(a, b)
+    np.testing.assert_allclose(mac, [[1.0, 0.5], [0.0, 0.5]], atol=1e-15)
+    # complex scaling does not change the MAC; a complex shape against its real part
+    phi = np.array([[1.0], [2.0], [-0.5]])
+    np.testing.assert_allclose(mac_matrix(phi * (0.3 - 2.0j), phi), [[1.0]], atol=1e-14)
+    assert mac_matrix(np.zeros((3, 1)), phi)[0, 0] == 0.0
+
+
+def test_shuffled_measured_modes_with_a_spurious_mode_are_paired_by_mac():
+    rng = np.random.default_rng(7)
+    sensors = [f"s{i}" for i in range(8)]
+    x = np.linspace(0.15, 1.0, 8)
+    phi = cantilever_shapes(x)
+    f_true = 25.3 * BETA_L**2 / BETA_L[0] ** 2
+    predicted = table({"theta0": {k + 1: (f_true[k], phi[:, k]) for k in range(5)}}, sensors, "fe")
+
+    # measured: frequencies off by up to 25 % (so frequency order would pair wrongly), noisy shapes,
+    # mode numbers shuffled, plus a spurious mode whose shape is orthogonal to every true one
+    f_meas = f_true * np.array([1.02, 1.25, 0.80, 1.05, 0.97])
+    shapes_meas = phi * rng.choice([-1.0, 1.0], 5) + 0.03 * np.abs(phi).max() * rng.standard_normal(phi.shape)
+    q, _ = np.linalg.qr(np.column_stack([phi, rng.standard_normal(8)]))
+    spurious = q[:, -1]
+    order = rng.permutation(6)  # measured mode number of each of the 5 true modes and the spurious one
+    modes = {int(order[k]) + 1: (f_meas[k], shapes_meas[:, k]) for k in range(5)}
+    modes[int(order[5]) + 1] = (0.5 * (f_true[1] + f_true[2]), spurious)
+    measured = table({"theta0": modes}, sensors, "experiment")
+
+    pairing = pair_modes(measured, predicted, "fe")
+    got = {p.predicted.mode: p.measured.mode for p in pairing.pairs}
+    assert got == {k + 1: int(order[k]) + 1 for k in range(5)}
+    assert [r.mode for r in pairing.unpaired_measured] == [int(order[5]) + 1]
+    assert pairing.unpaired_predicted == ()
+    assert all(p.method == "mac" and p.mac > 0.98 for p in pairing.pairs)
+    for p in pairing.pairs:
+        k = p.predicted.mode - 1
+        assert p.rel_error == pytest.approx((f_true[k] - f_meas[k]) / f_meas[k], rel=1e-12)
+
+
+def test_frequency_order_without_shapes_and_lone_configs():
+    measured = ModalTable.from_records(
+        [{"config": "a", "mode": m, "freq_hz": f} for m, f in ((1, 10.0), (2, 30.0), (3, 50.0))]
+        + [{"config": "only-measured", "mode": 1, "freq_hz": 7.0}])
+    predicted = ModalTable.from_records(
+        [{"config": "a", "mode": m, "freq_hz": f} for m, f in ((1, 11.0), (2, 27.0))]
+        + [{"config": "only-predicted", "mode": 1, "freq_hz": 8.0}])
+    p = pair_modes(measured, predicted, "m")
+    assert [(q.measured.mode, q.predicted.mode, q.method) for q in p.pairs] == [
+        (1, 1, "frequency"), (2, 2, "frequency")]
+    assert p.pairs[0].rel_error == pytest.approx(0.1, rel=1e-14)
+    assert p.pairs[1].rel_error == pytest.approx(-0.1, rel=1e-14)
+    assert np.isnan(p.pairs[0].mac)
+    assert {(r.config, r.mode) for r in p.unpaired_measured} == {("a", 3), ("only-measured", 1)}
+    assert [(r.config, r.mode) for r in p.unpaired_predicted] == [("only-predicted", 1)]
+
+
+def test_low_mac_pair_is_rejected():
+    sensors = ["a", "b", "c"]
+    measured = table({"c": {1: (10.0, [1.0, 0.0, 0.0])}}, sensors, "experiment")
+    predicted = table({"c": {1: (10.5, [0.0, 1.0, 0.2])}}, sensors, "fe")
+    p = pair_modes(measured, predicted, "fe")
+    assert p.pairs == ()
+    assert [r.mode for r in p.unpaired_measured] == [1] and [r.mode for r in p.unpaired_predicted] == [1]
