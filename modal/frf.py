@@ -1,0 +1,119 @@
+"""FRF estimators and coherence from averaged spectra (Bendat & Piersol 2010 §9; Maia & Silva 1997 §3.8).
+
+``H1 = G_xf G_ff^-1`` (noise on outputs), ``H2 = G_xx / G_fx`` (noise on the input; single reference),
+``Hv`` the total-least-squares estimate between them (single reference, equal noise ratio).  Ordinary
+coherence for one reference, multiple coherence ``G_xf G_ff^-1 G_fx / G_xx`` for several.  FRF
+quantities convert by powers of ``i omega``: accelerance = i omega mobility = (i omega)^2 receptance.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from modal.errors import ModalError
+from modal.spectra import Spectra
+
+ESTIMATORS = ("H1", "H2", "Hv")
+QUANTITIES = {"receptance": 0, "mobility": 1, "accelerance": 2}
+QUANTITY_OF_RESPONSE = {"displacement": "receptance", "velocity": "mobility", "acceleration": "accelerance"}
+
+
+@dataclass(frozen=True)
+class FrfResult:
+    """FRFs of one test: ``H`` [n_out, n_in, n_freq] complex (response unit per input unit),
+    ``coherence`` [n_out, n_freq] (ordinary, or multiple for several inputs), ``freq_hz`` [n_freq],
+    with the processing that produced them (the provenance written to ``/runs/<id>/frf``)."""
+
+    freq_hz: np.ndarray
+    H: np.ndarray
+    coherence: np.ndarray
+    estimator: str
+    window: str
+    nfft: int
+    n_averages: int
+    sample_rate_hz: float
+    quantity: str = "accelerance"
+    outputs: tuple[str, ...] = ()
+    inputs: tuple[str, ...] = ()
+    decay_rate_per_s: float = 0.0
+    provenance: dict = field(default_factory=dict)
+
+
+def _solve_inputs(g_xf: np.ndarray, g_ff: np.ndarray) -> np.ndarray:
+    """G_xf G_ff^-1 for every line: [n_out, n_in, f] (batched solve, no loop over lines)."""
+    a = np.moveaxis(g_ff, -1, 0)                      # [f, i, j]
+    b = np.moveaxis(g_xf, -1, 0)                      # [f, o, i]
+    # H G_ff = G_xf  <=>  G_ff^T H^T = G_xf^T
+    x = np.linalg.solve(np.swapaxes(a, 1, 2), np.swapaxes(b, 1, 2))
+    return np.moveaxis(np.swapaxes(x, 1, 2), 0, -1)
+
+
+def h1(s: Spectra) -> np.ndarray:
+    """H1 estimator [n_out, n_in, f]."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if s.g_ff.shape[0] == 1:
+            return s.g_xf / s.g_ff[0, 0].real
+        return _solve_inputs(s.g_xf, s.g_ff)
+
+
+def _single_input(s: Spectra, name: str) -> None:
+    if s.g_ff.shape[0] != 1:
+        raise ModalError(f"estimator {name}: needs a single reference (this test has {s.g_ff.shape[0]})")
+
+
+def h2(s: Spectra) -> np.ndarray:
+    """H2 estimator G_xx / G_fx [n_out, 1, f] (single reference)."""
+    _single_input(s, "H2")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return (s.g_xx / s.g_xf[:, 0].conj())[:, None, :]
+
+
+def hv(s: Spectra) -> np.ndarray:
+    """Hv estimator (total least squares, equal input/output noise ratio) [n_out, 1, f]."""
+    _single_input(s, "Hv")
+    gff = s.g_ff[0, 0].real
+    gxf = s.g_xf[:, 0]
+    diff = s.g_xx - gff
+    g2 = np.abs(gxf) ** 2
+    root = np.sqrt(diff ** 2 + 4 * g2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # diff + root, written without cancellation where diff < 0
+        num = np.where(diff >= 0, diff + root, 4 * g2 / (root - diff))
+        return (num / (2 * gxf.conj()))[:, None, :]
+
+
+def coherence(s: Spectra) -> np.ndarray:
+    """Ordinary (one reference) or multiple (several references) coherence [n_out, f], in [0, 1]."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if s.g_ff.shape[0] == 1:
+            c = np.abs(s.g_xf[:, 0]) ** 2 / (s.g_ff[0, 0].real * s.g_xx)
+        else:
+            h = _solve_inputs(s.g_xf, s.g_ff)
+            c = np.einsum("oif,oif->of", h, s.g_xf.conj()).real / s.g_xx
+    return np.clip(np.nan_to_num(c), 0.0, 1.0)
+
+
+def estimate(s: Spectra, estimator: str) -> np.ndarray:
+    """The named estimator (H1, H2 or Hv) of spectra ``s``."""
+    funcs = {"H1": h1, "H2": h2, "Hv": hv}
+    key = {"h1": "H1", "h2": "H2", "hv": "Hv"}.get(estimator.lower())
+    if key is None:
+        raise ModalError(f"estimator {estimator!r}: use one of {', '.join(ESTIMATORS)}")
+    return funcs[key](s)
+
+
+def convert(H: np.ndarray, freq_hz: np.ndarray, source: str, target: str) -> np.ndarray:
+    """Convert an FRF between receptance, mobility and accelerance (multiply by (i omega)^k).
+
+    Lines at 0 Hz become 0 (to a higher power) or NaN (to a lower power)."""
+    for q in (source, target):
+        if q not in QUANTITIES:
+            raise ModalError(f"FRF quantity {q!r}: use one of {', '.join(QUANTITIES)}")
+    power = QUANTITIES[target] - QUANTITIES[source]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        factor = (2j * np.pi * np.asarray(freq_hz)) ** power
+    if power < 0:
+        factor = np.where(np.asarray(freq_hz) == 0, np.nan, factor)
+    return H * factor

@@ -1,0 +1,72 @@
+"""Time windows for FRF estimation (Ewins 2000 §3.7; Brandt 2011 §9.3).
+
+A window is named by a spec string: ``rect``, ``hann``, ``flattop``, ``force:W`` (unit for the first
+fraction ``W`` of the record, then zero; default 0.1) and ``exponential:E`` (decays from 1 to ``E`` at
+the last sample; default 0.01).  The exponential window adds a known decay rate ``-ln(E)/T`` (1/s) to
+every pole, which :func:`remove_added_damping` takes back out of identified poles.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.signal
+
+from modal.errors import ModalError
+
+WINDOW_NAMES = ("rect", "hann", "flattop", "force", "exponential")
+_DEFAULTS = {"force": 0.1, "exponential": 0.01}
+
+
+def parse_window(spec: str) -> tuple[str, float | None]:
+    """Split ``name[:param]`` and check it; returns (name, param or None)."""
+    name, _, param = spec.strip().lower().partition(":")
+    name = {"rectangular": "rect", "none": "rect", "boxcar": "rect", "hanning": "hann",
+            "flat-top": "flattop", "exp": "exponential"}.get(name, name)
+    if name not in WINDOW_NAMES:
+        raise ModalError(f"window {spec!r}: unknown name (use one of {', '.join(WINDOW_NAMES)})")
+    if not param:
+        return name, _DEFAULTS.get(name)
+    if name not in _DEFAULTS:
+        raise ModalError(f"window {spec!r}: {name} takes no parameter")
+    try:
+        value = float(param)
+    except ValueError:
+        raise ModalError(f"window {spec!r}: parameter {param!r} is not a number") from None
+    if not 0.0 < value <= 1.0:
+        raise ModalError(f"window {spec!r}: parameter must be in (0, 1]")
+    return name, value
+
+
+def window(spec: str, n: int) -> np.ndarray:
+    """Window samples [n] for a spec string (periodic Hann / flat-top as used for Welch averaging)."""
+    name, param = parse_window(spec)
+    if name == "rect":
+        return np.ones(n)
+    if name == "hann":
+        return scipy.signal.get_window("hann", n, fftbins=True)
+    if name == "flattop":
+        return scipy.signal.get_window("flattop", n, fftbins=True)
+    if name == "force":
+        w = np.zeros(n)
+        w[: max(1, int(param * n))] = 1.0
+        return w
+    return np.exp(np.log(param) * np.arange(n) / (n - 1))
+
+
+def added_decay_rate_per_s(spec: str, n: int, sample_rate_hz: float) -> float:
+    """Decay rate sigma (1/s) an exponential window of ``n`` samples adds to each pole (0 otherwise)."""
+    name, param = parse_window(spec)
+    if name != "exponential":
+        return 0.0
+    return -np.log(param) * sample_rate_hz / (n - 1)
+
+
+def remove_added_damping(freq_hz: np.ndarray, damping_ratio: np.ndarray,
+                         decay_rate_per_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """(fn_hz, zeta) of the poles without the exponential window: the window shifts each pole's real
+    part by ``-sigma_w`` and leaves the damped frequency alone, so subtract sigma_w and recombine."""
+    wn = 2 * np.pi * np.asarray(freq_hz, float)
+    sigma = np.asarray(damping_ratio, float) * wn - decay_rate_per_s
+    wd = wn * np.sqrt(np.clip(1 - np.asarray(damping_ratio, float) ** 2, 0, None))
+    wn_true = np.hypot(sigma, wd)
+    return wn_true / (2 * np.pi), sigma / wn_true
