@@ -1,0 +1,515 @@
+"""Planar Euler-Bernoulli frame finite elements for a rig (CONTRACT §4) at a pose.
+
+Each link (and each extra member) is a chain of two-node frame elements with three DOFs per node
+(global ``x``, ``y`` translation in m and rotation in rad): axial bar plus Hermite-cubic bending,
+consistent mass with rotary inertia (Przemieniecki 1968, ch. 11; Cook et al. 2002 §11.3) or an
+HRZ-lumped diagonal mass (translations mL/2, rotations mL^3/78 + rho*I*L/2, Hinton-Rock-Zienkiewicz 1976).
+
+Connections are made by sharing DOFs (exact elimination, never penalties): a rigid joint shares all
+three DOFs; a pin or spring joint shares the translations and gives the child its own rotation, a
+torsional spring ``k`` [N m/rad] linking the two rotations (``k = 0`` is a pin).  The child's rotation
+DOF of a spring is then replaced by the *relative* rotation (theta_child - theta_parent), so ``k`` sits
+alone on a diagonal: a spring approaching rigid never subtracts huge numbers (no lost digits), and the
+result tends smoothly to the rigid joint.  Member ends share the
+link point's translations; a clamped end also its rotation, a pinned end gets its own rotation plus
+``end_k_Nm_per_rad`` to the link.  Base: clamped fixes the first node, pinned frees its rotation,
+spring adds ``base.k_Nm_per_rad`` to ground, free frees all three.
+
+The eigenproblem is solved in inverse form, ``M phi = mu (K + sigma M) phi`` with ``mu = 1/(omega^2 +
+sigma)`` (a small shift, Bathe 2014 §11.2): the wanted low modes are the *largest* ``mu``, which LAPACK
+returns to full relative precision however stiff a spring is, and rigid-body modes need no special case.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+from scipy.linalg import LinAlgError, eigh
+
+from models.errors import ModelError
+from models.rig import Point, Rig, Section
+
+DEFAULT_ELEMENTS = 10
+QUANTITIES = ("transverse", "axial", "x", "y", "rotation", "curvature")
+_SNAP = 0.3  # an attachment point within this fraction of an element of a grid node moves that node
+
+
+# ---------------------------------------------------------------------------------------------
+# element matrices
+
+
+def element_matrices(length_m: np.ndarray, EA_N: np.ndarray, EI_Nm2: np.ndarray, mass_per_m_kg: np.ndarray,
+                     rotary_per_m_kgm: np.ndarray, lumped: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Local stiffness and mass matrices [n_el, 6, 6] of planar frame elements.
+
+    DOF order per element: (u1, v1, theta1, u2, v2, theta2), u axial and v transverse [m], theta [rad].
+    """
+    L = np.asarray(length_m, float)
+    n = L.size
+    k = np.zeros((n, 6, 6))
+    m = np.zeros((n, 6, 6))
+    ax, bd = np.array([0, 3]), np.array([1, 2, 4, 5])
+    k[np.ix_(range(n), ax, ax)] = (EA_N / L)[:, None, None] * np.array([[1.0, -1.0], [-1.0, 1.0]])
+    one, L2 = np.ones_like(L), L * L
+    kb = np.stack([np.stack([12 * one, 6 * L, -12 * one, 6 * L], -1),
+                   np.stack([6 * L, 4 * L2, -6 * L, 2 * L2], -1),
+                   np.stack([-12 * one, -6 * L, 12 * one, -6 * L], -1),
+                   np.stack([6 * L, 2 * L2, -6 * L, 4 * L2], -1)], 1)
+    k[np.ix_(range(n), bd, bd)] = (EI_Nm2 / L**3)[:, None, None] * kb
+    mu, rot = np.asarray(mass_per_m_kg, float), np.asarray(rotary_per_m_kgm, float)
+    if lumped:
+        diag = np.stack([mu * L / 2, mu * L / 2, mu * L**3 / 78 + rot * L / 2] * 2, -1)
+        m[:, range(6), range(6)] = diag
+        return k, m
+    m[np.ix_(range(n), ax, ax)] = (mu * L / 6)[:, None, None] * np.array([[2.0, 1.0], [1.0, 2.0]])
+    mb = np.stack([np.stack([156 * one, 22 * L, 54 * one, -13 * L], -1),
+                   np.stack([22 * L, 4 * L2, 13 * L, -3 * L2], -1),
+                   np.stack([54 * one, 13 * L, 156 * one, -22 * L], -1),
+                   np.stack([-13 * L, -3 * L2, -22 * L, 4 * L2], -1)], 1)
+    mr = np.stack([np.stack([36 * one, 3 * L, -36 * one, 3 * L], -1),
+                   np.stack([3 * L, 4 * L2, -3 * L, -L2], -1),
+                   np.stack([-36 * one, -3 * L, 36 * one, -3 * L], -1),
+                   np.stack([3 * L, -L2, -3 * L, 4 * L2], -1)], 1)
+    m[np.ix_(range(n), bd, bd)] = ((mu * L / 420)[:, None, None] * mb + (rot / (30 * L))[:, None, None] * mr)
+    return k, m
+
+
+def _rotations(angle_rad: np.ndarray) -> np.ndarray:
+    """Element transformation T [n_el, 6, 6] with local = T @ global."""
+    c, s = np.cos(angle_rad), np.sin(angle_rad)
+    T = np.zeros((angle_rad.size, 6, 6))
+    for o in (0, 3):
+        T[:, o, o], T[:, o, o + 1], T[:, o + 1, o], T[:, o + 1, o + 1] = c, s, -s, c
+        T[:, o + 2, o + 2] = 1.0
+    return T
+
+
+# ---------------------------------------------------------------------------------------------
+# topology: everything that does not depend on the pose (cached per rig)
+
+
+@dataclass(frozen=True, eq=False)
+class _Body:
+    """A discretised link or member: node stations as fractions of its length, its elements."""
+
+    name: str
+    is_member: bool
+    stations: np.ndarray          # [n_nodes] fractions in [0, 1]
+    node_dofs: np.ndarray         # [n_nodes, 3] DOF index (x, y, rotation); n_dof = fixed
+    first_element: int
+
+
+@dataclass(frozen=True, eq=False)
+class _Topology:
+    n_dof: int
+    bodies: tuple[_Body, ...]
+    elem_body: np.ndarray         # [n_el] body index
+    elem_dofs: np.ndarray         # [n_el, 6]
+    elem_frac: np.ndarray         # [n_el, 2] start/end station fractions
+    EA: np.ndarray
+    EI: np.ndarray
+    mu: np.ndarray
+    rot: np.ndarray
+    rot_springs: np.ndarray       # [n, 2] (reference, relative) rotation DOFs; relative = n_dof: to ground
+    rot_spring_k: np.ndarray      # [n] N m/rad
+    lumped: bool
+    k_loc: np.ndarray             # [n_el, 6, 6] local matrices (member rows are redone per pose)
+    m_loc: np.ndarray
+    elem_is_member: np.ndarray    # [n_el] bool
+
+    def node(self, body: int, fraction: float) -> np.ndarray:
+        """DOFs (x, y, rotation) of the node of ``body`` at ``fraction``."""
+        b = self.bodies[body]
+        return b.node_dofs[int(np.argmin(np.abs(b.stations - fraction)))]
+
+
+def _stations(n_el: int, required: Iterable[float]) -> np.ndarray:
+    """Uniform stations with each required fraction made a node (snapping a nearby grid node)."""
+    grid = list(np.linspace(0.0, 1.0, n_el + 1))
+    locked = [True] + [False] * (n_el - 1) + [True]
+    for f in sorted(set(required)):
+        j = int(np.argmin(np.abs(np.array(grid) - f)))
+        if abs(grid[j] - f) <= 1e-12:
+            locked[j] = True
+        elif not locked[j] and abs(grid[j] - f) < _SNAP / n_el:
+            grid[j], locked[j] = f, True
+        else:
+            at = int(np.searchsorted(grid, f))
+            grid.insert(at, f)
+            locked.insert(at, True)
+    return np.array(grid)
+
+
+def _required_fractions(rig: Rig) -> dict[str, list[float]]:
+    req: dict[str, list[float]] = {lk.name: [] for lk in rig.links}
+    points: list[Point] = [s.at for s in rig.sensors] + [m.at for m in rig.masses]
+    points += [s.at for s in rig.springs]
+    points += [p for mb in rig.members for p in (mb.start, mb.end)]
+    for p in points:
+        if p.link is not None:
+            req[p.link].append(p.fraction)
+    for lk in rig.links:
+        for seg in lk.segments:
+            req[lk.name] += [seg.from_m / lk.length_m, min(seg.to_m / lk.length_m, 1.0)]
+    return req
+
+
+def _scaled(section: Section, stiffness_scale: float, mass_scale: float) -> tuple[float, float, float, float]:
+    return (section.EA_N * stiffness_scale, section.EI_Nm2 * stiffness_scale,
+            section.mass_per_m_kg * mass_scale, section.rotary_inertia_per_m_kgm * mass_scale)
+
+
+@lru_cache(maxsize=64)
+def _topology(rig: Rig, elements: int | None, lumped: bool) -> _Topology:
+    counter = iter(range(1 << 30))
+    FIXED = -1  # replaced by n_dof at the end
+    joints = {j.child: j for j in rig.joints}
+    req = _required_fractions(rig)
+    bodies: list[_Body] = []
+    node_at: dict[tuple[str, float], np.ndarray] = {}
+    el_body, el_dofs, el_frac, props = [], [], [], []
+    springs: list[tuple[int, int, float]] = []
+
+    def add_body(name: str, is_member: bool, st: np.ndarray, dofs: np.ndarray, sect_at, scales) -> None:
+        start = len(el_dofs)
+        for e in range(len(st) - 1):
+            el_body.append(len(bodies))
+            el_dofs.append(np.concatenate([dofs[e], dofs[e + 1]]))
+            el_frac.append((st[e], st[e + 1]))
+            props.append(_scaled(sect_at(0.5 * (st[e] + st[e + 1])), *scales))
+        bodies.append(_Body(name, is_member, st, dofs, start))
+
+    for i, lk in enumerate(rig.links):
+        n_el = elements or lk.elements or DEFAULT_ELEMENTS
+        st = _stations(n_el, req[lk.name])
+        dofs = np.array([[next(counter) for _ in range(3)] for _ in st])
+        if i == 0:
+            support = rig.base.support
+            if support != "free":
+                dofs[0, :2] = FIXED
+            if support == "clamped":
+                dofs[0, 2] = FIXED
+            if support == "spring":
+                springs.append((int(dofs[0, 2]), FIXED, float(rig.base.k_Nm_per_rad or 0.0)))
+        else:
+            joint = joints[lk.name]
+            parent = bodies[[b.name for b in bodies].index(joint.parent)]
+            dofs[0, :2] = parent.node_dofs[-1, :2]
+            if joint.kind == "rigid":
+                dofs[0, 2] = parent.node_dofs[-1, 2]
+            elif joint.kind == "spring" and joint.k_Nm_per_rad:
+                springs.append((int(parent.node_dofs[-1, 2]), int(dofs[0, 2]), float(joint.k_Nm_per_rad)))
+        for f, d in zip(st, dofs, strict=True):
+            node_at[(lk.name, float(f))] = d
+        add_body(lk.name, False, st, dofs, lambda f, lk=lk: lk.section_at(f * lk.length_m),
+                 (lk.stiffness_scale, lk.mass_scale))
+
+    for mb in rig.members:
+        n_el = mb.elements or elements or DEFAULT_ELEMENTS
+        st = np.linspace(0.0, 1.0, n_el + 1)
+        dofs = np.array([[next(counter) for _ in range(3)] for _ in st])
+        clamped = {"pin-pin": (False, False), "clamped-pin": (True, False), "clamped-clamped": (True, True)}
+        for end, p, is_clamped in ((0, mb.start, clamped[mb.ends][0]), (-1, mb.end, clamped[mb.ends][1])):
+            host = node_at[(p.link, float(p.fraction))] if p.link is not None else np.full(3, FIXED)
+            dofs[end, :2] = host[:2]
+            if is_clamped:
+                dofs[end, 2] = host[2]
+            elif mb.end_k_Nm_per_rad > 0:
+                pair = (int(host[2]), int(dofs[end, 2])) if host[2] != FIXED else (int(dofs[end, 2]), FIXED)
+                springs.append((*pair, mb.end_k_Nm_per_rad))
+        add_body(mb.name, True, st, dofs, lambda f, mb=mb: mb.section, (1.0, 1.0))
+
+    # renumber the DOFs actually used, contiguously; fixed -> n_dof
+    spring_dofs = np.array([(a, b) for a, b, _ in springs], int).reshape(-1, 2)
+    all_dofs = np.concatenate([b.node_dofs.ravel() for b in bodies] + [spring_dofs.ravel()])
+    used = np.unique(all_dofs[all_dofs >= 0])
+    n_dof = used.size
+    remap = np.full(int(used.max()) + 2 if used.size else 1, n_dof)
+    remap[used] = np.arange(n_dof)
+
+    def rn(a: np.ndarray) -> np.ndarray:
+        a = np.asarray(a, int)
+        return np.where(a >= 0, remap[np.clip(a, 0, None)], n_dof)
+
+    bodies = [_Body(b.name, b.is_member, b.stations, rn(b.node_dofs), b.first_element) for b in bodies]
+    p = np.array(props, float)
+    el_body, el_frac = np.array(el_body), np.array(el_frac)
+    is_member = np.array([bodies[b].is_member for b in el_body])
+    length = np.array([1.0 if m else rig.links[b].length_m for b, m in zip(el_body, is_member, strict=True)])
+    EA, EI, mu, rot = p.T
+    k_loc, m_loc = element_matrices((el_frac[:, 1] - el_frac[:, 0]) * length, EA, EI, mu, rot, lumped)
+    spring_k = np.array([k for *_, k in springs], float)
+    return _Topology(n_dof, tuple(bodies), el_body, rn(np.array(el_dofs)), el_frac, EA, EI, mu, rot,
+                     rn(spring_dofs), spring_k, lumped, k_loc, m_loc, is_member)
+
+
+# ---------------------------------------------------------------------------------------------
+# pose geometry
+
+
+def link_geometry(rig: Rig, pose: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray]:
+    """Absolute link angles [rad] and link start points [n_links, 2] (m) at ``pose`` (degrees)."""
+    base = rig.base.angle
+    angle = math.radians(float(pose[base]) if base else rig.base.angle_deg)
+    joints = {j.child: j for j in rig.joints}
+    angles, starts = [], []
+    xy = np.zeros(2)
+    for i, lk in enumerate(rig.links):
+        if i:
+            j = joints[lk.name]
+            angle += math.radians(float(pose[j.angle]) if j.angle else j.angle_deg)
+        angles.append(angle)
+        starts.append(xy.copy())
+        xy = xy + lk.length_m * np.array([math.cos(angle), math.sin(angle)])
+    return np.array(angles), np.array(starts)
+
+
+def _point_xy(rig: Rig, p: Point, angles: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    if p.link is None:
+        return np.array(p.ground_xy_m, float)
+    i = [lk.name for lk in rig.links].index(p.link)
+    s = p.fraction * rig.links[i].length_m
+    return starts[i] + s * np.array([math.cos(angles[i]), math.sin(angles[i])])
+
+
+def _body_geometry(rig: Rig, topo: _Topology, pose: Mapping[str, float]
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per body: angle [rad], length [m], start point [2]."""
+    angles, starts = link_geometry(rig, pose)
+    b_ang, b_len, b_start = list(angles), [lk.length_m for lk in rig.links], list(starts)
+    for mb in rig.members:
+        a, b = _point_xy(rig, mb.start, angles, starts), _point_xy(rig, mb.end, angles, starts)
+        d = b - a
+        length = float(np.hypot(*d))
+        if length < 1e-9:
+            raise ModelError(f"{rig.source}: member {mb.name!r} has zero length at this pose")
+        b_ang.append(math.atan2(d[1], d[0]))
+        b_len.append(length)
+        b_start.append(a)
+    return np.array(b_ang), np.array(b_len), np.array(b_start)
+
+
+# ---------------------------------------------------------------------------------------------
+# the assembled system
+
+
+@dataclass(frozen=True, eq=False)
+class FrameSystem:
+    """Stiffness ``K`` [N/m, N, N m] and mass ``M`` over the free DOFs, sensors and observation rows."""
+
+    K: np.ndarray
+    M: np.ndarray
+    sensor_matrix: np.ndarray        # [n_sensors, n_dof] sensor displacement along its direction
+    sensor_names: tuple[str, ...]
+    node_xy_m: np.ndarray            # [n_nodes, 2] coordinates of every body node (members included)
+    rig: Rig
+    _topo: _Topology
+    _body_angle: np.ndarray
+    _body_length: np.ndarray
+
+    @property
+    def n_dof(self) -> int:
+        return self.K.shape[0]
+
+    def _resolve(self, at: str) -> tuple[int, float]:
+        head, sep, tail = at.partition("@")
+        names = [b.name for b in self._topo.bodies]
+        if sep and head in names and self._topo.bodies[names.index(head)].is_member:
+            frac = float(tail)
+            if not 0.0 <= frac <= 1.0:
+                raise ModelError(f"{self.rig.source}: {at!r}: the fraction must lie in [0, 1]")
+            return names.index(head), frac
+        p = self.rig.point_of(at)
+        if p.link is None:
+            raise ModelError(f"{self.rig.source}: {at!r} is a ground point; nothing moves there")
+        return names.index(p.link), p.fraction
+
+    def observe(self, at: str, quantity: str = "transverse") -> np.ndarray:
+        """Row ``r`` [n_dof] such that ``r @ u`` is ``quantity`` at point ``at`` for DOF vector ``u``.
+
+        ``at``: ``<link>@<fraction>``, ``<member>@<fraction>``, ``tip`` or a joint name.  ``quantity``:
+        ``transverse``/``axial`` (m, along the body's local normal/axis), ``x``/``y`` (m, global),
+        ``rotation`` (rad) or ``curvature`` (1/m; bending strain = curvature * depth/2).  Values come from
+        the element's own shape functions (Hermite cubic bending, linear axial); curvature at a node
+        between two elements is their average.
+        """
+        if quantity not in QUANTITIES:
+            raise ModelError(f"unknown quantity {quantity!r} (expected one of {', '.join(QUANTITIES)})")
+        return self._row(*self._resolve(at), quantity)
+
+    def _row(self, bi: int, frac: float, quantity: str) -> np.ndarray:
+        topo, body = self._topo, self._topo.bodies[bi]
+        st = body.stations
+        lo = max(int(np.searchsorted(st, frac - 1e-12)) - 1, 0)
+        hits = [e for e in (lo, lo + 1) if e < len(st) - 1 and st[e] - 1e-12 <= frac <= st[e + 1] + 1e-12]
+        if quantity != "curvature":
+            hits = hits[:1]
+        row = np.zeros(self.n_dof + 1)
+        L = self._body_length[bi]
+        c, s = math.cos(self._body_angle[bi]), math.sin(self._body_angle[bi])
+        T = _rotations(np.array([self._body_angle[bi]]))[0]
+        for e in hits:
+            le = (st[e + 1] - st[e]) * L
+            x = (frac - st[e]) / (st[e + 1] - st[e])
+            axial = np.array([1 - x, 0, 0, x, 0, 0])
+            x2, x3 = x * x, x**3
+            if quantity in ("transverse", "x", "y"):
+                h = [1 - 3 * x2 + 2 * x3, le * (x - 2 * x2 + x3), 3 * x2 - 2 * x3, le * (x3 - x2)]
+            elif quantity == "rotation":
+                h = [(-6 * x + 6 * x2) / le, 1 - 4 * x + 3 * x2, (6 * x - 6 * x2) / le, 3 * x2 - 2 * x]
+            else:
+                h = [(-6 + 12 * x) / le**2, (-4 + 6 * x) / le, (6 - 12 * x) / le**2, (-2 + 6 * x) / le]
+            bend = np.array([0, h[0], h[1], 0, h[2], h[3]])
+            local = {"transverse": bend, "rotation": bend, "curvature": bend, "axial": axial,
+                     "x": c * axial - s * bend, "y": s * axial + c * bend}[quantity]
+            np.add.at(row, topo.elem_dofs[body.first_element + e], local @ T / len(hits))
+        return self._relative(row)[:-1]
+
+    def _relative(self, row: np.ndarray) -> np.ndarray:
+        """Apply ``assemble``'s change of variables (spring DOFs become relative rotations) to a row."""
+        for a, b in self._topo.rot_springs:
+            if b != self.n_dof:
+                row[a] += row[b]
+        return row
+
+    def joint_rotation(self, joint_name: str) -> np.ndarray:
+        """Row giving the joint's relative rotation, child minus parent [rad] (zero for a rigid joint)."""
+        j = self.rig.joint(joint_name)
+        names = [b.name for b in self._topo.bodies]
+        row = np.zeros(self.n_dof + 1)
+        row[self._topo.bodies[names.index(j.child)].node_dofs[0, 2]] += 1.0
+        row[self._topo.bodies[names.index(j.parent)].node_dofs[-1, 2]] -= 1.0
+        return self._relative(row)[:-1]
+
+
+@dataclass(frozen=True, eq=False)
+class FrameModes:
+    """Natural frequencies [Hz], mass-normalised shapes over the free DOFs, shapes at the sensors."""
+
+    freq_hz: np.ndarray
+    phi: np.ndarray
+    sensor_shapes: np.ndarray
+    sensor_names: tuple[str, ...] = ()
+
+
+def _mass_value(rig: Rig, value: float | str, pose: Mapping[str, float]) -> float:
+    if isinstance(value, str):
+        v = float(pose[value])
+        if not math.isfinite(v) or v < 0:
+            raise ModelError(f"{rig.source}: pose variable {value!r} = {v} is not a mass >= 0 kg")
+        return v
+    return float(value)
+
+
+def assemble(rig: Rig, pose: Mapping[str, float], elements_per_link: int | None = None,
+             lumped_mass: bool = False) -> FrameSystem:
+    """Assemble K and M of ``rig`` at ``pose`` (joint angles in degrees, pose masses in kg).
+
+    ``elements_per_link`` overrides the rig's ``elements`` (default 10 per link and per member).
+    """
+    rig.check_pose(pose)
+    topo = _topology(rig, elements_per_link, bool(lumped_mass))
+    b_ang, b_len, b_start = _body_geometry(rig, topo, pose)
+    n = topo.n_dof
+    k_loc, m_loc = topo.k_loc, topo.m_loc
+    if rig.members:
+        k_loc, m_loc, mem = k_loc.copy(), m_loc.copy(), topo.elem_is_member
+        le = (topo.elem_frac[mem, 1] - topo.elem_frac[mem, 0]) * b_len[topo.elem_body[mem]]
+        k_loc[mem], m_loc[mem] = element_matrices(le, topo.EA[mem], topo.EI[mem], topo.mu[mem], topo.rot[mem],
+                                                  topo.lumped)
+    T = _rotations(b_ang[topo.elem_body])
+    Tt = T.transpose(0, 2, 1)
+    idx = (topo.elem_dofs[:, :, None] * (n + 1) + topo.elem_dofs[:, None, :]).ravel()
+    size = (n + 1) ** 2
+    K = np.bincount(idx, (Tt @ k_loc @ T).ravel(), size)
+    M = np.bincount(idx, (Tt @ m_loc @ T).ravel(), size)
+    K, M = K.reshape(n + 1, n + 1), M.reshape(n + 1, n + 1)
+
+    link_index = {lk.name: i for i, lk in enumerate(rig.links)}
+
+    def node(p: Point) -> tuple[int, np.ndarray]:
+        bi = link_index[p.link]
+        return bi, topo.node(bi, p.fraction)
+
+    for mass in rig.masses:
+        _, d = node(mass.at)
+        mk = _mass_value(rig, mass.mass_kg, pose)
+        M[d[0], d[0]] += mk
+        M[d[1], d[1]] += mk
+        M[d[2], d[2]] += mass.inertia_kgm2
+    for sensor in rig.sensors:
+        _, d = node(sensor.at)
+        M[d[0], d[0]] += sensor.mass_kg
+        M[d[1], d[1]] += sensor.mass_kg
+    for spring in rig.springs:
+        bi, d = node(spring.at)
+        c, s = math.cos(b_ang[bi]), math.sin(b_ang[bi])
+        n_vec = {"x": (1.0, 0.0), "y": (0.0, 1.0), "axial": (c, s), "transverse": (-s, c)}[spring.direction]
+        K[np.ix_(d[:2], d[:2])] += spring.k_N_per_m * np.outer(n_vec, n_vec)
+
+    for (a, b), k in zip(topo.rot_springs, topo.rot_spring_k, strict=True):
+        if b == n:  # spring to ground
+            K[a, a] += k
+            continue
+        for A in (K, M):  # DOF b becomes the relative rotation theta_b - theta_a (T^T A T)
+            A[a, :] += A[b, :]
+            A[:, a] += A[:, b]
+        K[b, b] += k
+    nodes = np.concatenate([b_start[i] + np.outer(b.stations * b_len[i], (math.cos(a), math.sin(a)))
+                            for i, (b, a) in enumerate(zip(topo.bodies, b_ang, strict=True))])
+    system = FrameSystem(K[:n, :n], M[:n, :n], np.zeros((0, n)), tuple(s.name for s in rig.sensors), nodes,
+                         rig, topo, b_ang, b_len)
+    if rig.sensors:
+        rows = np.array([system._row(link_index[s.at.link], s.at.fraction, s.direction) for s in rig.sensors])
+        object.__setattr__(system, "sensor_matrix", rows)
+    return system
+
+
+def solve_modes(system: FrameSystem, n_modes: int = 4) -> FrameModes:
+    """Lowest ``n_modes`` modes of ``system`` (rigid-body modes included, reported at 0 Hz).
+
+    Shapes are mass-normalised (phi^T M phi = 1) with a deterministic sign: the largest-magnitude sensor
+    component is positive (the largest DOF component when the rig has no sensors).
+    """
+    K, M = system.K, system.M
+    n = K.shape[0]
+    if not 1 <= n_modes <= n:
+        raise ModelError(f"{system.rig.source}: asked for {n_modes} modes of a model with {n} DOFs")
+    dk, dm = np.diag(K), np.diag(M)
+    positive = dm > 0
+    sigma = 1e-6 * float(np.median(dk[positive] / dm[positive])) if positive.any() else 1.0
+    for _ in range(6):
+        try:
+            mu, vec = eigh(M, K + sigma * M, subset_by_index=[n - n_modes, n - 1], check_finite=False)
+            break
+        except LinAlgError:
+            sigma *= 1e3
+    else:
+        raise ModelError(f"{system.rig.source}: the frame has a mechanism with no mass (singular model)")
+    mu, vec = mu[::-1], vec[:, ::-1]
+    if np.any(mu <= 0):
+        raise ModelError(f"{system.rig.source}: the frame has fewer than {n_modes} modes with mass")
+    omega2 = np.clip(1.0 / mu - sigma, 0.0, None)
+    norm = np.sqrt(np.einsum("im,ij,jm->m", vec, M, vec))
+    phi = vec / norm
+    ref = system.sensor_matrix @ phi if system.sensor_matrix.shape[0] else phi
+    sign = np.sign(ref[np.argmax(np.abs(ref), axis=0), np.arange(n_modes)])
+    sign[sign == 0] = 1.0
+    phi = phi * sign
+    return FrameModes(np.sqrt(omega2) / (2 * math.pi), phi, system.sensor_matrix @ phi, system.sensor_names)
+
+
+def frame_modes(rig: Rig, pose: Mapping[str, float], n_modes: int = 4, elements_per_link: int | None = None,
+                lumped_mass: bool = False) -> FrameModes:
+    """Assemble and solve in one call (see ``assemble`` and ``solve_modes``)."""
+    return solve_modes(assemble(rig, pose, elements_per_link, lumped_mass), n_modes)
+
+
+def frame_modes_many(rig: Rig, poses: Iterable[Mapping[str, float]], n_modes: int = 4,
+                     elements_per_link: int | None = None, lumped_mass: bool = False) -> list[FrameModes]:
+    """``frame_modes`` for each pose (the pose-independent topology is built once and cached)."""
+    return [frame_modes(rig, p, n_modes, elements_per_link, lumped_mass) for p in poses]
