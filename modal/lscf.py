@@ -1,0 +1,148 @@
+"""Poly-reference least-squares complex-frequency (pLSCF, "PolyMAX") pole estimation with a
+stabilisation diagram and automatic selection of stable poles (Guillaume et al. 2003, IMAC XXI;
+Peeters et al. 2004, Shock Vib. 11).
+
+Right matrix-fraction model ``H_o(z) = N_o(z) D(z)^-1`` with ``z = exp(i w dt)``, ``dt = 1/(2 f_max)``
+and real matrix coefficients.  The reduced normal equations ``M = sum_o (T_o - S_o^T R^-1 S_o)`` are
+Toeplitz in the lag ``k - j``; all lag sums are formed once for the highest order by two matrix
+products over the frequency lines, and each order's ``M`` is indexed out of them.  With the
+highest denominator coefficient fixed to the identity, the poles are the eigenvalues of the block
+companion matrix.  A pole is stable when a pole of the previous order lies within ``df`` in
+frequency, ``dz`` in damping and, for shapes estimated by LSFD at both orders, MAC >= ``mac_min``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from modal.errors import ModalError
+from modal.lsfd import lsfd
+from modal.mac import mac
+
+
+@dataclass(frozen=True)
+class Stabilisation:
+    """Every physical pole of every order: ``order``, ``freq_hz``, ``damping_ratio``, ``pole`` (rad/s,
+    complex) and flags ``stable_freq``, ``stable_damping``, ``stable_shape`` (all [n_poles])."""
+
+    order: np.ndarray
+    freq_hz: np.ndarray
+    damping_ratio: np.ndarray
+    pole: np.ndarray
+    stable_freq: np.ndarray
+    stable_damping: np.ndarray
+    stable_shape: np.ndarray
+
+    @property
+    def stable(self) -> np.ndarray:
+        return self.stable_freq & self.stable_damping & self.stable_shape
+
+
+def _lag_sums(freq_hz: np.ndarray, H: np.ndarray, p_max: int, dt: float):
+    """Sums over lines of 1, H and H^H H times z^d for lags d = -p_max..p_max (index p_max + d)."""
+    w = 2 * np.pi * np.asarray(freq_hz)
+    zk = np.exp(1j * np.outer(w * dt, np.arange(p_max + 1)))        # [nf, p+1]
+    n_out, n_in, nf = H.shape
+
+    def both(g: np.ndarray) -> np.ndarray:                        # g [..., nf] -> [..., 2p+1]
+        plus, minus = g @ zk, g @ zk.conj()
+        return np.concatenate([minus[..., :0:-1], plus], axis=-1)
+
+    r = both(np.ones(nf)).real
+    s = both(H)                                                    # [o, i, 2p+1]
+    g = np.einsum("oaf,obf->abf", H.conj(), H)                      # sum over outputs of H^H H
+    t = both(g)                                                    # [a, b, 2p+1]
+    return r, s, t
+
+
+def _poles_of_order(p: int, p_max: int, r, s, t, dt: float) -> np.ndarray:
+    n_out, n_in = s.shape[:2]
+    j = np.arange(p + 1)
+    lag = p_max + j[None, :] - j[:, None]                           # [j, k] -> index of k - j
+    R = r[lag]
+    S = -s[:, :, lag].real.transpose(0, 2, 3, 1).reshape(n_out, p + 1, (p + 1) * n_in)
+    T = t[:, :, lag].real.transpose(2, 0, 3, 1).reshape((p + 1) * n_in, (p + 1) * n_in)
+    X = np.linalg.solve(R, S.transpose(1, 0, 2).reshape(p + 1, -1)).reshape(p + 1, n_out, -1)
+    M = T - np.einsum("oja,job->ab", S, X)
+    k = p * n_in
+    alpha = np.linalg.solve(M[:k, :k], -M[:k, k:])                  # [p n_in, n_in]
+    comp = np.zeros((k, k))
+    comp[:-n_in, n_in:] = np.eye(k - n_in)
+    comp[-n_in:, :] = -alpha.T          # blocks alpha_q^T: det D(lambda) is unchanged by transposing
+    lam = np.linalg.eigvals(comp)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.log(lam) / dt
+
+
+def _physical(poles: np.ndarray, fmin: float, fmax: float) -> np.ndarray:
+    p = poles[np.isfinite(poles) & (poles.imag > 0) & (poles.real < 0)]
+    f = np.abs(p) / (2 * np.pi)
+    p = p[(f >= fmin) & (f <= fmax)]
+    return p[np.argsort(np.abs(p))]
+
+
+def stabilisation(freq_hz: np.ndarray, H: np.ndarray, orders: range | list[int], *,
+                  quantity: str = "accelerance", df: float = 0.01, dz: float = 0.05,
+                  mac_min: float = 0.98) -> Stabilisation:
+    """Poles of every model order in ``orders`` and their stability flags (see module docstring)."""
+    f = np.asarray(freq_hz, float)
+    if H.ndim != 3 or H.shape[-1] != f.size:
+        raise ModalError(f"pLSCF: FRFs of shape {H.shape} do not match {f.size} frequency lines")
+    orders = sorted(int(o) for o in orders)
+    if f.size < 2 * orders[-1] + 2:
+        raise ModalError(f"pLSCF: {f.size} lines are too few for model order {orders[-1]}")
+    dt = 1.0 / (2 * f.max())
+    scale = np.sqrt(np.mean(np.abs(H) ** 2))
+    Hn = H / scale
+    r, s, t = _lag_sums(f, Hn, orders[-1], dt)
+    rows = []
+    prev = None
+    for p in orders:   # a loop over model orders, each a small dense solve
+        poles = _physical(_poles_of_order(p, orders[-1], r, s, t, dt), f.min(), f.max())
+        fn = np.abs(poles) / (2 * np.pi)
+        zeta = -poles.real / np.abs(poles)
+        shapes = (lsfd(f, Hn, poles, quantity=quantity).residues.reshape(-1, poles.size)
+                  if poles.size else np.zeros((0, 0)))
+        sf = np.zeros(poles.size, bool)
+        sd = np.zeros(poles.size, bool)
+        ss = np.zeros(poles.size, bool)
+        if prev is not None and prev[0].size and poles.size:
+            pf, pz, psh = prev
+            near = np.argmin(np.abs(fn[:, None] - pf[None, :]), axis=1)
+            sf = np.abs(fn - pf[near]) <= df * fn
+            sd = np.abs(zeta - pz[near]) <= dz * zeta
+            ss = np.diag(mac(shapes, psh[:, near])) >= mac_min
+        rows.append((np.full(poles.size, p), fn, zeta, poles, sf, sd, ss))
+        prev = (fn, zeta, shapes)
+    cols = [np.concatenate(c) for c in zip(*rows, strict=True)]
+    return Stabilisation(*cols)
+
+
+def select_stable(stab: Stabilisation, *, min_fraction: float = 0.3, cluster_tol: float = 0.005
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Automatic pole selection: cluster fully stable poles by frequency (gaps above ``cluster_tol``
+    relative split clusters); keep clusters holding poles of at least ``min_fraction`` of the orders;
+    each mode is the median pole of its cluster's upper half of orders.  Returns (fn_hz, zeta, poles)."""
+    keep = stab.stable
+    n_orders = np.unique(stab.order).size
+    f, z, o, p = stab.freq_hz[keep], stab.damping_ratio[keep], stab.order[keep], stab.pole[keep]
+    idx = np.argsort(f)
+    f, z, o, p = f[idx], z[idx], o[idx], p[idx]
+    if f.size == 0:
+        return np.zeros(0), np.zeros(0), np.zeros(0, complex)
+    breaks = np.flatnonzero(np.diff(f) > cluster_tol * f[1:]) + 1
+    out = []
+    for grp in np.split(np.arange(f.size), breaks):   # a loop over clusters (modes)
+        if np.unique(o[grp]).size < min_fraction * n_orders:
+            continue
+        top = grp[o[grp] >= np.median(o[grp])]
+        k = top[np.argsort(f[top])[top.size // 2]]
+        out.append((np.median(f[top]), np.median(z[top]), p[k]))
+    if not out:
+        return np.zeros(0), np.zeros(0), np.zeros(0, complex)
+    fn, zeta, poles = (np.array(v) for v in zip(*out, strict=True))
+    # the pole itself rebuilt from the medians, so fn, zeta and pole agree
+    wn = 2 * np.pi * fn
+    return fn, zeta, -zeta * wn + 1j * wn * np.sqrt(1 - zeta ** 2)
