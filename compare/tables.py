@@ -18,6 +18,8 @@ from __future__ import annotations
 import csv
 import html
 import io
+import math
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -53,9 +55,10 @@ class Comparison:
 
     @property
     def configs(self) -> list[str]:
-        configs = list(self.measured.configs)
+        """Measured configurations in pose order, then those only predicted (see ``ordered_configs``)."""
+        configs = ordered_configs(self.measured)
         for _, table in self.predictions:
-            configs += [c for c in table.configs if c not in configs]
+            configs += [c for c in ordered_configs(table) if c not in configs]
         return configs
 
     @property
@@ -74,6 +77,25 @@ class Comparison:
                 out.append(f"{p.source}: no predicted mode pairs with measured mode {r.mode} of "
                            f"{r.config} ({r.freq_hz:.2f} Hz)")
         return out
+
+
+def _natural_key(text: str) -> list:
+    return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", text)]
+
+
+def ordered_configs(table: ModalTable) -> list[str]:
+    """Configurations sorted by their numeric pose values (in column order), then naturally by name
+    (``theta60`` before ``theta120``)."""
+    df = table.frame
+    cols = [c for c in table.pose_columns if df[c].dtype.kind in "fi"]
+    first = df.groupby("config")[cols].first() if cols else None
+
+    def key(config: str) -> tuple:
+        pose = () if first is None else tuple(
+            v if math.isfinite(v) else math.inf for v in first.loc[config].to_numpy(float))
+        return pose, _natural_key(config)
+
+    return sorted(table.configs, key=key)
 
 
 def table_name(table: ModalTable, fallback: str) -> str:
@@ -145,7 +167,7 @@ def _sources_grid(comp: Comparison) -> tuple[list[_Col], list[list[object]]]:
     cols = ([_Col("", "config")] if multi else []) + [_Col("", "source"), _Col("", "quantity")]
     cols += [_Col(f"mode {m}", "cell") for m in modes]
     rows: list[list[object]] = []
-    for config in comp.measured.configs:
+    for config in [c for c in comp.configs if c in comp.measured.configs]:
         sub = meas[meas["config"] == config].set_index("mode")
         lines: list[tuple[str, str, dict[int, float]]] = []
         for p in comp.pairings:

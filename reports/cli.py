@@ -1,9 +1,54 @@
-"""CLI commands of the `reports` package (registered by app.py)."""
+"""CLI commands of the `reports` package (registered by app.py): ``flexmodal report``."""
 
 from __future__ import annotations
 
 import argparse
+import sys
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this package's sub-commands to the flexmodal parser."""
+    p = sub.add_parser(
+        "report",
+        help="self-contained HTML validation report from runs, modes, predictions and a diagnosis",
+        description="Write one HTML file (images embedded, no scripts, nothing fetched from a network): "
+                    "run metadata, channels, data quality (events, rejected hits, coherence), FRF plots, "
+                    "measured vs predicted modes (table and plots) and the gap diagnosis.",
+    )
+    p.add_argument("runs", metavar="RUN.h5", nargs="*",
+                   help="stored runs (CONTRACT §6): a file means all its runs, FILE::RUN_ID one run")
+    p.add_argument("--measured", metavar="MODES.csv", help="identified modes (modal table, CONTRACT §3)")
+    p.add_argument("--repeat", metavar="MODES.csv", action="append", default=[],
+                   help="modes of a repeated test of the same configurations (error bars; repeatable)")
+    p.add_argument("--pred", metavar="PRED.csv", action="append", default=[],
+                   help="predicted modes of one model (repeatable)")
+    p.add_argument("--diagnosis", metavar="diagnosis.json", help="output of flexmodal diagnose (CONTRACT §5)")
+    p.add_argument("--rig", metavar="RIG.toml", help="rig description, to draw mode shapes on the arm")
+    p.add_argument("--title", default="flexmodal validation report", help="report title")
+    p.add_argument("--out", metavar="REPORT.html", required=True, help="the HTML file to write")
+    p.set_defaults(func=_run)
+
+
+def _run(args: argparse.Namespace) -> int:
+    from modal.table import ModalTable
+    from reports.errors import ReportError
+    from reports.html import load_diagnosis, write_report
+
+    if not (args.runs or args.measured or args.pred or args.diagnosis):
+        raise ReportError("report: nothing to report (give RUN.h5 files, --measured, --pred or --diagnosis)")
+    rig = None
+    if args.rig:
+        from models.rig import load_rig
+
+        rig = load_rig(args.rig)
+    quiet = getattr(args, "quiet", False)
+    progress = None if quiet else (lambda msg: print(f"report: {msg}", file=sys.stderr))
+    out = write_report(
+        args.out, runs=args.runs,
+        measured=ModalTable.read_csv(args.measured) if args.measured else None,
+        repeats=[ModalTable.read_csv(p) for p in args.repeat],
+        predictions=[ModalTable.read_csv(p) for p in args.pred],
+        diagnosis=load_diagnosis(args.diagnosis) if args.diagnosis else None,
+        rig=rig, title=args.title, progress=progress)
+    print(out)
+    return 0

@@ -168,3 +168,13 @@ def test_bad_input_exits_2_with_one_line(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "freq_hz" in err
     assert main(["compare", str(tmp_path / "missing.csv"), str(meas)]) == 2
+
+
+def test_configurations_follow_pose_order_not_text_order(tmp_path, capsys):
+    meas, pred = tmp_path / "m.csv", tmp_path / "p.csv"
+    rows = [("theta120", 120, 40.0), ("theta60", 60, 30.0), ("theta0", 0, 25.0)]
+    meas.write_text("config,mode,freq_hz,pose.theta_deg\n" + "".join(f"{c},1,{f},{t}\n" for c, t, f in rows))
+    pred.write_text("config,mode,freq_hz,source\n" + "".join(f"{c},1,{1.1 * f},fe\n" for c, _, f in rows))
+    out = run_cli(["compare", str(meas), str(pred), "--format", "csv"], capsys)
+    got = [(r["config"], r["fe_err_pct"]) for r in csv.DictReader(io.StringIO(out))]
+    assert got == [("theta0", "+10.0"), ("theta60", "+10.0"), ("theta120", "+10.0")]

@@ -1,0 +1,331 @@
+"""Report figures (matplotlib, Agg, no pyplot state): every function returns a ``Figure``.
+
+Units sit on every axis.  Frequencies in Hz, FRF magnitude in the FRF's own unit (accelerance
+(m/s²)/N by default), phase in degrees, coherence and MAC dimensionless (0..1), errors in %.
+
+* ``plot_frf``: magnitude, phase and ordinary coherence of the FRFs of one run;
+* ``plot_stabilisation``: poles per model order over the complex mode indicator function (CMIF,
+  Shih et al. 1988: singular values of H(f) at each frequency line);
+* ``plot_freq_vs_pose``: measured vs predicted natural frequency across a pose variable, a line per
+  model and mode, experiment points with ±1 standard deviation bars from repeated tests;
+* ``plot_trends``: frequency of each mode against one pose variable, a line per value of another
+  (payload / configuration trends in the style of seed 001);
+* ``plot_mode_shapes``: measured shapes at the sensors drawn on the arm geometry at a pose with the
+  frame FE model's deformed shape (models.frame) as a curve;
+* ``plot_gap``: the per-mode frequency error before and after a diagnosed effect (CONTRACT §5).
+"""
+
+from __future__ import annotations
+
+import io
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import numpy as np  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
+
+from modal.table import ModalTable  # noqa: E402
+from reports.errors import ReportError  # noqa: E402
+
+_COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf")
+
+
+def figure_png(fig: Figure, dpi: int = 100) -> bytes:
+    """The figure as PNG bytes."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
+    return buf.getvalue()
+
+
+def cmif(H: np.ndarray) -> np.ndarray:
+    """Complex mode indicator function: singular values of H [n_out, n_in, n_freq] at each line.
+
+    Returns [min(n_out, n_in), n_freq], largest first (Shih, Tsuei, Allemang & Brown 1988).
+    """
+    H = np.asarray(H)
+    if H.ndim != 3:
+        raise ReportError(f"cmif: H must be [n_out, n_in, n_freq], got shape {H.shape}")
+    return np.linalg.svd(np.moveaxis(H, -1, 0), compute_uv=False).T
+
+
+def plot_frf(freq_hz: np.ndarray, H: np.ndarray, coherence: np.ndarray | None = None,
+             labels: Sequence[str] = (), unit: str = "(m/s²)/N", title: str = "") -> Figure:
+    """Magnitude (log), phase [deg] and coherence [-] of FRFs H [n_out, n_freq] (or [n_out, 1, n_freq])."""
+    H = np.asarray(H)
+    if H.ndim == 3:
+        H = H[:, 0, :]
+    labels = list(labels) or [f"out {i + 1}" for i in range(H.shape[0])]
+    rows = 3 if coherence is not None else 2
+    fig = Figure(figsize=(8, 2.2 * rows + 0.6))
+    axes = fig.subplots(rows, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1, 1][:rows]})
+    for i, label in enumerate(labels):
+        c = _COLOURS[i % len(_COLOURS)]
+        axes[0].semilogy(freq_hz, np.abs(H[i]), color=c, lw=0.9, label=label)
+        axes[1].plot(freq_hz, np.degrees(np.angle(H[i])), color=c, lw=0.7)
+        if coherence is not None:
+            axes[2].plot(freq_hz, np.asarray(coherence)[i], color=c, lw=0.7)
+    axes[0].set_ylabel(f"|H| [{unit}]")
+    axes[1].set_ylabel("phase [deg]")
+    axes[1].set_yticks([-180, -90, 0, 90, 180])
+    if coherence is not None:
+        axes[2].set_ylabel("coherence [-]")
+        axes[2].set_ylim(0, 1.05)
+    axes[-1].set_xlabel("frequency [Hz]")
+    axes[0].legend(fontsize=7, ncol=min(len(labels), 5), loc="best")
+    for ax in axes:
+        ax.grid(True, which="both", alpha=0.3)
+    if title:
+        axes[0].set_title(title)
+    return fig
+
+
+@dataclass(frozen=True)
+class Stabilisation:
+    """Poles of a stabilisation diagram: model order, frequency [Hz] and whether each is stable."""
+
+    order: np.ndarray
+    freq_hz: np.ndarray
+    stable: np.ndarray
+
+    def __post_init__(self) -> None:
+        sizes = {np.size(self.order), np.size(self.freq_hz), np.size(self.stable)}
+        if len(sizes) != 1:
+            raise ReportError(f"stabilisation: order, freq_hz and stable differ in length ({sorted(sizes)})")
+
+
+def plot_stabilisation(freq_hz: np.ndarray, H: np.ndarray, poles: Stabilisation, unit: str = "(m/s²)/N",
+                       title: str = "") -> Figure:
+    """Stable (filled) and unstable (open) poles per model order over the CMIF of H [n_out, n_in, n_freq]."""
+    fig = Figure(figsize=(8, 4))
+    ax = fig.subplots()
+    stable = np.asarray(poles.stable, bool)
+    ax.plot(poles.freq_hz[~stable], poles.order[~stable], "o", mfc="none", mec="0.6", ms=4,
+            label="unstable pole")
+    ax.plot(poles.freq_hz[stable], poles.order[stable], "o", color=_COLOURS[1], ms=4, label="stable pole")
+    ax.set_xlabel("frequency [Hz]")
+    ax.set_ylabel("model order [-]")
+    mif_ax = ax.twinx()
+    for k, sv in enumerate(cmif(H)):
+        mif_ax.semilogy(freq_hz, sv, color=_COLOURS[0], lw=1.0 if k == 0 else 0.6,
+                        alpha=1.0 if k == 0 else 0.5)
+    mif_ax.set_ylabel(f"CMIF (singular values of H) [{unit}]")
+    ax.set_xlim(float(np.min(freq_hz)), float(np.max(freq_hz)))
+    ax.legend(loc="upper left", fontsize=7)
+    if title:
+        ax.set_title(title)
+    return fig
+
+
+def _pose_values(table: ModalTable, pose_var: str) -> dict[str, float]:
+    col = "pose." + pose_var
+    if col not in table.frame:
+        raise ReportError(f"{table.source}: no column {col!r} to plot against")
+    return {c: float(table.rows(c)[col].iloc[0]) for c in table.configs}
+
+
+def _experiment_stats(measured: Sequence[ModalTable], pose_var: str):
+    """Per (pose value, mode): mean frequency [Hz] and standard deviation over repeated tests [Hz]."""
+    import pandas as pd
+
+    frames = []
+    for t in measured:
+        x = _pose_values(t, pose_var)
+        cols = ["config", "mode", "freq_hz"] + (["freq_sd_hz"] if "freq_sd_hz" in t.frame else [])
+        df = t.frame[cols].copy()
+        df["x"] = df["config"].map(x)
+        frames.append(df)
+    df = pd.concat(frames)
+    stats = df.groupby(["mode", "x"])["freq_hz"].agg(["mean", "std", "count"]).reset_index()
+    if "freq_sd_hz" in df:  # a table that already holds the repeatability (mean and sd per mode)
+        sd = df.groupby(["mode", "x"])["freq_sd_hz"].mean().reset_index(drop=True)
+        stats["std"] = np.where(stats["count"] > 1, stats["std"], sd)
+    stats["std"] = stats["std"].fillna(0.0)
+    return stats
+
+
+def plot_freq_vs_pose(measured: Sequence[ModalTable], predictions: Sequence[tuple[str, ModalTable]],
+                      pose_var: str, unit: str = "deg", title: str = "") -> Figure:
+    """Natural frequency [Hz] against ``pose.<pose_var>``: a line per model and mode, experiment points.
+
+    ``measured`` may hold repeated tests (several tables over the same configurations): points are the
+    mean, error bars ±1 sample standard deviation (or a ``freq_sd_hz`` column when given).
+    """
+    fig = Figure(figsize=(8, 4.5))
+    ax = fig.subplots()
+    for k, (name, table) in enumerate(predictions):
+        x = _pose_values(table, pose_var)
+        df = table.frame.assign(x=table.frame["config"].map(x)).sort_values("x")
+        colour = _COLOURS[(k + 1) % len(_COLOURS)]
+        for j, (_, g) in enumerate(df.groupby("mode")):
+            ax.plot(g["x"], g["freq_hz"], "-", color=colour, lw=1.2, label=name if j == 0 else None)
+    if measured:
+        stats = _experiment_stats(measured, pose_var)
+        ax.errorbar(stats["x"], stats["mean"], yerr=stats["std"], fmt="o", color="k", ms=4, capsize=3,
+                    label="experiment (mean ± 1 sd)")
+    ax.set_xlabel(f"{pose_var} [{unit}]")
+    ax.set_ylabel("natural frequency [Hz]")
+    ax.set_yscale("log")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    if title:
+        ax.set_title(title)
+    return fig
+
+
+def plot_trends(table: ModalTable, x_var: str, group_var: str | None = None, x_unit: str = "kg",
+                group_unit: str = "deg", title: str = "") -> Figure:
+    """Frequency [Hz] of each mode against ``pose.<x_var>``, a line per value of ``pose.<group_var>``."""
+    x = _pose_values(table, x_var)
+    groups = _pose_values(table, group_var) if group_var else dict.fromkeys(table.configs, 0.0)
+    df = table.frame.assign(x=table.frame["config"].map(x), g=table.frame["config"].map(groups))
+    modes = sorted(df["mode"].unique())
+    cols = min(3, len(modes))
+    rows = math.ceil(len(modes) / cols)
+    fig = Figure(figsize=(3.2 * cols, 2.6 * rows + 0.4))
+    axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False)).ravel()
+    for ax, mode in zip(axes, modes, strict=False):
+        sub = df[df["mode"] == mode]
+        for k, (gval, g) in enumerate(sub.groupby("g")):
+            g = g.sort_values("x")
+            label = f"{group_var} = {gval:g} {group_unit}" if group_var else None
+            ax.plot(g["x"], g["freq_hz"], "o-", ms=3, color=_COLOURS[k % len(_COLOURS)], label=label)
+        ax.set_title(f"mode {mode}", fontsize=9)
+        ax.set_xlabel(f"{x_var} [{x_unit}]")
+        ax.set_ylabel("frequency [Hz]")
+        ax.grid(True, alpha=0.3)
+    for ax in axes[len(modes):]:
+        ax.set_visible(False)
+    if group_var:
+        axes[0].legend(fontsize=7)
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
+def realise(shape: np.ndarray) -> np.ndarray:
+    """A complex shape rotated so its largest component is real, real part returned."""
+    shape = np.asarray(shape, dtype=complex)
+    ref = shape[np.argmax(np.abs(shape))]
+    return (shape * np.exp(-1j * np.angle(ref))).real if abs(ref) > 0 else shape.real
+
+
+def plot_mode_shapes(rig, pose: Mapping[str, float], measured: ModalTable, config: str, n_fe_modes: int = 8,
+                     title: str = "") -> Figure:
+    """Measured mode shapes at the sensors on the arm at ``pose``, with the frame FE model's curve.
+
+    For every measured mode the FE mode (models.frame, ``n_fe_modes`` lowest) with the highest MAC at
+    the sensors is drawn as the deformed arm, scaled by least squares onto the measured points.
+    Displacements are exaggerated to 15 % of the arm's reach; coordinates in m.
+    """
+    from compare.pairing import mac_matrix
+    from models.frame import assemble, link_geometry, solve_modes
+
+    sensors = [s for s in rig.sensors if s.name in measured.sensors]
+    if len(sensors) < 2:
+        raise ReportError(f"{measured.source}: needs shapes at two or more of the rig's sensors to draw")
+    system = assemble(rig, pose)
+    fe = solve_modes(system, min(n_fe_modes, system.n_dof))
+    angles, starts = link_geometry(rig, pose)
+    names = [lk.name for lk in rig.links]
+    fractions = np.linspace(0.0, 1.0, 25)
+    curve_xy = np.concatenate([starts[i] + np.outer(fractions * lk.length_m, [math.cos(angles[i]),
+                                                                              math.sin(angles[i])])
+                               for i, lk in enumerate(rig.links)])
+    rows_x = np.array([system.observe(f"{lk.name}@{f:.6f}", "x") for lk in rig.links for f in fractions])
+    rows_y = np.array([system.observe(f"{lk.name}@{f:.6f}", "y") for lk in rig.links for f in fractions])
+    sensor_xy, sensor_dir = [], []
+    for s in sensors:
+        i = names.index(s.at.link)
+        a = angles[i]
+        axis = np.array([math.cos(a), math.sin(a)])
+        sensor_xy.append(starts[i] + s.at.fraction * rig.links[i].length_m * axis)
+        sensor_dir.append([-axis[1], axis[0]] if s.direction == "transverse" else axis)
+    sensor_xy, sensor_dir = np.array(sensor_xy), np.array(sensor_dir)
+    fe_at_sensors = np.array([system.observe(str(s.at), s.direction) for s in sensors]) @ fe.phi
+    shapes = measured.shapes(config, [s.name for s in sensors])
+    freqs = measured.freq_hz(config)
+    mac = mac_matrix(np.nan_to_num(shapes), fe_at_sensors)
+    reach = float(np.ptp(curve_xy, axis=0).max()) or 1.0
+
+    n = shapes.shape[1]
+    cols = min(3, n)
+    rows = math.ceil(n / cols)
+    fig = Figure(figsize=(3.4 * cols, 3.0 * rows + 0.4))
+    axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False)).ravel()
+    for k, ax in enumerate(axes[:n]):
+        meas = realise(np.nan_to_num(shapes[:, k]))
+        j = int(np.argmax(mac[k]))
+        model = fe_at_sensors[:, j]
+        alpha = float(model @ meas / (model @ model)) if model @ model > 0 else 0.0
+        disp = np.column_stack([rows_x @ fe.phi[:, j], rows_y @ fe.phi[:, j]]) * alpha
+        scale = 0.15 * reach / max(float(np.abs(meas).max()), float(np.hypot(*disp.T).max()), 1e-30)
+        ax.plot(curve_xy[:, 0], curve_xy[:, 1], color="0.75", lw=2, label="undeformed arm")
+        ax.plot(*(curve_xy + scale * disp).T, color=_COLOURS[0], lw=1.3,
+                label=f"FE mode {j + 1} ({fe.freq_hz[j]:.1f} Hz)")
+        pts = sensor_xy + scale * meas[:, None] * sensor_dir
+        ax.plot(pts[:, 0], pts[:, 1], "o", color=_COLOURS[1], ms=5, label="measured")
+        ax.set_title(f"mode {k + 1}: {freqs[k]:.2f} Hz, MAC {mac[k, j]:.2f} [-]", fontsize=9)
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=6, loc="best")
+    for ax in axes[n:]:
+        ax.set_visible(False)
+    fig.suptitle(title or f"{config}: mode shapes (displacement exaggerated)")
+    fig.tight_layout()
+    return fig
+
+
+def gap_per_mode(diagnosis: Mapping) -> tuple[list[str], np.ndarray, np.ndarray | None]:
+    """Modes, per-mode relative error before [fraction] and after the verdict's effect (None if absent).
+
+    ``before`` is ``baseline.per_mode``; ``after`` the first of ``verdict.per_mode_after``,
+    ``after.per_mode`` or ``ranking[0].per_mode`` present in the diagnosis (CONTRACT §5 plus extras).
+    """
+    try:
+        before = dict(diagnosis["baseline"]["per_mode"])
+    except (KeyError, TypeError):
+        raise ReportError("diagnosis: no baseline.per_mode to plot") from None
+    after_src = (diagnosis.get("verdict", {}).get("per_mode_after")
+                 or diagnosis.get("after", {}).get("per_mode")
+                 or (diagnosis.get("ranking") or [{}])[0].get("per_mode"))
+    modes = sorted(before, key=lambda m: (len(str(m)), str(m)))
+    b = np.array([float(before[m]) for m in modes])
+    a = np.array([float(after_src.get(m, np.nan)) for m in modes]) if after_src else None
+    return [str(m) for m in modes], b, a
+
+
+def plot_gap(diagnosis: Mapping, title: str = "") -> Figure:
+    """Bars of the per-mode relative frequency error [%] before and after the diagnosed effect, and the
+    held-out RMS error [%] before and after (CONTRACT §5 ``verdict``)."""
+    modes, before, after = gap_per_mode(diagnosis)
+    verdict = diagnosis.get("verdict", {})
+    fig = Figure(figsize=(8, 3.6))
+    ax, ax2 = fig.subplots(1, 2, gridspec_kw={"width_ratios": [3, 1]})
+    x = np.arange(len(modes))
+    w = 0.4 if after is not None else 0.6
+    ax.bar(x - (w / 2 if after is not None else 0), 100 * before, w, color="0.6", label="nominal model")
+    if after is not None:
+        ax.bar(x + w / 2, 100 * after, w, color=_COLOURS[0], label=f"with {verdict.get('effect', 'effect')}")
+    ax.set_xticks(x, [f"mode {m}" for m in modes])
+    ax.set_ylabel("relative frequency error [%]")
+    ax.legend(fontsize=7)
+    ax.grid(True, axis="y", alpha=0.3)
+    totals = [verdict.get("heldout_rms_rel_error_before"), verdict.get("heldout_rms_rel_error_after")]
+    if all(v is not None for v in totals):
+        ax2.bar([0, 1], [100 * float(v) for v in totals], color=["0.6", _COLOURS[0]])
+        ax2.set_xticks([0, 1], ["before", "after"])
+        ax2.set_ylabel("held-out RMS error [%]")
+        ax2.grid(True, axis="y", alpha=0.3)
+    else:
+        ax2.set_visible(False)
+    fig.suptitle(title or f"gap per mode: {verdict.get('effect', '?')} at {verdict.get('location', '?')}")
+    fig.tight_layout()
+    return fig

@@ -1,0 +1,154 @@
+"""What a report shows of a stored run (CONTRACT §6): metadata, channels, data quality, FRFs.
+
+Runs are read with ``daq.store.read_run``; the FRF group (``frf/H``, ``frf/freq_hz``, ``frf/coherence``)
+and an optional stabilisation group (``stabilisation/order``, ``stabilisation/freq_hz``,
+``stabilisation/stable``, one entry per pole) with plain h5py.  FRF output names come from the ``frf``
+attribute ``outputs`` (list or JSON list) when present, else from the non-force channels in order.
+Rejected impact hits are counted from the ``rejected_hits`` attribute of the run or its ``frf`` group,
+else from ``note`` events whose detail starts with ``rejected``.
+"""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from daq.store import Channel, Event, list_runs, read_run
+from reports.errors import ReportError
+from reports.plots import Stabilisation
+
+LOW_COHERENCE = 0.8
+
+
+@dataclass(frozen=True)
+class FrfData:
+    """Stored FRFs of a run: H [n_out, n_in, n_freq], freq_hz [n_freq], coherence [n_out, n_freq]."""
+
+    freq_hz: np.ndarray
+    H: np.ndarray
+    coherence: np.ndarray | None
+    outputs: tuple[str, ...]
+    attrs: dict
+
+
+@dataclass(frozen=True)
+class RunSummary:
+    path: Path
+    run_id: str
+    sample_rate_hz: float
+    start_time: str
+    excitation: str
+    pose: dict
+    n_samples: int
+    channels: tuple[Channel, ...]
+    events: tuple[Event, ...]
+    attrs: dict
+    peak_abs: np.ndarray  # [n_channels] largest |sample| per channel, in the channel's unit
+    frf: FrfData | None
+    stabilisation: Stabilisation | None
+
+    @property
+    def duration_s(self) -> float:
+        return self.n_samples / self.sample_rate_hz
+
+    @property
+    def event_counts(self) -> Counter:
+        """Number of events per kind (trigger, gap, overload, corrupt, reconnect, note)."""
+        return Counter(e.kind for e in self.events)
+
+    @property
+    def overload_samples(self) -> int:
+        return int(sum(e.count for e in self.events if e.kind == "overload"))
+
+    @property
+    def rejected_hits(self) -> int:
+        for attrs in (self.attrs, self.frf.attrs if self.frf else {}):
+            if "rejected_hits" in attrs:
+                return int(attrs["rejected_hits"])
+        return sum(1 for e in self.events if e.kind == "note" and e.detail.lower().startswith("rejected"))
+
+    def coherence_stats(self) -> tuple[float, float] | None:
+        """Mean coherence [-] and share of (output, line) values below LOW_COHERENCE [%]; None without FRF."""
+        if self.frf is None or self.frf.coherence is None:
+            return None
+        coh = self.frf.coherence[:, self.frf.freq_hz > 0]
+        return float(np.mean(coh)), float(100.0 * np.mean(coh < LOW_COHERENCE))
+
+
+def _decode(value) -> object:
+    if isinstance(value, bytes):
+        return value.decode()
+    if isinstance(value, np.ndarray) and value.dtype.kind in "SO":
+        return [_decode(v) for v in value]
+    return value
+
+
+def _outputs(attrs: dict, channels: Sequence[Channel], n_out: int) -> tuple[str, ...]:
+    names = attrs.get("outputs")
+    if isinstance(names, str):
+        try:
+            names = json.loads(names)
+        except json.JSONDecodeError:
+            names = [n.strip() for n in names.split(",")]
+    if names is not None and len(names) == n_out:
+        return tuple(str(n) for n in names)
+    responses = [c.name for c in channels if c.kind != "force"]
+    return tuple(responses) if len(responses) == n_out else tuple(f"out {i + 1}" for i in range(n_out))
+
+
+def _read_groups(path: Path, run_id: str, channels: Sequence[Channel]) -> tuple[FrfData | None,
+                                                                                 Stabilisation | None]:
+    with h5py.File(path, "r", libver="latest", swmr=True) as f:
+        g = f[f"runs/{run_id}"]
+        frf = None
+        if "frf" in g and "H" in g["frf"] and "freq_hz" in g["frf"]:
+            fg = g["frf"]
+            H = fg["H"][()]
+            if H.ndim == 2:
+                H = H[:, None, :]
+            attrs = {k: _decode(v) for k, v in fg.attrs.items()}
+            coh = fg["coherence"][()] if "coherence" in fg else None
+            frf = FrfData(fg["freq_hz"][()], H, coh, _outputs(attrs, channels, H.shape[0]), attrs)
+        stab = None
+        if "stabilisation" in g and all(k in g["stabilisation"] for k in ("order", "freq_hz", "stable")):
+            sg = g["stabilisation"]
+            stab = Stabilisation(sg["order"][()], sg["freq_hz"][()], sg["stable"][()].astype(bool))
+    return frf, stab
+
+
+def summarise_run(path: str | Path, run_id: str) -> RunSummary:
+    """Read one run and what the report needs of it."""
+    run = read_run(path, run_id)
+    samples = np.asarray(run.samples)
+    peak = np.max(np.abs(samples), axis=0) if samples.size else np.zeros(len(run.channels))
+    frf, stab = _read_groups(Path(path), run_id, run.channels)
+    return RunSummary(Path(path), run_id, run.sample_rate_hz, run.start_time, run.excitation, dict(run.pose),
+                      int(samples.shape[0]), run.channels, run.events, dict(run.attrs), peak, frf, stab)
+
+
+def expand_runs(runs: Sequence[str | Path | tuple[str | Path, str]]) -> list[tuple[Path, str]]:
+    """(file, run id) for every entry: a file means all its runs; ``FILE::RUN`` or (file, run) one run."""
+    out: list[tuple[Path, str]] = []
+    for entry in runs:
+        if isinstance(entry, tuple):
+            out.append((Path(entry[0]), entry[1]))
+            continue
+        text = str(entry)
+        file, sep, run_id = text.partition("::")
+        path = Path(file)
+        if not path.is_file():
+            raise FileNotFoundError(2, "run file not found", str(path))
+        if sep:
+            out.append((path, run_id))
+            continue
+        ids = list_runs(path)
+        if not ids:
+            raise ReportError(f"{path}: holds no runs (expected groups under /runs)")
+        out += [(path, r) for r in ids]
+    return out

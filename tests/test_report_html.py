@@ -1,0 +1,299 @@
+"""The HTML report from real stored runs: content, self-containment, CLI, and headless Chromium.
+
+Runs are simulated on the demo arm (fixtures.rig_sim, hidden elbow compliance), stored with
+daq.store.RunWriter, their FRFs estimated with modal.frf (H1) and written into the CONTRACT §6 ``frf``
+group.  Chromium is driven over the DevTools protocol on a pipe (``--remote-debugging-pipe``: commands
+on fd 3, replies on fd 4, NUL-terminated JSON), which gives console messages, exceptions, network
+requests and element positions without any extra package.  Chromium missing is a failure, not a skip.
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+import json
+import os
+import re
+import select
+import shutil
+import subprocess
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from matplotlib import image as mpimg
+
+from app import main
+from daq.store import Event, RunWriter
+from fixtures.rig_sim import HiddenEffect, simulate
+from modal.frf import coherence, h1
+from modal.spectra import welch_spectra
+from modal.table import ModalTable
+from models.frame import frame_modes
+from models.rig import load_rig
+from reports.html import write_report
+
+POSES = {"theta0": {"theta_deg": 0.0}, "theta60": {"theta_deg": 60.0}, "theta120": {"theta_deg": 120.0}}
+FS_HZ = 1024.0
+DIAGNOSIS = {
+    "baseline": {"rms_rel_error": 0.12, "max_rel_error": 0.25, "per_mode": {"1": 0.04, "2": 0.21},
+                 "per_config": {"theta0": 0.1}},
+    "where": {"modes": [2], "configs": ["theta0", "theta60"], "region": "joint:elbow"},
+    "ranking": [{"effect": "joint_stiffness", "location": "elbow", "params": {"k_Nm_per_rad": 1500.0},
+                 "fit_rms_rel_error": 0.004, "heldout_rms_rel_error": 0.006, "n_params": 1, "score": 0.0,
+                 "per_mode": {"1": 0.003, "2": 0.005}}],
+    "verdict": {"effect": "joint_stiffness", "location": "elbow", "heldout_rms_rel_error_before": 0.19,
+                "heldout_rms_rel_error_after": 0.006, "explained": True},
+}
+
+
+def _modal_table(freq_hz, shapes, sensors, config, pose, source, damping=None):
+    recs = []
+    for k, f in enumerate(freq_hz):
+        rec = {"config": config, "mode": k + 1, "freq_hz": float(f), "source": source,
+               **{f"pose.{v}": x for v, x in pose.items()},
+               **{f"shape.{s}": float(shapes[i, k]) for i, s in enumerate(sensors)}}
+        if damping is not None:
+            rec["damping_ratio"] = float(damping[k])
+        recs.append(rec)
+    return recs
+
+
+@pytest.fixture(scope="module")
+def inputs(rigs_dir, tmp_path_factory):
+    """Stored runs with FRFs, measured and predicted tables, a diagnosis: what the demo hands over."""
+    tmp = tmp_path_factory.mktemp("report")
+    rig = load_rig(rigs_dir / "demo_arm.toml")
+    runs = tmp / "runs.h5"
+    measured, predicted = [], []
+    effect = (HiddenEffect("joint_stiffness", "elbow", {"k_Nm_per_rad": 1500.0}),)
+    for i, (config, pose) in enumerate(POSES.items()):
+        test = simulate(rig, pose, excitation="random", duration_s=4.0, sample_rate_hz=FS_HZ,
+                        effects=effect, seed=i, n_modes=4)
+        with RunWriter(runs, f"{config}-random", sample_rate_hz=FS_HZ, channels=test.channels,
+                       excitation="random", pose=dict(pose)) as w:
+            w.append(test.samples)
+            w.add_event(Event("overload", 100, 3, "a3 clipped"))
+            w.add_event(Event("note", 2000, 1, "rejected hit: double hit"))
+        acc = [j for j, c in enumerate(test.channels) if c.kind == "acceleration"]
+        spectra = welch_spectra(test.samples, FS_HZ, [0], acc, 512)
+        with h5py.File(runs, "a") as f:
+            g = f.create_group(f"runs/{config}-random/frf")
+            g["H"], g["freq_hz"], g["coherence"] = h1(spectra), spectra.freq_hz, coherence(spectra)
+            g.attrs.update(estimator="H1", window="hann", nfft=512, n_averages=spectra.n_averages,
+                           outputs=json.dumps([test.channels[j].name for j in acc]))
+            if i == 0:  # poles of a stabilisation diagram (the truth, at model orders 4..20)
+                n = len(test.natural_freq_hz)
+                orders = np.repeat(np.arange(4, 22, 2), n).astype(float)
+                sg = g.parent.create_group("stabilisation")
+                sg["order"], sg["freq_hz"] = orders, np.tile(test.natural_freq_hz, 9)
+                sg["stable"] = orders >= 8
+        measured += _modal_table(test.natural_freq_hz[:4], test.shapes[:, :4], test.sensor_names, config,
+                                 pose, "experiment", test.damping_ratio[:4])
+        fe = frame_modes(rig, pose, 4)
+        predicted += _modal_table(fe.freq_hz, fe.sensor_shapes, fe.sensor_names, config, pose, "fe")
+    paths = {"runs": runs, "measured": tmp / "modes.csv", "pred": tmp / "fe.csv",
+             "diag": tmp / "diagnosis.json",
+             "rig": rigs_dir / "demo_arm.toml", "dir": tmp}
+    ModalTable.from_records(measured, "experiment").to_csv(paths["measured"])
+    ModalTable.from_records(predicted, "fe").to_csv(paths["pred"])
+    paths["diag"].write_text(json.dumps(DIAGNOSIS))
+    return paths
+
+
+@pytest.fixture(scope="module")
+def report(inputs):
+    return write_report(inputs["dir"] / "report.html", runs=[inputs["runs"]],
+                        measured=ModalTable.read_csv(inputs["measured"]),
+                        predictions=[ModalTable.read_csv(inputs["pred"])], diagnosis=DIAGNOSIS,
+                        rig=load_rig(inputs["rig"]), title="demo arm validation")
+
+
+def test_report_is_self_contained_and_holds_every_section(report):
+    html = report.read_text()
+    assert "<script" not in html and "<link" not in html
+    assert not re.search(r"""(src|href)\s*=\s*["'](?!data:|#)""", html)  # nothing fetched
+    assert "http://" not in html and "https://" not in html
+    for heading in ("Measured and predicted modes", "Sim-to-real gap diagnosis", "Stored runs", "Channels",
+                    "Data quality", "Gap before and after the diagnosed effect", "Modes across poses"):
+        assert heading in html
+    for run in POSES:
+        assert f"runs.h5::{run}-random" in html
+    assert "1 / 3" in html  # one overload event of three samples per run
+    images = re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', html)
+    # freq vs pose, 2 mode-shape figures, 3 FRF figures, 1 stabilisation diagram, the gap plot
+    assert len(images) == 8
+    for b64 in images:
+        pixels = mpimg.imread(io.BytesIO(base64.b64decode(b64)), format="png")
+        assert pixels.std() > 0.02
+
+
+def test_report_tables_carry_units_and_numbers(report, inputs):
+    html = report.read_text()
+    for header in ("experiment f [Hz]", "experiment ζ [%]", "fe Δf [%]", "fe MAC [-]", "sample rate [Hz]",
+                   "duration [s]", "mean coherence [-]", "held-out RMS error before / after [%]"):
+        assert header in html
+    measured = ModalTable.read_csv(inputs["measured"])
+    first = measured.frame.iloc[0]
+    assert f"{first['freq_hz']:.2f}" in html
+    assert "19.0 / 0.6" in html  # verdict 0.19 -> 0.006 as percent
+
+
+def test_report_cli_writes_the_same_sections(inputs, capsys):
+    out = inputs["dir"] / "cli-report.html"
+    argv = ["report", str(inputs["runs"]), "--measured", str(inputs["measured"]),
+            "--pred", str(inputs["pred"]),
+            "--diagnosis", str(inputs["diag"]), "--rig", str(inputs["rig"]), "--out", str(out), "--quiet"]
+    assert main(argv) == 0
+    captured = capsys.readouterr()
+    assert captured.out.strip() == str(out) and captured.err == ""
+    html = out.read_text()
+    assert "joint_stiffness at elbow" in html and html.count("data:image/png;base64,") == 8
+
+
+def test_report_cli_bad_inputs_exit_2(inputs, tmp_path, capsys):
+    bad = tmp_path / "diagnosis.json"
+    bad.write_text("{not json")
+    assert main(["report", "--diagnosis", str(bad), "--out", str(tmp_path / "r.html")]) == 2
+    assert "not valid JSON" in capsys.readouterr().err
+    assert main(["report", str(tmp_path / "missing.h5"), "--out", str(tmp_path / "r.html")]) == 2
+    assert main(["report", "--out", str(tmp_path / "r.html")]) == 2
+    assert "nothing to report" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------------------------------------
+# headless Chromium over the DevTools protocol (pipe transport)
+
+CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                  "--remote-debugging-pipe")
+
+
+class Browser:
+    """Minimal DevTools client: ``send`` a command, collect events until a reply or a deadline."""
+
+    def __init__(self, exe: str, profile: Path) -> None:
+        to_chrome_r, self._to_chrome = os.pipe()
+        self._from_chrome, from_chrome_w = os.pipe()
+
+        def wire_fds() -> None:  # the child finds the protocol on fds 3 (in) and 4 (out)
+            os.dup2(to_chrome_r, 3)
+            os.dup2(from_chrome_w, 4)
+
+        self.proc = subprocess.Popen([exe, *CHROMIUM_FLAGS, f"--user-data-dir={profile}", "about:blank"],
+                                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                     preexec_fn=wire_fds, pass_fds=(3, 4))
+        os.close(to_chrome_r)
+        os.close(from_chrome_w)
+        self._buf = b""
+        self._id = 0
+        self.events: list[dict] = []
+
+    def _read(self, deadline: float) -> dict:
+        while b"\0" not in self._buf:
+            left = deadline - time.monotonic()
+            ready, _, _ = select.select([self._from_chrome], [], [], max(left, 0))
+            if not ready:
+                raise TimeoutError("chromium did not answer in time")
+            chunk = os.read(self._from_chrome, 1 << 20)
+            if not chunk:
+                raise RuntimeError("chromium closed the DevTools pipe")
+            self._buf += chunk
+        msg, self._buf = self._buf.split(b"\0", 1)
+        return json.loads(msg)
+
+    def send(self, method: str, params: dict | None = None, session: str | None = None,
+             timeout_s: float = 30.0) -> dict:
+        self._id += 1
+        cmd = {"id": self._id, "method": method, "params": params or {}}
+        if session:
+            cmd["sessionId"] = session
+        os.write(self._to_chrome, json.dumps(cmd).encode() + b"\0")
+        deadline = time.monotonic() + timeout_s
+        while True:
+            msg = self._read(deadline)
+            if msg.get("id") == self._id:
+                if "error" in msg:
+                    raise RuntimeError(f"{method}: {msg['error']}")
+                return msg["result"]
+            self.events.append(msg)
+
+    def wait_event(self, method: str, timeout_s: float = 30.0) -> dict:
+        deadline = time.monotonic() + timeout_s
+        for ev in self.events:
+            if ev.get("method") == method:
+                return ev
+        while True:
+            msg = self._read(deadline)
+            self.events.append(msg)
+            if msg.get("method") == method:
+                return msg
+
+    def close(self) -> None:
+        try:
+            self.send("Browser.close", timeout_s=10)
+        except (RuntimeError, TimeoutError, OSError):
+            pass
+        try:
+            self.proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+        os.close(self._to_chrome)
+        os.close(self._from_chrome)
+
+
+# page positions (CSS px) of every table and image, and the page height
+LAYOUT_JS = """(() => {
+  const box = e => { const r = e.getBoundingClientRect();
+    return {x: r.left + scrollX, y: r.top + scrollY, width: r.width, height: r.height}; };
+  const img = e => ({...box(e), ok: e.complete && e.naturalWidth > 0});
+  return {tables: [...document.querySelectorAll('table')].map(box),
+          images: [...document.querySelectorAll('img')].map(img),
+          height: document.documentElement.scrollHeight};
+})()"""
+
+
+def _crop_png(browser: Browser, session: str, rect: dict) -> np.ndarray:
+    shot = browser.send("Page.captureScreenshot", {"format": "png", "captureBeyondViewport": True,
+                                                   "clip": {**rect, "scale": 1}}, session)
+    return mpimg.imread(io.BytesIO(base64.b64decode(shot["data"])), format="png")
+
+
+def test_report_renders_in_headless_chromium_without_errors(report, tmp_path):
+    exe = shutil.which("chromium") or shutil.which("chromium-browser")
+    assert exe, "Debian's chromium is required for this test (apt-get install chromium)"
+    browser = Browser(exe, tmp_path / "profile")
+    try:
+        target = browser.send("Target.createTarget", {"url": "about:blank"})["targetId"]
+        session = browser.send("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
+        for domain in ("Runtime", "Log", "Page", "Network"):
+            browser.send(f"{domain}.enable", {}, session)
+        browser.send("Emulation.setDeviceMetricsOverride",
+                     {"width": 1280, "height": 900, "deviceScaleFactor": 1, "mobile": False}, session)
+        browser.send("Page.navigate", {"url": report.resolve().as_uri()}, session)
+        browser.wait_event("Page.loadEventFired")
+        layout = browser.send("Runtime.evaluate", {"returnByValue": True, "expression": LAYOUT_JS},
+                              session)["result"]["value"]
+        full = _crop_png(browser, session, {"x": 0, "y": 0, "width": 1280, "height": layout["height"]})
+        table_px = _crop_png(browser, session, layout["tables"][0])
+        plot_px = _crop_png(browser, session, layout["images"][0])
+    finally:
+        browser.close()
+    kinds = {e.get("method"): e for e in browser.events}
+    assert "Page.loadEventFired" in kinds
+    errors = [e for e in browser.events if e.get("method") == "Runtime.exceptionThrown"
+              or (e.get("method") == "Runtime.consoleAPICalled"
+                  and e["params"]["type"] in ("error", "assert"))
+              or (e.get("method") == "Log.entryAdded" and e["params"]["entry"]["level"] == "error")]
+    assert errors == []
+    requests = [e["params"]["request"]["url"] for e in browser.events
+                if e.get("method") == "Network.requestWillBeSent"]
+    assert requests and all(u.startswith(("file:", "data:")) for u in requests), requests
+    assert len(layout["tables"]) >= 5 and len(layout["images"]) == 8
+    assert all(img["ok"] and img["width"] > 200 and img["height"] > 100 for img in layout["images"])
+    assert full.shape[0] == layout["height"] and full.std() > 0.05
+    assert table_px.std() > 0.05  # text and rules, not a blank box
+    assert plot_px.std() > 0.05 and len(np.unique(plot_px.reshape(-1, plot_px.shape[-1]), axis=0)) > 50
