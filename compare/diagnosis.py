@@ -1,0 +1,356 @@
+"""Sim-to-real gap diagnosis (CONTRACT §5): where the gap lies, which effect explains it, judged held out.
+
+1. Baseline: the nominal rig's FE modes (models/frame.py) against the measured ones, per mode and
+   configuration.  When its RMS is within ``NONE_FACTOR`` times the measurement scatter the verdict is
+   ``none``.
+2. ``where``: the modes and configurations that carry the gap, and the region of the arm whose handles'
+   frequency sensitivities best explain the error pattern (R^2, compare/gap.py), plus MAC/COMAC when
+   shapes were measured.
+3. Ranking: every effect at every location (compare/candidates.py), then every pair of the
+   ``PAIR_POOL`` best single candidates, each fitted by bounded least squares (compare/fit.py) on the
+   training configurations of every fold and scored on the held-out ones.  Score (lower is better):
+   ``sqrt(heldout_rms^2 + scatter^2) * (1 + PENALTY * n_params)``: a complexity penalty, with the
+   scatter as a floor so that candidates within the noise are ordered by simplicity.
+   ``joint_stiffness_pose`` ranks above the constant ``joint_stiffness`` at the same joint only when its
+   held-out error is lower.
+4. Verdict: the best candidate; ``explained`` is false when its held-out RMS is above
+   ``EXPLAINED_FACTOR`` times the scatter.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from compare.candidates import Candidate, pair, parse_effects, single_candidates
+from compare.errors import CompareError
+from compare.fit import Target, fit_candidate
+from compare.gap import (Measured, carriers, comac, gap_summary, joint_angles_rad, prepare, region_scores,
+                         rms)
+from compare.parametric import handles_for, pose_basis, reduce_family, solve_family
+from modal.table import ModalTable
+from models.effects import pose_stiffness
+from models.rig import Rig
+
+DEFAULT_SCATTER = 0.005
+NONE_FACTOR = 2.0
+EXPLAINED_FACTOR = 3.0
+PENALTY = 0.15
+PAIR_POOL = 8
+RANKING_LENGTH = 25
+
+
+def folds_for(configs: Sequence[str], holdout: str | Sequence[str] = "auto") -> tuple[np.ndarray, str]:
+    """Training masks [F, C] (fold 0 = all configurations) and a description of the scheme.
+
+    ``auto``: leave one configuration out up to 10 configurations, else 5-fold (interleaved).  A list of
+    configurations: one fold holding those out.
+    """
+    C = len(configs)
+    if isinstance(holdout, str) and holdout.strip() == "auto":
+        k = C if C <= 10 else 5
+        held = [np.arange(C) % k == i for i in range(k)]
+        scheme = "leave-one-configuration-out" if k == C else f"{k}-fold over configurations"
+    else:
+        names = [h.strip() for h in (holdout.split(",") if isinstance(holdout, str) else holdout) if h.strip()]
+        bad = [h for h in names if h not in configs]
+        if bad:
+            raise CompareError(f"--holdout: no configuration {bad[0]!r} in the measured table "
+                               f"(have {', '.join(configs)})")
+        held = [np.isin(np.array(configs), names)]
+        if (~held[0]).sum() < 2 or not held[0].any():
+            raise CompareError(f"--holdout: holding out {len(names)} of {C} configurations leaves "
+                               f"{int((~held[0]).sum())} to fit (need >= 2 to fit and >= 1 held out)")
+        scheme = "held out: " + ", ".join(names)
+    train = np.array([np.ones(C, bool)] + [~h for h in held])
+    return train, scheme
+
+
+def _region_label(rig: Rig, handle: str) -> str:
+    what, _, loc = handle.partition("@")
+    if what in ("EI", "mu"):
+        return f"link:{loc}"
+    if what == "ks":
+        return f"point:{loc}"
+    if loc in [j.name for j in rig.joints]:
+        return f"joint:{loc}"
+    if loc in [m.name for m in rig.members]:
+        return f"member:{loc}"
+    return loc  # base, tip, sensors
+
+
+class _Context:
+    """Everything the candidate fits share: pose bases, handles, target, folds."""
+
+    def __init__(self, rig: Rig, meas: Measured, train: np.ndarray) -> None:
+        self.rig, self.meas, self.train = rig, meas, train
+        self.handles = handles_for(rig)
+        self.index = {h.name: i for i, h in enumerate(self.handles)}
+        n = meas.freq_hz.shape[1]
+        self.bases = [pose_basis(rig, self.handles, p, n) for p in meas.poses]
+        if meas.sensors:
+            rows = [s.name for s in rig.sensors]
+            keep = [rows.index(s) for s in meas.sensors]
+            self.bases = [_with_sensors(b, keep) for b in self.bases]
+        self.target = Target(meas.freq_hz, meas.shapes, joint_angles_rad(rig, meas.poses))
+
+    def family(self, handles: Sequence[str]):
+        idx = [self.index[h] for h in handles]
+        return reduce_family(self.bases, idx, np.array([self.handles[i].nominal for i in idx]))
+
+
+def _with_sensors(b, keep):
+    from dataclasses import replace
+    return replace(b, sensors=b.sensors[keep])
+
+
+def _params(cand: Candidate, theta: np.ndarray) -> dict[str, float]:
+    """Reported parameters (SI) from fitted theta.
+
+    Names that collide in a pair are qualified: ``<effect>.<name>`` for different effects,
+    ``<name>@<location>`` for the same effect at two places.
+    """
+    names = [p.name for p in cand.params]
+    out = {}
+    for p, t in zip(cand.params, theta, strict=True):
+        key = p.name
+        if names.count(p.name) > 1:
+            same = len({q.effect for q in cand.params if q.name == p.name}) == 1
+            key = f"{p.name}@{p.handle.partition('@')[2]}" if same else f"{p.effect}.{p.name}"
+        out[key] = float(math.exp(t)) if p.power == 0 else float(t)
+    return out
+
+
+def _score(heldout: float, n_params: int, scatter: float) -> float:
+    return math.hypot(heldout, scatter) * (1 + PENALTY * n_params)
+
+
+def _evaluate_candidate(ctx: _Context, cand: Candidate, scatter: float) -> dict:
+    fam = ctx.family(cand.handles)
+    res = fit_candidate(fam, cand, ctx.target, ctx.train)
+    fm = ctx.meas.freq_hz
+    err = res.freq_hz / fm[None] - 1.0                                  # [F, C, n]
+    held = np.concatenate([err[f][~ctx.train[f]].ravel() for f in range(1, len(ctx.train))])
+    entry = {
+        "effect": cand.effect, "location": cand.location, "params": _params(cand, res.theta[0]),
+        "fit_rms_rel_error": rms(err[0]), "heldout_rms_rel_error": rms(held),
+        "heldout_max_rel_error": float(np.max(np.abs(held))), "n_params": cand.n_params,
+        "score": _score(rms(held), cand.n_params, scatter),
+    }
+    if res.mac is not None:
+        entry["mac_mean"] = float(np.nanmean(res.mac[0]))
+    entry["_freq_hz"] = res.freq_hz[0]
+    entry["_heldout_freq_hz"] = _heldout_prediction(res.freq_hz, ctx.train)
+    return entry
+
+
+def _heldout_prediction(freq: np.ndarray, train: np.ndarray) -> np.ndarray:
+    """Each configuration's frequencies predicted by the (last) fold that held it out [C, n]."""
+    out = np.full(freq.shape[1:], np.nan)
+    for f in range(1, len(train)):
+        out[~train[f]] = freq[f][~train[f]]
+    return out
+
+
+def _pose_law_guard(ranking: list[dict]) -> None:
+    """Demote ``joint_stiffness_pose`` below the constant stiffness at its joint unless it is better held out."""
+    const = {e["location"]: e for e in ranking if e["effect"] == "joint_stiffness"}
+    for e in ranking:
+        c = const.get(e["location"])
+        if e["effect"] == "joint_stiffness_pose" and c and e["heldout_rms_rel_error"] >= c["heldout_rms_rel_error"]:
+            e["score"] = max(e["score"], c["score"] * 1.001)
+
+
+def _where(ctx: _Context, base_err: np.ndarray, base_summary: dict, scatter: float, base_shapes) -> dict:
+    meas = ctx.meas
+    modes = carriers(base_summary["per_mode"], scatter)
+    configs = carriers(base_summary["per_config"], scatter)
+    weight = np.zeros_like(base_err)
+    mi = [int(m) - 1 for m in modes]
+    ci = [meas.configs.index(c) for c in configs]
+    weight[np.ix_(ci, mi)] = 1.0
+    if not weight.any():
+        weight[:] = 1.0
+    all_h = [h.name for h in ctx.handles]
+    fam = ctx.family(all_h)
+    h = np.array([[fam.nominal] * len(meas.configs)])
+    from compare.fit import _pair
+    n = meas.freq_hz.shape[1]
+    lam, dlam, shapes = solve_family(fam, h, n + 2)
+    f_all = np.sqrt(np.clip(lam, 0, None)) / (2 * math.pi)
+    idx = _pair(f_all, shapes, ctx.target)[0]
+    f = np.take_along_axis(f_all[0], idx, -1)
+    dl = np.take_along_axis(dlam[0], idx[..., None], 1)
+    sens = dl / (8 * math.pi**2 * f[..., None] * meas.freq_hz[..., None])
+    groups: dict[str, list[int]] = {}
+    for i, hd in enumerate(ctx.handles):
+        groups.setdefault(_region_label(ctx.rig, hd.name), []).append(i)
+    scores = region_scores(base_err, sens, groups, weight)
+    region = max(scores, key=scores.get) if scores else ""
+    out = {"modes": [int(m) for m in modes], "configs": configs, "region": region,
+           "region_scores": dict(sorted(scores.items(), key=lambda kv: -kv[1]))}
+    if meas.shapes is not None and base_shapes is not None:
+        from compare.gap import mac as mac_fn
+        macs = np.array([mac_fn(meas.shapes[c], base_shapes[c]) for c in range(len(meas.configs))])
+        out["mac_per_mode"] = {str(m + 1): float(np.mean(macs[:, m])) for m in range(macs.shape[1])}
+        out["comac"] = dict(zip(meas.sensors, (float(v) for v in comac(meas.shapes, base_shapes)), strict=True))
+    return out
+
+
+def diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str] = "all",
+             holdout: str | Sequence[str] = "auto", scatter: float = DEFAULT_SCATTER) -> dict:
+    """Diagnose the gap between ``rig`` (nominal) and ``measured`` modes; returns the diagnosis.json dict.
+
+    ``scatter``: the relative measurement scatter of the frequencies (0.005 = 0.5 %; seed 003's Table 4
+    repeatability was 0.3-0.85 %).
+    """
+    if not 0 < scatter < 1:
+        raise CompareError(f"--scatter must be a fraction in (0, 1) (got {scatter})")
+    names = parse_effects(effects) if isinstance(effects, str) else parse_effects(",".join(effects))
+    meas = prepare(rig, measured)
+    train, scheme = folds_for(meas.configs, holdout)
+    ctx = _Context(rig, meas, train)
+
+    base_fam = ctx.family([])
+    from compare.fit import evaluate
+    base_f, _, base_mac, _ = evaluate(base_fam, np.zeros((len(meas.configs), 0, 0)), np.zeros((1, 0)),
+                                      ctx.target)
+    base_f = base_f[0]
+    base_err = base_f / meas.freq_hz - 1.0
+    baseline = gap_summary(base_err, meas.configs)
+    held_mask = ~train[1:].all(axis=0)
+    before = rms(base_err[held_mask])
+    base_shapes = _paired_shapes(ctx, base_fam) if meas.shapes is not None else None
+    where = _where(ctx, base_err, baseline, scatter, base_shapes)
+
+    result = {"baseline": baseline, "where": where, "ranking": [], "verdict": {}}
+    ranking: list[dict] = []
+    if baseline["rms_rel_error"] > NONE_FACTOR * scatter:
+        singles = single_candidates(rig, names, {v: [p[v] for p in meas.poses] for v in rig.pose_variables})
+        ranking = [_evaluate_candidate(ctx, c, scatter) for c in singles]
+        _pose_law_guard(ranking)
+        order = sorted(range(len(singles)), key=lambda i: ranking[i]["score"])
+        pool = [singles[i] for i in order[:PAIR_POOL]]
+        for i, a in enumerate(pool):
+            for b in pool[i + 1:]:
+                cand = pair(a, b)
+                if cand is not None:
+                    ranking.append(_evaluate_candidate(ctx, cand, scatter))
+        ranking.sort(key=lambda e: e["score"])
+    result["ranking"] = [{k: v for k, v in e.items() if not k.startswith("_")} for e in ranking[:RANKING_LENGTH]]
+    result["verdict"] = _verdict(ranking, baseline, before, scatter, meas, base_err)
+    result["scatter"] = scatter
+    result["holdout"] = {"scheme": scheme, "n_folds": int(len(train) - 1)}
+    result["configs"] = list(meas.configs)
+    result["predictions"] = _predictions(meas, base_f, ranking[0] if ranking else None)
+    if ranking and ranking[0]["effect"] == "joint_stiffness_pose":
+        best = ranking[0]
+        joint = rig.joint(best["location"])
+        result["verdict"]["k_Nm_per_rad_per_config"] = {
+            c: pose_stiffness(best["params"], meas.poses[i][joint.angle]) for i, c in enumerate(meas.configs)}
+    return result
+
+
+def _paired_shapes(ctx: _Context, fam) -> np.ndarray:
+    from compare.fit import _pair
+    n = ctx.meas.freq_hz.shape[1]
+    lam, _, shapes = solve_family(fam, np.zeros((1, len(ctx.meas.configs), 0)), n + 2)
+    f_all = np.sqrt(np.clip(lam, 0, None)) / (2 * math.pi)
+    idx = _pair(f_all, shapes, ctx.target)
+    return np.take_along_axis(shapes, idx[:, :, None, :], -1)[0]
+
+
+def _verdict(ranking: list[dict], baseline: dict, before: float, scatter: float, meas: Measured,
+             base_err: np.ndarray) -> dict:
+    if not ranking:
+        return {"effect": "none", "location": "", "heldout_rms_rel_error_before": before,
+                "heldout_rms_rel_error_after": before, "explained": True,
+                "summary": f"baseline RMS gap {baseline['rms_rel_error']:.2%} is within {NONE_FACTOR:g}x the "
+                           f"measurement scatter ({scatter:.2%}): no unmodelled effect is needed"}
+    best = ranking[0]
+    after = best["heldout_rms_rel_error"]
+    explained = after <= EXPLAINED_FACTOR * scatter
+    verdict = {"effect": best["effect"], "location": best["location"],
+               "heldout_rms_rel_error_before": before, "heldout_rms_rel_error_after": after,
+               "explained": bool(explained), "params": best["params"]}
+    resid = best["_heldout_freq_hz"] / meas.freq_hz - 1.0
+    worst = np.dstack(np.unravel_index(np.argsort(-np.abs(resid), axis=None)[:3], resid.shape))[0]
+    remaining = [{"config": meas.configs[c], "mode": int(m + 1), "heldout_rel_error": float(resid[c, m])}
+                 for c, m in worst]
+    verdict["remaining"] = remaining
+    text = (f"{best['effect']} at {best['location']} brings the held-out RMS gap from {before:.2%} to "
+            f"{after:.2%}")
+    if explained:
+        verdict["summary"] = text + f", within {EXPLAINED_FACTOR:g}x the measurement scatter ({scatter:.2%})"
+    else:
+        worst_txt = ", ".join(f"mode {r['mode']} at {r['config']} ({r['heldout_rel_error']:+.1%})"
+                              for r in remaining)
+        verdict["summary"] = (text + f"; this stays above {EXPLAINED_FACTOR:g}x the scatter ({scatter:.2%}), so "
+                              f"no candidate explains the gap; largest held-out errors: {worst_txt}")
+    return verdict
+
+
+def _predictions(meas: Measured, base_f: np.ndarray, best: dict | None) -> dict:
+    def table(f: np.ndarray) -> dict:
+        return {c: [float(v) for v in f[i]] for i, c in enumerate(meas.configs)}
+
+    out = {"measured_hz": table(meas.freq_hz), "baseline_hz": table(base_f)}
+    if best is not None:
+        out["best_fit_hz"] = table(best["_freq_hz"])
+        out["best_heldout_hz"] = table(best["_heldout_freq_hz"])
+    return out
+
+
+def write_diagnosis(result: dict, out_dir: str | Path) -> tuple[Path, Path]:
+    """Write ``diagnosis.json`` and a self-contained ``diagnosis.html`` into ``out_dir``."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    pj, ph = out / "diagnosis.json", out / "diagnosis.html"
+    pj.write_text(json.dumps(result, indent=2))
+    ph.write_text(render_html(result))
+    return pj, ph
+
+
+def render_html(result: dict) -> str:
+    """A simple self-contained HTML page of a diagnosis (the report package builds the full report)."""
+    e = html.escape
+    b, v, w = result["baseline"], result["verdict"], result["where"]
+    rows = "".join(
+        f"<tr><td>{i + 1}</td><td>{e(r['effect'])}</td><td>{e(r['location'])}</td>"
+        f"<td>{e(', '.join(f'{k}={x:.4g}' for k, x in r['params'].items()))}</td>"
+        f"<td>{r['fit_rms_rel_error']:.2%}</td><td>{r['heldout_rms_rel_error']:.2%}</td>"
+        f"<td>{r['n_params']}</td><td>{r['score']:.4f}</td></tr>" for i, r in enumerate(result["ranking"]))
+    pred = result.get("predictions", {})
+    prow = ""
+    for c, fm in pred.get("measured_hz", {}).items():
+        for m, f in enumerate(fm):
+            cells = [f"{pred[k][c][m]:.2f}" if k in pred else "" for k in ("baseline_hz", "best_heldout_hz")]
+            prow += f"<tr><td>{e(c)}</td><td>{m + 1}</td><td>{f:.2f}</td><td>{cells[0]}</td><td>{cells[1]}</td></tr>"
+    per_mode = ", ".join(f"mode {k}: {x:.1%}" for k, x in b["per_mode"].items())
+    return f"""<!DOCTYPE html><html><head><meta charset="utf-8"><title>Sim-to-real gap diagnosis</title>
+<style>body{{font-family:sans-serif;max-width:60em;margin:2em auto}}table{{border-collapse:collapse}}
+td,th{{border:1px solid #bbb;padding:2px 6px;text-align:right}}</style></head><body>
+<h1>Sim-to-real gap diagnosis</h1>
+<h2>Verdict</h2><p><b>{e(v['effect'])}</b> at <b>{e(v.get('location', ''))}</b>; explained: {v['explained']}.
+{e(v.get('summary', ''))}</p>
+<h2>Baseline gap</h2><p>RMS {b['rms_rel_error']:.2%}, max {b['max_rel_error']:.2%} ({e(per_mode)}).</p>
+<h2>Where</h2><p>Modes {e(str(w['modes']))}, configurations {e(', '.join(w['configs']))}; region
+{e(w['region'])}.</p>
+<h2>Ranking</h2><p>Held out: {e(result.get('holdout', {}).get('scheme', ''))}; scatter
+{result.get('scatter', 0):.2%}.</p>
+<table><tr><th>#</th><th>effect</th><th>location</th><th>params</th><th>fit RMS</th><th>held-out RMS</th>
+<th>n</th><th>score</th></tr>{rows}</table>
+<h2>Frequencies [Hz]</h2><table><tr><th>config</th><th>mode</th><th>measured</th><th>baseline</th>
+<th>best (held out)</th></tr>{prow}</table></body></html>
+"""
+
+
+def load_and_diagnose(rig_path: str | Path, measured_path: str | Path, **kw) -> dict:
+    """Convenience: read the rig TOML and the measured modal table, then ``diagnose``."""
+    from models.rig import load_rig
+    return diagnose(load_rig(rig_path), ModalTable.read_csv(measured_path), **kw)
