@@ -1,4 +1,4 @@
-"""CLI commands of the `modal` package (registered by app.py)."""
+"""CLI commands of the `modal` package (registered by app.py): ``flexmodal frf`` and ``identify``."""
 
 from __future__ import annotations
 
@@ -7,3 +7,71 @@ import argparse
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this package's sub-commands to the flexmodal parser."""
+    p = sub.add_parser("frf", help="batch FRFs + coherence of stored runs, written back under /runs/<id>/frf",
+                       description="Compute FRFs and coherence of every run in the HDF5 files and write them "
+                                   "back under /runs/<id>/frf (or into --out). Several runs go to a dask "
+                                   "LocalCluster (2 worker processes unless --workers N; --workers 0 = "
+                                   "serial in this process) or to an existing --scheduler; a single run "
+                                   "is computed here. Prints one 'FILE:RUN_ID' line per run written.")
+    p.add_argument("runs", nargs="+", metavar="RUN.h5", help="HDF5 run files (CONTRACT §6)")
+    p.add_argument("--estimator", default="H1", choices=["H1", "H2", "Hv"], help="FRF estimator (default H1)")
+    p.add_argument("--nfft", type=int, default=None,
+                   help="segment length in samples for random/sweep runs (default: power of two <= 8192 "
+                        "giving >= 8 segments); impact runs use one record per hit")
+    p.add_argument("--window", default=None,
+                   help="window: rect|hann|flattop for random runs (default hann); impact runs "
+                        "'force:W,exponential:E' (fractions; default force:0.05,exponential:0.01)")
+    p.add_argument("--overlap", type=float, default=0.5, help="segment overlap fraction (default 0.5)")
+    p.add_argument("--averaging", default="linear", choices=["linear", "exponential"],
+                   help="averaging of impact hits (default linear)")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--workers", type=int, default=None, help="LocalCluster worker processes (0 = serial)")
+    g.add_argument("--scheduler", default=None, metavar="ADDR", help="dask.distributed scheduler address")
+    p.add_argument("--out", default=None, metavar="OUT.h5", help="write the FRFs into this file instead")
+    p.set_defaults(func=_frf)
+
+    q = sub.add_parser("identify", help="natural frequencies, damping and mode shapes -> modal table CSV",
+                       description="Identify modes from an HDF5 run (stored FRFs, or computed if absent) or "
+                                   "a UFF file (dataset 58 FRFs, function type 4, or time histories, type 1, "
+                                   "with a force reference) and write the modal table CSV (CONTRACT §3). "
+                                   "Each run of an HDF5 file is one configuration (config = run id).")
+    q.add_argument("input", metavar="INPUT", help="RUN.h5 or FILE.uff/.unv")
+    q.add_argument("--out", required=True, metavar="MODES.csv", help="modal table to write")
+    q.add_argument("--fmin", type=float, default=None, help="lower band edge, Hz (default first line > 0)")
+    q.add_argument("--fmax", type=float, default=None, help="upper band edge, Hz (default Nyquist)")
+    q.add_argument("--method", default="lscf", choices=["peak", "lscf"],
+                   help="lscf: pLSCF + stabilisation + LSFD (default); "
+                        "peak: CMIF peaks, half-power damping, quadrature shapes")
+    q.add_argument("--max-order", type=int, default=40, help="highest pLSCF model order (default 40)")
+    q.add_argument("--run", default=None, metavar="RUN_ID", help="only this run of an HDF5 file")
+    q.add_argument("--uff", default=None, metavar="MODES.uff", help="also write the modes as UFF dataset 55")
+    q.set_defaults(func=_identify)
+
+
+def _frf(args: argparse.Namespace) -> int:
+    from modal.batch import frf_batch, list_jobs
+
+    options = {"estimator": args.estimator, "nfft": args.nfft, "window": args.window,
+               "overlap": args.overlap, "averaging": args.averaging}
+    workers = args.workers
+    if workers is None and args.scheduler is None:
+        workers = 2 if len(list_jobs(args.runs)) > 1 else 0
+    for path, rid in frf_batch(args.runs, options, workers=workers, scheduler=args.scheduler, out=args.out,
+                               quiet=getattr(args, "quiet", False)):
+        print(f"{path}:{rid}")
+    return 0
+
+
+def _identify(args: argparse.Namespace) -> int:
+    from modal.sources import identify_input
+
+    table, modes_by_config = identify_input(args.input, method=args.method, fmin=args.fmin, fmax=args.fmax,
+                                            max_order=args.max_order, run_id=args.run)
+    table.to_csv(args.out)
+    if args.uff:
+        from modal.uff import write_modes
+
+        config, (modes, outputs) = next(iter(modes_by_config.items()))
+        write_modes(args.uff, modes.freq_hz, modes.damping_ratio, modes.shapes, outputs)
+    print(args.out)
+    return 0

@@ -17,7 +17,6 @@ from modal.spectra import Spectra
 
 ESTIMATORS = ("H1", "H2", "Hv")
 QUANTITIES = {"receptance": 0, "mobility": 1, "accelerance": 2}
-QUANTITY_OF_RESPONSE = {"displacement": "receptance", "velocity": "mobility", "acceleration": "accelerance"}
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,106 @@
+"""FRFs of one stored run (or any record with the same fields): checks the record, picks the inputs
+(force channels) and outputs, and runs Welch averaging or impact-hit processing by excitation."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from modal.errors import ModalError
+from modal.frf import FrfResult, coherence, estimate
+from modal.impact import impact_spectra
+from modal.spectra import welch_spectra
+from modal.windows import added_decay_rate_per_s
+
+DEFAULT_NFFT_MAX = 8192
+
+
+def check_samples(samples: np.ndarray, names: Sequence[str], where: str) -> None:
+    """Raise ModalError naming the first channel with NaN/inf samples or a constant value."""
+    if samples.ndim != 2 or samples.shape[1] != len(names):
+        raise ModalError(f"{where}: samples of shape {samples.shape} do not match {len(names)} channels")
+    if samples.shape[0] < 2:
+        raise ModalError(f"{where}: record of {samples.shape[0]} samples is shorter than one segment")
+    bad = ~np.isfinite(samples)
+    if bad.any():
+        i, c = np.argwhere(bad)[0]
+        raise ModalError(f"{where}: channel {names[c]!r} holds {samples[i, c]} at sample {i}")
+    flat = np.ptp(samples, axis=0) == 0
+    if flat.any():
+        raise ModalError(f"{where}: channel {names[int(np.argmax(flat))]!r} is constant "
+                         f"({samples[0, int(np.argmax(flat))]:g} throughout)")
+
+
+def default_nfft(n_samples: int) -> int:
+    """Largest power of two giving at least 8 half-overlapping segments, at most 8192, at least 64."""
+    n = 64
+    while n * 2 <= min(DEFAULT_NFFT_MAX, n_samples // 4):
+        n *= 2
+    return n
+
+
+def frf_of_record(samples: np.ndarray, sample_rate_hz: float, names: Sequence[str], kinds: Sequence[str],
+                  *, excitation: str = "random", estimator: str = "H1", nfft: int | None = None,
+                  window: str | None = None, overlap: float = 0.5, where: str = "record",
+                  triggers: Sequence[int] | None = None, overload_samples: Sequence[int] = (),
+                  averaging: str = "linear") -> FrfResult:
+    """FRFs of a record [n_samples, n_channels] with channel ``names`` and ``kinds`` (force channels are
+    the inputs; acceleration channels, or else every other non-encoder channel, the outputs).
+
+    Impact records (``excitation == "impact"``) are cut into hits (``triggers`` or detected), windowed
+    ``window`` = "force:W,exponential:E" (default force:0.05,exponential:0.01) and averaged; other
+    records are Welch-averaged with ``window`` (default hann), ``nfft`` and ``overlap``.
+    """
+    if not np.isfinite(sample_rate_hz) or sample_rate_hz <= 0:
+        raise ModalError(f"{where}: sample rate {sample_rate_hz} Hz is not positive")
+    samples = np.asarray(samples)
+    check_samples(samples, names, where)
+    inputs = [j for j, k in enumerate(kinds) if k == "force"]
+    if not inputs:
+        raise ModalError(f"{where}: no force channel to use as the FRF reference")
+    outputs = [j for j, k in enumerate(kinds) if k == "acceleration"]
+    quantity = "accelerance"
+    if not outputs:
+        outputs = [j for j, k in enumerate(kinds) if k not in ("force", "encoder")]
+        quantity = "response/force"
+    if not outputs:
+        raise ModalError(f"{where}: no response channel besides the force")
+    decay = 0.0
+    if excitation == "impact":
+        if len(inputs) != 1:
+            raise ModalError(f"{where}: impact processing needs exactly one force channel")
+        parts = dict(p.split(":", 1) if ":" in p else (p, "") for p in (window or "").split(",") if p)
+        fw = "force:" + (parts.get("force") or "0.05")
+        ew = "exponential:" + (parts.get("exponential") or "0.01")
+        spectra, hits = impact_spectra(samples, sample_rate_hz, inputs[0], outputs, triggers=triggers,
+                                       force_window=fw, exp_window=ew, overload_samples=overload_samples,
+                                       averaging=averaging)
+        record = 2 * (spectra.freq_hz.size - 1)
+        decay = added_decay_rate_per_s(ew, record, sample_rate_hz)
+        used_window, used_nfft = f"{fw},{ew}", record
+        extra = {"hits": [{"trigger": h.trigger, "accepted": h.accepted, "reason": h.reason} for h in hits],
+                 "averaging": averaging}
+    else:
+        used_nfft = default_nfft(samples.shape[0]) if nfft is None else int(nfft)
+        used_window = window or "hann"
+        spectra = welch_spectra(samples, sample_rate_hz, inputs, outputs, used_nfft, overlap=overlap,
+                                window_spec=used_window)
+        extra = {"overlap": overlap, "averaging": "linear"}
+    H = estimate(spectra, estimator)
+    return FrfResult(spectra.freq_hz, H, coherence(spectra), {"h1": "H1", "h2": "H2", "hv": "Hv"}[
+        estimator.lower()], used_window, used_nfft, spectra.n_averages, float(sample_rate_hz), quantity,
+        tuple(names[j] for j in outputs), tuple(names[j] for j in inputs), decay, extra)
+
+
+def compute_frf(run, *, estimator: str = "H1", nfft: int | None = None, window: str | None = None,
+                overlap: float = 0.5, averaging: str = "linear") -> FrfResult:
+    """FRFs of a stored run (a ``daq.store.Run``): uses its excitation, trigger and overload events."""
+    triggers = [e.sample_index for e in run.events if e.kind == "trigger"] or None
+    overloads = [e.sample_index + k for e in run.events if e.kind == "overload"
+                 for k in range(max(1, e.count))]
+    where = f"{run.path}:{run.run_id}"
+    return frf_of_record(run.samples, run.sample_rate_hz, [c.name for c in run.channels],
+                           [c.kind for c in run.channels], excitation=run.excitation, estimator=estimator,
+                           nfft=nfft, window=window, overlap=overlap, where=where, triggers=triggers,
+                           overload_samples=overloads, averaging=averaging)
