@@ -1,9 +1,71 @@
-"""CLI commands of the `daq` package (registered by app.py)."""
+"""CLI commands of the `daq` package: `flexmodal acquire` and `flexmodal sim serve` (registered by app.py)."""
 
 from __future__ import annotations
 
 import argparse
+import sys
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this package's sub-commands to the flexmodal parser."""
+    p = sub.add_parser("acquire", help="record an acquisition session into an HDF5 run",
+                       description="Record the devices of a session config (TOML, docs/acquisition.md) into "
+                                   "a run of an HDF5 file (CONTRACT §6). Stops at --duration (or the "
+                                   "session's duration_s) or on Ctrl-C, with everything flushed.")
+    p.add_argument("--config", required=True, metavar="SESSION.toml", help="session config file")
+    p.add_argument("--out", required=True, metavar="RUN.h5", help="HDF5 file (created, or a run is appended)")
+    p.add_argument("--duration", type=float, metavar="S", help="run length in seconds")
+    p.add_argument("--run-id", metavar="ID", help="run id (default: the session's, else name + UTC time)")
+    p.set_defaults(func=_acquire)
+
+    sim = sub.add_parser("sim", help="simulated devices").add_subparsers(dest="sim_command", metavar="CMD")
+    sim.required = True
+    s = sim.add_parser("serve", help="serve a simulated device streaming a simulated rig's signals",
+                       description="Start a simulated device on loopback only: serial over a pty (prints its "
+                                   "path), CAN as an slcan adapter on a pty (prints its path), Modbus TCP on "
+                                   "127.0.0.1 (prints host:port). Runs until Ctrl-C/SIGTERM or --duration.")
+    s.add_argument("--protocol", required=True, choices=("serial", "can", "modbus"))
+    s.add_argument("--rig", metavar="RIG.toml", help="rig description (default: examples/rigs/demo_arm.toml)")
+    s.add_argument("--test", choices=("impact", "random", "sweep"), default="impact", help="excitation")
+    s.add_argument("--rate", type=float, default=2048.0, metavar="HZ", help="sample rate, Hz")
+    s.add_argument("--seed", type=int, default=0, help="seed of the simulated test and the faults")
+    s.add_argument("--duration", type=float, metavar="S", help="stop after S seconds of samples")
+    s.add_argument("--link", metavar="PATH", help="serial/slcan: symlink path of the pty")
+    s.add_argument("--port", type=int, default=0, help="modbus: TCP port on 127.0.0.1 (0 = a free one)")
+    s.add_argument("--framing", choices=("binary", "csv"), default="binary", help="serial framing")
+    s.add_argument("--format", choices=("int16", "int32", "float32"), default="int16",
+                   help="serial binary sample format")
+    s.add_argument("--scans-per-frame", type=int, default=32, metavar="N", help="serial: scans per frame")
+    s.add_argument("--corrupt-rate", type=float, default=0.0, metavar="P",
+                   help="fraction of frames corrupted (0.01 = 1 %%)")
+    s.add_argument("--drop-at", type=float, metavar="S", help="drop a burst of frames starting at S seconds")
+    s.add_argument("--drop", type=float, default=0.2, metavar="S", help="length of the dropped burst, s")
+    s.add_argument("--disconnect-after", type=float, metavar="S", help="disconnect after S seconds")
+    s.add_argument("--disconnect", type=float, default=0.5, metavar="S", help="length of the disconnect, s")
+    s.add_argument("--fault-log", metavar="FILE", help="append one JSON line per injected fault")
+    s.set_defaults(func=_serve)
+
+
+def _acquire(args: argparse.Namespace) -> int:
+    from daq.acquire import acquire
+    from daq.errors import DaqError
+    from daq.session import load_session
+
+    session = load_session(args.config)
+    if args.duration is not None and args.duration <= 0:
+        raise DaqError(f"--duration {args.duration}: must be > 0 seconds")
+    summary = acquire(session, args.out, duration_s=args.duration, quiet=args.quiet, run_id=args.run_id)
+    print(summary.line())
+    return 0
+
+
+def _serve(args: argparse.Namespace) -> int:
+    from daq.errors import DaqError
+    from daq.sim_serve import serve
+
+    if not 0 <= args.corrupt_rate < 1:
+        raise DaqError(f"--corrupt-rate {args.corrupt_rate}: must be in [0, 1)")
+    if args.rate <= 0:
+        raise DaqError(f"--rate {args.rate}: must be > 0 Hz")
+    serve(args, sys.stdout)
+    return 0

@@ -1,0 +1,353 @@
+"""Acquisition session config (TOML, docs/acquisition.md) -> validated frozen dataclasses.
+
+Every mistake is reported up front as one DaqError line naming the file and the item (a channel of
+unknown kind, a sensitivity without its unit, a channel mapped to no device, a port that does not exist,
+...), before any device is opened.
+
+Conversion to physical units (stored values): a device delivers each *source* (a frame column, a DBC
+signal, a register) in device units; the channel then applies
+``value = (raw * scale + offset) / sensitivity * k`` where ``sensitivity`` is given in
+``sensitivity_unit = "<electrical>/<physical>"`` (e.g. ``mV/g``), ``scale``/``offset`` bring the device
+value to the electrical unit (e.g. mV per ADC count) and ``k`` converts the sensitivity's physical unit
+to the channel's ``unit`` (e.g. g -> m/s^2 = 9.80665, rev -> deg = 360).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from daq.errors import DaqError
+from daq.store import CHANNEL_KINDS, EXCITATIONS, Channel
+
+PROTOCOLS = ("serial", "can", "modbus")
+SIMULATOR_PORT = "@simulator"  # placeholder for the endpoint of the session's own simulator
+REGISTER_TYPES = {"int16": 1, "uint16": 1, "int32": 2, "uint32": 2, "float32": 2}
+G_M_PER_S2 = 9.80665
+# factor converting one unit of the first name to the second (sensitivity denominator -> channel unit)
+UNIT_FACTORS = {
+    ("g", "m/s^2"): G_M_PER_S2, ("m/s^2", "g"): 1 / G_M_PER_S2, ("kN", "N"): 1e3, ("N", "kN"): 1e-3,
+    ("lbf", "N"): 4.4482216152605, ("rev", "deg"): 360.0, ("rev", "rad"): 2 * math.pi,
+    ("deg", "rad"): math.pi / 180, ("rad", "deg"): 180 / math.pi, ("ε", "µε"): 1e6, ("µε", "ε"): 1e-6,
+    ("ue", "µε"): 1.0, ("με", "µε"): 1.0,
+}
+
+
+@dataclass(frozen=True)
+class Register:
+    """One Modbus value: ``type`` int16|uint16|int32|uint32|float32, ``word_order`` big|little."""
+
+    name: str
+    address: int
+    type: str = "int16"
+    word_order: str = "big"
+    scale: float = 1.0
+    offset: float = 0.0
+    table: str = "holding"  # holding | input
+
+
+@dataclass(frozen=True)
+class Device:
+    """One device; only the fields of its protocol matter (see docs/acquisition.md)."""
+
+    name: str
+    protocol: str
+    port: str = ""  # serial port / pyserial URL; slcan pty; Modbus RTU port
+    baud: int = 115200
+    framing: str = "binary"  # serial: binary | csv
+    sources: tuple[str, ...] = ()  # serial: names of the frame columns, in order
+    interface: str = ""  # can: virtual | slcan (any python-can interface name)
+    channel: str = ""  # can: bus channel (virtual bus name)
+    bitrate: int = 500000
+    dbc: str = ""  # can: DBC file (absolute path after loading)
+    message: str = ""  # can: DBC message carrying the samples (default: the only multiplexed one)
+    transport: str = "tcp"  # modbus: tcp | rtu
+    host: str = "127.0.0.1"
+    tcp_port: int = 502
+    device_id: int = 1
+    registers: tuple[Register, ...] = ()
+    sequence_register: str = ""  # modbus: register holding the device's sample counter (optional)
+
+
+@dataclass(frozen=True)
+class ChannelMap:
+    """A stored channel and where its values come from."""
+
+    channel: Channel
+    device: str
+    source: str
+    scale: float = 1.0
+    offset: float = 0.0
+    factor: float = 1.0  # sensitivity denominator unit -> channel unit
+    full_scale: float = math.inf  # |value| >= full_scale is an overload (channel units)
+
+    def gain(self) -> float:
+        """Physical value per raw device unit: (raw * scale + offset) / sensitivity * factor."""
+        return self.scale / self.channel.sensitivity * self.factor
+
+
+@dataclass(frozen=True)
+class Trigger:
+    channel: str
+    level: float
+    slope: str = "rising"  # rising | falling
+    pretrigger_samples: int = 0
+    holdoff_s: float = 0.5
+
+
+@dataclass(frozen=True)
+class Simulator:
+    """The simulator a session starts itself (CONTRACT §7): arguments of `flexmodal sim serve`."""
+
+    protocol: str
+    rig: str = ""
+    test: str = "impact"
+    args: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class Session:
+    source: Path
+    sample_rate_hz: float
+    devices: tuple[Device, ...]
+    channels: tuple[ChannelMap, ...]
+    excitation: str = "operational"
+    duration_s: float | None = None
+    run_id: str = ""
+    notes: str = ""
+    pose: dict = field(default_factory=dict)
+    pose_from: dict = field(default_factory=dict)  # pose variable -> encoder channel name (degrees)
+    trigger: Trigger | None = None
+    simulator: Simulator | None = None
+
+    def device(self, name: str) -> Device:
+        return next(d for d in self.devices if d.name == name)
+
+    def channels_of(self, device: str) -> tuple[ChannelMap, ...]:
+        return tuple(c for c in self.channels if c.device == device)
+
+
+def unit_factor(from_unit: str, to_unit: str) -> float | None:
+    """Factor converting ``from_unit`` to ``to_unit`` (None when unknown)."""
+    norm = lambda u: u.replace("m/s2", "m/s^2").replace("m/s²", "m/s^2").replace("μ", "µ").strip()
+    a, b = norm(from_unit), norm(to_unit)
+    return 1.0 if a == b else UNIT_FACTORS.get((a, b))
+
+
+class _Table:
+    """Typed access to one TOML table with errors naming ``where`` and the key."""
+
+    def __init__(self, doc: dict, where: str) -> None:
+        if not isinstance(doc, dict):
+            raise DaqError(f"{where}: expected a table")
+        self.doc, self.where = doc, where
+
+    def get(self, key: str, kind: type | tuple, default: Any = ..., *, check=None, why: str = ""):
+        if key not in self.doc:
+            if default is ...:
+                raise DaqError(f"{self.where}: missing field {key!r}")
+            return default
+        value = self.doc[key]
+        if kind is float and isinstance(value, int) and not isinstance(value, bool):
+            value = float(value)
+        if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
+            names = kind.__name__ if isinstance(kind, type) else "/".join(k.__name__ for k in kind)
+            raise DaqError(f"{self.where}: {key} = {value!r} is not a {names}")
+        if check is not None and not check(value):
+            raise DaqError(f"{self.where}: {key} = {value!r} {why}")
+        return value
+
+    def choice(self, key: str, options: tuple[str, ...], default: Any = ...) -> str:
+        return self.get(key, str, default, check=lambda v: v in options,
+                        why=f"is not one of {', '.join(options)}")
+
+    def reject_unknown(self, known: set[str]) -> None:
+        extra = sorted(set(self.doc) - known)
+        if extra:
+            raise DaqError(f"{self.where}: unknown field {extra[0]!r}")
+
+
+def _port_exists(port: str) -> bool:
+    return "://" in port or port == SIMULATOR_PORT or Path(port).exists()
+
+
+def _resolve(base: Path, value: str) -> str:
+    return str((base / value).resolve()) if value and not Path(value).is_absolute() else value
+
+
+def _register(doc: dict, where: str) -> Register:
+    t = _Table(doc, where)
+    t.reject_unknown({"name", "address", "type", "word_order", "scale", "offset", "table"})
+    return Register(
+        name=t.get("name", str), address=t.get("address", int, check=lambda v: 0 <= v <= 65535,
+                                                 why="is not a register address 0..65535"),
+        type=t.choice("type", tuple(REGISTER_TYPES), "int16"),
+        word_order=t.choice("word_order", ("big", "little"), "big"),
+        scale=t.get("scale", float, 1.0), offset=t.get("offset", float, 0.0),
+        table=t.choice("table", ("holding", "input"), "holding"))
+
+
+def _device(doc: dict, where: str, base: Path) -> Device:
+    t = _Table(doc, where)
+    name = t.get("name", str, check=bool, why="is empty")
+    where = f"{where.split(':')[0]}: device {name!r}"
+    t = _Table(doc, where)
+    protocol = t.choice("protocol", PROTOCOLS)
+    common = {"name", "protocol"}
+    if protocol == "serial":
+        t.reject_unknown(common | {"port", "baud", "framing", "sources"})
+        port = t.get("port", str)
+        if not _port_exists(port):
+            raise DaqError(f"{where}: port {port!r} does not exist")
+        sources = t.get("sources", list, check=lambda v: v and all(isinstance(s, str) for s in v),
+                        why="must be a non-empty list of column names")
+        return Device(name, protocol, port=port, baud=t.get("baud", int, 115200),
+                      framing=t.choice("framing", ("binary", "csv"), "binary"), sources=tuple(sources))
+    if protocol == "can":
+        t.reject_unknown(common | {"interface", "channel", "bitrate", "dbc", "message"})
+        interface = t.get("interface", str)
+        channel = t.get("channel", str)
+        if interface == "slcan" and not _port_exists(channel):
+            raise DaqError(f"{where}: port {channel!r} does not exist")
+        dbc = _resolve(base, t.get("dbc", str))
+        if not Path(dbc).is_file():
+            raise DaqError(f"{where}: dbc file {dbc!r} does not exist")
+        return Device(name, protocol, interface=interface, channel=channel,
+                      bitrate=t.get("bitrate", int, 500000), dbc=dbc, message=t.get("message", str, ""))
+    t.reject_unknown(common | {"transport", "host", "port", "baud", "device_id", "register",
+                               "sequence_register"})
+    transport = t.choice("transport", ("tcp", "rtu"), "tcp")
+    regs = t.get("register", list, check=bool, why="must list at least one register")
+    registers = tuple(_register(r, f"{where}: register {i + 1}") for i, r in enumerate(regs))
+    names = [r.name for r in registers]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise DaqError(f"{where}: duplicate register name {dup[0]!r}")
+    seq = t.get("sequence_register", str, "", check=lambda v: not v or v in names,
+                why="is not one of the device's registers")
+    if transport == "tcp":
+        host = t.get("host", str, "127.0.0.1")
+        port = t.get("port", (int, str), 502)
+        if isinstance(port, str) and port != SIMULATOR_PORT:
+            raise DaqError(f"{where}: port {port!r} is not a TCP port number")
+        return Device(name, protocol, transport=transport, host=host, port=str(port),
+                      tcp_port=port if isinstance(port, int) else 0,
+                      device_id=t.get("device_id", int, 1), registers=registers, sequence_register=seq)
+    port = t.get("port", str)
+    if not _port_exists(port):
+        raise DaqError(f"{where}: port {port!r} does not exist")
+    return Device(name, protocol, transport=transport, port=port, baud=t.get("baud", int, 19200),
+                  device_id=t.get("device_id", int, 1), registers=registers, sequence_register=seq)
+
+
+def _channel(doc: dict, where: str, devices: dict[str, Device]) -> ChannelMap:
+    t = _Table(doc, where)
+    name = t.get("name", str, check=bool, why="is empty")
+    where = f"{where.split(':')[0]}: channel {name!r}"
+    t = _Table(doc, where)
+    t.reject_unknown({"name", "kind", "unit", "sensitivity", "sensitivity_unit", "scale", "offset",
+                      "location", "direction", "device", "source", "full_scale"})
+    kind = t.choice("kind", CHANNEL_KINDS)
+    unit = t.get("unit", str)
+    sensitivity = t.get("sensitivity", float, 1.0, check=lambda v: v != 0 and math.isfinite(v),
+                        why="must be finite and non-zero")
+    sens_unit = t.get("sensitivity_unit", str, "")
+    if "sensitivity" in t.doc and not sens_unit:
+        raise DaqError(f"{where}: sensitivity {sensitivity} has no sensitivity_unit (e.g. \"mV/g\")")
+    factor = 1.0
+    if sens_unit:
+        m = re.fullmatch(r"\s*([^/]+?)\s*/\s*(.+?)\s*", sens_unit)
+        if not m:
+            raise DaqError(f"{where}: sensitivity_unit {sens_unit!r} is not '<electrical>/<physical>'")
+        found = unit_factor(m.group(2).strip("()"), unit)
+        if found is None:
+            raise DaqError(f"{where}: cannot convert {m.group(2)!r} (from sensitivity_unit) to unit {unit!r}")
+        factor = found
+    device = t.get("device", str)
+    if device not in devices:
+        raise DaqError(f"{where}: device {device!r} is not a device of this session "
+                       f"({', '.join(devices) or 'none defined'})")
+    dev = devices[device]
+    source = t.get("source", str, name)
+    known = (dev.sources if dev.protocol == "serial" else
+             tuple(r.name for r in dev.registers) if dev.protocol == "modbus" else None)
+    if known is not None and source not in known:
+        raise DaqError(f"{where}: source {source!r} is not one of device {device!r}'s {', '.join(known)}")
+    return ChannelMap(
+        Channel(name, kind, unit, sensitivity, sens_unit, t.get("location", str, ""),
+                t.get("direction", str, "")),
+        device, source, scale=t.get("scale", float, 1.0), offset=t.get("offset", float, 0.0), factor=factor,
+        full_scale=t.get("full_scale", float, math.inf, check=lambda v: v > 0, why="must be > 0"))
+
+
+def parse_session(doc: dict, source: Path) -> Session:
+    """Validate a parsed session TOML document (paths relative to the file's folder)."""
+    where = str(source)
+    t = _Table(doc, where)
+    t.reject_unknown({"sample_rate_hz", "duration_s", "excitation", "run_id", "notes", "pose", "pose_from",
+                      "trigger", "simulator", "device", "channel"})
+    rate = t.get("sample_rate_hz", float, check=lambda v: 0 < v < 1e7, why="must be in (0, 1e7) Hz")
+    base = source.resolve().parent
+    sim = None
+    if "simulator" in doc:
+        s = _Table(doc["simulator"], f"{where}: simulator")
+        s.reject_unknown({"protocol", "rig", "test", "args"})
+        sim = Simulator(s.choice("protocol", PROTOCOLS), _resolve(base, s.get("rig", str, "")),
+                        s.choice("test", ("impact", "random", "sweep"), "impact"),
+                        tuple(str(a) for a in s.get("args", list, [])))
+    dev_docs = t.get("device", list, check=bool, why="must list at least one [[device]]")
+    devices: dict[str, Device] = {}
+    for i, d in enumerate(dev_docs):
+        dev = _device(d, f"{where}: device {i + 1}", base)
+        if dev.name in devices:
+            raise DaqError(f"{where}: device {dev.name!r} is defined twice")
+        devices[dev.name] = dev
+    uses_sim = any(SIMULATOR_PORT in (d.port, d.channel) for d in devices.values())
+    if uses_sim and sim is None:
+        raise DaqError(f"{where}: a device uses port {SIMULATOR_PORT!r} but there is no [simulator]")
+    ch_docs = t.get("channel", list, check=bool, why="must list at least one [[channel]]")
+    channels = tuple(_channel(c, f"{where}: channel {i + 1}", devices) for i, c in enumerate(ch_docs))
+    names = [c.channel.name for c in channels]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise DaqError(f"{where}: channel {dup[0]!r} is defined twice")
+    for dev in devices.values():
+        if not any(c.device == dev.name for c in channels):
+            raise DaqError(f"{where}: device {dev.name!r} has no channel mapped to it")
+    trigger = None
+    if "trigger" in doc:
+        g = _Table(doc["trigger"], f"{where}: trigger")
+        g.reject_unknown({"channel", "level", "slope", "pretrigger_samples", "holdoff_s"})
+        trigger = Trigger(g.get("channel", str, check=lambda v: v in names, why="is not a channel"),
+                          g.get("level", float), g.choice("slope", ("rising", "falling"), "rising"),
+                          g.get("pretrigger_samples", int, 0, check=lambda v: v >= 0, why="must be >= 0"),
+                          g.get("holdoff_s", float, 0.5, check=lambda v: v >= 0, why="must be >= 0"))
+    pose = t.get("pose", dict, {})
+    for k, v in pose.items():
+        if not isinstance(v, (int, float)) or isinstance(v, bool):
+            raise DaqError(f"{where}: pose.{k} = {v!r} is not a number")
+    pose_from = t.get("pose_from", dict, {})
+    for k, v in pose_from.items():
+        if v not in names:
+            raise DaqError(f"{where}: pose_from.{k} = {v!r} is not a channel")
+    return Session(
+        source=source, sample_rate_hz=rate, devices=tuple(devices.values()), channels=channels,
+        excitation=t.choice("excitation", EXCITATIONS, "operational"),
+        duration_s=t.get("duration_s", float, None, check=lambda v: v > 0, why="must be > 0"),
+        run_id=t.get("run_id", str, "", check=lambda v: "/" not in v, why="must not contain '/'"),
+        notes=t.get("notes", str, ""), pose=dict(pose), pose_from=dict(pose_from), trigger=trigger,
+        simulator=sim)
+
+
+def load_session(path: str | Path) -> Session:
+    """Read and validate a session TOML file."""
+    path = Path(path)
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise DaqError(f"{path}: not valid TOML ({exc})") from exc
+    return parse_session(doc, path)

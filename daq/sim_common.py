@@ -1,0 +1,122 @@
+"""What the device simulators share: fault plan, fault log, pty links and real-time pacing.
+
+Faults (all optional, deterministic for a seed): each frame is corrupted with probability
+``corrupt_rate`` (a flipped byte or a truncated frame); frames whose first sample falls in
+[``drop_at_s``, ``drop_at_s + drop_s``) are not sent (the device's counter runs on); at
+``disconnect_at_s`` the link goes away for ``disconnect_s`` (pty closed and re-created under the same
+path; TCP server stopped and restarted on the same port).  Every fault is written as one JSON line to
+the fault log (``--fault-log``) with the device sample indices it affected, so tests can check the
+events of a run against it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import time
+import tty
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class FaultPlan:
+    corrupt_rate: float = 0.0
+    drop_at_s: float | None = None
+    drop_s: float = 0.2
+    disconnect_at_s: float | None = None
+    disconnect_s: float = 0.5
+    seed: int = 0
+
+    def in_drop(self, t_s: np.ndarray) -> np.ndarray:
+        if self.drop_at_s is None:
+            return np.zeros(np.shape(t_s), bool)
+        return (t_s >= self.drop_at_s) & (t_s < self.drop_at_s + self.drop_s)
+
+    def in_disconnect(self, t_s: np.ndarray) -> np.ndarray:
+        if self.disconnect_at_s is None:
+            return np.zeros(np.shape(t_s), bool)
+        return (t_s >= self.disconnect_at_s) & (t_s < self.disconnect_at_s + self.disconnect_s)
+
+
+class FaultLog:
+    """JSON-lines record of injected faults (no-op without a path)."""
+
+    def __init__(self, path: str | Path | None) -> None:
+        self._f = open(path, "a", encoding="utf-8") if path else None  # noqa: SIM115 (closed in close())
+
+    def write(self, fault: str, **fields) -> None:
+        if self._f:
+            self._f.write(json.dumps({"fault": fault, **fields}) + "\n")
+            self._f.flush()
+
+    def close(self) -> None:
+        if self._f:
+            self._f.close()
+
+
+def read_fault_log(path: str | Path) -> list[dict]:
+    return [json.loads(line) for line in Path(path).read_text().splitlines() if line.strip()]
+
+
+class PtyLink:
+    """A pty whose slave is reachable under a stable symlink ``path`` (re-pointed after a reconnect).
+
+    The simulator writes to the master; the slave is put in raw mode at once and kept open so bytes
+    written before a reader opens it wait in the pty instead of being lost.
+    """
+
+    def __init__(self, path: str | Path | None = None) -> None:
+        self.path = Path(path) if path else Path(tempfile.mkdtemp(prefix="flexmodal-sim-")) / "tty"
+        self.master = self._slave = -1
+        self.open()
+
+    def open(self) -> None:
+        self.master, self._slave = os.openpty()
+        tty.setraw(self._slave)
+        tty.setraw(self.master)
+        tmp = self.path.with_name(self.path.name + ".new")
+        tmp.unlink(missing_ok=True)
+        tmp.symlink_to(os.ttyname(self._slave))
+        os.replace(tmp, self.path)
+
+    def close(self) -> None:
+        for fd in (self.master, self._slave):
+            if fd >= 0:
+                os.close(fd)
+        self.master = self._slave = -1
+
+    def write(self, data: bytes) -> None:
+        view = memoryview(data)
+        while view:
+            n = os.write(self.master, view)
+            view = view[n:]
+
+    def read_available(self, max_bytes: int = 65536) -> bytes:
+        """Bytes the reader sent to the device (non-blocking; b'' if none)."""
+        import select
+
+        ready, _, _ = select.select([self.master], [], [], 0)
+        return os.read(self.master, max_bytes) if ready else b""
+
+
+class Pacer:
+    """Real-time sample clock: ``due()`` is how many samples should have been emitted by now."""
+
+    def __init__(self, sample_rate_hz: float) -> None:
+        self.rate = sample_rate_hz
+        self.t0 = time.monotonic()
+
+    def elapsed_s(self) -> float:
+        return time.monotonic() - self.t0
+
+    def due(self) -> int:
+        return int(self.elapsed_s() * self.rate)
+
+    def wait_until_sample(self, n: int) -> None:
+        delay = self.t0 + n / self.rate - time.monotonic()
+        if delay > 0:
+            time.sleep(delay)

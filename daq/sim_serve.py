@@ -1,0 +1,49 @@
+"""`flexmodal sim serve`: build the simulated rig's signal and run one protocol's device simulator.
+
+The first line on stdout is the endpoint (pty path, or host:port for Modbus TCP); the simulator runs
+until SIGTERM/SIGINT or ``--duration`` and then exits 0.
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+
+from daq.sim_common import FaultLog, FaultPlan
+from daq.sim_source import sim_source
+
+
+def serve(args, stdout) -> None:
+    stop = threading.Event()
+    for sig in (signal.SIGTERM, signal.SIGINT):
+        signal.signal(sig, lambda *_: stop.set())
+    source = sim_source(args.rig, args.test, args.rate, seed=args.seed)
+    faults = FaultPlan(args.corrupt_rate, args.drop_at, args.drop, args.disconnect_after, args.disconnect,
+                       args.seed)
+    log = FaultLog(args.fault_log)
+
+    def announce(endpoint: str) -> None:
+        print(endpoint, file=stdout, flush=True)
+
+    try:
+        if args.protocol == "serial":
+            from daq.sim_common import PtyLink
+            from fixtures.sim_serial import serve as serve_serial
+
+            link = PtyLink(args.link)
+            announce(str(link.path))
+            serve_serial(link, source, scans_per_frame=args.scans_per_frame, framing=args.framing,
+                         fmt=args.format, faults=faults, log=log, duration_s=args.duration, stop=stop)
+            link.close()
+        elif args.protocol == "can":
+            from fixtures.sim_can import serve_slcan
+
+            serve_slcan(source, link_path=args.link, faults=faults, log=log, duration_s=args.duration,
+                        stop=stop, announce=announce)
+        else:
+            from fixtures.sim_modbus import serve_tcp
+
+            serve_tcp(source, port=args.port, faults=faults, log=log, duration_s=args.duration, stop=stop,
+                      announce=announce)
+    finally:
+        log.close()

@@ -1,0 +1,126 @@
+"""One timeline for all devices of a session: place blocks on the sample grid, convert, flag faults.
+
+Alignment rule (docs/acquisition.md): every device runs at the session's sample rate.  The first block
+of the session fixes row 0 at its first sample; another device's first sample goes to row
+``round((t_dev - t_ref) * sample_rate_hz)`` from the two first-sample timestamps (bus or host clock).
+After that each device is placed by its own sample counter, so a device's row is
+``first_index - base`` and clock drift between devices is not corrected.  Rows a device did not
+deliver (a sequence gap, corrupt frames, a disconnect) are NaN in its columns and are reported as a
+``gap`` event (or ``corrupt`` when bad frames were dropped there) at the first missing row; rows are
+released to the writer when every device has reached them.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from daq.devices import Block
+from daq.store import Event
+
+MAX_GAP_S = 60.0  # a longer jump of a device counter is taken as a device restart, not a gap
+
+
+@dataclass
+class _Track:
+    cols: np.ndarray  # session channel index of each column of this device
+    src: np.ndarray  # device source index feeding each column
+    gain: np.ndarray
+    bias: np.ndarray
+    full_scale: np.ndarray
+    base: int | None = None
+    rows: int = 0  # rows delivered so far (next free row)
+    parts: deque = field(default_factory=deque)
+    taken: int = 0  # rows of parts[0] already handed out
+
+
+class Timeline:
+    """Turns device blocks into rows of physical values [n, n_channels] and events with row indices."""
+
+    def __init__(self, session, sources: dict[str, tuple[str, ...]]) -> None:
+        self.fs = session.sample_rate_hz
+        self.names = tuple(c.channel.name for c in session.channels)
+        self.n_ch = len(self.names)
+        self.tracks: dict[str, _Track] = {}
+        for dev in session.devices:
+            maps = [(i, c) for i, c in enumerate(session.channels) if c.device == dev.name]
+            src = np.array([sources[dev.name].index(c.source) for _, c in maps])
+            g = np.array([c.gain() for _, c in maps])
+            self.tracks[dev.name] = _Track(
+                cols=np.array([i for i, _ in maps]), src=src, gain=g,
+                bias=np.array([c.offset / c.channel.sensitivity * c.factor for _, c in maps]),
+                full_scale=np.array([c.full_scale for _, c in maps]))
+        self.t_ref: float | None = None
+        self.first_index: dict[str, int] = {}
+        self.released = 0
+
+    def add(self, block: Block, clipped: np.ndarray | None = None) -> list[Event]:
+        """Place ``block`` (``clipped``: bool [n, n_sources] raw values at the converter's limits)."""
+        tr = self.tracks[block.device]
+        events: list[Event] = []
+        if tr.base is None:
+            if self.t_ref is None:
+                self.t_ref = block.timestamp_s
+            start = int(round((block.timestamp_s - self.t_ref) * self.fs))
+            tr.base = block.first_index - start
+            tr.rows = max(start, 0)
+            if start > 0:
+                tr.parts.append(np.full((start, tr.cols.size), np.nan))
+            self.first_index[block.device] = block.first_index - start
+        values = block.values[:, tr.src] * tr.gain + tr.bias
+        row = block.first_index - tr.base
+        if row > tr.rows + MAX_GAP_S * self.fs or row < tr.rows - self.fs:
+            events.append(Event("note", tr.rows, 1, f"{block.device}: counter jumped from "
+                                                      f"{tr.base + tr.rows} to {block.first_index}"))
+            tr.base = block.first_index - tr.rows
+            row = tr.rows
+        if row < tr.rows:  # already have these samples (a repeated frame): keep the new ones only
+            values, clipped = values[tr.rows - row:], None if clipped is None else clipped[tr.rows - row:]
+            row = tr.rows
+        missing = row - tr.rows
+        if missing:
+            tr.parts.append(np.full((missing, tr.cols.size), np.nan))
+            kind = "corrupt" if block.corrupt else "gap"
+            count = block.corrupt if block.corrupt else missing
+            events.append(Event(kind, tr.rows, count, f"{block.device}: {missing} samples lost"))
+        elif block.corrupt:
+            events.append(Event("corrupt", row, block.corrupt, f"{block.device}: values lost in row"))
+        n = values.shape[0]
+        if n:
+            over = np.abs(values) >= tr.full_scale
+            if clipped is not None:
+                over |= clipped[:, tr.src]
+            for j in np.flatnonzero(over.any(axis=0)):  # one event per clipped channel in the block
+                hit = np.flatnonzero(over[:, j])
+                events.append(Event("overload", row + int(hit[0]), int(hit.size), self.names[tr.cols[j]]))
+            tr.parts.append(values)
+        tr.rows = row + n
+        return events
+
+    def at_row(self, device: str) -> int:
+        """The next row ``device`` will fill (where a disconnect or reconnect is dated)."""
+        return self.tracks[device].rows
+
+    def ready(self) -> int:
+        """Rows every device has delivered and that were not released yet."""
+        return min(t.rows for t in self.tracks.values()) - self.released
+
+    def take(self, n: int | None = None) -> np.ndarray:
+        """Release the next ``n`` ready rows (all by default) as [n, n_channels]."""
+        n = self.ready() if n is None else min(n, self.ready())
+        out = np.empty((max(n, 0), self.n_ch))
+        for tr in self.tracks.values():
+            got = 0
+            while got < n:
+                part = tr.parts[0]
+                k = min(n - got, part.shape[0] - tr.taken)
+                out[got:got + k, tr.cols] = part[tr.taken:tr.taken + k]
+                got += k
+                tr.taken += k
+                if tr.taken == part.shape[0]:
+                    tr.parts.popleft()
+                    tr.taken = 0
+        self.released += max(n, 0)
+        return out
