@@ -5,7 +5,7 @@ assignment (Hungarian method, ``scipy.optimize.linear_sum_assignment``) on the c
 small frequency term ``freq_weight * |ln(f_pred / f_meas)|`` that breaks ties between shapes the sensors
 cannot tell apart; a pair whose MAC is below ``min_mac`` is rejected and both modes are listed as
 unpaired.  Without usable shapes the modes are paired in ascending frequency order (1st with 1st, ...).
-The Modal Assurance Criterion is Allemang & Brown (1982): MAC = |a^H b|^2 / ((a^H a)(b^H b)).
+The Modal Assurance Criterion (Allemang & Brown 1982) is ``modal.mac.mac``.
 
 Every mode ends up either in a pair or in one of the unpaired lists; nothing is dropped silently.
 Relative errors are fractions: (f_pred - f_meas) / f_meas.
@@ -18,24 +18,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from modal.mac import mac
 from modal.table import ModalTable
 
 MIN_MAC = 0.5
 FREQ_WEIGHT = 1e-3
-
-
-def mac_matrix(phi_a: np.ndarray, phi_b: np.ndarray) -> np.ndarray:
-    """MAC between every column of ``phi_a`` [n_s, n_a] and of ``phi_b`` [n_s, n_b] -> [n_a, n_b].
-
-    Real or complex shapes; a zero-norm column gives MAC 0 against everything.
-    """
-    a = np.asarray(phi_a, dtype=complex)
-    b = np.asarray(phi_b, dtype=complex)
-    cross = np.abs(a.conj().T @ b) ** 2
-    norms = np.outer(np.sum(np.abs(a) ** 2, axis=0), np.sum(np.abs(b) ** 2, axis=0))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mac = np.where(norms > 0, cross / np.where(norms > 0, norms, 1.0), 0.0)
-    return mac.real
 
 
 @dataclass(frozen=True)
@@ -97,16 +84,16 @@ def _refs(table: ModalTable, config: str) -> list[ModeRef]:
     return [ModeRef(config, int(m), float(f)) for m, f in zip(rows["mode"], rows["freq_hz"], strict=True)]
 
 
-def _pair_by_mac(meas: list[ModeRef], pred: list[ModeRef], mac: np.ndarray, min_mac: float,
+def _pair_by_mac(meas: list[ModeRef], pred: list[ModeRef], macs: np.ndarray, min_mac: float,
                  freq_weight: float) -> list[Pair]:
     fm = np.array([r.freq_hz for r in meas])
     fp = np.array([r.freq_hz for r in pred])
     with np.errstate(divide="ignore", invalid="ignore"):
         spread = np.abs(np.log(np.maximum(fp[None, :], 1e-300) / np.maximum(fm[:, None], 1e-300)))
-    cost = 1.0 - mac + freq_weight * np.nan_to_num(spread, nan=1e3, posinf=1e3)
+    cost = 1.0 - macs + freq_weight * np.nan_to_num(spread, nan=1e3, posinf=1e3)
     rows, cols = linear_sum_assignment(cost)
-    return [Pair(meas[i], pred[j], float(mac[i, j]), "mac")
-            for i, j in zip(rows, cols, strict=True) if mac[i, j] >= min_mac]
+    return [Pair(meas[i], pred[j], float(macs[i, j]), "mac")
+            for i, j in zip(rows, cols, strict=True) if macs[i, j] >= min_mac]
 
 
 def _pair_by_frequency(meas: list[ModeRef], pred: list[ModeRef]) -> list[Pair]:
@@ -135,8 +122,8 @@ def pair_modes(measured: ModalTable, predicted: ModalTable, source: str = "predi
         pred = _refs(predicted, config)
         sensors = common_sensors(measured, predicted, config)
         if len(sensors) >= 2:
-            mac = mac_matrix(measured.shapes(config, sensors), predicted.shapes(config, sensors))
-            found = _pair_by_mac(meas, pred, mac, min_mac, freq_weight)
+            macs = mac(measured.shapes(config, sensors), predicted.shapes(config, sensors))
+            found = _pair_by_mac(meas, pred, macs, min_mac, freq_weight)
         else:
             found = _pair_by_frequency(meas, pred)
         pairs += found

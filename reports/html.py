@@ -4,8 +4,8 @@ One file: images are embedded as base64 PNG, the style sheet is inline, there is
 is fetched from a network.  Sections (each only when its input is given): comparison table of
 measured vs predicted modes (compare.tables), diagnosis summary (CONTRACT §5), frequency-vs-pose,
 trend and mode-shape plots, run metadata, channel list, data quality (trigger/overload/gap/corrupt
-events, rejected hits, coherence) with the FRF (and stabilisation) plot of each run, and the gap per
-mode before and after the diagnosed effect.
+events, rejected hits, coherence) with the FRF plot of each run and its stabilisation diagram (pLSCF of
+modal.lscf over orders 2..``MAX_ORDER``), and the gap per mode before and after the diagnosed effect.
 """
 
 from __future__ import annotations
@@ -27,6 +27,8 @@ from reports.runs import LOW_COHERENCE, RunSummary, expand_runs, summarise_run
 
 UNIT_SUFFIXES = {"_deg": "deg", "_kg": "kg", "_m": "m", "_rad": "rad", "_n": "N"}
 MAX_SHAPE_CONFIGS = 2
+MAX_ORDER = 32
+FRF_UNITS = {"accelerance": "(m/s²)/N", "mobility": "(m/s)/N", "receptance": "m/N"}
 
 
 def pose_unit(var: str) -> str:
@@ -120,20 +122,36 @@ def _run_rows(runs: Sequence[RunSummary]) -> tuple[list[dict], list[dict], list[
     return meta, quality, channel_sets
 
 
+def _stabilisation_figure(frf, label: str, unit: str) -> dict:
+    from modal.errors import ModalError
+    from modal.lscf import stabilisation
+
+    band = frf.freq_hz > 0
+    f, H = frf.freq_hz[band], frf.H[..., band]
+    top = min(MAX_ORDER, (f.size - 2) // 2)
+    quantity = str(frf.attrs.get("quantity", "accelerance"))
+    try:
+        poles = stabilisation(f, H, range(2, top + 1), quantity=quantity)
+    except ModalError as exc:
+        return {"png": None, "caption": f"{label}: no stabilisation diagram ({exc})"}
+    return _fig(plots.plot_stabilisation(f, H, poles, unit, title=label),
+                f"{label}: pLSCF stabilisation diagram, orders 2-{top} (filled: stable in frequency, "
+                f"damping and shape), over the complex mode indicator function")
+
+
 def _run_figures(runs: Sequence[RunSummary]) -> list[dict]:
     figs = []
     for r in runs:
         label = f"{r.path.name}::{r.run_id}"
-        if r.frf is not None:
-            inputs = r.frf.attrs.get("inputs", "force")
-            figs.append(_fig(plots.plot_frf(r.frf.freq_hz, r.frf.H, r.frf.coherence, r.frf.outputs,
-                                            title=f"{label} ({r.excitation})"),
-                             f"{label}: FRF magnitude, phase and coherence (input {inputs}, "
-                             f"pose {_pose_text(r.pose)})"))
-            if r.stabilisation is not None:
-                figs.append(_fig(plots.plot_stabilisation(r.frf.freq_hz, r.frf.H, r.stabilisation,
-                                                          title=label),
-                                 f"{label}: stabilisation diagram over the complex mode indicator function"))
+        if r.frf is None:
+            continue
+        inputs = r.frf.attrs.get("inputs", "force")
+        unit = FRF_UNITS.get(str(r.frf.attrs.get("quantity", "accelerance")), "FRF unit")
+        figs.append(_fig(plots.plot_frf(r.frf.freq_hz, r.frf.H, r.frf.coherence, r.frf.outputs, unit,
+                                        title=f"{label} ({r.excitation})"),
+                         f"{label}: FRF magnitude, phase and coherence (input {inputs}, "
+                         f"pose {_pose_text(r.pose)})"))
+        figs.append(_stabilisation_figure(r.frf, label, unit))
     return figs
 
 

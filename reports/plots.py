@@ -4,8 +4,8 @@ Units sit on every axis.  Frequencies in Hz, FRF magnitude in the FRF's own unit
 (m/s²)/N by default), phase in degrees, coherence and MAC dimensionless (0..1), errors in %.
 
 * ``plot_frf``: magnitude, phase and ordinary coherence of the FRFs of one run;
-* ``plot_stabilisation``: poles per model order over the complex mode indicator function (CMIF,
-  Shih et al. 1988: singular values of H(f) at each frequency line);
+* ``plot_stabilisation``: poles per model order (modal.lscf pLSCF) over the complex mode indicator
+  function (CMIF, Shih et al. 1988: singular values of H(f) at each line, modal.peaks.cmif);
 * ``plot_freq_vs_pose``: measured vs predicted natural frequency across a pose variable, a line per
   model and mode, experiment points with ±1 standard deviation bars from repeated tests;
 * ``plot_trends``: frequency of each mode against one pose variable, a line per value of another
@@ -20,7 +20,6 @@ from __future__ import annotations
 import io
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 
 import matplotlib
 
@@ -29,6 +28,8 @@ matplotlib.use("Agg")
 import numpy as np  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
+from modal.mac import mac, to_real  # noqa: E402
+from modal.peaks import cmif  # noqa: E402
 from modal.table import ModalTable  # noqa: E402
 from reports.errors import ReportError  # noqa: E402
 
@@ -40,17 +41,6 @@ def figure_png(fig: Figure, dpi: int = 100) -> bytes:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
     return buf.getvalue()
-
-
-def cmif(H: np.ndarray) -> np.ndarray:
-    """Complex mode indicator function: singular values of H [n_out, n_in, n_freq] at each line.
-
-    Returns [min(n_out, n_in), n_freq], largest first (Shih, Tsuei, Allemang & Brown 1988).
-    """
-    H = np.asarray(H)
-    if H.ndim != 3:
-        raise ReportError(f"cmif: H must be [n_out, n_in, n_freq], got shape {H.shape}")
-    return np.linalg.svd(np.moveaxis(H, -1, 0), compute_uv=False).T
 
 
 def plot_frf(freq_hz: np.ndarray, H: np.ndarray, coherence: np.ndarray | None = None,
@@ -84,26 +74,18 @@ def plot_frf(freq_hz: np.ndarray, H: np.ndarray, coherence: np.ndarray | None = 
     return fig
 
 
-@dataclass(frozen=True)
-class Stabilisation:
-    """Poles of a stabilisation diagram: model order, frequency [Hz] and whether each is stable."""
-
-    order: np.ndarray
-    freq_hz: np.ndarray
-    stable: np.ndarray
-
-    def __post_init__(self) -> None:
-        sizes = {np.size(self.order), np.size(self.freq_hz), np.size(self.stable)}
-        if len(sizes) != 1:
-            raise ReportError(f"stabilisation: order, freq_hz and stable differ in length ({sorted(sizes)})")
-
-
-def plot_stabilisation(freq_hz: np.ndarray, H: np.ndarray, poles: Stabilisation, unit: str = "(m/s²)/N",
+def plot_stabilisation(freq_hz: np.ndarray, H: np.ndarray, poles, unit: str = "(m/s²)/N",
                        title: str = "") -> Figure:
-    """Stable (filled) and unstable (open) poles per model order over the CMIF of H [n_out, n_in, n_freq]."""
+    """Stable (filled) and unstable (open) poles per model order over the CMIF of H [n_out, n_in, n_freq].
+
+    ``poles``: a ``modal.lscf.Stabilisation`` (or anything with equal-length ``order``, ``freq_hz`` [Hz]
+    and boolean ``stable`` arrays).
+    """
+    stable = np.asarray(poles.stable, bool)
+    if not np.size(poles.order) == np.size(poles.freq_hz) == stable.size:
+        raise ReportError("stabilisation: order, freq_hz and stable differ in length")
     fig = Figure(figsize=(8, 4))
     ax = fig.subplots()
-    stable = np.asarray(poles.stable, bool)
     ax.plot(poles.freq_hz[~stable], poles.order[~stable], "o", mfc="none", mec="0.6", ms=4,
             label="unstable pole")
     ax.plot(poles.freq_hz[stable], poles.order[stable], "o", color=_COLOURS[1], ms=4, label="stable pole")
@@ -208,13 +190,6 @@ def plot_trends(table: ModalTable, x_var: str, group_var: str | None = None, x_u
     return fig
 
 
-def realise(shape: np.ndarray) -> np.ndarray:
-    """A complex shape rotated so its largest component is real, real part returned."""
-    shape = np.asarray(shape, dtype=complex)
-    ref = shape[np.argmax(np.abs(shape))]
-    return (shape * np.exp(-1j * np.angle(ref))).real if abs(ref) > 0 else shape.real
-
-
 def plot_mode_shapes(rig, pose: Mapping[str, float], measured: ModalTable, config: str, n_fe_modes: int = 8,
                      title: str = "") -> Figure:
     """Measured mode shapes at the sensors on the arm at ``pose``, with the frame FE model's curve.
@@ -223,7 +198,6 @@ def plot_mode_shapes(rig, pose: Mapping[str, float], measured: ModalTable, confi
     the sensors is drawn as the deformed arm, scaled by least squares onto the measured points.
     Displacements are exaggerated to 15 % of the arm's reach; coordinates in m.
     """
-    from compare.pairing import mac_matrix
     from models.frame import assemble, link_geometry, solve_modes
 
     sensors = [s for s in rig.sensors if s.name in measured.sensors]
@@ -250,7 +224,8 @@ def plot_mode_shapes(rig, pose: Mapping[str, float], measured: ModalTable, confi
     fe_at_sensors = np.array([system.observe(str(s.at), s.direction) for s in sensors]) @ fe.phi
     shapes = measured.shapes(config, [s.name for s in sensors])
     freqs = measured.freq_hz(config)
-    mac = mac_matrix(np.nan_to_num(shapes), fe_at_sensors)
+    macs = mac(np.nan_to_num(shapes), fe_at_sensors)
+    real_shapes = to_real(np.nan_to_num(shapes))
     reach = float(np.ptp(curve_xy, axis=0).max()) or 1.0
 
     n = shapes.shape[1]
@@ -259,8 +234,8 @@ def plot_mode_shapes(rig, pose: Mapping[str, float], measured: ModalTable, confi
     fig = Figure(figsize=(3.4 * cols, 3.0 * rows + 0.4))
     axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False)).ravel()
     for k, ax in enumerate(axes[:n]):
-        meas = realise(np.nan_to_num(shapes[:, k]))
-        j = int(np.argmax(mac[k]))
+        meas = real_shapes[:, k]
+        j = int(np.argmax(macs[k]))
         model = fe_at_sensors[:, j]
         alpha = float(model @ meas / (model @ model)) if model @ model > 0 else 0.0
         disp = np.column_stack([rows_x @ fe.phi[:, j], rows_y @ fe.phi[:, j]]) * alpha
@@ -270,7 +245,7 @@ def plot_mode_shapes(rig, pose: Mapping[str, float], measured: ModalTable, confi
                 label=f"FE mode {j + 1} ({fe.freq_hz[j]:.1f} Hz)")
         pts = sensor_xy + scale * meas[:, None] * sensor_dir
         ax.plot(pts[:, 0], pts[:, 1], "o", color=_COLOURS[1], ms=5, label="measured")
-        ax.set_title(f"mode {k + 1}: {freqs[k]:.2f} Hz, MAC {mac[k, j]:.2f} [-]", fontsize=9)
+        ax.set_title(f"mode {k + 1}: {freqs[k]:.2f} Hz, MAC {macs[k, j]:.2f} [-]", fontsize=9)
         ax.set_aspect("equal", adjustable="datalim")
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")

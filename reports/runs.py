@@ -1,8 +1,7 @@
 """What a report shows of a stored run (CONTRACT §6): metadata, channels, data quality, FRFs.
 
 Runs are read with ``daq.store.read_run``; the FRF group (``frf/H``, ``frf/freq_hz``, ``frf/coherence``)
-and an optional stabilisation group (``stabilisation/order``, ``stabilisation/freq_hz``,
-``stabilisation/stable``, one entry per pole) with plain h5py.  FRF output names come from the ``frf``
+with plain h5py.  FRF output names come from the ``frf``
 attribute ``outputs`` (list or JSON list) when present, else from the non-force channels in order.
 Rejected impact hits are counted from the ``rejected_hits`` attribute of the run or its ``frf`` group,
 else from ``note`` events whose detail starts with ``rejected``.
@@ -21,7 +20,6 @@ import numpy as np
 
 from daq.store import Channel, Event, list_runs, read_run
 from reports.errors import ReportError
-from reports.plots import Stabilisation
 
 LOW_COHERENCE = 0.8
 
@@ -51,7 +49,6 @@ class RunSummary:
     attrs: dict
     peak_abs: np.ndarray  # [n_channels] largest |sample| per channel, in the channel's unit
     frf: FrfData | None
-    stabilisation: Stabilisation | None
 
     @property
     def duration_s(self) -> float:
@@ -102,24 +99,18 @@ def _outputs(attrs: dict, channels: Sequence[Channel], n_out: int) -> tuple[str,
     return tuple(responses) if len(responses) == n_out else tuple(f"out {i + 1}" for i in range(n_out))
 
 
-def _read_groups(path: Path, run_id: str, channels: Sequence[Channel]) -> tuple[FrfData | None,
-                                                                                 Stabilisation | None]:
+def _read_frf(path: Path, run_id: str, channels: Sequence[Channel]) -> FrfData | None:
     with h5py.File(path, "r", libver="latest", swmr=True) as f:
         g = f[f"runs/{run_id}"]
-        frf = None
-        if "frf" in g and "H" in g["frf"] and "freq_hz" in g["frf"]:
-            fg = g["frf"]
-            H = fg["H"][()]
-            if H.ndim == 2:
-                H = H[:, None, :]
-            attrs = {k: _decode(v) for k, v in fg.attrs.items()}
-            coh = fg["coherence"][()] if "coherence" in fg else None
-            frf = FrfData(fg["freq_hz"][()], H, coh, _outputs(attrs, channels, H.shape[0]), attrs)
-        stab = None
-        if "stabilisation" in g and all(k in g["stabilisation"] for k in ("order", "freq_hz", "stable")):
-            sg = g["stabilisation"]
-            stab = Stabilisation(sg["order"][()], sg["freq_hz"][()], sg["stable"][()].astype(bool))
-    return frf, stab
+        if not ("frf" in g and "H" in g["frf"] and "freq_hz" in g["frf"]):
+            return None
+        fg = g["frf"]
+        H = fg["H"][()]
+        if H.ndim == 2:
+            H = H[:, None, :]
+        attrs = {k: _decode(v) for k, v in fg.attrs.items()}
+        coh = fg["coherence"][()] if "coherence" in fg else None
+        return FrfData(fg["freq_hz"][()], H, coh, _outputs(attrs, channels, H.shape[0]), attrs)
 
 
 def summarise_run(path: str | Path, run_id: str) -> RunSummary:
@@ -127,9 +118,9 @@ def summarise_run(path: str | Path, run_id: str) -> RunSummary:
     run = read_run(path, run_id)
     samples = np.asarray(run.samples)
     peak = np.max(np.abs(samples), axis=0) if samples.size else np.zeros(len(run.channels))
-    frf, stab = _read_groups(Path(path), run_id, run.channels)
     return RunSummary(Path(path), run_id, run.sample_rate_hz, run.start_time, run.excitation, dict(run.pose),
-                      int(samples.shape[0]), run.channels, run.events, dict(run.attrs), peak, frf, stab)
+                      int(samples.shape[0]), run.channels, run.events, dict(run.attrs), peak,
+                      _read_frf(Path(path), run_id, run.channels))
 
 
 def expand_runs(runs: Sequence[str | Path | tuple[str | Path, str]]) -> list[tuple[Path, str]]:

@@ -84,12 +84,6 @@ def inputs(rigs_dir, tmp_path_factory):
             g["H"], g["freq_hz"], g["coherence"] = h1(spectra), spectra.freq_hz, coherence(spectra)
             g.attrs.update(estimator="H1", window="hann", nfft=512, n_averages=spectra.n_averages,
                            outputs=json.dumps([test.channels[j].name for j in acc]))
-            if i == 0:  # poles of a stabilisation diagram (the truth, at model orders 4..20)
-                n = len(test.natural_freq_hz)
-                orders = np.repeat(np.arange(4, 22, 2), n).astype(float)
-                sg = g.parent.create_group("stabilisation")
-                sg["order"], sg["freq_hz"] = orders, np.tile(test.natural_freq_hz, 9)
-                sg["stable"] = orders >= 8
         measured += _modal_table(test.natural_freq_hz[:4], test.shapes[:, :4], test.sensor_names, config,
                                  pose, "experiment", test.damping_ratio[:4])
         fe = frame_modes(rig, pose, 4)
@@ -123,8 +117,8 @@ def test_report_is_self_contained_and_holds_every_section(report):
         assert f"runs.h5::{run}-random" in html
     assert "1 / 3" in html  # one overload event of three samples per run
     images = re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', html)
-    # freq vs pose, 2 mode-shape figures, 3 FRF figures, 1 stabilisation diagram, the gap plot
-    assert len(images) == 8
+    # freq vs pose, 2 mode-shape figures, 3 FRF figures, 3 stabilisation diagrams, the gap plot
+    assert len(images) == 10
     for b64 in images:
         pixels = mpimg.imread(io.BytesIO(base64.b64decode(b64)), format="png")
         assert pixels.std() > 0.02
@@ -150,7 +144,7 @@ def test_report_cli_writes_the_same_sections(inputs, capsys):
     captured = capsys.readouterr()
     assert captured.out.strip() == str(out) and captured.err == ""
     html = out.read_text()
-    assert "joint_stiffness at elbow" in html and html.count("data:image/png;base64,") == 8
+    assert "joint_stiffness at elbow" in html and html.count("data:image/png;base64,") == 10
 
 
 def test_report_cli_bad_inputs_exit_2(inputs, tmp_path, capsys):
@@ -292,7 +286,7 @@ def test_report_renders_in_headless_chromium_without_errors(report, tmp_path):
     requests = [e["params"]["request"]["url"] for e in browser.events
                 if e.get("method") == "Network.requestWillBeSent"]
     assert requests and all(u.startswith(("file:", "data:")) for u in requests), requests
-    assert len(layout["tables"]) >= 5 and len(layout["images"]) == 8
+    assert len(layout["tables"]) >= 5 and len(layout["images"]) == 10
     assert all(img["ok"] and img["width"] > 200 and img["height"] > 100 for img in layout["images"])
     assert full.shape[0] == layout["height"] and full.std() > 0.05
     assert table_px.std() > 0.05  # text and rules, not a blank box
