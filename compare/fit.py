@@ -27,7 +27,7 @@ from compare.parametric import ReducedFamily, lam_to_hz, solve_family
 
 EXTRA_PAIRING_MODES = 2
 MAX_GRID = 81
-MAX_NFEV = 30
+MAX_NFEV = 20
 
 
 @dataclass(frozen=True)
@@ -76,12 +76,13 @@ def _pair(f_all: np.ndarray, shapes: np.ndarray, target: Target) -> np.ndarray:
         np.einsum("bcsm,bcsm->bcm", shapes, shapes)[:, :, None, :]
     mac = num / np.maximum(den, 1e-300)
     mac = np.where(valid[:, :, None, :], mac, -1.0)
-    for b in range(B):
-        for c in range(C):
-            if np.isnan(meas[c]).any():
-                continue
-            _, cols = linear_sum_assignment(-mac[b, c])
-            idx[b, c] = cols
+    usable = ~np.isnan(meas).any(axis=(1, 2))                             # configs with complete shapes
+    best = np.argmax(mac, axis=-1)                                        # [B, C, n]
+    srt = np.sort(best, axis=-1)
+    unique = np.all(srt[..., 1:] != srt[..., :-1], axis=-1)               # greedy choice is a permutation
+    idx = np.where((usable[None, :] & unique)[..., None], best, idx)
+    for b, c in zip(*np.nonzero(usable[None, :] & ~unique), strict=True):
+        idx[b, c] = linear_sum_assignment(-mac[b, c])[1]
     return idx
 
 
