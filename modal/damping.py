@@ -31,14 +31,15 @@ def _crossing(f: np.ndarray, m: np.ndarray, k: int, level: float, step: int) -> 
             a, b = m[j] ** 2, m[j + step] ** 2
             x = (a - level ** 2) / (a - b)
             return float(f[j] + x * (f[j + step] - f[j])), abs(j - k) + 1
-        if m[j + step] > m[j] * 1.0001 and abs(j - k) > 0:
-            return None   # rising again before the -3 dB point: another mode is too close
+        if m[j + step] > 1.1 * m[k]:
+            return None   # well above the peak before the -3 dB point: another mode is too close
         j += step
     return None
 
 
 def half_power(freq_hz: np.ndarray, receptance_mag: np.ndarray, peak_index: int) -> HalfPower:
-    """Half-power damping of the peak near line ``peak_index`` of a receptance magnitude.
+    """Half-power damping of the peak reached by climbing from line ``peak_index`` of a receptance
+    magnitude.
 
     The peak is refined by a parabola through three lines; the -3 dB points are interpolated; the
     damping ratio is ``(f2^2 - f1^2) / (4 fn^2)`` (exact for a single-degree-of-freedom receptance
@@ -49,8 +50,8 @@ def half_power(freq_hz: np.ndarray, receptance_mag: np.ndarray, peak_index: int)
     m = np.asarray(receptance_mag, float)
     k = int(peak_index)
     k = max(1, min(m.size - 2, k))
-    k = k - 1 + int(np.argmax(m[k - 1:k + 2]))
-    k = max(1, min(m.size - 2, k))
+    while 1 <= k - 1 and k + 1 < m.size - 1 and max(m[k - 1], m[k + 1]) > m[k]:   # climb to the top
+        k += 1 if m[k + 1] > m[k - 1] else -1
     y0, y1, y2 = m[k - 1], m[k], m[k + 1]
     den = y0 - 2 * y1 + y2
     shift = 0.5 * (y0 - y2) / den if den < 0 else 0.0

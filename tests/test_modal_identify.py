@@ -1,0 +1,101 @@
+"""Identification against known modal models (fixtures.modal_sim): exact FRFs, a random test and an
+impact test at 40 dB SNR; the real two-hit impact record; MAC tools."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fixtures.modal_sim import modal_frf, modal_response
+from modal.compute import frf_of_record
+from modal.identify import identify, identify_modes
+from modal.mac import automac, mac, to_real, unit_max
+
+FN = np.array([12.0, 31.0, 55.0, 80.0])
+ZETA = np.array([0.05, 0.02, 0.005, 0.01])
+PHI = np.array([[1.0, 0.8, 0.3, -0.4], [0.5, -0.6, 0.9, 0.7], [0.2, -0.9, -0.7, 0.5],
+                [-0.6, 0.3, 0.5, 0.9], [0.8, 0.7, -0.4, 0.2]])
+FS = 256.0
+
+
+def _check(modes, fn_tol=1e-3, zeta_tol=0.05, mac_min=0.99):
+    assert modes.freq_hz.size == FN.size
+    assert np.all(np.abs(modes.freq_hz / FN - 1) < fn_tol), modes.freq_hz
+    assert np.all(np.abs(modes.damping_ratio / ZETA - 1) < zeta_tol), modes.damping_ratio
+    assert np.all(np.diag(mac(modes.shapes, PHI)) >= mac_min)
+
+
+def test_lscf_on_exact_frfs_is_exact_and_mass_normalises_at_the_driving_point():
+    f = np.linspace(5, 100, 1500)
+    H = modal_frf(f, FN, ZETA, PHI, PHI[[0]])
+    modes = identify(f, H, method="lscf", driving_point=0)
+    _check(modes, fn_tol=1e-5, zeta_tol=1e-3, mac_min=0.99999)
+    assert modes.mass_normalised
+    assert np.allclose(modes.shapes, PHI * np.sign(PHI[np.argmax(np.abs(PHI), 0), range(4)]), atol=2e-3)
+
+
+def _noisy(y: np.ndarray, rng: np.random.Generator, snr_db: float = 40.0) -> np.ndarray:
+    return y + 10 ** (-snr_db / 20) * y.std(axis=0) * rng.standard_normal(y.shape)
+
+
+def test_random_test_at_40db_gives_modes_within_acceptance():
+    rng = np.random.default_rng(5)
+    nfft = 4096
+    n = nfft * 51 // 2
+    force = rng.standard_normal((n, 1))
+    y = _noisy(modal_response(force, FS, FN, ZETA, PHI, PHI[[0]]), rng)
+    res = frf_of_record(np.column_stack([force, y]), FS, ["f"] + [f"a{k}" for k in range(5)],
+                        ["force"] + ["acceleration"] * 5, nfft=nfft)
+    assert res.n_averages >= 50
+    _check(identify(res.freq_hz, res.H, fmin=5, fmax=100, driving_point=0))
+    peak = identify(res.freq_hz, res.H, method="peak", fmin=5, fmax=100, coherence=res.coherence)
+    assert np.all(np.abs(peak.freq_hz / FN - 1) < 0.01)
+    assert np.all(np.diag(mac(peak.shapes, PHI)) > 0.95)
+
+
+def test_impact_test_at_40db_with_exponential_window_gives_modes_within_acceptance():
+    rng = np.random.default_rng(6)
+    record, pre, hits = 4096, 64, 4
+    force = np.zeros((record * hits, 1))
+    pulse = np.sin(np.pi * np.arange(5) / 4)
+    for k in range(hits):
+        force[k * record + pre:k * record + pre + 5, 0] = (100 + 10 * k) * pulse
+    y = _noisy(modal_response(force, FS, FN, ZETA, PHI, PHI[[0]]), rng)
+    res = frf_of_record(np.column_stack([force, y]), FS, ["f"] + [f"a{k}" for k in range(5)],
+                        ["force"] + ["acceleration"] * 5, excitation="impact",
+                        window="force:0.05,exponential:0.05")
+    assert res.n_averages == hits and res.decay_rate_per_s > 0
+    assert all(h["accepted"] for h in res.provenance["hits"])
+    _check(identify(res.freq_hz, res.H, fmin=5, fmax=100, decay_rate_per_s=res.decay_rate_per_s))
+
+
+def test_real_two_hit_record_gives_the_three_documented_modes(shared_dir):
+    lvm_read = pytest.importorskip("lvm_read")
+    data = lvm_read.read(str(shared_dir / "data" / "impact_two_hits.lvm"))[0]
+    samples = data["data"]
+    res = frf_of_record(samples, 1 / data["Delta_X"][0], ["F", "m_1", "m_2"],
+                        ["force", "acceleration", "acceleration"], excitation="impact")
+    assert res.n_averages == 2
+    band = (res.freq_hz > 19.5) & (res.freq_hz < 20.5)
+    assert res.coherence[:, band].min() > 0.95
+    modes = identify(res.freq_hz, res.H, fmin=12, fmax=25, decay_rate_per_s=res.decay_rate_per_s)
+    assert np.allclose(modes.freq_hz, [16.0, 19.8, 21.1], atol=0.1)
+    assert np.all((modes.damping_ratio > 0) & (modes.damping_ratio < 0.05))
+
+
+def test_modal_table_has_contract_columns():
+    f = np.linspace(5, 100, 800)
+    table = identify_modes(f, modal_frf(f, FN, ZETA, PHI, PHI[[0]]), outputs=list("abcde"), config="c1",
+                           pose={"theta_deg": 30.0})
+    assert list(table.freq_hz("c1").round(3)) == list(FN)
+    assert table.pose("c1") == {"theta_deg": 30.0}
+    assert table.shapes("c1", list("abcde")).shape == (5, 4)
+
+
+def test_mac_tools_on_known_shapes():
+    assert np.allclose(np.diag(automac(PHI)), 1.0)
+    assert mac(PHI[:, :1], 3j * PHI[:, :1])[0, 0] == pytest.approx(1.0)
+    assert mac(np.array([[1.0], [0.0]]), np.array([[0.0], [1.0]]))[0, 0] == 0.0
+    rotated = PHI[:, :2] * np.exp(0.7j)
+    assert np.allclose(to_real(rotated), PHI[:, :2] * np.sign(PHI[np.argmax(np.abs(PHI[:, :2]), 0), [0, 1]]))
+    assert np.allclose(np.abs(unit_max(PHI)).max(axis=0), 1.0)
