@@ -43,8 +43,8 @@ def half_power(freq_hz: np.ndarray, receptance_mag: np.ndarray, peak_index: int)
 
     The peak is refined by a parabola through three lines; the -3 dB points are interpolated; the
     damping ratio is ``(f2^2 - f1^2) / (4 fn^2)`` (exact for a single-degree-of-freedom receptance
-    to first order in zeta^2).  Warns when fewer than three lines fall inside the half-power band or a
-    neighbouring mode prevents a -3 dB point.
+    to first order in zeta^2).  Warns when fewer than three lines fall inside the half-power band or
+    another peak lies within three bandwidths; raises ModalError when a -3 dB point cannot be found.
     """
     f = np.asarray(freq_hz, float)
     m = np.asarray(receptance_mag, float)
@@ -68,6 +68,13 @@ def half_power(freq_hz: np.ndarray, receptance_mag: np.ndarray, peak_index: int)
         warnings.append(f"half-power at {fn:.4g} Hz: only {lo[1] + hi[1] - 1} lines in the -3 dB band "
                         "(resolution too coarse)")
     zeta = (hi[0] ** 2 - lo[0] ** 2) / (4 * fn ** 2)
+    bw = hi[0] - lo[0]
+    inner = (m[1:-1] > m[:-2]) & (m[1:-1] >= m[2:]) & (m[1:-1] > 0.25 * peak)
+    near = np.flatnonzero(inner) + 1
+    near = near[(np.abs(f[near] - fn) < 3 * bw) & (np.abs(near - k) > 1)]
+    if near.size:
+        warnings.append(f"half-power at {fn:.4g} Hz: modes too close (another peak at {f[near[0]]:.4g} Hz "
+                        "within three bandwidths)")
     return HalfPower(float(fn), float(zeta), lo[0], hi[0], tuple(warnings))
 
 

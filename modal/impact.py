@@ -90,11 +90,12 @@ def impact_spectra(samples: np.ndarray, sample_rate_hz: float, force_col: int, o
                    triggers: Sequence[int] | None = None, pretrigger_s: float = 0.02,
                    record_len: int | None = None, force_window: str = "force:0.05",
                    exp_window: str = "exponential:0.01", averaging: str = "linear", n_exp: int = 4,
-                   double_hit_fraction: float = 0.1, min_frac: float = 0.9,
+                   double_hit_fraction: float = 0.1, min_frac: float = 0.9, min_gap_s: float = 1.0,
                    overload_samples: Sequence[int] = ()) -> tuple[Spectra, list[Hit]]:
     """Averaged spectra of the accepted hits and the list of hits with their verdicts.
 
-    ``triggers`` default to :func:`find_triggers` on the force; ``record_len`` defaults to the shortest
+    ``triggers`` default to :func:`find_triggers` on the force (hits at least ``min_gap_s`` apart, so a
+    double hit stays in its record); ``record_len`` defaults to the shortest
     distance between consecutive record starts (and to the end of the data).  ``overload_samples`` are
     sample indices flagged as overloaded by the acquisition.
     """
@@ -102,7 +103,7 @@ def impact_spectra(samples: np.ndarray, sample_rate_hz: float, force_col: int, o
     pre = int(round(pretrigger_s * sample_rate_hz))
     force = samples[:, force_col]
     trig = (np.asarray(triggers, int) if triggers is not None
-            else find_triggers(force, min_gap=max(1, int(0.1 * sample_rate_hz))))
+            else find_triggers(force, min_gap=max(1, int(min_gap_s * sample_rate_hz))))
     trig = trig[trig >= pre]
     if trig.size == 0:
         raise ModalError("impact test: no hammer hit found in the force channel")
@@ -132,11 +133,13 @@ def impact_spectra(samples: np.ndarray, sample_rate_hz: float, force_col: int, o
     good = [k for k, r in enumerate(reasons) if not r]
     if len(good) >= 3:
         single = [spectra_of_segments(segs[[k]], 1, sample_rate_hz, w_exp) for k in good]
-        per_hit = np.array([s.g_xf[:, 0] / s.g_ff[0, 0].real for s in single])   # [hit, out, f]
-        band = single[0].freq_hz <= 0.5 * sample_rate_hz
+        gff = np.array([s.g_ff[0, 0].real for s in single])
+        band = gff.min(axis=0) > 0.01 * gff.max()          # lines every hit excites within 20 dB
+        per_hit = np.array([s.g_xf[:, 0, band] / s.g_ff[0, 0, band].real for s in single])   # [hit, out, f]
         for j, k in enumerate(good):
-            others = np.delete(per_hit, j, axis=0).mean(axis=0)
-            value = _frac(per_hit[j][:, band].ravel(), others[:, band].ravel())
+            rest = np.delete(per_hit, j, axis=0)
+            others = np.median(rest.real, axis=0) + 1j * np.median(rest.imag, axis=0)
+            value = _frac(per_hit[j].ravel(), others.ravel())
             if value < min_frac:
                 reasons[k] = f"low coherence (FRAC {value:.2f} against the other hits)"
     hits = [Hit(int(s), int(t), r) for s, t, r in zip(starts, trig, reasons, strict=True)]

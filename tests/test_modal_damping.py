@@ -1,0 +1,92 @@
+"""Damping estimates against exact single-mode answers; impact hit acceptance and averaging."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fixtures.modal_sim import modal_frf
+from modal.damping import half_power, log_decrement
+from modal.errors import ModalError
+from modal.impact import average_weights, impact_spectra
+from modal.windows import added_decay_rate_per_s, remove_added_damping, window
+
+
+@pytest.mark.parametrize(("fn", "zeta"), [(8.3, 0.13), (17.6, 0.06)])
+def test_log_decrement_of_drifting_noisy_free_decay_within_3_percent(fn, zeta):
+    fs = 1000.0
+    t = np.arange(0, 5, 1 / fs)
+    wn = 2 * np.pi * fn
+    x = np.exp(-zeta * wn * t) * np.cos(wn * np.sqrt(1 - zeta ** 2) * t)
+    x += 0.3 * t + 0.2 * np.sin(2 * np.pi * 0.3 * t) + 1e-3 * np.random.default_rng(0).standard_normal(t.size)
+    r = log_decrement(x, fs, fn)
+    assert abs(r.damping_ratio / zeta - 1) < 0.03
+    assert r.n_cycles >= 4 and r.r2 > 0.99
+    assert abs(r.fn_hz / (fn * np.sqrt(1 - zeta ** 2)) - 1) < 0.01
+
+
+@pytest.mark.parametrize("zeta", [0.01, 0.02, 0.05])
+def test_half_power_of_sdof_receptance_within_5_percent(zeta):
+    f = np.arange(0, 50, 0.02)
+    H = modal_frf(f, [20.0], [zeta], [[1.0]], [[1.0]], quantity="displacement")[0, 0]
+    r = half_power(f, np.abs(H), int(np.argmax(np.abs(H))))
+    assert abs(r.damping_ratio / zeta - 1) < 0.05
+    assert not r.warnings
+
+
+def test_half_power_warns_on_coarse_resolution_and_close_modes_and_fails_at_band_edge():
+    f = np.arange(0, 50, 0.25)
+    H = modal_frf(f, [20.0], [0.005], [[1.0]], [[1.0]], quantity="displacement")[0, 0]
+    assert "resolution" in half_power(f, np.abs(H), int(np.argmax(np.abs(H)))).warnings[0]
+    f = np.arange(0, 50, 0.01)
+    H = modal_frf(f, [20.0, 20.6], [0.01, 0.01], [[1.0, 1.0]], [[1.0, 1.0]], quantity="displacement")[0, 0]
+    assert "too close" in half_power(f, np.abs(H), int(np.argmin(np.abs(f - 20.0)))).warnings[0]
+    band = f >= 20.0
+    with pytest.raises(ModalError, match="no -3 dB point"):
+        half_power(f[band], np.abs(H[band]), 0)
+
+
+def test_exponential_window_damping_is_removed_exactly():
+    n, fs = 1000, 100.0
+    sigma = added_decay_rate_per_s("exponential:0.01", n, fs)
+    assert window("exponential:0.01", n)[-1] == pytest.approx(0.01)
+    assert sigma == pytest.approx(np.log(100) * fs / (n - 1))
+    fn, zeta = 10.0, 0.01
+    wn, wd = 2 * np.pi * fn, 2 * np.pi * fn * np.sqrt(1 - zeta ** 2)
+    s_obs = -zeta * wn - sigma + 1j * wd          # the pole seen through the window
+    f2, z2 = remove_added_damping(abs(s_obs) / (2 * np.pi), -s_obs.real / abs(s_obs), sigma)
+    assert f2 == pytest.approx(fn, rel=1e-12) and z2 == pytest.approx(zeta, rel=1e-12)
+
+
+def _hits(pulses: list[list[tuple[int, float]]], record: int = 1024, fs: float = 256.0):
+    """Force/response records: each hit is a list of (offset, amplitude) pulses."""
+    n = record * len(pulses)
+    force = np.zeros(n)
+    for k, hit in enumerate(pulses):
+        for off, amp in hit:
+            force[k * record + 32 + off:k * record + 35 + off] += amp * np.array([0.5, 1.0, 0.5])
+    t = np.arange(n) / fs
+    resp = np.convolve(force, np.exp(-2 * t[:400]) * np.sin(2 * np.pi * 20 * t[:400]))[:n]
+    resp += 1e-6 * np.random.default_rng(0).standard_normal(n)
+    return np.column_stack([force, resp]), fs
+
+
+def test_hits_are_rejected_for_double_hits_and_overloads_with_reasons():
+    samples, fs = _hits([[(0, 1.0)], [(0, 1.0), (60, 0.5)], [(0, 1.0)], [(0, 1.0)]])
+    spectra, hits = impact_spectra(samples, fs, 0, [1], pretrigger_s=0.05, overload_samples=[3 * 1024 + 40])
+    assert [h.reason for h in hits] == ["", "double hit", "", "overload"]
+    assert spectra.n_averages == 2
+
+
+def test_inconsistent_hit_is_rejected_for_low_coherence():
+    samples, fs = _hits([[(0, 1.0)]] * 4)
+    samples[2 * 1024:3 * 1024, 1] = np.random.default_rng(1).standard_normal(1024)
+    _, hits = impact_spectra(samples, fs, 0, [1], pretrigger_s=0.05)
+    assert [h.accepted for h in hits] == [True, True, False, True]
+    assert hits[2].reason.startswith("low coherence")
+
+
+def test_linear_and_exponential_average_weights():
+    assert np.allclose(average_weights(4), 0.25)
+    w = average_weights(3, "exponential", n_exp=2)
+    assert np.allclose(w, [0.25, 0.25, 0.5]) and w.sum() == pytest.approx(1.0)
