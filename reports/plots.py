@@ -147,7 +147,8 @@ def plot_freq_vs_pose(measured: Sequence[ModalTable], predictions: Sequence[tupl
             ax.plot(g["x"], g["freq_hz"], "-", color=colour, lw=1.2, label=name if j == 0 else None)
     if measured:
         stats = _experiment_stats(measured, pose_var)
-        ax.errorbar(stats["x"], stats["mean"], yerr=stats["std"], fmt="o", color="k", ms=4, capsize=3,
+        ax.errorbar(stats["x"].to_numpy(float), stats["mean"].to_numpy(float),
+                    yerr=stats["std"].to_numpy(float), fmt="o", color="k", ms=4, capsize=3,
                     label="experiment (mean ± 1 sd)")
     ax.set_xlabel(f"{pose_var} [{unit}]")
     ax.set_ylabel("natural frequency [Hz]")
@@ -195,8 +196,10 @@ def plot_mode_shapes(rig, pose: Mapping[str, float], measured: ModalTable, confi
     """Measured mode shapes at the sensors on the arm at ``pose``, with the frame FE model's curve.
 
     For every measured mode the FE mode (models.frame, ``n_fe_modes`` lowest) with the highest MAC at
-    the sensors is drawn as the deformed arm, scaled by least squares onto the measured points.
-    Displacements are exaggerated to 15 % of the arm's reach; coordinates in m.
+    the sensors is drawn as the deformed links, scaled by least squares onto the measured points.  Both
+    are drawn as what the sensors see: displacement normal to each link (so each link is its own curve,
+    and the axial motion the accelerometers do not measure is left out); axial sensors are drawn along
+    their link.  Displacements are exaggerated to 15 % of the arm's reach; coordinates in m.
     """
     from models.frame import assemble, link_geometry, solve_modes
 
@@ -207,19 +210,18 @@ def plot_mode_shapes(rig, pose: Mapping[str, float], measured: ModalTable, confi
     fe = solve_modes(system, min(n_fe_modes, system.n_dof))
     angles, starts = link_geometry(rig, pose)
     names = [lk.name for lk in rig.links]
+    axes_xy = np.column_stack([np.cos(angles), np.sin(angles)])  # unit vector along each link
+    normals = np.column_stack([-axes_xy[:, 1], axes_xy[:, 0]])
     fractions = np.linspace(0.0, 1.0, 25)
-    curve_xy = np.concatenate([starts[i] + np.outer(fractions * lk.length_m, [math.cos(angles[i]),
-                                                                              math.sin(angles[i])])
-                               for i, lk in enumerate(rig.links)])
-    rows_x = np.array([system.observe(f"{lk.name}@{f:.6f}", "x") for lk in rig.links for f in fractions])
-    rows_y = np.array([system.observe(f"{lk.name}@{f:.6f}", "y") for lk in rig.links for f in fractions])
+    link_xy = [starts[i] + np.outer(fractions * lk.length_m, axes_xy[i]) for i, lk in enumerate(rig.links)]
+    link_rows = [np.array([system.observe(f"{lk.name}@{f:.6f}", "transverse") for f in fractions])
+                 for lk in rig.links]
+    curve_xy = np.concatenate(link_xy)
     sensor_xy, sensor_dir = [], []
     for s in sensors:
         i = names.index(s.at.link)
-        a = angles[i]
-        axis = np.array([math.cos(a), math.sin(a)])
-        sensor_xy.append(starts[i] + s.at.fraction * rig.links[i].length_m * axis)
-        sensor_dir.append([-axis[1], axis[0]] if s.direction == "transverse" else axis)
+        sensor_xy.append(starts[i] + s.at.fraction * rig.links[i].length_m * axes_xy[i])
+        sensor_dir.append(normals[i] if s.direction == "transverse" else axes_xy[i])
     sensor_xy, sensor_dir = np.array(sensor_xy), np.array(sensor_dir)
     fe_at_sensors = np.array([system.observe(str(s.at), s.direction) for s in sensors]) @ fe.phi
     shapes = measured.shapes(config, [s.name for s in sensors])
@@ -238,11 +240,13 @@ def plot_mode_shapes(rig, pose: Mapping[str, float], measured: ModalTable, confi
         j = int(np.argmax(macs[k]))
         model = fe_at_sensors[:, j]
         alpha = float(model @ meas / (model @ model)) if model @ model > 0 else 0.0
-        disp = np.column_stack([rows_x @ fe.phi[:, j], rows_y @ fe.phi[:, j]]) * alpha
-        scale = 0.15 * reach / max(float(np.abs(meas).max()), float(np.hypot(*disp.T).max()), 1e-30)
+        disp = [alpha * (rows @ fe.phi[:, j]) for rows in link_rows]
+        biggest = max(float(np.abs(meas).max()), max(float(np.abs(d).max()) for d in disp), 1e-30)
+        scale = 0.15 * reach / biggest
         ax.plot(curve_xy[:, 0], curve_xy[:, 1], color="0.75", lw=2, label="undeformed arm")
-        ax.plot(*(curve_xy + scale * disp).T, color=_COLOURS[0], lw=1.3,
-                label=f"FE mode {j + 1} ({fe.freq_hz[j]:.1f} Hz)")
+        for i, (xy, d) in enumerate(zip(link_xy, disp, strict=True)):
+            ax.plot(*(xy + scale * d[:, None] * normals[i]).T, color=_COLOURS[0], lw=1.3,
+                    label=f"FE mode {j + 1} ({fe.freq_hz[j]:.1f} Hz)" if i == 0 else None)
         pts = sensor_xy + scale * meas[:, None] * sensor_dir
         ax.plot(pts[:, 0], pts[:, 1], "o", color=_COLOURS[1], ms=5, label="measured")
         ax.set_title(f"mode {k + 1}: {freqs[k]:.2f} Hz, MAC {macs[k, j]:.2f} [-]", fontsize=9)

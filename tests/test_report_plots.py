@@ -1,0 +1,169 @@
+"""Report figures: the plotted data equal known values, and every axis carries a unit."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from modal.table import ModalTable
+from models.frame import frame_modes
+from models.rig import load_rig, parse_rig
+from reports import plots
+
+
+def has_unit(label: str) -> bool:
+    return "[" in label and label.endswith("]")
+
+
+def assert_units(fig):
+    """Every visible axes has y and x labels with units (x: or shares its x axis with one that has)."""
+    for ax in fig.axes:
+        if ax.get_visible():
+            assert has_unit(ax.get_ylabel()), ax.get_ylabel()
+            xlabels = [a.get_xlabel() for a in ax.get_shared_x_axes().get_siblings(ax)]
+            assert any(has_unit(x) for x in xlabels), xlabels
+
+
+def table(rows, source="t"):
+    return ModalTable.from_records(rows, source)
+
+
+def test_freq_vs_pose_error_bars_are_mean_and_sample_sd_of_repeats():
+    repeats = [table([{"config": "a", "mode": 1, "freq_hz": f1, "pose.theta_deg": 0},
+                      {"config": "b", "mode": 1, "freq_hz": f2, "pose.theta_deg": 90}])
+               for f1, f2 in ((9.0, 20.0), (10.0, 22.0), (11.0, 24.0))]
+    pred = table([{"config": "a", "mode": 1, "freq_hz": 10.5, "pose.theta_deg": 0},
+                  {"config": "b", "mode": 1, "freq_hz": 21.0, "pose.theta_deg": 90}], "fe")
+    fig = plots.plot_freq_vs_pose(repeats, [("fe", pred)], "theta_deg", "deg")
+    ax = fig.axes[0]
+    line = ax.get_lines()[0]
+    np.testing.assert_array_equal(line.get_xdata(), [0, 90])
+    np.testing.assert_array_equal(line.get_ydata(), [10.5, 21.0])
+    container = ax.containers[0]
+    x, y = container.lines[0].get_data()
+    np.testing.assert_allclose(y, [10.0, 22.0])
+    segments = container.lines[2][0].get_segments()
+    np.testing.assert_allclose([s[:, 1] for s in segments], [[9.0, 11.0], [20.0, 24.0]], atol=1e-12)
+    assert_units(fig)
+
+
+def test_freq_vs_pose_uses_a_stored_standard_deviation(shared_dir):
+    import pandas as pd
+
+    rep = pd.read_csv(shared_dir / "seeds/tables/seed003_table4_repeatability.csv")
+    t = table([{"config": f"theta{r.theta_deg}", "mode": r.mode, "freq_hz": r.mean_hz, "freq_sd_hz": r.sd_hz,
+                "pose.theta_deg": r.theta_deg} for r in rep.itertuples()])
+    fig = plots.plot_freq_vs_pose([t], [], "theta_deg")
+    segments = fig.axes[0].containers[0].lines[2][0].get_segments()
+    half = sorted(round((s[1, 1] - s[0, 1]) / 2, 6) for s in segments)
+    assert half == sorted(rep["sd_hz"].round(6))
+
+
+PAYLOAD_RIG = """
+name = "payload-arm"
+[material.al]
+E_Pa = 70e9
+rho_kg_m3 = 2700
+[[link]]
+name = "lower"
+length_m = 0.5
+material = "al"
+section = { shape = "square_tube", outer_m = 0.03, wall_m = 0.002 }
+elements = 6
+[[link]]
+name = "upper"
+length_m = 0.5
+material = "al"
+section = { shape = "square_tube", outer_m = 0.025, wall_m = 0.0015 }
+elements = 6
+[[joint]]
+name = "elbow"
+parent = "lower"
+child = "upper"
+angle = "theta_deg"
+[[mass]]
+at = "tip"
+mass_kg = "payload_kg"
+[[sensor]]
+name = "s1"
+at = "upper@1.0"
+"""
+
+
+def test_payload_trends_plot_the_frame_model_and_fall_with_payload():
+    import tomllib
+
+    rig = parse_rig(tomllib.loads(PAYLOAD_RIG), "payload")
+    rows = []
+    for theta in (0.0, 90.0):
+        for payload in (0.0, 0.5, 1.0, 2.0):
+            pose = {"theta_deg": theta, "payload_kg": payload}
+            fm = frame_modes(rig, pose, 3)
+            rows += [{"config": f"t{theta:g}p{payload:g}", "mode": k + 1, "freq_hz": f,
+                      "pose.theta_deg": theta, "pose.payload_kg": payload} for k, f in enumerate(fm.freq_hz)]
+    t = table(rows, "fe")
+    fig = plots.plot_trends(t, "payload_kg", "theta_deg", "kg", "deg")
+    assert_units(fig)
+    axes = [ax for ax in fig.axes if ax.get_visible()]
+    assert len(axes) == 3 and all(len(ax.get_lines()) == 2 for ax in axes)
+    for k, ax in enumerate(axes):
+        for line, theta in zip(ax.get_lines(), (0.0, 90.0), strict=True):
+            df = t.frame[(t.frame["mode"] == k + 1) & (t.frame["pose.theta_deg"] == theta)]
+            np.testing.assert_array_equal(line.get_xdata(), df["pose.payload_kg"])
+            np.testing.assert_array_equal(line.get_ydata(), df["freq_hz"])
+    first = axes[0].get_lines()[0].get_ydata()
+    assert np.all(np.diff(first) < 0)  # mode 1 falls as the payload grows (seed 001's trend)
+
+
+def test_gap_bars_are_the_diagnosis_errors_in_percent():
+    d = {"baseline": {"per_mode": {"1": 0.09, "2": 0.57, "10": 0.2}},
+         "verdict": {"effect": "joint_stiffness", "location": "elbow",
+                     "per_mode_after": {"1": 0.01, "2": 0.02},
+                     "heldout_rms_rel_error_before": 0.597, "heldout_rms_rel_error_after": 0.051}}
+    modes, before, after = plots.gap_per_mode(d)
+    assert modes == ["1", "2", "10"]
+    np.testing.assert_array_equal(before, [0.09, 0.57, 0.2])
+    np.testing.assert_array_equal(after[:2], [0.01, 0.02])
+    assert np.isnan(after[2])
+    fig = plots.plot_gap(d)
+    heights = [p.get_height() for p in fig.axes[0].patches]
+    np.testing.assert_allclose(heights[:5], [9.0, 57.0, 20.0, 1.0, 2.0])
+    np.testing.assert_allclose([p.get_height() for p in fig.axes[1].patches], [59.7, 5.1])
+    assert fig.axes[0].get_ylabel().endswith("[%]") and fig.axes[1].get_ylabel().endswith("[%]")
+    with pytest.raises(ValueError, match="baseline.per_mode"):
+        plots.plot_gap({"verdict": {}})
+
+
+def test_mode_shapes_measured_points_sit_on_the_model_curve(rigs_dir):
+    rig = load_rig(rigs_dir / "demo_arm.toml")
+    pose = {"theta_deg": 60.0}
+    fm = frame_modes(rig, pose, 3)
+    rows = [{"config": "c", "mode": k + 1, "freq_hz": fm.freq_hz[k], "pose.theta_deg": 60.0,
+             **{f"shape.{s}": -2.5 * fm.sensor_shapes[i, k] for i, s in enumerate(fm.sensor_names)}}
+            for k in range(3)]
+    fig = plots.plot_mode_shapes(rig, pose, table(rows), "c")
+    assert_units(fig)
+    axes = [ax for ax in fig.axes if ax.get_visible()]
+    assert len(axes) == 3
+    for ax in axes:
+        assert "MAC 1.00" in ax.get_title()
+        undeformed, link1, link2, points = ax.get_lines()
+        measured = points.get_xydata()
+        # sensors a1 (link1@0.5), a2 (link1@1.0), a5 (link2@1.0) are nodes of the 25-point link curves
+        for sensor, curve, index in ((0, link1, 12), (1, link1, 24), (4, link2, 24)):
+            np.testing.assert_allclose(measured[sensor], curve.get_xydata()[index], atol=1e-12)
+        model = np.concatenate([link1.get_xydata(), link2.get_xydata()])
+        assert np.abs(model - undeformed.get_xydata()).max() > 0.05  # visibly deformed
+
+
+def test_frf_plot_shows_magnitude_and_phase_of_h():
+    f = np.linspace(1.0, 100.0, 50)
+    H = (1.0 / (40.0**2 - f**2 + 2j * 0.02 * 40.0 * f))[None, None, :] * np.array([[[1.0]], [[-2.0]]])
+    coh = np.full((2, 50), 0.9)
+    fig = plots.plot_frf(f, H, coh, ["a", "b"], "m/N")
+    mag, phase, coh_ax = fig.axes
+    np.testing.assert_allclose(mag.get_lines()[1].get_ydata(), np.abs(H[1, 0]))
+    np.testing.assert_allclose(phase.get_lines()[0].get_ydata(), np.degrees(np.angle(H[0, 0])))
+    np.testing.assert_array_equal(coh_ax.get_lines()[0].get_ydata(), coh[0])
+    assert mag.get_ylabel() == "|H| [m/N]"
+    assert_units(fig)
