@@ -1,9 +1,72 @@
-"""CLI commands of the `models` package (registered by app.py)."""
+"""CLI commands of the `models` package (registered by app.py): ``flexmodal predict``."""
 
 from __future__ import annotations
 
 import argparse
+import sys
+
+MODEL_CHOICES = ("fe", "assumed-modes", "lumped-mass", "blevins")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this package's sub-commands to the flexmodal parser."""
+    p = sub.add_parser(
+        "predict", help="predicted natural frequencies and mode shapes of a rig for each pose",
+        description="Predict the modes of the arm described by RIG.toml for every configuration in "
+                    "POSES.csv (columns config, pose.<name>; angles in degrees, masses in kg) and write "
+                    "a modal table CSV (config, mode, freq_hz [Hz], source, pose.*, shape.<sensor>). "
+                    "Rigid-body (0 Hz) modes are left out.")
+    p.add_argument("rig", metavar="RIG.toml", help="rig description (CONTRACT §4)")
+    p.add_argument("--model", required=True, choices=MODEL_CHOICES,
+                   help="fe: planar frame finite elements; assumed-modes: exact beam eigenfunctions "
+                        "(straight uniform arm only); lumped-mass: flexibility-matrix lumped masses "
+                        "(seed 003); blevins: closed-form beam table (straight uniform arm, plain ends)")
+    p.add_argument("--poses", required=True, metavar="POSES.csv", help="one row per configuration")
+    p.add_argument("--out", required=True, metavar="PRED.csv", help="output modal table")
+    p.add_argument("--modes", type=int, default=4, metavar="N", help="elastic modes per pose (default 4)")
+    p.add_argument("--elements", type=int, default=None, metavar="N",
+                   help="fe: elements per link and member (default: the rig's `elements`, else 10)")
+    p.add_argument("--lumped-mass-matrix", action="store_true",
+                   help="fe: diagonal (HRZ-lumped) mass matrix instead of the consistent one")
+    p.add_argument("--masses-per-link", type=int, default=4, metavar="N",
+                   help="lumped-mass: lumped masses per link (default 4, as in seed 003)")
+    p.add_argument("--coordinates", choices=("planar", "transverse"), default="planar",
+                   help="lumped-mass: both in-plane translations per mass (default) or only the one "
+                        "normal to its link (seed 003's choice)")
+    p.set_defaults(func=_predict)
+
+
+def _predict(args: argparse.Namespace) -> int:
+    from modal.table import poses_from_csv
+    from models.errors import ModelError
+    from models.predict import predict
+    from models.rig import load_rig
+
+    for name in ("modes", "elements", "masses_per_link"):
+        value = getattr(args, name)
+        if value is not None and value < 1:
+            raise ModelError(f"--{name.replace('_', '-')} must be >= 1 (got {value})")
+    rig = load_rig(args.rig)
+    poses = poses_from_csv(args.poses)
+    if not poses:
+        raise ModelError(f"{args.poses}: no configurations")
+    options = {"elements_per_link": args.elements, "lumped_mass": args.lumped_mass_matrix,
+               "masses_per_link": args.masses_per_link, "coordinates": args.coordinates}
+    if getattr(args, "quiet", False) or len(poses) < 50:
+        table = predict(rig, poses, args.model, args.modes, **options)
+    else:
+        from rich.progress import Progress
+
+        with Progress(transient=True, console=_stderr_console()) as bar:
+            task = bar.add_task(f"predict ({args.model})", total=len(poses))
+            table = predict(rig, poses, args.model, args.modes, progress=lambda _c: bar.advance(task),
+                            **options)
+    table.to_csv(args.out)
+    print(args.out)
+    return 0
+
+
+def _stderr_console():
+    from rich.console import Console
+
+    return Console(file=sys.stderr)

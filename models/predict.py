@@ -1,0 +1,119 @@
+"""One interface over the model packages: a rig and poses in, a modal table (CONTRACT §3) out.
+
+Models: ``fe`` (planar frame, models/frame.py), ``assumed-modes`` (exact beam eigenfunctions of the arm
+as one straight uniform beam), ``lumped-mass`` (seed 003 flexibility matrix, planar coordinates) and
+``blevins`` (closed-form table).  Rigid-body (0 Hz) modes are left out, so ``mode`` counts elastic modes
+in every source.  Shapes are displacements at the rig's sensors along their directions, mass-normalised
+(kg^-1/2) with the largest-magnitude sensor component positive; Blevins gives frequencies only.
+
+External predictions (e.g. an ANSYS export) are just modal-table CSVs: ``load_external`` reads one and
+fills a ``source`` column so it compares like any model here.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from pathlib import Path
+
+import numpy as np
+
+from modal.table import POSE_PREFIX, SHAPE_PREFIX, ModalTable
+from models.errors import ModelError
+from models.rig import Rig
+
+MODELS = ("fe", "assumed-modes", "lumped-mass", "blevins")
+RIGID_HZ = 1e-3  # modes below this are rigid-body motion
+Result = tuple[np.ndarray, np.ndarray | None]  # frequencies [Hz], shapes [n_sensors, n_modes] or None
+
+
+def _elastic(freq_hz: np.ndarray, shapes: np.ndarray | None, n_modes: int, where: str) -> Result:
+    keep = np.flatnonzero(freq_hz >= RIGID_HZ)[:n_modes]
+    if keep.size < n_modes:
+        raise ModelError(f"{where}: only {keep.size} elastic modes available, asked for {n_modes}")
+    return freq_hz[keep], None if shapes is None else shapes[:, keep]
+
+
+def _fe(rig: Rig, pose: Mapping[str, float], n_modes: int, options: Mapping) -> Result:
+    from models.frame import assemble, solve_modes
+
+    system = assemble(rig, pose, options.get("elements_per_link"), bool(options.get("lumped_mass", False)))
+    modes = solve_modes(system, min(n_modes + 3, system.n_dof))
+    return _elastic(modes.freq_hz, modes.sensor_shapes, n_modes, f"{rig.source}: model 'fe'")
+
+
+def _assumed(rig: Rig, pose: Mapping[str, float], n_modes: int, options: Mapping) -> Result:
+    from models.assumed_modes import beam_modes
+    from models.straight_beam import straight_beam
+
+    sb = straight_beam(rig, pose, "assumed-modes")
+    modes = beam_modes(sb.beam, sb.left, sb.right, n_modes + 2)
+    shapes = modes.shape(np.array(sb.sensor_x_m)) * np.array(sb.sensor_transverse, float)[:, None]
+    freq, shapes = _elastic(modes.freq_hz, shapes, n_modes, f"{rig.source}: model 'assumed-modes'")
+    if shapes.shape[0]:
+        sign = np.sign(shapes[np.argmax(np.abs(shapes), axis=0), np.arange(shapes.shape[1])])
+        shapes = shapes * np.where(sign == 0, 1.0, sign)
+    return freq, shapes
+
+
+def _lumped(rig: Rig, pose: Mapping[str, float], n_modes: int, options: Mapping) -> Result:
+    from models.lumped_mass import lumped_mass_modes
+
+    modes = lumped_mass_modes(rig, pose, n_modes, int(options.get("masses_per_link", 4)),
+                              str(options.get("coordinates", "planar")))
+    return modes.freq_hz, modes.sensor_shapes
+
+
+def _blevins(rig: Rig, pose: Mapping[str, float], n_modes: int, options: Mapping) -> Result:
+    from models.blevins import beam_frequencies_hz
+    from models.straight_beam import straight_beam
+
+    sb = straight_beam(rig, pose, "blevins")
+    if sb.condition is None:
+        raise ModelError(f"{rig.source}: model 'blevins' has no closed form for this arm's end masses or "
+                         "spring base (use --model assumed-modes)")
+    b = sb.beam
+    return beam_frequencies_hz(sb.condition, b.length_m, b.EI_Nm2, b.mass_per_m_kg, n_modes), None
+
+
+_SOLVERS: dict[str, Callable] = {"fe": _fe, "assumed-modes": _assumed, "lumped-mass": _lumped,
+                                 "blevins": _blevins}
+
+
+def predict(rig: Rig, poses: Mapping[str, Mapping[str, float]], model: str = "fe", n_modes: int = 4, *,
+            source: str | None = None, progress: Callable[[str], None] | None = None,
+            **options: object) -> ModalTable:
+    """Predicted modes of ``rig`` for each ``{config: pose}`` (degrees, kg) as a ModalTable.
+
+    ``options``: ``elements_per_link``, ``lumped_mass`` (fe); ``masses_per_link``, ``coordinates``
+    (lumped-mass).  ``source`` defaults to the model name.  ``progress(config)`` is called after each pose.
+    """
+    if model not in _SOLVERS:
+        raise ModelError(f"unknown model {model!r} (expected one of {', '.join(MODELS)})")
+    if isinstance(n_modes, bool) or not isinstance(n_modes, int) or n_modes < 1:
+        raise ModelError(f"number of modes must be a whole number >= 1 (got {n_modes!r})")
+    records = []
+    for config, pose in poses.items():
+        freq, shapes = _SOLVERS[model](rig, pose, n_modes, options)
+        for i, f in enumerate(freq):
+            row: dict[str, object] = {"config": str(config), "mode": i + 1, "freq_hz": float(f),
+                                      "source": source or model}
+            row.update({POSE_PREFIX + k: v for k, v in pose.items()})
+            if shapes is not None:
+                row.update({SHAPE_PREFIX + s.name: float(shapes[k, i]) for k, s in enumerate(rig.sensors)})
+            records.append(row)
+        if progress is not None:
+            progress(str(config))
+    if not records:
+        raise ModelError(f"{rig.source}: no poses to predict")
+    return ModalTable.from_records(records, f"{rig.name}:{model}")
+
+
+def load_external(path: str | Path, source: str | None = None) -> ModalTable:
+    """A modal table written elsewhere (e.g. ANSYS); ``source`` (default: file stem) fills a missing
+    ``source`` column so it compares like any other model."""
+    table = ModalTable.read_csv(path)
+    frame = table.frame
+    if "source" not in frame.columns or frame["source"].isna().all():
+        frame = frame.assign(source=source or Path(path).stem)
+    return ModalTable.from_frame(frame, table.source)
+

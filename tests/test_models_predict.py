@@ -1,0 +1,126 @@
+"""predict() and `flexmodal predict`: one modal table for every model; bad rigs exit 2 with one line."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from app import main
+from modal.table import ModalTable
+from models.errors import ModelError
+from models.predict import MODELS, load_external, predict
+from models.rig import load_rig
+
+SEED003 = """
+name = "seed003"
+[material.al]
+E_Pa = 75e9
+rho_kg_m3 = 2700
+[[link]]
+name = "link1"
+length_m = 0.60
+material = "al"
+section = { shape = "square_tube", outer_m = 0.040, wall_m = 0.0011 }
+[[link]]
+name = "link2"
+length_m = 0.76
+material = "al"
+section = { shape = "square_tube", outer_m = 0.040, wall_m = 0.0011 }
+[[joint]]
+name = "elbow"
+parent = "link1"
+child = "link2"
+angle = "theta_deg"
+[[sensor]]
+name = "a1"
+at = "link2@1.0"
+"""
+
+
+def write(tmp_path, text: str, name: str = "rig.toml"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+@pytest.fixture
+def poses_csv(tmp_path):
+    return write(tmp_path, "config,pose.theta_deg\ntheta0,0\ntheta90,90\n", "poses.csv")
+
+
+def test_every_model_agrees_on_the_straight_arm(rigs_dir):
+    rig = load_rig(rigs_dir / "seed003_two_link.toml")
+    tables = {m: predict(rig, {"theta0": {"theta_deg": 0.0}}, m, 4) for m in MODELS}
+    blevins = tables["blevins"].freq_hz("theta0")
+    assert tables["assumed-modes"].freq_hz("theta0") == pytest.approx(blevins, rel=1e-6)
+    assert tables["fe"].freq_hz("theta0") == pytest.approx(blevins, rel=1e-2)  # FE adds rotary inertia
+    assert tables["lumped-mass"].freq_hz("theta0")[0] == pytest.approx(blevins[0], rel=1e-2)
+    fe, am = tables["fe"].shapes("theta0"), tables["assumed-modes"].shapes("theta0")
+    assert fe[:, :2] == pytest.approx(am[:, :2], rel=5e-3)  # same normalisation and sign convention
+    assert tables["blevins"].sensors == [] and tables["fe"].sensors == ["a1", "a2", "a3"]
+    assert set(tables["fe"].frame["source"]) == {"fe"}
+
+
+def test_cli_writes_a_modal_table(tmp_path, poses_csv, capsys):
+    out = tmp_path / "pred.csv"
+    rig = write(tmp_path, SEED003)
+    assert main(["predict", str(rig), "--model", "fe", "--poses", str(poses_csv), "--out", str(out),
+                 "--modes", "3"]) == 0
+    assert capsys.readouterr().out.strip() == str(out)
+    table = ModalTable.read_csv(out)
+    assert table.configs == ["theta0", "theta90"]
+    assert len(table.frame) == 6 and table.pose("theta90") == {"theta_deg": 90.0}
+    assert table.freq_hz("theta90")[0] == pytest.approx(33.43, rel=1e-3)  # seed 003 Table 6: 33.43 Hz
+
+
+def test_external_predictions_load_as_a_source(tmp_path):
+    path = write(tmp_path, "config,mode,freq_hz\ntheta0,1,25.33\ntheta0,2,158.45\n", "ansys.csv")
+    table = load_external(path)
+    assert set(table.frame["source"]) == {"ansys"} and np.allclose(table.freq_hz("theta0"), [25.33, 158.45])
+
+
+BAD_RIGS = {
+    "missing link": (SEED003.replace('child = "link2"', 'child = "link3"'), "link3"),
+    "member off its link": (SEED003 + '[[member]]\nname = "pusher"\nfrom = "link1@0.3"\nto = "link2@1.2"\n'
+                            'section = { shape = "custom", EA_N = 1e6, EI_Nm2 = 10.0, '
+                            'mass_per_m_kg = 0.1 }\n', "link2@1.2"),
+    "zero wall": (SEED003.replace("wall_m = 0.0011 }\n[[link]]", "wall_m = 0.0 }\n[[link]]", 1), "wall_m"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_RIGS))
+def test_bad_rig_gives_one_line_and_exit_2(tmp_path, poses_csv, capsys, case):
+    text, named = BAD_RIGS[case]
+    rig = write(tmp_path, text)
+    code = main(["predict", str(rig), "--model", "fe", "--poses", str(poses_csv),
+                 "--out", str(tmp_path / "p.csv")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1 and named in err and "Traceback" not in err
+    assert not (tmp_path / "p.csv").exists()
+
+
+def test_model_that_cannot_handle_the_rig_says_so(tmp_path, poses_csv, capsys):
+    rig = write(tmp_path, SEED003)
+    code = main(["predict", str(rig), "--model", "blevins", "--poses", str(poses_csv), "--out",
+                 str(tmp_path / "p.csv")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "straight arms only" in err and "elbow" in err and len(err.splitlines()) == 1
+
+
+def test_missing_pose_variable_is_named(tmp_path, capsys):
+    rig = write(tmp_path, SEED003)
+    poses = write(tmp_path, "config,pose.payload_kg\nc1,0\n", "poses.csv")
+    code = main(["predict", str(rig), "--model", "fe", "--poses", str(poses),
+                 "--out", str(tmp_path / "p.csv")])
+    assert code == 2 and "theta_deg" in capsys.readouterr().err
+
+
+def test_predict_validates_its_arguments(rigs_dir):
+    rig = load_rig(rigs_dir / "seed003_two_link.toml")
+    with pytest.raises(ModelError, match="unknown model"):
+        predict(rig, {"a": {"theta_deg": 0}}, "ritz")
+    with pytest.raises(ModelError, match=">= 1"):
+        predict(rig, {"a": {"theta_deg": 0}}, "fe", 0)
+    frame = predict(rig, {"a": {"theta_deg": 10}}, "lumped-mass", 2, source="lmm-planar").frame
+    assert isinstance(frame, pd.DataFrame) and set(frame["source"]) == {"lmm-planar"}
