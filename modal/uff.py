@@ -145,6 +145,7 @@ def write_modes(path: str | Path, freq_hz: Sequence[float], damping_ratio: Seque
             comp[node_ids.index(n), abs(d) - 1] += np.sign(d) * float(np.real(value))
         sets.append(pyuff.prepare_55(
             id1=f"mode {r + 1}", model_type=1, analysis_type=2, data_ch=2, spec_data_type=8, data_type=2,
-            n_data_per_node=3, mode_n=r + 1, freq=float(fn), modal_m=0.0, modal_damp_vis=float(zeta),
+            n_data_per_node=3, load_case=1, mode_n=r + 1, freq=float(fn), modal_m=0.0,
+            modal_damp_vis=float(zeta),
             modal_damp_his=0.0, node_nums=np.array(node_ids), r1=comp[:, 0], r2=comp[:, 1], r3=comp[:, 2]))
     pyuff.UFF(str(path)).write_sets(sets, mode="overwrite")
