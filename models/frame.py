@@ -134,7 +134,7 @@ def _stations(n_el: int, required: Iterable[float]) -> np.ndarray:
     for f in sorted(set(required)):
         j = int(np.argmin(np.abs(np.array(grid) - f)))
         if abs(grid[j] - f) <= 1e-12:
-            locked[j] = True
+            grid[j], locked[j] = f, True
         elif not locked[j] and abs(grid[j] - f) < _SNAP / n_el:
             grid[j], locked[j] = f, True
         else:
@@ -170,7 +170,6 @@ def _topology(rig: Rig, elements: int | None, lumped: bool) -> _Topology:
     joints = {j.child: j for j in rig.joints}
     req = _required_fractions(rig)
     bodies: list[_Body] = []
-    node_at: dict[tuple[str, float], np.ndarray] = {}
     el_body, el_dofs, el_frac, props = [], [], [], []
     springs: list[tuple[int, int, float]] = []
 
@@ -203,10 +202,12 @@ def _topology(rig: Rig, elements: int | None, lumped: bool) -> _Topology:
                 dofs[0, 2] = parent.node_dofs[-1, 2]
             elif joint.kind == "spring" and joint.k_Nm_per_rad:
                 springs.append((int(parent.node_dofs[-1, 2]), int(dofs[0, 2]), float(joint.k_Nm_per_rad)))
-        for f, d in zip(st, dofs, strict=True):
-            node_at[(lk.name, float(f))] = d
         add_body(lk.name, False, st, dofs, lambda f, lk=lk: lk.section_at(f * lk.length_m),
                  (lk.stiffness_scale, lk.mass_scale))
+
+    def node_of(link: str, fraction: float) -> np.ndarray:
+        body = bodies[[b.name for b in bodies].index(link)]
+        return body.node_dofs[int(np.argmin(np.abs(body.stations - fraction)))]
 
     for mb in rig.members:
         n_el = mb.elements or elements or DEFAULT_ELEMENTS
@@ -214,7 +215,7 @@ def _topology(rig: Rig, elements: int | None, lumped: bool) -> _Topology:
         dofs = np.array([[next(counter) for _ in range(3)] for _ in st])
         clamped = {"pin-pin": (False, False), "clamped-pin": (True, False), "clamped-clamped": (True, True)}
         for end, p, is_clamped in ((0, mb.start, clamped[mb.ends][0]), (-1, mb.end, clamped[mb.ends][1])):
-            host = node_at[(p.link, float(p.fraction))] if p.link is not None else np.full(3, FIXED)
+            host = node_of(p.link, p.fraction) if p.link is not None else np.full(3, FIXED)
             dofs[end, :2] = host[:2]
             if is_clamped:
                 dofs[end, 2] = host[2]

@@ -145,3 +145,25 @@ def test_seed003_rigid_joint_table6_within_half_a_percent(rigs_dir, shared_dir):
     err = np.abs(ours / ansys - 1)
     assert err.max() < 0.005
     assert err.max() > 0.003  # the measured gap to ANSYS BEAM3 at mode 4, theta 0 (0.37 %), documented
+
+
+def test_seed001_pusher_end_restraint_spans_pin_to_clamped(rigs_dir):
+    """Seed 001: the pusher's pin friction moves the system between its pin-pin and clamped-clamped modes."""
+    from dataclasses import replace
+
+    rig = load_rig(rigs_dir / "seed001_arm.toml")
+    pose = {"shoulder_deg": 60.0, "elbow_deg": 90.0, "payload_kg": 0.0}
+    pusher = next(m for m in rig.members if m.name == "pusher")
+
+    def with_pusher(**change) -> np.ndarray:
+        members = tuple(replace(m, **change) if m.name == "pusher" else m for m in rig.members)
+        return frame_modes(replace(rig, members=members), pose, 6).freq_hz
+
+    pin, clamped = with_pusher(), with_pusher(ends="clamped-clamped")
+    half = with_pusher(ends="clamped-pin")
+    assert np.all(pin <= half + 1e-9) and np.all(half <= clamped + 1e-9)
+    # the pusher-bending mode: 31.9 -> 48.8 -> 64.5 Hz here (seed 001 FEM: 30.1, 46 and 64 Hz)
+    assert clamped[3] > 1.9 * pin[3] and 1.4 * pin[3] < half[3] < 1.7 * pin[3]
+    assert with_pusher(end_k_Nm_per_rad=1e13) == pytest.approx(clamped, rel=1e-6)
+    assert with_pusher(end_k_Nm_per_rad=1e-6) == pytest.approx(pin, rel=1e-9)
+    assert pusher.ends == "pin-pin" and frame_modes(rig, pose, 6).freq_hz == pytest.approx(pin)
