@@ -4,7 +4,7 @@ A driver has ``name``, ``sources`` (names of the values it delivers, in column o
 (raw values at or beyond which an input is clipped, or None) and three methods: ``open()``,
 ``read() -> list[Block]`` (waits at most ~0.1 s) and ``close()``.  ``read``/``open`` raise
 :class:`DeviceLost` when the device goes away; the reader thread then reconnects with exponential
-back-off (0.05 s doubling to 1 s) and reports ``lost``/``reconnect`` notices.
+back-off (0.02 s doubling to 0.25 s) and reports ``lost``/``reconnect`` notices.
 """
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ import numpy as np
 
 from daq.errors import DaqError
 
-BACKOFF_START_S = 0.05
-BACKOFF_MAX_S = 1.0
+BACKOFF_START_S = 0.02
+BACKOFF_MAX_S = 0.25
 
 
 class DeviceLost(Exception):

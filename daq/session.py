@@ -70,7 +70,6 @@ class Device:
     tcp_port: int = 502
     device_id: int = 1
     registers: tuple[Register, ...] = ()
-    sequence_register: str = ""  # modbus: register holding the device's sample counter (optional)
 
 
 @dataclass(frozen=True)
@@ -218,8 +217,7 @@ def _device(doc: dict, where: str, base: Path) -> Device:
             raise DaqError(f"{where}: dbc file {dbc!r} does not exist")
         return Device(name, protocol, interface=interface, channel=channel,
                       bitrate=t.get("bitrate", int, 500000), dbc=dbc, message=t.get("message", str, ""))
-    t.reject_unknown(common | {"transport", "host", "port", "baud", "device_id", "register",
-                               "sequence_register"})
+    t.reject_unknown(common | {"transport", "host", "port", "baud", "device_id", "register"})
     transport = t.choice("transport", ("tcp", "rtu"), "tcp")
     regs = t.get("register", list, check=bool, why="must list at least one register")
     registers = tuple(_register(r, f"{where}: register {i + 1}") for i, r in enumerate(regs))
@@ -227,8 +225,6 @@ def _device(doc: dict, where: str, base: Path) -> Device:
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
         raise DaqError(f"{where}: duplicate register name {dup[0]!r}")
-    seq = t.get("sequence_register", str, "", check=lambda v: not v or v in names,
-                why="is not one of the device's registers")
     if transport == "tcp":
         host = t.get("host", str, "127.0.0.1")
         port = t.get("port", (int, str), 502)
@@ -236,12 +232,12 @@ def _device(doc: dict, where: str, base: Path) -> Device:
             raise DaqError(f"{where}: port {port!r} is not a TCP port number")
         return Device(name, protocol, transport=transport, host=host, port=str(port),
                       tcp_port=port if isinstance(port, int) else 0,
-                      device_id=t.get("device_id", int, 1), registers=registers, sequence_register=seq)
+                      device_id=t.get("device_id", int, 1), registers=registers)
     port = t.get("port", str)
     if not _port_exists(port):
         raise DaqError(f"{where}: port {port!r} does not exist")
     return Device(name, protocol, transport=transport, port=port, baud=t.get("baud", int, 19200),
-                  device_id=t.get("device_id", int, 1), registers=registers, sequence_register=seq)
+                  device_id=t.get("device_id", int, 1), registers=registers)
 
 
 def _channel(doc: dict, where: str, devices: dict[str, Device]) -> ChannelMap:

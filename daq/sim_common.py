@@ -11,8 +11,11 @@ events of a run against it.
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
+import struct
+import termios
 import tempfile
 import time
 import tty
@@ -82,6 +85,15 @@ class PtyLink:
         tmp.unlink(missing_ok=True)
         tmp.symlink_to(os.ttyname(self._slave))
         os.replace(tmp, self.path)
+
+    def drain(self, timeout_s: float = 1.0) -> None:
+        """Wait until the reader has taken every byte written so far (at most ``timeout_s``)."""
+        end = time.monotonic() + timeout_s
+        while time.monotonic() < end and self._unread():
+            time.sleep(0.005)
+
+    def _unread(self) -> int:
+        return struct.unpack("i", fcntl.ioctl(self._slave, termios.FIONREAD, b"\0\0\0\0"))[0]
 
     def close(self) -> None:
         for fd in (self.master, self._slave):

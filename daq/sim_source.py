@@ -1,7 +1,7 @@
 """The signal the device simulators emit: a simulated rig test as 16-bit ADC counts, looped.
 
 The simulated test (``fixtures.rig_sim.simulate``) is digitised through a realistic transducer chain:
-each channel has a sensitivity (force 50 mV/N, acceleration 100 mV/g, strain 20 mV/µε) into a ±10 V,
+each channel has a sensitivity (force 50 mV/N, acceleration 100 mV/g, strain 5 mV/µε) into a ±10 V,
 16-bit ADC, so one count is ``LSB_MV`` = 0.30518 mV and the physical value of a count is
 ``LSB_MV / sensitivity * k`` (k = 9.80665 for g -> m/s^2).  Encoders deliver raw counts (4096/rev).
 Sample ``n`` of the stream is row ``n % record_length`` of the record, so any later reader can rebuild
@@ -25,7 +25,7 @@ ENCODER_COUNTS_PER_REV = 4096
 CHAIN = {
     "force": (50.0, "mV/N", 1.0),
     "acceleration": (100.0, "mV/g", G_M_PER_S2),
-    "strain": (20.0, "mV/µε", 1.0),
+    "strain": (5.0, "mV/µε", 1.0),
 }
 DEFAULT_RIG = Path(__file__).resolve().parents[1] / "examples" / "rigs" / "demo_arm.toml"
 
@@ -76,14 +76,15 @@ def sim_source(rig_path: str | Path | None = None, test: str = "impact", sample_
     rig = load_rig(rig_path or DEFAULT_RIG)
     pose = pose if pose is not None else {v: 30.0 for v in rig.pose_variables}
     links = [link.name for link in rig.links]
+    pulse_s = max(1.5e-3, 4 / sample_rate_hz)  # a softer hammer tip at low rates, so hits are sampled
     probe = simulate(rig, pose, excitation=test, duration_s=0.25, sample_rate_hz=sample_rate_hz,
-                     seed=seed, strain_gauges=(f"{links[0]}@0.1",))
+                     seed=seed, strain_gauges=(f"{links[0]}@0.1",), pulse_width_s=pulse_s)
     chain = [CHAIN.get(c.kind, (1.0, "", 1.0)) for c in probe.channels]
     full_scale = [ADC_FULL_SCALE_MV / s * f if c.kind in CHAIN else 2.0**31
                   for c, (s, _, f) in zip(probe.channels, chain, strict=True)]
     sim = simulate(rig, pose, excitation=test, duration_s=record_s, sample_rate_hz=sample_rate_hz, seed=seed,
                    strain_gauges=(f"{links[0]}@0.1",), full_scale=full_scale,
-                   encoder_counts_per_rev=ENCODER_COUNTS_PER_REV)
+                   encoder_counts_per_rev=ENCODER_COUNTS_PER_REV, pulse_width_s=pulse_s)
     channels = []
     for c, (sens, sens_unit, factor) in zip(sim.channels, chain, strict=True):
         if c.kind == "encoder":

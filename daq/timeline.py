@@ -20,6 +20,7 @@ import numpy as np
 from daq.devices import Block
 from daq.store import Event
 
+ANALOG_KINDS = ("acceleration", "force", "strain", "voltage")
 MAX_GAP_S = 60.0  # a longer jump of a device counter is taken as a device restart, not a gap
 
 
@@ -30,6 +31,7 @@ class _Track:
     gain: np.ndarray
     bias: np.ndarray
     full_scale: np.ndarray
+    analog: np.ndarray  # converter limits mean clipping only for analogue inputs (not counters)
     base: int | None = None
     rows: int = 0  # rows delivered so far (next free row)
     parts: deque = field(default_factory=deque)
@@ -51,7 +53,8 @@ class Timeline:
             self.tracks[dev.name] = _Track(
                 cols=np.array([i for i, _ in maps]), src=src, gain=g,
                 bias=np.array([c.offset / c.channel.sensitivity * c.factor for _, c in maps]),
-                full_scale=np.array([c.full_scale for _, c in maps]))
+                full_scale=np.array([c.full_scale for _, c in maps]),
+                analog=np.array([c.channel.kind in ANALOG_KINDS for _, c in maps]))
         self.t_ref: float | None = None
         self.first_index: dict[str, int] = {}
         self.released = 0
@@ -91,7 +94,7 @@ class Timeline:
         if n:
             over = np.abs(values) >= tr.full_scale
             if clipped is not None:
-                over |= clipped[:, tr.src]
+                over |= clipped[:, tr.src] & tr.analog
             for j in np.flatnonzero(over.any(axis=0)):  # one event per clipped channel in the block
                 hit = np.flatnonzero(over[:, j])
                 events.append(Event("overload", row + int(hit[0]), int(hit.size), self.names[tr.cols[j]]))

@@ -1,0 +1,152 @@
+"""Modbus driver (pymodbus >= 3.10, TCP or RTU): registers polled at the session rate on a fixed schedule.
+
+Poll ``k`` is due at ``t0 + k / sample_rate_hz`` (t0 = first connection) and its values become device
+sample ``k``; late polls catch up (back to back) unless they are more than ``MAX_LATE_S`` late (a stall,
+a disconnect): those slots are skipped and their samples missing, so the timeline shows the gap where
+it happened.  An exception response counts as a corrupt
+frame.  Each table's registers are read in one request per poll (``device_id=`` keyword API) and
+decoded for all polls of a read at once (int16/uint16/int32/uint32/float32, big or little word order,
+then ``value * scale + offset``).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+
+import numpy as np
+
+from daq.devices import Block, DeviceLost
+from daq.errors import DaqError
+
+READ_WINDOW_S = 0.05
+MAX_LATE_S = 0.1  # a poll later than this is skipped (its sample is missing) instead of caught up
+MAX_REGISTERS_PER_READ = 125
+RAW_RANGE = {"int16": (-(2**15), 2**15 - 1), "uint16": (0, 2**16 - 1), "int32": (-(2**31), 2**31 - 1),
+             "uint32": (0, 2**32 - 1), "float32": (-np.inf, np.inf)}
+
+
+def decode_registers(words: np.ndarray, offset: int, reg) -> np.ndarray:
+    """Values of register definition ``reg`` at column ``offset`` of polls ``words`` [n, n_words] uint16."""
+    if reg.type in ("int16", "uint16"):
+        raw = words[:, offset].astype(np.uint16).view("<i2" if reg.type == "int16" else "<u2").astype(float)
+    else:
+        hi, lo = (offset, offset + 1) if reg.word_order == "big" else (offset + 1, offset)
+        u32 = (words[:, hi].astype(np.uint32) << np.uint32(16)) | words[:, lo].astype(np.uint32)
+        raw = u32.view({"int32": "<i4", "uint32": "<u4", "float32": "<f4"}[reg.type]).astype(float)
+    return raw * reg.scale + reg.offset
+
+
+def _spans(registers) -> list[tuple[str, int, int]]:
+    """(table, first address, count) of one read request per table."""
+    spans = []
+    for table in ("holding", "input"):
+        regs = [r for r in registers if r.table == table]
+        if regs:
+            a = min(r.address for r in regs)
+            b = max(r.address + (1 if r.type in ("int16", "uint16") else 2) for r in regs)
+            if b - a > MAX_REGISTERS_PER_READ:
+                raise DaqError(f"{table} registers span {b - a} addresses (one request reads at most "
+                               f"{MAX_REGISTERS_PER_READ})")
+            spans.append((table, a, b - a))
+    return spans
+
+
+class ModbusDriver:
+    def __init__(self, device, sample_rate_hz: float) -> None:
+        self.name = device.name
+        self.device = device
+        self.fs = sample_rate_hz
+        self.sources = tuple(r.name for r in device.registers)
+        self.spans = _spans(device.registers)
+        base = {t: sum(c for _, _, c in self.spans[:i]) - a for i, (t, a, c) in enumerate(self.spans)}
+        self.columns = [base[r.table] + r.address for r in device.registers]
+        lims = np.array([sorted((lo * r.scale + r.offset, hi * r.scale + r.offset))
+                         for r in device.registers for lo, hi in [RAW_RANGE[r.type]]])
+        self.limits = (lims[:, 0], lims[:, 1])
+        self._client = None
+        self._t0: float | None = None
+        self._slot = 0
+        self._lost: str | None = None
+        self._bad: list[int] = []  # slots answered with an exception, not yet reported
+
+    def open(self) -> None:
+        from pymodbus.client import ModbusSerialClient, ModbusTcpClient
+
+        logging.getLogger("pymodbus").setLevel(logging.CRITICAL)  # failures become events, not log noise
+        d = self.device
+        if d.transport == "tcp":
+            client = ModbusTcpClient(d.host, port=d.tcp_port, timeout=0.5, retries=0)
+        else:
+            client = ModbusSerialClient(d.port, baudrate=d.baud, timeout=0.5, retries=0)
+        if not client.connect():
+            client.close()
+            where = f"{d.host}:{d.tcp_port}" if d.transport == "tcp" else d.port
+            raise DeviceLost(f"cannot connect to Modbus {d.transport} {where}")
+        self._client = client
+        self._lost = None
+        if self._t0 is None:
+            self._t0 = time.monotonic()
+
+    def close(self) -> None:
+        if self._client is not None:
+            self._client.close()
+            self._client = None
+
+    def _poll(self) -> list[int] | None:
+        """One poll of every span: the words, or None for an exception response."""
+        words = []
+        for table, address, count in self.spans:
+            read = (self._client.read_holding_registers if table == "holding"
+                    else self._client.read_input_registers)
+            rr = read(address, count=count, device_id=self.device.device_id)
+            if rr.isError():
+                return None
+            words += rr.registers
+        return words
+
+    def read(self) -> list[Block]:
+        from pymodbus.exceptions import ModbusException
+
+        if self._lost:
+            raise DeviceLost(self._lost)
+        slots, rows, stamps, bad = [], [], [], self._bad
+        end = time.monotonic() + READ_WINDOW_S
+        while time.monotonic() < end:
+            due = self._t0 + self._slot / self.fs
+            now = time.monotonic()
+            if now < due:
+                time.sleep(due - now)
+            elif now > due + MAX_LATE_S:  # fell far behind (a stall, a reconnect): those slots are missing
+                self._slot = int((now - self._t0) * self.fs)
+            try:
+                words = self._poll()
+            except (ModbusException, OSError) as exc:
+                self._lost = f"Modbus poll failed: {exc}"
+                break
+            if words is None:
+                bad.append(self._slot)
+            else:
+                slots.append(self._slot)
+                rows.append(words)
+                stamps.append(time.time())
+            self._slot += 1
+        blocks = self._blocks(np.array(slots, np.int64), np.array(rows, np.uint16), np.array(stamps),
+                              np.array(bad, np.int64))
+        self._bad = [s for s in bad if not slots or s > slots[-1]]
+        if not blocks and self._lost:
+            raise DeviceLost(self._lost)
+        return blocks
+
+    def _blocks(self, slots, words, stamps, bad) -> list[Block]:
+        if not slots.size:
+            return []
+        values = np.column_stack([decode_registers(words, c, r)
+                                  for c, r in zip(self.columns, self.device.registers, strict=True)])
+        split = np.flatnonzero(np.diff(slots) != 1) + 1
+        out = []
+        for a, b in zip(np.r_[0, split], np.r_[split, slots.size], strict=True):  # runs of consecutive polls
+            prev = slots[a - 1] if a else -1
+            n_bad = int(((bad > prev) & (bad < slots[a])).sum())
+            out.append(Block(self.name, int(slots[a]), values[a:b], float(stamps[a]), corrupt=n_bad))
+        return out
