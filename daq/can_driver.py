@@ -97,7 +97,8 @@ class CanDriver:
             len(good), self.layout.length)
         ts = np.array([m.timestamp for m in good])
         index = self._unwrap(self.layout.raw(data, self.counter), ts)
-        group = self.layout.raw(data, self.layout.mux) if self.layout.mux is not None else np.zeros(len(good), int)
+        mux = self.layout.mux
+        group = self.layout.raw(data, mux) if mux is not None else np.zeros(len(good), np.int64)
         valid = np.isin(group, self.groups)
         self.bad_frames += int((~valid).sum())
         index, group, data, ts = index[valid], group[valid], data[valid], ts[valid]

@@ -15,8 +15,8 @@ import fcntl
 import json
 import os
 import struct
-import termios
 import tempfile
+import termios
 import time
 import tty
 from dataclasses import dataclass
