@@ -78,6 +78,36 @@ def element_matrices(length_m: np.ndarray, EA_N: np.ndarray, EI_Nm2: np.ndarray,
     return k, m
 
 
+def _local_rows(stations: np.ndarray, frac: float, quantity: str, length_m: float
+                ) -> list[tuple[int, np.ndarray]]:
+    """(element within the body, local 6-vector) pairs interpolating a local quantity at ``frac``.
+
+    Hermite cubics for transverse/rotation/curvature, linear for axial (Cook et al. 2002 §2.4); at a node
+    between two elements the curvature is the average of both sides.
+    """
+    lo = max(int(np.searchsorted(stations, frac - 1e-12)) - 1, 0)
+    hits = [e for e in (lo, lo + 1)
+            if e < len(stations) - 1 and stations[e] - 1e-12 <= frac <= stations[e + 1] + 1e-12]
+    if quantity != "curvature":
+        hits = hits[:1]
+    out = []
+    for e in hits:
+        le = (stations[e + 1] - stations[e]) * length_m
+        x = (frac - stations[e]) / (stations[e + 1] - stations[e])
+        x2, x3 = x * x, x**3
+        if quantity == "axial":
+            out.append((e, np.array([1 - x, 0, 0, x, 0, 0])))
+            continue
+        if quantity == "transverse":
+            h = [1 - 3 * x2 + 2 * x3, le * (x - 2 * x2 + x3), 3 * x2 - 2 * x3, le * (x3 - x2)]
+        elif quantity == "rotation":
+            h = [(-6 * x + 6 * x2) / le, 1 - 4 * x + 3 * x2, (6 * x - 6 * x2) / le, 3 * x2 - 2 * x]
+        else:
+            h = [(-6 + 12 * x) / le**2, (-4 + 6 * x) / le, (6 - 12 * x) / le**2, (-2 + 6 * x) / le]
+        out.append((e, np.array([0, h[0], h[1], 0, h[2], h[3]]) / len(hits)))
+    return out
+
+
 def _rotations(angle_rad: np.ndarray) -> np.ndarray:
     """Element transformation T [n_el, 6, 6] with local = T @ global."""
     c, s = np.cos(angle_rad), np.sin(angle_rad)
@@ -120,6 +150,9 @@ class _Topology:
     k_loc: np.ndarray             # [n_el, 6, 6] local matrices (member rows are redone per pose)
     m_loc: np.ndarray
     elem_is_member: np.ndarray    # [n_el] bool
+    sensor_elems: np.ndarray      # [n_pieces] element index of each sensor interpolation piece
+    sensor_vecs: np.ndarray       # [n_pieces, 6] local interpolation vectors
+    sensor_of_piece: np.ndarray   # [n_pieces] sensor index
 
     def node(self, body: int, fraction: float) -> np.ndarray:
         """DOFs (x, y, rotation) of the node of ``body`` at ``fraction``."""
@@ -244,8 +277,14 @@ def _topology(rig: Rig, elements: int | None, lumped: bool) -> _Topology:
     EA, EI, mu, rot = p.T
     k_loc, m_loc = element_matrices((el_frac[:, 1] - el_frac[:, 0]) * length, EA, EI, mu, rot, lumped)
     spring_k = np.array([k for *_, k in springs], float)
+    link_index = {lk.name: i for i, lk in enumerate(rig.links)}
+    pieces = [(k, bodies[link_index[sn.at.link]].first_element + e, v) for k, sn in enumerate(rig.sensors)
+              for e, v in _local_rows(bodies[link_index[sn.at.link]].stations, sn.at.fraction, sn.direction,
+                                      rig.links[link_index[sn.at.link]].length_m)]
     return _Topology(n_dof, tuple(bodies), el_body, rn(np.array(el_dofs)), el_frac, EA, EI, mu, rot,
-                     rn(spring_dofs), spring_k, lumped, k_loc, m_loc, is_member)
+                     rn(spring_dofs), spring_k, lumped, k_loc, m_loc, is_member,
+                     np.array([e for _, e, _ in pieces], int),
+                     np.array([v for *_, v in pieces]).reshape(-1, 6), np.array([k for k, _, _ in pieces], int))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -344,30 +383,18 @@ class FrameSystem:
 
     def _row(self, bi: int, frac: float, quantity: str) -> np.ndarray:
         topo, body = self._topo, self._topo.bodies[bi]
-        st = body.stations
-        lo = max(int(np.searchsorted(st, frac - 1e-12)) - 1, 0)
-        hits = [e for e in (lo, lo + 1) if e < len(st) - 1 and st[e] - 1e-12 <= frac <= st[e + 1] + 1e-12]
-        if quantity != "curvature":
-            hits = hits[:1]
+        angle = self._body_angle[bi]
+        c, s = math.cos(angle), math.sin(angle)
+        T = _rotations(np.array([angle]))[0]
         row = np.zeros(self.n_dof + 1)
-        L = self._body_length[bi]
-        c, s = math.cos(self._body_angle[bi]), math.sin(self._body_angle[bi])
-        T = _rotations(np.array([self._body_angle[bi]]))[0]
-        for e in hits:
-            le = (st[e + 1] - st[e]) * L
-            x = (frac - st[e]) / (st[e + 1] - st[e])
-            axial = np.array([1 - x, 0, 0, x, 0, 0])
-            x2, x3 = x * x, x**3
-            if quantity in ("transverse", "x", "y"):
-                h = [1 - 3 * x2 + 2 * x3, le * (x - 2 * x2 + x3), 3 * x2 - 2 * x3, le * (x3 - x2)]
-            elif quantity == "rotation":
-                h = [(-6 * x + 6 * x2) / le, 1 - 4 * x + 3 * x2, (6 * x - 6 * x2) / le, 3 * x2 - 2 * x]
-            else:
-                h = [(-6 + 12 * x) / le**2, (-4 + 6 * x) / le, (6 - 12 * x) / le**2, (-2 + 6 * x) / le]
-            bend = np.array([0, h[0], h[1], 0, h[2], h[3]])
-            local = {"transverse": bend, "rotation": bend, "curvature": bend, "axial": axial,
-                     "x": c * axial - s * bend, "y": s * axial + c * bend}[quantity]
-            np.add.at(row, topo.elem_dofs[body.first_element + e], local @ T / len(hits))
+        if quantity in ("x", "y"):
+            pieces = [(e, (c * a - s * t) if quantity == "x" else (s * a + c * t)) for (e, a), (_, t) in
+                      zip(_local_rows(body.stations, frac, "axial", self._body_length[bi]),
+                          _local_rows(body.stations, frac, "transverse", self._body_length[bi]), strict=True)]
+        else:
+            pieces = _local_rows(body.stations, frac, quantity, self._body_length[bi])
+        for e, local in pieces:
+            np.add.at(row, topo.elem_dofs[body.first_element + e], local @ T)
         return self._relative(row)[:-1]
 
     def _relative(self, row: np.ndarray) -> np.ndarray:
@@ -465,8 +492,13 @@ def assemble(rig: Rig, pose: Mapping[str, float], elements_per_link: int | None 
     system = FrameSystem(K[:n, :n], M[:n, :n], np.zeros((0, n)), tuple(s.name for s in rig.sensors), nodes,
                          rig, topo, b_ang, b_len)
     if rig.sensors:
-        rows = np.array([system._row(link_index[s.at.link], s.at.fraction, s.direction) for s in rig.sensors])
-        object.__setattr__(system, "sensor_matrix", rows)
+        rows = np.zeros((len(rig.sensors), n + 1))
+        vals = np.einsum("pi,pij->pj", topo.sensor_vecs, T[topo.sensor_elems])
+        np.add.at(rows, (topo.sensor_of_piece[:, None], topo.elem_dofs[topo.sensor_elems]), vals)
+        for a, b in topo.rot_springs:
+            if b != n:
+                rows[:, a] += rows[:, b]
+        object.__setattr__(system, "sensor_matrix", rows[:, :n])
     return system
 
 
@@ -495,7 +527,7 @@ def solve_modes(system: FrameSystem, n_modes: int = 4) -> FrameModes:
     if np.any(mu <= 0):
         raise ModelError(f"{system.rig.source}: the frame has fewer than {n_modes} modes with mass")
     omega2 = np.clip(1.0 / mu - sigma, 0.0, None)
-    norm = np.sqrt(np.einsum("im,ij,jm->m", vec, M, vec))
+    norm = np.sqrt(np.sum(vec * (M @ vec), axis=0))
     phi = vec / norm
     ref = system.sensor_matrix @ phi if system.sensor_matrix.shape[0] else phi
     sign = np.sign(ref[np.argmax(np.abs(ref), axis=0), np.arange(n_modes)])
