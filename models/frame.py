@@ -278,13 +278,16 @@ def _topology(rig: Rig, elements: int | None, lumped: bool) -> _Topology:
     k_loc, m_loc = element_matrices((el_frac[:, 1] - el_frac[:, 0]) * length, EA, EI, mu, rot, lumped)
     spring_k = np.array([k for *_, k in springs], float)
     link_index = {lk.name: i for i, lk in enumerate(rig.links)}
-    pieces = [(k, bodies[link_index[sn.at.link]].first_element + e, v) for k, sn in enumerate(rig.sensors)
+    pieces = [(k, bodies[link_index[sn.at.link]].first_element + e, v)
+              for k, sn in enumerate(rig.sensors)
               for e, v in _local_rows(bodies[link_index[sn.at.link]].stations, sn.at.fraction, sn.direction,
                                       rig.links[link_index[sn.at.link]].length_m)]
+    piece_sensor = np.array([k for k, _, _ in pieces], int)
+    piece_elem = np.array([e for _, e, _ in pieces], int)
+    piece_vecs = np.array([v for *_, v in pieces]).reshape(-1, 6)
     return _Topology(n_dof, tuple(bodies), el_body, rn(np.array(el_dofs)), el_frac, EA, EI, mu, rot,
-                     rn(spring_dofs), spring_k, lumped, k_loc, m_loc, is_member,
-                     np.array([e for _, e, _ in pieces], int),
-                     np.array([v for *_, v in pieces]).reshape(-1, 6), np.array([k for k, _, _ in pieces], int))
+                     rn(spring_dofs), spring_k, lumped, k_loc, m_loc, is_member, piece_elem, piece_vecs,
+                     piece_sensor)
 
 
 # ---------------------------------------------------------------------------------------------
