@@ -35,13 +35,17 @@ LAYOUTS = ("modes", "sources")
 
 # per format: how each quantity is labelled (the unit is part of the label)
 _LABELS = {
-    "md": {"f": "f [Hz]", "zeta": "ζ [%]", "err": "Δf [%]", "mac": "MAC [-]", "mode": "mode"},
-    "html": {"f": "f [Hz]", "zeta": "ζ [%]", "err": "Δf [%]", "mac": "MAC [-]", "mode": "mode"},
+    "md": {"f": "f [Hz]", "zeta": "ζ [%]", "err": "Δf [%]", "mac": "MAC [-]", "mode": "mode",
+           "pmode": "mode"},
+    "html": {"f": "f [Hz]", "zeta": "ζ [%]", "err": "Δf [%]", "mac": "MAC [-]", "mode": "mode",
+             "pmode": "mode"},
     "tex": {"f": "$f$ [Hz]", "zeta": r"$\zeta$ [\%]", "err": r"$\Delta f$ [\%]", "mac": "MAC [--]",
-            "mode": "mode"},
-    "csv": {"f": "freq_hz", "zeta": "damping_pct", "err": "err_pct", "mac": "mac", "mode": "mode"},
+            "mode": "mode", "pmode": "mode"},
+    "csv": {"f": "freq_hz", "zeta": "damping_pct", "err": "err_pct", "mac": "mac", "mode": "mode",
+            "pmode": "mode"},
 }
-_DIGITS = {"f": "{:.2f}", "zeta": "{:.2f}", "err": "{:+.1f}", "mac": "{:.3f}", "mode": "{:d}"}
+_DIGITS = {"f": "{:.2f}", "zeta": "{:.2f}", "err": "{:+.1f}", "mac": "{:.3f}", "mode": "{:d}",
+           "pmode": "{:d}"}
 
 
 @dataclass(frozen=True)
@@ -69,13 +73,12 @@ class Comparison:
     def notes(self) -> list[str]:
         """One line per unpaired mode, naming source, configuration, mode and frequency [Hz]."""
         out = []
-        for p in self.pairings:
-            for r in p.unpaired_predicted:
-                out.append(f"{p.source}: mode {r.mode} of {r.config} ({r.freq_hz:.2f} Hz) "
-                           f"pairs with no measured mode")
-            for r in p.unpaired_measured:
-                out.append(f"{p.source}: no predicted mode pairs with measured mode {r.mode} of "
-                           f"{r.config} ({r.freq_hz:.2f} Hz)")
+        for config in self.configs:
+            for p in self.pairings:
+                out += [f"{p.source}: no predicted mode pairs with measured mode {r.mode} of "
+                        f"{r.config} ({r.freq_hz:.2f} Hz)" for r in p.unpaired_measured if r.config == config]
+                out += [f"{p.source}: mode {r.mode} of {r.config} ({r.freq_hz:.2f} Hz) pairs with no "
+                        f"measured mode" for r in p.unpaired_predicted if r.config == config]
         return out
 
 
@@ -138,6 +141,8 @@ def _modes_grid(comp: Comparison) -> tuple[list[_Col], list[list[object]]]:
     cols += [_Col(comp.measured_name, "f")] + ([_Col(comp.measured_name, "zeta")] if comp.has_damping else [])
     cols += [_Col(name, "err") for name, _ in comp.predictions]
     cols += [_Col(p.source, "mac") for p in comp.pairings if any(q.method == "mac" for q in p.pairs)]
+    cols += [_Col(p.source, "pmode") for p in comp.pairings
+             if any(q.predicted.mode != q.measured.mode for q in p.pairs) or p.unpaired_predicted]
     meas = comp.measured.frame
     rows: list[list[object]] = []
     for config in comp.configs:
@@ -152,11 +157,14 @@ def _modes_grid(comp: Comparison) -> tuple[list[_Col], list[list[object]]]:
                     cells[(p.source, "f")] = pair.predicted.freq_hz
                     cells[(p.source, "err")] = 100.0 * pair.rel_error
                     cells[(p.source, "mac")] = pair.mac
+                    cells[(p.source, "pmode")] = pair.predicted.mode
             rows.append([cells.get((c.source, c.quantity)) for c in cols])
+        extra: dict[int, dict[tuple[str, str], object]] = {}  # unpaired predicted modes by mode number
         for p in comp.pairings:
             for r in (r for r in p.unpaired_predicted if r.config == config):
-                cells = {("", "config"): config, (p.source, "f"): r.freq_hz}
-                rows.append([cells.get((c.source, c.quantity)) for c in cols])
+                cells = extra.setdefault(r.mode, {("", "config"): config})
+                cells[(p.source, "f")], cells[(p.source, "pmode")] = r.freq_hz, r.mode
+        rows += [[cells.get((c.source, c.quantity)) for c in cols] for _, cells in sorted(extra.items())]
     return cols, rows
 
 
@@ -191,7 +199,7 @@ def _fmt(quantity: str, value: object) -> str:
     if isinstance(value, tuple):  # (quantity, value) cell of the sources layout
         return _fmt(*value)
     if quantity in _DIGITS and not isinstance(value, str):
-        return _DIGITS[quantity].format(int(value) if quantity == "mode" else float(value))
+        return _DIGITS[quantity].format(int(value) if quantity.endswith("mode") else float(value))
     return str(value)
 
 

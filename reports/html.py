@@ -129,9 +129,8 @@ def _stabilisation_figure(frf, label: str, unit: str) -> dict:
     band = frf.freq_hz > 0
     f, H = frf.freq_hz[band], frf.H[..., band]
     top = min(MAX_ORDER, (f.size - 2) // 2)
-    quantity = str(frf.attrs.get("quantity", "accelerance"))
     try:
-        poles = stabilisation(f, H, range(2, top + 1), quantity=quantity)
+        poles = stabilisation(f, H, range(2, top + 1))
     except ModalError as exc:
         return {"png": None, "caption": f"{label}: no stabilisation diagram ({exc})"}
     return _fig(plots.plot_stabilisation(f, H, poles, unit, title=label),
@@ -156,7 +155,8 @@ def _run_figures(runs: Sequence[RunSummary]) -> list[dict]:
 
 
 def _pct(value) -> str:
-    return f"{100 * float(value):.1f}" if value is not None else ""
+    """A fraction as percent with three significant digits (0.0002 -> 0.02)."""
+    return f"{100 * float(value):.3g}" if value is not None else ""
 
 
 def _diagnosis_view(d: Mapping) -> dict:
@@ -164,9 +164,11 @@ def _diagnosis_view(d: Mapping) -> dict:
     region = where.get("region", "")
     return {
         "baseline_rms": _pct(base.get("rms_rel_error")), "baseline_max": _pct(base.get("max_rel_error")),
-        "where": f"modes {where.get('modes', [])}, configurations {where.get('configs', [])}"
-                 + (f", region {region}" if region else ""),
+        "where": f"modes {', '.join(str(m) for m in where.get('modes', [])) or '-'}; configurations "
+                 f"{', '.join(str(c) for c in where.get('configs', [])) or '-'}"
+                 + (f"; region {region}" if region else ""),
         "verdict": f"{verdict.get('effect', '?')} at {verdict.get('location', '?')}",
+        "summary": str(verdict.get("summary", "")),
         "heldout": f"{_pct(verdict.get('heldout_rms_rel_error_before'))} / "
                    f"{_pct(verdict.get('heldout_rms_rel_error_after'))}",
         "explained": bool(verdict.get("explained")),

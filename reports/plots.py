@@ -262,19 +262,36 @@ def plot_mode_shapes(rig, pose: Mapping[str, float], measured: ModalTable, confi
     return fig
 
 
+def rms_per_mode(measured_hz: Mapping[str, Sequence[float]], predicted_hz: Mapping[str, Sequence[float]]
+                 ) -> dict[str, float]:
+    """RMS over configurations of (f_pred / f_meas - 1) per mode, {"1": fraction, ...}, from
+    {config: [f_mode1, f_mode2, ...] Hz} tables (configurations in both only)."""
+    errors: dict[str, list[float]] = {}
+    for config, fm in measured_hz.items():
+        fp = predicted_hz.get(config)
+        for m, (a, b) in enumerate(zip(fm, fp or [], strict=False)):
+            errors.setdefault(str(m + 1), []).append(float(b) / float(a) - 1.0)
+    return {m: float(np.sqrt(np.mean(np.square(e)))) for m, e in errors.items()}
+
+
 def gap_per_mode(diagnosis: Mapping) -> tuple[list[str], np.ndarray, np.ndarray | None]:
     """Modes, per-mode relative error before [fraction] and after the verdict's effect (None if absent).
 
-    ``before`` is ``baseline.per_mode``; ``after`` the first of ``verdict.per_mode_after``,
-    ``after.per_mode`` or ``ranking[0].per_mode`` present in the diagnosis (CONTRACT §5 plus extras).
+    ``before`` is ``baseline.per_mode`` (CONTRACT §5); ``after`` the first present of
+    ``verdict.per_mode_after``, the held-out then the fitted predictions of the best candidate
+    (``predictions.best_heldout_hz`` / ``best_fit_hz`` against ``predictions.measured_hz``, RMS over
+    configurations per mode), or ``ranking[0].per_mode``.
     """
     try:
         before = dict(diagnosis["baseline"]["per_mode"])
     except (KeyError, TypeError):
         raise ReportError("diagnosis: no baseline.per_mode to plot") from None
-    after_src = (diagnosis.get("verdict", {}).get("per_mode_after")
-                 or diagnosis.get("after", {}).get("per_mode")
-                 or (diagnosis.get("ranking") or [{}])[0].get("per_mode"))
+    pred = diagnosis.get("predictions", {})
+    after_src = diagnosis.get("verdict", {}).get("per_mode_after")
+    for key in ("best_heldout_hz", "best_fit_hz"):
+        if not after_src and key in pred and "measured_hz" in pred:
+            after_src = rms_per_mode(pred["measured_hz"], pred[key])
+    after_src = after_src or (diagnosis.get("ranking") or [{}])[0].get("per_mode")
     modes = sorted(before, key=lambda m: (len(str(m)), str(m)))
     b = np.array([float(before[m]) for m in modes])
     a = np.array([float(after_src.get(m, np.nan)) for m in modes]) if after_src else None

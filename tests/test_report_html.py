@@ -132,7 +132,8 @@ def test_report_tables_carry_units_and_numbers(report, inputs):
     measured = ModalTable.read_csv(inputs["measured"])
     first = measured.frame.iloc[0]
     assert f"{first['freq_hz']:.2f}" in html
-    assert "19.0 / 0.6" in html  # verdict 0.19 -> 0.006 as percent
+    assert "19 / 0.6" in html  # verdict 0.19 -> 0.006 as percent
+    assert "modes 2; configurations theta0, theta60; region joint:elbow" in html
 
 
 def test_report_cli_writes_the_same_sections(inputs, capsys):

@@ -130,6 +130,12 @@ def test_gap_bars_are_the_diagnosis_errors_in_percent():
     np.testing.assert_allclose(heights[:5], [9.0, 57.0, 20.0, 1.0, 2.0])
     np.testing.assert_allclose([p.get_height() for p in fig.axes[1].patches], [59.7, 5.1])
     assert fig.axes[0].get_ylabel().endswith("[%]") and fig.axes[1].get_ylabel().endswith("[%]")
+    # after the effect from the best candidate's held-out predictions: RMS over configs per mode
+    d2 = {"baseline": {"per_mode": {"1": 0.5, "2": 0.5}},
+          "predictions": {"measured_hz": {"a": [10.0, 20.0], "b": [10.0, 40.0]},
+                          "best_heldout_hz": {"a": [11.0, 20.0], "b": [9.0, 44.0]},
+                          "best_fit_hz": {"a": [10.0, 20.0], "b": [10.0, 40.0]}}}
+    np.testing.assert_allclose(plots.gap_per_mode(d2)[2], [0.1, np.sqrt(0.01 / 2)], rtol=1e-12)
     with pytest.raises(ValueError, match="baseline.per_mode"):
         plots.plot_gap({"verdict": {}})
 
