@@ -77,7 +77,7 @@ def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: 
     warnings: list[str] = []
     if method == "lscf":
         top = int(min(max_order, (f.size - 2) // 2))
-        stab = stabilisation(f, Hb, range(2, top + 1), quantity=quantity)
+        stab = stabilisation(f, Hb, range(2, top + 1))
         fn, zeta, poles = select_stable(stab)
         if fn.size == 0:
             raise ModalError(f"identify: no stable poles between {f.min():g} and {f.max():g} Hz")

@@ -4,11 +4,14 @@ Peeters et al. 2004, Shock Vib. 11).
 
 Right matrix-fraction model ``H_o(z) = N_o(z) D(z)^-1`` with ``z = exp(i w dt)``, ``dt = 1/(2 f_max)``
 and real matrix coefficients.  The reduced normal equations ``M = sum_o (T_o - S_o^T R^-1 S_o)`` are
-Toeplitz in the lag ``k - j``; all lag sums are formed once for the highest order by two matrix
-products over the frequency lines, and each order's ``M`` is indexed out of them.  With the
+Toeplitz in the lag ``k - j``; all lag sums are formed once for the highest order by matrix products
+over the frequency lines, and every order's ``M`` follows from one Cholesky factorisation of the
+highest order's ``R`` (the orders are nested), so each order costs one small solve and one
+eigenvalue problem.  With the
 highest denominator coefficient fixed to the identity, the poles are the eigenvalues of the block
-companion matrix.  A pole is stable when a pole of the previous order lies within ``df`` in
-frequency, ``dz`` in damping and, for shapes estimated by LSFD at both orders, MAC >= ``mac_min``.
+companion matrix; a pole's shape estimate is the numerator at the pole times the denominator's right
+null vector.  A pole is stable when a pole of the previous order lies within ``df`` in frequency,
+``dz`` in damping and MAC >= ``mac_min`` in shape.
 """
 
 from __future__ import annotations
@@ -16,9 +19,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 
 from modal.errors import ModalError
-from modal.lsfd import lsfd
 from modal.mac import mac
 
 
@@ -47,44 +50,85 @@ def _lag_sums(freq_hz: np.ndarray, H: np.ndarray, p_max: int, dt: float):
     n_out, n_in, nf = H.shape
 
     def both(g: np.ndarray) -> np.ndarray:                        # g [..., nf] -> [..., 2p+1]
-        plus, minus = g @ zk, g @ zk.conj()
-        return np.concatenate([minus[..., :0:-1], plus], axis=-1)
+        flat = np.ascontiguousarray(g.reshape(-1, nf))
+        plus, minus = flat @ zk, flat @ zk.conj()                   # BLAS matrix products
+        return np.concatenate([minus[:, :0:-1], plus], axis=-1).reshape(*g.shape[:-1], -1)
 
-    r = both(np.ones(nf)).real
+    r = both(np.ones((1, nf)))[0].real
     s = both(H)                                                    # [o, i, 2p+1]
     g = np.einsum("oaf,obf->abf", H.conj(), H)                      # sum over outputs of H^H H
     t = both(g)                                                    # [a, b, 2p+1]
     return r, s, t
 
 
-def _poles_of_order(p: int, p_max: int, r, s, t, dt: float) -> np.ndarray:
-    n_out, n_in = s.shape[:2]
-    j = np.arange(p + 1)
-    lag = p_max + j[None, :] - j[:, None]                           # [j, k] -> index of k - j
-    R = r[lag]
-    S = -s[:, :, lag].real.transpose(0, 2, 3, 1).reshape(n_out, p + 1, (p + 1) * n_in)
-    T = t[:, :, lag].real.transpose(2, 0, 3, 1).reshape((p + 1) * n_in, (p + 1) * n_in)
-    X = np.linalg.solve(R, S.transpose(1, 0, 2).reshape(p + 1, -1)).reshape(p + 1, n_out, -1)
-    M = T - np.einsum("oja,job->ab", S, X)
+class _NormalEquations:
+    """Reduced normal matrices of every order from one factorisation of the highest order.
+
+    With ``R = L L^T`` (Cholesky, nested: the order-p factor is the leading block of the highest
+    order's) and ``Y_o = L^-1 S_o``, the order-p reduced matrix is
+    ``M_p = T_p - sum_o Y_o[:p+1, :n_p]^T Y_o[:p+1, :n_p]``, a running sum of rank-n_out updates."""
+
+    def __init__(self, p_max: int, r, s, t) -> None:
+        n_out, n_in = s.shape[:2]
+        j = np.arange(p_max + 1)
+        lag = p_max + j[None, :] - j[:, None]                       # [j, k] -> index of k - j
+        L = np.linalg.cholesky(r[lag])
+        S = -s[:, :, lag].real.transpose(1, 0, 2, 3)                 # [i, o, j, k]
+        S = S.transpose(1, 2, 3, 0).reshape(n_out, p_max + 1, (p_max + 1) * n_in)   # [o, j, (k i)]
+        self.Y = scipy.linalg.solve_triangular(L, S.transpose(1, 0, 2).reshape(p_max + 1, -1),
+                                               lower=True).reshape(p_max + 1, n_out, -1)   # [j, o, (k i)]
+        self.T = t[:, :, lag].real.transpose(2, 0, 3, 1).reshape((p_max + 1) * n_in, -1)
+        self.Linv_T = scipy.linalg.solve_triangular(L, np.eye(p_max + 1), lower=True).T
+        self.n_in = n_in
+        self._done, self._C = 0, np.zeros_like(self.T)
+
+    def reduced(self, p: int) -> np.ndarray:
+        """M_p [(p+1) n_in, (p+1) n_in]; orders must be requested in ascending order."""
+        b = p + 1
+        rows = self.Y[self._done:b]                                  # [new j, o, (k i)]
+        flat = rows.reshape(-1, rows.shape[-1])
+        self._C += flat.T @ flat
+        self._done = b
+        n = b * self.n_in
+        return self.T[:n, :n] - self._C[:n, :n]
+
+    def numerators(self, p: int, alpha: np.ndarray) -> np.ndarray:
+        """beta_o = -R_p^-1 S_o alpha [o, p+1, n_in]."""
+        b, n = p + 1, (p + 1) * self.n_in
+        ya = (self.Y[:b, :, :n].reshape(-1, n) @ alpha).reshape(b, -1)            # [j, (o c)]
+        return -(self.Linv_T[:b, :b] @ ya).reshape(b, -1, self.n_in).transpose(1, 0, 2)
+
+
+def _poles_of_order(p: int, eqs: _NormalEquations, dt: float, fmin: float, fmax: float
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Physical continuous-time poles [n] (upper half plane, stable, in [fmin, fmax], ascending) of
+    model order ``p`` and their shape estimates [n_out, n]: ``N_o(lambda) v``, the numerator at the
+    pole times the right null vector of the denominator."""
+    n_in = eqs.n_in
+    M = eqs.reduced(p)
     k = p * n_in
-    alpha = np.linalg.solve(M[:k, :k], -M[:k, k:])                  # [p n_in, n_in]
+    alpha = np.vstack([np.linalg.solve(M[:k, :k], -M[:k, k:]), np.eye(n_in)])   # [(p+1) n_in, n_in]
     comp = np.zeros((k, k))
     comp[:-n_in, n_in:] = np.eye(k - n_in)
-    comp[-n_in:, :] = -alpha.T          # blocks alpha_q^T: det D(lambda) is unchanged by transposing
-    lam = np.linalg.eigvals(comp)
+    comp[-n_in:, :] = -alpha[:k].reshape(p, n_in, n_in).transpose(1, 0, 2).reshape(n_in, k)
+    if n_in == 1:
+        lam, vec = np.linalg.eigvals(comp), np.ones((1, k))
+    else:
+        lam, vec = np.linalg.eig(comp)
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.log(lam) / dt
+        poles = np.log(lam) / dt
+    f = np.abs(poles) / (2 * np.pi)
+    idx = np.flatnonzero(np.isfinite(poles) & (poles.imag > 0) & (poles.real < 0) & (f >= fmin) & (f <= fmax))
+    idx = idx[np.argsort(f[idx])]
+    beta = eqs.numerators(p, alpha)                                  # [o, p+1, n_in]
+    powers = lam[idx, None] ** np.arange(p + 1)[None, :]             # [r, p+1]
+    if n_in == 1:
+        return poles[idx], beta[:, :, 0] @ powers.T
+    return poles[idx], np.einsum("rk,okc,cr->or", powers, beta, vec[:n_in, idx])
 
 
-def _physical(poles: np.ndarray, fmin: float, fmax: float) -> np.ndarray:
-    p = poles[np.isfinite(poles) & (poles.imag > 0) & (poles.real < 0)]
-    f = np.abs(p) / (2 * np.pi)
-    p = p[(f >= fmin) & (f <= fmax)]
-    return p[np.argsort(np.abs(p))]
-
-
-def stabilisation(freq_hz: np.ndarray, H: np.ndarray, orders: range | list[int], *,
-                  quantity: str = "accelerance", df: float = 0.01, dz: float = 0.05,
+def stabilisation(freq_hz: np.ndarray, H: np.ndarray, orders: range | list[int], *, df: float = 0.01,
+                  dz: float = 0.05,
                   mac_min: float = 0.98) -> Stabilisation:
     """Poles of every model order in ``orders`` and their stability flags (see module docstring)."""
     f = np.asarray(freq_hz, float)
@@ -96,15 +140,13 @@ def stabilisation(freq_hz: np.ndarray, H: np.ndarray, orders: range | list[int],
     dt = 1.0 / (2 * f.max())
     scale = np.sqrt(np.mean(np.abs(H) ** 2))
     Hn = H / scale
-    r, s, t = _lag_sums(f, Hn, orders[-1], dt)
+    eqs = _NormalEquations(orders[-1], *_lag_sums(f, Hn, orders[-1], dt))
     rows = []
     prev = None
     for p in orders:   # a loop over model orders, each a small dense solve
-        poles = _physical(_poles_of_order(p, orders[-1], r, s, t, dt), f.min(), f.max())
+        poles, shapes = _poles_of_order(p, eqs, dt, f.min(), f.max())
         fn = np.abs(poles) / (2 * np.pi)
         zeta = -poles.real / np.abs(poles)
-        shapes = (lsfd(f, Hn, poles, quantity=quantity).residues.reshape(-1, poles.size)
-                  if poles.size else np.zeros((0, 0)))
         sf = np.zeros(poles.size, bool)
         sd = np.zeros(poles.size, bool)
         ss = np.zeros(poles.size, bool)

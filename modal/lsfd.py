@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 
 from modal.errors import ModalError
 from modal.frf import QUANTITIES
@@ -53,9 +54,15 @@ def lsfd(freq_hz: np.ndarray, H: np.ndarray, poles: np.ndarray, *, quantity: str
     A = _basis(f, poles, quantity, residuals)                       # [nf, n_par] complex
     n_out, n_in, nf = H.shape
     rhs = H.reshape(n_out * n_in, nf).T                             # [nf, n_frf]
-    Ar = np.vstack([A.real, A.imag])
-    norm = np.linalg.norm(Ar, axis=0)
-    x, *_ = np.linalg.lstsq(Ar / norm, np.vstack([rhs.real, rhs.imag]), rcond=None)
+    # real normal equations of the column-scaled problem (Cholesky; SVD least squares if singular)
+    norm = np.sqrt(np.sum(np.abs(A) ** 2, axis=0))
+    An = A / norm
+    gram = (An.conj().T @ An).real
+    proj = (An.conj().T @ rhs).real
+    try:
+        x = scipy.linalg.cho_solve(scipy.linalg.cho_factor(gram), proj)
+    except np.linalg.LinAlgError:
+        x, *_ = np.linalg.lstsq(np.vstack([An.real, An.imag]), np.vstack([rhs.real, rhs.imag]), rcond=None)
     x = x / norm[:, None]
     synth = (A @ x).T.reshape(n_out, n_in, nf)
     res = (x[:m] + 1j * x[m:2 * m]).T.reshape(n_out, n_in, m)
