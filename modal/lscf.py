@@ -61,6 +61,17 @@ def _lag_sums(freq_hz: np.ndarray, H: np.ndarray, p_max: int, dt: float):
     return r, s, t
 
 
+def _cholesky(R: np.ndarray) -> np.ndarray:
+    """Cholesky factor of R; for a narrow band at a high order R is nearly singular, and the smallest
+    diagonal loading (relative 1e-14, 1e-12, ...) that makes it factorise is added."""
+    for jitter in (0.0, 1e-14, 1e-12, 1e-10, 1e-8):
+        try:
+            return np.linalg.cholesky(R + jitter * np.trace(R) / len(R) * np.eye(len(R)))
+        except np.linalg.LinAlgError:
+            continue
+    raise ModalError("pLSCF: the band is too narrow for the model order (reduce --max-order)")
+
+
 class _NormalEquations:
     """Reduced normal matrices of every order from one factorisation of the highest order.
 
@@ -72,7 +83,7 @@ class _NormalEquations:
         n_out, n_in = s.shape[:2]
         j = np.arange(p_max + 1)
         lag = p_max + j[None, :] - j[:, None]                       # [j, k] -> index of k - j
-        L = np.linalg.cholesky(r[lag])
+        L = _cholesky(r[lag])
         S = -s[:, :, lag].real.transpose(1, 0, 2, 3)                 # [i, o, j, k]
         S = S.transpose(1, 2, 3, 0).reshape(n_out, p_max + 1, (p_max + 1) * n_in)   # [o, j, (k i)]
         self.Y = scipy.linalg.solve_triangular(L, S.transpose(1, 0, 2).reshape(p_max + 1, -1),
