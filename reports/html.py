@@ -104,6 +104,8 @@ def _run_rows(runs: Sequence[RunSummary]) -> tuple[list[dict], list[dict], list[
         frf = r.frf
         quality.append({
             "run": label, "trigger": counts["trigger"], "rejected": r.rejected_hits,
+            "hits": f"{len(r.hits) - r.rejected_hits} / {len(r.hits)}" if r.hits else "",
+            "reasons": "; ".join(r.rejection_reasons),
             "overload": f"{counts['overload']} / {r.overload_samples}",
             "overload_bad": counts["overload"] > 0,
             "gap": counts["gap"], "corrupt": counts["corrupt"], "reconnect": counts["reconnect"],
@@ -138,13 +140,23 @@ def _stabilisation_figure(frf, label: str, unit: str) -> dict:
                 f"damping and shape), over the complex mode indicator function")
 
 
+def _names(value) -> str:
+    """A channel-name list stored as a list or JSON text, joined with commas."""
+    if isinstance(value, str):
+        try:
+            value = json.loads(value)
+        except json.JSONDecodeError:
+            return value
+    return ", ".join(str(v) for v in value) if isinstance(value, list | tuple) else ""
+
+
 def _run_figures(runs: Sequence[RunSummary]) -> list[dict]:
     figs = []
     for r in runs:
         label = f"{r.path.name}::{r.run_id}"
         if r.frf is None:
             continue
-        inputs = r.frf.attrs.get("inputs", "force")
+        inputs = _names(r.frf.attrs.get("inputs")) or "force"
         unit = FRF_UNITS.get(str(r.frf.attrs.get("quantity", "accelerance")), "FRF unit")
         figs.append(_fig(plots.plot_frf(r.frf.freq_hz, r.frf.H, r.frf.coherence, r.frf.outputs, unit,
                                         title=f"{label} ({r.excitation})"),

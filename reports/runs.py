@@ -1,10 +1,10 @@
 """What a report shows of a stored run (CONTRACT §6): metadata, channels, data quality, FRFs.
 
 Runs are read with ``daq.store.read_run``; the FRF group (``frf/H``, ``frf/freq_hz``, ``frf/coherence``)
-with plain h5py.  FRF output names come from the ``frf``
-attribute ``outputs`` (list or JSON list) when present, else from the non-force channels in order.
-Rejected impact hits are counted from the ``rejected_hits`` attribute of the run or its ``frf`` group,
-else from ``note`` events whose detail starts with ``rejected``.
+with plain h5py.  FRF output names come from the ``frf`` attribute ``outputs`` (list or JSON list) when
+present, else from the non-force channels in order.  Impact hits come from the ``frf`` attribute
+``provenance`` (JSON, ``hits``: ``trigger``, ``accepted``, ``reason``, as modal.runs_io writes it);
+without it, rejected hits are the ``note`` events whose detail starts with ``rejected``.
 """
 
 from __future__ import annotations
@@ -64,11 +64,31 @@ class RunSummary:
         return int(sum(e.count for e in self.events if e.kind == "overload"))
 
     @property
+    def hits(self) -> list[dict]:
+        """Impact hits recorded by the FRF processing: {trigger, accepted, reason}; [] if none."""
+        if self.frf is None:
+            return []
+        try:
+            prov = json.loads(str(self.frf.attrs.get("provenance", "{}")))
+        except json.JSONDecodeError:
+            return []
+        hits = prov.get("hits", []) if isinstance(prov, dict) else []
+        return [h for h in hits if isinstance(h, dict)]
+
+    def _rejected_notes(self) -> list[str]:
+        return [e.detail for e in self.events if e.kind == "note" and e.detail.lower().startswith("rejected")]
+
+    @property
     def rejected_hits(self) -> int:
-        for attrs in (self.attrs, self.frf.attrs if self.frf else {}):
-            if "rejected_hits" in attrs:
-                return int(attrs["rejected_hits"])
-        return sum(1 for e in self.events if e.kind == "note" and e.detail.lower().startswith("rejected"))
+        if self.hits:
+            return sum(1 for h in self.hits if not h.get("accepted", True))
+        return len(self._rejected_notes())
+
+    @property
+    def rejection_reasons(self) -> list[str]:
+        """Distinct reasons given for rejected hits."""
+        reasons = [str(h.get("reason", "")) for h in self.hits if not h.get("accepted", True)]
+        return list(dict.fromkeys(r for r in reasons + self._rejected_notes() if r))
 
     def coherence_stats(self) -> tuple[float, float] | None:
         """Mean coherence [-] and share of (output, line) values below LOW_COHERENCE [%]; None without FRF."""

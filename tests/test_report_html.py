@@ -1,10 +1,11 @@
 """The HTML report from real stored runs: content, self-containment, CLI, and headless Chromium.
 
-Runs are simulated on the demo arm (fixtures.rig_sim, hidden elbow compliance), stored with
-daq.store.RunWriter, their FRFs estimated with modal.frf (H1) and written into the CONTRACT §6 ``frf``
-group.  Chromium is driven over the DevTools protocol on a pipe (``--remote-debugging-pipe``: commands
-on fd 3, replies on fd 4, NUL-terminated JSON), which gives console messages, exceptions, network
-requests and element positions without any extra package.  Chromium missing is a failure, not a skip.
+Runs are simulated on the demo arm (fixtures.rig_sim, hidden elbow compliance; two random shaker
+tests and one impact test), stored with daq.store.RunWriter, their FRFs computed and stored by the modal
+package (modal.compute.compute_frf, modal.runs_io.write_frf: the CONTRACT §6 ``frf`` group).
+Chromium is driven over the DevTools protocol on a pipe (``--remote-debugging-pipe``: commands on fd 3,
+replies on fd 4, NUL-terminated JSON), which gives console messages, exceptions, network requests and
+element positions without any extra package.  Chromium missing is a failure, not a skip.
 """
 
 from __future__ import annotations
@@ -26,16 +27,18 @@ import pytest
 from matplotlib import image as mpimg
 
 from app import main
-from daq.store import Event, RunWriter
+from daq.store import Event, RunWriter, read_run
 from fixtures.rig_sim import HiddenEffect, simulate
-from modal.frf import coherence, h1
-from modal.spectra import welch_spectra
+from modal.compute import compute_frf
+from modal.runs_io import write_frf
 from modal.table import ModalTable
 from models.frame import frame_modes
 from models.rig import load_rig
 from reports.html import write_report
 
 POSES = {"theta0": {"theta_deg": 0.0}, "theta60": {"theta_deg": 60.0}, "theta120": {"theta_deg": 120.0}}
+IMPACT_CONFIG = "theta120"
+RUN_IDS = ("theta0-random", "theta60-random", "theta120-impact")
 FS_HZ = 1024.0
 DIAGNOSIS = {
     "baseline": {"rms_rel_error": 0.12, "max_rel_error": 0.25, "per_mode": {"1": 0.04, "2": 0.21},
@@ -70,20 +73,17 @@ def inputs(rigs_dir, tmp_path_factory):
     measured, predicted = [], []
     effect = (HiddenEffect("joint_stiffness", "elbow", {"k_Nm_per_rad": 1500.0}),)
     for i, (config, pose) in enumerate(POSES.items()):
-        test = simulate(rig, pose, excitation="random", duration_s=4.0, sample_rate_hz=FS_HZ,
-                        effects=effect, seed=i, n_modes=4)
-        with RunWriter(runs, f"{config}-random", sample_rate_hz=FS_HZ, channels=test.channels,
-                       excitation="random", pose=dict(pose)) as w:
+        excitation = "impact" if config == IMPACT_CONFIG else "random"
+        test = simulate(rig, pose, excitation=excitation, duration_s=4.0, sample_rate_hz=FS_HZ,
+                        effects=effect, seed=i, n_modes=4, hit_period_s=1.0)
+        run_id = f"{config}-{excitation}"
+        with RunWriter(runs, run_id, sample_rate_hz=FS_HZ, channels=test.channels, excitation=excitation,
+                       pose=dict(pose)) as w:
             w.append(test.samples)
-            w.add_event(Event("overload", 100, 3, "a3 clipped"))
-            w.add_event(Event("note", 2000, 1, "rejected hit: double hit"))
-        acc = [j for j, c in enumerate(test.channels) if c.kind == "acceleration"]
-        spectra = welch_spectra(test.samples, FS_HZ, [0], acc, 512)
-        with h5py.File(runs, "a") as f:
-            g = f.create_group(f"runs/{config}-random/frf")
-            g["H"], g["freq_hz"], g["coherence"] = h1(spectra), spectra.freq_hz, coherence(spectra)
-            g.attrs.update(estimator="H1", window="hann", nfft=512, n_averages=spectra.n_averages,
-                           outputs=json.dumps([test.channels[j].name for j in acc]))
+            w.add_events(test.events)
+            # one clipped stretch inside the second hit's record: the impact processing rejects that hit
+            w.add_event(Event("overload", int(1.15 * FS_HZ), 3, "a3 clipped"))
+        write_frf(runs, run_id, compute_frf(read_run(runs, run_id), nfft=512))
         measured += _modal_table(test.natural_freq_hz[:4], test.shapes[:, :4], test.sensor_names, config,
                                  pose, "experiment", test.damping_ratio[:4])
         fe = frame_modes(rig, pose, 4)
@@ -113,9 +113,9 @@ def test_report_is_self_contained_and_holds_every_section(report):
     for heading in ("Measured and predicted modes", "Sim-to-real gap diagnosis", "Stored runs", "Channels",
                     "Data quality", "Gap before and after the diagnosed effect", "Modes across poses"):
         assert heading in html
-    for run in POSES:
-        assert f"runs.h5::{run}-random" in html
-    assert "1 / 3" in html  # one overload event of three samples per run
+    for run in RUN_IDS:
+        assert f"runs.h5::{run}" in html
+    assert html.count(">1 / 3<") == 3  # one overload event of three samples per run
     images = re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', html)
     # freq vs pose, 2 mode-shape figures, 3 FRF figures, 3 stabilisation diagrams, the gap plot
     assert len(images) == 10
@@ -134,6 +134,19 @@ def test_report_tables_carry_units_and_numbers(report, inputs):
     assert f"{first['freq_hz']:.2f}" in html
     assert "19 / 0.6" in html  # verdict 0.19 -> 0.006 as percent
     assert "modes 2; configurations theta0, theta60; region joint:elbow" in html
+
+
+def test_data_quality_counts_the_impact_hits_the_frf_processing_kept(report, inputs):
+    with h5py.File(inputs["runs"], "r") as f:
+        prov = json.loads(f[f"runs/{RUN_IDS[2]}/frf"].attrs["provenance"])
+    hits = prov["hits"]
+    rejected = [h for h in hits if not h["accepted"]]
+    assert len(hits) == 4 and len(rejected) == 1  # hits at 0.1, 1.1, 2.1, 3.1 s; the clipped one rejected
+    html = report.read_text()
+    row = html[html.index(f"<td>runs.h5::{RUN_IDS[2]}</td>"):]
+    row = row[:row.index("</tr>")]
+    cells = re.findall(r"<td[^>]*>(.*?)</td>", row, flags=re.S)
+    assert cells[1:5] == ["4", "3 / 4", "1", rejected[0]["reason"]]
 
 
 def test_report_cli_writes_the_same_sections(inputs, capsys):
