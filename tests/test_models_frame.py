@@ -167,3 +167,34 @@ def test_seed001_pusher_end_restraint_spans_pin_to_clamped(rigs_dir):
     assert with_pusher(end_k_Nm_per_rad=1e13) == pytest.approx(clamped, rel=1e-6)
     assert with_pusher(end_k_Nm_per_rad=1e-6) == pytest.approx(pin, rel=1e-9)
     assert pusher.ends == "pin-pin" and frame_modes(rig, pose, 6).freq_hz == pytest.approx(pin)
+
+
+def test_segments_equal_separate_links_on_the_same_mesh():
+    thick = {"shape": "custom", "EA_N": 2.0e7, "EI_Nm2": 2 * EI, "mass_per_m_kg": 1.5 * MU}
+    thin = {"shape": "custom", "EA_N": 1.28e7, "EI_Nm2": EI, "mass_per_m_kg": MU}
+    stepped = {"name": "s", "link": [{"name": "a", "length_m": 1.0, "section": thin, "elements": 10,
+                                      "segments": [{"from": 0.0, "to": 0.5, "section": thick}]}]}
+    joined = {"name": "j", "link": [{"name": "a", "length_m": 0.5, "section": thick, "elements": 5},
+                                    {"name": "b", "length_m": 0.5, "section": thin, "elements": 5}],
+              "joint": [{"name": "j", "parent": "a", "child": "b", "angle_deg": 0.0}]}
+    f_stepped = frame_modes(parse_rig(stepped), {}, 5).freq_hz
+    assert f_stepped == pytest.approx(frame_modes(parse_rig(joined), {}, 5).freq_hz, rel=1e-10)
+    assert f_stepped[0] > frame_modes(parse_rig({"link": [{"name": "a", "length_m": 1.0, "section": thin}]}),
+                                      {}, 1).freq_hz[0]
+
+
+def test_rotating_the_whole_arm_changes_nothing_but_directions():
+    doc = beam_doc(links=2)
+    doc["base"]["angle"] = "base_deg"
+    doc["joint"][0]["angle"] = "elbow_deg"
+    rig = parse_rig(doc)
+    a = assemble(rig, {"base_deg": 0.0, "elbow_deg": 40.0})
+    b = assemble(rig, {"base_deg": 73.0, "elbow_deg": 40.0})
+    fa, fb = solve_modes(a, 4), solve_modes(b, 4)
+    assert fa.freq_hz == pytest.approx(fb.freq_hz, rel=1e-10)
+    # transverse at the tip = -sin(angle) x + cos(angle) y, angle = 73 + 40 deg
+    ang = math.radians(113.0)
+    combo = -math.sin(ang) * b.observe("tip", "x") + math.cos(ang) * b.observe("tip", "y")
+    assert combo == pytest.approx(b.observe("tip", "transverse"), abs=1e-12)
+    assert b.node_xy_m[-1] == pytest.approx(L / 2 * np.array([math.cos(math.radians(73)) + math.cos(ang),
+                                                              math.sin(math.radians(73)) + math.sin(ang)]))
