@@ -7,6 +7,11 @@ cannot tell apart; a pair whose MAC is below ``min_mac`` is rejected and both mo
 unpaired.  Without usable shapes the modes are paired in ascending frequency order (1st with 1st, ...).
 The Modal Assurance Criterion (Allemang & Brown 1982) is ``modal.mac.mac``.
 
+Configurations are matched by name; a measured configuration with no namesake is matched to the one
+predicted configuration with the same pose (every ``pose.<name>`` equal within 1e-9), so modes identified
+from runs named ``theta0-impact`` and ``theta0-random`` both meet the prediction for ``theta0``; the
+predicted modes are then reported under the measured configuration's name.
+
 Every mode ends up either in a pair or in one of the unpaired lists; nothing is dropped silently.
 Relative errors are fractions: (f_pred - f_meas) / f_meas.
 """
@@ -66,22 +71,45 @@ class Pairing:
         return None
 
 
-def common_sensors(measured: ModalTable, predicted: ModalTable, config: str) -> list[str]:
-    """Sensors where both tables give a finite shape value for every mode of ``config``."""
+def common_sensors(measured: ModalTable, predicted: ModalTable, config: str,
+                   pred_config: str | None = None) -> list[str]:
+    """Sensors where both tables give a finite shape for every mode of ``config`` (``pred_config``)."""
     out = []
     for s in measured.sensors:
         if s not in predicted.sensors:
             continue
         a = measured.shapes(config, [s])
-        b = predicted.shapes(config, [s])
+        b = predicted.shapes(pred_config or config, [s])
         if np.all(np.isfinite(a)) and np.all(np.isfinite(b)):
             out.append(s)
     return out
 
 
-def _refs(table: ModalTable, config: str) -> list[ModeRef]:
+def partner_config(measured: ModalTable, predicted: ModalTable, config: str) -> str | None:
+    """The predicted configuration for measured ``config``: same name, else the only one with the same
+    non-empty pose (values equal within 1e-9), else None."""
+    if config in predicted.configs:
+        return config
+    pose = measured.pose(config)
+    if not pose:
+        return None
+    same = [c for c in predicted.configs if _same_pose(pose, predicted.pose(c))]
+    return same[0] if len(same) == 1 else None
+
+
+def _same_pose(a: dict, b: dict) -> bool:
+    if set(a) != set(b):
+        return False
+    try:
+        return all(abs(float(a[k]) - float(b[k])) <= 1e-9 for k in a)
+    except (TypeError, ValueError):
+        return all(str(a[k]) == str(b[k]) for k in a)
+
+
+def _refs(table: ModalTable, config: str, label: str | None = None) -> list[ModeRef]:
     rows = table.rows(config)
-    return [ModeRef(config, int(m), float(f)) for m, f in zip(rows["mode"], rows["freq_hz"], strict=True)]
+    return [ModeRef(label or config, int(m), float(f))
+            for m, f in zip(rows["mode"], rows["freq_hz"], strict=True)]
 
 
 def _pair_by_mac(meas: list[ModeRef], pred: list[ModeRef], macs: np.ndarray, min_mac: float,
@@ -107,22 +135,24 @@ def pair_modes(measured: ModalTable, predicted: ModalTable, source: str = "predi
     """Pair the modes of ``predicted`` with those of ``measured`` in every configuration.
 
     By MAC (optimal assignment on 1 - MAC, frequency tie-break) where both have shapes at two or more
-    common sensors, otherwise by ascending frequency.  Configurations present on one side only leave
-    all their modes unpaired.
+    common sensors, otherwise by ascending frequency.  Configurations are matched by name, else by pose
+    (``partner_config``); configurations present on one side only leave all their modes unpaired.
     """
     pairs: list[Pair] = []
     lone_meas: list[ModeRef] = []
     lone_pred: list[ModeRef] = []
-    pred_configs = set(predicted.configs)
+    used_configs: set[str] = set()
     for config in measured.configs:
         meas = _refs(measured, config)
-        if config not in pred_configs:
+        pconfig = partner_config(measured, predicted, config)
+        if pconfig is None:
             lone_meas += meas
             continue
-        pred = _refs(predicted, config)
-        sensors = common_sensors(measured, predicted, config)
+        used_configs.add(pconfig)
+        pred = _refs(predicted, pconfig, label=config)
+        sensors = common_sensors(measured, predicted, config, pconfig)
         if len(sensors) >= 2:
-            macs = mac(measured.shapes(config, sensors), predicted.shapes(config, sensors))
+            macs = mac(measured.shapes(config, sensors), predicted.shapes(pconfig, sensors))
             found = _pair_by_mac(meas, pred, macs, min_mac, freq_weight)
         else:
             found = _pair_by_frequency(meas, pred)
@@ -131,9 +161,8 @@ def pair_modes(measured: ModalTable, predicted: ModalTable, source: str = "predi
         used_p = {p.predicted.mode for p in found}
         lone_meas += [r for r in meas if r.mode not in used_m]
         lone_pred += [r for r in pred if r.mode not in used_p]
-    meas_configs = set(measured.configs)
     for config in predicted.configs:
-        if config not in meas_configs:
+        if config not in used_configs:
             lone_pred += _refs(predicted, config)
     pairs.sort(key=lambda p: (measured.configs.index(p.measured.config), p.measured.mode))
     return Pairing(source, tuple(pairs), tuple(lone_meas), tuple(lone_pred))

@@ -59,10 +59,11 @@ class Comparison:
 
     @property
     def configs(self) -> list[str]:
-        """Measured configurations in pose order, then those only predicted (see ``ordered_configs``)."""
+        """Measured configurations in pose order (``ordered_configs``), then those only predicted."""
         configs = ordered_configs(self.measured)
-        for _, table in self.predictions:
-            configs += [c for c in ordered_configs(table) if c not in configs]
+        for (_, table), p in zip(self.predictions, self.pairings, strict=True):
+            lone = {r.config for r in p.unpaired_predicted}
+            configs += [c for c in ordered_configs(table) if c in lone and c not in configs]
         return configs
 
     @property

@@ -84,3 +84,22 @@ def test_low_mac_pair_is_rejected():
     p = pair_modes(measured, predicted, "fe")
     assert p.pairs == ()
     assert [r.mode for r in p.unpaired_measured] == [1] and [r.mode for r in p.unpaired_predicted] == [1]
+
+
+def test_configs_without_namesake_are_matched_by_pose():
+    def rows(config, theta, freqs):
+        return [{"config": config, "mode": k + 1, "freq_hz": f, "pose.theta_deg": theta}
+                for k, f in enumerate(freqs)]
+
+    measured = ModalTable.from_records(rows("theta0-impact", 0, [10.0, 30.0])
+                                       + rows("theta0-random", 0, [10.2])
+                                       + rows("theta90-impact", 90, [12.0]))
+    predicted = ModalTable.from_records(rows("theta0", 0, [11.0, 33.0, 70.0]) + rows("theta45", 45, [11.5]))
+    p = pair_modes(measured, predicted, "fe")
+    got = [(q.measured.config, q.measured.mode, q.predicted.config, q.predicted.mode) for q in p.pairs]
+    assert got == [("theta0-impact", 1, "theta0-impact", 1), ("theta0-impact", 2, "theta0-impact", 2),
+                   ("theta0-random", 1, "theta0-random", 1)]
+    assert p.pairs[1].rel_error == pytest.approx(0.1, rel=1e-14)
+    assert {(r.config, r.mode) for r in p.unpaired_predicted} == {
+        ("theta0-impact", 3), ("theta0-random", 2), ("theta0-random", 3), ("theta45", 1)}
+    assert [(r.config, r.mode) for r in p.unpaired_measured] == [("theta90-impact", 1)]
