@@ -104,6 +104,26 @@ def test_identify_uff_frfs(tmp_path):
     assert [m["type"] for m in modes] == [55, 55, 55]
 
 
+def test_identify_uff_time_histories_with_force_reference(tmp_path):
+    import pyuff
+
+    n = 64 * 1024
+    f = np.random.default_rng(3).standard_normal((n, 1))
+    samples = np.column_stack([f, modal_response(f, FS, FN, ZETA, PHI, PHI[[0]])])
+    sets = [pyuff.prepare_58(func_type=1, rsp_node=k + 1, rsp_dir=3, ref_node=1, ref_dir=3,
+                             ordinate_spec_data_type=13 if k == 0 else 12, orddenom_spec_data_type=0,
+                             abscissa_spec_data_type=17, data=samples[:, k], x=np.arange(n) / FS,
+                             abscissa_spacing=1, abscissa_min=0.0, abscissa_inc=1 / FS, num_pts=n, id1="t")
+            for k in range(4)]
+    uff = tmp_path / "time.uff"
+    pyuff.UFF(str(uff)).write_sets(sets, mode="overwrite")
+    out = tmp_path / "modes.csv"
+    assert main(["identify", str(uff), "--out", str(out), "--fmin", "5", "--fmax", "100"]) == 0
+    table = ModalTable.read_csv(out)
+    assert np.allclose(table.freq_hz("time"), FN, rtol=2e-3)
+    assert table.sensors == ["2+z", "3+z", "4+z"]
+
+
 def _error_line(capsys) -> str:
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1

@@ -1,0 +1,142 @@
+"""Benchmark: the same data through pyFRF, sdypy-EMA and flexmodal's modal engine.
+
+1. FRFs: H1 + H2 + coherence of 16 responses x 1 reference, 600 s at 5 kHz (float32 record as
+   stored by the run store), Hann window, nfft 8192, 50 % overlap: pyFRF vs modal.spectra/modal.frf.
+2. Poles: pLSCF with a stabilisation diagram over orders 2..60 on 30 FRFs x 2000 lines (6 modes,
+   40 dB noise): sdypy-EMA's LSCF (get_poles + its stabilisation and selection given the true
+   frequencies) vs modal.lscf (stabilisation + automatic selection, no frequencies given).
+
+Prints wall times, their ratio and the differences of the results.  Usage:
+``python benchmarks/modal.py [--duration-s 600] [--lines 2000] [--repeat 3]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from fixtures.modal_sim import modal_frf, modal_response  # noqa: E402
+from modal.frf import coherence, h1, h2  # noqa: E402
+from modal.lscf import select_stable, stabilisation  # noqa: E402
+from modal.spectra import welch_spectra  # noqa: E402
+
+FN = np.array([12.0, 31.0, 55.0, 80.0, 120.0, 150.0])
+ZETA = np.array([0.005, 0.02, 0.01, 0.05, 0.01, 0.02])
+
+
+def _best(fn, repeat: int):
+    times, out = [], None
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t0)
+    return min(times), out
+
+
+def bench_frf(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: int) -> None:
+    import pyFRF
+
+    rng = np.random.default_rng(0)
+    n = int(duration_s * fs)
+    phi = rng.standard_normal((n_resp, 4))
+    force = rng.standard_normal((n, 1))
+    y = modal_response(force, fs, FN[:4] * 10, ZETA[:4], phi, phi[:1])
+    y += 0.01 * y.std(axis=0) * rng.standard_normal(y.shape)
+    samples = np.column_stack([force, y]).astype(np.float32)
+    del y
+    window = np.hanning(nfft)          # pyFRF's Hann (symmetric), given to both
+
+    def ours():
+        s = welch_spectra(samples, fs, [0], list(range(1, n_resp + 1)), nfft, window_spec=window, workers=-1)
+        return h1(s), h2(s), coherence(s)
+
+    exc, resp = samples[:, 0][None, None, :], np.ascontiguousarray(samples[:, 1:].T)[None]
+
+    def theirs():
+        f = pyFRF.FRF(int(fs), exc=exc, resp=resp, exc_type="f", resp_type="d", window="hann",
+                      nperseg=nfft, noverlap=nfft // 2, fft_len=nfft)
+        return f.get_H1(), f.get_H2(), f.get_coherence()
+
+    ours()  # warm-up (FFT plans)
+    t_ours, (a1, a2, ac) = _best(ours, repeat)
+    t_theirs, (b1, b2, bc) = _best(theirs, 1)
+    lines = slice(1, None)
+    good = bc[:, lines] > 0.5
+
+    def rel(a, b):
+        return float(np.max((np.abs(a[:, 0, lines] - b[:, 0, lines]) / np.abs(b[:, 0, lines]))[good]))
+
+    print(f"FRF  {n_resp} responses x 1 reference, {duration_s:g} s at {fs:g} Hz, nfft {nfft}: "
+          f"pyFRF {t_theirs:.2f} s, flexmodal {t_ours:.3f} s, ratio {t_theirs / t_ours:.1f}x")
+    print(f"     max relative difference (coherence > 0.5): H1 {rel(a1, b1):.1e}, H2 {rel(a2, b2):.1e}, "
+          f"coherence {np.max(np.abs(ac[:, lines] - bc[:, lines])[good]):.1e}")
+
+
+def bench_lscf(n_frf: int, n_lines: int, repeat: int) -> None:
+    from sdypy import EMA
+
+    rng = np.random.default_rng(1)
+    phi = rng.standard_normal((n_frf, FN.size))
+    f = np.linspace(0, 200, n_lines + 1)[1:]
+    H = modal_frf(f, FN, ZETA, phi, phi[:1])
+    H = H + 0.01 * np.sqrt(np.mean(np.abs(H) ** 2)) * (rng.standard_normal(H.shape)
+                                                       + 1j * rng.standard_normal(H.shape)) / np.sqrt(2)
+
+    def ours():
+        return select_stable(stabilisation(f, H, range(2, 61)))
+
+    def theirs():
+        m = EMA.Model(frf=H[:, 0], freq=f, lower=1, upper=200, pol_order_high=30, frf_form="accelerance")
+        m.get_poles(show_progress=False)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            m.select_closest_poles(FN)
+        return m.nat_freq, m.nat_xi
+
+    t_ours, (fo, zo, _) = _best(ours, repeat)
+    t_theirs, (ft, zt) = _best(theirs, repeat)
+
+    def errors(fr, zr):
+        """Relative errors per true mode of the nearest identified one (inf when none within 5 %)."""
+        k = np.argmin(np.abs(fr[None, :] - FN[:, None]), axis=1)
+        ef = np.abs(fr[k] / FN - 1)
+        ez = np.abs(zr[k] / ZETA - 1)
+        missing = ef > 0.05
+        ef[missing] = ez[missing] = np.inf
+        return ef, ez
+
+    efo, ezo = errors(np.asarray(fo), np.asarray(zo))
+    eft, ezt = errors(np.asarray(ft), np.asarray(zt))
+    print(f"LSCF {n_frf} FRFs x {n_lines} lines, orders 2..60, 6 modes: sdypy-EMA {t_theirs:.3f} s "
+          f"(orders 2,4..60, true frequencies given), flexmodal {t_ours:.3f} s (orders 2..60, automatic), "
+          f"ratio {t_theirs / t_ours:.1f}x")
+    for name, ef, ez in (("sdypy-EMA", eft, ezt), ("flexmodal", efo, ezo)):
+        print(f"     {name:9s} modes found {int(np.isfinite(ef).sum())}/{FN.size}; max error of found: "
+              f"frequency {np.max(ef[np.isfinite(ef)], initial=0):.1e}, "
+              f"damping {np.max(ez[np.isfinite(ez)], initial=0):.1e} (relative)")
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--duration-s", type=float, default=600.0)
+    p.add_argument("--sample-rate-hz", type=float, default=5000.0)
+    p.add_argument("--responses", type=int, default=16)
+    p.add_argument("--nfft", type=int, default=8192)
+    p.add_argument("--frfs", type=int, default=30)
+    p.add_argument("--lines", type=int, default=2000)
+    p.add_argument("--repeat", type=int, default=3)
+    a = p.parse_args(argv)
+    bench_frf(a.duration_s, a.sample_rate_hz, a.responses, a.nfft, a.repeat)
+    bench_lscf(a.frfs, a.lines, a.repeat)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

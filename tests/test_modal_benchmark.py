@@ -1,0 +1,18 @@
+"""Smoke test of benchmarks/modal.py on tiny data (the timing itself is not a unit test)."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+
+def test_benchmark_script_runs_and_reports_ratios_and_differences(capsys):
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "modal.py"
+    spec = importlib.util.spec_from_file_location("modal_benchmark", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert module.main(["--duration-s", "4", "--nfft", "1024", "--responses", "2", "--frfs", "4",
+                        "--lines", "400", "--repeat", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "ratio" in out and "max relative difference" in out
+    assert "flexmodal modes found 6/6" in out
