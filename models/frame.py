@@ -132,6 +132,10 @@ class _Body:
     node_dofs: np.ndarray         # [n_nodes, 3] DOF index (x, y, rotation); n_dof = fixed
     first_element: int
 
+    def node(self, fraction: float) -> np.ndarray:
+        """DOFs (x, y, rotation) of the node nearest ``fraction`` (every attachment point is a node)."""
+        return self.node_dofs[int(np.argmin(np.abs(self.stations - fraction)))]
+
 
 @dataclass(frozen=True, eq=False)
 class _Topology:
@@ -154,11 +158,6 @@ class _Topology:
     sensor_vecs: np.ndarray       # [n_pieces, 6] local interpolation vectors
     sensor_of_piece: np.ndarray   # [n_pieces] sensor index
 
-    def node(self, body: int, fraction: float) -> np.ndarray:
-        """DOFs (x, y, rotation) of the node of ``body`` at ``fraction``."""
-        b = self.bodies[body]
-        return b.node_dofs[int(np.argmin(np.abs(b.stations - fraction)))]
-
 
 def _stations(n_el: int, required: Iterable[float]) -> np.ndarray:
     """Uniform stations with each required fraction made a node (snapping a nearby grid node)."""
@@ -166,9 +165,7 @@ def _stations(n_el: int, required: Iterable[float]) -> np.ndarray:
     locked = [True] + [False] * (n_el - 1) + [True]
     for f in sorted(set(required)):
         j = int(np.argmin(np.abs(np.array(grid) - f)))
-        if abs(grid[j] - f) <= 1e-12:
-            grid[j], locked[j] = f, True
-        elif not locked[j] and abs(grid[j] - f) < _SNAP / n_el:
+        if abs(grid[j] - f) <= 1e-12 or (not locked[j] and abs(grid[j] - f) < _SNAP / n_el):
             grid[j], locked[j] = f, True
         else:
             at = int(np.searchsorted(grid, f))
@@ -201,6 +198,7 @@ def _topology(rig: Rig, elements: int | None, lumped: bool) -> _Topology:
     counter = iter(range(1 << 30))
     FIXED = -1  # replaced by n_dof at the end
     joints = {j.child: j for j in rig.joints}
+    link_order = {lk.name: i for i, lk in enumerate(rig.links)}  # links are the first bodies, in order
     req = _required_fractions(rig)
     bodies: list[_Body] = []
     el_body, el_dofs, el_frac, props = [], [], [], []
@@ -229,7 +227,7 @@ def _topology(rig: Rig, elements: int | None, lumped: bool) -> _Topology:
                 springs.append((int(dofs[0, 2]), FIXED, float(rig.base.k_Nm_per_rad or 0.0)))
         else:
             joint = joints[lk.name]
-            parent = bodies[[b.name for b in bodies].index(joint.parent)]
+            parent = bodies[link_order[joint.parent]]
             dofs[0, :2] = parent.node_dofs[-1, :2]
             if joint.kind == "rigid":
                 dofs[0, 2] = parent.node_dofs[-1, 2]
@@ -238,17 +236,13 @@ def _topology(rig: Rig, elements: int | None, lumped: bool) -> _Topology:
         add_body(lk.name, False, st, dofs, lambda f, lk=lk: lk.section_at(f * lk.length_m),
                  (lk.stiffness_scale, lk.mass_scale))
 
-    def node_of(link: str, fraction: float) -> np.ndarray:
-        body = bodies[[b.name for b in bodies].index(link)]
-        return body.node_dofs[int(np.argmin(np.abs(body.stations - fraction)))]
-
     for mb in rig.members:
         n_el = mb.elements or elements or DEFAULT_ELEMENTS
         st = np.linspace(0.0, 1.0, n_el + 1)
         dofs = np.array([[next(counter) for _ in range(3)] for _ in st])
         clamped = {"pin-pin": (False, False), "clamped-pin": (True, False), "clamped-clamped": (True, True)}
         for end, p, is_clamped in ((0, mb.start, clamped[mb.ends][0]), (-1, mb.end, clamped[mb.ends][1])):
-            host = node_of(p.link, p.fraction) if p.link is not None else np.full(3, FIXED)
+            host = bodies[link_order[p.link]].node(p.fraction) if p.link is not None else np.full(3, FIXED)
             dofs[end, :2] = host[:2]
             if is_clamped:
                 dofs[end, 2] = host[2]
@@ -277,11 +271,10 @@ def _topology(rig: Rig, elements: int | None, lumped: bool) -> _Topology:
     EA, EI, mu, rot = p.T
     k_loc, m_loc = element_matrices((el_frac[:, 1] - el_frac[:, 0]) * length, EA, EI, mu, rot, lumped)
     spring_k = np.array([k for *_, k in springs], float)
-    link_index = {lk.name: i for i, lk in enumerate(rig.links)}
-    pieces = [(k, bodies[link_index[sn.at.link]].first_element + e, v)
+    pieces = [(k, bodies[link_order[sn.at.link]].first_element + e, v)
               for k, sn in enumerate(rig.sensors)
-              for e, v in _local_rows(bodies[link_index[sn.at.link]].stations, sn.at.fraction, sn.direction,
-                                      rig.links[link_index[sn.at.link]].length_m)]
+              for e, v in _local_rows(bodies[link_order[sn.at.link]].stations, sn.at.fraction, sn.direction,
+                                      rig.links[link_order[sn.at.link]].length_m)]
     piece_sensor = np.array([k for k, _, _ in pieces], int)
     piece_elem = np.array([e for _, e, _ in pieces], int)
     piece_vecs = np.array([v for *_, v in pieces]).reshape(-1, 6)
@@ -319,8 +312,7 @@ def _point_xy(rig: Rig, p: Point, angles: np.ndarray, starts: np.ndarray) -> np.
     return starts[i] + s * np.array([math.cos(angles[i]), math.sin(angles[i])])
 
 
-def _body_geometry(rig: Rig, topo: _Topology, pose: Mapping[str, float]
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _body_geometry(rig: Rig, pose: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per body: angle [rad], length [m], start point [2]."""
     angles, starts = link_geometry(rig, pose)
     b_ang, b_len, b_start = list(angles), [lk.length_m for lk in rig.links], list(starts)
@@ -444,7 +436,7 @@ def assemble(rig: Rig, pose: Mapping[str, float], elements_per_link: int | None 
     """
     rig.check_pose(pose)
     topo = _topology(rig, elements_per_link, bool(lumped_mass))
-    b_ang, b_len, b_start = _body_geometry(rig, topo, pose)
+    b_ang, b_len, b_start = _body_geometry(rig, pose)
     n = topo.n_dof
     k_loc, m_loc = topo.k_loc, topo.m_loc
     if rig.members:
@@ -464,7 +456,7 @@ def assemble(rig: Rig, pose: Mapping[str, float], elements_per_link: int | None 
 
     def node(p: Point) -> tuple[int, np.ndarray]:
         bi = link_index[p.link]
-        return bi, topo.node(bi, p.fraction)
+        return bi, topo.bodies[bi].node(p.fraction)
 
     for mass in rig.masses:
         _, d = node(mass.at)
