@@ -83,7 +83,11 @@ def _mode_figures(measured: ModalTable | None, repeats: Sequence[ModalTable],
         configs = ordered_configs(measured)
         for config in list(dict.fromkeys([configs[0], configs[-1]]))[:MAX_SHAPE_CONFIGS]:
             pose = measured.pose(config)
-            rig.check_pose(pose)
+            missing = [v for v in rig.pose_variables if v not in pose]
+            if missing:
+                figs.append({"png": None, "caption": f"No mode shapes drawn for {config}: the measured table "
+                                                     f"gives no pose.{missing[0]} for the rig"})
+                continue
             figs.append(_fig(plots.plot_mode_shapes(rig, pose, measured, config),
                              f"Measured mode shapes at {config} ({_pose_text(pose)}) on the arm, with the "
                              f"frame FE model's best-matching mode (by MAC) as a curve"))

@@ -161,6 +161,17 @@ def test_report_cli_writes_the_same_sections(inputs, capsys):
     assert "joint_stiffness at elbow" in html and html.count("data:image/png;base64,") == 10
 
 
+def test_report_without_runs_or_poses_notes_what_it_cannot_draw(inputs, tmp_path):
+    measured = ModalTable.read_csv(inputs["measured"])
+    no_pose = ModalTable.from_frame(measured.frame.drop(columns=["pose.theta_deg"]), "no-pose")
+    out = write_report(tmp_path / "r.html", measured=no_pose, rig=load_rig(inputs["rig"]),
+                       predictions=[ModalTable.read_csv(inputs["pred"])])
+    html = out.read_text()
+    assert "No mode shapes drawn for theta0: the measured table gives no pose.theta_deg for the rig" in html
+    assert "Stored runs" not in html and "fe Δf [%]" in html
+    assert "data:image/png" not in html  # nothing varies with pose, no shapes: no figure at all
+
+
 def test_report_cli_bad_inputs_exit_2(inputs, tmp_path, capsys):
     bad = tmp_path / "diagnosis.json"
     bad.write_text("{not json")
