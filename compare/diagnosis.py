@@ -13,13 +13,15 @@
    scatter as a floor so that candidates within the noise are ordered by simplicity.
    ``joint_stiffness_pose`` ranks above the constant ``joint_stiffness`` at the same joint only when its
    held-out error is lower.
-4. Verdict: the best candidate; ``explained`` is false when its held-out RMS is above
-   ``EXPLAINED_FACTOR`` times the scatter.
+4. Verdict: the best candidate, unless the nominal model itself (no parameters) scores at least as well,
+   then ``none``; ``explained`` is false when the best held-out RMS is above ``EXPLAINED_FACTOR`` times
+   the scatter.
 """
 
 from __future__ import annotations
 
 import html
+import itertools
 import json
 import math
 from collections.abc import Sequence
@@ -27,12 +29,12 @@ from pathlib import Path
 
 import numpy as np
 
+from compare.blas import single_threaded
 from compare.candidates import Candidate, pair, parse_effects, single_candidates
 from compare.errors import CompareError
-from compare.fit import Target, fit_candidate
-from compare.gap import (Measured, carriers, comac, gap_summary, joint_angles_rad, prepare, region_scores,
-                         rms)
-from compare.parametric import handles_for, pose_basis, reduce_family, solve_family
+from compare.fit import Target, evaluate, fit_candidate, paired_modes
+from compare.gap import Measured, carriers, comac, gap_summary, joint_angles_rad, prepare, region_scores, rms
+from compare.parametric import handles_for, pose_basis, reduce_family
 from modal.table import ModalTable
 from models.effects import pose_stiffness
 from models.rig import Rig
@@ -130,9 +132,9 @@ def _score(heldout: float, n_params: int, scatter: float) -> float:
     return math.hypot(heldout, scatter) * (1 + PENALTY * n_params)
 
 
-def _evaluate_candidate(ctx: _Context, cand: Candidate, scatter: float) -> dict:
+def _evaluate_candidate(ctx: _Context, cand: Candidate, scatter: float, grid: np.ndarray | None = None) -> dict:
     fam = ctx.family(cand.handles)
-    res = fit_candidate(fam, cand, ctx.target, ctx.train)
+    res = fit_candidate(fam, cand, ctx.target, ctx.train, grid=grid)
     fm = ctx.meas.freq_hz
     err = res.freq_hz / fm[None] - 1.0                                  # [F, C, n]
     held = np.concatenate([err[f][~ctx.train[f]].ravel() for f in range(1, len(ctx.train))])
@@ -144,9 +146,19 @@ def _evaluate_candidate(ctx: _Context, cand: Candidate, scatter: float) -> dict:
     }
     if res.mac is not None:
         entry["mac_mean"] = float(np.nanmean(res.mac[0]))
+    entry["_theta"] = res.theta[0]
     entry["_freq_hz"] = res.freq_hz[0]
     entry["_heldout_freq_hz"] = _heldout_prediction(res.freq_hz, ctx.train)
     return entry
+
+
+def _pair_starts(cand: Candidate, *parts: tuple[Candidate, np.ndarray]) -> np.ndarray:
+    """Start points of a pair: both singles' optima, and each single's optimum with the other's grid."""
+    a, b = sorted(parts, key=lambda p: cand.params.index(p[0].params[0]))
+    ga, gb = (np.array(list(itertools.product(*[q.grid for q in c.params]))) for c, _ in (a, b))
+    return np.vstack([np.concatenate([a[1], b[1]])[None],
+                      np.hstack([np.repeat(a[1][None], len(gb), 0), gb]),
+                      np.hstack([ga, np.repeat(b[1][None], len(ga), 0)])])
 
 
 def _heldout_prediction(freq: np.ndarray, train: np.ndarray) -> np.ndarray:
@@ -176,17 +188,9 @@ def _where(ctx: _Context, base_err: np.ndarray, base_summary: dict, scatter: flo
     weight[np.ix_(ci, mi)] = 1.0
     if not weight.any():
         weight[:] = 1.0
-    all_h = [h.name for h in ctx.handles]
-    fam = ctx.family(all_h)
-    h = np.array([[fam.nominal] * len(meas.configs)])
-    from compare.fit import _pair
-    n = meas.freq_hz.shape[1]
-    lam, dlam, shapes = solve_family(fam, h, n + 2)
-    f_all = np.sqrt(np.clip(lam, 0, None)) / (2 * math.pi)
-    idx = _pair(f_all, shapes, ctx.target)[0]
-    f = np.take_along_axis(f_all[0], idx, -1)
-    dl = np.take_along_axis(dlam[0], idx[..., None], 1)
-    sens = dl / (8 * math.pi**2 * f[..., None] * meas.freq_hz[..., None])
+    fam = ctx.family([h.name for h in ctx.handles])
+    f, dl, _, _ = paired_modes(fam, np.array([[fam.nominal] * len(meas.configs)]), ctx.target)
+    sens = dl[0] / (8 * math.pi**2 * f[0][..., None] * meas.freq_hz[..., None])
     groups: dict[str, list[int]] = {}
     for i, hd in enumerate(ctx.handles):
         groups.setdefault(_region_label(ctx.rig, hd.name), []).append(i)
@@ -206,9 +210,16 @@ def diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str] = "all
              holdout: str | Sequence[str] = "auto", scatter: float = DEFAULT_SCATTER) -> dict:
     """Diagnose the gap between ``rig`` (nominal) and ``measured`` modes; returns the diagnosis.json dict.
 
+    ``effects``: ``"all"`` or effect names; ``holdout``: ``"auto"`` or configurations to hold out;
     ``scatter``: the relative measurement scatter of the frequencies (0.005 = 0.5 %; seed 003's Table 4
-    repeatability was 0.3-0.85 %).
+    repeatability was 0.3-0.85 %).  Raises CompareError (one line) on inputs that do not fit the rig.
     """
+    with single_threaded():
+        return _diagnose(rig, measured, effects, holdout, scatter)
+
+
+def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], holdout: str | Sequence[str],
+              scatter: float) -> dict:
     if not 0 < scatter < 1:
         raise CompareError(f"--scatter must be a fraction in (0, 1) (got {scatter})")
     names = parse_effects(effects) if isinstance(effects, str) else parse_effects(",".join(effects))
@@ -217,7 +228,6 @@ def diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str] = "all
     ctx = _Context(rig, meas, train)
 
     base_fam = ctx.family([])
-    from compare.fit import evaluate
     base_f, _, base_mac, _ = evaluate(base_fam, np.zeros((len(meas.configs), 0, 0)), np.zeros((1, 0)),
                                       ctx.target)
     base_f = base_f[0]
@@ -235,12 +245,13 @@ def diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str] = "all
         ranking = [_evaluate_candidate(ctx, c, scatter) for c in singles]
         _pose_law_guard(ranking)
         order = sorted(range(len(singles)), key=lambda i: ranking[i]["score"])
-        pool = [singles[i] for i in order[:PAIR_POOL]]
-        for i, a in enumerate(pool):
-            for b in pool[i + 1:]:
-                cand = pair(a, b)
+        pool = order[:PAIR_POOL]
+        for n, i in enumerate(pool):
+            for j in pool[n + 1:]:
+                cand = pair(singles[i], singles[j])
                 if cand is not None:
-                    ranking.append(_evaluate_candidate(ctx, cand, scatter))
+                    ranking.append(_evaluate_candidate(ctx, cand, scatter, _pair_starts(
+                        cand, (singles[i], ranking[i]["_theta"]), (singles[j], ranking[j]["_theta"]))))
         ranking.sort(key=lambda e: e["score"])
     result["ranking"] = [{k: v for k, v in e.items() if not k.startswith("_")} for e in ranking[:RANKING_LENGTH]]
     result["verdict"] = _verdict(ranking, baseline, before, scatter, meas, base_err)
@@ -257,16 +268,17 @@ def diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str] = "all
 
 
 def _paired_shapes(ctx: _Context, fam) -> np.ndarray:
-    from compare.fit import _pair
-    n = ctx.meas.freq_hz.shape[1]
-    lam, _, shapes = solve_family(fam, np.zeros((1, len(ctx.meas.configs), 0)), n + 2)
-    f_all = np.sqrt(np.clip(lam, 0, None)) / (2 * math.pi)
-    idx = _pair(f_all, shapes, ctx.target)
-    return np.take_along_axis(shapes, idx[:, :, None, :], -1)[0]
+    return paired_modes(fam, np.zeros((1, len(ctx.meas.configs), 0)), ctx.target)[2][0]
 
 
 def _verdict(ranking: list[dict], baseline: dict, before: float, scatter: float, meas: Measured,
              base_err: np.ndarray) -> dict:
+    if ranking and ranking[0]["score"] >= _score(before, 0, scatter):
+        return {"effect": "none", "location": "", "heldout_rms_rel_error_before": before,
+                "heldout_rms_rel_error_after": before, "explained": True,
+                "summary": f"no candidate beats the nominal model on held-out configurations once its extra "
+                           f"parameters are penalised (baseline held-out RMS {before:.2%}, best "
+                           f"{ranking[0]['effect']} {ranking[0]['heldout_rms_rel_error']:.2%})"}
     if not ranking:
         return {"effect": "none", "location": "", "heldout_rms_rel_error_before": before,
                 "heldout_rms_rel_error_after": before, "explained": True,

@@ -7,10 +7,13 @@ data set and every cross-validation fold together, with the analytic Jacobian fr
 sensitivities (``d f / d lambda = 1 / (8 pi^2 f)``).  Starts: the best points of a coarse grid evaluated in
 one batch (a multi-start without repeated solver calls), the two best refined and the better kept per fold.
 
-Mode pairing: model modes below 1e-3 of the lowest measured frequency are rigid-body modes and skipped;
+Mode pairing: model modes below 1e-3 of the lowest measured frequency are rigid-body modes and skipped,
+and so are modes the rig's sensors cannot see (e.g. axial modes of a straight arm under transverse
+accelerometers: sensor response below 1e-6 of the largest);
 with measured shapes each measured mode is paired with the model mode of highest MAC (Allemang & Brown
-1982) by an optimal assignment, re-done at every evaluation so that modes that swap order as parameters
-move keep their identity; without shapes modes are paired in ascending order.
+1982) weighted by frequency proximity, ``MAC * exp(-|ln(f_model/f_measured)| / 0.25)`` (a few sensors alias
+distant modes), by an optimal assignment re-done at every evaluation so that modes that swap order as
+parameters move keep their identity; without shapes modes are paired in ascending order.
 """
 
 from __future__ import annotations
@@ -27,7 +30,11 @@ from compare.parametric import ReducedFamily, lam_to_hz, solve_family
 
 EXTRA_PAIRING_MODES = 2
 MAX_GRID = 81
+PAIRING_LOG_WIDTH = 0.25
+OBSERVABLE = 1e-6
 MAX_NFEV = 20
+MAX_NFEV_FOLDS = 5
+N_STARTS = 2
 
 
 @dataclass(frozen=True)
@@ -61,50 +68,53 @@ def design(cand: Candidate, target: Target) -> np.ndarray:
     return D
 
 
-def _pair(f_all: np.ndarray, shapes: np.ndarray, target: Target) -> np.ndarray:
-    """Indices [B, C, n] of the model modes paired with the measured ones (see module docstring)."""
-    B, C, n_all = f_all.shape
+def _pair(f_all: np.ndarray, shapes: np.ndarray, target: Target) -> tuple[np.ndarray, np.ndarray | None]:
+    """Indices [B, C, n] of the model modes paired with the measured ones (see module docstring), and the
+    MAC [B, C, n, n_all] of every measured mode with every model mode (None without measured shapes)."""
     n = target.freq_hz.shape[1]
-    valid = f_all > 1e-3 * np.nanmin(target.freq_hz, axis=1)[None, :, None]
-    order = np.argsort(~valid, axis=-1, kind="stable")
-    idx = order[..., :n].copy()
+    valid = f_all > 1e-3 * target.freq_hz.min(axis=1)[None, :, None]
+    seen = np.sum(shapes * shapes, axis=-2)                               # [B, C, n_all]
+    if seen.size and np.any(seen > 0):
+        valid &= seen > OBSERVABLE**2 * np.max(seen, axis=-1, keepdims=True)
+    idx = np.argsort(~valid, axis=-1, kind="stable")[..., :n]
     if target.shapes is None:
-        return idx
+        return idx, None
     meas = target.shapes
-    num = np.abs(np.einsum("csn,bcsm->bcnm", meas.conj(), shapes)) ** 2
-    den = np.einsum("csn,csn->cn", meas.conj(), meas).real[None, :, :, None] * \
-        np.einsum("bcsm,bcsm->bcm", shapes, shapes)[:, :, None, :]
-    mac = num / np.maximum(den, 1e-300)
-    mac = np.where(valid[:, :, None, :], mac, -1.0)
+    num = np.abs(np.swapaxes(meas, -1, -2).conj() @ shapes) ** 2           # [B, C, n, n_all]
+    mac = num / np.maximum(np.sum(np.abs(meas) ** 2, axis=-2)[None, :, :, None] * seen[:, :, None, :], 1e-300)
+    near = np.exp(-np.abs(np.log(np.maximum(f_all[:, :, None, :], 1e-300) / target.freq_hz[None, :, :, None]))
+                  / PAIRING_LOG_WIDTH)
+    score = np.where(valid[:, :, None, :], mac * near, -1.0)
     usable = ~np.isnan(meas).any(axis=(1, 2))                             # configs with complete shapes
-    best = np.argmax(mac, axis=-1)                                        # [B, C, n]
+    best = np.argmax(score, axis=-1)                                      # [B, C, n]
     srt = np.sort(best, axis=-1)
     unique = np.all(srt[..., 1:] != srt[..., :-1], axis=-1)               # greedy choice is a permutation
     idx = np.where((usable[None, :] & unique)[..., None], best, idx)
     for b, c in zip(*np.nonzero(usable[None, :] & ~unique), strict=True):
-        idx[b, c] = linear_sum_assignment(-mac[b, c])[1]
-    return idx
+        idx[b, c] = linear_sum_assignment(-score[b, c])[1]
+    return idx, mac
+
+
+def paired_modes(fam: ReducedFamily, h: np.ndarray, target: Target
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+    """Model modes paired with the measured ones at handle values ``h`` [B, C, H]: frequencies [B, C, n],
+    d lambda / d h [B, C, n, H], sensor shapes [B, C, n_sensors, n] and MAC [B, C, n] (None w/o shapes)."""
+    n = target.freq_hz.shape[1]
+    lam, dlam, shapes = solve_family(fam, h, n + EXTRA_PAIRING_MODES)
+    f_all = lam_to_hz(lam)
+    idx, mac_all = _pair(f_all, shapes, target)
+    mac = None if mac_all is None else np.take_along_axis(mac_all, idx[..., None], -1)[..., 0]
+    return (np.take_along_axis(f_all, idx, -1), np.take_along_axis(dlam, idx[..., None], 2),
+            np.take_along_axis(shapes, idx[:, :, None, :], -1), mac)
 
 
 def evaluate(fam: ReducedFamily, D: np.ndarray, theta: np.ndarray, target: Target
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
     """Model at parameters ``theta`` [B, J]: paired freqs [B, C, n], d f/d theta [B, C, n, J], MAC, h."""
-    n = target.freq_hz.shape[1]
-    h = np.exp(np.einsum("chj,bj->bch", D, theta))
-    lam, dlam, shapes = solve_family(fam, h, n + EXTRA_PAIRING_MODES)
-    f_all = lam_to_hz(lam)
-    idx = _pair(f_all, shapes, target)
-    f = np.take_along_axis(f_all, idx, -1)
-    dl = np.take_along_axis(dlam, idx[..., None], 2)                      # [B, C, n, H]
-    dl_dtheta = np.einsum("bcnh,bch,chj->bcnj", dl, h, D)
-    df = dl_dtheta / (8 * math.pi**2 * np.maximum(f, 1e-12))[..., None]
-    mac = None
-    if target.shapes is not None:
-        ps = np.take_along_axis(shapes, idx[:, :, None, :], -1)
-        meas = target.shapes
-        num = np.abs(np.einsum("csn,bcsn->bcn", meas.conj(), ps)) ** 2
-        den = np.einsum("csn,csn->cn", meas.conj(), meas).real[None] * np.einsum("bcsn,bcsn->bcn", ps, ps)
-        mac = num / np.maximum(den, 1e-300)
+    h = np.exp(D @ theta.T).transpose(2, 0, 1) if D.size else np.ones((theta.shape[0],) + D.shape[:2])
+    f, dlam, _, mac = paired_modes(fam, h, target)
+    dl = dlam * h[:, :, None, :]                                          # d lambda / d log h
+    df = (dl @ D[None]) / (8 * math.pi**2 * np.maximum(f, 1e-12))[..., None]
     return f, df, mac, h
 
 
@@ -116,12 +126,14 @@ def _grid(cand: Candidate) -> np.ndarray:
 
 
 def fit_candidate(fam: ReducedFamily, cand: Candidate, target: Target, train: np.ndarray,
-                  reg_weight: float = 0.02) -> FitResult:
+                  reg_weight: float = 0.02, grid: np.ndarray | None = None) -> FitResult:
     """Fit ``cand`` on every fold's training configurations (``train`` [F, C] bool, fold 0 = all).
 
-    Fold 0 is fitted from the two best grid points (multi-start); the cross-validation folds, stacked in
-    one problem, start from fold 0's optimum.  The pose-law slope/curvature are regularised towards a
-    constant stiffness by residual rows ``reg_weight * theta * span^power`` (``span`` = joint angle range).
+    Fold 0 is fitted from the ``N_STARTS`` best points of ``grid`` (default: the product of the
+    parameters' start grids) in one stacked solve; the cross-validation folds, stacked in one problem,
+    are refined from fold 0's optimum by at most ``MAX_NFEV_FOLDS`` trust-region steps (each differs
+    from it by one configuration's data).  The pose-law slope/curvature are regularised towards a
+    constant stiffness by residual rows ``reg_weight * theta * span^power`` (``span`` = angle range).
     """
     D = design(cand, target)
     fm = target.freq_hz
@@ -129,26 +141,23 @@ def fit_candidate(fam: ReducedFamily, cand: Candidate, target: Target, train: np
     upper = np.array([p.upper for p in cand.params])
     reg = np.array([0.0 if p.power == 0 else reg_weight * _span(target, p.handle) ** p.power
                     for p in cand.params])
-    grid = _grid(cand)
+    grid = _grid(cand) if grid is None else grid
     f, _, _, _ = evaluate(fam, D, grid, target)
     cost = np.nansum(((f / fm) - 1.0) ** 2, axis=(1, 2)) + np.sum((reg * grid) ** 2, axis=1)
-    starts = grid[np.argsort(cost)[:2]]
-    best = None
-    for s in starts:
-        x, c = _solve(fam, D, target, train[:1], reg, lower, upper, s[None])
-        if best is None or c[0] < best[1]:
-            best = (x, c[0])
-    theta0 = best[0]
-    theta = theta0
+    starts = grid[np.argsort(cost)[:N_STARTS]]
+    x, c = _solve(fam, D, target, np.repeat(train[:1], len(starts), axis=0), reg, lower, upper, starts,
+                  MAX_NFEV)
+    theta = x[np.argmin(c)][None]
     if len(train) > 1:
-        x, _ = _solve(fam, D, target, train[1:], reg, lower, upper, np.repeat(theta0, len(train) - 1, axis=0))
-        theta = np.vstack([theta0, x])
+        x, _ = _solve(fam, D, target, train[1:], reg, lower, upper, np.repeat(theta, len(train) - 1, axis=0),
+                      MAX_NFEV_FOLDS)
+        theta = np.vstack([theta, x])
     f, _, mac, _ = evaluate(fam, D, theta, target)
     return FitResult(theta, f, mac, train)
 
 
 def _solve(fam: ReducedFamily, D: np.ndarray, target: Target, train: np.ndarray, reg: np.ndarray,
-           lower: np.ndarray, upper: np.ndarray, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+           lower: np.ndarray, upper: np.ndarray, x0: np.ndarray, max_nfev: int) -> tuple[np.ndarray, np.ndarray]:
     """One stacked trust-region least-squares solve over folds ``train`` [F, C]; returns theta [F, J], costs."""
     fm = target.freq_hz
     F, J = x0.shape
@@ -179,8 +188,8 @@ def _solve(fam: ReducedFamily, D: np.ndarray, target: Target, train: np.ndarray,
 
     lo, hi = np.tile(lower, F), np.tile(upper, F)
     x0 = np.clip(x0.ravel(), lo + 1e-9, hi - 1e-9)
-    sol = least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", max_nfev=MAX_NFEV,
-                        xtol=1e-8, ftol=1e-8, gtol=1e-10)
+    sol = least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", max_nfev=max_nfev,
+                        xtol=1e-6, ftol=1e-6, gtol=1e-10)
     return sol.x.reshape(F, J), _fold_costs(sol.fun, mask, F, J, reg, sol.x)
 
 
