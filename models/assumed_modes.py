@@ -106,34 +106,48 @@ def _nondim(beam: Beam, end: End) -> tuple[float, float, float, float]:
             end.inertia_kgm2 / (mu * L**3))
 
 
-def _condition_rows(lam: float, beam: Beam, end: End, right: bool) -> np.ndarray:
-    """Two rows [2, 4] of the end conditions at one end, acting on (W, W', W'', W''') there.
+def _condition_rows(lams: np.ndarray, beam: Beam, end: End, right: bool) -> np.ndarray:
+    """Rows [n, 2, 4] of the end conditions at one end, acting on (W, W', W'', W''') there.
 
     Moment: W'' - s (k_r - lam^4 J) W' = 0; shear: W''' + s (k_t - lam^4 m) W = 0 with s = +1 on the left
     and -1 on the right; both scaled by 1/(1+k) so that k = inf leaves W' = 0 (W = 0).
     """
     kt, kr, m, J = _nondim(beam, end)
     s = -1.0 if right else 1.0
-    l4 = lam**4
-    rows = np.zeros((2, 4))
-    for r, k, inertia, low, high, sgn in ((0, kr, l4 * J, 1, 2, -s), (1, kt, l4 * m, 0, 3, s)):
+    l4 = lams**4
+    rows = np.zeros((lams.size, 2, 4))
+    for r, k, inertia, low, high, sgn in ((0, kr, J, 1, 2, -s), (1, kt, m, 0, 3, s)):
         if math.isinf(k):
-            rows[r, low] = 1.0
+            rows[:, r, low] = 1.0
         else:
-            rows[r, high] = 1.0 / (1.0 + k)
-            rows[r, low] = sgn * (k - inertia) / (1.0 + k)
+            rows[:, r, high] = 1.0 / (1.0 + k)
+            rows[:, r, low] = sgn * (k - l4 * inertia) / (1.0 + k)
     return rows
 
 
-def boundary_matrix(lam: float, beam: Beam, left: End, right: End) -> np.ndarray:
-    """The 4x4 matrix acting on (A, B, C, D) whose determinant is the characteristic function."""
-    return np.vstack([_condition_rows(lam, beam, left, False),
-                      _condition_rows(lam, beam, right, True) @ _values_at(lam, 1.0)[0]])
+def _tip_values(lams: np.ndarray) -> np.ndarray:
+    """W, W', W'', W''' at x = L for coefficients (A, B, C, D): [n, 4, 4] for each lambda > 0."""
+    S, T, U, V = krylov(lams)
+    rows = [[S, T / lams, U / lams**2, V / lams**3], [lams * V, S, T / lams, U / lams**2],
+            [lams**2 * U, lams * V, S, T / lams], [lams**3 * T, lams**2 * U, lams * V, S]]
+    return np.moveaxis(np.array(rows), -1, 0)
+
+
+def boundary_matrices(lams: np.ndarray | float, beam: Beam, left: End, right: End) -> np.ndarray:
+    """The matrices [n, 4, 4] acting on (A, B, C, D) whose determinants are the characteristic function."""
+    lams = np.atleast_1d(np.asarray(lams, float))
+    tip = np.empty((lams.size, 4, 4))
+    zero = lams == 0.0
+    if np.any(zero):
+        tip[zero] = _values_at(0.0, 1.0)[0]
+    tip[~zero] = _tip_values(lams[~zero])
+    return np.concatenate([_condition_rows(lams, beam, left, False),
+                           _condition_rows(lams, beam, right, True) @ tip], axis=1)
 
 
 def characteristic(lam: float, beam: Beam, left: End, right: End) -> float:
     """Characteristic determinant at ``lam`` = beta L (zero at a natural frequency)."""
-    return float(np.linalg.det(boundary_matrix(lam, beam, left, right)))
+    return float(np.linalg.det(boundary_matrices(lam, beam, left, right)[0]))
 
 
 @dataclass(frozen=True, eq=False)
@@ -190,23 +204,24 @@ def beam_modes(beam: Beam, left: End, right: End, n_modes: int = 4, step: float 
         raise ModelError(f"beam needs positive length, EI and mass per length (got {beam})")
     lams: list[float] = []
     coefs: list[np.ndarray] = []
-    _, sv, vt = np.linalg.svd(boundary_matrix(0.0, beam, left, right))
+    _, sv, vt = np.linalg.svd(boundary_matrices(0.0, beam, left, right)[0])
     for k in np.flatnonzero(sv < 1e-10 * max(sv[0], 1.0)):  # rigid-body modes
         if len(lams) < n_modes:
             lams.append(0.0)
             coefs.append(_normalise(beam, left, right, 0.0, vt[k]))
     lo = 1e-3
-    f_lo = characteristic(lo, beam, left, right)
-    while len(lams) < n_modes:
-        hi = lo + step
-        f_hi = characteristic(hi, beam, left, right)
-        if f_lo == 0.0 or f_lo * f_hi < 0:
-            root = lo if f_lo == 0.0 else brentq(characteristic, lo, hi, args=(beam, left, right),
-                                                 xtol=1e-14, rtol=1e-15)
-            _, _, vt = np.linalg.svd(boundary_matrix(root, beam, left, right))
+    while len(lams) < n_modes:  # scan a stretch of beta*L at once, refine every sign change
+        grid = lo + step * np.arange(int(math.pi * (n_modes + 1) / step) + 1)
+        det = np.linalg.det(boundary_matrices(grid, beam, left, right))
+        for i in np.flatnonzero((det[:-1] * det[1:] < 0) | (det[:-1] == 0.0)):
+            if len(lams) == n_modes:
+                break
+            root = grid[i] if det[i] == 0.0 else brentq(characteristic, grid[i], grid[i + 1],
+                                                        args=(beam, left, right), xtol=1e-14, rtol=1e-15)
+            _, _, vt = np.linalg.svd(boundary_matrices(root, beam, left, right)[0])
             lams.append(root)
             coefs.append(_normalise(beam, left, right, root, vt[-1]))
-        lo, f_lo = hi, f_hi
+        lo = grid[-1]
         if lo > 400:
             raise ModelError(f"no more beam roots found below beta*L = 400 for {left} / {right}")
     lam = np.array(lams)
