@@ -198,3 +198,19 @@ def test_rotating_the_whole_arm_changes_nothing_but_directions():
     assert combo == pytest.approx(b.observe("tip", "transverse"), abs=1e-12)
     assert b.node_xy_m[-1] == pytest.approx(L / 2 * np.array([math.cos(math.radians(73)) + math.cos(ang),
                                                               math.sin(math.radians(73)) + math.sin(ang)]))
+
+
+def test_observe_rejects_what_it_cannot_see(rigs_dir):
+    from models.errors import ModelError
+
+    sys_ = assemble(load_rig(rigs_dir / "seed001_arm.toml"), {"shoulder_deg": 60, "elbow_deg": 90,
+                                                               "payload_kg": 1.0})
+    with pytest.raises(ModelError, match="unknown quantity"):
+        sys_.observe("tip", "twist")
+    with pytest.raises(ModelError, match="ground point"):
+        sys_.observe("ground@0,0", "x")
+    with pytest.raises(ModelError, match="names no link"):
+        sys_.observe("forearm@0.5", "x")
+    # a member point moves with the member: the pusher's pinned end follows its host point on the arm
+    end = sys_.observe("pusher@1", "x")
+    assert end == pytest.approx(sys_.observe("upper@0.08", "x"), abs=1e-12)
