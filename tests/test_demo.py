@@ -1,0 +1,66 @@
+"""The end-to-end demo: runs on the embedded simulated rig, leaves a CONTRACT §6 file and a report."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from tests.conftest import REPO
+
+CHANNEL_FIELDS = {"name", "kind", "unit", "sensitivity", "sensitivity_unit", "location", "direction"}
+EVENT_FIELDS = {"kind", "sample_index", "count", "detail"}
+EXCITATIONS = {"impact", "random", "sweep", "free-decay", "operational"}
+
+
+@pytest.fixture(scope="module")
+def demo_dir(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, float, str]:
+    out = tmp_path_factory.mktemp("demo")
+    start = time.perf_counter()
+    result = subprocess.run([sys.executable, str(REPO / "app.py"), "demo", "--out", str(out)],
+                            capture_output=True, text=True, timeout=300)
+    elapsed = time.perf_counter() - start
+    assert result.returncode == 0, result.stderr
+    return out, elapsed, result.stdout
+
+
+def test_demo_finishes_in_under_two_minutes_and_leaves_its_files(demo_dir: tuple[Path, float, str]) -> None:
+    out, elapsed, stdout = demo_dir
+    assert elapsed < 120.0
+    assert (out / "runs.h5").is_file() and (out / "report.html").is_file()
+    assert str(out / "report.html") in stdout
+
+
+def test_demo_hdf5_holds_every_contract_item_with_plain_h5py(demo_dir: tuple[Path, float, str]) -> None:
+    out, _, _ = demo_dir
+    with h5py.File(out / "runs.h5", "r") as f:
+        runs = f["runs"]
+        assert len(runs) >= 6  # impact + random in at least three poses
+        excitations = set()
+        for run_id, run in runs.items():
+            attrs = run.attrs
+            assert float(attrs["sample_rate_hz"]) > 0
+            time.strptime(str(attrs["start_time"])[:19], "%Y-%m-%dT%H:%M:%S")
+            assert attrs["excitation"] in EXCITATIONS
+            excitations.add(attrs["excitation"])
+            assert isinstance(json.loads(attrs["pose"]), dict)
+            samples = run["samples"]
+            assert samples.ndim == 2 and samples.dtype in (np.float32, np.float64)
+            assert samples.chunks is not None and samples.maxshape[0] is None
+            channels = run["channels"]
+            assert CHANNEL_FIELDS <= set(channels.dtype.names)
+            assert channels.shape[0] == samples.shape[1]
+            assert EVENT_FIELDS <= set(run["events"].dtype.names)
+            frf = run["frf"]
+            n_out, n_in, n_freq = frf["H"].shape
+            assert np.iscomplexobj(frf["H"][()]) and frf["freq_hz"].shape == (n_freq,)
+            assert frf["coherence"].shape == (n_out, n_freq)
+            for key in ("estimator", "window", "nfft", "n_averages"):
+                assert key in frf.attrs, (run_id, key)
+        assert {"impact", "random"} <= excitations
