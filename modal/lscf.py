@@ -43,16 +43,39 @@ class Stabilisation:
         return self.stable_freq & self.stable_damping & self.stable_shape
 
 
-def _lag_sums(freq_hz: np.ndarray, H: np.ndarray, p_max: int, dt: float):
-    """Sums over lines of 1, H and H^H H times z^d for lags d = -p_max..p_max (index p_max + d)."""
-    w = 2 * np.pi * np.asarray(freq_hz)
-    zk = np.exp(1j * np.outer(w * dt, np.arange(p_max + 1)))        # [nf, p+1]
-    n_out, n_in, nf = H.shape
+def _uniform_grid(f: np.ndarray) -> int | None:
+    """N = 2 f_max / df when the lines are k df with integer k (an FFT grid), else None."""
+    df = (f[-1] - f[0]) / (f.size - 1)
+    k = f / df
+    if df > 0 and np.allclose(np.diff(f), df, rtol=1e-9, atol=0) and np.allclose(k, np.round(k), atol=1e-6):
+        return int(round(2 * f[-1] / df))
+    return None
 
-    def both(g: np.ndarray) -> np.ndarray:                        # g [..., nf] -> [..., 2p+1]
-        flat = np.ascontiguousarray(g.reshape(-1, nf))
-        plus, minus = flat @ zk, flat @ zk.conj()                   # BLAS matrix products
-        return np.concatenate([minus[:, :0:-1], plus], axis=-1).reshape(*g.shape[:-1], -1)
+
+def _lag_sums(freq_hz: np.ndarray, H: np.ndarray, p_max: int, dt: float):
+    """Sums over lines of 1, H and H^H H times z^d for lags d = -p_max..p_max (index p_max + d).
+
+    On an FFT grid (lines k df) with dt = 1/(2 f_max), z = exp(2 pi i k / N): the sums are one
+    inverse and one forward FFT of the zero-padded line data; otherwise explicit matrix products."""
+    f = np.asarray(freq_hz, float)
+    n_out, n_in, nf = H.shape
+    n_fft = _uniform_grid(f)
+    if n_fft is not None:
+        first = int(round(f[0] / (f[1] - f[0])))
+
+        def both(g: np.ndarray) -> np.ndarray:                    # g [..., nf] -> [..., 2p+1]
+            pad = np.zeros((*g.shape[:-1], n_fft), complex)
+            pad[..., first:first + nf] = g
+            plus = np.fft.ifft(pad, axis=-1)[..., :p_max + 1] * n_fft
+            minus = np.fft.fft(pad, axis=-1)[..., :p_max + 1]
+            return np.concatenate([minus[..., :0:-1], plus], axis=-1)
+    else:
+        zk = np.exp(1j * np.outer(2 * np.pi * f * dt, np.arange(p_max + 1)))   # [nf, p+1]
+
+        def both(g: np.ndarray) -> np.ndarray:
+            flat = g.reshape(-1, nf)
+            plus, minus = flat @ zk, flat @ zk.conj()
+            return np.concatenate([minus[:, :0:-1], plus], axis=-1).reshape(*g.shape[:-1], -1)
 
     r = both(np.ones((1, nf)))[0].real
     s = both(H)                                                    # [o, i, 2p+1]
