@@ -205,7 +205,8 @@ class ReducedFamily:
     has_mass: bool
 
 
-def reduce_family(bases: Sequence[PoseBasis], handle_idx: Sequence[int], nominal: np.ndarray) -> ReducedFamily:
+def reduce_family(bases: Sequence[PoseBasis], handle_idx: Sequence[int], nominal: np.ndarray
+                  ) -> ReducedFamily:
     """Restrict every pose basis to the nominal modes plus the columns of ``handle_idx``; orthonormalise."""
     blocks = []
     for b in bases:
@@ -214,9 +215,9 @@ def reduce_family(bases: Sequence[PoseBasis], handle_idx: Sequence[int], nominal
         w, U = np.linalg.eigh(0.5 * (M0 + M0.T))
         keep = w > 1e-10 * w.max()
         T = U[:, keep] / np.sqrt(w[keep])
-        proj = lambda A, T=T, cols=cols: T.T @ A[np.ix_(cols, cols)] @ T
-        blocks.append((proj(b.K0), np.eye(T.shape[1]), np.array([proj(A) for A in b.Kh[list(handle_idx)]]),
-                       np.array([proj(A) for A in b.Mh[list(handle_idx)]]), b.sensors[:, cols] @ T))
+        sel = np.ix_(list(handle_idx), cols, cols)
+        blocks.append((T.T @ b.K0[np.ix_(cols, cols)] @ T, np.eye(T.shape[1]), T.T @ b.Kh[sel] @ T,
+                       T.T @ b.Mh[sel] @ T, b.sensors[:, cols] @ T))
     r = max(bl[0].shape[0] for bl in blocks)
     n_h = len(handle_idx)
     C = len(blocks)
