@@ -37,7 +37,8 @@ def _fe(rig: Rig, pose: Mapping[str, float], n_modes: int, options: Mapping) -> 
     from models.frame import assemble, solve_modes
 
     system = assemble(rig, pose, options.get("elements_per_link"), bool(options.get("lumped_mass", False)))
-    modes = solve_modes(system, min(n_modes + 3, system.n_dof))
+    mechanisms = 3 + sum(j.kind != "rigid" for j in rig.joints)  # at most this many rigid-body modes
+    modes = solve_modes(system, min(n_modes + mechanisms, system.n_dof))
     return _elastic(modes.freq_hz, modes.sensor_shapes, n_modes, f"{rig.source}: model 'fe'")
 
 

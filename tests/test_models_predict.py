@@ -124,3 +124,15 @@ def test_predict_validates_its_arguments(rigs_dir):
         predict(rig, {"a": {"theta_deg": 0}}, "fe", 0)
     frame = predict(rig, {"a": {"theta_deg": 10}}, "lumped-mass", 2, source="lmm-planar").frame
     assert isinstance(frame, pd.DataFrame) and set(frame["source"]) == {"lmm-planar"}
+
+
+def test_fe_drops_every_rigid_body_mode_of_a_floating_chain():
+    from models.rig import parse_rig
+
+    section = {"shape": "custom", "EA_N": 1e7, "EI_Nm2": 100.0, "mass_per_m_kg": 1.0}
+    doc = {"base": {"support": "free"},
+           "link": [{"name": f"l{i}", "length_m": 1.0, "section": section} for i in range(3)],
+           "joint": [{"name": f"j{i}", "parent": f"l{i}", "child": f"l{i + 1}", "kind": "pin"}
+                     for i in range(2)]}
+    freq = predict(parse_rig(doc), {"a": {}}, "fe", 4).freq_hz("a")
+    assert len(freq) == 4 and freq.min() > 1.0  # 3 planar rigid-body modes + 2 free pins are left out
