@@ -143,8 +143,11 @@ def plot_freq_vs_pose(measured: Sequence[ModalTable], predictions: Sequence[tupl
         x = _pose_values(table, pose_var)
         df = table.frame.assign(x=table.frame["config"].map(x)).sort_values("x")
         colour = _COLOURS[(k + 1) % len(_COLOURS)]
-        for j, (_, g) in enumerate(df.groupby("mode")):
+        for j, (mode, g) in enumerate(df.groupby("mode")):
             ax.plot(g["x"], g["freq_hz"], "-", color=colour, lw=1.2, label=name if j == 0 else None)
+            if k == 0:
+                ax.annotate(f"mode {mode}", (g["x"].iloc[-1], g["freq_hz"].iloc[-1]), xytext=(4, 0),
+                            textcoords="offset points", fontsize=7, va="center")
     if measured:
         stats = _experiment_stats(measured, pose_var)
         ax.errorbar(stats["x"].to_numpy(float), stats["mean"].to_numpy(float),
@@ -307,16 +310,21 @@ def plot_gap(diagnosis: Mapping, title: str = "") -> Figure:
     ax, ax2 = fig.subplots(1, 2, gridspec_kw={"width_ratios": [3, 1]})
     x = np.arange(len(modes))
     w = 0.4 if after is not None else 0.6
-    ax.bar(x - (w / 2 if after is not None else 0), 100 * before, w, color="0.6", label="nominal model")
+    shift = w / 2 if after is not None else 0.0
+    bars = [ax.bar(x - shift, 100 * before, w, color="0.6", label="nominal model")]
     if after is not None:
-        ax.bar(x + w / 2, 100 * after, w, color=_COLOURS[0], label=f"with {verdict.get('effect', 'effect')}")
+        bars.append(ax.bar(x + w / 2, 100 * after, w, color=_COLOURS[0],
+                           label=f"with {verdict.get('effect', 'effect')}"))
+    for container in bars:
+        ax.bar_label(container, fmt="{:.3g} %", fontsize=7)
     ax.set_xticks(x, [f"mode {m}" for m in modes])
     ax.set_ylabel("relative frequency error [%]")
     ax.legend(fontsize=7)
     ax.grid(True, axis="y", alpha=0.3)
     totals = [verdict.get("heldout_rms_rel_error_before"), verdict.get("heldout_rms_rel_error_after")]
     if all(v is not None for v in totals):
-        ax2.bar([0, 1], [100 * float(v) for v in totals], color=["0.6", _COLOURS[0]])
+        ax2.bar_label(ax2.bar([0, 1], [100 * float(v) for v in totals], color=["0.6", _COLOURS[0]]),
+                      fmt="{:.3g} %", fontsize=7)
         ax2.set_xticks([0, 1], ["before", "after"])
         ax2.set_ylabel("held-out RMS error [%]")
         ax2.grid(True, axis="y", alpha=0.3)
