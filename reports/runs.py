@@ -158,7 +158,10 @@ def expand_runs(runs: Sequence[str | Path | tuple[str | Path, str]]) -> list[tup
         if sep:
             out.append((path, run_id))
             continue
-        ids = list_runs(path)
+        try:
+            ids = list_runs(path)
+        except OSError as exc:
+            raise ReportError(f"{path}: not a readable HDF5 run file ({exc})") from None
         if not ids:
             raise ReportError(f"{path}: holds no runs (expected groups under /runs)")
         out += [(path, r) for r in ids]

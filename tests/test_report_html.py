@@ -178,6 +178,8 @@ def test_report_cli_bad_inputs_exit_2(inputs, tmp_path, capsys):
     assert main(["report", "--diagnosis", str(bad), "--out", str(tmp_path / "r.html")]) == 2
     assert "not valid JSON" in capsys.readouterr().err
     assert main(["report", str(tmp_path / "missing.h5"), "--out", str(tmp_path / "r.html")]) == 2
+    assert main(["report", str(bad), "--out", str(tmp_path / "r.html")]) == 2
+    assert "not a readable HDF5 run file" in capsys.readouterr().err
     assert main(["report", "--out", str(tmp_path / "r.html")]) == 2
     assert "nothing to report" in capsys.readouterr().err
 
