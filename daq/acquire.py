@@ -14,6 +14,7 @@ import dataclasses
 import json
 import os
 import queue
+import re
 import select
 import signal
 import subprocess
@@ -34,6 +35,14 @@ from daq.store import Event, RunWriter, list_runs
 from daq.timeline import Timeline
 
 QUEUE_BLOCKS = 4096
+
+
+class WriteFailed(DaqError):
+    """The run store could not be written (disk full, I/O error); the file holds the last flush.
+
+    The HDF5 library is left in an unusable state for this file, so the CLI exits at once without
+    closing it (closing would try to write again and can crash).
+    """
 SIM_START_TIMEOUT_S = 60.0
 
 
@@ -60,7 +69,7 @@ class SimulatorProcess:
         sim = session.simulator
         dev = next(d for d in session.devices if d.protocol == sim.protocol)
         cmd = [sys.executable, "-m", "app", "sim", "serve", "--protocol", sim.protocol, "--test", sim.test,
-               "--rate", repr(session.sample_rate_hz)]
+               "--rate", repr(session.sample_rate_hz), "--exit-with-parent"]
         if sim.rig:
             cmd += ["--rig", sim.rig]
         if sim.protocol == "serial":
@@ -275,8 +284,10 @@ def _record(session: Session, out: Path, run_id: str, stamp: datetime, target: i
             writer.append(rows)
             writer.add_events(keep)
         except (OSError, RuntimeError) as exc:
-            raise DaqError(f"{out}: writing failed after {writer.n_samples} samples ({exc}); "
-                           "the samples flushed before this point are intact") from exc
+            reason = re.search(r"error message = '([^']*)'", str(exc))
+            reason = reason.group(1) if reason else " ".join(str(exc).split())[:120]
+            raise WriteFailed(f"{out}: writing failed after {writer.n_samples} samples ({reason}); "
+                              "the samples flushed before this point are intact") from exc
         written += rows.shape[0]
 
     try:
@@ -309,14 +320,14 @@ def _record(session: Session, out: Path, run_id: str, stamp: datetime, target: i
         write(timeline_.take(max(n, 0)))
         display.update(written, session.sample_rate_hz, sum(s.dropped_blocks for s in stats.values()),
                        counts, force=True)
+    except WriteFailed:
+        writer = None  # do not touch the file again
+        raise
     finally:
         stop.set()
         display.close()
         if writer is not None:
-            try:
-                writer.close()
-            except (OSError, RuntimeError):
-                pass
+            writer.close()
     if writer is None:
         raise DaqError(f"{session.source}: no samples arrived from {', '.join(drivers)}")
     return Summary(out, run_id, written, len(names), session.sample_rate_hz, counts,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 
@@ -43,18 +44,24 @@ def register(sub: argparse._SubParsersAction) -> None:
     s.add_argument("--disconnect-after", type=float, metavar="S", help="disconnect after S seconds")
     s.add_argument("--disconnect", type=float, default=0.5, metavar="S", help="length of the disconnect, s")
     s.add_argument("--fault-log", metavar="FILE", help="append one JSON line per injected fault")
+    s.add_argument("--exit-with-parent", action="store_true", help="stop when the parent process exits")
     s.set_defaults(func=_serve)
 
 
 def _acquire(args: argparse.Namespace) -> int:
-    from daq.acquire import acquire
+    from daq.acquire import WriteFailed, acquire
     from daq.errors import DaqError
     from daq.session import load_session
 
     session = load_session(args.config)
     if args.duration is not None and args.duration <= 0:
         raise DaqError(f"--duration {args.duration}: must be > 0 seconds")
-    summary = acquire(session, args.out, duration_s=args.duration, quiet=args.quiet, run_id=args.run_id)
+    try:
+        summary = acquire(session, args.out, duration_s=args.duration, quiet=args.quiet, run_id=args.run_id)
+    except WriteFailed as exc:  # leave without closing the HDF5 file: it keeps its last flushed state
+        print(f"flexmodal: error: {exc}", file=sys.stderr, flush=True)
+        sys.stdout.flush()
+        os._exit(2)
     print(summary.line())
     return 0
 

@@ -1,12 +1,11 @@
 """Modbus driver (pymodbus >= 3.10, TCP or RTU): registers polled at the session rate on a fixed schedule.
 
 Poll ``k`` is due at ``t0 + k / sample_rate_hz`` (t0 = first connection) and its values become device
-sample ``k``; late polls catch up (back to back) unless they are more than ``MAX_LATE_S`` late (a stall,
-a disconnect): those slots are skipped and their samples missing, so the timeline shows the gap where
-it happened.  An exception response counts as a corrupt
-frame.  Each table's registers are read in one request per poll (``device_id=`` keyword API) and
-decoded for all polls of a read at once (int16/uint16/int32/uint32/float32, big or little word order,
-then ``value * scale + offset``).
+sample ``k``; late polls catch up (back to back) unless they are more than ``MAX_LATE_S`` late; after a
+reconnect polling resumes at the current slot.  Skipped slots are missing samples, so the timeline
+shows the gap where it happened.  An exception response counts as a corrupt frame.  Each table's
+registers are read in one request per poll (``device_id=`` keyword API) and decoded for all polls of a
+read at once (int16/uint16/int32/uint32/float32, big or little word order, then value * scale + offset).
 """
 
 from __future__ import annotations
@@ -20,7 +19,7 @@ from daq.devices import Block, DeviceLost
 from daq.errors import DaqError
 
 READ_WINDOW_S = 0.05
-MAX_LATE_S = 0.1  # a poll later than this is skipped (its sample is missing) instead of caught up
+MAX_LATE_S = 1.0  # a poll later than this is skipped (its sample is missing) instead of caught up
 MAX_REGISTERS_PER_READ = 125
 RAW_RANGE = {"int16": (-(2**15), 2**15 - 1), "uint16": (0, 2**16 - 1), "int32": (-(2**31), 2**31 - 1),
              "uint32": (0, 2**32 - 1), "float32": (-np.inf, np.inf)}
@@ -87,6 +86,8 @@ class ModbusDriver:
         self._lost = None
         if self._t0 is None:
             self._t0 = time.monotonic()
+        else:  # after a reconnect, polling resumes at the current slot: the missed ones are a gap
+            self._slot = int((time.monotonic() - self._t0) * self.fs)
 
     def close(self) -> None:
         if self._client is not None:

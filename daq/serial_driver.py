@@ -9,7 +9,6 @@ import serial
 from daq.devices import Block, DeviceLost, unwrap
 from daq.serial_frames import SEQ_MODULUS, BinaryDecoder, CsvDecoder
 
-READ_BYTES = 1 << 20
 READ_TIMEOUT_S = 0.02
 
 
@@ -40,7 +39,8 @@ class SerialDriver:
 
     def read(self) -> list[Block]:
         try:
-            data = self._port.read(READ_BYTES)
+            data = self._port.read(1)  # wait (up to the timeout) for the first byte, then take what is there
+            data += self._port.read(self._port.in_waiting) if data else b""
         except (serial.SerialException, OSError, TypeError, AttributeError) as exc:
             raise DeviceLost(f"{self.device.port}: {exc}") from exc
         now = time.time()

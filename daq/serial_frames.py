@@ -68,6 +68,7 @@ class BinaryDecoder:
         self.max_scans = max_scans
         self._buf = b""
         self._garbage = 0  # bytes after the last good frame that belong to no frame
+        self._joined = False  # until the first good frame, bytes before it are a partial frame, not corrupt
 
     def feed(self, data: bytes) -> list[tuple[int, np.ndarray, int]]:
         """Decode ``data`` appended to the kept tail.
@@ -106,10 +107,11 @@ class BinaryDecoder:
         cut = max(cut, last_end)
         self._buf = buf[cut:]
         if not gi.size:
-            self._garbage += cut
+            self._garbage += cut if self._joined else 0
             return []
         garbage = g_start - np.r_[0, g_end[:-1]]
-        garbage[0] += self._garbage
+        garbage[0] = garbage[0] + self._garbage if self._joined else 0
+        self._joined = True
         self._garbage = cut - last_end
         corrupt = -(-garbage // g_len)  # ceil
         seq, fmt = head["seq"][gi].astype(np.int64), head["fmt"][gi]
@@ -132,6 +134,7 @@ class CsvDecoder:
         self.n_ch = n_ch
         self._buf = b""
         self._garbage = 0
+        self._joined = False  # the first (maybe partial) line after opening is not counted as corrupt
 
     def feed(self, data: bytes) -> list[tuple[int, np.ndarray, int]]:
         """Same result as :meth:`BinaryDecoder.feed`; a bad line counts as one corrupt frame."""
@@ -157,13 +160,17 @@ class CsvDecoder:
                         shape_ok[i] = False
         good = shape_ok & np.isfinite(table).all(axis=1) & (table[:, 0] >= 0) & (table[:, 0] % 1 == 0)
         gi = np.flatnonzero(good)
-        bad_before = np.cumsum(~good) + self._garbage
+        counted = ~good
+        if not self._joined:  # lines before the first good one: the partial line we joined in
+            counted[:np.argmax(good) if good.any() else good.size] = False
+            self._joined = bool(good.any())
+        bad_before = np.cumsum(counted) + self._garbage
         seq = table[gi, 0].astype(np.int64)
         n_bad = np.diff(np.concatenate([[0], bad_before[gi]]))
         split = np.flatnonzero((np.diff(seq) != 1) | (n_bad[1:] > 0)) + 1
         runs = [(int(seq[a]), table[gi[a:b], 1:], int(n_bad[a]))
                 for a, b in zip(np.r_[0, split], np.r_[split, gi.size], strict=True) if b > a]
-        self._garbage = int(bad_before[-1] - (bad_before[gi[-1]] if gi.size else 0))
+        self._garbage = int(bad_before[-1] - (bad_before[gi[-1]] if gi.size else 0)) if self._joined else 0
         return runs
 
 

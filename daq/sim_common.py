@@ -14,6 +14,7 @@ from __future__ import annotations
 import fcntl
 import json
 import os
+import select
 import struct
 import tempfile
 import termios
@@ -81,6 +82,7 @@ class PtyLink:
         self.master, self._slave = os.openpty()
         tty.setraw(self._slave)
         tty.setraw(self.master)
+        os.set_blocking(self.master, False)
         tmp = self.path.with_name(self.path.name + ".new")
         tmp.unlink(missing_ok=True)
         tmp.symlink_to(os.ttyname(self._slave))
@@ -101,16 +103,21 @@ class PtyLink:
                 os.close(fd)
         self.master = self._slave = -1
 
-    def write(self, data: bytes) -> None:
+    def write(self, data: bytes, timeout_s: float = 1.0) -> None:
+        """Write all of ``data``; TimeoutError if the reader takes nothing for ``timeout_s``."""
         view = memoryview(data)
         while view:
-            n = os.write(self.master, view)
+            _, ready, _ = select.select([], [self.master], [], timeout_s)
+            if not ready:
+                raise TimeoutError(f"{self.path}: nobody is reading")
+            try:
+                n = os.write(self.master, view)
+            except BlockingIOError:
+                continue
             view = view[n:]
 
     def read_available(self, max_bytes: int = 65536) -> bytes:
         """Bytes the reader sent to the device (non-blocking; b'' if none)."""
-        import select
-
         ready, _, _ = select.select([self.master], [], [], 0)
         return os.read(self.master, max_bytes) if ready else b""
 

@@ -6,17 +6,29 @@ until SIGTERM/SIGINT or ``--duration`` and then exits 0.
 
 from __future__ import annotations
 
+import os
 import signal
 import threading
+import time
 
 from daq.sim_common import FaultLog, FaultPlan
 from daq.sim_source import sim_source
+
+
+def _watch_parent(ppid: int, stop: threading.Event) -> None:
+    """Stop when the parent process is gone (e.g. `flexmodal acquire` killed with SIGKILL)."""
+    while not stop.is_set():
+        if os.getppid() != ppid:
+            stop.set()
+        time.sleep(0.2)
 
 
 def serve(args, stdout) -> None:
     stop = threading.Event()
     for sig in (signal.SIGTERM, signal.SIGINT):
         signal.signal(sig, lambda *_: stop.set())
+    if args.exit_with_parent:
+        threading.Thread(target=_watch_parent, args=(os.getppid(), stop), daemon=True).start()
     source = sim_source(args.rig, args.test, args.rate, seed=args.seed)
     faults = FaultPlan(args.corrupt_rate, args.drop_at, args.drop, args.disconnect_after, args.disconnect,
                        args.seed)

@@ -1,0 +1,268 @@
+"""End to end: protocol simulator + `flexmodal acquire` -> HDF5, compared with what the simulator emitted.
+
+Each run uses the real stack: a pty for serial, an slcan adapter on a pty through python-can for CAN,
+a pymodbus TCP server on 127.0.0.1 for Modbus.  The simulators emit ``daq.sim_source.sim_source``
+sample by sample, so the stored rows are checked against that signal within one quantisation step, and
+the injected faults (logged by the simulators) against the run's events.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import resource
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from daq.sim_common import read_fault_log
+from daq.sim_source import sim_source
+from daq.store import list_runs, read_run
+
+REPO = Path(__file__).resolve().parents[1]
+SESSIONS = REPO / "examples" / "sessions"
+DURATION_S = 5.0
+FAULTS = ["--corrupt-rate", "0.01", "--disconnect-after", "2.0", "--disconnect", "0.5"]  # 1 %, 0.5 s
+
+
+def _session(tmp_path: Path, protocol: str, args: list[str] = (), rate: float | None = None) -> Path:
+    """A copy of the example session with absolute paths, extra simulator args and optional rate."""
+    text = (SESSIONS / f"{protocol}-sim.toml").read_text()
+    text = text.replace('rig = "../rigs/', f'rig = "{REPO}/examples/rigs/')
+    text = text.replace('dbc = "../../fixtures/', f'dbc = "{REPO}/fixtures/')
+    if args:
+        text = text.replace('test = "impact"\n', f'test = "impact"\nargs = {json.dumps(list(args))}\n', 1)
+    if rate:
+        text = re.sub(r"sample_rate_hz = [0-9.]+", f"sample_rate_hz = {rate}", text, count=1)
+    path = tmp_path / f"{protocol}.toml"
+    path.write_text(text)
+    return path
+
+
+def _acquire(config: Path, out: Path, duration_s: float = DURATION_S, **kw) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "app", "--quiet", "acquire", "--config", str(config),
+                           "--out", str(out), "--duration", str(duration_s)], cwd=REPO, capture_output=True,
+                          text=True, timeout=120, **kw)
+
+
+def _run(path: Path):
+    run = read_run(path, list_runs(path)[0])
+    first = next(iter(json.loads(run.attrs["first_index"]).values()))
+    return run, first
+
+
+def _reference(protocol: str, rate: float):
+    src = sim_source(None, "impact", rate)
+    return src, np.array([c.step for c in src.channels])
+
+
+def _assert_clean(run, expected: np.ndarray, steps: np.ndarray, n: int) -> None:
+    assert run.samples.shape[0] == n  # same count
+    assert not np.isnan(run.samples).any()  # no gaps
+    assert not [e for e in run.events if e.kind in ("gap", "corrupt", "reconnect")]
+    err = np.abs(run.samples - expected) / steps
+    assert err.max() <= 1.0  # within one quantisation step (float32 storage: ~1e-3 step here)
+
+
+@pytest.mark.parametrize("protocol,rate", [("serial", 2048.0), ("can", 512.0)])
+def test_streamed_samples_equal_emitted(tmp_path, protocol, rate):
+    out = tmp_path / "run.h5"
+    done = _acquire(_session(tmp_path, protocol), out)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.count("\n") == 1 and str(out) in done.stdout  # one summary line on stdout
+    run, first = _run(out)
+    src, steps = _reference(protocol, rate)
+    n = int(DURATION_S * rate)
+    _assert_clean(run, src.physical(first, n), steps, n)
+    assert run.channels[1].sensitivity_unit == "mV/g" and run.channels[1].unit == "m/s^2"
+    assert [e.kind for e in run.events].count("trigger") >= 2  # impacts every 2 s detected on F
+
+
+def test_modbus_polled_samples_equal_emitted(tmp_path):
+    out = tmp_path / "run.h5"
+    done = _acquire(_session(tmp_path, "modbus"), out)
+    assert done.returncode == 0, done.stderr
+    run, _ = _run(out)
+    counter = run.samples[:, 0].astype(int)  # the device's sample counter register, stored as a channel
+    np.testing.assert_array_equal(counter, np.arange(counter.size))  # every poll got the next sample
+    src, steps = _reference("modbus", 200.0)
+    _assert_clean(run, np.column_stack([counter, src.physical(0, counter.size)]), np.r_[1.0, steps],
+                  int(DURATION_S * 200))
+
+
+def _fault_window(log: list[dict]) -> tuple[int, int]:
+    down = next(f["first_index"] for f in log if f["fault"] == "disconnect")
+    up = next(f["first_index"] for f in log if f["fault"] == "reconnect")
+    return down, up
+
+
+def _nan_runs(rows_nan: np.ndarray) -> list[tuple[int, int]]:
+    edges = np.flatnonzero(np.diff(np.r_[0, rows_nan.astype(int), 0]))
+    return list(zip(edges[::2], edges[1::2], strict=True))
+
+
+@pytest.mark.slow
+def test_serial_faults_are_events_at_their_samples(tmp_path):
+    log_path = tmp_path / "faults.jsonl"
+    config = _session(tmp_path, "serial", [*FAULTS, "--fault-log", str(log_path)])
+    out = tmp_path / "run.h5"
+    done = _acquire(config, out, 6.0)
+    assert done.returncode == 0, done.stderr
+    run, first = _run(out)
+    log = read_fault_log(log_path)
+    n = run.samples.shape[0]
+    down, up = (i - first for i in _fault_window(log))
+    rows_nan = np.isnan(run.samples).any(axis=1)
+    events = {e.sample_index: e for e in run.events if e.kind in ("corrupt", "gap")}
+    assert down in events, f"no gap at {down}: {sorted(events.items())}"
+    gap = events[down]  # the disconnect: a gap from the first sample not delivered
+    corrupt = [f["first_index"] - first for f in log if f["fault"] == "corrupt"]
+    corrupt = [c for c in corrupt if 0 <= c < n and not down <= c < down + gap.count]
+    assert len(corrupt) >= 1
+    for c in corrupt:  # each corrupted frame: a corrupt event at its first sample, its 32 rows empty
+        hit = [e for e in events.values() if e.kind == "corrupt" and e.sample_index <= c < e.sample_index
+               + 32 * e.count]
+        assert hit, f"no corrupt event covers frame at row {c}"
+        assert rows_nan[c:c + 32].all()
+    assert gap.kind == "gap"
+    assert up <= down + gap.count <= up + int(0.5 * 2048)  # until the reconnect (+ back-off latency)
+    assert any(e.kind == "reconnect" for e in run.events)
+    expected_nan = np.zeros(n, bool)
+    for e in events.values():
+        expected_nan[e.sample_index:e.sample_index + (32 * e.count if e.kind == "corrupt" else e.count)] = 1
+    np.testing.assert_array_equal(rows_nan, expected_nan)  # nothing missing beyond the faults
+    src, steps = _reference("serial", 2048.0)
+    good = ~rows_nan  # every good sample stored, exactly
+    assert (np.abs(run.samples[good] - src.physical(first, n)[good]) / steps).max() <= 1.0
+
+
+@pytest.mark.slow
+def test_can_faults_are_events_at_their_samples(tmp_path):
+    log_path = tmp_path / "faults.jsonl"
+    config = _session(tmp_path, "can", [*FAULTS, "--fault-log", str(log_path)])
+    out = tmp_path / "run.h5"
+    done = _acquire(config, out, 6.0)
+    assert done.returncode == 0, done.stderr
+    run, first = _run(out)
+    log = read_fault_log(log_path)
+    n = run.samples.shape[0]
+    down, up = (i - first for i in _fault_window(log))
+    corrupt: dict[int, set] = {}
+    for f in log:
+        row = f["first_index"] - first
+        if f["fault"] == "corrupt" and 0 <= row < n and not down <= row < up:
+            corrupt.setdefault(row, set()).add(f["group"])
+    assert len(corrupt) >= 10
+    ev = {e.sample_index: e for e in run.events if e.kind == "corrupt"}
+    n_lost = 0
+    for row, groups in corrupt.items():  # the bad frame's channels (3 a frame) are empty in that scan only
+        assert ev[row].count == len(groups)
+        cols = [3 * g + k for g in groups for k in range(3) if 3 * g + k < run.samples.shape[1]]
+        assert np.isnan(run.samples[row, cols]).all()
+        assert np.isfinite(np.delete(run.samples[row], cols)).all()
+        n_lost += len(cols)
+    gap = next(e for e in run.events if e.kind == "gap" and e.sample_index <= down)
+    assert down - 2 <= gap.sample_index and up <= gap.sample_index + gap.count <= up + 256
+    src, steps = _reference("can", 512.0)
+    good = ~np.isnan(run.samples)
+    assert (np.abs(run.samples - src.physical(first, n))[good] / np.broadcast_to(steps, good.shape)[good]
+            ).max() <= 1.0
+    assert (~good).sum() == n_lost + 7 * gap.count  # nothing else missing
+
+
+@pytest.mark.slow
+def test_modbus_faults_are_events_at_their_samples(tmp_path):
+    log_path = tmp_path / "faults.jsonl"
+    config = _session(tmp_path, "modbus", [*FAULTS, "--fault-log", str(log_path)])
+    out = tmp_path / "run.h5"
+    done = _acquire(config, out)
+    assert done.returncode == 0, done.stderr
+    run, _ = _run(out)
+    log = read_fault_log(log_path)
+    counter = run.samples[:, 0]
+    good = ~np.isnan(counter)
+    np.testing.assert_array_equal(counter[good], np.arange(good.sum()))  # every good sample, in order
+    nan_runs = _nan_runs(~good)
+    corrupt = [f["first_index"] for f in log if f["fault"] == "corrupt" and f["first_index"] < good.sum()]
+    down = next(f["first_index"] for f in log if f["fault"] == "disconnect")
+    events = {e.sample_index: e for e in run.events if e.kind in ("corrupt", "gap")}
+    assert len(nan_runs) == len(events) == len(corrupt) + 1
+    for a, b in nan_runs:  # each empty stretch is one event, at the sample the device was to give next
+        e = events[a]
+        assert (e.kind, e.count) == ("corrupt", 1) or e.kind == "gap" and e.count == b - a
+        next_sample = counter[b] if b < counter.size else good.sum()
+        assert next_sample in (corrupt if e.kind == "corrupt" else [down])
+    gap = next(e for e in events.values() if e.kind == "gap")
+    assert 0.5 * 200 <= gap.count <= 1.0 * 200
+    src, steps = _reference("modbus", 200.0)
+    ref = src.physical(0, int(good.sum()))
+    assert (np.abs(run.samples[good, 1:] - ref) / steps).max() <= 1.0
+
+
+def test_sigkill_of_acquire_keeps_all_but_last_second(tmp_path):
+    out = tmp_path / "run.h5"
+    config = _session(tmp_path, "serial")
+    proc = subprocess.Popen([sys.executable, "-m", "app", "--quiet", "acquire", "--config", str(config),
+                             "--out", str(out), "--duration", "60"], cwd=REPO, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    seen = (0.0, 0)
+    deadline = time.monotonic() + 60
+    try:
+        while time.monotonic() < deadline and seen[1] < 4 * 2048:
+            time.sleep(0.2)
+            assert proc.poll() is None
+            try:
+                with h5py.File(out, "r", libver="latest", swmr=True) as f:  # read while it grows
+                    seen = (time.monotonic(), next(iter(f["runs"].values()))["samples"].shape[0])
+            except (OSError, KeyError, StopIteration):
+                continue
+        time.sleep(1.0)
+        t_kill = time.monotonic()
+        proc.send_signal(signal.SIGKILL)
+    finally:
+        proc.kill()
+        proc.wait()
+    assert seen[1] >= 4 * 2048
+    in_hand = seen[1] + (t_kill - seen[0]) * 2048  # samples arrive in real time
+    run, first = _run(out)
+    n = run.samples.shape[0]
+    assert n >= in_hand - 2048  # all but at most the last second
+    src, steps = _reference("serial", 2048.0)
+    assert (np.abs(run.samples - src.physical(first, n)) / steps).max() <= 1.0
+
+
+def _limit_file_size() -> None:
+    resource.setrlimit(resource.RLIMIT_FSIZE, (1_600_000, 1_600_000))
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # writes past the limit fail with EFBIG instead
+
+
+@pytest.mark.slow
+def test_full_disk_is_a_clear_error_and_data_so_far_is_intact(tmp_path):
+    out = tmp_path / "run.h5"
+    done = _acquire(_session(tmp_path, "serial", rate=16384.0), out, 20.0, preexec_fn=_limit_file_size)
+    assert done.returncode == 2
+    assert done.stderr.count("\n") == 1 and "writing failed" in done.stderr and str(out) in done.stderr
+    run, first = _run(out)
+    n = run.samples.shape[0]
+    assert n > 16384  # more than a second was recorded before the disk was "full"
+    src, steps = _reference("serial", 16384.0)
+    assert (np.abs(run.samples - src.physical(first, n)) / steps).max() <= 1.0
+
+
+def test_unwritable_output_is_a_clear_error(tmp_path):
+    config = _session(tmp_path, "serial")
+    done = _acquire(config, tmp_path / "missing" / "run.h5")
+    assert done.returncode == 2 and done.stderr.count("\n") == 1 and "does not exist" in done.stderr
+    locked = tmp_path / "locked"
+    locked.mkdir(mode=0o500)
+    done = _acquire(config, locked / "run.h5")
+    locked.chmod(0o700)
+    if os.geteuid() != 0:  # root may write anywhere
+        assert done.returncode == 2 and done.stderr.count("\n") == 1 and "not writable" in done.stderr
