@@ -18,7 +18,7 @@ import scipy.fft
 from modal.errors import ModalError
 from modal.windows import window
 
-_BLOCK_BYTES = 4 << 20
+_BLOCK_BYTES = 2 << 20
 
 
 @dataclass(frozen=True)
@@ -42,22 +42,26 @@ def density_scale(n_freq: int, nfft: int, sample_rate_hz: float, w: np.ndarray) 
     return scale
 
 
+def _auto(z: np.ndarray, weights: np.ndarray | None) -> np.ndarray:
+    """Sum over segments (axis 1) of |z|^2 [c, f], computed on the real view (no complex temporaries)."""
+    v = z.view(z.real.dtype)                                        # [c, s, 2f]: re, im interleaved
+    sq = np.einsum("csf,csf->cf", v, v) if weights is None else np.einsum("csf,csf,s->cf", v, v, weights)
+    return sq[:, 0::2] + sq[:, 1::2]
+
+
 def _products(x: np.ndarray, n_in: int, weights: np.ndarray | None):
-    """Weighted sums over segments (axis 0) of the spectral products of one block ``x`` [s, ch, f]."""
-    f, y = x[:, :n_in], x[:, n_in:]
-    if weights is not None:
-        wf, wy = f * weights[:, None, None], y * weights[:, None, None]
-    else:
-        wf, wy = f, y
-    fc = f.conj()
+    """(Weighted) sums over segments of the spectral products of one block ``x`` [ch, s, f] whose
+    first ``n_in`` channels are the inputs: g_xf [o, i, f], g_ff [i, i, f], g_xx [o, f]."""
+    f, y = x[:n_in], x[n_in:]
+    wy = y if weights is None else y * weights[None, :, None].astype(y.real.dtype)
     if n_in == 1:
-        g_xf = (wy * fc).sum(axis=0)[:, None, :]
-        g_ff = (wf.real * f.real + wf.imag * f.imag).sum(axis=0)[:, None, :]
+        g_xf = (wy * f[0].conj()).sum(axis=1)[:, None, :]
+        g_ff = _auto(f, weights)[:, None, :]
     else:
-        g_xf = np.einsum("sof,sif->oif", wy, fc)
-        g_ff = np.einsum("sif,sjf->ijf", wf, fc)
-    g_xx = (wy.real * y.real + wy.imag * y.imag).sum(axis=0)
-    return g_xf, g_ff, g_xx
+        wf = f if weights is None else f * weights[None, :, None].astype(f.real.dtype)
+        g_xf = np.einsum("osf,isf->oif", wy, f.conj())
+        g_ff = np.einsum("isf,jsf->ijf", wf, f.conj())
+    return g_xf, g_ff, _auto(y, weights)
 
 
 def spectra_of_segments(segments: np.ndarray, n_in: int, sample_rate_hz: float,
@@ -67,7 +71,7 @@ def spectra_of_segments(segments: np.ndarray, n_in: int, sample_rate_hz: float,
     ``weights`` [n_seg] (summing to 1) gives a weighted average (linear: equal; exponential: decaying).
     """
     nfft = segments.shape[-1]
-    x = scipy.fft.rfft(segments, axis=-1)
+    x = scipy.fft.rfft(np.moveaxis(segments, 1, 0), axis=-1)
     w = None if weights is None else np.asarray(weights, float)
     g_xf, g_ff, g_xx = _products(x, n_in, w)
     norm = 1.0 if w is not None else 1.0 / segments.shape[0]
@@ -110,18 +114,25 @@ def welch_spectra(samples: np.ndarray, sample_rate_hz: float, inputs: Sequence[i
     w_out = _window_array(window_spec, nfft)
     w_in = w_out if input_window_spec is None else _window_array(input_window_spec, nfft)
     w = np.vstack([np.repeat(w_in[None], n_in, 0), np.repeat(w_out[None], len(outputs), 0)]).astype(dtype)
-    view = np.lib.stride_tricks.sliding_window_view(samples, nfft, axis=0)[::step]
-    n_seg = view.shape[0]
+    xt = np.empty((len(chans), n_samples), dtype)                  # channel-major copy, blocked transpose
+    for t0 in range(0, n_samples, 1 << 16):
+        xt[:, t0:t0 + (1 << 16)] = samples[t0:t0 + (1 << 16), chans].T
+    view = np.lib.stride_tricks.sliding_window_view(xt, nfft, axis=1)[:, ::step]   # [ch, seg, nfft]
+    n_seg = view.shape[1]
     block = max(1, _BLOCK_BYTES // (len(chans) * nfft * np.dtype(dtype).itemsize))
+    buf = np.empty((len(chans), block, nfft), dtype)
     n_freq = nfft // 2 + 1
     g_xf = np.zeros((len(outputs), n_in, n_freq), complex)
     g_ff = np.zeros((n_in, n_in, n_freq), complex)
     g_xx = np.zeros((len(outputs), n_freq))
     for s0 in range(0, n_seg, block):
-        seg = np.array(view[s0:s0 + block][:, chans], dtype=dtype)
+        blk = view[:, s0:s0 + block]
+        seg = buf[:, :blk.shape[1]]
         if detrend:
-            seg -= seg.mean(axis=-1, keepdims=True)
-        seg *= w
+            np.subtract(blk, blk.mean(axis=-1, keepdims=True), out=seg)
+            seg *= w[:, None, :]
+        else:
+            np.multiply(blk, w[:, None, :], out=seg)
         x = scipy.fft.rfft(seg, axis=-1, workers=workers)
         a, b, c = _products(x, n_in, None)
         g_xf += a
