@@ -58,7 +58,7 @@ def _check(rig: Rig) -> None:
 
 
 def lumped_mass_modes(rig: Rig, pose: Mapping[str, float], n_modes: int = 4, masses_per_link: int = 4,
-                      coordinates: str = "transverse") -> LumpedModes:
+                      coordinates: str = "planar") -> LumpedModes:
     """Modes of the lumped-mass flexibility model of ``rig`` at ``pose`` (degrees, kg)."""
     _check(rig)
     rig.check_pose(pose)
