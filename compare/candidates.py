@@ -96,11 +96,13 @@ def effect_params(rig: Rig, effect: str, location: str) -> tuple[Param, ...]:
     if effect in ("joint_mass", "tip_mass"):
         return mass_pair(location)
     if effect == "base_stiffness":
-        return (Param(effect, "k_Nm_per_rad", "k@base", 0, *_log_range(ei_over_l(rig.links[0].name), 1e-3, 1e5, 9)),)
+        k = _log_range(ei_over_l(rig.links[0].name), 1e-3, 1e5, 9)
+        return (Param(effect, "k_Nm_per_rad", "k@base", 0, *k),)
     if effect == "end_restraint":
         m = next(x for x in rig.members if x.name == location)
         # member length changes with the pose: the scale is the member's EI over one metre
-        return (Param(effect, "k_Nm_per_rad", f"k@{location}", 0, *_log_range(m.section.EI_Nm2, 1e-4, 1e4, 9)),)
+        k = _log_range(m.section.EI_Nm2, 1e-4, 1e4, 9)
+        return (Param(effect, "k_Nm_per_rad", f"k@{location}", 0, *k),)
     if effect == "sensor_mass":
         ref = arm_m / max(len(rig.sensors), 1)
         return (Param(effect, "mass_kg", "m@sensors", 0, *_log_range(ref, 1e-5, 3.0, 7)),)

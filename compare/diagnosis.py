@@ -59,7 +59,8 @@ def folds_for(configs: Sequence[str], holdout: str | Sequence[str] = "auto") -> 
         held = [np.arange(C) % k == i for i in range(k)]
         scheme = "leave-one-configuration-out" if k == C else f"{k}-fold over configurations"
     else:
-        names = [h.strip() for h in (holdout.split(",") if isinstance(holdout, str) else holdout) if h.strip()]
+        listed = holdout.split(",") if isinstance(holdout, str) else holdout
+        names = [h.strip() for h in listed if h.strip()]
         bad = [h for h in names if h not in configs]
         if bad:
             raise CompareError(f"--holdout: no configuration {bad[0]!r} in the measured table "
@@ -132,7 +133,8 @@ def _score(heldout: float, n_params: int, scatter: float) -> float:
     return math.hypot(heldout, scatter) * (1 + PENALTY * n_params)
 
 
-def _evaluate_candidate(ctx: _Context, cand: Candidate, scatter: float, grid: np.ndarray | None = None) -> dict:
+def _evaluate_candidate(ctx: _Context, cand: Candidate, scatter: float,
+                        grid: np.ndarray | None = None) -> dict:
     fam = ctx.family(cand.handles)
     res = fit_candidate(fam, cand, ctx.target, ctx.train, grid=grid)
     fm = ctx.meas.freq_hz
@@ -170,11 +172,12 @@ def _heldout_prediction(freq: np.ndarray, train: np.ndarray) -> np.ndarray:
 
 
 def _pose_law_guard(ranking: list[dict]) -> None:
-    """Demote ``joint_stiffness_pose`` below the constant stiffness at its joint unless it is better held out."""
+    """Rank ``joint_stiffness_pose`` below the constant stiffness at its joint unless better held out."""
     const = {e["location"]: e for e in ranking if e["effect"] == "joint_stiffness"}
     for e in ranking:
         c = const.get(e["location"])
-        if e["effect"] == "joint_stiffness_pose" and c and e["heldout_rms_rel_error"] >= c["heldout_rms_rel_error"]:
+        if e["effect"] == "joint_stiffness_pose" and c and \
+                e["heldout_rms_rel_error"] >= c["heldout_rms_rel_error"]:
             e["score"] = max(e["score"], c["score"] * 1.001)
 
 
@@ -202,7 +205,8 @@ def _where(ctx: _Context, base_err: np.ndarray, base_summary: dict, scatter: flo
         from compare.gap import mac as mac_fn
         macs = np.array([mac_fn(meas.shapes[c], base_shapes[c]) for c in range(len(meas.configs))])
         out["mac_per_mode"] = {str(m + 1): float(np.mean(macs[:, m])) for m in range(macs.shape[1])}
-        out["comac"] = dict(zip(meas.sensors, (float(v) for v in comac(meas.shapes, base_shapes)), strict=True))
+        values = comac(meas.shapes, base_shapes)
+        out["comac"] = {s: float(v) for s, v in zip(meas.sensors, values, strict=True)}
     return out
 
 
@@ -253,7 +257,8 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
                     ranking.append(_evaluate_candidate(ctx, cand, scatter, _pair_starts(
                         cand, (singles[i], ranking[i]["_theta"]), (singles[j], ranking[j]["_theta"]))))
         ranking.sort(key=lambda e: e["score"])
-    result["ranking"] = [{k: v for k, v in e.items() if not k.startswith("_")} for e in ranking[:RANKING_LENGTH]]
+    result["ranking"] = [{k: v for k, v in e.items() if not k.startswith("_")}
+                         for e in ranking[:RANKING_LENGTH]]
     result["verdict"] = _verdict(ranking, baseline, before, scatter, meas, base_err)
     result["scatter"] = scatter
     result["holdout"] = {"scheme": scheme, "n_folds": int(len(train) - 1)}
@@ -302,7 +307,8 @@ def _verdict(ranking: list[dict], baseline: dict, before: float, scatter: float,
     else:
         worst_txt = ", ".join(f"mode {r['mode']} at {r['config']} ({r['heldout_rel_error']:+.1%})"
                               for r in remaining)
-        verdict["summary"] = (text + f"; this stays above {EXPLAINED_FACTOR:g}x the scatter ({scatter:.2%}), so "
+        verdict["summary"] = (text + f"; this stays above {EXPLAINED_FACTOR:g}x the scatter ({scatter:.2%}), "
+                              "so "
                               f"no candidate explains the gap; largest held-out errors: {worst_txt}")
     return verdict
 
@@ -342,7 +348,8 @@ def render_html(result: dict) -> str:
     for c, fm in pred.get("measured_hz", {}).items():
         for m, f in enumerate(fm):
             cells = [f"{pred[k][c][m]:.2f}" if k in pred else "" for k in ("baseline_hz", "best_heldout_hz")]
-            prow += f"<tr><td>{e(c)}</td><td>{m + 1}</td><td>{f:.2f}</td><td>{cells[0]}</td><td>{cells[1]}</td></tr>"
+            prow += (f"<tr><td>{e(c)}</td><td>{m + 1}</td><td>{f:.2f}</td><td>{cells[0]}</td>"
+                     f"<td>{cells[1]}</td></tr>")
     per_mode = ", ".join(f"mode {k}: {x:.1%}" for k, x in b["per_mode"].items())
     return f"""<!DOCTYPE html><html><head><meta charset="utf-8"><title>Sim-to-real gap diagnosis</title>
 <style>body{{font-family:sans-serif;max-width:60em;margin:2em auto}}table{{border-collapse:collapse}}

@@ -41,7 +41,8 @@ def run(args: argparse.Namespace) -> int:
         return 0
     missing = [o for o in ("rig", "measured", "out") if getattr(args, o) is None]
     if missing:
-        raise CompareError(f"diagnose: missing --{missing[0]} (needs --rig, --measured and --out, or --selftest N)")
+        raise CompareError(f"diagnose: missing --{missing[0]} "
+                           "(needs --rig, --measured and --out, or --selftest N)")
     from compare.diagnosis import diagnose, write_diagnosis
     from modal.table import ModalTable
     from models.rig import load_rig

@@ -32,7 +32,7 @@ EXTRA_PAIRING_MODES = 2
 MAX_GRID = 81
 PAIRING_LOG_WIDTH = 0.25
 OBSERVABLE = 1e-6
-MAX_NFEV = 20
+MAX_NFEV = 12
 MAX_NFEV_FOLDS = 3
 N_STARTS = 2
 
@@ -157,8 +157,9 @@ def fit_candidate(fam: ReducedFamily, cand: Candidate, target: Target, train: np
 
 
 def _solve(fam: ReducedFamily, D: np.ndarray, target: Target, train: np.ndarray, reg: np.ndarray,
-           lower: np.ndarray, upper: np.ndarray, x0: np.ndarray, max_nfev: int) -> tuple[np.ndarray, np.ndarray]:
-    """One stacked trust-region least-squares solve over folds ``train`` [F, C]; returns theta [F, J], costs."""
+           lower: np.ndarray, upper: np.ndarray, x0: np.ndarray, max_nfev: int
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """One stacked trust-region least-squares solve over folds ``train`` [F, C]: theta [F, J], costs [F]."""
     fm = target.freq_hz
     F, J = x0.shape
     mask = np.repeat(train[:, :, None], fm.shape[1], axis=2)             # [F, C, n]
@@ -193,7 +194,8 @@ def _solve(fam: ReducedFamily, D: np.ndarray, target: Target, train: np.ndarray,
     return sol.x.reshape(F, J), _fold_costs(sol.fun, mask, F, J, reg, sol.x)
 
 
-def _fold_costs(r: np.ndarray, mask: np.ndarray, F: int, J: int, reg: np.ndarray, x: np.ndarray) -> np.ndarray:
+def _fold_costs(r: np.ndarray, mask: np.ndarray, F: int, J: int, reg: np.ndarray, x: np.ndarray
+                ) -> np.ndarray:
     counts = mask.reshape(F, -1).sum(axis=1)
     edges = np.concatenate([[0], np.cumsum(counts)])
     data = np.array([np.sum(r[edges[i]:edges[i + 1]] ** 2) for i in range(F)])

@@ -28,7 +28,7 @@ class Measured:
 
 
 def prepare(rig: Rig, table: ModalTable, min_configs: int = 3) -> Measured:
-    """Check ``table`` against ``rig`` (pose columns, modes, configurations); CompareError names the problem."""
+    """Check ``table`` against ``rig`` (pose columns, modes, configurations); CompareError on a problem."""
     src = table.source
     have = sorted(c[len("pose."):] for c in table.pose_columns)
     need = sorted(rig.pose_variables)
@@ -52,7 +52,8 @@ def prepare(rig: Rig, table: ModalTable, min_configs: int = 3) -> Measured:
                                f"(every configuration needs modes 1..{n})")
         pose = table.pose(c)
         if sorted(pose) != need:
-            raise CompareError(f"{src}: config {c!r} has no value for pose.{sorted(set(need) - set(pose))[0]}")
+            lacking = sorted(set(need) - set(pose))[0]
+            raise CompareError(f"{src}: config {c!r} has no value for pose.{lacking}")
         poses.append({k: float(v) for k, v in pose.items()})
     freq = np.array([table.freq_hz(c) for c in configs])
     if np.any(freq <= 0):

@@ -54,12 +54,14 @@ def handles_for(rig: Rig) -> list[Handle]:
     out = []
     for name in effect_locations(rig, "joint_stiffness"):
         j = rig.joint(name)
-        out.append(Handle(f"k@{name}", "K", float(j.k_Nm_per_rad) if j.kind == "spring" else _stiff(rig, j.child)))
+        k = float(j.k_Nm_per_rad) if j.kind == "spring" else _stiff(rig, j.child)
+        out.append(Handle(f"k@{name}", "K", k))
     for loc in effect_locations(rig, "joint_mass") + ["tip"]:
         out += [Handle(f"m@{loc}", "M", 0.0), Handle(f"J@{loc}", "M", 0.0)]
     if effect_locations(rig, "base_stiffness"):
         b = rig.base
-        nominal = {"clamped": _stiff(rig, rig.links[0].name), "pinned": 0.0}.get(b.support, b.k_Nm_per_rad or 0.0)
+        nominal = {"clamped": _stiff(rig, rig.links[0].name), "pinned": 0.0}.get(b.support,
+                                                                                 b.k_Nm_per_rad or 0.0)
         out.append(Handle("k@base", "K", float(nominal)))
     out += [Handle(f"k@{m}", "K", rig.members[[x.name for x in rig.members].index(m)].end_k_Nm_per_rad)
             for m in effect_locations(rig, "end_restraint")]
@@ -142,7 +144,8 @@ def _handle_matrices(sys0, sys2, rig: Rig, handles: Sequence[Handle]) -> list[tu
             out.append((G, np.zeros((n, n))) if h.kind == "K" else (np.zeros((n, n)), G))
         else:
             s2 = sys2[loc]
-            out.append((s2.K - sys0.K, np.zeros((n, n))) if what == "EI" else (np.zeros((n, n)), s2.M - sys0.M))
+            zero = np.zeros((n, n))
+            out.append((s2.K - sys0.K, zero) if what == "EI" else (zero, s2.M - sys0.M))
     return out
 
 
@@ -150,9 +153,12 @@ def pose_basis(rig: Rig, handles: Sequence[Handle], pose: Mapping[str, float], n
     """Assemble the super rig at ``pose`` and project the nominal model and every handle onto a Ritz basis."""
     srig = super_rig(rig)
     sys0 = assemble(srig, pose)
-    sys2 = {lk.name: assemble(replace(srig, links=tuple(
-        replace(x, stiffness_scale=2 * x.stiffness_scale, mass_scale=2 * x.mass_scale) if x.name == lk.name else x
-        for x in srig.links)), pose) for lk in rig.links}
+    def doubled(name: str) -> Rig:
+        return replace(srig, links=tuple(
+            replace(x, stiffness_scale=2 * x.stiffness_scale, mass_scale=2 * x.mass_scale) if x.name == name
+            else x for x in srig.links))
+
+    sys2 = {lk.name: assemble(doubled(lk.name), pose) for lk in rig.links}
     mats = _handle_matrices(sys0, sys2, srig, handles)
     # the super rig is assembled with every handle at 0 except the link scales (at 1)
     at = [1.0 if h.name.startswith(("EI@", "mu@")) else 0.0 for h in handles]

@@ -58,7 +58,8 @@ def random_rig(rng: np.random.Generator):
 
     doc = {"name": "selftest-arm", "material": {"al": {"E_Pa": 70e9, "rho_kg_m3": 2700}},
            "link": [{"name": "link1", "length_m": rng.uniform(0.4, 0.8), "material": "al", "section": tube()},
-                    {"name": "link2", "length_m": rng.uniform(0.4, 0.9), "material": "al", "section": tube()}],
+                    {"name": "link2", "length_m": rng.uniform(0.4, 0.9), "material": "al",
+                     "section": tube()}],
            "base": {"support": "clamped"},
            "joint": [{"name": "elbow", "parent": "link1", "child": "link2", "angle": "theta_deg"}],
            "sensor": [{"name": f"a{i + 1}", "at": f"{lk}@{rng.uniform(lo, hi):.2f}"}
@@ -180,11 +181,13 @@ def summarise(cases: list[Case]) -> dict:
 
 def format_summary(s: dict) -> str:
     lines = [
-        f"cases: {s['n_cases']} ({s['n_with_effect']} with a withheld effect, {s['n_without_effect']} without)",
+        f"cases: {s['n_cases']} ({s['n_with_effect']} with a withheld effect, "
+        f"{s['n_without_effect']} without)",
         f"top-1 effect accuracy: {s['top1_effect_accuracy']:.1%}",
         f"location accuracy: {s['location_accuracy']:.1%}",
         f"'none' for no-effect cases: {s['none_accuracy']:.1%}",
-        f"held-out RMS gap before -> after (mean): {s['heldout_before_mean']:.2%} -> {s['heldout_after_mean']:.2%}"
+        f"held-out RMS gap before -> after (mean): {s['heldout_before_mean']:.2%} -> "
+        f"{s['heldout_after_mean']:.2%}"
         f" (injected scatter mean {s['scatter_mean']:.2%})",
         f"held-out gap after the right effect within 2x scatter: {s['heldout_after_within_2x_scatter']:.1%}",
         f"time per case: {s['seconds_per_case']:.2f} s",

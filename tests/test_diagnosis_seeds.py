@@ -74,7 +74,8 @@ def test_seed002_f2_over_f1_points_at_the_hub_inertia():
 
 def test_seed000_damping_alone_cannot_explain_table2(shared_dir):
     t2 = pd.read_csv(shared_dir / "seeds" / "tables" / "seed000_table2_frequencies.csv")
-    zeta = pd.read_csv(shared_dir / "seeds" / "tables" / "seed000_damping_logdec.csv")["damping_ratio"].to_numpy()
+    zeta = pd.read_csv(shared_dir / "seeds" / "tables" / "seed000_damping_logdec.csv")["damping_ratio"]
+    zeta = zeta.to_numpy()
     fe = t2[t2.source == "fe_undamped"].freq_hz.to_numpy()
     exp = t2[t2.source == "impact_experiment"].freq_hz.to_numpy()
     shift = 1 - exp / fe
