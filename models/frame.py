@@ -23,7 +23,7 @@ returns to full relative precision however stiff a spring is, and rigid-body mod
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -434,23 +434,34 @@ def assemble(rig: Rig, pose: Mapping[str, float], elements_per_link: int | None 
 
     ``elements_per_link`` overrides the rig's ``elements`` (default 10 per link and per member).
     """
-    rig.check_pose(pose)
+    return assemble_many(rig, [pose], elements_per_link, lumped_mass)[0]
+
+
+def assemble_many(rig: Rig, poses: Sequence[Mapping[str, float]], elements_per_link: int | None = None,
+                  lumped_mass: bool = False) -> list[FrameSystem]:
+    """``assemble`` for several poses at once: element transforms and scatter vectorised over the poses."""
     topo = _topology(rig, elements_per_link, bool(lumped_mass))
-    b_ang, b_len, b_start = _body_geometry(rig, pose)
-    n = topo.n_dof
-    k_loc, m_loc = topo.k_loc, topo.m_loc
+    for pose in poses:
+        rig.check_pose(pose)
+    geometry = [_body_geometry(rig, pose) for pose in poses]
+    b_ang = np.array([g[0] for g in geometry])                  # [P, n_bodies]
+    b_len = np.array([g[1] for g in geometry])
+    P, n = len(poses), topo.n_dof
+    k_loc = np.broadcast_to(topo.k_loc, (P, *topo.k_loc.shape))
+    m_loc = np.broadcast_to(topo.m_loc, (P, *topo.m_loc.shape))
     if rig.members:
         k_loc, m_loc, mem = k_loc.copy(), m_loc.copy(), topo.elem_is_member
-        le = (topo.elem_frac[mem, 1] - topo.elem_frac[mem, 0]) * b_len[topo.elem_body[mem]]
-        k_loc[mem], m_loc[mem] = element_matrices(le, topo.EA[mem], topo.EI[mem], topo.mu[mem], topo.rot[mem],
-                                                  topo.lumped)
-    T = _rotations(b_ang[topo.elem_body])
-    Tt = T.transpose(0, 2, 1)
-    idx = (topo.elem_dofs[:, :, None] * (n + 1) + topo.elem_dofs[:, None, :]).ravel()
+        le = (topo.elem_frac[mem, 1] - topo.elem_frac[mem, 0]) * b_len[:, topo.elem_body[mem]]
+        props = (np.tile(x[mem], P) for x in (topo.EA, topo.EI, topo.mu, topo.rot))
+        km, mm = element_matrices(le.ravel(), *props, lumped=topo.lumped)
+        k_loc[:, mem], m_loc[:, mem] = km.reshape(P, -1, 6, 6), mm.reshape(P, -1, 6, 6)
+    T = _rotations(b_ang[:, topo.elem_body].ravel()).reshape(P, -1, 6, 6)
+    Tt = T.transpose(0, 1, 3, 2)
     size = (n + 1) ** 2
-    K = np.bincount(idx, (Tt @ k_loc @ T).ravel(), size)
-    M = np.bincount(idx, (Tt @ m_loc @ T).ravel(), size)
-    K, M = K.reshape(n + 1, n + 1), M.reshape(n + 1, n + 1)
+    idx = (topo.elem_dofs[:, :, None] * (n + 1) + topo.elem_dofs[:, None, :]).ravel()
+    idx = (idx[None, :] + size * np.arange(P)[:, None]).ravel()
+    K = np.bincount(idx, (Tt @ k_loc @ T).ravel(), size * P).reshape(P, n + 1, n + 1)
+    M = np.bincount(idx, (Tt @ m_loc @ T).ravel(), size * P).reshape(P, n + 1, n + 1)
 
     link_index = {lk.name: i for i, lk in enumerate(rig.links)}
 
@@ -460,41 +471,47 @@ def assemble(rig: Rig, pose: Mapping[str, float], elements_per_link: int | None 
 
     for mass in rig.masses:
         _, d = node(mass.at)
-        mk = _mass_value(rig, mass.mass_kg, pose)
-        M[d[0], d[0]] += mk
-        M[d[1], d[1]] += mk
-        M[d[2], d[2]] += mass.inertia_kgm2
+        mk = np.array([_mass_value(rig, mass.mass_kg, pose) for pose in poses])
+        M[:, d[0], d[0]] += mk
+        M[:, d[1], d[1]] += mk
+        M[:, d[2], d[2]] += mass.inertia_kgm2
     for sensor in rig.sensors:
         _, d = node(sensor.at)
-        M[d[0], d[0]] += sensor.mass_kg
-        M[d[1], d[1]] += sensor.mass_kg
+        M[:, d[0], d[0]] += sensor.mass_kg
+        M[:, d[1], d[1]] += sensor.mass_kg
     for spring in rig.springs:
         bi, d = node(spring.at)
-        c, s = math.cos(b_ang[bi]), math.sin(b_ang[bi])
-        n_vec = {"x": (1.0, 0.0), "y": (0.0, 1.0), "axial": (c, s), "transverse": (-s, c)}[spring.direction]
-        K[np.ix_(d[:2], d[:2])] += spring.k_N_per_m * np.outer(n_vec, n_vec)
+        c, s = np.cos(b_ang[:, bi]), np.sin(b_ang[:, bi])
+        one, zero = np.ones(P), np.zeros(P)
+        n_vec = {"x": (one, zero), "y": (zero, one), "axial": (c, s), "transverse": (-s, c)}[spring.direction]
+        n_vec = np.stack(n_vec, 1)
+        K[np.ix_(range(P), d[:2], d[:2])] += spring.k_N_per_m * n_vec[:, :, None] * n_vec[:, None, :]
 
     for (a, b), k in zip(topo.rot_springs, topo.rot_spring_k, strict=True):
         if b == n:  # spring to ground
-            K[a, a] += k
+            K[:, a, a] += k
             continue
         for A in (K, M):  # DOF b becomes the relative rotation theta_b - theta_a (T^T A T)
-            A[a, :] += A[b, :]
-            A[:, a] += A[:, b]
-        K[b, b] += k
-    nodes = np.concatenate([b_start[i] + np.outer(b.stations * b_len[i], (math.cos(a), math.sin(a)))
-                            for i, (b, a) in enumerate(zip(topo.bodies, b_ang, strict=True))])
-    system = FrameSystem(K[:n, :n], M[:n, :n], np.zeros((0, n)), tuple(s.name for s in rig.sensors), nodes,
-                         rig, topo, b_ang, b_len)
+            A[:, a, :] += A[:, b, :]
+            A[:, :, a] += A[:, :, b]
+        K[:, b, b] += k
+
+    rows = np.zeros((P, len(rig.sensors), n + 1))
     if rig.sensors:
-        rows = np.zeros((len(rig.sensors), n + 1))
-        vals = np.einsum("pi,pij->pj", topo.sensor_vecs, T[topo.sensor_elems])
-        np.add.at(rows, (topo.sensor_of_piece[:, None], topo.elem_dofs[topo.sensor_elems]), vals)
+        vals = np.einsum("qi,pqij->pqj", topo.sensor_vecs, T[:, topo.sensor_elems])
+        pieces = (slice(None), topo.sensor_of_piece[:, None], topo.elem_dofs[topo.sensor_elems])
+        np.add.at(rows, pieces, vals)
         for a, b in topo.rot_springs:
             if b != n:
-                rows[:, a] += rows[:, b]
-        object.__setattr__(system, "sensor_matrix", rows[:, :n])
-    return system
+                rows[:, :, a] += rows[:, :, b]
+    names = tuple(s.name for s in rig.sensors)
+    systems = []
+    for i, (ang, length, start) in enumerate(geometry):
+        nodes = np.concatenate([start[j] + np.outer(b.stations * length[j], (math.cos(a), math.sin(a)))
+                                for j, (b, a) in enumerate(zip(topo.bodies, ang, strict=True))])
+        systems.append(FrameSystem(K[i, :n, :n], M[i, :n, :n], rows[i, :, :n], names, nodes, rig, topo, ang,
+                                   length))
+    return systems
 
 
 def solve_modes(system: FrameSystem, n_modes: int = 4) -> FrameModes:
@@ -538,6 +555,9 @@ def frame_modes(rig: Rig, pose: Mapping[str, float], n_modes: int = 4, elements_
 
 
 def frame_modes_many(rig: Rig, poses: Iterable[Mapping[str, float]], n_modes: int = 4,
-                     elements_per_link: int | None = None, lumped_mass: bool = False) -> list[FrameModes]:
-    """``frame_modes`` for each pose (the pose-independent topology is built once and cached)."""
-    return [frame_modes(rig, p, n_modes, elements_per_link, lumped_mass) for p in poses]
+                     elements_per_link: int | None = None, lumped_mass: bool = False,
+                     chunk: int = 256) -> list[FrameModes]:
+    """``frame_modes`` for each pose: assembly vectorised over chunks of poses, one eigensolve per pose."""
+    poses = list(poses)
+    return [solve_modes(system, n_modes) for i in range(0, len(poses), chunk)
+            for system in assemble_many(rig, poses[i:i + chunk], elements_per_link, lumped_mass)]
