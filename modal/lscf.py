@@ -100,7 +100,7 @@ class _NormalEquations:
 
     With ``R = L L^T`` (Cholesky, nested: the order-p factor is the leading block of the highest
     order's) and ``Y_o = L^-1 S_o``, the order-p reduced matrix is
-    ``M_p = T_p - sum_o Y_o[:p+1, :n_p]^T Y_o[:p+1, :n_p]``, a running sum of rank-n_out updates."""
+    ``M_p = T_p - sum_o Y_o[:p+1, :n_p]^T Y_o[:p+1, :n_p]``: a cumulative sum over the rows j."""
 
     def __init__(self, p_max: int, r, s, t) -> None:
         n_out, n_in = s.shape[:2]
@@ -114,17 +114,12 @@ class _NormalEquations:
         self.T = t[:, :, lag].real.transpose(2, 0, 3, 1).reshape((p_max + 1) * n_in, -1)
         self.Linv_T = scipy.linalg.solve_triangular(L, np.eye(p_max + 1), lower=True).T
         self.n_in = n_in
-        self._done, self._C = 0, np.zeros_like(self.T)
+        self.C = np.cumsum(np.matmul(self.Y.transpose(0, 2, 1), self.Y), axis=0)   # [p + 1, n, n]
 
     def reduced(self, p: int) -> np.ndarray:
-        """M_p [(p+1) n_in, (p+1) n_in]; orders must be requested in ascending order."""
-        b = p + 1
-        rows = self.Y[self._done:b]                                  # [new j, o, (k i)]
-        flat = rows.reshape(-1, rows.shape[-1])
-        self._C += flat.T @ flat
-        self._done = b
-        n = b * self.n_in
-        return self.T[:n, :n] - self._C[:n, :n]
+        """M_p [(p+1) n_in, (p+1) n_in]."""
+        n = (p + 1) * self.n_in
+        return self.T[:n, :n] - self.C[p, :n, :n]
 
     def numerators(self, p: int, alpha: np.ndarray) -> np.ndarray:
         """beta_o = -R_p^-1 S_o alpha [o, p+1, n_in]."""
