@@ -117,3 +117,12 @@ def test_lumped_mass_refuses_a_pinned_chain():
     with pytest.raises(ModelError, match="clamped or spring base"):
         lumped_mass_modes(parse_rig({"base": {"support": "pinned"}, "link": [link]}), {}, 2)
     assert math.isfinite(lumped_mass_modes(parse_rig({"link": [link]}), {}, 2).freq_hz[1])
+
+
+def test_planar_lumped_mass_equals_fe_without_axial_strain_or_rotary_inertia(seed003):
+    """Same physics on both sides (inextensible Euler-Bernoulli links): the bent arm agrees to 0.05 %."""
+    stiff = {"rotary_inertia_per_m_kgm": 0.0, "EA_N": seed003.links[0].section.EA_N * 1e4}
+    links = tuple(replace(lk, section=replace(lk.section, **stiff)) for lk in seed003.links)
+    fe = frame_modes(replace(seed003, links=links), {"theta_deg": 90.0}, 4, elements_per_link=40).freq_hz
+    lumped = lumped_mass_modes(seed003, {"theta_deg": 90.0}, 4, 80, "planar").freq_hz
+    assert lumped == pytest.approx(fe, rel=5e-4)
