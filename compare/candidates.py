@@ -131,13 +131,20 @@ def single_candidates(rig: Rig, effects: Sequence[str], pose_values: Mapping[str
     return out
 
 
-def pair(a: Candidate, b: Candidate) -> Candidate | None:
-    """The combination of two single candidates (alphabetical effect order), or None if they clash."""
-    if set(a.handles) & set(b.handles):
+def _components(c: Candidate) -> list[tuple[str, str, tuple[Param, ...]]]:
+    """(effect, location, params) of each effect in a candidate."""
+    return [(e, loc, tuple(p for p in c.params if p.effect == e and p.handle.partition("@")[2] == loc))
+            for e, loc in zip(c.effects, c.locations, strict=True)]
+
+
+def combine(*cands: Candidate) -> Candidate | None:
+    """The combination of candidates (effects in alphabetical order), or None if two share a handle."""
+    handles = [h for c in cands for h in c.handles]
+    if len(set(handles)) != len(handles):
         return None
-    first, second = sorted((a, b), key=lambda c: (c.effects[0], c.locations[0]))
-    return Candidate(first.effects + second.effects, first.locations + second.locations,
-                     first.params + second.params)
+    parts = sorted((part for c in cands for part in _components(c)), key=lambda t: (t[0], t[1]))
+    return Candidate(tuple(e for e, _, _ in parts), tuple(loc for _, loc, _ in parts),
+                     tuple(p for _, _, ps in parts for p in ps))
 
 
 def parse_effects(spec: str) -> tuple[str, ...]:

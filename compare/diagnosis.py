@@ -7,8 +7,10 @@
    frequency sensitivities best explain the error pattern (R^2, compare/gap.py), plus MAC/COMAC when
    shapes were measured.
 3. Ranking: every effect at every location (compare/candidates.py), then every pair of the
-   ``PAIR_POOL`` best single candidates, each fitted by bounded least squares (compare/fit.py) on the
-   training configurations of every fold and scored on the held-out ones.  Score (lower is better):
+   ``PAIR_POOL`` best single candidates and, only when no pair explains the gap, each of the
+   ``TRIPLE_PAIRS`` best pairs extended by one more single of the pool; each candidate is fitted by
+   bounded least squares (compare/fit.py) on the training configurations of every fold and scored on
+   the held-out ones.  Score (lower is better):
    ``sqrt(heldout_rms^2 + scatter^2) * (1 + PENALTY * n_params)``: a complexity penalty, with the
    scatter as a floor so that candidates within the noise are ordered by simplicity.
    ``joint_stiffness_pose`` ranks above the constant ``joint_stiffness`` at the same joint only when its
@@ -30,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from compare.blas import single_threaded
-from compare.candidates import Candidate, pair, parse_effects, single_candidates
+from compare.candidates import Candidate, combine, parse_effects, single_candidates
 from compare.errors import CompareError
 from compare.fit import Target, evaluate, fit_candidate, paired_modes
 from compare.gap import Measured, carriers, comac, gap_summary, joint_angles_rad, prepare, region_scores, rms
@@ -44,6 +46,7 @@ NONE_FACTOR = 2.0
 EXPLAINED_FACTOR = 3.0
 PENALTY = 0.15
 PAIR_POOL = 8
+TRIPLE_PAIRS = 3
 RANKING_LENGTH = 25
 
 
@@ -115,18 +118,23 @@ def _with_sensors(b, keep):
 def _params(cand: Candidate, theta: np.ndarray) -> dict[str, float]:
     """Reported parameters (SI) from fitted theta.
 
-    Names that collide in a pair are qualified: ``<effect>.<name>`` for different effects,
-    ``<name>@<location>`` for the same effect at two places.
+    Names that collide in a combination are qualified, as little as needed: ``<effect>.<name>``, then
+    ``<effect>.<name>@<location>``.
     """
-    names = [p.name for p in cand.params]
-    out = {}
-    for p, t in zip(cand.params, theta, strict=True):
-        key = p.name
-        if names.count(p.name) > 1:
-            same = len({q.effect for q in cand.params if q.name == p.name}) == 1
-            key = f"{p.name}@{p.handle.partition('@')[2]}" if same else f"{p.effect}.{p.name}"
-        out[key] = float(math.exp(t)) if p.power == 0 else float(t)
-    return out
+    def keys(level: int) -> list[str]:
+        out = []
+        for p in cand.params:
+            loc = p.handle.partition("@")[2]
+            out.append([p.name, f"{p.effect}.{p.name}", f"{p.effect}.{p.name}@{loc}"][level])
+        return out
+
+    names = keys(0)
+    for level in (1, 2):
+        clash = [names.count(n) > 1 for n in names]
+        finer = keys(level)
+        names = [f if c else n for n, f, c in zip(names, finer, clash, strict=True)]
+    return {k: float(math.exp(t)) if p.power == 0 else float(t)
+            for k, p, t in zip(names, cand.params, theta, strict=True)}
 
 
 def _score(heldout: float, n_params: int, scatter: float) -> float:
@@ -154,13 +162,36 @@ def _evaluate_candidate(ctx: _Context, cand: Candidate, scatter: float,
     return entry
 
 
-def _pair_starts(cand: Candidate, *parts: tuple[Candidate, np.ndarray]) -> np.ndarray:
-    """Start points of a pair: both singles' optima, and each single's optimum with the other's grid."""
-    a, b = sorted(parts, key=lambda p: cand.params.index(p[0].params[0]))
-    ga, gb = (np.array(list(itertools.product(*[q.grid for q in c.params]))) for c, _ in (a, b))
-    return np.vstack([np.concatenate([a[1], b[1]])[None],
-                      np.hstack([np.repeat(a[1][None], len(gb), 0), gb]),
-                      np.hstack([ga, np.repeat(b[1][None], len(ga), 0)])])
+def _combo_starts(cand: Candidate, parts: Sequence[tuple[Candidate, np.ndarray]]) -> np.ndarray:
+    """Start points of a combination: all parts at their own optima, and each part over its start grid
+    with the others at their optima (theta in ``cand.params`` order)."""
+    base = np.zeros(cand.n_params)
+    where = []
+    for c, theta in parts:
+        idx = [cand.params.index(p) for p in c.params]
+        base[idx] = theta
+        where.append((idx, np.array(list(itertools.product(*[p.grid for p in c.params])))))
+    starts = [base[None]]
+    for idx, grid in where:
+        block = np.repeat(base[None], len(grid), axis=0)
+        block[:, idx] = grid
+        starts.append(block)
+    return np.vstack(starts)
+
+
+def _triples(ctx: _Context, pairs: list[tuple[dict, Candidate]], pool: list[tuple[Candidate, dict]],
+             scatter: float) -> list[dict]:
+    """Each of the best pairs extended by each single of the pool (only tried when no pair explains)."""
+    out, seen = [], set()
+    for pair_entry, pair_cand in pairs:
+        for single, single_entry in pool:
+            cand = combine(pair_cand, single)
+            if cand is None or (cand.effect, cand.location, cand.params) in seen:
+                continue
+            seen.add((cand.effect, cand.location, cand.params))
+            out.append(_evaluate_candidate(ctx, cand, scatter, _combo_starts(
+                cand, [(pair_cand, pair_entry["_theta"]), (single, single_entry["_theta"])])))
+    return out
 
 
 def _heldout_prediction(freq: np.ndarray, train: np.ndarray) -> np.ndarray:
@@ -250,12 +281,18 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
         _pose_law_guard(ranking)
         order = sorted(range(len(singles)), key=lambda i: ranking[i]["score"])
         pool = order[:PAIR_POOL]
+        pairs = []
         for n, i in enumerate(pool):
             for j in pool[n + 1:]:
-                cand = pair(singles[i], singles[j])
+                cand = combine(singles[i], singles[j])
                 if cand is not None:
-                    ranking.append(_evaluate_candidate(ctx, cand, scatter, _pair_starts(
-                        cand, (singles[i], ranking[i]["_theta"]), (singles[j], ranking[j]["_theta"]))))
+                    entry = _evaluate_candidate(ctx, cand, scatter, _combo_starts(
+                        cand, [(singles[i], ranking[i]["_theta"]), (singles[j], ranking[j]["_theta"])]))
+                    ranking.append(entry)
+                    pairs.append((entry, cand))
+        pairs.sort(key=lambda t: t[0]["score"])
+        if pairs and pairs[0][0]["heldout_rms_rel_error"] > EXPLAINED_FACTOR * scatter:
+            ranking += _triples(ctx, pairs[:TRIPLE_PAIRS], [(singles[i], ranking[i]) for i in pool], scatter)
         ranking.sort(key=lambda e: e["score"])
     result["ranking"] = [{k: v for k, v in e.items() if not k.startswith("_")}
                          for e in ranking[:RANKING_LENGTH]]
