@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import select
 import time
 
 import serial
@@ -10,6 +12,7 @@ from daq.devices import Block, DeviceLost, unwrap
 from daq.serial_frames import SEQ_MODULUS, BinaryDecoder, CsvDecoder
 
 READ_TIMEOUT_S = 0.02
+READ_MAX_BYTES = 1 << 20
 
 
 class SerialDriver:
@@ -37,10 +40,36 @@ class SerialDriver:
             raise DeviceLost(f"cannot open {self.device.port}: {exc}") from exc
         self._new_decoder()  # a partial frame from before a reconnect is garbage
 
+    def _read_bytes(self) -> bytes:
+        """What has arrived (waiting up to the timeout for the first byte).
+
+        On a POSIX port the file descriptor is drained directly (many kernel buffers per call, no
+        bytes held inside pyserial when the port vanishes); other URLs use pyserial's read.
+        """
+        fd = getattr(self._port, "fd", None)
+        if fd is None:
+            data = self._port.read(1)
+            return data + self._port.read(self._port.in_waiting) if data else b""
+        chunks, size, timeout = [], 0, READ_TIMEOUT_S
+        while size < READ_MAX_BYTES and select.select([fd], [], [], timeout)[0]:
+            try:
+                chunk = os.read(fd, READ_MAX_BYTES)
+            except OSError:
+                if chunks:
+                    break  # hand over what arrived; the next read reports the loss
+                raise
+            if not chunk:
+                if chunks:
+                    break
+                raise serial.SerialException("device reports readiness to read but returned no data")
+            chunks.append(chunk)
+            size += len(chunk)
+            timeout = 0.0
+        return b"".join(chunks)
+
     def read(self) -> list[Block]:
         try:
-            data = self._port.read(1)  # wait (up to the timeout) for the first byte, then take what is there
-            data += self._port.read(self._port.in_waiting) if data else b""
+            data = self._read_bytes()
         except (serial.SerialException, OSError, TypeError, AttributeError) as exc:
             raise DeviceLost(f"{self.device.port}: {exc}") from exc
         now = time.time()

@@ -121,7 +121,8 @@ class BinaryDecoder:
         split = np.flatnonzero(~follows) + 1
         runs = []
         for a, b in zip(np.r_[0, split], np.r_[split, gi.size], strict=True):  # one per run of frames
-            payload = arr[g_start[a:b, None] + HEADER_BYTES + np.arange(g_len[a] - HEADER_BYTES - CRC_BYTES)]
+            frames = arr[g_start[a]:g_end[b - 1]].reshape(b - a, g_len[a])  # back to back, equal length
+            payload = np.ascontiguousarray(frames[:, HEADER_BYTES:g_len[a] - CRC_BYTES])
             values = payload.view(FORMATS[int(fmt[a])]).reshape(-1, self.n_ch).astype(np.float64)
             runs.append((int(seq[a]), values, int(corrupt[a])))
         return runs
