@@ -394,7 +394,7 @@ class FrameSystem:
 
     def _relative(self, row: np.ndarray) -> np.ndarray:
         """Apply ``assemble``'s change of variables (spring DOFs become relative rotations) to a row."""
-        for a, b in self._topo.rot_springs:
+        for a, b in self._topo.rot_springs[::-1]:
             if b != self.n_dof:
                 row[a] += row[b]
         return row
@@ -487,11 +487,13 @@ def assemble_many(rig: Rig, poses: Sequence[Mapping[str, float]], elements_per_l
         n_vec = np.stack(n_vec, 1)
         K[np.ix_(range(P), d[:2], d[:2])] += spring.k_N_per_m * n_vec[:, :, None] * n_vec[:, None, :]
 
-    for (a, b), k in zip(topo.rot_springs, topo.rot_spring_k, strict=True):
+    # each spring's DOF b becomes the relative rotation theta_b - theta_a: u_raw = E_n ... E_2 E_1 u_new with
+    # E_i: u[b] += u[a] (springs listed references first), so K <- E^T K E runs from the last spring back
+    for (a, b), k in zip(topo.rot_springs[::-1], topo.rot_spring_k[::-1], strict=True):
         if b == n:  # spring to ground
             K[:, a, a] += k
             continue
-        for A in (K, M):  # DOF b becomes the relative rotation theta_b - theta_a (T^T A T)
+        for A in (K, M):
             A[:, a, :] += A[:, b, :]
             A[:, :, a] += A[:, :, b]
         K[:, b, b] += k
@@ -501,7 +503,7 @@ def assemble_many(rig: Rig, poses: Sequence[Mapping[str, float]], elements_per_l
         vals = np.einsum("qi,pqij->pqj", topo.sensor_vecs, T[:, topo.sensor_elems])
         pieces = (slice(None), topo.sensor_of_piece[:, None], topo.elem_dofs[topo.sensor_elems])
         np.add.at(rows, pieces, vals)
-        for a, b in topo.rot_springs:
+        for a, b in topo.rot_springs[::-1]:
             if b != n:
                 rows[:, :, a] += rows[:, :, b]
     names = tuple(s.name for s in rig.sensors)

@@ -236,3 +236,18 @@ def test_batch_assembly_equals_one_pose_at_a_time(rigs_dir):
     f_batch = [m.freq_hz for m in frame_modes_many(rig, poses, 4, chunk=2)]
     assert np.array(f_batch) == pytest.approx(np.array([frame_modes(rig, p, 4).freq_hz for p in poses]))
     assert f_batch[0][0] > f_batch[2][0]  # the payload lowers the first mode
+
+
+def test_member_restraint_at_a_spring_joint_follows_the_child_link():
+    """Chained changes of variables: member ends restrained (end_k -> inf) to the rotation of a spring
+    joint's child and to the ground equal a member clamped to both."""
+    bar = {"shape": "custom", "EA_N": 1e6, "EI_Nm2": 50.0, "mass_per_m_kg": 0.3}
+
+    def freq(ends: str, end_k: float) -> np.ndarray:
+        strut = {"name": "strut", "from": "j1", "to": "ground@0.3,-0.6", "section": bar, "ends": ends,
+                 "end_k_Nm_per_rad": end_k, "elements": 4}
+        doc = beam_doc(links=2, member=[strut])
+        doc["joint"][0].update(kind="spring", k_Nm_per_rad=300.0, angle_deg=30.0)
+        return frame_modes(parse_rig(doc), {}, 5).freq_hz
+
+    assert freq("pin-pin", 1e12) == pytest.approx(freq("clamped-clamped", 0.0), rel=1e-7)
