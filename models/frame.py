@@ -10,10 +10,12 @@ three DOFs; a pin or spring joint shares the translations and gives the child it
 torsional spring ``k`` [N m/rad] linking the two rotations (``k = 0`` is a pin).  The child's rotation
 DOF of a spring is then replaced by the *relative* rotation (theta_child - theta_parent), so ``k`` sits
 alone on a diagonal: a spring approaching rigid never subtracts huge numbers (no lost digits), and the
-result tends smoothly to the rigid joint.  Member ends share the
-link point's translations; a clamped end also its rotation, a pinned end gets its own rotation plus
-``end_k_Nm_per_rad`` to the link.  Base: clamped fixes the first node, pinned frees its rotation,
-spring adds ``base.k_Nm_per_rad`` to ground, free frees all three.
+result tends smoothly to the rigid joint.  Member ends share the link point's translations; a clamped
+end also its rotation, a pinned end gets its own rotation plus ``end_k_Nm_per_rad`` to the link (again
+as a relative rotation).  Base: clamped fixes the first node, pinned frees its rotation, spring adds
+``base.k_Nm_per_rad`` to ground, free frees all three.  Pose-independent data (mesh, DOF maps, local
+element matrices, sensor interpolation) are cached per rig; ``assemble_many`` vectorises the element
+transforms and the scatter over many poses.
 
 The eigenproblem is solved in inverse form, ``M phi = mu (K + sigma M) phi`` with ``mu = 1/(omega^2 +
 sigma)`` (a small shift, Bathe 2014 §11.2): the wanted low modes are the *largest* ``mu``, which LAPACK
