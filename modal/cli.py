@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -68,10 +69,13 @@ def _identify(args: argparse.Namespace) -> int:
     table, modes_by_config = identify_input(args.input, method=args.method, fmin=args.fmin, fmax=args.fmax,
                                             max_order=args.max_order, run_id=args.run)
     table.to_csv(args.out)
+    for config, (modes, _) in modes_by_config.items():
+        for warning in modes.warnings:
+            print(f"flexmodal: warning: {config}: {warning}", file=sys.stderr)
     if args.uff:
         from modal.uff import write_modes
 
-        config, (modes, outputs) = next(iter(modes_by_config.items()))
+        modes, outputs = next(iter(modes_by_config.values()))
         write_modes(args.uff, modes.freq_hz, modes.damping_ratio, modes.shapes, outputs)
     print(args.out)
     return 0

@@ -21,6 +21,7 @@ from modal.table import ModalTable
 from modal.windows import remove_added_damping
 
 METHODS = ("lscf", "peak")
+MIN_LINES_PER_BANDWIDTH = 8   # below this the Hann-window leakage bias on damping exceeds a few %
 
 
 @dataclass(frozen=True)
@@ -102,6 +103,11 @@ def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: 
         zeta = np.array([h.damping_ratio for h in fits])
         used = np.array([int(np.argmin(np.abs(f - h.fn_hz))) for h in fits])
         constants = quadrature_shapes(rec, used, reference).astype(complex)
+    df = float(np.median(np.diff(f)))
+    for fr, z in zip(fn, zeta, strict=True):   # leakage biases damping when the band holds few lines
+        if 2 * z * fr < MIN_LINES_PER_BANDWIDTH * df:
+            warnings.append(f"mode at {fr:.4g} Hz: {2 * z * fr / df:.1f} lines in its half-power band "
+                            f"(< {MIN_LINES_PER_BANDWIDTH}); damping may be biased high, use a longer nfft")
     if decay_rate_per_s:
         fn, zeta = remove_added_damping(fn, zeta, decay_rate_per_s)
     shapes, massn = _shapes(constants, driving_point if method == "lscf" else None)

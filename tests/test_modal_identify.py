@@ -99,3 +99,10 @@ def test_mac_tools_on_known_shapes():
     rotated = PHI[:, :2] * np.exp(0.7j)
     assert np.allclose(to_real(rotated), PHI[:, :2] * np.sign(PHI[np.argmax(np.abs(PHI[:, :2]), 0), [0, 1]]))
     assert np.allclose(np.abs(unit_max(PHI)).max(axis=0), 1.0)
+
+
+def test_coarse_resolution_is_reported_for_lightly_damped_modes():
+    f = np.arange(5, 100, 0.25)
+    modes = identify(f, modal_frf(f, FN, ZETA, PHI, PHI[[0]]))
+    flagged = [w for w in modes.warnings if "lines in its half-power band" in w]
+    assert len(flagged) == 1 and "55" in flagged[0]
