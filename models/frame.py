@@ -44,6 +44,14 @@ _SNAP = 0.3  # an attachment point within this fraction of an element of a grid 
 # element matrices
 
 
+_AX, _BD = np.array([0, 3]), np.array([1, 2, 4, 5])
+# Hermite bending matrices in (v1, theta1, v2, theta2): entry ij carries L^(p_i + p_j), p = (0, 1, 0, 1)
+_KB = np.array([[12, 6, -12, 6], [6, 4, -6, 2], [-12, -6, 12, -6], [6, 2, -6, 4]], float)
+_MB = np.array([[156, 22, 54, -13], [22, 4, 13, -3], [54, 13, 156, -22], [-13, -3, -22, 4]], float)
+_MR = np.array([[36, 3, -36, 3], [3, 4, -3, -1], [-36, -3, 36, -3], [3, -1, -3, 4]], float)
+_BAR_K, _BAR_M = np.array([[1.0, -1.0], [-1.0, 1.0]]), np.array([[2.0, 1.0], [1.0, 2.0]])
+
+
 def element_matrices(length_m: np.ndarray, EA_N: np.ndarray, EI_Nm2: np.ndarray, mass_per_m_kg: np.ndarray,
                      rotary_per_m_kgm: np.ndarray, lumped: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Local stiffness and mass matrices [n_el, 6, 6] of planar frame elements.
@@ -54,29 +62,17 @@ def element_matrices(length_m: np.ndarray, EA_N: np.ndarray, EI_Nm2: np.ndarray,
     n = L.size
     k = np.zeros((n, 6, 6))
     m = np.zeros((n, 6, 6))
-    ax, bd = np.array([0, 3]), np.array([1, 2, 4, 5])
-    k[np.ix_(range(n), ax, ax)] = (EA_N / L)[:, None, None] * np.array([[1.0, -1.0], [-1.0, 1.0]])
-    one, L2 = np.ones_like(L), L * L
-    kb = np.stack([np.stack([12 * one, 6 * L, -12 * one, 6 * L], -1),
-                   np.stack([6 * L, 4 * L2, -6 * L, 2 * L2], -1),
-                   np.stack([-12 * one, -6 * L, 12 * one, -6 * L], -1),
-                   np.stack([6 * L, 2 * L2, -6 * L, 4 * L2], -1)], 1)
-    k[np.ix_(range(n), bd, bd)] = (EI_Nm2 / L**3)[:, None, None] * kb
+    powers = L[:, None] ** np.array([0, 1, 0, 1])
+    Lp = powers[:, :, None] * powers[:, None, :]
+    k[:, _AX[:, None], _AX] = (EA_N / L)[:, None, None] * _BAR_K
+    k[:, _BD[:, None], _BD] = (EI_Nm2 / L**3)[:, None, None] * _KB * Lp
     mu, rot = np.asarray(mass_per_m_kg, float), np.asarray(rotary_per_m_kgm, float)
     if lumped:
-        diag = np.stack([mu * L / 2, mu * L / 2, mu * L**3 / 78 + rot * L / 2] * 2, -1)
-        m[:, range(6), range(6)] = diag
+        m[:, range(6), range(6)] = np.stack([mu * L / 2, mu * L / 2, mu * L**3 / 78 + rot * L / 2] * 2, -1)
         return k, m
-    m[np.ix_(range(n), ax, ax)] = (mu * L / 6)[:, None, None] * np.array([[2.0, 1.0], [1.0, 2.0]])
-    mb = np.stack([np.stack([156 * one, 22 * L, 54 * one, -13 * L], -1),
-                   np.stack([22 * L, 4 * L2, 13 * L, -3 * L2], -1),
-                   np.stack([54 * one, 13 * L, 156 * one, -22 * L], -1),
-                   np.stack([-13 * L, -3 * L2, -22 * L, 4 * L2], -1)], 1)
-    mr = np.stack([np.stack([36 * one, 3 * L, -36 * one, 3 * L], -1),
-                   np.stack([3 * L, 4 * L2, -3 * L, -L2], -1),
-                   np.stack([-36 * one, -3 * L, 36 * one, -3 * L], -1),
-                   np.stack([3 * L, -L2, -3 * L, 4 * L2], -1)], 1)
-    m[np.ix_(range(n), bd, bd)] = ((mu * L / 420)[:, None, None] * mb + (rot / (30 * L))[:, None, None] * mr)
+    m[:, _AX[:, None], _AX] = (mu * L / 6)[:, None, None] * _BAR_M
+    bending = (mu * L / 420)[:, None, None] * _MB + (rot / (30 * L))[:, None, None] * _MR
+    m[:, _BD[:, None], _BD] = bending * Lp
     return k, m
 
 
