@@ -4,8 +4,8 @@
    configuration.  When its RMS is within ``NONE_FACTOR`` times the measurement scatter the verdict is
    ``none``.
 2. ``where``: the modes and configurations that carry the gap, and the region of the arm whose handles'
-   frequency sensitivities best explain the error pattern (R^2, compare/gap.py), plus MAC/COMAC when
-   shapes were measured.
+   frequency sensitivities best explain the error pattern (R^2, compare/gap.py; among regions within
+   ``REGION_TIE`` of the best, the verdict's), plus MAC/COMAC when shapes were measured.
 3. Ranking: every effect at every location (compare/candidates.py), then every pair of the
    ``PAIR_POOL`` best single candidates and, only when no pair explains the gap, each of the
    ``TRIPLE_PAIRS`` best pairs extended by one more single of the pool; each candidate is fitted by
@@ -47,6 +47,7 @@ EXPLAINED_FACTOR = 3.0
 PENALTY = 0.15
 PAIR_POOL = 8
 TRIPLE_PAIRS = 3
+REGION_TIE = 0.8
 RANKING_LENGTH = 25
 
 
@@ -297,6 +298,8 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
     result["ranking"] = [{k: v for k, v in e.items() if not k.startswith("_")}
                          for e in ranking[:RANKING_LENGTH]]
     result["verdict"] = _verdict(ranking, baseline, before, scatter, meas, base_err)
+    if result["verdict"]["effect"] != "none":
+        _confirm_region(where, rig, result["verdict"]["effect"], result["verdict"]["location"])
     result["scatter"] = scatter
     result["holdout"] = {"scheme": scheme, "n_folds": int(len(train) - 1)}
     result["configs"] = list(meas.configs)
@@ -307,6 +310,24 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
         result["verdict"]["k_Nm_per_rad_per_config"] = {
             c: pose_stiffness(best["params"], meas.poses[i][joint.angle]) for i, c in enumerate(meas.configs)}
     return result
+
+
+def _effect_region(rig: Rig, effect: str, location: str) -> str:
+    """The ``where.region`` label of one effect's location (e.g. ``joint:elbow``, ``link:link2``)."""
+    if effect.startswith("link_"):
+        return f"link:{location}"
+    if effect == "grounded_spring":
+        return f"point:{location}"
+    return _region_label(rig, f"x@{location}")
+
+
+def _confirm_region(where: dict, rig: Rig, effect: str, location: str) -> None:
+    """Where several regions explain the error pattern about equally (R^2 within ``REGION_TIE``), name the
+    region of the winning candidate's first effect; the sensitivities alone cannot tell them apart."""
+    scores = where["region_scores"]
+    first = _effect_region(rig, effect.split("+")[0], location.split("+")[0])
+    if scores and scores.get(first, 0.0) >= REGION_TIE * max(scores.values()):
+        where["region"] = first
 
 
 def _paired_shapes(ctx: _Context, fam) -> np.ndarray:
