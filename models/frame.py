@@ -439,6 +439,8 @@ def assemble_many(rig: Rig, poses: Sequence[Mapping[str, float]], elements_per_l
                   lumped_mass: bool = False) -> list[FrameSystem]:
     """``assemble`` for several poses at once: element transforms and scatter vectorised over the poses."""
     topo = _topology(rig, elements_per_link, bool(lumped_mass))
+    if not poses:
+        return []
     for pose in poses:
         rig.check_pose(pose)
     geometry = [_body_geometry(rig, pose) for pose in poses]
