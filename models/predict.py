@@ -12,7 +12,7 @@ fills a ``source`` column so it compares like any model here.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +23,7 @@ from models.rig import Rig
 
 MODELS = ("fe", "assumed-modes", "lumped-mass", "blevins")
 RIGID_HZ = 1e-3  # modes below this are rigid-body motion
+FE_CHUNK = 256  # poses assembled together by the frame FE
 Result = tuple[np.ndarray, np.ndarray | None]  # frequencies [Hz], shapes [n_sensors, n_modes] or None
 
 
@@ -33,13 +34,22 @@ def _elastic(freq_hz: np.ndarray, shapes: np.ndarray | None, n_modes: int, where
     return freq_hz[keep], None if shapes is None else shapes[:, keep]
 
 
-def _fe(rig: Rig, pose: Mapping[str, float], n_modes: int, options: Mapping) -> Result:
-    from models.frame import assemble, solve_modes
+def _fe(rig: Rig, poses: list[Mapping[str, float]], n_modes: int, options: Mapping) -> Iterator[Result]:
+    """Frame FE, assembled in chunks of poses (models.frame.assemble_many), one eigensolve per pose."""
+    from models.frame import assemble_many, solve_modes
 
-    system = assemble(rig, pose, options.get("elements_per_link"), bool(options.get("lumped_mass", False)))
     mechanisms = 3 + sum(j.kind != "rigid" for j in rig.joints)  # at most this many rigid-body modes
-    modes = solve_modes(system, min(n_modes + mechanisms, system.n_dof))
-    return _elastic(modes.freq_hz, modes.sensor_shapes, n_modes, f"{rig.source}: model 'fe'")
+    for start in range(0, len(poses), FE_CHUNK):
+        for system in assemble_many(rig, poses[start:start + FE_CHUNK], options.get("elements_per_link"),
+                                    bool(options.get("lumped_mass", False))):
+            modes = solve_modes(system, min(n_modes + mechanisms, system.n_dof))
+            yield _elastic(modes.freq_hz, modes.sensor_shapes, n_modes, f"{rig.source}: model 'fe'")
+
+
+def _one_by_one(solve: Callable[[Rig, Mapping[str, float], int, Mapping], Result]) -> Callable:
+    def run(rig: Rig, poses: list[Mapping[str, float]], n_modes: int, options: Mapping) -> Iterator[Result]:
+        return (solve(rig, pose, n_modes, options) for pose in poses)
+    return run
 
 
 def _assumed(rig: Rig, pose: Mapping[str, float], n_modes: int, options: Mapping) -> Result:
@@ -76,8 +86,8 @@ def _blevins(rig: Rig, pose: Mapping[str, float], n_modes: int, options: Mapping
     return beam_frequencies_hz(sb.condition, b.length_m, b.EI_Nm2, b.mass_per_m_kg, n_modes), None
 
 
-_SOLVERS: dict[str, Callable] = {"fe": _fe, "assumed-modes": _assumed, "lumped-mass": _lumped,
-                                 "blevins": _blevins}
+_SOLVERS: dict[str, Callable] = {"fe": _fe, "assumed-modes": _one_by_one(_assumed),
+                                 "lumped-mass": _one_by_one(_lumped), "blevins": _one_by_one(_blevins)}
 
 
 def predict(rig: Rig, poses: Mapping[str, Mapping[str, float]], model: str = "fe", n_modes: int = 4, *,
@@ -93,8 +103,8 @@ def predict(rig: Rig, poses: Mapping[str, Mapping[str, float]], model: str = "fe
     if isinstance(n_modes, bool) or not isinstance(n_modes, int) or n_modes < 1:
         raise ModelError(f"number of modes must be a whole number >= 1 (got {n_modes!r})")
     records = []
-    for config, pose in poses.items():
-        freq, shapes = _SOLVERS[model](rig, pose, n_modes, options)
+    results = _SOLVERS[model](rig, list(poses.values()), n_modes, options)
+    for (config, pose), (freq, shapes) in zip(poses.items(), results, strict=True):
         for i, f in enumerate(freq):
             row: dict[str, object] = {"config": str(config), "mode": i + 1, "freq_hz": float(f),
                                       "source": source or model}
