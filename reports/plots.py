@@ -39,7 +39,7 @@ _COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#
 def figure_png(fig: Figure, dpi: int = 100) -> bytes:
     """The figure as PNG bytes."""
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
+    fig.savefig(buf, format="png", dpi=dpi)  # layouts are set by each plot (no second "tight" draw)
     return buf.getvalue()
 
 
@@ -71,6 +71,7 @@ def plot_frf(freq_hz: np.ndarray, H: np.ndarray, coherence: np.ndarray | None = 
         ax.grid(True, which="both", alpha=0.3)
     if title:
         axes[0].set_title(title)
+    fig.subplots_adjust(left=0.11, right=0.97, bottom=0.08, top=0.94, hspace=0.12)
     return fig
 
 
@@ -100,6 +101,7 @@ def plot_stabilisation(freq_hz: np.ndarray, H: np.ndarray, poles, unit: str = "(
     ax.legend(loc="upper left", fontsize=7)
     if title:
         ax.set_title(title)
+    fig.subplots_adjust(left=0.08, right=0.88, bottom=0.12, top=0.9)
     return fig
 
 
@@ -160,6 +162,7 @@ def plot_freq_vs_pose(measured: Sequence[ModalTable], predictions: Sequence[tupl
     ax.legend(fontsize=8)
     if title:
         ax.set_title(title)
+    fig.subplots_adjust(left=0.1, right=0.92, bottom=0.12, top=0.92)
     return fig
 
 
