@@ -25,6 +25,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--poses", required=True, metavar="POSES.csv", help="one row per configuration")
     p.add_argument("--out", required=True, metavar="PRED.csv", help="output modal table")
     p.add_argument("--modes", type=int, default=4, metavar="N", help="elastic modes per pose (default 4)")
+    p.add_argument("--source", default=None, metavar="NAME",
+                   help="value of the output's source column (default: the model name, e.g. fe)")
     p.add_argument("--elements", type=int, default=None, metavar="N",
                    help="fe: elements per link and member (default: the rig's `elements`, else 10)")
     p.add_argument("--lumped-mass-matrix", action="store_true",
@@ -56,14 +58,14 @@ def _predict(args: argparse.Namespace) -> int:
     options = {"elements_per_link": args.elements, "lumped_mass": args.lumped_mass_matrix,
                "masses_per_link": args.masses_per_link, "coordinates": args.coordinates}
     if getattr(args, "quiet", False) or len(poses) < 50:
-        table = predict(rig, poses, args.model, args.modes, **options)
+        table = predict(rig, poses, args.model, args.modes, source=args.source, **options)
     else:
         from rich.progress import Progress
 
         with Progress(transient=True, console=_stderr_console()) as bar:
             task = bar.add_task(f"predict ({args.model})", total=len(poses))
-            table = predict(rig, poses, args.model, args.modes, progress=lambda _c: bar.advance(task),
-                            **options)
+            table = predict(rig, poses, args.model, args.modes, source=args.source,
+                            progress=lambda _c: bar.advance(task), **options)
     table.to_csv(args.out)
     print(args.out)
     return 0

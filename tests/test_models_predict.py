@@ -66,11 +66,12 @@ def test_cli_writes_a_modal_table(tmp_path, poses_csv, capsys):
     out = tmp_path / "pred.csv"
     rig = write(tmp_path, SEED003)
     assert main(["predict", str(rig), "--model", "fe", "--poses", str(poses_csv), "--out", str(out),
-                 "--modes", "3"]) == 0
+                 "--modes", "3", "--source", "fe-rigid"]) == 0
     assert capsys.readouterr().out.strip() == str(out)
     table = ModalTable.read_csv(out)
     assert table.configs == ["theta0", "theta90"]
     assert len(table.frame) == 6 and table.pose("theta90") == {"theta_deg": 90.0}
+    assert set(table.frame["source"]) == {"fe-rigid"}
     assert table.freq_hz("theta90")[0] == pytest.approx(33.43, rel=1e-3)  # seed 003 Table 6: 33.43 Hz
 
 
