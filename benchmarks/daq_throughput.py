@@ -160,13 +160,13 @@ def bench_modbus(seconds: float = 3.0) -> tuple[float, float]:
     from pymodbus.client import ModbusTcpClient
 
     from daq.modbus_driver import ModbusDriver
-    from fixtures.sim_modbus import free_port, serve_tcp
+    from fixtures.sim_modbus import free_port, serve
 
     port = free_port()
     stop = threading.Event()
     ready = threading.Event()
     kwargs = {"port": port, "stop": stop, "announce": lambda _: ready.set()}
-    server = threading.Thread(target=serve_tcp, args=(synthetic_source(7, 1000.0),), kwargs=kwargs,
+    server = threading.Thread(target=serve, args=(synthetic_source(7, 1000.0),), kwargs=kwargs,
                               daemon=True)
     server.start()
     ready.wait(10)

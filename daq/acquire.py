@@ -74,6 +74,8 @@ class SimulatorProcess:
             cmd += ["--rig", sim.rig]
         if sim.protocol == "serial":
             cmd += ["--framing", dev.framing]
+        if sim.protocol == "modbus":
+            cmd += ["--transport", dev.transport]
         cmd += list(sim.args)
         repo = Path(__file__).resolve().parents[1]
         self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, cwd=repo, text=True, start_new_session=True,

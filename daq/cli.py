@@ -33,6 +33,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     s.add_argument("--duration", type=float, metavar="S", help="stop after S seconds of samples")
     s.add_argument("--link", metavar="PATH", help="serial/slcan: symlink path of the pty")
     s.add_argument("--port", type=int, default=0, help="modbus: TCP port on 127.0.0.1 (0 = a free one)")
+    s.add_argument("--transport", choices=("tcp", "rtu"), default="tcp",
+                   help="modbus: TCP on 127.0.0.1, or RTU over a pty pair (prints the client's port)")
     s.add_argument("--framing", choices=("binary", "csv"), default="binary", help="serial framing")
     s.add_argument("--format", choices=("int16", "int32", "float32"), default="int16",
                    help="serial binary sample format")

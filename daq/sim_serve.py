@@ -53,9 +53,9 @@ def serve(args, stdout) -> None:
             serve_slcan(source, link_path=args.link, faults=faults, log=log, duration_s=args.duration,
                         stop=stop, announce=announce)
         else:
-            from fixtures.sim_modbus import serve_tcp
+            from fixtures.sim_modbus import serve as serve_modbus
 
-            serve_tcp(source, port=args.port, faults=faults, log=log, duration_s=args.duration, stop=stop,
-                      announce=announce)
+            serve_modbus(source, transport=args.transport, port=args.port, link_path=args.link, faults=faults,
+                         log=log, duration_s=args.duration, stop=stop, announce=announce)
     finally:
         log.close()

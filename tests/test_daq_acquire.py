@@ -8,6 +8,7 @@ the injected faults (logged by the simulators) against the run's events.
 
 from __future__ import annotations
 
+import functools
 import json
 import re
 import resource
@@ -57,6 +58,7 @@ def _run(path: Path):
     return run, first
 
 
+@functools.lru_cache
 def _reference(protocol: str, rate: float):
     src = sim_source(None, "impact", rate)
     return src, np.array([c.step for c in src.channels])
@@ -94,6 +96,32 @@ def test_modbus_polled_samples_equal_emitted(tmp_path):
     src, steps = _reference("modbus", 200.0)
     _assert_clean(run, np.column_stack([counter, src.physical(0, counter.size)]), np.r_[1.0, steps],
                   int(DURATION_S * 200))
+
+
+def test_modbus_rtu_over_a_pty_pair(tmp_path):
+    config = _session(tmp_path, "modbus")
+    text = config.read_text().replace('transport = "tcp"', 'transport = "rtu"\nbaud = 115200')
+    config.write_text(text.replace('host = "127.0.0.1"\n', ""))
+    out = tmp_path / "run.h5"
+    done = _acquire(config, out, 3.0)
+    assert done.returncode == 0, done.stderr
+    run, _ = _run(out)
+    counter = run.samples[:, 0]
+    np.testing.assert_array_equal(counter, np.arange(600))
+    src, steps = _reference("modbus", 200.0)
+    assert (np.abs(run.samples[:, 1:] - src.physical(0, 600)) / steps).max() <= 1.0
+
+
+def test_can_on_the_virtual_bus_in_one_process(tmp_path):
+    config = _session(tmp_path, "can")
+    text = re.sub(r'interface = "slcan".*\n', 'interface = "virtual"\n', config.read_text())
+    config.write_text(re.sub(r'channel = "@simulator".*\n', 'channel = "flexmodal-test"\n', text))
+    out = tmp_path / "run.h5"
+    done = _acquire(config, out, 3.0)
+    assert done.returncode == 0, done.stderr
+    run, first = _run(out)
+    src, steps = _reference("can", 512.0)
+    _assert_clean(run, src.physical(first, 1536), steps, 1536)
 
 
 def _fault_window(log: list[dict]) -> tuple[int, int]:
