@@ -83,7 +83,8 @@ class Comparison:
         return out
 
 
-def _natural_key(text: str) -> list:
+def natural_key(text: str) -> list:
+    """Sort key that orders digit runs by value (``theta60`` before ``theta120``)."""
     return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", text)]
 
 
@@ -97,7 +98,7 @@ def ordered_configs(table: ModalTable) -> list[str]:
     def key(config: str) -> tuple:
         pose = () if first is None else tuple(
             v if math.isfinite(v) else math.inf for v in first.loc[config].to_numpy(float))
-        return pose, _natural_key(config)
+        return pose, natural_key(config)
 
     return sorted(table.configs, key=key)
 

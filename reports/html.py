@@ -19,7 +19,7 @@ from pathlib import Path
 import jinja2
 import pandas as pd
 
-from compare.tables import compare_tables, html_fragment, ordered_configs, table_name
+from compare.tables import compare_tables, html_fragment, natural_key, ordered_configs, table_name
 from modal.table import ModalTable
 from reports import plots
 from reports.errors import ReportError
@@ -94,12 +94,34 @@ def _mode_figures(measured: ModalTable | None, repeats: Sequence[ModalTable],
     return figs
 
 
+def _run_order(runs: Sequence[RunSummary]) -> list[RunSummary]:
+    """Runs grouped by file (in the order given), then by numeric pose values, then naturally by id."""
+    files = list(dict.fromkeys(r.path for r in runs))
+
+    def key(r: RunSummary) -> tuple:
+        pose = tuple((k, float(v)) for k, v in sorted(r.pose.items()) if isinstance(v, int | float))
+        return files.index(r.path), pose, natural_key(r.run_id)
+
+    return sorted(runs, key=key)
+
+
+def _start_time(text: str) -> str:
+    """ISO 8601 start time shown to the second, in UTC when it carries an offset."""
+    try:
+        t = datetime.fromisoformat(text)
+    except ValueError:
+        return text
+    if t.tzinfo is not None:
+        return t.astimezone(UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
+    return t.strftime("%Y-%m-%d %H:%M:%S")
+
+
 def _run_rows(runs: Sequence[RunSummary]) -> tuple[list[dict], list[dict], list[dict]]:
     meta, quality, channel_sets = [], [], []
     sets: dict[tuple, dict] = {}
     for r in runs:
         label = f"{r.path.name}::{r.run_id}"
-        meta.append({"file": r.path.name, "run_id": r.run_id, "start_time": r.start_time,
+        meta.append({"file": r.path.name, "run_id": r.run_id, "start_time": _start_time(r.start_time),
                      "excitation": r.excitation, "pose": _pose_text(r.pose), "fs": f"{r.sample_rate_hz:g}",
                      "duration": f"{r.duration_s:.2f}", "n_samples": r.n_samples,
                      "n_channels": len(r.channels)})
@@ -236,6 +258,7 @@ def write_report(out_path: str | Path, *, runs: Sequence[str | Path | tuple[str 
     for path, run_id in expand_runs(runs):
         step(f"reading {path.name}::{run_id}")
         summaries.append(summarise_run(path, run_id))
+    summaries = _run_order(summaries)
     comparison_html = ""
     if measured is not None and named:
         step("comparing modes")
