@@ -22,7 +22,7 @@ import numpy as np
 import scipy.linalg
 
 from modal.errors import ModalError
-from modal.mac import mac
+from modal.mac import mac_pairs
 
 
 @dataclass(frozen=True)
@@ -121,11 +121,13 @@ class _NormalEquations:
         n = (p + 1) * self.n_in
         return self.T[:n, :n] - self.C[p, :n, :n]
 
-    def numerators(self, p: int, alpha: np.ndarray) -> np.ndarray:
-        """beta_o = -R_p^-1 S_o alpha [o, p+1, n_in]."""
+    def numerators_at(self, p: int, alpha: np.ndarray, powers: np.ndarray) -> np.ndarray:
+        """N_o(lambda_r) [o, r, n_in] for ``powers`` = lambda_r^j [r, p+1], with the numerator
+        coefficients beta_o = -R_p^-1 S_o alpha = -L^-T Y_o alpha."""
         b, n = p + 1, (p + 1) * self.n_in
-        ya = (self.Y[:b, :, :n].reshape(-1, n) @ alpha).reshape(b, -1)            # [j, (o c)]
-        return -(self.Linv_T[:b, :b] @ ya).reshape(b, -1, self.n_in).transpose(1, 0, 2)
+        ya = np.einsum("jon,nc->joc", self.Y[:b, :, :n], alpha)                  # [j, o, c]
+        pl = powers @ self.Linv_T[:b, :b]                                          # [r, j]
+        return -np.einsum("rj,joc->orc", pl, ya)
 
 
 def _poles_of_order(p: int, eqs: _NormalEquations, dt: float, fmin: float, fmax: float
@@ -149,11 +151,9 @@ def _poles_of_order(p: int, eqs: _NormalEquations, dt: float, fmin: float, fmax:
     f = np.abs(poles) / (2 * np.pi)
     idx = np.flatnonzero(np.isfinite(poles) & (poles.imag > 0) & (poles.real < 0) & (f >= fmin) & (f <= fmax))
     idx = idx[np.argsort(f[idx])]
-    beta = eqs.numerators(p, alpha)                                  # [o, p+1, n_in]
     powers = lam[idx, None] ** np.arange(p + 1)[None, :]             # [r, p+1]
-    if n_in == 1:
-        return poles[idx], beta[:, :, 0] @ powers.T
-    return poles[idx], np.einsum("rk,okc,cr->or", powers, beta, vec[:n_in, idx])
+    num = eqs.numerators_at(p, alpha, powers)                        # [o, r, n_in]
+    return poles[idx], np.einsum("orc,cr->or", num, vec[:n_in, idx])
 
 
 def stabilisation(freq_hz: np.ndarray, H: np.ndarray, orders: range | list[int], *, df: float = 0.01,
@@ -184,7 +184,7 @@ def stabilisation(freq_hz: np.ndarray, H: np.ndarray, orders: range | list[int],
             near = np.argmin(np.abs(fn[:, None] - pf[None, :]), axis=1)
             sf = np.abs(fn - pf[near]) <= df * fn
             sd = np.abs(zeta - pz[near]) <= dz * zeta
-            ss = np.diag(mac(shapes, psh[:, near])) >= mac_min
+            ss = mac_pairs(shapes, psh[:, near]) >= mac_min
         rows.append((np.full(poles.size, p), fn, zeta, poles, sf, sd, ss))
         prev = (fn, zeta, shapes)
     cols = [np.concatenate(c) for c in zip(*rows, strict=True)]

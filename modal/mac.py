@@ -18,6 +18,14 @@ def mac(phi_a: np.ndarray, phi_b: np.ndarray) -> np.ndarray:
         return np.nan_to_num(num / den)
 
 
+def mac_pairs(phi_a: np.ndarray, phi_b: np.ndarray) -> np.ndarray:
+    """MAC of corresponding columns [n_modes] (the diagonal of ``mac`` without the rest)."""
+    num = np.abs(np.einsum("ir,ir->r", phi_a.conj(), phi_b)) ** 2
+    den = np.einsum("ir,ir->r", phi_a.conj(), phi_a).real * np.einsum("ir,ir->r", phi_b.conj(), phi_b).real
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.nan_to_num(num / den)
+
+
 def automac(phi: np.ndarray) -> np.ndarray:
     """MAC of a shape set with itself [n_modes, n_modes] (off-diagonal terms reveal spatial aliasing)."""
     return mac(phi, phi)
