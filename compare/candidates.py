@@ -20,6 +20,8 @@ from models.effects import EFFECTS, effect_locations
 from models.rig import Rig
 
 POSE_LAW_BOUND = 3.0
+LINK_SCALE_MIN = 1 / 3
+"""Link stiffness/mass scales are searched in [1/3, 3]: a parameter error, not a different link."""
 """Bound on the pose law's log-slope [1/rad] and log-curvature [1/rad^2]."""
 
 
@@ -111,7 +113,8 @@ def effect_params(rig: Rig, effect: str, location: str) -> tuple[Param, ...]:
         ref = 3.0 * lk.section.EI_Nm2 * lk.stiffness_scale / lk.length_m**3
         return (Param(effect, "k_N_per_m", f"ks@{location}", 0, *_log_range(ref, 1e-3, 1e3, 7)),)
     handle = "EI" if effect == "link_stiffness" else "mu"
-    return (Param(effect, "scale", f"{handle}@{location}", 0, *_log_range(1.0, 0.1, 10.0, 7)),)
+    scale = _log_range(1.0, LINK_SCALE_MIN, 1.0 / LINK_SCALE_MIN, 7)
+    return (Param(effect, "scale", f"{handle}@{location}", 0, *scale),)
 
 
 def single_candidates(rig: Rig, effects: Sequence[str], pose_values: Mapping[str, Sequence[float]]
