@@ -106,3 +106,9 @@ def test_coarse_resolution_is_reported_for_lightly_damped_modes():
     modes = identify(f, modal_frf(f, FN, ZETA, PHI, PHI[[0]]))
     flagged = [w for w in modes.warnings if "lines in its half-power band" in w]
     assert len(flagged) == 1 and "55" in flagged[0]
+
+
+def test_poly_reference_lscf_with_two_inputs_is_exact():
+    f = np.linspace(5, 100, 1500)
+    modes = identify(f, modal_frf(f, FN, ZETA, PHI, PHI[[0, 2]]), max_order=30)
+    _check(modes, fn_tol=1e-7, zeta_tol=1e-5, mac_min=0.999999)
