@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import multiprocessing as mp
 import os
 import sys
@@ -162,6 +163,7 @@ def bench_modbus(seconds: float = 3.0) -> tuple[float, float]:
     from daq.modbus_driver import ModbusDriver
     from fixtures.sim_modbus import free_port, serve
 
+    logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
     port = free_port()
     stop = threading.Event()
     ready = threading.Event()

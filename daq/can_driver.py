@@ -35,7 +35,6 @@ class CanDriver:
         self.limits = (lims[:, 0], lims[:, 1])
         mux_ids = sorted({i for s in self.signals for i in (s.mux_ids or ())})
         self.groups = np.array(mux_ids if self.layout.mux is not None else [0])
-        self.bad_frames = 0
         self._bus = None
         self._last: tuple[int, int, float] | None = None  # (index, counter code, timestamp) of last frame
         self._held = None  # (index, group, data) of the newest, maybe unfinished scan
@@ -88,8 +87,8 @@ class CanDriver:
     def read(self) -> list[Block]:
         msgs = self._receive()
         mine = [m for m in msgs if m.arbitration_id == self.layout.frame_id]
-        good = [m for m in mine if len(m.data) == self.layout.length]
-        self.bad_frames += len(mine) - len(good)
+        good = [m for m in mine if len(m.data) == self.layout.length]  # others are corrupt: their scan
+        # shows the missing group
         if not good:
             return []
         data = np.zeros((len(good), 8), np.uint8)
@@ -100,7 +99,6 @@ class CanDriver:
         mux = self.layout.mux
         group = self.layout.raw(data, mux) if mux is not None else np.zeros(len(good), np.int64)
         valid = np.isin(group, self.groups)
-        self.bad_frames += int((~valid).sum())
         index, group, data, ts = index[valid], group[valid], data[valid], ts[valid]
         if self._held is not None:
             h_index, h_group, h_data, h_ts = self._held

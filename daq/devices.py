@@ -12,7 +12,7 @@ from __future__ import annotations
 import queue
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -53,8 +53,6 @@ class ReaderStats:
     samples: int = 0
     dropped_blocks: int = 0
     reconnects: int = 0
-    lost_since: float | None = None
-    extra: dict = field(default_factory=dict)
 
 
 def unwrap(seq: int, last: int | None, modulus: int) -> int:
@@ -83,7 +81,6 @@ def run_reader(driver, out: queue.Queue, stop: threading.Event, stats: ReaderSta
                 backoff = BACKOFF_START_S
                 if ever_opened:
                     stats.reconnects += 1
-                    stats.lost_since = None
                     out.put(Notice(driver.name, "reconnect", f"reconnect #{stats.reconnects}"))
                 ever_opened = True
             for block in driver.read():
@@ -100,7 +97,6 @@ def run_reader(driver, out: queue.Queue, stop: threading.Event, stats: ReaderSta
                 return
             if opened:
                 opened = False
-                stats.lost_since = time.monotonic()
                 out.put(Notice(driver.name, "lost", str(exc)))
             stop.wait(backoff)
             backoff = min(2 * backoff, BACKOFF_MAX_S)

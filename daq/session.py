@@ -123,12 +123,6 @@ class Session:
     trigger: Trigger | None = None
     simulator: Simulator | None = None
 
-    def device(self, name: str) -> Device:
-        return next(d for d in self.devices if d.name == name)
-
-    def channels_of(self, device: str) -> tuple[ChannelMap, ...]:
-        return tuple(c for c in self.channels if c.device == device)
-
 
 def unit_factor(from_unit: str, to_unit: str) -> float | None:
     """Factor converting ``from_unit`` to ``to_unit`` (None when unknown)."""

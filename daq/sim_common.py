@@ -129,11 +129,8 @@ class Pacer:
         self.rate = sample_rate_hz
         self.t0 = time.monotonic()
 
-    def elapsed_s(self) -> float:
-        return time.monotonic() - self.t0
-
     def due(self) -> int:
-        return int(self.elapsed_s() * self.rate)
+        return int((time.monotonic() - self.t0) * self.rate)
 
     def wait_until_sample(self, n: int) -> None:
         delay = self.t0 + n / self.rate - time.monotonic()

@@ -86,6 +86,18 @@ def test_streamed_samples_equal_emitted(tmp_path, protocol, rate):
     assert [e.kind for e in run.events].count("trigger") >= 2  # impacts every 2 s detected on F
 
 
+@pytest.mark.slow
+def test_serial_csv_lines(tmp_path):
+    config = _session(tmp_path, "serial")
+    config.write_text(config.read_text().replace('framing = "binary"', 'framing = "csv"'))
+    out = tmp_path / "run.h5"
+    done = _acquire(config, out, 3.0)
+    assert done.returncode == 0, done.stderr
+    run, first = _run(out)
+    src, steps = _reference("serial", 2048.0)
+    _assert_clean(run, src.physical(first, 6144), steps, 6144)
+
+
 def test_modbus_polled_samples_equal_emitted(tmp_path):
     out = tmp_path / "run.h5"
     done = _acquire(_session(tmp_path, "modbus"), out)
