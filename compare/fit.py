@@ -129,8 +129,8 @@ def fit_candidate(fam: ReducedFamily, cand: Candidate, target: Target, train: np
                   reg_weight: float = 0.02, grid: np.ndarray | None = None) -> FitResult:
     """Fit ``cand`` on every fold's training configurations (``train`` [F, C] bool, fold 0 = all).
 
-    Fold 0 is fitted from the ``N_STARTS`` best points of ``grid`` (default: the product of the
-    parameters' start grids) in one stacked solve; the cross-validation folds, stacked in one problem,
+    Fold 0 is fitted from the ``N_STARTS`` best points of the product of the parameters' start grids in
+    one stacked solve (from the best point of ``grid`` when given: seeded starts of a combination); the cross-validation folds, stacked in one problem,
     are refined from fold 0's optimum by at most ``MAX_NFEV_FOLDS`` trust-region steps (each differs
     from it by one configuration's data).  The pose-law slope/curvature are regularised towards a
     constant stiffness by residual rows ``reg_weight * theta * span^power`` (``span`` = angle range).
@@ -141,10 +141,11 @@ def fit_candidate(fam: ReducedFamily, cand: Candidate, target: Target, train: np
     upper = np.array([p.upper for p in cand.params])
     reg = np.array([0.0 if p.power == 0 else reg_weight * _span(target, p.handle) ** p.power
                     for p in cand.params])
+    n_starts = N_STARTS if grid is None else 1
     grid = _grid(cand) if grid is None else grid
     f, _, _, _ = evaluate(fam, D, grid, target)
     cost = np.nansum(((f / fm) - 1.0) ** 2, axis=(1, 2)) + np.sum((reg * grid) ** 2, axis=1)
-    starts = grid[np.argsort(cost)[:N_STARTS]]
+    starts = grid[np.argsort(cost)[:n_starts]]
     x, c = _solve(fam, D, target, np.repeat(train[:1], len(starts), axis=0), reg, lower, upper, starts,
                   MAX_NFEV)
     theta = x[np.argmin(c)][None]
@@ -190,7 +191,7 @@ def _solve(fam: ReducedFamily, D: np.ndarray, target: Target, train: np.ndarray,
     lo, hi = np.tile(lower, F), np.tile(upper, F)
     x0 = np.clip(x0.ravel(), lo + 1e-9, hi - 1e-9)
     sol = least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", max_nfev=max_nfev,
-                        xtol=1e-6, ftol=1e-6, gtol=1e-10)
+                        xtol=1e-5, ftol=1e-5, gtol=1e-10)
     return sol.x.reshape(F, J), _fold_costs(sol.fun, mask, F, J, reg, sol.x)
 
 
