@@ -130,10 +130,11 @@ def fit_candidate(fam: ReducedFamily, cand: Candidate, target: Target, train: np
     """Fit ``cand`` on every fold's training configurations (``train`` [F, C] bool, fold 0 = all).
 
     Fold 0 is fitted from the ``N_STARTS`` best points of the product of the parameters' start grids in
-    one stacked solve (from the best point of ``grid`` when given: seeded starts of a combination); the cross-validation folds, stacked in one problem,
-    are refined from fold 0's optimum by at most ``MAX_NFEV_FOLDS`` trust-region steps (each differs
-    from it by one configuration's data).  The pose-law slope/curvature are regularised towards a
-    constant stiffness by residual rows ``reg_weight * theta * span^power`` (``span`` = angle range).
+    one stacked solve (from the best point of ``grid`` when given: seeded starts of a combination).  The
+    cross-validation folds, stacked in one problem, are refined from fold 0's optimum by at most
+    ``MAX_NFEV_FOLDS`` trust-region steps (each differs from it by one configuration's data).  The
+    pose-law slope/curvature are regularised towards a constant stiffness by residual rows
+    ``reg_weight * theta * span^power`` (``span`` = joint angle range).
     """
     D = design(cand, target)
     fm = target.freq_hz
