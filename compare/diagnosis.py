@@ -27,6 +27,7 @@ import itertools
 import json
 import math
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -35,7 +36,17 @@ from compare.blas import single_threaded
 from compare.candidates import Candidate, combine, parse_effects, single_candidates
 from compare.errors import CompareError
 from compare.fit import Target, evaluate, fit_candidate, paired_modes
-from compare.gap import Measured, carriers, comac, gap_summary, joint_angles_rad, prepare, region_scores, rms
+from compare.gap import (
+    Measured,
+    carriers,
+    comac,
+    gap_summary,
+    joint_angles_rad,
+    mac,
+    prepare,
+    region_scores,
+    rms,
+)
 from compare.parametric import handles_for, pose_basis, reduce_family
 from modal.table import ModalTable
 from models.effects import pose_stiffness
@@ -103,17 +114,12 @@ class _Context:
         if meas.sensors:
             rows = [s.name for s in rig.sensors]
             keep = [rows.index(s) for s in meas.sensors]
-            self.bases = [_with_sensors(b, keep) for b in self.bases]
+            self.bases = [replace(b, sensors=b.sensors[keep]) for b in self.bases]
         self.target = Target(meas.freq_hz, meas.shapes, joint_angles_rad(rig, meas.poses))
 
     def family(self, handles: Sequence[str]):
         idx = [self.index[h] for h in handles]
         return reduce_family(self.bases, idx, np.array([self.handles[i].nominal for i in idx]))
-
-
-def _with_sensors(b, keep):
-    from dataclasses import replace
-    return replace(b, sensors=b.sensors[keep])
 
 
 def _params(cand: Candidate, theta: np.ndarray) -> dict[str, float]:
@@ -234,8 +240,7 @@ def _where(ctx: _Context, base_err: np.ndarray, base_summary: dict, scatter: flo
     out = {"modes": [int(m) for m in modes], "configs": configs, "region": region,
            "region_scores": dict(sorted(scores.items(), key=lambda kv: -kv[1]))}
     if meas.shapes is not None and base_shapes is not None:
-        from compare.gap import mac as mac_fn
-        macs = np.array([mac_fn(meas.shapes[c], base_shapes[c]) for c in range(len(meas.configs))])
+        macs = np.array([mac(meas.shapes[c], base_shapes[c]) for c in range(len(meas.configs))])
         out["mac_per_mode"] = {str(m + 1): float(np.mean(macs[:, m])) for m in range(macs.shape[1])}
         values = comac(meas.shapes, base_shapes)
         out["comac"] = {s: float(v) for s, v in zip(meas.sensors, values, strict=True)}
@@ -425,9 +430,3 @@ td,th{{border:1px solid #bbb;padding:2px 6px;text-align:right}}</style></head><b
 <h2>Frequencies [Hz]</h2><table><tr><th>config</th><th>mode</th><th>measured</th><th>baseline</th>
 <th>best (held out)</th></tr>{prow}</table></body></html>
 """
-
-
-def load_and_diagnose(rig_path: str | Path, measured_path: str | Path, **kw) -> dict:
-    """Convenience: read the rig TOML and the measured modal table, then ``diagnose``."""
-    from models.rig import load_rig
-    return diagnose(load_rig(rig_path), ModalTable.read_csv(measured_path), **kw)
