@@ -17,6 +17,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True, metavar="RUN.h5", help="HDF5 file (created, or a run is appended)")
     p.add_argument("--duration", type=float, metavar="S", help="run length in seconds")
     p.add_argument("--run-id", metavar="ID", help="run id (default: the session's, else name + UTC time)")
+    p.add_argument("--recover", action="store_true",
+                   help="RUN.h5 was left by a killed writer: clear its open-for-writing flags first")
     p.set_defaults(func=_acquire)
 
     sim = sub.add_parser("sim", help="simulated devices").add_subparsers(dest="sim_command", metavar="CMD")
@@ -56,6 +58,10 @@ def _acquire(args: argparse.Namespace) -> int:
     from daq.session import load_session
 
     session = load_session(args.config)
+    if args.recover and os.path.exists(args.out):
+        from daq.store import recover
+
+        recover(args.out)
     if args.duration is not None and args.duration <= 0:
         raise DaqError(f"--duration {args.duration}: must be > 0 seconds")
     try:

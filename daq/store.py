@@ -181,7 +181,8 @@ class RunWriter:
                 raise DaqError(f"{self.path}: directory {self.path.parent} does not exist") from exc
             if "already open for write" in str(exc):
                 raise DaqError(f"{self.path}: file is open by another writer or was not closed cleanly "
-                               "(it stays readable with swmr=True; clear it with `h5clear -s`)") from exc
+                               "(readable as it is; if no writer is running, `flexmodal acquire --recover` "
+                               "or daq.store.recover() makes it writable)") from exc
             raise DaqError(f"{self.path}: cannot open for writing ({exc})") from exc
         if f"runs/{self.run_id}" in f:
             f.close()
@@ -241,6 +242,71 @@ class RunWriter:
         if self._file.id.valid:
             self.flush()
             self._file.close()
+
+
+def _lookup3(data: bytes, initval: int = 0) -> int:
+    """Bob Jenkins' lookup3 ``hashlittle``, the checksum of HDF5 metadata (superblock v2/v3)."""
+    m = 0xFFFFFFFF
+
+    def rot(x: int, k: int) -> int:
+        return ((x << k) | (x >> (32 - k))) & m
+
+    def word(block: bytes, i: int) -> int:
+        return int.from_bytes(block[i:i + 4], "little")
+
+    a = b = c = (0xDEADBEEF + len(data) + initval) & m
+    i = 0
+    while len(data) - i > 12:  # a 48-byte superblock: not a hot path
+        a = (a + word(data, i)) & m
+        b = (b + word(data, i + 4)) & m
+        c = (c + word(data, i + 8)) & m
+        a = ((a - c) & m) ^ rot(c, 4)
+        c = (c + b) & m
+        b = ((b - a) & m) ^ rot(a, 6)
+        a = (a + c) & m
+        c = ((c - b) & m) ^ rot(b, 8)
+        b = (b + a) & m
+        a = ((a - c) & m) ^ rot(c, 16)
+        c = (c + b) & m
+        b = ((b - a) & m) ^ rot(a, 19)
+        a = (a + c) & m
+        c = ((c - b) & m) ^ rot(b, 4)
+        b = (b + a) & m
+        i += 12
+    tail = data[i:]
+    if not tail:
+        return c
+    tail = tail + bytes(12 - len(tail))
+    a = (a + word(tail, 0)) & m
+    b = (b + word(tail, 4)) & m
+    c = (c + word(tail, 8)) & m
+    c = ((c ^ b) - rot(b, 14)) & m
+    a = ((a ^ c) - rot(c, 11)) & m
+    b = ((b ^ a) - rot(a, 25)) & m
+    c = ((c ^ b) - rot(b, 16)) & m
+    a = ((a ^ c) - rot(c, 4)) & m
+    b = ((b ^ a) - rot(a, 14)) & m
+    c = ((c ^ b) - rot(b, 24)) & m
+    return c
+
+
+def recover(path: str | Path) -> bool:
+    """Clear the "open for writing" flags a killed writer left in the superblock (like ``h5clear -s``).
+
+    Only for a file that no process is writing any more; afterwards it opens normally and takes new
+    runs.  Returns False when the flags were already clear.
+    """
+    path = Path(path)
+    with open(path, "r+b") as f:
+        head = f.read(48)
+        if head[:8] != b"\x89HDF\r\n\x1a\n" or head[8] not in (2, 3) or head[9] != 8:
+            raise DaqError(f"{path}: not an HDF5 file with a version 2/3 superblock")
+        if head[11] == 0:
+            return False
+        sb = head[:11] + b"\x00" + head[12:44]
+        f.seek(0)
+        f.write(sb + _lookup3(sb).to_bytes(4, "little"))
+    return True
 
 
 def _open_read(path: str | Path) -> h5py.File:

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from daq.errors import DaqError
-from daq.store import Channel, Event, RunWriter, list_runs, read_run
+from daq.store import Channel, Event, RunWriter, _lookup3, list_runs, read_run, recover
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -171,3 +171,16 @@ def test_sigkill_leaves_all_but_last_second(tmp_path):
     assert written - 10000 <= n <= written + 500
     expected = np.arange(n)[:, None] + np.arange(16)[None, :] / 100
     np.testing.assert_allclose(run.samples, expected, rtol=0, atol=0.01)  # float32 storage
+    with pytest.raises(DaqError, match="not closed cleanly"):
+        _write_run(path, "after", np.zeros((3, 4)))
+    assert recover(path) and not recover(path)  # clears the killed writer's flags once
+    _write_run(path, "after", np.ones((3, 4)))
+    assert list_runs(path) == ["after", "live"]
+    np.testing.assert_array_equal(read_run(path, "live").samples, run.samples)
+
+
+def test_lookup3_known_answers():
+    # Bob Jenkins' lookup3.c self-test values for hashlittle
+    assert _lookup3(b"") == 0xDEADBEEF
+    assert _lookup3(b"Four score and seven years ago") == 0x17770551
+    assert _lookup3(b"Four score and seven years ago", 1) == 0xCD628161
