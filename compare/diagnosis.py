@@ -341,17 +341,20 @@ def _paired_shapes(ctx: _Context, fam) -> np.ndarray:
 
 def _verdict(ranking: list[dict], baseline: dict, before: float, scatter: float, meas: Measured,
              base_err: np.ndarray) -> dict:
-    if ranking and ranking[0]["score"] >= _score(before, 0, scatter):
-        return {"effect": "none", "location": "", "heldout_rms_rel_error_before": before,
-                "heldout_rms_rel_error_after": before, "explained": True,
-                "summary": f"no candidate beats the nominal model on held-out configurations once its extra "
-                           f"parameters are penalised (baseline held-out RMS {before:.2%}, best "
-                           f"{ranking[0]['effect']} {ranking[0]['heldout_rms_rel_error']:.2%})"}
+    none = {"effect": "none", "location": "", "heldout_rms_rel_error_before": before,
+            "heldout_rms_rel_error_after": before,
+            "explained": bool(before <= EXPLAINED_FACTOR * scatter)}
+    if baseline["rms_rel_error"] <= NONE_FACTOR * scatter:
+        return {**none, "summary": f"baseline RMS gap {baseline['rms_rel_error']:.2%} is within "
+                                   f"{NONE_FACTOR:g}x the measurement scatter ({scatter:.2%}): no unmodelled "
+                                   "effect is needed"}
     if not ranking:
-        return {"effect": "none", "location": "", "heldout_rms_rel_error_before": before,
-                "heldout_rms_rel_error_after": before, "explained": True,
-                "summary": f"baseline RMS gap {baseline['rms_rel_error']:.2%} is within {NONE_FACTOR:g}x the "
-                           f"measurement scatter ({scatter:.2%}): no unmodelled effect is needed"}
+        return {**none, "summary": f"baseline RMS gap {baseline['rms_rel_error']:.2%} but no candidate "
+                                   "effect applies to this rig: the gap is unexplained"}
+    if ranking[0]["score"] >= _score(before, 0, scatter):
+        return {**none, "summary": f"no candidate beats the nominal model on held-out configurations once "
+                                   f"its extra parameters are penalised (baseline held-out RMS {before:.2%}, "
+                                   f"best {ranking[0]['effect']} {ranking[0]['heldout_rms_rel_error']:.2%})"}
     best = ranking[0]
     after = best["heldout_rms_rel_error"]
     explained = after <= EXPLAINED_FACTOR * scatter

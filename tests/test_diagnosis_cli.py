@@ -64,3 +64,11 @@ def test_bad_options_exit_2(measured, capsys):
     assert "gearbox" in capsys.readouterr().err
     assert _run(tmp_path, df, "--holdout", "theta999") == 2
     assert "theta999" in capsys.readouterr().err
+
+
+def test_no_applicable_effect_leaves_the_gap_unexplained(measured):
+    tmp_path, df = measured
+    assert _run(tmp_path, df, "--effects", "end_restraint") == 0          # seed 003's arm has no member
+    v = json.loads((tmp_path / "out" / "diagnosis.json").read_text())["verdict"]
+    assert v["effect"] == "none" and v["explained"] is False
+    assert v["heldout_rms_rel_error_after"] == v["heldout_rms_rel_error_before"] > 0.4
