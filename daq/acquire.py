@@ -44,6 +44,7 @@ class WriteFailed(DaqError):
     closing it (closing would try to write again and can crash).
     """
 SIM_START_TIMEOUT_S = 60.0
+NO_DATA_TIMEOUT_S = 15.0  # a session whose devices deliver nothing for this long is an error
 
 
 @dataclass(frozen=True)
@@ -249,6 +250,7 @@ def _record(session: Session, out: Path, run_id: str, stamp: datetime, target: i
     writer: RunWriter | None = None
     pending: list[Event] = []
     written = 0
+    t_begin = time.monotonic()
     for th in threads:
         th.start()
 
@@ -304,6 +306,10 @@ def _record(session: Session, out: Path, run_id: str, stamp: datetime, target: i
                 n = timeline_.ready() if target is None else min(timeline_.ready(), target - written)
                 if n > 0:
                     write(timeline_.take(n))
+                elif writer is None and time.monotonic() - t_begin > NO_DATA_TIMEOUT_S:
+                    silent = [d for d, s in stats.items() if s.samples == 0] or list(drivers)
+                    raise DaqError(f"{session.source}: no samples from device {', '.join(map(repr, silent))} "
+                                   f"within {NO_DATA_TIMEOUT_S:g} s")
                 display.update(written, session.sample_rate_hz, sum(s.dropped_blocks for s in stats.values()),
                                counts)
         except KeyboardInterrupt:
