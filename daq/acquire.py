@@ -248,8 +248,11 @@ def _record(session: Session, out: Path, run_id: str, stamp: datetime, target: i
                                int(round(t.holdoff_s * session.sample_rate_hz)))
     counts: Counter = Counter()
     writer: RunWriter | None = None
-    pending: list[Event] = []
+    pending: list[Event] = []  # events dated in timeline rows (row 0 = the first sample of the session)
     written = 0
+    waiting = session.trigger is not None and session.trigger.start
+    start_row = 0  # timeline row stored as row 0 (set at the first trigger when the run starts on one)
+    held: list[np.ndarray] = []  # the last pretrigger rows while waiting for the first trigger
     t_begin = time.monotonic()
     for th in threads:
         th.start()
@@ -266,15 +269,32 @@ def _record(session: Session, out: Path, run_id: str, stamp: datetime, target: i
             pending.append(Event("note", timeline_.at_row(item.device), 1,
                                  f"{item.device}: disconnected ({item.detail})"))
 
-    def write(rows: np.ndarray) -> None:
-        nonlocal writer, written
-        if writer is None and rows.shape[0]:
-            writer = _open_writer(session, out, run_id, stamp, rows, names, timeline_.first_index)
+    def write(rows: np.ndarray, row0: int) -> None:
+        """Store timeline rows ``row0`` .. (waiting for the first trigger first, if so configured)."""
+        nonlocal writer, written, waiting, start_row
         if trig is not None:
             t = session.trigger
             pending.extend(Event("trigger", i, 1, f"{t.channel} {t.slope} {t.level:g}")
-                           for i in trig.find(rows, written))
-        keep = [e for e in pending if target is None or e.sample_index < target]
+                           for i in trig.find(rows, row0))
+        if waiting:
+            buf = np.vstack([*held, rows])
+            buf0 = row0 + rows.shape[0] - buf.shape[0]
+            hits = sorted(e.sample_index for e in pending if e.kind == "trigger")
+            if not hits:
+                held[:] = [buf[max(0, buf.shape[0] - session.trigger.pretrigger_samples):]]
+                pending[:] = [e for e in pending if e.sample_index >= buf0 + buf.shape[0] - held[0].shape[0]]
+                return
+            waiting = False
+            start_row = max(hits[0] - session.trigger.pretrigger_samples, buf0)
+            rows = buf[start_row - buf0:]
+            held.clear()
+        if target is not None:
+            rows = rows[:target - written]
+        if writer is None and rows.shape[0]:
+            first = {k: v + start_row for k, v in timeline_.first_index.items()}
+            writer = _open_writer(session, out, run_id, stamp, rows, names, first)
+        keep = [dataclasses.replace(e, sample_index=e.sample_index - start_row) for e in pending
+                if e.sample_index >= start_row and (target is None or e.sample_index - start_row < target)]
         pending.clear()
         display.rows(rows)
         for e in keep:
@@ -294,6 +314,9 @@ def _record(session: Session, out: Path, run_id: str, stamp: datetime, target: i
                               "the samples flushed before this point are intact") from exc
         written += rows.shape[0]
 
+    def due_rows() -> int:
+        return timeline_.ready() if target is None or waiting else min(timeline_.ready(), target - written)
+
     try:
         try:
             while target is None or written < target:
@@ -303,10 +326,11 @@ def _record(session: Session, out: Path, run_id: str, stamp: datetime, target: i
                         handle(q.get_nowait())
                 except queue.Empty:
                     pass
-                n = timeline_.ready() if target is None else min(timeline_.ready(), target - written)
+                n = due_rows()
                 if n > 0:
-                    write(timeline_.take(n))
-                elif writer is None and time.monotonic() - t_begin > NO_DATA_TIMEOUT_S:
+                    row0 = timeline_.released
+                    write(timeline_.take(n), row0)
+                elif timeline_.released == 0 and time.monotonic() - t_begin > NO_DATA_TIMEOUT_S:
                     silent = [d for d, s in stats.items() if s.samples == 0] or list(drivers)
                     raise DaqError(f"{session.source}: no samples from device {', '.join(map(repr, silent))} "
                                    f"within {NO_DATA_TIMEOUT_S:g} s")
@@ -324,8 +348,8 @@ def _record(session: Session, out: Path, run_id: str, stamp: datetime, target: i
                 break
             if isinstance(item, Block):
                 handle(item)
-        n = timeline_.ready() if target is None else min(timeline_.ready(), target - written)
-        write(timeline_.take(max(n, 0)))
+        row0 = timeline_.released
+        write(timeline_.take(max(due_rows(), 0)), row0)
         display.update(written, session.sample_rate_hz, sum(s.dropped_blocks for s in stats.values()),
                        counts, force=True)
     except WriteFailed:
@@ -336,6 +360,9 @@ def _record(session: Session, out: Path, run_id: str, stamp: datetime, target: i
         display.close()
         if writer is not None:
             writer.close()
+    if writer is None and waiting:
+        t = session.trigger
+        raise DaqError(f"{session.source}: trigger: no {t.slope} crossing of {t.level:g} on {t.channel!r}")
     if writer is None:
         raise DaqError(f"{session.source}: no samples arrived from {', '.join(drivers)}")
     return Summary(out, run_id, written, len(names), session.sample_rate_hz, counts,

@@ -96,6 +96,7 @@ class Trigger:
     slope: str = "rising"  # rising | falling
     pretrigger_samples: int = 0
     holdoff_s: float = 0.5
+    start: bool = False  # the run starts pretrigger_samples before the first trigger
 
 
 @dataclass(frozen=True)
@@ -311,11 +312,12 @@ def parse_session(doc: dict, source: Path) -> Session:
     trigger = None
     if "trigger" in doc:
         g = _Table(doc["trigger"], f"{where}: trigger")
-        g.reject_unknown({"channel", "level", "slope", "pretrigger_samples", "holdoff_s"})
+        g.reject_unknown({"channel", "level", "slope", "pretrigger_samples", "holdoff_s", "start"})
         trigger = Trigger(g.get("channel", str, check=lambda v: v in names, why="is not a channel"),
                           g.get("level", float), g.choice("slope", ("rising", "falling"), "rising"),
                           g.get("pretrigger_samples", int, 0, check=lambda v: v >= 0, why="must be >= 0"),
-                          g.get("holdoff_s", float, 0.5, check=lambda v: v >= 0, why="must be >= 0"))
+                          g.get("holdoff_s", float, 0.5, check=lambda v: v >= 0, why="must be >= 0"),
+                          g.get("start", bool, False))
     pose = t.get("pose", dict, {})
     for k, v in pose.items():
         if not isinstance(v, (int, float)) or isinstance(v, bool):

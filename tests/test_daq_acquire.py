@@ -110,6 +110,23 @@ def test_modbus_polled_samples_equal_emitted(tmp_path):
                   int(DURATION_S * 200))
 
 
+@pytest.mark.slow
+def test_run_starts_pretrigger_samples_before_the_first_impact(tmp_path):
+    config = _session(tmp_path, "serial")
+    text = config.read_text().replace("pretrigger_samples = 64\n", "pretrigger_samples = 64\nstart = true\n")
+    config.write_text(text)
+    out = tmp_path / "run.h5"
+    done = _acquire(config, out, 3.0)
+    assert done.returncode == 0, done.stderr
+    run, first = _run(out)
+    src, steps = _reference("serial", 2048.0)
+    _assert_clean(run, src.physical(first, 6144), steps, 6144)
+    triggers = [e.sample_index for e in run.events if e.kind == "trigger"]
+    assert triggers[0] == 64  # the pretrigger samples come first
+    assert run.samples[63, 0] < 5.0 <= run.samples[64, 0]  # F crosses the 5 N level there
+    assert all(b - a >= 0.5 * 2048 for a, b in zip(triggers, triggers[1:], strict=False))  # hold-off
+
+
 def test_modbus_rtu_over_a_pty_pair(tmp_path):
     config = _session(tmp_path, "modbus")
     text = config.read_text().replace('transport = "tcp"', 'transport = "rtu"\nbaud = 115200')
