@@ -31,8 +31,8 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
-from compare.blas import single_threaded
 from compare.candidates import Candidate, combine, parse_effects, single_candidates
 from compare.errors import CompareError
 from compare.fit import Target, evaluate, fit_candidate, paired_modes
@@ -255,7 +255,7 @@ def diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str] = "all
     ``scatter``: the relative measurement scatter of the frequencies (0.005 = 0.5 %; seed 003's Table 4
     repeatability was 0.3-0.85 %).  Raises CompareError (one line) on inputs that do not fit the rig.
     """
-    with single_threaded():
+    with threadpool_limits(limits=1, user_api="blas"):  # thousands of tiny eigenproblems
         return _diagnose(rig, measured, effects, holdout, scatter)
 
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 
 MODEL_CHOICES = ("fe", "assumed-modes", "lumped-mass", "blevins")
@@ -40,8 +39,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _predict(args: argparse.Namespace) -> int:
-    if "numpy" not in sys.modules:  # many small dense eigenproblems: BLAS threads would only contend
-        os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     from modal.table import poses_from_csv
     from models.errors import ModelError
     from models.predict import predict

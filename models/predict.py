@@ -16,6 +16,7 @@ from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from modal.table import POSE_PREFIX, SHAPE_PREFIX, ModalTable
 from models.errors import ModelError
@@ -103,7 +104,8 @@ def predict(rig: Rig, poses: Mapping[str, Mapping[str, float]], model: str = "fe
     if isinstance(n_modes, bool) or not isinstance(n_modes, int) or n_modes < 1:
         raise ModelError(f"number of modes must be a whole number >= 1 (got {n_modes!r})")
     records = []
-    results = _SOLVERS[model](rig, list(poses.values()), n_modes, options)
+    with threadpool_limits(limits=1, user_api="blas"):  # many small dense eigenproblems: threads contend
+        results = _SOLVERS[model](rig, list(poses.values()), n_modes, options)
     for (config, pose), (freq, shapes) in zip(poses.items(), results, strict=True):
         for i, f in enumerate(freq):
             row: dict[str, object] = {"config": str(config), "mode": i + 1, "freq_hz": float(f),
