@@ -31,6 +31,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     s.add_argument("--rig", metavar="RIG.toml", help="rig description (default: examples/rigs/demo_arm.toml)")
     s.add_argument("--test", choices=("impact", "random", "sweep"), default="impact", help="excitation")
     s.add_argument("--rate", type=float, default=2048.0, metavar="HZ", help="sample rate, Hz")
+    s.add_argument("--pose", default="", metavar="VAR=VALUE,...",
+                   help="pose of the rig, e.g. theta_deg=60 (angles in degrees; default 30 deg, others 0)")
     s.add_argument("--seed", type=int, default=0, help="seed of the simulated test and the faults")
     s.add_argument("--duration", type=float, metavar="S", help="stop after S seconds of samples")
     s.add_argument("--link", metavar="PATH", help="serial/slcan: symlink path of the pty")
@@ -82,5 +84,10 @@ def _serve(args: argparse.Namespace) -> int:
         raise DaqError(f"--corrupt-rate {args.corrupt_rate}: must be in [0, 1)")
     if args.rate <= 0:
         raise DaqError(f"--rate {args.rate}: must be > 0 Hz")
+    try:
+        pairs = (item.split("=") for item in args.pose.split(",") if item)
+        args.pose = {k.strip(): float(v) for k, v in pairs}
+    except ValueError as exc:
+        raise DaqError(f"--pose {args.pose!r}: expected VAR=NUMBER[,VAR=NUMBER...]") from exc
     serve(args, sys.stdout)
     return 0

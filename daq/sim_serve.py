@@ -29,7 +29,7 @@ def serve(args, stdout) -> None:
         signal.signal(sig, lambda *_: stop.set())
     if args.exit_with_parent:
         threading.Thread(target=_watch_parent, args=(os.getppid(), stop), daemon=True).start()
-    source = sim_source(args.rig, args.test, args.rate, seed=args.seed)
+    source = sim_source(args.rig, args.test, args.rate, seed=args.seed, pose=args.pose)
     faults = FaultPlan(args.corrupt_rate, args.drop_at, args.drop, args.disconnect_after, args.disconnect,
                        args.seed)
     log = FaultLog(args.fault_log)

@@ -69,12 +69,16 @@ class SimSource:
 
 def sim_source(rig_path: str | Path | None = None, test: str = "impact", sample_rate_hz: float = 2048.0,
                record_s: float = 8.0, seed: int = 0, pose: dict | None = None) -> SimSource:
-    """Simulate ``test`` on the rig (default: the demo arm at theta 30 deg) and digitise it."""
+    """Simulate ``test`` on the rig (default: the demo arm) at ``pose`` and digitise it.
+
+    Pose variables not given are 30 for angles (``*_deg``) and 0 otherwise.
+    """
     from fixtures.rig_sim import simulate
     from models.rig import load_rig
 
     rig = load_rig(rig_path or DEFAULT_RIG)
-    pose = pose if pose is not None else {v: 30.0 for v in rig.pose_variables}
+    default = {v: 30.0 if v.endswith("_deg") else 0.0 for v in rig.pose_variables}
+    pose = {**default, **(pose or {})}
     links = [link.name for link in rig.links]
     pulse_s = max(1.5e-3, 4 / sample_rate_hz)  # a softer hammer tip at low rates, so hits are sampled
     probe = simulate(rig, pose, excitation=test, duration_s=0.25, sample_rate_hz=sample_rate_hz,
