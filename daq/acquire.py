@@ -295,15 +295,9 @@ def _record(session: Session, out: Path, run_id: str, stamp: datetime, target: i
             writer = _open_writer(session, out, run_id, stamp, rows, names, first)
         keep = [dataclasses.replace(e, sample_index=e.sample_index - start_row) for e in pending
                 if e.sample_index >= start_row and (target is None or e.sample_index - start_row < target)]
-        pending.clear()
-        display.rows(rows)
-        for e in keep:
-            counts[e.kind] += 1
-            if e.kind == "overload":
-                display.overloads[names.index(e.detail)] += e.count
-        if writer is None:
-            pending.extend(keep)
+        if writer is None:  # nothing to store yet
             return
+        pending.clear()
         try:
             writer.append(rows)
             writer.add_events(keep)
@@ -313,6 +307,11 @@ def _record(session: Session, out: Path, run_id: str, stamp: datetime, target: i
             raise WriteFailed(f"{out}: writing failed after {writer.n_samples} samples ({reason}); "
                               "the samples flushed before this point are intact") from exc
         written += rows.shape[0]
+        display.rows(rows)
+        for e in keep:
+            counts[e.kind] += 1
+            if e.kind == "overload":
+                display.overloads[names.index(e.detail)] += e.count
 
     def due_rows() -> int:
         return timeline_.ready() if target is None or waiting else min(timeline_.ready(), target - written)
