@@ -244,21 +244,26 @@ def test_modbus_faults_are_events_at_their_samples(tmp_path):
     log = read_fault_log(log_path)
     counter = run.samples[:, 0]
     good = ~np.isnan(counter)
-    np.testing.assert_array_equal(counter[good], np.arange(good.sum()))  # every good sample, in order
-    nan_runs = _nan_runs(~good)
-    corrupt = [f["first_index"] for f in log if f["fault"] == "corrupt" and f["first_index"] < good.sum()]
+    got = counter[good].astype(int)
     down = next(f["first_index"] for f in log if f["fault"] == "disconnect")
+    jumps = np.flatnonzero(np.diff(got) != 1)
+    assert got[0] == 0 and np.all(np.diff(got) >= 1)  # every good sample, in order ...
+    in_flight = [got[j] + 1 for j in jumps]  # consumed by the device, answer lost as the server stopped
+    assert jumps.size <= 1 and np.all(np.diff(got)[jumps] == 2) and set(in_flight) <= {down - 1, down}
+    # ... except at most the one answer in flight at the disconnect
+    nan_runs = _nan_runs(~good)
+    corrupt = [f["first_index"] for f in log if f["fault"] == "corrupt" and f["first_index"] <= got[-1]]
     events = {e.sample_index: e for e in run.events if e.kind in ("corrupt", "gap")}
     assert len(nan_runs) == len(events) == len(corrupt) + 1
     for a, b in nan_runs:  # each empty stretch is one event, at the sample the device was to give next
         e = events[a]
         assert (e.kind, e.count) == ("corrupt", 1) or e.kind == "gap" and e.count == b - a
-        next_sample = counter[b] if b < counter.size else good.sum()
-        assert next_sample in (corrupt if e.kind == "corrupt" else [down])
+        next_sample = counter[b] if b < counter.size else got[-1] + 1
+        assert next_sample in (corrupt if e.kind == "corrupt" else [down, down + 1])
     gap = next(e for e in events.values() if e.kind == "gap")
     assert 0.5 * 200 <= gap.count <= 1.0 * 200
     src, steps = _reference("modbus", 200.0)
-    ref = src.physical(0, int(good.sum()))
+    ref = src.physical(0, got[-1] + 1)[got]
     assert (np.abs(run.samples[good, 1:] - ref) / steps).max() <= 1.0
 
 
