@@ -38,6 +38,7 @@ class CanDriver:
         self._bus = None
         self._last: tuple[int, int, float] | None = None  # (index, counter code, timestamp) of last frame
         self._held = None  # (index, group, data) of the newest, maybe unfinished scan
+        self._lost: str | None = None
 
     def open(self) -> None:
         import can
@@ -49,6 +50,7 @@ class CanDriver:
             self._bus = can.Bus(interface=self.device.interface, channel=self.device.channel, **kwargs)
         except (can.CanError, OSError, ValueError) as exc:
             raise DeviceLost(f"cannot open CAN {self.device.interface}:{self.device.channel}: {exc}") from exc
+        self._lost = None
 
     def close(self) -> None:
         if self._bus is not None:
@@ -62,14 +64,18 @@ class CanDriver:
         import can
         import serial
 
+        if self._lost:
+            raise DeviceLost(self._lost)
+        msgs = []
         try:
             msg = self._bus.recv(timeout=0.05)
-            msgs = []
             while msg is not None and len(msgs) < MAX_FRAMES_PER_READ:
                 msgs.append(msg)
                 msg = self._bus.recv(timeout=0)
         except (can.CanError, serial.SerialException, OSError) as exc:
-            raise DeviceLost(f"CAN {self.device.channel}: {exc}") from exc
+            self._lost = f"CAN {self.device.channel}: {exc}"
+            if not msgs:  # otherwise hand over what arrived; the next read reports the loss
+                raise DeviceLost(self._lost) from exc
         return msgs
 
     def _unwrap(self, code: np.ndarray, ts: np.ndarray) -> np.ndarray:
