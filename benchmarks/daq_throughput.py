@@ -72,7 +72,7 @@ def bench_serial(out_dir: Path, seconds: float, speed: float) -> tuple[float, bo
     elapsed = time.perf_counter() - t0
     sim.terminate()
     sim.join()
-    link.close()
+    link.remove()
     run = read_run(out, list_runs(out)[0])
     first = int(next(iter(json.loads(run.attrs["first_index"]).values())))
     exact = np.array_equal(run.samples, source.physical(first, run.samples.shape[0]).astype(np.float32))
@@ -156,7 +156,7 @@ def bench_can(n_frames: int = 30000) -> tuple[float, float]:
             bus.shutdown()
         rates.append(got / (time.perf_counter() - t0))
         feeder.join()
-        link.close()
+        link.remove()
     return rates[0], rates[1]
 
 

@@ -51,6 +51,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     s.add_argument("--disconnect", type=float, default=0.5, metavar="S", help="length of the disconnect, s")
     s.add_argument("--fault-log", metavar="FILE", help="append one JSON line per injected fault")
     s.add_argument("--exit-with-parent", action="store_true", help="stop when the parent process exits")
+    s.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS, help="no logs on stderr")
     s.set_defaults(func=_serve)
 
 

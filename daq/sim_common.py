@@ -74,6 +74,7 @@ class PtyLink:
     """
 
     def __init__(self, path: str | Path | None = None) -> None:
+        self._own_dir = path is None
         self.path = Path(path) if path else Path(tempfile.mkdtemp(prefix="flexmodal-sim-")) / "tty"
         self.master = self._slave = -1
         self.open()
@@ -102,6 +103,13 @@ class PtyLink:
             if fd >= 0:
                 os.close(fd)
         self.master = self._slave = -1
+
+    def remove(self) -> None:
+        """Close for good: also delete the symlink (and the temporary folder made for it)."""
+        self.close()
+        self.path.unlink(missing_ok=True)
+        if self._own_dir:
+            self.path.parent.rmdir()
 
     def write(self, data: bytes, timeout_s: float = 1.0) -> None:
         """Write all of ``data``; TimeoutError if the reader takes nothing for ``timeout_s``."""

@@ -6,6 +6,7 @@ until SIGTERM/SIGINT or ``--duration`` and then exits 0.
 
 from __future__ import annotations
 
+import logging
 import os
 import signal
 import threading
@@ -29,6 +30,8 @@ def serve(args, stdout) -> None:
         signal.signal(sig, lambda *_: stop.set())
     if args.exit_with_parent:
         threading.Thread(target=_watch_parent, args=(os.getppid(), stop), daemon=True).start()
+    if args.quiet:
+        logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
     source = sim_source(args.rig, args.test, args.rate, seed=args.seed, pose=args.pose)
     faults = FaultPlan(args.corrupt_rate, args.drop_at, args.drop, args.disconnect_after, args.disconnect,
                        args.seed)
@@ -46,7 +49,7 @@ def serve(args, stdout) -> None:
             announce(str(link.path))
             serve_serial(link, source, scans_per_frame=args.scans_per_frame, framing=args.framing,
                          fmt=args.format, faults=faults, log=log, duration_s=args.duration, stop=stop)
-            link.close()
+            link.remove()
         elif args.protocol == "can":
             from fixtures.sim_can import serve_slcan
 
