@@ -7,8 +7,10 @@
    its stabilisation and selection given the true frequencies) vs modal.lscf (stabilisation with
    frequency, damping and MAC criteria + automatic selection, no frequencies given).
 
-Prints wall times, their ratio and the differences of the results.  Usage:
-``python benchmarks/modal.py [--duration-s 600] [--lines 2000] [--repeat 3]``.
+Each round runs the reference first, then flexmodal, on the same data in this process; prints the
+median wall and CPU times over ``--repeat`` rounds, their ratios and the differences of the results.
+Usage: ``python benchmarks/modal.py [--duration-s 600] [--lines 2000] [--repeat 5]`` (BLAS threads
+as the environment sets them, e.g. ``OPENBLAS_NUM_THREADS=1``; modal.lscf itself uses one).
 """
 
 from __future__ import annotations
@@ -32,15 +34,24 @@ FN = np.array([12.0, 31.0, 55.0, 80.0, 120.0, 150.0])
 ZETA = np.array([0.005, 0.02, 0.01, 0.05, 0.01, 0.02])
 
 
-def _best(fn, repeat: int):
-    """(best wall time s, best CPU time s of this process, result) over ``repeat`` runs."""
-    wall, cpu, out = [], [], None
+def _timed(reference, ours, repeat: int):
+    """Median wall and CPU times (s, CPU of this process: every thread) of ``reference`` and ``ours``
+    over ``repeat`` rounds, each round running the reference first and then ours on the same data (the
+    machine is shared, so the two sides of a round see similar load); and the last results."""
+    times = {reference: [], ours: []}
+    out = {}
     for _ in range(repeat):
-        t0, c0 = time.perf_counter(), time.process_time()
-        out = fn()
-        wall.append(time.perf_counter() - t0)
-        cpu.append(time.process_time() - c0)
-    return min(wall), min(cpu), out
+        for fn in (reference, ours):
+            t0, c0 = time.perf_counter(), time.process_time()
+            out[fn] = fn()
+            times[fn].append((time.perf_counter() - t0, time.process_time() - c0))
+    (tw, tc), (ow, oc) = (np.median(np.array(times[fn]), axis=0) for fn in (reference, ours))
+    return (tw, tc, out[reference]), (ow, oc, out[ours])
+
+
+def _ratio_line(name_ref: str, t_ref: float, c_ref: float, t_ours: float, c_ours: float, repeat: int) -> str:
+    return (f"{name_ref} {t_ref:.3f} s, flexmodal {t_ours:.3f} s, ratio {t_ref / t_ours:.1f}x "
+            f"(CPU {c_ref:.3f} s vs {c_ours:.3f} s, {c_ref / c_ours:.1f}x; medians of {repeat})")
 
 
 def bench_frf(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: int) -> None:
@@ -67,9 +78,7 @@ def bench_frf(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: int)
                       nperseg=nfft, noverlap=nfft // 2, fft_len=nfft)
         return f.get_H1(), f.get_H2(), f.get_coherence()
 
-    ours()  # warm-up (FFT plans)
-    t_ours, c_ours, (a1, a2, ac) = _best(ours, repeat)
-    t_theirs, c_theirs, (b1, b2, bc) = _best(theirs, 1)
+    (t_theirs, c_theirs, (b1, b2, bc)), (t_ours, c_ours, (a1, a2, ac)) = _timed(theirs, ours, repeat)
     lines = slice(1, None)
     good = bc[:, lines] > 0.5
 
@@ -77,8 +86,7 @@ def bench_frf(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: int)
         return float(np.max((np.abs(a[:, 0, lines] - b[:, 0, lines]) / np.abs(b[:, 0, lines]))[good]))
 
     print(f"FRF  {n_resp} responses x 1 reference, {duration_s:g} s at {fs:g} Hz, nfft {nfft}: "
-          f"pyFRF {t_theirs:.2f} s, flexmodal {t_ours:.3f} s, ratio {t_theirs / t_ours:.1f}x "
-          f"(CPU {c_theirs:.2f} s vs {c_ours:.3f} s, {c_theirs / c_ours:.1f}x)")
+          + _ratio_line("pyFRF", t_theirs, c_theirs, t_ours, c_ours, repeat))
     print(f"     max relative difference (coherence > 0.5): H1 {rel(a1, b1):.1e}, H2 {rel(a2, b2):.1e}, "
           f"coherence {np.max(np.abs(ac[:, lines] - bc[:, lines])[good]):.1e}")
 
@@ -104,8 +112,7 @@ def bench_lscf(n_frf: int, n_lines: int, repeat: int) -> None:
             m.select_closest_poles(FN)
         return m.nat_freq, m.nat_xi
 
-    t_ours, c_ours, (fo, zo, _) = _best(ours, repeat)
-    t_theirs, c_theirs, (ft, zt) = _best(theirs, repeat)
+    (t_theirs, c_theirs, (ft, zt)), (t_ours, c_ours, (fo, zo, _)) = _timed(theirs, ours, repeat)
 
     def errors(fr, zr):
         """Relative errors per true mode of the nearest identified one (inf when none within 5 %)."""
@@ -118,10 +125,9 @@ def bench_lscf(n_frf: int, n_lines: int, repeat: int) -> None:
 
     efo, ezo = errors(np.asarray(fo), np.asarray(zo))
     eft, ezt = errors(np.asarray(ft), np.asarray(zt))
-    print(f"LSCF {n_frf} FRFs x {n_lines} lines, orders 2,4..60, 6 modes: sdypy-EMA {t_theirs:.3f} s "
-          f"(true frequencies given), flexmodal {t_ours:.3f} s (automatic selection), "
-          f"ratio {t_theirs / t_ours:.1f}x "
-          f"(CPU {c_theirs:.3f} s vs {c_ours:.3f} s, {c_theirs / c_ours:.1f}x)")
+    print(f"LSCF {n_frf} FRFs x {n_lines} lines, orders 2,4..60, 6 modes (sdypy-EMA given the true "
+          "frequencies, flexmodal automatic selection): "
+          + _ratio_line("sdypy-EMA", t_theirs, c_theirs, t_ours, c_ours, repeat))
     for name, ef, ez in (("sdypy-EMA", eft, ezt), ("flexmodal", efo, ezo)):
         print(f"     {name:9s} modes found {int(np.isfinite(ef).sum())}/{FN.size}; max error of found: "
               f"frequency {np.max(ef[np.isfinite(ef)], initial=0):.1e}, "
@@ -136,7 +142,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--nfft", type=int, default=8192)
     p.add_argument("--frfs", type=int, default=30)
     p.add_argument("--lines", type=int, default=2000)
-    p.add_argument("--repeat", type=int, default=3)
+    p.add_argument("--repeat", type=int, default=5)
     a = p.parse_args(argv)
     bench_frf(a.duration_s, a.sample_rate_hz, a.responses, a.nfft, a.repeat)
     bench_lscf(a.frfs, a.lines, a.repeat)

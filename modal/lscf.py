@@ -17,9 +17,11 @@ null vector.  A pole is stable when a pole of the previous order lies within ``d
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
 import scipy.linalg
+from threadpoolctl import ThreadpoolController
 
 from modal.errors import ModalError
 from modal.mac import mac_pairs
@@ -43,45 +45,33 @@ class Stabilisation:
         return self.stable_freq & self.stable_damping & self.stable_shape
 
 
-def _uniform_grid(f: np.ndarray) -> int | None:
-    """N = 2 f_max / df when the lines are k df with integer k (an FFT grid), else None."""
-    df = (f[-1] - f[0]) / (f.size - 1)
-    k = f / df
-    if df > 0 and np.allclose(np.diff(f), df, rtol=1e-9, atol=0) and np.allclose(k, np.round(k), atol=1e-6):
-        return int(round(2 * f[-1] / df))
-    return None
+@cache
+def _blas() -> ThreadpoolController:
+    """The BLAS thread pools, found once (a fresh ``threadpool_limits`` costs ~1 ms per call)."""
+    return ThreadpoolController()
 
 
 def _lag_sums(freq_hz: np.ndarray, H: np.ndarray, p_max: int, dt: float):
-    """Sums over lines of 1, H and H^H H times z^d for lags d = -p_max..p_max (index p_max + d).
+    """Real parts of the sums over lines of 1, H and H^H H (summed over outputs) times z^d for lags
+    d = -p_max..p_max (index p_max + d), the only parts the real-coefficient normal equations use.
 
-    On an FFT grid (lines k df) with dt = 1/(2 f_max), z = exp(2 pi i k / N): the sums are one
-    inverse and one forward FFT of the zero-padded line data; otherwise explicit matrix products."""
+    ``Re sum g z^(+-d) = sum Re(g) cos(d theta) -+ sum Im(g) sin(d theta)``: two real matrix products
+    [rows x lines] @ [lines x (p_max + 1)] for every row at once, on any frequency grid (z^d by
+    repeated multiplication: complex exp, cos and sin of [lines x lags] cost more than the products)."""
     f = np.asarray(freq_hz, float)
     n_out, n_in, nf = H.shape
-    n_fft = _uniform_grid(f)
-    if n_fft is not None:
-        first = int(round(f[0] / (f[1] - f[0])))
-
-        def both(g: np.ndarray) -> np.ndarray:                    # g [..., nf] -> [..., 2p+1]
-            pad = np.zeros((*g.shape[:-1], n_fft), complex)
-            pad[..., first:first + nf] = g
-            plus = np.fft.ifft(pad, axis=-1)[..., :p_max + 1] * n_fft
-            minus = np.fft.fft(pad, axis=-1)[..., :p_max + 1]
-            return np.concatenate([minus[..., :0:-1], plus], axis=-1)
-    else:
-        zk = np.exp(1j * np.outer(2 * np.pi * f * dt, np.arange(p_max + 1)))   # [nf, p+1]
-
-        def both(g: np.ndarray) -> np.ndarray:
-            flat = g.reshape(-1, nf)
-            plus, minus = flat @ zk, flat @ zk.conj()
-            return np.concatenate([minus[:, :0:-1], plus], axis=-1).reshape(*g.shape[:-1], -1)
-
-    r = both(np.ones((1, nf)))[0].real
-    s = both(H)                                                    # [o, i, 2p+1]
-    g = np.einsum("oaf,obf->abf", H.conj(), H)                      # sum over outputs of H^H H
-    t = both(g)                                                    # [a, b, 2p+1]
-    return r, s, t
+    g = np.einsum("oaf,obf->abf", H.conj(), H)                      # [a, b, f]
+    rows = np.concatenate([np.ones((1, nf)), H.reshape(-1, nf), g.reshape(-1, nf)])
+    theta = 2 * np.pi * f * dt
+    z = np.cos(theta) + 1j * np.sin(theta)
+    zd = np.empty((p_max + 1, nf), complex)                           # z^d [d, f]
+    zd[0] = 1.0
+    for d in range(1, p_max + 1):   # a loop over lags: one vector product each (error ~ d eps)
+        np.multiply(zd[d - 1], z, out=zd[d])
+    c, s = rows.real @ zd.real.T, rows.imag @ zd.imag.T
+    full = np.concatenate([(c + s)[:, :0:-1], c - s], axis=1)      # [rows, 2p+1]
+    return full[0], full[1:1 + n_out * n_in].reshape(n_out, n_in, -1), full[1 + n_out * n_in:].reshape(
+        n_in, n_in, -1)
 
 
 def _cholesky(R: np.ndarray) -> np.ndarray:
@@ -96,54 +86,60 @@ def _cholesky(R: np.ndarray) -> np.ndarray:
 
 
 class _NormalEquations:
-    """Reduced normal matrices of every order from one factorisation of the highest order.
+    """Reduced normal matrices of the requested orders from one factorisation of the highest order.
 
-    With ``R = L L^T`` (Cholesky, nested: the order-p factor is the leading block of the highest
-    order's) and ``Y_o = L^-1 S_o``, the order-p reduced matrix is
-    ``M_p = T_p - sum_o Y_o[:p+1, :n_p]^T Y_o[:p+1, :n_p]``: a cumulative sum over the rows j."""
+    The blocks are Toeplitz in the lag: ``R[j, k] = r[k - j]``, ``S_o[j, k] = -s_o[k - j]``,
+    ``T[j, k] = t[k - j]``.  With ``R = L L^T`` (Cholesky, nested: the order-p factor is the leading
+    block of the highest order's) and ``Y_o = L^-1 S_o``, the order-p reduced matrix is
+    ``M_p = T_p - sum_o Y_o[:p+1, :n_p]^T Y_o[:p+1, :n_p]``: the rows j of Y are grouped between
+    consecutive requested orders, one matrix product per group, and a cumulative sum over groups."""
 
-    def __init__(self, p_max: int, r, s, t) -> None:
+    def __init__(self, orders: list[int], r, s, t) -> None:
+        p_max = orders[-1]
         n_out, n_in = s.shape[:2]
         j = np.arange(p_max + 1)
         lag = p_max + j[None, :] - j[:, None]                       # [j, k] -> index of k - j
         L = _cholesky(r[lag])
-        S = -s[:, :, lag].real.transpose(1, 0, 2, 3)                 # [i, o, j, k]
-        S = S.transpose(1, 2, 3, 0).reshape(n_out, p_max + 1, (p_max + 1) * n_in)   # [o, j, (k i)]
-        self.Y = scipy.linalg.solve_triangular(L, S.transpose(1, 0, 2).reshape(p_max + 1, -1),
-                                               lower=True).reshape(p_max + 1, n_out, -1)   # [j, o, (k i)]
-        self.T = t[:, :, lag].real.transpose(2, 0, 3, 1).reshape((p_max + 1) * n_in, -1)
-        self.Linv_T = scipy.linalg.solve_triangular(L, np.eye(p_max + 1), lower=True).T
+        S = (-s[:, :, lag]).transpose(2, 0, 3, 1).reshape(p_max + 1, -1)        # [j, (o k i)]
+        self.Y = np.ascontiguousarray(scipy.linalg.solve_triangular(
+            L, S, lower=True, check_finite=False)).reshape(p_max + 1, n_out, -1)   # [j, o, (k i)]
+        self.T = t[:, :, lag].transpose(2, 0, 3, 1).reshape((p_max + 1) * n_in, -1)
+        self.Linv_T = scipy.linalg.solve_triangular(L, np.eye(p_max + 1), lower=True, check_finite=False).T
         self.n_in = n_in
-        self.C = np.cumsum(np.matmul(self.Y.transpose(0, 2, 1), self.Y), axis=0)   # [p + 1, n, n]
+        edges = [0] + [p + 1 for p in orders]
+        groups = [self.Y[a:b].reshape(-1, self.Y.shape[-1]) for a, b in zip(edges, edges[1:], strict=False)]
+        self.C = np.cumsum([y.T @ y for y in groups], axis=0)        # [order index, n, n]
 
-    def reduced(self, p: int) -> np.ndarray:
-        """M_p [(p+1) n_in, (p+1) n_in]."""
+    def reduced(self, index: int, p: int) -> np.ndarray:
+        """M_p [(p+1) n_in, (p+1) n_in] of the order at position ``index`` of the requested orders."""
         n = (p + 1) * self.n_in
-        return self.T[:n, :n] - self.C[p, :n, :n]
+        return self.T[:n, :n] - self.C[index, :n, :n]
 
     def numerators_at(self, p: int, alpha: np.ndarray, powers: np.ndarray) -> np.ndarray:
-        """N_o(lambda_r) [o, r, n_in] for ``powers`` = lambda_r^j [r, p+1], with the numerator
+        """N_o(lambda_r) [r, o, n_in] for ``powers`` = lambda_r^j [r, p+1], with the numerator
         coefficients beta_o = -R_p^-1 S_o alpha = -L^-T Y_o alpha."""
         b, n = p + 1, (p + 1) * self.n_in
-        ya = np.einsum("jon,nc->joc", self.Y[:b, :, :n], alpha)                  # [j, o, c]
+        n_out = self.Y.shape[1]
+        ya = self.Y[:b].reshape(b * n_out, -1)[:, :n] @ alpha                      # [(j o), c]
         pl = powers @ self.Linv_T[:b, :b]                                          # [r, j]
-        return -np.einsum("rj,joc->orc", pl, ya)
+        return -(pl @ ya.reshape(b, -1)).reshape(powers.shape[0], n_out, -1)
 
 
-def _poles_of_order(p: int, eqs: _NormalEquations, dt: float, fmin: float, fmax: float
+def _poles_of_order(index: int, p: int, eqs: _NormalEquations, dt: float, fmin: float, fmax: float
                     ) -> tuple[np.ndarray, np.ndarray]:
     """Physical continuous-time poles [n] (upper half plane, stable, in [fmin, fmax], ascending) of
     model order ``p`` and their shape estimates [n_out, n]: ``N_o(lambda) v``, the numerator at the
     pole times the right null vector of the denominator."""
     n_in = eqs.n_in
-    M = eqs.reduced(p)
+    M = eqs.reduced(index, p)
     k = p * n_in
     alpha = np.vstack([np.linalg.solve(M[:k, :k], -M[:k, k:]), np.eye(n_in)])   # [(p+1) n_in, n_in]
     comp = np.zeros((k, k))
     comp[:-n_in, n_in:] = np.eye(k - n_in)
     comp[-n_in:, :] = -alpha[:k].reshape(p, n_in, n_in).transpose(1, 0, 2).reshape(n_in, k)
     if n_in == 1:
-        lam, vec = np.linalg.eigvals(comp), np.ones((1, k))
+        # the transpose is upper Hessenberg, so LAPACK's Hessenberg reduction has nothing to do
+        lam, vec = np.linalg.eigvals(comp.T), np.ones((1, k))
     else:
         lam, vec = np.linalg.eig(comp)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -152,8 +148,8 @@ def _poles_of_order(p: int, eqs: _NormalEquations, dt: float, fmin: float, fmax:
     idx = np.flatnonzero(np.isfinite(poles) & (poles.imag > 0) & (poles.real < 0) & (f >= fmin) & (f <= fmax))
     idx = idx[np.argsort(f[idx])]
     powers = lam[idx, None] ** np.arange(p + 1)[None, :]             # [r, p+1]
-    num = eqs.numerators_at(p, alpha, powers)                        # [o, r, n_in]
-    return poles[idx], np.einsum("orc,cr->or", num, vec[:n_in, idx])
+    num = eqs.numerators_at(p, alpha, powers)                        # [r, o, n_in]
+    return poles[idx], np.einsum("roc,cr->or", num, vec[:n_in, idx])
 
 
 def stabilisation(freq_hz: np.ndarray, H: np.ndarray, orders: range | list[int], *, df: float = 0.01,
@@ -163,32 +159,37 @@ def stabilisation(freq_hz: np.ndarray, H: np.ndarray, orders: range | list[int],
     f = np.asarray(freq_hz, float)
     if H.ndim != 3 or H.shape[-1] != f.size:
         raise ModalError(f"pLSCF: FRFs of shape {H.shape} do not match {f.size} frequency lines")
-    orders = sorted(int(o) for o in orders)
+    orders = sorted({int(o) for o in orders})
     if f.size < 2 * orders[-1] + 2:
         raise ModalError(f"pLSCF: {f.size} lines are too few for model order {orders[-1]}")
     dt = 1.0 / (2 * f.max())
     scale = np.sqrt(np.mean(np.abs(H) ** 2))
-    Hn = H / scale
-    eqs = _NormalEquations(orders[-1], *_lag_sums(f, Hn, orders[-1], dt))
-    rows = []
-    prev = None
-    for p in orders:   # a loop over model orders, each a small dense solve
-        poles, shapes = _poles_of_order(p, eqs, dt, f.min(), f.max())
-        fn = np.abs(poles) / (2 * np.pi)
-        zeta = -poles.real / np.abs(poles)
-        sf = np.zeros(poles.size, bool)
-        sd = np.zeros(poles.size, bool)
-        ss = np.zeros(poles.size, bool)
-        if prev is not None and prev[0].size and poles.size:
-            pf, pz, psh = prev
-            near = np.argmin(np.abs(fn[:, None] - pf[None, :]), axis=1)
-            sf = np.abs(fn - pf[near]) <= df * fn
-            sd = np.abs(zeta - pz[near]) <= dz * zeta
-            ss = mac_pairs(shapes, psh[:, near]) >= mac_min
-        rows.append((np.full(poles.size, p), fn, zeta, poles, sf, sd, ss))
-        prev = (fn, zeta, shapes)
-    cols = [np.concatenate(c) for c in zip(*rows, strict=True)]
-    return Stabilisation(*cols)
+    # one BLAS thread: the matrices are small, and threads spinning on a shared machine cost more
+    with _blas().limit(limits=1, user_api="blas"):
+        eqs = _NormalEquations(orders, *_lag_sums(f, H / scale, orders[-1], dt))
+        found = [_poles_of_order(i, p, eqs, dt, f.min(), f.max()) for i, p in enumerate(orders)]
+    poles = [pl for pl, _ in found]
+    fn = [np.abs(pl) / (2 * np.pi) for pl in poles]
+    zeta = [-pl.real / np.abs(pl) for pl in poles]
+    # every pole against the nearest pole of the previous order, all orders at once
+    near, cur, prev = [], [], []
+    for k in range(1, len(orders)):   # a loop over model orders
+        if fn[k].size and fn[k - 1].size:
+            near.append(np.argmin(np.abs(fn[k][:, None] - fn[k - 1][None, :]), axis=1) + sum(
+                x.size for x in fn[:k - 1]))
+            cur.append(np.arange(fn[k].size) + sum(x.size for x in fn[:k]))
+    all_fn, all_zeta = np.concatenate(fn), np.concatenate(zeta)
+    all_shapes = np.concatenate([sh for _, sh in found], axis=1)
+    sf = np.zeros(all_fn.size, bool)
+    sd = np.zeros(all_fn.size, bool)
+    ss = np.zeros(all_fn.size, bool)
+    if cur:
+        cur, prev = np.concatenate(cur), np.concatenate(near)
+        sf[cur] = np.abs(all_fn[cur] - all_fn[prev]) <= df * all_fn[cur]
+        sd[cur] = np.abs(all_zeta[cur] - all_zeta[prev]) <= dz * all_zeta[cur]
+        ss[cur] = mac_pairs(all_shapes[:, cur], all_shapes[:, prev]) >= mac_min
+    order = np.concatenate([np.full(pl.size, p) for pl, p in zip(poles, orders, strict=True)])
+    return Stabilisation(order, all_fn, all_zeta, np.concatenate(poles), sf, sd, ss)
 
 
 def select_stable(stab: Stabilisation, *, min_fraction: float = 0.3, cluster_tol: float = 0.005

@@ -9,7 +9,9 @@ float32 records are transformed in single precision and accumulated in double pr
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -18,7 +20,8 @@ import scipy.fft
 from modal.errors import ModalError
 from modal.windows import window
 
-_BLOCK_BYTES = 2 << 20
+_BLOCK_BYTES = 4 << 20      # windowed segments per block (fits the shared L3 cache)
+_TILE = 2048                # rows per tile of the block transpose (stays in L1/L2)
 
 
 @dataclass(frozen=True)
@@ -89,6 +92,60 @@ def _window_array(spec: str | np.ndarray, nfft: int) -> np.ndarray:
     return w
 
 
+def _thread_count(workers: int | None) -> int:
+    """Threads for ``workers`` as in scipy.fft: None -> 1, -1 -> every CPU, n -> n."""
+    if workers is None:
+        return 1
+    if workers < 0:
+        return max(1, (os.cpu_count() or 1) + 1 + workers)
+    return max(1, workers)
+
+
+def _segment_means(rows: np.ndarray, view: np.ndarray, step: int) -> np.ndarray:
+    """Mean of every segment [ch, seg, 1]: from sums of ``step``-sample pieces (each sample read once)
+    when a segment is a whole number of pieces, else directly."""
+    nfft = view.shape[-1]
+    if nfft % step:
+        return view.mean(axis=-1, keepdims=True)
+    pieces = rows.reshape(rows.shape[0], -1, step) @ np.ones(step, rows.dtype)     # [ch, piece]
+    k = nfft // step
+    sums = np.lib.stride_tricks.sliding_window_view(pieces, k, axis=1).sum(axis=-1)
+    return (sums / nfft)[..., None].astype(rows.dtype)
+
+
+def _welch_sums(samples: np.ndarray, cols, windows: np.ndarray, n_in: int, step: int, n_seg: int,
+                starts: Sequence[int], block: int, detrend: bool):
+    """Sums over the segments of the blocks starting at segment indices ``starts`` (``block`` segments
+    each): per block, a channel-major copy of the block's samples (transposed in cache-sized tiles),
+    the mean-removed windowed segments from a strided view of it, one real FFT over every segment and
+    channel, and the products."""
+    n_ch, nfft = windows.shape
+    n_freq = nfft // 2 + 1
+    g_xf = np.zeros((n_ch - n_in, n_in, n_freq), complex)
+    g_ff = np.zeros((n_in, n_in, n_freq), complex)
+    g_xx = np.zeros((n_ch - n_in, n_freq))
+    rows = np.empty((n_ch, (block - 1) * step + nfft), windows.dtype)
+    buf = np.empty((n_ch, block, nfft), windows.dtype)
+    for s0 in starts:
+        b = min(block, n_seg - s0)
+        length = (b - 1) * step + nfft
+        for t0 in range(0, length, _TILE):
+            t1 = min(length, t0 + _TILE)
+            rows[:, t0:t1] = samples[s0 * step + t0:s0 * step + t1, cols].T
+        view = np.lib.stride_tricks.sliding_window_view(rows[:, :length], nfft, axis=1)[:, ::step]
+        seg = buf[:, :b]
+        if detrend:
+            np.subtract(view, _segment_means(rows[:, :length], view, step), out=seg)
+            seg *= windows[:, None, :]
+        else:
+            np.multiply(view, windows[:, None, :], out=seg)
+        a, c, d = _products(scipy.fft.rfft(seg, axis=-1), n_in, None)
+        g_xf += a
+        g_ff += c
+        g_xx += d
+    return g_xf, g_ff, g_xx
+
+
 def welch_spectra(samples: np.ndarray, sample_rate_hz: float, inputs: Sequence[int],
                   outputs: Sequence[int], nfft: int, *, overlap: float = 0.5,
                   window_spec: str | np.ndarray = "hann", input_window_spec: str | np.ndarray | None = None,
@@ -98,7 +155,9 @@ def welch_spectra(samples: np.ndarray, sample_rate_hz: float, inputs: Sequence[i
 
     Segments of ``nfft`` samples advance by ``nfft - round(overlap * nfft)``; each segment loses its
     mean (``detrend``) and is multiplied by its window (``input_window_spec`` on the inputs if given);
-    a window is a spec string (:mod:`modal.windows`) or an array of ``nfft`` samples.
+    a window is a spec string (:mod:`modal.windows`) or an array of ``nfft`` samples.  Blocks of
+    segments are shared out to ``workers`` threads (as in scipy.fft: None one, -1 every CPU), each
+    with its own sums; the sums are added in a fixed order, so the result does not depend on timing.
     """
     n_samples = samples.shape[0]
     if nfft < 8:
@@ -108,36 +167,30 @@ def welch_spectra(samples: np.ndarray, sample_rate_hz: float, inputs: Sequence[i
     if not 0.0 <= overlap < 1.0:
         raise ModalError(f"overlap {overlap}: must be in [0, 1)")
     step = nfft - int(round(overlap * nfft))
-    chans = list(inputs) + list(outputs)
+    chans = [int(c) for c in inputs] + [int(c) for c in outputs]
     n_in = len(inputs)
+    contiguous = chans == list(range(chans[0], chans[0] + len(chans)))
+    cols = slice(chans[0], chans[0] + len(chans)) if contiguous else chans
     dtype = np.float32 if samples.dtype == np.float32 else np.float64
     w_out = _window_array(window_spec, nfft)
     w_in = w_out if input_window_spec is None else _window_array(input_window_spec, nfft)
-    w = np.vstack([np.repeat(w_in[None], n_in, 0), np.repeat(w_out[None], len(outputs), 0)]).astype(dtype)
-    xt = np.empty((len(chans), n_samples), dtype)                  # channel-major copy, blocked transpose
-    for t0 in range(0, n_samples, 1 << 16):
-        xt[:, t0:t0 + (1 << 16)] = samples[t0:t0 + (1 << 16), chans].T
-    view = np.lib.stride_tricks.sliding_window_view(xt, nfft, axis=1)[:, ::step]   # [ch, seg, nfft]
-    n_seg = view.shape[1]
-    block = max(1, _BLOCK_BYTES // (len(chans) * nfft * np.dtype(dtype).itemsize))
-    buf = np.empty((len(chans), block, nfft), dtype)
-    n_freq = nfft // 2 + 1
-    g_xf = np.zeros((len(outputs), n_in, n_freq), complex)
-    g_ff = np.zeros((n_in, n_in, n_freq), complex)
-    g_xx = np.zeros((len(outputs), n_freq))
-    for s0 in range(0, n_seg, block):
-        blk = view[:, s0:s0 + block]
-        seg = buf[:, :blk.shape[1]]
-        if detrend:
-            np.subtract(blk, blk.mean(axis=-1, keepdims=True), out=seg)
-            seg *= w[:, None, :]
-        else:
-            np.multiply(blk, w[:, None, :], out=seg)
-        x = scipy.fft.rfft(seg, axis=-1, workers=workers)
-        a, b, c = _products(x, n_in, None)
-        g_xf += a
-        g_ff += b
-        g_xx += c
-    scale = density_scale(n_freq, nfft, sample_rate_hz, w_out) / n_seg
+    windows = np.vstack([np.repeat(w_in[None], n_in, 0),
+                         np.repeat(w_out[None], len(outputs), 0)]).astype(dtype)
+    n_seg = (n_samples - nfft) // step + 1
+    block = max(1, min(n_seg, _BLOCK_BYTES // (len(chans) * nfft * np.dtype(dtype).itemsize)))
+    starts = range(0, n_seg, block)
+    n_threads = min(_thread_count(workers), len(starts))
+    parts = [starts[k::n_threads] for k in range(n_threads)]
+
+    def run(part):
+        return _welch_sums(samples, cols, windows, n_in, step, n_seg, part, block, detrend)
+
+    if n_threads == 1:
+        sums = [run(parts[0])]
+    else:
+        with ThreadPoolExecutor(n_threads) as pool:
+            sums = list(pool.map(run, parts))
+    g_xf, g_ff, g_xx = (sum(s[k] for s in sums) for k in range(3))
+    scale = density_scale(g_xx.shape[-1], nfft, sample_rate_hz, w_out) / n_seg
     return Spectra(np.fft.rfftfreq(nfft, 1.0 / sample_rate_hz), g_xf * scale, g_ff * scale,
                    g_xx * scale, n_seg)
