@@ -108,7 +108,7 @@ class _NormalEquations:
         self.n_in = n_in
         edges = [0] + [p + 1 for p in orders]
         groups = [self.Y[a:b].reshape(-1, self.Y.shape[-1]) for a, b in zip(edges, edges[1:], strict=False)]
-        self.C = np.cumsum([y.T @ y for y in groups], axis=0)        # [order index, n, n]
+        self.C = np.cumsum(np.stack([y.T @ y for y in groups]), axis=0)   # [order index, n, n]
 
     def reduced(self, index: int, p: int) -> np.ndarray:
         """M_p [(p+1) n_in, (p+1) n_in] of the order at position ``index`` of the requested orders."""
@@ -134,13 +134,14 @@ def _poles_of_order(index: int, p: int, eqs: _NormalEquations, dt: float, fmin: 
     M = eqs.reduced(index, p)
     k = p * n_in
     alpha = np.vstack([np.linalg.solve(M[:k, :k], -M[:k, k:]), np.eye(n_in)])   # [(p+1) n_in, n_in]
-    comp = np.zeros((k, k))
-    comp[:-n_in, n_in:] = np.eye(k - n_in)
-    comp[-n_in:, :] = -alpha[:k].reshape(p, n_in, n_in).transpose(1, 0, 2).reshape(n_in, k)
     if n_in == 1:
-        # the transpose is upper Hessenberg, so LAPACK's Hessenberg reduction has nothing to do
-        lam, vec = np.linalg.eigvals(comp.T), np.ones((1, k))
+        # companion matrix in upper Hessenberg form, so LAPACK's Hessenberg reduction has nothing to do
+        comp = np.eye(k, k, -1)
+        comp[:, -1] = -alpha[:k, 0]
+        lam, vec = np.linalg.eigvals(comp), np.ones((1, k))
     else:
+        comp = np.eye(k, k, n_in)
+        comp[-n_in:, :] = -alpha[:k].reshape(p, n_in, n_in).transpose(1, 0, 2).reshape(n_in, k)
         lam, vec = np.linalg.eig(comp)
     with np.errstate(divide="ignore", invalid="ignore"):
         poles = np.log(lam) / dt
@@ -172,12 +173,12 @@ def stabilisation(freq_hz: np.ndarray, H: np.ndarray, orders: range | list[int],
     fn = [np.abs(pl) / (2 * np.pi) for pl in poles]
     zeta = [-pl.real / np.abs(pl) for pl in poles]
     # every pole against the nearest pole of the previous order, all orders at once
-    near, cur, prev = [], [], []
+    start = np.cumsum([0] + [x.size for x in fn])
+    near, cur = [], []
     for k in range(1, len(orders)):   # a loop over model orders
         if fn[k].size and fn[k - 1].size:
-            near.append(np.argmin(np.abs(fn[k][:, None] - fn[k - 1][None, :]), axis=1) + sum(
-                x.size for x in fn[:k - 1]))
-            cur.append(np.arange(fn[k].size) + sum(x.size for x in fn[:k]))
+            near.append(np.argmin(np.abs(fn[k][:, None] - fn[k - 1][None, :]), axis=1) + start[k - 1])
+            cur.append(np.arange(start[k], start[k + 1]))
     all_fn, all_zeta = np.concatenate(fn), np.concatenate(zeta)
     all_shapes = np.concatenate([sh for _, sh in found], axis=1)
     sf = np.zeros(all_fn.size, bool)

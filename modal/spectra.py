@@ -52,13 +52,15 @@ def _auto(z: np.ndarray, weights: np.ndarray | None) -> np.ndarray:
     return sq[:, 0::2] + sq[:, 1::2]
 
 
-def _products(x: np.ndarray, n_in: int, weights: np.ndarray | None):
+def _products(x: np.ndarray, n_in: int, weights: np.ndarray | None, work: np.ndarray | None = None):
     """(Weighted) sums over segments of the spectral products of one block ``x`` [ch, s, f] whose
-    first ``n_in`` channels are the inputs: g_xf [o, i, f], g_ff [i, i, f], g_xx [o, f]."""
+    first ``n_in`` channels are the inputs: g_xf [o, i, f], g_ff [i, i, f], g_xx [o, f].  ``work``
+    (at least [o, s, f], dtype of ``x``) takes the single-input products instead of a new array."""
     f, y = x[:n_in], x[n_in:]
     wy = y if weights is None else y * weights[None, :, None].astype(y.real.dtype)
     if n_in == 1:
-        g_xf = (wy * f[0].conj()).sum(axis=1)[:, None, :]
+        prod = np.multiply(wy, f[0].conj(), out=None if work is None else work[:, :y.shape[1]])
+        g_xf = prod.sum(axis=1)[:, None, :]
         g_ff = _auto(f, weights)[:, None, :]
     else:
         wf = f if weights is None else f * weights[None, :, None].astype(f.real.dtype)
@@ -107,10 +109,11 @@ def _segment_means(rows: np.ndarray, view: np.ndarray, step: int) -> np.ndarray:
     nfft = view.shape[-1]
     if nfft % step:
         return view.mean(axis=-1, keepdims=True)
-    pieces = rows.reshape(rows.shape[0], -1, step) @ np.ones(step, rows.dtype)     # [ch, piece]
+    pieces = (rows.reshape(-1, step) @ np.ones(step, rows.dtype)).reshape(rows.shape[0], -1)
+    cum = np.zeros((rows.shape[0], pieces.shape[1] + 1))
+    np.cumsum(pieces, axis=1, out=cum[:, 1:])
     k = nfft // step
-    sums = np.lib.stride_tricks.sliding_window_view(pieces, k, axis=1).sum(axis=-1)
-    return (sums / nfft)[..., None].astype(rows.dtype)
+    return ((cum[:, k:] - cum[:, :-k]) / nfft)[..., None].astype(rows.dtype)
 
 
 def _welch_sums(samples: np.ndarray, cols, windows: np.ndarray, n_in: int, step: int, n_seg: int,
@@ -126,6 +129,7 @@ def _welch_sums(samples: np.ndarray, cols, windows: np.ndarray, n_in: int, step:
     g_xx = np.zeros((n_ch - n_in, n_freq))
     rows = np.empty((n_ch, (block - 1) * step + nfft), windows.dtype)
     buf = np.empty((n_ch, block, nfft), windows.dtype)
+    work = np.empty((n_ch - n_in, block, n_freq), np.result_type(windows.dtype, np.complex64))
     for s0 in starts:
         b = min(block, n_seg - s0)
         length = (b - 1) * step + nfft
@@ -139,7 +143,7 @@ def _welch_sums(samples: np.ndarray, cols, windows: np.ndarray, n_in: int, step:
             seg *= windows[:, None, :]
         else:
             np.multiply(view, windows[:, None, :], out=seg)
-        a, c, d = _products(scipy.fft.rfft(seg, axis=-1), n_in, None)
+        a, c, d = _products(scipy.fft.rfft(seg, axis=-1), n_in, None, work)
         g_xf += a
         g_ff += c
         g_xx += d

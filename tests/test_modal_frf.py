@@ -87,6 +87,30 @@ def test_float32_records_use_single_precision_and_stay_close(random_test):
     assert rel.max() < 1e-4
 
 
+@pytest.mark.parametrize("overlap", [0.5, 0.3])
+def test_blocked_threaded_spectra_equal_scipy_csd_for_any_channel_order(overlap, monkeypatch):
+    """Blocks of 5 segments (the last one short), two threads, piecewise segment means (50 %) or direct
+    means (30 %), channels picked out of order: every spectrum equals scipy.signal.csd."""
+    import modal.spectra
+
+    rng = np.random.default_rng(3)
+    samples = rng.standard_normal((5000, 4)) + np.array([3.0, -1.0, 0.5, 2.0])   # offsets: detrend
+    nfft, fs = 256, 100.0
+    monkeypatch.setattr(modal.spectra, "_BLOCK_BYTES", 5 * 3 * nfft * 8)
+    s1 = welch_spectra(samples, fs, [2], [3, 0], nfft, overlap=overlap, window_spec="hann")
+    s2 = welch_spectra(samples, fs, [2], [3, 0], nfft, overlap=overlap, window_spec="hann", workers=2)
+    noverlap = int(round(overlap * nfft))
+    kw = dict(fs=fs, window=scipy.signal.get_window("hann", nfft), nperseg=nfft, noverlap=noverlap,
+              detrend="constant")
+    for k, o in enumerate([3, 0]):
+        _, gxf = scipy.signal.csd(samples[:, 2], samples[:, o], **kw)     # E[conj(F) X]
+        _, gxx = scipy.signal.welch(samples[:, o], **kw)
+        for s in (s1, s2):
+            assert np.allclose(s.g_xf[k, 0], gxf, rtol=1e-10, atol=1e-12 * np.abs(gxf).max())
+            assert np.allclose(s.g_xx[k], gxx, rtol=1e-10, atol=1e-12 * gxx.max())
+    assert np.allclose(s1.g_ff[0, 0].real, scipy.signal.welch(samples[:, 2], **kw)[1], rtol=1e-10)
+
+
 def test_multiple_references_recover_each_path():
     rng = np.random.default_rng(2)
     b, a = _two_mode_filter(FS)
