@@ -30,6 +30,7 @@ EXCITATIONS = ("impact", "random", "sweep", "free-decay", "operational")
 CHANNEL_FIELDS = ("name", "kind", "unit", "sensitivity", "sensitivity_unit", "location", "direction")
 EVENT_DETAIL_BYTES = 200
 CHUNK_BYTES = 1 << 20  # target size of one samples chunk
+CHUNK_CACHE_BYTES = 16 << 20  # room for partly filled chunks, so appends never re-read from disk
 
 
 @dataclass(frozen=True)
@@ -155,6 +156,10 @@ class RunWriter:
         self.n_samples = 0
         self._n_events = 0
         self._last_flush = time.monotonic()
+        self._tail = np.empty((rows, self.n_channels), dtype)  # rows not yet on disk as a whole chunk
+        self._tail_rows = 0
+        self._chunk_rows = rows
+        self._disk_rows = 0  # rows stored as whole chunks (a multiple of the chunk length)
 
     def _validate(self, sample_rate_hz: float, excitation: str, pose: dict) -> None:
         where = f"{self.path}: run {self.run_id!r}"
@@ -175,7 +180,7 @@ class RunWriter:
 
     def _open(self) -> h5py.File:
         try:
-            f = h5py.File(self.path, "a", libver="latest")
+            f = h5py.File(self.path, "a", libver="latest", rdcc_nbytes=CHUNK_CACHE_BYTES)
         except OSError as exc:
             if not self.path.parent.is_dir():
                 raise DaqError(f"{self.path}: directory {self.path.parent} does not exist") from exc
@@ -196,16 +201,28 @@ class RunWriter:
         self.close()
 
     def append(self, block: np.ndarray) -> None:
-        """Append samples [n, n_channels] (physical units)."""
-        block = np.asarray(block)
+        """Append samples [n, n_channels] (physical units).
+
+        Rows are gathered into whole chunks, which go to disk with ``write_direct_chunk`` (no chunk
+        cache, no read-modify-write); a partly filled chunk is written at each flush.
+        """
+        block = np.asarray(block, dtype=self._tail.dtype)
         if block.ndim != 2 or block.shape[1] != self.n_channels:
             raise DaqError(f"{self.path}: run {self.run_id!r}: block shape {block.shape} is not "
                            f"[n, {self.n_channels}]")
-        n = block.shape[0]
-        if n:
-            self._samples.resize(self.n_samples + n, axis=0)
-            self._samples[self.n_samples:] = block
-            self.n_samples += n
+        i, n = 0, block.shape[0]
+        while i < n:  # one step per chunk (about 1 MiB)
+            k = min(self._chunk_rows - self._tail_rows, n - i)
+            self._tail[self._tail_rows:self._tail_rows + k] = block[i:i + k]
+            self._tail_rows += k
+            i += k
+            if self._tail_rows == self._chunk_rows:
+                end = self._disk_rows + self._chunk_rows
+                if self._samples.shape[0] < end:
+                    self._samples.resize(end, axis=0)
+                self._samples.id.write_direct_chunk((self._disk_rows, 0), self._tail)
+                self._disk_rows, self._tail_rows = end, 0
+        self.n_samples += n
         self._maybe_flush()
 
     def add_event(self, event: Event) -> None:
@@ -233,6 +250,10 @@ class RunWriter:
 
     def flush(self) -> None:
         """Make everything appended so far visible to readers and durable against a crash."""
+        if self._samples.shape[0] < self.n_samples:
+            self._samples.resize(self.n_samples, axis=0)
+        if self._tail_rows:
+            self._samples[self._disk_rows:self.n_samples] = self._tail[:self._tail_rows]
         self._samples.flush()
         self._events.flush()
         self._file.flush()

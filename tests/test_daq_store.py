@@ -95,6 +95,20 @@ def _chunk_offsets(path: Path, run_id: str) -> list[int]:
         return [d.id.get_chunk_info(i).byte_offset for i in range(d.id.get_num_chunks())]
 
 
+def test_partial_chunks_flushed_then_completed_stay_exact(tmp_path):
+    """Whole chunks go to disk directly; a flushed partial chunk is later overwritten by the whole one."""
+    path = tmp_path / "run.h5"
+    x = np.random.default_rng(3).standard_normal((150_001, 4)).astype(np.float32)
+    with RunWriter(path, "r", sample_rate_hz=1.0, channels=CHANNELS, excitation="random", pose={}) as w:
+        for block in np.array_split(x, 61):
+            w.append(block)
+            w.flush()
+            with h5py.File(path, "r", libver="latest", swmr=True) as f:  # what a reader sees meanwhile
+                last = slice(w.n_samples - 5, w.n_samples)
+                np.testing.assert_array_equal(f["runs/r/samples"][last], x[last])
+    np.testing.assert_array_equal(read_run(path, "r").samples, x)
+
+
 def test_closed_file_reopens_to_append_a_run(tmp_path):
     path = tmp_path / "runs.h5"
     first = np.arange(40000, dtype=np.float32).reshape(10000, 4)
