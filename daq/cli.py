@@ -28,12 +28,15 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "path), CAN as an slcan adapter on a pty (prints its path), Modbus TCP on "
                                    "127.0.0.1 (prints host:port). Runs until Ctrl-C/SIGTERM or --duration.")
     s.add_argument("--protocol", required=True, choices=("serial", "can", "modbus"))
-    s.add_argument("--rig", metavar="RIG.toml", help="rig description (default: examples/rigs/demo_arm.toml)")
+    s.add_argument("--rig", metavar="RIG.toml", help="rig description (default: the demo arm)")
     s.add_argument("--test", choices=("impact", "random", "sweep"), default="impact", help="excitation")
     s.add_argument("--rate", type=float, default=2048.0, metavar="HZ", help="sample rate, Hz")
     s.add_argument("--pose", default="", metavar="VAR=VALUE,...",
                    help="pose of the rig, e.g. theta_deg=60 (angles in degrees; default 30 deg, others 0)")
     s.add_argument("--seed", type=int, default=0, help="seed of the simulated test and the faults")
+    s.add_argument("--effect", action="append", default=[], metavar="EFFECT@LOCATION:PARAM=VALUE,...",
+                   help="hide an effect in the simulated arm (CONTRACT §5 names, SI units), e.g. "
+                        "joint_stiffness@elbow:k_Nm_per_rad=8000; repeatable")
     s.add_argument("--duration", type=float, metavar="S", help="stop after S seconds of samples")
     s.add_argument("--link", metavar="PATH", help="serial/slcan: symlink path of the pty")
     s.add_argument("--port", type=int, default=0, help="modbus: TCP port on 127.0.0.1 (0 = a free one)")
@@ -90,5 +93,22 @@ def _serve(args: argparse.Namespace) -> int:
         args.pose = {k.strip(): float(v) for k, v in pairs}
     except ValueError as exc:
         raise DaqError(f"--pose {args.pose!r}: expected VAR=NUMBER[,VAR=NUMBER...]") from exc
+    args.effect = [_hidden_effect(text) for text in args.effect]
     serve(args, sys.stdout)
     return 0
+
+
+def _hidden_effect(text: str):
+    """Parse ``EFFECT@LOCATION:PARAM=VALUE,...`` into a fixtures.rig_sim.HiddenEffect."""
+    from daq.errors import DaqError
+    from fixtures.rig_sim import HiddenEffect
+
+    head, _, params = text.partition(":")
+    effect, _, location = head.partition("@")
+    try:
+        values = {k.strip(): float(v) for k, v in (item.split("=") for item in params.split(",") if item)}
+    except ValueError:
+        values = {}
+    if not effect or not location or not values:
+        raise DaqError(f"--effect {text!r}: expected EFFECT@LOCATION:PARAM=VALUE[,PARAM=VALUE...]")
+    return HiddenEffect(effect, location, values)

@@ -32,7 +32,7 @@ def serve(args, stdout) -> None:
         threading.Thread(target=_watch_parent, args=(os.getppid(), stop), daemon=True).start()
     if args.quiet:
         logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
-    source = sim_source(args.rig, args.test, args.rate, seed=args.seed, pose=args.pose)
+    source = sim_source(args.rig, args.test, args.rate, seed=args.seed, pose=args.pose, effects=args.effect)
     faults = FaultPlan(args.corrupt_rate, args.drop_at, args.drop, args.disconnect_after, args.disconnect,
                        args.seed)
     log = FaultLog(args.fault_log)

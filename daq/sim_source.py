@@ -10,12 +10,17 @@ exactly what a simulator emitted from (rig, test, rate, seed) and the device's s
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from daq.session import G_M_PER_S2
+
+if TYPE_CHECKING:
+    from fixtures.rig_sim import HiddenEffect
 
 ADC_FULL_SCALE_MV = 10_000.0
 ADC_BITS = 16
@@ -27,7 +32,6 @@ CHAIN = {
     "acceleration": (100.0, "mV/g", G_M_PER_S2),
     "strain": (5.0, "mV/µε", 1.0),
 }
-DEFAULT_RIG = Path(__file__).resolve().parents[1] / "examples" / "rigs" / "demo_arm.toml"
 
 
 @dataclass(frozen=True)
@@ -68,27 +72,29 @@ class SimSource:
 
 
 def sim_source(rig_path: str | Path | None = None, test: str = "impact", sample_rate_hz: float = 2048.0,
-               record_s: float = 8.0, seed: int = 0, pose: dict | None = None) -> SimSource:
-    """Simulate ``test`` on the rig (default: the demo arm) at ``pose`` and digitise it.
+               record_s: float = 8.0, seed: int = 0, pose: dict | None = None,
+               effects: Sequence[HiddenEffect] = ()) -> SimSource:
+    """Simulate ``test`` on the rig (default: the demo arm) at ``pose`` with hidden ``effects`` and
+    digitise it.
 
     Pose variables not given are 30 for angles (``*_deg``) and 0 otherwise.
     """
-    from fixtures.rig_sim import simulate
+    from fixtures.rig_sim import DEMO_RIG, simulate
     from models.rig import load_rig
 
-    rig = load_rig(rig_path or DEFAULT_RIG)
+    rig = load_rig(rig_path or DEMO_RIG)
     default = {v: 30.0 if v.endswith("_deg") else 0.0 for v in rig.pose_variables}
     pose = {**default, **(pose or {})}
     links = [link.name for link in rig.links]
     pulse_s = max(1.5e-3, 4 / sample_rate_hz)  # a softer hammer tip at low rates, so hits are sampled
     probe = simulate(rig, pose, excitation=test, duration_s=0.25, sample_rate_hz=sample_rate_hz,
-                     seed=seed, strain_gauges=(f"{links[0]}@0.1",), pulse_width_s=pulse_s)
+                     seed=seed, strain_gauges=(f"{links[0]}@0.1",), pulse_width_s=pulse_s, effects=effects)
     chain = [CHAIN.get(c.kind, (1.0, "", 1.0)) for c in probe.channels]
     full_scale = [ADC_FULL_SCALE_MV / s * f if c.kind in CHAIN else 2.0**31
                   for c, (s, _, f) in zip(probe.channels, chain, strict=True)]
     sim = simulate(rig, pose, excitation=test, duration_s=record_s, sample_rate_hz=sample_rate_hz, seed=seed,
                    strain_gauges=(f"{links[0]}@0.1",), full_scale=full_scale,
-                   encoder_counts_per_rev=ENCODER_COUNTS_PER_REV, pulse_width_s=pulse_s)
+                   encoder_counts_per_rev=ENCODER_COUNTS_PER_REV, pulse_width_s=pulse_s, effects=effects)
     channels = []
     for c, (sens, sens_unit, factor) in zip(sim.channels, chain, strict=True):
         if c.kind == "encoder":

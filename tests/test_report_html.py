@@ -16,7 +16,6 @@ import json
 import os
 import re
 import select
-import shutil
 import subprocess
 import time
 from pathlib import Path
@@ -283,9 +282,8 @@ def _crop_png(browser: Browser, session: str, rect: dict) -> np.ndarray:
     return mpimg.imread(io.BytesIO(base64.b64decode(shot["data"])), format="png")
 
 
-def test_report_renders_in_headless_chromium_without_errors(report, tmp_path):
-    exe = shutil.which("chromium") or shutil.which("chromium-browser")
-    assert exe, "Debian's chromium is required for this test (apt-get install chromium)"
+def test_report_renders_in_headless_chromium_without_errors(report, tmp_path, chromium):
+    exe = chromium
     browser = Browser(exe, tmp_path / "profile")
     try:
         target = browser.send("Target.createTarget", {"url": "about:blank"})["targetId"]
