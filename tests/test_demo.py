@@ -12,6 +12,7 @@ import h5py
 import numpy as np
 import pytest
 
+from tests.browser import assert_table_and_plot_visible, render
 from tests.conftest import REPO
 
 CHANNEL_FIELDS = {"name", "kind", "unit", "sensitivity", "sensitivity_unit", "location", "direction"}
@@ -64,3 +65,12 @@ def test_demo_hdf5_holds_every_contract_item_with_plain_h5py(demo_dir: tuple[Pat
             for key in ("estimator", "window", "nfft", "n_averages"):
                 assert key in frf.attrs, (run_id, key)
         assert {"impact", "random"} <= excitations
+
+
+def test_demo_report_renders_in_headless_chromium(demo_dir: tuple[Path, float, str], chromium: str,
+                                                  tmp_path: Path) -> None:
+    out, _, _ = demo_dir
+    page = render(chromium, out / "report.html", tmp_path / "profile")
+    assert_table_and_plot_visible(page)
+    text = (out / "report.html").read_text()
+    assert "f [Hz]" in text and "theta30-impact" in text

@@ -3,9 +3,8 @@
 Runs are simulated on the demo arm (fixtures.rig_sim, hidden elbow compliance; two random shaker
 tests and one impact test), stored with daq.store.RunWriter, their FRFs computed and stored by the modal
 package (modal.compute.compute_frf, modal.runs_io.write_frf: the CONTRACT §6 ``frf`` group).
-Chromium is driven over the DevTools protocol on a pipe (``--remote-debugging-pipe``: commands on fd 3,
-replies on fd 4, NUL-terminated JSON), which gives console messages, exceptions, network requests and
-element positions without any extra package.  Chromium missing is a failure, not a skip.
+Chromium is driven over the DevTools protocol (tests/browser.py).  Chromium missing is a failure, not a
+skip.
 """
 
 from __future__ import annotations
@@ -13,15 +12,9 @@ from __future__ import annotations
 import base64
 import io
 import json
-import os
 import re
-import select
-import subprocess
-import time
-from pathlib import Path
 
 import h5py
-import numpy as np
 import pytest
 from matplotlib import image as mpimg
 
@@ -34,6 +27,7 @@ from modal.table import ModalTable
 from models.frame import frame_modes
 from models.rig import load_rig
 from reports.html import write_report
+from tests.browser import assert_table_and_plot_visible, render
 
 POSES = {"theta0": {"theta_deg": 0.0}, "theta60": {"theta_deg": 60.0}, "theta120": {"theta_deg": 120.0}}
 IMPACT_CONFIG = "theta120"
@@ -183,136 +177,7 @@ def test_report_cli_bad_inputs_exit_2(inputs, tmp_path, capsys):
     assert "nothing to report" in capsys.readouterr().err
 
 
-# ---------------------------------------------------------------------------------------------
-# headless Chromium over the DevTools protocol (pipe transport)
-
-CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                  "--remote-debugging-pipe")
-
-
-class Browser:
-    """Minimal DevTools client: ``send`` a command, collect events until a reply or a deadline."""
-
-    def __init__(self, exe: str, profile: Path) -> None:
-        to_chrome_r, self._to_chrome = os.pipe()
-        self._from_chrome, from_chrome_w = os.pipe()
-
-        def wire_fds() -> None:  # the child finds the protocol on fds 3 (in) and 4 (out)
-            os.dup2(to_chrome_r, 3)
-            os.dup2(from_chrome_w, 4)
-
-        self.proc = subprocess.Popen([exe, *CHROMIUM_FLAGS, f"--user-data-dir={profile}", "about:blank"],
-                                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                                     preexec_fn=wire_fds, pass_fds=(3, 4))
-        os.close(to_chrome_r)
-        os.close(from_chrome_w)
-        self._buf = b""
-        self._id = 0
-        self.events: list[dict] = []
-
-    def _read(self, deadline: float) -> dict:
-        while b"\0" not in self._buf:
-            left = deadline - time.monotonic()
-            ready, _, _ = select.select([self._from_chrome], [], [], max(left, 0))
-            if not ready:
-                raise TimeoutError("chromium did not answer in time")
-            chunk = os.read(self._from_chrome, 1 << 20)
-            if not chunk:
-                raise RuntimeError("chromium closed the DevTools pipe")
-            self._buf += chunk
-        msg, self._buf = self._buf.split(b"\0", 1)
-        return json.loads(msg)
-
-    def send(self, method: str, params: dict | None = None, session: str | None = None,
-             timeout_s: float = 30.0) -> dict:
-        self._id += 1
-        cmd = {"id": self._id, "method": method, "params": params or {}}
-        if session:
-            cmd["sessionId"] = session
-        os.write(self._to_chrome, json.dumps(cmd).encode() + b"\0")
-        deadline = time.monotonic() + timeout_s
-        while True:
-            msg = self._read(deadline)
-            if msg.get("id") == self._id:
-                if "error" in msg:
-                    raise RuntimeError(f"{method}: {msg['error']}")
-                return msg["result"]
-            self.events.append(msg)
-
-    def wait_event(self, method: str, timeout_s: float = 30.0) -> dict:
-        deadline = time.monotonic() + timeout_s
-        for ev in self.events:
-            if ev.get("method") == method:
-                return ev
-        while True:
-            msg = self._read(deadline)
-            self.events.append(msg)
-            if msg.get("method") == method:
-                return msg
-
-    def close(self) -> None:
-        try:
-            self.send("Browser.close", timeout_s=10)
-        except (RuntimeError, TimeoutError, OSError):
-            pass
-        try:
-            self.proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            self.proc.kill()
-            self.proc.wait()
-        os.close(self._to_chrome)
-        os.close(self._from_chrome)
-
-
-# page positions (CSS px) of every table and image, and the page height
-LAYOUT_JS = """(() => {
-  const box = e => { const r = e.getBoundingClientRect();
-    return {x: r.left + scrollX, y: r.top + scrollY, width: r.width, height: r.height}; };
-  const img = e => ({...box(e), ok: e.complete && e.naturalWidth > 0});
-  return {tables: [...document.querySelectorAll('table')].map(box),
-          images: [...document.querySelectorAll('img')].map(img),
-          height: document.documentElement.scrollHeight};
-})()"""
-
-
-def _crop_png(browser: Browser, session: str, rect: dict) -> np.ndarray:
-    shot = browser.send("Page.captureScreenshot", {"format": "png", "captureBeyondViewport": True,
-                                                   "clip": {**rect, "scale": 1}}, session)
-    return mpimg.imread(io.BytesIO(base64.b64decode(shot["data"])), format="png")
-
-
 def test_report_renders_in_headless_chromium_without_errors(report, tmp_path, chromium):
-    exe = chromium
-    browser = Browser(exe, tmp_path / "profile")
-    try:
-        target = browser.send("Target.createTarget", {"url": "about:blank"})["targetId"]
-        session = browser.send("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
-        for domain in ("Runtime", "Log", "Page", "Network"):
-            browser.send(f"{domain}.enable", {}, session)
-        browser.send("Emulation.setDeviceMetricsOverride",
-                     {"width": 1280, "height": 900, "deviceScaleFactor": 1, "mobile": False}, session)
-        browser.send("Page.navigate", {"url": report.resolve().as_uri()}, session)
-        browser.wait_event("Page.loadEventFired")
-        layout = browser.send("Runtime.evaluate", {"returnByValue": True, "expression": LAYOUT_JS},
-                              session)["result"]["value"]
-        full = _crop_png(browser, session, {"x": 0, "y": 0, "width": 1280, "height": layout["height"]})
-        table_px = _crop_png(browser, session, layout["tables"][0])
-        plot_px = _crop_png(browser, session, layout["images"][0])
-    finally:
-        browser.close()
-    kinds = {e.get("method"): e for e in browser.events}
-    assert "Page.loadEventFired" in kinds
-    errors = [e for e in browser.events if e.get("method") == "Runtime.exceptionThrown"
-              or (e.get("method") == "Runtime.consoleAPICalled"
-                  and e["params"]["type"] in ("error", "assert"))
-              or (e.get("method") == "Log.entryAdded" and e["params"]["entry"]["level"] == "error")]
-    assert errors == []
-    requests = [e["params"]["request"]["url"] for e in browser.events
-                if e.get("method") == "Network.requestWillBeSent"]
-    assert requests and all(u.startswith(("file:", "data:")) for u in requests), requests
-    assert len(layout["tables"]) >= 5 and len(layout["images"]) == 10
-    assert all(img["ok"] and img["width"] > 200 and img["height"] > 100 for img in layout["images"])
-    assert full.shape[0] == layout["height"] and full.std() > 0.05
-    assert table_px.std() > 0.05  # text and rules, not a blank box
-    assert plot_px.std() > 0.05 and len(np.unique(plot_px.reshape(-1, plot_px.shape[-1]), axis=0)) > 50
+    page = render(chromium, report, tmp_path / "profile")
+    assert_table_and_plot_visible(page)
+    assert len(page.layout["tables"]) >= 5 and len(page.layout["images"]) == 10
