@@ -135,8 +135,7 @@ def _run_rows(runs: Sequence[RunSummary]) -> tuple[list[dict], list[dict], list[
             "overload": f"{counts['overload']} / {r.overload_samples}",
             "overload_bad": counts["overload"] > 0,
             "gap": counts["gap"], "corrupt": counts["corrupt"], "reconnect": counts["reconnect"],
-            "frf": (f"{frf.attrs.get('estimator', '?')}, nfft {frf.attrs.get('nfft', '?')}, "
-                    f"{frf.attrs.get('n_averages', '?')} averages") if frf else "not computed",
+            "frf": f"{frf.estimator}, nfft {frf.nfft}, {frf.n_averages} averages" if frf else "not computed",
             "coh_mean": f"{coh[0]:.3f}" if coh else "", "coh_low": f"{coh[1]:.1f}" if coh else ""})
         key = tuple(r.channels)
         if key not in sets:
@@ -166,24 +165,14 @@ def _stabilisation_figure(frf, label: str, unit: str) -> dict:
                 f"damping and shape), over the complex mode indicator function")
 
 
-def _names(value) -> str:
-    """A channel-name list stored as a list or JSON text, joined with commas."""
-    if isinstance(value, str):
-        try:
-            value = json.loads(value)
-        except json.JSONDecodeError:
-            return value
-    return ", ".join(str(v) for v in value) if isinstance(value, list | tuple) else ""
-
-
 def _run_figures(runs: Sequence[RunSummary]) -> list[dict]:
     figs = []
     for r in runs:
         label = f"{r.path.name}::{r.run_id}"
         if r.frf is None:
             continue
-        inputs = _names(r.frf.attrs.get("inputs")) or "force"
-        unit = FRF_UNITS.get(str(r.frf.attrs.get("quantity", "accelerance")), "FRF unit")
+        inputs = ", ".join(r.frf.inputs) or "force"
+        unit = FRF_UNITS.get(r.frf.quantity, "FRF unit")
         figs.append(_fig(plots.plot_frf(r.frf.freq_hz, r.frf.H, r.frf.coherence, r.frf.outputs, unit,
                                         title=f"{label} ({r.excitation})"),
                          f"{label}: FRF magnitude, phase and coherence (input {inputs}, "

@@ -1,38 +1,25 @@
 """What a report shows of a stored run (CONTRACT §6): metadata, channels, data quality, FRFs.
 
-Runs are read with ``daq.store.read_run``; the FRF group (``frf/H``, ``frf/freq_hz``, ``frf/coherence``)
-with plain h5py.  FRF output names come from the ``frf`` attribute ``outputs`` (list or JSON list) when
-present, else from the non-force channels in order.  Impact hits come from the ``frf`` attribute
-``provenance`` (JSON, ``hits``: ``trigger``, ``accepted``, ``reason``, as modal.runs_io writes it);
-without it, rejected hits are the ``note`` events whose detail starts with ``rejected``.
+Runs are read with ``daq.store.read_run`` and their FRF group with ``modal.runs_io.read_frf``.  Impact
+hits come from the FRF provenance (``hits``: ``trigger``, ``accepted``, ``reason``); without it,
+rejected hits are the ``note`` events whose detail starts with ``rejected``.
 """
 
 from __future__ import annotations
 
-import json
 from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-import h5py
 import numpy as np
 
 from daq.store import Channel, Event, list_runs, read_run
+from modal.frf import FrfResult
+from modal.runs_io import read_frf
 from reports.errors import ReportError
 
 LOW_COHERENCE = 0.8
-
-
-@dataclass(frozen=True)
-class FrfData:
-    """Stored FRFs of a run: H [n_out, n_in, n_freq], freq_hz [n_freq], coherence [n_out, n_freq]."""
-
-    freq_hz: np.ndarray
-    H: np.ndarray
-    coherence: np.ndarray | None
-    outputs: tuple[str, ...]
-    attrs: dict
 
 
 @dataclass(frozen=True)
@@ -48,7 +35,7 @@ class RunSummary:
     events: tuple[Event, ...]
     attrs: dict
     peak_abs: np.ndarray  # [n_channels] largest |sample| per channel, in the channel's unit
-    frf: FrfData | None
+    frf: FrfResult | None
 
     @property
     def duration_s(self) -> float:
@@ -68,12 +55,7 @@ class RunSummary:
         """Impact hits recorded by the FRF processing: {trigger, accepted, reason}; [] if none."""
         if self.frf is None:
             return []
-        try:
-            prov = json.loads(str(self.frf.attrs.get("provenance", "{}")))
-        except json.JSONDecodeError:
-            return []
-        hits = prov.get("hits", []) if isinstance(prov, dict) else []
-        return [h for h in hits if isinstance(h, dict)]
+        return [h for h in self.frf.provenance.get("hits", []) if isinstance(h, dict)]
 
     def _rejected_notes(self) -> list[str]:
         return [e.detail for e in self.events if e.kind == "note" and e.detail.lower().startswith("rejected")]
@@ -98,41 +80,6 @@ class RunSummary:
         return float(np.mean(coh)), float(100.0 * np.mean(coh < LOW_COHERENCE))
 
 
-def _decode(value) -> object:
-    if isinstance(value, bytes):
-        return value.decode()
-    if isinstance(value, np.ndarray) and value.dtype.kind in "SO":
-        return [_decode(v) for v in value]
-    return value
-
-
-def _outputs(attrs: dict, channels: Sequence[Channel], n_out: int) -> tuple[str, ...]:
-    names = attrs.get("outputs")
-    if isinstance(names, str):
-        try:
-            names = json.loads(names)
-        except json.JSONDecodeError:
-            names = [n.strip() for n in names.split(",")]
-    if names is not None and len(names) == n_out:
-        return tuple(str(n) for n in names)
-    responses = [c.name for c in channels if c.kind != "force"]
-    return tuple(responses) if len(responses) == n_out else tuple(f"out {i + 1}" for i in range(n_out))
-
-
-def _read_frf(path: Path, run_id: str, channels: Sequence[Channel]) -> FrfData | None:
-    with h5py.File(path, "r", libver="latest", swmr=True) as f:
-        g = f[f"runs/{run_id}"]
-        if not ("frf" in g and "H" in g["frf"] and "freq_hz" in g["frf"]):
-            return None
-        fg = g["frf"]
-        H = fg["H"][()]
-        if H.ndim == 2:
-            H = H[:, None, :]
-        attrs = {k: _decode(v) for k, v in fg.attrs.items()}
-        coh = fg["coherence"][()] if "coherence" in fg else None
-        return FrfData(fg["freq_hz"][()], H, coh, _outputs(attrs, channels, H.shape[0]), attrs)
-
-
 def summarise_run(path: str | Path, run_id: str) -> RunSummary:
     """Read one run and what the report needs of it."""
     run = read_run(path, run_id)
@@ -140,7 +87,7 @@ def summarise_run(path: str | Path, run_id: str) -> RunSummary:
     peak = np.max(np.abs(samples), axis=0) if samples.size else np.zeros(len(run.channels))
     return RunSummary(Path(path), run_id, run.sample_rate_hz, run.start_time, run.excitation, dict(run.pose),
                       int(samples.shape[0]), run.channels, run.events, dict(run.attrs), peak,
-                      _read_frf(Path(path), run_id, run.channels))
+                      read_frf(path, run_id))
 
 
 def expand_runs(runs: Sequence[str | Path | tuple[str | Path, str]]) -> list[tuple[Path, str]]:
