@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
@@ -367,3 +368,28 @@ def read_run(path: str | Path, run_id: str) -> Run:
                    start_time=_text(attrs.pop("start_time")), excitation=_text(attrs.pop("excitation")),
                    pose=json.loads(attrs.pop("pose")), channels=channels, events=events,
                    samples=g["samples"][()], attrs=attrs)
+
+
+def expand_runs(runs: Sequence[str | Path | tuple[str | Path, str]]) -> list[tuple[Path, str]]:
+    """(file, run id) for every entry: a file means all its runs; ``FILE::RUN`` or (file, run) one run."""
+    out: list[tuple[Path, str]] = []
+    for entry in runs:
+        if isinstance(entry, tuple):
+            out.append((Path(entry[0]), entry[1]))
+            continue
+        text = str(entry)
+        file, sep, run_id = text.partition("::")
+        path = Path(file)
+        if not path.is_file():
+            raise FileNotFoundError(2, "run file not found", str(path))
+        if sep:
+            out.append((path, run_id))
+            continue
+        try:
+            ids = list_runs(path)
+        except OSError as exc:
+            raise DaqError(f"{path}: not a readable HDF5 run file ({exc})") from None
+        if not ids:
+            raise DaqError(f"{path}: holds no runs (expected groups under /runs)")
+        out += [(path, r) for r in ids]
+    return out

@@ -9,28 +9,11 @@ import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from daq.store import expand_runs
 from modal.compute import compute_frf
 from modal.errors import ModalError
 from modal.frf import FrfResult
 from modal.runs_io import write_frf
-
-
-def list_jobs(paths: Sequence[str | Path]) -> list[tuple[str, str]]:
-    """(file, run_id) of every run in the files (raises ModalError for a file with no runs)."""
-    from daq.store import list_runs
-
-    jobs = []
-    for p in paths:
-        if not Path(p).is_file():
-            raise ModalError(f"{p}: run file not found")
-        try:
-            ids = list_runs(p)
-        except OSError as exc:
-            raise ModalError(f"{p}: not a readable HDF5 run file ({exc})") from None
-        if not ids:
-            raise ModalError(f"{p}: holds no runs under /runs")
-        jobs += [(str(p), r) for r in ids]
-    return jobs
 
 
 def frf_job(path: str, run_id: str, options: dict) -> FrfResult:
@@ -91,7 +74,7 @@ def frf_batch(paths: Sequence[str | Path], options: dict, *, workers: int | None
               ) -> list[tuple[str, str]]:
     """Compute and write back the FRFs of all runs in ``paths`` (into ``out`` instead if given);
     returns the (file written, run_id) pairs.  Progress goes to stderr unless ``quiet``."""
-    jobs = list_jobs(paths)
+    jobs = expand_runs(paths)
     if out is not None and len({r for _, r in jobs}) != len(jobs):
         raise ModalError(f"--out {out}: two input runs share a run id, they cannot go into one file")
     written = []

@@ -50,13 +50,14 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _frf(args: argparse.Namespace) -> int:
-    from modal.batch import frf_batch, list_jobs
+    from daq.store import expand_runs
+    from modal.batch import frf_batch
 
     options = {"estimator": args.estimator, "nfft": args.nfft, "window": args.window,
                "overlap": args.overlap, "averaging": args.averaging}
     workers = args.workers
     if workers is None and args.scheduler is None:
-        workers = 2 if len(list_jobs(args.runs)) > 1 else 0
+        workers = 2 if len(expand_runs(args.runs)) > 1 else 0
     for path, rid in frf_batch(args.runs, options, workers=workers, scheduler=args.scheduler, out=args.out,
                                quiet=getattr(args, "quiet", False)):
         print(f"{path}:{rid}")

@@ -20,10 +20,11 @@ import jinja2
 import pandas as pd
 
 from compare.tables import compare_tables, html_fragment, natural_key, ordered_configs, table_name
+from daq.store import expand_runs
 from modal.table import ModalTable
 from reports import plots
 from reports.errors import ReportError
-from reports.runs import LOW_COHERENCE, RunSummary, expand_runs, summarise_run
+from reports.runs import LOW_COHERENCE, RunSummary, summarise_run
 
 UNIT_SUFFIXES = {"_deg": "deg", "_kg": "kg", "_m": "m", "_rad": "rad", "_n": "N"}
 MAX_SHAPE_CONFIGS = 2

@@ -8,16 +8,14 @@ rejected hits are the ``note`` events whose detail starts with ``rejected``.
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from daq.store import Channel, Event, list_runs, read_run
+from daq.store import Channel, Event, read_run
 from modal.frf import FrfResult
 from modal.runs_io import read_frf
-from reports.errors import ReportError
 
 LOW_COHERENCE = 0.8
 
@@ -88,28 +86,3 @@ def summarise_run(path: str | Path, run_id: str) -> RunSummary:
     return RunSummary(Path(path), run_id, run.sample_rate_hz, run.start_time, run.excitation, dict(run.pose),
                       int(samples.shape[0]), run.channels, run.events, dict(run.attrs), peak,
                       read_frf(path, run_id))
-
-
-def expand_runs(runs: Sequence[str | Path | tuple[str | Path, str]]) -> list[tuple[Path, str]]:
-    """(file, run id) for every entry: a file means all its runs; ``FILE::RUN`` or (file, run) one run."""
-    out: list[tuple[Path, str]] = []
-    for entry in runs:
-        if isinstance(entry, tuple):
-            out.append((Path(entry[0]), entry[1]))
-            continue
-        text = str(entry)
-        file, sep, run_id = text.partition("::")
-        path = Path(file)
-        if not path.is_file():
-            raise FileNotFoundError(2, "run file not found", str(path))
-        if sep:
-            out.append((path, run_id))
-            continue
-        try:
-            ids = list_runs(path)
-        except OSError as exc:
-            raise ReportError(f"{path}: not a readable HDF5 run file ({exc})") from None
-        if not ids:
-            raise ReportError(f"{path}: holds no runs (expected groups under /runs)")
-        out += [(path, r) for r in ids]
-    return out

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from app import main
-from daq.store import Channel, RunWriter
+from daq.store import Channel, RunWriter, expand_runs
 from fixtures.modal_sim import modal_response
-from modal.batch import list_jobs, run_batch
+from modal.batch import run_batch
 from modal.frf import FrfResult
 from modal.runs_io import read_frf
 from modal.table import ModalTable
@@ -46,7 +46,7 @@ def _same(a: list[FrfResult], b: list[FrfResult]) -> None:
 
 @pytest.mark.slow
 def test_frf_cli_with_two_workers_equals_serial_path(twenty_runs, capsys):
-    serial = run_batch(list_jobs(twenty_runs), {"nfft": 256})
+    serial = run_batch(expand_runs(twenty_runs), {"nfft": 256})
     assert main(["--quiet", "frf", *twenty_runs, "--workers", "2", "--nfft", "256"]) == 0
     assert capsys.readouterr().out.split() == [f"{p}:run{k}" for k, p in enumerate(twenty_runs)]
     stored = [read_frf(p, f"run{k}") for k, p in enumerate(twenty_runs)]
@@ -61,7 +61,7 @@ def test_frf_cli_against_a_scheduler_on_loopback(twenty_runs, capsys):
     from distributed import LocalCluster
 
     runs = twenty_runs[:3]
-    serial = run_batch(list_jobs(runs), {"nfft": 256, "estimator": "H2"})
+    serial = run_batch(expand_runs(runs), {"nfft": 256, "estimator": "H2"})
     with LocalCluster(host="127.0.0.1", protocol="tcp", n_workers=1, processes=False,
                       dashboard_address=None) as cluster:
         assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
