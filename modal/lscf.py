@@ -139,12 +139,14 @@ def _poles_of_order(index: int, p: int, eqs: _NormalEquations, dt: float, fmin: 
     n_in = eqs.n_in
     M = eqs.reduced(index, p)
     k = p * n_in
-    alpha = np.vstack([np.linalg.solve(M[:k, :k], -M[:k, k:]), np.eye(n_in)])   # [(p+1) n_in, n_in]
+    alpha = np.empty((k + n_in, n_in))                                        # [(p+1) n_in, n_in]
+    alpha[:k] = np.linalg.solve(M[:k, :k], -M[:k, k:])
+    alpha[k:] = np.eye(n_in)
     if n_in == 1:
         # companion matrix in upper Hessenberg form, so LAPACK's Hessenberg reduction has nothing to do
         comp = np.eye(k, k, -1)
         comp[:, -1] = -alpha[:k, 0]
-        lam, vec = np.linalg.eigvals(comp), np.ones((1, k))
+        lam, vec = np.linalg.eigvals(comp), None
     else:
         comp = np.eye(k, k, n_in)
         comp[-n_in:, :] = -alpha[:k].reshape(p, n_in, n_in).transpose(1, 0, 2).reshape(n_in, k)
@@ -156,6 +158,8 @@ def _poles_of_order(index: int, p: int, eqs: _NormalEquations, dt: float, fmin: 
     idx = idx[np.argsort(f[idx])]
     powers = np.vander(lam[idx], p + 1, increasing=True)             # lambda_r^j [r, p+1]
     num = eqs.numerators_at(p, alpha, powers)                        # [r, o, n_in]
+    if vec is None:                                                  # one input: the null vector is 1
+        return poles[idx], num[:, :, 0].T
     return poles[idx], np.einsum("roc,cr->or", num, vec[:n_in, idx])
 
 
@@ -174,7 +178,8 @@ def stabilisation(freq_hz: np.ndarray, H: np.ndarray, orders: range | list[int],
     # one BLAS thread: the matrices are small, and threads spinning on a shared machine cost more
     with _blas().limit(limits=1, user_api="blas"):
         eqs = _NormalEquations(orders, *_lag_sums(f, H / scale, orders[-1], dt))
-        found = [_poles_of_order(i, p, eqs, dt, f.min(), f.max()) for i, p in enumerate(orders)]
+        band = (f.min(), f.max())
+        found = [_poles_of_order(i, p, eqs, dt, *band) for i, p in enumerate(orders)]
     poles = [pl for pl, _ in found]
     fn = [np.abs(pl) / (2 * np.pi) for pl in poles]
     zeta = [-pl.real / np.abs(pl) for pl in poles]

@@ -112,3 +112,19 @@ def test_poly_reference_lscf_with_two_inputs_is_exact():
     f = np.linspace(5, 100, 1500)
     modes = identify(f, modal_frf(f, FN, ZETA, PHI, PHI[[0, 2]]), max_order=30)
     _check(modes, fn_tol=1e-7, zeta_tol=1e-5, mac_min=0.999999)
+
+
+def test_lscf_lag_sums_equal_the_direct_sums_on_an_irregular_grid():
+    """Re sum_f g z_f^d for d = -p..p by the real matrix products equals the textbook sum over lines."""
+    from modal.lscf import _lag_sums
+
+    rng = np.random.default_rng(9)
+    f = np.sort(rng.uniform(1.0, 90.0, 300))
+    H = rng.standard_normal((3, 2, f.size)) + 1j * rng.standard_normal((3, 2, f.size))
+    p, dt = 12, 1 / (2 * f.max())
+    r, s, t = _lag_sums(f, H, p, dt)
+    zd = np.exp(1j * 2 * np.pi * f[None, :] * dt * np.arange(-p, p + 1)[:, None])   # [lag, f]
+    assert np.allclose(r, (zd.sum(axis=1)).real, rtol=0, atol=1e-10)
+    assert np.allclose(s, np.einsum("oif,df->oid", H, zd).real, rtol=0, atol=1e-10)
+    g = np.einsum("oaf,obf->abf", H.conj(), H)
+    assert np.allclose(t, np.einsum("abf,df->abd", g, zd).real, rtol=0, atol=1e-9)
