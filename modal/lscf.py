@@ -174,7 +174,7 @@ def stabilisation(freq_hz: np.ndarray, H: np.ndarray, orders: range | list[int],
     if f.size < 2 * orders[-1] + 2:
         raise ModalError(f"pLSCF: {f.size} lines are too few for model order {orders[-1]}")
     dt = 1.0 / (2 * f.max())
-    scale = np.sqrt(np.mean(np.abs(H) ** 2))
+    scale = np.sqrt(np.vdot(H, H).real / H.size)                     # RMS of the FRFs
     # one BLAS thread: the matrices are small, and threads spinning on a shared machine cost more
     with _blas().limit(limits=1, user_api="blas"):
         eqs = _NormalEquations(orders, *_lag_sums(f, H / scale, orders[-1], dt))
