@@ -128,7 +128,7 @@ class _NormalEquations:
         n_out = self.Y.shape[1]
         ya = self.Y[:b].reshape(b * n_out, -1)[:, :n] @ alpha                      # [(j o), c]
         beta = self.Linv_T[:b, :b] @ ya.reshape(b, -1)                             # [j, (o c)], real
-        return -(powers @ beta).reshape(powers.shape[0], n_out, -1)
+        return -(powers @ beta).reshape(powers.shape[0], n_out, alpha.shape[1])  # r may be 0
 
 
 def _poles_of_order(index: int, p: int, eqs: _NormalEquations, dt: float, fmin: float, fmax: float

@@ -128,3 +128,13 @@ def test_lscf_lag_sums_equal_the_direct_sums_on_an_irregular_grid():
     assert np.allclose(s, np.einsum("oif,df->oid", H, zd).real, rtol=0, atol=1e-10)
     g = np.einsum("oaf,obf->abf", H.conj(), H)
     assert np.allclose(t, np.einsum("abf,df->abd", g, zd).real, rtol=0, atol=1e-9)
+
+
+def test_stabilisation_survives_orders_without_a_physical_pole() -> None:
+    """A flat FRF has no physical poles at low orders: every order still returns (empty) results."""
+    from modal.lscf import stabilisation
+
+    f = np.linspace(1.0, 100.0, 400)
+    st = stabilisation(f, np.full((3, 1, f.size), 1 + 0.1j), range(2, 8))
+    assert st.order.shape == st.freq_hz.shape == st.stable.shape
+    assert np.all(np.isfinite(st.freq_hz)) and np.all((st.order >= 2) & (st.order <= 7))
