@@ -110,6 +110,12 @@ def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: 
                             f"(< {MIN_LINES_PER_BANDWIDTH}); damping may be biased high, use a longer nfft")
     if decay_rate_per_s:
         fn, zeta = remove_added_damping(fn, zeta, decay_rate_per_s)
+        spurious = zeta <= 0  # less damping than the window itself added: not a structural mode
+        warnings += [f"dropped a pole at {fr:.4g} Hz: its damping is below the exponential window's "
+                     f"(a spurious or aliased pole)" for fr in fn[spurious]]
+        fn, zeta, constants = fn[~spurious], zeta[~spurious], constants[:, ~spurious]
+        if fn.size == 0:
+            raise ModalError("identify: every pole had less damping than the exponential window added")
     shapes, massn = _shapes(constants, driving_point if method == "lscf" else None)
     order = np.argsort(fn)
     return Modes(fn[order], zeta[order], shapes[:, order], constants[:, order], method, massn,

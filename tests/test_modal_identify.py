@@ -138,3 +138,19 @@ def test_stabilisation_survives_orders_without_a_physical_pole() -> None:
     st = stabilisation(f, np.full((3, 1, f.size), 1 + 0.1j), range(2, 8))
     assert st.order.shape == st.freq_hz.shape == st.stable.shape
     assert np.all(np.isfinite(st.freq_hz)) and np.all((st.order >= 2) & (st.order <= 7))
+
+
+def test_poles_with_less_damping_than_the_exponential_window_are_dropped() -> None:
+    """With a window decay of 1/s, a 10 Hz mode at ζ = 1 % (σ = 0.63/s) cannot be structural; the
+    50 Hz mode (σ = 3.14/s) keeps σ - 1/s."""
+    from fixtures.modal_sim import modal_frf
+    from modal.identify import identify
+
+    f = np.arange(0.0, 100.0, 0.05)
+    H = modal_frf(f, [10.0, 50.0], [0.01, 0.01], [[1.0, 0.7], [0.5, -1.0]], [[1.0, 1.0]])
+    modes = identify(f, H, fmin=2.0, fmax=90.0, decay_rate_per_s=1.0)
+    assert modes.freq_hz.size == 1 and modes.freq_hz[0] == pytest.approx(50.0, rel=1e-3)
+    sigma = 0.01 * 2 * np.pi * 50.0 - 1.0
+    wd = 2 * np.pi * 50.0 * np.sqrt(1 - 1e-4)
+    assert modes.damping_ratio[0] == pytest.approx(sigma / np.hypot(sigma, wd), rel=1e-3)
+    assert any("exponential window" in w for w in modes.warnings)
