@@ -15,7 +15,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from compare.parametric import Handle
 from models.effects import EFFECTS, effect_locations
 from models.rig import Rig
 
@@ -162,8 +161,3 @@ def parse_effects(spec: str) -> tuple[str, ...]:
         raise CompareError(f"--effects: unknown effect {bad[0] if bad else spec!r} "
                            f"(expected 'all' or names from {', '.join(EFFECTS)})")
     return names
-
-
-def handle_index(handles: Sequence[Handle]) -> dict[str, int]:
-    return {h.name: i for i, h in enumerate(handles)}
-
