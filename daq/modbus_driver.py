@@ -3,9 +3,12 @@
 Poll ``k`` is due at ``t0 + k / sample_rate_hz`` (t0 = first connection) and its values become device
 sample ``k``; late polls catch up (back to back) unless they are more than ``MAX_LATE_S`` late; after a
 reconnect polling resumes at the current slot.  Skipped slots are missing samples, so the timeline
-shows the gap where it happened.  An exception response counts as a corrupt frame.  Each table's
-registers are read in one request per poll (``device_id=`` keyword API) and decoded for all polls of a
-read at once (int16/uint16/int32/uint32/float32, big or little word order, then value * scale + offset).
+shows the gap where it happened.  A loaded host can stall a poll for a few hundred ms, and at 200 Hz over
+RTU a round trip takes 2-5 ms of the 5 ms period, so catching such a stall up takes as long again:
+``MAX_LATE_S`` and the answer timeout leave room for that, so a healthy link loses no sample.
+An exception response counts as a corrupt frame.  Each table's registers are read in one request per
+poll (``device_id=`` keyword API) and decoded for all polls of a read at once (int16/uint16/int32/
+uint32/float32, big or little word order, then value * scale + offset).
 """
 
 from __future__ import annotations
@@ -19,7 +22,8 @@ from daq.devices import Block, DeviceLost
 from daq.errors import DaqError
 
 READ_WINDOW_S = 0.05
-MAX_LATE_S = 1.0  # a poll later than this is skipped (its sample is missing) instead of caught up
+MAX_LATE_S = 3.0  # a poll later than this is skipped (its sample is missing) instead of caught up
+ANSWER_TIMEOUT_S = 1.0  # no answer within this: the device is lost (TCP notices a closed link at once)
 MAX_REGISTERS_PER_READ = 125
 RAW_RANGE = {"int16": (-(2**15), 2**15 - 1), "uint16": (0, 2**16 - 1), "int32": (-(2**31), 2**31 - 1),
              "uint32": (0, 2**32 - 1), "float32": (-np.inf, np.inf)}
@@ -75,9 +79,9 @@ class ModbusDriver:
         logging.getLogger("pymodbus").setLevel(logging.CRITICAL)  # failures become events, not log noise
         d = self.device
         if d.transport == "tcp":
-            client = ModbusTcpClient(d.host, port=d.tcp_port, timeout=0.5, retries=0)
+            client = ModbusTcpClient(d.host, port=d.tcp_port, timeout=ANSWER_TIMEOUT_S, retries=0)
         else:
-            client = ModbusSerialClient(d.port, baudrate=d.baud, timeout=0.5, retries=0)
+            client = ModbusSerialClient(d.port, baudrate=d.baud, timeout=ANSWER_TIMEOUT_S, retries=0)
         if not client.connect():
             client.close()
             where = f"{d.host}:{d.tcp_port}" if d.transport == "tcp" else d.port

@@ -89,10 +89,20 @@ class PtyLink:
         tmp.symlink_to(os.ttyname(self._slave))
         os.replace(tmp, self.path)
 
-    def drain(self, timeout_s: float = 1.0) -> None:
-        """Wait until the reader has taken every byte written so far (at most ``timeout_s``)."""
+    def drain(self, timeout_s: float = 1.0, settle_s: float = 0.1) -> None:
+        """Wait until the reader has taken every byte written so far (at most ``timeout_s``).
+
+        The slave's FIONREAD counts only the line discipline's read buffer (at most 4095 bytes); bytes
+        beyond that wait in the pty's flip buffer, which the kernel moves over in a worker after each
+        read, so an empty read buffer is trusted only once it stayed empty for ``settle_s``.
+        """
         end = time.monotonic() + timeout_s
-        while time.monotonic() < end and self._unread():
+        empty_since = time.monotonic()
+        while (now := time.monotonic()) < end:
+            if self._unread():
+                empty_since = now
+            elif now - empty_since >= settle_s:
+                return
             time.sleep(0.005)
 
     def _unread(self) -> int:

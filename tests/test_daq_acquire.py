@@ -30,6 +30,8 @@ REPO = Path(__file__).resolve().parents[1]
 SESSIONS = REPO / "examples" / "sessions"
 DURATION_S = 5.0
 FAULTS = ["--corrupt-rate", "0.01", "--disconnect-after", "2.0", "--disconnect", "0.5"]  # 1 %, 0.5 s
+IN_FLIGHT_S = 0.25  # data written into a link just before it goes away may be lost with it (as on a real
+# unplug); the simulators drain the link first, so this bounds a gap's early start only under heavy load
 
 
 def _session(tmp_path: Path, protocol: str, args: list[str] = (), rate: float | None = None) -> Path:
@@ -177,18 +179,20 @@ def test_serial_faults_are_events_at_their_samples(tmp_path):
     down, up = (i - first for i in _fault_window(log))
     rows_nan = np.isnan(run.samples).any(axis=1)
     events = {e.sample_index: e for e in run.events if e.kind in ("corrupt", "gap")}
-    assert down in events, f"no gap at {down}: {sorted(events.items())}"
-    gap = events[down]  # the disconnect: a gap from the first sample not delivered
+    gaps = [e for e in events.values() if e.kind == "gap"]
+    assert len(gaps) == 1, f"not one gap: {sorted(events.items())}"
+    gap = gaps[0]  # the disconnect: a gap from the first sample not received ...
+    assert down - IN_FLIGHT_S * 2048 <= gap.sample_index <= down, f"gap not at {down}: {gap}"
+    # ... which is the simulator's first sample not sent unless frames still in the pty were lost
     corrupt = [f["first_index"] - first for f in log if f["fault"] == "corrupt"]
-    corrupt = [c for c in corrupt if 0 <= c < n and not down <= c < down + gap.count]
+    corrupt = [c for c in corrupt if 0 <= c < n and not gap.sample_index <= c < gap.sample_index + gap.count]
     assert len(corrupt) >= 1
     for c in corrupt:  # each corrupted frame: a corrupt event at its first sample, its 32 rows empty
         hit = [e for e in events.values() if e.kind == "corrupt" and e.sample_index <= c < e.sample_index
                + 32 * e.count]
         assert hit, f"no corrupt event covers frame at row {c}"
         assert rows_nan[c:c + 32].all()
-    assert gap.kind == "gap"
-    assert up <= down + gap.count <= up + int(0.5 * 2048)  # until the reconnect (+ back-off latency)
+    assert up <= gap.sample_index + gap.count <= up + int(0.5 * 2048)  # until the reconnect (+ back-off)
     assert any(e.kind == "reconnect" for e in run.events)
     expected_nan = np.zeros(n, bool)
     for e in events.values():
@@ -210,10 +214,15 @@ def test_can_faults_are_events_at_their_samples(tmp_path):
     log = read_fault_log(log_path)
     n = run.samples.shape[0]
     down, up = (i - first for i in _fault_window(log))
+    gaps = [e for e in run.events if e.kind == "gap"]
+    assert len(gaps) == 1, gaps
+    gap = gaps[0]  # from the first scan not received: the simulator's first not sent, or one in flight
+    assert down - IN_FLIGHT_S * 512 <= gap.sample_index <= down
+    assert up <= gap.sample_index + gap.count <= up + 256
     corrupt: dict[int, set] = {}
     for f in log:
         row = f["first_index"] - first
-        if f["fault"] == "corrupt" and 0 <= row < n and not down <= row < up:
+        if f["fault"] == "corrupt" and 0 <= row < n and not gap.sample_index <= row < up:
             corrupt.setdefault(row, set()).add(f["group"])
     assert len(corrupt) >= 10
     ev = {e.sample_index: e for e in run.events if e.kind == "corrupt"}
@@ -224,8 +233,6 @@ def test_can_faults_are_events_at_their_samples(tmp_path):
         assert np.isnan(run.samples[row, cols]).all()
         assert np.isfinite(np.delete(run.samples[row], cols)).all()
         n_lost += len(cols)
-    gap = next(e for e in run.events if e.kind == "gap" and e.sample_index <= down)
-    assert down - 2 <= gap.sample_index and up <= gap.sample_index + gap.count <= up + 256
     src, steps = _reference("can", 512.0)
     good = ~np.isnan(run.samples)
     assert (np.abs(run.samples - src.physical(first, n))[good] / np.broadcast_to(steps, good.shape)[good]
