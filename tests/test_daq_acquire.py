@@ -166,15 +166,20 @@ def _nan_runs(rows_nan: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(edges[::2], edges[1::2], strict=True))
 
 
-@pytest.mark.slow
-def test_serial_faults_are_events_at_their_samples(tmp_path):
+def _faulted_run(tmp_path, protocol: str, duration_s: float = DURATION_S):
+    """Acquire from a simulator injecting FAULTS; the run, its first device index and the fault log."""
     log_path = tmp_path / "faults.jsonl"
-    config = _session(tmp_path, "serial", [*FAULTS, "--fault-log", str(log_path)])
+    config = _session(tmp_path, protocol, [*FAULTS, "--fault-log", str(log_path)])
     out = tmp_path / "run.h5"
-    done = _acquire(config, out, 6.0)
+    done = _acquire(config, out, duration_s)
     assert done.returncode == 0, done.stderr
     run, first = _run(out)
-    log = read_fault_log(log_path)
+    return run, first, read_fault_log(log_path)
+
+
+@pytest.mark.slow
+def test_serial_faults_are_events_at_their_samples(tmp_path):
+    run, first, log = _faulted_run(tmp_path, "serial", 6.0)
     n = run.samples.shape[0]
     down, up = (i - first for i in _fault_window(log))
     rows_nan = np.isnan(run.samples).any(axis=1)
@@ -205,13 +210,7 @@ def test_serial_faults_are_events_at_their_samples(tmp_path):
 
 @pytest.mark.slow
 def test_can_faults_are_events_at_their_samples(tmp_path):
-    log_path = tmp_path / "faults.jsonl"
-    config = _session(tmp_path, "can", [*FAULTS, "--fault-log", str(log_path)])
-    out = tmp_path / "run.h5"
-    done = _acquire(config, out, 6.0)
-    assert done.returncode == 0, done.stderr
-    run, first = _run(out)
-    log = read_fault_log(log_path)
+    run, first, log = _faulted_run(tmp_path, "can", 6.0)
     n = run.samples.shape[0]
     down, up = (i - first for i in _fault_window(log))
     gaps = [e for e in run.events if e.kind == "gap"]
@@ -242,13 +241,7 @@ def test_can_faults_are_events_at_their_samples(tmp_path):
 
 @pytest.mark.slow
 def test_modbus_faults_are_events_at_their_samples(tmp_path):
-    log_path = tmp_path / "faults.jsonl"
-    config = _session(tmp_path, "modbus", [*FAULTS, "--fault-log", str(log_path)])
-    out = tmp_path / "run.h5"
-    done = _acquire(config, out)
-    assert done.returncode == 0, done.stderr
-    run, _ = _run(out)
-    log = read_fault_log(log_path)
+    run, _, log = _faulted_run(tmp_path, "modbus")
     counter = run.samples[:, 0]
     good = ~np.isnan(counter)
     got = counter[good].astype(int)
