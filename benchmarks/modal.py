@@ -9,6 +9,9 @@
 
 Each round runs the reference first, then flexmodal, on the same data in this process; prints the
 median wall and CPU times over ``--repeat`` rounds, their ratios and the differences of the results.
+For the FRFs it also times the bare real FFTs that any Welch estimate of this record needs (one per
+segment and channel, float32, all CPUs, data already in cache): pyFRF's time over that floor is the
+largest ratio any implementation doing those transforms could reach.
 Usage: ``python benchmarks/modal.py [--duration-s 600] [--lines 2000] [--repeat 5]`` (BLAS threads
 as the environment sets them, e.g. ``OPENBLAS_NUM_THREADS=1``; modal.lscf itself uses one).
 """
@@ -22,6 +25,7 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+import scipy.fft
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
@@ -52,6 +56,20 @@ def _timed(reference, ours, repeat: int):
 def _ratio_line(name_ref: str, t_ref: float, c_ref: float, t_ours: float, c_ours: float, repeat: int) -> str:
     return (f"{name_ref} {t_ref:.3f} s, flexmodal {t_ours:.3f} s, ratio {t_ref / t_ours:.1f}x "
             f"(CPU {c_ref:.3f} s vs {c_ours:.3f} s, {c_ref / c_ours:.1f}x; medians of {repeat})")
+
+
+def _fft_floor(n_transforms: int, nfft: int, repeat: int) -> float:
+    """Median wall time (s) of ``n_transforms`` float32 real FFTs of ``nfft`` points, done as
+    scipy.fft.rfft over a cache-sized block of segments with every CPU (``workers=-1``)."""
+    block = np.random.default_rng(2).standard_normal((256, nfft)).astype(np.float32)
+    n_blocks = n_transforms / block.shape[0]
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        for _ in range(int(np.ceil(n_blocks))):
+            scipy.fft.rfft(block, axis=-1, workers=-1)
+        times.append((time.perf_counter() - t0) * n_blocks / np.ceil(n_blocks))
+    return float(np.median(times))
 
 
 def bench_frf(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: int) -> None:
@@ -87,6 +105,10 @@ def bench_frf(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: int)
 
     print(f"FRF  {n_resp} responses x 1 reference, {duration_s:g} s at {fs:g} Hz, nfft {nfft}: "
           + _ratio_line("pyFRF", t_theirs, c_theirs, t_ours, c_ours, repeat))
+    n_fft = (n_resp + 1) * ((n - nfft) // (nfft // 2) + 1)
+    floor = _fft_floor(n_fft, nfft, repeat)
+    print(f"     FFT floor: the {n_fft} bare float32 FFTs alone take {floor:.3f} s (all CPUs, in cache), "
+          f"so no Welch implementation can be more than {t_theirs / floor:.1f}x faster than pyFRF here")
     print(f"     max relative difference (coherence > 0.5): H1 {rel(a1, b1):.1e}, H2 {rel(a2, b2):.1e}, "
           f"coherence {np.max(np.abs(ac[:, lines] - bc[:, lines])[good]):.1e}")
 

@@ -15,4 +15,5 @@ def test_benchmark_script_runs_and_reports_ratios_and_differences(capsys):
                         "--lines", "400", "--repeat", "1"]) == 0
     out = capsys.readouterr().out
     assert "ratio" in out and "max relative difference" in out
+    assert "FFT floor: the 114 bare float32 FFTs" in out   # 3 channels x 38 half-overlapping segments
     assert "flexmodal modes found 6/6" in out
