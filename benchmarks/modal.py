@@ -60,8 +60,9 @@ def _ratio_line(name_ref: str, t_ref: float, c_ref: float, t_ours: float, c_ours
 
 def _fft_floor(n_transforms: int, nfft: int, repeat: int) -> float:
     """Median wall time (s) of ``n_transforms`` float32 real FFTs of ``nfft`` points, done as
-    scipy.fft.rfft over a cache-sized block of segments with every CPU (``workers=-1``)."""
-    block = np.random.default_rng(2).standard_normal((256, nfft)).astype(np.float32)
+    scipy.fft.rfft over an 8 MiB block of segments (flexmodal's block size) with every CPU."""
+    rows = max(1, (8 << 20) // (4 * nfft))
+    block = np.random.default_rng(2).standard_normal((rows, nfft)).astype(np.float32)
     n_blocks = n_transforms / block.shape[0]
     times = []
     for _ in range(repeat):
