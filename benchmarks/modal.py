@@ -32,7 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from fixtures.modal_sim import modal_frf, modal_response  # noqa: E402
 from modal.frf import coherence, h1, h2  # noqa: E402
 from modal.lscf import select_stable, stabilisation  # noqa: E402
-from modal.spectra import welch_spectra  # noqa: E402
+from modal.spectra import _BLOCK_BYTES, welch_spectra  # noqa: E402
 
 FN = np.array([12.0, 31.0, 55.0, 80.0, 120.0, 150.0])
 ZETA = np.array([0.005, 0.02, 0.01, 0.05, 0.01, 0.02])
@@ -60,8 +60,8 @@ def _ratio_line(name_ref: str, t_ref: float, c_ref: float, t_ours: float, c_ours
 
 def _fft_floor(n_transforms: int, nfft: int, repeat: int) -> float:
     """Median wall time (s) of ``n_transforms`` float32 real FFTs of ``nfft`` points, done as
-    scipy.fft.rfft over an 8 MiB block of segments (flexmodal's block size) with every CPU."""
-    rows = max(1, (8 << 20) // (4 * nfft))
+    scipy.fft.rfft over a block of segments of flexmodal's block size, with every CPU."""
+    rows = max(1, _BLOCK_BYTES // (4 * nfft))
     block = np.random.default_rng(2).standard_normal((rows, nfft)).astype(np.float32)
     n_blocks = n_transforms / block.shape[0]
     times = []
