@@ -13,16 +13,16 @@ import sys
 from collections.abc import Sequence
 
 COMMAND_MODULES = (
-    "fixtures.cli", "daq.cli", "modal.cli", "models.cli",
-    "compare.cli", "compare.diagnosis_cli", "reports.cli",
+    "flexmodal.fixtures.cli", "flexmodal.daq.cli", "flexmodal.modal.cli", "flexmodal.models.cli",
+    "flexmodal.compare.cli", "flexmodal.compare.diagnosis_cli", "flexmodal.reports.cli",
 )
 ERROR_TYPES = (
-    ("daq.errors", "DaqError"),
-    ("modal.errors", "ModalError"),
-    ("models.errors", "ModelError"),
-    ("compare.errors", "CompareError"),
-    ("reports.errors", "ReportError"),
-    ("fixtures.errors", "FixtureError"),
+    ("flexmodal.daq.errors", "DaqError"),
+    ("flexmodal.modal.errors", "ModalError"),
+    ("flexmodal.models.errors", "ModelError"),
+    ("flexmodal.compare.errors", "CompareError"),
+    ("flexmodal.reports.errors", "ReportError"),
+    ("flexmodal.fixtures.errors", "FixtureError"),
 )
 
 

@@ -21,7 +21,6 @@ import json
 import logging
 import multiprocessing as mp
 import os
-import sys
 import tempfile
 import threading
 import time
@@ -29,13 +28,11 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from daq.acquire import acquire  # noqa: E402
-from daq.session import ChannelMap, Device, Register, Session  # noqa: E402
-from daq.sim_common import PtyLink  # noqa: E402
-from daq.sim_source import LSB_MV, SimChannel, SimSource  # noqa: E402
-from daq.store import Channel, RunWriter, list_runs, read_run  # noqa: E402
+from flexmodal.daq.acquire import acquire  # noqa: E402
+from flexmodal.daq.session import ChannelMap, Device, Register, Session  # noqa: E402
+from flexmodal.daq.sim_common import PtyLink  # noqa: E402
+from flexmodal.daq.sim_source import LSB_MV, SimChannel, SimSource  # noqa: E402
+from flexmodal.daq.store import Channel, RunWriter, list_runs, read_run  # noqa: E402
 
 N_CH, RATE_HZ = 32, 64_000.0
 
@@ -54,7 +51,7 @@ def serial_session(port: str, n_ch: int, rate_hz: float) -> Session:
 
 
 def _serve_serial(link: PtyLink, source: SimSource, seconds: float, speed: float) -> None:
-    from fixtures.sim_serial import serve
+    from flexmodal.fixtures.sim_serial import serve
 
     serve(link, source, scans_per_frame=256, duration_s=seconds, speed=speed)
 
@@ -107,7 +104,7 @@ def bench_writer(out_dir: Path, total_mb: float = 256.0) -> tuple[float, float]:
 
 
 def _slcan_stream(n_frames: int) -> bytes:
-    from fixtures.sim_can import FRAME_ID, encode
+    from flexmodal.fixtures.sim_can import FRAME_ID, encode
 
     frames = encode(synthetic_source(7, 1000.0), 0, -(-n_frames // 3))[:n_frames]
     return b"".join(f"t{FRAME_ID:03X}8{f.tobytes().hex().upper()}\r".encode() for f in frames)
@@ -122,8 +119,8 @@ def bench_can(n_frames: int = 30000) -> tuple[float, float]:
     """Frames/s through python-can's own slcan Bus.recv loop and through the CAN driver (recv + decode)."""
     import can
 
-    from daq.can_driver import CanDriver
-    from fixtures.sim_can import DEMO_DBC
+    from flexmodal.daq.can_driver import CanDriver
+    from flexmodal.fixtures.sim_can import DEMO_DBC
 
     data = _slcan_stream(n_frames)
     rates = []
@@ -164,8 +161,8 @@ def bench_modbus(seconds: float = 3.0) -> tuple[float, float]:
     """Polls/s: pymodbus's own read loop, and the Modbus driver polling as fast as it can."""
     from pymodbus.client import ModbusTcpClient
 
-    from daq.modbus_driver import ModbusDriver
-    from fixtures.sim_modbus import free_port, serve
+    from flexmodal.daq.modbus_driver import ModbusDriver
+    from flexmodal.fixtures.sim_modbus import free_port, serve
 
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
     port = free_port()

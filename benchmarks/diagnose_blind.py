@@ -20,14 +20,13 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
 
-from compare.diagnosis import diagnose  # noqa: E402
-from compare.selftest import format_summary, run_selftest  # noqa: E402
-from modal.table import ModalTable  # noqa: E402
-from models.effects import apply_effect  # noqa: E402
-from models.frame import frame_modes  # noqa: E402
-from models.rig import load_rig  # noqa: E402
+from flexmodal.compare.diagnosis import diagnose  # noqa: E402
+from flexmodal.compare.selftest import format_summary, run_selftest  # noqa: E402
+from flexmodal.modal.table import ModalTable  # noqa: E402
+from flexmodal.models.effects import apply_effect  # noqa: E402
+from flexmodal.models.frame import frame_modes  # noqa: E402
+from flexmodal.models.rig import load_rig  # noqa: E402
 
 
 def timing_case(seed: int = 0):

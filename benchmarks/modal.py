@@ -22,17 +22,14 @@ import argparse
 import sys
 import time
 import warnings
-from pathlib import Path
 
 import numpy as np
 import scipy.fft
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from fixtures.modal_sim import modal_frf, modal_response  # noqa: E402
-from modal.frf import coherence, h1, h2  # noqa: E402
-from modal.lscf import select_stable, stabilisation  # noqa: E402
-from modal.spectra import _BLOCK_BYTES, welch_spectra  # noqa: E402
+from flexmodal.fixtures.modal_sim import modal_frf, modal_response  # noqa: E402
+from flexmodal.modal.frf import coherence, h1, h2  # noqa: E402
+from flexmodal.modal.lscf import select_stable, stabilisation  # noqa: E402
+from flexmodal.modal.spectra import _BLOCK_BYTES, welch_spectra  # noqa: E402
 
 FN = np.array([12.0, 31.0, 55.0, 80.0, 120.0, 150.0])
 ZETA = np.array([0.005, 0.02, 0.01, 0.05, 0.01, 0.02])

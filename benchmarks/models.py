@@ -15,7 +15,6 @@ from __future__ import annotations
 import ctypes
 import math
 import os
-import sys
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -25,10 +24,8 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # small dense problems: thre
 import numpy as np  # noqa: E402
 from scipy.linalg import eigh  # noqa: E402
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from models.frame import assemble, frame_modes, frame_modes_many  # noqa: E402
-from models.rig import Rig, load_rig  # noqa: E402
+from flexmodal.models.frame import assemble, frame_modes, frame_modes_many  # noqa: E402
+from flexmodal.models.rig import Rig, load_rig  # noqa: E402
 
 RIG = Path(__file__).resolve().parents[1] / "examples" / "rigs" / "seed003_two_link.toml"
 ANGLES = np.linspace(0.0, 150.0, 1000)

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from models.effects import EFFECTS, effect_locations
-from models.rig import Rig
+from flexmodal.models.effects import EFFECTS, effect_locations
+from flexmodal.models.rig import Rig
 
 POSE_LAW_BOUND = 3.0
 LINK_SCALE_MIN = 1 / 3
@@ -151,7 +151,7 @@ def combine(*cands: Candidate) -> Candidate | None:
 
 def parse_effects(spec: str) -> tuple[str, ...]:
     """``all`` or a comma-separated list of effect names (validated against CONTRACT §5)."""
-    from compare.errors import CompareError
+    from flexmodal.compare.errors import CompareError
 
     if spec.strip() == "all":
         return EFFECTS

@@ -36,8 +36,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from compare.errors import CompareError
-    from compare.tables import load_comparison, render
+    from flexmodal.compare.errors import CompareError
+    from flexmodal.compare.tables import load_comparison, render
 
     if not 0.0 <= args.min_mac <= 1.0:
         raise CompareError(f"--min-mac: must lie in [0, 1] (got {args.min_mac})")

@@ -33,10 +33,10 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from compare.candidates import Candidate, combine, parse_effects, single_candidates
-from compare.errors import CompareError
-from compare.fit import Target, evaluate, fit_candidate, paired_modes
-from compare.gap import (
+from flexmodal.compare.candidates import Candidate, combine, parse_effects, single_candidates
+from flexmodal.compare.errors import CompareError
+from flexmodal.compare.fit import Target, evaluate, fit_candidate, paired_modes
+from flexmodal.compare.gap import (
     Measured,
     carriers,
     comac,
@@ -47,10 +47,10 @@ from compare.gap import (
     region_scores,
     rms,
 )
-from compare.parametric import handles_for, pose_basis, reduce_family
-from modal.table import ModalTable
-from models.effects import pose_stiffness
-from models.rig import Rig
+from flexmodal.compare.parametric import handles_for, pose_basis, reduce_family
+from flexmodal.modal.table import ModalTable
+from flexmodal.models.effects import pose_stiffness
+from flexmodal.models.rig import Rig
 
 DEFAULT_SCATTER = 0.005
 NONE_FACTOR = 2.0

@@ -29,10 +29,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from compare.errors import CompareError
+    from flexmodal.compare.errors import CompareError
 
     if args.selftest is not None:
-        from compare.selftest import format_summary, run_selftest
+        from flexmodal.compare.selftest import format_summary, run_selftest
 
         if args.selftest < 1:
             raise CompareError(f"--selftest: N must be >= 1 (got {args.selftest})")
@@ -43,9 +43,9 @@ def run(args: argparse.Namespace) -> int:
     if missing:
         raise CompareError(f"diagnose: missing --{missing[0]} "
                            "(needs --rig, --measured and --out, or --selftest N)")
-    from compare.diagnosis import diagnose, write_diagnosis
-    from modal.table import ModalTable
-    from models.rig import load_rig
+    from flexmodal.compare.diagnosis import diagnose, write_diagnosis
+    from flexmodal.modal.table import ModalTable
+    from flexmodal.models.rig import load_rig
 
     rig = load_rig(args.rig)
     table = ModalTable.read_csv(args.measured)

@@ -25,8 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares, linear_sum_assignment
 
-from compare.candidates import Candidate
-from compare.parametric import ReducedFamily, lam_to_hz, solve_family
+from flexmodal.compare.candidates import Candidate
+from flexmodal.compare.parametric import ReducedFamily, lam_to_hz, solve_family
 
 EXTRA_PAIRING_MODES = 2
 MAX_GRID = 81

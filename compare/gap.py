@@ -11,9 +11,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from compare.errors import CompareError
-from modal.table import ModalTable
-from models.rig import Rig
+from flexmodal.compare.errors import CompareError
+from flexmodal.modal.table import ModalTable
+from flexmodal.models.rig import Rig
 
 
 @dataclass(frozen=True)

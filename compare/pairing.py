@@ -23,8 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from modal.mac import mac
-from modal.table import ModalTable
+from flexmodal.modal.mac import mac
+from flexmodal.modal.table import ModalTable
 
 MIN_MAC = 0.5
 FREQ_WEIGHT = 1e-3

@@ -25,9 +25,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve, eigh
 
-from models.effects import effect_locations
-from models.frame import assemble
-from models.rig import Mass, Rig, Spring
+from flexmodal.models.effects import effect_locations
+from flexmodal.models.frame import assemble
+from flexmodal.models.rig import Mass, Rig, Spring
 
 RIGID_FACTOR = 1e7
 """A rigid joint or clamp is a spring of ``RIGID_FACTOR * EI / L`` in the super rig's layout."""

@@ -19,11 +19,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from compare.diagnosis import diagnose
-from modal.table import ModalTable
-from models.effects import apply_effect, effect_locations
-from models.frame import frame_modes
-from models.rig import parse_rig
+from flexmodal.compare.diagnosis import diagnose
+from flexmodal.modal.table import ModalTable
+from flexmodal.models.effects import apply_effect, effect_locations
+from flexmodal.models.frame import frame_modes
+from flexmodal.models.rig import parse_rig
 
 SELFTEST_EFFECTS = ("joint_stiffness", "joint_stiffness_pose", "joint_mass", "tip_mass", "base_stiffness",
                     "sensor_mass", "grounded_spring", "link_stiffness", "link_mass")

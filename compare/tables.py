@@ -26,9 +26,9 @@ from pathlib import Path
 
 import numpy as np
 
-from compare.errors import CompareError
-from compare.pairing import MIN_MAC, Pairing, pair_modes
-from modal.table import ModalTable
+from flexmodal.compare.errors import CompareError
+from flexmodal.compare.pairing import MIN_MAC, Pairing, pair_modes
+from flexmodal.modal.table import ModalTable
 
 FORMATS = ("md", "csv", "tex", "html")
 LAYOUTS = ("modes", "sources")

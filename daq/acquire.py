@@ -28,11 +28,11 @@ from pathlib import Path
 
 import numpy as np
 
-from daq.devices import Block, ReaderStats, make_driver, run_reader
-from daq.errors import DaqError
-from daq.session import SIMULATOR_PORT, Session
-from daq.store import Event, RunWriter, list_runs
-from daq.timeline import Timeline
+from flexmodal.daq.devices import Block, ReaderStats, make_driver, run_reader
+from flexmodal.daq.errors import DaqError
+from flexmodal.daq.session import SIMULATOR_PORT, Session
+from flexmodal.daq.store import Event, RunWriter, list_runs
+from flexmodal.daq.timeline import Timeline
 
 QUEUE_BLOCKS = 4096
 
@@ -69,7 +69,8 @@ class SimulatorProcess:
     def __init__(self, session: Session, quiet: bool) -> None:
         sim = session.simulator
         dev = next(d for d in session.devices if d.protocol == sim.protocol)
-        cmd = [sys.executable, "-m", "app", "sim", "serve", "--protocol", sim.protocol, "--test", sim.test,
+        cmd = [sys.executable, "-m", "flexmodal", "sim", "serve", "--protocol", sim.protocol,
+               "--test", sim.test,
                "--rate", repr(session.sample_rate_hz), "--exit-with-parent"]
         if sim.rig:
             cmd += ["--rig", sim.rig]
@@ -120,7 +121,7 @@ def _start_simulator(session: Session, quiet: bool):
         return session, lambda: None
     virtual = [d for d in session.devices if d.protocol == "can" and d.interface == "virtual"]
     if sim.protocol == "can" and virtual:
-        from fixtures.sim_can import start_virtual
+        from flexmodal.fixtures.sim_can import start_virtual
 
         return session, start_virtual(virtual[0].channel, sim, session.sample_rate_hz)
     proc = SimulatorProcess(session, quiet)

@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from daq.dbc import load_message
-from daq.devices import Block, DeviceLost
-from daq.errors import DaqError
+from flexmodal.daq.dbc import load_message
+from flexmodal.daq.devices import Block, DeviceLost
+from flexmodal.daq.errors import DaqError
 
 COUNTER_SIGNAL = "Seq"
 MAX_FRAMES_PER_READ = 20000

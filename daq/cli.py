@@ -59,13 +59,13 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _acquire(args: argparse.Namespace) -> int:
-    from daq.acquire import WriteFailed, acquire
-    from daq.errors import DaqError
-    from daq.session import load_session
+    from flexmodal.daq.acquire import WriteFailed, acquire
+    from flexmodal.daq.errors import DaqError
+    from flexmodal.daq.session import load_session
 
     session = load_session(args.config)
     if args.recover and os.path.exists(args.out):
-        from daq.store import recover
+        from flexmodal.daq.store import recover
 
         recover(args.out)
     if args.duration is not None and args.duration <= 0:
@@ -81,8 +81,8 @@ def _acquire(args: argparse.Namespace) -> int:
 
 
 def _serve(args: argparse.Namespace) -> int:
-    from daq.errors import DaqError
-    from daq.sim_serve import serve
+    from flexmodal.daq.errors import DaqError
+    from flexmodal.daq.sim_serve import serve
 
     if not 0 <= args.corrupt_rate < 1:
         raise DaqError(f"--corrupt-rate {args.corrupt_rate}: must be in [0, 1)")
@@ -100,8 +100,8 @@ def _serve(args: argparse.Namespace) -> int:
 
 def _hidden_effect(text: str):
     """Parse ``EFFECT@LOCATION:PARAM=VALUE,...`` into a fixtures.rig_sim.HiddenEffect."""
-    from daq.errors import DaqError
-    from fixtures.rig_sim import HiddenEffect
+    from flexmodal.daq.errors import DaqError
+    from flexmodal.fixtures.rig_sim import HiddenEffect
 
     head, _, params = text.partition(":")
     effect, _, location = head.partition("@")

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from daq.errors import DaqError
+from flexmodal.daq.errors import DaqError
 
 
 @dataclass(frozen=True)

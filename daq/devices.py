@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from daq.errors import DaqError
+from flexmodal.daq.errors import DaqError
 
 BACKOFF_START_S = 0.02
 BACKOFF_MAX_S = 0.25
@@ -110,10 +110,10 @@ def run_reader(driver, out: queue.Queue, stop: threading.Event, stats: ReaderSta
 def make_driver(device, session):
     """The driver for ``device`` (a daq.session.Device) of ``session``."""
     if device.protocol == "serial":
-        from daq.serial_driver import SerialDriver
+        from flexmodal.daq.serial_driver import SerialDriver
         return SerialDriver(device, session.sample_rate_hz)
     if device.protocol == "can":
-        from daq.can_driver import CanDriver
+        from flexmodal.daq.can_driver import CanDriver
         return CanDriver(device, session.sample_rate_hz)
-    from daq.modbus_driver import ModbusDriver
+    from flexmodal.daq.modbus_driver import ModbusDriver
     return ModbusDriver(device, session.sample_rate_hz)

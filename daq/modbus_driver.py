@@ -18,8 +18,8 @@ import time
 
 import numpy as np
 
-from daq.devices import Block, DeviceLost
-from daq.errors import DaqError
+from flexmodal.daq.devices import Block, DeviceLost
+from flexmodal.daq.errors import DaqError
 
 READ_WINDOW_S = 0.05
 MAX_LATE_S = 3.0  # a poll later than this is skipped (its sample is missing) instead of caught up

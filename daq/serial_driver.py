@@ -8,8 +8,8 @@ import time
 
 import serial
 
-from daq.devices import Block, DeviceLost, unwrap
-from daq.serial_frames import SEQ_MODULUS, BinaryDecoder, CsvDecoder
+from flexmodal.daq.devices import Block, DeviceLost, unwrap
+from flexmodal.daq.serial_frames import SEQ_MODULUS, BinaryDecoder, CsvDecoder
 
 READ_TIMEOUT_S = 0.02
 READ_MAX_BYTES = 1 << 20

@@ -21,8 +21,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from daq.errors import DaqError
-from daq.store import CHANNEL_KINDS, EXCITATIONS, Channel
+from flexmodal.daq.errors import DaqError
+from flexmodal.daq.store import CHANNEL_KINDS, EXCITATIONS, Channel
 
 PROTOCOLS = ("serial", "can", "modbus")
 SIMULATOR_PORT = "@simulator"  # placeholder for the endpoint of the session's own simulator

@@ -12,8 +12,8 @@ import signal
 import threading
 import time
 
-from daq.sim_common import FaultLog, FaultPlan
-from daq.sim_source import sim_source
+from flexmodal.daq.sim_common import FaultLog, FaultPlan
+from flexmodal.daq.sim_source import sim_source
 
 
 def _watch_parent(ppid: int, stop: threading.Event) -> None:
@@ -42,8 +42,8 @@ def serve(args, stdout) -> None:
 
     try:
         if args.protocol == "serial":
-            from daq.sim_common import PtyLink
-            from fixtures.sim_serial import serve as serve_serial
+            from flexmodal.daq.sim_common import PtyLink
+            from flexmodal.fixtures.sim_serial import serve as serve_serial
 
             link = PtyLink(args.link)
             announce(str(link.path))
@@ -51,12 +51,12 @@ def serve(args, stdout) -> None:
                          fmt=args.format, faults=faults, log=log, duration_s=args.duration, stop=stop)
             link.remove()
         elif args.protocol == "can":
-            from fixtures.sim_can import serve_slcan
+            from flexmodal.fixtures.sim_can import serve_slcan
 
             serve_slcan(source, link_path=args.link, faults=faults, log=log, duration_s=args.duration,
                         stop=stop, announce=announce)
         else:
-            from fixtures.sim_modbus import serve as serve_modbus
+            from flexmodal.fixtures.sim_modbus import serve as serve_modbus
 
             serve_modbus(source, transport=args.transport, port=args.port, link_path=args.link, faults=faults,
                          log=log, duration_s=args.duration, stop=stop, announce=announce)

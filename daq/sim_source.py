@@ -17,10 +17,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from daq.session import G_M_PER_S2
+from flexmodal.daq.session import G_M_PER_S2
 
 if TYPE_CHECKING:
-    from fixtures.rig_sim import HiddenEffect
+    from flexmodal.fixtures.rig_sim import HiddenEffect
 
 ADC_FULL_SCALE_MV = 10_000.0
 ADC_BITS = 16
@@ -79,8 +79,8 @@ def sim_source(rig_path: str | Path | None = None, test: str = "impact", sample_
 
     Pose variables not given are 30 for angles (``*_deg``) and 0 otherwise.
     """
-    from fixtures.rig_sim import DEMO_RIG, simulate
-    from models.rig import load_rig
+    from flexmodal.fixtures.rig_sim import DEMO_RIG, simulate
+    from flexmodal.models.rig import load_rig
 
     rig = load_rig(rig_path or DEMO_RIG)
     default = {v: 30.0 if v.endswith("_deg") else 0.0 for v in rig.pose_variables}

@@ -23,7 +23,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from daq.errors import DaqError
+from flexmodal.daq.errors import DaqError
 
 CHANNEL_KINDS = ("acceleration", "force", "strain", "encoder", "voltage", "other")
 EVENT_KINDS = ("trigger", "gap", "overload", "corrupt", "reconnect", "note")
@@ -188,7 +188,7 @@ class RunWriter:
             if "already open for write" in str(exc):
                 raise DaqError(f"{self.path}: file is open by another writer or was not closed cleanly "
                                "(readable as it is; if no writer is running, `flexmodal acquire --recover` "
-                               "or daq.store.recover() makes it writable)") from exc
+                               "or flexmodal.daq.store.recover() makes it writable)") from exc
             raise DaqError(f"{self.path}: cannot open for writing ({exc})") from exc
         if f"runs/{self.run_id}" in f:
             f.close()

@@ -17,8 +17,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from daq.devices import Block
-from daq.store import Event
+from flexmodal.daq.devices import Block
+from flexmodal.daq.store import Event
 
 ANALOG_KINDS = ("acceleration", "force", "strain", "voltage")
 MAX_GAP_S = 60.0  # a longer jump of a device counter is taken as a device restart, not a gap

@@ -9,16 +9,16 @@ import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from daq.store import expand_runs
-from modal.compute import compute_frf
-from modal.errors import ModalError
-from modal.frf import FrfResult
-from modal.runs_io import write_frf
+from flexmodal.daq.store import expand_runs
+from flexmodal.modal.compute import compute_frf
+from flexmodal.modal.errors import ModalError
+from flexmodal.modal.frf import FrfResult
+from flexmodal.modal.runs_io import write_frf
 
 
 def frf_job(path: str, run_id: str, options: dict) -> FrfResult:
     """Read one run and compute its FRFs (the unit of work sent to a worker)."""
-    from daq.store import read_run
+    from flexmodal.daq.store import read_run
 
     return compute_frf(read_run(path, run_id), **options)
 

@@ -50,8 +50,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _frf(args: argparse.Namespace) -> int:
-    from daq.store import expand_runs
-    from modal.batch import frf_batch
+    from flexmodal.daq.store import expand_runs
+    from flexmodal.modal.batch import frf_batch
 
     options = {"estimator": args.estimator, "nfft": args.nfft, "window": args.window,
                "overlap": args.overlap, "averaging": args.averaging}
@@ -65,7 +65,7 @@ def _frf(args: argparse.Namespace) -> int:
 
 
 def _identify(args: argparse.Namespace) -> int:
-    from modal.sources import identify_input
+    from flexmodal.modal.sources import identify_input
 
     table, modes_by_config = identify_input(args.input, method=args.method, fmin=args.fmin, fmax=args.fmax,
                                             max_order=args.max_order, run_id=args.run)
@@ -74,7 +74,7 @@ def _identify(args: argparse.Namespace) -> int:
         for warning in modes.warnings:
             print(f"flexmodal: warning: {config}: {warning}", file=sys.stderr)
     if args.uff:
-        from modal.uff import write_modes
+        from flexmodal.modal.uff import write_modes
 
         modes, outputs = next(iter(modes_by_config.values()))
         write_modes(args.uff, modes.freq_hz, modes.damping_ratio, modes.shapes, outputs)

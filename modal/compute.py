@@ -7,11 +7,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from modal.errors import ModalError
-from modal.frf import FrfResult, coherence, estimate
-from modal.impact import impact_spectra
-from modal.spectra import welch_spectra
-from modal.windows import added_decay_rate_per_s
+from flexmodal.modal.errors import ModalError
+from flexmodal.modal.frf import FrfResult, coherence, estimate
+from flexmodal.modal.impact import impact_spectra
+from flexmodal.modal.spectra import welch_spectra
+from flexmodal.modal.windows import added_decay_rate_per_s
 
 DEFAULT_NFFT_MAX = 8192
 

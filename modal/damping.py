@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.signal
 
-from modal.errors import ModalError
+from flexmodal.modal.errors import ModalError
 
 
 @dataclass(frozen=True)

@@ -12,8 +12,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from modal.errors import ModalError
-from modal.spectra import Spectra
+from flexmodal.modal.errors import ModalError
+from flexmodal.modal.spectra import Spectra
 
 ESTIMATORS = ("H1", "H2", "Hv")
 QUANTITIES = {"receptance": 0, "mobility": 1, "accelerance": 2}

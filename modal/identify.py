@@ -10,15 +10,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from modal.damping import half_power
-from modal.errors import ModalError
-from modal.frf import convert
-from modal.lscf import select_stable, stabilisation
-from modal.lsfd import lsfd
-from modal.mac import mass_normalised, to_real, unit_max
-from modal.peaks import cmif, pick_peaks, quadrature_shapes
-from modal.table import ModalTable
-from modal.windows import remove_added_damping
+from flexmodal.modal.damping import half_power
+from flexmodal.modal.errors import ModalError
+from flexmodal.modal.frf import convert
+from flexmodal.modal.lscf import select_stable, stabilisation
+from flexmodal.modal.lsfd import lsfd
+from flexmodal.modal.mac import mass_normalised, to_real, unit_max
+from flexmodal.modal.peaks import cmif, pick_peaks, quadrature_shapes
+from flexmodal.modal.table import ModalTable
+from flexmodal.modal.windows import remove_added_damping
 
 METHODS = ("lscf", "peak")
 MIN_LINES_PER_BANDWIDTH = 8   # below this the Hann-window leakage bias on damping exceeds a few %

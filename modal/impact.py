@@ -17,9 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from modal.errors import ModalError
-from modal.spectra import Spectra, spectra_of_segments
-from modal.windows import window
+from flexmodal.modal.errors import ModalError
+from flexmodal.modal.spectra import Spectra, spectra_of_segments
+from flexmodal.modal.windows import window
 
 
 @dataclass(frozen=True)

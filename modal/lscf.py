@@ -23,8 +23,8 @@ import numpy as np
 import scipy.linalg
 from threadpoolctl import ThreadpoolController
 
-from modal.errors import ModalError
-from modal.mac import mac_pairs
+from flexmodal.modal.errors import ModalError
+from flexmodal.modal.mac import mac_pairs
 
 
 @dataclass(frozen=True)

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from modal.errors import ModalError
-from modal.frf import QUANTITIES
+from flexmodal.modal.errors import ModalError
+from flexmodal.modal.frf import QUANTITIES
 
 
 @dataclass(frozen=True)

@@ -14,8 +14,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from modal.errors import ModalError
-from modal.frf import FrfResult
+from flexmodal.modal.errors import ModalError
+from flexmodal.modal.frf import FrfResult
 
 
 def write_frf(path: str | Path, run_id: str, result: FrfResult) -> None:

@@ -7,12 +7,12 @@ from pathlib import Path
 import h5py
 import pandas as pd
 
-from modal.compute import compute_frf, frf_of_record
-from modal.errors import ModalError
-from modal.frf import FrfResult
-from modal.identify import Modes, identify, modes_table
-from modal.runs_io import read_frf
-from modal.table import ModalTable
+from flexmodal.modal.compute import compute_frf, frf_of_record
+from flexmodal.modal.errors import ModalError
+from flexmodal.modal.frf import FrfResult
+from flexmodal.modal.identify import Modes, identify, modes_table
+from flexmodal.modal.runs_io import read_frf
+from flexmodal.modal.table import ModalTable
 
 
 def _driving_point(run, result: FrfResult) -> int | None:
@@ -30,7 +30,7 @@ def _driving_point(run, result: FrfResult) -> int | None:
 
 def hdf5_frfs(path: str | Path, run_id: str | None = None):
     """Yield (run, FrfResult) for the runs of an HDF5 file, stored FRFs first, else computed."""
-    from daq.store import list_runs, read_run
+    from flexmodal.daq.store import list_runs, read_run
 
     ids = list_runs(path)
     if run_id is not None:
@@ -67,7 +67,7 @@ def identify_input(path: str | Path, *, method: str = "lscf", fmin: float | None
             found[run.run_id] = (modes, result.outputs)
             tables.append(modes_table(modes, result.outputs, config=run.run_id, pose=run.pose).frame)
     else:
-        from modal.uff import UffFrfs, read_uff
+        from flexmodal.modal.uff import UffFrfs, read_uff
 
         data = read_uff(p)
         if isinstance(data, UffFrfs):

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.fft
 
-from modal.errors import ModalError
-from modal.windows import window
+from flexmodal.modal.errors import ModalError
+from flexmodal.modal.windows import window
 
 _BLOCK_BYTES = 8 << 20      # windowed segments per block (with its spectra, fits the shared L3 cache)
 _TILE = 2048                # rows per tile of the block transpose (stays in L1/L2)

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from modal.errors import ModalError
+from flexmodal.modal.errors import ModalError
 
 REQUIRED = ("config", "mode", "freq_hz")
 POSE_PREFIX = "pose."

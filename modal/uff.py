@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from modal.errors import ModalError
-from modal.frf import FrfResult
+from flexmodal.modal.errors import ModalError
+from flexmodal.modal.frf import FrfResult
 
 _AXES = "xyz"
 _SPEC = {"accelerance": 12, "mobility": 11, "receptance": 8}

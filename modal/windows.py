@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.signal
 
-from modal.errors import ModalError
+from flexmodal.modal.errors import ModalError
 
 WINDOW_NAMES = ("rect", "hann", "flattop", "force", "exponential")
 _DEFAULTS = {"force": 0.1, "exponential": 0.01}

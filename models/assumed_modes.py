@@ -28,7 +28,7 @@ import numpy as np
 from scipy.linalg import eigh
 from scipy.optimize import brentq
 
-from models.errors import ModelError
+from flexmodal.models.errors import ModelError
 
 INF = math.inf
 _GAUSS_X, _GAUSS_W = np.polynomial.legendre.leggauss(80)

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from models.errors import ModelError
+from flexmodal.models.errors import ModelError
 
 # lambda_i for i = 1..4 (Blevins 1979, table 8-1) and the asymptote for i >= 5 (i 1-based)
 _TABLE: dict[str, tuple[tuple[float, ...], float]] = {

@@ -39,10 +39,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _predict(args: argparse.Namespace) -> int:
-    from modal.table import poses_from_csv
-    from models.errors import ModelError
-    from models.predict import predict
-    from models.rig import load_rig
+    from flexmodal.modal.table import poses_from_csv
+    from flexmodal.models.errors import ModelError
+    from flexmodal.models.predict import predict
+    from flexmodal.models.rig import load_rig
 
     for name in ("modes", "elements", "masses_per_link"):
         value = getattr(args, name)

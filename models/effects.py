@@ -32,8 +32,8 @@ import math
 from collections.abc import Mapping
 from dataclasses import replace
 
-from models.errors import ModelError
-from models.rig import Mass, Point, Rig, Spring
+from flexmodal.models.errors import ModelError
+from flexmodal.models.rig import Mass, Point, Rig, Spring
 
 EFFECTS = (
     "joint_stiffness",

@@ -32,8 +32,8 @@ from functools import lru_cache
 import numpy as np
 from scipy.linalg import LinAlgError, eigh
 
-from models.errors import ModelError
-from models.rig import Point, Rig, Section
+from flexmodal.models.errors import ModelError
+from flexmodal.models.rig import Point, Rig, Section
 
 DEFAULT_ELEMENTS = 10
 QUANTITIES = ("transverse", "axial", "x", "y", "rotation", "curvature")

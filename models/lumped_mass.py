@@ -25,9 +25,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import eigh
 
-from models.errors import ModelError
-from models.frame import link_geometry
-from models.rig import Point, Rig
+from flexmodal.models.errors import ModelError
+from flexmodal.models.frame import link_geometry
+from flexmodal.models.rig import Point, Rig
 
 _GAUSS2 = np.array([0.5 - 0.5 / math.sqrt(3.0), 0.5 + 0.5 / math.sqrt(3.0)])
 

@@ -18,9 +18,9 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from modal.table import POSE_PREFIX, SHAPE_PREFIX, ModalTable
-from models.errors import ModelError
-from models.rig import Rig
+from flexmodal.modal.table import POSE_PREFIX, SHAPE_PREFIX, ModalTable
+from flexmodal.models.errors import ModelError
+from flexmodal.models.rig import Rig
 
 MODELS = ("fe", "assumed-modes", "lumped-mass", "blevins")
 RIGID_HZ = 1e-3  # modes below this are rigid-body motion
@@ -37,7 +37,7 @@ def _elastic(freq_hz: np.ndarray, shapes: np.ndarray | None, n_modes: int, where
 
 def _fe(rig: Rig, poses: list[Mapping[str, float]], n_modes: int, options: Mapping) -> Iterator[Result]:
     """Frame FE, assembled in chunks of poses (models.frame.assemble_many), one eigensolve per pose."""
-    from models.frame import assemble_many, solve_modes
+    from flexmodal.models.frame import assemble_many, solve_modes
 
     mechanisms = 3 + sum(j.kind != "rigid" for j in rig.joints)  # at most this many rigid-body modes
     for start in range(0, len(poses), FE_CHUNK):
@@ -54,8 +54,8 @@ def _one_by_one(solve: Callable[[Rig, Mapping[str, float], int, Mapping], Result
 
 
 def _assumed(rig: Rig, pose: Mapping[str, float], n_modes: int, options: Mapping) -> Result:
-    from models.assumed_modes import beam_modes
-    from models.straight_beam import straight_beam
+    from flexmodal.models.assumed_modes import beam_modes
+    from flexmodal.models.straight_beam import straight_beam
 
     sb = straight_beam(rig, pose, "assumed-modes")
     modes = beam_modes(sb.beam, sb.left, sb.right, n_modes + 2)
@@ -68,7 +68,7 @@ def _assumed(rig: Rig, pose: Mapping[str, float], n_modes: int, options: Mapping
 
 
 def _lumped(rig: Rig, pose: Mapping[str, float], n_modes: int, options: Mapping) -> Result:
-    from models.lumped_mass import lumped_mass_modes
+    from flexmodal.models.lumped_mass import lumped_mass_modes
 
     modes = lumped_mass_modes(rig, pose, n_modes, int(options.get("masses_per_link", 4)),
                               str(options.get("coordinates", "planar")))
@@ -76,8 +76,8 @@ def _lumped(rig: Rig, pose: Mapping[str, float], n_modes: int, options: Mapping)
 
 
 def _blevins(rig: Rig, pose: Mapping[str, float], n_modes: int, options: Mapping) -> Result:
-    from models.blevins import beam_frequencies_hz
-    from models.straight_beam import straight_beam
+    from flexmodal.models.blevins import beam_frequencies_hz
+    from flexmodal.models.straight_beam import straight_beam
 
     sb = straight_beam(rig, pose, "blevins")
     if sb.condition is None:

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from models.errors import ModelError
+from flexmodal.models.errors import ModelError
 
 SECTION_SHAPES = ("square_tube", "rect_tube", "round_tube", "solid_rect", "custom")
 SUPPORTS = ("clamped", "pinned", "free", "spring")

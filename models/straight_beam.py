@@ -12,9 +12,9 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from models.assumed_modes import CLAMPED, FREE, INF, PINNED, Beam, End
-from models.errors import ModelError
-from models.rig import Rig, Section
+from flexmodal.models.assumed_modes import CLAMPED, FREE, INF, PINNED, Beam, End
+from flexmodal.models.errors import ModelError
+from flexmodal.models.rig import Rig, Section
 
 
 @dataclass(frozen=True)

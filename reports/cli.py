@@ -30,15 +30,15 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from modal.table import ModalTable
-    from reports.errors import ReportError
-    from reports.html import load_diagnosis, write_report
+    from flexmodal.modal.table import ModalTable
+    from flexmodal.reports.errors import ReportError
+    from flexmodal.reports.html import load_diagnosis, write_report
 
     if not (args.runs or args.measured or args.pred or args.diagnosis):
         raise ReportError("report: nothing to report (give RUN.h5 files, --measured, --pred or --diagnosis)")
     rig = None
     if args.rig:
-        from models.rig import load_rig
+        from flexmodal.models.rig import load_rig
 
         rig = load_rig(args.rig)
     quiet = getattr(args, "quiet", False)

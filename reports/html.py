@@ -19,12 +19,12 @@ from pathlib import Path
 import jinja2
 import pandas as pd
 
-from compare.tables import compare_tables, html_fragment, natural_key, ordered_configs, table_name
-from daq.store import expand_runs
-from modal.table import ModalTable
-from reports import plots
-from reports.errors import ReportError
-from reports.runs import LOW_COHERENCE, RunSummary, summarise_run
+from flexmodal.compare.tables import compare_tables, html_fragment, natural_key, ordered_configs, table_name
+from flexmodal.daq.store import expand_runs
+from flexmodal.modal.table import ModalTable
+from flexmodal.reports import plots
+from flexmodal.reports.errors import ReportError
+from flexmodal.reports.runs import LOW_COHERENCE, RunSummary, summarise_run
 
 UNIT_SUFFIXES = {"_deg": "deg", "_kg": "kg", "_m": "m", "_rad": "rad", "_n": "N"}
 MAX_SHAPE_CONFIGS = 2
@@ -151,8 +151,8 @@ def _run_rows(runs: Sequence[RunSummary]) -> tuple[list[dict], list[dict], list[
 
 
 def _stabilisation_figure(frf, label: str, unit: str) -> dict:
-    from modal.errors import ModalError
-    from modal.lscf import stabilisation
+    from flexmodal.modal.errors import ModalError
+    from flexmodal.modal.lscf import stabilisation
 
     band = frf.freq_hz > 0
     f, H = frf.freq_hz[band], frf.H[..., band]
@@ -269,7 +269,7 @@ def write_report(out_path: str | Path, *, runs: Sequence[str | Path | tuple[str 
     inputs = [str(p) for p in dict.fromkeys(str(s.path) for s in summaries)]
     inputs += [t.source for t in ([measured] if measured is not None else []) + list(repeats)]
     inputs += [t.source for _, t in named]
-    env = jinja2.Environment(loader=jinja2.PackageLoader("reports", "templates"),
+    env = jinja2.Environment(loader=jinja2.PackageLoader("flexmodal.reports", "templates"),
                              autoescape=jinja2.select_autoescape(["html"]), undefined=jinja2.StrictUndefined)
     html = env.get_template("report.html").render(
         title=title, generated=datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC"), version=_version(),

@@ -28,10 +28,10 @@ matplotlib.use("Agg")
 import numpy as np  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
-from modal.mac import mac, to_real  # noqa: E402
-from modal.peaks import cmif  # noqa: E402
-from modal.table import ModalTable  # noqa: E402
-from reports.errors import ReportError  # noqa: E402
+from flexmodal.modal.mac import mac, to_real  # noqa: E402
+from flexmodal.modal.peaks import cmif  # noqa: E402
+from flexmodal.modal.table import ModalTable  # noqa: E402
+from flexmodal.reports.errors import ReportError  # noqa: E402
 
 _COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf")
 
@@ -207,7 +207,7 @@ def plot_mode_shapes(rig, pose: Mapping[str, float], measured: ModalTable, confi
     and the axial motion the accelerometers do not measure is left out); axial sensors are drawn along
     their link.  Displacements are exaggerated to 15 % of the arm's reach; coordinates in m.
     """
-    from models.frame import assemble, link_geometry, solve_modes
+    from flexmodal.models.frame import assemble, link_geometry, solve_modes
 
     sensors = [s for s in rig.sensors if s.name in measured.sensors]
     if len(sensors) < 2:

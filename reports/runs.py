@@ -13,9 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
-from daq.store import Channel, Event, read_run
-from modal.frf import FrfResult
-from modal.runs_io import read_frf
+from flexmodal.daq.store import Channel, Event, read_run
+from flexmodal.modal.frf import FrfResult
+from flexmodal.modal.runs_io import read_frf
 
 LOW_COHERENCE = 0.8
 

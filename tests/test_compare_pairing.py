@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from compare.pairing import pair_modes
-from modal.table import ModalTable
+from flexmodal.compare.pairing import pair_modes
+from flexmodal.modal.table import ModalTable
 
 # clamped-free Euler-Bernoulli beam: beta_n L roots (Blevins 1979, table 8-1)
 BETA_L = np.array([1.87510407, 4.69409113, 7.85475744, 10.99554073, 14.13716839])

@@ -15,7 +15,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from app import main
+from flexmodal.app import main
 
 TABLE31 = {"assumed_modes_hz": "assumed-modes", "simplified_fem_hz": "simplified-fem",
            "detailed_fem_hz": "detailed-fem"}

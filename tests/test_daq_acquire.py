@@ -22,9 +22,9 @@ import h5py
 import numpy as np
 import pytest
 
-from daq.sim_common import read_fault_log
-from daq.sim_source import sim_source
-from daq.store import list_runs, read_run
+from flexmodal.daq.sim_common import read_fault_log
+from flexmodal.daq.sim_source import sim_source
+from flexmodal.daq.store import list_runs, read_run
 
 REPO = Path(__file__).resolve().parents[1]
 SESSIONS = REPO / "examples" / "sessions"
@@ -49,7 +49,7 @@ def _session(tmp_path: Path, protocol: str, args: list[str] = (), rate: float | 
 
 
 def _acquire(config: Path, out: Path, duration_s: float = DURATION_S, **kw) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "app", "--quiet", "acquire", "--config", str(config),
+    return subprocess.run([sys.executable, "-m", "flexmodal", "--quiet", "acquire", "--config", str(config),
                            "--out", str(out), "--duration", str(duration_s)], cwd=REPO, capture_output=True,
                           text=True, timeout=120, **kw)
 
@@ -270,7 +270,7 @@ def test_modbus_faults_are_events_at_their_samples(tmp_path):
 def test_sigkill_of_acquire_keeps_all_but_last_second(tmp_path):
     out = tmp_path / "run.h5"
     config = _session(tmp_path, "serial")
-    proc = subprocess.Popen([sys.executable, "-m", "app", "--quiet", "acquire", "--config", str(config),
+    proc = subprocess.Popen([sys.executable, "-m", "flexmodal", "--quiet", "acquire", "--config", str(config),
                              "--out", str(out), "--duration", "60"], cwd=REPO, stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL)
     seen: list[tuple[float, int]] = []  # (time, samples visible to a SWMR reader)

@@ -13,14 +13,14 @@ from cantools.database import Database
 from cantools.database.can import Message, Signal
 from cantools.database.conversion import BaseConversion
 
-from daq.dbc import MessageLayout, load_message
-from daq.devices import Block, unwrap
-from daq.modbus_driver import decode_registers
-from daq.serial_frames import BinaryDecoder, CsvDecoder, crc16, encode_csv, encode_frames
-from daq.session import ChannelMap, Register
-from daq.store import Channel
-from daq.timeline import Timeline
-from fixtures.sim_can import DEMO_DBC, encode, sim_dbc
+from flexmodal.daq.dbc import MessageLayout, load_message
+from flexmodal.daq.devices import Block, unwrap
+from flexmodal.daq.modbus_driver import decode_registers
+from flexmodal.daq.serial_frames import BinaryDecoder, CsvDecoder, crc16, encode_csv, encode_frames
+from flexmodal.daq.session import ChannelMap, Register
+from flexmodal.daq.store import Channel
+from flexmodal.daq.timeline import Timeline
+from flexmodal.fixtures.sim_can import DEMO_DBC, encode, sim_dbc
 
 
 def test_crc16_ccitt_false_check_value():

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from app import main
-from daq.session import G_M_PER_S2, load_session, unit_factor
+from flexmodal.app import main
+from flexmodal.daq.session import G_M_PER_S2, load_session, unit_factor
 
 REPO = Path(__file__).resolve().parents[1]
 SESSIONS = REPO / "examples" / "sessions"

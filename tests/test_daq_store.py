@@ -14,8 +14,8 @@ import h5py
 import numpy as np
 import pytest
 
-from daq.errors import DaqError
-from daq.store import Channel, Event, RunWriter, _lookup3, list_runs, read_run, recover
+from flexmodal.daq.errors import DaqError
+from flexmodal.daq.store import Channel, Event, RunWriter, _lookup3, list_runs, read_run, recover
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -141,7 +141,7 @@ def test_bad_input_is_one_line(tmp_path):
 # Child: 16 channels at 10 kHz in 0.05 s blocks, paced in real time; value = sample index + channel/100.
 CHILD = r"""
 import sys, time, numpy as np
-from daq.store import Channel, RunWriter
+from flexmodal.daq.store import Channel, RunWriter
 ch = [Channel(f"c{i}", "voltage", "V") for i in range(16)]
 w = RunWriter(sys.argv[1], "live", sample_rate_hz=10000.0, channels=ch, excitation="operational", pose={})
 t0 = time.monotonic(); n = 0

@@ -11,9 +11,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-
-from tests.browser import assert_table_and_plot_visible, render
-from tests.conftest import REPO
+from browser import assert_table_and_plot_visible, render
+from conftest import REPO
 
 CHANNEL_FIELDS = {"name", "kind", "unit", "sensitivity", "sensitivity_unit", "location", "direction"}
 EVENT_FIELDS = {"kind", "sample_index", "count", "detail"}

@@ -7,7 +7,7 @@ import json
 import pandas as pd
 import pytest
 
-from app import main
+from flexmodal.app import main
 
 RIG = "examples/rigs/seed003_two_link.toml"
 
@@ -23,7 +23,7 @@ def measured(tmp_path, shared_dir):
 def _run(tmp_path, df, *extra):
     path = tmp_path / "modes.csv"
     df.to_csv(path, index=False)
-    from tests.conftest import REPO
+    from conftest import REPO
     return main(["--quiet", "diagnose", "--rig", str(REPO / RIG), "--measured", str(path),
                  "--out", str(tmp_path / "out"), *extra])
 

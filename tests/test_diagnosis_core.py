@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from compare.diagnosis import diagnose, folds_for
-from compare.gap import comac, damped_frequency_shift, gap_summary, mac
-from compare.parametric import handles_for, lam_to_hz, pose_basis, reduce_family, solve_family
-from modal.table import ModalTable
-from models.effects import apply_effect
-from models.frame import frame_modes
-from models.rig import load_rig
+from flexmodal.compare.diagnosis import diagnose, folds_for
+from flexmodal.compare.gap import comac, damped_frequency_shift, gap_summary, mac
+from flexmodal.compare.parametric import handles_for, lam_to_hz, pose_basis, reduce_family, solve_family
+from flexmodal.modal.table import ModalTable
+from flexmodal.models.effects import apply_effect
+from flexmodal.models.frame import frame_modes
+from flexmodal.models.rig import load_rig
 
 POSES = [{"theta_deg": t} for t in (0.0, 45.0, 90.0, 135.0)]
 

@@ -6,9 +6,9 @@ import math
 
 import pytest
 
-from models.effects import EFFECT_PARAMS, EFFECTS, apply_effect, effect_locations, pose_stiffness
-from models.errors import ModelError
-from models.rig import load_rig, parse_rig
+from flexmodal.models.effects import EFFECT_PARAMS, EFFECTS, apply_effect, effect_locations, pose_stiffness
+from flexmodal.models.errors import ModelError
+from flexmodal.models.rig import load_rig, parse_rig
 
 PUSHER_RIG = {
     "name": "pusher",

@@ -7,10 +7,10 @@ import pandas as pd
 import pytest
 from scipy.optimize import brentq
 
-from compare.diagnosis import diagnose
-from compare.gap import damped_frequency_shift
-from modal.table import ModalTable
-from models.rig import load_rig, parse_rig
+from flexmodal.compare.diagnosis import diagnose
+from flexmodal.compare.gap import damped_frequency_shift
+from flexmodal.modal.table import ModalTable
+from flexmodal.models.rig import load_rig, parse_rig
 
 
 def seed003_table(shared_dir) -> ModalTable:
@@ -67,8 +67,8 @@ def test_seed001_pusher_mode_points_at_an_end_restraint_between_pinned_and_clamp
     """
     from dataclasses import replace
 
-    from models.effects import apply_effect
-    from models.frame import frame_modes
+    from flexmodal.models.effects import apply_effect
+    from flexmodal.models.frame import frame_modes
 
     rig = parse_rig(SEED001_ARM, "seed001 arm")
     pose = {"theta_deg": 90.0}

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from compare.selftest import N_MODES, POSES_DEG, _modes, format_summary, make_case, run_selftest
+from flexmodal.compare.selftest import N_MODES, POSES_DEG, _modes, format_summary, make_case, run_selftest
 
 
 def test_cases_hide_an_effect_with_a_gap_above_the_noise():

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fixtures.errors import FixtureError
-from fixtures.modal_sim import modal_frf, modal_response
+from flexmodal.fixtures.errors import FixtureError
+from flexmodal.fixtures.modal_sim import modal_frf, modal_response
 
 FS = 1000.0
 FN = np.array([10.0, 55.0])

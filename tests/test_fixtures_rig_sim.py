@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fixtures.rig_sim import HiddenEffect, simulate
-from models.rig import parse_rig
+from flexmodal.fixtures.rig_sim import HiddenEffect, simulate
+from flexmodal.models.rig import parse_rig
 
 E, RHO, W, H, L = 70e9, 2700.0, 0.030, 0.010, 0.8
 # Euler-Bernoulli (no rotary inertia) so that Blevins' formula is the exact answer.
@@ -57,7 +57,7 @@ def test_simulated_record_matches_its_exact_frf() -> None:
 
 
 def test_hidden_joint_stiffness_lowers_frequencies_and_shows_on_the_encoder(rigs_dir) -> None:
-    from models.rig import load_rig
+    from flexmodal.models.rig import load_rig
 
     rig = load_rig(rigs_dir / "demo_arm.toml")
     nominal = simulate(rig, {"theta_deg": 30.0}, duration_s=2.0)
@@ -78,7 +78,7 @@ def test_clipping_is_recorded_as_overload_events() -> None:
 
 
 def test_bad_excitation_is_a_fixture_error() -> None:
-    from fixtures.errors import FixtureError
+    from flexmodal.fixtures.errors import FixtureError
 
     with pytest.raises(FixtureError, match="excitation"):
         simulate(parse_rig(BEAM), {}, excitation="earthquake")

@@ -7,14 +7,14 @@ import h5py
 import numpy as np
 import pytest
 
-from app import main
-from daq.store import Channel, RunWriter, expand_runs
-from fixtures.modal_sim import modal_response
-from modal.batch import run_batch
-from modal.frf import FrfResult
-from modal.runs_io import read_frf
-from modal.table import ModalTable
-from modal.uff import write_frfs
+from flexmodal.app import main
+from flexmodal.daq.store import Channel, RunWriter, expand_runs
+from flexmodal.fixtures.modal_sim import modal_response
+from flexmodal.modal.batch import run_batch
+from flexmodal.modal.frf import FrfResult
+from flexmodal.modal.runs_io import read_frf
+from flexmodal.modal.table import ModalTable
+from flexmodal.modal.uff import write_frfs
 
 FS = 256.0
 FN, ZETA = np.array([12.0, 31.0, 55.0]), np.array([0.02, 0.01, 0.01])
@@ -84,7 +84,7 @@ def test_identify_hdf5_computes_frfs_and_writes_modal_table(tmp_path, capsys):
 
 
 def test_identify_uff_frfs(tmp_path):
-    from fixtures.modal_sim import modal_frf
+    from flexmodal.fixtures.modal_sim import modal_frf
 
     f = np.linspace(0, 100, 1001)
     H = modal_frf(f, FN, ZETA, PHI, PHI[[0]])

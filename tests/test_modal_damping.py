@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fixtures.modal_sim import modal_frf
-from modal.damping import half_power, log_decrement
-from modal.errors import ModalError
-from modal.impact import average_weights, impact_spectra
-from modal.windows import added_decay_rate_per_s, remove_added_damping, window
+from flexmodal.fixtures.modal_sim import modal_frf
+from flexmodal.modal.damping import half_power, log_decrement
+from flexmodal.modal.errors import ModalError
+from flexmodal.modal.impact import average_weights, impact_spectra
+from flexmodal.modal.windows import added_decay_rate_per_s, remove_added_damping, window
 
 
 @pytest.mark.parametrize(("fn", "zeta"), [(8.3, 0.13), (17.6, 0.06)])

@@ -7,9 +7,9 @@ import pyFRF
 import pytest
 import scipy.signal
 
-from modal.errors import ModalError
-from modal.frf import coherence, convert, estimate, h1, h2, hv
-from modal.spectra import welch_spectra
+from flexmodal.modal.errors import ModalError
+from flexmodal.modal.frf import coherence, convert, estimate, h1, h2, hv
+from flexmodal.modal.spectra import welch_spectra
 
 FS = 1024.0
 
@@ -91,12 +91,12 @@ def test_float32_records_use_single_precision_and_stay_close(random_test):
 def test_blocked_threaded_spectra_equal_scipy_csd_for_any_channel_order(overlap, monkeypatch):
     """Blocks of 5 segments (the last one short), two threads, piecewise segment means (50 %) or direct
     means (30 %), channels picked out of order: every spectrum equals scipy.signal.csd."""
-    import modal.spectra
+    from flexmodal.modal import spectra as modal_spectra
 
     rng = np.random.default_rng(3)
     samples = rng.standard_normal((5000, 4)) + np.array([3.0, -1.0, 0.5, 2.0])   # offsets: detrend
     nfft, fs = 256, 100.0
-    monkeypatch.setattr(modal.spectra, "_BLOCK_BYTES", 5 * 3 * nfft * 8)
+    monkeypatch.setattr(modal_spectra, "_BLOCK_BYTES", 5 * 3 * nfft * 8)
     s1 = welch_spectra(samples, fs, [2], [3, 0], nfft, overlap=overlap, window_spec="hann")
     s2 = welch_spectra(samples, fs, [2], [3, 0], nfft, overlap=overlap, window_spec="hann", workers=2)
     noverlap = int(round(overlap * nfft))

@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fixtures.modal_sim import modal_frf, modal_response
-from modal.compute import frf_of_record
-from modal.identify import identify, identify_modes
-from modal.mac import automac, mac, to_real, unit_max
+from flexmodal.fixtures.modal_sim import modal_frf, modal_response
+from flexmodal.modal.compute import frf_of_record
+from flexmodal.modal.identify import identify, identify_modes
+from flexmodal.modal.mac import automac, mac, to_real, unit_max
 
 FN = np.array([12.0, 31.0, 55.0, 80.0])
 ZETA = np.array([0.05, 0.02, 0.005, 0.01])
@@ -117,7 +117,7 @@ def test_poly_reference_lscf_with_two_inputs_is_exact():
 
 def test_lscf_lag_sums_equal_the_direct_sums_on_an_irregular_grid():
     """Re sum_f g z_f^d for d = -p..p by the real matrix products equals the textbook sum over lines."""
-    from modal.lscf import _lag_sums
+    from flexmodal.modal.lscf import _lag_sums
 
     rng = np.random.default_rng(9)
     f = np.sort(rng.uniform(1.0, 90.0, 300))
@@ -133,7 +133,7 @@ def test_lscf_lag_sums_equal_the_direct_sums_on_an_irregular_grid():
 
 def test_stabilisation_survives_orders_without_a_physical_pole() -> None:
     """A flat FRF has no physical poles at low orders: every order still returns (empty) results."""
-    from modal.lscf import stabilisation
+    from flexmodal.modal.lscf import stabilisation
 
     f = np.linspace(1.0, 100.0, 400)
     st = stabilisation(f, np.full((3, 1, f.size), 1 + 0.1j), range(2, 8))
@@ -144,8 +144,8 @@ def test_stabilisation_survives_orders_without_a_physical_pole() -> None:
 def test_poles_with_less_damping_than_the_exponential_window_are_dropped() -> None:
     """With a window decay of 1/s, a 10 Hz mode at ζ = 1 % (σ = 0.63/s) cannot be structural; the
     50 Hz mode (σ = 3.14/s) keeps σ - 1/s."""
-    from fixtures.modal_sim import modal_frf
-    from modal.identify import identify
+    from flexmodal.fixtures.modal_sim import modal_frf
+    from flexmodal.modal.identify import identify
 
     f = np.arange(0.0, 100.0, 0.05)
     H = modal_frf(f, [10.0, 50.0], [0.01, 0.01], [[1.0, 0.7], [0.5, -1.0]], [[1.0, 1.0]])

@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fixtures.rig_sim import simulate
-from modal.compute import frf_of_record
-from modal.identify import identify
-from modal.mac import mac
-from models.rig import load_rig
+from flexmodal.fixtures.rig_sim import simulate
+from flexmodal.modal.compute import frf_of_record
+from flexmodal.modal.identify import identify
+from flexmodal.modal.mac import mac
+from flexmodal.models.rig import load_rig
 
 ZETA = [0.005, 0.01, 0.02, 0.05, 0.01, 0.02, 0.01, 0.02, 0.01, 0.02, 0.01, 0.02]
 

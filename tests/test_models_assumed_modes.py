@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from models.assumed_modes import (
+from flexmodal.models.assumed_modes import (
     BOUNDARY_CONDITIONS,
     CLAMPED,
     FREE,
@@ -25,8 +25,8 @@ from models.assumed_modes import (
     named_modes,
     seed002_characteristic,
 )
-from models.frame import frame_modes
-from models.rig import parse_rig
+from flexmodal.models.frame import frame_modes
+from flexmodal.models.rig import parse_rig
 
 EI, MU, L = 3240.0, 0.4621, 1.36
 BEAM = Beam(L, EI, MU)

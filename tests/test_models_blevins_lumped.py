@@ -9,12 +9,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from models.assumed_modes import Beam, clamped_mass
-from models.blevins import beam_frequencies_hz, cantilever_tip_mass_hz, lambdas
-from models.errors import ModelError
-from models.frame import frame_modes
-from models.lumped_mass import lumped_mass_modes
-from models.rig import load_rig, parse_rig
+from flexmodal.models.assumed_modes import Beam, clamped_mass
+from flexmodal.models.blevins import beam_frequencies_hz, cantilever_tip_mass_hz, lambdas
+from flexmodal.models.errors import ModelError
+from flexmodal.models.frame import frame_modes
+from flexmodal.models.lumped_mass import lumped_mass_modes
+from flexmodal.models.rig import load_rig, parse_rig
 
 E, RHO = 75e9, 2700.0
 I_M4 = (0.040**4 - 0.0378**4) / 12

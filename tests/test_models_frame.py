@@ -8,8 +8,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from models.frame import assemble, frame_modes, frame_modes_many, solve_modes
-from models.rig import load_rig, parse_rig
+from flexmodal.models.frame import assemble, frame_modes, frame_modes_many, solve_modes
+from flexmodal.models.rig import load_rig, parse_rig
 
 EI, MU, L = 3240.0, 0.4621, 1.36  # N m^2, kg/m, m  (seed 003's tube, whole arm length)
 
@@ -201,7 +201,7 @@ def test_rotating_the_whole_arm_changes_nothing_but_directions():
 
 
 def test_observe_rejects_what_it_cannot_see(rigs_dir):
-    from models.errors import ModelError
+    from flexmodal.models.errors import ModelError
 
     sys_ = assemble(load_rig(rigs_dir / "seed001_arm.toml"), {"shoulder_deg": 60, "elbow_deg": 90,
                                                                "payload_kg": 1.0})
@@ -220,8 +220,8 @@ def test_batch_assembly_equals_one_pose_at_a_time(rigs_dir):
     """Members, pose masses, springs and spring joints: the vectorised batch gives the single-pose systems."""
     from dataclasses import replace
 
-    from models.frame import assemble_many
-    from models.rig import Spring
+    from flexmodal.models.frame import assemble_many
+    from flexmodal.models.rig import Spring
 
     rig = load_rig(rigs_dir / "seed001_arm.toml")
     rig = replace(rig, joints=(replace(rig.joints[0], kind="spring", k_Nm_per_rad=3e4),),

@@ -6,11 +6,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from app import main
-from modal.table import ModalTable
-from models.errors import ModelError
-from models.predict import MODELS, load_external, predict
-from models.rig import load_rig
+from flexmodal.app import main
+from flexmodal.modal.table import ModalTable
+from flexmodal.models.errors import ModelError
+from flexmodal.models.predict import MODELS, load_external, predict
+from flexmodal.models.rig import load_rig
 
 SEED003 = """
 name = "seed003"
@@ -128,7 +128,7 @@ def test_predict_validates_its_arguments(rigs_dir):
 
 
 def test_fe_drops_every_rigid_body_mode_of_a_floating_chain():
-    from models.rig import parse_rig
+    from flexmodal.models.rig import parse_rig
 
     section = {"shape": "custom", "EA_N": 1e7, "EI_Nm2": 100.0, "mass_per_m_kg": 1.0}
     doc = {"base": {"support": "free"},

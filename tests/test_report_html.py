@@ -16,18 +16,18 @@ import re
 
 import h5py
 import pytest
+from browser import assert_table_and_plot_visible, render
 from matplotlib import image as mpimg
 
-from app import main
-from daq.store import Event, RunWriter, read_run
-from fixtures.rig_sim import HiddenEffect, simulate
-from modal.compute import compute_frf
-from modal.runs_io import write_frf
-from modal.table import ModalTable
-from models.frame import frame_modes
-from models.rig import load_rig
-from reports.html import write_report
-from tests.browser import assert_table_and_plot_visible, render
+from flexmodal.app import main
+from flexmodal.daq.store import Event, RunWriter, read_run
+from flexmodal.fixtures.rig_sim import HiddenEffect, simulate
+from flexmodal.modal.compute import compute_frf
+from flexmodal.modal.runs_io import write_frf
+from flexmodal.modal.table import ModalTable
+from flexmodal.models.frame import frame_modes
+from flexmodal.models.rig import load_rig
+from flexmodal.reports.html import write_report
 
 POSES = {"theta0": {"theta_deg": 0.0}, "theta60": {"theta_deg": 60.0}, "theta120": {"theta_deg": 120.0}}
 IMPACT_CONFIG = "theta120"

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from modal.table import ModalTable
-from models.frame import frame_modes
-from models.rig import load_rig, parse_rig
-from reports import plots
+from flexmodal.modal.table import ModalTable
+from flexmodal.models.frame import frame_modes
+from flexmodal.models.rig import load_rig, parse_rig
+from flexmodal.reports import plots
 
 
 def has_unit(label: str) -> bool:
