@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from collections.abc import Sequence
 
@@ -79,6 +80,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     except KeyboardInterrupt:
         print("flexmodal: interrupted", file=sys.stderr)
+        if argv is None:  # the command itself: outputs are closed or removed by now, so skip the
+            sys.stdout.flush()  # interpreter's tear-down (seconds of garbage collection after a demo)
+            sys.stderr.flush()
+            os._exit(130)
         return 130
 
 

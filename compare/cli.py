@@ -6,6 +6,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from flexmodal import valid_options as opt
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this package's sub-commands to the flexmodal parser."""
@@ -26,7 +28,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--layout", choices=("modes", "sources"), default="modes",
                    help="modes: a row per mode, a column per source (seed 001 Table 3.1); "
                         "sources: a row per source, a column per mode (seed 000 Table 2); default modes")
-    p.add_argument("--min-mac", type=float, default=0.5, metavar="MAC",
+    p.add_argument("--min-mac", type=opt.fraction, default=0.5, metavar="MAC",
                    help="reject MAC pairs below this value, 0..1 (default 0.5)")
     p.add_argument("--caption", default="Measured and predicted natural frequencies",
                    help="table caption (tex and html)")
@@ -39,8 +41,10 @@ def _run(args: argparse.Namespace) -> int:
     from flexmodal.compare.errors import CompareError
     from flexmodal.compare.tables import load_comparison, render
 
-    if not 0.0 <= args.min_mac <= 1.0:
-        raise CompareError(f"--min-mac: must lie in [0, 1] (got {args.min_mac})")
+    if args.out:
+        from flexmodal.valid_output import output_file
+
+        output_file(args.out, CompareError, "table (--out)")
     comp = load_comparison(args.measured, args.predicted, min_mac=args.min_mac)
     text = render(comp, args.format, args.layout, args.caption)
     if args.out:

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from flexmodal import valid_options as opt
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``diagnose`` to the flexmodal parser."""
@@ -20,11 +22,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--holdout", default="auto",
                    help="'auto' (leave one configuration out; 5-fold above 10 configurations) or a "
                         "comma-separated list of configurations to hold out")
-    p.add_argument("--scatter", type=float, default=0.005,
+    p.add_argument("--scatter", type=opt.real(0.0, 1.0, lo_open=True, hi_open=True, name="fraction"),
+                   default=0.005,
                    help="relative measurement scatter of the frequencies (fraction; default 0.005 = 0.5 %%)")
-    p.add_argument("--selftest", type=int, metavar="N",
+    p.add_argument("--selftest", type=opt.integer(1, 100000), metavar="N",
                    help="blind self-check instead: N random rigs with withheld effects; prints accuracy")
-    p.add_argument("--seed", type=int, default=0, help="random seed of --selftest (default 0)")
+    p.add_argument("--seed", type=opt.seed, default=0, help="random seed of --selftest (default 0)")
     p.set_defaults(func=run)
 
 
@@ -34,8 +37,6 @@ def run(args: argparse.Namespace) -> int:
     if args.selftest is not None:
         from flexmodal.compare.selftest import format_summary, run_selftest
 
-        if args.selftest < 1:
-            raise CompareError(f"--selftest: N must be >= 1 (got {args.selftest})")
         summary = run_selftest(args.selftest, seed=args.seed, progress=not getattr(args, "quiet", False))
         print(format_summary(summary))
         return 0
@@ -43,12 +44,17 @@ def run(args: argparse.Namespace) -> int:
     if missing:
         raise CompareError(f"diagnose: missing --{missing[0]} "
                            "(needs --rig, --measured and --out, or --selftest N)")
-    from flexmodal.compare.diagnosis import diagnose, write_diagnosis
+    from flexmodal.compare.candidates import parse_effects
+    from flexmodal.compare.diagnosis import diagnose, folds_for, write_diagnosis
     from flexmodal.modal.table import ModalTable
     from flexmodal.models.rig import load_rig
+    from flexmodal.valid_output import output_dir
 
+    output_dir(args.out, CompareError, "diagnosis folder (--out)")
     rig = load_rig(args.rig)
     table = ModalTable.read_csv(args.measured)
+    parse_effects(args.effects)  # bad --effects / --holdout fail before the progress line
+    folds_for(table.configs, args.holdout)
     if not getattr(args, "quiet", False):
         print(f"diagnosing {table.source} against {rig.source} ...", file=sys.stderr)
     result = diagnose(rig, table, effects=args.effects, holdout=args.holdout, scatter=args.scatter)

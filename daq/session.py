@@ -16,13 +16,13 @@ from __future__ import annotations
 
 import math
 import re
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.store import CHANNEL_KINDS, EXCITATIONS, Channel
+from flexmodal.valid_text import read_toml
 
 PROTOCOLS = ("serial", "can", "modbus")
 SIMULATOR_PORT = "@simulator"  # placeholder for the endpoint of the session's own simulator
@@ -151,6 +151,8 @@ class _Table:
         if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
             names = kind.__name__ if isinstance(kind, type) else "/".join(k.__name__ for k in kind)
             raise DaqError(f"{self.where}: {key} = {value!r} is not a {names}")
+        if isinstance(value, float) and not math.isfinite(value):
+            raise DaqError(f"{self.where}: {key} = {value!r} is not a finite number")
         if check is not None and not check(value):
             raise DaqError(f"{self.where}: {key} = {value!r} {why}")
         return value
@@ -163,6 +165,17 @@ class _Table:
         extra = sorted(set(self.doc) - known)
         if extra:
             raise DaqError(f"{self.where}: unknown field {extra[0]!r}")
+
+
+def _positive(value: float) -> bool:
+    return value > 0
+
+
+_WHY = "must be > 0"
+
+
+def _unit_id(t: _Table) -> int:
+    return t.get("device_id", int, 1, check=lambda v: 0 <= v <= 247, why="is not a Modbus unit id 0..247")
 
 
 def _port_exists(port: str) -> bool:
@@ -199,7 +212,7 @@ def _device(doc: dict, where: str, base: Path) -> Device:
             raise DaqError(f"{where}: port {port!r} does not exist")
         sources = t.get("sources", list, check=lambda v: v and all(isinstance(s, str) for s in v),
                         why="must be a non-empty list of column names")
-        return Device(name, protocol, port=port, baud=t.get("baud", int, 115200),
+        return Device(name, protocol, port=port, baud=t.get("baud", int, 115200, check=_positive, why=_WHY),
                       framing=t.choice("framing", ("binary", "csv"), "binary"), sources=tuple(sources))
     if protocol == "can":
         t.reject_unknown(common | {"interface", "channel", "bitrate", "dbc", "message"})
@@ -211,7 +224,8 @@ def _device(doc: dict, where: str, base: Path) -> Device:
         if not Path(dbc).is_file():
             raise DaqError(f"{where}: dbc file {dbc!r} does not exist")
         return Device(name, protocol, interface=interface, channel=channel,
-                      bitrate=t.get("bitrate", int, 500000), dbc=dbc, message=t.get("message", str, ""))
+                      bitrate=t.get("bitrate", int, 500000, check=_positive, why=_WHY), dbc=dbc,
+                      message=t.get("message", str, ""))
     t.reject_unknown(common | {"transport", "host", "port", "baud", "device_id", "register"})
     transport = t.choice("transport", ("tcp", "rtu"), "tcp")
     regs = t.get("register", list, check=bool, why="must list at least one register")
@@ -223,16 +237,18 @@ def _device(doc: dict, where: str, base: Path) -> Device:
     if transport == "tcp":
         host = t.get("host", str, "127.0.0.1")
         port = t.get("port", (int, str), 502)
-        if isinstance(port, str) and port != SIMULATOR_PORT:
-            raise DaqError(f"{where}: port {port!r} is not a TCP port number")
+        if (isinstance(port, str) and port != SIMULATOR_PORT) or (isinstance(port, int) and
+                                                                  not 0 < port <= 65535):
+            raise DaqError(f"{where}: port {port!r} is not a TCP port number 1..65535")
         return Device(name, protocol, transport=transport, host=host, port=str(port),
                       tcp_port=port if isinstance(port, int) else 0,
-                      device_id=t.get("device_id", int, 1), registers=registers)
+                      device_id=_unit_id(t), registers=registers)
     port = t.get("port", str)
     if not _port_exists(port):
         raise DaqError(f"{where}: port {port!r} does not exist")
-    return Device(name, protocol, transport=transport, port=port, baud=t.get("baud", int, 19200),
-                  device_id=t.get("device_id", int, 1), registers=registers)
+    return Device(name, protocol, transport=transport, port=port,
+                  baud=t.get("baud", int, 19200, check=_positive, why=_WHY),
+                  device_id=_unit_id(t), registers=registers)
 
 
 def _channel(doc: dict, where: str, devices: dict[str, Device]) -> ChannelMap:
@@ -320,8 +336,8 @@ def parse_session(doc: dict, source: Path) -> Session:
                           g.get("start", bool, False))
     pose = t.get("pose", dict, {})
     for k, v in pose.items():
-        if not isinstance(v, (int, float)) or isinstance(v, bool):
-            raise DaqError(f"{where}: pose.{k} = {v!r} is not a number")
+        if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
+            raise DaqError(f"{where}: pose.{k} = {v!r} is not a finite number")
     pose_from = t.get("pose_from", dict, {})
     for k, v in pose_from.items():
         if v not in names:
@@ -337,9 +353,4 @@ def parse_session(doc: dict, source: Path) -> Session:
 
 def load_session(path: str | Path) -> Session:
     """Read and validate a session TOML file."""
-    path = Path(path)
-    try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise DaqError(f"{path}: not valid TOML ({exc})") from exc
-    return parse_session(doc, path)
+    return parse_session(read_toml(path, DaqError, "session config"), Path(path))

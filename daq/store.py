@@ -14,6 +14,7 @@ See docs/hdf5-format.md.
 from __future__ import annotations
 
 import json
+import os
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -331,14 +332,64 @@ def recover(path: str | Path) -> bool:
     return True
 
 
-def _open_read(path: str | Path) -> h5py.File:
-    """Open for reading; SWMR read works for files being written and for files of a killed writer."""
-    return h5py.File(path, "r", libver="latest", swmr=True)
+SUPERBLOCK_BYTES = 48  # a version 2/3 superblock with 8-byte addresses, checksum included
+LIVE_RECHECK_S = 0.2  # a live writer grows its file to the stored end-of-file at every flush
+
+
+def _superblock(path: Path) -> tuple[bytes, int]:
+    """The first bytes of ``path`` and its size; DaqError when it is missing or not a file."""
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(SUPERBLOCK_BYTES), os.fstat(fh.fileno()).st_size
+    except FileNotFoundError:
+        raise DaqError(f"{path}: run file not found") from None
+    except OSError as exc:
+        raise DaqError(f"{path}: cannot read the run file ({exc.strerror or exc})") from None
+
+
+def open_read(path: str | Path) -> h5py.File:
+    """Open a run file for reading, failing at once on a truncated or foreign file.
+
+    A cleanly closed file (superblock status flags clear) opens without SWMR, so HDF5 runs its
+    end-of-file check.  A file with the open-for-writing flags set (a live writer, or a killed one)
+    opens in SWMR read mode, which skips that check and would retry a truncated file's missing
+    metadata for ever; its size is therefore first compared with the end-of-file address the
+    superblock stores (HDF5 file format specification, superblock version 2/3).
+    """
+    p = Path(path)
+    head, size = _superblock(p)
+    if head[:8] != b"\x89HDF\r\n\x1a\n":
+        if not h5py.is_hdf5(p):  # a user block moves the signature to 512, 1024, ... bytes
+            raise DaqError(f"{p}: not an HDF5 file")
+        return _h5_open(p, swmr=False)
+    live = len(head) == SUPERBLOCK_BYTES and head[8] in (2, 3) and head[9] == 8 and head[11] != 0
+    if not live:
+        return _h5_open(p, swmr=False)
+    stored_eof = int.from_bytes(head[28:36], "little")
+    if size < stored_eof:
+        time.sleep(LIVE_RECHECK_S)
+        head, size = _superblock(p)
+        stored_eof = int.from_bytes(head[28:36], "little")
+        if size < stored_eof:
+            raise DaqError(f"{p}: truncated HDF5 file ({size} of {stored_eof} bytes)")
+    return _h5_open(p, swmr=True)
+
+
+def _h5_open(path: Path, *, swmr: bool) -> h5py.File:
+    try:
+        return h5py.File(path, "r", libver="latest", swmr=swmr)
+    except OSError as exc:
+        text = " ".join(str(exc).split())
+        if "truncated file" in text:
+            raise DaqError(f"{path}: truncated HDF5 file ({text.partition('(')[2].rstrip(')')})") from None
+        raise DaqError(f"{path}: not a readable HDF5 file ({text[:200]})") from None
 
 
 def list_runs(path: str | Path) -> list[str]:
     """Run ids stored in ``path`` (sorted)."""
-    with _open_read(path) as f:
+    with open_read(path) as f:
+        if "runs" in f and not isinstance(f["runs"], h5py.Group):
+            raise DaqError(f"{path}: '/runs' is not a group of runs")
         return sorted(f["runs"].keys()) if "runs" in f else []
 
 
@@ -348,26 +399,37 @@ def _text(value) -> str:
 
 def read_run(path: str | Path, run_id: str) -> Run:
     """Read one run completely into memory."""
-    with _open_read(path) as f:
+    with open_read(path) as f:
         key = f"runs/{run_id}"
         if key not in f:
             known = ", ".join(sorted(f["runs"])) if "runs" in f else "none"
             raise DaqError(f"{path}: no run {run_id!r} (runs: {known})")
+        from flexmodal.daq.run_schema import check_run_group
+
         g = f[key]
-        for item in ("samples", "channels", "events"):
-            if item not in g:
-                raise DaqError(f"{path}: run {run_id!r} has no {item!r} dataset")
-        table = g["channels"][()]
-        channels = tuple(
-            Channel(**{k: float(r[k]) if k == "sensitivity" else _text(r[k]) for k in CHANNEL_FIELDS})
-            for r in table)
-        events = tuple(Event(_text(r["kind"]), int(r["sample_index"]), int(r["count"]), _text(r["detail"]))
-                       for r in g["events"][()])
-        attrs = {k: (_text(v) if isinstance(v, bytes) else v) for k, v in g.attrs.items()}
-        return Run(path=Path(path), run_id=run_id, sample_rate_hz=float(attrs.pop("sample_rate_hz")),
-                   start_time=_text(attrs.pop("start_time")), excitation=_text(attrs.pop("excitation")),
-                   pose=json.loads(attrs.pop("pose")), channels=channels, events=events,
-                   samples=g["samples"][()], attrs=attrs)
+        check_run_group(g, f"{path}: run {run_id!r}")
+        try:
+            return _read_checked_run(g, Path(path), run_id)
+        except DaqError as exc:  # a channel or event record with a value out of its vocabulary
+            raise DaqError(f"{path}: run {run_id!r}: {exc}") from None
+        except (OSError, UnicodeDecodeError) as exc:  # a damaged chunk, a field that is not UTF-8
+            reason = " ".join(str(exc).split())[:200]
+            raise DaqError(f"{path}: run {run_id!r}: cannot read ({reason})") from None
+
+
+def _read_checked_run(g: h5py.Group, path: Path, run_id: str) -> Run:
+    """A run whose structure :func:`flexmodal.daq.run_schema.check_run_group` accepted."""
+    table = g["channels"][()]
+    channels = tuple(
+        Channel(**{k: float(r[k]) if k == "sensitivity" else _text(r[k]) for k in CHANNEL_FIELDS})
+        for r in table)
+    events = tuple(Event(_text(r["kind"]), int(r["sample_index"]), int(r["count"]), _text(r["detail"]))
+                   for r in g["events"][()])
+    attrs = {k: (_text(v) if isinstance(v, bytes) else v) for k, v in g.attrs.items()}
+    return Run(path=path, run_id=run_id, sample_rate_hz=float(attrs.pop("sample_rate_hz")),
+               start_time=_text(attrs.pop("start_time")), excitation=_text(attrs.pop("excitation")),
+               pose=json.loads(attrs.pop("pose")), channels=channels, events=events,
+               samples=g["samples"][()], attrs=attrs)
 
 
 def expand_runs(runs: Sequence[str | Path | tuple[str | Path, str]]) -> list[tuple[Path, str]]:

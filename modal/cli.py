@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from flexmodal import valid_options as opt
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this package's sub-commands to the flexmodal parser."""
@@ -16,17 +18,18 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "is computed here. Prints one 'FILE:RUN_ID' line per run written.")
     p.add_argument("runs", nargs="+", metavar="RUN.h5", help="HDF5 run files (CONTRACT §6)")
     p.add_argument("--estimator", default="H1", choices=["H1", "H2", "Hv"], help="FRF estimator (default H1)")
-    p.add_argument("--nfft", type=int, default=None,
+    p.add_argument("--nfft", type=opt.integer(8, 1 << 24, name="segment length"), default=None,
                    help="segment length in samples for random/sweep runs (default: power of two <= 8192 "
                         "giving >= 8 segments); impact runs use one record per hit")
     p.add_argument("--window", default=None,
                    help="window: rect|hann|flattop for random runs (default hann); impact runs "
                         "'force:W,exponential:E' (fractions; default force:0.05,exponential:0.01)")
-    p.add_argument("--overlap", type=float, default=0.5, help="segment overlap fraction (default 0.5)")
+    p.add_argument("--overlap", type=opt.overlap, default=0.5, help="segment overlap fraction (default 0.5)")
     p.add_argument("--averaging", default="linear", choices=["linear", "exponential"],
                    help="averaging of impact hits (default linear)")
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--workers", type=int, default=None, help="LocalCluster worker processes (0 = serial)")
+    g.add_argument("--workers", type=opt.workers, default=None,
+                   help="LocalCluster worker processes (0 = serial)")
     g.add_argument("--scheduler", default=None, metavar="ADDR", help="dask.distributed scheduler address")
     p.add_argument("--out", default=None, metavar="OUT.h5", help="write the FRFs into this file instead")
     p.set_defaults(func=_frf)
@@ -38,12 +41,15 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "Each run of an HDF5 file is one configuration (config = run id).")
     q.add_argument("input", metavar="INPUT", help="RUN.h5 or FILE.uff/.unv")
     q.add_argument("--out", required=True, metavar="MODES.csv", help="modal table to write")
-    q.add_argument("--fmin", type=float, default=None, help="lower band edge, Hz (default first line > 0)")
-    q.add_argument("--fmax", type=float, default=None, help="upper band edge, Hz (default Nyquist)")
+    q.add_argument("--fmin", type=opt.hertz, default=None,
+                   help="lower band edge, Hz (default first line > 0)")
+    q.add_argument("--fmax", type=opt.positive_hz, default=None,
+                   help="upper band edge, Hz (default Nyquist)")
     q.add_argument("--method", default="lscf", choices=["peak", "lscf"],
                    help="lscf: pLSCF + stabilisation + LSFD (default); "
                         "peak: CMIF peaks, half-power damping, quadrature shapes")
-    q.add_argument("--max-order", type=int, default=40, help="highest pLSCF model order (default 40)")
+    q.add_argument("--max-order", type=opt.model_order, default=40,
+                   help="highest pLSCF model order (default 40)")
     q.add_argument("--run", default=None, metavar="RUN_ID", help="only this run of an HDF5 file")
     q.add_argument("--uff", default=None, metavar="MODES.uff", help="also write the modes as UFF dataset 55")
     q.set_defaults(func=_identify)
@@ -52,6 +58,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _frf(args: argparse.Namespace) -> int:
     from flexmodal.daq.store import expand_runs
     from flexmodal.modal.batch import frf_batch
+    from flexmodal.modal.errors import ModalError
+    from flexmodal.valid_output import hdf5_output
+
+    if args.out:
+        hdf5_output(args.out, ModalError, "FRF file (--out)")
 
     options = {"estimator": args.estimator, "nfft": args.nfft, "window": args.window,
                "overlap": args.overlap, "averaging": args.averaging}
@@ -65,8 +76,15 @@ def _frf(args: argparse.Namespace) -> int:
 
 
 def _identify(args: argparse.Namespace) -> int:
+    from flexmodal.modal.errors import ModalError
     from flexmodal.modal.sources import identify_input
+    from flexmodal.valid_output import output_file
 
+    if args.fmin is not None and args.fmax is not None and args.fmin >= args.fmax:
+        raise ModalError(f"--fmin {args.fmin:g} Hz must lie below --fmax {args.fmax:g} Hz")
+    output_file(args.out, ModalError, "modal table (--out)")
+    if args.uff:
+        output_file(args.uff, ModalError, "UFF file (--uff)")
     table, modes_by_config = identify_input(args.input, method=args.method, fmin=args.fmin, fmax=args.fmax,
                                             max_order=args.max_order, run_id=args.run)
     table.to_csv(args.out)

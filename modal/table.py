@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from flexmodal.modal.errors import ModalError
+from flexmodal.valid_csv import read_table
 
 REQUIRED = ("config", "mode", "freq_hz")
 POSE_PREFIX = "pose."
@@ -85,14 +86,8 @@ class ModalTable:
 
     @classmethod
     def read_csv(cls, path: str | Path) -> ModalTable:
-        p = Path(path)
-        if not p.is_file():
-            raise ModalError(f"{p}: modal table not found")
-        try:
-            df = pd.read_csv(p, dtype={"config": str})
-        except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
-            raise ModalError(f"{p}: not a readable CSV ({exc})") from None
-        return cls.from_frame(df, str(p))
+        df = read_table(path, ModalError, required=REQUIRED, text_columns=("config",), what="modal table")
+        return cls.from_frame(df, str(path))
 
     def to_csv(self, path: str | Path) -> None:
         """Write CSV; complex shapes as ``a+bj`` text, floats with full precision."""
@@ -141,11 +136,7 @@ class ModalTable:
 def poses_from_csv(path: str | Path) -> dict[str, dict[str, float]]:
     """Read POSES.csv (CONTRACT §3 without mode/freq_hz): {config: {pose variable: value}}."""
     p = Path(path)
-    if not p.is_file():
-        raise ModalError(f"{p}: poses file not found")
-    df = pd.read_csv(p, dtype={"config": str})
-    if "config" not in df.columns:
-        raise ModalError(f"{p}: missing required column 'config'")
+    df = read_table(p, ModalError, required=("config",), text_columns=("config",), what="poses table")
     cols = [c for c in df.columns if c.startswith(POSE_PREFIX)]
     out: dict[str, dict[str, float]] = {}
     for _, row in df.iterrows():

@@ -16,6 +16,7 @@ import numpy as np
 
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult
+from flexmodal.modal.valid_uff import check_functions
 
 _AXES = "xyz"
 _SPEC = {"accelerance": 12, "mobility": 11, "receptance": 8}
@@ -68,6 +69,7 @@ def read_uff(path: str | Path) -> UffFrfs | UffRecord:
     funcs = [s for s in sets if s.get("type") == 58]
     if not funcs:
         raise ModalError(f"{p}: no dataset 58 (found dataset types {types}; only 58 is read)")
+    check_functions(p, funcs)
     kinds = sorted({int(s.get("func_type", 0)) for s in funcs})
     if kinds not in ([1], [4]):
         raise ModalError(f"{p}: dataset 58 function types {kinds} are not supported "

@@ -5,6 +5,9 @@ from __future__ import annotations
 import argparse
 import sys
 
+from flexmodal import valid_options as opt
+from flexmodal.models.rig_schema import MAX_ELEMENTS
+
 MODEL_CHOICES = ("fe", "assumed-modes", "lumped-mass", "blevins")
 
 
@@ -23,14 +26,15 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "(seed 003); blevins: closed-form beam table (straight uniform arm, plain ends)")
     p.add_argument("--poses", required=True, metavar="POSES.csv", help="one row per configuration")
     p.add_argument("--out", required=True, metavar="PRED.csv", help="output modal table")
-    p.add_argument("--modes", type=int, default=4, metavar="N", help="elastic modes per pose (default 4)")
+    p.add_argument("--modes", type=opt.integer(1, 1000), default=4, metavar="N",
+                   help="elastic modes per pose (default 4)")
     p.add_argument("--source", default=None, metavar="NAME",
                    help="value of the output's source column (default: the model name, e.g. fe)")
-    p.add_argument("--elements", type=int, default=None, metavar="N",
+    p.add_argument("--elements", type=opt.integer(1, MAX_ELEMENTS), default=None, metavar="N",
                    help="fe: elements per link and member (default: the rig's `elements`, else 10)")
     p.add_argument("--lumped-mass-matrix", action="store_true",
                    help="fe: diagonal (HRZ-lumped) mass matrix instead of the consistent one")
-    p.add_argument("--masses-per-link", type=int, default=4, metavar="N",
+    p.add_argument("--masses-per-link", type=opt.integer(1, 1000), default=4, metavar="N",
                    help="lumped-mass: lumped masses per link (default 4, as in seed 003)")
     p.add_argument("--coordinates", choices=("planar", "transverse"), default="planar",
                    help="lumped-mass: both in-plane translations per mass (default) or only the one "
@@ -43,11 +47,9 @@ def _predict(args: argparse.Namespace) -> int:
     from flexmodal.models.errors import ModelError
     from flexmodal.models.predict import predict
     from flexmodal.models.rig import load_rig
+    from flexmodal.valid_output import output_file
 
-    for name in ("modes", "elements", "masses_per_link"):
-        value = getattr(args, name)
-        if value is not None and value < 1:
-            raise ModelError(f"--{name.replace('_', '-')} must be >= 1 (got {value})")
+    output_file(args.out, ModelError, "prediction table (--out)")
     rig = load_rig(args.rig)
     poses = poses_from_csv(args.poses)
     if not poses:

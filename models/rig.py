@@ -16,13 +16,14 @@ with ``support = "spring"``; ``link.stiffness_scale`` and ``link.mass_scale``; `
 from __future__ import annotations
 
 import math
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from flexmodal.models.errors import ModelError
+from flexmodal.models.rig_schema import check_document
+from flexmodal.valid_text import read_toml
 
 SECTION_SHAPES = ("square_tube", "rect_tube", "round_tube", "solid_rect", "custom")
 SUPPORTS = ("clamped", "pinned", "free", "spring")
@@ -349,6 +350,7 @@ def _parse_point(text: Any, rig_or_links: Any, path: str, ctx: _Ctx | None = Non
 
 def parse_rig(doc: Mapping[str, Any], source: str = "<rig>") -> Rig:
     """Validate a parsed rig TOML document; raises ModelError naming the field on any mistake."""
+    check_document(doc, source)
     ctx = _Ctx(source)
     name = str(doc.get("name", Path(source).stem))
     raw_links = _get(doc, "link", "", ctx)
@@ -438,12 +440,4 @@ def parse_rig(doc: Mapping[str, Any], source: str = "<rig>") -> Rig:
 
 def load_rig(path: str | Path) -> Rig:
     """Read and validate a rig TOML file (CONTRACT §4)."""
-    p = Path(path)
-    try:
-        with p.open("rb") as fh:
-            doc = tomllib.load(fh)
-    except FileNotFoundError:
-        raise ModelError(f"{p}: rig file not found") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ModelError(f"{p}: not valid TOML ({exc})") from None
-    return parse_rig(doc, str(p))
+    return parse_rig(read_toml(path, ModelError, "rig file"), str(path))

@@ -25,6 +25,7 @@ from flexmodal.modal.table import ModalTable
 from flexmodal.reports import plots
 from flexmodal.reports.errors import ReportError
 from flexmodal.reports.runs import LOW_COHERENCE, RunSummary, summarise_run
+from flexmodal.valid_text import read_text
 
 UNIT_SUFFIXES = {"_deg": "deg", "_kg": "kg", "_m": "m", "_rad": "rad", "_n": "N"}
 MAX_SHAPE_CONFIGS = 2
@@ -289,7 +290,7 @@ def load_diagnosis(path: str | Path) -> dict:
     """Read a diagnosis.json (CONTRACT §5); ReportError naming the file when it is not JSON."""
     p = Path(path)
     try:
-        doc = json.loads(p.read_text(encoding="utf-8"))
+        doc = json.loads(read_text(p, ReportError, "diagnosis JSON file"))
     except json.JSONDecodeError as exc:
         raise ReportError(f"{p}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
     if not isinstance(doc, dict) or "baseline" not in doc:

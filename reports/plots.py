@@ -24,6 +24,8 @@ from collections.abc import Mapping, Sequence
 import matplotlib
 
 matplotlib.use("Agg")
+# Labels come from data (channel, sensor and configuration names): a "$" in them is text, not mathtext.
+matplotlib.rcParams["text.parse_math"] = False
 
 import numpy as np  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402

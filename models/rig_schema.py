@@ -1,0 +1,95 @@
+"""Shape of a rig TOML document (CONTRACT §4) before its values are read.
+
+:func:`flexmodal.models.rig.parse_rig` reads values field by field; this module first checks the
+containers and the fields whose wrong type would otherwise escape as a Python exception or pass
+silently: the array-of-tables keys must hold tables, ``base`` must be a table, pose-variable names must
+be strings and fixed angles finite numbers, cross-section sizes and material constants must lie in a
+range where the section formulas stay finite (``(1e300)**4`` overflows), and element counts must stay
+small enough for the dense eigenproblem (``elements = 2000000000`` would never finish).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+from flexmodal.models.errors import ModelError
+
+TABLE_ARRAYS = ("link", "joint", "member", "mass", "spring", "sensor")
+MAX_ELEMENTS = 500  # per link or member
+MAX_SIZE_M = 1e3  # a cross-section dimension, m
+MAX_E_PA = 1e13  # Young's modulus (diamond: 1.2e12 Pa)
+MAX_RHO_KG_M3 = 1e5  # density (osmium: 2.3e4 kg/m^3)
+
+
+def _fail(source: str, path: str, what: str) -> ModelError:
+    return ModelError(f"{source}: {path}: {what}")
+
+
+def _number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _tables(doc: Mapping[str, Any], key: str, source: str) -> list[Mapping[str, Any]]:
+    value = doc.get(key, [])
+    if not isinstance(value, list) or not all(isinstance(t, Mapping) for t in value):
+        raise _fail(source, key, f"must be [[{key}]] tables (got {value!r:.60})")
+    return value
+
+
+def _section(spec: Any, path: str, source: str) -> None:
+    if not isinstance(spec, Mapping):
+        return  # parse_rig names a missing or non-table section
+    for key, value in spec.items():
+        if key.endswith("_m") and _number(value) and abs(value) > MAX_SIZE_M:
+            raise _fail(source, f"{path}.{key}", f"{value!r} m is out of range (at most {MAX_SIZE_M:g} m)")
+
+
+def _elements(t: Mapping[str, Any], path: str, source: str) -> None:
+    n = t.get("elements")
+    if isinstance(n, int) and not isinstance(n, bool) and n > MAX_ELEMENTS:
+        raise _fail(source, f"{path}.elements", f"{n} is more than {MAX_ELEMENTS} elements")
+
+
+def _pose_variable(t: Mapping[str, Any], path: str, source: str) -> None:
+    if "angle" in t and not (isinstance(t["angle"], str) and t["angle"].strip()):
+        raise _fail(source, f"{path}.angle", f"must name a pose variable such as \"theta_deg\" "
+                                             f"(got {t['angle']!r})")
+    if "angle_deg" in t and not _number(t["angle_deg"]):
+        raise _fail(source, f"{path}.angle_deg",
+                    f"must be a finite number of degrees (got {t['angle_deg']!r})")
+
+
+def check_document(doc: Any, source: str) -> None:
+    """Raise ModelError naming the first field whose container or type is wrong (see module doc)."""
+    if not isinstance(doc, Mapping):
+        raise ModelError(f"{source}: a rig description must be a TOML table")
+    if "name" in doc and not isinstance(doc["name"], str):
+        raise _fail(source, "name", f"must be a string (got {doc['name']!r})")
+    materials = doc.get("material", {})
+    if not isinstance(materials, Mapping):
+        raise _fail(source, "material", "must be [material.<name>] tables")
+    for name, m in materials.items():
+        if not isinstance(m, Mapping):
+            raise _fail(source, f"material.{name}", "must be a table with E_Pa and rho_kg_m3")
+        for key, top in (("E_Pa", MAX_E_PA), ("rho_kg_m3", MAX_RHO_KG_M3)):
+            if _number(m.get(key)) and m[key] > top:
+                raise _fail(source, f"material.{name}.{key}", f"{m[key]!r} is out of range (at most {top:g})")
+    base = doc.get("base", {})
+    if not isinstance(base, Mapping):
+        raise _fail(source, "base", f"must be a [base] table (got {base!r:.60})")
+    _pose_variable(base, "base", source)
+    tables = {key: _tables(doc, key, source) for key in TABLE_ARRAYS}
+    for i, t in enumerate(tables["link"]):
+        path = f"link[{i}]"
+        _elements(t, path, source)
+        _section(t.get("section"), f"{path}.section", source)
+        segments = _tables(t, "segments", f"{source}: {path}")
+        for j, seg in enumerate(segments):
+            _section(seg.get("section"), f"{path}.segments[{j}].section", source)
+    for i, t in enumerate(tables["member"]):
+        _elements(t, f"member[{i}]", source)
+        _section(t.get("section"), f"member[{i}].section", source)
+    for i, t in enumerate(tables["joint"]):
+        _pose_variable(t, f"joint[{i}]", source)

@@ -1,0 +1,439 @@
+"""Issue 13: every bad input of every command ends in one line on stderr naming it, and exit 2.
+
+Each row is one malformed input (a file, an option value or an output path) given to the real
+``flexmodal`` console script in a subprocess with a time limit; rows run in a few threads at once.
+A row passes when the command exits 2 within the limit, prints no traceback, prints exactly one line on
+stderr, and that line holds the row's expected words (the file, field or value and what is wrong).
+The control rows at the end use the same base files unmodified and must exit 0, so a row's exit 2
+comes from its own mutation, not from a broken base file.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from conftest import REPO
+
+pytestmark = pytest.mark.timeout(1800)  # all rows run in the first row's set-up (a module fixture)
+ROW_TIMEOUT_S = 30.0  # a hang guard: the machine is shared, rows take 2-8 s under load
+THREADS = 2
+RIG = (REPO / "examples" / "rigs" / "seed003_two_link.toml").read_text(encoding="utf-8")
+MODES = (REPO / "examples" / "measured" / "seed003_table3_f1f2.csv").read_text(encoding="utf-8")
+SESSION = (REPO / "examples" / "sessions" / "serial-sim.toml").read_text(encoding="utf-8").replace(
+    'rig = "../rigs/demo_arm.toml"', f'rig = "{REPO / "examples" / "rigs" / "demo_arm.toml"}"')
+MODBUS_SESSION = (REPO / "examples" / "sessions" / "modbus-sim.toml").read_text(encoding="utf-8").replace(
+    'rig = "../rigs/demo_arm.toml"', f'rig = "{REPO / "examples" / "rigs" / "demo_arm.toml"}"')
+POSES = "config,pose.theta_deg\ntheta0,0\ntheta60,60\n"
+BINARY = bytes(range(256)) * 4
+LATIN1_COMMENT = "# accelerometer sensitivity in mV/(m/s²) µ\n".encode("latin-1")
+
+
+def write_run(path: Path, *, channel_names: tuple[str, str] = ("F", "a1")) -> None:
+    """A small valid run: a random force and a response, 1024 Hz, 8 s."""
+    from flexmodal.daq.store import Channel, RunWriter
+
+    channels = [Channel(channel_names[0], "force", "N", location="tip", direction="transverse"),
+                Channel(channel_names[1], "acceleration", "m/s^2", location="tip", direction="transverse")]
+    rng = np.random.default_rng(1)
+    force = rng.standard_normal(8192)
+    response = np.convolve(force, np.exp(-np.arange(200) / 40.0) * np.sin(np.arange(200) / 3.0))[:8192]
+    with RunWriter(path, "r1", sample_rate_hz=1024.0, channels=channels, excitation="random",
+                   pose={"theta_deg": 30.0}) as writer:
+        writer.append(np.column_stack([force, response]))
+
+
+def mutate_run(change: Callable[[h5py.Group], None]) -> Callable[[Path], None]:
+    """A writer of a valid run file followed by ``change`` applied to its run group."""
+    def make(path: Path) -> None:
+        write_run(path)
+        with h5py.File(path, "r+") as f:
+            change(f["runs/r1"])
+    return make
+
+
+def set_attr(name: str, value) -> Callable[[h5py.Group], None]:
+    def change(g: h5py.Group) -> None:
+        g.attrs[name] = value
+    return change
+
+
+def del_attr(name: str) -> Callable[[h5py.Group], None]:
+    def change(g: h5py.Group) -> None:
+        del g.attrs[name]
+    return change
+
+
+def replace_dataset(name: str, data) -> Callable[[h5py.Group], None]:
+    def change(g: h5py.Group) -> None:
+        del g[name]
+        g.create_dataset(name, data=data)
+    return change
+
+
+def truncated_run(path: Path) -> None:
+    write_run(path)
+    data = path.read_bytes()
+    path.write_bytes(data[:len(data) // 3])
+
+
+def truncated_live_run(path: Path) -> None:
+    """A truncated file whose superblock still says a writer has it open (a killed writer's file)."""
+    from flexmodal.daq.store import _lookup3
+
+    write_run(path)
+    data = bytearray(path.read_bytes()[:60000])
+    data[11] = 0x05  # write access + SWMR write
+    data[44:48] = _lookup3(bytes(data[:44])).to_bytes(4, "little")
+    path.write_bytes(bytes(data))
+
+
+def foreign_hdf5(path: Path) -> None:
+    with h5py.File(path, "w") as f:
+        f["data"] = np.arange(10.0)
+
+
+def runs_dataset(path: Path) -> None:
+    with h5py.File(path, "w") as f:
+        f["runs"] = np.arange(10.0)
+
+
+def uff_cut_short(path: Path) -> None:
+    """A dataset-58 FRF whose data block ends after 14 of the 101 points its header announces."""
+    import pyuff
+
+    x = np.linspace(0.0, 100.0, 101)
+    sets = [pyuff.prepare_58(func_type=4, rsp_node=1, rsp_dir=3, ref_node=2, ref_dir=3,
+                             ordinate_spec_data_type=12, orddenom_spec_data_type=13,
+                             abscissa_spec_data_type=18, data=np.ones(101, complex), x=x,
+                             abscissa_spacing=1, abscissa_min=0.0, abscissa_inc=1.0, num_pts=101)]
+    pyuff.UFF(str(path)).write_sets(sets, mode="overwrite")
+    lines = path.read_text().splitlines()
+    path.write_text("\n".join(lines[:20] + lines[-1:]) + "\n")
+
+
+@dataclass(frozen=True)
+class Row:
+    """One malformed input: ``files`` are written into the row's folder, ``{d}`` in ``args`` is it."""
+
+    name: str
+    args: tuple[str, ...]
+    words: tuple[str, ...]
+    files: dict = field(default_factory=dict)
+    code: int = 2
+
+
+def rig(text: str = RIG) -> dict:
+    return {"rig.toml": text}
+
+
+def row(name: str, args: str, words: str | tuple[str, ...], files: dict | None = None, code: int = 2) -> Row:
+    words = (words,) if isinstance(words, str) else words
+    return Row(name, tuple(args.split()), words, dict(files or {}), code)
+
+
+BASE = {"rig.toml": RIG, "modes.csv": MODES, "poses.csv": POSES, "session.toml": SESSION,
+        "run.h5": write_run}
+PREDICT = "predict {d}/rig.toml --model fe --poses {d}/poses.csv --out {d}/pred.csv"
+DIAGNOSE = "diagnose --rig {d}/rig.toml --measured {d}/modes.csv --out {d}/diag"
+COMPARE = "compare {d}/modes.csv {d}/modes.csv"
+ACQUIRE = "acquire --config {d}/session.toml --out {d}/out.h5 --duration 1"
+REPORT = "report {d}/run.h5 --out {d}/report.html"
+IDENTIFY = "identify {d}/run.h5 --out {d}/modes-out.csv"
+
+ROWS: list[Row] = [
+    # -- text files that are not UTF-8, binary files as TOML/CSV/JSON -----------------------------
+    row("rig-latin1", PREDICT, ("rig.toml", "line 1", "not UTF-8"), rig(LATIN1_COMMENT + RIG.encode())),
+    row("session-latin1", ACQUIRE, ("session.toml", "not UTF-8"),
+        {"session.toml": LATIN1_COMMENT + SESSION.encode()}),
+    row("modes-latin1", COMPARE, ("modes.csv", "not UTF-8"), {"modes.csv": MODES.encode() + "x,µ\n".encode(
+        "latin-1")}),
+    row("poses-latin1", PREDICT, ("poses.csv", "line 4", "not UTF-8"),
+        {"poses.csv": (POSES + "théta,5\n").encode("latin-1")}),
+    row("rig-binary-predict", PREDICT, ("rig.toml", "binary"), rig(BINARY)),
+    row("rig-binary-diagnose", DIAGNOSE, ("rig.toml", "binary"), rig(BINARY)),
+    row("rig-binary-demo", "demo --rig {d}/rig.toml --out {d}/demo", ("rig.toml", "binary"), rig(BINARY)),
+    row("rig-binary-report", "report --measured {d}/modes.csv --rig {d}/rig.toml --out {d}/r.html",
+        ("rig.toml", "binary"), rig(BINARY)),
+    row("rig-binary-sim", "sim serve --protocol serial --rig {d}/rig.toml --duration 1",
+        ("rig.toml", "binary"), rig(BINARY)),
+    row("session-binary", ACQUIRE, ("session.toml", "binary"), {"session.toml": BINARY}),
+    row("modes-binary-compare", COMPARE, ("modes.csv", "binary"), {"modes.csv": BINARY}),
+    row("modes-binary-diagnose", DIAGNOSE, ("modes.csv", "binary"), {"modes.csv": BINARY}),
+    row("modes-binary-report", "report --measured {d}/modes.csv --out {d}/r.html", ("modes.csv", "binary"),
+        {"modes.csv": BINARY}),
+    row("poses-binary", PREDICT, ("poses.csv", "binary"), {"poses.csv": BINARY}),
+    row("diagnosis-binary", "report --diagnosis {d}/d.json --out {d}/r.html", ("d.json", "binary"),
+        {"d.json": BINARY}),
+    row("diagnosis-latin1", "report --diagnosis {d}/d.json --out {d}/r.html", ("d.json", "not UTF-8"),
+        {"d.json": '{"baseline": "µ"}'.encode("latin-1")}),
+    row("diagnosis-not-json", "report --diagnosis {d}/d.json --out {d}/r.html", ("d.json", "JSON"),
+        {"d.json": "{baseline"}),
+    # -- empty / ragged CSV, empty config cell ----------------------------------------------------
+    row("modes-empty-compare", COMPARE, ("modes.csv", "empty"), {"modes.csv": ""}),
+    row("modes-empty-diagnose", DIAGNOSE, ("modes.csv", "empty"), {"modes.csv": "\n\n"}),
+    row("pred-empty-report", "report --pred {d}/p.csv --out {d}/r.html", ("p.csv", "empty"), {"p.csv": ""}),
+    row("poses-empty", PREDICT, ("poses.csv", "empty"), {"poses.csv": ""}),
+    row("poses-header-only", PREDICT, ("poses.csv", "no configurations"), {"poses.csv": "config\n"}),
+    row("modes-ragged-long", COMPARE, ("modes.csv", "line 3", "6 fields", "header has 5"),
+        {"modes.csv": MODES.replace("theta0,2,92.2,experiment,0", "theta0,2,92.2,experiment,0,7")}),
+    row("modes-ragged-short", COMPARE, ("modes.csv", "line 3", "4 fields"),
+        {"modes.csv": MODES.replace("theta0,2,92.2,experiment,0", "theta0,2,92.2,experiment")}),
+    row("poses-ragged", PREDICT, ("poses.csv", "line 4", "1 fields"), {"poses.csv": POSES + "theta90\n"}),
+    row("modes-empty-config", COMPARE, ("modes.csv", "line 2", "empty 'config'"),
+        {"modes.csv": MODES.replace("theta0,1,25.5", ",1,25.5")}),
+    row("modes-empty-config-diagnose", DIAGNOSE, ("modes.csv", "empty 'config'"),
+        {"modes.csv": MODES.replace("theta0,1,25.5", ",1,25.5")}),
+    row("poses-empty-config", PREDICT, ("poses.csv", "line 2", "empty 'config'"),
+        {"poses.csv": POSES.replace("theta0,0", ",0")}),
+    row("modes-duplicate-column", COMPARE, ("modes.csv", "'freq_hz' appears twice"),
+        {"modes.csv": MODES.replace("source,", "freq_hz,", 1)}),
+    row("modes-missing-freq", COMPARE, ("modes.csv", "freq_hz"),
+        {"modes.csv": MODES.replace("freq_hz", "f_hz", 1)}),
+    row("modes-freq-text", COMPARE, ("modes.csv", "freq_hz", "not a number"),
+        {"modes.csv": MODES.replace("25.5,experiment,0\n", "fast,experiment,0\n", 1)}),
+    row("modes-unclosed-quote", COMPARE, ("modes.csv",), {"modes.csv": MODES + '"theta9,1,2,e,0\n'}),
+    row("poses-not-number", PREDICT, ("poses.csv", "pose.theta_deg", "not a number"),
+        {"poses.csv": POSES.replace("theta60,60", "theta60,sixty")}),
+    # -- numbers: durations, rates, ports, session and rig values ---------------------------------
+    row("acquire-duration-inf", ACQUIRE.replace("1", "inf"), ("--duration", "inf")),
+    row("acquire-duration-nan", ACQUIRE.replace("1", "nan"), ("--duration", "nan")),
+    row("acquire-duration-zero", ACQUIRE.replace("1", "0"), ("--duration", "'0'")),
+    row("session-baud-negative", ACQUIRE, ("session.toml", "baud", "-5"),
+        {"session.toml": SESSION.replace("baud = 3000000", "baud = -5")}),
+    row("session-scale-nan", ACQUIRE, ("session.toml", "scale", "nan"),
+        {"session.toml": SESSION.replace("scale = 0.30517578125", "scale = nan", 1)}),
+    row("session-rate-inf", ACQUIRE, ("session.toml", "sample_rate_hz"),
+        {"session.toml": SESSION.replace("sample_rate_hz = 2048.0", "sample_rate_hz = inf")}),
+    row("session-level-nan", ACQUIRE, ("session.toml", "level", "nan"),
+        {"session.toml": SESSION.replace("level = 5.0", "level = nan")}),
+    row("session-modbus-port", ACQUIRE, ("session.toml", "port", "99999"),
+        {"session.toml": MODBUS_SESSION.replace('port = "@simulator"', "port = 99999")}),
+    row("session-pose-nan", ACQUIRE, ("session.toml", "pose.theta_deg", "nan"),
+        {"session.toml": SESSION.replace("theta_deg = 30.0", "theta_deg = nan")}),
+    row("sim-port", "sim serve --protocol modbus --port 99999 --duration 1", ("--port", "99999")),
+    row("sim-rate-nan", "sim serve --protocol serial --rate nan --duration 1", ("--rate", "nan")),
+    row("sim-duration-inf", "sim serve --protocol serial --duration inf", ("--duration", "inf")),
+    row("sim-scans-zero", "sim serve --protocol serial --scans-per-frame 0 --duration 1",
+        ("--scans-per-frame", "'0'")),
+    row("rig-outer-huge", PREDICT, ("rig.toml", "link[0].section", "1e+300"),
+        rig(RIG.replace("outer_m = 0.040, wall_m = 0.0011 }", "outer_m = 1e300, wall_m = 0.0011 }", 1))),
+    row("rig-material-number", PREDICT, ("rig.toml", "link[0].material"),
+        rig(RIG.replace('material = "aluminium"', "material = 5", 1))),
+    row("rig-base-string", PREDICT, ("rig.toml", "base", "'x'"),
+        rig(RIG.replace('[base]\nsupport = "clamped"\n', "").replace(
+            'name = "seed003-two-link"', 'name = "seed003-two-link"\nbase = "x"'))),
+    row("rig-elements-huge", PREDICT, ("rig.toml", "link[0].elements", "2000000000"),
+        rig(RIG.replace('length_m = 0.60\n', "length_m = 0.60\nelements = 2000000000\n"))),
+    row("rig-elements-float", PREDICT, ("rig.toml", "link[0].elements"),
+        rig(RIG.replace('length_m = 0.60\n', "length_m = 0.60\nelements = 2e9\n"))),
+    row("rig-length-nan", PREDICT, ("rig.toml", "link[0].length_m", "nan"),
+        rig(RIG.replace("length_m = 0.60", "length_m = nan"))),
+    row("rig-E-inf", PREDICT, ("rig.toml", "E_Pa", "inf"), rig(RIG.replace("E_Pa = 75e9", "E_Pa = inf"))),
+    row("rig-angle-number", PREDICT, ("rig.toml", "joint[0].angle"),
+        rig(RIG.replace('angle = "theta_deg"', "angle = 5"))),
+    row("rig-angle-deg-text", PREDICT, ("rig.toml", "joint[0].angle_deg"),
+        rig(RIG.replace('angle = "theta_deg"', 'angle_deg = "x"'))),
+    row("rig-link-table", PREDICT, ("rig.toml", "link"), rig(RIG.replace("[[link]]", "[link]", 1).replace(
+        "[[link]]", "[link2]"))),
+    row("rig-not-toml", PREDICT, ("rig.toml", "not valid TOML", "line"), rig(RIG + "\nname = = 3\n")),
+    row("rig-joint-not-table", PREDICT, ("rig.toml", "joint"),
+        rig(RIG.replace("[[joint]]\nname", "joint = 3\n[[jnt]]\nname"))),
+    # -- options ------------------------------------------------------------------------------------
+    row("predict-modes-zero", PREDICT + " --modes 0", "--modes"),
+    row("predict-elements-zero", PREDICT + " --elements 0", "--elements"),
+    row("predict-elements-huge", PREDICT + " --elements 2000000000", ("--elements", "2000000000")),
+    row("predict-masses-zero", PREDICT.replace("fe", "lumped-mass") + " --masses-per-link 0",
+        "--masses-per-link"),
+    row("identify-max-order-0", IDENTIFY + " --max-order 0", ("--max-order", "'0'")),
+    row("identify-max-order-1", IDENTIFY + " --max-order 1", ("--max-order", "'1'")),
+    row("identify-fmin-nan", IDENTIFY + " --fmin nan", ("--fmin", "nan")),
+    row("identify-fmin-above-fmax", IDENTIFY + " --fmin 300 --fmax 100", ("--fmin", "--fmax")),
+    row("identify-fmax-negative", IDENTIFY + " --fmax -5", ("--fmax", "-5")),
+    row("frf-nfft-zero", "frf {d}/run.h5 --nfft 0", ("--nfft", "'0'")),
+    row("frf-nfft-huge", "frf {d}/run.h5 --nfft 1048576", ("nfft", "1048576")),
+    row("frf-overlap-one", "frf {d}/run.h5 --overlap 1", ("--overlap", "'1'")),
+    row("frf-overlap-nan", "frf {d}/run.h5 --overlap nan", ("--overlap", "nan")),
+    row("frf-workers-negative", "frf {d}/run.h5 --workers -1", ("--workers", "-1")),
+    row("frf-window-unknown", "frf {d}/run.h5 --window bogus", ("window", "bogus")),
+    row("compare-min-mac-nan", COMPARE + " --min-mac nan", ("--min-mac", "nan")),
+    row("diagnose-scatter-nan", DIAGNOSE + " --scatter nan", ("--scatter", "nan")),
+    row("diagnose-effects-unknown", DIAGNOSE + " --effects bogus", ("bogus",)),
+    row("diagnose-holdout-unknown", DIAGNOSE + " --holdout theta999", ("theta999",)),
+    row("diagnose-selftest-zero", "diagnose --selftest 0", ("--selftest",)),
+    row("sim-corrupt-nan", "sim serve --protocol serial --corrupt-rate nan --duration 1",
+        ("--corrupt-rate", "nan")),
+    row("sim-pose-bad", "sim serve --protocol serial --pose theta_deg --duration 1", ("--pose",)),
+    # -- HDF5 run files -----------------------------------------------------------------------------
+    row("run-truncated-identify", IDENTIFY, ("run.h5", "truncated")),
+    row("run-truncated-frf", "frf {d}/run.h5", ("run.h5", "truncated")),
+    row("run-truncated-report", REPORT, ("run.h5", "truncated")),
+    row("run-truncated-acquire", ACQUIRE.replace("out.h5", "run.h5"), ("run.h5", "truncated")),
+    row("run-truncated-live", IDENTIFY, ("run.h5", "truncated")),
+    row("run-foreign-hdf5", IDENTIFY, ("run.h5", "no runs")),
+    row("run-runs-dataset", "frf {d}/run.h5", ("run.h5", "/runs")),
+    row("run-no-rate-identify", IDENTIFY, ("run.h5", "sample_rate_hz")),
+    row("run-no-rate-frf", "frf {d}/run.h5", ("run.h5", "sample_rate_hz")),
+    row("run-no-rate-report", REPORT, ("run.h5", "sample_rate_hz")),
+    row("run-rate-text", IDENTIFY, ("run.h5", "sample_rate_hz", "fast")),
+    row("run-rate-negative", "frf {d}/run.h5", ("run.h5", "sample_rate_hz", "-1")),
+    row("run-pose-not-json", IDENTIFY, ("run.h5", "pose", "JSON")),
+    row("run-excitation-unknown", "frf {d}/run.h5", ("run.h5", "excitation", "hammer")),
+    row("run-no-start-time", REPORT, ("run.h5", "start_time")),
+    row("run-samples-text", IDENTIFY, ("run.h5", "samples")),
+    row("run-samples-1d", "frf {d}/run.h5", ("run.h5", "samples")),
+    row("run-channels-floats", IDENTIFY, ("run.h5", "channels")),
+    row("run-no-events", REPORT, ("run.h5", "events")),
+    row("run-channel-kind", IDENTIFY, ("run.h5", "kind", "hammer")),
+    row("run-missing-run", "identify {d}/run.h5 --run nope --out {d}/m.csv", ("run.h5", "nope")),
+    row("run-text-file", IDENTIFY, ("run.h5",), {"run.h5": "not a run\n"}),
+    row("run-empty-file", "frf {d}/run.h5", ("run.h5",), {"run.h5": b""}),
+    row("acquire-out-not-hdf5", ACQUIRE.replace("out.h5", "notes.txt"), ("notes.txt", "not an HDF5 file"),
+        {"notes.txt": "my notes\n"}),
+    row("frf-out-not-hdf5", "frf {d}/run.h5 --out {d}/notes.txt", ("notes.txt", "not an HDF5 file"),
+        {"notes.txt": "my notes\n"}),
+    # -- output paths -------------------------------------------------------------------------------
+    row("out-demo-no-dir", "demo --out {d}/file.txt/demo", ("file.txt",), {"file.txt": "x"}),
+    row("out-demo-is-file", "demo --out {d}/file.txt", ("file.txt", "not a directory"), {"file.txt": "x"}),
+    row("out-predict-missing-dir", PREDICT.replace("{d}/pred.csv", "{d}/no/such/pred.csv"),
+        ("pred.csv", "does not exist")),
+    row("out-compare-missing-dir", COMPARE + " --out {d}/no/table.md", ("table.md", "does not exist")),
+    row("out-diagnose-is-file", DIAGNOSE.replace("{d}/diag", "{d}/file.txt"), ("file.txt", "not a directory"),
+        {"file.txt": "x"}),
+    row("out-diagnose-proc", DIAGNOSE.replace("{d}/diag", "/proc/flexmodal-diag"), ("/proc/flexmodal-diag",)),
+    row("out-identify-proc", IDENTIFY.replace("{d}/modes-out.csv", "/proc/modes.csv"), ("/proc/modes.csv",)),
+    row("out-identify-dir", IDENTIFY.replace("{d}/modes-out.csv", "{d}"), ("is a directory",)),
+    row("out-identify-uff", IDENTIFY + " --uff {d}/no/modes.uff", ("modes.uff", "does not exist")),
+    row("out-report-proc", REPORT.replace("{d}/report.html", "/proc/report.html"), ("/proc/report.html",)),
+    row("out-frf-missing-dir", "frf {d}/run.h5 --out {d}/no/frf.h5", ("frf.h5", "does not exist")),
+    row("out-acquire-missing-dir", ACQUIRE.replace("{d}/out.h5", "{d}/no/out.h5"),
+        ("out.h5", "does not exist")),
+    # -- UFF, mathtext, missing inputs --------------------------------------------------------------
+    row("uff-lengths", "identify {d}/f.uff --out {d}/m.csv", ("f.uff", "num_pts = 101")),
+    row("uff-garbage", "identify {d}/f.uff --out {d}/m.csv", ("f.uff",), {"f.uff": BINARY}),
+    row("uff-empty", "identify {d}/f.uff --out {d}/m.csv", ("f.uff",), {"f.uff": ""}),
+    row("report-mathtext-channel", REPORT, code=0, words=()),
+    row("missing-rig", "predict {d}/nope.toml --model fe --poses {d}/poses.csv --out {d}/p.csv", "nope.toml"),
+    row("missing-run", "frf {d}/nope.h5", "nope.h5"),
+    row("missing-session", "acquire --config {d}/nope.toml --out {d}/o.h5", "nope.toml"),
+    row("rig-is-dir", "predict {d} --model fe --poses {d}/poses.csv --out {d}/p.csv", "directory"),
+    # -- controls: the unmodified base files work ---------------------------------------------------
+    row("control-predict", PREDICT, (), code=0),
+    row("control-compare", COMPARE, (), code=0),
+    row("control-identify-peak", IDENTIFY + " --method peak", (), code=0),
+]
+RUN_FILES = {
+    "run-truncated-identify": truncated_run, "run-truncated-frf": truncated_run,
+    "run-truncated-report": truncated_run, "run-truncated-acquire": truncated_run,
+    "run-truncated-live": truncated_live_run, "run-foreign-hdf5": foreign_hdf5,
+    "run-runs-dataset": runs_dataset,
+    "run-no-rate-identify": mutate_run(del_attr("sample_rate_hz")),
+    "run-no-rate-frf": mutate_run(del_attr("sample_rate_hz")),
+    "run-no-rate-report": mutate_run(del_attr("sample_rate_hz")),
+    "run-rate-text": mutate_run(set_attr("sample_rate_hz", "fast")),
+    "run-rate-negative": mutate_run(set_attr("sample_rate_hz", -1.0)),
+    "run-pose-not-json": mutate_run(set_attr("pose", "theta=3")),
+    "run-excitation-unknown": mutate_run(set_attr("excitation", "hammer")),
+    "run-no-start-time": mutate_run(del_attr("start_time")),
+    "run-samples-text": mutate_run(replace_dataset("samples", np.array([[b"a", b"b"]] * 4))),
+    "run-samples-1d": mutate_run(replace_dataset("samples", np.arange(100.0))),
+    "run-channels-floats": mutate_run(replace_dataset("channels", np.ones((2, 3)))),
+    "run-no-events": mutate_run(lambda g: g.__delitem__("events")),
+    "report-mathtext-channel": lambda p: write_run(p, channel_names=("F", "a$\\frac{1$")),
+    "run-channel-kind": mutate_run(lambda g: g["channels"].__setitem__(
+        0, tuple(b"hammer" if n == "kind" else g["channels"][0][n] for n in g["channels"].dtype.names))),
+}
+UFF_FILES = {"uff-lengths": uff_cut_short}
+
+
+def _prepare(r: Row, root: Path) -> Path:
+    d = root / r.name
+    d.mkdir()
+    files = {**BASE, **r.files}
+    if r.name in RUN_FILES:
+        files["run.h5"] = RUN_FILES[r.name]
+    if r.name in UFF_FILES:
+        files["f.uff"] = UFF_FILES[r.name]
+    for name, content in files.items():
+        target = d / name
+        if callable(content):
+            content(target)
+        elif isinstance(content, bytes):
+            target.write_bytes(content)
+        else:
+            target.write_text(content, encoding="utf-8")
+    return d
+
+
+@dataclass(frozen=True)
+class Outcome:
+    code: int | None
+    stderr: str
+    seconds: float
+
+
+def _run(r: Row, root: Path, exe: str) -> Outcome:
+    d = _prepare(r, root)
+    args = [a.replace("{d}", str(d)) for a in r.args]
+    t0 = time.monotonic()
+    try:
+        done = subprocess.run([exe, *args], capture_output=True, text=True, cwd=d, timeout=ROW_TIMEOUT_S,
+                              stdin=subprocess.DEVNULL)
+    except subprocess.TimeoutExpired as exc:
+        err = exc.stderr.decode(errors="replace") if isinstance(exc.stderr, bytes) else (exc.stderr or "")
+        return Outcome(None, err, time.monotonic() - t0)
+    return Outcome(done.returncode, done.stderr, time.monotonic() - t0)
+
+
+def _console_script() -> str:
+    exe = Path(sys.executable).with_name("flexmodal")
+    found = str(exe) if exe.exists() else shutil.which("flexmodal")
+    assert found, "the flexmodal console script is not installed (pip install -e .)"
+    return found
+
+
+@pytest.fixture(scope="module")
+def outcomes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Outcome]:
+    root = tmp_path_factory.mktemp("cli-table")
+    exe = _console_script()
+    with ThreadPoolExecutor(THREADS) as pool:
+        futures = {r.name: pool.submit(_run, r, root, exe) for r in ROWS}
+        return {name: f.result() for name, f in futures.items()}
+
+
+def test_table_covers_every_command_and_class() -> None:
+    commands = {r.args[0] for r in ROWS}
+    assert commands >= {"demo", "acquire", "sim", "frf", "identify", "predict", "compare", "diagnose",
+                        "report"}
+    assert len([r for r in ROWS if r.code == 2]) >= 80
+    assert len({r.name for r in ROWS}) == len(ROWS)
+
+
+@pytest.mark.parametrize("r", ROWS, ids=[r.name for r in ROWS])
+def test_row(r: Row, outcomes: dict[str, Outcome]) -> None:
+    out = outcomes[r.name]
+    assert out.code is not None, f"hung: no exit within {ROW_TIMEOUT_S} s; stderr: {out.stderr[-500:]}"
+    assert "Traceback" not in out.stderr, out.stderr[-2000:]
+    assert out.code == r.code, f"exit {out.code}, expected {r.code}; stderr: {out.stderr[-1000:]}"
+    if r.code == 2:
+        lines = out.stderr.strip().splitlines()
+        assert len(lines) == 1, f"expected one line on stderr, got {len(lines)}: {out.stderr[-1000:]}"
+        for word in r.words:
+            assert word in lines[0], f"{word!r} not in {lines[0]!r}"
+
+
+def test_summary_is_json_serialisable(outcomes: dict[str, Outcome]) -> None:
+    """The slowest rows, for the report (printed with -s); every row under the time limit."""
+    slowest = sorted(((o.seconds, n) for n, o in outcomes.items()), reverse=True)[:5]
+    print(json.dumps({"rows": len(outcomes), "slowest_s": slowest}))
+    assert all(o.seconds < ROW_TIMEOUT_S for o in outcomes.values())

@@ -1,0 +1,296 @@
+"""Fuzz every file loader: session and rig TOML, modal and poses CSV, UFF and HDF5 run files.
+
+Each property mutates a valid file (or its parsed document) at random and asserts that the loader
+either accepts it or raises its package's error type: nothing else escapes.  Known answers anchor the
+mutations: the unmutated inputs load, and the loaders' results for them are checked.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import tempfile
+import tomllib
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from conftest import REPO
+from fuzz_support import LONG_EXAMPLES, run_profile
+from hypothesis import given
+from hypothesis import strategies as st
+
+from flexmodal.daq.errors import DaqError
+from flexmodal.daq.session import load_session, parse_session
+from flexmodal.daq.store import Channel, RunWriter, list_runs, read_run
+from flexmodal.modal.errors import ModalError
+from flexmodal.modal.table import ModalTable, poses_from_csv
+from flexmodal.modal.uff import read_uff
+from flexmodal.models.errors import ModelError
+from flexmodal.models.rig import load_rig, parse_rig
+
+SESSIONS = REPO / "examples" / "sessions"
+RIGS = REPO / "examples" / "rigs"
+MODES = REPO / "examples" / "measured" / "seed003_table3_f1f2.csv"
+TEXT = st.characters(blacklist_categories=("Cs",))
+VALUES = st.recursive(
+    st.none() | st.booleans() | st.integers(-2**63, 2**63 - 1) | st.floats() | st.text(TEXT, max_size=12),
+    lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(TEXT, max_size=8), inner, max_size=3),
+    max_leaves=6)
+
+
+def _slots(node, out: list) -> list:
+    """Every (container, key) of a nested dict/list document."""
+    items = node.items() if isinstance(node, dict) else enumerate(node) if isinstance(node, list) else ()
+    for key, value in items:
+        out.append((node, key))
+        _slots(value, out)
+    return out
+
+
+@st.composite
+def mutated_doc(draw, doc: dict) -> dict:
+    """``doc`` with 1-3 values replaced by random values or deleted."""
+    doc = copy.deepcopy(doc)
+    for _ in range(draw(st.integers(1, 3))):
+        slots = _slots(doc, [])
+        if not slots:
+            break
+        container, key = slots[draw(st.integers(0, len(slots) - 1))]
+        if isinstance(container, dict) and draw(st.booleans()):
+            del container[key]
+        else:
+            container[key] = draw(VALUES)
+    return doc
+
+
+@st.composite
+def mutated_text(draw, text: str) -> bytes:
+    """``text`` with lines deleted or duplicated, random text or bytes inserted, or cut short."""
+    lines = text.splitlines(keepends=True)
+    for _ in range(draw(st.integers(1, 3))):
+        i = draw(st.integers(0, max(len(lines) - 1, 0)))
+        action = draw(st.sampled_from(["delete", "duplicate", "insert", "replace"]))
+        if action == "delete" and lines:
+            del lines[i]
+        elif action == "duplicate" and lines:
+            lines.insert(i, lines[i])
+        elif action == "insert":
+            lines.insert(i, draw(st.text(TEXT, max_size=30)))
+        elif lines:
+            lines[i] = draw(st.text(TEXT, max_size=30)) + "\n"
+    data = "".join(lines).encode()
+    if draw(st.booleans()):
+        at = draw(st.integers(0, len(data)))
+        data = data[:at] + draw(st.binary(max_size=8)) + data[at:]
+    if draw(st.integers(0, 4)) == 0:
+        data = data[:draw(st.integers(0, len(data)))]
+    return data
+
+
+def _loads_or(error: type[Exception], load, path: Path) -> None:
+    try:
+        load(path)
+    except error:
+        pass
+
+
+def _with_file(data: bytes, name: str, check) -> None:
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / name
+        path.write_bytes(data)
+        check(path)
+
+
+# -- session TOML -----------------------------------------------------------------------------------
+SESSION_FILE = SESSIONS / "serial-sim.toml"
+SESSION_DOC = tomllib.loads(SESSION_FILE.read_text(encoding="utf-8"))
+
+
+@given(mutated_doc(SESSION_DOC))
+def prop_session_doc(doc: dict) -> None:
+    try:
+        parse_session(doc, SESSION_FILE)
+    except DaqError:
+        pass
+
+
+@given(mutated_text(SESSION_FILE.read_text(encoding="utf-8")))
+def prop_session_text(data: bytes) -> None:
+    _with_file(data, "session.toml", lambda p: _loads_or(DaqError, load_session, p))
+
+
+# -- rig TOML ---------------------------------------------------------------------------------------
+RIG_FILE = RIGS / "demo_arm.toml"
+RIG_DOC = tomllib.loads(RIG_FILE.read_text(encoding="utf-8"))
+
+
+@given(mutated_doc(RIG_DOC))
+def prop_rig_doc(doc: dict) -> None:
+    try:
+        rig = parse_rig(doc, "rig.toml")
+    except ModelError:
+        return
+    for link in rig.links:  # what is accepted is physically meaningful
+        s = link.section
+        assert all(math.isfinite(v) and v > 0 for v in (link.length_m, s.EA_N, s.EI_Nm2, s.mass_per_m_kg))
+        assert link.elements is None or 1 <= link.elements <= 500
+
+
+@given(mutated_text(RIG_FILE.read_text(encoding="utf-8")))
+def prop_rig_text(data: bytes) -> None:
+    _with_file(data, "rig.toml", lambda p: _loads_or(ModelError, load_rig, p))
+
+
+# -- modal and poses CSV ----------------------------------------------------------------------------
+@given(mutated_text(MODES.read_text(encoding="utf-8")))
+def prop_modal_csv(data: bytes) -> None:
+    def check(p: Path) -> None:
+        try:
+            table = ModalTable.read_csv(p)
+        except ModalError:
+            return
+        frame = table.frame
+        assert frame["config"].map(lambda c: isinstance(c, str) and c.strip() != "").all()
+        assert np.isfinite(frame["freq_hz"].to_numpy(float)).all()
+        assert (frame["mode"] >= 1).all()
+    _with_file(data, "modes.csv", check)
+
+
+POSES = "config,pose.theta_deg,pose.payload_kg\ntheta0,0,0\ntheta60,60,0.5\ntheta90,90,1\n"
+
+
+@given(mutated_text(POSES))
+def prop_poses_csv(data: bytes) -> None:
+    def check(p: Path) -> None:
+        try:
+            poses = poses_from_csv(p)
+        except ModalError:
+            return
+        values = [v for pose in poses.values() for v in pose.values()]
+        assert all(isinstance(v, float) and math.isfinite(v) for v in values)
+    _with_file(data, "poses.csv", check)
+
+
+# -- UFF --------------------------------------------------------------------------------------------
+def _uff_text() -> str:
+    import pyuff
+
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "frf.uff"
+        f = np.linspace(0.0, 200.0, 41)
+        H = 1.0 / (1.0 - (f / 80.0) ** 2 + 0.04j * f / 80.0)
+        sets = [pyuff.prepare_58(func_type=4, rsp_node=k, rsp_dir=3, ref_node=9, ref_dir=3,
+                                 ordinate_spec_data_type=12, orddenom_spec_data_type=13,
+                                 abscissa_spec_data_type=18, data=H * k, x=f, abscissa_spacing=1,
+                                 abscissa_min=0.0, abscissa_inc=5.0, num_pts=41) for k in (1, 2)]
+        pyuff.UFF(str(path)).write_sets(sets, mode="overwrite")
+        return path.read_text()
+
+
+UFF_TEXT = _uff_text()
+
+
+@given(mutated_text(UFF_TEXT))
+def prop_uff(data: bytes) -> None:
+    _with_file(data, "frf.uff", lambda p: _loads_or(ModalError, read_uff, p))
+
+
+# -- HDF5 run files ---------------------------------------------------------------------------------
+def _run_bytes() -> bytes:
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "run.h5"
+        channels = [Channel("F", "force", "N"), Channel("a1", "acceleration", "m/s^2")]
+        with RunWriter(path, "r1", sample_rate_hz=512.0, channels=channels, excitation="random",
+                       pose={"theta_deg": 30.0}) as w:
+            w.append(np.random.default_rng(0).standard_normal((1024, 2)))
+        return path.read_bytes()
+
+
+RUN_BYTES = _run_bytes()
+ATTR_VALUES = (st.integers(-2**31, 2**31) | st.floats() | st.text(TEXT, max_size=20)
+               | st.lists(st.floats(allow_nan=False), min_size=1, max_size=3).map(np.array))
+DATASETS = st.sampled_from([
+    np.arange(6.0), np.zeros((3, 2)), np.zeros((3, 5), "i4"), np.array([b"a", b"bc"]),
+    np.zeros(2, [("name", "S4"), ("kind", "S8")]), np.zeros(0), np.zeros((0, 2)),
+    np.zeros(2, [("kind", "f8"), ("sample_index", "i8"), ("count", "i8"), ("detail", "S4")]),
+])
+
+
+@st.composite
+def run_mutation(draw):
+    kind = draw(st.sampled_from(["set_attr", "del_attr", "dataset", "del_dataset", "truncate", "runs"]))
+    if kind in ("set_attr", "del_attr"):
+        name = draw(st.sampled_from(["sample_rate_hz", "start_time", "excitation", "pose"]))
+        return kind, name, draw(ATTR_VALUES) if kind == "set_attr" else None
+    if kind in ("dataset", "del_dataset"):
+        name = draw(st.sampled_from(["samples", "channels", "events"]))
+        return kind, name, draw(DATASETS) if kind == "dataset" else None
+    if kind == "truncate":
+        return kind, None, draw(st.integers(0, len(RUN_BYTES) - 1))
+    return kind, None, draw(DATASETS)
+
+
+def _apply(path: Path, mutation) -> None:
+    kind, name, value = mutation
+    if kind == "truncate":
+        path.write_bytes(RUN_BYTES[:value])
+        return
+    path.write_bytes(RUN_BYTES)
+    with h5py.File(path, "r+") as f:
+        g = f["runs/r1"]
+        if kind == "set_attr":
+            g.attrs[name] = value
+        elif kind == "del_attr":
+            del g.attrs[name]
+        elif kind == "runs":
+            del f["runs"]
+            f["runs"] = value
+        else:
+            del g[name]
+            if kind == "dataset":
+                g[name] = value
+
+
+@given(run_mutation())
+def prop_run_file(mutation) -> None:
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "run.h5"
+        _apply(path, mutation)
+        try:
+            for rid in list_runs(path):
+                run = read_run(path, rid)
+                assert run.samples.ndim == 2 and run.samples.shape[1] == len(run.channels)
+                assert math.isfinite(run.sample_rate_hz) and run.sample_rate_hz > 0
+        except DaqError:
+            pass
+
+
+# -- known answers: the unmutated inputs load ---------------------------------------------------------
+def test_unmutated_inputs_load(tmp_path: Path) -> None:
+    assert parse_session(SESSION_DOC, SESSION_FILE).sample_rate_hz == 2048.0
+    assert [lk.name for lk in parse_rig(RIG_DOC, "rig.toml").links] == ["link1", "link2"]
+    assert ModalTable.read_csv(MODES).freq_hz("theta60").tolist() == [27.0, 74.5]
+    (tmp_path / "poses.csv").write_text(POSES)
+    assert poses_from_csv(tmp_path / "poses.csv")["theta60"] == {"theta_deg": 60.0, "payload_kg": 0.5}
+    (tmp_path / "frf.uff").write_text(UFF_TEXT)
+    frfs = read_uff(tmp_path / "frf.uff")
+    assert frfs.H.shape == (2, 1, 41) and abs(frfs.H[1, 0, 0] - 2.0) < 1e-9
+    (tmp_path / "run.h5").write_bytes(RUN_BYTES)
+    assert read_run(tmp_path / "run.h5", "r1").samples.shape == (1024, 2)
+
+
+DEFAULT = {prop_session_doc: 60, prop_session_text: 30, prop_rig_doc: 60, prop_rig_text: 30,
+           prop_modal_csv: 40, prop_poses_csv: 40, prop_uff: 25, prop_run_file: 30}
+
+
+@pytest.mark.parametrize("prop", list(DEFAULT), ids=[p.__name__ for p in DEFAULT])
+def test_fuzz(prop) -> None:
+    run_profile(prop, DEFAULT[prop])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("prop", list(DEFAULT), ids=[p.__name__ for p in DEFAULT])
+def test_long_fuzz(prop) -> None:
+    run_profile(prop, LONG_EXAMPLES, long=True)

@@ -1,0 +1,64 @@
+"""CSV tables (modal tables, POSES.csv): UTF-8 text with one header line and equally long rows.
+
+:func:`read_table` reads a table into a pandas DataFrame after checking what pandas lets through
+silently or reports over several lines: an empty file, a header naming a column twice, rows with more
+or fewer fields than the header, missing required columns and empty cells in them.  Failures raise the
+calling package's error type with the file, line and column named.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from collections.abc import Sequence
+from pathlib import Path
+
+import pandas as pd
+
+from flexmodal.valid_text import ErrorType, one_line, read_text
+
+
+def read_table(path: str | Path, error: ErrorType, *, required: Sequence[str] = (),
+               text_columns: Sequence[str] = (), what: str = "CSV table") -> pd.DataFrame:
+    """Read a comma-separated table; ``required`` columns must exist and have no empty cell,
+    ``text_columns`` are kept as strings (e.g. ``config``)."""
+    text = read_text(path, error, what)
+    try:
+        rows = [(n, r) for n, r in _numbered_rows(text) if any(cell.strip() for cell in r)]
+    except csv.Error as exc:
+        raise error(f"{path}: not a readable CSV ({one_line(exc)})") from None
+    if not rows:
+        need = f" (expected a header line with {', '.join(required)})" if required else ""
+        raise error(f"{path}: empty {what}{need}")
+    header = [name.strip() for name in rows[0][1]]
+    seen: set[str] = set()
+    for name in header:
+        if name in seen and name:
+            raise error(f"{path}: line {rows[0][0]}: column {name!r} appears twice in the header")
+        seen.add(name)
+    for line, row in rows[1:]:
+        if len(row) != len(header):
+            raise error(f"{path}: line {line}: {len(row)} fields, the header has {len(header)}")
+    missing = [c for c in required if c not in seen]
+    if missing:
+        raise error(f"{path}: missing required column {missing[0]!r} (columns: {', '.join(header)})")
+    try:
+        frame = pd.read_csv(io.StringIO(text), dtype={c: str for c in text_columns if c in seen},
+                            skipinitialspace=True)
+    except (pd.errors.ParserError, ValueError) as exc:
+        raise error(f"{path}: not a readable CSV ({one_line(exc)})") from None
+    frame.columns = [str(c).strip() for c in frame.columns]
+    for col in required:
+        empty = frame[col].isna().to_numpy() | (frame[col].astype(str).str.strip() == "").to_numpy()
+        if empty.any():
+            i = int(empty.argmax())  # pandas keeps some lines csv drops (only a form feed, say)
+            where = f"line {rows[1 + i][0]}" if 1 + i < len(rows) else f"data row {i + 1}"
+            raise error(f"{path}: {where}: empty {col!r} cell")
+    return frame
+
+
+def _numbered_rows(text: str):
+    """(line number, fields) of every record of ``text`` (the line where the record ends)."""
+    reader = csv.reader(io.StringIO(text))
+    for row in reader:
+        yield reader.line_num, row

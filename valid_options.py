@@ -1,0 +1,79 @@
+"""Command-line option values: argparse ``type=`` callables that accept only sensible numbers.
+
+``float("inf")``, ``float("nan")`` and out-of-range integers pass argparse's plain ``type=float`` /
+``type=int``; these callables reject them with an :class:`argparse.ArgumentTypeError`, which the CLI
+prints as one line naming the option and the value (exit 2).  Imports only the standard library, so
+registering the commands stays cheap.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections.abc import Callable
+
+
+def _bounds_text(lo: float | None, hi: float | None, lo_open: bool, hi_open: bool) -> str:
+    parts = []
+    if lo is not None:
+        parts.append(f"{'>' if lo_open else '>='} {lo:g}")
+    if hi is not None:
+        parts.append(f"{'<' if hi_open else '<='} {hi:g}")
+    return " and ".join(parts)
+
+
+def real(lo: float | None = None, hi: float | None = None, *, lo_open: bool = False,
+         hi_open: bool = False, name: str = "number") -> Callable[[str], float]:
+    """A finite float within [lo, hi] (an open end with ``lo_open``/``hi_open``)."""
+    bounds = _bounds_text(lo, hi, lo_open, hi_open)
+    expected = f"a finite {name}" + (f" {bounds}" if bounds else "")
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
+        bad = (not math.isfinite(value)
+               or (lo is not None and (value < lo or (lo_open and value == lo)))
+               or (hi is not None and (value > hi or (hi_open and value == hi))))
+        if bad:
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
+        return value
+
+    parse.__name__ = name
+    return parse
+
+
+def integer(lo: int | None = None, hi: int | None = None, *, name: str = "whole number"
+            ) -> Callable[[str], int]:
+    """A whole number within [lo, hi]."""
+    bounds = _bounds_text(lo, hi, False, False)
+    expected = f"a {name}" + (f" {bounds}" if bounds else "")
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text.strip())
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
+        if (lo is not None and value < lo) or (hi is not None and value > hi):
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
+        return value
+
+    parse.__name__ = name
+    return parse
+
+
+# The option kinds the commands share.
+seconds = real(0.0, lo_open=True, name="duration in seconds")
+hertz = real(0.0, name="frequency in Hz")
+rate_hz = real(0.0, 1e7, lo_open=True, name="sample rate in Hz")
+fraction = real(0.0, 1.0, name="fraction")
+overlap = real(0.0, 1.0, hi_open=True, name="overlap fraction")
+tcp_port = integer(0, 65535, name="TCP port")
+workers = integer(0, 256, name="number of worker processes")
+seed = integer(0, 2**32 - 1, name="seed")
+instant = real(0.0, name="time in seconds")
+probability = real(0.0, 1.0, hi_open=True, name="fraction")
+finite = real()
+positive_hz = real(0.0, lo_open=True, name="frequency in Hz")
+model_order = integer(2, 400, name="model order")
