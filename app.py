@@ -71,8 +71,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except UsageError as exc:
         print(exc, file=sys.stderr)
         return 2
-    except _package_errors() as exc:
-        print(f"flexmodal: error: {exc}", file=sys.stderr)
+    except _package_errors() as exc:  # one line even when a quoted library message had several
+        print(f"flexmodal: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2
     except (FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError) as exc:
         where = exc.filename if exc.filename is not None else ""

@@ -354,7 +354,8 @@ def open_read(path: str | Path) -> h5py.File:
     end-of-file check.  A file with the open-for-writing flags set (a live writer, or a killed one)
     opens in SWMR read mode, which skips that check and would retry a truncated file's missing
     metadata for ever; its size is therefore first compared with the end-of-file address the
-    superblock stores (HDF5 file format specification, superblock version 2/3).
+    superblock stores (HDF5 file format specification, superblock version 2/3, 8-byte addresses:
+    bytes 28-35).
     """
     p = Path(path)
     head, size = _superblock(p)
@@ -362,17 +363,19 @@ def open_read(path: str | Path) -> h5py.File:
         if not h5py.is_hdf5(p):  # a user block moves the signature to 512, 1024, ... bytes
             raise DaqError(f"{p}: not an HDF5 file")
         return _h5_open(p, swmr=False)
-    live = len(head) == SUPERBLOCK_BYTES and head[8] in (2, 3) and head[9] == 8 and head[11] != 0
-    if not live:
+    if len(head) > 8 and head[8] not in (2, 3):  # superblock 0/1: never SWMR; HDF5 checks the size
         return _h5_open(p, swmr=False)
+    if len(head) < SUPERBLOCK_BYTES:
+        raise DaqError(f"{p}: truncated HDF5 file ({size} bytes, not even a superblock)")
+    live = head[11] != 0
     stored_eof = int.from_bytes(head[28:36], "little")
-    if size < stored_eof:
+    if size < stored_eof and live:
         time.sleep(LIVE_RECHECK_S)
         head, size = _superblock(p)
         stored_eof = int.from_bytes(head[28:36], "little")
-        if size < stored_eof:
-            raise DaqError(f"{p}: truncated HDF5 file ({size} of {stored_eof} bytes)")
-    return _h5_open(p, swmr=True)
+    if size < stored_eof:
+        raise DaqError(f"{p}: truncated HDF5 file ({size} of {stored_eof} bytes)")
+    return _h5_open(p, swmr=live)
 
 
 def _h5_open(path: Path, *, swmr: bool) -> h5py.File:

@@ -209,7 +209,8 @@ def _run_bytes() -> bytes:
 
 
 RUN_BYTES = _run_bytes()
-ATTR_VALUES = (st.integers(-2**31, 2**31) | st.floats() | st.text(TEXT, max_size=20)
+ATTR_TEXT = st.characters(blacklist_categories=("Cs",), blacklist_characters="\x00")  # HDF5 strings
+ATTR_VALUES = (st.integers(-2**31, 2**31) | st.floats() | st.text(ATTR_TEXT, max_size=20)
                | st.lists(st.floats(allow_nan=False), min_size=1, max_size=3).map(np.array))
 DATASETS = st.sampled_from([
     np.arange(6.0), np.zeros((3, 2)), np.zeros((3, 5), "i4"), np.array([b"a", b"bc"]),

@@ -1,0 +1,177 @@
+"""Known answers for the validation modules of issue 13 (valid_text, valid_csv, valid_options,
+valid_output, daq.run_schema / daq.store.open_read, models.rig_schema, modal.valid_uff)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from flexmodal import valid_options as opt
+from flexmodal.daq.errors import DaqError
+from flexmodal.daq.store import Channel, RunWriter, list_runs, open_read, read_run
+from flexmodal.modal.errors import ModalError
+from flexmodal.modal.valid_uff import check_functions
+from flexmodal.models.errors import ModelError
+from flexmodal.models.rig_schema import check_document
+from flexmodal.valid_csv import read_table
+from flexmodal.valid_output import hdf5_output, output_dir, output_file
+from flexmodal.valid_text import decode_text, one_line, read_toml
+
+
+class Bad(ValueError):
+    pass
+
+
+def test_decode_text_names_line_and_byte() -> None:
+    assert decode_text("\ufeffa = 1\n".encode(), "f", Bad) == "a = 1\n"  # byte-order mark dropped
+    with pytest.raises(Bad, match=r"^f: line 3: byte 0xb5 at offset 9 is not UTF-8"):
+        decode_text(b"a\nbc\nx = \xb5\n", "f", Bad)
+    with pytest.raises(Bad, match=r"^f: line 2: binary data \(NUL byte at offset 3\)"):
+        decode_text(b"ab\n\x00", "f", Bad)
+
+
+def test_read_toml_one_line(tmp_path: Path) -> None:
+    p = tmp_path / "x.toml"
+    p.write_text("a = 1\nb = = 2\n")
+    with pytest.raises(Bad) as info:
+        read_toml(p, Bad)
+    assert "\n" not in str(info.value) and "line 2" in str(info.value)
+    with pytest.raises(Bad, match="not found"):
+        read_toml(tmp_path / "none.toml", Bad)
+    with pytest.raises(Bad, match="is a directory"):
+        read_toml(tmp_path, Bad)
+    assert one_line("a\n  b\tc") == "a b c" and len(one_line("x" * 1000)) == 300
+
+
+def test_read_table(tmp_path: Path) -> None:
+    p = tmp_path / "t.csv"
+    p.write_text("config,mode,freq_hz\n007,1,2.5\n\nx,2,3\n")
+    df = read_table(p, Bad, required=("config", "freq_hz"), text_columns=("config",))
+    assert df["config"].tolist() == ["007", "x"] and df["freq_hz"].tolist() == [2.5, 3.0]
+    cases = {"": "empty CSV table", "a,a\n1,2\n": "line 1: column 'a' appears twice",
+             "config,mode,freq_hz\nx,1\n": "line 2: 2 fields, the header has 3",
+             "config,mode,freq_hz\nx,1,2,3\n": "line 2: 4 fields",
+             "config,mode\nx,1\n": "missing required column 'freq_hz'",
+             "config,mode,freq_hz\nx,1,2\n ,2,3\n": "line 3: empty 'config' cell"}
+    for text, message in cases.items():
+        p.write_text(text)
+        with pytest.raises(Bad, match=message):
+            read_table(p, Bad, required=("config", "freq_hz"), text_columns=("config",))
+
+
+def test_option_types() -> None:
+    assert opt.seconds("2.5") == 2.5 and opt.overlap("0") == 0.0 and opt.tcp_port("65535") == 65535
+    for parse, text in [(opt.seconds, "inf"), (opt.seconds, "nan"), (opt.seconds, "0"), (opt.overlap, "1"),
+                        (opt.fraction, "1.01"), (opt.tcp_port, "99999"), (opt.workers, "-1"),
+                        (opt.model_order, "1"), (opt.integer(1), "2.5"), (opt.hertz, "-1e-9")]:
+        with pytest.raises(argparse.ArgumentTypeError, match=repr(text).replace(".", r"\.")):
+            parse(text)
+
+
+def test_output_paths(tmp_path: Path) -> None:
+    assert output_file(tmp_path / "a.csv", Bad) == tmp_path / "a.csv"
+    assert output_dir(tmp_path / "new" / "deeper", Bad) == tmp_path / "new" / "deeper"
+    assert not (tmp_path / "new").exists()  # checked, not created
+    (tmp_path / "f.txt").write_text("x")
+    for call, message in [(lambda: output_file(tmp_path / "no" / "a.csv", Bad), "does not exist"),
+                          (lambda: output_file(tmp_path, Bad), "is a directory"),
+                          (lambda: output_file("/proc/a.csv", Bad), "cannot write in /proc"),
+                          (lambda: output_dir(tmp_path / "f.txt", Bad), "not a directory"),
+                          (lambda: output_dir(tmp_path / "f.txt" / "sub", Bad), "not a directory"),
+                          (lambda: hdf5_output(tmp_path / "f.txt", Bad), "not an HDF5 file")]:
+        with pytest.raises(Bad, match=message):
+            call()
+    assert not list(tmp_path.glob(".flexmodal-probe-*"))
+
+
+def _write(path: Path, n: int = 2048) -> None:
+    with RunWriter(path, "r1", sample_rate_hz=512.0, channels=[Channel("F", "force", "N")],
+                   excitation="impact", pose={}) as w:
+        w.append(np.arange(n, dtype=float)[:, None])
+
+
+def test_truncated_file_fails_at_once(tmp_path: Path) -> None:
+    p = tmp_path / "run.h5"
+    _write(p)
+    data = p.read_bytes()
+    for cut in (0, 8, 47, 100, len(data) // 2, len(data) - 1):
+        p.write_bytes(data[:cut])
+        t0 = time.monotonic()
+        with pytest.raises(DaqError, match=r"run\.h5: (truncated HDF5 file|not an HDF5 file)"):
+            list_runs(p)
+        assert time.monotonic() - t0 < 2.0
+
+
+WRITER = """
+import sys, time, numpy as np
+from flexmodal.daq.store import Channel, RunWriter
+w = RunWriter(sys.argv[1], "live", sample_rate_hz=512.0, channels=[Channel("F", "force", "N")],
+              excitation="random", pose={}, flush_interval_s=0.05)
+w.append(np.ones((1000, 1)))
+w.flush()
+print("ready", flush=True)
+sys.stdin.readline()
+w.append(np.ones((500, 1)))
+w.flush()
+print("more", flush=True)
+sys.stdin.readline()
+w.close()
+"""
+
+
+def test_live_file_of_another_writer_still_reads(tmp_path: Path) -> None:
+    """SWMR: a run another process is writing reads (and grows) while its superblock says 'open'."""
+    p = tmp_path / "live.h5"
+    proc = subprocess.Popen([sys.executable, "-c", WRITER, str(p)], stdin=subprocess.PIPE,
+                            stdout=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout.readline().strip() == "ready"
+        assert p.read_bytes()[11] != 0  # the open-for-writing flags are set: the SWMR path is taken
+        assert read_run(p, "live").samples.shape == (1000, 1)
+        proc.stdin.write("\n")
+        proc.stdin.flush()
+        assert proc.stdout.readline().strip() == "more"
+        assert read_run(p, "live").samples.shape == (1500, 1)
+        proc.stdin.write("\n")
+        proc.stdin.flush()
+        assert proc.wait(30) == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    with open_read(p) as f:
+        assert f["runs/live/samples"].shape == (1500, 1)
+
+
+def test_rig_document_shapes() -> None:
+    good = {"link": [{"name": "a", "elements": 500, "section": {"outer_m": 1000.0}}], "base": {}}
+    check_document(good, "r.toml")
+    cases = [({"base": "x"}, r"r.toml: base: must be a \[base\] table"),
+             ({"joint": 3}, r"joint: must be \[\[joint\]\] tables"),
+             ({"link": [{"elements": 501}]}, r"link\[0\].elements: 501 is more than 500"),
+             ({"link": [{"section": {"outer_m": 1e300}}]}, r"link\[0\].section.outer_m: 1e\+300 m"),
+             ({"material": {"al": {"E_Pa": 1e300, "rho_kg_m3": 1}}}, "material.al.E_Pa"),
+             ({"joint": [{"angle": 5}]}, r"joint\[0\].angle: must name a pose variable"),
+             ({"joint": [{"angle_deg": math.nan}]}, r"joint\[0\].angle_deg: must be a finite number")]
+    for doc, message in cases:
+        with pytest.raises(ModelError, match=message):
+            check_document(doc, "r.toml")
+
+
+def test_uff_records() -> None:
+    ok = {"func_type": 4, "rsp_node": 1, "rsp_dir": 3, "ref_node": 2, "ref_dir": 3, "x": np.arange(3.0),
+          "data": np.ones(3, complex), "num_pts": 3}
+    check_functions("f.uff", [ok])
+    short = {"x": np.arange(1.0), "data": np.ones(1), "num_pts": 1}
+    for change, message in [({"num_pts": 5}, "num_pts = 5"), ({"x": np.array([0.0, 2.0, 1.0])}, "increase"),
+                            ({"data": np.array([1, np.nan, 1])}, "NaN"), (short, "2 points")]:
+        with pytest.raises(ModalError, match=message):
+            check_functions("f.uff", [{**ok, **change}])
+    with pytest.raises(ModalError, match="missing field 'data'"):
+        check_functions("f.uff", [{k: v for k, v in ok.items() if k != "data"}])
