@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from flexmodal.modal.errors import ModalError
+from flexmodal.modal.indicators import frac
 from flexmodal.modal.spectra import Spectra, spectra_of_segments
 from flexmodal.modal.windows import window
 
@@ -66,11 +67,6 @@ def _double_hit(force: np.ndarray, fraction: float) -> bool:
     k = int(np.argmax(f))
     ended = np.flatnonzero(f[k:] < 0.05 * f[k])
     return bool(ended.size and np.any(f[k + ended[0]:] > fraction * f[k]))
-
-
-def _frac(a: np.ndarray, b: np.ndarray) -> float:
-    """Frequency response assurance criterion of two FRFs (1 = identical shape over frequency)."""
-    return float(np.abs(np.vdot(a, b)) ** 2 / (np.vdot(a, a).real * np.vdot(b, b).real))
 
 
 def average_weights(n: int, averaging: str = "linear", n_exp: int = 4) -> np.ndarray:
@@ -139,7 +135,7 @@ def impact_spectra(samples: np.ndarray, sample_rate_hz: float, force_col: int, o
         for j, k in enumerate(good):
             rest = np.delete(per_hit, j, axis=0)
             others = np.median(rest.real, axis=0) + 1j * np.median(rest.imag, axis=0)
-            value = _frac(per_hit[j].ravel(), others.ravel())
+            value = float(frac(per_hit[j].ravel(), others.ravel()))
             if value < min_frac:
                 reasons[k] = f"low coherence (FRAC {value:.2f} against the other hits)"
     hits = [Hit(int(s), int(t), r) for s, t, r in zip(starts, trig, reasons, strict=True)]
