@@ -10,8 +10,10 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
 from flexmodal.modal.damping import half_power
 from flexmodal.modal.errors import ModalError
@@ -200,7 +202,7 @@ def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: 
     if not np.all(np.isfinite(H[..., np.asarray(freq_hz) > 0])):
         raise ModalError("identify: the FRFs contain NaN or infinite values")
     if decay_rate_per_s < 0 or not np.isfinite(decay_rate_per_s):
-        raise ModalError(f"identify: exponential window decay {decay_rate_per_s} 1/s must be >= 0")
+        raise ModalError(f"identify: exponential window decay {decay_rate_per_s:g} 1/s must be >= 0")
     band = _band(freq_hz, fmin, fmax)
     f, Hb = np.asarray(freq_hz, float)[band], H[..., band]
     warnings: list[str] = []
@@ -265,6 +267,29 @@ def modes_table(modes: Modes, outputs: Sequence[str], *, config: str = "run",
         row.update({f"shape.{name}": float(modes.shapes[j, r]) for j, name in enumerate(outputs)})
         records.append(row)
     return ModalTable.from_records(records, source=f"identified ({modes.method})")
+
+
+def synthesis_path(out: str | Path) -> Path:
+    """Where :func:`write_synthesis_csv` writes for the modal table ``out``: MODES.synthesis.csv."""
+    p = Path(out)
+    return p.with_name(p.stem + ".synthesis.csv")
+
+
+def write_synthesis_csv(out: str | Path, modes_by_config: Mapping[str, tuple[Modes, Sequence[str]]]
+                        ) -> Path:
+    """Write the FRAC of every measured and synthesised FRF (columns config, output, input = the
+    1-based reference number, synthesis_corr) next to the modal table ``out``; configurations
+    identified without a synthesis (peak picking) are left out."""
+    rows = []
+    for config, (modes, outputs) in modes_by_config.items():   # a loop over configurations
+        corr = modes.frf_synthesis_corr
+        if corr is not None:
+            rows += [{"config": config, "output": outputs[o], "input": i + 1,
+                      "synthesis_corr": float(corr[o, i])} for o, i in np.ndindex(*corr.shape)]
+    path = synthesis_path(out)
+    pd.DataFrame(rows, columns=["config", "output", "input", "synthesis_corr"]).to_csv(
+        path, index=False, float_format="%.9g")
+    return path
 
 
 def identify_modes(freq_hz: np.ndarray, H: np.ndarray, *, outputs: Sequence[str] | None = None,
