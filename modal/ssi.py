@@ -27,6 +27,7 @@ import numpy as np
 import scipy.fft
 import scipy.linalg
 import scipy.signal
+from threadpoolctl import threadpool_limits
 
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.identify import Modes
@@ -161,32 +162,45 @@ def ssi_cov(y: np.ndarray, sample_rate_hz: float, *, references: Sequence[int] |
     R = covariances(y, refs, 2 * s)
     lag = np.arange(s)[:, None] + np.arange(s)[None, :] + 1                   # [a, b] -> a + b + 1
     H = R[lag].transpose(0, 2, 1, 3).reshape(s * n_ch, s * len(refs))
-    U, sv, _ = scipy.linalg.svd(H, full_matrices=False, check_finite=False)
-    nmax = max_order
-    Qm, Rm = scipy.linalg.qr(U[:-n_ch, :nmax], mode="economic", check_finite=False)
-    M = Qm.T @ U[n_ch:, :nmax]
-    top = U[:n_ch, :nmax]
     orders = list(range(min_order, max_order + 1, order_step))
-    lo = fmin if fmin is not None else 0.0
-    hi = min(fmax if fmax is not None else np.inf, 0.5 * fs)
-    poles, shapes = [], []
-    for n in orders:   # a loop over model orders: one n x n triangular solve and eigenproblem each
-        X = scipy.linalg.solve_triangular(Rm[:n, :n], M[:n, :n], check_finite=False)
-        mu, psi = np.linalg.eig(X)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            lam = np.log(mu) * fs
-        f = np.abs(lam) / (2 * np.pi)
-        zeta = -lam.real / np.abs(lam)
-        keep = np.isfinite(lam) & (lam.imag > 0) & (zeta > 0) & (zeta < ZETA_MAX) & (f >= lo) & (f <= hi)
-        phi = top[:, :n] @ psi[:, keep]
-        good = (mpc(phi) >= mpc_min) & (mpd(phi) <= mpd_max_deg)
-        idx = np.argsort(f[keep][good])
-        poles.append(lam[keep][good][idx])
-        shapes.append(phi[:, good][:, idx])
+    band = (fmin if fmin is not None else 0.0, min(fmax if fmax is not None else np.inf, 0.5 * fs))
+    # one BLAS thread: the matrices are at most a few hundred wide (threads only spin on them)
+    with threadpool_limits(1, "blas"):
+        U, sv, _ = scipy.linalg.svd(H, full_matrices=False, check_finite=False)
+        found = _poles(U, n_ch, orders, fs, band, mpc_min, mpd_max_deg)
+    poles, shapes = [p for p, _ in found], [s for _, s in found]
     stab = stability_flags(orders, poles, shapes, df=df, dz=dz, mac_min=mac_min)
     all_shapes = np.hstack([np.zeros((n_ch, 0), complex), *shapes])
     modes = _select(stab, all_shapes, min_fraction)
     return SsiResult(stab, all_shapes, mpc(all_shapes), mpd(all_shapes), modes, sv, fs, refs)
+
+
+def _poles(U: np.ndarray, n_ch: int, orders: list[int], fs: float, band: tuple[float, float],
+           mpc_min: float, mpd_max_deg: float) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Validated poles (rad/s, ascending frequency) and shapes [n_ch, n_poles] of every order from the
+    left singular vectors ``U`` of the Hankel matrix (see module docstring)."""
+    nmax = orders[-1]
+    Qm, Rm = scipy.linalg.qr(U[:-n_ch, :nmax], mode="economic", check_finite=False)
+    M = Qm.T @ U[n_ch:, :nmax]
+    top = U[:n_ch, :nmax]
+    found = []
+    for n in orders:   # a loop over model orders: one n x n triangular solve and eigenproblem each
+        X = scipy.linalg.solve_triangular(Rm[:n, :n], M[:n, :n], check_finite=False)
+        # LAPACK dgeev (right vectors only): half the time of numpy.linalg.eig, which also builds
+        # complex vectors for every eigenvalue; a pair wr +- i wi has vectors vr[:, j] +- i vr[:, j+1]
+        wr, wi, _, vr, _ = scipy.linalg.lapack.dgeev(X, compute_vl=0, overwrite_a=1)
+        upper = np.flatnonzero(wi > 0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            lam = np.log(wr[upper] + 1j * wi[upper]) * fs
+        f = np.abs(lam) / (2 * np.pi)
+        zeta = -lam.real / np.abs(lam)
+        keep = np.isfinite(lam) & (zeta > 0) & (zeta < ZETA_MAX) & (f >= band[0]) & (f <= band[1])
+        j = upper[keep]
+        phi = top[:, :n] @ (vr[:, j] + 1j * vr[:, j + 1])
+        good = (mpc(phi) >= mpc_min) & (mpd(phi) <= mpd_max_deg)
+        idx = np.argsort(f[keep][good])
+        found.append((lam[keep][good][idx], phi[:, good][:, idx]))
+    return found
 
 
 def _select(stab: Stabilisation, shapes: np.ndarray, min_fraction: float) -> Modes:
