@@ -12,14 +12,34 @@ from __future__ import annotations
 import numpy as np
 
 from flexmodal.daq.dbc import load_message
-from flexmodal.daq.devices import Block, DeviceLost
+from flexmodal.daq.devices import Block, DeviceLost, Driver
 from flexmodal.daq.errors import DaqError
 
 COUNTER_SIGNAL = "Seq"
 MAX_FRAMES_PER_READ = 20000
 
 
-class CanDriver:
+class CanDriver(Driver):
+    """Samples of one DBC message on a python-can bus (see the module docstring)."""
+
+    protocol = "can"
+
+    @classmethod
+    def parse_device(cls, t, name):
+        """``interface`` (python-can), ``channel``, ``bitrate``, ``dbc`` file, ``message`` name."""
+        from flexmodal.daq.session import Device
+
+        t.reject_unknown({"interface", "channel", "bitrate", "dbc", "message"})
+        interface = t.get("interface", str)
+        channel = t.port("channel") if interface == "slcan" else t.get("channel", str)
+        return Device(name, cls.protocol, interface=interface, channel=channel,
+                      bitrate=t.get("bitrate", int, 500000), dbc=t.file("dbc", "dbc file"),
+                      message=t.get("message", str, ""))
+
+    @classmethod
+    def known_sources(cls, device):
+        return None  # the DBC message's signals, checked when the driver loads the DBC file
+
     def __init__(self, device, sample_rate_hz: float) -> None:
         self.name = device.name
         self.device = device

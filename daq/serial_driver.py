@@ -8,15 +8,29 @@ import time
 
 import serial
 
-from flexmodal.daq.devices import Block, DeviceLost, unwrap
+from flexmodal.daq.devices import Block, DeviceLost, Driver, unwrap
 from flexmodal.daq.serial_frames import SEQ_MODULUS, BinaryDecoder, CsvDecoder
 
 READ_TIMEOUT_S = 0.02
 READ_MAX_BYTES = 1 << 20
 
 
-class SerialDriver:
+class SerialDriver(Driver):
     """A device streaming binary frames or CSV lines; sample index from the frame sequence counter."""
+
+    protocol = "serial"
+
+    @classmethod
+    def parse_device(cls, t, name):
+        """``port`` (path or pyserial URL), ``baud``, ``framing``, ``sources`` (the frame's columns)."""
+        from flexmodal.daq.session import Device
+
+        t.reject_unknown({"port", "baud", "framing", "sources"})
+        port = t.port("port")
+        sources = t.get("sources", list, check=lambda v: v and all(isinstance(s, str) for s in v),
+                        why="must be a non-empty list of column names")
+        return Device(name, cls.protocol, port=port, baud=t.get("baud", int, 115200),
+                      framing=t.choice("framing", ("binary", "csv"), "binary"), sources=tuple(sources))
 
     def __init__(self, device, sample_rate_hz: float) -> None:
         self.name = device.name
