@@ -28,6 +28,8 @@ from flexmodal.daq.store import CHANNEL_KINDS, EXCITATIONS, Channel
 SIMULATOR_PORT = "@simulator"  # placeholder for the endpoint of the session's own simulator
 REGISTER_TYPES = {"int16": 1, "uint16": 1, "int32": 2, "uint32": 2, "float32": 2}
 G_M_PER_S2 = 9.80665
+NUMBER = r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?"
+EFFECT_PATTERN = rf"\w+@[\w.@-]+:\w+={NUMBER}(,\w+={NUMBER})*"
 # factor converting one unit of the first name to the second (sensitivity denominator -> channel unit)
 UNIT_FACTORS = {
     ("g", "m/s^2"): G_M_PER_S2, ("m/s^2", "g"): 1 / G_M_PER_S2, ("kN", "N"): 1e3, ("N", "kN"): 1e-3,
@@ -120,6 +122,7 @@ class Simulator:
     scans_per_frame: int = 32
     format: str = "int16"
     fault_log: str = ""
+    effects: tuple[str, ...] = ()  # hidden effects "EFFECT@LOCATION:PARAM=VALUE,..." (SI units)
 
     @property
     def faults(self) -> bool:
@@ -262,7 +265,8 @@ def _simulator(doc: dict, where: str, base: Path) -> Simulator:
     """The ``[simulator]`` block: known options only, each value checked (no free-form arguments)."""
     s = Table(doc, where, base)
     s.reject_unknown({"protocol", "rig", "test", "seed", "pose", "corrupt_rate", "drop_at_s", "drop_s",
-                      "disconnect_after_s", "disconnect_s", "scans_per_frame", "format", "fault_log"})
+                      "disconnect_after_s", "disconnect_s", "scans_per_frame", "format", "fault_log",
+                      "effects"})
     seconds = {"check": lambda v: 0 <= v <= 86400, "why": "must be in [0, 86400] s"}
     pose = s.get("pose", dict, {})
     for k, v in pose.items():
@@ -281,7 +285,10 @@ def _simulator(doc: dict, where: str, base: Path) -> Simulator:
         disconnect_s=s.get("disconnect_s", float, 0.5, **seconds),
         scans_per_frame=s.get("scans_per_frame", int, 32, check=lambda v: 1 <= v <= 4096,
                               why="must be in 1..4096"),
-        format=s.choice("format", ("int16", "int32", "float32"), "int16"), fault_log=log)
+        format=s.choice("format", ("int16", "int32", "float32"), "int16"), fault_log=log,
+        effects=tuple(s.get("effects", list, [], check=lambda v: all(
+            isinstance(e, str) and re.fullmatch(EFFECT_PATTERN, e) for e in v),
+            why="must be a list of \"EFFECT@LOCATION:PARAM=NUMBER,...\"")))
 
 
 def parse_session(doc: dict, source: Path) -> Session:

@@ -252,3 +252,74 @@ def test_write_failure_at_the_final_flush_leaves_no_zeros(tmp_path):
     src, steps = _emitted(rate)
     ref = src.physical(_run_first_index(out), samples.shape[0])
     assert (np.abs(samples[good] - ref[good]) / steps).max() <= 1.0
+
+
+TWO_DEVICES = """
+sample_rate_hz = 2048.0
+reconnect_timeout_s = 2.0
+continue_on_device_loss = true
+""" + "".join(f"""
+[[device]]
+name = "{d}"
+protocol = "serial"
+port = "{{{d}}}"
+sources = ["ch0", "ch1", "ch2", "ch3", "ch4", "ch5", "ch6"]
+[[channel]]
+name = "F_{d}"
+kind = "force"
+unit = "N"
+device = "{d}"
+source = "ch0"
+[[channel]]
+name = "a1_{d}"
+kind = "acceleration"
+unit = "m/s^2"
+device = "{d}"
+source = "ch1"
+""" for d in ("left", "right"))
+
+
+def _serve_serial() -> tuple[subprocess.Popen, str]:
+    proc = subprocess.Popen([sys.executable, "-m", "flexmodal", "sim", "serve", "--protocol", "serial",
+                             "--quiet"], cwd=REPO, stdout=subprocess.PIPE, text=True)
+    return proc, proc.stdout.readline().strip()
+
+
+def test_one_lost_device_never_holds_back_the_other(tmp_path):
+    (left, left_port), (right, right_port) = _serve_serial(), _serve_serial()
+    config = tmp_path / "two.toml"
+    config.write_text(TWO_DEVICES.replace("{left}", left_port).replace("{right}", right_port))
+    out = tmp_path / "run.h5"
+    fs, duration = 2048.0, 8.0
+    proc = start_acquire(config, out, duration)
+    polls: list[tuple[float, int]] = []
+    try:
+        assert wait_for(lambda: stored(out) > 0, 60)
+        t_start = time.monotonic()
+        while proc.poll() is None and time.monotonic() - t_start < 60:
+            polls.append((time.monotonic(), stored(out)))
+            if right.poll() is None and time.monotonic() - t_start > 2.0:
+                right.kill()  # the right device vanishes for good
+                t_kill = time.monotonic()
+            time.sleep(0.05)
+        stdout, stderr = proc.communicate(timeout=30)
+    finally:
+        for p in (proc, left, right):
+            p.kill()
+            p.wait()
+    assert proc.returncode == 0, stderr
+    t = np.array([p[0] for p in polls])
+    n = np.array([p[1] for p in polls], float)
+    behind = (t - t[0]) - n / fs  # seconds of real time not yet in the file
+    baseline = behind[t < t_kill].min()
+    after = (t > t_kill) & (n < duration * fs)
+    lag = behind[after] - baseline
+    assert after.sum() >= 10 and lag.max() <= 1.5, f"file lagged real time by up to {lag.max():.2f} s"
+    samples, events = plain_run(out)
+    assert samples.shape[0] == duration * fs
+    assert not np.isnan(samples[:, :2]).any()  # every sample of the healthy device
+    last = int(np.flatnonzero(np.isfinite(samples[:, 2]))[-1]) + 1  # the lost device's last sample
+    assert last <= n[t <= t_kill][-1] + 1.5 * fs and np.isnan(samples[last:, 2:]).all()  # then NaN ...
+    right = [e[:3] for e in events if e[3].startswith("right")]
+    assert ("gap", last, samples.shape[0] - last) in right  # ... reported as one gap, sample for sample
+    assert [e[0] for e in right].count("device_lost") == 1
