@@ -40,7 +40,9 @@ class ToyDriver(Driver):
         due = int((time.monotonic() - self.t0) * self.rate)
         i = np.arange(self.n, due, dtype=float)
         first, self.n = self.n, due
-        return [Block(self.name, first, np.column_stack([i, -i]), time.time() - i.size / self.rate)] if i.size else []
+        if not i.size:
+            return []
+        return [Block(self.name, first, np.column_stack([i, -i]), time.time() - i.size / self.rate)]
 
     def close(self):
         pass
