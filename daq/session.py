@@ -60,7 +60,9 @@ class Device:
     protocol: str
     port: str = ""  # serial port / pyserial URL; slcan pty; Modbus RTU port
     baud: int = 115200
-    framing: str = "binary"  # serial: binary | csv
+    framing: str = "binary"  # serial: binary | csv | custom
+    frame: Any = None  # serial, framing = "custom": its daq.serial_frames.FrameSpec
+    checksum: str = "none"  # serial, framing = "csv": checksum field at the end of each line
     sources: tuple[str, ...] = ()  # serial: names of the frame columns, in order
     interface: str = ""  # can: virtual | slcan (any python-can interface name)
     channel: str = ""  # can: bus channel (virtual bus name)
