@@ -88,8 +88,8 @@ def average_weights(n: int, averaging: str = "linear", n_exp: int = 4) -> np.nda
 
 def impact_spectra(samples: np.ndarray, sample_rate_hz: float, force_col: int, outputs: Sequence[int], *,
                    triggers: Sequence[int] | None = None, pretrigger_s: float = 0.02,
-                   record_len: int | None = None, force_window: str = "force:0.05",
-                   exp_window: str = "exponential:0.01", averaging: str = "linear", n_exp: int = 4,
+                   record_len: int | None = None, force_window: str = "force",
+                   exp_window: str = "exponential", averaging: str = "linear", n_exp: int = 4,
                    double_hit_fraction: float = 0.1, min_frac: float = 0.9, min_gap_s: float = 1.0,
                    overload_samples: Sequence[int] = ()) -> tuple[Spectra, list[Hit]]:
     """Averaged spectra of the accepted hits and the list of hits with their verdicts.
