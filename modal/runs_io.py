@@ -45,7 +45,9 @@ def write_frf(path: str | Path, run_id: str, result: FrfResult) -> None:
 
 def read_frf(path: str | Path, run_id: str) -> FrfResult | None:
     """The stored FRFs of a run, or None when the run has no ``frf`` group."""
-    with h5py.File(path, "r", libver="latest", swmr=True) as f:
+    from flexmodal.daq.store import open_read  # fails at once on a truncated file (SWMR would wait)
+
+    with open_read(path) as f:
         key = f"runs/{run_id}/frf"
         if key not in f:
             return None
