@@ -44,13 +44,14 @@ def run(args: argparse.Namespace) -> int:
     if missing:
         raise CompareError(f"diagnose: missing --{missing[0]} "
                            "(needs --rig, --measured and --out, or --selftest N)")
+    from flexmodal.valid_output import output_dir
+
+    output_dir(args.out, CompareError, "diagnosis folder (--out)")  # before the heavy imports
     from flexmodal.compare.candidates import parse_effects
     from flexmodal.compare.diagnosis import diagnose, folds_for, write_diagnosis
     from flexmodal.modal.table import ModalTable
     from flexmodal.models.rig import load_rig
-    from flexmodal.valid_output import output_dir
 
-    output_dir(args.out, CompareError, "diagnosis folder (--out)")
     rig = load_rig(args.rig)
     table = ModalTable.read_csv(args.measured)
     parse_effects(args.effects)  # bad --effects / --holdout fail before the progress line

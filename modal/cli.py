@@ -112,8 +112,6 @@ def _frf(args: argparse.Namespace) -> int:
 
 def _identify(args: argparse.Namespace) -> int:
     from flexmodal.modal.errors import ModalError
-    from flexmodal.modal.identify import Thresholds, write_synthesis_csv
-    from flexmodal.modal.sources import identify_input
     from flexmodal.valid_output import output_file
 
     if args.fmin is not None and args.fmax is not None and args.fmin >= args.fmax:
@@ -121,6 +119,8 @@ def _identify(args: argparse.Namespace) -> int:
     output_file(args.out, ModalError, "modal table (--out)")
     if args.uff:
         output_file(args.uff, ModalError, "UFF file (--uff)")
+    from flexmodal.modal.identify import Thresholds, write_synthesis_csv  # the heavy imports, after
+    from flexmodal.modal.sources import identify_input
     poles = None
     if args.poles is not None:
         try:

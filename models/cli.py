@@ -45,7 +45,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _predict(args: argparse.Namespace) -> int:
     from flexmodal.modal.table import poses_from_csv
     from flexmodal.models.errors import ModelError
-    from flexmodal.models.predict import predict
     from flexmodal.models.rig import load_rig
     from flexmodal.valid_output import output_file
 
@@ -54,6 +53,8 @@ def _predict(args: argparse.Namespace) -> int:
     poses = poses_from_csv(args.poses)
     if not poses:
         raise ModelError(f"{args.poses}: no configurations")
+    from flexmodal.models.predict import predict  # the inputs are sound: now the model imports
+
     options = {"elements_per_link": args.elements, "lumped_mass": args.lumped_mass_matrix,
                "masses_per_link": args.masses_per_link, "coordinates": args.coordinates}
     if getattr(args, "quiet", False) or len(poses) < 50:

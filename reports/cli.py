@@ -32,9 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _run(args: argparse.Namespace) -> int:
     from flexmodal.daq.run_schema import check_run_file
     from flexmodal.daq.store import expand_runs
-    from flexmodal.modal.table import ModalTable
     from flexmodal.reports.errors import ReportError
-    from flexmodal.reports.html import load_diagnosis, write_report
     from flexmodal.valid_output import output_file
 
     if not (args.runs or args.measured or args.pred or args.diagnosis):
@@ -42,6 +40,9 @@ def _run(args: argparse.Namespace) -> int:
     output_file(args.out, ReportError, "report (--out)")
     for path, run_id in expand_runs(args.runs):
         check_run_file(path, run_id)
+    from flexmodal.modal.table import ModalTable  # the inputs are sound: now the heavy imports
+    from flexmodal.reports.html import load_diagnosis, write_report
+
     rig = None
     if args.rig:
         from flexmodal.models.rig import load_rig

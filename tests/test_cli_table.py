@@ -260,6 +260,9 @@ ROWS: list[Row] = [
     row("identify-fmin-nan", IDENTIFY + " --fmin nan", ("--fmin", "nan")),
     row("identify-fmin-above-fmax", IDENTIFY + " --fmin 300 --fmax 100", ("--fmin", "--fmax")),
     row("identify-fmax-negative", IDENTIFY + " --fmax -5", ("--fmax", "-5")),
+    row("identify-mpc-min", IDENTIFY + " --mpc-min 2", ("--mpc-min", "'2'")),
+    row("identify-poles-text", IDENTIFY + " --poles abc", ("--poles", "abc")),
+    row("identify-decay-nan", IDENTIFY + " --exp-window-decay nan", ("--exp-window-decay", "nan")),
     row("frf-nfft-zero", "frf {d}/run.h5 --nfft 0", ("--nfft", "'0'")),
     row("frf-nfft-huge", "frf {d}/run.h5 --nfft 1048576", ("nfft", "1048576")),
     row("frf-overlap-one", "frf {d}/run.h5 --overlap 1", ("--overlap", "'1'")),
@@ -432,8 +435,11 @@ def test_row(r: Row, outcomes: dict[str, Outcome]) -> None:
             assert word in lines[0], f"{word!r} not in {lines[0]!r}"
 
 
-def test_summary_is_json_serialisable(outcomes: dict[str, Outcome]) -> None:
-    """The slowest rows, for the report (printed with -s); every row under the time limit."""
-    slowest = sorted(((o.seconds, n) for n, o in outcomes.items()), reverse=True)[:5]
-    print(json.dumps({"rows": len(outcomes), "slowest_s": slowest}))
+def test_row_times(outcomes: dict[str, Outcome]) -> None:
+    """Row wall times (printed with -s: median, spread, slowest); every row under the time limit."""
+    seconds = np.array([o.seconds for o in outcomes.values()])
+    slowest = sorted(((round(o.seconds, 1), n) for n, o in outcomes.items()), reverse=True)[:5]
+    print(json.dumps({"rows": len(outcomes), "median_s": round(float(np.median(seconds)), 2),
+                      "p10_p90_s": [round(float(v), 2) for v in np.percentile(seconds, [10, 90])],
+                      "slowest_s": slowest}))
     assert all(o.seconds < ROW_TIMEOUT_S for o in outcomes.values())

@@ -108,11 +108,11 @@ def prop_dbc_text(keep: int, text: str) -> None:
 
 
 def test_binary_frames_known_answer() -> None:
-    run_profile(prop_binary_known_answer, 150)
+    run_profile(prop_binary_known_answer, 100)
 
 
 def test_binary_frames_garbage() -> None:
-    run_profile(prop_binary_garbage, 150)
+    run_profile(prop_binary_garbage, 100)
 
 
 def test_csv_lines() -> None:
@@ -142,7 +142,7 @@ def mutated_frames(n_inputs: int, seed: int = 0):
 
 def test_binary_frames_mutations_bounded() -> None:
     decoder = BinaryDecoder(N_CH)
-    for data in mutated_frames(2000):
+    for data in mutated_frames(1000):
         _check_runs(decoder.feed(data), N_CH)
 
 
