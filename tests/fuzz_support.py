@@ -10,12 +10,22 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from hypothesis import HealthCheck, settings
+from hypothesis import HealthCheck, given, settings
+from hypothesis.strategies import SearchStrategy
 
 LONG_EXAMPLES = 1000
 
 
-def run_profile(prop: Callable[[], None], examples: int, *, long: bool = False) -> None:
-    """Run a ``@given`` property for ``examples`` inputs (reproducible unless ``long``)."""
+def prop(*strategies: SearchStrategy) -> Callable[[Callable[..., None]], Callable[..., None]]:
+    """Mark a property with the strategies of its arguments (a fresh ``@given`` test per profile)."""
+    def mark(fn: Callable[..., None]) -> Callable[..., None]:
+        fn.strategies = strategies  # type: ignore[attr-defined]
+        return fn
+    return mark
+
+
+def run_profile(fn: Callable[..., None], examples: int, *, long: bool = False) -> None:
+    """Run property ``fn`` (see :func:`prop`) for ``examples`` inputs (reproducible unless ``long``)."""
+    test = given(*fn.strategies)(fn)  # type: ignore[attr-defined]
     settings(max_examples=examples, deadline=None, database=None, derandomize=not long,
-             suppress_health_check=list(HealthCheck))(prop)()
+             suppress_health_check=list(HealthCheck))(test)()

@@ -9,8 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import REPO
-from fuzz_support import LONG_EXAMPLES, run_profile
-from hypothesis import given
+from fuzz_support import LONG_EXAMPLES, prop, run_profile
 from hypothesis import strategies as st
 
 from flexmodal.daq.dbc import load_message
@@ -43,7 +42,7 @@ def framed_stream(draw) -> tuple[bytes, np.ndarray, list[int]]:
     return data, values, cuts
 
 
-@given(framed_stream())
+@prop(framed_stream())
 def prop_binary_known_answer(case) -> None:
     data, values, cuts = case
     decoder = BinaryDecoder(N_CH)
@@ -56,14 +55,14 @@ def prop_binary_known_answer(case) -> None:
     assert runs[0][0] == 7
 
 
-@given(st.lists(st.binary(max_size=200), max_size=5), st.integers(1, 8))
+@prop(st.lists(st.binary(max_size=200), max_size=5), st.integers(1, 8))
 def prop_binary_garbage(chunks: list[bytes], n_ch: int) -> None:
     decoder = BinaryDecoder(n_ch)
     for chunk in chunks:
         _check_runs(decoder.feed(chunk), n_ch)
 
 
-@given(st.lists(st.binary(max_size=120) | st.text(alphabet="0123456789,.-e\r\nnaif ", max_size=120).map(
+@prop(st.lists(st.binary(max_size=120) | st.text(alphabet="0123456789,.-e\r\nnaif ", max_size=120).map(
     str.encode), max_size=5), st.integers(1, 5))
 def prop_csv_garbage(chunks: list[bytes], n_ch: int) -> None:
     decoder = CsvDecoder(n_ch)
@@ -71,7 +70,7 @@ def prop_csv_garbage(chunks: list[bytes], n_ch: int) -> None:
         _check_runs(decoder.feed(chunk), n_ch)
 
 
-@given(st.integers(0, 2**31), st.integers(1, 40))
+@prop(st.integers(0, 2**31), st.integers(1, 40))
 def prop_csv_known_answer(seed: int, n: int) -> None:
     values = np.round(np.random.default_rng(seed).normal(size=(n, N_CH)), 6)
     runs = CsvDecoder(N_CH).feed(b"partial\n" + encode_csv(3, values))
@@ -82,7 +81,7 @@ def prop_csv_known_answer(seed: int, n: int) -> None:
 DBC = REPO / "fixtures" / "flexmodal_sim.dbc"
 
 
-@given(st.binary(min_size=0, max_size=8 * 40))
+@prop(st.binary(min_size=0, max_size=8 * 40))
 def prop_dbc_decode(raw: bytes) -> None:
     layout = load_message(str(DBC))
     n = len(raw) // 8
@@ -95,7 +94,7 @@ def prop_dbc_decode(raw: bytes) -> None:
         assert np.all((finite >= lo - 1e-9 * abs(lo)) & (finite <= hi + 1e-9 * abs(hi)))
 
 
-@given(st.integers(0, 4000), st.text(st.characters(blacklist_categories=("Cs",)), max_size=200))
+@prop(st.integers(0, 4000), st.text(st.characters(blacklist_categories=("Cs",)), max_size=200))
 def prop_dbc_text(keep: int, text: str) -> None:
     """The sample DBC cut after ``keep`` characters with random text appended."""
     with tempfile.TemporaryDirectory() as d:

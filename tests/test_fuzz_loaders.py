@@ -17,8 +17,7 @@ import h5py
 import numpy as np
 import pytest
 from conftest import REPO
-from fuzz_support import LONG_EXAMPLES, run_profile
-from hypothesis import given
+from fuzz_support import LONG_EXAMPLES, prop, run_profile
 from hypothesis import strategies as st
 
 from flexmodal.daq.errors import DaqError
@@ -108,7 +107,7 @@ SESSION_FILE = SESSIONS / "serial-sim.toml"
 SESSION_DOC = tomllib.loads(SESSION_FILE.read_text(encoding="utf-8"))
 
 
-@given(mutated_doc(SESSION_DOC))
+@prop(mutated_doc(SESSION_DOC))
 def prop_session_doc(doc: dict) -> None:
     try:
         parse_session(doc, SESSION_FILE)
@@ -116,7 +115,7 @@ def prop_session_doc(doc: dict) -> None:
         pass
 
 
-@given(mutated_text(SESSION_FILE.read_text(encoding="utf-8")))
+@prop(mutated_text(SESSION_FILE.read_text(encoding="utf-8")))
 def prop_session_text(data: bytes) -> None:
     _with_file(data, "session.toml", lambda p: _loads_or(DaqError, load_session, p))
 
@@ -126,7 +125,7 @@ RIG_FILE = RIGS / "demo_arm.toml"
 RIG_DOC = tomllib.loads(RIG_FILE.read_text(encoding="utf-8"))
 
 
-@given(mutated_doc(RIG_DOC))
+@prop(mutated_doc(RIG_DOC))
 def prop_rig_doc(doc: dict) -> None:
     try:
         rig = parse_rig(doc, "rig.toml")
@@ -138,13 +137,13 @@ def prop_rig_doc(doc: dict) -> None:
         assert link.elements is None or 1 <= link.elements <= 500
 
 
-@given(mutated_text(RIG_FILE.read_text(encoding="utf-8")))
+@prop(mutated_text(RIG_FILE.read_text(encoding="utf-8")))
 def prop_rig_text(data: bytes) -> None:
     _with_file(data, "rig.toml", lambda p: _loads_or(ModelError, load_rig, p))
 
 
 # -- modal and poses CSV ----------------------------------------------------------------------------
-@given(mutated_text(MODES.read_text(encoding="utf-8")))
+@prop(mutated_text(MODES.read_text(encoding="utf-8")))
 def prop_modal_csv(data: bytes) -> None:
     def check(p: Path) -> None:
         try:
@@ -161,7 +160,7 @@ def prop_modal_csv(data: bytes) -> None:
 POSES = "config,pose.theta_deg,pose.payload_kg\ntheta0,0,0\ntheta60,60,0.5\ntheta90,90,1\n"
 
 
-@given(mutated_text(POSES))
+@prop(mutated_text(POSES))
 def prop_poses_csv(data: bytes) -> None:
     def check(p: Path) -> None:
         try:
@@ -192,7 +191,7 @@ def _uff_text() -> str:
 UFF_TEXT = _uff_text()
 
 
-@given(mutated_text(UFF_TEXT))
+@prop(mutated_text(UFF_TEXT))
 def prop_uff(data: bytes) -> None:
     _with_file(data, "frf.uff", lambda p: _loads_or(ModalError, read_uff, p))
 
@@ -254,7 +253,7 @@ def _apply(path: Path, mutation) -> None:
                 g[name] = value
 
 
-@given(run_mutation())
+@prop(run_mutation())
 def prop_run_file(mutation) -> None:
     with tempfile.TemporaryDirectory() as d:
         path = Path(d) / "run.h5"
@@ -282,16 +281,16 @@ def test_unmutated_inputs_load(tmp_path: Path) -> None:
     assert read_run(tmp_path / "run.h5", "r1").samples.shape == (1024, 2)
 
 
-DEFAULT = {prop_session_doc: 60, prop_session_text: 30, prop_rig_doc: 60, prop_rig_text: 30,
-           prop_modal_csv: 40, prop_poses_csv: 40, prop_uff: 25, prop_run_file: 30}
+DEFAULT = {prop_session_doc: 150, prop_session_text: 80, prop_rig_doc: 150, prop_rig_text: 80,
+           prop_modal_csv: 100, prop_poses_csv: 100, prop_uff: 60, prop_run_file: 80}
 
 
-@pytest.mark.parametrize("prop", list(DEFAULT), ids=[p.__name__ for p in DEFAULT])
-def test_fuzz(prop) -> None:
-    run_profile(prop, DEFAULT[prop])
+@pytest.mark.parametrize("fn", list(DEFAULT), ids=[p.__name__ for p in DEFAULT])
+def test_fuzz(fn) -> None:
+    run_profile(fn, DEFAULT[fn])
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("prop", list(DEFAULT), ids=[p.__name__ for p in DEFAULT])
-def test_long_fuzz(prop) -> None:
-    run_profile(prop, LONG_EXAMPLES, long=True)
+@pytest.mark.parametrize("fn", list(DEFAULT), ids=[p.__name__ for p in DEFAULT])
+def test_long_fuzz(fn) -> None:
+    run_profile(fn, LONG_EXAMPLES, long=True)
