@@ -153,7 +153,10 @@ def _poles_of_order(index: int, p: int, eqs: _NormalEquations, dt: float, fmin: 
     M = eqs.reduced(index, p)
     k = p * n_in
     alpha = np.empty((k + n_in, n_in))                                        # [(p+1) n_in, n_in]
-    alpha[:k] = np.linalg.solve(M[:k, :k], -M[:k, k:])
+    try:
+        alpha[:k] = np.linalg.solve(M[:k, :k], -M[:k, k:])
+    except np.linalg.LinAlgError:  # data without modes (a flat FRF): the minimum-norm solution
+        alpha[:k] = np.linalg.lstsq(M[:k, :k], -M[:k, k:], rcond=None)[0]
     alpha[k:] = np.eye(n_in)
     if n_in == 1:
         # companion matrix in upper Hessenberg form, so LAPACK's Hessenberg reduction has nothing to do

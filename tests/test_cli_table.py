@@ -108,8 +108,8 @@ def runs_dataset(path: Path) -> None:
         f["runs"] = np.arange(10.0)
 
 
-def uff_cut_short(path: Path) -> None:
-    """A dataset-58 FRF whose data block ends after 14 of the 101 points its header announces."""
+def uff_flat(path: Path) -> None:
+    """A dataset-58 FRF that is 1 at every one of its 101 lines: no mode to find."""
     import pyuff
 
     x = np.linspace(0.0, 100.0, 101)
@@ -118,6 +118,11 @@ def uff_cut_short(path: Path) -> None:
                              abscissa_spec_data_type=18, data=np.ones(101, complex), x=x,
                              abscissa_spacing=1, abscissa_min=0.0, abscissa_inc=1.0, num_pts=101)]
     pyuff.UFF(str(path)).write_sets(sets, mode="overwrite")
+
+
+def uff_cut_short(path: Path) -> None:
+    """A dataset-58 FRF whose data block ends after 14 of the 101 points its header announces."""
+    uff_flat(path)
     lines = path.read_text().splitlines()
     path.write_text("\n".join(lines[:20] + lines[-1:]) + "\n")
 
@@ -323,6 +328,7 @@ ROWS: list[Row] = [
         ("out.h5", "does not exist")),
     # -- UFF, mathtext, missing inputs --------------------------------------------------------------
     row("uff-lengths", "identify {d}/f.uff --out {d}/m.csv", ("f.uff", "num_pts = 101")),
+    row("uff-flat", "identify {d}/f.uff --out {d}/m.csv", ("no stable poles",)),
     row("uff-garbage", "identify {d}/f.uff --out {d}/m.csv", ("f.uff",), {"f.uff": BINARY}),
     row("uff-empty", "identify {d}/f.uff --out {d}/m.csv", ("f.uff",), {"f.uff": ""}),
     row("report-mathtext-channel", REPORT, code=0, words=()),
@@ -356,7 +362,7 @@ RUN_FILES = {
     "run-channel-kind": mutate_run(lambda g: g["channels"].__setitem__(
         0, tuple(b"hammer" if n == "kind" else g["channels"][0][n] for n in g["channels"].dtype.names))),
 }
-UFF_FILES = {"uff-lengths": uff_cut_short}
+UFF_FILES = {"uff-lengths": uff_cut_short, "uff-flat": uff_flat}
 
 
 def _prepare(r: Row, root: Path) -> Path:
