@@ -46,13 +46,15 @@ def frf_of_record(samples: np.ndarray, sample_rate_hz: float, names: Sequence[st
                   *, excitation: str = "random", estimator: str = "H1", nfft: int | None = None,
                   window: str | None = None, overlap: float = 0.5, where: str = "record",
                   triggers: Sequence[int] | None = None, overload_samples: Sequence[int] = (),
-                  averaging: str = "linear", skip: Sequence[tuple[int, int]] = ()) -> FrfResult:
+                  averaging: str = "linear", skip: Sequence[tuple[int, int]] = (),
+                  pretrigger_s: float = 0.02) -> FrfResult:
     """FRFs of a record [n_samples, n_channels] with channel ``names`` and ``kinds`` (force channels are
     the inputs; acceleration channels, or else every other non-encoder channel, the outputs).
 
     Impact records (``excitation == "impact"``) are cut into hits (``triggers`` or detected), windowed
     ``window`` = "force:W,exponential:E" (default force:0.05,exponential:0.01) and averaged, hits
-    touching NaN rows or a ``skip`` interval (first sample, count) rejected one by one; other
+    touching NaN rows or a ``skip`` interval (first sample, count) rejected one by one, each record
+    starting ``pretrigger_s`` before its trigger; other
     records are Welch-averaged with ``window`` (default hann), ``nfft`` and ``overlap``.
     """
     if not np.isfinite(sample_rate_hz) or sample_rate_hz <= 0:
@@ -78,7 +80,7 @@ def frf_of_record(samples: np.ndarray, sample_rate_hz: float, names: Sequence[st
         ew = "exponential:" + (parts.get("exponential") or "0.01")
         spectra, hits = impact_spectra(samples, sample_rate_hz, inputs[0], outputs, triggers=triggers,
                                        force_window=fw, exp_window=ew, overload_samples=overload_samples,
-                                       averaging=averaging, gaps=skip)
+                                       averaging=averaging, gaps=skip, pretrigger_s=pretrigger_s)
         record = 2 * (spectra.freq_hz.size - 1)
         decay = added_decay_rate_per_s(ew, record, sample_rate_hz)
         used_window, used_nfft = f"{fw},{ew}", record
