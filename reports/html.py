@@ -4,8 +4,10 @@ One file: images are embedded as base64 PNG, the style sheet is inline, there is
 is fetched from a network.  Sections (each only when its input is given): comparison table of
 measured vs predicted modes (compare.tables), diagnosis summary (CONTRACT §5), frequency-vs-pose,
 trend and mode-shape plots, run metadata, channel list, data quality (trigger/overload/gap/corrupt
-events, rejected hits, coherence) with the FRF plot of each run and its stabilisation diagram (pLSCF of
-modal.lscf over orders 2..``MAX_ORDER``), and the gap per mode before and after the diagnosed effect.
+events, rejected hits, coherence) with the FRF plot of each run, its identification (stabilisation
+diagram with the selected poles and band, measured vs synthesised FRFs, AutoMAC), the test-model MAC
+matrix where predictions share sensors with the measured modes, and the gap per mode before and
+after the diagnosed effect.
 """
 
 from __future__ import annotations
@@ -28,7 +30,6 @@ from flexmodal.reports.runs import LOW_COHERENCE, RunSummary, summarise_run
 
 UNIT_SUFFIXES = {"_deg": "deg", "_kg": "kg", "_m": "m", "_rad": "rad", "_n": "N"}
 MAX_SHAPE_CONFIGS = 2
-MAX_ORDER = 32
 FRF_UNITS = {"accelerance": "(m/s²)/N", "mobility": "(m/s)/N", "receptance": "m/N"}
 
 
@@ -77,6 +78,7 @@ def _mode_figures(measured: ModalTable | None, repeats: Sequence[ModalTable],
         figs.append(_fig(plots.plot_trends(ref, x, group, pose_unit(x), pose_unit(group)),
                          f"Trends of each mode's frequency with {x}, a line per {group} "
                          f"({table_name(ref, 'modes')})"))
+    figs += _test_model_mac(measured, predictions)
     shared = set()
     if rig is not None and measured is not None:
         shared = set(measured.sensors) & {s.name for s in rig.sensors}
@@ -93,6 +95,25 @@ def _mode_figures(measured: ModalTable | None, repeats: Sequence[ModalTable],
                              f"Measured mode shapes at {config} ({_pose_text(pose)}) on the arm, with the "
                              f"frame FE model's best-matching mode (by MAC) as a curve"))
     return figs
+
+
+def _test_model_mac(measured: ModalTable | None, predictions: Sequence[tuple[str, ModalTable]]) -> list[dict]:
+    """MAC matrix of the measured shapes against the first prediction's at the sensors both give, for
+    the first configuration both hold (two or more shared sensors)."""
+    if measured is None or not predictions:
+        return []
+    name, pred = predictions[0]
+    sensors = [s for s in measured.sensors if s in pred.sensors]
+    configs = [c for c in ordered_configs(measured) if c in pred.configs]
+    if len(sensors) < 2 or not configs:
+        return []
+    c = configs[0]
+    a, b = measured.shapes(c, sensors), pred.shapes(c, sensors)
+    fig = plots.plot_mac(a, b, [f"{x:.4g} Hz" for x in measured.freq_hz(c)],
+                         [f"{x:.4g} Hz" for x in pred.freq_hz(c)], "measured mode", f"{name} mode",
+                         title=f"{c}: test-model MAC")
+    return [_fig(fig, f"{c}: MAC of the measured shapes against {name}'s at the {len(sensors)} sensors both "
+                      "give (values near 1 pair a measured mode with a predicted one)")]
 
 
 def _run_order(runs: Sequence[RunSummary]) -> list[RunSummary]:
@@ -150,20 +171,37 @@ def _run_rows(runs: Sequence[RunSummary]) -> tuple[list[dict], list[dict], list[
     return meta, quality, channel_sets
 
 
-def _stabilisation_figure(frf, label: str, unit: str) -> dict:
+def _identification_figures(frf, label: str, unit: str) -> list[dict]:
+    """The run's identification (modal.identify, default pLSCF over the lines above 0 Hz): its
+    stabilisation diagram with the selected poles and the band, the measured vs synthesised FRFs, and
+    the AutoMAC of the shapes (two or more outputs and modes)."""
     from flexmodal.modal.errors import ModalError
-    from flexmodal.modal.lscf import stabilisation
+    from flexmodal.modal.identify import identify
 
-    band = frf.freq_hz > 0
-    f, H = frf.freq_hz[band], frf.H[..., band]
-    top = min(MAX_ORDER, (f.size - 2) // 2)
+    quantity = frf.quantity if frf.quantity in FRF_UNITS else "accelerance"
     try:
-        poles = stabilisation(f, H, range(2, top + 1))
+        modes = identify(frf.freq_hz, frf.H, quantity=quantity, decay_rate_per_s=frf.decay_rate_per_s)
     except ModalError as exc:
-        return {"png": None, "caption": f"{label}: no stabilisation diagram ({exc})"}
-    return _fig(plots.plot_stabilisation(f, H, poles, unit, title=label),
-                f"{label}: pLSCF stabilisation diagram, orders 2-{top} (filled: stable in frequency, "
-                f"damping and shape), over the complex mode indicator function")
+        return [{"png": None, "caption": f"{label}: no identification ({exc})"}]
+    f, band = modes.band_freq_hz, (float(modes.band_freq_hz.min()), float(modes.band_freq_hz.max()))
+    listed = ", ".join(f"{x:.4g}" for x in modes.freq_hz)
+    H = frf.H[..., frf.freq_hz > 0]
+    figs = [_fig(plots.plot_stabilisation(f, H, modes.stabilisation, unit, title=label,
+                                          selected=modes.selected, band_hz=band, modes_hz=modes.freq_hz),
+                 f"{label}: pLSCF stabilisation diagram ({modes.order_note}; filled: stable in frequency, "
+                 f"damping and shape; crosses: poles of the {modes.freq_hz.size} selected modes at {listed} "
+                 f"Hz) over the complex mode indicator function, identification band "
+                 f"{band[0]:.4g}-{band[1]:.4g} Hz shaded"),
+            _fig(plots.plot_synthesis(f, H, modes.synthesis, frf.outputs,
+                                      modes.frf_synthesis_corr, unit, title=f"{label}: synthesis"),
+                 f"{label}: measured FRFs and the FRFs synthesised from the identified modes and residuals "
+                 "(LSFD), with the FRAC of each pair")]
+    if modes.freq_hz.size >= 2 and frf.H.shape[0] >= 2:
+        names = [f"{x:.4g} Hz" for x in modes.freq_hz]
+        figs.append(_fig(plots.plot_mac(modes.shapes, labels_a=names, title=f"{label}: AutoMAC"),
+                         f"{label}: AutoMAC of the identified shapes at {frf.H.shape[0]} outputs "
+                         "(off-diagonal terms near 1: modes the sensors cannot tell apart)"))
+    return figs
 
 
 def _run_figures(runs: Sequence[RunSummary]) -> list[dict]:
@@ -178,7 +216,7 @@ def _run_figures(runs: Sequence[RunSummary]) -> list[dict]:
                                         title=f"{label} ({r.excitation})"),
                          f"{label}: FRF magnitude, phase and coherence (input {inputs}, "
                          f"pose {_pose_text(r.pose)})"))
-        figs.append(_stabilisation_figure(r.frf, label, unit))
+        figs += _identification_figures(r.frf, label, unit)
     return figs
 
 
