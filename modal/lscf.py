@@ -353,11 +353,11 @@ def select_stable(stab: Stabilisation, *, min_fraction: float = 0.5, min_orders:
 
 
 def _batch(lo: int, hi: int, n_in: int) -> list[int]:
-    """Orders lo..hi of the adaptive diagram: every order up to 64 / n_in,
-    then every second order up to 128 / n_in, then every fourth, so the diagram keeps about 60 orders
-    and the cost of the high orders (an eigenvalue problem of size order x n_in each) stays bounded."""
+    """Orders lo..hi of the adaptive diagram: every order up to 64 / n_in, then every second up to
+    128 / n_in, every fourth up to 160 / n_in, then every eighth, so the cost of the high orders (an
+    eigenvalue problem of size order x n_in each) stays bounded."""
     o = np.arange(lo, hi + 1)
-    step = np.where(o * n_in <= 64, 1, np.where(o * n_in <= 128, 2, 4))
+    step = np.select([o * n_in <= 64, o * n_in <= 128, o * n_in <= 160], [1, 2, 4], 8)
     return [int(k) for k in o[(o % step == 0) | (o == hi)]]
 
 
