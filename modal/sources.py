@@ -76,7 +76,7 @@ def identify_input(path: str | Path, *, method: str = "lscf", fmin: float | None
         data = read_uff(p)
         if isinstance(data, UffFrfs):
             result = FrfResult(data.freq_hz, data.H, None, "stored", "", 0, 0, float("nan"), data.quantity,
-                               data.outputs, data.inputs)
+                               data.outputs, data.inputs, data.decay_rate_per_s)
         else:
             result = _uff_record_frfs(p, data)
         modes = _modes(result, **options)

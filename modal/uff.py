@@ -1,7 +1,8 @@
 """Universal File Format interchange through pyuff (dataset 58: functions at nodes; dataset 55: mode
 shapes), so FRFs and modes open in ME'scope, Simcenter Testlab and similar tools.
 
-Read: dataset 58 of function type 4 (FRF; other function types in the same file are left aside) or 1
+Read: dataset 58 of function type 4 (FRF, with the exponential-window decay flexmodal notes in an id
+line; other function types in the same file are left aside) or 1
 (time response; the force channels are those whose ordinate is a force, data type 13).  Time
 responses with several records per channel (an impact test exported hit by hit, the hits told apart
 by load case id, record number or order) are assembled into hits of equal length.  Channels are
@@ -11,6 +12,7 @@ components per node, the shape value in the channel's direction)."""
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,6 +25,7 @@ from flexmodal.modal.frf import FrfResult
 _AXES = "xyz"
 _SPEC = {"accelerance": 12, "mobility": 11, "receptance": 8}
 _QUANTITY = {v: k for k, v in _SPEC.items()}
+_DECAY = re.compile(r"exponential window decay ([0-9.eE+-]+) 1/s")   # flexmodal's note in an id line
 
 
 def channel_name(node: int, direction: int) -> str:
@@ -45,6 +48,7 @@ class UffFrfs:
     outputs: tuple[str, ...]
     inputs: tuple[str, ...]
     quantity: str
+    decay_rate_per_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -111,7 +115,9 @@ def _frfs(p: Path, funcs: list[dict]) -> UffFrfs:
     if np.isnan(H).any():
         raise ModalError(f"{p}: the FRF matrix is incomplete (some response/reference pairs missing)")
     quantity = _QUANTITY.get(int(funcs[0].get("ordinate_spec_data_type", 12)), "accelerance")
-    return UffFrfs(x, H, tuple(outs), tuple(ins), quantity)
+    found = {float(m.group(1)) for s in funcs for k in ("id2", "id3", "id4", "id5")
+             if (m := _DECAY.search(str(s.get(k) or "")))}
+    return UffFrfs(x, H, tuple(outs), tuple(ins), quantity, found.pop() if len(found) == 1 else 0.0)
 
 
 def _record_key(records: list[dict]) -> list:
@@ -175,16 +181,21 @@ def _hits(p: Path, channels: dict[str, list[dict]], names: tuple[str, ...], kind
 
 
 def write_frfs(path: str | Path, result: FrfResult) -> None:
-    """Write FRFs as dataset 58 (function type 4), one set per response/reference pair."""
+    """Write FRFs as dataset 58 (function type 4), one set per response/reference pair; the decay
+    rate of an exponential window they were measured with goes into id line 4 ("exponential window
+    decay R 1/s"), where :func:`read_uff` finds it again (other tools keep id lines as text)."""
     import pyuff
 
+    note = (f"exponential window decay {result.decay_rate_per_s:.9g} 1/s" if result.decay_rate_per_s
+            else "NONE")
     sets = []
     for o, oname in enumerate(result.outputs or [f"{k + 1}+z" for k in range(result.H.shape[0])]):
         for i, iname in enumerate(result.inputs or [f"{900 + k}+z" for k in range(result.H.shape[1])]):
             rn, rd = _node_dir(oname, o + 1)
             fn, fd = _node_dir(iname, 900 + i)
             sets.append(pyuff.prepare_58(
-                func_type=4, id1=f"FRF {oname}/{iname}", rsp_node=rn, rsp_dir=rd, ref_node=fn, ref_dir=fd,
+                func_type=4, id1=f"FRF {oname}/{iname}", id4=note, rsp_node=rn, rsp_dir=rd, ref_node=fn,
+                ref_dir=fd,
                 ordinate_spec_data_type=_SPEC.get(result.quantity, 12), orddenom_spec_data_type=13,
                 abscissa_spec_data_type=18, data=np.asarray(result.H[o, i], complex),
                 x=np.asarray(result.freq_hz, float), abscissa_spacing=1,
