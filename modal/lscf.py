@@ -251,10 +251,10 @@ def stabilisation(freq_hz: np.ndarray, H: np.ndarray, orders: range | list[int],
 @dataclass(frozen=True)
 class PoleClusters:
     """Candidate modes of a stabilisation diagram, ascending in frequency: ``freq_hz``,
-    ``damping_ratio``, ``pole`` (rad/s) from the median of the upper half of orders of each cluster's
-    fully stable poles; ``n_stable`` the number of orders holding a fully stable pole of the cluster,
-    ``scatter`` the relative standard deviation of its stable poles' frequencies, ``members`` the
-    indices (into the Stabilisation arrays) of its poles."""
+    ``damping_ratio``, ``pole`` (rad/s) from the median of the upper quarter of orders of each
+    cluster's fully stable poles; ``n_stable`` the number of orders holding a fully stable pole of the
+    cluster, ``scatter`` the relative standard deviation of its stable poles' frequencies, ``members``
+    the indices (into the Stabilisation arrays) of its poles."""
 
     freq_hz: np.ndarray
     damping_ratio: np.ndarray
@@ -276,10 +276,10 @@ def _pole(fn: np.ndarray, zeta: np.ndarray) -> np.ndarray:
 
 def _summary(stab: Stabilisation, members: np.ndarray, stable: np.ndarray) -> tuple:
     """(fn, zeta, n_stable orders, relative scatter, members) of one chain: medians over the fully
-    stable poles of its upper half of orders."""
+    stable poles of its upper quarter of orders."""
     s = members[stable[members]]
     o = stab.order[s]
-    top = s[o >= np.median(o)]
+    top = s[o >= np.quantile(o, 0.75)]   # the highest orders absorb noise best
     f, z = np.median(stab.freq_hz[top]), np.median(stab.damping_ratio[top])
     return f, z, np.unique(o).size, np.std(stab.freq_hz[s]) / f, members
 
