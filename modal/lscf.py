@@ -153,7 +153,10 @@ def _poles_of_order(index: int, p: int, eqs: _NormalEquations, dt: float, fmin: 
     M = eqs.reduced(index, p)
     k = p * n_in
     alpha = np.empty((k + n_in, n_in))                                        # [(p+1) n_in, n_in]
-    alpha[:k] = np.linalg.solve(M[:k, :k], -M[:k, k:])
+    try:
+        alpha[:k] = np.linalg.solve(M[:k, :k], -M[:k, k:])
+    except np.linalg.LinAlgError:   # data without dynamics at this order (e.g. a flat FRF): least norm
+        alpha[:k] = np.linalg.lstsq(M[:k, :k], -M[:k, k:], rcond=None)[0]
     alpha[k:] = np.eye(n_in)
     if n_in == 1:
         # companion matrix in upper Hessenberg form, so LAPACK's Hessenberg reduction has nothing to do
@@ -191,6 +194,8 @@ class PoleEstimator:
         self.freq_hz, self.p_cap, self.n_in = f, int(p_cap), H.shape[1]
         self.dt = 1.0 / (2 * f.max())
         scale = np.sqrt(np.vdot(H, H).real / H.size)                 # RMS of the FRFs
+        if not scale > 0:
+            raise ModalError(f"pLSCF: the FRFs are zero between {f.min():g} and {f.max():g} Hz")
         with _blas().limit(limits=1, user_api="blas"):
             self._sums = _lag_sums(f, H / scale, self.p_cap, self.dt)
 

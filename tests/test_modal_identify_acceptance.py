@@ -157,3 +157,11 @@ def test_mpc_mpd_and_frac_closed_forms():
     a = np.array([1 + 1j, 2.0, -1j])
     assert frac(a, 3j * a) == pytest.approx(1.0)
     assert frac(np.array([1.0, 0.0]), np.array([0.0, 1.0])) == 0.0
+
+
+@pytest.mark.parametrize("value, message", [(1.0, "no stable poles between 10 and 11.9 Hz"),
+                                            (0.0, "the FRFs are zero between 10 and 11.9 Hz")])
+def test_frfs_without_dynamics_are_refused_with_a_modal_error(value, message):
+    f = np.arange(10.0, 12.0, 0.1)
+    with pytest.raises(ModalError, match=message):
+        identify(f, np.full((2, 1, f.size), value, complex))
