@@ -162,3 +162,25 @@ def test_two_frfs_for_one_pair_and_garbage_are_refused(tmp_path, capsys):
     junk.write_text("    -1\n    58\nthis is not a dataset\n    -1\n")
     code, err = _cli(junk, tmp_path, capsys)
     assert code == 2 and len(err) == 1, err
+
+
+def test_frfs_with_any_node_and_direction_numbering_are_identified(tmp_path, capsys):
+    """Scalar (0), rotational (5) and negative directions, large node numbers, a -z reference."""
+    f = np.arange(0.0, 400.0, 0.25)
+    fn, zeta = np.array([60.0, 150.0, 310.0]), np.array([0.01, 0.01, 0.02])
+    phi = np.array([[1.0, 0.5, -0.4], [0.3, -0.9, 0.8], [-0.7, 0.6, 0.5]])
+    H = modal_frf(f, fn, zeta, phi, phi[[2]])
+    H[..., 0] = 0
+    nodes = [(1001, 0), (1002, 5), (7, -3)]
+    sets = [pyuff.prepare_58(func_type=4, rsp_node=n, rsp_dir=d, ref_node=7, ref_dir=-3, ord_data_type=6,
+                             abscissa_spec_data_type=18, ordinate_spec_data_type=12,
+                             orddenom_spec_data_type=13, data=H[k, 0], x=f, abscissa_spacing=1,
+                             abscissa_min=0.0, abscissa_inc=0.25, num_pts=f.size, id1="frf")
+            for k, (n, d) in enumerate(nodes)]
+    path = tmp_path / "numbering.uff"
+    pyuff.UFF(str(path)).write_sets(sets, mode="overwrite")
+    code, _ = _cli(path, tmp_path, capsys)
+    assert code == 0
+    table = ModalTable.read_csv(tmp_path / "m.csv")
+    assert np.allclose(table.freq_hz("numbering"), fn, rtol=1e-5)
+    assert table.sensors == ["1001:0", "1002:5", "7-z"]
