@@ -6,6 +6,23 @@ import argparse
 import sys
 
 
+class _Estimators:
+    """The names of the registry ``modal.frf.ESTIMATORS`` (any case), read only when argparse checks or
+    lists them, so building the parser imports no numpy."""
+
+    def __contains__(self, name: object) -> bool:
+        return any(k.lower() == str(name).lower() for k in self._names())
+
+    def __iter__(self):
+        return iter(self._names())
+
+    @staticmethod
+    def _names() -> list[str]:
+        from flexmodal.modal.frf import ESTIMATORS
+
+        return list(ESTIMATORS)
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this package's sub-commands to the flexmodal parser."""
     p = sub.add_parser("frf", help="batch FRFs + coherence of stored runs, written back under /runs/<id>/frf",
@@ -15,7 +32,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "serial in this process) or to an existing --scheduler; a single run "
                                    "is computed here. Prints one 'FILE:RUN_ID' line per run written.")
     p.add_argument("runs", nargs="+", metavar="RUN.h5", help="HDF5 run files (CONTRACT §6)")
-    p.add_argument("--estimator", default="H1", choices=["H1", "H2", "Hv"], help="FRF estimator (default H1)")
+    p.add_argument("--estimator", default="H1", choices=_Estimators(), metavar="NAME",
+                   help="FRF estimator: %(choices)s (default H1)")
     p.add_argument("--nfft", type=int, default=None,
                    help="segment length in samples for random/sweep runs (default: power of two <= 8192 "
                         "giving >= 8 segments); impact runs use one record per hit")

@@ -8,10 +8,10 @@ from collections.abc import Sequence
 import numpy as np
 
 from flexmodal.modal.errors import ModalError
-from flexmodal.modal.frf import FrfResult, coherence, estimate
+from flexmodal.modal.frf import FrfResult, coherence, estimate, estimator_name
 from flexmodal.modal.impact import impact_spectra
 from flexmodal.modal.spectra import welch_spectra
-from flexmodal.modal.windows import added_decay_rate_per_s
+from flexmodal.modal.windows import added_decay_rate_per_s, impact_windows
 
 DEFAULT_NFFT_MAX = 8192
 
@@ -75,9 +75,7 @@ def frf_of_record(samples: np.ndarray, sample_rate_hz: float, names: Sequence[st
     if excitation == "impact":
         if len(inputs) != 1:
             raise ModalError(f"{where}: impact processing needs exactly one force channel")
-        parts = dict(p.split(":", 1) if ":" in p else (p, "") for p in (window or "").split(",") if p)
-        fw = "force:" + (parts.get("force") or "0.05")
-        ew = "exponential:" + (parts.get("exponential") or "0.01")
+        fw, ew = impact_windows(window)
         spectra, hits = impact_spectra(samples, sample_rate_hz, inputs[0], outputs, triggers=triggers,
                                        force_window=fw, exp_window=ew, overload_samples=overload_samples,
                                        averaging=averaging, gaps=skip, pretrigger_s=pretrigger_s)
@@ -93,9 +91,9 @@ def frf_of_record(samples: np.ndarray, sample_rate_hz: float, names: Sequence[st
                                 window_spec=used_window)
         extra = {"overlap": overlap, "averaging": "linear"}
     H = estimate(spectra, estimator)
-    return FrfResult(spectra.freq_hz, H, coherence(spectra), {"h1": "H1", "h2": "H2", "hv": "Hv"}[
-        estimator.lower()], used_window, used_nfft, spectra.n_averages, float(sample_rate_hz), quantity,
-        tuple(names[j] for j in outputs), tuple(names[j] for j in inputs), decay, extra)
+    return FrfResult(spectra.freq_hz, H, coherence(spectra), estimator_name(estimator), used_window,
+                     used_nfft, spectra.n_averages, float(sample_rate_hz), quantity,
+                     tuple(names[j] for j in outputs), tuple(names[j] for j in inputs), decay, extra)
 
 
 def compute_frf(run, *, estimator: str = "H1", nfft: int | None = None, window: str | None = None,

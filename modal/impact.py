@@ -111,8 +111,8 @@ def _gap_reasons(samples: np.ndarray, starts: np.ndarray, record_len: int, chans
 
 def impact_spectra(samples: np.ndarray, sample_rate_hz: float, force_col: int, outputs: Sequence[int], *,
                    triggers: Sequence[int] | None = None, pretrigger_s: float = 0.02,
-                   record_len: int | None = None, force_window: str = "force:0.05",
-                   exp_window: str = "exponential:0.01", averaging: str = "linear", n_exp: int = 4,
+                   record_len: int | None = None, force_window: str = "force",
+                   exp_window: str = "exponential", averaging: str = "linear", n_exp: int = 4,
                    double_hit_fraction: float = 0.1, min_frac: float = 0.9, min_gap_s: float = 1.0,
                    overload_samples: Sequence[int] = (), gaps: Sequence[tuple[int, int]] = ()
                    ) -> tuple[Spectra, list[Hit]]:
