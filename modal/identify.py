@@ -34,6 +34,7 @@ from flexmodal.modal.windows import remove_added_damping
 
 METHODS = ("lscf", "peak")
 INDICATORS = ("mpc", "mpd", "synthesis_corr")   # per-mode validation columns of the modal table
+TOP_ORDERS = 0.75   # a mode's pole: median over its upper quarter of stable orders (they absorb noise best)
 MIN_LINES_PER_BANDWIDTH = 8   # below this the Hann-window leakage bias on damping exceeds a few %
 
 
@@ -153,13 +154,13 @@ def _lscf(f: np.ndarray, H: np.ndarray, *, quantity: str, reference: int, max_or
           poles_hz: Sequence[float] | None, limits: Thresholds) -> dict:
     def evaluate(stab: Stabilisation):
         if poles_hz:
-            return stable_clusters(stab).freq_hz.size, None
-        found = _validate(f, H, stable_clusters(stab), quantity, reference, limits)
+            return stable_clusters(stab, top=TOP_ORDERS).freq_hz.size, None
+        found = _validate(f, H, stable_clusters(stab, top=TOP_ORDERS), quantity, reference, limits)
         return found[0].freq_hz.size, found
 
     stab, note, found = adaptive_stabilisation(f, H, max_order=max_order, evaluate=evaluate)
     if poles_hz:
-        clusters = _pick(pole_clusters(stab), poles_hz)
+        clusters = _pick(pole_clusters(stab, TOP_ORDERS), poles_hz)
         fit, warnings = lsfd(f, H, clusters.pole, quantity=quantity), []
     else:
         clusters, fit, warnings = found

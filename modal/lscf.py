@@ -42,7 +42,8 @@ DEFAULT_MAX_POLES = 240   # default cap of (model order x references) of the ada
 class Stabilisation:
     """Every physical pole of every order: ``order``, ``freq_hz``, ``damping_ratio``, ``pole`` (rad/s,
     complex), flags ``stable_freq``, ``stable_damping``, ``stable_shape`` and ``previous``, the index
-    of the nearest pole of the previous order (-1 for none; all [n_poles])."""
+    of the nearest pole of the previous order (-1 for none; all [n_poles]; found from ``order`` and
+    ``freq_hz`` when not given, as for diagrams built by other methods)."""
 
     order: np.ndarray
     freq_hz: np.ndarray
@@ -51,7 +52,7 @@ class Stabilisation:
     stable_freq: np.ndarray
     stable_damping: np.ndarray
     stable_shape: np.ndarray
-    previous: np.ndarray
+    previous: np.ndarray | None = None
 
     @property
     def stable(self) -> np.ndarray:
@@ -213,33 +214,38 @@ class PoleEstimator:
             return [_poles_of_order(i, p, eqs, self.dt, *band) for i, p in enumerate(orders)]
 
 
+def _nearest_previous(order: np.ndarray, freq_hz: np.ndarray) -> np.ndarray:
+    """Index of the pole nearest in frequency among those of the previous order present (-1 for the
+    first order or an empty previous one); poles are grouped by order, in ascending order."""
+    previous = np.full(freq_hz.size, -1)
+    orders, start = np.unique(order, return_index=True)
+    bounds = list(start) + [order.size]
+    for k in range(1, orders.size):   # a loop over model orders
+        a, b, c = bounds[k - 1], bounds[k], bounds[k + 1]
+        if b > a and c > b:
+            previous[b:c] = a + np.argmin(np.abs(freq_hz[b:c, None] - freq_hz[None, a:b]), axis=1)
+    return previous
+
+
 def _flags(orders: list[int], found: list[tuple[np.ndarray, np.ndarray]], df: float = 0.01,
            dz: float = 0.05, mac_min: float = 0.98) -> Stabilisation:
     """Stability flags of every pole against the nearest pole (in frequency) of the previous order.
     With one output the shape criterion is left out (a MAC over one channel is always 1)."""
     poles = [pl for pl, _ in found]
-    fn = [np.abs(pl) / (2 * np.pi) for pl in poles]
-    start = np.cumsum([0] + [x.size for x in fn])
-    near, cur = [], []
-    for k in range(1, len(orders)):   # a loop over model orders
-        if fn[k].size and fn[k - 1].size:
-            near.append(np.argmin(np.abs(fn[k][:, None] - fn[k - 1][None, :]), axis=1) + start[k - 1])
-            cur.append(np.arange(start[k], start[k + 1]))
     all_poles = np.concatenate(poles) if poles else np.zeros(0, complex)
+    order = np.concatenate([np.full(pl.size, p) for pl, p in zip(poles, orders, strict=True)])
     all_fn = np.abs(all_poles) / (2 * np.pi)
     all_zeta = -all_poles.real / np.where(all_fn > 0, np.abs(all_poles), 1.0)
     all_shapes = np.concatenate([sh for _, sh in found], axis=1)
+    previous = _nearest_previous(order, all_fn)
     n = all_fn.size
     sf, sd, ss = np.zeros(n, bool), np.zeros(n, bool), np.zeros(n, bool)
-    previous = np.full(n, -1)
-    if cur:
-        cur, prev = np.concatenate(cur), np.concatenate(near)
-        previous[cur] = prev
-        sf[cur] = np.abs(all_fn[cur] - all_fn[prev]) <= df * all_fn[cur]
-        sd[cur] = np.abs(all_zeta[cur] - all_zeta[prev]) <= dz * all_zeta[cur]
-        ss[cur] = (mac_pairs(all_shapes[:, cur], all_shapes[:, prev]) >= mac_min
-                   if all_shapes.shape[0] > 1 else True)
-    order = np.concatenate([np.full(pl.size, p) for pl, p in zip(poles, orders, strict=True)])
+    cur = np.flatnonzero(previous >= 0)
+    prev = previous[cur]
+    sf[cur] = np.abs(all_fn[cur] - all_fn[prev]) <= df * all_fn[cur]
+    sd[cur] = np.abs(all_zeta[cur] - all_zeta[prev]) <= dz * all_zeta[cur]
+    ss[cur] = (mac_pairs(all_shapes[:, cur], all_shapes[:, prev]) >= mac_min
+               if all_shapes.shape[0] > 1 else True)
     return Stabilisation(order, all_fn, all_zeta, all_poles, sf, sd, ss, previous)
 
 
@@ -279,18 +285,18 @@ def _pole(fn: np.ndarray, zeta: np.ndarray) -> np.ndarray:
     return -zeta * wn + 1j * wn * np.sqrt(1 - np.asarray(zeta) ** 2)
 
 
-def _summary(stab: Stabilisation, members: np.ndarray, stable: np.ndarray) -> tuple:
+def _summary(stab: Stabilisation, members: np.ndarray, stable: np.ndarray, top: float) -> tuple:
     """(fn, zeta, n_stable orders, relative scatter, members) of one chain: medians over the fully
-    stable poles of its upper quarter of orders."""
+    stable poles of its orders at or above the quantile ``top`` of them."""
     s = members[stable[members]]
     o = stab.order[s]
-    top = s[o >= np.quantile(o, 0.75)]   # the highest orders absorb noise best
+    top = s[o >= np.quantile(o, top)]
     f, z = np.median(stab.freq_hz[top]), np.median(stab.damping_ratio[top])
     return f, z, np.unique(o).size, np.std(stab.freq_hz[s]) / f, members
 
 
-def _merge_fragments(rows: list[tuple], stab: Stabilisation, stable: np.ndarray, df: float = 0.01,
-                     overlap: float = 0.2) -> list[tuple]:
+def _merge_fragments(rows: list[tuple], stab: Stabilisation, stable: np.ndarray, top: float,
+                     df: float = 0.01, overlap: float = 0.2) -> list[tuple]:
     """Join neighbouring chains (within relative ``df``) that hardly share an order (at most
     ``overlap`` of the shorter one's stable orders): pieces of one pole whose chain was broken, not two
     modes (two modes show up side by side at the same orders)."""
@@ -301,13 +307,13 @@ def _merge_fragments(rows: list[tuple], stab: Stabilisation, stable: np.ndarray,
         ob = np.unique(stab.order[row[4][stable[row[4]]]])
         shared = np.intersect1d(oa, ob).size
         if abs(row[0] - last[0]) <= df * row[0] and shared <= overlap * min(oa.size, ob.size):
-            out[-1] = _summary(stab, np.concatenate([last[4], row[4]]), stable)
+            out[-1] = _summary(stab, np.concatenate([last[4], row[4]]), stable, top)
         else:
             out.append(row)
     return out
 
 
-def pole_clusters(stab: Stabilisation) -> PoleClusters:
+def pole_clusters(stab: Stabilisation, top: float = 0.5) -> PoleClusters:
     """Group the poles of a stabilisation diagram into chains that follow one physical pole over the
     orders, so each cluster is separated by its own order-to-order scatter rather than by a fixed
     frequency tolerance (two modes 0.5 % apart stay apart once the order resolves both).
@@ -315,10 +321,13 @@ def pole_clusters(stab: Stabilisation) -> PoleClusters:
     Each pole stable in frequency is linked to its nearest pole of the previous order; a pole of the
     previous order keeps only its nearest successor (when two modes separate at a higher order the
     second starts a chain of its own).  Clusters are the connected chains holding two or more fully
-    stable poles."""
+    stable poles; each one's pole is the median over its stable orders at or above the quantile
+    ``top`` of them (0.5: the upper half; pLSCF identification takes the upper quarter, whose high
+    orders absorb the noise best)."""
     n = stab.freq_hz.size
-    cur = np.flatnonzero((stab.previous >= 0) & stab.stable_freq)
-    prev = stab.previous[cur]
+    previous = stab.previous if stab.previous is not None else _nearest_previous(stab.order, stab.freq_hz)
+    cur = np.flatnonzero((previous >= 0) & stab.stable_freq)
+    prev = previous[cur]
     dist = np.abs(stab.freq_hz[cur] - stab.freq_hz[prev]) / stab.freq_hz[cur]
     first = np.argsort(dist, kind="stable")
     _, keep = np.unique(prev[first], return_index=True)
@@ -329,21 +338,22 @@ def pole_clusters(stab: Stabilisation) -> PoleClusters:
     counts = np.bincount(label[stable], minlength=n_comp)
     rows = []
     for c in np.flatnonzero(counts >= 2):   # a loop over chains holding stable poles (candidate modes)
-        rows.append(_summary(stab, np.flatnonzero(label == c), stable))
+        rows.append(_summary(stab, np.flatnonzero(label == c), stable, top))
     rows.sort(key=lambda r: r[0])
-    rows = _merge_fragments(rows, stab, stable)
+    rows = _merge_fragments(rows, stab, stable, top)
     fn = np.array([r[0] for r in rows])
     zeta = np.array([r[1] for r in rows])
     return PoleClusters(fn, zeta, _pole(fn, zeta), np.array([r[2] for r in rows], int),
                         np.array([r[3] for r in rows]), tuple(r[4] for r in rows))
 
 
-def stable_clusters(stab: Stabilisation, *, min_fraction: float = 0.5, min_orders: int = 5) -> PoleClusters:
+def stable_clusters(stab: Stabilisation, *, min_fraction: float = 0.5, min_orders: int = 5,
+                    top: float = 0.5) -> PoleClusters:
     """The clusters stable over at least ``min_orders`` orders and over ``min_fraction`` of the
     diagram's orders from the one where the cluster first appears (a mode that needs a high order to
     show up is not penalised; a pole that flickers is).  This is the automatic selection before the
     validation by the synthesis."""
-    clusters = pole_clusters(stab)
+    clusters = pole_clusters(stab, top)
     orders = np.unique(stab.order)
     first = np.array([stab.order[m].min() for m in clusters.members], int)
     span = orders.size - np.searchsorted(orders, first)
