@@ -121,21 +121,28 @@ def _near(f: np.ndarray, fn: np.ndarray, zeta: np.ndarray) -> np.ndarray:
     return np.abs(f[None, :] - fn[:, None]) <= width[:, None]
 
 
+def _fit(f: np.ndarray, H: np.ndarray, clusters: PoleClusters, quantity: str) -> LsfdResult:
+    """LSFD of the clusters' poles, each mode's F statistic taken against the residual variance near
+    the mode (:func:`_near`) rather than over the band: FRF noise is rarely uniform (it grows with the
+    response at resonances)."""
+    fit = lsfd(f, H, clusters.pole, quantity=quantity)
+    if clusters.freq_hz.size == 0:
+        return fit
+    res = np.sum(np.abs(H - fit.synthesis) ** 2, axis=(0, 1))                # [f]
+    near = _near(f, clusters.freq_hz, clusters.damping_ratio)
+    local = (near @ res) / near.sum(axis=1)
+    return dataclasses.replace(fit, need=fit.need * (res.mean() / np.maximum(local, 1e-300)))
+
+
 def _validate(f: np.ndarray, H: np.ndarray, clusters: PoleClusters, quantity: str, reference: int,
               limits: Thresholds) -> tuple[PoleClusters, LsfdResult, list[str]]:
-    """LSFD of the candidate poles; drop the least needed failing mode and refit until every mode
-    passes (one at a time, so of two duplicates one stays).  The F statistic of a mode is taken
-    against the residual variance near the mode (:func:`_near`), since FRF noise is rarely uniform
-    over the band (it grows with the response at resonances)."""
+    """LSFD of the candidate poles (:func:`_fit`); drop the least needed failing mode and refit until
+    every mode passes (one at a time, so of two duplicates one stays)."""
     warnings = []
     while True:   # a loop over dropped modes (a few)
-        fit = lsfd(f, H, clusters.pole, quantity=quantity)
+        fit = _fit(f, H, clusters, quantity)
         if clusters.freq_hz.size == 0:
             return clusters, fit, warnings
-        res = np.sum(np.abs(H - fit.synthesis) ** 2, axis=(0, 1))                # [f]
-        near = _near(f, clusters.freq_hz, clusters.damping_ratio)
-        local = (near @ res) / near.sum(axis=1)
-        fit = dataclasses.replace(fit, need=fit.need * (res.mean() / np.maximum(local, 1e-300)))
         phase = mpc(fit.modal_constants(clusters.pole)[:, reference]) if H.shape[0] >= 3 else None
         fails = fit.need < limits.need_min
         if phase is not None:
@@ -161,7 +168,7 @@ def _lscf(f: np.ndarray, H: np.ndarray, *, quantity: str, reference: int, max_or
     stab, note, found = adaptive_stabilisation(f, H, max_order=max_order, evaluate=evaluate)
     if poles_hz:
         clusters = _pick(pole_clusters(stab, TOP_ORDERS), poles_hz)
-        fit, warnings = lsfd(f, H, clusters.pole, quantity=quantity), []
+        fit, warnings = _fit(f, H, clusters, quantity), []
     else:
         clusters, fit, warnings = found
     if clusters.freq_hz.size == 0:
