@@ -89,6 +89,7 @@ def test_close_pair_half_a_percent_apart_with_two_references():
     modes = identify(f, H)
     assert modes.freq_hz.size == 4
     assert np.all(np.abs(modes.freq_hz / fn - 1) < 1e-3)
+    assert np.all(np.abs(modes.damping_ratio / zeta - 1) < 0.1)
 
 
 def test_manual_pole_pick_returns_exactly_the_requested_modes_and_refuses_far_ones():
