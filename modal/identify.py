@@ -165,7 +165,7 @@ def _merge(clusters: PoleClusters, k: int, constants: np.ndarray) -> PoleCluster
                         np.where(np.arange(out.freq_hz.size) == k, zeta, out.damping_ratio),
                         np.where(np.arange(out.freq_hz.size) == k, pole, out.pole),
                         np.where(np.arange(out.freq_hz.size) == k, clusters.n_stable[[k, k + 1]].max(),
-                                 out.n_stable), out.scatter,
+                                 out.n_stable),
                         out.members[:k] + (np.concatenate(clusters.members[k:k + 2]),) + out.members[k + 1:])
 
 

@@ -264,20 +264,18 @@ class PoleClusters:
     """Candidate modes of a stabilisation diagram, ascending in frequency: ``freq_hz``,
     ``damping_ratio``, ``pole`` (rad/s) from the median of the upper quarter of orders of each
     cluster's fully stable poles; ``n_stable`` the number of orders holding a fully stable pole of the
-    cluster, ``scatter`` the relative standard deviation of its stable poles' frequencies, ``members``
-    the indices (into the Stabilisation arrays) of its poles."""
+    cluster, ``members`` the indices (into the Stabilisation arrays) of its poles."""
 
     freq_hz: np.ndarray
     damping_ratio: np.ndarray
     pole: np.ndarray
     n_stable: np.ndarray
-    scatter: np.ndarray
     members: tuple[np.ndarray, ...]
 
     def subset(self, keep: np.ndarray) -> PoleClusters:
         idx = np.flatnonzero(keep) if np.asarray(keep).dtype == bool else np.asarray(keep, int)
         return PoleClusters(self.freq_hz[idx], self.damping_ratio[idx], self.pole[idx], self.n_stable[idx],
-                            self.scatter[idx], tuple(self.members[k] for k in idx))
+                            tuple(self.members[k] for k in idx))
 
 
 def _pole(fn: np.ndarray, zeta: np.ndarray) -> np.ndarray:
@@ -286,13 +284,13 @@ def _pole(fn: np.ndarray, zeta: np.ndarray) -> np.ndarray:
 
 
 def _summary(stab: Stabilisation, members: np.ndarray, stable: np.ndarray, top: float) -> tuple:
-    """(fn, zeta, n_stable orders, relative scatter, members) of one chain: medians over the fully
+    """(fn, zeta, n_stable orders, members) of one chain: medians over the fully
     stable poles of its orders at or above the quantile ``top`` of them."""
     s = members[stable[members]]
     o = stab.order[s]
     top = s[o >= np.quantile(o, top)]
     f, z = np.median(stab.freq_hz[top]), np.median(stab.damping_ratio[top])
-    return f, z, np.unique(o).size, np.std(stab.freq_hz[s]) / f, members
+    return f, z, np.unique(o).size, members
 
 
 def _merge_fragments(rows: list[tuple], stab: Stabilisation, stable: np.ndarray, top: float,
@@ -303,11 +301,11 @@ def _merge_fragments(rows: list[tuple], stab: Stabilisation, stable: np.ndarray,
     out = rows[:1]
     for row in rows[1:]:   # a loop over candidate modes
         last = out[-1]
-        oa = np.unique(stab.order[last[4][stable[last[4]]]])
-        ob = np.unique(stab.order[row[4][stable[row[4]]]])
+        oa = np.unique(stab.order[last[3][stable[last[3]]]])
+        ob = np.unique(stab.order[row[3][stable[row[3]]]])
         shared = np.intersect1d(oa, ob).size
         if abs(row[0] - last[0]) <= df * row[0] and shared <= overlap * min(oa.size, ob.size):
-            out[-1] = _summary(stab, np.concatenate([last[4], row[4]]), stable, top)
+            out[-1] = _summary(stab, np.concatenate([last[3], row[3]]), stable, top)
         else:
             out.append(row)
     return out
@@ -344,7 +342,7 @@ def pole_clusters(stab: Stabilisation, top: float = 0.5) -> PoleClusters:
     fn = np.array([r[0] for r in rows])
     zeta = np.array([r[1] for r in rows])
     return PoleClusters(fn, zeta, _pole(fn, zeta), np.array([r[2] for r in rows], int),
-                        np.array([r[3] for r in rows]), tuple(r[4] for r in rows))
+                        tuple(r[3] for r in rows))
 
 
 def stable_clusters(stab: Stabilisation, *, min_fraction: float = 0.5, min_orders: int = 5,
