@@ -288,7 +288,8 @@ def _summary(stab: Stabilisation, members: np.ndarray, stable: np.ndarray, top: 
     stable poles of its orders at or above the quantile ``top`` of them."""
     s = members[stable[members]]
     o = stab.order[s]
-    top = s[o >= np.quantile(o, top)]
+    ranked = np.sort(o)
+    top = s[o >= ranked[int(np.ceil(top * (ranked.size - 1)))]]   # the quantile, without its overhead
     f, z = np.median(stab.freq_hz[top]), np.median(stab.damping_ratio[top])
     return f, z, np.unique(o).size, members
 
