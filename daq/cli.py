@@ -11,7 +11,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     """Add this package's sub-commands to the flexmodal parser."""
     p = sub.add_parser("acquire", help="record an acquisition session into an HDF5 run",
                        description="Record the devices of a session config (TOML, docs/acquisition.md) into "
-                                   "a run of an HDF5 file (CONTRACT §6). Stops at --duration (or the "
+                                   "a run of an HDF5 file (docs/hdf5-format.md). Stops at --duration (or the "
                                    "session's duration_s) or on Ctrl-C, with everything flushed.")
     p.add_argument("--config", required=True, metavar="SESSION.toml", help="session config file")
     p.add_argument("--out", required=True, metavar="RUN.h5", help="HDF5 file (created, or a run is appended)")
@@ -35,8 +35,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="pose of the rig, e.g. theta_deg=60 (angles in degrees; default 30 deg, others 0)")
     s.add_argument("--seed", type=int, default=0, help="seed of the simulated test and the faults")
     s.add_argument("--effect", action="append", default=[], metavar="EFFECT@LOCATION:PARAM=VALUE,...",
-                   help="hide an effect in the simulated arm (CONTRACT §5 names, SI units), e.g. "
-                        "joint_stiffness@elbow:k_Nm_per_rad=8000; repeatable")
+                   help="hide an effect in the simulated arm (effect names: docs/formats.md; SI units), "
+                        "e.g. joint_stiffness@elbow:k_Nm_per_rad=8000; repeatable")
     s.add_argument("--duration", type=float, metavar="S", help="stop after S seconds of samples")
     s.add_argument("--link", metavar="PATH", help="serial/slcan: symlink path of the pty")
     s.add_argument("--port", type=int, default=0, help="modbus: TCP port on 127.0.0.1 (0 = a free one)")
@@ -59,19 +59,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _acquire(args: argparse.Namespace) -> int:
-    from flexmodal.daq.acquire import WriteFailed, acquire
-    from flexmodal.daq.errors import DaqError
-    from flexmodal.daq.session import load_session
+    from flexmodal.api import acquire
+    from flexmodal.daq.acquire import WriteFailed
 
-    session = load_session(args.config)
-    if args.recover and os.path.exists(args.out):
-        from flexmodal.daq.store import recover
-
-        recover(args.out)
-    if args.duration is not None and args.duration <= 0:
-        raise DaqError(f"--duration {args.duration}: must be > 0 seconds")
     try:
-        summary = acquire(session, args.out, duration_s=args.duration, quiet=args.quiet, run_id=args.run_id)
+        summary = acquire(args.config, args.out, duration_s=args.duration, run_id=args.run_id,
+                          recover=args.recover, quiet=args.quiet)
     except WriteFailed as exc:  # leave without closing the HDF5 file: it keeps its last flushed state
         print(f"flexmodal: error: {exc}", file=sys.stderr, flush=True)
         sys.stdout.flush()

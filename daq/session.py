@@ -101,7 +101,7 @@ class Trigger:
 
 @dataclass(frozen=True)
 class Simulator:
-    """The simulator a session starts itself (CONTRACT §7): arguments of `flexmodal sim serve`."""
+    """The simulator a session starts itself (docs/acquisition.md): arguments of `flexmodal sim serve`."""
 
     protocol: str
     rig: str = ""

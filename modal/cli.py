@@ -31,7 +31,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "LocalCluster (2 worker processes unless --workers N; --workers 0 = "
                                    "serial in this process) or to an existing --scheduler; a single run "
                                    "is computed here. Prints one 'FILE:RUN_ID' line per run written.")
-    p.add_argument("runs", nargs="+", metavar="RUN.h5", help="HDF5 run files (CONTRACT §6)")
+    p.add_argument("runs", nargs="+", metavar="RUN.h5", help="HDF5 run files (docs/hdf5-format.md)")
     p.add_argument("--estimator", default="H1", choices=_Estimators(), metavar="NAME",
                    help="FRF estimator: %(choices)s (default H1)")
     p.add_argument("--nfft", type=int, default=None,
@@ -52,7 +52,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     q = sub.add_parser("identify", help="natural frequencies, damping and mode shapes -> modal table CSV",
                        description="Identify modes from an HDF5 run (stored FRFs, or computed if absent) or "
                                    "a UFF file (dataset 58 FRFs, function type 4, or time histories, type 1, "
-                                   "with a force reference) and write the modal table CSV (CONTRACT §3). "
+                                   "with a force reference) and write the modal table CSV (docs/formats.md). "
                                    "Each run of an HDF5 file is one configuration (config = run id).")
     q.add_argument("input", metavar="INPUT", help="RUN.h5 or FILE.uff/.unv")
     q.add_argument("--out", required=True, metavar="MODES.csv", help="modal table to write")
@@ -68,33 +68,28 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _frf(args: argparse.Namespace) -> int:
-    from flexmodal.daq.store import expand_runs
-    from flexmodal.modal.batch import frf_batch
+    from flexmodal.api import compute_frfs
 
-    options = {"estimator": args.estimator, "nfft": args.nfft, "window": args.window,
-               "overlap": args.overlap, "averaging": args.averaging}
-    workers = args.workers
-    if workers is None and args.scheduler is None:
-        workers = 2 if len(expand_runs(args.runs)) > 1 else 0
-    for path, rid in frf_batch(args.runs, options, workers=workers, scheduler=args.scheduler, out=args.out,
-                               quiet=getattr(args, "quiet", False)):
+    written = compute_frfs(args.runs, estimator=args.estimator, nfft=args.nfft, window=args.window,
+                           overlap=args.overlap, averaging=args.averaging, workers=args.workers,
+                           scheduler=args.scheduler, out=args.out, quiet=getattr(args, "quiet", False))
+    for path, rid in written:
         print(f"{path}:{rid}")
     return 0
 
 
 def _identify(args: argparse.Namespace) -> int:
-    from flexmodal.modal.sources import identify_input
+    from flexmodal.api import identify
 
-    table, modes_by_config = identify_input(args.input, method=args.method, fmin=args.fmin, fmax=args.fmax,
-                                            max_order=args.max_order, run_id=args.run)
-    table.to_csv(args.out)
-    for config, (modes, _) in modes_by_config.items():
-        for warning in modes.warnings:
-            print(f"flexmodal: warning: {config}: {warning}", file=sys.stderr)
+    result = identify(args.input, method=args.method, fmin=args.fmin, fmax=args.fmax,
+                      max_order=args.max_order, run_id=args.run)
+    result.table.to_csv(args.out)
+    for warning in result.warnings:
+        print(f"flexmodal: warning: {warning}", file=sys.stderr)
     if args.uff:
         from flexmodal.modal.uff import write_modes
 
-        modes, outputs = next(iter(modes_by_config.values()))
-        write_modes(args.uff, modes.freq_hz, modes.damping_ratio, modes.shapes, outputs)
+        config, modes = next(iter(result.modes.items()))
+        write_modes(args.uff, modes.freq_hz, modes.damping_ratio, modes.shapes, result.outputs[config])
     print(args.out)
     return 0

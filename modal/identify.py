@@ -1,5 +1,5 @@
 """Modal identification from FRFs to natural frequencies, damping ratios and shapes, and on to the
-modal table (CONTRACT §3).  Methods: ``lscf`` (pLSCF poles with automatic stable-pole selection,
+modal table (docs/formats.md).  Methods: ``lscf`` (pLSCF poles with automatic stable-pole selection,
 shapes by LSFD with residuals) and ``peak`` (CMIF peak picking, half-power damping, quadrature
 shapes).  Damping added by an exponential window is removed from the identified poles."""
 

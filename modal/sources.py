@@ -44,7 +44,9 @@ def hdf5_frfs(path: str | Path, run_id: str | None = None):
         yield run, (read_frf(path, rid) or compute_frf(run))
 
 
-def _modes(result: FrfResult, *, driving_point: int | None = None, **options) -> Modes:
+def identify_frf(result: FrfResult, *, driving_point: int | None = None, **options) -> Modes:
+    """Identify the modes of FRFs in memory (``modal.identify.identify`` with the result's quantity and
+    exponential-window decay); ``options`` as for ``identify``."""
     return identify(result.freq_hz, result.H, coherence=result.coherence,
                     quantity=result.quantity if result.quantity in ("accelerance", "mobility", "receptance")
                     else "accelerance", decay_rate_per_s=result.decay_rate_per_s,
@@ -63,7 +65,7 @@ def identify_input(path: str | Path, *, method: str = "lscf", fmin: float | None
     tables = []
     if h5py.is_hdf5(p):
         for run, result in hdf5_frfs(p, run_id):
-            modes = _modes(result, driving_point=_driving_point(run, result), **options)
+            modes = identify_frf(result, driving_point=_driving_point(run, result), **options)
             found[run.run_id] = (modes, result.outputs)
             tables.append(modes_table(modes, result.outputs, config=run.run_id, pose=run.pose).frame)
     else:
@@ -77,7 +79,7 @@ def identify_input(path: str | Path, *, method: str = "lscf", fmin: float | None
             exc = "impact" if _impulsive(data.samples[:, list(data.kinds).index("force")]) else "random"
             result = frf_of_record(data.samples, data.sample_rate_hz, data.names, data.kinds,
                                    excitation=exc, where=str(p))
-        modes = _modes(result, **options)
+        modes = identify_frf(result, **options)
         found[p.stem] = (modes, result.outputs)
         tables.append(modes_table(modes, result.outputs, config=p.stem).frame)
     return ModalTable.from_frame(pd.concat(tables, ignore_index=True), str(p)), found
