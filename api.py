@@ -166,16 +166,23 @@ class Identification:
 
 
 def identify(source: PathLike | FrfResult, *, method: str = "lscf", fmin: float | None = None,
-             fmax: float | None = None, max_order: int = 40, run_id: str | None = None,
-             config: str = "run", pose: Mapping[str, float] | None = None) -> Identification:
+             fmax: float | None = None, max_order: int | None = None, run_id: str | None = None,
+             config: str = "run", pose: Mapping[str, float] | None = None,
+             poles_hz: Sequence[float] | None = None, thresholds=None,
+             decay_rate_per_s: float | None = None) -> Identification:
     """Natural frequencies [Hz], damping ratios and mode shapes of an HDF5 run file (each run one
     configuration; stored FRFs, else computed), a UFF file (dataset 58 FRFs or time histories), or an
     ``FrfResult`` in memory (then named ``config`` at ``pose``).  ``method``: ``lscf`` (pLSCF +
-    stabilisation + LSFD) or ``peak`` (CMIF peaks, half-power damping); docs/modal.md."""
+    stabilisation + LSFD) or ``peak`` (CMIF peaks, half-power damping); ``max_order`` caps the pLSCF
+    order (default: it adapts to the data); ``poles_hz`` picks the stable poles nearest these
+    frequencies; ``thresholds`` (``modal.identify.Thresholds``) the automatic selection's limits;
+    ``decay_rate_per_s`` [1/s] the exponential window to take out (default: the one the FRFs record).
+    docs/modal.md."""
     from flexmodal.modal.identify import modes_table
     from flexmodal.modal.sources import identify_frf, identify_input
 
-    options = {"method": method, "fmin": fmin, "fmax": fmax, "max_order": max_order}
+    options = {"method": method, "fmin": fmin, "fmax": fmax, "max_order": max_order, "poles_hz": poles_hz,
+               "thresholds": thresholds, "decay_rate_per_s": decay_rate_per_s}
     if isinstance(source, str | Path):
         table, found = identify_input(source, run_id=run_id, **options)
         return Identification(table, {c: m for c, (m, _) in found.items()},

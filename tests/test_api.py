@@ -46,6 +46,8 @@ def example(tmp_path_factory):
 def test_the_worked_example_finds_the_simulated_modes(example):
     """Known answer: the simulated arm's natural frequencies (with the hidden elbow spring)."""
     rig, measured = example["rig"], example["measured"]
+    ids = ["theta0", "theta120", "theta30", "theta60", "theta90"]   # as the doc's comment says
+    assert api.list_runs(example["dir"] / "runs.h5") == ids
     elbow = example["elbow"]
     for config, pose in example["poses"].items():
         truth = simulate(rig, pose, excitation="random", duration_s=1.0, effects=elbow).natural_freq_hz
@@ -82,7 +84,7 @@ def test_cli_prints_exactly_what_the_api_returns(example, tmp_path, capsys):
     assert capsys.readouterr().out == direct
     out = tmp_path / "cli.csv"
     assert main(["--quiet", "identify", str(where / "runs.h5"), "--fmin", "5", "--fmax", "450",
-                 "--out", str(out)]) == 0
+                 "--max-order", "20", "--out", str(out)]) == 0
     capsys.readouterr()
     cli = api.read_table(out).frame
     mine = api.read_table(tmp_path / "modes.csv").frame   # the same CSV round trip
@@ -120,7 +122,7 @@ def test_one_run_files_need_no_run_id_and_errors_are_the_packages(tmp_path):
     with pytest.raises(ModelError, match="no configurations"):
         api.predict(DEMO_RIG, {}, "fe")
     frf = api.compute_frf(tmp_path / "r2.h5", nfft=4096)
-    ident = api.identify(frf, fmin=5.0, fmax=450.0, config="c30", pose={"theta_deg": 30.0})
+    ident = api.identify(frf, fmin=5.0, fmax=450.0, max_order=20, config="c30", pose={"theta_deg": 30.0})
     assert ident.table.configs == ["c30"] and ident.table.pose("c30") == {"theta_deg": 30.0}
     np.testing.assert_allclose(ident.table.freq_hz("c30"), test.natural_freq_hz[:3], rtol=0.01)
 

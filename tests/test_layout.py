@@ -17,9 +17,6 @@ from flexmodal.app import build_parser
 
 LAYERS = ("daq", "modal", "models", "compare", "reports", "api", "fixtures", "app")
 CLI_MODULES = ("cli.py", "diagnosis_cli.py", "__main__.py")
-# upward edges that still exist when this was written: the `daq` engineer is moving the simulators out
-# of daq/ (issue 17); each entry turns into a failure (strict xfail) the moment its file is clean
-STILL_UPWARD = {"daq/acquire.py", "daq/sim_serve.py", "daq/sim_source.py"}
 # what reports/ may import from below it: data types and small display helpers, no solver
 REPORT_IMPORTS = {"flexmodal.compare.tables", "flexmodal.modal.table", "flexmodal.modal.mac",
                   "flexmodal.modal.peaks"}
@@ -65,10 +62,7 @@ def _upward(path: Path, rel: Path | None = None) -> list[str]:
             if m.split(".")[1] in LAYERS and LAYERS.index(m.split(".")[1]) > mine]
 
 
-@pytest.mark.parametrize("rel", [
-    pytest.param(str(p.relative_to(REPO)), marks=pytest.mark.xfail(
-        strict=True, reason="daq still imports fixtures/models")) if str(p.relative_to(REPO)) in STILL_UPWARD
-    else str(p.relative_to(REPO)) for p in _sources()])
+@pytest.mark.parametrize("rel", [str(p.relative_to(REPO)) for p in _sources()])
 def test_no_module_imports_up_the_data_flow(rel):
     assert _upward(REPO / rel) == []
 
