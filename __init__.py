@@ -16,7 +16,7 @@ __all__ = [
     "Identification", "acquire", "compare_modes", "compute_frf", "compute_frfs", "diagnose",
     "format_comparison", "identify", "list_runs", "load_rig", "plot_comparison", "plot_frf", "plot_gap",
     "plot_mode_shapes", "plot_stabilisation", "predict", "read_poses", "read_run", "read_table", "report",
-    "stabilisation", "write_diagnosis",
+    "write_diagnosis",
 ]
 
 

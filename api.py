@@ -24,7 +24,6 @@ if TYPE_CHECKING:
     from flexmodal.daq.store import Run
     from flexmodal.modal.frf import FrfResult
     from flexmodal.modal.identify import Modes
-    from flexmodal.modal.lscf import Stabilisation
     from flexmodal.modal.table import ModalTable
     from flexmodal.models.rig import Rig
 
@@ -32,10 +31,9 @@ __all__ = [
     "Identification", "acquire", "compare_modes", "compute_frf", "compute_frfs", "diagnose",
     "format_comparison", "identify", "list_runs", "load_rig", "plot_comparison", "plot_frf", "plot_gap",
     "plot_mode_shapes", "plot_stabilisation", "predict", "read_poses", "read_run", "read_table", "report",
-    "stabilisation", "write_diagnosis",
+    "write_diagnosis",
 ]
 
-STABILISATION_MAX_ORDER = 32   # highest pLSCF order of a report's stabilisation diagrams
 SHAPE_CONFIGS = 2              # configurations whose mode shapes a report draws on the arm (first, last)
 FRF_UNITS = {"accelerance": "(m/s²)/N", "mobility": "(m/s)/N", "receptance": "m/N"}
 
@@ -124,28 +122,6 @@ def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: 
     options = {"estimator": estimator, "nfft": nfft, "window": window, "overlap": overlap,
                "averaging": averaging}
     return frf_batch(runs, options, workers=workers, scheduler=scheduler, out=out, quiet=quiet)
-
-
-def stabilisation(frf: FrfResult, *, max_order: int = STABILISATION_MAX_ORDER, fmin: float | None = None,
-                  fmax: float | None = None) -> Stabilisation:
-    """pLSCF poles of model orders 2..``max_order`` (capped by the number of lines) of ``frf`` in
-    [fmin, fmax] Hz (default every line above 0 Hz) with their stability flags (modal.lscf)."""
-    import numpy as np
-
-    from flexmodal.modal.lscf import stabilisation as _stabilisation
-
-    band = _band(frf, fmin, fmax)
-    f = frf.freq_hz[band]
-    top = int(min(max_order, (f.size - 2) // 2))
-    return _stabilisation(f, np.asarray(frf.H)[..., band], range(2, top + 1))
-
-
-def _band(frf: FrfResult, fmin: float | None, fmax: float | None):
-    """Lines above 0 Hz within [fmin, fmax] Hz (either bound optional)."""
-    f = frf.freq_hz
-    lo = fmin if fmin is not None else 0.0
-    hi = fmax if fmax is not None else f.max()
-    return (f > 0) & (f >= lo) & (f <= hi)
 
 
 # -- modes -----------------------------------------------------------------------------------------
@@ -309,17 +285,17 @@ def plot_frf(frf: FrfResult, title: str = "") -> Figure:
                           FRF_UNITS.get(frf.quantity, "FRF unit"), title=title)
 
 
-def plot_stabilisation(frf: FrfResult, poles: Stabilisation | None = None, *,
-                       max_order: int = STABILISATION_MAX_ORDER, fmin: float | None = None,
-                       fmax: float | None = None, title: str = "") -> Figure:
-    """Stabilisation diagram of ``frf`` over its CMIF in [fmin, fmax] Hz: ``poles`` if given, else
-    :func:`stabilisation` of orders 2..``max_order``."""
+def plot_stabilisation(frf: FrfResult, modes: Modes | None = None, *, fmin: float | None = None,
+                       fmax: float | None = None, max_order: int | None = None, title: str = "") -> Figure:
+    """Stabilisation diagram of the pLSCF identification of ``frf`` over the CMIF of its band: that of
+    ``modes`` (an :func:`identify` result's ``modes[config]``) if given, else of ``frf`` identified here
+    in [fmin, fmax] Hz with ``max_order`` (default: the order adapts to the data)."""
+    from flexmodal.modal.sources import identify_frf
     from flexmodal.reports import plots
 
-    poles = poles if poles is not None else stabilisation(frf, max_order=max_order, fmin=fmin, fmax=fmax)
-    band = _band(frf, fmin, fmax)
-    return plots.plot_stabilisation(frf.freq_hz[band], frf.H[..., band], poles,
-                                    FRF_UNITS.get(frf.quantity, "FRF unit"), title=title)
+    if modes is None:
+        modes = identify_frf(frf, fmin=fmin, fmax=fmax, max_order=max_order)
+    return plots.plot_identification_diagram(frf, modes, FRF_UNITS.get(frf.quantity, "FRF unit"), title=title)
 
 
 def plot_mode_shapes(rig: Rig | PathLike, measured: ModalTable | PathLike, config: str,
@@ -379,13 +355,15 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     """Write the self-contained HTML validation report ``out`` and return its path.
 
     ``runs``: HDF5 files (all their runs), ``FILE::RUN_ID`` or (file, id); their stored FRFs are shown
-    with a stabilisation diagram.  ``measured``/``repeats``/``predictions``: modal tables;
-    ``diagnosis``: a :func:`diagnose` result, a parsed diagnosis.json, or its path; ``rig``: draws the
-    measured shapes on the arm.  Everything is computed here; ``reports.html`` only renders it."""
+    with the stabilisation diagram of their identification (default options of :func:`identify`).
+    ``measured``/``repeats``/``predictions``: modal tables; ``diagnosis``: a :func:`diagnose` result,
+    a parsed diagnosis.json, or its path; ``rig``: draws the measured shapes on the arm.  Everything
+    is computed here; ``reports.html`` only renders it."""
     from flexmodal.compare.tables import compare_tables, ordered_configs, table_name
     from flexmodal.daq.store import expand_runs
     from flexmodal.modal.errors import ModalError
     from flexmodal.modal.runs_io import read_frf
+    from flexmodal.modal.sources import identify_frf
     from flexmodal.reports.errors import ReportError
     from flexmodal.reports.html import load_diagnosis, write_report
     from flexmodal.reports.runs import RunSummary
@@ -395,15 +373,15 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     step = progress or (lambda _msg: None)
     summaries = []
     for path, run_id in expand_runs(runs):
-        step(f"reading {path.name}::{run_id}")
+        step(f"reading and identifying {path.name}::{run_id}")
         frf = read_frf(path, run_id)
-        stab = None
+        modes = None
         if frf is not None:
             try:
-                stab = stabilisation(frf)
+                modes = identify_frf(frf)
             except ModalError as exc:
-                stab = str(exc)
-        summaries.append(RunSummary(read_run(path, run_id), frf, stab))
+                modes = str(exc)
+        summaries.append(RunSummary(read_run(path, run_id), frf, modes))
     meas = _table(measured) if measured is not None else None
     named = _named(predictions)
     comparison = None

@@ -5,10 +5,11 @@ is fetched from a network.  Sections (each only when its input is given): compar
 measured vs predicted modes (a compare.tables.Comparison), diagnosis summary (docs/formats.md,
 diagnosis JSON), frequency-vs-pose, trend and mode-shape plots, run metadata, channel list, data
 quality (trigger/overload/gap/corrupt events, rejected hits, coherence) with the FRF plot of each run
-and its stabilisation diagram, and the gap per mode before and after the diagnosed effect.
+and the stabilisation diagram of its identification, and the gap per mode before and after the
+diagnosed effect.
 
 This module renders what it is given: the caller (``flexmodal.api.report``) reads the runs, computes
-the comparison, the stabilisation diagrams and the FE shapes on the arm.
+the comparison, each run's identification and the FE shapes on the arm.
 """
 
 from __future__ import annotations
@@ -143,17 +144,18 @@ def _run_rows(runs: Sequence[RunSummary]) -> tuple[list[dict], list[dict], list[
 
 
 def _stabilisation_figure(r: RunSummary, unit: str) -> dict | None:
-    if r.stabilisation is None:
+    if r.modes is None:
         return None
-    if isinstance(r.stabilisation, str):
-        return {"png": None, "caption": f"{r.label}: no stabilisation diagram ({r.stabilisation})"}
-    band = r.frf.freq_hz > 0
-    orders = r.stabilisation.order
-    top = f"{int(orders.min())}-{int(orders.max())}" if orders.size else "-"
-    return _fig(plots.plot_stabilisation(r.frf.freq_hz[band], r.frf.H[..., band], r.stabilisation, unit,
-                                         title=r.label),
-                f"{r.label}: pLSCF stabilisation diagram, orders {top} (filled: stable in frequency, "
-                f"damping and shape), over the complex mode indicator function")
+    if isinstance(r.modes, str):
+        return {"png": None, "caption": f"{r.label}: no identification ({r.modes})"}
+    try:
+        fig = plots.plot_identification_diagram(r.frf, r.modes, unit, title=r.label)
+    except ReportError as exc:
+        return {"png": None, "caption": f"{r.label}: {exc}"}
+    listed = ", ".join(f"{x:.4g}" for x in r.modes.freq_hz)
+    return _fig(fig, f"{r.label}: pLSCF stabilisation diagram ({r.modes.order_note}; filled: stable in "
+                     f"frequency, damping and shape) over the complex mode indicator function; "
+                     f"identified modes at {listed} Hz")
 
 
 def _run_figures(runs: Sequence[RunSummary]) -> list[dict]:
@@ -229,7 +231,7 @@ def write_report(out_path: str | Path, *, runs: Sequence[RunSummary] = (),
                  progress: Callable[[str], None] | None = None) -> Path:
     """Render one self-contained HTML report to ``out_path`` and return its path.
 
-    ``runs``: the runs to show (read, with FRFs and stabilisation diagrams, by the caller).
+    ``runs``: the runs to show (read, with FRFs and their identification, by the caller).
     ``comparison``: measured vs predicted modes (compare.tables.compare_tables).  ``measured``:
     identified modes; ``repeats``: further measured tables of the same configurations (error bars);
     ``predictions``: (name, table) pairs.  ``shapes``: {config: models.arm_shapes.ArmModes, or the

@@ -105,6 +105,16 @@ def plot_stabilisation(freq_hz: np.ndarray, H: np.ndarray, poles, unit: str = "(
     return fig
 
 
+def plot_identification_diagram(frf, modes, unit: str = "(m/s²)/N", title: str = "") -> Figure:
+    """The stabilisation diagram of an identification (``modes``: a ``modal.identify.Modes`` of the
+    pLSCF method) over the CMIF of the FRFs ``frf`` (a ``modal.frf.FrfResult``) in its band."""
+    if modes.stabilisation is None or modes.band_freq_hz is None:
+        raise ReportError(f"no stabilisation diagram: the modes were identified by {modes.method!r}")
+    lo, hi = float(modes.band_freq_hz.min()), float(modes.band_freq_hz.max())
+    band = (frf.freq_hz >= lo) & (frf.freq_hz <= hi)
+    return plot_stabilisation(frf.freq_hz[band], frf.H[..., band], modes.stabilisation, unit, title=title)
+
+
 def _pose_values(table: ModalTable, pose_var: str) -> dict[str, float]:
     col = "pose." + pose_var
     if col not in table.frame:

@@ -1,7 +1,7 @@
 """What a report shows of a stored run (docs/hdf5-format.md): metadata, channels, data quality, FRFs.
 
 A :class:`RunSummary` holds what the caller read and computed (the ``daq.store.Run``, its FRFs and
-their stabilisation diagram); the properties here only count and summarise.  Impact hits come from the
+their identification); the properties here only count and summarise.  Impact hits come from the
 FRF provenance (``hits``: ``trigger``, ``accepted``, ``reason``); without it, rejected hits are the
 ``note`` events whose detail starts with ``rejected``.
 """
@@ -18,19 +18,19 @@ import numpy as np
 if TYPE_CHECKING:
     from flexmodal.daq.store import Run
     from flexmodal.modal.frf import FrfResult
-    from flexmodal.modal.lscf import Stabilisation
+    from flexmodal.modal.identify import Modes
 
 LOW_COHERENCE = 0.8
 
 
 @dataclass(frozen=True, eq=False)
 class RunSummary:
-    """A run for the report: ``run`` as read, its ``frf`` (None when not computed) and the pLSCF
-    ``stabilisation`` of those FRFs, or the reason there is none (a string), or None."""
+    """A run for the report: ``run`` as read, its ``frf`` (None when not computed) and the ``modes``
+    identified from those FRFs (``modal.identify.Modes``), or the reason there are none (a string)."""
 
     run: Run
     frf: FrfResult | None = None
-    stabilisation: Stabilisation | str | None = None
+    modes: Modes | str | None = None
 
     @property
     def label(self) -> str:
