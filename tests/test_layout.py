@@ -23,10 +23,11 @@ REPORT_IMPORTS = {"flexmodal.compare.tables", "flexmodal.modal.table", "flexmoda
 
 
 def _sources() -> list[Path]:
-    skip = {"tests", "benchmarks", "examples", "docs"}
-    return sorted(p for p in REPO.rglob("*.py")
-                  if p.relative_to(REPO).parts[0] not in skip and not p.relative_to(REPO).parts[0].endswith(
-                      ".egg-info") and p.relative_to(REPO) != Path("__init__.py"))
+    """Every module of the installed package but its root ``__init__.py`` (tests, benchmarks and any
+    build/ output are not part of it)."""
+    packages = {"daq", "modal", "models", "compare", "reports", "fixtures"}
+    return sorted(p for p in REPO.rglob("*.py") if p.relative_to(REPO).parts[0] in packages
+                  or p.relative_to(REPO) in (Path("app.py"), Path("api.py"), Path("__main__.py")))
 
 
 def _layer(rel: Path) -> str:
