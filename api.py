@@ -35,7 +35,6 @@ __all__ = [
 ]
 
 SHAPE_CONFIGS = 2              # configurations whose mode shapes a report draws on the arm (first, last)
-FRF_UNITS = {"accelerance": "(m/s²)/N", "mobility": "(m/s)/N", "receptance": "m/N"}
 
 PathLike = str | Path
 
@@ -282,7 +281,7 @@ def plot_frf(frf: FrfResult, title: str = "") -> Figure:
     from flexmodal.reports import plots
 
     return plots.plot_frf(frf.freq_hz, frf.H, frf.coherence, frf.outputs,
-                          FRF_UNITS.get(frf.quantity, "FRF unit"), title=title)
+                          plots.frf_unit(frf.quantity), title=title)
 
 
 def plot_stabilisation(frf: FrfResult, modes: Modes | None = None, *, fmin: float | None = None,
@@ -295,7 +294,7 @@ def plot_stabilisation(frf: FrfResult, modes: Modes | None = None, *, fmin: floa
 
     if modes is None:
         modes = identify_frf(frf, fmin=fmin, fmax=fmax, max_order=max_order)
-    return plots.plot_identification_diagram(frf, modes, FRF_UNITS.get(frf.quantity, "FRF unit"), title=title)
+    return plots.plot_identification_diagram(frf, modes, plots.frf_unit(frf.quantity), title=title)
 
 
 def plot_mode_shapes(rig: Rig | PathLike, measured: ModalTable | PathLike, config: str,

@@ -30,7 +30,6 @@ from flexmodal.reports.errors import ReportError
 from flexmodal.reports.runs import LOW_COHERENCE, RunSummary
 
 UNIT_SUFFIXES = {"_deg": "deg", "_kg": "kg", "_m": "m", "_rad": "rad", "_n": "N"}
-FRF_UNITS = {"accelerance": "(m/s²)/N", "mobility": "(m/s)/N", "receptance": "m/N"}
 
 
 def pose_unit(var: str) -> str:
@@ -164,7 +163,7 @@ def _run_figures(runs: Sequence[RunSummary]) -> list[dict]:
         if r.frf is None:
             continue
         inputs = ", ".join(r.frf.inputs) or "force"
-        unit = FRF_UNITS.get(r.frf.quantity, "FRF unit")
+        unit = plots.frf_unit(r.frf.quantity)
         figs.append(_fig(plots.plot_frf(r.frf.freq_hz, r.frf.H, r.frf.coherence, r.frf.outputs, unit,
                                         title=f"{r.label} ({r.run.excitation})"),
                          f"{r.label}: FRF magnitude, phase and coherence (input {inputs}, "

@@ -33,7 +33,13 @@ from flexmodal.modal.peaks import cmif  # noqa: E402
 from flexmodal.modal.table import ModalTable  # noqa: E402
 from flexmodal.reports.errors import ReportError  # noqa: E402
 
+FRF_UNITS = {"accelerance": "(m/s²)/N", "mobility": "(m/s)/N", "receptance": "m/N"}
 _COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf")
+
+
+def frf_unit(quantity: str) -> str:
+    """Unit of an FRF of the given quantity (accelerance, mobility, receptance), per newton."""
+    return FRF_UNITS.get(quantity, "FRF unit")
 
 
 def figure_png(fig: Figure, dpi: int = 100) -> bytes:
