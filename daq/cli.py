@@ -29,7 +29,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "127.0.0.1 (prints host:port). Runs until Ctrl-C/SIGTERM or --duration.")
     s.add_argument("--protocol", required=True, choices=("serial", "can", "modbus"))
     s.add_argument("--rig", metavar="RIG.toml", help="rig description (default: the demo arm)")
-    s.add_argument("--test", choices=("impact", "random", "sweep"), default="impact", help="excitation")
+    s.add_argument("--test", choices=("impact", "random", "sweep", "operational"), default="impact",
+                   help="excitation (operational: the arm driven by joint torque and tip force noise, "
+                        "no force channel streamed)")
     s.add_argument("--rate", type=float, default=2048.0, metavar="HZ", help="sample rate, Hz")
     s.add_argument("--pose", default="", metavar="VAR=VALUE,...",
                    help="pose of the rig, e.g. theta_deg=60 (angles in degrees; default 30 deg, others 0)")

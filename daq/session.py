@@ -288,7 +288,7 @@ def parse_session(doc: dict, source: Path) -> Session:
         s = _Table(doc["simulator"], f"{where}: simulator")
         s.reject_unknown({"protocol", "rig", "test", "args"})
         sim = Simulator(s.choice("protocol", PROTOCOLS), _resolve(base, s.get("rig", str, "")),
-                        s.choice("test", ("impact", "random", "sweep"), "impact"),
+                        s.choice("test", ("impact", "random", "sweep", "operational"), "impact"),
                         tuple(str(a) for a in s.get("args", list, [])))
     dev_docs = t.get("device", list, check=bool, why="must list at least one [[device]]")
     devices: dict[str, Device] = {}

@@ -40,10 +40,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     q.add_argument("--out", required=True, metavar="MODES.csv", help="modal table to write")
     q.add_argument("--fmin", type=float, default=None, help="lower band edge, Hz (default first line > 0)")
     q.add_argument("--fmax", type=float, default=None, help="upper band edge, Hz (default Nyquist)")
-    q.add_argument("--method", default="lscf", choices=["peak", "lscf"],
-                   help="lscf: pLSCF + stabilisation + LSFD (default); "
-                        "peak: CMIF peaks, half-power damping, quadrature shapes")
-    q.add_argument("--max-order", type=int, default=40, help="highest pLSCF model order (default 40)")
+    q.add_argument("--method", default=None, choices=["peak", "lscf", "ssi", "fdd"],
+                   help="lscf: pLSCF + stabilisation + LSFD (default with a force channel); "
+                        "peak: CMIF peaks, half-power damping, quadrature shapes; "
+                        "ssi: output-only SSI-cov + stabilisation (default for excitation=operational or "
+                        "no force channel); fdd: output-only frequency-domain decomposition, EFDD damping. "
+                        "ssi/fdd shapes are unscaled (unit largest entry)")
+    q.add_argument("--max-order", type=int, default=None,
+                   help="highest model order of the stabilisation diagram (default 40 for lscf, 100 for ssi)")
+    q.add_argument("--references", default=None, metavar="NAME,...",
+                   help="ssi/fdd: reference output channels (default all outputs)")
     q.add_argument("--run", default=None, metavar="RUN_ID", help="only this run of an HDF5 file")
     q.add_argument("--uff", default=None, metavar="MODES.uff", help="also write the modes as UFF dataset 55")
     q.set_defaults(func=_identify)
@@ -67,8 +73,9 @@ def _frf(args: argparse.Namespace) -> int:
 def _identify(args: argparse.Namespace) -> int:
     from flexmodal.modal.sources import identify_input
 
+    refs = args.references.split(",") if args.references else None
     table, modes_by_config = identify_input(args.input, method=args.method, fmin=args.fmin, fmax=args.fmax,
-                                            max_order=args.max_order, run_id=args.run)
+                                            max_order=args.max_order, run_id=args.run, references=refs)
     table.to_csv(args.out)
     for config, (modes, _) in modes_by_config.items():
         for warning in modes.warnings:

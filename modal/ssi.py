@@ -37,6 +37,16 @@ from flexmodal.modal.mac import mac_pairs, to_real, unit_max
 MPC_MIN = 0.7       # poles below this modal phase collinearity are noise (real modes have MPC ~ 1)
 MPD_MAX_DEG = 30.0  # poles whose entries scatter more than this from one phase line are noise
 ZETA_MAX = 0.2      # poles damped more than 20 % are not structural modes of an arm
+# A structural mode's SSI pole is stable from a low order on (the demo arm's modes: 90-98 % of orders
+# 2..100, an 11-storey frame's 11 modes on 5 channels: >= 60 % of orders 2..60); noise fits appear at
+# high orders with long Hankel matrices (the demo arm with 100 block rows: 40 % and, once, 66 %).
+MIN_FRACTION = 0.5
+# SSI damping estimates scatter more between orders than pLSCF's; 5 % (the input-output path's) left
+# the demo arm's third mode stable in only 62 % of the orders, 20 % keeps 90 % (pyOMA2 uses 10 %)
+DZ = 0.2
+# Longer Hankel matrices fit the covariance estimates' errors: on 60 s of the demo arm, 200 block rows
+# gave stable noise poles beside the strong modes, 100 did not
+MAX_BLOCK_ROWS = 100
 
 
 @dataclass(frozen=True)
@@ -116,25 +126,36 @@ def stability_flags(orders: Sequence[int], poles: Sequence[np.ndarray], shapes: 
 
 
 def _decimation(sample_rate_hz: float, fmax: float | None) -> int:
-    """Integer decimation factor that keeps 2.5 x ``fmax`` below the new sample rate."""
+    """Integer decimation factor that keeps the new sample rate at least 4 x ``fmax``: modes up to
+    3 ``fmax`` alias above ``fmax`` (and their poles are dropped), modes beyond lie in the stop band
+    of the anti-aliasing filter (SSI finds even weak aliased modes, so the margin is wide)."""
     if fmax is None:
         return 1
-    return max(1, int(sample_rate_hz // (2.5 * fmax)))
+    return max(1, int(sample_rate_hz // (4 * fmax)))
+
+
+def default_block_rows(max_order: int, n_refs: int, sample_rate_hz: float, fmin: float | None) -> int:
+    """Block rows s: enough for the model order (``s n_refs > max_order``), at least 10, and lags up to
+    ``s / f_s`` of at least half a period of ``fmin`` (capped at ``MAX_BLOCK_ROWS``)."""
+    s = max(10, max_order // n_refs + 1)
+    if fmin:
+        s = max(s, min(MAX_BLOCK_ROWS, int(np.ceil(sample_rate_hz / (2 * fmin)))))
+    return s
 
 
 def ssi_cov(y: np.ndarray, sample_rate_hz: float, *, references: Sequence[int] | None = None,
             fmin: float | None = None, fmax: float | None = None, max_order: int = 100,
             min_order: int = 2, order_step: int = 2, block_rows: int | None = None, df: float = 0.01,
-            dz: float = 0.05, mac_min: float = 0.98, mpc_min: float = MPC_MIN,
-            mpd_max_deg: float = MPD_MAX_DEG, min_fraction: float = 0.3) -> SsiResult:
+            dz: float = DZ, mac_min: float = 0.98, mpc_min: float = MPC_MIN,
+            mpd_max_deg: float = MPD_MAX_DEG, min_fraction: float = MIN_FRACTION) -> SsiResult:
     """SSI-cov of an output-only record ``y`` [n_samples, n_channels] sampled at ``sample_rate_hz``.
 
     ``references``: channel indices whose covariances with every channel fill the Hankel matrix
     (default all).  ``fmin``/``fmax`` [Hz] bound the poles kept; with ``fmax`` the record is first
-    decimated (zero-phase FIR) to at least 2.5 ``fmax``.  Model orders ``min_order .. max_order`` in
-    steps of ``order_step``; ``block_rows`` s (default the least with ``s * n_refs > max_order`` and
-    ``s >= 10``).  Poles are validated by damping (0 < zeta < 20 %), MPC >= ``mpc_min`` and MPD <=
-    ``mpd_max_deg`` before the stability check; the modes are chosen by
+    decimated (polyphase FIR) to at least 4 ``fmax``.  Model orders ``min_order .. max_order`` in
+    steps of ``order_step``; ``block_rows`` s (default :func:`default_block_rows`).  Poles are
+    validated by damping (0 < zeta < 20 %), MPC >= ``mpc_min`` and MPD <= ``mpd_max_deg`` before
+    the stability check; the modes are chosen by
     :func:`~flexmodal.modal.lscf.select_stable` (clusters present in ``min_fraction`` of the orders).
     Returns the stabilisation diagram and the modes (unscaled shapes, unit largest entry).
     """
@@ -151,9 +172,9 @@ def ssi_cov(y: np.ndarray, sample_rate_hz: float, *, references: Sequence[int] |
         raise ModalError(f"SSI: model orders {min_order}..{max_order} (step {order_step}) are not valid")
     q = _decimation(sample_rate_hz, fmax)
     if q > 1:
-        y = scipy.signal.decimate(y, q, ftype="fir", axis=0, zero_phase=True)
+        y = scipy.signal.resample_poly(y, 1, q, axis=0)   # Kaiser FIR, delay compensated
     fs = sample_rate_hz / q
-    s = block_rows or max(10, max_order // len(refs) + 1)
+    s = block_rows or default_block_rows(max_order, len(refs), fs, fmin)
     if s * len(refs) <= max_order or s * n_ch <= max_order:
         raise ModalError(f"SSI: {s} block rows x {len(refs)} references (and {n_ch} channels) cannot hold "
                          f"model order {max_order}; use more block rows or a lower --max-order")
@@ -204,17 +225,22 @@ def _poles(U: np.ndarray, n_ch: int, orders: list[int], fs: float, band: tuple[f
 
 
 def _select(stab: Stabilisation, shapes: np.ndarray, min_fraction: float) -> Modes:
-    """The modes of the stabilisation diagram: frequency and damping from ``select_stable``; the shape
-    of the stable pole nearest to each selected frequency among the upper half of its orders."""
+    """The modes of the stabilisation diagram: frequency and damping from ``select_stable``, kept when
+    stable poles within 0.5 % of the frequency exist at ``min_fraction`` of the orders (select_stable
+    counts the orders of a whole cluster, and a chain of noise poles can join a mode's cluster); the
+    shape of the stable pole nearest to each frequency among the upper half of its orders."""
     fn, zeta, _ = select_stable(stab, min_fraction=min_fraction)
-    if fn.size == 0:
-        raise ModalError("SSI: no stable mode in the band (try a higher --max-order, or check the record)")
     stable = np.flatnonzero(stab.stable)
-    picks = []
+    n_orders = np.unique(stab.order).size
+    keep, picks = [], []
     for f0 in fn:   # a loop over modes
         near = stable[np.abs(stab.freq_hz[stable] - f0) <= 0.005 * f0]
+        keep.append(np.unique(stab.order[near]).size >= min_fraction * n_orders)
         upper = near[stab.order[near] >= np.median(stab.order[near])]
         picks.append(upper[np.argmin(np.abs(stab.freq_hz[upper] - f0))])
+    fn, zeta, picks = fn[keep], zeta[keep], np.array(picks, int)[keep]
+    if fn.size == 0:
+        raise ModalError("SSI: no stable mode in the band (try a higher --max-order, or check the record)")
     complex_shapes = unit_max(shapes[:, picks])
     warnings = tuple(f"mode at {f:.4g} Hz: MPC {m:.2f}, MPD {d:.0f} deg (a complex shape)"
                      for f, m, d in zip(fn, mpc(complex_shapes), mpd(complex_shapes), strict=True)

@@ -1,0 +1,69 @@
+"""Output-only (operational) identification of a stored record: which method a run gets, which channels
+are the outputs and references, and the call into SSI-cov (:mod:`flexmodal.modal.ssi`) or FDD
+(:mod:`flexmodal.modal.fdd`).
+
+A run is output-only when its ``excitation`` attribute is ``operational`` or it records no force
+channel; it then defaults to ``ssi``, otherwise to ``lscf`` (FRF-based).  Outputs are the
+acceleration channels (else every channel that is neither a force nor an encoder), as for FRFs.
+References are all outputs unless named.  Shapes are unscaled (unit largest entry): with no force
+measured there is no modal mass.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from flexmodal.modal.compute import check_samples
+from flexmodal.modal.errors import ModalError
+from flexmodal.modal.fdd import FddResult, fdd
+from flexmodal.modal.ssi import SsiResult, ssi_cov
+
+OUTPUT_ONLY_METHODS = ("ssi", "fdd")
+
+
+def default_method(kinds: Sequence[str], excitation: str = "") -> str:
+    """``ssi`` for an operational run or one without a force channel, else ``lscf``."""
+    return "ssi" if excitation == "operational" or "force" not in kinds else "lscf"
+
+
+def output_channels(kinds: Sequence[str]) -> list[int]:
+    """Indices of the response channels: accelerations, else every non-force, non-encoder channel."""
+    acc = [j for j, k in enumerate(kinds) if k == "acceleration"]
+    return acc or [j for j, k in enumerate(kinds) if k not in ("force", "encoder")]
+
+
+def identify_output_only(samples: np.ndarray, sample_rate_hz: float, names: Sequence[str],
+                         kinds: Sequence[str], *, method: str = "ssi", fmin: float | None = None,
+                         fmax: float | None = None, max_order: int | None = None,
+                         references: Sequence[str] | None = None, where: str = "record"
+                         ) -> tuple[SsiResult | FddResult, tuple[str, ...]]:
+    """SSI-cov or FDD of the response channels of a record [n_samples, n_channels]; returns the
+    method's result (with ``.modes``) and the output channel names.  ``references`` name output
+    channels (default all); ``max_order`` is SSI's highest model order (default 100)."""
+    if method not in OUTPUT_ONLY_METHODS:
+        raise ModalError(f"method {method!r} is not output-only ({', '.join(OUTPUT_ONLY_METHODS)})")
+    samples = np.asarray(samples)
+    check_samples(samples, names, where)
+    outputs = output_channels(kinds)
+    if not outputs:
+        raise ModalError(f"{where}: no response channel to identify from")
+    out_names = tuple(names[j] for j in outputs)
+    refs = None
+    if references:
+        unknown = [r for r in references if r not in out_names]
+        if unknown:
+            raise ModalError(f"{where}: reference channel(s) {', '.join(unknown)} are not among the "
+                             f"outputs ({', '.join(out_names)})")
+        refs = [out_names.index(r) for r in references]
+    y = samples[:, outputs].astype(float)
+    try:
+        if method == "ssi":
+            result = ssi_cov(y, sample_rate_hz, references=refs, fmin=fmin, fmax=fmax,
+                             max_order=100 if max_order is None else max_order)
+        else:
+            result = fdd(y, sample_rate_hz, references=refs, fmin=fmin, fmax=fmax)
+    except ModalError as exc:
+        raise ModalError(f"{where}: {exc}") from None
+    return result, out_names
