@@ -44,9 +44,12 @@ def cross_spectra(y: np.ndarray, sample_rate_hz: float, references: Sequence[int
                   ) -> tuple[np.ndarray, np.ndarray]:
     """Welch cross-spectral densities G [n_freq, n_channels, n_refs] of ``y`` [n_samples, n_channels]
     (Hann window, 50 % overlap, segment means removed), ``G_jk = 2 E[Y_j Y_k*] / (fs sum w^2)``, and
-    the frequency lines [Hz]."""
+    the frequency lines [Hz].  Segments that touch a gap (a NaN row) are left out."""
     step = nfft // 2
     segs = np.lib.stride_tricks.sliding_window_view(y, nfft, axis=0)[::step]     # [seg, ch, nfft]
+    segs = segs[~np.isnan(segs).any(axis=(1, 2))]
+    if segs.shape[0] == 0:
+        raise ModalError(f"FDD: no segment of {nfft} samples free of gaps")
     win = scipy.signal.get_window("hann", nfft)
     X = scipy.fft.rfft((segs - segs.mean(axis=-1, keepdims=True)) * win, axis=-1)  # [seg, ch, f]
     G = np.einsum("scf,srf->fcr", X, X[:, list(references)].conj()) / segs.shape[0]
@@ -65,8 +68,9 @@ def fdd(y: np.ndarray, sample_rate_hz: float, *, references: Sequence[int] | Non
     matrix with ``references`` (default all channels) and the peaks of the first between ``fmin`` and
     ``fmax`` Hz (see module docstring).  ``nfft`` defaults to the power of two giving >= 8 segments."""
     y = np.asarray(y, float)
-    if y.ndim != 2 or not np.all(np.isfinite(y)):
-        raise ModalError(f"FDD: record of shape {y.shape} is not a finite [n_samples, n_channels] array")
+    if y.ndim != 2 or np.isinf(y).any():
+        raise ModalError(f"FDD: record of shape {y.shape} is not a finite [n_samples, n_channels] array "
+                         "(NaN rows are gaps)")
     n_ch = y.shape[1]
     refs = list(range(n_ch)) if references is None else [int(r) for r in references]
     if not refs or any(r < 0 or r >= n_ch for r in refs):

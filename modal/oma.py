@@ -5,8 +5,9 @@ are the outputs and references, and the call into SSI-cov (:mod:`flexmodal.modal
 A run is output-only when its ``excitation`` attribute is ``operational`` or it records no force
 channel; it then defaults to ``ssi``, otherwise to ``lscf`` (FRF-based).  Outputs are the
 acceleration channels (else every channel that is neither a force nor an encoder), as for FRFs.
-References are all outputs unless named.  Shapes are unscaled (unit largest entry): with no force
-measured there is no modal mass.
+References are all outputs unless named.  Rows of NaN (samples lost in acquisition, recorded as gap
+events) are left out of the covariances (SSI) and of the spectral segments (FDD).  Shapes are unscaled
+(unit largest entry): with no force measured there is no modal mass.
 """
 
 from __future__ import annotations
@@ -45,7 +46,8 @@ def identify_output_only(samples: np.ndarray, sample_rate_hz: float, names: Sequ
     if method not in OUTPUT_ONLY_METHODS:
         raise ModalError(f"method {method!r} is not output-only ({', '.join(OUTPUT_ONLY_METHODS)})")
     samples = np.asarray(samples)
-    check_samples(samples, names, where)
+    gaps = np.isnan(samples).all(axis=1) if samples.ndim == 2 else np.zeros(0, bool)
+    check_samples(samples[~gaps] if gaps.size else samples, names, where)   # NaN rows: lost samples
     outputs = output_channels(kinds)
     if not outputs:
         raise ModalError(f"{where}: no response channel to identify from")

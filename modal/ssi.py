@@ -92,17 +92,26 @@ def mpd(phi: np.ndarray) -> np.ndarray:
 
 
 def covariances(y: np.ndarray, references: Sequence[int], max_lag: int) -> np.ndarray:
-    """Unbiased output covariances R [max_lag + 1, n_channels, n_refs], ``R_i = 1/(N-i) sum_k
+    """Unbiased output covariances R [max_lag + 1, n_channels, n_refs], ``R_i = 1/n_i sum_k
     y_(k+i) y_ref,k^T`` of the mean-removed record ``y`` [N, n_channels], by one zero-padded real FFT
-    per channel (Bendat & Piersol 2010, §11.4.2)."""
+    per channel (Bendat & Piersol 2010, §11.4.2).  Rows holding NaN are gaps (lost samples): they are
+    left out of the sums, and ``n_i`` counts the pairs of valid rows ``i`` apart (one more FFT)."""
     y = np.asarray(y, float)
-    y = y - y.mean(axis=0)
+    valid = ~np.isnan(y).any(axis=1)
+    y = np.where(valid[:, None], y - y[valid].mean(axis=0), 0.0)
     n = y.shape[0]
     nfft = scipy.fft.next_fast_len(n + max_lag + 1, real=True)
     Y = scipy.fft.rfft(y, nfft, axis=0)                                       # [f, ch]
     cross = Y[:, :, None] * Y[:, list(references)].conj()[:, None, :]          # [f, ch, ref]
     r = scipy.fft.irfft(cross, nfft, axis=0)[: max_lag + 1]
-    return r / (n - np.arange(max_lag + 1))[:, None, None]
+    if valid.all():
+        pairs = n - np.arange(max_lag + 1.0)
+    else:
+        m = scipy.fft.rfft(valid.astype(float), nfft)
+        pairs = np.rint(scipy.fft.irfft(m * m.conj(), nfft)[: max_lag + 1])
+        if pairs.min() < 1:
+            raise ModalError(f"SSI: no pair of valid samples {int(np.argmin(pairs))} apart (gaps everywhere)")
+    return r / pairs[:, None, None]
 
 
 def stability_flags(orders: Sequence[int], poles: Sequence[np.ndarray], shapes: Sequence[np.ndarray], *,
@@ -162,8 +171,9 @@ def ssi_cov(y: np.ndarray, sample_rate_hz: float, *, references: Sequence[int] |
     y = np.asarray(y, float)
     if y.ndim != 2 or y.shape[1] < 1:
         raise ModalError(f"SSI: record of shape {y.shape} is not [n_samples, n_channels]")
-    if not np.all(np.isfinite(y)):
-        raise ModalError("SSI: the record contains NaN or infinite values")
+    gaps = np.isnan(y).any(axis=1)
+    if np.isinf(y).any() or gaps.mean() > 0.5:
+        raise ModalError("SSI: the record holds infinite values or more than half of it is gaps (NaN rows)")
     n_ch = y.shape[1]
     refs = tuple(range(n_ch)) if references is None else tuple(int(r) for r in references)
     if not refs or any(r < 0 or r >= n_ch for r in refs) or len(set(refs)) != len(refs):
@@ -171,8 +181,10 @@ def ssi_cov(y: np.ndarray, sample_rate_hz: float, *, references: Sequence[int] |
     if max_order < 2 or min_order < 1 or order_step < 1 or min_order > max_order:
         raise ModalError(f"SSI: model orders {min_order}..{max_order} (step {order_step}) are not valid")
     q = _decimation(sample_rate_hz, fmax)
-    if q > 1:
-        y = scipy.signal.resample_poly(y, 1, q, axis=0)   # Kaiser FIR, delay compensated
+    if q > 1:   # Kaiser FIR, delay compensated; an output sample whose filter reached a gap is a gap
+        near_gap = np.abs(scipy.signal.resample_poly(gaps.astype(float), 1, q)) > 1e-6
+        y = scipy.signal.resample_poly(np.where(gaps[:, None], 0.0, y), 1, q, axis=0)
+        y[near_gap] = np.nan
     fs = sample_rate_hz / q
     s = block_rows or default_block_rows(max_order, len(refs), fs, fmin)
     if s * len(refs) <= max_order or s * n_ch <= max_order:

@@ -67,6 +67,29 @@ def test_covariances_equal_the_direct_unbiased_sums():
         assert np.allclose(R[i], direct, rtol=1e-12, atol=1e-14)
 
 
+def test_covariances_with_gaps_sum_over_valid_pairs_only():
+    rng = np.random.default_rng(4)
+    y = rng.standard_normal((400, 2))
+    y[50:60] = np.nan
+    y[200] = np.nan
+    R = covariances(y, [0, 1], 5)
+    valid = ~np.isnan(y).any(axis=1)
+    yc = np.where(valid[:, None], y - y[valid].mean(axis=0), 0.0)
+    for i in (0, 3, 5):
+        both = valid[i:] & valid[: 400 - i]
+        direct = (yc[i:][both]).T @ yc[: 400 - i][both] / both.sum()
+        assert np.allclose(R[i], direct, rtol=1e-12, atol=1e-14)
+
+
+def test_ssi_and_fdd_on_a_record_with_gaps(frame):
+    y = frame.samples.copy()
+    for start in range(10_000, y.shape[0], 30_000):   # 0.5 s lost every ~2 min
+        y[start:start + 128] = np.nan
+    for modes in (ssi_cov(y, 256.0).modes, fdd(y, 256.0).modes):
+        df, _, macs = _errors(modes, frame)
+        assert df.max() < 0.002 and macs.min() >= 0.99, (df, macs)
+
+
 def test_mpc_and_mpd_closed_forms():
     real = np.array([[1.0], [-0.5], [0.3]]) * np.exp(0.7j)
     assert mpc(real)[0] == pytest.approx(1.0, abs=1e-12)
@@ -99,7 +122,8 @@ def test_cross_spectra_match_scipy_csd():
 @pytest.mark.parametrize("call, message", [
     (lambda y: ssi_cov(y, 256.0, references=[7]), "reference channels"),
     (lambda y: ssi_cov(y[:100], 256.0), "too few"),
-    (lambda y: ssi_cov(np.where(np.arange(y.shape[0])[:, None] == 5, np.nan, y), 256.0), "NaN"),
+    (lambda y: ssi_cov(np.where(np.arange(y.shape[0])[:, None] == 5, np.inf, y), 256.0), "infinite"),
+    (lambda y: ssi_cov(np.where(np.arange(y.shape[0])[:, None] % 3 > 0, np.nan, y), 256.0), "gaps"),
     (lambda y: ssi_cov(y, 256.0, max_order=100, block_rows=10), "cannot hold"),
     (lambda y: fdd(y, 256.0, nfft=10 ** 7), "does not fit"),
 ])
