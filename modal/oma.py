@@ -5,9 +5,11 @@ are the outputs and references, and the call into SSI-cov (:mod:`flexmodal.modal
 A run is output-only when its ``excitation`` attribute is ``operational`` or it records no force
 channel; it then defaults to ``ssi``, otherwise to ``lscf`` (FRF-based).  Outputs are the
 acceleration channels (else every channel that is neither a force nor an encoder), as for FRFs.
-References are all outputs unless named.  Rows of NaN (samples lost in acquisition, recorded as gap
-events) are left out of the covariances (SSI) and of the spectral segments (FDD).  Shapes are unscaled
-(unit largest entry): with no force measured there is no modal mass.
+References are all outputs unless named.  Without ``fmin``, SSI's Hankel matrix is sized for half the
+lowest FDD peak (a quick look costing a fraction of the SSI), so low modes are not missed.  Rows of
+NaN (samples lost in acquisition, recorded as gap events) are left out of the covariances (SSI) and
+of the spectral segments (FDD).  Shapes are unscaled (unit largest entry): with no force measured
+there is no modal mass.
 """
 
 from __future__ import annotations
@@ -63,9 +65,19 @@ def identify_output_only(samples: np.ndarray, sample_rate_hz: float, names: Sequ
     try:
         if method == "ssi":
             result = ssi_cov(y, sample_rate_hz, references=refs, fmin=fmin, fmax=fmax,
-                             max_order=100 if max_order is None else max_order)
+                             max_order=100 if max_order is None else max_order,
+                             lowest_hz=fmin or _lowest_peak(y, sample_rate_hz, refs, fmax))
         else:
             result = fdd(y, sample_rate_hz, references=refs, fmin=fmin, fmax=fmax)
     except ModalError as exc:
         raise ModalError(f"{where}: {exc}") from None
     return result, out_names
+
+
+def _lowest_peak(y: np.ndarray, sample_rate_hz: float, refs: Sequence[int] | None, fmax: float | None
+                 ) -> float | None:
+    """Half the frequency of the lowest FDD mode [Hz], or None when FDD finds none."""
+    try:
+        return 0.5 * float(fdd(y, sample_rate_hz, references=refs, fmax=fmax).modes.freq_hz.min())
+    except ModalError:
+        return None

@@ -156,13 +156,15 @@ def ssi_cov(y: np.ndarray, sample_rate_hz: float, *, references: Sequence[int] |
             fmin: float | None = None, fmax: float | None = None, max_order: int = 100,
             min_order: int = 2, order_step: int = 2, block_rows: int | None = None, df: float = 0.01,
             dz: float = DZ, mac_min: float = 0.98, mpc_min: float = MPC_MIN,
-            mpd_max_deg: float = MPD_MAX_DEG, min_fraction: float = MIN_FRACTION) -> SsiResult:
+            mpd_max_deg: float = MPD_MAX_DEG, min_fraction: float = MIN_FRACTION,
+            lowest_hz: float | None = None) -> SsiResult:
     """SSI-cov of an output-only record ``y`` [n_samples, n_channels] sampled at ``sample_rate_hz``.
 
     ``references``: channel indices whose covariances with every channel fill the Hankel matrix
     (default all).  ``fmin``/``fmax`` [Hz] bound the poles kept; with ``fmax`` the record is first
     decimated (polyphase FIR) to at least 4 ``fmax``.  Model orders ``min_order .. max_order`` in
-    steps of ``order_step``; ``block_rows`` s (default :func:`default_block_rows`).  Poles are
+    steps of ``order_step``; ``block_rows`` s (default :func:`default_block_rows` for ``lowest_hz``,
+    the lowest frequency of interest, default ``fmin``).  Poles are
     validated by damping (0 < zeta < 20 %), MPC >= ``mpc_min`` and MPD <= ``mpd_max_deg`` before
     the stability check; the modes are chosen by
     :func:`~flexmodal.modal.lscf.select_stable` (clusters present in ``min_fraction`` of the orders).
@@ -186,7 +188,7 @@ def ssi_cov(y: np.ndarray, sample_rate_hz: float, *, references: Sequence[int] |
         y = scipy.signal.resample_poly(np.where(gaps[:, None], 0.0, y), 1, q, axis=0)
         y[near_gap] = np.nan
     fs = sample_rate_hz / q
-    s = block_rows or default_block_rows(max_order, len(refs), fs, fmin)
+    s = block_rows or default_block_rows(max_order, len(refs), fs, lowest_hz or fmin)
     if s * len(refs) <= max_order or s * n_ch <= max_order:
         raise ModalError(f"SSI: {s} block rows x {len(refs)} references (and {n_ch} channels) cannot hold "
                          f"model order {max_order}; use more block rows or a lower --max-order")
