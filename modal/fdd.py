@@ -9,8 +9,9 @@ damping by enhanced FDD (EFDD, Brincker, Ventura & Andersen 2001, IMAC XIX): the
 whose first singular vector has MAC >= 0.8 with the peak's form the mode's single-degree-of-freedom
 bell, whose inverse FFT is the mode's correlation function, a free decay; its logarithmic decrement
 (:func:`flexmodal.modal.damping.log_decrement`) gives the damping ratio and its zero-crossing rate the
-damped frequency.  The Hann window's leakage widens the bell, so damping is biased high when the bell
-holds few lines: SSI (:mod:`flexmodal.modal.ssi`) gives the damping to rely on.
+damped frequency.  A peak whose correlation function does not decay along a straight line in log
+amplitude (R² < 0.9) is noise and is dropped.  The Hann window's leakage widens the bell, so damping
+is biased high when the bell holds few lines: SSI (:mod:`flexmodal.modal.ssi`) gives the damping to rely on.
 """
 
 from __future__ import annotations
@@ -27,6 +28,10 @@ from flexmodal.modal.damping import log_decrement
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.identify import Modes
 from flexmodal.modal.mac import mac_pairs, to_real, unit_max
+
+# A mode's correlation function decays exponentially: R² of the log-decrement line >= 0.97 for the
+# shear frame's modes, 0.66-0.83 for peaks of noise
+MIN_DECAY_R2 = 0.9
 
 
 @dataclass(frozen=True)
@@ -119,4 +124,7 @@ def _efdd(freq_hz: np.ndarray, s1: np.ndarray, u1: np.ndarray, peak: int, sample
     nfft = 2 * (s1.size - 1)
     corr = scipy.fft.irfft(bell, nfft)[: nfft // 2]
     dec = log_decrement(corr, sample_rate_hz, float(freq_hz[peak]), floor=0.1)
+    if dec.r2 < MIN_DECAY_R2:
+        raise ModalError(f"its correlation function does not decay exponentially (R² {dec.r2:.2f} < "
+                         f"{MIN_DECAY_R2}): a noise peak, not a mode")
     return dec.damping_ratio, dec.fn_hz / np.sqrt(1 - dec.damping_ratio ** 2)

@@ -166,11 +166,26 @@ def _stabilisation_figure(frf, label: str, unit: str) -> dict:
                 f"damping and shape), over the complex mode indicator function")
 
 
+def _oma_figures(r: RunSummary, label: str) -> list[dict]:
+    """FDD and SSI figures of an output-only run (reports/oma.py); none for other runs without FRFs."""
+    from flexmodal.daq.store import read_run
+    from flexmodal.reports.oma import is_output_only, oma_figures
+
+    kinds = [c.kind for c in r.channels]
+    if not is_output_only(kinds, r.excitation):
+        return []
+    run = read_run(r.path, r.run_id)
+    return [_fig(fig, caption) if fig is not None else {"png": None, "caption": caption}
+            for fig, caption in oma_figures(run.samples, run.sample_rate_hz, [c.name for c in run.channels],
+                                            kinds, label)]
+
+
 def _run_figures(runs: Sequence[RunSummary]) -> list[dict]:
     figs = []
     for r in runs:
         label = f"{r.path.name}::{r.run_id}"
         if r.frf is None:
+            figs += _oma_figures(r, label)
             continue
         inputs = ", ".join(r.frf.inputs) or "force"
         unit = FRF_UNITS.get(r.frf.quantity, "FRF unit")

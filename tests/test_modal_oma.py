@@ -130,3 +130,9 @@ def test_cross_spectra_match_scipy_csd():
 def test_bad_input_is_one_clear_error(frame, call, message):
     with pytest.raises(ModalError, match=message):
         call(frame.samples[:20000])
+
+
+def test_fdd_of_white_noise_finds_no_mode():
+    y = np.random.default_rng(0).standard_normal((4096, 2))
+    with pytest.raises(ModalError, match="does not decay exponentially"):
+        fdd(y, 256.0)
