@@ -27,6 +27,7 @@ from flexmodal.modal.compute import default_nfft
 from flexmodal.modal.damping import log_decrement
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.identify import Modes
+from flexmodal.modal.indicators import mpc, mpd
 from flexmodal.modal.mac import mac_pairs, to_real, unit_max
 
 # A mode's correlation function decays exponentially: R² of the log-decrement line >= 0.97 for the
@@ -107,7 +108,7 @@ def fdd(y: np.ndarray, sample_rate_hz: float, *, references: Sequence[int] | Non
         raise ModalError("FDD: no peak gave a decaying correlation function (" + "; ".join(warnings) + ")")
     complex_shapes = unit_max(U[lines, :, 0].T)
     modes = Modes(np.array(fn), np.array(zeta), to_real(complex_shapes), complex_shapes, "fdd", False,
-                  tuple(warnings))
+                  tuple(warnings), mpc=mpc(complex_shapes), mpd=mpd(complex_shapes))
     return FddResult(f, sv.T, U[:, :, 0].T, modes)
 
 

@@ -121,9 +121,9 @@ def test_operational_run_acquired_from_the_serial_simulator(tmp_path):
     session records them as an operational run, and `identify` (SSI by default) finds the arm's modes."""
     from flexmodal.daq.acquire import acquire
     from flexmodal.daq.session import parse_session
-    from flexmodal.daq.sim_source import sim_source
     from flexmodal.daq.store import read_run
     from flexmodal.fixtures.rig_sim import DEMO_RIG, simulate
+    from flexmodal.fixtures.sim_source import sim_source
     from flexmodal.models.rig import load_rig
 
     pose = {"theta_deg": 60.0}
@@ -132,7 +132,7 @@ def test_operational_run_acquired_from_the_serial_simulator(tmp_path):
     names = [f"ch{i}" for i in range(len(source.channels))]
     doc = {"sample_rate_hz": 2048.0, "excitation": "operational", "pose": pose,
            "simulator": {"protocol": "serial", "rig": str(DEMO_RIG), "test": "operational",
-                         "args": ["--pose", "theta_deg=60", "--quiet"]},
+                         "pose": pose},
            "device": [{"name": "adc", "protocol": "serial", "port": "@simulator", "baud": 3_000_000,
                        "framing": "binary", "sources": names}],
            "channel": [{"name": c.name, "kind": c.kind, "unit": c.unit, "device": "adc", "source": n,
