@@ -9,9 +9,10 @@ damping by enhanced FDD (EFDD, Brincker, Ventura & Andersen 2001, IMAC XIX): the
 whose first singular vector has MAC >= 0.8 with the peak's form the mode's single-degree-of-freedom
 bell, whose inverse FFT is the mode's correlation function, a free decay; its logarithmic decrement
 (:func:`flexmodal.modal.damping.log_decrement`) gives the damping ratio and its zero-crossing rate the
-damped frequency.  A peak whose correlation function does not decay along a straight line in log
-amplitude (R² < 0.9) is noise and is dropped.  The Hann window's leakage widens the bell, so damping
-is biased high when the bell holds few lines: SSI (:mod:`flexmodal.modal.ssi`) gives the damping to rely on.
+damped frequency.  A peak whose bell spans fewer than 12 lines, or whose correlation function does
+not decay along a straight line in log amplitude (R² < 0.9), is noise and is dropped.  The Hann
+window's leakage widens the bell, so damping is biased high when the bell holds few lines: SSI
+(:mod:`flexmodal.modal.ssi`) gives the damping to rely on.
 """
 
 from __future__ import annotations
@@ -33,6 +34,9 @@ from flexmodal.modal.mac import mac_pairs, to_real, unit_max
 # A mode's correlation function decays exponentially: R² of the log-decrement line >= 0.97 for the
 # shear frame's modes, 0.66-0.83 for peaks of noise
 MIN_DECAY_R2 = 0.9
+# A mode dominates the cross-spectral matrix over many lines (the shear frame's: 93-411 lines at
+# nfft 2048-8192); a noise peak's singular vector changes within a few (2-11 seen)
+MIN_BELL_LINES = 12
 
 
 @dataclass(frozen=True)
@@ -120,6 +124,9 @@ def _efdd(freq_hz: np.ndarray, s1: np.ndarray, u1: np.ndarray, peak: int, sample
     edges = np.flatnonzero(~similar)
     lo = edges[edges < peak].max(initial=-1) + 1
     hi = edges[edges > peak].min(initial=s1.size)
+    if hi - lo < MIN_BELL_LINES:
+        raise ModalError(f"its singular vector stays similar over {hi - lo} lines only (< {MIN_BELL_LINES}): "
+                         "a noise peak, not a mode")
     bell = np.zeros_like(s1)
     bell[lo:hi] = s1[lo:hi]
     nfft = 2 * (s1.size - 1)

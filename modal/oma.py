@@ -15,6 +15,7 @@ there is no modal mass.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 
@@ -71,6 +72,9 @@ def identify_output_only(samples: np.ndarray, sample_rate_hz: float, names: Sequ
             result = fdd(y, sample_rate_hz, references=refs, fmin=fmin, fmax=fmax)
     except ModalError as exc:
         raise ModalError(f"{where}: {exc}") from None
+    if len(outputs) == 1:   # MAC, MPC, MPD and the singular vectors of one channel are always "perfect"
+        warn = "one output channel: no shape criterion can tell modes from noise peaks"
+        result = replace(result, modes=replace(result.modes, warnings=(*result.modes.warnings, warn)))
     return result, out_names
 
 

@@ -147,8 +147,9 @@ def ssi_cov(y: np.ndarray, sample_rate_hz: float, *, references: Sequence[int] |
         y = scipy.signal.resample_poly(np.where(gaps[:, None], 0.0, y), 1, q, axis=0)
         y[near_gap] = np.nan
     fs = sample_rate_hz / q
-    s = block_rows or default_block_rows(max_order, len(refs), fs, lowest_hz or fmin)
-    if s * len(refs) <= max_order or s * n_ch <= max_order:
+    s = block_rows or max(default_block_rows(max_order, len(refs), fs, lowest_hz or fmin),
+                          -(-max_order // n_ch) + 1)   # the shifted observability matrix holds the order
+    if s * len(refs) < max_order or (s - 1) * n_ch < max_order:
         raise ModalError(f"SSI: {s} block rows x {len(refs)} references (and {n_ch} channels) cannot hold "
                          f"model order {max_order}; use more block rows or a lower --max-order")
     if y.shape[0] < 20 * 2 * s:

@@ -152,3 +152,29 @@ def test_operational_run_acquired_from_the_serial_simulator(tmp_path):
     # 4 s hold ~140 cycles of the 35.6 Hz mode: its SSI frequency scatters by ~0.5 % (the 0.5 %
     # acceptance is the 60 s test above); 1 % here
     assert found.size == 3 and np.max(np.abs(found / truth[:3] - 1)) < 0.01, (found, truth[:3])
+
+
+@pytest.mark.parametrize(("samples", "method", "code", "message"), [
+    (np.random.default_rng(7).standard_normal((20000, 3)), "ssi", 2, "no stable mode"),
+    (np.random.default_rng(7).standard_normal((20000, 3)), "fdd", 2, "no peak gave a decaying"),
+    (np.random.default_rng(7).standard_normal((50, 3)), "ssi", 2, "too few"),
+    (np.where(np.arange(20000)[:, None] % 2 == 0, np.nan, 1.0) * np.random.default_rng(7).standard_normal(
+        (20000, 3)), "ssi", 2, "gaps everywhere"),
+])
+def test_records_without_modes_are_one_clear_line(tmp_path, capsys, samples, method, code, message):
+    channels = [Channel(f"s{k}", "acceleration", "m/s^2") for k in range(samples.shape[1])]
+    with RunWriter(tmp_path / "r.h5", "r", sample_rate_hz=256.0, channels=channels, excitation="operational",
+                   pose={}) as w:
+        w.append(samples)
+    capsys.readouterr()
+    args = ["identify", str(tmp_path / "r.h5"), "--out", str(tmp_path / "m.csv"), "--method", method]
+    assert main(args) == code
+    assert message in capsys.readouterr().err.strip().splitlines()[-1]
+
+
+def test_one_output_channel_is_identified_with_a_warning(tmp_path, capsys):
+    one = shear_frame_record(MASS, STIFF, ZETA, duration_s=120.0, seed=2)
+    one = type(one)(one.samples[:, 4:], one.sample_rate_hz, one.freq_hz, one.damping_ratio, one.shapes[4:])
+    run = _store(tmp_path / "one.h5", one)
+    assert main(["identify", str(run), "--out", str(tmp_path / "m.csv")]) == 0
+    assert "one output channel: no shape criterion can tell modes from noise peaks" in capsys.readouterr().err
