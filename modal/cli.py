@@ -56,7 +56,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "with the validation columns mpc, mpd [deg] and synthesis_corr, and "
                                    "the FRAC of each measured and synthesised FRF to "
                                    "MODES.synthesis.csv. Each run of an HDF5 file is one configuration "
-                                   "(config = run id).")
+                                   "(config = run id). Runs with excitation=operational or without a force "
+                                   "channel, and UFF time histories without a force, are identified "
+                                   "output-only (SSI-cov by default; docs/oma.md).")
     q.add_argument("input", metavar="INPUT", help="RUN.h5 or FILE.uff/.unv")
     q.add_argument("--out", required=True, metavar="MODES.csv", help="modal table to write")
     q.add_argument("--fmin", type=float, default=None, help="lower band edge, Hz (default first line > 0)")
