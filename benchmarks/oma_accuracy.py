@@ -49,6 +49,18 @@ def shear_frame_rows() -> list[str]:
             macs = np.diag(mac(modes.shapes, rec.shapes)).min()
             rows.append(f"| shear frame, seed {seed}, {name} | {modes.freq_hz.size}/5 | {100 * df:.3f} % | "
                         f"{100 * dz.max():.0f} % (0.2 % mode: {100 * dz[0]:.0f} %) | {macs:.4f} |")
+    worst = np.zeros(3)
+    found = 0
+    for seed in range(10):   # a loop over records: SSI's spread over ten noise realisations
+        rec = shear_frame_record(MASS, STIFF, ZETA, seed=seed)
+        modes = ssi_cov(rec.samples, 256.0).modes
+        if modes.freq_hz.size == 5:
+            found += 1
+            worst = np.maximum(worst, [np.abs(modes.freq_hz / rec.freq_hz - 1).max(),
+                                       np.abs(modes.damping_ratio / rec.damping_ratio - 1).max(),
+                                       1 - np.diag(mac(modes.shapes, rec.shapes)).min()])
+    rows.append(f"| shear frame, seeds 0-9, SSI-cov | all 5 in {found}/10 records | {100 * worst[0]:.3f} % | "
+                f"{100 * worst[1]:.0f} % | {1 - worst[2]:.4f} |")
     return rows
 
 

@@ -18,6 +18,6 @@ def test_every_figure_of_docs_oma_is_reproduced(capsys):
     assert module.main() == 0
     rows = capsys.readouterr().out.strip().splitlines()
     docs = (REPO / "docs" / "oma.md").read_text()
-    assert len(rows) == 10
+    assert len(rows) == 11
     missing = [r for r in rows if r not in docs]
     assert not missing, missing
