@@ -140,11 +140,12 @@ class Identification:
         return [f"{c}: {w}" for c, m in self.modes.items() for w in m.warnings]
 
 
-def identify(source: PathLike | FrfResult, *, method: str = "lscf", fmin: float | None = None,
+def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: float | None = None,
              fmax: float | None = None, max_order: int | None = None, run_id: str | None = None,
              config: str = "run", pose: Mapping[str, float] | None = None,
              poles_hz: Sequence[float] | None = None, thresholds=None,
-             decay_rate_per_s: float | None = None) -> Identification:
+             decay_rate_per_s: float | None = None,
+             references: Sequence[str] | None = None) -> Identification:
     """Natural frequencies [Hz], damping ratios and mode shapes of an HDF5 run file (each run one
     configuration; stored FRFs, else computed), a UFF file (dataset 58 FRFs or time histories), or an
     ``FrfResult`` in memory (then named ``config`` at ``pose``).  ``method``: ``lscf`` (pLSCF +
@@ -152,17 +153,19 @@ def identify(source: PathLike | FrfResult, *, method: str = "lscf", fmin: float 
     order (default: it adapts to the data); ``poles_hz`` picks the stable poles nearest these
     frequencies; ``thresholds`` (``modal.identify.Thresholds``) the automatic selection's limits;
     ``decay_rate_per_s`` [1/s] the exponential window to take out (default: the one the FRFs record).
-    docs/modal.md."""
+    ``method`` None lets the data decide: ``lscf`` where a force channel exists, else output-only
+    ``ssi`` (also ``fdd``), whose ``references`` are channel names (docs/oma.md); output-only shapes
+    are unscaled.  docs/modal.md."""
     from flexmodal.modal.identify import modes_table
     from flexmodal.modal.sources import identify_frf, identify_input
 
     options = {"method": method, "fmin": fmin, "fmax": fmax, "max_order": max_order, "poles_hz": poles_hz,
                "thresholds": thresholds, "decay_rate_per_s": decay_rate_per_s}
     if isinstance(source, str | Path):
-        table, found = identify_input(source, run_id=run_id, **options)
+        table, found = identify_input(source, run_id=run_id, references=references, **options)
         return Identification(table, {c: m for c, (m, _) in found.items()},
                               {c: tuple(o) for c, (_, o) in found.items()})
-    modes = identify_frf(source, **options)
+    modes = identify_frf(source, **{**options, "method": method or "lscf"})
     table = modes_table(modes, source.outputs, config=config, pose=pose)
     return Identification(table, {config: modes}, {config: tuple(source.outputs)})
 

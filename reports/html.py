@@ -157,10 +157,24 @@ def _stabilisation_figure(r: RunSummary, unit: str) -> dict | None:
                      f"identified modes at {listed} Hz")
 
 
+def _oma_figures(r: RunSummary) -> list[dict]:
+    """FDD and SSI figures of an output-only run (reports/oma.py); none for other runs without FRFs."""
+    from flexmodal.reports.oma import is_output_only, oma_figures
+
+    run = r.run
+    kinds = [c.kind for c in run.channels]
+    if not is_output_only(kinds, run.excitation):
+        return []
+    return [_fig(fig, caption) if fig is not None else {"png": None, "caption": caption}
+            for fig, caption in oma_figures(run.samples, run.sample_rate_hz, [c.name for c in run.channels],
+                                            kinds, r.label)]
+
+
 def _run_figures(runs: Sequence[RunSummary]) -> list[dict]:
     figs = []
     for r in runs:
         if r.frf is None:
+            figs += _oma_figures(r)
             continue
         inputs = ", ".join(r.frf.inputs) or "force"
         unit = plots.frf_unit(r.frf.quantity)
