@@ -73,22 +73,25 @@ def test_multi_record_time_histories_identify_like_the_same_hits_in_hdf5(tmp_pat
     assert np.allclose(modes.damping_ratio, same.damping_ratio, rtol=1e-3)
 
 
-def _cli(path: Path, tmp_path: Path, capsys) -> tuple[int, list[str]]:
-    code = main(["identify", str(path), "--out", str(tmp_path / "m.csv")])
+def _cli(path: Path, tmp_path: Path, capsys, *options: str) -> tuple[int, list[str]]:
+    code = main(["identify", str(path), "--out", str(tmp_path / "m.csv"), *options])
     return code, capsys.readouterr().err.strip().splitlines()
 
 
-def _refused(path: Path, tmp_path: Path, capsys, message: str) -> None:
-    code, err = _cli(path, tmp_path, capsys)
+def _refused(path: Path, tmp_path: Path, capsys, message: str, *options: str) -> None:
+    code, err = _cli(path, tmp_path, capsys, *options)
     assert code == 2 and len(err) == 1 and message in err[0], err
 
 
 def test_catman_time_history_without_a_force_is_refused_with_one_line(tmp_path, capsys):
-    _refused(DATA / "time-history-not-all-columns-filled.uff", tmp_path, capsys, "no force channel")
+    """No force: output-only by default, and 13 samples are too few for it; an FRF method needs a force."""
+    path = DATA / "time-history-not-all-columns-filled.uff"
+    _refused(path, tmp_path, capsys, "13 samples are too few")
+    _refused(path, tmp_path, capsys, "no force channel among the time histories 0:0", "--method", "lscf")
 
 
 @pytest.mark.parametrize("binary", [0, 1])
-def test_pressure_time_history_like_pyuffs_sample_uff58_is_refused(tmp_path, capsys, binary):
+def test_pressure_time_history_like_pyuffs_sample_uff58_is_identified_or_refused(tmp_path, capsys, binary):
     """Sample_UFF58_ascii.uff / Sample_UFF58b_bin.uff: one microphone record, response entity 'Mic 01',
     node 0, no reference: the old reader crashed on it ('force' is not in list)."""
     x = np.arange(4096) * 1.52588e-05
@@ -101,8 +104,11 @@ def test_pressure_time_history_like_pyuffs_sample_uff58_is_refused(tmp_path, cap
     pyuff.UFF(str(path)).write_sets([s], mode="overwrite")
     if binary:   # pyuff reads none of the sets it wrote in binary form back: still one line, exit 2
         _refused(path, tmp_path, capsys, "mic.uff: ")
-    else:
-        _refused(path, tmp_path, capsys, "no force channel among the time histories 0+x")
+        return
+    # no force: identified output-only by default (the 300 Hz tone), refused by an FRF method
+    assert _cli(path, tmp_path, capsys)[0] == 0
+    assert np.allclose(ModalTable.read_csv(tmp_path / "m.csv").freq_hz("mic"), [300.0], rtol=1e-3)
+    _refused(path, tmp_path, capsys, "no force channel among the time histories 0+x", "--method", "lscf")
 
 
 def test_psd_with_uneven_abscissa_like_pyuffs_sample_is_refused(tmp_path, capsys):
