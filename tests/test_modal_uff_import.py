@@ -83,6 +83,23 @@ def _refused(path: Path, tmp_path: Path, capsys, message: str, *options: str) ->
     assert code == 2 and len(err) == 1 and message in err[0], err
 
 
+def _frf_set(f: np.ndarray, data: np.ndarray, rsp_node: int, rsp_dir: int, ref_node: int, ref_dir: int,
+             func_type: int = 4, **names) -> dict:
+    """A dataset-58 set of an accelerance FRF (complex double) on an evenly spaced frequency axis."""
+    return pyuff.prepare_58(func_type=func_type, rsp_node=rsp_node, rsp_dir=rsp_dir, ref_node=ref_node,
+                            ref_dir=ref_dir, ord_data_type=6, abscissa_spec_data_type=18,
+                            ordinate_spec_data_type=12, orddenom_spec_data_type=13, data=data, x=f,
+                            abscissa_spacing=1, abscissa_min=float(f[0]), abscissa_inc=float(f[1] - f[0]),
+                            num_pts=f.size, id1="frf", **names)
+
+
+def _identified(path: Path, sets: list[dict], tmp_path: Path, capsys) -> ModalTable:
+    """Write ``sets`` to ``path``, identify it with the CLI's defaults (exit 0) and read the table."""
+    pyuff.UFF(str(path)).write_sets(sets, mode="overwrite")
+    assert _cli(path, tmp_path, capsys)[0] == 0
+    return ModalTable.read_csv(tmp_path / "m.csv")
+
+
 def test_catman_time_history_without_a_force_is_refused_with_one_line(tmp_path, capsys):
     """No force: output-only by default, and 13 samples are too few for it; an FRF method needs a force."""
     path = DATA / "time-history-not-all-columns-filled.uff"
@@ -131,18 +148,9 @@ def test_frfs_of_a_test_case_entity_like_pyuffs_measurement_sample_are_identifie
     phi = np.array([[1.0, 0.8, -0.5], [0.6, -0.9, 0.7], [0.3, -0.4, -1.0]])
     H = modal_frf(f, fn, zeta, phi, phi[[0]])
     H[..., 0] = 0
-    sets = [pyuff.prepare_58(func_type=ft, rsp_ent_name="TestCase", rsp_node=k + 1, rsp_dir=1,
-                             ref_ent_name="TestCase", ref_node=1, ref_dir=1, ord_data_type=6,
-                             abscissa_spec_data_type=18, ordinate_spec_data_type=12,
-                             orddenom_spec_data_type=13, data=H[k, 0] if ft == 4 else np.ones(f.size),
-                             x=f, abscissa_spacing=1, abscissa_min=0.0, abscissa_inc=1.0, num_pts=f.size,
-                             id1="id1")
-            for k in range(3) for ft in (4, 6)]
-    path = tmp_path / "measurement.uff"
-    pyuff.UFF(str(path)).write_sets(sets, mode="overwrite")
-    code, _ = _cli(path, tmp_path, capsys)
-    assert code == 0
-    table = ModalTable.read_csv(tmp_path / "m.csv")
+    sets = [_frf_set(f, H[k, 0] if ft == 4 else np.ones(f.size), k + 1, 1, 1, 1, func_type=ft,
+                     rsp_ent_name="TestCase", ref_ent_name="TestCase") for k in range(3) for ft in (4, 6)]
+    table = _identified(tmp_path / "measurement.uff", sets, tmp_path, capsys)
     assert np.allclose(table.freq_hz("measurement"), fn, rtol=1e-4)
     assert table.sensors == ["1+x", "2+x", "3+x"]
 
@@ -178,15 +186,7 @@ def test_frfs_with_any_node_and_direction_numbering_are_identified(tmp_path, cap
     H = modal_frf(f, fn, zeta, phi, phi[[2]])
     H[..., 0] = 0
     nodes = [(1001, 0), (1002, 5), (7, -3)]
-    sets = [pyuff.prepare_58(func_type=4, rsp_node=n, rsp_dir=d, ref_node=7, ref_dir=-3, ord_data_type=6,
-                             abscissa_spec_data_type=18, ordinate_spec_data_type=12,
-                             orddenom_spec_data_type=13, data=H[k, 0], x=f, abscissa_spacing=1,
-                             abscissa_min=0.0, abscissa_inc=0.25, num_pts=f.size, id1="frf")
-            for k, (n, d) in enumerate(nodes)]
-    path = tmp_path / "numbering.uff"
-    pyuff.UFF(str(path)).write_sets(sets, mode="overwrite")
-    code, _ = _cli(path, tmp_path, capsys)
-    assert code == 0
-    table = ModalTable.read_csv(tmp_path / "m.csv")
+    sets = [_frf_set(f, H[k, 0], n, d, 7, -3) for k, (n, d) in enumerate(nodes)]
+    table = _identified(tmp_path / "numbering.uff", sets, tmp_path, capsys)
     assert np.allclose(table.freq_hz("numbering"), fn, rtol=1e-5)
     assert table.sensors == ["1001:0", "1002:5", "7-z"]
