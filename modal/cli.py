@@ -71,7 +71,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "ssi/fdd shapes are unscaled (unit largest entry)")
     q.add_argument("--max-order", type=int, default=None,
                    help="cap of the pLSCF model order (default: the order grows until the modes found "
-                        "stop growing, at most 240 / number of references); ssi: highest model order "
+                        "stop growing, at most 200 / number of references); ssi: highest model order "
                         "(default 100)")
     q.add_argument("--poles", default=None, metavar="F1,F2,...",
                    help="pick the stable poles nearest these frequencies, Hz (exactly these modes, no "

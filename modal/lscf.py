@@ -35,7 +35,7 @@ from flexmodal.modal.errors import ModalError
 from flexmodal.modal.mac import mac_pairs
 
 T = TypeVar("T")
-DEFAULT_MAX_POLES = 240   # default cap of (model order x references) of the adaptive diagram
+DEFAULT_MAX_POLES = 200   # default cap of (model order x references) of the adaptive diagram
 
 
 @dataclass(frozen=True)
