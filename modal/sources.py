@@ -29,8 +29,9 @@ def _driving_point(run, result: FrfResult) -> int | None:
 
 
 def hdf5_frfs(path: str | Path, run_id: str | None = None):
-    """Yield (run, FrfResult) for the runs of an HDF5 file, stored FRFs first, else computed."""
-    from flexmodal.daq.store import list_runs, read_run
+    """Yield (run, FrfResult) for the runs of an HDF5 file, stored FRFs first, else computed (streamed
+    from the file); the run's ``samples`` dataset is closed by then, its metadata remains."""
+    from flexmodal.daq.store import list_runs, open_run
 
     ids = list_runs(path)
     if run_id is not None:
@@ -40,8 +41,10 @@ def hdf5_frfs(path: str | Path, run_id: str | None = None):
     if not ids:
         raise ModalError(f"{path}: holds no runs under /runs")
     for rid in ids:
-        run = read_run(path, rid)
-        yield run, (read_frf(path, rid) or compute_frf(run))
+        stored = read_frf(path, rid)
+        with open_run(path, rid) as run:
+            result = stored or compute_frf(run)
+        yield run, result
 
 
 def _modes(result: FrfResult, *, driving_point: int | None = None, **options) -> Modes:
