@@ -250,9 +250,9 @@ def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
     a window is a spec string (:mod:`modal.windows`) or an array of ``nfft`` samples.  Segments holding
     a NaN/inf sample in any used channel, or touching one of the ``skip`` sample intervals (first
     sample, count), are left out of the average (``n_skipped``); fewer than ``min_segments`` left is an
-    error.  The segment blocks of each read block are shared out to ``workers`` threads (as in
-    scipy.fft: None one, -1 every CPU) in a fixed round-robin, each with its own sums, added in a fixed
-    order, so the result does not depend on timing.
+    error.  Segments are processed in blocks at fixed segment indices, shared out to ``workers``
+    threads (as in scipy.fft: None one, -1 every CPU) in a fixed round-robin, each with its own sums,
+    added in a fixed order, so the result depends neither on timing nor on how the record is read.
     """
     n_samples = samples.shape[0]
     if nfft < 8:
@@ -276,33 +276,34 @@ def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
     block = max(1, min(n_seg, _BLOCK_BYTES // (len(chans) * nfft * np.dtype(dtype).itemsize)))
     chunk = (getattr(samples, "chunks", None) or (1,))[0]
     row_bytes = samples.shape[1] * np.dtype(samples.dtype).itemsize
-    read_rows = max(4 * nfft, _READ_BYTES // row_bytes)
+    read_rows = max((block - 1) * step + nfft, _READ_BYTES // row_bytes)
     read_rows = -(-read_rows // chunk) * chunk                       # whole storage chunks
     n_threads = min(_thread_count(workers), -(-n_seg // block))
     sums = [_Sums(windows, n_in, step, block) for _ in range(n_threads)]
     pool = ThreadPoolExecutor(n_threads) if n_threads > 1 else None
-    done, tail_start, tail, k = 0, 0, None, 0
+    done, tail_start, tail = 0, 0, None
     try:
         for r0, rows in _row_blocks(samples, read_rows):
             sources = [(tail_start, tail), (r0, rows)] if tail is not None else [(r0, rows)]
-            last = min(n_seg, (r0 + rows.shape[0] - nfft) // step + 1)   # segments complete by now
-            jobs = [(s0, min(block, last - s0)) for s0 in range(done, last, block)]
+            ready = min(n_seg, (r0 + rows.shape[0] - nfft) // step + 1)   # segments complete by now
+            jobs = [s0 for s0 in range(done, ready, block) if min(s0 + block, n_seg) <= ready]
 
-            def run(t: int, jobs=jobs, sources=sources, k=k) -> None:
-                for i, (s0, b) in enumerate(jobs):
-                    if (k + i) % n_threads == t:
-                        sums[t].add(sources, cols, windows, n_in, step, s0, b, skipped, detrend)
+            def run(t: int, jobs=jobs, sources=sources) -> None:
+                for s0 in jobs:
+                    if (s0 // block) % n_threads == t:
+                        sums[t].add(sources, cols, windows, n_in, step, s0, min(block, n_seg - s0),
+                                    skipped, detrend)
 
             if pool is None:
                 run(0)
             else:
                 list(pool.map(run, range(n_threads)))
-            k += len(jobs)
-            done = max(done, last)
+            if jobs:
+                done = min(jobs[-1] + block, n_seg)
             start = done * step
             if start >= r0:
                 tail_start, tail = start, rows[start - r0:]
-            else:   # a read block shorter than the segments still open: keep them whole
+            else:   # a read block shorter than the segment block still open: keep both
                 tail = np.concatenate([tail[start - tail_start:], rows])
                 tail_start = start
     finally:
