@@ -9,6 +9,7 @@ float32 records are transformed in single precision and accumulated in double pr
 
 from __future__ import annotations
 
+import functools
 import os
 import queue
 import threading
@@ -17,7 +18,6 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.fft
 
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.windows import window
@@ -25,6 +25,38 @@ from flexmodal.modal.windows import window
 _BLOCK_BYTES = 8 << 20      # windowed segments per block (with its spectra, fits the shared L3 cache)
 _READ_BYTES = 16 << 20      # samples read per block from a dataset on disk (rounded to whole chunks)
 _TILE = 2048                # rows per tile of the block transpose (stays in L1/L2)
+
+
+@functools.cache
+def _pocketfft():
+    """scipy's pocketfft extension, the engine of ``scipy.fft.rfft``, loaded by itself: importing
+    ``scipy.fft`` costs 0.7-0.9 s (its array-API layers and scipy.special), the extension < 1 ms.
+    It is registered under its own name, so a later ``import scipy.fft`` shares it."""
+    import importlib.util
+    import sys
+
+    name = "scipy.fft._pocketfft.pypocketfft"
+    if name in sys.modules:
+        return sys.modules[name]
+    try:
+        spec = importlib.util.find_spec("scipy")
+        folder = os.path.join(os.path.dirname(spec.origin), "fft", "_pocketfft")
+        file = next(f for f in os.listdir(folder) if f.startswith("pypocketfft."))
+        spec = importlib.util.spec_from_file_location(name, os.path.join(folder, file))
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        module.r2c                                         # noqa: B018 - the function used below
+    except (ImportError, OSError, StopIteration, AttributeError, TypeError):
+        import scipy.fft._pocketfft.pypocketfft as module  # the ordinary (slower) import
+        return module
+    sys.modules[name] = module
+    return module
+
+
+def rfft(x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """Real FFT along the last axis (unnormalised, as ``scipy.fft.rfft``), single precision for
+    float32 input; into ``out`` when given (complex, last axis ``n // 2 + 1``)."""
+    return _pocketfft().r2c(x, axes=[x.ndim - 1], forward=True, inorm=0, out=out, nthreads=1)
 
 
 @dataclass(frozen=True)
@@ -83,7 +115,7 @@ def spectra_of_segments(segments: np.ndarray, n_in: int, sample_rate_hz: float,
     ``weights`` [n_seg] (summing to 1) gives a weighted average (linear: equal; exponential: decaying).
     """
     nfft = segments.shape[-1]
-    x = scipy.fft.rfft(np.moveaxis(segments, 1, 0), axis=-1)
+    x = rfft(np.moveaxis(segments, 1, 0))
     w = None if weights is None else np.asarray(weights, float)
     g_xf, g_ff, g_xx = _products(x, n_in, w)
     norm = 1.0 if w is not None else 1.0 / segments.shape[0]
@@ -160,6 +192,7 @@ class _Sums:
         self.n_used = 0
         self.rows = np.empty((n_ch, (block - 1) * step + nfft), windows.dtype)
         self.buf = np.empty((n_ch, block, nfft), windows.dtype)
+        self.spec = np.empty((n_ch, block, n_freq), np.result_type(windows.dtype, np.complex64))
         self.work = np.empty((n_ch - n_in, block, n_freq), np.result_type(windows.dtype, np.complex64))
 
     def add(self, sources, cols, windows: np.ndarray, n_in: int, step: int, first: int, b: int,
@@ -189,7 +222,7 @@ class _Sums:
                 np.multiply(view, windows[:, None, :], out=seg)
         if bad.any():
             seg[:, bad] = 0
-        a, c, d = _products(scipy.fft.rfft(seg, axis=-1), n_in, None, self.work)
+        a, c, d = _products(rfft(seg, self.spec[:, :b]), n_in, None, self.work)
         self.g_xf += a
         self.g_ff += c
         self.g_xx += d
