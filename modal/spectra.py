@@ -179,25 +179,21 @@ def skipped_segments(intervals: Sequence[tuple[int, int]], n_seg: int, nfft: int
     return np.cumsum(marks[:-1]) > 0
 
 
-class _Sums:
-    """One thread's running sums over segments, with its work buffers (sized for ``block`` segments)."""
+class _Work:
+    """One thread's work buffers, sized for ``block`` segments."""
 
     def __init__(self, windows: np.ndarray, n_in: int, step: int, block: int) -> None:
         n_ch, nfft = windows.shape
         n_freq = nfft // 2 + 1
-        self.g_xf = np.zeros((n_ch - n_in, n_in, n_freq), complex)
-        self.g_ff = np.zeros((n_in, n_in, n_freq), complex)
-        self.g_xx = np.zeros((n_ch - n_in, n_freq))
-        self.mean = np.zeros(n_ch)
-        self.n_used = 0
         self.rows = np.empty((n_ch, (block - 1) * step + nfft), windows.dtype)
         self.buf = np.empty((n_ch, block, nfft), windows.dtype)
         self.spec = np.empty((n_ch, block, n_freq), np.result_type(windows.dtype, np.complex64))
         self.work = np.empty((n_ch - n_in, block, n_freq), np.result_type(windows.dtype, np.complex64))
 
-    def add(self, sources, cols, windows: np.ndarray, n_in: int, step: int, first: int, b: int,
-            skip: np.ndarray, detrend: bool) -> None:
-        """Add segments ``first`` .. ``first + b - 1``: a channel-major copy of their samples (from the
+    def sums(self, sources, cols, windows: np.ndarray, n_in: int, step: int, first: int, b: int,
+             skip: np.ndarray, detrend: bool) -> tuple:
+        """(g_xf, g_ff, g_xx, sum of segment means, segments used) over segments ``first`` ..
+        ``first + b - 1``: a channel-major copy of their samples (from the
         row-major ``sources`` pieces, transposed in cache-sized tiles), the mean-removed windowed
         segments from a strided view of it, one real FFT over every segment and channel, the products.
         Segments holding a non-finite sample or marked in ``skip`` are zeroed and not counted."""
@@ -223,11 +219,7 @@ class _Sums:
         if bad.any():
             seg[:, bad] = 0
         a, c, d = _products(rfft(seg, self.spec[:, :b]), n_in, None, self.work)
-        self.g_xf += a
-        self.g_ff += c
-        self.g_xx += d
-        self.mean += means[:, ~bad, 0].sum(axis=1, dtype=float)
-        self.n_used += b - int(bad.sum())
+        return a, c, d, means[:, ~bad, 0].sum(axis=1, dtype=float), b - int(bad.sum())
 
 
 def _row_blocks(samples, rows_per_block: int) -> Iterator[tuple[int, np.ndarray]]:
@@ -284,8 +276,8 @@ def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
     a NaN/inf sample in any used channel, or touching one of the ``skip`` sample intervals (first
     sample, count), are left out of the average (``n_skipped``); fewer than ``min_segments`` left is an
     error.  Segments are processed in blocks at fixed segment indices, shared out to ``workers``
-    threads (as in scipy.fft: None one, -1 every CPU) in a fixed round-robin, each with its own sums,
-    added in a fixed order, so the result depends neither on timing nor on how the record is read.
+    threads (as in scipy.fft: None one, -1 every CPU); the block sums are added in segment order, so
+    the result is the same for any thread count, timing or read block size.
     """
     n_samples = samples.shape[0]
     if nfft < 8:
@@ -312,7 +304,10 @@ def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
     read_rows = max((block - 1) * step + nfft, _READ_BYTES // row_bytes)
     read_rows = -(-read_rows // chunk) * chunk                       # whole storage chunks
     n_threads = min(_thread_count(workers), -(-n_seg // block))
-    sums = [_Sums(windows, n_in, step, block) for _ in range(n_threads)]
+    work = [_Work(windows, n_in, step, block) for _ in range(n_threads)]
+    n_ch, n_freq = len(chans), nfft // 2 + 1
+    total = [np.zeros((n_ch - n_in, n_in, n_freq), complex), np.zeros((n_in, n_in, n_freq), complex),
+             np.zeros((n_ch - n_in, n_freq)), np.zeros(n_ch), 0]
     pool = ThreadPoolExecutor(n_threads) if n_threads > 1 else None
     done, tail_start, tail = 0, 0, None
     try:
@@ -321,16 +316,14 @@ def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
             ready = min(n_seg, (r0 + rows.shape[0] - nfft) // step + 1)   # segments complete by now
             jobs = [s0 for s0 in range(done, ready, block) if min(s0 + block, n_seg) <= ready]
 
-            def run(t: int, jobs=jobs, sources=sources) -> None:
-                for s0 in jobs:
-                    if (s0 // block) % n_threads == t:
-                        sums[t].add(sources, cols, windows, n_in, step, s0, min(block, n_seg - s0),
-                                    skipped, detrend)
+            def run(t: int, jobs=jobs, sources=sources) -> list:
+                return [work[t].sums(sources, cols, windows, n_in, step, s0, min(block, n_seg - s0),
+                                     skipped, detrend) for s0 in jobs[t::n_threads]]
 
-            if pool is None:
-                run(0)
-            else:
-                list(pool.map(run, range(n_threads)))
+            parts = [run(0)] if pool is None else list(pool.map(run, range(n_threads)))
+            for i in range(len(jobs)):              # added in segment order, whatever the threads
+                for k, value in enumerate(parts[i % n_threads][i // n_threads]):
+                    total[k] += value
             if jobs:
                 done = min(jobs[-1] + block, n_seg)
             start = done * step
@@ -342,11 +335,10 @@ def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
     finally:
         if pool is not None:
             pool.shutdown()
-    n_used = sum(s.n_used for s in sums)
+    g_xf, g_ff, g_xx, mean_sum, n_used = total
     if n_used < min_segments:
         raise ModalError(f"only {n_used} of {n_seg} segments usable (NaN/inf samples or skipped "
                          f"intervals in the others); at least {min_segments} needed")
-    g_xf, g_ff, g_xx = (sum(getattr(s, name) for s in sums) for name in ("g_xf", "g_ff", "g_xx"))
     scale = density_scale(g_xx.shape[-1], nfft, sample_rate_hz, w_out) / max(n_used, 1)
     return Spectra(np.fft.rfftfreq(nfft, 1.0 / sample_rate_hz), g_xf * scale, g_ff * scale,
-                   g_xx * scale, n_used, n_seg - n_used, sum(s.mean for s in sums) / max(n_used, 1))
+                   g_xx * scale, n_used, n_seg - n_used, mean_sum / max(n_used, 1))
