@@ -60,20 +60,21 @@ def write_run(path: str, duration_s: float) -> None:
             w.append(piece[:min(n, total - start)])
 
 
-def _child(args: list[str]) -> tuple[float, float, str]:
-    """(wall s, peak RSS MB, stdout) of one child Python process (RSS of that child alone: run in a
-    fresh intermediate process so RUSAGE_CHILDREN holds nothing else)."""
+def _child(args: list[str]) -> tuple[float, float, float, str]:
+    """(wall s, CPU s, peak RSS MB, stdout) of one child Python process (CPU and RSS of that child
+    alone: run in a fresh intermediate process so RUSAGE_CHILDREN holds nothing else)."""
     wrapper = ("import resource, subprocess, sys, time\n"
                "t = time.perf_counter()\n"
                "out = subprocess.run(sys.argv[1:], check=True, capture_output=True, text=True).stdout\n"
                "wall = time.perf_counter() - t\n"
-               "print(wall, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024)\n"
+               "r = resource.getrusage(resource.RUSAGE_CHILDREN)\n"
+               "print(wall, r.ru_utime + r.ru_stime, r.ru_maxrss / 1024)\n"
                "print(out, end='')\n")
     done = subprocess.run([sys.executable, "-c", wrapper, sys.executable, *args], check=True,
                           capture_output=True, text=True, timeout=7200)
     head, _, rest = done.stdout.partition("\n")
-    wall, rss = (float(v) for v in head.split())
-    return wall, rss, rest
+    wall, cpu, rss = (float(v) for v in head.split())
+    return wall, cpu, rss, rest
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -91,21 +92,23 @@ def main(argv: list[str] | None = None) -> int:
             t0 = time.perf_counter()
             write_run(path, duration)
             t_write = time.perf_counter() - t0
-            walls, peaks = [], []
+            walls, cpus, peaks = [], [], []
             for _ in range(a.repeat):
                 if os.path.exists(out):
                     os.remove(out)
-                wall, rss, _ = _child(["-m", "flexmodal", "--quiet", "frf", path, "--nfft", "4096",
+                wall, cpu, rss, _ = _child(["-m", "flexmodal", "--quiet", "frf", path, "--nfft", "4096",
                                        "--workers", "0", "--out", out])
                 walls.append(wall)
+                cpus.append(cpu)
                 peaks.append(rss)
-            per_second[duration] = np.median(walls) / duration
+            per_second[duration] = (np.median(walls) / duration, np.median(cpus) / duration)
             size_gb = os.path.getsize(path) / 1e9
             print(f"MEMORY {duration:g} s run ({size_gb:.2f} GB, written in {t_write:.0f} s): "
                   f"`flexmodal frf` peak RSS {max(peaks):.0f} MB, wall median {np.median(walls):.2f} s "
-                  f"(spread {min(walls):.2f}-{max(walls):.2f} s; load average {os.getloadavg()[0]:.1f})")
+                  f"(spread {min(walls):.2f}-{max(walls):.2f} s; load average {os.getloadavg()[0]:.1f}), "
+                  f"CPU median {np.median(cpus):.2f} s")
             if not a.no_in_memory:
-                _, rss, text = _child(["-c", IN_MEMORY, path, out])
+                _, _, rss, text = _child(["-c", IN_MEMORY, path, out])
                 dh, dc = (float(v) for v in text.split())
                 print(f"     in-memory path (samples read whole, peak RSS {rss:.0f} MB): max relative "
                       f"difference of H {dh:.1e}, of coherence {dc:.1e} (absolute)")
@@ -115,8 +118,9 @@ def main(argv: list[str] | None = None) -> int:
                     os.remove(f)
     if len(per_second) > 1:
         lo, hi = min(per_second), max(per_second)
-        print(f"     time per second of record, {hi:g} s run / {lo:g} s run: "
-              f"{per_second[hi] / per_second[lo]:.2f} (1.00 = linear)")
+        (wall_hi, cpu_hi), (wall_lo, cpu_lo) = per_second[hi], per_second[lo]
+        print(f"     time per second of record, {hi:g} s run / {lo:g} s run: wall {wall_hi / wall_lo:.2f}, "
+              f"CPU {cpu_hi / cpu_lo:.2f} (1.00 = linear)")
     rusage = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"     (this driver process peaked at {rusage:.0f} MB)")
     return 0
