@@ -8,24 +8,26 @@ from collections.abc import Sequence
 import numpy as np
 
 from flexmodal.modal.errors import ModalError
-from flexmodal.modal.frf import FrfResult, coherence, estimate
+from flexmodal.modal.frf import FrfResult, coherence, estimate, estimator_name
 from flexmodal.modal.impact import impact_spectra
 from flexmodal.modal.spectra import Spectra, welch_spectra
-from flexmodal.modal.windows import added_decay_rate_per_s
+from flexmodal.modal.windows import added_decay_rate_per_s, impact_windows
 
 DEFAULT_NFFT_MAX = 8192
 MIN_SEGMENTS = 8
 SKIPPED_EVENTS = ("gap", "corrupt")
 
 
-def check_samples(samples: np.ndarray, names: Sequence[str], where: str) -> None:
-    """Raise ModalError naming the first channel with NaN/inf samples or a constant value."""
+def check_samples(samples: np.ndarray, names: Sequence[str], where: str, allow_nan: bool = False) -> None:
+    """Raise ModalError naming the first channel with NaN/inf samples (only inf with ``allow_nan``:
+    NaN rows of lost frames that the caller handles) or a constant value."""
     _check_shape(samples, names, where)
-    bad = ~np.isfinite(samples)
+    bad = np.isinf(samples) if allow_nan else ~np.isfinite(samples)
     if bad.any():
         i, c = np.argwhere(bad)[0]
         raise ModalError(f"{where}: channel {names[c]!r} holds {samples[i, c]} at sample {i}")
-    flat = np.ptp(samples, axis=0) == 0
+    with np.errstate(invalid="ignore"):
+        flat = np.nanmax(samples, axis=0) == np.nanmin(samples, axis=0)
     if flat.any():
         raise ModalError(f"{where}: channel {names[int(np.argmax(flat))]!r} is constant "
                          f"({samples[0, int(np.argmax(flat))]:g} throughout)")
@@ -99,10 +101,11 @@ def frf_of_record(samples, sample_rate_hz: float, names: Sequence[str], kinds: S
 
     Impact records (``excitation == "impact"``) are read whole, cut into hits (``triggers`` or
     detected), windowed ``window`` = "force:W,exponential:E" (default force:0.05,exponential:0.01) and
-    averaged; other records are streamed through Welch averaging with ``window`` (default hann),
-    ``nfft``, ``overlap`` and ``workers`` FFT threads, leaving out segments that hold NaN/inf samples
-    or touch a ``skip`` interval (first sample, count: gap and corrupt events); fewer usable segments
-    than :func:`min_segments` is an error, and so is a constant channel.
+    averaged, hits touching NaN rows or a ``skip`` interval rejected one by one; other records are
+    streamed through Welch averaging with ``window`` (default hann), ``nfft``, ``overlap`` and
+    ``workers`` FFT threads, leaving out segments that hold NaN/inf samples or touch a ``skip``
+    interval (first sample, count: gap and corrupt events); fewer usable segments than
+    :func:`min_segments` is an error, and so is a constant channel.
     """
     if not np.isfinite(sample_rate_hz) or sample_rate_hz <= 0:
         raise ModalError(f"{where}: sample rate {sample_rate_hz} Hz is not positive")
@@ -124,13 +127,11 @@ def frf_of_record(samples, sample_rate_hz: float, names: Sequence[str], kinds: S
         if len(inputs) != 1:
             raise ModalError(f"{where}: impact processing needs exactly one force channel")
         samples = np.asarray(samples[()])
-        check_samples(samples, names, where)
-        parts = dict(p.split(":", 1) if ":" in p else (p, "") for p in (window or "").split(",") if p)
-        fw = "force:" + (parts.get("force") or "0.05")
-        ew = "exponential:" + (parts.get("exponential") or "0.01")
+        check_samples(samples, names, where, allow_nan=True)
+        fw, ew = impact_windows(window)
         spectra, hits = impact_spectra(samples, sample_rate_hz, inputs[0], outputs, triggers=triggers,
                                        force_window=fw, exp_window=ew, overload_samples=overload_samples,
-                                       averaging=averaging)
+                                       averaging=averaging, gaps=skip)
         record = 2 * (spectra.freq_hz.size - 1)
         decay = added_decay_rate_per_s(ew, record, sample_rate_hz)
         used_window, used_nfft = f"{fw},{ew}", record
@@ -145,9 +146,9 @@ def frf_of_record(samples, sample_rate_hz: float, names: Sequence[str], kinds: S
         extra = {"overlap": overlap, "averaging": "linear", "segments_used": spectra.n_averages,
                  "segments_skipped": spectra.n_skipped}
     H = estimate(spectra, estimator)
-    return FrfResult(spectra.freq_hz, H, coherence(spectra), {"h1": "H1", "h2": "H2", "hv": "Hv"}[
-        estimator.lower()], used_window, used_nfft, spectra.n_averages, float(sample_rate_hz), quantity,
-        tuple(names[j] for j in outputs), tuple(names[j] for j in inputs), decay, extra)
+    return FrfResult(spectra.freq_hz, H, coherence(spectra), estimator_name(estimator), used_window,
+                     used_nfft, spectra.n_averages, float(sample_rate_hz), quantity,
+                     tuple(names[j] for j in outputs), tuple(names[j] for j in inputs), decay, extra)
 
 
 def compute_frf(run, *, estimator: str = "H1", nfft: int | None = None, window: str | None = None,
