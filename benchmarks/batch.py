@@ -22,32 +22,16 @@ import time
 
 import numpy as np
 
-from flexmodal.daq.store import Channel, RunWriter
-from flexmodal.fixtures.modal_sim import modal_response
-
-FS = 5000.0
-N_RESP = 16
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from memory import write_run  # noqa: E402  (benchmarks/memory.py: the same simulated record)
 
 
 def write_runs(folder: str, n_runs: int, duration_s: float) -> list[str]:
-    """``n_runs`` files of one run each; every run holds the same simulated record (its FRFs are the
-    same, the work and the reading are not shared)."""
-    rng = np.random.default_rng(0)
-    n = int(duration_s * FS)
-    phi = rng.standard_normal((N_RESP, 3))
-    force = rng.standard_normal((n, 1))
-    y = modal_response(force, FS, np.array([120.0, 310.0, 800.0]), np.array([0.01, 0.02, 0.01]), phi,
-                       phi[:1])
-    samples = np.column_stack([force, y]).astype(np.float32)
-    channels = [Channel("F", "force", "N")] + [Channel(f"a{k}", "acceleration", "m/s^2")
-                                               for k in range(1, N_RESP + 1)]
-    paths = []
-    for k in range(n_runs):
-        path = os.path.join(folder, f"run{k:03d}.h5")
-        with RunWriter(path, f"r{k}", sample_rate_hz=FS, channels=channels, excitation="random",
-                       pose={}) as w:
-            w.append(samples)
-        paths.append(path)
+    """``n_runs`` files of one run each, all holding the same simulated record (so their FRFs are
+    the same; the work and the reading are not shared)."""
+    paths = [os.path.join(folder, f"run{k:03d}.h5") for k in range(n_runs)]
+    for k, path in enumerate(paths):
+        write_run(path, duration_s, f"r{k}")
     return paths
 
 
