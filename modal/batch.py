@@ -19,8 +19,10 @@ from flexmodal.modal.frf import FrfResult
 from flexmodal.modal.runs_io import write_frf
 
 CLUSTER_START_S = 6.0   # import distributed, start 2 worker processes, first task (benchmarks/batch.py)
-PAYS_FACTOR = 3.0       # go parallel when the serial remainder is predicted above 3x the start-up
-MIN_PARALLEL_RUNS = 4   # ... and at least this many runs remain
+AUTO_WORKERS = 2        # processes of the cluster the automatic choice starts
+MIN_SPEEDUP = 1.5       # go parallel only when the predicted speed-up is at least this,
+PAYS_FACTOR = 3.0       # the predicted saving at least 3 start-ups,
+MIN_PARALLEL_RUNS = 4   # and at least this many runs remain
 
 
 def frf_job(path: str, run_id: str, options: dict) -> FrfResult:
@@ -64,11 +66,22 @@ class _Deliver:
                 self.on_done(*self.jobs[j], r)
 
 
-def _serial_pays(elapsed_s: float, bytes_done: int, bytes_left: int, runs_left: int) -> bool:
-    """True while computing the rest here is predicted cheaper than starting a cluster for it."""
-    if runs_left < MIN_PARALLEL_RUNS or (os.cpu_count() or 1) < 2 or bytes_done == 0:
+def _serial_pays(elapsed_s: float, cpu_s: float, bytes_done: int, bytes_left: int, runs_left: int) -> bool:
+    """True while computing the rest here is predicted no worse than a cluster of AUTO_WORKERS.
+
+    From the runs done so far (``elapsed_s`` wall, ``cpu_s`` CPU of this process, every thread):
+    the rest takes ``elapsed_s / bytes_done * bytes_left`` here; this process keeps ``cpu_s /
+    elapsed_s`` CPUs busy (its FFT threads), the other processes of the machine take the 1-minute
+    load average less that, and a cluster's speed-up is the CPUs it could use over those this process
+    already uses.  Parallel only for a speed-up of MIN_SPEEDUP or more saving PAYS_FACTOR start-ups."""
+    cpus = os.cpu_count() or 1
+    if runs_left < MIN_PARALLEL_RUNS or cpus < 2 or bytes_done == 0 or elapsed_s <= 0:
         return True
-    return elapsed_s / bytes_done * bytes_left < PAYS_FACTOR * CLUSTER_START_S
+    rest = elapsed_s / bytes_done * bytes_left
+    busy = max(1.0, cpu_s / elapsed_s)
+    free = min(cpus, max(1.0, cpus - (os.getloadavg()[0] - busy)))
+    speedup = min(AUTO_WORKERS, free) / busy
+    return speedup < MIN_SPEEDUP or rest * (1 - 1 / speedup) < PAYS_FACTOR * CLUSTER_START_S
 
 
 def run_batch(jobs: Sequence[tuple[str, str]], options: dict, *, workers: int | None = None,
@@ -76,7 +89,8 @@ def run_batch(jobs: Sequence[tuple[str, str]], options: dict, *, workers: int | 
               on_done: Callable[[str, str, FrfResult], None] | None = None) -> list[FrfResult]:
     """FRFs of every (file, run_id) job in order.  ``workers`` 0 computes serially here, > 0 on a
     LocalCluster of that many processes, None (automatic) serially for as long as the measured cost
-    per byte predicts the rest below ``PAYS_FACTOR`` cluster start-ups, then on a cluster of 2;
+    of the runs done predicts no gain from a cluster (:func:`_serial_pays`), then on a cluster of
+    AUTO_WORKERS;
     ``scheduler`` sends every job to an existing cluster.  ``on_done(file, run_id, result)`` gets each
     result once no unfinished job reads the file it will be written to (``out`` if given, else its
     own file): that is when the caller may write it."""
@@ -90,11 +104,12 @@ def run_batch(jobs: Sequence[tuple[str, str]], options: dict, *, workers: int | 
     first = 0
     if scheduler is None and not workers:
         sizes = run_bytes(jobs) if workers is None else None
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         while first < len(jobs):
-            if sizes is not None and not _serial_pays(time.perf_counter() - t0, sum(sizes[:first]),
-                                                      sum(sizes[first:]), len(jobs) - first):
-                workers = 2
+            if sizes is not None and not _serial_pays(time.perf_counter() - t0, time.process_time() - c0,
+                                                      sum(sizes[:first]), sum(sizes[first:]),
+                                                      len(jobs) - first):
+                workers = AUTO_WORKERS
                 break
             done(first, frf_job(*jobs[first], {"workers": -1, **options}))
             first += 1

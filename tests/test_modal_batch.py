@@ -49,16 +49,26 @@ def test_default_frf_on_a_multi_run_file_writes_every_run_serially(tmp_path, cap
     assert all(read_frf(path, f"r{k}").n_averages == 15 for k in range(6))
 
 
-def test_cost_rule_goes_parallel_only_when_the_rest_outweighs_start_up(monkeypatch):
+def test_cost_rule_goes_parallel_only_when_free_cpus_make_it_pay(monkeypatch):
+    """1 s of wall for the first GB; the cluster's predicted speed-up is the CPUs it can use (CPUs
+    less the other processes' load) over the CPUs the serial path already keeps busy."""
+    monkeypatch.setattr(batch.os, "cpu_count", lambda: 4)
+    monkeypatch.setattr(batch.os, "getloadavg", lambda: (1.0, 1.0, 1.0))    # only this process
+    gb = 1 << 30
+    # one busy CPU, 2 workers: speed-up 2, 100 s left saves 50 s > 3 start-ups: parallel
+    assert batch._serial_pays(1.0, 1.0, gb, 100 * gb, 100) is False
+    # 10 s left saves 5 s < 18 s: serial
+    assert batch._serial_pays(1.0, 1.0, gb, 10 * gb, 10) is True
+    assert batch._serial_pays(1.0, 1.0, gb, 100 * gb, 3) is True           # too few runs left
+    # the serial path already keeps 2 CPUs busy (its FFT threads): a 2-process cluster gains nothing
+    monkeypatch.setattr(batch.os, "getloadavg", lambda: (2.0, 2.0, 2.0))
+    assert batch._serial_pays(1.0, 2.0, gb, 100 * gb, 100) is True
+    # a loaded machine (load 10 on 2 CPUs, as measured here): no free CPU, serial
     monkeypatch.setattr(batch.os, "cpu_count", lambda: 2)
-    start = batch.CLUSTER_START_S * batch.PAYS_FACTOR
-    # 1 s for the first 1 GB: 10 runs of 1 GB left predict 10 s
-    assert batch._serial_pays(1.0, 1 << 30, 10 << 30, 10) == (10.0 < start)
-    assert batch._serial_pays(1.0, 1 << 30, 100 << 30, 100) is False      # 100 s left: parallel
-    assert batch._serial_pays(1.0, 1 << 30, 100 << 30, 3) is True         # too few runs left
-    assert batch._serial_pays(0.1, 1 << 20, 9 << 20, 9) is True           # the demo: ~1 s left
+    monkeypatch.setattr(batch.os, "getloadavg", lambda: (10.0, 10.0, 10.0))
+    assert batch._serial_pays(1.0, 0.3, gb, 100 * gb, 100) is True
     monkeypatch.setattr(batch.os, "cpu_count", lambda: 1)
-    assert batch._serial_pays(1.0, 1 << 30, 100 << 30, 100) is True       # one CPU: never
+    assert batch._serial_pays(1.0, 1.0, gb, 100 * gb, 100) is True         # one CPU: never
 
 
 def test_results_wait_until_no_job_reads_their_file():
