@@ -142,12 +142,13 @@ def test_frf_of_record_reports_skipped_segments_and_refuses_too_few():
         frf_of_record(samples, FS, names, kinds, nfft=512, skip=[(0, 1)])
 
 
-def _random_session(tmp_path: Path, args: list[str]) -> Path:
+def _random_session(tmp_path: Path, sim: dict) -> Path:
     text = (REPO / "examples" / "sessions" / "serial-sim.toml").read_text()
     text = text.replace('rig = "../rigs/', f'rig = "{REPO}/examples/rigs/')
     text = re.sub(r"\[trigger\][^\[]*", "", text)
     text = text.replace('excitation = "impact"', 'excitation = "random"')
-    text = text.replace('test = "impact"\n', f'test = "random"\nargs = {json.dumps(args)}\n', 1)
+    extra = "".join(f"{k} = {json.dumps(v)}\n" for k, v in sim.items())
+    text = text.replace('test = "impact"\n', f'test = "random"\n{extra}', 1)
     path = tmp_path / "random.toml"
     path.write_text(text)
     return path
@@ -158,11 +159,11 @@ def test_random_run_with_one_percent_corrupt_frames_matches_the_clean_signal(tmp
     """`sim serve` (serial, random test) with 1 % corrupt frames through `flexmodal acquire`: the FRFs
     of the stored run (segments touching NaN rows or corrupt events skipped) are within 1 % / 1 deg of
     the FRFs of the clean signal the simulator emitted, wherever the coherence is above 0.95."""
-    from flexmodal.daq.sim_source import sim_source
+    from flexmodal.fixtures.sim_source import sim_source
 
     out = tmp_path / "run.h5"
     done = subprocess.run([sys.executable, "-m", "flexmodal", "--quiet", "acquire", "--config",
-                           str(_random_session(tmp_path, ["--corrupt-rate", "0.01"])), "--out", str(out),
+                           str(_random_session(tmp_path, {"corrupt_rate": 0.01})), "--out", str(out),
                            "--duration", "8"], cwd=REPO, capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     with h5py.File(out, "r") as f:
