@@ -2,8 +2,8 @@
 
 Writes ``--runs`` files (default 8 and 100) of one random run each (1 force + 16 accelerations,
 ``--duration-s`` at 5 kHz, float32, the run store's layout) into a temporary folder, then times, per
-round and in this order: ``--workers 0`` (serial, the reference), ``--workers 2`` (a LocalCluster of
-2 processes) and the default (serial or cluster as the measured cost decides).  Prints medians and
+round and in this order: ``--workers 0`` (serial, the reference), the default (serial or cluster as
+the measured cost decides) and ``--workers 2`` (a LocalCluster of 2 processes).  Prints medians and
 spread (min-max) over ``--repeat`` rounds and the ratios against the serial run of the same rounds,
 then the start-up cost of the LocalCluster alone (the figure behind ``modal.batch.CLUSTER_START_S``).
 The machine may be shared: read the ratios, and the CPU load printed with them.
@@ -46,8 +46,8 @@ def _frf_process(paths: list[str], extra: list[str], out: str) -> float:
 
 
 def bench(paths: list[str], repeat: int, folder: str) -> None:
-    cases = {"serial (--workers 0)": ["--workers", "0"], "--workers 2": ["--workers", "2"],
-             "default (by cost)": []}
+    cases = {"serial (--workers 0)": ["--workers", "0"], "default (by cost)": [],
+             "--workers 2": ["--workers", "2"]}
     times: dict[str, list[float]] = {name: [] for name in cases}
     out = os.path.join(folder, "frf_out.h5")
     for _ in range(repeat):
