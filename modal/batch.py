@@ -9,7 +9,8 @@ from __future__ import annotations
 import os
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 
 from flexmodal.daq.store import expand_runs
@@ -166,17 +167,13 @@ def frf_batch(paths: Sequence[str | Path], options: dict, *, workers: int | None
     if out is not None and len({r for _, r in jobs}) != len(jobs):
         raise ModalError(f"--out {out}: two input runs share a run id, they cannot go into one file")
     written = []
-
-    from rich.progress import Progress
-
-    with Progress(transient=True, disable=quiet, console=_stderr_console()) as bar:
-        task = bar.add_task("FRFs", total=len(jobs))
+    with _progress(len(jobs), quiet) as advance:
 
         def done(path: str, rid: str, result: FrfResult) -> None:
             target = str(out) if out is not None else path
             write_frf(target, rid, result)
             written.append((target, rid))
-            bar.advance(task)
+            advance()
 
         run_batch(jobs, options, workers=workers, scheduler=scheduler, on_done=done,
                   out=None if out is None else str(out))
@@ -184,7 +181,15 @@ def frf_batch(paths: Sequence[str | Path], options: dict, *, workers: int | None
     return sorted(written, key=order.__getitem__)
 
 
-def _stderr_console():
+@contextmanager
+def _progress(total: int, quiet: bool) -> Iterator[Callable[[], None]]:
+    """A transient progress bar on stderr (rich, imported only when shown); yields its advance."""
+    if quiet:
+        yield lambda: None
+        return
     from rich.console import Console
+    from rich.progress import Progress
 
-    return Console(file=sys.stderr)
+    with Progress(transient=True, console=Console(file=sys.stderr)) as bar:
+        task = bar.add_task("FRFs", total=total)
+        yield lambda: bar.advance(task)
