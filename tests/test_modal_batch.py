@@ -35,18 +35,29 @@ def _runs_file(path: Path, run_ids, n: int = 2048) -> Path:
     return path
 
 
-def test_default_frf_on_a_multi_run_file_writes_every_run_serially(tmp_path, capsys, monkeypatch):
-    """Six small runs in one file (as the demo's runs.h5): the default picks the serial path (no
-    cluster is started) and every run's FRFs land in the file."""
-    path = _runs_file(tmp_path / "runs.h5", [f"r{k}" for k in range(6)])
+def test_default_frf_on_the_demo_runs_file_writes_every_run_serially(tmp_path, capsys, monkeypatch):
+    """The demo's ten simulated runs (impact and random at five poses) stored as in its runs.h5: the
+    default `flexmodal frf` picks the serial path (no cluster is started) and writes every run."""
+    from flexmodal.fixtures import demo
+    from flexmodal.models.rig import load_rig
+
+    path = tmp_path / "runs.h5"
+    runs = demo.simulate_campaign(load_rig(demo.DEMO_RIG), demo.DEMO_POSES)
+    for run in runs:
+        demo.store_test(path, run.run_id, run.test)
 
     def no_cluster(*args, **kwargs):
         raise AssertionError("a cluster was started for small runs")
 
     monkeypatch.setattr(batch, "_on_cluster", no_cluster)
-    assert main(["--quiet", "frf", str(path), "--nfft", "256"]) == 0
-    assert capsys.readouterr().out.split() == [f"{path}:r{k}" for k in range(6)]
-    assert all(read_frf(path, f"r{k}").n_averages == 15 for k in range(6))
+    assert main(["--quiet", "frf", str(path)]) == 0
+    ids = sorted(run.run_id for run in runs)
+    assert len(ids) == 10 and capsys.readouterr().out.split() == [f"{path}:{rid}" for rid in ids]
+    for rid in ids:
+        frf = read_frf(path, rid)
+        assert frf is not None and frf.H.shape[1] == 1
+        if rid.endswith("random"):
+            assert frf.provenance["segments_skipped"] == 0 and frf.n_averages >= 8
 
 
 def test_cost_rule_goes_parallel_only_when_free_cpus_make_it_pay(monkeypatch):
