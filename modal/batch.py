@@ -141,8 +141,8 @@ def _on_cluster(jobs, first: int, options: dict, workers: int | None, scheduler:
                                    scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
             client = Client(cluster)
     try:
-        futures = {client.submit(frf_job, *map(str, jobs[k]), options, pure=False): k
-                   for k in range(first, len(jobs))}
+        futures = {client.submit(frf_job, str(Path(jobs[k][0]).resolve()), jobs[k][1], options, pure=False): k
+                   for k in range(first, len(jobs))}   # absolute paths: workers run elsewhere
         for fut in as_completed(list(futures)):
             k = futures[fut]
             try:

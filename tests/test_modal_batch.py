@@ -135,16 +135,20 @@ def test_local_cluster_serves_no_dashboard(tmp_path, monkeypatch):
 
 
 def _start(args: list[str], log: Path) -> subprocess.Popen:
+    """A `dask` CLI process logging into ``log``, working in a folder of its own."""
+    (log.parent / "elsewhere").mkdir(exist_ok=True)
     return subprocess.Popen([sys.executable, "-m", "dask", *args], stdout=log.open("w"),
-                            stderr=subprocess.STDOUT, cwd=log.parent)
+                            stderr=subprocess.STDOUT, cwd=log.parent / "elsewhere")
 
 
 @pytest.mark.slow
-def test_hundred_runs_on_a_dask_cli_scheduler_and_two_workers(tmp_path, capsys):
+def test_hundred_runs_on_a_dask_cli_scheduler_and_two_workers(tmp_path, capsys, monkeypatch):
     """`dask scheduler` and `dask worker --nworkers 2` as their own processes on 127.0.0.1, without
-    dashboards; `flexmodal frf --scheduler` on 100 runs (ten files) read by the workers from their
-    shared paths and written by the calling process: FRFs identical to the serial path."""
-    files = [str(_runs_file(tmp_path / f"f{j}.h5", [f"r{k}" for k in range(10)], n=1024)) for j in range(10)]
+    dashboards; `flexmodal frf --scheduler` on 100 runs (ten files, named relative to this process's
+    folder, not the workers') read by the workers from their shared paths and written by the calling
+    process: FRFs identical to the serial path."""
+    monkeypatch.chdir(tmp_path)
+    files = [_runs_file(Path(f"f{j}.h5"), [f"r{k}" for k in range(10)], n=1024).name for j in range(10)]
     serial = batch.run_batch(expand_runs(files), {"nfft": 256}, workers=0)
     sched_file = tmp_path / "scheduler.json"
     procs = []
