@@ -1,4 +1,4 @@
-"""HDF5 run store (CONTRACT §6): write runs block by block with SWMR, list them and read them back.
+"""HDF5 run store (docs/hdf5-format.md): write runs block by block with SWMR, list them and read them back.
 
 A file holds one or more runs under ``/runs/<run_id>``.  Each run has a chunked, resizable ``samples``
 dataset [n_samples, n_channels] in physical units, a ``channels`` compound table, a resizable
