@@ -110,14 +110,13 @@ def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: 
     """Batch FRFs of stored runs (a file means all its runs, ``FILE::RUN_ID`` or (file, id) one run),
     written back into each file or into ``out``; returns the (file, run id) pairs written.
 
-    Several runs go to a dask LocalCluster of ``workers`` processes (default 2; 0 = serially here) or
-    to the ``scheduler`` address; one run is computed here.  Estimators registered in this process
+    Runs are computed here one after the other unless the measured cost predicts that a dask
+    LocalCluster pays for its start-up (``workers`` None, see ``modal.batch.run_batch``); ``workers``
+    N forces a LocalCluster of N processes, 0 computes here, ``scheduler`` sends the runs to that
+    address.  Estimators registered in this process
     (``modal.frf.register_estimator``) reach worker processes only if they register them too."""
-    from flexmodal.daq.store import expand_runs
     from flexmodal.modal.batch import frf_batch
 
-    if workers is None and scheduler is None:
-        workers = 2 if len(expand_runs(runs)) > 1 else 0
     options = {"estimator": estimator, "nfft": nfft, "window": window, "overlap": overlap,
                "averaging": averaging}
     return frf_batch(runs, options, workers=workers, scheduler=scheduler, out=out, quiet=quiet)
