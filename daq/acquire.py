@@ -314,6 +314,9 @@ class _Recorder:
         self.lag_base = np.inf  # smallest delay of the rows behind real time seen so far (start-up latency)
         self.overrun = False
         self.disk_stopped = False
+        self.pose_cols = {v: self.names.index(c) for v, c in session.pose_from.items()}
+        self.pose_sums = np.zeros((len(self.pose_cols), 5))  # n, sum, sum of squares, min, max
+        self.pose_sums[:, 3:] = (np.inf, -np.inf)
 
     # -- what the reader threads deliver ---------------------------------------------------------------
     def handle(self, item) -> None:
@@ -418,11 +421,33 @@ class _Recorder:
         self.pending.clear()
         self.guarded(lambda: (self.writer.append(rows), self.writer.add_events(keep)))
         self.written += rows.shape[0]
+        self.add_pose(rows)
         self.display.rows(rows)
         for e in keep:
             self.counts[e.kind] += 1
             if e.kind == "overload":
                 self.display.overloads[self.names.index(e.detail)] += e.count
+
+    def add_pose(self, rows: np.ndarray) -> None:
+        """Running statistics of the encoder channels the pose is taken from (finite values only)."""
+        for k, col in enumerate(self.pose_cols.values()):
+            x = rows[:, col].astype(np.float64)
+            x = x[np.isfinite(x)]
+            if x.size:
+                n, s1, s2, lo, hi = self.pose_sums[k]
+                self.pose_sums[k] = (n + x.size, s1 + x.sum(), s2 + (x * x).sum(), min(lo, x.min()),
+                                     max(hi, x.max()))
+
+    def pose(self) -> tuple[dict, dict]:
+        """Pose variables from their encoder channels: mean over the run, and spread (std, min, max)."""
+        mean, spread = {}, {}
+        for (var, _), (n, s1, s2, lo, hi) in zip(self.pose_cols.items(), self.pose_sums, strict=True):
+            if n:
+                m = s1 / n
+                mean[var] = float(m)
+                spread[var] = {"std": float(np.sqrt(max(s2 / n - m * m, 0.0))), "min": float(lo),
+                               "max": float(hi), "n": int(n)}
+        return mean, spread
 
     def guarded(self, step) -> None:
         """Run a write step; a failure becomes WriteFailed and the file is not touched again."""
@@ -482,6 +507,8 @@ class _Recorder:
             if self.writer is not None:
                 writer, self.writer = self.writer, None
                 self.guarded_close(writer)
+        if self.pose_cols and self.written:
+            _store_pose(self.out, self.run_id, {**self.session.pose, **self.pose()[0]}, self.pose()[1])
         return self.summary()
 
     def finish(self, threads: list[threading.Thread]) -> None:
@@ -533,12 +560,26 @@ class _Recorder:
                        self.counts, sum(s.dropped_blocks for s in self.stats.values()), self.stopper.signum,
                        self.error)
 
+def _store_pose(out: Path, run_id: str, pose: dict, spread: dict) -> None:
+    """Replace the run's ``pose`` by the encoder means and add ``pose_spread`` (JSON: per variable std,
+    min, max and number of samples), once the writer has closed the file."""
+    import h5py
+
+    with h5py.File(out, "r+") as f:
+        attrs = f[f"runs/{run_id}"].attrs
+        attrs["pose"] = json.dumps(pose)
+        attrs["pose_spread"] = json.dumps(spread)
+
+
 def _open_writer(session: Session, out: Path, run_id: str, stamp: datetime, first_rows: np.ndarray,
                  names: tuple[str, ...], first_index: dict) -> RunWriter:
-    """Create the run; a pose taken from encoder channels uses their first sample (degrees)."""
+    """Create the run; a pose taken from encoder channels starts as their first sample (degrees) and
+    becomes their mean over the run when it ends (a killed run keeps the first sample)."""
     pose = dict(session.pose)
     for var, channel in session.pose_from.items():
-        pose[var] = float(first_rows[0, names.index(channel)])
+        x = first_rows[:, names.index(channel)]
+        if np.isfinite(x).any():
+            pose[var] = float(x[np.isfinite(x)][0])
     attrs = {"session": str(session.source), "notes": session.notes, "first_index": json.dumps(first_index),
              "devices": json.dumps({d.name: d.protocol for d in session.devices})}
     if session.trigger is not None:

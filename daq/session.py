@@ -230,13 +230,20 @@ def _channel(doc: dict, where: str, devices: dict[str, Device]) -> ChannelMap:
     where = f"{where.split(':')[0]}: channel {name!r}"
     t = Table(doc, where)
     t.reject_unknown({"name", "kind", "unit", "sensitivity", "sensitivity_unit", "scale", "offset",
-                      "location", "direction", "device", "source", "full_scale"})
+                      "location", "direction", "device", "source", "full_scale", "counts_per_rev"})
     kind = t.choice("kind", CHANNEL_KINDS)
     unit = t.get("unit", str)
     sensitivity = t.get("sensitivity", float, 1.0, check=lambda v: v != 0 and math.isfinite(v),
                         why="must be finite and non-zero")
     sens_unit = t.get("sensitivity_unit", str, "")
-    if "sensitivity" in t.doc and not sens_unit:
+    if "counts_per_rev" in t.doc:  # an encoder's resolution: counts -> angle in `unit` (deg or rad)
+        if kind != "encoder" or "sensitivity" in t.doc or unit not in ("deg", "rad"):
+            raise DaqError(f"{where}: counts_per_rev is for kind = \"encoder\" with unit deg or rad and no "
+                           "sensitivity")
+        sensitivity = t.get("counts_per_rev", float, check=lambda v: v > 0 and math.isfinite(v),
+                            why="must be > 0")
+        sens_unit = "counts/rev"
+    elif "sensitivity" in t.doc and not sens_unit:
         raise DaqError(f"{where}: sensitivity {sensitivity} has no sensitivity_unit (e.g. \"mV/g\")")
     factor = 1.0
     if sens_unit:
