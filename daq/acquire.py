@@ -36,6 +36,7 @@ import numpy as np
 
 from flexmodal.daq.devices import Block, ReaderStats, make_driver, run_reader
 from flexmodal.daq.errors import DaqError
+from flexmodal.daq.hits import HitMonitor, sparkline
 from flexmodal.daq.hooks import simulator_launcher
 from flexmodal.daq.lock import WriterLock
 from flexmodal.daq.session import SIMULATOR_PORT, Session
@@ -155,6 +156,9 @@ class Display:
         self.peak = np.zeros(len(names))
         self.overloads = np.zeros(len(names), int)
         self.behind_s = 0.0  # > 0: the writer lags real time by this much (overrun)
+        self.monitor: HitMonitor | None = None  # impact sessions: hit verdicts and the running H1
+        self.response = ""
+        self.fs = 1.0
         self._last = 0.0
         if not quiet:
             from rich.console import Console
@@ -196,7 +200,33 @@ class Display:
             style = "bold red" if self.overloads[i] else None
             table.add_row(name, self.units[i], f"{self.level[i]:.4g}", f"{self.peak[i]:.4g}",
                           str(self.overloads[i]), style=style)
-        self.live.update(table)
+        if self.monitor is None:
+            self.live.update(table)
+            return
+        from rich.console import Group
+        from rich.text import Text
+
+        self.live.update(Group(table, *self._impact_lines(Text)))
+
+    def _impact_lines(self, text) -> list:
+        """The last hits with their verdicts, then |H1| (dB) and coherence at the chosen response."""
+        m = self.monitor
+        lines = [text(f"hits: {len(m.hits)}, accepted {m.accepted}", style="bold")]
+        for h in m.hits[-6:]:
+            ok = h.verdict == "accepted"
+            lines.append(text(f"  hit at {h.row / self.fs:8.3f} s  peak {h.peak:8.4g}  "
+                              f"{'ACCEPTED' if ok else 'REJECTED: ' + h.reason}",
+                              style="green" if ok else "bold red"))
+        if m.accepted:
+            f, h, coh = m.h1()
+            db = 20 * np.log10(np.where(h > 0, h, np.nan))
+            top = np.nanmax(db[1:]) if np.isfinite(db[1:]).any() else 0.0
+            lines.append(text(f"  |H1| {self.response}  {sparkline(db[1:], 64, top - 60, top)}  "
+                              f"0-{f[-1]:g} Hz, top {top:.1f} dB"))
+            pad = " " * len(self.response)
+            lines.append(text(f"  coh   {pad}{sparkline(coh[1:], 64, 0, 1, np.nanmin)}  "
+                              f"0..1, min {np.nanmin(coh[1:]):.2f}"))
+        return lines
 
     def close(self) -> None:
         if self.live is not None:
@@ -229,11 +259,39 @@ class TriggerDetector:
         return out
 
 
+def _hit_monitor(session: Session, names: tuple[str, ...]) -> HitMonitor:
+    """The hit screening of an impact session: force = the trigger channel, response = the trigger's
+    ``response`` (default the first acceleration channel, else the first other channel)."""
+    t = session.trigger
+    force = names.index(t.channel)
+    kinds = [c.channel.kind for c in session.channels]
+    response = (names.index(t.response) if t.response else
+                kinds.index("acceleration") if "acceleration" in kinds else (force + 1) % len(names))
+    fs = session.sample_rate_hz
+    return HitMonitor(force, response, fs, int(round(t.window_s * fs)), t.pretrigger_samples,
+                      t.min_peak if t.min_peak is not None else 2 * abs(t.level),
+                      (session.channels[force].full_scale, session.channels[response].full_scale))
+
+
 def _clipped(block: Block, limits) -> np.ndarray | None:
     if limits is None:
         return None
     lo, hi = limits
     return (block.values <= lo) | (block.values >= hi)
+
+
+def _hit_monitor(session: Session, names: tuple[str, ...]) -> HitMonitor:
+    """The hit screening of an impact session: force = the trigger channel, response = the trigger's
+    ``response`` (default the first acceleration channel, else the first other channel)."""
+    t = session.trigger
+    force = names.index(t.channel)
+    kinds = [c.channel.kind for c in session.channels]
+    response = (names.index(t.response) if t.response else
+                kinds.index("acceleration") if "acceleration" in kinds else (force + 1) % len(names))
+    fs = session.sample_rate_hz
+    return HitMonitor(force, response, fs, int(round(t.window_s * fs)), t.pretrigger_samples,
+                      t.min_peak if t.min_peak is not None else 2 * abs(t.level),
+                      (session.channels[force].full_scale, session.channels[response].full_scale))
 
 
 def _clipped(block: Block, limits) -> np.ndarray | None:
@@ -301,6 +359,10 @@ class _Recorder:
             t = session.trigger
             self.trig = TriggerDetector(self.names.index(t.channel), t.level, t.slope,
                                         int(round(t.holdoff_s * session.sample_rate_hz)))
+            if session.excitation == "impact":
+                self.display.monitor = _hit_monitor(session, self.names)
+                self.display.response, self.display.fs = session.channels[
+                    self.display.monitor.response].channel.name, session.sample_rate_hz
         self.counts: Counter = Counter()
         self.writer: RunWriter | None = None
         self.pending: list[Event] = []  # events dated in timeline rows (row 0 = the session's first sample)
@@ -393,8 +455,10 @@ class _Recorder:
         session, target = self.session, self.target
         if self.trig is not None:
             t = session.trigger
-            self.pending.extend(Event("trigger", i, 1, f"{t.channel} {t.slope} {t.level:g}")
-                                for i in self.trig.find(rows, row0))
+            found = self.trig.find(rows, row0)
+            self.pending.extend(Event("trigger", i, 1, f"{t.channel} {t.slope} {t.level:g}") for i in found)
+            if self.display.monitor is not None:
+                self.judged(self.display.monitor.add(rows, row0, found))
         if self.waiting:
             buf = np.vstack([*self.held, rows])
             buf0 = row0 + rows.shape[0] - buf.shape[0]
@@ -427,6 +491,13 @@ class _Recorder:
             self.counts[e.kind] += 1
             if e.kind == "overload":
                 self.display.overloads[self.names.index(e.detail)] += e.count
+
+    def judged(self, hits) -> None:
+        """Rejected hits become notes (the verdicts show in the live view as they come)."""
+        self.pending.extend(Event("note", h.row, 1, f"hit rejected: {h.reason}") for h in hits
+                            if h.verdict == "rejected")
+        if hits:
+            self.update_display(force=True)
 
     def add_pose(self, rows: np.ndarray) -> None:
         """Running statistics of the encoder channels the pose is taken from (finite values only)."""
@@ -520,6 +591,8 @@ class _Recorder:
             self.drain(0.0)
             self.release(self.silent(time.monotonic()) if len(self.drivers) > 1 else set())
         self.pending.extend(self.timeline.close_gaps(self.timeline.released))
+        if self.display.monitor is not None:
+            self.judged(self.display.monitor.finish())
         unwritten = self.timeline.ready()
         why = (f"stopped by {signal.Signals(self.stopper.signum).name}" if self.stopper.signum
                else self.error)
