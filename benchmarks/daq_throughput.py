@@ -11,6 +11,9 @@
 3. CAN over slcan on a pty: frames/s decoded by the CAN driver against python-can's own receive loop
    (Bus.recv) over the same byte stream.
 4. Modbus TCP on 127.0.0.1: polls/s of the Modbus driver against pymodbus's own request/response loop.
+5. Overrun: each protocol's example session (its simulator started by the session) run below and above
+   the rate its stack sustains; above it the writer falls behind real time and `acquire` records an
+   `overrun` event (and warns in the live view) once it lags by more than 1 s.
 Prints one line per measurement and the ratios; results go to stdout.
 """
 
@@ -30,9 +33,9 @@ import numpy as np
 
 from flexmodal.daq.acquire import acquire  # noqa: E402
 from flexmodal.daq.session import ChannelMap, Device, Register, Session  # noqa: E402
-from flexmodal.daq.sim_common import PtyLink  # noqa: E402
-from flexmodal.daq.sim_source import LSB_MV, SimChannel, SimSource  # noqa: E402
 from flexmodal.daq.store import Channel, RunWriter, list_runs, read_run  # noqa: E402
+from flexmodal.fixtures.sim_common import PtyLink  # noqa: E402
+from flexmodal.fixtures.sim_source import LSB_MV, SimChannel, SimSource  # noqa: E402
 
 N_CH, RATE_HZ = 32, 64_000.0
 
@@ -194,6 +197,25 @@ def bench_modbus(seconds: float = 3.0) -> tuple[float, float]:
     return raw_rate, ours
 
 
+def bench_overrun(protocol: str, rate_hz: float, seconds: float, out_dir: Path) -> tuple[int, float]:
+    """Run ``protocol``'s example session at ``rate_hz`` for ``seconds`` of samples; returns the number
+    of overrun events and the lag (s) the first one reported (nan without one)."""
+    import tomllib
+
+    import flexmodal.fixtures  # noqa: F401  (registers the simulator launcher)
+    from flexmodal.daq.session import parse_session
+
+    path = Path(__file__).resolve().parents[1] / "examples" / "sessions" / f"{protocol}-sim.toml"
+    doc = tomllib.loads(path.read_text())
+    doc["sample_rate_hz"] = rate_hz
+    doc.pop("trigger")  # record from the start
+    out = out_dir / f"overrun-{protocol}-{rate_hz:g}.h5"
+    out.unlink(missing_ok=True)
+    summary = acquire(parse_session(doc, path), out, duration_s=seconds, quiet=True)
+    events = [e for e in read_run(out, summary.run_id).events if e.kind == "overrun"]
+    return len(events), events[0].count / rate_hz if events else float("nan")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -214,6 +236,11 @@ def main() -> None:
     lib, ours = bench_modbus()
     print(f"Modbus TCP: pymodbus read loop {lib:.0f} polls/s, Modbus driver {ours:.0f} polls/s: "
           f"ratio {ours / lib:.2f}")
+    for protocol, rates in (("can", (512.0, 4096.0)), ("modbus", (200.0, 8000.0))):
+        for rate in rates:
+            n, lag = bench_overrun(protocol, rate, args.seconds, out_dir)
+            print(f"{protocol} session at {rate:g} Hz for {args.seconds:g} s: {n} overrun event(s)"
+                  + (f", first at {lag:.2f} s behind real time" if n else ""))
 
 
 if __name__ == "__main__":
