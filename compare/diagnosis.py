@@ -58,6 +58,7 @@ EXPLAINED_FACTOR = 3.0
 PENALTY = 0.15
 PAIR_POOL = 8
 TRIPLE_PAIRS = 3
+MIN_CROSS_VALIDATED = 6
 REGION_TIE = 0.8
 RANKING_LENGTH = 25
 
@@ -148,63 +149,86 @@ def _score(heldout: float, n_params: int, scatter: float) -> float:
     return math.hypot(heldout, scatter) * (1 + PENALTY * n_params)
 
 
-def _evaluate_candidate(ctx: _Context, cand: Candidate, scatter: float,
-                        grid: np.ndarray | None = None) -> dict:
+def _screen(ctx: _Context, cand: Candidate, scatter: float, parts: Sequence[dict] = ()) -> dict:
+    """Fit ``cand`` to all configurations (fold 0 only); seeded from the ``parts``' optima for a
+    combination.  ``_lower`` is the score it would get if its held-out error equalled this in-sample one
+    (a held-out error is in practice never below it)."""
     fam = ctx.family(cand.handles)
-    res = fit_candidate(fam, cand, ctx.target, ctx.train, grid=grid)
-    fm = ctx.meas.freq_hz
-    err = res.freq_hz / fm[None] - 1.0                                  # [F, C, n]
-    held = np.concatenate([err[f][~ctx.train[f]].ravel() for f in range(1, len(ctx.train))])
-    entry = {
-        "effect": cand.effect, "location": cand.location, "params": _params(cand, res.theta[0]),
-        "fit_rms_rel_error": rms(err[0]), "heldout_rms_rel_error": rms(held),
-        "heldout_max_rel_error": float(np.max(np.abs(held))), "n_params": cand.n_params,
-        "score": _score(rms(held), cand.n_params, scatter),
-    }
+    starts = _combo_starts(cand, [(p["_cand"], p["_theta0"][None]) for p in parts]) if parts else None
+    res = fit_candidate(fam, cand, ctx.target, ctx.train[:1], starts=starts)
+    err = res.freq_hz[0] / ctx.meas.freq_hz - 1.0
+    entry = {"effect": cand.effect, "location": cand.location, "params": _params(cand, res.theta[0]),
+             "fit_rms_rel_error": rms(err), "n_params": cand.n_params}
     if res.mac is not None:
         entry["mac_mean"] = float(np.nanmean(res.mac[0]))
-    entry["_theta"] = res.theta[0]
-    entry["_freq_hz"] = res.freq_hz[0]
-    entry["_heldout_freq_hz"] = _heldout_prediction(res.freq_hz, ctx.train)
+    entry.update(_cand=cand, _parts=tuple(parts), _fam=fam, _theta0=res.theta[0], _freq_hz=res.freq_hz[0],
+                 _lower=_score(rms(err), cand.n_params, scatter))
     return entry
 
 
+def _cross_validate(ctx: _Context, entry: dict, scatter: float) -> None:
+    """Refit ``entry``'s candidate on every cross-validation fold to convergence from starts chosen on
+    that fold's training data only (a combination is seeded from its parts' own fold optima when they
+    were cross-validated), and add the held-out error and the score to ``entry``."""
+    cand, parts, train = entry["_cand"], entry["_parts"], ctx.train[1:]
+    seeded = parts and all("_theta_folds" in p for p in parts)
+    starts = _combo_starts(cand, [(p["_cand"], p["_theta_folds"]) for p in parts]) if seeded else None
+    res = fit_candidate(entry["_fam"], cand, ctx.target, train, starts=starts)
+    err = res.freq_hz / ctx.meas.freq_hz[None] - 1.0                    # [F, C, n]
+    held = np.concatenate([err[f][~train[f]].ravel() for f in range(len(train))])
+    entry.update(heldout_rms_rel_error=rms(held), heldout_max_rel_error=float(np.max(np.abs(held))),
+                 score=_score(rms(held), cand.n_params, scatter), _theta_folds=res.theta,
+                 _heldout_freq_hz=_heldout_prediction(res.freq_hz, train))
+
+
+def _cross_validate_promising(ctx: _Context, entries: Sequence[dict], scatter: float) -> None:
+    """Cross-validate, best in-sample score first, every entry that could still beat the best held-out
+    score so far (``_lower`` below it), and at least ``MIN_CROSS_VALIDATED`` in all."""
+    done = [e for e in entries if "score" in e]
+    for e in sorted((e for e in entries if "score" not in e), key=lambda e: e["_lower"]):
+        if len(done) >= MIN_CROSS_VALIDATED and e["_lower"] >= min(d["score"] for d in done):
+            break
+        _cross_validate(ctx, e, scatter)
+        done.append(e)
+
+
 def _combo_starts(cand: Candidate, parts: Sequence[tuple[Candidate, np.ndarray]]) -> np.ndarray:
-    """Start points of a combination: all parts at their own optima, and each part over its start grid
-    with the others at their optima (theta in ``cand.params`` order)."""
-    base = np.zeros(cand.n_params)
+    """Per-fold start points [F, G, J] of a combination (theta in ``cand.params`` order): all parts at
+    that fold's own optima (``parts``' theta [F, J_part], fitted without the fold's held-out data), and
+    each part over its start grid with the others at their fold optima."""
+    F = parts[0][1].shape[0]
+    base = np.zeros((F, cand.n_params))
     where = []
     for c, theta in parts:
         idx = [cand.params.index(p) for p in c.params]
-        base[idx] = theta
+        base[:, idx] = theta
         where.append((idx, np.array(list(itertools.product(*[p.grid for p in c.params])))))
-    starts = [base[None]]
+    starts = [base[:, None]]
     for idx, grid in where:
-        block = np.repeat(base[None], len(grid), axis=0)
-        block[:, idx] = grid
+        block = np.repeat(base[:, None], len(grid), axis=1)
+        block[:, :, idx] = grid[None]
         starts.append(block)
-    return np.vstack(starts)
+    return np.concatenate(starts, axis=1)
 
 
-def _triples(ctx: _Context, pairs: list[tuple[dict, Candidate]], pool: list[tuple[Candidate, dict]],
-             scatter: float) -> list[dict]:
+def _triples(ctx: _Context, pairs: Sequence[dict], pool: Sequence[dict], scatter: float) -> list[dict]:
     """Each of the best pairs extended by each single of the pool (only tried when no pair explains)."""
     out, seen = [], set()
-    for pair_entry, pair_cand in pairs:
-        for single, single_entry in pool:
-            cand = combine(pair_cand, single)
+    for pair in pairs:
+        for single in pool:
+            cand = combine(pair["_cand"], single["_cand"])
             if cand is None or (cand.effect, cand.location, cand.params) in seen:
                 continue
             seen.add((cand.effect, cand.location, cand.params))
-            out.append(_evaluate_candidate(ctx, cand, scatter, _combo_starts(
-                cand, [(pair_cand, pair_entry["_theta"]), (single, single_entry["_theta"])])))
+            out.append(_screen(ctx, cand, scatter, (pair, single)))
     return out
 
 
 def _heldout_prediction(freq: np.ndarray, train: np.ndarray) -> np.ndarray:
-    """Each configuration's frequencies predicted by the (last) fold that held it out [C, n]."""
+    """Each configuration's frequencies predicted by the (last) fold that held it out [C, n]
+    (``freq`` [F, C, n] and ``train`` [F, C] of the cross-validation folds only)."""
     out = np.full(freq.shape[1:], np.nan)
-    for f in range(1, len(train)):
+    for f in range(len(train)):
         out[~train[f]] = freq[f][~train[f]]
     return out
 
@@ -283,23 +307,26 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
     ranking: list[dict] = []
     if baseline["rms_rel_error"] > NONE_FACTOR * scatter:
         singles = single_candidates(rig, names, {v: [p[v] for p in meas.poses] for v in rig.pose_variables})
-        ranking = [_evaluate_candidate(ctx, c, scatter) for c in singles]
-        _pose_law_guard(ranking)
-        order = sorted(range(len(singles)), key=lambda i: ranking[i]["score"])
-        pool = order[:PAIR_POOL]
+        screened = [_screen(ctx, c, scatter) for c in singles]
+        pool = sorted(screened, key=lambda e: e["_lower"])[:PAIR_POOL]
+        for e in pool:
+            _cross_validate(ctx, e, scatter)
         pairs = []
-        for n, i in enumerate(pool):
-            for j in pool[n + 1:]:
-                cand = combine(singles[i], singles[j])
+        for n, a in enumerate(pool):
+            for b in pool[n + 1:]:
+                cand = combine(a["_cand"], b["_cand"])
                 if cand is not None:
-                    entry = _evaluate_candidate(ctx, cand, scatter, _combo_starts(
-                        cand, [(singles[i], ranking[i]["_theta"]), (singles[j], ranking[j]["_theta"])]))
-                    ranking.append(entry)
-                    pairs.append((entry, cand))
-        pairs.sort(key=lambda t: t[0]["score"])
-        if pairs and pairs[0][0]["heldout_rms_rel_error"] > EXPLAINED_FACTOR * scatter:
-            ranking += _triples(ctx, pairs[:TRIPLE_PAIRS], [(singles[i], ranking[i]) for i in pool], scatter)
+                    pairs.append(_screen(ctx, cand, scatter, (a, b)))
+        screened += pairs
+        _cross_validate_promising(ctx, screened, scatter)
+        pairs.sort(key=lambda e: e.get("score", math.inf))
+        if pairs and pairs[0].get("heldout_rms_rel_error", math.inf) > EXPLAINED_FACTOR * scatter:
+            screened += _triples(ctx, pairs[:TRIPLE_PAIRS], pool, scatter)
+            _cross_validate_promising(ctx, screened, scatter)
+        ranking = [e for e in screened if "score" in e]
+        _pose_law_guard(ranking)
         ranking.sort(key=lambda e: e["score"])
+        result["n_candidates"] = {"fitted": len(screened), "cross_validated": len(ranking)}
     result["ranking"] = [{k: v for k, v in e.items() if not k.startswith("_")}
                          for e in ranking[:RANKING_LENGTH]]
     result["verdict"] = _verdict(ranking, baseline, before, scatter, meas, base_err)

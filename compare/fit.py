@@ -5,7 +5,8 @@ of each fold.  The folds' parameter vectors are stacked into one block-diagonal 
 ``scipy.optimize.least_squares`` (trust-region reflective, bounds on the log-parameters) fits the full
 data set and every cross-validation fold together, with the analytic Jacobian from the eigenvalue
 sensitivities (``d f / d lambda = 1 / (8 pi^2 f)``).  Starts: the best points of a coarse grid evaluated in
-one batch (a multi-start without repeated solver calls), the two best refined and the better kept per fold.
+one batch (a multi-start without repeated solver calls), chosen per fold on its training configurations
+only, refined to convergence and the best kept per fold, so held-out scores come from honest refits.
 
 Mode pairing: model modes below 1e-3 of the lowest measured frequency are rigid-body modes and skipped,
 and so are modes the rig's sensors cannot see (e.g. axial modes of a straight arm under transverse
@@ -32,9 +33,8 @@ EXTRA_PAIRING_MODES = 2
 MAX_GRID = 81
 PAIRING_LOG_WIDTH = 0.25
 OBSERVABLE = 1e-6
-MAX_NFEV = 12
-MAX_NFEV_FOLDS = 3
-N_STARTS = 2
+MAX_NFEV = 60
+N_STARTS = 3
 
 
 @dataclass(frozen=True)
@@ -126,34 +126,47 @@ def _grid(cand: Candidate) -> np.ndarray:
 
 
 def fit_candidate(fam: ReducedFamily, cand: Candidate, target: Target, train: np.ndarray,
-                  reg_weight: float = 0.02, grid: np.ndarray | None = None) -> FitResult:
+                  reg_weight: float = 0.02, starts: np.ndarray | None = None) -> FitResult:
     """Fit ``cand`` on every fold's training configurations (``train`` [F, C] bool, fold 0 = all).
 
-    Fold 0 is fitted from the ``N_STARTS`` best points of the product of the parameters' start grids in
-    one stacked solve (from the best point of ``grid`` when given: seeded starts of a combination).  The
-    cross-validation folds, stacked in one problem, are refined from fold 0's optimum by at most
-    ``MAX_NFEV_FOLDS`` trust-region steps (each differs from it by one configuration's data).  The
-    pose-law slope/curvature are regularised towards a constant stiffness by residual rows
-    ``reg_weight * theta * span^power`` (``span`` = joint angle range).
+    Every fold is an independent fit to convergence that never sees its held-out configurations:
+    the start points are the product of the parameters' start grids (at most ``MAX_GRID``) plus
+    ``starts``, shared ``[G, J]`` or per fold ``[F, G, J]`` (seeded starts of a combination, built from
+    each fold's own part optima); each fold keeps the ``N_STARTS`` with the lowest cost on its
+    *training* configurations, and all folds' starts are refined together in one stacked trust-region
+    solve (block-diagonal Jacobian, so each block converges to its own fold's optimum); the best refined
+    start of each fold is kept.  The pose-law slope/curvature are regularised towards a constant
+    stiffness by residual rows ``reg_weight * theta * span^power`` (``span`` = joint angle range).
     """
     D = design(cand, target)
     fm = target.freq_hz
+    F, J = len(train), cand.n_params
     lower = np.array([p.lower for p in cand.params])
     upper = np.array([p.upper for p in cand.params])
     reg = np.array([0.0 if p.power == 0 else reg_weight * _span(target, p.handle) ** p.power
                     for p in cand.params])
-    n_starts = N_STARTS if grid is None else 1
-    grid = _grid(cand) if grid is None else grid
-    f, _, _, _ = evaluate(fam, D, grid, target)
-    cost = np.nansum(((f / fm) - 1.0) ** 2, axis=(1, 2)) + np.sum((reg * grid) ** 2, axis=1)
-    starts = grid[np.argsort(cost)[:n_starts]]
-    x, c = _solve(fam, D, target, np.repeat(train[:1], len(starts), axis=0), reg, lower, upper, starts,
-                  MAX_NFEV)
-    theta = x[np.argmin(c)][None]
-    if len(train) > 1:
-        x, _ = _solve(fam, D, target, train[1:], reg, lower, upper, np.repeat(theta, len(train) - 1, axis=0),
-                      MAX_NFEV_FOLDS)
-        theta = np.vstack([theta, x])
+    grid = _grid(cand)
+    if starts is not None:                                              # seeded starts + the own grid
+        starts = np.asarray(starts, float)
+        grid = np.vstack([starts, grid]) if starts.ndim == 2 else np.concatenate(
+            [starts, np.repeat(grid[None], F, axis=0)], axis=1)
+    pts = grid.reshape(-1, J)
+    f, _, _, _ = evaluate(fam, D, pts, target)
+    sq = np.sum(((f / fm) - 1.0) ** 2, axis=2)                           # [P, C]
+    penalty = np.sum((reg * pts) ** 2, axis=1)                            # [P]
+    if grid.ndim == 3:                                                    # per-fold starts [F, G, J]
+        G = grid.shape[1]
+        cost = np.einsum("fgc,fc->fg", sq.reshape(F, G, -1), train.astype(float)) + penalty.reshape(F, G)
+        best = np.argsort(cost, axis=1)[:, :N_STARTS]
+        x0 = grid[np.arange(F)[:, None], best].reshape(-1, J)
+    else:
+        cost = train.astype(float) @ sq.T + penalty[None]                 # [F, G]
+        best = np.argsort(cost, axis=1)[:, :N_STARTS]
+        x0 = grid[best].reshape(-1, J)
+    k = best.shape[1]
+    x, c = _solve(fam, D, target, np.repeat(train, k, axis=0), reg, lower, upper, x0, MAX_NFEV)
+    pick = np.argmin(c.reshape(F, k), axis=1)
+    theta = x.reshape(F, k, J)[np.arange(F), pick]
     f, _, mac, _ = evaluate(fam, D, theta, target)
     return FitResult(theta, f, mac, train)
 
@@ -192,7 +205,7 @@ def _solve(fam: ReducedFamily, D: np.ndarray, target: Target, train: np.ndarray,
     lo, hi = np.tile(lower, F), np.tile(upper, F)
     x0 = np.clip(x0.ravel(), lo + 1e-9, hi - 1e-9)
     sol = least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", max_nfev=max_nfev,
-                        xtol=1e-5, ftol=1e-5, gtol=1e-10)
+                        xtol=1e-6, ftol=1e-8, gtol=1e-10)
     return sol.x.reshape(F, J), _fold_costs(sol.fun, mask, F, J, reg, sol.x)
 
 

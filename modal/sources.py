@@ -44,21 +44,25 @@ def hdf5_frfs(path: str | Path, run_id: str | None = None):
         yield run, (read_frf(path, rid) or compute_frf(run))
 
 
-def _modes(result: FrfResult, *, driving_point: int | None = None, **options) -> Modes:
+def _modes(result: FrfResult, *, driving_point: int | None = None, decay_rate_per_s: float | None = None,
+           **options) -> Modes:
+    """Modes of FRFs; ``decay_rate_per_s`` (1/s) overrides the exponential window the FRFs record."""
+    decay = result.decay_rate_per_s if decay_rate_per_s is None else decay_rate_per_s
     return identify(result.freq_hz, result.H, coherence=result.coherence,
                     quantity=result.quantity if result.quantity in ("accelerance", "mobility", "receptance")
-                    else "accelerance", decay_rate_per_s=result.decay_rate_per_s,
-                    driving_point=driving_point, **options)
+                    else "accelerance", decay_rate_per_s=decay, driving_point=driving_point, **options)
 
 
 def identify_input(path: str | Path, *, method: str = "lscf", fmin: float | None = None,
-                   fmax: float | None = None, max_order: int = 40, run_id: str | None = None
-                   ) -> tuple[ModalTable, dict[str, tuple[Modes, tuple[str, ...]]]]:
-    """The modal table of INPUT and, per configuration, the identified modes and output names."""
+                   fmax: float | None = None, max_order: int | None = None, run_id: str | None = None,
+                   **identify_options) -> tuple[ModalTable, dict[str, tuple[Modes, tuple[str, ...]]]]:
+    """The modal table of INPUT and, per configuration, the identified modes and output names.
+    ``identify_options``: ``poles_hz``, ``thresholds``, ``decay_rate_per_s`` of
+    :func:`modal.identify.identify` (the last overriding the FRFs' own exponential window)."""
     p = Path(path)
     if not p.is_file():
         raise ModalError(f"{p}: input not found")
-    options = {"method": method, "fmin": fmin, "fmax": fmax, "max_order": max_order}
+    options = {"method": method, "fmin": fmin, "fmax": fmax, "max_order": max_order, **identify_options}
     found: dict[str, tuple[Modes, tuple[str, ...]]] = {}
     tables = []
     if h5py.is_hdf5(p):
