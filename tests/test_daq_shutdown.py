@@ -110,10 +110,12 @@ def test_sigterm_closes_the_run_cleanly(tmp_path, protocol):
     finally:
         proc.kill()
     assert proc.returncode == 128 + signal.SIGTERM, stderr
+    print(f"{protocol}: SIGTERM after {elapsed:.2f} s stopped in {took:.2f} s")
     assert took <= 3.0, f"took {took:.2f} s to stop"
     assert str(out) in stdout and not stderr  # the summary line, no traceback
     assert sim and not any(alive(p) for p in sim)  # the simulator went with it
     samples, events = plain_run(out)
+    print(f"{protocol}: kept {samples.shape[0] / RATES[protocol]:.2f} s of samples")
     assert samples.shape[0] >= (elapsed - 1.0) * RATES[protocol]
     assert ("stopped", samples.shape[0]) == events[-1][:2] and "SIGTERM" in events[-1][3]
     assert not np.isnan(samples).any()
@@ -314,6 +316,7 @@ def test_one_lost_device_never_holds_back_the_other(tmp_path):
     baseline = behind[t < t_kill].min()
     after = (t > t_kill) & (n < duration * fs)
     lag = behind[after] - baseline
+    print(f"healthy device: file behind real time by at most {lag.max():.2f} s after the other was lost")
     assert after.sum() >= 10 and lag.max() <= 1.5, f"file lagged real time by up to {lag.max():.2f} s"
     samples, events = plain_run(out)
     assert samples.shape[0] == duration * fs
