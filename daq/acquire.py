@@ -280,27 +280,6 @@ def _clipped(block: Block, limits) -> np.ndarray | None:
     return (block.values <= lo) | (block.values >= hi)
 
 
-def _hit_monitor(session: Session, names: tuple[str, ...]) -> HitMonitor:
-    """The hit screening of an impact session: force = the trigger channel, response = the trigger's
-    ``response`` (default the first acceleration channel, else the first other channel)."""
-    t = session.trigger
-    force = names.index(t.channel)
-    kinds = [c.channel.kind for c in session.channels]
-    response = (names.index(t.response) if t.response else
-                kinds.index("acceleration") if "acceleration" in kinds else (force + 1) % len(names))
-    fs = session.sample_rate_hz
-    return HitMonitor(force, response, fs, int(round(t.window_s * fs)), t.pretrigger_samples,
-                      t.min_peak if t.min_peak is not None else 2 * abs(t.level),
-                      (session.channels[force].full_scale, session.channels[response].full_scale))
-
-
-def _clipped(block: Block, limits) -> np.ndarray | None:
-    if limits is None:
-        return None
-    lo, hi = limits
-    return (block.values <= lo) | (block.values >= hi)
-
-
 def _check_output(path: Path, run_id: str, need_bytes: int) -> None:
     if not path.parent.is_dir():
         raise DaqError(f"{path}: directory {path.parent} does not exist")

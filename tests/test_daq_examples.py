@@ -35,6 +35,19 @@ def _copy(tmp_path: Path, name: str, *edits: tuple[str, str]) -> Path:
     return path
 
 
+def _record_with(device, session, out: Path, seconds: float = 2.0):
+    """Run ``device(stop)`` in a thread (the stand-in device) while acquiring ``seconds`` into ``out``."""
+    stop = threading.Event()
+    thread = threading.Thread(target=device, args=(stop,), daemon=True)
+    thread.start()
+    try:
+        summary = acquire(session, out, duration_s=seconds, quiet=True)
+    finally:
+        stop.set()
+        thread.join(5)
+    return read_run(out, summary.run_id)
+
+
 def _first(run) -> int:
     return next(iter(json.loads(run.attrs["first_index"]).values()))
 
@@ -48,9 +61,8 @@ def test_mcu_custom_frames_example(tmp_path):
     counts = np.random.default_rng(4).integers(-2000, 2000, (6000, 12)).astype(float)
     counts[:, 3] = 512 + np.arange(6000) % 7  # the elbow encoder
     frames = encode_custom(spec, 0, counts)
-    stop = threading.Event()
 
-    def device() -> None:
+    def device(stop: threading.Event) -> None:
         t0, sent = time.monotonic(), 0
         while sent < 6000 and not stop.is_set():
             due = min(6000, int((time.monotonic() - t0) * 1000))
@@ -58,15 +70,10 @@ def test_mcu_custom_frames_example(tmp_path):
             sent = due
             time.sleep(0.01)
 
-    thread = threading.Thread(target=device, daemon=True)
-    thread.start()
     try:
-        summary = acquire(session, tmp_path / "run.h5", duration_s=2.0, quiet=True)
+        run = _record_with(device, session, tmp_path / "run.h5")
     finally:
-        stop.set()
-        thread.join(5)
         link.remove()
-    run = read_run(tmp_path / "run.h5", summary.run_id)
     raw = counts[_first(run):_first(run) + 2000]
     gains = np.array([c.gain() for c in session.channels])
     np.testing.assert_allclose(run.samples, (raw[:, :4] * gains).astype(np.float32), rtol=0, atol=0)
@@ -80,9 +87,8 @@ def test_can_module_example_with_its_dbc(tmp_path):
                    ('dbc = "can-module.dbc"', f'dbc = "{EXAMPLES / "can-module.dbc"}"'))
     session = load_session(config)
     values = np.random.default_rng(2).integers(-20000, 20000, (20000, 8)).astype(np.int16)
-    stop = threading.Event()
 
-    def device() -> None:
+    def device(stop: threading.Event) -> None:
         bus = can.Bus(interface="virtual", channel="flexmodal-example", preserve_timestamps=True)
         while len(can.interfaces.virtual.channels["flexmodal-example"]) < 2 and not stop.is_set():
             time.sleep(0.01)
@@ -97,14 +103,7 @@ def test_can_module_example_with_its_dbc(tmp_path):
             time.sleep(0.005)
         bus.shutdown()
 
-    thread = threading.Thread(target=device, daemon=True)
-    thread.start()
-    try:
-        summary = acquire(session, tmp_path / "run.h5", duration_s=2.0, quiet=True)
-    finally:
-        stop.set()
-        thread.join(5)
-    run = read_run(tmp_path / "run.h5", summary.run_id)
+    run = _record_with(device, session, tmp_path / "run.h5")
     first = int(np.flatnonzero((values[:, 0] * 0.001).astype(np.float32) == run.samples[0, 0])[0])
     expected = values[first:first + 1000][:, [0, 1, 4, 5]] * 0.001
     np.testing.assert_allclose(run.samples, expected.astype(np.float32), rtol=0, atol=0)
