@@ -599,13 +599,13 @@ class _Recorder:
 
     def summary(self) -> Summary:
         if self.writer is None and self.written == 0:
+            if self.stopper.signum:
+                raise DaqError(f"{self.session.source}: stopped by "
+                               f"{signal.Signals(self.stopper.signum).name} before any sample was stored")
             if self.waiting:
                 t = self.session.trigger
                 raise DaqError(f"{self.session.source}: trigger: no {t.slope} crossing of {t.level:g} on "
                                f"{t.channel!r}")
-            if self.stopper.signum:
-                raise DaqError(f"{self.session.source}: stopped by "
-                               f"{signal.Signals(self.stopper.signum).name} before any sample was stored")
             raise DaqError(self.error or f"{self.session.source}: no samples arrived from "
                                          f"{', '.join(self.drivers)}")
         return Summary(self.out, self.run_id, self.written, len(self.names), self.session.sample_rate_hz,
