@@ -3,7 +3,8 @@
     python benchmarks/daq_throughput.py [--seconds S] [--out-dir DIR]
 
 1. Serial, binary frames over a pty into HDF5 (the full `flexmodal acquire` path: reader thread, queue,
-   timeline, SWMR writer): 32 channels at 64 kHz (2.048 MS/s) paced in real time, checked for zero loss
+   timeline, SWMR writer): 32 channels at 64 kHz (2.048 MS/s) and 256 kHz (8.19 MS/s) paced in real
+   time, checked for zero loss
    (no gap/corrupt event, every value equal to what the simulator sent); then the simulator unpaced to
    find the highest sustained rate.
 2. The HDF5 writer alone (RunWriter.append in 0.1 s blocks, float32) against a raw numpy write of the same
@@ -59,16 +60,16 @@ def _serve_serial(link: PtyLink, source: SimSource, seconds: float, speed: float
     serve(link, source, scans_per_frame=256, duration_s=seconds, speed=speed)
 
 
-def bench_serial(out_dir: Path, seconds: float, speed: float) -> tuple[float, bool]:
+def bench_serial(out_dir: Path, seconds: float, speed: float, rate_hz: float = RATE_HZ) -> tuple[float, bool]:
     """Samples/s stored (all channels) and whether everything the simulator sent arrived intact."""
-    source = synthetic_source(N_CH, RATE_HZ)
+    source = synthetic_source(N_CH, rate_hz)
     link = PtyLink()
     sim = mp.get_context("fork").Process(target=_serve_serial, args=(link, source, seconds + 2, speed))
     out = out_dir / f"serial-{speed:g}.h5"
     out.unlink(missing_ok=True)
     sim.start()
     t0 = time.perf_counter()
-    summary = acquire(serial_session(str(link.path), N_CH, RATE_HZ), out, duration_s=seconds, quiet=True)
+    summary = acquire(serial_session(str(link.path), N_CH, rate_hz), out, duration_s=seconds, quiet=True)
     elapsed = time.perf_counter() - t0
     sim.terminate()
     sim.join()
@@ -221,11 +222,14 @@ def main() -> None:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seconds", type=float, default=5.0, help="length of the serial runs, s")
     parser.add_argument("--out-dir", type=Path, help="where to write the test files (default: a temp dir)")
+    parser.add_argument("--serial-rates", type=float, nargs="+", default=[RATE_HZ, 4 * RATE_HZ], metavar="HZ",
+                        help="per-channel rates of the paced serial runs (default 64 kHz and 256 kHz)")
     args = parser.parse_args()
     out_dir = args.out_dir or Path(tempfile.mkdtemp(prefix="flexmodal-bench-"))
-    rate, intact = bench_serial(out_dir, args.seconds, 1.0)
-    print(f"serial binary over pty, paced {N_CH} ch x {RATE_HZ:g} Hz: {rate / 1e6:.3f} MS/s stored, "
-          f"zero loss: {intact}")
+    for serial_rate in args.serial_rates:
+        rate, intact = bench_serial(out_dir, args.seconds, 1.0, serial_rate)
+        print(f"serial binary over pty, paced {N_CH} ch x {serial_rate:g} Hz: {rate / 1e6:.3f} MS/s stored, "
+              f"zero loss: {intact}")
     rate, intact = bench_serial(out_dir, args.seconds, 50.0)
     print(f"serial binary over pty, unpaced: {rate / 1e6:.3f} MS/s stored, zero loss: {intact}")
     h5, raw = bench_writer(out_dir)
