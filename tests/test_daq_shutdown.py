@@ -137,12 +137,13 @@ def test_sighup_and_sigint_stop_the_same_way(tmp_path):
         assert samples.shape[0] > 2048 and events[-1][0] == "stopped" and sig.name in events[-1][3]
 
 
-def test_killed_simulator_is_a_lost_device_and_ends_the_session(tmp_path):
+@pytest.mark.parametrize("protocol,device", [("serial", "adc"), ("can", "can0"), ("modbus", "plc")])
+def test_killed_simulator_is_a_lost_device_and_ends_the_session(tmp_path, protocol, device):
     out = tmp_path / "run.h5"
-    config = session_file(tmp_path, "serial", "reconnect_timeout_s = 2.0\n")
+    config = session_file(tmp_path, protocol, "reconnect_timeout_s = 2.0\n")
     proc = start_acquire(config, out, 60)
     try:
-        assert wait_for(lambda: stored(out) > 2048, 60)
+        assert wait_for(lambda: stored(out) > RATES[protocol], 60)
         for pid in children(proc.pid):
             os.kill(pid, signal.SIGKILL)
         t_kill = time.monotonic()
@@ -151,7 +152,8 @@ def test_killed_simulator_is_a_lost_device_and_ends_the_session(tmp_path):
     finally:
         proc.kill()
     assert proc.returncode == 2
-    assert stderr.count("\n") == 1 and "device 'adc' lost" in stderr
+    assert stderr.count("\n") == 1 and f"device {device!r} lost" in stderr
+    print(f"{protocol}: session ended {took:.2f} s after the simulator was killed (timeout 2 s)")
     assert took <= 2.0 + 10.0  # the timeout, plus generous room for a loaded machine
     samples, events = plain_run(out)
     kinds = [e[0] for e in events]
