@@ -164,7 +164,8 @@ class Display:
             from rich.console import Console
             from rich.live import Live
 
-            self.live = Live(console=Console(stderr=True), refresh_per_second=4, transient=False)
+            # refreshed by update() only: no background thread writing to a terminal that may go away
+            self.live = Live(console=Console(stderr=True), auto_refresh=False, transient=False)
             self.live.start()
 
     def rows(self, rows: np.ndarray) -> None:
@@ -201,12 +202,12 @@ class Display:
             table.add_row(name, self.units[i], f"{self.level[i]:.4g}", f"{self.peak[i]:.4g}",
                           str(self.overloads[i]), style=style)
         if self.monitor is None:
-            self.live.update(table)
+            self.live.update(table, refresh=True)
             return
         from rich.console import Group
         from rich.text import Text
 
-        self.live.update(Group(table, *self._impact_lines(Text)))
+        self.live.update(Group(table, *self._impact_lines(Text)), refresh=True)
 
     def _impact_lines(self, text) -> list:
         """The last hits with their verdicts, then |H1| (dB) and coherence at the chosen response."""
