@@ -9,12 +9,11 @@ import time
 
 import numpy as np
 import pandas as pd
+from stand_in import record_with
 
 from flexmodal.app import main
-from flexmodal.daq.acquire import acquire
 from flexmodal.daq.serial_frames import encode_csv
 from flexmodal.daq.session import load_session
-from flexmodal.daq.store import read_run
 from flexmodal.fixtures.sim_common import PtyLink
 from flexmodal.fixtures.sim_source import sim_source
 
@@ -28,6 +27,7 @@ def _encoder(k: np.ndarray) -> np.ndarray:
 
 
 def _device(link: PtyLink, stop: threading.Event) -> None:
+    """The stand-in MCU: CSV lines of the simulated impact test plus the encoder, paced in real time."""
     src = sim_source(None, "impact", RATE)
     t0, k = time.monotonic(), 0
     while not stop.is_set():
@@ -54,16 +54,10 @@ def test_pose_from_encoder_mean_and_spread_reach_identify(tmp_path):
                       f'pose_from = {{ theta_deg = "enc_elbow" }}\n[[device]]\nname = "mcu"\n'
                       f'protocol = "serial"\nport = "{link.path}"\nframing = "csv"\n'
                       f'sources = {json.dumps(sources)}\n{chans}')
-    stop = threading.Event()
-    device = threading.Thread(target=_device, args=(link, stop), daemon=True)
-    device.start()
     try:
-        summary = acquire(load_session(config), tmp_path / "run.h5", duration_s=4.5, quiet=True)
+        run = record_with(lambda stop: _device(link, stop), load_session(config), tmp_path / "run.h5", 4.5)
     finally:
-        stop.set()
-        device.join(5)
         link.remove()
-    run = read_run(tmp_path / "run.h5", summary.run_id)
     first = json.loads(run.attrs["first_index"])["mcu"]
     angle = _encoder(first + np.arange(run.samples.shape[0])) * 360.0 / COUNTS_PER_REV
     np.testing.assert_allclose(run.samples[:, -1], angle, rtol=0, atol=1e-9)  # counts -> deg

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import can
 import numpy as np
+from stand_in import record_with
 
 from flexmodal.daq.acquire import acquire
 from flexmodal.daq.serial_frames import FrameSpec, encode_custom
@@ -33,19 +34,6 @@ def _copy(tmp_path: Path, name: str, *edits: tuple[str, str]) -> Path:
     path = tmp_path / name
     path.write_text(text)
     return path
-
-
-def _record_with(device, session, out: Path, seconds: float = 2.0):
-    """Run ``device(stop)`` in a thread (the stand-in device) while acquiring ``seconds`` into ``out``."""
-    stop = threading.Event()
-    thread = threading.Thread(target=device, args=(stop,), daemon=True)
-    thread.start()
-    try:
-        summary = acquire(session, out, duration_s=seconds, quiet=True)
-    finally:
-        stop.set()
-        thread.join(5)
-    return read_run(out, summary.run_id)
 
 
 def _first(run) -> int:
@@ -71,7 +59,7 @@ def test_mcu_custom_frames_example(tmp_path):
             time.sleep(0.01)
 
     try:
-        run = _record_with(device, session, tmp_path / "run.h5")
+        run = record_with(device, session, tmp_path / "run.h5", 2.0)
     finally:
         link.remove()
     raw = counts[_first(run):_first(run) + 2000]
@@ -103,7 +91,7 @@ def test_can_module_example_with_its_dbc(tmp_path):
             time.sleep(0.005)
         bus.shutdown()
 
-    run = _record_with(device, session, tmp_path / "run.h5")
+    run = record_with(device, session, tmp_path / "run.h5", 2.0)
     first = int(np.flatnonzero((values[:, 0] * 0.001).astype(np.float32) == run.samples[0, 0])[0])
     expected = values[first:first + 1000][:, [0, 1, 4, 5]] * 0.001
     np.testing.assert_allclose(run.samples, expected.astype(np.float32), rtol=0, atol=0)
