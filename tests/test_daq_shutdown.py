@@ -7,13 +7,17 @@ process ended.  Waits are bounded; assertions are on counts and events.
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
+import pty
 import random
 import re
+import select
 import signal
 import subprocess
 import sys
+import termios
 import time
 from pathlib import Path
 
@@ -328,3 +332,34 @@ def test_one_lost_device_never_holds_back_the_other(tmp_path):
     right = [e[:3] for e in events if e[3].startswith("right")]
     assert ("gap", last, samples.shape[0] - last) in right  # ... reported as one gap, sample for sample
     assert [e[0] for e in right].count("device_lost") == 1
+
+
+def test_closing_the_terminal_stops_cleanly(tmp_path):
+    """acquire with its live view on a pseudo-terminal that is its controlling terminal; closing the
+    terminal (master side) sends SIGHUP and leaves a display that can no longer be written."""
+    out = tmp_path / "run.h5"
+    master, slave = pty.openpty()
+
+    def own_terminal() -> None:
+        os.setsid()
+        fcntl.ioctl(slave, termios.TIOCSCTTY, 0)
+
+    proc = subprocess.Popen([sys.executable, "-m", "flexmodal", "acquire", "--config",
+                             str(session_file(tmp_path, "serial")), "--out", str(out), "--duration", "60"],
+                            cwd=REPO, stdin=slave, stdout=subprocess.PIPE, stderr=slave,
+                            preexec_fn=own_terminal, pass_fds=(slave,), text=True)
+    os.close(slave)
+    try:
+        end = time.monotonic() + 60
+        while stored(out) < 2048 and time.monotonic() < end:
+            if select.select([master], [], [], 0.05)[0]:
+                os.read(master, 65536)  # keep the terminal drained while it runs
+        os.close(master)  # the terminal goes away
+        stdout, _ = proc.communicate(timeout=30)
+    finally:
+        proc.kill()
+    assert proc.returncode == 128 + signal.SIGHUP
+    samples, events = plain_run(out)
+    assert samples.shape[0] >= 2048 and events[-1][0] == "stopped" and "SIGHUP" in events[-1][3]
+    assert not np.isnan(samples).any()
+
