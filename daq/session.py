@@ -290,7 +290,7 @@ def _simulator(doc: dict, where: str, base: Path) -> Simulator:
                 why="must be a plain file name (it is written in the run file's folder)")
     return Simulator(
         protocol=s.choice("protocol", protocols()), rig=s.file("rig", "rig file") if "rig" in doc else "",
-        test=s.choice("test", ("impact", "random", "sweep"), "impact"),
+        test=s.choice("test", ("impact", "random", "sweep", "operational"), "impact"),
         seed=s.get("seed", int, 0, check=lambda v: 0 <= v < 2**32, why="must be in [0, 2**32)"),
         pose={k: float(v) for k, v in pose.items()},
         corrupt_rate=s.get("corrupt_rate", float, 0.0, check=lambda v: 0 <= v < 1, why="must be in [0, 1)"),

@@ -1,5 +1,5 @@
 """Modal identification from FRFs to natural frequencies, damping ratios and shapes, and on to the
-modal table (CONTRACT §3).  Methods: ``lscf`` (pLSCF poles over a stabilisation diagram whose order
+modal table (docs/formats.md).  Methods: ``lscf`` (pLSCF poles over a stabilisation diagram whose order
 adapts to the data, automatic selection of stable pole chains, shapes by LSFD with residuals, and
 validation: a mode the synthesis does not need or with a phase-scattered shape is dropped; or the
 poles nearest frequencies the user names) and ``peak`` (CMIF peak picking, half-power damping, quadrature
