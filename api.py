@@ -356,13 +356,16 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     """Write the self-contained HTML validation report ``out`` and return its path.
 
     ``runs``: HDF5 files (all their runs), ``FILE::RUN_ID`` or (file, id); their stored FRFs are shown
-    with the stabilisation diagram of their identification (default options of :func:`identify`).
+    with the stabilisation diagram of their identification (default options of :func:`identify`); a
+    run without FRFs that is output-only (operational, or no force channel) with its FDD singular
+    values and SSI-cov stabilisation diagram (``modal.oma.output_only_results``, docs/oma.md).
     ``measured``/``repeats``/``predictions``: modal tables; ``diagnosis``: a :func:`diagnose` result,
     a parsed diagnosis.json, or its path; ``rig``: draws the measured shapes on the arm.  Everything
     is computed here; ``reports.html`` only renders it."""
     from flexmodal.compare.tables import compare_tables, ordered_configs, table_name
     from flexmodal.daq.store import expand_runs
     from flexmodal.modal.errors import ModalError
+    from flexmodal.modal.oma import default_method, output_only_results
     from flexmodal.modal.runs_io import read_frf
     from flexmodal.modal.sources import identify_frf
     from flexmodal.reports.errors import ReportError
@@ -375,14 +378,17 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     summaries = []
     for path, run_id in expand_runs(runs):
         step(f"reading and identifying {path.name}::{run_id}")
-        frf = read_frf(path, run_id)
-        modes = None
+        run, frf = read_run(path, run_id), read_frf(path, run_id)
+        modes = oma = None
         if frf is not None:
             try:
                 modes = identify_frf(frf)
             except ModalError as exc:
                 modes = str(exc)
-        summaries.append(RunSummary(read_run(path, run_id), frf, modes))
+        elif default_method([c.kind for c in run.channels], run.excitation) == "ssi":
+            oma = output_only_results(run.samples, run.sample_rate_hz, [c.name for c in run.channels],
+                                      [c.kind for c in run.channels], where=f"{path.name}::{run_id}")
+        summaries.append(RunSummary(run, frf, modes, oma))
     meas = _table(measured) if measured is not None else None
     named = _named(predictions)
     comparison = None

@@ -194,16 +194,13 @@ def _identification_figures(r: RunSummary, unit: str) -> list[dict]:
 
 
 def _oma_figures(r: RunSummary) -> list[dict]:
-    """FDD and SSI figures of an output-only run (reports/oma.py); none for other runs without FRFs."""
-    from flexmodal.reports.oma import is_output_only, oma_figures
+    """FDD and SSI figures of an output-only run (reports/oma.py); none for a run given without them."""
+    from flexmodal.reports.oma import oma_figures
 
-    run = r.run
-    kinds = [c.kind for c in run.channels]
-    if not is_output_only(kinds, run.excitation):
+    if r.oma is None:
         return []
     return [_fig(fig, caption) if fig is not None else {"png": None, "caption": caption}
-            for fig, caption in oma_figures(run.samples, run.sample_rate_hz, [c.name for c in run.channels],
-                                            kinds, r.label)]
+            for fig, caption in oma_figures(r.oma, r.label)]
 
 
 def _run_figures(runs: Sequence[RunSummary]) -> list[dict]:
