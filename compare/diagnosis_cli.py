@@ -1,4 +1,4 @@
-"""`flexmodal diagnose`: sim-to-real gap diagnosis (CONTRACT §2, §5) and its blind self-check."""
+"""`flexmodal diagnose`: sim-to-real gap diagnosis (docs/formats.md) and its blind self-check."""
 
 from __future__ import annotations
 
@@ -13,10 +13,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "diagnose", help="sim-to-real gap diagnosis: where, which unmodelled effect, held-out improvement",
         description="Compare a nominal rig's FE modes with measured modes over several poses, rank every "
-                    "unmodelled effect (CONTRACT §5) at every location and pairs of them by their error on "
-                    "held-out configurations, and write DIR/diagnosis.json and DIR/diagnosis.html.")
-    p.add_argument("--rig", help="nominal rig description (TOML, CONTRACT §4)")
-    p.add_argument("--measured", help="measured modes (modal table CSV, CONTRACT §3) with pose.<var> columns")
+                    "unmodelled effect (docs/formats.md) at every location and pairs of them by their error "
+                    "on held-out configurations, and write DIR/diagnosis.json and DIR/diagnosis.html.")
+    p.add_argument("--rig", help="nominal rig description (TOML, docs/formats.md)")
+    p.add_argument("--measured",
+                   help="measured modes (modal table CSV, docs/formats.md) with pose.<var> columns")
     p.add_argument("--out", help="output directory for diagnosis.json and diagnosis.html")
     p.add_argument("--effects", default="all", help="'all' or comma-separated effect names (default all)")
     p.add_argument("--holdout", default="auto",
@@ -47,13 +48,12 @@ def run(args: argparse.Namespace) -> int:
     from flexmodal.valid_output import output_dir
 
     output_dir(args.out, CompareError, "diagnosis folder (--out)")  # before the heavy imports
+    from flexmodal.api import diagnose, load_rig, read_table, write_diagnosis
     from flexmodal.compare.candidates import parse_effects
-    from flexmodal.compare.diagnosis import diagnose, folds_for, write_diagnosis
-    from flexmodal.modal.table import ModalTable
-    from flexmodal.models.rig import load_rig
+    from flexmodal.compare.diagnosis import folds_for
 
     rig = load_rig(args.rig)
-    table = ModalTable.read_csv(args.measured)
+    table = read_table(args.measured)
     parse_effects(args.effects)  # bad --effects / --holdout fail before the progress line
     folds_for(table.configs, args.holdout)
     if not getattr(args, "quiet", False):

@@ -1,7 +1,7 @@
 """Blind self-check of the gap diagnosis: random rigs with withheld effects, diagnosed without being told.
 
 Each case draws a two-link arm (lengths, tube sections and sensor positions at random), six elbow poses
-(0-150 deg) and, in five cases out of six, one effect of CONTRACT §5 at a random location with a random
+(0-150 deg) and, in five cases out of six, one effect (docs/formats.md) at a random location with a random
 magnitude (redrawn until it moves the first four frequencies by 3-25 % RMS, i.e. a gap well above the
 noise).  "Measured" modes are the four lowest FE modes of the augmented rig (models/frame.py) that the
 transverse sensors see (axial modes of the straight arm are invisible to them), with relative

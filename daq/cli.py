@@ -13,7 +13,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     """Add this package's sub-commands to the flexmodal parser."""
     p = sub.add_parser("acquire", help="record an acquisition session into an HDF5 run",
                        description="Record the devices of a session config (TOML, docs/acquisition.md) into "
-                                   "a run of an HDF5 file (CONTRACT §6). Stops at --duration (or the "
+                                   "a run of an HDF5 file (docs/hdf5-format.md). Stops at --duration (or the "
                                    "session's duration_s) or on Ctrl-C, SIGTERM or SIGHUP, with everything "
                                    "flushed and closed. Exit 0: done; 128+N: stopped early by signal N; "
                                    "2: bad input, a lost device, a full disk or a write error (one line).")
@@ -22,24 +22,23 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--duration", type=opt.seconds, metavar="S", help="run length in seconds")
     p.add_argument("--run-id", metavar="ID", help="run id (default: the session's, else name + UTC time)")
     p.add_argument("--recover", action="store_true",
-                   help="RUN.h5 was left by a killed writer: clear its open-for-writing flags first")
+                   help="RUN.h5 was left by a killed writer: clear its open-for-writing flags first "
+                        "(refused while another acquire is writing it)")
     p.set_defaults(func=_acquire)
 
 
 def _acquire(args: argparse.Namespace) -> int:
-    from flexmodal.daq.acquire import WriteFailed, acquire
+    from flexmodal.api import acquire
+    from flexmodal.daq.acquire import WriteFailed
     from flexmodal.daq.errors import DaqError
     from flexmodal.daq.session import load_session
     from flexmodal.valid_output import hdf5_output
 
     session = load_session(args.config)
     hdf5_output(args.out, DaqError, "run file (--out)")
-    if args.recover and os.path.exists(args.out):
-        from flexmodal.daq.store import recover
-
-        recover(args.out)
     try:
-        summary = acquire(session, args.out, duration_s=args.duration, quiet=args.quiet, run_id=args.run_id)
+        summary = acquire(session, args.out, duration_s=args.duration, run_id=args.run_id,
+                          recover=args.recover, quiet=args.quiet)
     except WriteFailed as exc:  # leave without closing the HDF5 file: it keeps its last flushed state
         from flexmodal.daq.store import recover
 

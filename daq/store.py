@@ -1,4 +1,4 @@
-"""HDF5 run store (CONTRACT §6): write runs block by block with SWMR, list them and read them back.
+"""HDF5 run store (docs/hdf5-format.md): write runs block by block with SWMR, list them and read them back.
 
 A file holds one or more runs under ``/runs/<run_id>``.  Each run has a chunked, resizable ``samples``
 dataset [n_samples, n_channels] in physical units, a ``channels`` compound table, a resizable
@@ -16,8 +16,9 @@ from __future__ import annotations
 import json
 import os
 import time
-from collections.abc import Sequence
-from dataclasses import dataclass, field
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -407,8 +408,11 @@ def _text(value) -> str:
     return value.decode() if isinstance(value, bytes) else str(value)
 
 
-def read_run(path: str | Path, run_id: str) -> Run:
-    """Read one run completely into memory."""
+@contextmanager
+def open_run(path: str | Path, run_id: str) -> Iterator[Run]:
+    """One run with its ``samples`` left on disk: an h5py dataset, valid inside the ``with`` block
+    (read it in blocks, e.g. ``samples[a:b]``, so memory does not grow with the record).  The run's
+    structure is checked first (:func:`flexmodal.daq.run_schema.check_run_group`)."""
     with open_read(path) as f:
         key = f"runs/{run_id}"
         if key not in f:
@@ -419,16 +423,20 @@ def read_run(path: str | Path, run_id: str) -> Run:
         g = f[key]
         check_run_group(g, f"{path}: run {run_id!r}")
         try:
-            return _read_checked_run(g, Path(path), run_id)
+            run = _checked_run(g, Path(path), run_id)
         except DaqError as exc:  # a channel or event record with a value out of its vocabulary
             raise DaqError(f"{path}: run {run_id!r}: {exc}") from None
         except (OSError, UnicodeDecodeError) as exc:  # a damaged chunk, a field that is not UTF-8
-            reason = " ".join(str(exc).split())[:200]
-            raise DaqError(f"{path}: run {run_id!r}: cannot read ({reason})") from None
+            raise DaqError(f"{path}: run {run_id!r}: cannot read ({_reason(exc)})") from None
+        yield run
 
 
-def _read_checked_run(g: h5py.Group, path: Path, run_id: str) -> Run:
-    """A run whose structure :func:`flexmodal.daq.run_schema.check_run_group` accepted."""
+def _reason(exc: Exception) -> str:
+    return " ".join(str(exc).split())[:200]
+
+
+def _checked_run(g: h5py.Group, path: Path, run_id: str) -> Run:
+    """The run in group ``g`` (structure already checked); ``samples`` stays an h5py dataset."""
     table = g["channels"][()]
     channels = tuple(
         Channel(**{k: float(r[k]) if k == "sensitivity" else _text(r[k]) for k in CHANNEL_FIELDS})
@@ -439,7 +447,16 @@ def _read_checked_run(g: h5py.Group, path: Path, run_id: str) -> Run:
     return Run(path=path, run_id=run_id, sample_rate_hz=float(attrs.pop("sample_rate_hz")),
                start_time=_text(attrs.pop("start_time")), excitation=_text(attrs.pop("excitation")),
                pose=json.loads(attrs.pop("pose")), channels=channels, events=events,
-               samples=g["samples"][()], attrs=attrs)
+               samples=g["samples"], attrs=attrs)
+
+
+def read_run(path: str | Path, run_id: str) -> Run:
+    """Read one run completely into memory."""
+    with open_run(path, run_id) as run:
+        try:
+            return replace(run, samples=run.samples[()])
+        except OSError as exc:  # a damaged chunk
+            raise DaqError(f"{path}: run {run_id!r}: cannot read the samples ({_reason(exc)})") from None
 
 
 def expand_runs(runs: Sequence[str | Path | tuple[str | Path, str]]) -> list[tuple[Path, str]]:

@@ -29,11 +29,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     """Add this package's sub-commands to the flexmodal parser."""
     p = sub.add_parser("frf", help="batch FRFs + coherence of stored runs, written back under /runs/<id>/frf",
                        description="Compute FRFs and coherence of every run in the HDF5 files and write them "
-                                   "back under /runs/<id>/frf (or into --out). Several runs go to a dask "
-                                   "LocalCluster (2 worker processes unless --workers N; --workers 0 = "
-                                   "serial in this process) or to an existing --scheduler; a single run "
-                                   "is computed here. Prints one 'FILE:RUN_ID' line per run written.")
-    p.add_argument("runs", nargs="+", metavar="RUN.h5", help="HDF5 run files (CONTRACT §6)")
+                                   "back under /runs/<id>/frf (or into --out). Random and sweep runs are "
+                                   "streamed block by block (memory does not grow with the record) and "
+                                   "segments holding NaN rows or touching gap/corrupt events are skipped. "
+                                   "Runs are computed here, one after the other, unless the measured cost "
+                                   "predicts that a dask LocalCluster of 2 processes pays for its start-up; "
+                                   "--workers N forces N processes (0: always here), --scheduler uses an "
+                                   "existing cluster. Prints one 'FILE:RUN_ID' line per run written.")
+    p.add_argument("runs", nargs="+", metavar="RUN.h5", help="HDF5 run files (docs/hdf5-format.md)")
     p.add_argument("--estimator", default="H1", choices=_Estimators(), metavar="NAME",
                    help="FRF estimator: %(choices)s (default H1)")
     p.add_argument("--nfft", type=opt.integer(8, 1 << 24, name="segment length"), default=None,
@@ -47,7 +50,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="averaging of impact hits (default linear)")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--workers", type=opt.workers, default=None,
-                   help="LocalCluster worker processes (0 = serial)")
+                   help="LocalCluster worker processes (0 = serial here; default: chosen by cost)")
     g.add_argument("--scheduler", default=None, metavar="ADDR", help="dask.distributed scheduler address")
     p.add_argument("--out", default=None, metavar="OUT.h5", help="write the FRFs into this file instead")
     p.set_defaults(func=_frf)
@@ -55,23 +58,29 @@ def register(sub: argparse._SubParsersAction) -> None:
     q = sub.add_parser("identify", help="natural frequencies, damping and mode shapes -> modal table CSV",
                        description="Identify modes from an HDF5 run (stored FRFs, or computed if absent) or "
                                    "a UFF file (dataset 58 FRFs, function type 4, or time histories, type 1, "
-                                   "with a force reference) and write the modal table CSV (CONTRACT §3) "
+                                   "with a force reference) and write the modal table CSV (docs/formats.md) "
                                    "with the validation columns mpc, mpd [deg] and synthesis_corr, and "
                                    "the FRAC of each measured and synthesised FRF to "
                                    "MODES.synthesis.csv. Each run of an HDF5 file is one configuration "
-                                   "(config = run id).")
+                                   "(config = run id). Runs with excitation=operational or without a force "
+                                   "channel, and UFF time histories without a force, are identified "
+                                   "output-only (SSI-cov by default; docs/oma.md).")
     q.add_argument("input", metavar="INPUT", help="RUN.h5 or FILE.uff/.unv")
     q.add_argument("--out", required=True, metavar="MODES.csv", help="modal table to write")
     q.add_argument("--fmin", type=opt.hertz, default=None,
                    help="lower band edge, Hz (default first line > 0)")
     q.add_argument("--fmax", type=opt.positive_hz, default=None,
                    help="upper band edge, Hz (default Nyquist)")
-    q.add_argument("--method", default="lscf", choices=["peak", "lscf"],
-                   help="lscf: pLSCF + stabilisation + LSFD (default); "
-                        "peak: CMIF peaks, half-power damping, quadrature shapes")
+    q.add_argument("--method", default=None, choices=["peak", "lscf", "ssi", "fdd"],
+                   help="lscf: pLSCF + stabilisation + LSFD (default with a force channel); "
+                        "peak: CMIF peaks, half-power damping, quadrature shapes; "
+                        "ssi: output-only SSI-cov + stabilisation (default for excitation=operational or "
+                        "no force channel); fdd: output-only frequency-domain decomposition, EFDD damping. "
+                        "ssi/fdd shapes are unscaled (unit largest entry)")
     q.add_argument("--max-order", type=opt.model_order, default=None,
                    help="cap of the pLSCF model order (default: the order grows until the modes found "
-                        "stop growing, at most 240 / number of references)")
+                        "stop growing, at most 200 / number of references); ssi: highest model order "
+                        "(default 100)")
     q.add_argument("--poles", default=None, metavar="F1,F2,...",
                    help="pick the stable poles nearest these frequencies, Hz (exactly these modes, no "
                         "automatic selection)")
@@ -85,32 +94,31 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="decay rate, 1/s, of an exponential window the FRFs were measured with "
                         "(w(t) = exp(-RATE t)); its added damping is removed (default: the rate the "
                         "FRFs record, 0 for UFF files)")
+    q.add_argument("--references", default=None, metavar="NAME,...",
+                   help="ssi/fdd: reference output channels (default all outputs)")
     q.add_argument("--run", default=None, metavar="RUN_ID", help="only this run of an HDF5 file")
     q.add_argument("--uff", default=None, metavar="MODES.uff", help="also write the modes as UFF dataset 55")
     q.set_defaults(func=_identify)
 
 
 def _frf(args: argparse.Namespace) -> int:
-    from flexmodal.daq.store import expand_runs
-    from flexmodal.modal.batch import frf_batch
+    from flexmodal.api import compute_frfs
     from flexmodal.modal.errors import ModalError
     from flexmodal.valid_output import hdf5_output
 
     if args.out:
         hdf5_output(args.out, ModalError, "FRF file (--out)")
 
-    options = {"estimator": args.estimator, "nfft": args.nfft, "window": args.window,
-               "overlap": args.overlap, "averaging": args.averaging}
-    workers = args.workers
-    if workers is None and args.scheduler is None:
-        workers = 2 if len(expand_runs(args.runs)) > 1 else 0
-    for path, rid in frf_batch(args.runs, options, workers=workers, scheduler=args.scheduler, out=args.out,
-                               quiet=getattr(args, "quiet", False)):
+    written = compute_frfs(args.runs, estimator=args.estimator, nfft=args.nfft, window=args.window,
+                           overlap=args.overlap, averaging=args.averaging, workers=args.workers,
+                           scheduler=args.scheduler, out=args.out, quiet=getattr(args, "quiet", False))
+    for path, rid in written:
         print(f"{path}:{rid}")
     return 0
 
 
 def _identify(args: argparse.Namespace) -> int:
+    from flexmodal.api import identify
     from flexmodal.modal.errors import ModalError
     from flexmodal.valid_output import output_file
 
@@ -120,7 +128,7 @@ def _identify(args: argparse.Namespace) -> int:
     if args.uff:
         output_file(args.uff, ModalError, "UFF file (--uff)")
     from flexmodal.modal.identify import Thresholds, write_synthesis_csv  # the heavy imports, after
-    from flexmodal.modal.sources import identify_input
+
     poles = None
     if args.poles is not None:
         try:
@@ -135,10 +143,12 @@ def _identify(args: argparse.Namespace) -> int:
     if not 0 <= limits.mpc_min <= 1 or limits.need_min < 0:
         raise ModalError(f"--mpc-min {limits.mpc_min:g} must lie in 0..1 and --need-min "
                          f"{limits.need_min:g} be >= 0")
-    table, modes_by_config = identify_input(args.input, method=args.method, fmin=args.fmin, fmax=args.fmax,
-                                            max_order=args.max_order, run_id=args.run, poles_hz=poles,
-                                            thresholds=limits, decay_rate_per_s=args.exp_window_decay)
-    table.to_csv(args.out)
+    refs = args.references.split(",") if args.references else None
+    result = identify(args.input, method=args.method, fmin=args.fmin, fmax=args.fmax,
+                      max_order=args.max_order, run_id=args.run, poles_hz=poles, thresholds=limits,
+                      decay_rate_per_s=args.exp_window_decay, references=refs)
+    result.table.to_csv(args.out)
+    modes_by_config = {c: (m, result.outputs[c]) for c, m in result.modes.items()}
     write_synthesis_csv(args.out, modes_by_config)
     for config, (modes, _) in modes_by_config.items():
         if modes.order_note and not getattr(args, "quiet", False):

@@ -9,8 +9,10 @@ damping by enhanced FDD (EFDD, Brincker, Ventura & Andersen 2001, IMAC XIX): the
 whose first singular vector has MAC >= 0.8 with the peak's form the mode's single-degree-of-freedom
 bell, whose inverse FFT is the mode's correlation function, a free decay; its logarithmic decrement
 (:func:`flexmodal.modal.damping.log_decrement`) gives the damping ratio and its zero-crossing rate the
-damped frequency.  The Hann window's leakage widens the bell, so damping is biased high when the bell
-holds few lines: SSI (:mod:`flexmodal.modal.ssi`) gives the damping to rely on.
+damped frequency.  A peak whose bell spans fewer than 12 lines, or whose correlation function does
+not decay along a straight line in log amplitude (R² < 0.9), is noise and is dropped.  The Hann
+window's leakage widens the bell, so damping is biased high when the bell holds few lines: SSI
+(:mod:`flexmodal.modal.ssi`) gives the damping to rely on.
 """
 
 from __future__ import annotations
@@ -26,7 +28,15 @@ from flexmodal.modal.compute import default_nfft
 from flexmodal.modal.damping import log_decrement
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.identify import Modes
+from flexmodal.modal.indicators import mpc, mpd
 from flexmodal.modal.mac import mac_pairs, to_real, unit_max
+
+# A mode's correlation function decays exponentially: R² of the log-decrement line >= 0.97 for the
+# shear frame's modes, 0.66-0.83 for peaks of noise
+MIN_DECAY_R2 = 0.9
+# A mode dominates the cross-spectral matrix over many lines (the shear frame's: 93-411 lines at
+# nfft 2048-8192); a noise peak's singular vector changes within a few (2-11 seen)
+MIN_BELL_LINES = 12
 
 
 @dataclass(frozen=True)
@@ -44,9 +54,12 @@ def cross_spectra(y: np.ndarray, sample_rate_hz: float, references: Sequence[int
                   ) -> tuple[np.ndarray, np.ndarray]:
     """Welch cross-spectral densities G [n_freq, n_channels, n_refs] of ``y`` [n_samples, n_channels]
     (Hann window, 50 % overlap, segment means removed), ``G_jk = 2 E[Y_j Y_k*] / (fs sum w^2)``, and
-    the frequency lines [Hz]."""
+    the frequency lines [Hz].  Segments that touch a gap (a NaN row) are left out."""
     step = nfft // 2
     segs = np.lib.stride_tricks.sliding_window_view(y, nfft, axis=0)[::step]     # [seg, ch, nfft]
+    segs = segs[~np.isnan(segs).any(axis=(1, 2))]
+    if segs.shape[0] == 0:
+        raise ModalError(f"FDD: no segment of {nfft} samples free of gaps")
     win = scipy.signal.get_window("hann", nfft)
     X = scipy.fft.rfft((segs - segs.mean(axis=-1, keepdims=True)) * win, axis=-1)  # [seg, ch, f]
     G = np.einsum("scf,srf->fcr", X, X[:, list(references)].conj()) / segs.shape[0]
@@ -65,8 +78,9 @@ def fdd(y: np.ndarray, sample_rate_hz: float, *, references: Sequence[int] | Non
     matrix with ``references`` (default all channels) and the peaks of the first between ``fmin`` and
     ``fmax`` Hz (see module docstring).  ``nfft`` defaults to the power of two giving >= 8 segments."""
     y = np.asarray(y, float)
-    if y.ndim != 2 or not np.all(np.isfinite(y)):
-        raise ModalError(f"FDD: record of shape {y.shape} is not a finite [n_samples, n_channels] array")
+    if y.ndim != 2 or np.isinf(y).any():
+        raise ModalError(f"FDD: record of shape {y.shape} is not a finite [n_samples, n_channels] array "
+                         "(NaN rows are gaps)")
     n_ch = y.shape[1]
     refs = list(range(n_ch)) if references is None else [int(r) for r in references]
     if not refs or any(r < 0 or r >= n_ch for r in refs):
@@ -98,7 +112,7 @@ def fdd(y: np.ndarray, sample_rate_hz: float, *, references: Sequence[int] | Non
         raise ModalError("FDD: no peak gave a decaying correlation function (" + "; ".join(warnings) + ")")
     complex_shapes = unit_max(U[lines, :, 0].T)
     modes = Modes(np.array(fn), np.array(zeta), to_real(complex_shapes), complex_shapes, "fdd", False,
-                  tuple(warnings))
+                  tuple(warnings), mpc=mpc(complex_shapes), mpd=mpd(complex_shapes))
     return FddResult(f, sv.T, U[:, :, 0].T, modes)
 
 
@@ -110,9 +124,15 @@ def _efdd(freq_hz: np.ndarray, s1: np.ndarray, u1: np.ndarray, peak: int, sample
     edges = np.flatnonzero(~similar)
     lo = edges[edges < peak].max(initial=-1) + 1
     hi = edges[edges > peak].min(initial=s1.size)
+    if hi - lo < MIN_BELL_LINES:
+        raise ModalError(f"its singular vector stays similar over {hi - lo} lines only (< {MIN_BELL_LINES}): "
+                         "a noise peak, not a mode")
     bell = np.zeros_like(s1)
     bell[lo:hi] = s1[lo:hi]
     nfft = 2 * (s1.size - 1)
     corr = scipy.fft.irfft(bell, nfft)[: nfft // 2]
     dec = log_decrement(corr, sample_rate_hz, float(freq_hz[peak]), floor=0.1)
+    if dec.r2 < MIN_DECAY_R2:
+        raise ModalError(f"its correlation function does not decay exponentially (R² {dec.r2:.2f} < "
+                         f"{MIN_DECAY_R2}): a noise peak, not a mode")
     return dec.damping_ratio, dec.fn_hz / np.sqrt(1 - dec.damping_ratio ** 2)

@@ -1,4 +1,4 @@
-"""Modal table (CONTRACT §3): one row per (configuration, mode), read from and written to CSV.
+"""Modal table (docs/formats.md): one row per (configuration, mode), read from and written to CSV.
 
 Required columns ``config`` (str), ``mode`` (1-based int), ``freq_hz``; optional ``damping_ratio``,
 ``source``, ``pose.<name>`` and ``shape.<sensor>`` (real, or complex written as ``0.1+0.2j``).
@@ -134,7 +134,7 @@ class ModalTable:
 
 
 def poses_from_csv(path: str | Path) -> dict[str, dict[str, float]]:
-    """Read POSES.csv (CONTRACT §3 without mode/freq_hz): {config: {pose variable: value}}."""
+    """Read POSES.csv (docs/formats.md without mode/freq_hz): {config: {pose variable: value}}."""
     p = Path(path)
     df = read_table(p, ModalError, required=("config",), text_columns=("config",), what="poses table")
     cols = [c for c in df.columns if c.startswith(POSE_PREFIX)]

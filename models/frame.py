@@ -1,4 +1,4 @@
-"""Planar Euler-Bernoulli frame finite elements for a rig (CONTRACT §4) at a pose.
+"""Planar Euler-Bernoulli frame finite elements for a rig (docs/formats.md) at a pose.
 
 Each link (and each extra member) is a chain of two-node frame elements with three DOFs per node
 (global ``x``, ``y`` translation in m and rotation in rad): axial bar plus Hermite-cubic bending,

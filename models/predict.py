@@ -1,4 +1,4 @@
-"""One interface over the model packages: a rig and poses in, a modal table (CONTRACT §3) out.
+"""One interface over the model packages: a rig and poses in, a modal table (docs/formats.md) out.
 
 Models: ``fe`` (planar frame, models/frame.py), ``assumed-modes`` (exact beam eigenfunctions of the arm
 as one straight uniform beam), ``lumped-mass`` (seed 003 flexibility matrix, planar coordinates) and

@@ -5,14 +5,20 @@ Units sit on every axis.  Frequencies in Hz, FRF magnitude in the FRF's own unit
 
 * ``plot_frf``: magnitude, phase and ordinary coherence of the FRFs of one run;
 * ``plot_stabilisation``: poles per model order (modal.lscf pLSCF) over the complex mode indicator
-  function (CMIF, Shih et al. 1988: singular values of H(f) at each line, modal.peaks.cmif);
+  function (CMIF, Shih et al. 1988: singular values of H(f) at each line, modal.peaks.cmif), with the
+  poles of the selected modes and the identification band marked;
+* ``plot_identification_diagram`` / ``plot_identification_synthesis``: the same for a run's
+  identification (a modal.identify.Modes);
+* ``plot_synthesis``: measured vs synthesised FRFs (modal.lsfd from the identified modes), with the
+  FRAC of each pair;
+* ``plot_mac``: AutoMAC of the identified shapes, or test-model MAC matrix;
 * ``plot_freq_vs_pose``: measured vs predicted natural frequency across a pose variable, a line per
   model and mode, experiment points with ±1 standard deviation bars from repeated tests;
 * ``plot_trends``: frequency of each mode against one pose variable, a line per value of another
   (payload / configuration trends in the style of seed 001);
 * ``plot_mode_shapes``: measured shapes at the sensors drawn on the arm geometry at a pose with the
-  frame FE model's deformed shape (models.frame) as a curve;
-* ``plot_gap``: the per-mode frequency error before and after a diagnosed effect (CONTRACT §5).
+  frame FE model's deformed shape (given as a models.arm_shapes.ArmModes) as a curve;
+* ``plot_gap``: the per-mode frequency error before and after a diagnosed effect (docs/formats.md).
 """
 
 from __future__ import annotations
@@ -35,7 +41,13 @@ from flexmodal.modal.peaks import cmif  # noqa: E402
 from flexmodal.modal.table import ModalTable  # noqa: E402
 from flexmodal.reports.errors import ReportError  # noqa: E402
 
+FRF_UNITS = {"accelerance": "(m/s²)/N", "mobility": "(m/s)/N", "receptance": "m/N"}
 _COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf")
+
+
+def frf_unit(quantity: str) -> str:
+    """Unit of an FRF of the given quantity (accelerance, mobility, receptance), per newton."""
+    return FRF_UNITS.get(quantity, "FRF unit")
 
 
 def figure_png(fig: Figure, dpi: int = 100) -> bytes:
@@ -78,20 +90,34 @@ def plot_frf(freq_hz: np.ndarray, H: np.ndarray, coherence: np.ndarray | None = 
 
 
 def plot_stabilisation(freq_hz: np.ndarray, H: np.ndarray, poles, unit: str = "(m/s²)/N",
-                       title: str = "") -> Figure:
+                       title: str = "", selected: np.ndarray | None = None,
+                       band_hz: tuple[float, float] | None = None,
+                       modes_hz: np.ndarray | None = None) -> Figure:
     """Stable (filled) and unstable (open) poles per model order over the CMIF of H [n_out, n_in, n_freq].
 
     ``poles``: a ``modal.lscf.Stabilisation`` (or anything with equal-length ``order``, ``freq_hz`` [Hz]
-    and boolean ``stable`` arrays).
+    and boolean ``stable`` arrays).  ``selected`` [n_poles] marks the poles of the chosen modes (black
+    crosses), ``modes_hz`` the identified frequencies (dotted lines), ``band_hz`` the identification
+    band (shaded).
     """
     stable = np.asarray(poles.stable, bool)
     if not np.size(poles.order) == np.size(poles.freq_hz) == stable.size:
         raise ReportError("stabilisation: order, freq_hz and stable differ in length")
+    if selected is not None and np.size(selected) != stable.size:
+        raise ReportError("stabilisation: the selected-pole mask differs in length from the poles")
     fig = Figure(figsize=(8, 4))
     ax = fig.subplots()
+    if band_hz is not None:
+        ax.axvspan(*band_hz, color=_COLOURS[2], alpha=0.08, lw=0, label="identification band")
     ax.plot(poles.freq_hz[~stable], poles.order[~stable], "o", mfc="none", mec="0.6", ms=4,
             label="unstable pole")
     ax.plot(poles.freq_hz[stable], poles.order[stable], "o", color=_COLOURS[1], ms=4, label="stable pole")
+    if selected is not None:
+        sel = np.asarray(selected, bool)
+        ax.plot(poles.freq_hz[sel], poles.order[sel], "x", color="k", ms=5, mew=1.0,
+                label="pole of a selected mode")
+    for k, f in enumerate(np.atleast_1d(modes_hz) if modes_hz is not None else []):
+        ax.axvline(float(f), color="k", lw=0.6, ls=":", label="identified mode" if k == 0 else None)
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel("model order [-]")
     mif_ax = ax.twinx()
@@ -106,6 +132,94 @@ def plot_stabilisation(freq_hz: np.ndarray, H: np.ndarray, poles, unit: str = "(
     fig.subplots_adjust(left=0.08, right=0.88, bottom=0.12, top=0.9)
     return fig
 
+
+def plot_synthesis(freq_hz: np.ndarray, H: np.ndarray, synthesis: np.ndarray,
+                   labels: Sequence[str] = (), correlation: np.ndarray | None = None,
+                   unit: str = "(m/s²)/N", title: str = "", max_frfs: int = 6) -> Figure:
+    """Measured (solid) and synthesised (dashed, from the identified modes and residuals) FRFs:
+    magnitude (log) and phase [deg] of up to ``max_frfs`` FRFs of H, synthesis [n_out, n_in, n_freq]
+    (first reference), with each FRF's measured-vs-synthesised FRAC [-] in the legend."""
+    H, S = np.asarray(H), np.asarray(synthesis)
+    if H.shape != S.shape or H.shape[-1] != np.size(freq_hz):
+        raise ReportError(f"synthesis: FRFs {H.shape}, synthesis {S.shape} and {np.size(freq_hz)} lines "
+                          "differ")
+    H, S = H[:, 0, :], S[:, 0, :]
+    labels = list(labels) or [f"out {i + 1}" for i in range(H.shape[0])]
+    fig = Figure(figsize=(8, 5))
+    mag, ph = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
+    for i in range(min(max_frfs, H.shape[0])):
+        c = _COLOURS[i % len(_COLOURS)]
+        corr = f" (FRAC {float(np.asarray(correlation)[i, 0]):.3f})" if correlation is not None else ""
+        mag.semilogy(freq_hz, np.abs(H[i]), color=c, lw=0.9, label=f"{labels[i]} measured{corr}")
+        mag.semilogy(freq_hz, np.abs(S[i]), color=c, lw=1.1, ls="--", label=f"{labels[i]} synthesised")
+        ph.plot(freq_hz, np.degrees(np.angle(H[i])), color=c, lw=0.7)
+        ph.plot(freq_hz, np.degrees(np.angle(S[i])), color=c, lw=0.9, ls="--")
+    mag.set_ylabel(f"|H| [{unit}]")
+    ph.set_ylabel("phase [deg]")
+    ph.set_yticks([-180, -90, 0, 90, 180])
+    ph.set_xlabel("frequency [Hz]")
+    mag.legend(fontsize=6, ncol=2, loc="best")
+    for ax in (mag, ph):
+        ax.grid(True, which="both", alpha=0.3)
+    if title:
+        mag.set_title(title)
+    fig.subplots_adjust(left=0.11, right=0.97, bottom=0.1, top=0.93, hspace=0.1)
+    return fig
+
+
+def plot_mac(phi_a: np.ndarray, phi_b: np.ndarray | None = None, labels_a: Sequence[str] = (),
+             labels_b: Sequence[str] = (), name_a: str = "mode", name_b: str = "mode",
+             title: str = "") -> Figure:
+    """MAC matrix [-] (Allemang & Brown 1982) of shapes ``phi_a`` [n_points, n_a] against ``phi_b``
+    (default: itself, the AutoMAC), as a grey-scale grid with the values written in."""
+    a = np.atleast_2d(np.asarray(phi_a))
+    b = a if phi_b is None else np.atleast_2d(np.asarray(phi_b))
+    if a.shape[0] != b.shape[0]:
+        raise ReportError(f"MAC: shapes at {a.shape[0]} and {b.shape[0]} points cannot be compared")
+    m = mac(np.nan_to_num(a), np.nan_to_num(b))
+    la = list(labels_a) or [str(k + 1) for k in range(m.shape[0])]
+    lb = list(labels_b) or ([*la] if phi_b is None else [str(k + 1) for k in range(m.shape[1])])
+    size = 2.2 + 0.45 * max(m.shape)
+    fig = Figure(figsize=(min(size + 1.2, 9), min(size, 8)))
+    ax = fig.subplots()
+    im = ax.imshow(m, vmin=0, vmax=1, cmap="Greys", origin="upper")
+    for (i, j), v in np.ndenumerate(m):
+        ax.text(j, i, f"{v:.2f}", ha="center", va="center", fontsize=7, color="w" if v > 0.5 else "k")
+    ax.set_xticks(range(m.shape[1]), lb, rotation=45 if max(len(t) for t in lb) > 4 else 0, fontsize=7)
+    ax.set_yticks(range(m.shape[0]), la, fontsize=7)
+    ax.set_xlabel(name_b)
+    ax.set_ylabel(name_a)
+    fig.colorbar(im, ax=ax, label="MAC [-]", fraction=0.046, pad=0.04)
+    ax.set_title(title or ("AutoMAC" if phi_b is None else "MAC"), fontsize=9)
+    fig.tight_layout()
+    return fig
+
+
+
+def _identified_band(frf, modes) -> np.ndarray:
+    """Lines of the FRFs ``frf`` inside the band ``modes`` were identified in (above 0 Hz)."""
+    if modes.stabilisation is None or modes.band_freq_hz is None:
+        raise ReportError(f"no stabilisation diagram: the modes were identified by {modes.method!r}")
+    lo, hi = float(modes.band_freq_hz.min()), float(modes.band_freq_hz.max())
+    return (frf.freq_hz >= lo) & (frf.freq_hz <= hi) & (frf.freq_hz > 0)
+
+
+def plot_identification_diagram(frf, modes, unit: str = "(m/s²)/N", title: str = "") -> Figure:
+    """The stabilisation diagram of an identification (``modes``: a ``modal.identify.Modes`` of the
+    pLSCF method) over the CMIF of the FRFs ``frf`` (a ``modal.frf.FrfResult``) above 0 Hz, with the
+    poles of the selected modes, the identified frequencies and the identification band marked."""
+    f = frf.freq_hz[_identified_band(frf, modes)]
+    shown = frf.freq_hz > 0   # the whole measured range, the identification band shaded in it
+    return plot_stabilisation(frf.freq_hz[shown], frf.H[..., shown], modes.stabilisation, unit, title=title,
+                              selected=modes.selected, band_hz=(float(f.min()), float(f.max())),
+                              modes_hz=modes.freq_hz)
+
+
+def plot_identification_synthesis(frf, modes, unit: str = "(m/s²)/N", title: str = "") -> Figure:
+    """:func:`plot_synthesis` of an identification's synthesised FRFs against the measured ones."""
+    band = _identified_band(frf, modes)
+    return plot_synthesis(frf.freq_hz[band], frf.H[..., band], modes.synthesis, frf.outputs,
+                          modes.frf_synthesis_corr, unit, title=title)
 
 def _pose_values(table: ModalTable, pose_var: str) -> dict[str, float]:
     col = "pose." + pose_var
@@ -199,42 +313,21 @@ def plot_trends(table: ModalTable, x_var: str, group_var: str | None = None, x_u
     return fig
 
 
-def plot_mode_shapes(rig, pose: Mapping[str, float], measured: ModalTable, config: str, n_fe_modes: int = 8,
-                     title: str = "") -> Figure:
-    """Measured mode shapes at the sensors on the arm at ``pose``, with the frame FE model's curve.
+def plot_mode_shapes(arm, measured: ModalTable, config: str, title: str = "") -> Figure:
+    """Measured mode shapes of ``config`` at the sensors drawn on the arm, with the FE model's curve.
 
-    For every measured mode the FE mode (models.frame, ``n_fe_modes`` lowest) with the highest MAC at
-    the sensors is drawn as the deformed links, scaled by least squares onto the measured points.  Both
-    are drawn as what the sensors see: displacement normal to each link (so each link is its own curve,
-    and the axial motion the accelerometers do not measure is left out); axial sensors are drawn along
-    their link.  Displacements are exaggerated to 15 % of the arm's reach; coordinates in m.
+    ``arm``: a ``models.arm_shapes.ArmModes`` (the FE modes at that configuration's pose, sampled along
+    the links and at the sensors whose shapes are drawn).  For every measured mode the FE mode with the
+    highest MAC at the sensors is drawn as the deformed links, scaled by least squares onto the measured
+    points; both show displacement normal to each link (axial sensors are drawn along their link).
+    Displacements are exaggerated to 15 % of the arm's reach; coordinates in m.
     """
-    from flexmodal.models.frame import assemble, link_geometry, solve_modes
-
-    sensors = [s for s in rig.sensors if s.name in measured.sensors]
-    if len(sensors) < 2:
+    if len(arm.sensor_names) < 2:
         raise ReportError(f"{measured.source}: needs shapes at two or more of the rig's sensors to draw")
-    system = assemble(rig, pose)
-    fe = solve_modes(system, min(n_fe_modes, system.n_dof))
-    angles, starts = link_geometry(rig, pose)
-    names = [lk.name for lk in rig.links]
-    axes_xy = np.column_stack([np.cos(angles), np.sin(angles)])  # unit vector along each link
-    normals = np.column_stack([-axes_xy[:, 1], axes_xy[:, 0]])
-    fractions = np.linspace(0.0, 1.0, 25)
-    link_xy = [starts[i] + np.outer(fractions * lk.length_m, axes_xy[i]) for i, lk in enumerate(rig.links)]
-    link_rows = [np.array([system.observe(f"{lk.name}@{f:.6f}", "transverse") for f in fractions])
-                 for lk in rig.links]
-    curve_xy = np.concatenate(link_xy)
-    sensor_xy, sensor_dir = [], []
-    for s in sensors:
-        i = names.index(s.at.link)
-        sensor_xy.append(starts[i] + s.at.fraction * rig.links[i].length_m * axes_xy[i])
-        sensor_dir.append(normals[i] if s.direction == "transverse" else axes_xy[i])
-    sensor_xy, sensor_dir = np.array(sensor_xy), np.array(sensor_dir)
-    fe_at_sensors = np.array([system.observe(str(s.at), s.direction) for s in sensors]) @ fe.phi
-    shapes = measured.shapes(config, [s.name for s in sensors])
+    curve_xy = np.concatenate(arm.link_xy)
+    shapes = measured.shapes(config, list(arm.sensor_names))
     freqs = measured.freq_hz(config)
-    macs = mac(np.nan_to_num(shapes), fe_at_sensors)
+    macs = mac(np.nan_to_num(shapes), arm.sensor_disp)
     real_shapes = to_real(np.nan_to_num(shapes))
     reach = float(np.ptp(curve_xy, axis=0).max()) or 1.0
 
@@ -246,16 +339,16 @@ def plot_mode_shapes(rig, pose: Mapping[str, float], measured: ModalTable, confi
     for k, ax in enumerate(axes[:n]):
         meas = real_shapes[:, k]
         j = int(np.argmax(macs[k]))
-        model = fe_at_sensors[:, j]
+        model = arm.sensor_disp[:, j]
         alpha = float(model @ meas / (model @ model)) if model @ model > 0 else 0.0
-        disp = [alpha * (rows @ fe.phi[:, j]) for rows in link_rows]
+        disp = [alpha * d[:, j] for d in arm.link_disp]
         biggest = max(float(np.abs(meas).max()), max(float(np.abs(d).max()) for d in disp), 1e-30)
         scale = 0.15 * reach / biggest
         ax.plot(curve_xy[:, 0], curve_xy[:, 1], color="0.75", lw=2, label="undeformed arm")
-        for i, (xy, d) in enumerate(zip(link_xy, disp, strict=True)):
-            ax.plot(*(xy + scale * d[:, None] * normals[i]).T, color=_COLOURS[0], lw=1.3,
-                    label=f"FE mode {j + 1} ({fe.freq_hz[j]:.1f} Hz)" if i == 0 else None)
-        pts = sensor_xy + scale * meas[:, None] * sensor_dir
+        for i, (xy, d) in enumerate(zip(arm.link_xy, disp, strict=True)):
+            ax.plot(*(xy + scale * d[:, None] * arm.link_normal[i]).T, color=_COLOURS[0], lw=1.3,
+                    label=f"FE mode {j + 1} ({arm.freq_hz[j]:.1f} Hz)" if i == 0 else None)
+        pts = arm.sensor_xy + scale * meas[:, None] * arm.sensor_dir
         ax.plot(pts[:, 0], pts[:, 1], "o", color=_COLOURS[1], ms=5, label="measured")
         ax.set_title(f"mode {k + 1}: {freqs[k]:.2f} Hz, MAC {macs[k, j]:.2f} [-]", fontsize=9)
         ax.set_aspect("equal", adjustable="datalim")
@@ -285,7 +378,7 @@ def rms_per_mode(measured_hz: Mapping[str, Sequence[float]], predicted_hz: Mappi
 def gap_per_mode(diagnosis: Mapping) -> tuple[list[str], np.ndarray, np.ndarray | None]:
     """Modes, per-mode relative error before [fraction] and after the verdict's effect (None if absent).
 
-    ``before`` is ``baseline.per_mode`` (CONTRACT §5); ``after`` the first present of
+    ``before`` is ``baseline.per_mode`` (docs/formats.md); ``after`` the first present of
     ``verdict.per_mode_after``, the held-out then the fitted predictions of the best candidate
     (``predictions.best_heldout_hz`` / ``best_fit_hz`` against ``predictions.measured_hz``, RMS over
     configurations per mode), or ``ranking[0].per_mode``.
@@ -308,7 +401,7 @@ def gap_per_mode(diagnosis: Mapping) -> tuple[list[str], np.ndarray, np.ndarray 
 
 def plot_gap(diagnosis: Mapping, title: str = "") -> Figure:
     """Bars of the per-mode relative frequency error [%] before and after the diagnosed effect, and the
-    held-out RMS error [%] before and after (CONTRACT §5 ``verdict``)."""
+    held-out RMS error [%] before and after (docs/formats.md ``verdict``)."""
     modes, before, after = gap_per_mode(diagnosis)
     verdict = diagnosis.get("verdict", {})
     fig = Figure(figsize=(8, 3.6))

@@ -1,8 +1,10 @@
-"""The end-to-end demo: runs on the embedded simulated rig, leaves a CONTRACT §6 file and a report."""
+"""The end-to-end demo: runs on the embedded simulated rig, leaves an HDF5 run file (docs/hdf5-format.md)
+and a report."""
 
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 import time
@@ -73,3 +75,12 @@ def test_demo_report_renders_in_headless_chromium(demo_dir: tuple[Path, float, s
     assert_table_and_plot_visible(page)
     text = (out / "report.html").read_text()
     assert "f [Hz]" in text and "theta30-impact" in text
+
+
+def test_demo_report_shows_the_operational_runs_fdd_and_ssi(demo_dir: tuple[Path, float, str]) -> None:
+    """api.report computes the output-only results of DIR/operational.h5, reports/oma.py draws them."""
+    out, _, _ = demo_dir
+    text = (out / "report.html").read_text()
+    for what in ("FDD, singular values of the output cross-spectral", "SSI-cov stabilisation diagram"):
+        assert re.search(r'<img src="data:image/png;base64,[\w+/=]+" alt="operational\.h5::theta30: '
+                         + re.escape(what), text), what

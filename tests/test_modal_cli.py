@@ -51,7 +51,7 @@ def test_frf_cli_with_two_workers_equals_serial_path(twenty_runs, capsys):
     assert capsys.readouterr().out.split() == [f"{p}:run{k}" for k, p in enumerate(twenty_runs)]
     stored = [read_frf(p, f"run{k}") for k, p in enumerate(twenty_runs)]
     _same(serial, stored)
-    with h5py.File(twenty_runs[0], "r") as f:   # plain h5py sees the CONTRACT §6 layout
+    with h5py.File(twenty_runs[0], "r") as f:   # plain h5py sees the docs/hdf5-format.md layout
         g = f["runs/run0/frf"]
         assert g["H"].shape == (3, 1, 129) and g["coherence"].shape == (3, 129)
         assert g.attrs["estimator"] == "H1" and g.attrs["nfft"] == 256 and g.attrs["n_averages"] == 7
@@ -131,13 +131,14 @@ def _error_line(capsys) -> str:
 
 
 @pytest.mark.parametrize(("damage", "message"), [
-    ("nan", "holds nan"), ("constant", "'a2' is constant"), ("short", "shorter than one segment")])
+    ("nan", "only 0 of 15 segments usable, 8 needed (channel 'a1' holds nan at sample 100)"),
+    ("constant", "'a2' is constant"), ("short", "shorter than one segment")])
 def test_garbage_runs_exit_2_with_one_line(tmp_path, capsys, damage, message):
     f = np.random.default_rng(0).standard_normal((2048, 1))
     samples = np.column_stack([f, modal_response(f, FS, FN, ZETA, PHI, PHI[[0]])])
     nfft = "256"
-    if damage == "nan":
-        samples[100, 1] = np.nan
+    if damage == "nan":   # a NaN every 160 samples: each of the 15 segments of 256 holds one
+        samples[100::160, 1] = np.nan
     elif damage == "constant":
         samples[:, 2] = 1.5
     else:
