@@ -1,8 +1,9 @@
 """Issue 13: Ctrl-C (SIGINT) stops `flexmodal demo` promptly with exit 130 and leaves no output behind.
 
 The demo runs as the real console script; SIGINT is sent once a given output file exists.  Measured
-under the shared machine's load (issue 13 asks for 1 s): 0.36-0.39 s outside the acquisition step,
-1.4 s inside it, where the serial simulator child is stopped and waited for.
+(load average about 2; issue 13 asks for 1 s): 0.03-0.06 s while identifying or diagnosing, 0.2-0.6 s
+during the serial acquisition, 1.6 s when SIGINT lands while the acquisition's simulator child is
+still starting (the acquisition waits for its endpoint line before it looks at the signal).
 """
 
 from __future__ import annotations
