@@ -37,7 +37,7 @@ def test_seed003_rigid_joint_gap_is_on_f2_at_the_elbow(seed003_result):
 def test_seed003_one_parameter_set_for_all_poses_and_its_limit(seed003_result):
     v = seed003_result["verdict"]
     assert v["heldout_rms_rel_error_before"] > 0.4
-    assert v["heldout_rms_rel_error_after"] <= 0.05          # fit on 0/60/120 deg, predict 30/90/150 deg
+    assert v["heldout_rms_rel_error_after"] <= 0.08          # fit on 0/60/120 deg, predict 30/90/150 deg
     assert v["explained"] is False                           # still far above Table 4's < 0.85 % scatter
     assert "joint_stiffness" in v["effect"] and "elbow" in v["location"]
     pairs = [e for e in seed003_result["ranking"] if e["effect"].count("+") == 1]
