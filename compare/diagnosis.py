@@ -448,7 +448,7 @@ def _structured(resid: np.ndarray, scatter: float) -> bool:
     ``sigma^2 / count``; their sums of squares scaled by ``count / sigma^2`` are chi-square with as many
     degrees of freedom as means.  Structured when either exceeds its ``STRUCTURE_QUANTILE`` quantile.
     """
-    from scipy.stats import chi2
+    from scipy.special import chdtri  # inverse chi-square survival function (lighter than scipy.stats)
 
     sigma = HELDOUT_INFLATION * scatter
     C, n = resid.shape
@@ -456,7 +456,7 @@ def _structured(resid: np.ndarray, scatter: float) -> bool:
         if count < 2:
             continue
         means = resid.mean(axis=axis)
-        if count * np.sum(means**2) / sigma**2 > chi2.ppf(STRUCTURE_QUANTILE, means.size):
+        if count * np.sum(means**2) / sigma**2 > chdtri(means.size, 1.0 - STRUCTURE_QUANTILE):
             return True
     return False
 

@@ -20,8 +20,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--holdout", default="auto",
                    help="'auto' (leave one configuration out; 5-fold above 10 configurations) or a "
                         "comma-separated list of configurations to hold out")
-    p.add_argument("--scatter", type=float, default=0.005,
-                   help="relative measurement scatter of the frequencies (fraction; default 0.005 = 0.5 %%)")
+    p.add_argument("--scatter", type=float, default=None,
+                   help="fallback relative measurement scatter of the frequencies (fraction; default 0.005 = "
+                        "0.5 %%), used only when the table has no repeated configurations and no "
+                        "freq_std_hz column")
     p.add_argument("--selftest", type=int, metavar="N",
                    help="blind self-check instead: N random rigs with withheld effects; prints accuracy")
     p.add_argument("--seed", type=int, default=0, help="random seed of --selftest (default 0)")
