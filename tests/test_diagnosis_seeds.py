@@ -134,3 +134,15 @@ def test_seed000_damping_alone_cannot_explain_table2(shared_dir):
     bound = damped_frequency_shift(zeta)
     assert bound.max() == pytest.approx(0.0085, abs=1e-4)
     assert np.all(shift > 5 * bound)                  # 6.7-15 % measured vs <= 0.85 % from damping
+
+
+def test_docs_quote_the_seed003_numbers_the_script_regenerates(shared_dir):
+    """docs/diagnosis.md's seed 003 paragraph is exactly what benchmarks/diagnosis_doc.py computes now."""
+    import importlib.util
+
+    from conftest import REPO
+
+    spec = importlib.util.spec_from_file_location("diagnosis_doc", REPO / "benchmarks" / "diagnosis_doc.py")
+    doc = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(doc)
+    assert doc.doc_block("seed003") == doc.seed003_block(shared_dir)

@@ -65,3 +65,16 @@ def test_blind_subset_against_the_independent_truth():
     assert s["outside_flagged"] == 1.0
     assert s["heldout_after_within_2x_scatter"] == 1.0
     assert s["top1_effect_accuracy"] >= 0.5
+
+
+@pytest.mark.slow
+def test_docs_quote_the_36_case_blind_run():
+    """docs/diagnosis.md's blind-run block is exactly what benchmarks/diagnosis_doc.py computes now."""
+    import importlib.util
+
+    from conftest import REPO
+
+    spec = importlib.util.spec_from_file_location("diagnosis_doc", REPO / "benchmarks" / "diagnosis_doc.py")
+    doc = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(doc)
+    assert doc.doc_block("blind") == doc.blind_block()
