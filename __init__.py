@@ -8,3 +8,28 @@ is re-exported here lazily from :mod:`flexmodal.api`, so ``import flexmodal`` st
 from __future__ import annotations
 
 __version__ = "0.1.0"
+
+# The public API (flexmodal.api), loaded on first use: ``flexmodal.identify(...)`` works after a bare
+# ``import flexmodal`` without importing numpy, h5py or matplotlib up front.  tests/test_api.py checks
+# that this list is exactly ``flexmodal.api.__all__``.
+__all__ = [
+    "Identification", "acquire", "compare_modes", "compute_frf", "compute_frfs", "diagnose",
+    "format_comparison", "identify", "list_runs", "load_rig", "plot_comparison", "plot_frf", "plot_gap",
+    "plot_mode_shapes", "plot_stabilisation", "predict", "read_poses", "read_run", "read_table", "report",
+    "write_diagnosis",
+]
+
+
+def __getattr__(name: str):
+    """Resolve a public API name from :mod:`flexmodal.api` on first access (PEP 562)."""
+    if name in __all__:
+        from flexmodal import api
+
+        value = getattr(api, name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'flexmodal' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

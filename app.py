@@ -2,7 +2,7 @@
 
 Every sub-command is registered by its package's ``cli`` module (``register(subparsers)``), which
 imports its heavy dependencies only when the command runs.  Errors raised by a package's own error
-type, and missing or unreadable files, become one line on stderr and exit code 2 (CONTRACT §1).
+type, and missing or unreadable files, become one line on stderr and exit code 2 (docs/formats.md).
 """
 
 from __future__ import annotations
@@ -62,7 +62,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; returns the process exit code (0 ok, 2 bad input, 1 internal error).
 
     Handlers registered by the packages take the parsed namespace and return an exit code; they
-    must write results only to stdout and progress/logs only to stderr (CONTRACT §1).
+    must write results only to stdout and progress/logs only to stderr (docs/formats.md).
     """
     try:
         args = build_parser().parse_args(argv)

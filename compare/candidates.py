@@ -150,7 +150,7 @@ def combine(*cands: Candidate) -> Candidate | None:
 
 
 def parse_effects(spec: str) -> tuple[str, ...]:
-    """``all`` or a comma-separated list of effect names (validated against CONTRACT §5)."""
+    """``all`` or a comma-separated list of effect names (validated against docs/formats.md)."""
     from flexmodal.compare.errors import CompareError
 
     if spec.strip() == "all":

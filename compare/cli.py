@@ -17,7 +17,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                     "table: frequencies [Hz], measured damping ratio [%], error (pred - meas)/meas [%] "
                     "and MAC [-]. Unpaired modes are listed, never dropped.",
     )
-    p.add_argument("measured", metavar="MEASURED.csv", help="measured modal table (CONTRACT §3)")
+    p.add_argument("measured", metavar="MEASURED.csv", help="measured modal table (docs/formats.md)")
     p.add_argument("predicted", metavar="PRED.csv", nargs="+",
                    help="predicted modal tables; each names its source by its 'source' column, "
                         "else by its file name")
@@ -37,13 +37,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from flexmodal.compare.errors import CompareError
-    from flexmodal.compare.tables import load_comparison, render
+    from flexmodal.api import compare_modes, format_comparison
 
-    if not 0.0 <= args.min_mac <= 1.0:
-        raise CompareError(f"--min-mac: must lie in [0, 1] (got {args.min_mac})")
-    comp = load_comparison(args.measured, args.predicted, min_mac=args.min_mac)
-    text = render(comp, args.format, args.layout, args.caption)
+    comp = compare_modes(args.measured, *args.predicted, min_mac=args.min_mac)
+    text = format_comparison(comp, args.format, args.layout, args.caption)
     if args.out:
         out = Path(args.out)
         out.write_text(text, encoding="utf-8")

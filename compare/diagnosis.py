@@ -1,4 +1,4 @@
-"""Sim-to-real gap diagnosis (CONTRACT §5): where the gap lies, which effect explains it, judged held out.
+"""Sim-to-real gap diagnosis (docs/formats.md): where the gap lies, which effect explains it, judged held out.
 
 1. Baseline: the nominal rig's FE modes (models/frame.py) against the measured ones, per mode and
    configuration.  When its RMS is within ``NONE_FACTOR`` times the measurement scatter the verdict is

@@ -1,4 +1,4 @@
-"""`flexmodal diagnose`: sim-to-real gap diagnosis (CONTRACT §2, §5) and its blind self-check."""
+"""`flexmodal diagnose`: sim-to-real gap diagnosis (docs/formats.md) and its blind self-check."""
 
 from __future__ import annotations
 
@@ -11,10 +11,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "diagnose", help="sim-to-real gap diagnosis: where, which unmodelled effect, held-out improvement",
         description="Compare a nominal rig's FE modes with measured modes over several poses, rank every "
-                    "unmodelled effect (CONTRACT §5) at every location and pairs of them by their error on "
-                    "held-out configurations, and write DIR/diagnosis.json and DIR/diagnosis.html.")
-    p.add_argument("--rig", help="nominal rig description (TOML, CONTRACT §4)")
-    p.add_argument("--measured", help="measured modes (modal table CSV, CONTRACT §3) with pose.<var> columns")
+                    "unmodelled effect (docs/formats.md) at every location and pairs of them by their error "
+                    "on held-out configurations, and write DIR/diagnosis.json and DIR/diagnosis.html.")
+    p.add_argument("--rig", help="nominal rig description (TOML, docs/formats.md)")
+    p.add_argument("--measured",
+                   help="measured modes (modal table CSV, docs/formats.md) with pose.<var> columns")
     p.add_argument("--out", help="output directory for diagnosis.json and diagnosis.html")
     p.add_argument("--effects", default="all", help="'all' or comma-separated effect names (default all)")
     p.add_argument("--holdout", default="auto",
@@ -54,12 +55,10 @@ def run(args: argparse.Namespace) -> int:
     if missing:
         raise CompareError(f"diagnose: missing --{missing[0]} "
                            "(needs --rig, --measured and --out, or --selftest N)")
-    from flexmodal.compare.diagnosis import diagnose, write_diagnosis
-    from flexmodal.modal.table import ModalTable
-    from flexmodal.models.rig import load_rig
+    from flexmodal.api import diagnose, load_rig, read_table, write_diagnosis
 
     rig = load_rig(args.rig)
-    table = ModalTable.read_csv(args.measured)
+    table = read_table(args.measured)
     if not getattr(args, "quiet", False):
         print(f"diagnosing {table.source} against {rig.source} ...", file=sys.stderr)
     result = diagnose(rig, table, effects=args.effects, holdout=args.holdout, scatter=args.scatter)

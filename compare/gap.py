@@ -73,7 +73,7 @@ def rms(x: np.ndarray) -> float:
 
 
 def gap_summary(err: np.ndarray, configs: tuple[str, ...]) -> dict:
-    """CONTRACT §5 ``baseline`` block from relative errors [C, n]."""
+    """The ``baseline`` block of diagnosis.json (docs/formats.md) from relative errors [C, n]."""
     return {
         "rms_rel_error": rms(err),
         "max_rel_error": float(np.max(np.abs(err))),

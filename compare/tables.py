@@ -23,7 +23,6 @@ import math
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -341,14 +340,3 @@ def html_fragment(comp: Comparison, layout: str = "modes",
     """The comparison as an HTML ``<table>`` fragment (used by the report)."""
     cols, rows = _modes_grid(comp) if layout == "modes" else _sources_grid(comp)
     return html_table([_header(c, "md") for c in cols], _cells(cols, rows, "md"), comp.notes(), caption)
-
-
-def load_comparison(measured_path: str | Path, pred_paths: Sequence[str | Path], *,
-                    min_mac: float = MIN_MAC) -> Comparison:
-    """Read the ModalTable CSVs and compare; names from each file's ``source`` column or file stem."""
-    measured = ModalTable.read_csv(measured_path)
-    preds = []
-    for path in pred_paths:
-        table = ModalTable.read_csv(path)
-        preds.append((table_name(table, Path(path).stem), table))
-    return compare_tables(measured, preds, measured_name=table_name(measured, "experiment"), min_mac=min_mac)

@@ -3,9 +3,17 @@
 Each device runs in its own reader thread (daq.devices.run_reader) which puts blocks on a bounded
 queue; the main thread places them on the session timeline (daq.timeline), records faults as events,
 appends rows to the HDF5 run (daq.store.RunWriter, flushed at least every 0.5 s) and refreshes a live
-display on stderr.  It stops at the duration or on Ctrl-C with everything flushed.  If the session has a
-``[simulator]``, that simulator is started first (a `flexmodal sim serve` child process, or for a CAN
-virtual bus a thread in this process) and stopped at the end.
+display on stderr.  Rows go to the file as soon as every device that is delivering has reached them: a
+device silent for ``STALL_S`` is left behind (its columns NaN, one ``gap`` event when it resumes or the
+run ends), so one device never holds back another; silent for the session's ``reconnect_timeout_s`` it
+is lost (``device_lost`` event) and the session ends unless ``continue_on_device_loss``.
+
+It stops at the duration, on SIGINT (Ctrl-C), SIGTERM or SIGHUP (all the same clean way: flush, close,
+summary), when a device is lost, or when the disk is nearly full (``DISK_RESERVE_BYTES`` left: the run is
+closed intact with a ``stopped`` event).  A writer lagging real time by more than ``OVERRUN_S`` records
+an ``overrun`` event and shows a warning.  While it runs the output file is locked (daq.lock).  If the
+session has a ``[simulator]`` it is started first through the launcher registered in daq.hooks (by
+flexmodal.fixtures) and stopped at the end.
 """
 
 from __future__ import annotations
@@ -15,10 +23,8 @@ import json
 import os
 import queue
 import re
-import select
+import resource
 import signal
-import subprocess
-import sys
 import threading
 import time
 from collections import Counter
@@ -30,25 +36,34 @@ import numpy as np
 
 from flexmodal.daq.devices import Block, ReaderStats, make_driver, run_reader
 from flexmodal.daq.errors import DaqError
+from flexmodal.daq.hooks import simulator_launcher
+from flexmodal.daq.lock import WriterLock
 from flexmodal.daq.session import SIMULATOR_PORT, Session
 from flexmodal.daq.store import Event, RunWriter, list_runs
 from flexmodal.daq.timeline import Timeline
 
 QUEUE_BLOCKS = 4096
+NO_DATA_TIMEOUT_S = 15.0  # a session whose devices deliver nothing for this long is an error
+STALL_S = 0.5  # a device silent this long no longer holds back the rows of the others
+OVERRUN_S = 1.0  # the writer this far behind real time: an `overrun` event and a warning
+DISK_RESERVE_BYTES = 8 << 20  # stop cleanly when less room than this is left (a chunk + metadata fit)
+DISK_CHECK_S = 0.25
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
 class WriteFailed(DaqError):
-    """The run store could not be written (disk full, I/O error); the file holds the last flush.
+    """The run store could not be written (I/O error); the file holds the last flush.
 
     The HDF5 library is left in an unusable state for this file, so the CLI exits at once without
     closing it (closing would try to write again and can crash).
     """
-SIM_START_TIMEOUT_S = 60.0
-NO_DATA_TIMEOUT_S = 15.0  # a session whose devices deliver nothing for this long is an error
 
 
 @dataclass(frozen=True)
 class Summary:
+    """What a session stored; ``signal`` the number of the signal that stopped it (0: none) and
+    ``error`` why it ended early (a lost device, a full disk; empty when it did not)."""
+
     path: Path
     run_id: str
     n_samples: int
@@ -56,6 +71,8 @@ class Summary:
     sample_rate_hz: float
     events: Counter
     dropped_blocks: int
+    signal: int = 0
+    error: str = ""
 
     def line(self) -> str:
         ev = ", ".join(f"{k} {v}" for k, v in sorted(self.events.items())) or "none"
@@ -63,44 +80,10 @@ class Summary:
                 f"{self.sample_rate_hz:g} Hz ({self.n_samples / self.sample_rate_hz:.2f} s)\tevents: {ev}")
 
 
-class SimulatorProcess:
-    """The session's own simulator: `flexmodal sim serve` as a child; its first stdout line: the endpoint."""
-
-    def __init__(self, session: Session, quiet: bool) -> None:
-        sim = session.simulator
-        dev = next(d for d in session.devices if d.protocol == sim.protocol)
-        cmd = [sys.executable, "-m", "flexmodal", "sim", "serve", "--protocol", sim.protocol,
-               "--test", sim.test,
-               "--rate", repr(session.sample_rate_hz), "--exit-with-parent"]
-        if sim.rig:
-            cmd += ["--rig", sim.rig]
-        if sim.protocol == "serial":
-            cmd += ["--framing", dev.framing]
-        if sim.protocol == "modbus":
-            cmd += ["--transport", dev.transport]
-        cmd += list(sim.args)
-        repo = Path(__file__).resolve().parents[1]
-        self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, cwd=repo, text=True, start_new_session=True,
-                                     stderr=subprocess.DEVNULL if quiet else None)
-        ready, _, _ = select.select([self.proc.stdout], [], [], SIM_START_TIMEOUT_S)
-        line = self.proc.stdout.readline().strip() if ready else ""
-        if not line:
-            self.stop()
-            raise DaqError(f"{session.source}: simulator ({' '.join(cmd[3:])}) did not start")
-        self.endpoint = line
-
-    def stop(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGTERM)
-            try:
-                self.proc.wait(5)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
-
-
-def _with_endpoint(session: Session, endpoint: str) -> Session:
+def _with_endpoint(session: Session, endpoint: str | None) -> Session:
     """The session with the '@simulator' placeholder replaced by the simulator's endpoint."""
+    if endpoint is None:
+        return session
     devices = []
     for d in session.devices:
         if d.protocol == "modbus" and d.transport == "tcp" and d.port == SIMULATOR_PORT:
@@ -114,18 +97,51 @@ def _with_endpoint(session: Session, endpoint: str) -> Session:
     return dataclasses.replace(session, devices=tuple(devices))
 
 
-def _start_simulator(session: Session, quiet: bool):
-    """Start the session's simulator; returns (session with endpoints filled in, stop function)."""
+def _start_simulator(session: Session, out: Path, quiet: bool):
+    """Start the session's simulator; returns (session with endpoints filled in, stop function).
+
+    A fault log goes into the run file's folder (the session names only the file)."""
     sim = session.simulator
     if sim is None:
         return session, lambda: None
-    virtual = [d for d in session.devices if d.protocol == "can" and d.interface == "virtual"]
-    if sim.protocol == "can" and virtual:
-        from flexmodal.fixtures.sim_can import start_virtual
+    if sim.fault_log:
+        sim = dataclasses.replace(sim, fault_log=str(out.resolve().parent / sim.fault_log))
+    endpoint, stop = simulator_launcher()(sim, session, quiet)
+    return _with_endpoint(session, endpoint), stop
 
-        return session, start_virtual(virtual[0].channel, sim, session.sample_rate_hz)
-    proc = SimulatorProcess(session, quiet)
-    return _with_endpoint(session, proc.endpoint), proc.stop
+
+class StopSignals:
+    """While active (a context manager, main thread only) SIGINT, SIGTERM and SIGHUP set ``event``
+    instead of killing the process; ``signum`` is the first one received."""
+
+    def __init__(self) -> None:
+        self.event = threading.Event()
+        self.signum = 0
+        self._old: dict = {}
+
+    def _handle(self, signum, _frame) -> None:
+        self.signum = self.signum or signum
+        self.event.set()
+
+    def __enter__(self) -> StopSignals:
+        if threading.current_thread() is threading.main_thread():
+            self._old = {s: signal.signal(s, self._handle) for s in STOP_SIGNALS}
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for s, old in self._old.items():
+            signal.signal(s, old)
+
+
+def disk_room(path: Path) -> int:
+    """Bytes ``path`` can still grow by: free space of its file system (for unprivileged users),
+    capped by the process's file size limit (RLIMIT_FSIZE)."""
+    st = os.statvfs(path.parent)
+    room = st.f_bavail * st.f_frsize
+    limit = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+    if limit != resource.RLIM_INFINITY:
+        room = min(room, limit - (path.stat().st_size if path.exists() else 0))
+    return int(room)
 
 
 class Display:
@@ -138,6 +154,7 @@ class Display:
         self.level = np.zeros(len(names))
         self.peak = np.zeros(len(names))
         self.overloads = np.zeros(len(names), int)
+        self.behind_s = 0.0  # > 0: the writer lags real time by this much (overrun)
         self._last = 0.0
         if not quiet:
             from rich.console import Console
@@ -152,9 +169,15 @@ class Display:
             self.peak = np.maximum(self.peak, np.nanmax(np.abs(rows), axis=0, initial=0))
 
     def update(self, n_samples: int, rate_hz: float, dropped: int, events: Counter,
-               force: bool = False) -> None:
+               force: bool = False, lost: list[str] = ()) -> None:
         if self.live is None or (not force and time.monotonic() - self._last < 0.25):
             return
+        try:
+            self._update(n_samples, rate_hz, dropped, events, lost)
+        except OSError:  # the terminal went away (SIGHUP): go on without a display
+            self.live = None
+
+    def _update(self, n_samples: int, rate_hz: float, dropped: int, events: Counter, lost) -> None:
         from rich.table import Table
 
         self._last = time.monotonic()
@@ -162,7 +185,11 @@ class Display:
         table = Table(title=f"acquiring  {elapsed:6.1f} s   {n_samples} samples   "
                             f"{n_samples / max(elapsed, 1e-9):,.0f} S/s (nominal {rate_hz:g})   "
                             f"drops {dropped}   corrupt {events['corrupt']}   gaps {events['gap']}   "
-                            f"reconnects {events['reconnect']}   triggers {events['trigger']}")
+                            f"reconnects {events['reconnect']}   triggers {events['trigger']}",
+                      caption="\n".join(
+                          ([f"OVERRUN: the file lags real time by {self.behind_s:.1f} s"] if self.behind_s
+                           else []) + [f"DEVICE LOST: {d}" for d in lost]) or None,
+                      caption_style="bold red")
         for col in ("channel", "unit", "rms", "peak", "overloads"):
             table.add_column(col, justify="right" if col not in ("channel", "unit") else "left")
         for i, name in enumerate(self.names):
@@ -173,7 +200,10 @@ class Display:
 
     def close(self) -> None:
         if self.live is not None:
-            self.live.stop()
+            try:
+                self.live.stop()
+            except OSError:
+                pass
 
 
 class TriggerDetector:
@@ -206,168 +236,302 @@ def _clipped(block: Block, limits) -> np.ndarray | None:
     return (block.values <= lo) | (block.values >= hi)
 
 
-def _check_output(path: Path, run_id: str) -> None:
+def _clipped(block: Block, limits) -> np.ndarray | None:
+    if limits is None:
+        return None
+    lo, hi = limits
+    return (block.values <= lo) | (block.values >= hi)
+
+
+def _check_output(path: Path, run_id: str, need_bytes: int) -> None:
     if not path.parent.is_dir():
         raise DaqError(f"{path}: directory {path.parent} does not exist")
     if not os.access(path.parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
         raise DaqError(f"{path}: not writable")
     if path.exists() and run_id in list_runs(path):
         raise DaqError(f"{path}: run {run_id!r} already exists")
+    room = disk_room(path)
+    if room < need_bytes + DISK_RESERVE_BYTES:
+        raise DaqError(f"{path}: only {room / 1e6:.1f} MB free for it; the run needs "
+                       f"{need_bytes / 1e6:.1f} MB + {DISK_RESERVE_BYTES / 1e6:.0f} MB reserve")
 
 
 def acquire(session: Session, out: str | Path, *, duration_s: float | None = None, quiet: bool = False,
             run_id: str | None = None) -> Summary:
-    """Run an acquisition session into run ``run_id`` of ``out``; returns its summary."""
+    """Run an acquisition session into run ``run_id`` of ``out``; returns its summary.
+
+    SIGINT, SIGTERM and SIGHUP (when called from the main thread) end it cleanly like the duration
+    does, with ``Summary.signal`` set; a lost device or a full disk end it cleanly with
+    ``Summary.error`` set.  Raises DaqError for bad input and WriteFailed when a write fails.
+    """
     out = Path(out)
     stamp = datetime.now(UTC)
     run_id = run_id or session.run_id or f"{session.source.stem}-{stamp:%Y%m%dT%H%M%S}"
-    _check_output(out, run_id)
     duration_s = duration_s if duration_s is not None else session.duration_s
     target = None if duration_s is None else int(round(duration_s * session.sample_rate_hz))
-    session, stop_sim = _start_simulator(session, quiet)
-    try:
-        return _record(session, out, run_id, stamp, target, quiet)
-    finally:
-        stop_sim()
+    need = 0 if target is None else int(target * len(session.channels) * 4 * 1.02)
+    _check_output(out, run_id, need)
+    with WriterLock(out) as lock, StopSignals() as stopper:
+        session, stop_sim = _start_simulator(session, out, quiet)
+        try:
+            return _Recorder(session, out, run_id, stamp, target, quiet, stopper).run()
+        except WriteFailed:
+            lock.release()  # the CLI leaves at once: nobody writes the file any more
+            raise
+        finally:
+            stop_sim()
 
 
-def _record(session: Session, out: Path, run_id: str, stamp: datetime, target: int | None,
-            quiet: bool) -> Summary:
-    drivers = {d.name: make_driver(d, session) for d in session.devices}
-    timeline_ = Timeline(session, {k: v.sources for k, v in drivers.items()})
-    q: queue.Queue = queue.Queue(maxsize=QUEUE_BLOCKS)
-    stop = threading.Event()
-    stats = {name: ReaderStats() for name in drivers}
-    threads = [threading.Thread(target=run_reader, args=(drv, q, stop, stats[name]), name=f"reader-{name}",
-                                daemon=True) for name, drv in drivers.items()]
-    names = timeline_.names
-    display = Display(names, tuple(c.channel.unit for c in session.channels), quiet)
-    trig = None
-    if session.trigger is not None:
-        t = session.trigger
-        trig = TriggerDetector(names.index(t.channel), t.level, t.slope,
-                               int(round(t.holdoff_s * session.sample_rate_hz)))
-    counts: Counter = Counter()
-    writer: RunWriter | None = None
-    pending: list[Event] = []  # events dated in timeline rows (row 0 = the first sample of the session)
-    written = 0
-    waiting = session.trigger is not None and session.trigger.start
-    start_row = 0  # timeline row stored as row 0 (set at the first trigger when the run starts on one)
-    held: list[np.ndarray] = []  # the last pretrigger rows while waiting for the first trigger
-    t_begin = time.monotonic()
-    for th in threads:
-        th.start()
+class _Recorder:
+    """One acquisition: reader threads, timeline, trigger, writer, display, and every way it stops."""
 
-    def handle(item) -> None:
+    def __init__(self, session: Session, out: Path, run_id: str, stamp: datetime, target: int | None,
+                 quiet: bool, stopper: StopSignals) -> None:
+        self.session, self.out, self.run_id, self.stamp = session, out, run_id, stamp
+        self.target, self.stopper = target, stopper
+        self.drivers = {d.name: make_driver(d, session) for d in session.devices}
+        self.timeline = Timeline(session, {k: v.sources for k, v in self.drivers.items()})
+        self.queue: queue.Queue = queue.Queue(maxsize=QUEUE_BLOCKS)
+        self.stop = threading.Event()
+        self.stats = {name: ReaderStats() for name in self.drivers}
+        self.names = self.timeline.names
+        self.display = Display(self.names, tuple(c.channel.unit for c in session.channels), quiet)
+        self.trig = None
+        if session.trigger is not None:
+            t = session.trigger
+            self.trig = TriggerDetector(self.names.index(t.channel), t.level, t.slope,
+                                        int(round(t.holdoff_s * session.sample_rate_hz)))
+        self.counts: Counter = Counter()
+        self.writer: RunWriter | None = None
+        self.pending: list[Event] = []  # events dated in timeline rows (row 0 = the session's first sample)
+        self.written = 0
+        self.waiting = session.trigger is not None and session.trigger.start
+        self.start_row = 0  # timeline row stored as row 0 (the first trigger's, when the run starts on one)
+        self.held: list[np.ndarray] = []  # the last pretrigger rows while waiting for the first trigger
+        self.lost: set[str] = set()
+        self.error = ""
+        self.t_first: float | None = None  # monotonic time of the first block
+        self.lag_base = np.inf  # smallest delay of the rows behind real time seen so far (start-up latency)
+        self.overrun = False
+        self.disk_stopped = False
+
+    # -- what the reader threads deliver ---------------------------------------------------------------
+    def handle(self, item) -> None:
         if isinstance(item, Block):
-            pending.extend(timeline_.add(item, _clipped(item, drivers[item.device].limits)))
+            if self.t_first is None:
+                self.t_first = item.received_s or time.monotonic()
+            self.pending.extend(self.timeline.add(item, _clipped(item, self.drivers[item.device].limits)))
+            if item.device in self.lost:
+                self.lost.discard(item.device)
+                self.note(item.device, "delivers again")
         elif item.kind == "error":
             raise item.error
         elif item.kind == "reconnect":
-            pending.append(Event("reconnect", timeline_.at_row(item.device), 1,
-                                 f"{item.device}: {item.detail}"))
+            self.pending.append(Event("reconnect", self.timeline.at_row(item.device), 1,
+                                      f"{item.device}: {item.detail}"))
         elif item.kind == "lost":
-            pending.append(Event("note", timeline_.at_row(item.device), 1,
-                                 f"{item.device}: disconnected ({item.detail})"))
+            self.note(item.device, f"disconnected ({item.detail})")
 
-    def write(rows: np.ndarray, row0: int) -> None:
-        """Store timeline rows ``row0`` .. (waiting for the first trigger first, if so configured)."""
-        nonlocal writer, written, waiting, start_row
-        if trig is not None:
-            t = session.trigger
-            pending.extend(Event("trigger", i, 1, f"{t.channel} {t.slope} {t.level:g}")
-                           for i in trig.find(rows, row0))
-        if waiting:
-            buf = np.vstack([*held, rows])
-            buf0 = row0 + rows.shape[0] - buf.shape[0]
-            hits = sorted(e.sample_index for e in pending if e.kind == "trigger")
-            if not hits:
-                held[:] = [buf[max(0, buf.shape[0] - session.trigger.pretrigger_samples):]]
-                pending[:] = [e for e in pending if e.sample_index >= buf0 + buf.shape[0] - held[0].shape[0]]
-                return
-            waiting = False
-            start_row = max(hits[0] - session.trigger.pretrigger_samples, buf0)
-            rows = buf[start_row - buf0:]
-            held.clear()
-        if target is not None:
-            rows = rows[:target - written]
-        if writer is None and rows.shape[0]:
-            first = {k: v + start_row for k, v in timeline_.first_index.items()}
-            writer = _open_writer(session, out, run_id, stamp, rows, names, first)
-        keep = [dataclasses.replace(e, sample_index=e.sample_index - start_row) for e in pending
-                if e.sample_index >= start_row and (target is None or e.sample_index - start_row < target)]
-        if writer is None:  # nothing to store yet
-            return
-        pending.clear()
+    def note(self, device: str, text: str, kind: str = "note") -> None:
+        self.pending.append(Event(kind, self.timeline.at_row(device), 1, f"{device}: {text}"))
+
+    def drain(self, timeout_s: float) -> None:
         try:
-            writer.append(rows)
-            writer.add_events(keep)
+            self.handle(self.queue.get(timeout=timeout_s))
+            while True:
+                self.handle(self.queue.get_nowait())
+        except queue.Empty:
+            pass
+
+    # -- health of devices, writer and disk ----------------------------------------------------------
+    def silent(self, now: float) -> set[str]:
+        """Devices that delivered nothing for STALL_S (once any device delivered); newly lost ones are
+        recorded, and end the session unless it continues without them."""
+        if self.t_first is None:
+            return set()
+        quiet_s = {d: now - (s.last_block_s or self.t_first) for d, s in self.stats.items()}
+        for d, q in quiet_s.items():
+            if q > self.session.reconnect_timeout_s and d not in self.lost:
+                self.lost.add(d)
+                self.note(d, f"lost: no samples for {q:.1f} s", "device_lost")
+                if not self.session.continue_on_device_loss or self.lost == set(self.drivers):
+                    self.error = (f"{self.session.source}: device {d!r} lost (no samples for "
+                                  f"{self.session.reconnect_timeout_s:g} s); the run holds everything before")
+        return {d for d, q in quiet_s.items() if q > STALL_S}
+
+    def check_overrun(self, now: float) -> None:
+        """Compare the rows on the timeline with real time since the first block."""
+        if self.t_first is None:
+            return
+        ahead = max(t.rows for t in self.timeline.tracks.values())
+        lag = (now - self.t_first) - ahead / self.session.sample_rate_hz
+        self.lag_base = min(self.lag_base, lag)
+        behind = lag - self.lag_base
+        if behind > OVERRUN_S and not self.overrun:
+            self.overrun = True
+            self.pending.append(Event("overrun", ahead, int(behind * self.session.sample_rate_hz),
+                                      f"{behind:.1f} s behind real time"))
+        elif behind < OVERRUN_S / 2:
+            self.overrun = False
+        self.display.behind_s = behind if self.overrun else 0.0
+
+    def disk_full(self) -> bool:
+        room = disk_room(self.out)
+        if room >= DISK_RESERVE_BYTES:
+            return False
+        self.disk_stopped = True
+        self.error = (f"{self.out}: disk full ({room / 1e6:.1f} MB left): stopped after "
+                      f"{self.written} samples; the run is intact up to there")
+        return True
+
+    # -- storing rows ---------------------------------------------------------------------------------
+    def write(self, rows: np.ndarray, row0: int) -> None:
+        """Store timeline rows ``row0`` .. (waiting for the first trigger first, if so configured)."""
+        session, target = self.session, self.target
+        if self.trig is not None:
+            t = session.trigger
+            self.pending.extend(Event("trigger", i, 1, f"{t.channel} {t.slope} {t.level:g}")
+                                for i in self.trig.find(rows, row0))
+        if self.waiting:
+            buf = np.vstack([*self.held, rows])
+            buf0 = row0 + rows.shape[0] - buf.shape[0]
+            hits = sorted(e.sample_index for e in self.pending if e.kind == "trigger")
+            if not hits:
+                self.held[:] = [buf[max(0, buf.shape[0] - session.trigger.pretrigger_samples):]]
+                keep_from = buf0 + buf.shape[0] - self.held[0].shape[0]
+                self.pending[:] = [e for e in self.pending if e.sample_index >= keep_from]
+                return
+            self.waiting = False
+            self.start_row = max(hits[0] - session.trigger.pretrigger_samples, buf0)
+            rows = buf[self.start_row - buf0:]
+            self.held.clear()
+        if target is not None:
+            rows = rows[:target - self.written]
+        if self.writer is None and rows.shape[0]:
+            first = {k: v + self.start_row for k, v in self.timeline.first_index.items()}
+            self.writer = _open_writer(session, self.out, self.run_id, self.stamp, rows, self.names, first)
+        keep = [dataclasses.replace(e, sample_index=e.sample_index - self.start_row) for e in self.pending
+                if e.sample_index >= self.start_row
+                and (target is None or e.sample_index - self.start_row < target)]
+        if self.writer is None:  # nothing to store yet
+            return
+        self.pending.clear()
+        self.guarded(lambda: (self.writer.append(rows), self.writer.add_events(keep)))
+        self.written += rows.shape[0]
+        self.display.rows(rows)
+        for e in keep:
+            self.counts[e.kind] += 1
+            if e.kind == "overload":
+                self.display.overloads[self.names.index(e.detail)] += e.count
+
+    def guarded(self, step) -> None:
+        """Run a write step; a failure becomes WriteFailed and the file is not touched again."""
+        try:
+            step()
         except (OSError, RuntimeError) as exc:
             reason = re.search(r"error message = '([^']*)'", str(exc))
             reason = reason.group(1) if reason else " ".join(str(exc).split())[:120]
-            raise WriteFailed(f"{out}: writing failed after {writer.n_samples} samples ({reason}); "
-                              "the samples flushed before this point are intact") from exc
-        written += rows.shape[0]
-        display.rows(rows)
-        for e in keep:
-            counts[e.kind] += 1
-            if e.kind == "overload":
-                display.overloads[names.index(e.detail)] += e.count
+            n = self.writer.n_samples
+            self.writer = None
+            raise WriteFailed(f"{self.out}: writing failed after {n} samples ({reason}); the samples "
+                              "flushed before this point are intact, rows not written read as NaN") from exc
 
-    def due_rows() -> int:
-        return timeline_.ready() if target is None or waiting else min(timeline_.ready(), target - written)
+    def release(self, silent: set[str]) -> None:
+        """Write the rows every delivering device has reached; silent devices get NaN up to there."""
+        tl = self.timeline
+        ready = tl.ready(skip=silent)
+        n = ready if self.target is None or self.waiting else min(ready, self.target - self.written)
+        if n <= 0:
+            return
+        row0 = tl.released
+        for d in silent:
+            tl.pad(d, row0 + n)
+        self.write(tl.take(n), row0)
 
-    try:
-        try:
-            while target is None or written < target:
-                try:
-                    handle(q.get(timeout=0.1))
-                    while True:
-                        handle(q.get_nowait())
-                except queue.Empty:
-                    pass
-                n = due_rows()
-                if n > 0:
-                    row0 = timeline_.released
-                    write(timeline_.take(n), row0)
-                elif timeline_.released == 0 and time.monotonic() - t_begin > NO_DATA_TIMEOUT_S:
-                    silent = [d for d, s in stats.items() if s.samples == 0] or list(drivers)
-                    raise DaqError(f"{session.source}: no samples from device {', '.join(map(repr, silent))} "
-                                   f"within {NO_DATA_TIMEOUT_S:g} s")
-                display.update(written, session.sample_rate_hz, sum(s.dropped_blocks for s in stats.values()),
-                               counts)
-        except KeyboardInterrupt:
-            pass
-        stop.set()
+    # -- the session ----------------------------------------------------------------------------------
+    def done(self) -> bool:
+        return ((self.target is not None and self.written >= self.target) or self.stopper.event.is_set()
+                or bool(self.error))
+
+    def run(self) -> Summary:
+        threads = [threading.Thread(target=run_reader, args=(drv, self.queue, self.stop, self.stats[name]),
+                                    name=f"reader-{name}", daemon=True) for name, drv in self.drivers.items()]
+        t_begin = next_disk = time.monotonic()
         for th in threads:
-            th.join(timeout=5)
-        while True:  # what the readers delivered before they stopped
-            try:
-                item = q.get_nowait()
-            except queue.Empty:
-                break
-            if isinstance(item, Block):
-                handle(item)
-        row0 = timeline_.released
-        write(timeline_.take(max(due_rows(), 0)), row0)
-        display.update(written, session.sample_rate_hz, sum(s.dropped_blocks for s in stats.values()),
-                       counts, force=True)
-    except WriteFailed:
-        writer = None  # do not touch the file again
-        raise
-    finally:
-        stop.set()
-        display.close()
-        if writer is not None:
-            writer.close()
-    if writer is None and waiting:
-        t = session.trigger
-        raise DaqError(f"{session.source}: trigger: no {t.slope} crossing of {t.level:g} on {t.channel!r}")
-    if writer is None:
-        raise DaqError(f"{session.source}: no samples arrived from {', '.join(drivers)}")
-    return Summary(out, run_id, written, len(names), session.sample_rate_hz, counts,
-                   sum(s.dropped_blocks for s in stats.values()))
+            th.start()
+        try:
+            while not self.done():
+                self.drain(0.1)
+                now = time.monotonic()
+                silent = self.silent(now)
+                self.release(silent)
+                self.check_overrun(now)
+                if now >= next_disk:
+                    next_disk = now + DISK_CHECK_S
+                    if self.disk_full():
+                        break
+                if self.timeline.released == 0 and now - t_begin > NO_DATA_TIMEOUT_S:
+                    none = [d for d, s in self.stats.items() if s.samples == 0] or list(self.drivers)
+                    raise DaqError(f"{self.session.source}: no samples from device "
+                                   f"{', '.join(map(repr, none))} within {NO_DATA_TIMEOUT_S:g} s")
+                self.update_display()
+            self.finish(threads)
+        finally:
+            self.stop.set()
+            self.display.close()
+            if self.writer is not None:
+                writer, self.writer = self.writer, None
+                self.guarded_close(writer)
+        return self.summary()
 
+    def finish(self, threads: list[threading.Thread]) -> None:
+        """Stop the readers, store what they delivered, close open gaps, record why the run stopped."""
+        self.stop.set()
+        for th in threads:
+            th.join(timeout=1.0)
+        if not self.disk_stopped:
+            self.drain(0.0)
+            self.release(self.silent(time.monotonic()) if len(self.drivers) > 1 else set())
+        self.pending.extend(self.timeline.close_gaps(self.timeline.released))
+        unwritten = self.timeline.ready()
+        why = (f"stopped by {signal.Signals(self.stopper.signum).name}" if self.stopper.signum
+               else self.error)
+        if why and self.writer is not None:
+            self.pending.append(Event("stopped", self.timeline.released, unwritten,
+                                      f"{why[:150]}; {unwritten} samples in hand not written"))
+        if self.writer is not None:
+            keep = [dataclasses.replace(e, sample_index=max(e.sample_index - self.start_row, 0))
+                    for e in self.pending if self.target is None or e.sample_index - self.start_row
+                    < self.target]
+            self.pending.clear()
+            self.guarded(lambda: self.writer.add_events(keep))
+            self.counts.update(e.kind for e in keep)
+        self.update_display(force=True)
+
+    def guarded_close(self, writer: RunWriter) -> None:
+        self.writer = writer
+        self.guarded(writer.close)
+        self.writer = None
+
+    def update_display(self, force: bool = False) -> None:
+        self.display.update(self.written, self.session.sample_rate_hz,
+                            sum(s.dropped_blocks for s in self.stats.values()), self.counts, force=force,
+                            lost=sorted(self.lost))
+
+    def summary(self) -> Summary:
+        if self.writer is None and self.written == 0:
+            if self.waiting:
+                t = self.session.trigger
+                raise DaqError(f"{self.session.source}: trigger: no {t.slope} crossing of {t.level:g} on "
+                               f"{t.channel!r}")
+            if self.stopper.signum:
+                raise DaqError(f"{self.session.source}: stopped by "
+                               f"{signal.Signals(self.stopper.signum).name} before any sample was stored")
+            raise DaqError(self.error or f"{self.session.source}: no samples arrived from "
+                                         f"{', '.join(self.drivers)}")
+        return Summary(self.out, self.run_id, self.written, len(self.names), self.session.sample_rate_hz,
+                       self.counts, sum(s.dropped_blocks for s in self.stats.values()), self.stopper.signum,
+                       self.error)
 
 def _open_writer(session: Session, out: Path, run_id: str, stamp: datetime, first_rows: np.ndarray,
                  names: tuple[str, ...], first_index: dict) -> RunWriter:

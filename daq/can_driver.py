@@ -1,43 +1,89 @@
-"""CAN driver: python-can bus (virtual, slcan, ...) with DBC signal decoding vectorised over frames.
+"""CAN driver: python-can bus (virtual, slcan, socketcan, pcan, ...) with DBC signal decoding vectorised
+over frames.
 
-The samples travel in one DBC message (``message`` in the session, default the only multiplexed one)
-with a scan counter signal ``Seq`` and, optionally, a multiplexer selecting which group of signals a
-frame carries; a scan is complete when every multiplexer group of one counter value has arrived.  The
-counter (few bits, wraps) is unwrapped with the bus timestamps: the jump between two frames is the
-counter difference plus the multiple of its modulus closest to ``dt * sample_rate``.
+The samples travel in one or more DBC messages (``messages`` in the session; default the only
+multiplexed message), each optionally multiplexed; a *part* of a scan is one (message, multiplexer
+value) and a scan is complete when all its parts arrived.  With a counter signal (``counter``, default
+``Seq``) in every message, each message's counter (few bits, wraps) is unwrapped with the bus
+timestamps: the jump between two frames is the counter difference plus the multiple of its modulus
+closest to ``dt * sample_rate``.  Without one (``counter = ""``) the interface's timestamps place the
+frames: the first frame of the first part is sample 0, and each part advances by ``round(dt *
+sample_rate)`` (at least 1) from its previous frame, so a lost frame shows as a missing sample; this
+needs frame timestamps accurate to well under half a sample period (hardware or kernel timestamps, as
+socketcan and pcan give) and the parts of one scan sent within half a period of its first frame.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from flexmodal.daq.dbc import load_message
-from flexmodal.daq.devices import Block, DeviceLost
+from flexmodal.daq.dbc import load_messages
+from flexmodal.daq.devices import Block, DeviceLost, Driver
 from flexmodal.daq.errors import DaqError
 
 COUNTER_SIGNAL = "Seq"
 MAX_FRAMES_PER_READ = 20000
 
 
-class CanDriver:
+class CanDriver(Driver):
+    """Samples of one DBC message on a python-can bus (see the module docstring)."""
+
+    protocol = "can"
+
+    @classmethod
+    def parse_device(cls, t, name):
+        """``interface`` (python-can), ``channel``, ``bitrate``, ``dbc`` file, ``message`` name."""
+        from flexmodal.daq.session import Device
+
+        t.reject_unknown({"interface", "channel", "bitrate", "dbc", "message", "messages", "counter"})
+        interface = t.get("interface", str)
+        channel = t.port("channel") if interface == "slcan" else t.get("channel", str)
+        if "message" in t.doc and "messages" in t.doc:
+            raise DaqError(f"{t.where}: give message or messages, not both")
+        messages = t.get("messages", list, [], check=lambda v: v and all(isinstance(m, str) for m in v),
+                         why="must be a non-empty list of DBC message names")
+        one = t.get("message", str, "")
+        return Device(name, cls.protocol, interface=interface, channel=channel,
+                      bitrate=t.get("bitrate", int, 500000), dbc=t.file("dbc", "dbc file"),
+                      message=",".join(messages) if messages else one,
+                      options={"counter": t.get("counter", str, COUNTER_SIGNAL)})
+
+    @classmethod
+    def known_sources(cls, device):
+        return None  # the DBC message's signals, checked when the driver loads the DBC file
+
     def __init__(self, device, sample_rate_hz: float) -> None:
         self.name = device.name
         self.device = device
         self.fs = sample_rate_hz
-        self.layout = load_message(device.dbc, device.message)
-        names = [s.name for s in self.layout.signals]
-        if COUNTER_SIGNAL not in names:
-            raise DaqError(f"{device.dbc}: message has no scan counter signal {COUNTER_SIGNAL!r}")
-        self.counter = self.layout.signal(COUNTER_SIGNAL)
-        self.signals = tuple(s for s in self.layout.signals if s.name != COUNTER_SIGNAL)
-        self.sources = tuple(s.name for s in self.signals)
-        lims = np.array([s.limits for s in self.signals])
+        self.layouts = load_messages(device.dbc, [m for m in device.message.split(",") if m])
+        counter = device.options.get("counter", COUNTER_SIGNAL)
+        self.counters = []
+        for lay in self.layouts:
+            names = [s.name for s in lay.signals]
+            if counter and counter not in names:
+                raise DaqError(f"{device.dbc}: message {lay.name!r} has no scan counter signal {counter!r} "
+                               "(name it with counter = \"...\", or counter = \"\" to place frames by "
+                               "their timestamps)")
+            self.counters.append(lay.signal(counter) if counter else None)
+        self.signals = tuple((m, s) for m, lay in enumerate(self.layouts) for s in lay.signals
+                             if s.name != counter)
+        self.sources = tuple(s.name for _, s in self.signals)
+        dup = sorted({n for n in self.sources if self.sources.count(n) > 1})
+        if dup:
+            raise DaqError(f"{device.dbc}: signal {dup[0]!r} is in more than one of the messages")
+        lims = np.array([s.limits for _, s in self.signals])
         self.limits = (lims[:, 0], lims[:, 1])
-        mux_ids = sorted({i for s in self.signals for i in (s.mux_ids or ())})
-        self.groups = np.array(mux_ids if self.layout.mux is not None else [0])
+        self.parts: dict[tuple[int, int], int] = {}  # (message, multiplexer value) -> part of a scan
+        for m, lay in enumerate(self.layouts):
+            mux_ids = sorted({i for mm, s in self.signals if mm == m for i in (s.mux_ids or ())})
+            for g in (mux_ids if lay.mux is not None else [0]):
+                self.parts[(m, g)] = len(self.parts)
         self._bus = None
-        self._last: tuple[int, int, float] | None = None  # (index, counter code, timestamp) of last frame
-        self._held = None  # (index, group, data) of the newest, maybe unfinished scan
+        self._last: dict[int, tuple[int, int, float]] = {}  # per message: (index, counter code, timestamp)
+        self._part_last: dict[int, tuple[int, float]] = {}  # without counter, per part: (index, timestamp)
+        self._t0: float | None = None
+        self._held = None  # (index, part, message, data, ts) of the newest, maybe unfinished scan
         self._lost: str | None = None
 
     def open(self) -> None:
@@ -78,65 +124,106 @@ class CanDriver:
                 raise DeviceLost(self._lost) from exc
         return msgs
 
-    def _unwrap(self, code: np.ndarray, ts: np.ndarray) -> np.ndarray:
-        modulus = 1 << self.counter.length
-        if self._last is None:
-            self._last = (int(code[0]), int(code[0]), float(ts[0]))
-        index0, code0, ts0 = self._last
+    def _unwrap(self, m: int, code: np.ndarray, ts: np.ndarray) -> np.ndarray:
+        """Sample index of each frame of message ``m`` from its counter codes and timestamps."""
+        modulus = 1 << self.counters[m].length
+        if m not in self._last:
+            self._last[m] = (int(code[0]), int(code[0]), float(ts[0]))
+        index0, code0, ts0 = self._last[m]
         d = (code - np.r_[code0, code[:-1]]) % modulus
         expected = (ts - np.r_[ts0, ts[:-1]]) * self.fs
         d = d + np.maximum(np.round((expected - d) / modulus), 0).astype(np.int64) * modulus
         index = index0 + np.cumsum(d)
-        self._last = (int(index[-1]), int(code[-1]), float(ts[-1]))
+        self._last[m] = (int(index[-1]), int(code[-1]), float(ts[-1]))
+        return index
+
+    def _placed(self, part: np.ndarray, ts: np.ndarray) -> np.ndarray:
+        """Sample index of each frame from timestamps alone (no counter): see the module docstring."""
+        index = np.full(part.size, -1, np.int64)
+        if self._t0 is None:
+            first = np.flatnonzero(part == 0)
+            if not first.size:
+                return index  # wait for the first part of a scan
+            self._t0 = float(ts[first[0]])
+            part, ts = part.copy(), ts.copy()
+            part[:first[0]] = -1  # frames before the first scan's first part are dropped
+        for p in np.unique(part[part >= 0]):  # one step per part of the scan (few)
+            sel = np.flatnonzero(part == p)
+            i0, t0 = self._part_last.get(int(p), (None, self._t0))
+            d = np.maximum(np.round(np.diff(np.r_[t0, ts[sel]]) * self.fs), 1).astype(np.int64)
+            if i0 is None:  # the part's first frame: its place from the first frame of the session
+                d[0], i0 = int(round((ts[sel[0]] - self._t0) * self.fs)), 0
+            index[sel] = i0 + np.cumsum(d)
+            self._part_last[int(p)] = (int(index[sel[-1]]), float(ts[sel[-1]]))
         return index
 
     def read(self) -> list[Block]:
         msgs = self._receive()
-        mine = [m for m in msgs if m.arbitration_id == self.layout.frame_id]
-        good = [m for m in mine if len(m.data) == self.layout.length]  # others are corrupt: their scan
-        # shows the missing group
-        if not good:
+        by_id = {lay.frame_id: m for m, lay in enumerate(self.layouts)}
+        good = [(by_id[msg.arbitration_id], msg) for msg in msgs if msg.arbitration_id in by_id
+                and len(msg.data) == self.layouts[by_id[msg.arbitration_id]].length]  # others are corrupt:
+        if not good:  # their scan shows the missing part
             return []
+        message = np.array([m for m, _ in good])
         data = np.zeros((len(good), 8), np.uint8)
-        data[:, :self.layout.length] = np.frombuffer(b"".join(bytes(m.data) for m in good), np.uint8).reshape(
-            len(good), self.layout.length)
-        ts = np.array([m.timestamp for m in good])
-        index = self._unwrap(self.layout.raw(data, self.counter), ts)
-        mux = self.layout.mux
-        group = self.layout.raw(data, mux) if mux is not None else np.zeros(len(good), np.int64)
-        valid = np.isin(group, self.groups)
-        index, group, data, ts = index[valid], group[valid], data[valid], ts[valid]
+        for m, lay in enumerate(self.layouts):
+            rows = np.flatnonzero(message == m)
+            if rows.size:
+                data[rows, :lay.length] = np.frombuffer(b"".join(bytes(good[i][1].data) for i in rows),
+                                                        np.uint8).reshape(rows.size, lay.length)
+        ts = np.array([msg.timestamp for _, msg in good])
+        group = np.zeros(len(good), np.int64)
+        for m, lay in enumerate(self.layouts):
+            rows = message == m
+            if lay.mux is not None and rows.any():
+                group[rows] = lay.raw(data[rows], lay.mux)
+        lookup = self.parts.get
+        part = np.array([lookup((int(m), int(g)), -1) for m, g in zip(message, group, strict=True)])
+        if self.counters[0] is None:
+            index = self._placed(part, ts)
+        else:
+            index = np.zeros(len(good), np.int64)
+            for m in np.unique(message):  # one step per message
+                rows = message == m
+                code = self.layouts[m].raw(data[rows], self.counters[m])
+                index[rows] = self._unwrap(int(m), code, ts[rows])
+        valid = (part >= 0) & (index >= 0)
+        index, part, message, data, ts = index[valid], part[valid], message[valid], data[valid], ts[valid]
         if self._held is not None:
-            h_index, h_group, h_data, h_ts = self._held
-            index, group = np.r_[h_index, index], np.r_[h_group, group]
-            data, ts = np.vstack([h_data, data]), np.r_[h_ts, ts]
+            index, part, message, data, ts = (np.r_[h, x] if x.ndim == 1 else np.vstack([h, x])
+                                             for h, x in zip(self._held, (index, part, message, data, ts),
+                                                             strict=True))
         if not index.size:
             return []
         last = index == index.max()  # the newest scan may still be arriving: keep it for the next read
-        self._held = (index[last], group[last], data[last], ts[last])
-        index, group, data, ts = index[~last], group[~last], data[~last], ts[~last]
-        if not index.size:
+        self._held = tuple(x[last] for x in (index, part, message, data, ts))
+        keep = ~last
+        if not keep.any():
             return []
-        return self._blocks(index, group, data, ts)
+        return self._blocks(index[keep], part[keep], message[keep], data[keep], ts[keep])
 
-    def _blocks(self, index, group, data, ts) -> list[Block]:
+    def _blocks(self, index, part, message, data, ts) -> list[Block]:
         first = int(index.min())
         rows = (index - first).astype(np.int64)
         n_rows = int(rows.max()) + 1
         values = np.full((n_rows, len(self.signals)), np.nan)
-        for j, sig in enumerate(self.signals):  # per signal, all frames at once
-            on = np.ones(rows.size, bool) if sig.mux_ids is None else np.isin(group, sig.mux_ids)
-            values[rows[on], j] = self.layout.raw(data[on], sig) * sig.scale + sig.offset
+        for j, (m, sig) in enumerate(self.signals):  # per signal, all frames at once
+            lay = self.layouts[m]
+            on = message == m
+            if sig.mux_ids is not None:
+                on &= np.isin(lay.raw(data, lay.mux), sig.mux_ids) if lay.mux is not None else True
+            values[rows[on], j] = lay.raw(data[on], sig) * sig.scale + sig.offset
         present = np.bincount(rows, minlength=n_rows)
         t_row = np.full(n_rows, np.nan)
         t_row[rows[::-1]] = ts[::-1]  # earliest frame time of each scan
+        n_parts = len(self.parts)
         have = present > 0
-        partial = have & (present < self.groups.size)
+        partial = have & (present < n_parts)
         starts = np.flatnonzero(have & (np.r_[True, ~have[:-1]] | partial))
         ends = np.r_[starts[1:], n_rows]
         blocks = []
         for a, b in zip(starts, ends, strict=True):  # one block per run of complete scans (+ faults)
             b = a + int(np.argmin(np.r_[have[a:b], False]))  # up to the first missing scan
             blocks.append(Block(self.name, first + int(a), values[a:b], float(t_row[a]),
-                                corrupt=int(self.groups.size - present[a]) if partial[a] else 0))
+                                corrupt=int(n_parts - present[a]) if partial[a] else 0))
         return blocks

@@ -59,13 +59,14 @@ class MessageLayout:
     length: int
     mux: SignalLayout | None
     signals: tuple[SignalLayout, ...]
+    name: str = ""
 
     @classmethod
     def from_cantools(cls, message) -> MessageLayout:
         layouts = [_layout(s) for s in message.signals]
         mux = next((lay for lay, s in zip(layouts, message.signals, strict=True) if s.is_multiplexer), None)
         return cls(message.frame_id, message.length, mux,
-                   tuple(lay for lay in layouts if lay is not mux))
+                   tuple(lay for lay in layouts if lay is not mux), message.name)
 
     def signal(self, name: str) -> SignalLayout:
         return next(s for s in self.signals if s.name == name)
@@ -87,19 +88,29 @@ class MessageLayout:
         return value
 
 
-def load_message(dbc_path: str, message: str = "") -> MessageLayout:
-    """The sample-carrying message of a DBC file: ``message`` by name, else the only multiplexed one."""
+def load_messages(dbc_path: str, names: list[str] | tuple[str, ...] = ()) -> list[MessageLayout]:
+    """The sample-carrying messages of a DBC file: ``names`` in this order, else the only multiplexed
+    message (or the only message).  Signal names must be unique over the messages."""
     import cantools
 
     try:
         db = cantools.database.load_file(dbc_path)
     except Exception as exc:  # cantools raises several parser error types
         raise DaqError(f"{dbc_path}: not a readable DBC file ({exc})") from exc
-    if message:
-        found = [m for m in db.messages if m.name == message]
+    known = {m.name: m for m in db.messages}
+    if names:
+        missing = [n for n in names if n not in known]
+        if missing:
+            raise DaqError(f"{dbc_path}: no message {missing[0]!r} (messages: {', '.join(known)})")
+        found = [known[n] for n in names]
     else:
         found = [m for m in db.messages if m.is_multiplexed()] or list(db.messages)
-    if len(found) != 1:
-        raise DaqError(f"{dbc_path}: name the message carrying the samples (message = ...); "
-                       f"messages: {', '.join(m.name for m in db.messages)}")
-    return MessageLayout.from_cantools(found[0])
+        if len(found) != 1:
+            raise DaqError(f"{dbc_path}: name the messages carrying the samples (messages = [...]); "
+                           f"messages: {', '.join(known)}")
+    return [MessageLayout.from_cantools(m) for m in found]
+
+
+def load_message(dbc_path: str, message: str = "") -> MessageLayout:
+    """The one sample-carrying message of a DBC file: ``message`` by name, else the only multiplexed one."""
+    return load_messages(dbc_path, [message] if message else [])[0]

@@ -1,22 +1,30 @@
-"""The one small driver interface, the reader thread that runs a driver, and sequence unwrapping.
+"""The one driver interface (:class:`Driver`), the protocol registry, the reader thread, counter unwrapping.
 
-A driver has ``name``, ``sources`` (names of the values it delivers, in column order), ``limits``
-(raw values at or beyond which an input is clipped, or None) and three methods: ``open()``,
-``read() -> list[Block]`` (waits at most ~0.1 s) and ``close()``.  ``read``/``open`` raise
-:class:`DeviceLost` when the device goes away; the reader thread then reconnects with exponential
-back-off (0.02 s doubling to 0.25 s) and reports ``lost``/``reconnect`` notices.
+A protocol is a driver class (a subclass of :class:`Driver`, like python-can's ``BusABC``) plus one
+registry entry (:func:`register_protocol`): the class reads its ``[[device]]`` table
+(:meth:`Driver.parse_device`) and then streams blocks.  A driver has ``name``, ``sources`` (names of the
+values it delivers, in column order), ``limits`` (raw values at or beyond which an input is clipped, or
+None) and three methods: ``open()``, ``read() -> list[Block]`` (waits at most ~0.1 s) and ``close()``.
+``read``/``open`` raise :class:`DeviceLost` when the device goes away; the reader thread then reconnects
+with exponential back-off (0.02 s doubling to 0.25 s) and reports ``lost``/``reconnect`` notices.
 """
 
 from __future__ import annotations
 
+import importlib
 import queue
 import threading
 import time
+from abc import ABC, abstractmethod
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
 from flexmodal.daq.errors import DaqError
+
+if TYPE_CHECKING:
+    from flexmodal.daq.session import Device, DeviceTable
 
 BACKOFF_START_S = 0.02
 BACKOFF_MAX_S = 0.25
@@ -35,6 +43,7 @@ class Block:
     values: np.ndarray  # [n, n_sources] device units; NaN where a value did not arrive
     timestamp_s: float  # time of the first sample (bus or host clock, seconds)
     corrupt: int = 0  # bad frames dropped just before this block
+    received_s: float = 0.0  # time.monotonic() when the reader thread got it from the driver
 
 
 @dataclass
@@ -53,6 +62,71 @@ class ReaderStats:
     samples: int = 0
     dropped_blocks: int = 0
     reconnects: int = 0
+    last_block_s: float = 0.0  # time.monotonic() of the newest block (0: none yet)
+
+
+class Driver(ABC):
+    """A device protocol: parses its ``[[device]]`` table, then opens, reads blocks and closes.
+
+    Subclasses set ``name`` (the device name), ``sources`` (value names in column order) and ``limits``
+    (``(low, high)`` raw arrays at which an input clips, or None) in ``__init__``.
+    """
+
+    protocol: ClassVar[str]
+    name: str
+    sources: tuple[str, ...]
+    limits: tuple | None = None
+
+    @classmethod
+    @abstractmethod
+    def parse_device(cls, table: DeviceTable, name: str) -> Device:
+        """The validated Device of one ``[[device]]`` table (``table.get``/``choice`` raise DaqError)."""
+
+    @classmethod
+    def known_sources(cls, device: Device) -> tuple[str, ...] | None:
+        """Source names a channel may map to (None: not known before opening, e.g. from a DBC file)."""
+        return device.sources
+
+    @abstractmethod
+    def __init__(self, device: Device, sample_rate_hz: float) -> None: ...
+
+    @abstractmethod
+    def open(self) -> None:
+        """Connect; raise DeviceLost when the device is not there."""
+
+    @abstractmethod
+    def read(self) -> list[Block]:
+        """Blocks that arrived (waits at most ~0.1 s); raise DeviceLost when the device went away."""
+
+    @abstractmethod
+    def close(self) -> None:
+        """Disconnect (never raises)."""
+
+
+_PROTOCOLS: dict[str, str | type[Driver]] = {
+    "serial": "flexmodal.daq.serial_driver:SerialDriver",
+    "can": "flexmodal.daq.can_driver:CanDriver",
+    "modbus": "flexmodal.daq.modbus_driver:ModbusDriver",
+}
+
+
+def register_protocol(name: str, driver: str | type[Driver]) -> None:
+    """Make ``protocol = name`` usable in sessions: ``driver`` a Driver subclass or ``"module:Class"``."""
+    _PROTOCOLS[name] = driver
+
+
+def protocols() -> tuple[str, ...]:
+    """Names of the registered protocols."""
+    return tuple(_PROTOCOLS)
+
+
+def driver_class(protocol: str) -> type[Driver]:
+    """The Driver subclass registered for ``protocol`` (imported on first use)."""
+    entry = _PROTOCOLS[protocol]
+    if isinstance(entry, str):
+        module, _, cls = entry.partition(":")
+        entry = _PROTOCOLS[protocol] = getattr(importlib.import_module(module), cls)
+    return entry
 
 
 def unwrap(seq: int, last: int | None, modulus: int) -> int:
@@ -84,6 +158,7 @@ def run_reader(driver, out: queue.Queue, stop: threading.Event, stats: ReaderSta
                     out.put(Notice(driver.name, "reconnect", f"reconnect #{stats.reconnects}"))
                 ever_opened = True
             for block in driver.read():
+                block.received_s = stats.last_block_s = time.monotonic()
                 stats.blocks += 1
                 stats.samples += block.values.shape[0]
                 try:
@@ -107,13 +182,6 @@ def run_reader(driver, out: queue.Queue, stop: threading.Event, stats: ReaderSta
     driver.close()
 
 
-def make_driver(device, session):
+def make_driver(device: Device, session) -> Driver:
     """The driver for ``device`` (a daq.session.Device) of ``session``."""
-    if device.protocol == "serial":
-        from flexmodal.daq.serial_driver import SerialDriver
-        return SerialDriver(device, session.sample_rate_hz)
-    if device.protocol == "can":
-        from flexmodal.daq.can_driver import CanDriver
-        return CanDriver(device, session.sample_rate_hz)
-    from flexmodal.daq.modbus_driver import ModbusDriver
-    return ModbusDriver(device, session.sample_rate_hz)
+    return driver_class(device.protocol)(device, session.sample_rate_hz)

@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 
-from flexmodal.daq.devices import Block, DeviceLost
+from flexmodal.daq.devices import Block, DeviceLost, Driver
 from flexmodal.daq.errors import DaqError
 
 READ_WINDOW_S = 0.05
@@ -55,7 +55,48 @@ def _spans(registers) -> list[tuple[str, int, int]]:
     return spans
 
 
-class ModbusDriver:
+def _register(doc: dict, where: str):
+    from flexmodal.daq.session import REGISTER_TYPES, Register, Table
+
+    t = Table(doc, where)
+    t.reject_unknown({"name", "address", "type", "word_order", "scale", "offset", "table"})
+    return Register(
+        name=t.get("name", str), address=t.get("address", int, check=lambda v: 0 <= v <= 65535,
+                                                 why="is not a register address 0..65535"),
+        type=t.choice("type", tuple(REGISTER_TYPES), "int16"),
+        word_order=t.choice("word_order", ("big", "little"), "big"),
+        scale=t.get("scale", float, 1.0), offset=t.get("offset", float, 0.0),
+        table=t.choice("table", ("holding", "input"), "holding"))
+
+
+class ModbusDriver(Driver):
+    """Registers polled at the session rate (see the module docstring)."""
+
+    protocol = "modbus"
+
+    @classmethod
+    def parse_device(cls, t, name):
+        """``transport`` tcp (``host``, ``port``) or rtu (``port``, ``baud``), ``device_id``, registers."""
+        from flexmodal.daq.session import SIMULATOR_PORT, Device
+
+        t.reject_unknown({"transport", "host", "port", "baud", "device_id", "register"})
+        transport = t.choice("transport", ("tcp", "rtu"), "tcp")
+        regs = t.get("register", list, check=bool, why="must list at least one register")
+        registers = tuple(_register(r, f"{t.where}: register {i + 1}") for i, r in enumerate(regs))
+        names = [r.name for r in registers]
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise DaqError(f"{t.where}: duplicate register name {dup[0]!r}")
+        common = {"transport": transport, "device_id": t.get("device_id", int, 1), "registers": registers,
+                  "sources": tuple(names)}
+        if transport == "tcp":
+            port = t.get("port", (int, str), 502)
+            if isinstance(port, str) and port != SIMULATOR_PORT:
+                raise DaqError(f"{t.where}: port {port!r} is not a TCP port number")
+            return Device(name, cls.protocol, host=t.get("host", str, "127.0.0.1"), port=str(port),
+                          tcp_port=port if isinstance(port, int) else 0, **common)
+        return Device(name, cls.protocol, port=t.port("port"), baud=t.get("baud", int, 19200), **common)
+
     def __init__(self, device, sample_rate_hz: float) -> None:
         self.name = device.name
         self.device = device

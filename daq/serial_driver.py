@@ -8,15 +8,66 @@ import time
 
 import serial
 
-from flexmodal.daq.devices import Block, DeviceLost, unwrap
-from flexmodal.daq.serial_frames import SEQ_MODULUS, BinaryDecoder, CsvDecoder
+from flexmodal.daq.devices import Block, DeviceLost, Driver, unwrap
+from flexmodal.daq.errors import DaqError
+from flexmodal.daq.serial_frames import (
+    CHECKSUM_BYTES,
+    SEQ_MODULUS,
+    BinaryDecoder,
+    CsvDecoder,
+    CustomDecoder,
+    FrameSpec,
+)
 
 READ_TIMEOUT_S = 0.02
 READ_MAX_BYTES = 1 << 20
 
 
-class SerialDriver:
+def _frame_spec(t, n_sources: int) -> FrameSpec:
+    """The ``[device.frame]`` table of a custom framing (docs/acquisition.md)."""
+    from flexmodal.daq.session import Table
+
+    f = Table(t.get("frame", dict), f"{t.where}: frame")
+    f.reject_unknown({"header", "layout", "scans", "counter_bytes", "counter_wrap", "counter_counts",
+                      "checksum"})
+    header = f.get("header", list, check=lambda v: v and all(isinstance(b, int) and 0 <= b <= 255 for b in v),
+                   why="must be a non-empty list of byte values 0..255 (e.g. [0xA5, 0x5A])")
+    try:
+        spec = FrameSpec(bytes(header), f.get("layout", str), f.get("scans", int, 1),
+                         f.get("counter_bytes", int, 0), f.get("counter_wrap", int, 0),
+                         f.choice("counter_counts", ("frames", "samples"), "frames"),
+                         f.choice("checksum", tuple(CHECKSUM_BYTES), "none"))
+    except ValueError as exc:
+        raise DaqError(f"{f.where}: {exc}") from None
+    if len(spec.codes) != n_sources:
+        raise DaqError(f"{f.where}: layout {spec.layout!r} has {len(spec.codes)} values per scan but the "
+                       f"device lists {n_sources} sources")
+    return spec
+
+
+class SerialDriver(Driver):
     """A device streaming binary frames or CSV lines; sample index from the frame sequence counter."""
+
+    protocol = "serial"
+
+    @classmethod
+    def parse_device(cls, t, name):
+        """``port`` (path or pyserial URL), ``baud``, ``framing``, ``sources`` (the frame's columns)."""
+        from flexmodal.daq.session import Device
+
+        t.reject_unknown({"port", "baud", "framing", "sources", "frame", "checksum"})
+        port = t.port("port")
+        sources = t.get("sources", list, check=lambda v: v and all(isinstance(s, str) for s in v),
+                        why="must be a non-empty list of column names")
+        framing = t.choice("framing", ("binary", "csv", "custom"), "binary")
+        frame = _frame_spec(t, len(sources)) if framing == "custom" else None
+        if "frame" in t.doc and framing != "custom":
+            raise DaqError(f"{t.where}: [device.frame] needs framing = \"custom\"")
+        check = t.choice("checksum", tuple(CHECKSUM_BYTES), "none")
+        if check != "none" and framing != "csv":
+            raise DaqError(f"{t.where}: checksum is for framing = \"csv\" (custom frames: frame.checksum)")
+        return Device(name, cls.protocol, port=port, baud=t.get("baud", int, 115200), framing=framing,
+                      sources=tuple(sources), frame=frame, checksum=check)
 
     def __init__(self, device, sample_rate_hz: float) -> None:
         self.name = device.name
@@ -29,8 +80,9 @@ class SerialDriver:
         self._new_decoder()
 
     def _new_decoder(self) -> None:
-        n = len(self.sources)
-        self._decoder = BinaryDecoder(n) if self.device.framing == "binary" else CsvDecoder(n)
+        n, d = len(self.sources), self.device
+        self._decoder = (BinaryDecoder(n) if d.framing == "binary" else CsvDecoder(n, d.checksum)
+                         if d.framing == "csv" else CustomDecoder(d.frame))
 
     def open(self) -> None:
         try:
@@ -76,7 +128,7 @@ class SerialDriver:
         if not data:
             return []
         blocks = []
-        modulus = SEQ_MODULUS if self.device.framing == "binary" else 1 << 62
+        modulus = SEQ_MODULUS if self.device.framing == "binary" else 1 << 62  # others: unwrapped
         for seq, values, corrupt in self._decoder.feed(data):
             first = unwrap(seq, self._last, modulus)
             self._last = first + values.shape[0]

@@ -21,13 +21,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from flexmodal.daq.devices import driver_class, protocols
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.store import CHANNEL_KINDS, EXCITATIONS, Channel
 
-PROTOCOLS = ("serial", "can", "modbus")
 SIMULATOR_PORT = "@simulator"  # placeholder for the endpoint of the session's own simulator
 REGISTER_TYPES = {"int16": 1, "uint16": 1, "int32": 2, "uint32": 2, "float32": 2}
 G_M_PER_S2 = 9.80665
+NUMBER = r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?"
+EFFECT_PATTERN = rf"\w+@[\w.@-]+:\w+={NUMBER}(,\w+={NUMBER})*"
 # factor converting one unit of the first name to the second (sensitivity denominator -> channel unit)
 UNIT_FACTORS = {
     ("g", "m/s^2"): G_M_PER_S2, ("m/s^2", "g"): 1 / G_M_PER_S2, ("kN", "N"): 1e3, ("N", "kN"): 1e-3,
@@ -58,7 +60,9 @@ class Device:
     protocol: str
     port: str = ""  # serial port / pyserial URL; slcan pty; Modbus RTU port
     baud: int = 115200
-    framing: str = "binary"  # serial: binary | csv
+    framing: str = "binary"  # serial: binary | csv | custom
+    frame: Any = None  # serial, framing = "custom": its daq.serial_frames.FrameSpec
+    checksum: str = "none"  # serial, framing = "csv": checksum field at the end of each line
     sources: tuple[str, ...] = ()  # serial: names of the frame columns, in order
     interface: str = ""  # can: virtual | slcan (any python-can interface name)
     channel: str = ""  # can: bus channel (virtual bus name)
@@ -70,6 +74,7 @@ class Device:
     tcp_port: int = 502
     device_id: int = 1
     registers: tuple[Register, ...] = ()
+    options: dict = field(default_factory=dict)  # fields of a protocol registered from outside flexmodal
 
 
 @dataclass(frozen=True)
@@ -101,12 +106,29 @@ class Trigger:
 
 @dataclass(frozen=True)
 class Simulator:
-    """The simulator a session starts itself (CONTRACT §7): arguments of `flexmodal sim serve`."""
+    """The simulator a session starts itself (docs/acquisition.md): only these validated options.
+
+    Times in seconds; ``fault_log`` is a file name inside the run file's folder (never elsewhere).
+    """
 
     protocol: str
     rig: str = ""
     test: str = "impact"
-    args: tuple[str, ...] = ()
+    seed: int = 0
+    pose: dict = field(default_factory=dict)
+    corrupt_rate: float = 0.0
+    drop_at_s: float | None = None
+    drop_s: float = 0.2
+    disconnect_after_s: float | None = None
+    disconnect_s: float = 0.5
+    scans_per_frame: int = 32
+    format: str = "int16"
+    fault_log: str = ""
+    effects: tuple[str, ...] = ()  # hidden effects "EFFECT@LOCATION:PARAM=VALUE,..." (SI units)
+
+    @property
+    def faults(self) -> bool:
+        return bool(self.corrupt_rate) or self.drop_at_s is not None or self.disconnect_after_s is not None
 
 
 @dataclass(frozen=True)
@@ -123,6 +145,8 @@ class Session:
     pose_from: dict = field(default_factory=dict)  # pose variable -> encoder channel name (degrees)
     trigger: Trigger | None = None
     simulator: Simulator | None = None
+    reconnect_timeout_s: float = 10.0  # a device silent this long is lost
+    continue_on_device_loss: bool = False  # False: a lost device ends the session (exit 2)
 
 
 def unit_factor(from_unit: str, to_unit: str) -> float | None:
@@ -132,13 +156,14 @@ def unit_factor(from_unit: str, to_unit: str) -> float | None:
     return 1.0 if a == b else UNIT_FACTORS.get((a, b))
 
 
-class _Table:
-    """Typed access to one TOML table with errors naming ``where`` and the key."""
+class Table:
+    """Typed access to one TOML table with errors naming ``where`` and the key; ``base``: the folder
+    relative paths are taken from (the session file's)."""
 
-    def __init__(self, doc: dict, where: str) -> None:
+    def __init__(self, doc: dict, where: str, base: Path = Path()) -> None:
         if not isinstance(doc, dict):
             raise DaqError(f"{where}: expected a table")
-        self.doc, self.where = doc, where
+        self.doc, self.where, self.base = doc, where, base
 
     def get(self, key: str, kind: type | tuple, default: Any = ..., *, check=None, why: str = ""):
         if key not in self.doc:
@@ -160,86 +185,50 @@ class _Table:
                         why=f"is not one of {', '.join(options)}")
 
     def reject_unknown(self, known: set[str]) -> None:
+        """Refuse fields not in ``known``."""
         extra = sorted(set(self.doc) - known)
         if extra:
             raise DaqError(f"{self.where}: unknown field {extra[0]!r}")
 
+    def port(self, key: str) -> str:
+        """A port path that must exist (or a URL such as loop://, or the simulator placeholder)."""
+        port = self.get(key, str)
+        if not ("://" in port or port == SIMULATOR_PORT or Path(port).exists()):
+            raise DaqError(f"{self.where}: {key} {port!r} does not exist")
+        return port
 
-def _port_exists(port: str) -> bool:
-    return "://" in port or port == SIMULATOR_PORT or Path(port).exists()
+    def file(self, key: str, what: str) -> str:
+        """A file path relative to ``base`` that must exist (absolute after this)."""
+        path = _resolve(self.base, self.get(key, str))
+        if not Path(path).is_file():
+            raise DaqError(f"{self.where}: {what} {path!r} does not exist")
+        return path
+
+
+class DeviceTable(Table):
+    """A ``[[device]]`` table: ``name`` and ``protocol`` are known fields of every protocol."""
+
+    def reject_unknown(self, known: set[str]) -> None:
+        super().reject_unknown(known | {"name", "protocol"})
 
 
 def _resolve(base: Path, value: str) -> str:
     return str((base / value).resolve()) if value and not Path(value).is_absolute() else value
 
 
-def _register(doc: dict, where: str) -> Register:
-    t = _Table(doc, where)
-    t.reject_unknown({"name", "address", "type", "word_order", "scale", "offset", "table"})
-    return Register(
-        name=t.get("name", str), address=t.get("address", int, check=lambda v: 0 <= v <= 65535,
-                                                 why="is not a register address 0..65535"),
-        type=t.choice("type", tuple(REGISTER_TYPES), "int16"),
-        word_order=t.choice("word_order", ("big", "little"), "big"),
-        scale=t.get("scale", float, 1.0), offset=t.get("offset", float, 0.0),
-        table=t.choice("table", ("holding", "input"), "holding"))
-
-
 def _device(doc: dict, where: str, base: Path) -> Device:
-    t = _Table(doc, where)
+    t = Table(doc, where, base)
     name = t.get("name", str, check=bool, why="is empty")
-    where = f"{where.split(':')[0]}: device {name!r}"
-    t = _Table(doc, where)
-    protocol = t.choice("protocol", PROTOCOLS)
-    common = {"name", "protocol"}
-    if protocol == "serial":
-        t.reject_unknown(common | {"port", "baud", "framing", "sources"})
-        port = t.get("port", str)
-        if not _port_exists(port):
-            raise DaqError(f"{where}: port {port!r} does not exist")
-        sources = t.get("sources", list, check=lambda v: v and all(isinstance(s, str) for s in v),
-                        why="must be a non-empty list of column names")
-        return Device(name, protocol, port=port, baud=t.get("baud", int, 115200),
-                      framing=t.choice("framing", ("binary", "csv"), "binary"), sources=tuple(sources))
-    if protocol == "can":
-        t.reject_unknown(common | {"interface", "channel", "bitrate", "dbc", "message"})
-        interface = t.get("interface", str)
-        channel = t.get("channel", str)
-        if interface == "slcan" and not _port_exists(channel):
-            raise DaqError(f"{where}: port {channel!r} does not exist")
-        dbc = _resolve(base, t.get("dbc", str))
-        if not Path(dbc).is_file():
-            raise DaqError(f"{where}: dbc file {dbc!r} does not exist")
-        return Device(name, protocol, interface=interface, channel=channel,
-                      bitrate=t.get("bitrate", int, 500000), dbc=dbc, message=t.get("message", str, ""))
-    t.reject_unknown(common | {"transport", "host", "port", "baud", "device_id", "register"})
-    transport = t.choice("transport", ("tcp", "rtu"), "tcp")
-    regs = t.get("register", list, check=bool, why="must list at least one register")
-    registers = tuple(_register(r, f"{where}: register {i + 1}") for i, r in enumerate(regs))
-    names = [r.name for r in registers]
-    dup = sorted({n for n in names if names.count(n) > 1})
-    if dup:
-        raise DaqError(f"{where}: duplicate register name {dup[0]!r}")
-    if transport == "tcp":
-        host = t.get("host", str, "127.0.0.1")
-        port = t.get("port", (int, str), 502)
-        if isinstance(port, str) and port != SIMULATOR_PORT:
-            raise DaqError(f"{where}: port {port!r} is not a TCP port number")
-        return Device(name, protocol, transport=transport, host=host, port=str(port),
-                      tcp_port=port if isinstance(port, int) else 0,
-                      device_id=t.get("device_id", int, 1), registers=registers)
-    port = t.get("port", str)
-    if not _port_exists(port):
-        raise DaqError(f"{where}: port {port!r} does not exist")
-    return Device(name, protocol, transport=transport, port=port, baud=t.get("baud", int, 19200),
-                  device_id=t.get("device_id", int, 1), registers=registers)
+    t = DeviceTable(doc, f"{where.split(':')[0]}: device {name!r}", base)
+    protocol = t.choice("protocol", protocols())
+    return driver_class(protocol).parse_device(t, name)
 
 
 def _channel(doc: dict, where: str, devices: dict[str, Device]) -> ChannelMap:
-    t = _Table(doc, where)
+    t = Table(doc, where)
     name = t.get("name", str, check=bool, why="is empty")
     where = f"{where.split(':')[0]}: channel {name!r}"
-    t = _Table(doc, where)
+    t = Table(doc, where)
     t.reject_unknown({"name", "kind", "unit", "sensitivity", "sensitivity_unit", "scale", "offset",
                       "location", "direction", "device", "source", "full_scale"})
     kind = t.choice("kind", CHANNEL_KINDS)
@@ -264,8 +253,7 @@ def _channel(doc: dict, where: str, devices: dict[str, Device]) -> ChannelMap:
                        f"({', '.join(devices) or 'none defined'})")
     dev = devices[device]
     source = t.get("source", str, name)
-    known = (dev.sources if dev.protocol == "serial" else
-             tuple(r.name for r in dev.registers) if dev.protocol == "modbus" else None)
+    known = driver_class(dev.protocol).known_sources(dev)
     if known is not None and source not in known:
         raise DaqError(f"{where}: source {source!r} is not one of device {device!r}'s {', '.join(known)}")
     return ChannelMap(
@@ -275,21 +263,46 @@ def _channel(doc: dict, where: str, devices: dict[str, Device]) -> ChannelMap:
         full_scale=t.get("full_scale", float, math.inf, check=lambda v: v > 0, why="must be > 0"))
 
 
+def _simulator(doc: dict, where: str, base: Path) -> Simulator:
+    """The ``[simulator]`` block: known options only, each value checked (no free-form arguments)."""
+    s = Table(doc, where, base)
+    s.reject_unknown({"protocol", "rig", "test", "seed", "pose", "corrupt_rate", "drop_at_s", "drop_s",
+                      "disconnect_after_s", "disconnect_s", "scans_per_frame", "format", "fault_log",
+                      "effects"})
+    seconds = {"check": lambda v: 0 <= v <= 86400, "why": "must be in [0, 86400] s"}
+    pose = s.get("pose", dict, {})
+    for k, v in pose.items():
+        if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
+            raise DaqError(f"{where}: pose.{k} = {v!r} is not a number")
+    log = s.get("fault_log", str, "", check=lambda v: v == Path(v).name and v not in (".", ".."),
+                why="must be a plain file name (it is written in the run file's folder)")
+    return Simulator(
+        protocol=s.choice("protocol", protocols()), rig=s.file("rig", "rig file") if "rig" in doc else "",
+        test=s.choice("test", ("impact", "random", "sweep", "operational"), "impact"),
+        seed=s.get("seed", int, 0, check=lambda v: 0 <= v < 2**32, why="must be in [0, 2**32)"),
+        pose={k: float(v) for k, v in pose.items()},
+        corrupt_rate=s.get("corrupt_rate", float, 0.0, check=lambda v: 0 <= v < 1, why="must be in [0, 1)"),
+        drop_at_s=s.get("drop_at_s", float, None, **seconds), drop_s=s.get("drop_s", float, 0.2, **seconds),
+        disconnect_after_s=s.get("disconnect_after_s", float, None, **seconds),
+        disconnect_s=s.get("disconnect_s", float, 0.5, **seconds),
+        scans_per_frame=s.get("scans_per_frame", int, 32, check=lambda v: 1 <= v <= 4096,
+                              why="must be in 1..4096"),
+        format=s.choice("format", ("int16", "int32", "float32"), "int16"), fault_log=log,
+        effects=tuple(s.get("effects", list, [], check=lambda v: all(
+            isinstance(e, str) and re.fullmatch(EFFECT_PATTERN, e) for e in v),
+            why="must be a list of \"EFFECT@LOCATION:PARAM=NUMBER,...\"")))
+
+
 def parse_session(doc: dict, source: Path) -> Session:
     """Validate a parsed session TOML document (paths relative to the file's folder)."""
     where = str(source)
-    t = _Table(doc, where)
+    t = Table(doc, where)
     t.reject_unknown({"sample_rate_hz", "duration_s", "excitation", "run_id", "notes", "pose", "pose_from",
-                      "trigger", "simulator", "device", "channel"})
+                      "trigger", "simulator", "device", "channel", "reconnect_timeout_s",
+                      "continue_on_device_loss"})
     rate = t.get("sample_rate_hz", float, check=lambda v: 0 < v < 1e7, why="must be in (0, 1e7) Hz")
     base = source.resolve().parent
-    sim = None
-    if "simulator" in doc:
-        s = _Table(doc["simulator"], f"{where}: simulator")
-        s.reject_unknown({"protocol", "rig", "test", "args"})
-        sim = Simulator(s.choice("protocol", PROTOCOLS), _resolve(base, s.get("rig", str, "")),
-                        s.choice("test", ("impact", "random", "sweep"), "impact"),
-                        tuple(str(a) for a in s.get("args", list, [])))
+    sim = _simulator(doc["simulator"], f"{where}: simulator", base) if "simulator" in doc else None
     dev_docs = t.get("device", list, check=bool, why="must list at least one [[device]]")
     devices: dict[str, Device] = {}
     for i, d in enumerate(dev_docs):
@@ -311,7 +324,7 @@ def parse_session(doc: dict, source: Path) -> Session:
             raise DaqError(f"{where}: device {dev.name!r} has no channel mapped to it")
     trigger = None
     if "trigger" in doc:
-        g = _Table(doc["trigger"], f"{where}: trigger")
+        g = Table(doc["trigger"], f"{where}: trigger")
         g.reject_unknown({"channel", "level", "slope", "pretrigger_samples", "holdoff_s", "start"})
         trigger = Trigger(g.get("channel", str, check=lambda v: v in names, why="is not a channel"),
                           g.get("level", float), g.choice("slope", ("rising", "falling"), "rising"),
@@ -332,7 +345,10 @@ def parse_session(doc: dict, source: Path) -> Session:
         duration_s=t.get("duration_s", float, None, check=lambda v: v > 0, why="must be > 0"),
         run_id=t.get("run_id", str, "", check=lambda v: "/" not in v, why="must not contain '/'"),
         notes=t.get("notes", str, ""), pose=dict(pose), pose_from=dict(pose_from), trigger=trigger,
-        simulator=sim)
+        simulator=sim,
+        reconnect_timeout_s=t.get("reconnect_timeout_s", float, 10.0, check=lambda v: 0 < v <= 3600,
+                                  why="must be in (0, 3600] s"),
+        continue_on_device_loss=t.get("continue_on_device_loss", bool, False))
 
 
 def load_session(path: str | Path) -> Session:

@@ -1,4 +1,4 @@
-"""HDF5 run store (CONTRACT §6): write runs block by block with SWMR, list them and read them back.
+"""HDF5 run store (docs/hdf5-format.md): write runs block by block with SWMR, list them and read them back.
 
 A file holds one or more runs under ``/runs/<run_id>``.  Each run has a chunked, resizable ``samples``
 dataset [n_samples, n_channels] in physical units, a ``channels`` compound table, a resizable
@@ -26,7 +26,8 @@ import numpy as np
 from flexmodal.daq.errors import DaqError
 
 CHANNEL_KINDS = ("acceleration", "force", "strain", "encoder", "voltage", "other")
-EVENT_KINDS = ("trigger", "gap", "overload", "corrupt", "reconnect", "note")
+EVENT_KINDS = ("trigger", "gap", "overload", "corrupt", "reconnect", "note", "device_lost", "overrun",
+               "stopped")
 EXCITATIONS = ("impact", "random", "sweep", "free-decay", "operational")
 CHANNEL_FIELDS = ("name", "kind", "unit", "sensitivity", "sensitivity_unit", "location", "direction")
 EVENT_DETAIL_BYTES = 200
@@ -147,7 +148,7 @@ class RunWriter:
             rows = int(max(256, min(65536, CHUNK_BYTES // (np.dtype(dtype).itemsize * self.n_channels))))
             self._samples = group.create_dataset(
                 "samples", shape=(0, self.n_channels), maxshape=(None, self.n_channels),
-                chunks=(rows, self.n_channels), dtype=dtype)
+                chunks=(rows, self.n_channels), dtype=dtype, fillvalue=np.nan)  # never-written rows: NaN
             self._events = group.create_dataset("events", shape=(0,), maxshape=(None,), chunks=(256,),
                                                 dtype=EVENT_DTYPE)
             self._file.swmr_mode = True
@@ -315,10 +316,16 @@ def _lookup3(data: bytes, initval: int = 0) -> int:
 def recover(path: str | Path) -> bool:
     """Clear the "open for writing" flags a killed writer left in the superblock (like ``h5clear -s``).
 
-    Only for a file that no process is writing any more; afterwards it opens normally and takes new
-    runs.  Returns False when the flags were already clear.
+    Only for a file that no process is writing any more (a live `acquire`'s lock is refused, see
+    daq.lock); afterwards it opens normally and takes new runs.  Returns False when the flags were
+    already clear.
     """
+    from flexmodal.daq.lock import holder
+
     path = Path(path)
+    pid = holder(path)
+    if pid is not None:
+        raise DaqError(f"{path}: being written by a running acquire (pid {pid or '?'}); not recovered")
     with open(path, "r+b") as f:
         head = f.read(48)
         if head[:8] != b"\x89HDF\r\n\x1a\n" or head[8] not in (2, 3) or head[9] != 8:

@@ -7,7 +7,9 @@ After that each device is placed by its own sample counter, so a device's row is
 ``first_index - base`` and clock drift between devices is not corrected.  Rows a device did not
 deliver (a sequence gap, corrupt frames, a disconnect) are NaN in its columns and are reported as a
 ``gap`` event (or ``corrupt`` when bad frames were dropped there) at the first missing row; rows are
-released to the writer when every device has reached them.
+released to the writer when every device has reached them, except devices the writer declares silent:
+those are padded with NaN (:meth:`Timeline.pad`) and get one ``gap`` event covering the silence when they
+deliver again or the run ends; samples they deliver late, for rows already released, are dropped.
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ class _Track:
     rows: int = 0  # rows delivered so far (next free row)
     parts: deque = field(default_factory=deque)
     taken: int = 0  # rows of parts[0] already handed out
+    silent_from: int | None = None  # first row padded because the device was silent
 
 
 class Timeline:
@@ -68,17 +71,27 @@ class Timeline:
                 self.t_ref = block.timestamp_s
             start = int(round((block.timestamp_s - self.t_ref) * self.fs))
             tr.base = block.first_index - start
-            tr.rows = max(start, 0)
-            if start > 0:
-                tr.parts.append(np.full((start, tr.cols.size), np.nan))
+            if start > tr.rows and tr.silent_from is None:  # a later start is not a gap
+                tr.parts.append(np.full((start - tr.rows, tr.cols.size), np.nan))
+                tr.rows = start
             self.first_index[block.device] = block.first_index - start
         values = block.values[:, tr.src] * tr.gain + tr.bias
         row = block.first_index - tr.base
-        if row > tr.rows + MAX_GAP_S * self.fs or row < tr.rows - self.fs:
+        resumed = tr.silent_from is not None and row >= tr.silent_from - self.fs
+        if resumed:  # back after a silence (not restarted): one gap over it, late samples dropped
+            end = max(row, tr.rows)
+            events.append(Event("gap", tr.silent_from, end - tr.silent_from,
+                                f"{block.device}: silent, {end - tr.silent_from} samples lost"))
+            if row > tr.rows:
+                tr.parts.append(np.full((row - tr.rows, tr.cols.size), np.nan))
+                tr.rows = row
+            tr.silent_from = None
+        elif row > tr.rows + MAX_GAP_S * self.fs or row < tr.rows - self.fs:
             events.append(Event("note", tr.rows, 1, f"{block.device}: counter jumped from "
                                                       f"{tr.base + tr.rows} to {block.first_index}"))
             tr.base = block.first_index - tr.rows
             row = tr.rows
+            events.extend(self.close_gaps(tr.rows, block.device))
         if row < tr.rows:  # already have these samples (a repeated frame): keep the new ones only
             values, clipped = values[tr.rows - row:], None if clipped is None else clipped[tr.rows - row:]
             row = tr.rows
@@ -106,9 +119,30 @@ class Timeline:
         """The next row ``device`` will fill (where a disconnect or reconnect is dated)."""
         return self.tracks[device].rows
 
-    def ready(self) -> int:
-        """Rows every device has delivered and that were not released yet."""
-        return min(t.rows for t in self.tracks.values()) - self.released
+    def ready(self, skip: set[str] | frozenset = frozenset()) -> int:
+        """Rows every device (except those in ``skip``) has delivered that were not released yet."""
+        rows = [t.rows for d, t in self.tracks.items() if d not in skip]
+        return max(min(rows) - self.released, 0) if rows else 0
+
+    def pad(self, device: str, upto: int) -> None:
+        """NaN rows for ``device`` up to row ``upto`` (it is silent; the gap is reported later)."""
+        tr = self.tracks[device]
+        if tr.rows < upto:
+            tr.parts.append(np.full((upto - tr.rows, tr.cols.size), np.nan))
+            if tr.silent_from is None:
+                tr.silent_from = tr.rows
+            tr.rows = upto
+
+    def close_gaps(self, upto: int, device: str | None = None) -> list[Event]:
+        """``gap`` events for the silences still open (of ``device``, default all), up to row ``upto``."""
+        events = []
+        for d, tr in self.tracks.items():
+            if tr.silent_from is not None and device in (None, d) and upto > tr.silent_from:
+                events.append(Event("gap", tr.silent_from, upto - tr.silent_from,
+                                    f"{d}: silent, {upto - tr.silent_from} samples lost"))
+            if device in (None, d):
+                tr.silent_from = None
+        return events
 
     def take(self, n: int | None = None) -> np.ndarray:
         """Release the next ``n`` ready rows (all by default) as [n, n_channels]."""

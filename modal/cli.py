@@ -6,6 +6,23 @@ import argparse
 import sys
 
 
+class _Estimators:
+    """The names of the registry ``modal.frf.ESTIMATORS`` (any case), read only when argparse checks or
+    lists them, so building the parser imports no numpy."""
+
+    def __contains__(self, name: object) -> bool:
+        return any(k.lower() == str(name).lower() for k in self._names())
+
+    def __iter__(self):
+        return iter(self._names())
+
+    @staticmethod
+    def _names() -> list[str]:
+        from flexmodal.modal.frf import ESTIMATORS
+
+        return list(ESTIMATORS)
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this package's sub-commands to the flexmodal parser."""
     p = sub.add_parser("frf", help="batch FRFs + coherence of stored runs, written back under /runs/<id>/frf",
@@ -14,8 +31,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "LocalCluster (2 worker processes unless --workers N; --workers 0 = "
                                    "serial in this process) or to an existing --scheduler; a single run "
                                    "is computed here. Prints one 'FILE:RUN_ID' line per run written.")
-    p.add_argument("runs", nargs="+", metavar="RUN.h5", help="HDF5 run files (CONTRACT §6)")
-    p.add_argument("--estimator", default="H1", choices=["H1", "H2", "Hv"], help="FRF estimator (default H1)")
+    p.add_argument("runs", nargs="+", metavar="RUN.h5", help="HDF5 run files (docs/hdf5-format.md)")
+    p.add_argument("--estimator", default="H1", choices=_Estimators(), metavar="NAME",
+                   help="FRF estimator: %(choices)s (default H1)")
     p.add_argument("--nfft", type=int, default=None,
                    help="segment length in samples for random/sweep runs (default: power of two <= 8192 "
                         "giving >= 8 segments); impact runs use one record per hit")
@@ -34,43 +52,89 @@ def register(sub: argparse._SubParsersAction) -> None:
     q = sub.add_parser("identify", help="natural frequencies, damping and mode shapes -> modal table CSV",
                        description="Identify modes from an HDF5 run (stored FRFs, or computed if absent) or "
                                    "a UFF file (dataset 58 FRFs, function type 4, or time histories, type 1, "
-                                   "with a force reference) and write the modal table CSV (CONTRACT §3). "
-                                   "Each run of an HDF5 file is one configuration (config = run id).")
+                                   "with a force reference) and write the modal table CSV (docs/formats.md) "
+                                   "with the validation columns mpc, mpd [deg] and synthesis_corr, and "
+                                   "the FRAC of each measured and synthesised FRF to "
+                                   "MODES.synthesis.csv. Each run of an HDF5 file is one configuration "
+                                   "(config = run id). Runs with excitation=operational or without a force "
+                                   "channel, and UFF time histories without a force, are identified "
+                                   "output-only (SSI-cov by default; docs/oma.md).")
     q.add_argument("input", metavar="INPUT", help="RUN.h5 or FILE.uff/.unv")
     q.add_argument("--out", required=True, metavar="MODES.csv", help="modal table to write")
     q.add_argument("--fmin", type=float, default=None, help="lower band edge, Hz (default first line > 0)")
     q.add_argument("--fmax", type=float, default=None, help="upper band edge, Hz (default Nyquist)")
-    q.add_argument("--method", default="lscf", choices=["peak", "lscf"],
-                   help="lscf: pLSCF + stabilisation + LSFD (default); "
-                        "peak: CMIF peaks, half-power damping, quadrature shapes")
-    q.add_argument("--max-order", type=int, default=40, help="highest pLSCF model order (default 40)")
+    q.add_argument("--method", default=None, choices=["peak", "lscf", "ssi", "fdd"],
+                   help="lscf: pLSCF + stabilisation + LSFD (default with a force channel); "
+                        "peak: CMIF peaks, half-power damping, quadrature shapes; "
+                        "ssi: output-only SSI-cov + stabilisation (default for excitation=operational or "
+                        "no force channel); fdd: output-only frequency-domain decomposition, EFDD damping. "
+                        "ssi/fdd shapes are unscaled (unit largest entry)")
+    q.add_argument("--max-order", type=int, default=None,
+                   help="cap of the pLSCF model order (default: the order grows until the modes found "
+                        "stop growing, at most 240 / number of references); ssi: highest model order "
+                        "(default 100)")
+    q.add_argument("--poles", default=None, metavar="F1,F2,...",
+                   help="pick the stable poles nearest these frequencies, Hz (exactly these modes, no "
+                        "automatic selection)")
+    q.add_argument("--need-min", type=float, default=None, metavar="F",
+                   help="drop a mode whose F statistic in the FRF synthesis is below F (the FRFs do not "
+                        "need it; default 10)")
+    q.add_argument("--mpc-min", type=float, default=None, metavar="MPC",
+                   help="with 3+ outputs, drop a mode whose modal phase collinearity is below MPC "
+                        "(0..1, default 0.5)")
+    q.add_argument("--exp-window-decay", type=float, default=None, metavar="RATE",
+                   help="decay rate, 1/s, of an exponential window the FRFs were measured with "
+                        "(w(t) = exp(-RATE t)); its added damping is removed (default: the rate the "
+                        "FRFs record, 0 for UFF files)")
+    q.add_argument("--references", default=None, metavar="NAME,...",
+                   help="ssi/fdd: reference output channels (default all outputs)")
     q.add_argument("--run", default=None, metavar="RUN_ID", help="only this run of an HDF5 file")
     q.add_argument("--uff", default=None, metavar="MODES.uff", help="also write the modes as UFF dataset 55")
     q.set_defaults(func=_identify)
 
 
 def _frf(args: argparse.Namespace) -> int:
-    from flexmodal.daq.store import expand_runs
-    from flexmodal.modal.batch import frf_batch
+    from flexmodal.api import compute_frfs
 
-    options = {"estimator": args.estimator, "nfft": args.nfft, "window": args.window,
-               "overlap": args.overlap, "averaging": args.averaging}
-    workers = args.workers
-    if workers is None and args.scheduler is None:
-        workers = 2 if len(expand_runs(args.runs)) > 1 else 0
-    for path, rid in frf_batch(args.runs, options, workers=workers, scheduler=args.scheduler, out=args.out,
-                               quiet=getattr(args, "quiet", False)):
+    written = compute_frfs(args.runs, estimator=args.estimator, nfft=args.nfft, window=args.window,
+                           overlap=args.overlap, averaging=args.averaging, workers=args.workers,
+                           scheduler=args.scheduler, out=args.out, quiet=getattr(args, "quiet", False))
+    for path, rid in written:
         print(f"{path}:{rid}")
     return 0
 
 
 def _identify(args: argparse.Namespace) -> int:
-    from flexmodal.modal.sources import identify_input
+    from flexmodal.api import identify
+    from flexmodal.modal.errors import ModalError
+    from flexmodal.modal.identify import Thresholds, write_synthesis_csv
 
-    table, modes_by_config = identify_input(args.input, method=args.method, fmin=args.fmin, fmax=args.fmax,
-                                            max_order=args.max_order, run_id=args.run)
-    table.to_csv(args.out)
+    poles = None
+    if args.poles is not None:
+        try:
+            poles = [float(v) for v in args.poles.split(",") if v.strip()]
+        except ValueError:
+            raise ModalError(f"--poles {args.poles!r}: give frequencies in Hz separated by commas") from None
+        if not poles or min(poles) <= 0:
+            raise ModalError(f"--poles {args.poles!r}: give positive frequencies in Hz")
+    defaults = Thresholds()
+    limits = Thresholds(defaults.need_min if args.need_min is None else args.need_min,
+                        defaults.mpc_min if args.mpc_min is None else args.mpc_min)
+    if not 0 <= limits.mpc_min <= 1 or limits.need_min < 0:
+        raise ModalError(f"--mpc-min {limits.mpc_min:g} must lie in 0..1 and --need-min "
+                         f"{limits.need_min:g} be >= 0")
+    if args.max_order is not None and args.max_order < 2:
+        raise ModalError(f"--max-order {args.max_order}: must be 2 or more")
+    refs = args.references.split(",") if args.references else None
+    result = identify(args.input, method=args.method, fmin=args.fmin, fmax=args.fmax,
+                      max_order=args.max_order, run_id=args.run, poles_hz=poles, thresholds=limits,
+                      decay_rate_per_s=args.exp_window_decay, references=refs)
+    result.table.to_csv(args.out)
+    modes_by_config = {c: (m, result.outputs[c]) for c, m in result.modes.items()}
+    write_synthesis_csv(args.out, modes_by_config)
     for config, (modes, _) in modes_by_config.items():
+        if modes.order_note and not getattr(args, "quiet", False):
+            print(f"flexmodal: {config}: {modes.order_note}", file=sys.stderr)
         for warning in modes.warnings:
             print(f"flexmodal: warning: {config}: {warning}", file=sys.stderr)
     if args.uff:

@@ -8,25 +8,27 @@ from collections.abc import Sequence
 import numpy as np
 
 from flexmodal.modal.errors import ModalError
-from flexmodal.modal.frf import FrfResult, coherence, estimate
+from flexmodal.modal.frf import FrfResult, coherence, estimate, estimator_name
 from flexmodal.modal.impact import impact_spectra
 from flexmodal.modal.spectra import welch_spectra
-from flexmodal.modal.windows import added_decay_rate_per_s
+from flexmodal.modal.windows import added_decay_rate_per_s, impact_windows
 
 DEFAULT_NFFT_MAX = 8192
 
 
-def check_samples(samples: np.ndarray, names: Sequence[str], where: str) -> None:
-    """Raise ModalError naming the first channel with NaN/inf samples or a constant value."""
+def check_samples(samples: np.ndarray, names: Sequence[str], where: str, allow_nan: bool = False) -> None:
+    """Raise ModalError naming the first channel with NaN/inf samples (only inf with ``allow_nan``:
+    NaN rows of lost frames that the caller handles) or a constant value."""
     if samples.ndim != 2 or samples.shape[1] != len(names):
         raise ModalError(f"{where}: samples of shape {samples.shape} do not match {len(names)} channels")
     if samples.shape[0] < 2:
         raise ModalError(f"{where}: record of {samples.shape[0]} samples is shorter than one segment")
-    bad = ~np.isfinite(samples)
+    bad = np.isinf(samples) if allow_nan else ~np.isfinite(samples)
     if bad.any():
         i, c = np.argwhere(bad)[0]
         raise ModalError(f"{where}: channel {names[c]!r} holds {samples[i, c]} at sample {i}")
-    flat = np.ptp(samples, axis=0) == 0
+    with np.errstate(invalid="ignore"):
+        flat = np.nanmax(samples, axis=0) == np.nanmin(samples, axis=0)
     if flat.any():
         raise ModalError(f"{where}: channel {names[int(np.argmax(flat))]!r} is constant "
                          f"({samples[0, int(np.argmax(flat))]:g} throughout)")
@@ -44,18 +46,19 @@ def frf_of_record(samples: np.ndarray, sample_rate_hz: float, names: Sequence[st
                   *, excitation: str = "random", estimator: str = "H1", nfft: int | None = None,
                   window: str | None = None, overlap: float = 0.5, where: str = "record",
                   triggers: Sequence[int] | None = None, overload_samples: Sequence[int] = (),
-                  averaging: str = "linear") -> FrfResult:
+                  averaging: str = "linear", skip: Sequence[tuple[int, int]] = ()) -> FrfResult:
     """FRFs of a record [n_samples, n_channels] with channel ``names`` and ``kinds`` (force channels are
     the inputs; acceleration channels, or else every other non-encoder channel, the outputs).
 
     Impact records (``excitation == "impact"``) are cut into hits (``triggers`` or detected), windowed
-    ``window`` = "force:W,exponential:E" (default force:0.05,exponential:0.01) and averaged; other
+    ``window`` = "force:W,exponential:E" (default force:0.05,exponential:0.01) and averaged, hits
+    touching NaN rows or a ``skip`` interval (first sample, count) rejected one by one; other
     records are Welch-averaged with ``window`` (default hann), ``nfft`` and ``overlap``.
     """
     if not np.isfinite(sample_rate_hz) or sample_rate_hz <= 0:
         raise ModalError(f"{where}: sample rate {sample_rate_hz} Hz is not positive")
     samples = np.asarray(samples)
-    check_samples(samples, names, where)
+    check_samples(samples, names, where, allow_nan=excitation == "impact")
     inputs = [j for j, k in enumerate(kinds) if k == "force"]
     if not inputs:
         raise ModalError(f"{where}: no force channel to use as the FRF reference")
@@ -70,12 +73,10 @@ def frf_of_record(samples: np.ndarray, sample_rate_hz: float, names: Sequence[st
     if excitation == "impact":
         if len(inputs) != 1:
             raise ModalError(f"{where}: impact processing needs exactly one force channel")
-        parts = dict(p.split(":", 1) if ":" in p else (p, "") for p in (window or "").split(",") if p)
-        fw = "force:" + (parts.get("force") or "0.05")
-        ew = "exponential:" + (parts.get("exponential") or "0.01")
+        fw, ew = impact_windows(window)
         spectra, hits = impact_spectra(samples, sample_rate_hz, inputs[0], outputs, triggers=triggers,
                                        force_window=fw, exp_window=ew, overload_samples=overload_samples,
-                                       averaging=averaging)
+                                       averaging=averaging, gaps=skip)
         record = 2 * (spectra.freq_hz.size - 1)
         decay = added_decay_rate_per_s(ew, record, sample_rate_hz)
         used_window, used_nfft = f"{fw},{ew}", record
@@ -88,14 +89,15 @@ def frf_of_record(samples: np.ndarray, sample_rate_hz: float, names: Sequence[st
                                 window_spec=used_window)
         extra = {"overlap": overlap, "averaging": "linear"}
     H = estimate(spectra, estimator)
-    return FrfResult(spectra.freq_hz, H, coherence(spectra), {"h1": "H1", "h2": "H2", "hv": "Hv"}[
-        estimator.lower()], used_window, used_nfft, spectra.n_averages, float(sample_rate_hz), quantity,
-        tuple(names[j] for j in outputs), tuple(names[j] for j in inputs), decay, extra)
+    return FrfResult(spectra.freq_hz, H, coherence(spectra), estimator_name(estimator), used_window,
+                     used_nfft, spectra.n_averages, float(sample_rate_hz), quantity,
+                     tuple(names[j] for j in outputs), tuple(names[j] for j in inputs), decay, extra)
 
 
 def compute_frf(run, *, estimator: str = "H1", nfft: int | None = None, window: str | None = None,
                 overlap: float = 0.5, averaging: str = "linear") -> FrfResult:
     """FRFs of a stored run (a ``daq.store.Run``): uses its excitation, trigger and overload events."""
+    skip = [(e.sample_index, e.count) for e in run.events if e.kind in ("gap", "corrupt")]
     triggers = [e.sample_index for e in run.events if e.kind == "trigger"] or None
     overloads = [e.sample_index + k for e in run.events if e.kind == "overload"
                  for k in range(max(1, e.count))]
@@ -103,4 +105,4 @@ def compute_frf(run, *, estimator: str = "H1", nfft: int | None = None, window: 
     return frf_of_record(run.samples, run.sample_rate_hz, [c.name for c in run.channels],
                            [c.kind for c in run.channels], excitation=run.excitation, estimator=estimator,
                            nfft=nfft, window=window, overlap=overlap, where=where, triggers=triggers,
-                           overload_samples=overloads, averaging=averaging)
+                           overload_samples=overloads, averaging=averaging, skip=skip)

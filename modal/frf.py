@@ -8,6 +8,7 @@ quantities convert by powers of ``i omega``: accelerance = i omega mobility = (i
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -15,7 +16,6 @@ import numpy as np
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.spectra import Spectra
 
-ESTIMATORS = ("H1", "H2", "Hv")
 QUANTITIES = {"receptance": 0, "mobility": 1, "accelerance": 2}
 
 
@@ -94,13 +94,32 @@ def coherence(s: Spectra) -> np.ndarray:
     return np.clip(np.nan_to_num(c), 0.0, 1.0)
 
 
+Estimator = Callable[[Spectra], np.ndarray]
+ESTIMATORS: dict[str, Estimator] = {"H1": h1, "H2": h2, "Hv": hv}
+"""The FRF estimators by name: each maps averaged spectra to H [n_out, n_in, n_freq].  A new estimator
+is one function and one :func:`register_estimator` call; ``flexmodal frf --estimator``, the stored
+``estimator`` attribute and :func:`estimate` all read this registry."""
+
+
+def register_estimator(name: str, func: Estimator) -> None:
+    """Add (or replace) the estimator ``name``; names are matched without regard to case."""
+    clash = [k for k in ESTIMATORS if k.lower() == name.lower() and k != name]
+    for k in clash:
+        del ESTIMATORS[k]
+    ESTIMATORS[name] = func
+
+
+def estimator_name(estimator: str) -> str:
+    """The registered spelling of ``estimator`` (``h1`` -> ``H1``); ModalError naming the choices."""
+    for name in ESTIMATORS:
+        if name.lower() == str(estimator).lower():
+            return name
+    raise ModalError(f"estimator {estimator!r}: use one of {', '.join(ESTIMATORS)}")
+
+
 def estimate(s: Spectra, estimator: str) -> np.ndarray:
-    """The named estimator (H1, H2 or Hv) of spectra ``s``."""
-    funcs = {"H1": h1, "H2": h2, "Hv": hv}
-    key = {"h1": "H1", "h2": "H2", "hv": "Hv"}.get(estimator.lower())
-    if key is None:
-        raise ModalError(f"estimator {estimator!r}: use one of {', '.join(ESTIMATORS)}")
-    return funcs[key](s)
+    """FRFs [n_out, n_in, n_freq] of spectra ``s`` by the registered ``estimator`` (H1, H2, Hv, ...)."""
+    return ESTIMATORS[estimator_name(estimator)](s)
 
 
 def convert(H: np.ndarray, freq_hz: np.ndarray, source: str, target: str) -> np.ndarray:

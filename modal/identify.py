@@ -1,26 +1,39 @@
 """Modal identification from FRFs to natural frequencies, damping ratios and shapes, and on to the
-modal table (CONTRACT §3).  Methods: ``lscf`` (pLSCF poles with automatic stable-pole selection,
-shapes by LSFD with residuals) and ``peak`` (CMIF peak picking, half-power damping, quadrature
+modal table (docs/formats.md).  Methods: ``lscf`` (pLSCF poles over a stabilisation diagram whose order
+adapts to the data, automatic selection of stable pole chains, shapes by LSFD with residuals, and
+validation: a mode the synthesis does not need or with a phase-scattered shape is dropped; or the
+poles nearest frequencies the user names) and ``peak`` (CMIF peak picking, half-power damping, quadrature
 shapes).  Damping added by an exponential window is removed from the identified poles."""
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
 from flexmodal.modal.damping import half_power
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import convert
-from flexmodal.modal.lscf import select_stable, stabilisation
-from flexmodal.modal.lsfd import lsfd
+from flexmodal.modal.indicators import frac, mpc, mpd
+from flexmodal.modal.lscf import (
+    PoleClusters,
+    Stabilisation,
+    adaptive_stabilisation,
+    pole_clusters,
+    stable_clusters,
+)
+from flexmodal.modal.lsfd import LsfdResult, lsfd
 from flexmodal.modal.mac import mass_normalised, to_real, unit_max
 from flexmodal.modal.peaks import cmif, pick_peaks, quadrature_shapes
 from flexmodal.modal.table import ModalTable
 from flexmodal.modal.windows import remove_added_damping
 
 METHODS = ("lscf", "peak")
+INDICATORS = ("mpc", "mpd", "synthesis_corr")   # per-mode validation columns of the modal table
 MIN_LINES_PER_BANDWIDTH = 8   # below this the Hann-window leakage bias on damping exceeds a few %
 
 
@@ -28,7 +41,15 @@ MIN_LINES_PER_BANDWIDTH = 8   # below this the Hann-window leakage bias on dampi
 class Modes:
     """Identified modes: ``freq_hz``, ``damping_ratio`` [n_modes]; ``shapes`` [n_out, n_modes] real
     (mass-normalised when a driving point was given, else unit maximum); ``complex_shapes`` the
-    modal constants of the reference column before conversion; warnings met on the way."""
+    modal constants of the reference column before conversion; warnings met on the way.
+
+    Validation (pLSCF): ``mpc`` [-] and ``mpd`` [deg] of the complex shapes, ``synthesis_corr`` [-]
+    the FRAC of measured and synthesised FRFs (all of them) within three half-power bandwidths of each
+    mode, ``need`` the F statistic of the mode in the synthesis (:mod:`modal.lsfd`),
+    ``frf_synthesis_corr`` [n_out, n_in] the FRAC of each FRF over the band, ``synthesis`` [n_out,
+    n_in, n_band] the synthesised FRFs on ``band_freq_hz``, ``stabilisation`` the diagram with
+    ``selected`` [n_poles] marking the poles of the chosen modes, ``order_note`` which model order
+    was used and why."""
 
     freq_hz: np.ndarray
     damping_ratio: np.ndarray
@@ -37,6 +58,26 @@ class Modes:
     method: str
     mass_normalised: bool
     warnings: tuple[str, ...] = ()
+    mpc: np.ndarray | None = None
+    mpd: np.ndarray | None = None
+    synthesis_corr: np.ndarray | None = None
+    need: np.ndarray | None = None
+    frf_synthesis_corr: np.ndarray | None = None
+    band_freq_hz: np.ndarray | None = None
+    synthesis: np.ndarray | None = None
+    stabilisation: Stabilisation | None = None
+    selected: np.ndarray | None = None
+    order_note: str = ""
+
+
+@dataclass(frozen=True)
+class Thresholds:
+    """Automatic selection limits: a mode whose F statistic in the synthesis is below ``need_min``
+    (the measured FRFs do not need it), or whose MPC is below ``mpc_min`` with three or more outputs
+    (a shape scattered in phase: a computational pole), is dropped."""
+
+    need_min: float = 10.0
+    mpc_min: float = 0.5
 
 
 def _band(freq_hz: np.ndarray, fmin: float | None, fmax: float | None) -> np.ndarray:
@@ -55,16 +96,103 @@ def _shapes(constants: np.ndarray, driving_point: int | None) -> tuple[np.ndarra
     return to_real(unit_max(constants)), False
 
 
+def _pick(clusters: PoleClusters, poles_hz: Sequence[float], tol: float = 0.05) -> PoleClusters:
+    """The cluster nearest each requested frequency (within relative ``tol``), in the order given."""
+    if clusters.freq_hz.size == 0:
+        raise ModalError("identify --poles: the stabilisation diagram holds no stable pole")
+    want = np.asarray(poles_hz, float)
+    k = np.argmin(np.abs(want[:, None] - clusters.freq_hz[None, :]), axis=1)
+    far = np.abs(clusters.freq_hz[k] / want - 1) > tol
+    if far.any():
+        j = int(np.flatnonzero(far)[0])
+        raise ModalError(f"identify --poles: no stable pole within {100 * tol:g} % of {want[j]:g} Hz "
+                         f"(nearest {clusters.freq_hz[k[j]]:.4g} Hz)")
+    if np.unique(k).size < k.size:
+        dup = [w for w, kk in zip(want, k, strict=True) if np.sum(k == kk) > 1]
+        raise ModalError(f"identify --poles: {dup[0]:g} and {dup[1]:g} Hz pick the same stable pole "
+                         f"({clusters.freq_hz[k[want == dup[0]][0]]:.4g} Hz)")
+    return clusters.subset(k)
+
+
+def _near(f: np.ndarray, fn: np.ndarray, zeta: np.ndarray) -> np.ndarray:
+    """[n_modes, n_freq] lines within three half-power bandwidths (and three lines) of each mode."""
+    width = np.maximum(3 * 2 * zeta * fn, 3 * np.median(np.diff(f)))
+    return np.abs(f[None, :] - fn[:, None]) <= width[:, None]
+
+
+def _validate(f: np.ndarray, H: np.ndarray, clusters: PoleClusters, quantity: str, reference: int,
+              limits: Thresholds) -> tuple[PoleClusters, LsfdResult, list[str]]:
+    """LSFD of the candidate poles; drop the least needed failing mode and refit until every mode
+    passes (one at a time, so of two duplicates one stays).  The F statistic of a mode is taken
+    against the residual variance near the mode (:func:`_near`), since FRF noise is rarely uniform
+    over the band (it grows with the response at resonances)."""
+    warnings = []
+    while True:   # a loop over dropped modes (a few)
+        fit = lsfd(f, H, clusters.pole, quantity=quantity)
+        if clusters.freq_hz.size == 0:
+            return clusters, fit, warnings
+        res = np.sum(np.abs(H - fit.synthesis) ** 2, axis=(0, 1))                # [f]
+        near = _near(f, clusters.freq_hz, clusters.damping_ratio)
+        local = (near @ res) / near.sum(axis=1)
+        fit = dataclasses.replace(fit, need=fit.need * (res.mean() / np.maximum(local, 1e-300)))
+        phase = mpc(fit.modal_constants(clusters.pole)[:, reference]) if H.shape[0] >= 3 else None
+        fails = fit.need < limits.need_min
+        if phase is not None:
+            fails |= phase < limits.mpc_min
+        if not fails.any():
+            return clusters, fit, warnings
+        r = int(np.flatnonzero(fails)[np.argmin(fit.need[fails])])
+        why = (f"F = {fit.need[r]:.3g} < {limits.need_min:g}: the measured FRFs do not need it"
+               if fit.need[r] < limits.need_min else f"MPC {phase[r]:.2f} < {limits.mpc_min:g}")
+        warnings.append(f"dropped the pole at {clusters.freq_hz[r]:.5g} Hz (damping "
+                        f"{100 * clusters.damping_ratio[r]:.3g} %): {why}")
+        clusters = clusters.subset(np.arange(clusters.freq_hz.size) != r)
+
+
+def _lscf(f: np.ndarray, H: np.ndarray, *, quantity: str, reference: int, max_order: int | None,
+          poles_hz: Sequence[float] | None, limits: Thresholds) -> dict:
+    def evaluate(stab: Stabilisation):
+        if poles_hz:
+            return stable_clusters(stab).freq_hz.size, None
+        found = _validate(f, H, stable_clusters(stab), quantity, reference, limits)
+        return found[0].freq_hz.size, found
+
+    stab, note, found = adaptive_stabilisation(f, H, max_order=max_order, evaluate=evaluate)
+    if poles_hz:
+        clusters = _pick(pole_clusters(stab), poles_hz)
+        fit, warnings = lsfd(f, H, clusters.pole, quantity=quantity), []
+    else:
+        clusters, fit, warnings = found
+    if clusters.freq_hz.size == 0:
+        raise ModalError(f"identify: no stable poles between {f.min():g} and {f.max():g} Hz ({note})")
+    constants = fit.modal_constants(clusters.pole)[:, reference]
+    flat_h, flat_s = H.reshape(-1, f.size), fit.synthesis.reshape(-1, f.size)
+    local = np.array([frac(flat_h[:, w].ravel(), flat_s[:, w].ravel())
+                      for w in _near(f, clusters.freq_hz, clusters.damping_ratio)])   # per mode
+    selected = np.zeros(stab.freq_hz.size, bool)
+    if clusters.members:
+        chosen = np.concatenate(clusters.members)
+        selected[chosen[stab.stable[chosen]]] = True
+    return {"fn": clusters.freq_hz, "zeta": clusters.damping_ratio, "constants": constants,
+            "mpc": mpc(constants), "mpd": mpd(constants), "synthesis_corr": local, "need": fit.need,
+            "frf_synthesis_corr": frac(H, fit.synthesis), "band_freq_hz": f, "synthesis": fit.synthesis,
+            "stabilisation": stab, "selected": selected, "order_note": note, "warnings": warnings}
+
+
 def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: float | None = None,
              fmax: float | None = None, coherence: np.ndarray | None = None,
              quantity: str = "accelerance", decay_rate_per_s: float = 0.0, reference: int = 0,
-             driving_point: int | None = None, max_order: int = 40) -> Modes:
+             driving_point: int | None = None, max_order: int | None = None,
+             poles_hz: Sequence[float] | None = None, thresholds: Thresholds | None = None) -> Modes:
     """Identify the modes of FRFs ``H`` [n_out, n_in, n_freq] in [fmin, fmax] Hz.
 
-    ``quantity`` of H (accelerance, mobility, receptance); ``decay_rate_per_s`` of an exponential
+    ``quantity`` of H (accelerance, mobility, receptance); ``decay_rate_per_s`` [1/s] of an exponential
     window to remove; ``reference`` the input column whose shapes are reported; ``driving_point`` the
-    output row measured at that input (mass-normalised shapes); ``max_order`` the highest pLSCF order
-    of the stabilisation diagram (orders 2..max_order).
+    output row measured at that input (mass-normalised shapes).  pLSCF: the highest model order grows
+    until the stable poles stop growing, capped by ``max_order``
+    (:func:`modal.lscf.adaptive_stabilisation`); ``poles_hz`` picks the stable poles nearest these
+    frequencies (and keeps exactly them); otherwise the automatically selected poles are validated by
+    the synthesis against ``thresholds`` (:class:`Thresholds`).
     """
     if method not in METHODS:
         raise ModalError(f"method {method!r}: use one of {', '.join(METHODS)}")
@@ -73,16 +201,17 @@ def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: 
         raise ModalError(f"identify: FRFs of shape {H.shape} do not match {len(freq_hz)} lines")
     if not np.all(np.isfinite(H[..., np.asarray(freq_hz) > 0])):
         raise ModalError("identify: the FRFs contain NaN or infinite values")
+    if decay_rate_per_s < 0 or not np.isfinite(decay_rate_per_s):
+        raise ModalError(f"identify: exponential window decay {decay_rate_per_s:g} 1/s must be >= 0")
     band = _band(freq_hz, fmin, fmax)
     f, Hb = np.asarray(freq_hz, float)[band], H[..., band]
     warnings: list[str] = []
+    extra: dict = {}
     if method == "lscf":
-        top = int(min(max_order, (f.size - 2) // 2))
-        stab = stabilisation(f, Hb, range(2, top + 1))
-        fn, zeta, poles = select_stable(stab)
-        if fn.size == 0:
-            raise ModalError(f"identify: no stable poles between {f.min():g} and {f.max():g} Hz")
-        constants = lsfd(f, Hb, poles, quantity=quantity).modal_constants(poles)[:, reference]
+        extra = _lscf(f, Hb, quantity=quantity, reference=reference, max_order=max_order, poles_hz=poles_hz,
+                      limits=thresholds or Thresholds())
+        fn, zeta, constants = extra.pop("fn"), extra.pop("zeta"), extra.pop("constants")
+        warnings += extra.pop("warnings")
     else:
         coh = coherence[:, band] if coherence is not None else None
         lines = pick_peaks(f, Hb, coherence=coh)
@@ -107,33 +236,60 @@ def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: 
     for fr, z in zip(fn, zeta, strict=True):   # leakage biases damping when the band holds few lines
         if 2 * z * fr < MIN_LINES_PER_BANDWIDTH * df:
             warnings.append(f"mode at {fr:.4g} Hz: {2 * z * fr / df:.1f} lines in its half-power band "
-                            f"(< {MIN_LINES_PER_BANDWIDTH}); damping may be biased high, use a longer nfft")
+                            f"(< {MIN_LINES_PER_BANDWIDTH}); damping may be biased high if the FRFs "
+                            "were Welch-averaged, use a longer nfft")
+    keep = np.ones(fn.size, bool)
     if decay_rate_per_s:
         fn, zeta = remove_added_damping(fn, zeta, decay_rate_per_s)
-        spurious = zeta <= 0  # less damping than the window itself added: not a structural mode
+        keep = zeta > 0   # less damping than the window itself added: not a structural mode
         warnings += [f"dropped a pole at {fr:.4g} Hz: its damping is below the exponential window's "
-                     f"(a spurious or aliased pole)" for fr in fn[spurious]]
-        fn, zeta, constants = fn[~spurious], zeta[~spurious], constants[:, ~spurious]
-        if fn.size == 0:
+                     f"(a spurious or aliased pole)" for fr in fn[~keep]]
+        if not keep.any():
             raise ModalError("identify: every pole had less damping than the exponential window added")
-    shapes, massn = _shapes(constants, driving_point if method == "lscf" else None)
-    order = np.argsort(fn)
-    return Modes(fn[order], zeta[order], shapes[:, order], constants[:, order], method, massn,
-                 tuple(warnings))
+    shapes, massn = _shapes(constants[:, keep], driving_point if method == "lscf" else None)
+    order = np.flatnonzero(keep)[np.argsort(fn[keep])]
+    per_mode = {k: extra[k][order] for k in ("mpc", "mpd", "synthesis_corr", "need") if k in extra}
+    return Modes(fn[order], zeta[order], shapes[:, np.argsort(fn[keep])], constants[:, order], method, massn,
+                 tuple(warnings), **per_mode, **{k: v for k, v in extra.items() if k not in per_mode})
 
 
 def modes_table(modes: Modes, outputs: Sequence[str], *, config: str = "run",
                 pose: Mapping[str, float] | None = None, source: str = "experiment") -> ModalTable:
-    """The modal table of one configuration: config, mode, freq_hz, damping_ratio, source, pose.*,
+    """The modal table of one configuration: config, mode, freq_hz, damping_ratio, source, the
+    validation indicators ``mpc``, ``mpd`` [deg] and ``synthesis_corr`` (pLSCF), pose.*,
     shape.<output>."""
     records = []
     for r in range(modes.freq_hz.size):
         row: dict[str, object] = {"config": config, "mode": r + 1, "freq_hz": float(modes.freq_hz[r]),
                                   "damping_ratio": float(modes.damping_ratio[r]), "source": source}
+        row.update({k: float(getattr(modes, k)[r]) for k in INDICATORS if getattr(modes, k) is not None})
         row.update({f"pose.{k}": v for k, v in (pose or {}).items()})
         row.update({f"shape.{name}": float(modes.shapes[j, r]) for j, name in enumerate(outputs)})
         records.append(row)
     return ModalTable.from_records(records, source=f"identified ({modes.method})")
+
+
+def synthesis_path(out: str | Path) -> Path:
+    """Where :func:`write_synthesis_csv` writes for the modal table ``out``: MODES.synthesis.csv."""
+    p = Path(out)
+    return p.with_name(p.stem + ".synthesis.csv")
+
+
+def write_synthesis_csv(out: str | Path, modes_by_config: Mapping[str, tuple[Modes, Sequence[str]]]
+                        ) -> Path:
+    """Write the FRAC of every measured and synthesised FRF (columns config, output, input = the
+    1-based reference number, synthesis_corr) next to the modal table ``out``; configurations
+    identified without a synthesis (peak picking) are left out."""
+    rows = []
+    for config, (modes, outputs) in modes_by_config.items():   # a loop over configurations
+        corr = modes.frf_synthesis_corr
+        if corr is not None:
+            rows += [{"config": config, "output": outputs[o], "input": i + 1,
+                      "synthesis_corr": float(corr[o, i])} for o, i in np.ndindex(*corr.shape)]
+    path = synthesis_path(out)
+    pd.DataFrame(rows, columns=["config", "output", "input", "synthesis_corr"]).to_csv(
+        path, index=False, float_format="%.9g")
+    return path
 
 
 def identify_modes(freq_hz: np.ndarray, H: np.ndarray, *, outputs: Sequence[str] | None = None,

@@ -11,26 +11,38 @@ eigenvalue problem.  With the
 highest denominator coefficient fixed to the identity, the poles are the eigenvalues of the block
 companion matrix; a pole's shape estimate is the numerator at the pole times the denominator's right
 null vector.  A pole is stable when a pole of the previous order lies within ``df`` in frequency,
-``dz`` in damping and MAC >= ``mac_min`` in shape.
+``dz`` in damping and (two or more outputs) MAC >= ``mac_min`` in shape.
+
+The highest order adapts to the data (:func:`adaptive_stabilisation`: raised until the modes found
+stop growing), and poles are grouped into chains that follow one physical pole over the orders
+(:func:`pole_clusters`), so close modes are told apart by their own order-to-order scatter.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cache
+from typing import TypeVar
 
 import numpy as np
 import scipy.linalg
+import scipy.sparse
+import scipy.sparse.csgraph
 from threadpoolctl import ThreadpoolController
 
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.mac import mac_pairs
 
+T = TypeVar("T")
+DEFAULT_MAX_POLES = 240   # default cap of (model order x references) of the adaptive diagram
+
 
 @dataclass(frozen=True)
 class Stabilisation:
     """Every physical pole of every order: ``order``, ``freq_hz``, ``damping_ratio``, ``pole`` (rad/s,
-    complex) and flags ``stable_freq``, ``stable_damping``, ``stable_shape`` (all [n_poles])."""
+    complex), flags ``stable_freq``, ``stable_damping``, ``stable_shape`` and ``previous``, the index
+    of the nearest pole of the previous order (-1 for none; all [n_poles])."""
 
     order: np.ndarray
     freq_hz: np.ndarray
@@ -39,6 +51,7 @@ class Stabilisation:
     stable_freq: np.ndarray
     stable_damping: np.ndarray
     stable_shape: np.ndarray
+    previous: np.ndarray
 
     @property
     def stable(self) -> np.ndarray:
@@ -163,70 +176,230 @@ def _poles_of_order(index: int, p: int, eqs: _NormalEquations, dt: float, fmin: 
     return poles[idx], np.einsum("roc,cr->or", num, vec[:n_in, idx])
 
 
-def stabilisation(freq_hz: np.ndarray, H: np.ndarray, orders: range | list[int], *, df: float = 0.01,
-                  dz: float = 0.05,
-                  mac_min: float = 0.98) -> Stabilisation:
-    """Poles of every model order in ``orders`` and their stability flags (see module docstring)."""
-    f = np.asarray(freq_hz, float)
-    if H.ndim != 3 or H.shape[-1] != f.size:
-        raise ModalError(f"pLSCF: FRFs of shape {H.shape} do not match {f.size} frequency lines")
-    orders = sorted({int(o) for o in orders})
-    if f.size < 2 * orders[-1] + 2:
-        raise ModalError(f"pLSCF: {f.size} lines are too few for model order {orders[-1]}")
-    dt = 1.0 / (2 * f.max())
-    scale = np.sqrt(np.vdot(H, H).real / H.size)                     # RMS of the FRFs
-    # one BLAS thread: the matrices are small, and threads spinning on a shared machine cost more
-    with _blas().limit(limits=1, user_api="blas"):
-        eqs = _NormalEquations(orders, *_lag_sums(f, H / scale, orders[-1], dt))
-        band = (f.min(), f.max())
-        found = [_poles_of_order(i, p, eqs, dt, *band) for i, p in enumerate(orders)]
+class PoleEstimator:
+    """pLSCF poles of FRFs ``H`` [n_out, n_in, n_freq] at any model orders up to ``p_cap``: the lag sums
+    are formed once for ``p_cap``; each call to :meth:`poles` factorises the normal equations of its
+    highest order only.  The order-p model does not depend on the highest order (the normal equations
+    are nested), so orders may be requested in successive batches with identical results."""
+
+    def __init__(self, freq_hz: np.ndarray, H: np.ndarray, p_cap: int) -> None:
+        f = np.asarray(freq_hz, float)
+        if H.ndim != 3 or H.shape[-1] != f.size:
+            raise ModalError(f"pLSCF: FRFs of shape {H.shape} do not match {f.size} frequency lines")
+        if f.size < 2 * p_cap + 2:
+            raise ModalError(f"pLSCF: {f.size} lines are too few for model order {p_cap}")
+        self.freq_hz, self.p_cap, self.n_in = f, int(p_cap), H.shape[1]
+        self.dt = 1.0 / (2 * f.max())
+        scale = np.sqrt(np.vdot(H, H).real / H.size)                 # RMS of the FRFs
+        with _blas().limit(limits=1, user_api="blas"):
+            self._sums = _lag_sums(f, H / scale, self.p_cap, self.dt)
+
+    def poles(self, orders: list[int]) -> list[tuple[np.ndarray, np.ndarray]]:
+        """(poles [n] rad/s, shape estimates [n_out, n]) of each order in ascending ``orders``."""
+        p_max = orders[-1]
+        if p_max > self.p_cap:
+            raise ModalError(f"pLSCF: order {p_max} is above the estimator's cap {self.p_cap}")
+        lags = slice(self.p_cap - p_max, self.p_cap + p_max + 1)
+        r, s, t = (x[..., lags] for x in self._sums)
+        # one BLAS thread: the matrices are small, and threads spinning on a shared machine cost more
+        with _blas().limit(limits=1, user_api="blas"):
+            eqs = _NormalEquations(orders, r, s, t)
+            band = (self.freq_hz.min(), self.freq_hz.max())
+            return [_poles_of_order(i, p, eqs, self.dt, *band) for i, p in enumerate(orders)]
+
+
+def _flags(orders: list[int], found: list[tuple[np.ndarray, np.ndarray]], df: float = 0.01,
+           dz: float = 0.05, mac_min: float = 0.98) -> Stabilisation:
+    """Stability flags of every pole against the nearest pole (in frequency) of the previous order.
+    With one output the shape criterion is left out (a MAC over one channel is always 1)."""
     poles = [pl for pl, _ in found]
     fn = [np.abs(pl) / (2 * np.pi) for pl in poles]
-    zeta = [-pl.real / np.abs(pl) for pl in poles]
-    # every pole against the nearest pole of the previous order, all orders at once
     start = np.cumsum([0] + [x.size for x in fn])
     near, cur = [], []
     for k in range(1, len(orders)):   # a loop over model orders
         if fn[k].size and fn[k - 1].size:
             near.append(np.argmin(np.abs(fn[k][:, None] - fn[k - 1][None, :]), axis=1) + start[k - 1])
             cur.append(np.arange(start[k], start[k + 1]))
-    all_fn, all_zeta = np.concatenate(fn), np.concatenate(zeta)
+    all_poles = np.concatenate(poles) if poles else np.zeros(0, complex)
+    all_fn = np.abs(all_poles) / (2 * np.pi)
+    all_zeta = -all_poles.real / np.where(all_fn > 0, np.abs(all_poles), 1.0)
     all_shapes = np.concatenate([sh for _, sh in found], axis=1)
-    sf = np.zeros(all_fn.size, bool)
-    sd = np.zeros(all_fn.size, bool)
-    ss = np.zeros(all_fn.size, bool)
+    n = all_fn.size
+    sf, sd, ss = np.zeros(n, bool), np.zeros(n, bool), np.zeros(n, bool)
+    previous = np.full(n, -1)
     if cur:
         cur, prev = np.concatenate(cur), np.concatenate(near)
+        previous[cur] = prev
         sf[cur] = np.abs(all_fn[cur] - all_fn[prev]) <= df * all_fn[cur]
         sd[cur] = np.abs(all_zeta[cur] - all_zeta[prev]) <= dz * all_zeta[cur]
-        ss[cur] = mac_pairs(all_shapes[:, cur], all_shapes[:, prev]) >= mac_min
+        ss[cur] = (mac_pairs(all_shapes[:, cur], all_shapes[:, prev]) >= mac_min
+                   if all_shapes.shape[0] > 1 else True)
     order = np.concatenate([np.full(pl.size, p) for pl, p in zip(poles, orders, strict=True)])
-    return Stabilisation(order, all_fn, all_zeta, np.concatenate(poles), sf, sd, ss)
+    return Stabilisation(order, all_fn, all_zeta, all_poles, sf, sd, ss, previous)
 
 
-def select_stable(stab: Stabilisation, *, min_fraction: float = 0.3, cluster_tol: float = 0.005
+def stabilisation(freq_hz: np.ndarray, H: np.ndarray, orders: range | list[int], *, df: float = 0.01,
+                  dz: float = 0.05, mac_min: float = 0.98) -> Stabilisation:
+    """Poles of every model order in ``orders`` and their stability flags: a pole is stable in
+    frequency within relative ``df``, in damping within relative ``dz`` and in shape with MAC >=
+    ``mac_min`` (two or more outputs) against the nearest pole of the previous order."""
+    orders = sorted({int(o) for o in orders})
+    found = PoleEstimator(freq_hz, H, orders[-1]).poles(orders)
+    return _flags(orders, found, df, dz, mac_min)
+
+
+@dataclass(frozen=True)
+class PoleClusters:
+    """Candidate modes of a stabilisation diagram, ascending in frequency: ``freq_hz``,
+    ``damping_ratio``, ``pole`` (rad/s) from the median of the upper half of orders of each cluster's
+    fully stable poles; ``n_stable`` the number of orders holding a fully stable pole of the cluster,
+    ``scatter`` the relative standard deviation of its stable poles' frequencies, ``members`` the
+    indices (into the Stabilisation arrays) of its poles."""
+
+    freq_hz: np.ndarray
+    damping_ratio: np.ndarray
+    pole: np.ndarray
+    n_stable: np.ndarray
+    scatter: np.ndarray
+    members: tuple[np.ndarray, ...]
+
+    def subset(self, keep: np.ndarray) -> PoleClusters:
+        idx = np.flatnonzero(keep) if np.asarray(keep).dtype == bool else np.asarray(keep, int)
+        return PoleClusters(self.freq_hz[idx], self.damping_ratio[idx], self.pole[idx], self.n_stable[idx],
+                            self.scatter[idx], tuple(self.members[k] for k in idx))
+
+
+def _pole(fn: np.ndarray, zeta: np.ndarray) -> np.ndarray:
+    wn = 2 * np.pi * np.asarray(fn)
+    return -zeta * wn + 1j * wn * np.sqrt(1 - np.asarray(zeta) ** 2)
+
+
+def _summary(stab: Stabilisation, members: np.ndarray, stable: np.ndarray) -> tuple:
+    """(fn, zeta, n_stable orders, relative scatter, members) of one chain: medians over the fully
+    stable poles of its upper half of orders."""
+    s = members[stable[members]]
+    o = stab.order[s]
+    top = s[o >= np.median(o)]
+    f, z = np.median(stab.freq_hz[top]), np.median(stab.damping_ratio[top])
+    return f, z, np.unique(o).size, np.std(stab.freq_hz[s]) / f, members
+
+
+def _merge_fragments(rows: list[tuple], stab: Stabilisation, stable: np.ndarray, df: float = 0.01,
+                     overlap: float = 0.2) -> list[tuple]:
+    """Join neighbouring chains (within relative ``df``) that hardly share an order (at most
+    ``overlap`` of the shorter one's stable orders): pieces of one pole whose chain was broken, not two
+    modes (two modes show up side by side at the same orders)."""
+    out = rows[:1]
+    for row in rows[1:]:   # a loop over candidate modes
+        last = out[-1]
+        oa = np.unique(stab.order[last[4][stable[last[4]]]])
+        ob = np.unique(stab.order[row[4][stable[row[4]]]])
+        shared = np.intersect1d(oa, ob).size
+        if abs(row[0] - last[0]) <= df * row[0] and shared <= overlap * min(oa.size, ob.size):
+            out[-1] = _summary(stab, np.concatenate([last[4], row[4]]), stable)
+        else:
+            out.append(row)
+    return out
+
+
+def pole_clusters(stab: Stabilisation) -> PoleClusters:
+    """Group the poles of a stabilisation diagram into chains that follow one physical pole over the
+    orders, so each cluster is separated by its own order-to-order scatter rather than by a fixed
+    frequency tolerance (two modes 0.5 % apart stay apart once the order resolves both).
+
+    Each pole stable in frequency is linked to its nearest pole of the previous order; a pole of the
+    previous order keeps only its nearest successor (when two modes separate at a higher order the
+    second starts a chain of its own).  Clusters are the connected chains holding two or more fully
+    stable poles."""
+    n = stab.freq_hz.size
+    cur = np.flatnonzero((stab.previous >= 0) & stab.stable_freq)
+    prev = stab.previous[cur]
+    dist = np.abs(stab.freq_hz[cur] - stab.freq_hz[prev]) / stab.freq_hz[cur]
+    first = np.argsort(dist, kind="stable")
+    _, keep = np.unique(prev[first], return_index=True)
+    cur, prev = cur[first[keep]], prev[first[keep]]
+    graph = scipy.sparse.coo_matrix((np.ones(cur.size), (cur, prev)), shape=(n, n))
+    n_comp, label = scipy.sparse.csgraph.connected_components(graph, directed=False)
+    stable = stab.stable
+    counts = np.bincount(label[stable], minlength=n_comp)
+    rows = []
+    for c in np.flatnonzero(counts >= 2):   # a loop over chains holding stable poles (candidate modes)
+        rows.append(_summary(stab, np.flatnonzero(label == c), stable))
+    rows.sort(key=lambda r: r[0])
+    rows = _merge_fragments(rows, stab, stable)
+    fn = np.array([r[0] for r in rows])
+    zeta = np.array([r[1] for r in rows])
+    return PoleClusters(fn, zeta, _pole(fn, zeta), np.array([r[2] for r in rows], int),
+                        np.array([r[3] for r in rows]), tuple(r[4] for r in rows))
+
+
+def stable_clusters(stab: Stabilisation, *, min_fraction: float = 0.5, min_orders: int = 5) -> PoleClusters:
+    """The clusters stable over at least ``min_orders`` orders and over ``min_fraction`` of the
+    diagram's orders from the one where the cluster first appears (a mode that needs a high order to
+    show up is not penalised; a pole that flickers is).  This is the automatic selection before the
+    validation by the synthesis."""
+    clusters = pole_clusters(stab)
+    orders = np.unique(stab.order)
+    first = np.array([stab.order[m].min() for m in clusters.members], int)
+    span = orders.size - np.searchsorted(orders, first)
+    return clusters.subset(clusters.n_stable >= np.maximum(min_orders, min_fraction * span))
+
+
+def select_stable(stab: Stabilisation, *, min_fraction: float = 0.5, min_orders: int = 5
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Automatic pole selection: cluster fully stable poles by frequency (gaps above ``cluster_tol``
-    relative split clusters); keep clusters holding poles of at least ``min_fraction`` of the orders;
-    each mode is the median pole of its cluster's upper half of orders.  Returns (fn_hz, zeta, poles)."""
-    keep = stab.stable
-    n_orders = np.unique(stab.order).size
-    f, z, o, p = stab.freq_hz[keep], stab.damping_ratio[keep], stab.order[keep], stab.pole[keep]
-    idx = np.argsort(f)
-    f, z, o, p = f[idx], z[idx], o[idx], p[idx]
-    if f.size == 0:
-        return np.zeros(0), np.zeros(0), np.zeros(0, complex)
-    breaks = np.flatnonzero(np.diff(f) > cluster_tol * f[1:]) + 1
-    out = []
-    for grp in np.split(np.arange(f.size), breaks):   # a loop over clusters (modes)
-        if np.unique(o[grp]).size < min_fraction * n_orders:
-            continue
-        top = grp[o[grp] >= np.median(o[grp])]
-        k = top[np.argsort(f[top])[top.size // 2]]
-        out.append((np.median(f[top]), np.median(z[top]), p[k]))
-    if not out:
-        return np.zeros(0), np.zeros(0), np.zeros(0, complex)
-    fn, zeta, poles = (np.array(v) for v in zip(*out, strict=True))
-    # the pole itself rebuilt from the medians, so fn, zeta and pole agree
-    wn = 2 * np.pi * fn
-    return fn, zeta, -zeta * wn + 1j * wn * np.sqrt(1 - zeta ** 2)
+    """Automatic pole selection (:func:`stable_clusters`): (fn_hz, zeta, poles) ascending."""
+    c = stable_clusters(stab, min_fraction=min_fraction, min_orders=min_orders)
+    return c.freq_hz, c.damping_ratio, c.pole
+
+
+def _batch(lo: int, hi: int, n_in: int) -> list[int]:
+    """Orders lo..hi of the adaptive diagram: every order up to 64 / n_in,
+    then every second order up to 128 / n_in, then every fourth, so the diagram keeps about 60 orders
+    and the cost of the high orders (an eigenvalue problem of size order x n_in each) stays bounded."""
+    o = np.arange(lo, hi + 1)
+    step = np.where(o * n_in <= 64, 1, np.where(o * n_in <= 128, 2, 4))
+    return [int(k) for k in o[(o % step == 0) | (o == hi)]]
+
+
+def adaptive_stabilisation(freq_hz: np.ndarray, H: np.ndarray, *, max_order: int | None = None,
+                           evaluate: Callable[[Stabilisation], tuple[int, T]] | None = None,
+                           first_order: int = 24, growth: float = 1.5, patience: int = 2, **criteria
+                           ) -> tuple[Stabilisation, str, T | None]:
+    """Stabilisation diagram whose highest order is raised (by ``growth``, from ``first_order`` poles
+    per reference) until the number of modes ``evaluate(diagram)`` finds has not grown for ``patience``
+    steps, the cap
+    ``max_order`` is reached or the band holds too few lines for a higher order.  ``evaluate`` returns
+    (number of modes, anything) and defaults to the number of :func:`stable_clusters`.  Returns the
+    diagram, a sentence saying which order was used and why, and ``evaluate``'s last result."""
+    f = np.asarray(freq_hz, float)
+    n_in = H.shape[1]
+    line_cap = (f.size - 2) // 2
+    cap = min(line_cap, max_order if max_order is not None else max(first_order, DEFAULT_MAX_POLES // n_in))
+    if cap < 2:
+        raise ModalError(f"pLSCF: {f.size} lines are too few for a model")
+    if evaluate is None:
+        def evaluate(stab: Stabilisation) -> tuple[int, None]:
+            return stable_clusters(stab).freq_hz.size, None
+    estimator = PoleEstimator(f, H, cap)
+    top = min(cap, max(4, -(-first_order // n_in)))
+    orders = _batch(2, top, n_in)
+    found = estimator.poles(orders)
+    counts: list[tuple[int, int]] = []
+    while True:   # a loop over a few growing orders
+        stab = _flags(orders, found, **criteria)
+        n, value = evaluate(stab)
+        counts.append((top, n))
+        if len(counts) > patience and max(c for _, c in counts[-patience:]) <= counts[-patience - 1][1]:
+            note = (f"model order {top}: the modes found stopped growing ({counts[-patience - 1][1]} at "
+                    f"order {counts[-patience - 1][0]}, " + ", ".join(f"{c} at {o}" for o, c in
+                                                                    counts[-patience:]) + ")")
+            break
+        if top >= cap:
+            why = "the band's lines cap" if cap == line_cap else "the maximum order caps"
+            note = f"model order {top}: {why} the order ({n} modes found)"
+            break
+        nxt = min(cap, max(top + 2, int(round(top * growth))))
+        more = _batch(top + 1, nxt, n_in)
+        found += estimator.poles(more)
+        orders, top = orders + more, nxt
+    return stab, note, value

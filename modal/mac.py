@@ -37,8 +37,18 @@ def to_real(phi: np.ndarray) -> np.ndarray:
     p = np.atleast_2d(np.asarray(phi, complex))
     theta = 0.5 * np.angle(np.sum(p ** 2, axis=0))
     real = (p * np.exp(-1j * theta)[None, :]).real
-    sign = np.sign(real[np.argmax(np.abs(real), axis=0), np.arange(real.shape[1])])
-    return real * np.where(sign == 0, 1.0, sign)[None, :]
+    return real * largest_positive(real)
+
+
+def largest_positive(ref: np.ndarray) -> np.ndarray:
+    """Sign per column [n_modes] (+1 or -1) that makes the entry of largest magnitude of each column of
+    the real ``ref`` [n_points, n_modes] positive: the one sign convention of every shape in flexmodal
+    (an all-zero column, or a ``ref`` with no rows, keeps +1)."""
+    ref = np.asarray(ref, float)
+    if ref.shape[0] == 0:
+        return np.ones(ref.shape[1])
+    sign = np.sign(ref[np.argmax(np.abs(ref), axis=0), np.arange(ref.shape[1])])
+    return np.where(sign == 0, 1.0, sign)
 
 
 def unit_max(phi: np.ndarray) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""FRFs stored with their run: ``/runs/<run_id>/frf/`` (CONTRACT §6) holds ``H`` [n_out, n_in, n_freq]
+"""FRFs stored with their run: ``/runs/<run_id>/frf/`` (docs/hdf5-format.md) holds ``H`` [n_out, n_in, n_freq]
 complex, ``freq_hz`` [n_freq], ``coherence`` [n_out, n_freq] and the attributes ``estimator``,
 ``window``, ``nfft``, ``n_averages`` plus ``sample_rate_hz``, ``quantity``, ``outputs`` and ``inputs``
 (JSON lists of channel names), ``decay_rate_per_s`` (exponential window) and ``provenance`` (JSON:

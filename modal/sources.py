@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import h5py
@@ -11,6 +12,7 @@ from flexmodal.modal.compute import compute_frf, frf_of_record
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult
 from flexmodal.modal.identify import Modes, identify, modes_table
+from flexmodal.modal.oma import OUTPUT_ONLY_METHODS, default_method, identify_output_only
 from flexmodal.modal.runs_io import read_frf
 from flexmodal.modal.table import ModalTable
 
@@ -28,8 +30,8 @@ def _driving_point(run, result: FrfResult) -> int | None:
     return None
 
 
-def hdf5_frfs(path: str | Path, run_id: str | None = None):
-    """Yield (run, FrfResult) for the runs of an HDF5 file, stored FRFs first, else computed."""
+def hdf5_runs(path: str | Path, run_id: str | None = None):
+    """Yield the runs of an HDF5 file (only ``run_id`` if given)."""
     from flexmodal.daq.store import list_runs, read_run
 
     ids = list_runs(path)
@@ -40,44 +42,71 @@ def hdf5_frfs(path: str | Path, run_id: str | None = None):
     if not ids:
         raise ModalError(f"{path}: holds no runs under /runs")
     for rid in ids:
-        run = read_run(path, rid)
-        yield run, (read_frf(path, rid) or compute_frf(run))
+        yield read_run(path, rid)
 
 
-def _modes(result: FrfResult, *, driving_point: int | None = None, **options) -> Modes:
+def identify_frf(result: FrfResult, *, driving_point: int | None = None,
+                 decay_rate_per_s: float | None = None, **options) -> Modes:
+    """Modes of FRFs in memory (``modal.identify.identify`` with the result's quantity; ``options`` as
+    there); ``decay_rate_per_s`` (1/s) overrides the exponential window the FRFs record."""
+    decay = result.decay_rate_per_s if decay_rate_per_s is None else decay_rate_per_s
     return identify(result.freq_hz, result.H, coherence=result.coherence,
                     quantity=result.quantity if result.quantity in ("accelerance", "mobility", "receptance")
-                    else "accelerance", decay_rate_per_s=result.decay_rate_per_s,
-                    driving_point=driving_point, **options)
+                    else "accelerance", decay_rate_per_s=decay, driving_point=driving_point, **options)
 
 
-def identify_input(path: str | Path, *, method: str = "lscf", fmin: float | None = None,
-                   fmax: float | None = None, max_order: int = 40, run_id: str | None = None
+def identify_input(path: str | Path, *, method: str | None = None, fmin: float | None = None,
+                   fmax: float | None = None, max_order: int | None = None, run_id: str | None = None,
+                   references: Sequence[str] | None = None, **identify_options
                    ) -> tuple[ModalTable, dict[str, tuple[Modes, tuple[str, ...]]]]:
-    """The modal table of INPUT and, per configuration, the identified modes and output names."""
+    """The modal table of INPUT and, per configuration, the identified modes and output names.
+
+    ``method`` None: output-only ``ssi`` for operational runs and records without a force channel,
+    else ``lscf`` (modal.oma.default_method); ``references`` name the reference outputs of ssi/fdd.
+    ``identify_options``: ``poles_hz``, ``thresholds``, ``decay_rate_per_s`` of
+    :func:`modal.identify.identify` (the last overriding the FRFs' own exponential window)."""
     p = Path(path)
     if not p.is_file():
         raise ModalError(f"{p}: input not found")
-    options = {"method": method, "fmin": fmin, "fmax": fmax, "max_order": max_order}
+    options = {"fmin": fmin, "fmax": fmax, "max_order": max_order, **identify_options}
+    oma = {"fmin": fmin, "fmax": fmax, "max_order": max_order, "references": references}
     found: dict[str, tuple[Modes, tuple[str, ...]]] = {}
     tables = []
     if h5py.is_hdf5(p):
-        for run, result in hdf5_frfs(p, run_id):
-            modes = _modes(result, driving_point=_driving_point(run, result), **options)
-            found[run.run_id] = (modes, result.outputs)
-            tables.append(modes_table(modes, result.outputs, config=run.run_id, pose=run.pose).frame)
+        for run in hdf5_runs(p, run_id):
+            names, kinds = [c.name for c in run.channels], [c.kind for c in run.channels]
+            chosen = method or default_method(kinds, run.excitation)
+            if chosen in OUTPUT_ONLY_METHODS:
+                res, outputs = identify_output_only(run.samples, run.sample_rate_hz, names, kinds,
+                                                    method=chosen, where=f"{p}:{run.run_id}", **oma)
+                modes = res.modes
+            else:
+                result = read_frf(p, run.run_id) or compute_frf(run)
+                modes = identify_frf(result, driving_point=_driving_point(run, result), method=chosen,
+                                     **options)
+                outputs = result.outputs
+            found[run.run_id] = (modes, outputs)
+            tables.append(modes_table(modes, outputs, config=run.run_id, pose=run.pose).frame)
     else:
         from flexmodal.modal.uff import UffFrfs, read_uff
 
         data = read_uff(p)
+        chosen = method or ("lscf" if isinstance(data, UffFrfs) else default_method(data.kinds))
+        if not isinstance(data, UffFrfs) and chosen in OUTPUT_ONLY_METHODS:
+            res, outputs = identify_output_only(data.samples, data.sample_rate_hz, data.names, data.kinds,
+                                                method=chosen, where=str(p), **oma)
+            found[p.stem] = (res.modes, outputs)
+            table = modes_table(res.modes, outputs, config=p.stem)
+            return ModalTable.from_frame(table.frame, str(p)), found
         if isinstance(data, UffFrfs):
             result = FrfResult(data.freq_hz, data.H, None, "stored", "", 0, 0, float("nan"), data.quantity,
                                data.outputs, data.inputs)
         else:
-            exc = "impact" if _impulsive(data.samples[:, list(data.kinds).index("force")]) else "random"
+            force = list(data.kinds).index("force") if "force" in data.kinds else None
+            exc = "impact" if force is not None and _impulsive(data.samples[:, force]) else "random"
             result = frf_of_record(data.samples, data.sample_rate_hz, data.names, data.kinds,
                                    excitation=exc, where=str(p))
-        modes = _modes(result, **options)
+        modes = identify_frf(result, method=chosen, **options)
         found[p.stem] = (modes, result.outputs)
         tables.append(modes_table(modes, result.outputs, config=p.stem).frame)
     return ModalTable.from_frame(pd.concat(tables, ignore_index=True), str(p)), found

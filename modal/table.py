@@ -1,4 +1,4 @@
-"""Modal table (CONTRACT §3): one row per (configuration, mode), read from and written to CSV.
+"""Modal table (docs/formats.md): one row per (configuration, mode), read from and written to CSV.
 
 Required columns ``config`` (str), ``mode`` (1-based int), ``freq_hz``; optional ``damping_ratio``,
 ``source``, ``pose.<name>`` and ``shape.<sensor>`` (real, or complex written as ``0.1+0.2j``).
@@ -139,7 +139,7 @@ class ModalTable:
 
 
 def poses_from_csv(path: str | Path) -> dict[str, dict[str, float]]:
-    """Read POSES.csv (CONTRACT §3 without mode/freq_hz): {config: {pose variable: value}}."""
+    """Read POSES.csv (docs/formats.md without mode/freq_hz): {config: {pose variable: value}}."""
     p = Path(path)
     if not p.is_file():
         raise ModalError(f"{p}: poses file not found")

@@ -1,7 +1,7 @@
 """Time windows for FRF estimation (Ewins 2000 §3.7; Brandt 2011 §9.3).
 
 A window is named by a spec string: ``rect``, ``hann``, ``flattop``, ``force:W`` (unit for the first
-fraction ``W`` of the record, then zero; default 0.1) and ``exponential:E`` (decays from 1 to ``E`` at
+fraction ``W`` of the record, then zero; default 0.05) and ``exponential:E`` (decays from 1 to ``E`` at
 the last sample; default 0.01).  The exponential window adds a known decay rate ``-ln(E)/T`` (1/s) to
 every pole, which :func:`remove_added_damping` takes back out of identified poles.
 """
@@ -14,7 +14,7 @@ import scipy.signal
 from flexmodal.modal.errors import ModalError
 
 WINDOW_NAMES = ("rect", "hann", "flattop", "force", "exponential")
-_DEFAULTS = {"force": 0.1, "exponential": 0.01}
+_DEFAULTS = {"force": 0.05, "exponential": 0.01}  # the one home of the impact-window defaults
 
 
 def parse_window(spec: str) -> tuple[str, float | None]:
@@ -35,6 +35,13 @@ def parse_window(spec: str) -> tuple[str, float | None]:
     if not 0.0 < value <= 1.0:
         raise ModalError(f"window {spec!r}: parameter must be in (0, 1]")
     return name, value
+
+
+def impact_windows(spec: str | None) -> tuple[str, str]:
+    """Full (force, exponential) window specs of an impact ``window`` option ``force:W,exponential:E``
+    (either part optional, ``None`` for both): missing parameters get the defaults, 0.05 and 0.01."""
+    parts = dict(p.split(":", 1) if ":" in p else (p, "") for p in (spec or "").split(",") if p)
+    return tuple(f"{name}:{parts.get(name) or f'{_DEFAULTS[name]:g}'}" for name in ("force", "exponential"))
 
 
 def window(spec: str, n: int) -> np.ndarray:

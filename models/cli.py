@@ -16,7 +16,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                     "POSES.csv (columns config, pose.<name>; angles in degrees, masses in kg) and write "
                     "a modal table CSV (config, mode, freq_hz [Hz], source, pose.*, shape.<sensor>). "
                     "Rigid-body (0 Hz) modes are left out.")
-    p.add_argument("rig", metavar="RIG.toml", help="rig description (CONTRACT §4)")
+    p.add_argument("rig", metavar="RIG.toml", help="rig description (docs/formats.md)")
     p.add_argument("--model", required=True, choices=MODEL_CHOICES,
                    help="fe: planar frame finite elements; assumed-modes: exact beam eigenfunctions "
                         "(straight uniform arm only); lumped-mass: flexibility-matrix lumped masses "
@@ -39,17 +39,15 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _predict(args: argparse.Namespace) -> int:
-    from flexmodal.modal.table import poses_from_csv
+    from flexmodal.api import load_rig, predict, read_poses
     from flexmodal.models.errors import ModelError
-    from flexmodal.models.predict import predict
-    from flexmodal.models.rig import load_rig
 
     for name in ("modes", "elements", "masses_per_link"):
         value = getattr(args, name)
         if value is not None and value < 1:
             raise ModelError(f"--{name.replace('_', '-')} must be >= 1 (got {value})")
     rig = load_rig(args.rig)
-    poses = poses_from_csv(args.poses)
+    poses = read_poses(args.poses)
     if not poses:
         raise ModelError(f"{args.poses}: no configurations")
     options = {"elements_per_link": args.elements, "lumped_mass": args.lumped_mass_matrix,

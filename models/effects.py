@@ -1,4 +1,4 @@
-"""Sim-to-real effects (CONTRACT §5): named augmentations of a nominal rig and where each applies.
+"""Sim-to-real effects (docs/formats.md): named augmentations of a nominal rig and where each applies.
 
 Each effect turns the frozen :class:`~models.rig.Rig` into a new one with an added physical feature and
 its own parameters (SI units):
@@ -71,7 +71,7 @@ def _check_effect(effect: str) -> None:
 
 
 def effect_locations(rig: Rig, effect: str) -> list[str]:
-    """Locations (CONTRACT §5 names) where ``effect`` applies on ``rig``; empty when it does not apply."""
+    """Locations (docs/formats.md) where ``effect`` applies on ``rig``; empty when it does not apply."""
     _check_effect(effect)
     if effect == "joint_stiffness":
         return [j.name for j in rig.joints if j.kind != "pin"]

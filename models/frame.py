@@ -1,4 +1,4 @@
-"""Planar Euler-Bernoulli frame finite elements for a rig (CONTRACT §4) at a pose.
+"""Planar Euler-Bernoulli frame finite elements for a rig (docs/formats.md) at a pose.
 
 Each link (and each extra member) is a chain of two-node frame elements with three DOFs per node
 (global ``x``, ``y`` translation in m and rotation in rad): axial bar plus Hermite-cubic bending,
@@ -32,6 +32,7 @@ from functools import lru_cache
 import numpy as np
 from scipy.linalg import LinAlgError, eigh
 
+from flexmodal.modal.mac import largest_positive
 from flexmodal.models.errors import ModelError
 from flexmodal.models.rig import Point, Rig, Section
 
@@ -544,9 +545,7 @@ def solve_modes(system: FrameSystem, n_modes: int = 4) -> FrameModes:
     norm = np.sqrt(np.sum(vec * (M @ vec), axis=0))
     phi = vec / norm
     ref = system.sensor_matrix @ phi if system.sensor_matrix.shape[0] else phi
-    sign = np.sign(ref[np.argmax(np.abs(ref), axis=0), np.arange(n_modes)])
-    sign[sign == 0] = 1.0
-    phi = phi * sign
+    phi = phi * largest_positive(ref)
     return FrameModes(np.sqrt(omega2) / (2 * math.pi), phi, system.sensor_matrix @ phi, system.sensor_names)
 
 

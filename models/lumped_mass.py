@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import eigh
 
+from flexmodal.modal.mac import largest_positive
 from flexmodal.models.errors import ModelError
 from flexmodal.models.frame import link_geometry
 from flexmodal.models.rig import Point, Rig
@@ -155,8 +156,7 @@ def lumped_mass_modes(rig: Rig, pose: Mapping[str, float], n_modes: int = 4, mas
     sensor_rows = flex[n_mass_coords:, :n_mass_coords][:, keep]
     shapes = omega2[None, :] * (sensor_rows @ (masses[keep][:, None] * phi))
     ref = shapes if shapes.shape[0] else phi
-    sign = np.sign(ref[np.argmax(np.abs(ref), axis=0), np.arange(n_modes)])
-    sign[sign == 0] = 1.0
+    sign = largest_positive(ref)
     phi_full = np.zeros((n_mass_coords, n_modes))
     phi_full[keep] = phi * sign
     return LumpedModes(np.sqrt(omega2) / (2 * math.pi), phi_full, shapes * sign,

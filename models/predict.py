@@ -1,4 +1,4 @@
-"""One interface over the model packages: a rig and poses in, a modal table (CONTRACT §3) out.
+"""One interface over the model packages: a rig and poses in, a modal table (docs/formats.md) out.
 
 Models: ``fe`` (planar frame, models/frame.py), ``assumed-modes`` (exact beam eigenfunctions of the arm
 as one straight uniform beam), ``lumped-mass`` (seed 003 flexibility matrix, planar coordinates) and
@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from flexmodal.modal.mac import largest_positive
 from flexmodal.modal.table import POSE_PREFIX, SHAPE_PREFIX, ModalTable
 from flexmodal.models.errors import ModelError
 from flexmodal.models.rig import Rig
@@ -61,10 +62,7 @@ def _assumed(rig: Rig, pose: Mapping[str, float], n_modes: int, options: Mapping
     modes = beam_modes(sb.beam, sb.left, sb.right, n_modes + 2)
     shapes = modes.shape(np.array(sb.sensor_x_m)) * np.array(sb.sensor_transverse, float)[:, None]
     freq, shapes = _elastic(modes.freq_hz, shapes, n_modes, f"{rig.source}: model 'assumed-modes'")
-    if shapes.shape[0]:
-        sign = np.sign(shapes[np.argmax(np.abs(shapes), axis=0), np.arange(shapes.shape[1])])
-        shapes = shapes * np.where(sign == 0, 1.0, sign)
-    return freq, shapes
+    return freq, shapes * largest_positive(shapes)
 
 
 def _lumped(rig: Rig, pose: Mapping[str, float], n_modes: int, options: Mapping) -> Result:

@@ -1,4 +1,4 @@
-"""Rig description (CONTRACT §4): TOML in, validated frozen dataclasses out.
+"""Rig description (docs/formats.md): TOML in, validated frozen dataclasses out.
 
 A planar arm: links in a serial chain from the base, joints between them, optional extra members
 (closed chains), lumped masses, grounded springs and sensors.  SI units, angles in degrees.
@@ -437,7 +437,7 @@ def parse_rig(doc: Mapping[str, Any], source: str = "<rig>") -> Rig:
 
 
 def load_rig(path: str | Path) -> Rig:
-    """Read and validate a rig TOML file (CONTRACT §4)."""
+    """Read and validate a rig TOML file (docs/formats.md)."""
     p = Path(path)
     try:
         with p.open("rb") as fh:

@@ -16,13 +16,14 @@ def register(sub: argparse._SubParsersAction) -> None:
                     "measured vs predicted modes (table and plots) and the gap diagnosis.",
     )
     p.add_argument("runs", metavar="RUN.h5", nargs="*",
-                   help="stored runs (CONTRACT §6): a file means all its runs, FILE::RUN_ID one run")
-    p.add_argument("--measured", metavar="MODES.csv", help="identified modes (modal table, CONTRACT §3)")
+                   help="stored runs (docs/hdf5-format.md): a file means all its runs, FILE::RUN_ID one run")
+    p.add_argument("--measured", metavar="MODES.csv", help="identified modes (modal table, docs/formats.md)")
     p.add_argument("--repeat", metavar="MODES.csv", action="append", default=[],
                    help="modes of a repeated test of the same configurations (error bars; repeatable)")
     p.add_argument("--pred", metavar="PRED.csv", action="append", default=[],
                    help="predicted modes of one model (repeatable)")
-    p.add_argument("--diagnosis", metavar="diagnosis.json", help="output of flexmodal diagnose (CONTRACT §5)")
+    p.add_argument("--diagnosis", metavar="diagnosis.json",
+                   help="output of flexmodal diagnose (docs/formats.md)")
     p.add_argument("--rig", metavar="RIG.toml", help="rig description, to draw mode shapes on the arm")
     p.add_argument("--title", default="flexmodal validation report", help="report title")
     p.add_argument("--out", metavar="REPORT.html", required=True, help="the HTML file to write")
@@ -30,25 +31,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from flexmodal.modal.table import ModalTable
-    from flexmodal.reports.errors import ReportError
-    from flexmodal.reports.html import load_diagnosis, write_report
+    from flexmodal.api import report
 
-    if not (args.runs or args.measured or args.pred or args.diagnosis):
-        raise ReportError("report: nothing to report (give RUN.h5 files, --measured, --pred or --diagnosis)")
-    rig = None
-    if args.rig:
-        from flexmodal.models.rig import load_rig
-
-        rig = load_rig(args.rig)
     quiet = getattr(args, "quiet", False)
     progress = None if quiet else (lambda msg: print(f"report: {msg}", file=sys.stderr))
-    out = write_report(
-        args.out, runs=args.runs,
-        measured=ModalTable.read_csv(args.measured) if args.measured else None,
-        repeats=[ModalTable.read_csv(p) for p in args.repeat],
-        predictions=[ModalTable.read_csv(p) for p in args.pred],
-        diagnosis=load_diagnosis(args.diagnosis) if args.diagnosis else None,
-        rig=rig, title=args.title, progress=progress)
+    out = report(args.out, runs=args.runs, measured=args.measured, repeats=args.repeat, predictions=args.pred,
+                 diagnosis=args.diagnosis, rig=args.rig, title=args.title, progress=progress)
     print(out)
     return 0

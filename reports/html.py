@@ -2,10 +2,14 @@
 
 One file: images are embedded as base64 PNG, the style sheet is inline, there is no script and nothing
 is fetched from a network.  Sections (each only when its input is given): comparison table of
-measured vs predicted modes (compare.tables), diagnosis summary (CONTRACT §5), frequency-vs-pose,
-trend and mode-shape plots, run metadata, channel list, data quality (trigger/overload/gap/corrupt
-events, rejected hits, coherence) with the FRF plot of each run and its stabilisation diagram (pLSCF of
-modal.lscf over orders 2..``MAX_ORDER``), and the gap per mode before and after the diagnosed effect.
+measured vs predicted modes (a compare.tables.Comparison), diagnosis summary (docs/formats.md,
+diagnosis JSON), frequency-vs-pose, trend and mode-shape plots, run metadata, channel list, data
+quality (trigger/overload/gap/corrupt events, rejected hits, coherence) with the FRF plot of each run
+and the stabilisation diagram of its identification, and the gap per mode before and after the
+diagnosed effect.
+
+This module renders what it is given: the caller (``flexmodal.api.report``) reads the runs, computes
+the comparison, each run's identification and the FE shapes on the arm.
 """
 
 from __future__ import annotations
@@ -19,17 +23,13 @@ from pathlib import Path
 import jinja2
 import pandas as pd
 
-from flexmodal.compare.tables import compare_tables, html_fragment, natural_key, ordered_configs, table_name
-from flexmodal.daq.store import expand_runs
+from flexmodal.compare.tables import Comparison, html_fragment, natural_key, ordered_configs, table_name
 from flexmodal.modal.table import ModalTable
 from flexmodal.reports import plots
 from flexmodal.reports.errors import ReportError
-from flexmodal.reports.runs import LOW_COHERENCE, RunSummary, summarise_run
+from flexmodal.reports.runs import LOW_COHERENCE, RunSummary
 
 UNIT_SUFFIXES = {"_deg": "deg", "_kg": "kg", "_m": "m", "_rad": "rad", "_n": "N"}
-MAX_SHAPE_CONFIGS = 2
-MAX_ORDER = 32
-FRF_UNITS = {"accelerance": "(m/s²)/N", "mobility": "(m/s)/N", "receptance": "m/N"}
 
 
 def pose_unit(var: str) -> str:
@@ -49,7 +49,7 @@ def _fig(fig, caption: str) -> dict:
     return {"png": base64.b64encode(plots.figure_png(fig)).decode("ascii"), "caption": caption}
 
 
-def _varying_pose_vars(table: ModalTable) -> list[str]:
+def varying_pose_vars(table: ModalTable) -> list[str]:
     out = []
     for col in table.pose_columns:
         values = table.frame.groupby("config")[col].first()
@@ -59,12 +59,12 @@ def _varying_pose_vars(table: ModalTable) -> list[str]:
 
 
 def _mode_figures(measured: ModalTable | None, repeats: Sequence[ModalTable],
-                  predictions: Sequence[tuple[str, ModalTable]], rig) -> list[dict]:
+                  predictions: Sequence[tuple[str, ModalTable]], shapes: Mapping[str, object]) -> list[dict]:
     figs = []
     ref = measured if measured is not None else (predictions[0][1] if predictions else None)
     if ref is None:
         return figs
-    varying = _varying_pose_vars(ref)
+    varying = varying_pose_vars(ref)
     meas = ([measured] if measured is not None else []) + list(repeats)
     if varying:
         var = varying[0]
@@ -77,31 +77,23 @@ def _mode_figures(measured: ModalTable | None, repeats: Sequence[ModalTable],
         figs.append(_fig(plots.plot_trends(ref, x, group, pose_unit(x), pose_unit(group)),
                          f"Trends of each mode's frequency with {x}, a line per {group} "
                          f"({table_name(ref, 'modes')})"))
-    shared = set()
-    if rig is not None and measured is not None:
-        shared = set(measured.sensors) & {s.name for s in rig.sensors}
-    if len(shared) >= 2:
-        configs = ordered_configs(measured)
-        for config in list(dict.fromkeys([configs[0], configs[-1]]))[:MAX_SHAPE_CONFIGS]:
-            pose = measured.pose(config)
-            missing = [v for v in rig.pose_variables if v not in pose]
-            if missing:
-                figs.append({"png": None, "caption": f"No mode shapes drawn for {config}: the measured table "
-                                                     f"gives no pose.{missing[0]} for the rig"})
-                continue
-            figs.append(_fig(plots.plot_mode_shapes(rig, pose, measured, config),
-                             f"Measured mode shapes at {config} ({_pose_text(pose)}) on the arm, with the "
-                             f"frame FE model's best-matching mode (by MAC) as a curve"))
+    for config, arm in shapes.items() if measured is not None else ():
+        if isinstance(arm, str):
+            figs.append({"png": None, "caption": arm})
+            continue
+        figs.append(_fig(plots.plot_mode_shapes(arm, measured, config),
+                         f"Measured mode shapes at {config} ({_pose_text(measured.pose(config))}) on the "
+                         f"arm, with the frame FE model's best-matching mode (by MAC) as a curve"))
     return figs
 
 
 def _run_order(runs: Sequence[RunSummary]) -> list[RunSummary]:
     """Runs grouped by file (in the order given), then by numeric pose values, then naturally by id."""
-    files = list(dict.fromkeys(r.path for r in runs))
+    files = list(dict.fromkeys(r.run.path for r in runs))
 
     def key(r: RunSummary) -> tuple:
-        pose = tuple((k, float(v)) for k, v in sorted(r.pose.items()) if isinstance(v, int | float))
-        return files.index(r.path), pose, natural_key(r.run_id)
+        pose = tuple((k, float(v)) for k, v in sorted(r.run.pose.items()) if isinstance(v, int | float))
+        return files.index(r.run.path), pose, natural_key(r.run.run_id)
 
     return sorted(runs, key=key)
 
@@ -121,11 +113,11 @@ def _run_rows(runs: Sequence[RunSummary]) -> tuple[list[dict], list[dict], list[
     meta, quality, channel_sets = [], [], []
     sets: dict[tuple, dict] = {}
     for r in runs:
-        label = f"{r.path.name}::{r.run_id}"
-        meta.append({"file": r.path.name, "run_id": r.run_id, "start_time": _start_time(r.start_time),
-                     "excitation": r.excitation, "pose": _pose_text(r.pose), "fs": f"{r.sample_rate_hz:g}",
-                     "duration": f"{r.duration_s:.2f}", "n_samples": r.n_samples,
-                     "n_channels": len(r.channels)})
+        label, run = r.label, r.run
+        meta.append({"file": run.path.name, "run_id": run.run_id, "start_time": _start_time(run.start_time),
+                     "excitation": run.excitation, "pose": _pose_text(run.pose),
+                     "fs": f"{run.sample_rate_hz:g}", "duration": f"{r.duration_s:.2f}",
+                     "n_samples": r.n_samples, "n_channels": len(run.channels)})
         counts = r.event_counts
         coh = r.coherence_stats()
         frf = r.frf
@@ -138,47 +130,61 @@ def _run_rows(runs: Sequence[RunSummary]) -> tuple[list[dict], list[dict], list[
             "gap": counts["gap"], "corrupt": counts["corrupt"], "reconnect": counts["reconnect"],
             "frf": f"{frf.estimator}, nfft {frf.nfft}, {frf.n_averages} averages" if frf else "not computed",
             "coh_mean": f"{coh[0]:.3f}" if coh else "", "coh_low": f"{coh[1]:.1f}" if coh else ""})
-        key = tuple(r.channels)
+        key = tuple(run.channels)
         if key not in sets:
             sets[key] = {"runs": [], "channels": [
                 {"name": c.name, "kind": c.kind, "unit": c.unit,
                  "sensitivity": f"{c.sensitivity:g} {c.sensitivity_unit}".strip(), "location": c.location,
                  "direction": c.direction, "peak": f"{p:.4g} {c.unit}"}
-                for c, p in zip(r.channels, r.peak_abs, strict=True)]}
+                for c, p in zip(run.channels, r.peak_abs, strict=True)]}
             channel_sets.append(sets[key])
         sets[key]["runs"].append(label)
     return meta, quality, channel_sets
 
 
-def _stabilisation_figure(frf, label: str, unit: str) -> dict:
-    from flexmodal.modal.errors import ModalError
-    from flexmodal.modal.lscf import stabilisation
-
-    band = frf.freq_hz > 0
-    f, H = frf.freq_hz[band], frf.H[..., band]
-    top = min(MAX_ORDER, (f.size - 2) // 2)
+def _stabilisation_figure(r: RunSummary, unit: str) -> dict | None:
+    if r.modes is None:
+        return None
+    if isinstance(r.modes, str):
+        return {"png": None, "caption": f"{r.label}: no identification ({r.modes})"}
     try:
-        poles = stabilisation(f, H, range(2, top + 1))
-    except ModalError as exc:
-        return {"png": None, "caption": f"{label}: no stabilisation diagram ({exc})"}
-    return _fig(plots.plot_stabilisation(f, H, poles, unit, title=label),
-                f"{label}: pLSCF stabilisation diagram, orders 2-{top} (filled: stable in frequency, "
-                f"damping and shape), over the complex mode indicator function")
+        fig = plots.plot_identification_diagram(r.frf, r.modes, unit, title=r.label)
+    except ReportError as exc:
+        return {"png": None, "caption": f"{r.label}: {exc}"}
+    listed = ", ".join(f"{x:.4g}" for x in r.modes.freq_hz)
+    return _fig(fig, f"{r.label}: pLSCF stabilisation diagram ({r.modes.order_note}; filled: stable in "
+                     f"frequency, damping and shape) over the complex mode indicator function; "
+                     f"identified modes at {listed} Hz")
+
+
+def _oma_figures(r: RunSummary) -> list[dict]:
+    """FDD and SSI figures of an output-only run (reports/oma.py); none for other runs without FRFs."""
+    from flexmodal.reports.oma import is_output_only, oma_figures
+
+    run = r.run
+    kinds = [c.kind for c in run.channels]
+    if not is_output_only(kinds, run.excitation):
+        return []
+    return [_fig(fig, caption) if fig is not None else {"png": None, "caption": caption}
+            for fig, caption in oma_figures(run.samples, run.sample_rate_hz, [c.name for c in run.channels],
+                                            kinds, r.label)]
 
 
 def _run_figures(runs: Sequence[RunSummary]) -> list[dict]:
     figs = []
     for r in runs:
-        label = f"{r.path.name}::{r.run_id}"
         if r.frf is None:
+            figs += _oma_figures(r)
             continue
         inputs = ", ".join(r.frf.inputs) or "force"
-        unit = FRF_UNITS.get(r.frf.quantity, "FRF unit")
+        unit = plots.frf_unit(r.frf.quantity)
         figs.append(_fig(plots.plot_frf(r.frf.freq_hz, r.frf.H, r.frf.coherence, r.frf.outputs, unit,
-                                        title=f"{label} ({r.excitation})"),
-                         f"{label}: FRF magnitude, phase and coherence (input {inputs}, "
-                         f"pose {_pose_text(r.pose)})"))
-        figs.append(_stabilisation_figure(r.frf, label, unit))
+                                        title=f"{r.label} ({r.run.excitation})"),
+                         f"{r.label}: FRF magnitude, phase and coherence (input {inputs}, "
+                         f"pose {_pose_text(r.run.pose)})"))
+        stab = _stabilisation_figure(r, unit)
+        if stab is not None:
+            figs.append(stab)
     return figs
 
 
@@ -229,33 +235,27 @@ def _version() -> str:
         return "(source tree)"
 
 
-def write_report(out_path: str | Path, *, runs: Sequence[str | Path | tuple[str | Path, str]] = (),
-                 measured: ModalTable | None = None, repeats: Sequence[ModalTable] = (),
-                 predictions: Sequence[ModalTable | tuple[str, ModalTable]] = (),
-                 diagnosis: Mapping | None = None, rig=None, title: str = "flexmodal validation report",
+def write_report(out_path: str | Path, *, runs: Sequence[RunSummary] = (),
+                 comparison: Comparison | None = None, measured: ModalTable | None = None,
+                 repeats: Sequence[ModalTable] = (), predictions: Sequence[tuple[str, ModalTable]] = (),
+                 shapes: Mapping[str, object] | None = None,
+                 diagnosis: Mapping | None = None, rig_name: str = "",
+                 title: str = "flexmodal validation report",
                  progress: Callable[[str], None] | None = None) -> Path:
-    """Write one self-contained HTML report to ``out_path`` and return its path.
+    """Render one self-contained HTML report to ``out_path`` and return its path.
 
-    ``runs``: HDF5 files (all their runs), ``FILE::RUN_ID`` strings or (file, run id) tuples.
-    ``measured``: identified modes; ``repeats``: further measured tables of the same configurations
-    (repeated tests, for error bars).  ``predictions``: ModalTables (named by their ``source`` column)
-    or (name, table) pairs.  ``diagnosis``: a parsed diagnosis.json (CONTRACT §5).  ``rig``: a
-    ``models.rig.Rig`` for mode shapes on the arm.  ``progress`` is called with a short message per step.
+    ``runs``: the runs to show (read, with FRFs and their identification, by the caller).
+    ``comparison``: measured vs predicted modes (compare.tables.compare_tables).  ``measured``:
+    identified modes; ``repeats``: further measured tables of the same configurations (error bars);
+    ``predictions``: (name, table) pairs.  ``shapes``: {config: models.arm_shapes.ArmModes, or the
+    reason none is drawn} for the mode-shape plots.  ``diagnosis``: a parsed diagnosis.json
+    (docs/formats.md).  ``progress`` is called with a short message per step.
     """
     step = progress or (lambda _msg: None)
-    named = [p if isinstance(p, tuple) else (table_name(p, Path(p.source).stem), p) for p in predictions]
-    summaries = []
-    for path, run_id in expand_runs(runs):
-        step(f"reading {path.name}::{run_id}")
-        summaries.append(summarise_run(path, run_id))
-    summaries = _run_order(summaries)
-    comparison_html = ""
-    if measured is not None and named:
-        step("comparing modes")
-        comp = compare_tables(measured, named, measured_name=table_name(measured, "experiment"))
-        comparison_html = html_fragment(comp)
+    summaries = _run_order(runs)
+    comparison_html = html_fragment(comparison) if comparison is not None else ""
     step("plotting modes")
-    figures_modes = _mode_figures(measured, repeats, named, rig)
+    figures_modes = _mode_figures(measured, repeats, predictions, shapes or {})
     step("plotting runs")
     figures_runs = _run_figures(summaries)
     figures_diag = []
@@ -266,14 +266,14 @@ def write_report(out_path: str | Path, *, runs: Sequence[str | Path | tuple[str 
         except ReportError as exc:
             raise ReportError(f"diagnosis: {exc}") from None
     meta, quality, channel_sets = _run_rows(summaries)
-    inputs = [str(p) for p in dict.fromkeys(str(s.path) for s in summaries)]
+    inputs = [str(p) for p in dict.fromkeys(str(s.run.path) for s in summaries)]
     inputs += [t.source for t in ([measured] if measured is not None else []) + list(repeats)]
-    inputs += [t.source for _, t in named]
+    inputs += [t.source for _, t in predictions]
     env = jinja2.Environment(loader=jinja2.PackageLoader("flexmodal.reports", "templates"),
                              autoescape=jinja2.select_autoescape(["html"]), undefined=jinja2.StrictUndefined)
     html = env.get_template("report.html").render(
         title=title, generated=datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC"), version=_version(),
-        rig_name=getattr(rig, "name", ""), inputs=inputs, comparison_html=comparison_html,
+        rig_name=rig_name, inputs=inputs, comparison_html=comparison_html,
         diagnosis=_diagnosis_view(diagnosis) if diagnosis is not None else None,
         figures_modes=figures_modes, measured_rows=_measured_rows(measured) if measured is not None else [],
         measured_source=measured.source if measured is not None else "", runs=meta, quality=quality,
@@ -286,7 +286,7 @@ def write_report(out_path: str | Path, *, runs: Sequence[str | Path | tuple[str 
 
 
 def load_diagnosis(path: str | Path) -> dict:
-    """Read a diagnosis.json (CONTRACT §5); ReportError naming the file when it is not JSON."""
+    """Read a diagnosis.json (docs/formats.md); ReportError naming the file when it is not JSON."""
     p = Path(path)
     try:
         doc = json.loads(p.read_text(encoding="utf-8"))

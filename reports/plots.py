@@ -4,15 +4,15 @@ Units sit on every axis.  Frequencies in Hz, FRF magnitude in the FRF's own unit
 (m/s²)/N by default), phase in degrees, coherence and MAC dimensionless (0..1), errors in %.
 
 * ``plot_frf``: magnitude, phase and ordinary coherence of the FRFs of one run;
-* ``plot_stabilisation``: poles per model order (modal.lscf pLSCF) over the complex mode indicator
-  function (CMIF, Shih et al. 1988: singular values of H(f) at each line, modal.peaks.cmif);
+* ``plot_stabilisation``: given poles per model order (a modal.lscf.Stabilisation) over the complex
+  mode indicator function (CMIF, Shih et al. 1988: singular values of H(f) at each line, modal.peaks.cmif);
 * ``plot_freq_vs_pose``: measured vs predicted natural frequency across a pose variable, a line per
   model and mode, experiment points with ±1 standard deviation bars from repeated tests;
 * ``plot_trends``: frequency of each mode against one pose variable, a line per value of another
   (payload / configuration trends in the style of seed 001);
 * ``plot_mode_shapes``: measured shapes at the sensors drawn on the arm geometry at a pose with the
-  frame FE model's deformed shape (models.frame) as a curve;
-* ``plot_gap``: the per-mode frequency error before and after a diagnosed effect (CONTRACT §5).
+  frame FE model's deformed shape (given as a models.arm_shapes.ArmModes) as a curve;
+* ``plot_gap``: the per-mode frequency error before and after a diagnosed effect (docs/formats.md).
 """
 
 from __future__ import annotations
@@ -33,7 +33,13 @@ from flexmodal.modal.peaks import cmif  # noqa: E402
 from flexmodal.modal.table import ModalTable  # noqa: E402
 from flexmodal.reports.errors import ReportError  # noqa: E402
 
+FRF_UNITS = {"accelerance": "(m/s²)/N", "mobility": "(m/s)/N", "receptance": "m/N"}
 _COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf")
+
+
+def frf_unit(quantity: str) -> str:
+    """Unit of an FRF of the given quantity (accelerance, mobility, receptance), per newton."""
+    return FRF_UNITS.get(quantity, "FRF unit")
 
 
 def figure_png(fig: Figure, dpi: int = 100) -> bytes:
@@ -103,6 +109,16 @@ def plot_stabilisation(freq_hz: np.ndarray, H: np.ndarray, poles, unit: str = "(
         ax.set_title(title)
     fig.subplots_adjust(left=0.08, right=0.88, bottom=0.12, top=0.9)
     return fig
+
+
+def plot_identification_diagram(frf, modes, unit: str = "(m/s²)/N", title: str = "") -> Figure:
+    """The stabilisation diagram of an identification (``modes``: a ``modal.identify.Modes`` of the
+    pLSCF method) over the CMIF of the FRFs ``frf`` (a ``modal.frf.FrfResult``) in its band."""
+    if modes.stabilisation is None or modes.band_freq_hz is None:
+        raise ReportError(f"no stabilisation diagram: the modes were identified by {modes.method!r}")
+    lo, hi = float(modes.band_freq_hz.min()), float(modes.band_freq_hz.max())
+    band = (frf.freq_hz >= lo) & (frf.freq_hz <= hi)
+    return plot_stabilisation(frf.freq_hz[band], frf.H[..., band], modes.stabilisation, unit, title=title)
 
 
 def _pose_values(table: ModalTable, pose_var: str) -> dict[str, float]:
@@ -197,42 +213,21 @@ def plot_trends(table: ModalTable, x_var: str, group_var: str | None = None, x_u
     return fig
 
 
-def plot_mode_shapes(rig, pose: Mapping[str, float], measured: ModalTable, config: str, n_fe_modes: int = 8,
-                     title: str = "") -> Figure:
-    """Measured mode shapes at the sensors on the arm at ``pose``, with the frame FE model's curve.
+def plot_mode_shapes(arm, measured: ModalTable, config: str, title: str = "") -> Figure:
+    """Measured mode shapes of ``config`` at the sensors drawn on the arm, with the FE model's curve.
 
-    For every measured mode the FE mode (models.frame, ``n_fe_modes`` lowest) with the highest MAC at
-    the sensors is drawn as the deformed links, scaled by least squares onto the measured points.  Both
-    are drawn as what the sensors see: displacement normal to each link (so each link is its own curve,
-    and the axial motion the accelerometers do not measure is left out); axial sensors are drawn along
-    their link.  Displacements are exaggerated to 15 % of the arm's reach; coordinates in m.
+    ``arm``: a ``models.arm_shapes.ArmModes`` (the FE modes at that configuration's pose, sampled along
+    the links and at the sensors whose shapes are drawn).  For every measured mode the FE mode with the
+    highest MAC at the sensors is drawn as the deformed links, scaled by least squares onto the measured
+    points; both show displacement normal to each link (axial sensors are drawn along their link).
+    Displacements are exaggerated to 15 % of the arm's reach; coordinates in m.
     """
-    from flexmodal.models.frame import assemble, link_geometry, solve_modes
-
-    sensors = [s for s in rig.sensors if s.name in measured.sensors]
-    if len(sensors) < 2:
+    if len(arm.sensor_names) < 2:
         raise ReportError(f"{measured.source}: needs shapes at two or more of the rig's sensors to draw")
-    system = assemble(rig, pose)
-    fe = solve_modes(system, min(n_fe_modes, system.n_dof))
-    angles, starts = link_geometry(rig, pose)
-    names = [lk.name for lk in rig.links]
-    axes_xy = np.column_stack([np.cos(angles), np.sin(angles)])  # unit vector along each link
-    normals = np.column_stack([-axes_xy[:, 1], axes_xy[:, 0]])
-    fractions = np.linspace(0.0, 1.0, 25)
-    link_xy = [starts[i] + np.outer(fractions * lk.length_m, axes_xy[i]) for i, lk in enumerate(rig.links)]
-    link_rows = [np.array([system.observe(f"{lk.name}@{f:.6f}", "transverse") for f in fractions])
-                 for lk in rig.links]
-    curve_xy = np.concatenate(link_xy)
-    sensor_xy, sensor_dir = [], []
-    for s in sensors:
-        i = names.index(s.at.link)
-        sensor_xy.append(starts[i] + s.at.fraction * rig.links[i].length_m * axes_xy[i])
-        sensor_dir.append(normals[i] if s.direction == "transverse" else axes_xy[i])
-    sensor_xy, sensor_dir = np.array(sensor_xy), np.array(sensor_dir)
-    fe_at_sensors = np.array([system.observe(str(s.at), s.direction) for s in sensors]) @ fe.phi
-    shapes = measured.shapes(config, [s.name for s in sensors])
+    curve_xy = np.concatenate(arm.link_xy)
+    shapes = measured.shapes(config, list(arm.sensor_names))
     freqs = measured.freq_hz(config)
-    macs = mac(np.nan_to_num(shapes), fe_at_sensors)
+    macs = mac(np.nan_to_num(shapes), arm.sensor_disp)
     real_shapes = to_real(np.nan_to_num(shapes))
     reach = float(np.ptp(curve_xy, axis=0).max()) or 1.0
 
@@ -244,16 +239,16 @@ def plot_mode_shapes(rig, pose: Mapping[str, float], measured: ModalTable, confi
     for k, ax in enumerate(axes[:n]):
         meas = real_shapes[:, k]
         j = int(np.argmax(macs[k]))
-        model = fe_at_sensors[:, j]
+        model = arm.sensor_disp[:, j]
         alpha = float(model @ meas / (model @ model)) if model @ model > 0 else 0.0
-        disp = [alpha * (rows @ fe.phi[:, j]) for rows in link_rows]
+        disp = [alpha * d[:, j] for d in arm.link_disp]
         biggest = max(float(np.abs(meas).max()), max(float(np.abs(d).max()) for d in disp), 1e-30)
         scale = 0.15 * reach / biggest
         ax.plot(curve_xy[:, 0], curve_xy[:, 1], color="0.75", lw=2, label="undeformed arm")
-        for i, (xy, d) in enumerate(zip(link_xy, disp, strict=True)):
-            ax.plot(*(xy + scale * d[:, None] * normals[i]).T, color=_COLOURS[0], lw=1.3,
-                    label=f"FE mode {j + 1} ({fe.freq_hz[j]:.1f} Hz)" if i == 0 else None)
-        pts = sensor_xy + scale * meas[:, None] * sensor_dir
+        for i, (xy, d) in enumerate(zip(arm.link_xy, disp, strict=True)):
+            ax.plot(*(xy + scale * d[:, None] * arm.link_normal[i]).T, color=_COLOURS[0], lw=1.3,
+                    label=f"FE mode {j + 1} ({arm.freq_hz[j]:.1f} Hz)" if i == 0 else None)
+        pts = arm.sensor_xy + scale * meas[:, None] * arm.sensor_dir
         ax.plot(pts[:, 0], pts[:, 1], "o", color=_COLOURS[1], ms=5, label="measured")
         ax.set_title(f"mode {k + 1}: {freqs[k]:.2f} Hz, MAC {macs[k, j]:.2f} [-]", fontsize=9)
         ax.set_aspect("equal", adjustable="datalim")
@@ -283,7 +278,7 @@ def rms_per_mode(measured_hz: Mapping[str, Sequence[float]], predicted_hz: Mappi
 def gap_per_mode(diagnosis: Mapping) -> tuple[list[str], np.ndarray, np.ndarray | None]:
     """Modes, per-mode relative error before [fraction] and after the verdict's effect (None if absent).
 
-    ``before`` is ``baseline.per_mode`` (CONTRACT §5); ``after`` the first present of
+    ``before`` is ``baseline.per_mode`` (docs/formats.md); ``after`` the first present of
     ``verdict.per_mode_after``, the held-out then the fitted predictions of the best candidate
     (``predictions.best_heldout_hz`` / ``best_fit_hz`` against ``predictions.measured_hz``, RMS over
     configurations per mode), or ``ranking[0].per_mode``.
@@ -306,7 +301,7 @@ def gap_per_mode(diagnosis: Mapping) -> tuple[list[str], np.ndarray, np.ndarray 
 
 def plot_gap(diagnosis: Mapping, title: str = "") -> Figure:
     """Bars of the per-mode relative frequency error [%] before and after the diagnosed effect, and the
-    held-out RMS error [%] before and after (CONTRACT §5 ``verdict``)."""
+    held-out RMS error [%] before and after (docs/formats.md ``verdict``)."""
     modes, before, after = gap_per_mode(diagnosis)
     verdict = diagnosis.get("verdict", {})
     fig = Figure(figsize=(8, 3.6))

@@ -1,52 +1,63 @@
-"""What a report shows of a stored run (CONTRACT §6): metadata, channels, data quality, FRFs.
+"""What a report shows of a stored run (docs/hdf5-format.md): metadata, channels, data quality, FRFs.
 
-Runs are read with ``daq.store.read_run`` and their FRF group with ``modal.runs_io.read_frf``.  Impact
-hits come from the FRF provenance (``hits``: ``trigger``, ``accepted``, ``reason``); without it,
-rejected hits are the ``note`` events whose detail starts with ``rejected``.
+A :class:`RunSummary` holds what the caller read and computed (the ``daq.store.Run``, its FRFs and
+their identification); the properties here only count and summarise.  Impact hits come from the
+FRF provenance (``hits``: ``trigger``, ``accepted``, ``reason``); without it, rejected hits are the
+``note`` events whose detail starts with ``rejected``.
 """
 
 from __future__ import annotations
 
 from collections import Counter
 from dataclasses import dataclass
-from pathlib import Path
+from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from flexmodal.daq.store import Channel, Event, read_run
-from flexmodal.modal.frf import FrfResult
-from flexmodal.modal.runs_io import read_frf
+if TYPE_CHECKING:
+    from flexmodal.daq.store import Run
+    from flexmodal.modal.frf import FrfResult
+    from flexmodal.modal.identify import Modes
 
 LOW_COHERENCE = 0.8
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class RunSummary:
-    path: Path
-    run_id: str
-    sample_rate_hz: float
-    start_time: str
-    excitation: str
-    pose: dict
-    n_samples: int
-    channels: tuple[Channel, ...]
-    events: tuple[Event, ...]
-    attrs: dict
-    peak_abs: np.ndarray  # [n_channels] largest |sample| per channel, in the channel's unit
-    frf: FrfResult | None
+    """A run for the report: ``run`` as read, its ``frf`` (None when not computed) and the ``modes``
+    identified from those FRFs (``modal.identify.Modes``), or the reason there are none (a string)."""
+
+    run: Run
+    frf: FrfResult | None = None
+    modes: Modes | str | None = None
+
+    @property
+    def label(self) -> str:
+        return f"{self.run.path.name}::{self.run.run_id}"
+
+    @property
+    def n_samples(self) -> int:
+        return int(np.shape(self.run.samples)[0])
 
     @property
     def duration_s(self) -> float:
-        return self.n_samples / self.sample_rate_hz
+        return self.n_samples / self.run.sample_rate_hz
+
+    @cached_property
+    def peak_abs(self) -> np.ndarray:
+        """Largest |sample| per channel [n_channels], in the channel's unit."""
+        samples = np.asarray(self.run.samples)
+        return np.max(np.abs(samples), axis=0) if samples.size else np.zeros(len(self.run.channels))
 
     @property
     def event_counts(self) -> Counter:
         """Number of events per kind (trigger, gap, overload, corrupt, reconnect, note)."""
-        return Counter(e.kind for e in self.events)
+        return Counter(e.kind for e in self.run.events)
 
     @property
     def overload_samples(self) -> int:
-        return int(sum(e.count for e in self.events if e.kind == "overload"))
+        return int(sum(e.count for e in self.run.events if e.kind == "overload"))
 
     @property
     def hits(self) -> list[dict]:
@@ -56,7 +67,8 @@ class RunSummary:
         return [h for h in self.frf.provenance.get("hits", []) if isinstance(h, dict)]
 
     def _rejected_notes(self) -> list[str]:
-        return [e.detail for e in self.events if e.kind == "note" and e.detail.lower().startswith("rejected")]
+        return [e.detail for e in self.run.events
+                if e.kind == "note" and e.detail.lower().startswith("rejected")]
 
     @property
     def rejected_hits(self) -> int:
@@ -76,13 +88,3 @@ class RunSummary:
             return None
         coh = self.frf.coherence[:, self.frf.freq_hz > 0]
         return float(np.mean(coh)), float(100.0 * np.mean(coh < LOW_COHERENCE))
-
-
-def summarise_run(path: str | Path, run_id: str) -> RunSummary:
-    """Read one run and what the report needs of it."""
-    run = read_run(path, run_id)
-    samples = np.asarray(run.samples)
-    peak = np.max(np.abs(samples), axis=0) if samples.size else np.zeros(len(run.channels))
-    return RunSummary(Path(path), run_id, run.sample_rate_hz, run.start_time, run.excitation, dict(run.pose),
-                      int(samples.shape[0]), run.channels, run.events, dict(run.attrs), peak,
-                      read_frf(path, run_id))

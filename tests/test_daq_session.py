@@ -86,3 +86,32 @@ def test_device_without_channels_is_an_error(tmp_path, capsys):
     path.write_text(BASE + spare)
     assert main(["acquire", "--config", str(path), "--out", str(tmp_path / "r.h5")]) == 2
     assert "device 'spare' has no channel mapped to it" in capsys.readouterr().err
+
+
+SIM = BASE.replace('port = "loop://"', 'port = "@simulator"') + '[simulator]\nprotocol = "serial"\n'
+
+
+@pytest.mark.parametrize("line,expected", [
+    ('args = ["--link", "/etc/passwd"]', "simulator: unknown field 'args'"),
+    ('fault_log = "/etc/passwd"', "fault_log = '/etc/passwd' must be a plain file name"),
+    ('fault_log = "../escape.jsonl"', "fault_log = '../escape.jsonl' must be a plain file name"),
+    ('corrupt_rate = 2.0', "corrupt_rate = 2.0 must be in [0, 1)"),
+    ('effects = ["x@y:k=1 --link /tmp/z"]', "effects = ['x@y:k=1 --link /tmp/z'] must be a list of"),
+    ('rig = "missing.toml"', "rig file"),
+    ('link = "/tmp/x"', "simulator: unknown field 'link'"),
+])
+def test_simulator_block_takes_only_known_validated_options(tmp_path, capsys, line, expected):
+    path = tmp_path / "sim.toml"
+    path.write_text(SIM + line + "\n")
+    assert main(["acquire", "--config", str(path), "--out", str(tmp_path / "r.h5"), "--duration", "1"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and expected in err
+
+
+def test_simulators_never_replace_or_append_to_other_files(tmp_path, capsys):
+    victim = tmp_path / "precious.txt"
+    victim.write_text("keep me\n")
+    for option in ("--link", "--fault-log"):
+        code = main(["sim", "serve", "--protocol", "serial", "--duration", "0.1", option, str(victim)])
+        assert code == 2 and str(victim) in capsys.readouterr().err
+        assert victim.read_text() == "keep me\n"

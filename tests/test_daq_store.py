@@ -1,4 +1,5 @@
-"""HDF5 run store: CONTRACT §6 layout with plain h5py, round trip, appending runs, SWMR and SIGKILL."""
+"""HDF5 run store: the docs/hdf5-format.md layout with plain h5py, round trip, appending runs, SWMR and
+SIGKILL."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""The end-to-end demo: runs on the embedded simulated rig, leaves a CONTRACT §6 file and a report."""
+"""The end-to-end demo: runs on the embedded simulated rig, leaves an HDF5 run file (docs/hdf5-format.md)
+and a report."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""models/effects.py: every CONTRACT §5 effect, where it applies and what it changes in the rig."""
+"""models/effects.py: every effect of docs/formats.md, where it applies and what it changes in the rig."""
 
 from __future__ import annotations
 

@@ -136,6 +136,7 @@ def test_seed000_damping_alone_cannot_explain_table2(shared_dir):
     assert np.all(shift > 5 * bound)                  # 6.7-15 % measured vs <= 0.85 % from damping
 
 
+@pytest.mark.slow
 def test_docs_quote_the_seed003_numbers_the_script_regenerates(shared_dir):
     """docs/diagnosis.md's seed 003 paragraph is exactly what benchmarks/diagnosis_doc.py computes now."""
     import importlib.util

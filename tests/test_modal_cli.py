@@ -51,7 +51,7 @@ def test_frf_cli_with_two_workers_equals_serial_path(twenty_runs, capsys):
     assert capsys.readouterr().out.split() == [f"{p}:run{k}" for k, p in enumerate(twenty_runs)]
     stored = [read_frf(p, f"run{k}") for k, p in enumerate(twenty_runs)]
     _same(serial, stored)
-    with h5py.File(twenty_runs[0], "r") as f:   # plain h5py sees the CONTRACT §6 layout
+    with h5py.File(twenty_runs[0], "r") as f:   # plain h5py sees the docs/hdf5-format.md layout
         g = f["runs/run0/frf"]
         assert g["H"].shape == (3, 1, 129) and g["coherence"].shape == (3, 129)
         assert g.attrs["estimator"] == "H1" and g.attrs["nfft"] == 256 and g.attrs["n_averages"] == 7

@@ -2,7 +2,8 @@
 
 Runs are simulated on the demo arm (fixtures.rig_sim, hidden elbow compliance; two random shaker
 tests and one impact test), stored with daq.store.RunWriter, their FRFs computed and stored by the modal
-package (modal.compute.compute_frf, modal.runs_io.write_frf: the CONTRACT §6 ``frf`` group).
+package (modal.compute.compute_frf, modal.runs_io.write_frf: the ``frf`` group of docs/hdf5-format.md).
+The report is computed by ``flexmodal.api.report`` and rendered by ``reports.html.write_report``.
 Chromium is driven over the DevTools protocol (tests/browser.py).  Chromium missing is a failure, not a
 skip.
 """
@@ -19,6 +20,7 @@ import pytest
 from browser import assert_table_and_plot_visible, render
 from matplotlib import image as mpimg
 
+from flexmodal import api
 from flexmodal.app import main
 from flexmodal.daq.store import Event, RunWriter, read_run
 from flexmodal.fixtures.rig_sim import HiddenEffect, simulate
@@ -27,7 +29,6 @@ from flexmodal.modal.runs_io import write_frf
 from flexmodal.modal.table import ModalTable
 from flexmodal.models.frame import frame_modes
 from flexmodal.models.rig import load_rig
-from flexmodal.reports.html import write_report
 
 POSES = {"theta0": {"theta_deg": 0.0}, "theta60": {"theta_deg": 60.0}, "theta120": {"theta_deg": 120.0}}
 IMPACT_CONFIG = "theta120"
@@ -92,10 +93,10 @@ def inputs(rigs_dir, tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def report(inputs):
-    return write_report(inputs["dir"] / "report.html", runs=[inputs["runs"]],
-                        measured=ModalTable.read_csv(inputs["measured"]),
-                        predictions=[ModalTable.read_csv(inputs["pred"])], diagnosis=DIAGNOSIS,
-                        rig=load_rig(inputs["rig"]), title="demo arm validation")
+    return api.report(inputs["dir"] / "report.html", runs=[inputs["runs"]],
+                      measured=ModalTable.read_csv(inputs["measured"]),
+                      predictions=[ModalTable.read_csv(inputs["pred"])], diagnosis=DIAGNOSIS,
+                      rig=load_rig(inputs["rig"]), title="demo arm validation")
 
 
 def test_report_is_self_contained_and_holds_every_section(report):
@@ -157,8 +158,8 @@ def test_report_cli_writes_the_same_sections(inputs, capsys):
 def test_report_without_runs_or_poses_notes_what_it_cannot_draw(inputs, tmp_path):
     measured = ModalTable.read_csv(inputs["measured"])
     no_pose = ModalTable.from_frame(measured.frame.drop(columns=["pose.theta_deg"]), "no-pose")
-    out = write_report(tmp_path / "r.html", measured=no_pose, rig=load_rig(inputs["rig"]),
-                       predictions=[ModalTable.read_csv(inputs["pred"])])
+    out = api.report(tmp_path / "r.html", measured=no_pose, rig=load_rig(inputs["rig"]),
+                     predictions=[ModalTable.read_csv(inputs["pred"])])
     html = out.read_text()
     assert "No mode shapes drawn for theta0: the measured table gives no pose.theta_deg for the rig" in html
     assert "Stored runs" not in html and "fe Δf [%]" in html

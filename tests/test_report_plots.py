@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from flexmodal.modal.table import ModalTable
+from flexmodal.models.arm_shapes import arm_modes
 from flexmodal.models.frame import frame_modes
 from flexmodal.models.rig import load_rig, parse_rig
 from flexmodal.reports import plots
@@ -147,7 +148,10 @@ def test_mode_shapes_measured_points_sit_on_the_model_curve(rigs_dir):
     rows = [{"config": "c", "mode": k + 1, "freq_hz": fm.freq_hz[k], "pose.theta_deg": 60.0,
              **{f"shape.{s}": -2.5 * fm.sensor_shapes[i, k] for i, s in enumerate(fm.sensor_names)}}
             for k in range(3)]
-    fig = plots.plot_mode_shapes(rig, pose, table(rows), "c")
+    arm = arm_modes(rig, pose, fm.sensor_names)
+    np.testing.assert_allclose(arm.sensor_disp[:, :3], fm.sensor_shapes, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(arm.freq_hz[:3], fm.freq_hz, rtol=1e-9)
+    fig = plots.plot_mode_shapes(arm, table(rows), "c")
     assert_units(fig)
     axes = [ax for ax in fig.axes if ax.get_visible()]
     assert len(axes) == 3

@@ -1,0 +1,87 @@
+"""Output-only (operational) identification of a stored record: which method a run gets, which channels
+are the outputs and references, and the call into SSI-cov (:mod:`flexmodal.modal.ssi`) or FDD
+(:mod:`flexmodal.modal.fdd`).
+
+A run is output-only when its ``excitation`` attribute is ``operational`` or it records no force
+channel; it then defaults to ``ssi``, otherwise to ``lscf`` (FRF-based).  Outputs are the
+acceleration channels (else every channel that is neither a force nor an encoder), as for FRFs.
+References are all outputs unless named.  Without ``fmin``, SSI's Hankel matrix is sized for half the
+lowest FDD peak (a quick look costing a fraction of the SSI), so low modes are not missed.  Rows of
+NaN (samples lost in acquisition, recorded as gap events) are left out of the covariances (SSI) and
+of the spectral segments (FDD).  Shapes are unscaled (unit largest entry): with no force measured
+there is no modal mass.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import replace
+
+import numpy as np
+
+from flexmodal.modal.compute import check_samples
+from flexmodal.modal.errors import ModalError
+from flexmodal.modal.fdd import FddResult, fdd
+from flexmodal.modal.ssi import SsiResult, ssi_cov
+
+OUTPUT_ONLY_METHODS = ("ssi", "fdd")
+
+
+def default_method(kinds: Sequence[str], excitation: str = "") -> str:
+    """``ssi`` for an operational run or one without a force channel, else ``lscf``."""
+    return "ssi" if excitation == "operational" or "force" not in kinds else "lscf"
+
+
+def output_channels(kinds: Sequence[str]) -> list[int]:
+    """Indices of the response channels: accelerations, else every non-force, non-encoder channel."""
+    acc = [j for j, k in enumerate(kinds) if k == "acceleration"]
+    return acc or [j for j, k in enumerate(kinds) if k not in ("force", "encoder")]
+
+
+def identify_output_only(samples: np.ndarray, sample_rate_hz: float, names: Sequence[str],
+                         kinds: Sequence[str], *, method: str = "ssi", fmin: float | None = None,
+                         fmax: float | None = None, max_order: int | None = None,
+                         references: Sequence[str] | None = None, where: str = "record"
+                         ) -> tuple[SsiResult | FddResult, tuple[str, ...]]:
+    """SSI-cov or FDD of the response channels of a record [n_samples, n_channels]; returns the
+    method's result (with ``.modes``) and the output channel names.  ``references`` name output
+    channels (default all); ``max_order`` is SSI's highest model order (default 100)."""
+    if method not in OUTPUT_ONLY_METHODS:
+        raise ModalError(f"method {method!r} is not output-only ({', '.join(OUTPUT_ONLY_METHODS)})")
+    samples = np.asarray(samples)
+    gaps = np.isnan(samples).all(axis=1) if samples.ndim == 2 else np.zeros(0, bool)
+    check_samples(samples[~gaps] if gaps.size else samples, names, where)   # NaN rows: lost samples
+    outputs = output_channels(kinds)
+    if not outputs:
+        raise ModalError(f"{where}: no response channel to identify from")
+    out_names = tuple(names[j] for j in outputs)
+    refs = None
+    if references:
+        unknown = [r for r in references if r not in out_names]
+        if unknown:
+            raise ModalError(f"{where}: reference channel(s) {', '.join(unknown)} are not among the "
+                             f"outputs ({', '.join(out_names)})")
+        refs = [out_names.index(r) for r in references]
+    y = samples[:, outputs].astype(float)
+    try:
+        if method == "ssi":
+            result = ssi_cov(y, sample_rate_hz, references=refs, fmin=fmin, fmax=fmax,
+                             max_order=100 if max_order is None else max_order,
+                             lowest_hz=fmin or _lowest_peak(y, sample_rate_hz, refs, fmax))
+        else:
+            result = fdd(y, sample_rate_hz, references=refs, fmin=fmin, fmax=fmax)
+    except ModalError as exc:
+        raise ModalError(f"{where}: {exc}") from None
+    if len(outputs) == 1:   # MAC, MPC, MPD and the singular vectors of one channel are always "perfect"
+        warn = "one output channel: no shape criterion can tell modes from noise peaks"
+        result = replace(result, modes=replace(result.modes, warnings=(*result.modes.warnings, warn)))
+    return result, out_names
+
+
+def _lowest_peak(y: np.ndarray, sample_rate_hz: float, refs: Sequence[int] | None, fmax: float | None
+                 ) -> float | None:
+    """Half the frequency of the lowest FDD mode [Hz], or None when FDD finds none."""
+    try:
+        return 0.5 * float(fdd(y, sample_rate_hz, references=refs, fmax=fmax).modes.freq_hz.min())
+    except ModalError:
+        return None

@@ -1,0 +1,85 @@
+"""CAN without a counter signal and with two DBC messages per scan, on python-can's virtual bus: frames are
+placed by their (hardware-like) timestamps; every sample arrives exactly and a dropped frame is a missing
+part of its scan, recorded as an event."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import can
+import numpy as np
+from cantools.database import Database
+from cantools.database.can import Message, Signal
+
+from flexmodal.daq.acquire import acquire
+from flexmodal.daq.session import load_session
+from flexmodal.daq.store import read_run
+
+RATE = 500.0
+DROP = 600  # scan whose second frame is never sent
+
+
+def _dbc(path):
+    sig = lambda tag, i: Signal(f"{tag.lower()}{i}", 16 * i, 16, "little_endian", is_signed=True)
+    messages = [Message(0x200 + m, f"Scan{tag}", 8, [sig(tag, i) for i in range(4)])
+                for m, tag in enumerate("AB")]
+    path.write_text(Database(messages=messages).as_dbc_string())
+
+
+def _values(k: np.ndarray) -> np.ndarray:
+    """The 8 values of scans ``k``: a0 = k mod 30000 identifies the scan."""
+    return np.column_stack([k % 30000] + [(k * (7 + j)) % 20001 - 10000 for j in range(7)]).astype(np.int16)
+
+
+def _device(channel: str, stop: threading.Event, sent: list) -> None:
+    bus = can.Bus(interface="virtual", channel=channel, preserve_timestamps=True)
+    listeners = can.interfaces.virtual.channels[channel]
+    deadline = time.monotonic() + 30
+    while len(listeners) < 2 and time.monotonic() < deadline:  # wait for the acquisition's bus
+        time.sleep(0.01)
+    t0, k = time.time(), 0
+    while not stop.is_set() and k < 20 * RATE:
+        due = int((time.time() - t0) * RATE)
+        for s in range(k, due):
+            v = _values(np.array([s]))[0]
+            ts = t0 + s / RATE
+            bus.send(can.Message(arbitration_id=0x200, data=v[:4].tobytes(), timestamp=ts,
+                                 is_extended_id=False))
+            if s != DROP:
+                bus.send(can.Message(arbitration_id=0x201, data=v[4:].tobytes(), timestamp=ts + 2e-4,
+                                     is_extended_id=False))
+        k = max(k, due)
+        sent.append(k)
+        time.sleep(0.005)
+    bus.shutdown()
+
+
+def test_two_messages_without_counter_lossless_and_a_dropped_frame_detected(tmp_path):
+    _dbc(tmp_path / "two.dbc")
+    names = [f"a{i}" for i in range(4)] + [f"b{i}" for i in range(4)]
+    channels = "".join(f'[[channel]]\nname = "{n}"\nkind = "voltage"\nunit = "count"\ndevice = "bus"\n'
+                       for n in names)
+    config = tmp_path / "can.toml"
+    config.write_text(f'sample_rate_hz = {RATE}\n[[device]]\nname = "bus"\nprotocol = "can"\n'
+                      f'interface = "virtual"\nchannel = "flexmodal-two-messages"\ndbc = "two.dbc"\n'
+                      f'messages = ["ScanA", "ScanB"]\ncounter = ""\n{channels}')
+    stop, sent = threading.Event(), []
+    device = threading.Thread(target=_device, args=("flexmodal-two-messages", stop, sent), daemon=True)
+    device.start()
+    try:
+        summary = acquire(load_session(config), tmp_path / "run.h5", duration_s=3.0, quiet=True)
+    finally:
+        stop.set()
+        device.join(5)
+    run = read_run(tmp_path / "run.h5", summary.run_id)
+    n = int(3.0 * RATE)
+    assert run.samples.shape == (n, 8)
+    k = int(run.samples[0, 0]) + np.arange(n)  # the scans stored, from the first one received
+    assert k[0] < DROP < k[-1], "the dropped frame fell outside the run"
+    row = DROP - k[0]
+    expected = _values(k).astype(float)
+    expected[row, 4:] = np.nan  # the missing frame: its four signals, in its scan only
+    np.testing.assert_array_equal(run.samples, expected)
+    lost = [(e.kind, e.sample_index, e.count) for e in run.events]
+    assert lost == [("corrupt", row, 1)]  # one part of one scan missing

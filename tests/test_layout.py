@@ -1,0 +1,114 @@
+"""The layout of docs/architecture.md, checked on the source (ast): imports only go down the data flow
+daq <- modal <- models <- compare <- reports <- api <- fixtures <- app (every */cli.py with app);
+reports renders and computes nothing; docs stand alone (no reference to a contract file that is not in
+the repository, every docs path named in --help exists)."""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import re
+from pathlib import Path
+
+import pytest
+from conftest import REPO
+
+from flexmodal.app import build_parser
+
+LAYERS = ("daq", "modal", "models", "compare", "reports", "api", "fixtures", "app")
+CLI_MODULES = ("cli.py", "diagnosis_cli.py", "__main__.py")
+# what reports/ may import from below it: data types and small display helpers, no solver
+REPORT_IMPORTS = {"flexmodal.compare.tables", "flexmodal.modal.table", "flexmodal.modal.mac",
+                  "flexmodal.modal.peaks"}
+
+
+def _sources() -> list[Path]:
+    """Every module of the installed package but its root ``__init__.py`` (tests, benchmarks and any
+    build/ output are not part of it)."""
+    packages = {"daq", "modal", "models", "compare", "reports", "fixtures"}
+    return sorted(p for p in REPO.rglob("*.py") if p.relative_to(REPO).parts[0] in packages
+                  or p.relative_to(REPO) in (Path("app.py"), Path("api.py"), Path("__main__.py")))
+
+
+def _layer(rel: Path) -> str:
+    if rel.name in CLI_MODULES or rel.parts[0] == "app.py":
+        return "app"
+    return rel.parts[0].removesuffix(".py")
+
+
+def _runtime_imports(path: Path) -> list[str]:
+    """flexmodal modules imported by ``path`` at run time (imports under ``if TYPE_CHECKING`` left out)."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    typing_only = {id(n) for node in ast.walk(tree)
+                   if isinstance(node, ast.If) and getattr(node.test, "id", "") == "TYPE_CHECKING"
+                   for n in ast.walk(node)}
+    found = []
+    for node in ast.walk(tree):
+        if id(node) in typing_only:
+            continue
+        if isinstance(node, ast.Import):
+            found += [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            found += [node.module] if node.level == 0 else []
+            if node.module == "flexmodal":
+                found += [f"flexmodal.{a.name}" for a in node.names]
+    return [m for m in found if m.startswith("flexmodal.")]
+
+
+def _upward(path: Path, rel: Path | None = None) -> list[str]:
+    """Imports of ``path`` (standing at ``rel`` in the repository) from a layer above its own."""
+    rel = rel or path.relative_to(REPO)
+    mine = LAYERS.index(_layer(rel))
+    return [m for m in _runtime_imports(path)
+            if m.split(".")[1] in LAYERS and LAYERS.index(m.split(".")[1]) > mine]
+
+
+@pytest.mark.parametrize("rel", [str(p.relative_to(REPO)) for p in _sources()])
+def test_no_module_imports_up_the_data_flow(rel):
+    assert _upward(REPO / rel) == []
+
+
+def test_the_walk_sees_every_package_and_catches_an_upward_import(tmp_path):
+    layers = {_layer(p.relative_to(REPO)) for p in _sources()}
+    assert layers == set(LAYERS)
+    probe = tmp_path / "probe.py"   # a modal module importing a model is caught, a typing-only import not
+    probe.write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    import flexmodal.compare\n"
+                     "def f():\n    from flexmodal.models.rig import Rig\n    from flexmodal import api\n")
+    assert _upward(probe, Path("modal/probe.py")) == ["flexmodal.models.rig", "flexmodal.api"]
+    assert _upward(probe, Path("modal/cli.py")) == []
+
+
+def test_reports_renders_and_solves_nothing():
+    for path in sorted((REPO / "reports").glob("*.py")):
+        if path.name in CLI_MODULES:
+            continue
+        below = [m for m in _runtime_imports(path) if not m.startswith("flexmodal.reports")]
+        assert set(below) <= REPORT_IMPORTS, (path.name, sorted(set(below) - REPORT_IMPORTS))
+
+
+def _help_texts() -> str:
+    """--help of flexmodal and of every sub-command, nested ones included."""
+    texts, stack = [], [build_parser()]
+    while stack:
+        parser = stack.pop()
+        texts.append(parser.format_help())
+        stack += [sub for action in parser._actions if isinstance(action, argparse._SubParsersAction)
+                  for sub in action.choices.values()]
+    return "\n".join(texts)
+
+
+def test_docs_stand_alone():
+    tracked = [p for p in REPO.rglob("*") if p.suffix in (".py", ".md") and "tests" not in p.parts
+               and ".egg-info" not in str(p)]
+    assert [str(p.relative_to(REPO)) for p in tracked if "CONTRACT" in p.read_text(encoding="utf-8")] == []
+    helps = _help_texts()
+    named = set(re.findall(r"docs/[\w-]+\.md", helps))
+    assert {"docs/formats.md", "docs/hdf5-format.md"} <= named
+    for doc in named:
+        assert (REPO / doc).is_file(), doc
+    prose = "\n".join(p.read_text(encoding="utf-8") for p in (REPO / "docs").glob("*.md"))
+    for link in set(re.findall(r"\]\(([\w-]+\.md)(?:#[\w-]+)?\)", prose)):
+        assert (REPO / "docs" / link).is_file(), link
+    formats = (REPO / "docs" / "formats.md").read_text(encoding="utf-8")
+    for heading in ("## Command conventions", "## Modal table CSV", "## Rig TOML", "## Diagnosis JSON"):
+        assert heading in formats

@@ -1,0 +1,79 @@
+"""`flexmodal identify` options of issue 12 on real files: manual pole picks, validation columns and
+the per-FRF synthesis file, thresholds, the exponential-window decay of FRFs measured elsewhere."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from flexmodal.app import main
+from flexmodal.fixtures.modal_sim import modal_frf
+from flexmodal.modal.frf import FrfResult
+from flexmodal.modal.table import ModalTable
+from flexmodal.modal.uff import write_frfs
+
+FN, ZETA = np.array([12.0, 31.0, 55.0]), np.array([0.01, 0.01, 0.01])
+PHI = np.array([[1.0, 0.8, 0.3], [0.5, -0.6, 0.9], [0.2, -0.9, -0.7]])
+
+
+def _uff(path, zeta=ZETA, fn=FN):
+    f = np.arange(0.0, 100.0, 0.05)
+    H = modal_frf(f, fn, zeta, PHI, PHI[[0]])
+    H[..., 0] = 0
+    write_frfs(path, FrfResult(f, H, np.ones((3, f.size)), "H1", "hann", 4000, 10, 200.0, "accelerance",
+                               ("1+z", "2+z", "3+z"), ("1+z",)))
+    return path
+
+
+def test_poles_option_returns_exactly_the_requested_modes_with_validation_columns(tmp_path, capsys):
+    uff, out = _uff(tmp_path / "frf.uff"), tmp_path / "modes.csv"
+    assert main(["identify", str(uff), "--out", str(out), "--fmin", "5", "--poles", "55,12"]) == 0
+    table = ModalTable.read_csv(out)
+    assert np.allclose(table.freq_hz("frf"), [12.0, 55.0], rtol=1e-5)
+    frame = table.frame
+    assert {"mpc", "mpd", "synthesis_corr"} <= set(frame.columns)
+    assert (frame["mpc"] > 0.95).all()   # the unpicked 31 Hz mode leaks into the LSFD shapes a little
+    synth = pd.read_csv(tmp_path / "modes.synthesis.csv")
+    assert list(synth.columns) == ["config", "output", "input", "synthesis_corr"]
+    assert list(synth["output"]) == ["1+z", "2+z", "3+z"]
+    # two of three modes synthesise the FRFs only partly: the FRAC says so
+    assert synth["synthesis_corr"].min() < 0.999
+    assert "model order" in capsys.readouterr().err
+
+
+def test_default_identification_synthesises_every_frf(tmp_path):
+    uff, out = _uff(tmp_path / "frf.uff"), tmp_path / "modes.csv"
+    assert main(["identify", str(uff), "--out", str(out), "--fmin", "5"]) == 0
+    table = ModalTable.read_csv(out)
+    assert np.allclose(table.freq_hz("frf"), FN, rtol=1e-5)
+    assert (table.frame["mpc"] > 0.9999).all() and (table.frame["mpd"] < 0.5).all()
+    assert pd.read_csv(tmp_path / "modes.synthesis.csv")["synthesis_corr"].min() > 0.99999
+
+
+def test_exp_window_decay_removes_the_damping_a_window_added_to_external_frfs(tmp_path):
+    """FRFs measured with w(t) = exp(-2 t): every pole's real part is 2/s more negative."""
+    decay = 2.0
+    wn = 2 * np.pi * FN
+    sigma = ZETA * wn + decay
+    wd = wn * np.sqrt(1 - ZETA ** 2)
+    windowed = sigma / np.hypot(sigma, wd)          # the same damped frequency, more decay
+    uff, out = _uff(tmp_path / "frf.uff", windowed, np.hypot(sigma, wd) / (2 * np.pi)), tmp_path / "modes.csv"
+    assert main(["identify", str(uff), "--out", str(out), "--fmin", "5"]) == 0
+    assert np.allclose(ModalTable.read_csv(out).frame["damping_ratio"], windowed, rtol=1e-3)
+    assert main(["identify", str(uff), "--out", str(out), "--fmin", "5", "--exp-window-decay", "2"]) == 0
+    assert np.allclose(ModalTable.read_csv(out).frame["damping_ratio"], ZETA, rtol=1e-3)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--poles", "12,abc"], "--poles '12,abc': give frequencies in Hz"),
+    (["--poles", "80"], "no stable pole within 5 % of 80 Hz"),
+    (["--mpc-min", "2"], "--mpc-min 2 must lie in 0..1"),
+    (["--exp-window-decay", "-1"], "decay -1 1/s must be >= 0"),
+    (["--max-order", "1"], "--max-order 1: must be 2 or more"),
+])
+def test_bad_identify_options_give_one_line_and_exit_2(tmp_path, capsys, args, message):
+    uff = _uff(tmp_path / "frf.uff")
+    assert main(["identify", str(uff), "--out", str(tmp_path / "m.csv"), "--fmin", "5", *args]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0], err
