@@ -43,12 +43,12 @@ from flexmodal.compare.gap import (
     estimate_scatter,
     gap_summary,
     joint_angles_rad,
-    mac,
     prepare,
     region_scores,
     rms,
 )
 from flexmodal.compare.parametric import handles_for, pose_basis, reduce_family
+from flexmodal.modal.mac import mac_pairs
 from flexmodal.modal.table import ModalTable
 from flexmodal.models.effects import pose_stiffness
 from flexmodal.models.rig import Rig
@@ -271,10 +271,12 @@ def _where(ctx: _Context, base_err: np.ndarray, base_summary: dict, scatter: flo
     region = max(scores, key=scores.get) if scores else ""
     out = {"modes": [int(m) for m in modes], "configs": configs, "region": region,
            "region_scores": dict(sorted(scores.items(), key=lambda kv: -kv[1]))}
-    if meas.shapes is not None and base_shapes is not None:
-        macs = np.array([mac(meas.shapes[c], base_shapes[c]) for c in range(len(meas.configs))])
+    full = [] if meas.shapes is None or base_shapes is None else \
+        [c for c in range(len(meas.configs)) if not np.isnan(meas.shapes[c]).any()]   # complete shapes
+    if full:
+        macs = np.array([mac_pairs(meas.shapes[c], base_shapes[c]) for c in full])
         out["mac_per_mode"] = {str(m + 1): float(np.mean(macs[:, m])) for m in range(macs.shape[1])}
-        values = comac(meas.shapes, base_shapes)
+        values = comac(meas.shapes[full], base_shapes[full])
         out["comac"] = {s: float(v) for s, v in zip(meas.sensors, values, strict=True)}
     return out
 

@@ -88,13 +88,6 @@ def carriers(per_item: dict[str, float], scatter: float) -> list[str]:
     return [k for k, v in per_item.items() if v > max(2 * scatter, 0.5 * top)]
 
 
-def mac(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """MAC between the columns of a [s, n] and b [s, n], pairwise on matching columns -> [n]."""
-    num = np.abs(np.sum(a.conj() * b, axis=0)) ** 2
-    den = np.sum(np.abs(a) ** 2, axis=0) * np.sum(np.abs(b) ** 2, axis=0)
-    return num / np.maximum(den, 1e-300)
-
-
 def comac(measured: np.ndarray, model: np.ndarray) -> np.ndarray:
     """COMAC per sensor over paired modes; shapes [k, s, n] stacked over configs, unit-scaled per mode."""
     def unit(x: np.ndarray) -> np.ndarray:
