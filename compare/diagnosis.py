@@ -6,18 +6,22 @@
 2. ``where``: the modes and configurations that carry the gap, and the region of the arm whose handles'
    frequency sensitivities best explain the error pattern (R^2, compare/gap.py; among regions within
    ``REGION_TIE`` of the best, the verdict's), plus MAC/COMAC when shapes were measured.
-3. Ranking: every effect at every location (compare/candidates.py), then every pair of the
-   ``PAIR_POOL`` best single candidates and, only when no pair explains the gap, each of the
-   ``TRIPLE_PAIRS`` best pairs extended by one more single of the pool; each candidate is fitted by
-   bounded least squares (compare/fit.py) on the training configurations of every fold and scored on
-   the held-out ones.  Score (lower is better):
-   ``sqrt(heldout_rms^2 + scatter^2) * (1 + PENALTY * n_params)``: a complexity penalty, with the
-   scatter as a floor so that candidates within the noise are ordered by simplicity.
+3. Ranking: every effect at every location (compare/candidates.py) fitted to all data; the
+   ``PAIR_POOL`` best singles and their pairs (and, only when no pair explains the gap, each of the
+   ``TRIPLE_PAIRS`` best pairs extended by one more single of the pool).  Candidates are cross-validated,
+   best in-sample score first, while they can still win: every fold is refitted to convergence from
+   starts chosen on its own training data (compare/fit.py), so held-out errors are honest.  Score (lower
+   is better): ``sqrt(heldout_rms^2 + scatter^2) * (1 + PENALTY * n_params)``: a complexity penalty, with
+   the scatter as a floor so that candidates within the noise are ordered by simplicity.
    ``joint_stiffness_pose`` ranks above the constant ``joint_stiffness`` at the same joint only when its
-   held-out error is lower.
-4. Verdict: the best candidate, unless the nominal model itself (no parameters) scores at least as well,
-   then ``none``; ``explained`` is false when the best held-out RMS is above ``EXPLAINED_FACTOR`` times
-   the scatter.
+   held-out error is lower.  The scatter comes from the data when it can (compare/gap.py
+   ``estimate_scatter``), else from the caller.
+4. Verdict: the best candidate pruned of components that do not improve the held-out error beyond
+   noise or sit at their lower bound, passed over when a parameter runs out of range; ``none`` when the
+   nominal model itself (no parameters) scores at least as well.  ``explained`` is false when the held-out
+   RMS is above ``EXPLAINED_FACTOR`` times the scatter or the held-out residuals are structured;
+   parameters at bounds and parameters the data cannot identify are flagged; candidates equal within
+   noise are listed as alternatives with the measurement that would separate them.
 """
 
 from __future__ import annotations
