@@ -110,14 +110,13 @@ def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: 
     """Batch FRFs of stored runs (a file means all its runs, ``FILE::RUN_ID`` or (file, id) one run),
     written back into each file or into ``out``; returns the (file, run id) pairs written.
 
-    Several runs go to a dask LocalCluster of ``workers`` processes (default 2; 0 = serially here) or
-    to the ``scheduler`` address; one run is computed here.  Estimators registered in this process
+    Runs are computed here one after the other unless the measured cost predicts that a dask
+    LocalCluster pays for its start-up (``workers`` None, see ``modal.batch.run_batch``); ``workers``
+    N forces a LocalCluster of N processes, 0 computes here, ``scheduler`` sends the runs to that
+    address.  Estimators registered in this process
     (``modal.frf.register_estimator``) reach worker processes only if they register them too."""
-    from flexmodal.daq.store import expand_runs
     from flexmodal.modal.batch import frf_batch
 
-    if workers is None and scheduler is None:
-        workers = 2 if len(expand_runs(runs)) > 1 else 0
     options = {"estimator": estimator, "nfft": nfft, "window": window, "overlap": overlap,
                "averaging": averaging}
     return frf_batch(runs, options, workers=workers, scheduler=scheduler, out=out, quiet=quiet)
@@ -357,13 +356,16 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     """Write the self-contained HTML validation report ``out`` and return its path.
 
     ``runs``: HDF5 files (all their runs), ``FILE::RUN_ID`` or (file, id); their stored FRFs are shown
-    with the stabilisation diagram of their identification (default options of :func:`identify`).
+    with the stabilisation diagram of their identification (default options of :func:`identify`); a
+    run without FRFs that is output-only (operational, or no force channel) with its FDD singular
+    values and SSI-cov stabilisation diagram (``modal.oma.output_only_results``, docs/oma.md).
     ``measured``/``repeats``/``predictions``: modal tables; ``diagnosis``: a :func:`diagnose` result,
     a parsed diagnosis.json, or its path; ``rig``: draws the measured shapes on the arm.  Everything
     is computed here; ``reports.html`` only renders it."""
     from flexmodal.compare.tables import compare_tables, ordered_configs, table_name
     from flexmodal.daq.store import expand_runs
     from flexmodal.modal.errors import ModalError
+    from flexmodal.modal.oma import default_method, output_only_results
     from flexmodal.modal.runs_io import read_frf
     from flexmodal.modal.sources import identify_frf
     from flexmodal.reports.errors import ReportError
@@ -376,14 +378,17 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     summaries = []
     for path, run_id in expand_runs(runs):
         step(f"reading and identifying {path.name}::{run_id}")
-        frf = read_frf(path, run_id)
-        modes = None
+        run, frf = read_run(path, run_id), read_frf(path, run_id)
+        modes = oma = None
         if frf is not None:
             try:
                 modes = identify_frf(frf)
             except ModalError as exc:
                 modes = str(exc)
-        summaries.append(RunSummary(read_run(path, run_id), frf, modes))
+        elif default_method([c.kind for c in run.channels], run.excitation) == "ssi":
+            oma = output_only_results(run.samples, run.sample_rate_hz, [c.name for c in run.channels],
+                                      [c.kind for c in run.channels], where=f"{path.name}::{run_id}")
+        summaries.append(RunSummary(run, frf, modes, oma))
     meas = _table(measured) if measured is not None else None
     named = _named(predictions)
     comparison = None

@@ -3,7 +3,8 @@
     python benchmarks/daq_throughput.py [--seconds S] [--out-dir DIR]
 
 1. Serial, binary frames over a pty into HDF5 (the full `flexmodal acquire` path: reader thread, queue,
-   timeline, SWMR writer): 32 channels at 64 kHz (2.048 MS/s) paced in real time, checked for zero loss
+   timeline, SWMR writer): 32 channels at 64 kHz (2.048 MS/s) and 256 kHz (8.19 MS/s) paced in real
+   time, checked for zero loss
    (no gap/corrupt event, every value equal to what the simulator sent); then the simulator unpaced to
    find the highest sustained rate.
 2. The HDF5 writer alone (RunWriter.append in 0.1 s blocks, float32) against a raw numpy write of the same
@@ -11,6 +12,9 @@
 3. CAN over slcan on a pty: frames/s decoded by the CAN driver against python-can's own receive loop
    (Bus.recv) over the same byte stream.
 4. Modbus TCP on 127.0.0.1: polls/s of the Modbus driver against pymodbus's own request/response loop.
+5. Overrun: each protocol's example session (its simulator started by the session) run below and above
+   the rate its stack sustains; above it the writer falls behind real time and `acquire` records an
+   `overrun` event (and warns in the live view) once it lags by more than 1 s.
 Prints one line per measurement and the ratios; results go to stdout.
 """
 
@@ -30,9 +34,9 @@ import numpy as np
 
 from flexmodal.daq.acquire import acquire  # noqa: E402
 from flexmodal.daq.session import ChannelMap, Device, Register, Session  # noqa: E402
-from flexmodal.daq.sim_common import PtyLink  # noqa: E402
-from flexmodal.daq.sim_source import LSB_MV, SimChannel, SimSource  # noqa: E402
 from flexmodal.daq.store import Channel, RunWriter, list_runs, read_run  # noqa: E402
+from flexmodal.fixtures.sim_common import PtyLink  # noqa: E402
+from flexmodal.fixtures.sim_source import LSB_MV, SimChannel, SimSource  # noqa: E402
 
 N_CH, RATE_HZ = 32, 64_000.0
 
@@ -56,16 +60,16 @@ def _serve_serial(link: PtyLink, source: SimSource, seconds: float, speed: float
     serve(link, source, scans_per_frame=256, duration_s=seconds, speed=speed)
 
 
-def bench_serial(out_dir: Path, seconds: float, speed: float) -> tuple[float, bool]:
+def bench_serial(out_dir: Path, seconds: float, speed: float, rate_hz: float = RATE_HZ) -> tuple[float, bool]:
     """Samples/s stored (all channels) and whether everything the simulator sent arrived intact."""
-    source = synthetic_source(N_CH, RATE_HZ)
+    source = synthetic_source(N_CH, rate_hz)
     link = PtyLink()
     sim = mp.get_context("fork").Process(target=_serve_serial, args=(link, source, seconds + 2, speed))
     out = out_dir / f"serial-{speed:g}.h5"
     out.unlink(missing_ok=True)
     sim.start()
     t0 = time.perf_counter()
-    summary = acquire(serial_session(str(link.path), N_CH, RATE_HZ), out, duration_s=seconds, quiet=True)
+    summary = acquire(serial_session(str(link.path), N_CH, rate_hz), out, duration_s=seconds, quiet=True)
     elapsed = time.perf_counter() - t0
     sim.terminate()
     sim.join()
@@ -194,16 +198,38 @@ def bench_modbus(seconds: float = 3.0) -> tuple[float, float]:
     return raw_rate, ours
 
 
+def bench_overrun(protocol: str, rate_hz: float, seconds: float, out_dir: Path) -> tuple[int, float]:
+    """Run ``protocol``'s example session at ``rate_hz`` for ``seconds`` of samples; returns the number
+    of overrun events and the lag (s) the first one reported (nan without one)."""
+    import tomllib
+
+    import flexmodal.fixtures  # noqa: F401  (registers the simulator launcher)
+    from flexmodal.daq.session import parse_session
+
+    path = Path(__file__).resolve().parents[1] / "examples" / "sessions" / f"{protocol}-sim.toml"
+    doc = tomllib.loads(path.read_text())
+    doc["sample_rate_hz"] = rate_hz
+    doc.pop("trigger")  # record from the start
+    out = out_dir / f"overrun-{protocol}-{rate_hz:g}.h5"
+    out.unlink(missing_ok=True)
+    summary = acquire(parse_session(doc, path), out, duration_s=seconds, quiet=True)
+    events = [e for e in read_run(out, summary.run_id).events if e.kind == "overrun"]
+    return len(events), events[0].count / rate_hz if events else float("nan")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seconds", type=float, default=5.0, help="length of the serial runs, s")
     parser.add_argument("--out-dir", type=Path, help="where to write the test files (default: a temp dir)")
+    parser.add_argument("--serial-rates", type=float, nargs="+", default=[RATE_HZ, 4 * RATE_HZ], metavar="HZ",
+                        help="per-channel rates of the paced serial runs (default 64 kHz and 256 kHz)")
     args = parser.parse_args()
     out_dir = args.out_dir or Path(tempfile.mkdtemp(prefix="flexmodal-bench-"))
-    rate, intact = bench_serial(out_dir, args.seconds, 1.0)
-    print(f"serial binary over pty, paced {N_CH} ch x {RATE_HZ:g} Hz: {rate / 1e6:.3f} MS/s stored, "
-          f"zero loss: {intact}")
+    for serial_rate in args.serial_rates:
+        rate, intact = bench_serial(out_dir, args.seconds, 1.0, serial_rate)
+        print(f"serial binary over pty, paced {N_CH} ch x {serial_rate:g} Hz: {rate / 1e6:.3f} MS/s stored, "
+              f"zero loss: {intact}")
     rate, intact = bench_serial(out_dir, args.seconds, 50.0)
     print(f"serial binary over pty, unpaced: {rate / 1e6:.3f} MS/s stored, zero loss: {intact}")
     h5, raw = bench_writer(out_dir)
@@ -214,6 +240,11 @@ def main() -> None:
     lib, ours = bench_modbus()
     print(f"Modbus TCP: pymodbus read loop {lib:.0f} polls/s, Modbus driver {ours:.0f} polls/s: "
           f"ratio {ours / lib:.2f}")
+    for protocol, rates in (("can", (512.0, 4096.0)), ("modbus", (200.0, 8000.0))):
+        for rate in rates:
+            n, lag = bench_overrun(protocol, rate, args.seconds, out_dir)
+            print(f"{protocol} session at {rate:g} Hz for {args.seconds:g} s: {n} overrun event(s)"
+                  + (f", first at {lag:.2f} s behind real time" if n else ""))
 
 
 if __name__ == "__main__":

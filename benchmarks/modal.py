@@ -7,6 +7,10 @@
    its stabilisation and selection given the true frequencies) vs modal.lscf (stabilisation with
    frequency, damping and MAC criteria + automatic selection, no frequencies given).
 
+3. The whole process: ``flexmodal frf`` (nfft 4096, H1 + coherence) on that record stored as a run
+   (float32, the run store's layout), against pyFRF in this process on the same samples as float64
+   and against the floor of h5py reading the samples plus the bare FFTs.
+
 Each round runs the reference first, then flexmodal, on the same data in this process; prints the
 median wall and CPU times over ``--repeat`` rounds, their ratios and the differences of the results.
 For the FRFs it also times the bare real FFTs that any Welch estimate of this record needs (one per
@@ -20,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import tempfile
 import time
 import warnings
 
@@ -70,29 +75,44 @@ def _fft_floor(n_transforms: int, nfft: int, repeat: int) -> float:
     return float(np.median(times))
 
 
-def bench_frf(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: int) -> None:
-    import pyFRF
-
+def _record(duration_s: float, fs: float, n_resp: int) -> np.ndarray:
+    """1 random force + ``n_resp`` responses of 4 modes (1 % noise), float32 [n, 1 + n_resp]."""
     rng = np.random.default_rng(0)
     n = int(duration_s * fs)
     phi = rng.standard_normal((n_resp, 4))
     force = rng.standard_normal((n, 1))
     y = modal_response(force, fs, FN[:4] * 10, ZETA[:4], phi, phi[:1])
     y += 0.01 * y.std(axis=0) * rng.standard_normal(y.shape)
-    samples = np.column_stack([force, y]).astype(np.float32)
-    del y
+    return np.column_stack([force, y]).astype(np.float32)
+
+
+def _pyfrf_arrays(samples: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """pyFRF's excitation [1, 1, n] and response [1, n_resp, n] arrays of a record (force first)."""
+    return samples[:, 0][None, None, :], np.ascontiguousarray(samples[:, 1:].T)[None]
+
+
+def _pyfrf(exc: np.ndarray, resp: np.ndarray, fs: float, nfft: int):
+    """pyFRF's H1, H2 and coherence, Hann, 50 % overlap."""
+    import pyFRF
+
+    f = pyFRF.FRF(int(fs), exc=exc, resp=resp, exc_type="f", resp_type="d", window="hann",
+                  nperseg=nfft, noverlap=nfft // 2, fft_len=nfft)
+    return f.get_H1(), f.get_H2(), f.get_coherence()
+
+
+def bench_frf(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: int) -> None:
+    samples = _record(duration_s, fs, n_resp)
+    n = samples.shape[0]
     window = np.hanning(nfft)          # pyFRF's Hann (symmetric), given to both
 
     def ours():
         s = welch_spectra(samples, fs, [0], list(range(1, n_resp + 1)), nfft, window_spec=window, workers=-1)
         return h1(s), h2(s), coherence(s)
 
-    exc, resp = samples[:, 0][None, None, :], np.ascontiguousarray(samples[:, 1:].T)[None]
+    exc, resp = _pyfrf_arrays(samples)
 
     def theirs():
-        f = pyFRF.FRF(int(fs), exc=exc, resp=resp, exc_type="f", resp_type="d", window="hann",
-                      nperseg=nfft, noverlap=nfft // 2, fft_len=nfft)
-        return f.get_H1(), f.get_H2(), f.get_coherence()
+        return _pyfrf(exc, resp, fs, nfft)
 
     (t_theirs, c_theirs, (b1, b2, bc)), (t_ours, c_ours, (a1, a2, ac)) = _timed(theirs, ours, repeat)
     lines = slice(1, None)
@@ -109,6 +129,75 @@ def bench_frf(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: int)
           f"so no Welch implementation can be more than {t_theirs / floor:.1f}x faster than pyFRF here")
     print(f"     max relative difference (coherence > 0.5): H1 {rel(a1, b1):.1e}, H2 {rel(a2, b2):.1e}, "
           f"coherence {np.max(np.abs(ac[:, lines] - bc[:, lines])[good]):.1e}")
+
+
+def bench_process(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: int, folder: str) -> None:
+    """The whole ``flexmodal frf`` process (start-up, imports, streaming the stored float32 run, H1 +
+    coherence, writing them) against pyFRF in this process on the same samples as float64, and
+    against the floor: h5py reading the samples plus the bare FFTs."""
+    import os
+    import resource
+    import subprocess
+
+    import h5py
+
+    from flexmodal.daq.store import Channel, RunWriter
+
+    samples = _record(duration_s, fs, n_resp)
+    path, out = os.path.join(folder, "bench_run.h5"), os.path.join(folder, "bench_frf.h5")
+    channels = [Channel("F", "force", "N")] + [Channel(f"a{k}", "acceleration", "m/s^2")
+                                               for k in range(1, n_resp + 1)]
+    with RunWriter(path, "r", sample_rate_hz=fs, channels=channels, excitation="random", pose={}) as w:
+        w.append(samples)
+    n = samples.shape[0]
+    exc, resp = _pyfrf_arrays(samples.astype(np.float64))
+    del samples
+    command = [sys.executable, "-m", "flexmodal", "--quiet", "frf", path, "--nfft", str(nfft),
+               "--workers", "0", "--out", out]
+
+    def theirs():
+        h1_, _, coh = _pyfrf(exc, resp, fs, nfft)
+        return h1_, coh
+
+    child_cpu = []
+
+    def ours():
+        if os.path.exists(out):
+            os.remove(out)
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        subprocess.run(command, check=True, timeout=600, stdout=subprocess.DEVNULL)
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        child_cpu.append(after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime)
+
+    def read():
+        with h5py.File(path, "r") as f:
+            return f["runs/r/samples"][()]
+
+    try:
+        (t_theirs, c_theirs, _), (t_ours, _, _) = _timed(theirs, ours, repeat)
+        t_read = float(np.median([_wall(read) for _ in range(repeat)]))
+        n_seg = (n - nfft) // (nfft // 2) + 1
+        floor = t_read + _fft_floor((n_resp + 1) * n_seg, nfft, repeat)
+        from flexmodal.modal.runs_io import read_frf
+
+        got = read_frf(out, "r")
+    finally:
+        for p in (path, out):
+            if os.path.exists(p):
+                os.remove(p)
+    print(f"PROC whole `flexmodal frf` process, {n_resp} responses x 1 reference, {duration_s:g} s at "
+          f"{fs:g} Hz, nfft {nfft}, H1 + coherence: pyFRF in-process (float64) {t_theirs:.3f} s, "
+          f"flexmodal process {t_ours:.3f} s, ratio {t_theirs / t_ours:.1f}x "
+          f"(medians of {repeat}); CPU pyFRF {c_theirs:.3f} s, flexmodal process "
+          f"{np.median(child_cpu):.3f} s, ratio {c_theirs / np.median(child_cpu):.1f}x")
+    print(f"     floor: h5py read {t_read:.3f} s + bare FFTs = {floor:.3f} s; flexmodal process / floor = "
+          f"{t_ours / floor:.2f}; {got.n_averages} segments")
+
+
+def _wall(fn) -> float:
+    t0 = time.perf_counter()
+    fn()
+    return time.perf_counter() - t0
 
 
 def bench_lscf(n_frf: int, n_lines: int, repeat: int) -> None:
@@ -163,8 +252,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--frfs", type=int, default=30)
     p.add_argument("--lines", type=int, default=2000)
     p.add_argument("--repeat", type=int, default=5)
+    p.add_argument("--process-nfft", type=int, default=4096, help="nfft of the whole-process case")
+    p.add_argument("--folder", default=tempfile.gettempdir(), help="where the run file is written")
     a = p.parse_args(argv)
     bench_frf(a.duration_s, a.sample_rate_hz, a.responses, a.nfft, a.repeat)
+    bench_process(a.duration_s, a.sample_rate_hz, a.responses, a.process_nfft, a.repeat, a.folder)
     bench_lscf(a.frfs, a.lines, a.repeat)
     return 0
 

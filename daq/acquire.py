@@ -36,6 +36,7 @@ import numpy as np
 
 from flexmodal.daq.devices import Block, ReaderStats, make_driver, run_reader
 from flexmodal.daq.errors import DaqError
+from flexmodal.daq.hits import HitMonitor, sparkline
 from flexmodal.daq.hooks import simulator_launcher
 from flexmodal.daq.lock import WriterLock
 from flexmodal.daq.session import SIMULATOR_PORT, Session
@@ -155,12 +156,16 @@ class Display:
         self.peak = np.zeros(len(names))
         self.overloads = np.zeros(len(names), int)
         self.behind_s = 0.0  # > 0: the writer lags real time by this much (overrun)
+        self.monitor: HitMonitor | None = None  # impact sessions: hit verdicts and the running H1
+        self.response = ""
+        self.fs = 1.0
         self._last = 0.0
         if not quiet:
             from rich.console import Console
             from rich.live import Live
 
-            self.live = Live(console=Console(stderr=True), refresh_per_second=4, transient=False)
+            # refreshed by update() only: no background thread writing to a terminal that may go away
+            self.live = Live(console=Console(stderr=True), auto_refresh=False, transient=False)
             self.live.start()
 
     def rows(self, rows: np.ndarray) -> None:
@@ -196,7 +201,33 @@ class Display:
             style = "bold red" if self.overloads[i] else None
             table.add_row(name, self.units[i], f"{self.level[i]:.4g}", f"{self.peak[i]:.4g}",
                           str(self.overloads[i]), style=style)
-        self.live.update(table)
+        if self.monitor is None:
+            self.live.update(table, refresh=True)
+            return
+        from rich.console import Group
+        from rich.text import Text
+
+        self.live.update(Group(table, *self._impact_lines(Text)), refresh=True)
+
+    def _impact_lines(self, text) -> list:
+        """The last hits with their verdicts, then |H1| (dB) and coherence at the chosen response."""
+        m = self.monitor
+        lines = [text(f"hits: {len(m.hits)}, accepted {m.accepted}", style="bold")]
+        for h in m.hits[-6:]:
+            ok = h.verdict == "accepted"
+            lines.append(text(f"  hit at {h.row / self.fs:8.3f} s  peak {h.peak:8.4g}  "
+                              f"{'ACCEPTED' if ok else 'REJECTED: ' + h.reason}",
+                              style="green" if ok else "bold red"))
+        if m.accepted:
+            f, h, coh = m.h1()
+            db = 20 * np.log10(np.where(h > 0, h, np.nan))
+            top = np.nanmax(db[1:]) if np.isfinite(db[1:]).any() else 0.0
+            lines.append(text(f"  |H1| {self.response}  {sparkline(db[1:], 64, top - 60, top)}  "
+                              f"0-{f[-1]:g} Hz, top {top:.1f} dB"))
+            pad = " " * len(self.response)
+            lines.append(text(f"  coh   {pad}{sparkline(coh[1:], 64, 0, 1, np.nanmin)}  "
+                              f"0..1, min {np.nanmin(coh[1:]):.2f}"))
+        return lines
 
     def close(self) -> None:
         if self.live is not None:
@@ -229,11 +260,18 @@ class TriggerDetector:
         return out
 
 
-def _clipped(block: Block, limits) -> np.ndarray | None:
-    if limits is None:
-        return None
-    lo, hi = limits
-    return (block.values <= lo) | (block.values >= hi)
+def _hit_monitor(session: Session, names: tuple[str, ...]) -> HitMonitor:
+    """The hit screening of an impact session: force = the trigger channel, response = the trigger's
+    ``response`` (default the first acceleration channel, else the first other channel)."""
+    t = session.trigger
+    force = names.index(t.channel)
+    kinds = [c.channel.kind for c in session.channels]
+    response = (names.index(t.response) if t.response else
+                kinds.index("acceleration") if "acceleration" in kinds else (force + 1) % len(names))
+    fs = session.sample_rate_hz
+    return HitMonitor(force, response, fs, int(round(t.window_s * fs)), t.pretrigger_samples,
+                      t.min_peak if t.min_peak is not None else 2 * abs(t.level),
+                      (session.channels[force].full_scale, session.channels[response].full_scale))
 
 
 def _clipped(block: Block, limits) -> np.ndarray | None:
@@ -301,6 +339,10 @@ class _Recorder:
             t = session.trigger
             self.trig = TriggerDetector(self.names.index(t.channel), t.level, t.slope,
                                         int(round(t.holdoff_s * session.sample_rate_hz)))
+            if session.excitation == "impact":
+                self.display.monitor = _hit_monitor(session, self.names)
+                self.display.response, self.display.fs = session.channels[
+                    self.display.monitor.response].channel.name, session.sample_rate_hz
         self.counts: Counter = Counter()
         self.writer: RunWriter | None = None
         self.pending: list[Event] = []  # events dated in timeline rows (row 0 = the session's first sample)
@@ -314,6 +356,9 @@ class _Recorder:
         self.lag_base = np.inf  # smallest delay of the rows behind real time seen so far (start-up latency)
         self.overrun = False
         self.disk_stopped = False
+        self.pose_cols = {v: self.names.index(c) for v, c in session.pose_from.items()}
+        self.pose_sums = np.zeros((len(self.pose_cols), 5))  # n, sum, sum of squares, min, max
+        self.pose_sums[:, 3:] = (np.inf, -np.inf)
 
     # -- what the reader threads deliver ---------------------------------------------------------------
     def handle(self, item) -> None:
@@ -390,8 +435,10 @@ class _Recorder:
         session, target = self.session, self.target
         if self.trig is not None:
             t = session.trigger
-            self.pending.extend(Event("trigger", i, 1, f"{t.channel} {t.slope} {t.level:g}")
-                                for i in self.trig.find(rows, row0))
+            found = self.trig.find(rows, row0)
+            self.pending.extend(Event("trigger", i, 1, f"{t.channel} {t.slope} {t.level:g}") for i in found)
+            if self.display.monitor is not None:
+                self.judged(self.display.monitor.add(rows, row0, found))
         if self.waiting:
             buf = np.vstack([*self.held, rows])
             buf0 = row0 + rows.shape[0] - buf.shape[0]
@@ -418,11 +465,40 @@ class _Recorder:
         self.pending.clear()
         self.guarded(lambda: (self.writer.append(rows), self.writer.add_events(keep)))
         self.written += rows.shape[0]
+        self.add_pose(rows)
         self.display.rows(rows)
         for e in keep:
             self.counts[e.kind] += 1
             if e.kind == "overload":
                 self.display.overloads[self.names.index(e.detail)] += e.count
+
+    def judged(self, hits) -> None:
+        """Rejected hits become notes (the verdicts show in the live view as they come)."""
+        self.pending.extend(Event("note", h.row, 1, f"hit rejected: {h.reason}") for h in hits
+                            if h.verdict == "rejected")
+        if hits:
+            self.update_display(force=True)
+
+    def add_pose(self, rows: np.ndarray) -> None:
+        """Running statistics of the encoder channels the pose is taken from (finite values only)."""
+        for k, col in enumerate(self.pose_cols.values()):
+            x = rows[:, col].astype(np.float64)
+            x = x[np.isfinite(x)]
+            if x.size:
+                n, s1, s2, lo, hi = self.pose_sums[k]
+                self.pose_sums[k] = (n + x.size, s1 + x.sum(), s2 + (x * x).sum(), min(lo, x.min()),
+                                     max(hi, x.max()))
+
+    def pose(self) -> tuple[dict, dict]:
+        """Pose variables from their encoder channels: mean over the run, and spread (std, min, max)."""
+        mean, spread = {}, {}
+        for (var, _), (n, s1, s2, lo, hi) in zip(self.pose_cols.items(), self.pose_sums, strict=True):
+            if n:
+                m = s1 / n
+                mean[var] = float(m)
+                spread[var] = {"std": float(np.sqrt(max(s2 / n - m * m, 0.0))), "min": float(lo),
+                               "max": float(hi), "n": int(n)}
+        return mean, spread
 
     def guarded(self, step) -> None:
         """Run a write step; a failure becomes WriteFailed and the file is not touched again."""
@@ -482,6 +558,8 @@ class _Recorder:
             if self.writer is not None:
                 writer, self.writer = self.writer, None
                 self.guarded_close(writer)
+        if self.pose_cols and self.written:
+            _store_pose(self.out, self.run_id, {**self.session.pose, **self.pose()[0]}, self.pose()[1])
         return self.summary()
 
     def finish(self, threads: list[threading.Thread]) -> None:
@@ -493,6 +571,8 @@ class _Recorder:
             self.drain(0.0)
             self.release(self.silent(time.monotonic()) if len(self.drivers) > 1 else set())
         self.pending.extend(self.timeline.close_gaps(self.timeline.released))
+        if self.display.monitor is not None:
+            self.judged(self.display.monitor.finish())
         unwritten = self.timeline.ready()
         why = (f"stopped by {signal.Signals(self.stopper.signum).name}" if self.stopper.signum
                else self.error)
@@ -520,25 +600,39 @@ class _Recorder:
 
     def summary(self) -> Summary:
         if self.writer is None and self.written == 0:
+            if self.stopper.signum:
+                raise DaqError(f"{self.session.source}: stopped by "
+                               f"{signal.Signals(self.stopper.signum).name} before any sample was stored")
             if self.waiting:
                 t = self.session.trigger
                 raise DaqError(f"{self.session.source}: trigger: no {t.slope} crossing of {t.level:g} on "
                                f"{t.channel!r}")
-            if self.stopper.signum:
-                raise DaqError(f"{self.session.source}: stopped by "
-                               f"{signal.Signals(self.stopper.signum).name} before any sample was stored")
             raise DaqError(self.error or f"{self.session.source}: no samples arrived from "
                                          f"{', '.join(self.drivers)}")
         return Summary(self.out, self.run_id, self.written, len(self.names), self.session.sample_rate_hz,
                        self.counts, sum(s.dropped_blocks for s in self.stats.values()), self.stopper.signum,
                        self.error)
 
+def _store_pose(out: Path, run_id: str, pose: dict, spread: dict) -> None:
+    """Replace the run's ``pose`` by the encoder means and add ``pose_spread`` (JSON: per variable std,
+    min, max and number of samples), once the writer has closed the file."""
+    import h5py
+
+    with h5py.File(out, "r+") as f:
+        attrs = f[f"runs/{run_id}"].attrs
+        attrs["pose"] = json.dumps(pose)
+        attrs["pose_spread"] = json.dumps(spread)
+
+
 def _open_writer(session: Session, out: Path, run_id: str, stamp: datetime, first_rows: np.ndarray,
                  names: tuple[str, ...], first_index: dict) -> RunWriter:
-    """Create the run; a pose taken from encoder channels uses their first sample (degrees)."""
+    """Create the run; a pose taken from encoder channels starts as their first sample (degrees) and
+    becomes their mean over the run when it ends (a killed run keeps the first sample)."""
     pose = dict(session.pose)
     for var, channel in session.pose_from.items():
-        pose[var] = float(first_rows[0, names.index(channel)])
+        x = first_rows[:, names.index(channel)]
+        if np.isfinite(x).any():
+            pose[var] = float(x[np.isfinite(x)][0])
     attrs = {"session": str(session.source), "notes": session.notes, "first_index": json.dumps(first_index),
              "devices": json.dumps({d.name: d.protocol for d in session.devices})}
     if session.trigger is not None:

@@ -20,9 +20,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--duration", type=float, metavar="S", help="run length in seconds")
     p.add_argument("--run-id", metavar="ID", help="run id (default: the session's, else name + UTC time)")
     p.add_argument("--recover", action="store_true",
-                   help="RUN.h5 was left by a killed writer: clear its open-for-writing flags first")
+                   help="RUN.h5 was left by a killed writer: clear its open-for-writing flags first "
+                        "(refused while another acquire is writing it)")
     p.set_defaults(func=_acquire)
-
 
 
 def _acquire(args: argparse.Namespace) -> int:

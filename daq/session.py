@@ -102,6 +102,9 @@ class Trigger:
     pretrigger_samples: int = 0
     holdoff_s: float = 0.5
     start: bool = False  # the run starts pretrigger_samples before the first trigger
+    response: str = ""  # impact sessions: the channel of the live H1 (default: first acceleration)
+    window_s: float = 1.0  # impact sessions: record length of one hit (from pretrigger_samples before)
+    min_peak: float | None = None  # impact sessions: weaker hits are rejected (default 2 x level)
 
 
 @dataclass(frozen=True)
@@ -125,6 +128,8 @@ class Simulator:
     format: str = "int16"
     fault_log: str = ""
     effects: tuple[str, ...] = ()  # hidden effects "EFFECT@LOCATION:PARAM=VALUE,..." (SI units)
+    double_hit_at_s: float | None = None  # impact test: this hit of the record bounces back
+    overload_at_s: float | None = None  # impact test: this hit of the record overloads the ADC
 
     @property
     def faults(self) -> bool:
@@ -230,13 +235,20 @@ def _channel(doc: dict, where: str, devices: dict[str, Device]) -> ChannelMap:
     where = f"{where.split(':')[0]}: channel {name!r}"
     t = Table(doc, where)
     t.reject_unknown({"name", "kind", "unit", "sensitivity", "sensitivity_unit", "scale", "offset",
-                      "location", "direction", "device", "source", "full_scale"})
+                      "location", "direction", "device", "source", "full_scale", "counts_per_rev"})
     kind = t.choice("kind", CHANNEL_KINDS)
     unit = t.get("unit", str)
     sensitivity = t.get("sensitivity", float, 1.0, check=lambda v: v != 0 and math.isfinite(v),
                         why="must be finite and non-zero")
     sens_unit = t.get("sensitivity_unit", str, "")
-    if "sensitivity" in t.doc and not sens_unit:
+    if "counts_per_rev" in t.doc:  # an encoder's resolution: counts -> angle in `unit` (deg or rad)
+        if kind != "encoder" or "sensitivity" in t.doc or unit not in ("deg", "rad"):
+            raise DaqError(f"{where}: counts_per_rev is for kind = \"encoder\" with unit deg or rad and no "
+                           "sensitivity")
+        sensitivity = t.get("counts_per_rev", float, check=lambda v: v > 0 and math.isfinite(v),
+                            why="must be > 0")
+        sens_unit = "counts/rev"
+    elif "sensitivity" in t.doc and not sens_unit:
         raise DaqError(f"{where}: sensitivity {sensitivity} has no sensitivity_unit (e.g. \"mV/g\")")
     factor = 1.0
     if sens_unit:
@@ -268,7 +280,7 @@ def _simulator(doc: dict, where: str, base: Path) -> Simulator:
     s = Table(doc, where, base)
     s.reject_unknown({"protocol", "rig", "test", "seed", "pose", "corrupt_rate", "drop_at_s", "drop_s",
                       "disconnect_after_s", "disconnect_s", "scans_per_frame", "format", "fault_log",
-                      "effects"})
+                      "effects", "double_hit_at_s", "overload_at_s"})
     seconds = {"check": lambda v: 0 <= v <= 86400, "why": "must be in [0, 86400] s"}
     pose = s.get("pose", dict, {})
     for k, v in pose.items():
@@ -290,7 +302,9 @@ def _simulator(doc: dict, where: str, base: Path) -> Simulator:
         format=s.choice("format", ("int16", "int32", "float32"), "int16"), fault_log=log,
         effects=tuple(s.get("effects", list, [], check=lambda v: all(
             isinstance(e, str) and re.fullmatch(EFFECT_PATTERN, e) for e in v),
-            why="must be a list of \"EFFECT@LOCATION:PARAM=NUMBER,...\"")))
+            why="must be a list of \"EFFECT@LOCATION:PARAM=NUMBER,...\"")),
+        double_hit_at_s=s.get("double_hit_at_s", float, None, **seconds),
+        overload_at_s=s.get("overload_at_s", float, None, **seconds))
 
 
 def parse_session(doc: dict, source: Path) -> Session:
@@ -325,12 +339,17 @@ def parse_session(doc: dict, source: Path) -> Session:
     trigger = None
     if "trigger" in doc:
         g = Table(doc["trigger"], f"{where}: trigger")
-        g.reject_unknown({"channel", "level", "slope", "pretrigger_samples", "holdoff_s", "start"})
+        g.reject_unknown({"channel", "level", "slope", "pretrigger_samples", "holdoff_s", "start", "response",
+                          "window_s", "min_peak"})
         trigger = Trigger(g.get("channel", str, check=lambda v: v in names, why="is not a channel"),
                           g.get("level", float), g.choice("slope", ("rising", "falling"), "rising"),
                           g.get("pretrigger_samples", int, 0, check=lambda v: v >= 0, why="must be >= 0"),
                           g.get("holdoff_s", float, 0.5, check=lambda v: v >= 0, why="must be >= 0"),
-                          g.get("start", bool, False))
+                          g.get("start", bool, False),
+                          g.get("response", str, "", check=lambda v: v in names, why="is not a channel"),
+                          g.get("window_s", float, 1.0, check=lambda v: 0 < v <= 60,
+                                why="must be in (0, 60] s"),
+                          g.get("min_peak", float, None, check=lambda v: v >= 0, why="must be >= 0"))
     pose = t.get("pose", dict, {})
     for k, v in pose.items():
         if not isinstance(v, (int, float)) or isinstance(v, bool):

@@ -15,8 +15,9 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Sequence
-from dataclasses import dataclass, field
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -353,8 +354,10 @@ def _text(value) -> str:
     return value.decode() if isinstance(value, bytes) else str(value)
 
 
-def read_run(path: str | Path, run_id: str) -> Run:
-    """Read one run completely into memory."""
+@contextmanager
+def open_run(path: str | Path, run_id: str) -> Iterator[Run]:
+    """One run with its ``samples`` left on disk: an h5py dataset, valid inside the ``with`` block
+    (read it in blocks, e.g. ``samples[a:b]``, so memory does not grow with the record)."""
     with _open_read(path) as f:
         key = f"runs/{run_id}"
         if key not in f:
@@ -371,10 +374,16 @@ def read_run(path: str | Path, run_id: str) -> Run:
         events = tuple(Event(_text(r["kind"]), int(r["sample_index"]), int(r["count"]), _text(r["detail"]))
                        for r in g["events"][()])
         attrs = {k: (_text(v) if isinstance(v, bytes) else v) for k, v in g.attrs.items()}
-        return Run(path=Path(path), run_id=run_id, sample_rate_hz=float(attrs.pop("sample_rate_hz")),
-                   start_time=_text(attrs.pop("start_time")), excitation=_text(attrs.pop("excitation")),
-                   pose=json.loads(attrs.pop("pose")), channels=channels, events=events,
-                   samples=g["samples"][()], attrs=attrs)
+        yield Run(path=Path(path), run_id=run_id, sample_rate_hz=float(attrs.pop("sample_rate_hz")),
+                  start_time=_text(attrs.pop("start_time")), excitation=_text(attrs.pop("excitation")),
+                  pose=json.loads(attrs.pop("pose")), channels=channels, events=events,
+                  samples=g["samples"], attrs=attrs)
+
+
+def read_run(path: str | Path, run_id: str) -> Run:
+    """Read one run completely into memory."""
+    with open_run(path, run_id) as run:
+        return replace(run, samples=run.samples[()])
 
 
 def expand_runs(runs: Sequence[str | Path | tuple[str | Path, str]]) -> list[tuple[Path, str]]:

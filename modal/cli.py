@@ -27,10 +27,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     """Add this package's sub-commands to the flexmodal parser."""
     p = sub.add_parser("frf", help="batch FRFs + coherence of stored runs, written back under /runs/<id>/frf",
                        description="Compute FRFs and coherence of every run in the HDF5 files and write them "
-                                   "back under /runs/<id>/frf (or into --out). Several runs go to a dask "
-                                   "LocalCluster (2 worker processes unless --workers N; --workers 0 = "
-                                   "serial in this process) or to an existing --scheduler; a single run "
-                                   "is computed here. Prints one 'FILE:RUN_ID' line per run written.")
+                                   "back under /runs/<id>/frf (or into --out). Random and sweep runs are "
+                                   "streamed block by block (memory does not grow with the record) and "
+                                   "segments holding NaN rows or touching gap/corrupt events are skipped. "
+                                   "Runs are computed here, one after the other, unless the measured cost "
+                                   "predicts that a dask LocalCluster of 2 processes pays for its start-up; "
+                                   "--workers N forces N processes (0: always here), --scheduler uses an "
+                                   "existing cluster. Prints one 'FILE:RUN_ID' line per run written.")
     p.add_argument("runs", nargs="+", metavar="RUN.h5", help="HDF5 run files (docs/hdf5-format.md)")
     p.add_argument("--estimator", default="H1", choices=_Estimators(), metavar="NAME",
                    help="FRF estimator: %(choices)s (default H1)")
@@ -44,7 +47,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--averaging", default="linear", choices=["linear", "exponential"],
                    help="averaging of impact hits (default linear)")
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--workers", type=int, default=None, help="LocalCluster worker processes (0 = serial)")
+    g.add_argument("--workers", type=int, default=None,
+                   help="LocalCluster worker processes (0 = serial here; default: chosen by cost)")
     g.add_argument("--scheduler", default=None, metavar="ADDR", help="dask.distributed scheduler address")
     p.add_argument("--out", default=None, metavar="OUT.h5", help="write the FRFs into this file instead")
     p.set_defaults(func=_frf)
@@ -71,7 +75,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "ssi/fdd shapes are unscaled (unit largest entry)")
     q.add_argument("--max-order", type=int, default=None,
                    help="cap of the pLSCF model order (default: the order grows until the modes found "
-                        "stop growing, at most 240 / number of references); ssi: highest model order "
+                        "stop growing, at most 200 / number of references); ssi: highest model order "
                         "(default 100)")
     q.add_argument("--poles", default=None, metavar="F1,F2,...",
                    help="pick the stable poles nearest these frequencies, Hz (exactly these modes, no "

@@ -10,19 +10,18 @@ import numpy as np
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult, coherence, estimate, estimator_name
 from flexmodal.modal.impact import impact_spectra
-from flexmodal.modal.spectra import welch_spectra
+from flexmodal.modal.spectra import Spectra, welch_spectra
 from flexmodal.modal.windows import added_decay_rate_per_s, impact_windows
 
 DEFAULT_NFFT_MAX = 8192
+MIN_SEGMENTS = 8
+SKIPPED_EVENTS = ("gap", "corrupt")
 
 
 def check_samples(samples: np.ndarray, names: Sequence[str], where: str, allow_nan: bool = False) -> None:
     """Raise ModalError naming the first channel with NaN/inf samples (only inf with ``allow_nan``:
     NaN rows of lost frames that the caller handles) or a constant value."""
-    if samples.ndim != 2 or samples.shape[1] != len(names):
-        raise ModalError(f"{where}: samples of shape {samples.shape} do not match {len(names)} channels")
-    if samples.shape[0] < 2:
-        raise ModalError(f"{where}: record of {samples.shape[0]} samples is shorter than one segment")
+    _check_shape(samples, names, where)
     bad = np.isinf(samples) if allow_nan else ~np.isfinite(samples)
     if bad.any():
         i, c = np.argwhere(bad)[0]
@@ -34,6 +33,54 @@ def check_samples(samples: np.ndarray, names: Sequence[str], where: str, allow_n
                          f"({samples[0, int(np.argmax(flat))]:g} throughout)")
 
 
+def _check_shape(samples, names: Sequence[str], where: str) -> None:
+    if len(samples.shape) != 2 or samples.shape[1] != len(names):
+        raise ModalError(f"{where}: samples of shape {samples.shape} do not match {len(names)} channels")
+    if samples.shape[0] < 2:
+        raise ModalError(f"{where}: record of {samples.shape[0]} samples is shorter than one segment")
+
+
+def min_segments(n_segments: int) -> int:
+    """Usable Welch segments a record of ``n_segments`` must keep after skipping NaN rows and gap or
+    corrupt events: MIN_SEGMENTS, or half of them (rounded up) when the record has fewer than twice
+    that many (so a clean record is never refused)."""
+    return min(MIN_SEGMENTS, -(-n_segments // 2))
+
+
+def _first_nonfinite(samples, chans: Sequence[int]) -> tuple[int, int, float] | None:
+    """(sample, channel, value) of the first NaN/inf among channels ``chans``, read block by block."""
+    step = 1 << 16
+    for r in range(0, samples.shape[0], step):
+        block = np.asarray(samples[r:r + step])[:, chans]
+        bad = np.argwhere(~np.isfinite(block))
+        if bad.size:
+            i, c = bad[0]
+            return r + int(i), int(chans[c]), float(block[i, c])
+    return None
+
+
+def _check_welch(spectra: Spectra, samples, names: Sequence[str], chans: Sequence[int], where: str,
+                 n_skip_events: int) -> None:
+    """Refuse too few usable segments (naming the first NaN sample) and constant channels: a channel
+    is constant when the standard deviation its spectrum holds (Parseval) is below 100 ulp of its
+    mean, or zero."""
+    n_seg = spectra.n_averages + spectra.n_skipped
+    need = min_segments(n_seg)
+    if spectra.n_averages < need:
+        bad = _first_nonfinite(samples, chans)
+        cause = [f"channel {names[bad[1]]!r} holds {bad[2]} at sample {bad[0]}"] if bad else []
+        cause += [f"{n_skip_events} gap/corrupt events"] if n_skip_events else []
+        raise ModalError(f"{where}: only {spectra.n_averages} of {n_seg} segments usable, {need} needed "
+                         f"({'; '.join(cause) or 'no cause found'})")
+    df = spectra.freq_hz[1] - spectra.freq_hz[0]
+    power = np.concatenate([np.einsum("iif->if", spectra.g_ff).real, spectra.g_xx]).sum(axis=1) * df
+    tol = 100 * np.finfo(np.float32 if samples.dtype == np.float32 else np.float64).eps
+    flat = np.sqrt(power) <= tol * np.abs(spectra.mean)
+    if flat.any():
+        k = int(np.argmax(flat))
+        raise ModalError(f"{where}: channel {names[chans[k]]!r} is constant ({spectra.mean[k]:g} throughout)")
+
+
 def default_nfft(n_samples: int) -> int:
     """Largest power of two giving at least 8 half-overlapping segments, at most 8192, at least 64."""
     n = 64
@@ -42,23 +89,30 @@ def default_nfft(n_samples: int) -> int:
     return n
 
 
-def frf_of_record(samples: np.ndarray, sample_rate_hz: float, names: Sequence[str], kinds: Sequence[str],
+def frf_of_record(samples, sample_rate_hz: float, names: Sequence[str], kinds: Sequence[str],
                   *, excitation: str = "random", estimator: str = "H1", nfft: int | None = None,
                   window: str | None = None, overlap: float = 0.5, where: str = "record",
                   triggers: Sequence[int] | None = None, overload_samples: Sequence[int] = (),
-                  averaging: str = "linear", skip: Sequence[tuple[int, int]] = ()) -> FrfResult:
-    """FRFs of a record [n_samples, n_channels] with channel ``names`` and ``kinds`` (force channels are
-    the inputs; acceleration channels, or else every other non-encoder channel, the outputs).
+                  averaging: str = "linear", skip: Sequence[tuple[int, int]] = (),
+                  pretrigger_s: float = 0.02, workers: int | None = None) -> FrfResult:
+    """FRFs of a record [n_samples, n_channels] (an array, or an h5py dataset read block by block) with
+    channel ``names`` and ``kinds`` (force channels are the inputs; acceleration channels, or else every
+    other non-encoder channel, the outputs).
 
-    Impact records (``excitation == "impact"``) are cut into hits (``triggers`` or detected), windowed
-    ``window`` = "force:W,exponential:E" (default force:0.05,exponential:0.01) and averaged, hits
-    touching NaN rows or a ``skip`` interval (first sample, count) rejected one by one; other
-    records are Welch-averaged with ``window`` (default hann), ``nfft`` and ``overlap``.
+    Impact records (``excitation == "impact"``) are read whole, cut into hits (``triggers`` or
+    detected), windowed ``window`` = "force:W,exponential:E" (default force:0.05,exponential:0.01) and
+    averaged, each record starting ``pretrigger_s`` before its trigger, hits touching NaN rows or a
+    ``skip`` interval rejected one by one; other records are
+    streamed through Welch averaging with ``window`` (default hann), ``nfft``, ``overlap`` and
+    ``workers`` FFT threads, leaving out segments that hold NaN/inf samples or touch a ``skip``
+    interval (first sample, count: gap and corrupt events); fewer usable segments than
+    :func:`min_segments` is an error, and so is a constant channel.
     """
     if not np.isfinite(sample_rate_hz) or sample_rate_hz <= 0:
         raise ModalError(f"{where}: sample rate {sample_rate_hz} Hz is not positive")
-    samples = np.asarray(samples)
-    check_samples(samples, names, where, allow_nan=excitation == "impact")
+    if not hasattr(samples, "shape"):
+        samples = np.asarray(samples)
+    _check_shape(samples, names, where)
     inputs = [j for j, k in enumerate(kinds) if k == "force"]
     if not inputs:
         raise ModalError(f"{where}: no force channel to use as the FRF reference")
@@ -73,10 +127,12 @@ def frf_of_record(samples: np.ndarray, sample_rate_hz: float, names: Sequence[st
     if excitation == "impact":
         if len(inputs) != 1:
             raise ModalError(f"{where}: impact processing needs exactly one force channel")
+        samples = np.asarray(samples[()])
+        check_samples(samples, names, where, allow_nan=True)
         fw, ew = impact_windows(window)
         spectra, hits = impact_spectra(samples, sample_rate_hz, inputs[0], outputs, triggers=triggers,
                                        force_window=fw, exp_window=ew, overload_samples=overload_samples,
-                                       averaging=averaging, gaps=skip)
+                                       averaging=averaging, gaps=skip, pretrigger_s=pretrigger_s)
         record = 2 * (spectra.freq_hz.size - 1)
         decay = added_decay_rate_per_s(ew, record, sample_rate_hz)
         used_window, used_nfft = f"{fw},{ew}", record
@@ -86,8 +142,10 @@ def frf_of_record(samples: np.ndarray, sample_rate_hz: float, names: Sequence[st
         used_nfft = default_nfft(samples.shape[0]) if nfft is None else int(nfft)
         used_window = window or "hann"
         spectra = welch_spectra(samples, sample_rate_hz, inputs, outputs, used_nfft, overlap=overlap,
-                                window_spec=used_window)
-        extra = {"overlap": overlap, "averaging": "linear"}
+                                window_spec=used_window, workers=workers, skip=skip, min_segments=0)
+        _check_welch(spectra, samples, names, inputs + outputs, where, len(skip))
+        extra = {"overlap": overlap, "averaging": "linear", "segments_used": spectra.n_averages,
+                 "segments_skipped": spectra.n_skipped}
     H = estimate(spectra, estimator)
     return FrfResult(spectra.freq_hz, H, coherence(spectra), estimator_name(estimator), used_window,
                      used_nfft, spectra.n_averages, float(sample_rate_hz), quantity,
@@ -95,9 +153,10 @@ def frf_of_record(samples: np.ndarray, sample_rate_hz: float, names: Sequence[st
 
 
 def compute_frf(run, *, estimator: str = "H1", nfft: int | None = None, window: str | None = None,
-                overlap: float = 0.5, averaging: str = "linear") -> FrfResult:
-    """FRFs of a stored run (a ``daq.store.Run``): uses its excitation, trigger and overload events."""
-    skip = [(e.sample_index, e.count) for e in run.events if e.kind in ("gap", "corrupt")]
+                overlap: float = 0.5, averaging: str = "linear", workers: int | None = None) -> FrfResult:
+    """FRFs of a stored run (a ``daq.store.Run``, its samples in memory or on disk as given by
+    ``daq.store.open_run``): uses its excitation, trigger, overload, gap and corrupt events."""
+    skip = [(e.sample_index, e.count) for e in run.events if e.kind in SKIPPED_EVENTS]
     triggers = [e.sample_index for e in run.events if e.kind == "trigger"] or None
     overloads = [e.sample_index + k for e in run.events if e.kind == "overload"
                  for k in range(max(1, e.count))]
@@ -105,4 +164,4 @@ def compute_frf(run, *, estimator: str = "H1", nfft: int | None = None, window: 
     return frf_of_record(run.samples, run.sample_rate_hz, [c.name for c in run.channels],
                            [c.kind for c in run.channels], excitation=run.excitation, estimator=estimator,
                            nfft=nfft, window=window, overlap=overlap, where=where, triggers=triggers,
-                           overload_samples=overloads, averaging=averaging, skip=skip)
+                           overload_samples=overloads, averaging=averaging, skip=skip, workers=workers)

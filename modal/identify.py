@@ -27,13 +27,14 @@ from flexmodal.modal.lscf import (
     stable_clusters,
 )
 from flexmodal.modal.lsfd import LsfdResult, lsfd
-from flexmodal.modal.mac import mass_normalised, to_real, unit_max
+from flexmodal.modal.mac import mac, mass_normalised, to_real, unit_max
 from flexmodal.modal.peaks import cmif, pick_peaks, quadrature_shapes
 from flexmodal.modal.table import ModalTable
 from flexmodal.modal.windows import remove_added_damping
 
 METHODS = ("lscf", "peak")
 INDICATORS = ("mpc", "mpd", "synthesis_corr")   # per-mode validation columns of the modal table
+TOP_ORDERS = 0.75   # a mode's pole: median over its upper quarter of stable orders (they absorb noise best)
 MIN_LINES_PER_BANDWIDTH = 8   # below this the Hann-window leakage bias on damping exceeds a few %
 
 
@@ -120,22 +121,74 @@ def _near(f: np.ndarray, fn: np.ndarray, zeta: np.ndarray) -> np.ndarray:
     return np.abs(f[None, :] - fn[:, None]) <= width[:, None]
 
 
+def _fit(f: np.ndarray, H: np.ndarray, clusters: PoleClusters, quantity: str) -> LsfdResult:
+    """LSFD of the clusters' poles, each mode's F statistic taken against the residual variance near
+    the mode (:func:`_near`) rather than over the band: FRF noise is rarely uniform (it grows with the
+    response at resonances)."""
+    fit = lsfd(f, H, clusters.pole, quantity=quantity)
+    if clusters.freq_hz.size == 0:
+        return fit
+    res = np.sum(np.abs(H - fit.synthesis) ** 2, axis=(0, 1))                # [f]
+    near = _near(f, clusters.freq_hz, clusters.damping_ratio)
+    local = (near @ res) / near.sum(axis=1)
+    return dataclasses.replace(fit, need=fit.need * (res.mean() / np.maximum(local, 1e-300)))
+
+
+def _split(clusters: PoleClusters, constants: np.ndarray, split_mac: float = 0.9) -> tuple[int, float] | None:
+    """The neighbouring pair (index of the lower one, MAC) that is one mode the model split in two:
+    less than half a half-power bandwidth apart (of the more damped) with the same shape (MAC >=
+    ``split_mac``; with one output any such pair).  An FRF whose resonance is not a single pole, e.g.
+    biased by leakage at a few lines per bandwidth, is fitted by such a pair at high orders; two
+    physical modes that close with the same shape cannot be told apart by these references."""
+    fn, zeta = clusters.freq_hz, clusters.damping_ratio
+    if fn.size < 2:
+        return None
+    gap = np.diff(fn) / (0.5 * 2 * np.maximum(zeta[:-1] * fn[:-1], zeta[1:] * fn[1:]))
+    macs = np.array([mac(constants[:, [k]], constants[:, [k + 1]])[0, 0] for k in range(fn.size - 1)]) \
+        if constants.shape[0] > 1 else np.ones(fn.size - 1)
+    pairs = np.flatnonzero((gap < 1) & (macs >= split_mac))
+    if pairs.size == 0:
+        return None
+    k = int(pairs[np.argmin(gap[pairs])])
+    return k, float(macs[k])
+
+
+def _merge(clusters: PoleClusters, k: int, constants: np.ndarray) -> PoleClusters:
+    """Clusters k and k + 1 replaced by one whose pole is their average weighted by the size of their
+    modal constants (a split pole pair straddles the mode it models)."""
+    w = np.linalg.norm(constants[:, [k, k + 1]], axis=0)
+    pole = np.sum(w * clusters.pole[[k, k + 1]]) / np.sum(w)
+    keep = np.arange(clusters.freq_hz.size) != k + 1
+    out = clusters.subset(keep)
+    fn, zeta = np.abs(pole) / (2 * np.pi), -pole.real / np.abs(pole)
+    return PoleClusters(np.where(np.arange(out.freq_hz.size) == k, fn, out.freq_hz),
+                        np.where(np.arange(out.freq_hz.size) == k, zeta, out.damping_ratio),
+                        np.where(np.arange(out.freq_hz.size) == k, pole, out.pole),
+                        np.where(np.arange(out.freq_hz.size) == k, clusters.n_stable[[k, k + 1]].max(),
+                                 out.n_stable),
+                        out.members[:k] + (np.concatenate(clusters.members[k:k + 2]),) + out.members[k + 1:])
+
+
 def _validate(f: np.ndarray, H: np.ndarray, clusters: PoleClusters, quantity: str, reference: int,
               limits: Thresholds) -> tuple[PoleClusters, LsfdResult, list[str]]:
-    """LSFD of the candidate poles; drop the least needed failing mode and refit until every mode
-    passes (one at a time, so of two duplicates one stays).  The F statistic of a mode is taken
-    against the residual variance near the mode (:func:`_near`), since FRF noise is rarely uniform
-    over the band (it grows with the response at resonances)."""
+    """LSFD of the candidate poles (:func:`_fit`); merge a pole pair that splits one mode
+    (:func:`_split`), else drop the least needed failing mode, and refit until every mode passes (one
+    change at a time, so of two duplicates one stays)."""
     warnings = []
-    while True:   # a loop over dropped modes (a few)
-        fit = lsfd(f, H, clusters.pole, quantity=quantity)
+    while True:   # a loop over merged or dropped modes (a few)
+        fit = _fit(f, H, clusters, quantity)
         if clusters.freq_hz.size == 0:
             return clusters, fit, warnings
-        res = np.sum(np.abs(H - fit.synthesis) ** 2, axis=(0, 1))                # [f]
-        near = _near(f, clusters.freq_hz, clusters.damping_ratio)
-        local = (near @ res) / near.sum(axis=1)
-        fit = dataclasses.replace(fit, need=fit.need * (res.mean() / np.maximum(local, 1e-300)))
-        phase = mpc(fit.modal_constants(clusters.pole)[:, reference]) if H.shape[0] >= 3 else None
+        constants = fit.modal_constants(clusters.pole)[:, reference]
+        split = _split(clusters, constants)
+        if split is not None:
+            k, value = split
+            clusters, (fa, fb) = _merge(clusters, k, constants), clusters.freq_hz[[k, k + 1]]
+            warnings.append(f"merged the poles at {fa:.5g} and {fb:.5g} Hz into one mode at "
+                            f"{clusters.freq_hz[k]:.5g} Hz: less than half a bandwidth apart with the "
+                            f"same shape (MAC {value:.2f}), one resonance the model split in two")
+            continue
+        phase = mpc(constants) if H.shape[0] >= 3 else None
         fails = fit.need < limits.need_min
         if phase is not None:
             fails |= phase < limits.mpc_min
@@ -153,14 +206,14 @@ def _lscf(f: np.ndarray, H: np.ndarray, *, quantity: str, reference: int, max_or
           poles_hz: Sequence[float] | None, limits: Thresholds) -> dict:
     def evaluate(stab: Stabilisation):
         if poles_hz:
-            return stable_clusters(stab).freq_hz.size, None
-        found = _validate(f, H, stable_clusters(stab), quantity, reference, limits)
+            return stable_clusters(stab, top=TOP_ORDERS).freq_hz.size, None
+        found = _validate(f, H, stable_clusters(stab, top=TOP_ORDERS), quantity, reference, limits)
         return found[0].freq_hz.size, found
 
     stab, note, found = adaptive_stabilisation(f, H, max_order=max_order, evaluate=evaluate)
     if poles_hz:
-        clusters = _pick(pole_clusters(stab), poles_hz)
-        fit, warnings = lsfd(f, H, clusters.pole, quantity=quantity), []
+        clusters = _pick(pole_clusters(stab, TOP_ORDERS), poles_hz)
+        fit, warnings = _fit(f, H, clusters, quantity), []
     else:
         clusters, fit, warnings = found
     if clusters.freq_hz.size == 0:

@@ -35,14 +35,15 @@ from flexmodal.modal.errors import ModalError
 from flexmodal.modal.mac import mac_pairs
 
 T = TypeVar("T")
-DEFAULT_MAX_POLES = 240   # default cap of (model order x references) of the adaptive diagram
+DEFAULT_MAX_POLES = 200   # default cap of (model order x references) of the adaptive diagram
 
 
 @dataclass(frozen=True)
 class Stabilisation:
     """Every physical pole of every order: ``order``, ``freq_hz``, ``damping_ratio``, ``pole`` (rad/s,
     complex), flags ``stable_freq``, ``stable_damping``, ``stable_shape`` and ``previous``, the index
-    of the nearest pole of the previous order (-1 for none; all [n_poles])."""
+    of the nearest pole of the previous order (-1 for none; all [n_poles]; found from ``order`` and
+    ``freq_hz`` when not given, as for diagrams built by other methods)."""
 
     order: np.ndarray
     freq_hz: np.ndarray
@@ -51,7 +52,7 @@ class Stabilisation:
     stable_freq: np.ndarray
     stable_damping: np.ndarray
     stable_shape: np.ndarray
-    previous: np.ndarray
+    previous: np.ndarray | None = None
 
     @property
     def stable(self) -> np.ndarray:
@@ -153,7 +154,10 @@ def _poles_of_order(index: int, p: int, eqs: _NormalEquations, dt: float, fmin: 
     M = eqs.reduced(index, p)
     k = p * n_in
     alpha = np.empty((k + n_in, n_in))                                        # [(p+1) n_in, n_in]
-    alpha[:k] = np.linalg.solve(M[:k, :k], -M[:k, k:])
+    try:
+        alpha[:k] = np.linalg.solve(M[:k, :k], -M[:k, k:])
+    except np.linalg.LinAlgError:   # data without dynamics at this order (e.g. a flat FRF): least norm
+        alpha[:k] = np.linalg.lstsq(M[:k, :k], -M[:k, k:], rcond=None)[0]
     alpha[k:] = np.eye(n_in)
     if n_in == 1:
         # companion matrix in upper Hessenberg form, so LAPACK's Hessenberg reduction has nothing to do
@@ -191,6 +195,8 @@ class PoleEstimator:
         self.freq_hz, self.p_cap, self.n_in = f, int(p_cap), H.shape[1]
         self.dt = 1.0 / (2 * f.max())
         scale = np.sqrt(np.vdot(H, H).real / H.size)                 # RMS of the FRFs
+        if not scale > 0:
+            raise ModalError(f"pLSCF: the FRFs are zero between {f.min():g} and {f.max():g} Hz")
         with _blas().limit(limits=1, user_api="blas"):
             self._sums = _lag_sums(f, H / scale, self.p_cap, self.dt)
 
@@ -208,33 +214,38 @@ class PoleEstimator:
             return [_poles_of_order(i, p, eqs, self.dt, *band) for i, p in enumerate(orders)]
 
 
+def _nearest_previous(order: np.ndarray, freq_hz: np.ndarray) -> np.ndarray:
+    """Index of the pole nearest in frequency among those of the previous order present (-1 for the
+    first order or an empty previous one); poles are grouped by order, in ascending order."""
+    previous = np.full(freq_hz.size, -1)
+    orders, start = np.unique(order, return_index=True)
+    bounds = list(start) + [order.size]
+    for k in range(1, orders.size):   # a loop over model orders
+        a, b, c = bounds[k - 1], bounds[k], bounds[k + 1]
+        if b > a and c > b:
+            previous[b:c] = a + np.argmin(np.abs(freq_hz[b:c, None] - freq_hz[None, a:b]), axis=1)
+    return previous
+
+
 def _flags(orders: list[int], found: list[tuple[np.ndarray, np.ndarray]], df: float = 0.01,
            dz: float = 0.05, mac_min: float = 0.98) -> Stabilisation:
     """Stability flags of every pole against the nearest pole (in frequency) of the previous order.
     With one output the shape criterion is left out (a MAC over one channel is always 1)."""
     poles = [pl for pl, _ in found]
-    fn = [np.abs(pl) / (2 * np.pi) for pl in poles]
-    start = np.cumsum([0] + [x.size for x in fn])
-    near, cur = [], []
-    for k in range(1, len(orders)):   # a loop over model orders
-        if fn[k].size and fn[k - 1].size:
-            near.append(np.argmin(np.abs(fn[k][:, None] - fn[k - 1][None, :]), axis=1) + start[k - 1])
-            cur.append(np.arange(start[k], start[k + 1]))
     all_poles = np.concatenate(poles) if poles else np.zeros(0, complex)
+    order = np.concatenate([np.full(pl.size, p) for pl, p in zip(poles, orders, strict=True)])
     all_fn = np.abs(all_poles) / (2 * np.pi)
     all_zeta = -all_poles.real / np.where(all_fn > 0, np.abs(all_poles), 1.0)
     all_shapes = np.concatenate([sh for _, sh in found], axis=1)
+    previous = _nearest_previous(order, all_fn)
     n = all_fn.size
     sf, sd, ss = np.zeros(n, bool), np.zeros(n, bool), np.zeros(n, bool)
-    previous = np.full(n, -1)
-    if cur:
-        cur, prev = np.concatenate(cur), np.concatenate(near)
-        previous[cur] = prev
-        sf[cur] = np.abs(all_fn[cur] - all_fn[prev]) <= df * all_fn[cur]
-        sd[cur] = np.abs(all_zeta[cur] - all_zeta[prev]) <= dz * all_zeta[cur]
-        ss[cur] = (mac_pairs(all_shapes[:, cur], all_shapes[:, prev]) >= mac_min
-                   if all_shapes.shape[0] > 1 else True)
-    order = np.concatenate([np.full(pl.size, p) for pl, p in zip(poles, orders, strict=True)])
+    cur = np.flatnonzero(previous >= 0)
+    prev = previous[cur]
+    sf[cur] = np.abs(all_fn[cur] - all_fn[prev]) <= df * all_fn[cur]
+    sd[cur] = np.abs(all_zeta[cur] - all_zeta[prev]) <= dz * all_zeta[cur]
+    ss[cur] = (mac_pairs(all_shapes[:, cur], all_shapes[:, prev]) >= mac_min
+               if all_shapes.shape[0] > 1 else True)
     return Stabilisation(order, all_fn, all_zeta, all_poles, sf, sd, ss, previous)
 
 
@@ -251,22 +262,20 @@ def stabilisation(freq_hz: np.ndarray, H: np.ndarray, orders: range | list[int],
 @dataclass(frozen=True)
 class PoleClusters:
     """Candidate modes of a stabilisation diagram, ascending in frequency: ``freq_hz``,
-    ``damping_ratio``, ``pole`` (rad/s) from the median of the upper half of orders of each cluster's
-    fully stable poles; ``n_stable`` the number of orders holding a fully stable pole of the cluster,
-    ``scatter`` the relative standard deviation of its stable poles' frequencies, ``members`` the
-    indices (into the Stabilisation arrays) of its poles."""
+    ``damping_ratio``, ``pole`` (rad/s) from the median of the upper quarter of orders of each
+    cluster's fully stable poles; ``n_stable`` the number of orders holding a fully stable pole of the
+    cluster, ``members`` the indices (into the Stabilisation arrays) of its poles."""
 
     freq_hz: np.ndarray
     damping_ratio: np.ndarray
     pole: np.ndarray
     n_stable: np.ndarray
-    scatter: np.ndarray
     members: tuple[np.ndarray, ...]
 
     def subset(self, keep: np.ndarray) -> PoleClusters:
         idx = np.flatnonzero(keep) if np.asarray(keep).dtype == bool else np.asarray(keep, int)
         return PoleClusters(self.freq_hz[idx], self.damping_ratio[idx], self.pole[idx], self.n_stable[idx],
-                            self.scatter[idx], tuple(self.members[k] for k in idx))
+                            tuple(self.members[k] for k in idx))
 
 
 def _pole(fn: np.ndarray, zeta: np.ndarray) -> np.ndarray:
@@ -274,35 +283,36 @@ def _pole(fn: np.ndarray, zeta: np.ndarray) -> np.ndarray:
     return -zeta * wn + 1j * wn * np.sqrt(1 - np.asarray(zeta) ** 2)
 
 
-def _summary(stab: Stabilisation, members: np.ndarray, stable: np.ndarray) -> tuple:
-    """(fn, zeta, n_stable orders, relative scatter, members) of one chain: medians over the fully
-    stable poles of its upper half of orders."""
+def _summary(stab: Stabilisation, members: np.ndarray, stable: np.ndarray, top: float) -> tuple:
+    """(fn, zeta, n_stable orders, members) of one chain: medians over the fully
+    stable poles of its orders at or above the quantile ``top`` of them."""
     s = members[stable[members]]
     o = stab.order[s]
-    top = s[o >= np.median(o)]
+    ranked = np.sort(o)
+    top = s[o >= ranked[int(np.ceil(top * (ranked.size - 1)))]]   # the quantile, without its overhead
     f, z = np.median(stab.freq_hz[top]), np.median(stab.damping_ratio[top])
-    return f, z, np.unique(o).size, np.std(stab.freq_hz[s]) / f, members
+    return f, z, np.unique(o).size, members
 
 
-def _merge_fragments(rows: list[tuple], stab: Stabilisation, stable: np.ndarray, df: float = 0.01,
-                     overlap: float = 0.2) -> list[tuple]:
+def _merge_fragments(rows: list[tuple], stab: Stabilisation, stable: np.ndarray, top: float,
+                     df: float = 0.01, overlap: float = 0.2) -> list[tuple]:
     """Join neighbouring chains (within relative ``df``) that hardly share an order (at most
     ``overlap`` of the shorter one's stable orders): pieces of one pole whose chain was broken, not two
     modes (two modes show up side by side at the same orders)."""
     out = rows[:1]
     for row in rows[1:]:   # a loop over candidate modes
         last = out[-1]
-        oa = np.unique(stab.order[last[4][stable[last[4]]]])
-        ob = np.unique(stab.order[row[4][stable[row[4]]]])
+        oa = np.unique(stab.order[last[3][stable[last[3]]]])
+        ob = np.unique(stab.order[row[3][stable[row[3]]]])
         shared = np.intersect1d(oa, ob).size
         if abs(row[0] - last[0]) <= df * row[0] and shared <= overlap * min(oa.size, ob.size):
-            out[-1] = _summary(stab, np.concatenate([last[4], row[4]]), stable)
+            out[-1] = _summary(stab, np.concatenate([last[3], row[3]]), stable, top)
         else:
             out.append(row)
     return out
 
 
-def pole_clusters(stab: Stabilisation) -> PoleClusters:
+def pole_clusters(stab: Stabilisation, top: float = 0.5) -> PoleClusters:
     """Group the poles of a stabilisation diagram into chains that follow one physical pole over the
     orders, so each cluster is separated by its own order-to-order scatter rather than by a fixed
     frequency tolerance (two modes 0.5 % apart stay apart once the order resolves both).
@@ -310,10 +320,13 @@ def pole_clusters(stab: Stabilisation) -> PoleClusters:
     Each pole stable in frequency is linked to its nearest pole of the previous order; a pole of the
     previous order keeps only its nearest successor (when two modes separate at a higher order the
     second starts a chain of its own).  Clusters are the connected chains holding two or more fully
-    stable poles."""
+    stable poles; each one's pole is the median over its stable orders at or above the quantile
+    ``top`` of them (0.5: the upper half; pLSCF identification takes the upper quarter, whose high
+    orders absorb the noise best)."""
     n = stab.freq_hz.size
-    cur = np.flatnonzero((stab.previous >= 0) & stab.stable_freq)
-    prev = stab.previous[cur]
+    previous = stab.previous if stab.previous is not None else _nearest_previous(stab.order, stab.freq_hz)
+    cur = np.flatnonzero((previous >= 0) & stab.stable_freq)
+    prev = previous[cur]
     dist = np.abs(stab.freq_hz[cur] - stab.freq_hz[prev]) / stab.freq_hz[cur]
     first = np.argsort(dist, kind="stable")
     _, keep = np.unique(prev[first], return_index=True)
@@ -324,21 +337,22 @@ def pole_clusters(stab: Stabilisation) -> PoleClusters:
     counts = np.bincount(label[stable], minlength=n_comp)
     rows = []
     for c in np.flatnonzero(counts >= 2):   # a loop over chains holding stable poles (candidate modes)
-        rows.append(_summary(stab, np.flatnonzero(label == c), stable))
+        rows.append(_summary(stab, np.flatnonzero(label == c), stable, top))
     rows.sort(key=lambda r: r[0])
-    rows = _merge_fragments(rows, stab, stable)
+    rows = _merge_fragments(rows, stab, stable, top)
     fn = np.array([r[0] for r in rows])
     zeta = np.array([r[1] for r in rows])
     return PoleClusters(fn, zeta, _pole(fn, zeta), np.array([r[2] for r in rows], int),
-                        np.array([r[3] for r in rows]), tuple(r[4] for r in rows))
+                        tuple(r[3] for r in rows))
 
 
-def stable_clusters(stab: Stabilisation, *, min_fraction: float = 0.5, min_orders: int = 5) -> PoleClusters:
+def stable_clusters(stab: Stabilisation, *, min_fraction: float = 0.5, min_orders: int = 5,
+                    top: float = 0.5) -> PoleClusters:
     """The clusters stable over at least ``min_orders`` orders and over ``min_fraction`` of the
     diagram's orders from the one where the cluster first appears (a mode that needs a high order to
     show up is not penalised; a pole that flickers is).  This is the automatic selection before the
     validation by the synthesis."""
-    clusters = pole_clusters(stab)
+    clusters = pole_clusters(stab, top)
     orders = np.unique(stab.order)
     first = np.array([stab.order[m].min() for m in clusters.members], int)
     span = orders.size - np.searchsorted(orders, first)
@@ -353,11 +367,11 @@ def select_stable(stab: Stabilisation, *, min_fraction: float = 0.5, min_orders:
 
 
 def _batch(lo: int, hi: int, n_in: int) -> list[int]:
-    """Orders lo..hi of the adaptive diagram: every order up to 64 / n_in,
-    then every second order up to 128 / n_in, then every fourth, so the diagram keeps about 60 orders
-    and the cost of the high orders (an eigenvalue problem of size order x n_in each) stays bounded."""
+    """Orders lo..hi of the adaptive diagram: every order up to 64 / n_in, then every second up to
+    128 / n_in, every fourth up to 160 / n_in, then every eighth, so the cost of the high orders (an
+    eigenvalue problem of size order x n_in each) stays bounded."""
     o = np.arange(lo, hi + 1)
-    step = np.where(o * n_in <= 64, 1, np.where(o * n_in <= 128, 2, 4))
+    step = np.select([o * n_in <= 64, o * n_in <= 128, o * n_in <= 160], [1, 2, 4], 8)
     return [int(k) for k in o[(o % step == 0) | (o == hi)]]
 
 

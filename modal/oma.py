@@ -9,22 +9,42 @@ References are all outputs unless named.  Without ``fmin``, SSI's Hankel matrix 
 lowest FDD peak (a quick look costing a fraction of the SSI), so low modes are not missed.  Rows of
 NaN (samples lost in acquisition, recorded as gap events) are left out of the covariances (SSI) and
 of the spectral segments (FDD).  Shapes are unscaled (unit largest entry): with no force measured
-there is no modal mass.
+there is no modal mass.  :func:`output_only_results` runs both methods on one record for display
+(the report's FDD and SSI figures, reports/oma.py).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from flexmodal.modal.compute import check_samples
 from flexmodal.modal.errors import ModalError
-from flexmodal.modal.fdd import FddResult, fdd
+from flexmodal.modal.fdd import FddResult, cross_spectra, fdd
 from flexmodal.modal.ssi import SsiResult, ssi_cov
 
 OUTPUT_ONLY_METHODS = ("ssi", "fdd")
+SPECTRUM_MAX_NFFT = 4096    # lines of the spectrum under the SSI stabilisation diagram: <= 2049
+SPECTRUM_MARGIN = 1.1       # ... up to 10 % above the highest pole drawn
+
+
+@dataclass(frozen=True)
+class OmaResults:
+    """Both output-only identifications of one record, as a report draws them: the response channel
+    names ``outputs``; the FDD and SSI-cov results (``fdd``, ``ssi``), each replaced by the reason
+    (one line) when that method found nothing; and, with an SSI result, the Welch cross-spectral
+    matrix ``spectrum`` [n_freq, n_outputs, n_refs] (outputs' unit squared per Hz) of the outputs with
+    SSI's references on the lines ``spectrum_hz`` [Hz] from the first above 0 Hz to 1.1 times the
+    highest pole of the stabilisation diagram, whose singular values the diagram is drawn over (None
+    when no segment of the record is free of gaps)."""
+
+    outputs: tuple[str, ...]
+    fdd: FddResult | str
+    ssi: SsiResult | str
+    spectrum_hz: np.ndarray | None = None
+    spectrum: np.ndarray | None = None
 
 
 def default_method(kinds: Sequence[str], excitation: str = "") -> str:
@@ -85,3 +105,31 @@ def _lowest_peak(y: np.ndarray, sample_rate_hz: float, refs: Sequence[int] | Non
         return 0.5 * float(fdd(y, sample_rate_hz, references=refs, fmax=fmax).modes.freq_hz.min())
     except ModalError:
         return None
+
+
+def output_only_results(samples: np.ndarray, sample_rate_hz: float, names: Sequence[str],
+                        kinds: Sequence[str], *, where: str = "record") -> OmaResults:
+    """FDD and SSI-cov (default options of :func:`identify_output_only`) of a record [n_samples,
+    n_channels] sampled at ``sample_rate_hz`` [Hz], each method's failure kept as its message, and the
+    cross-spectral matrix under SSI's stabilisation diagram (Welch, Hann, 50 % overlap, segments of
+    the power of two nearest 1/8 of the record, at most :data:`SPECTRUM_MAX_NFFT` samples)."""
+    outputs = tuple(names[j] for j in output_channels(kinds))
+    found: dict[str, SsiResult | FddResult | str] = {}
+    for method in ("fdd", "ssi"):   # a loop over the two methods
+        try:
+            found[method], outputs = identify_output_only(samples, sample_rate_hz, names, kinds,
+                                                          method=method, where=where)
+        except ModalError as exc:
+            found[method] = str(exc)
+    fdd_res, ssi_res = found["fdd"], found["ssi"]
+    if not isinstance(ssi_res, SsiResult):
+        return OmaResults(outputs, fdd_res, ssi_res)
+    y = np.asarray(samples)[:, [list(names).index(o) for o in outputs]].astype(float)
+    nfft = int(min(SPECTRUM_MAX_NFFT, 2 ** np.floor(np.log2(max(16, y.shape[0] // 8)))))
+    try:
+        f, G = cross_spectra(y, sample_rate_hz, ssi_res.references, nfft)
+    except ModalError:   # no segment free of gaps: SSI's modes without the spectrum
+        return OmaResults(outputs, fdd_res, ssi_res)
+    top = SPECTRUM_MARGIN * ssi_res.stabilisation.freq_hz.max(initial=f[-1] / SPECTRUM_MARGIN)
+    band = (f > 0) & (f <= max(top, f[1]))
+    return OmaResults(outputs, fdd_res, ssi_res, f[band], G[band])

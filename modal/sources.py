@@ -100,16 +100,33 @@ def identify_input(path: str | Path, *, method: str | None = None, fmin: float |
             return ModalTable.from_frame(table.frame, str(p)), found
         if isinstance(data, UffFrfs):
             result = FrfResult(data.freq_hz, data.H, None, "stored", "", 0, 0, float("nan"), data.quantity,
-                               data.outputs, data.inputs)
+                               data.outputs, data.inputs, data.decay_rate_per_s)
         else:
-            force = list(data.kinds).index("force") if "force" in data.kinds else None
-            exc = "impact" if force is not None and _impulsive(data.samples[:, force]) else "random"
-            result = frf_of_record(data.samples, data.sample_rate_hz, data.names, data.kinds,
-                                   excitation=exc, where=str(p))
+            result = _uff_record_frfs(p, data)
         modes = identify_frf(result, method=chosen, **options)
         found[p.stem] = (modes, result.outputs)
         tables.append(modes_table(modes, result.outputs, config=p.stem).frame)
     return ModalTable.from_frame(pd.concat(tables, ignore_index=True), str(p)), found
+
+
+def _uff_record_frfs(p: Path, data) -> FrfResult:
+    """FRFs of UFF time histories: one record per channel (impact or random by the force's crest
+    factor), or hits assembled from several records per channel (impact, each record starting at its
+    hit's start)."""
+    if "force" not in data.kinds:
+        raise ModalError(f"{p}: no force channel among the time histories {', '.join(data.names)} (a force "
+                         "is a dataset 58 ordinate of data type 13), so no FRF can be formed")
+    if data.hit_len is None:
+        exc = "impact" if _impulsive(data.samples[:, list(data.kinds).index("force")]) else "random"
+        return frf_of_record(data.samples, data.sample_rate_hz, data.names, data.kinds, excitation=exc,
+                             where=str(p))
+    n_hits = data.samples.shape[0] // data.hit_len
+    if not data.triggers or len(data.triggers) != n_hits:
+        raise ModalError(f"{p}: {n_hits} records per channel are read as impact hits, but the force shows "
+                         f"a hit in {len(data.triggers or ())} of them")
+    lead = min(t - k * data.hit_len for k, t in enumerate(data.triggers))   # samples before each impact
+    return frf_of_record(data.samples, data.sample_rate_hz, data.names, data.kinds, excitation="impact",
+                         where=str(p), triggers=list(data.triggers), pretrigger_s=lead / data.sample_rate_hz)
 
 
 def _impulsive(force) -> bool:

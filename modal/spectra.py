@@ -9,31 +9,70 @@ float32 records are transformed in single precision and accumulated in double pr
 
 from __future__ import annotations
 
+import functools
 import os
-from collections.abc import Sequence
+import queue
+import threading
+from collections.abc import Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.fft
 
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.windows import window
 
 _BLOCK_BYTES = 8 << 20      # windowed segments per block (with its spectra, fits the shared L3 cache)
+_READ_BYTES = 16 << 20      # samples read per block from a dataset on disk (rounded to whole chunks)
 _TILE = 2048                # rows per tile of the block transpose (stays in L1/L2)
+
+
+@functools.cache
+def _pocketfft():
+    """scipy's pocketfft extension, the engine of ``scipy.fft.rfft``, loaded by itself: importing
+    ``scipy.fft`` costs 0.7-0.9 s (its array-API layers and scipy.special), the extension < 1 ms.
+    It is registered under its own name, so a later ``import scipy.fft`` shares it."""
+    import importlib.util
+    import sys
+
+    name = "scipy.fft._pocketfft.pypocketfft"
+    if name in sys.modules:
+        return sys.modules[name]
+    try:
+        spec = importlib.util.find_spec("scipy")
+        folder = os.path.join(os.path.dirname(spec.origin), "fft", "_pocketfft")
+        file = next(f for f in os.listdir(folder) if f.startswith("pypocketfft."))
+        spec = importlib.util.spec_from_file_location(name, os.path.join(folder, file))
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        module.r2c                                         # noqa: B018 - the function used below
+    except (ImportError, OSError, StopIteration, AttributeError, TypeError):
+        import scipy.fft._pocketfft.pypocketfft as module  # the ordinary (slower) import
+        return module
+    sys.modules[name] = module
+    return module
+
+
+def rfft(x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """Real FFT along the last axis (unnormalised, as ``scipy.fft.rfft``), single precision for
+    float32 input; into ``out`` when given (complex, last axis ``n // 2 + 1``)."""
+    return _pocketfft().r2c(x, axes=[x.ndim - 1], forward=True, inorm=0, out=out, nthreads=1)
 
 
 @dataclass(frozen=True)
 class Spectra:
     """Averaged one-sided spectra: ``freq_hz`` [n_freq], ``g_xf`` [n_out, n_in, n_freq],
-    ``g_ff`` [n_in, n_in, n_freq], ``g_xx`` [n_out, n_freq] (real), ``n_averages`` segments or hits."""
+    ``g_ff`` [n_in, n_in, n_freq], ``g_xx`` [n_out, n_freq] (real), ``n_averages`` segments or hits
+    used, ``n_skipped`` segments left out (NaN rows, gaps), ``mean`` [n_in + n_out] the mean of every
+    channel over the used segments (Welch only; inputs first)."""
 
     freq_hz: np.ndarray
     g_xf: np.ndarray
     g_ff: np.ndarray
     g_xx: np.ndarray
     n_averages: int
+    n_skipped: int = 0
+    mean: np.ndarray | None = None
 
 
 def density_scale(n_freq: int, nfft: int, sample_rate_hz: float, w: np.ndarray) -> np.ndarray:
@@ -76,7 +115,7 @@ def spectra_of_segments(segments: np.ndarray, n_in: int, sample_rate_hz: float,
     ``weights`` [n_seg] (summing to 1) gives a weighted average (linear: equal; exponential: decaying).
     """
     nfft = segments.shape[-1]
-    x = scipy.fft.rfft(np.moveaxis(segments, 1, 0), axis=-1)
+    x = rfft(np.moveaxis(segments, 1, 0))
     w = None if weights is None else np.asarray(weights, float)
     g_xf, g_ff, g_xx = _products(x, n_in, w)
     norm = 1.0 if w is not None else 1.0 / segments.shape[0]
@@ -104,64 +143,141 @@ def _thread_count(workers: int | None) -> int:
 
 
 def _segment_means(rows: np.ndarray, view: np.ndarray, step: int) -> np.ndarray:
-    """Mean of every segment [ch, seg, 1]: from (pairwise) sums of ``step``-sample pieces, each sample
-    read once, when a segment is a whole number of pieces, else directly."""
+    """Mean of every segment [ch, seg, 1], NaN for a segment holding a non-finite sample: from
+    (pairwise) sums of ``step``-sample pieces, each sample read once, when a segment is a whole number
+    of pieces, else directly.  This is also the pass that finds NaN/inf samples."""
     nfft = view.shape[-1]
     if nfft % step:
-        return view.mean(axis=-1, keepdims=True)
-    pieces = rows.reshape(rows.shape[0], -1, step).sum(axis=-1)   # not BLAS: its threads would spin
+        with np.errstate(invalid="ignore", over="ignore"):
+            return view.mean(axis=-1, keepdims=True)
+    with np.errstate(invalid="ignore", over="ignore"):
+        pieces = rows.reshape(rows.shape[0], -1, step).sum(axis=-1)   # not BLAS: its threads would spin
+    bad = ~np.isfinite(pieces)
+    if bad.any():
+        pieces[bad] = 0
     cum = np.zeros((rows.shape[0], pieces.shape[1] + 1))
     np.cumsum(pieces, axis=1, out=cum[:, 1:])
     k = nfft // step
-    return ((cum[:, k:] - cum[:, :-k]) / nfft)[..., None].astype(rows.dtype)
+    means = (cum[:, k:] - cum[:, :-k]) / nfft
+    if bad.any():
+        n_bad = np.concatenate([[0], np.cumsum(bad.any(axis=0))])
+        means[:, n_bad[k:] > n_bad[:-k]] = np.nan
+    return means[..., None].astype(rows.dtype)
 
 
-def _welch_sums(samples: np.ndarray, cols, windows: np.ndarray, n_in: int, step: int, n_seg: int,
-                starts: Sequence[int], block: int, detrend: bool):
-    """Sums over the segments of the blocks starting at segment indices ``starts`` (``block`` segments
-    each): per block, a channel-major copy of the block's samples (transposed in cache-sized tiles),
-    the mean-removed windowed segments from a strided view of it, one real FFT over every segment and
-    channel, and the products."""
-    n_ch, nfft = windows.shape
-    n_freq = nfft // 2 + 1
-    g_xf = np.zeros((n_ch - n_in, n_in, n_freq), complex)
-    g_ff = np.zeros((n_in, n_in, n_freq), complex)
-    g_xx = np.zeros((n_ch - n_in, n_freq))
-    rows = np.empty((n_ch, (block - 1) * step + nfft), windows.dtype)
-    buf = np.empty((n_ch, block, nfft), windows.dtype)
-    work = np.empty((n_ch - n_in, block, n_freq), np.result_type(windows.dtype, np.complex64))
-    for s0 in starts:
-        b = min(block, n_seg - s0)
+def skipped_segments(intervals: Sequence[tuple[int, int]], n_seg: int, nfft: int, step: int) -> np.ndarray:
+    """Segments [n_seg] (segment k covers samples k*step .. k*step+nfft-1) that touch any of the sample
+    ``intervals`` (first sample, number of samples >= 1), e.g. gap or corrupt events of a run."""
+    marks = np.zeros(n_seg + 1, np.int64)
+    if len(intervals):
+        first, count = np.asarray(intervals, np.int64).reshape(-1, 2).T
+        last = first + np.maximum(count, 1) - 1
+        lo = np.clip(-((nfft - 1 - first) // step), 0, n_seg)      # ceil((first - nfft + 1) / step)
+        hi = np.clip(last // step + 1, 0, n_seg)
+        np.add.at(marks, lo, 1)
+        np.add.at(marks, hi, -1)
+    return np.cumsum(marks[:-1]) > 0
+
+
+class _Work:
+    """One thread's work buffers, sized for ``block`` segments."""
+
+    def __init__(self, windows: np.ndarray, n_in: int, step: int, block: int) -> None:
+        n_ch, nfft = windows.shape
+        n_freq = nfft // 2 + 1
+        self.rows = np.empty((n_ch, (block - 1) * step + nfft), windows.dtype)
+        self.buf = np.empty((n_ch, block, nfft), windows.dtype)
+        self.spec = np.empty((n_ch, block, n_freq), np.result_type(windows.dtype, np.complex64))
+        self.work = np.empty((n_ch - n_in, block, n_freq), np.result_type(windows.dtype, np.complex64))
+
+    def sums(self, sources, cols, windows: np.ndarray, n_in: int, step: int, first: int, b: int,
+             skip: np.ndarray, detrend: bool) -> tuple:
+        """(g_xf, g_ff, g_xx, sum of segment means, segments used) over segments ``first`` ..
+        ``first + b - 1``: a channel-major copy of their samples (from the
+        row-major ``sources`` pieces, transposed in cache-sized tiles), the mean-removed windowed
+        segments from a strided view of it, one real FFT over every segment and channel, the products.
+        Segments holding a non-finite sample or marked in ``skip`` are zeroed and not counted."""
+        nfft = windows.shape[1]
         length = (b - 1) * step + nfft
-        for t0 in range(0, length, _TILE):
-            t1 = min(length, t0 + _TILE)
-            rows[:, t0:t1] = samples[s0 * step + t0:s0 * step + t1, cols].T
-        view = np.lib.stride_tricks.sliding_window_view(rows[:, :length], nfft, axis=1)[:, ::step]
-        seg = buf[:, :b]
-        if detrend:
-            np.subtract(view, _segment_means(rows[:, :length], view, step), out=seg)
-            seg *= windows[:, None, :]
-        else:
-            np.multiply(view, windows[:, None, :], out=seg)
-        a, c, d = _products(scipy.fft.rfft(seg, axis=-1), n_in, None, work)
-        g_xf += a
-        g_ff += c
-        g_xx += d
-    return g_xf, g_ff, g_xx
+        rows = self.rows[:, :length]
+        g0 = first * step
+        for start, arr in sources:
+            lo, hi = max(g0, start), min(g0 + length, start + arr.shape[0])
+            for t0 in range(lo, hi, _TILE):
+                t1 = min(hi, t0 + _TILE)
+                rows[:, t0 - g0:t1 - g0] = arr[t0 - start:t1 - start, cols].T
+        view = np.lib.stride_tricks.sliding_window_view(rows, nfft, axis=1)[:, ::step]
+        means = _segment_means(rows, view, step)
+        bad = skip[first:first + b] | ~np.isfinite(means[:, :, 0]).all(axis=0)
+        seg = self.buf[:, :b]
+        with np.errstate(invalid="ignore"):
+            if detrend:
+                np.subtract(view, means, out=seg)
+                seg *= windows[:, None, :]
+            else:
+                np.multiply(view, windows[:, None, :], out=seg)
+        if bad.any():
+            seg[:, bad] = 0
+        a, c, d = _products(rfft(seg, self.spec[:, :b]), n_in, None, self.work)
+        return a, c, d, means[:, ~bad, 0].sum(axis=1, dtype=float), b - int(bad.sum())
 
 
-def welch_spectra(samples: np.ndarray, sample_rate_hz: float, inputs: Sequence[int],
+def _row_blocks(samples, rows_per_block: int) -> Iterator[tuple[int, np.ndarray]]:
+    """(first row, rows [n, n_channels]) blocks of ``samples``: views of an in-memory array, or for
+    an on-disk dataset (h5py) reads done one block ahead in a background thread, so reading overlaps
+    the FFTs; at most three blocks are held at a time."""
+    n = samples.shape[0]
+    if isinstance(samples, np.ndarray):
+        for r in range(0, n, rows_per_block):
+            yield r, samples[r:r + rows_per_block]
+        return
+    ready: queue.Queue = queue.Queue(maxsize=1)
+    stop = threading.Event()
+
+    def read() -> None:
+        try:
+            for r in range(0, n, rows_per_block):
+                if stop.is_set():
+                    return
+                ready.put((r, samples[r:r + rows_per_block]))
+            ready.put(None)
+        except BaseException as exc:  # handed to the consumer, raised there
+            ready.put(exc)
+
+    reader = threading.Thread(target=read, name="flexmodal-read", daemon=True)
+    reader.start()
+    try:
+        while (item := ready.get()) is not None:
+            if isinstance(item, BaseException):
+                raise item
+            yield item
+    finally:
+        stop.set()
+        while reader.is_alive():
+            try:
+                ready.get(timeout=0.05)
+            except queue.Empty:
+                pass
+        reader.join()
+
+
+def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
                   outputs: Sequence[int], nfft: int, *, overlap: float = 0.5,
                   window_spec: str | np.ndarray = "hann", input_window_spec: str | np.ndarray | None = None,
-                  detrend: bool = True,
-                  workers: int | None = None) -> Spectra:
-    """Welch-averaged spectra of ``samples`` [n_samples, n_channels] (columns ``inputs`` are references).
+                  detrend: bool = True, workers: int | None = None,
+                  skip: Sequence[tuple[int, int]] = (), min_segments: int = 1) -> Spectra:
+    """Welch-averaged spectra of ``samples`` [n_samples, n_channels] (columns ``inputs`` are references),
+    an in-memory array or an on-disk dataset (h5py), streamed in blocks of whole storage chunks: memory
+    stays a few blocks whatever the record length.
 
     Segments of ``nfft`` samples advance by ``nfft - round(overlap * nfft)``; each segment loses its
     mean (``detrend``) and is multiplied by its window (``input_window_spec`` on the inputs if given);
-    a window is a spec string (:mod:`modal.windows`) or an array of ``nfft`` samples.  Blocks of
-    segments are shared out to ``workers`` threads (as in scipy.fft: None one, -1 every CPU), each
-    with its own sums; the sums are added in a fixed order, so the result does not depend on timing.
+    a window is a spec string (:mod:`modal.windows`) or an array of ``nfft`` samples.  Segments holding
+    a NaN/inf sample in any used channel, or touching one of the ``skip`` sample intervals (first
+    sample, count), are left out of the average (``n_skipped``); fewer than ``min_segments`` left is an
+    error.  Segments are processed in blocks at fixed segment indices, shared out to ``workers``
+    threads (as in scipy.fft: None one, -1 every CPU); the block sums are added in segment order, so
+    the result is the same for any thread count, timing or read block size.
     """
     n_samples = samples.shape[0]
     if nfft < 8:
@@ -181,20 +297,48 @@ def welch_spectra(samples: np.ndarray, sample_rate_hz: float, inputs: Sequence[i
     windows = np.vstack([np.repeat(w_in[None], n_in, 0),
                          np.repeat(w_out[None], len(outputs), 0)]).astype(dtype)
     n_seg = (n_samples - nfft) // step + 1
+    skipped = skipped_segments(skip, n_seg, nfft, step)
     block = max(1, min(n_seg, _BLOCK_BYTES // (len(chans) * nfft * np.dtype(dtype).itemsize)))
-    starts = range(0, n_seg, block)
-    n_threads = min(_thread_count(workers), len(starts))
-    parts = [starts[k::n_threads] for k in range(n_threads)]
+    chunk = (getattr(samples, "chunks", None) or (1,))[0]
+    row_bytes = samples.shape[1] * np.dtype(samples.dtype).itemsize
+    read_rows = max((block - 1) * step + nfft, _READ_BYTES // row_bytes)
+    read_rows = -(-read_rows // chunk) * chunk                       # whole storage chunks
+    n_threads = min(_thread_count(workers), -(-n_seg // block))
+    work = [_Work(windows, n_in, step, block) for _ in range(n_threads)]
+    n_ch, n_freq = len(chans), nfft // 2 + 1
+    total = [np.zeros((n_ch - n_in, n_in, n_freq), complex), np.zeros((n_in, n_in, n_freq), complex),
+             np.zeros((n_ch - n_in, n_freq)), np.zeros(n_ch), 0]
+    pool = ThreadPoolExecutor(n_threads) if n_threads > 1 else None
+    done, tail_start, tail = 0, 0, None
+    try:
+        for r0, rows in _row_blocks(samples, read_rows):
+            sources = [(tail_start, tail), (r0, rows)] if tail is not None else [(r0, rows)]
+            ready = min(n_seg, (r0 + rows.shape[0] - nfft) // step + 1)   # segments complete by now
+            jobs = [s0 for s0 in range(done, ready, block) if min(s0 + block, n_seg) <= ready]
 
-    def run(part):
-        return _welch_sums(samples, cols, windows, n_in, step, n_seg, part, block, detrend)
+            def run(t: int, jobs=jobs, sources=sources) -> list:
+                return [work[t].sums(sources, cols, windows, n_in, step, s0, min(block, n_seg - s0),
+                                     skipped, detrend) for s0 in jobs[t::n_threads]]
 
-    if n_threads == 1:
-        sums = [run(parts[0])]
-    else:
-        with ThreadPoolExecutor(n_threads) as pool:
-            sums = list(pool.map(run, parts))
-    g_xf, g_ff, g_xx = (sum(s[k] for s in sums) for k in range(3))
-    scale = density_scale(g_xx.shape[-1], nfft, sample_rate_hz, w_out) / n_seg
+            parts = [run(0)] if pool is None else list(pool.map(run, range(n_threads)))
+            for i in range(len(jobs)):              # added in segment order, whatever the threads
+                for k, value in enumerate(parts[i % n_threads][i // n_threads]):
+                    total[k] += value
+            if jobs:
+                done = min(jobs[-1] + block, n_seg)
+            start = done * step
+            if start >= r0:
+                tail_start, tail = start, rows[start - r0:]
+            else:   # a read block shorter than the segment block still open: keep both
+                tail = np.concatenate([tail[start - tail_start:], rows])
+                tail_start = start
+    finally:
+        if pool is not None:
+            pool.shutdown()
+    g_xf, g_ff, g_xx, mean_sum, n_used = total
+    if n_used < min_segments:
+        raise ModalError(f"only {n_used} of {n_seg} segments usable (NaN/inf samples or skipped "
+                         f"intervals in the others); at least {min_segments} needed")
+    scale = density_scale(g_xx.shape[-1], nfft, sample_rate_hz, w_out) / max(n_used, 1)
     return Spectra(np.fft.rfftfreq(nfft, 1.0 / sample_rate_hz), g_xf * scale, g_ff * scale,
-                   g_xx * scale, n_seg)
+                   g_xx * scale, n_used, n_seg - n_used, mean_sum / max(n_used, 1))

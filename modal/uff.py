@@ -1,13 +1,18 @@
 """Universal File Format interchange through pyuff (dataset 58: functions at nodes; dataset 55: mode
 shapes), so FRFs and modes open in ME'scope, Simcenter Testlab and similar tools.
 
-Read: dataset 58 of function type 4 (FRF) or 1 (time response; the force channels are those whose
-ordinate is a force, data type 13).  Channels are named ``<node><sign><axis>`` (e.g. ``3+z``) from
+Read: dataset 58 of function type 4 (FRF, with the exponential-window decay flexmodal notes in an id
+line; other function types in the same file are left aside) or 1
+(time response; the force channels are those whose ordinate is a force, data type 13).  Time
+responses with several records per channel (an impact test exported hit by hit, the hits told apart
+by load case id, record number or order) are assembled into hits of equal length.  Channels are
+named ``<node><sign><axis>`` (e.g. ``3+z``) from
 the node and direction codes.  Write: FRFs as dataset 58 type 4, modes as dataset 55 (real, three
 components per node, the shape value in the channel's direction)."""
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,6 +25,7 @@ from flexmodal.modal.frf import FrfResult
 _AXES = "xyz"
 _SPEC = {"accelerance": 12, "mobility": 11, "receptance": 8}
 _QUANTITY = {v: k for k, v in _SPEC.items()}
+_DECAY = re.compile(r"exponential window decay ([0-9.eE+-]+) 1/s")   # flexmodal's note in an id line
 
 
 def channel_name(node: int, direction: int) -> str:
@@ -42,14 +48,22 @@ class UffFrfs:
     outputs: tuple[str, ...]
     inputs: tuple[str, ...]
     quantity: str
+    decay_rate_per_s: float = 0.0
 
 
 @dataclass(frozen=True)
 class UffRecord:
+    """Time histories [n_samples, n_channels].  When each channel holds several records (hits stored
+    as load cases or record numbers), the hits are laid end to end: ``hit_len`` samples each, hit k
+    starting at sample k * hit_len, with ``triggers`` the sample of each hit's impact (None: one
+    continuous record)."""
+
     samples: np.ndarray
     sample_rate_hz: float
     names: tuple[str, ...]
     kinds: tuple[str, ...]
+    hit_len: int | None = None
+    triggers: tuple[int, ...] | None = None
 
 
 def read_uff(path: str | Path) -> UffFrfs | UffRecord:
@@ -64,17 +78,22 @@ def read_uff(path: str | Path) -> UffFrfs | UffRecord:
     except Exception as exc:  # pyuff raises bare Exceptions on malformed files
         raise ModalError(f"{p}: not a readable UFF file ({exc})") from None
     sets = [sets] if isinstance(sets, dict) else list(sets)
+    if not sets:
+        raise ModalError(f"{p}: no dataset found (not a UFF file, or one pyuff cannot read)")
     types = sorted({int(s.get("type", -1)) for s in sets})
     funcs = [s for s in sets if s.get("type") == 58]
     if not funcs:
         raise ModalError(f"{p}: no dataset 58 (found dataset types {types}; only 58 is read)")
     kinds = sorted({int(s.get("func_type", 0)) for s in funcs})
-    if kinds not in ([1], [4]):
-        raise ModalError(f"{p}: dataset 58 function types {kinds} are not supported "
-                         "(use all 4 = FRF or all 1 = time response)")
-    if kinds == [4]:
-        return _frfs(p, funcs)
-    return _record(p, funcs)
+    try:
+        if 4 in kinds:   # FRFs, whatever else (coherence, spectra) the file holds besides
+            return _frfs(p, [s for s in funcs if int(s.get("func_type", 0)) == 4])
+        if 1 in kinds:
+            return _record(p, [s for s in funcs if int(s.get("func_type", 0)) == 1])
+    except (KeyError, TypeError, ValueError) as exc:   # a field missing or of the wrong form
+        raise ModalError(f"{p}: dataset 58 record not understood ({type(exc).__name__}: {exc})") from None
+    raise ModalError(f"{p}: dataset 58 function types {kinds} are not supported: none is an FRF (4) or a "
+                     "time response (1)")
 
 
 def _frfs(p: Path, funcs: list[dict]) -> UffFrfs:
@@ -88,41 +107,95 @@ def _frfs(p: Path, funcs: list[dict]) -> UffFrfs:
         outs += [o] if o not in outs else []
         ins += [i] if i not in ins else []
     H = np.full((len(outs), len(ins), x.size), np.nan, complex)
-    for s in funcs:
-        H[outs.index(channel_name(s["rsp_node"], s["rsp_dir"])),
-          ins.index(channel_name(s["ref_node"], s["ref_dir"]))] = np.asarray(s["data"])
+    for s in funcs:   # a loop over FRFs
+        o, i = channel_name(s["rsp_node"], s["rsp_dir"]), channel_name(s["ref_node"], s["ref_dir"])
+        if not np.isnan(H[outs.index(o), ins.index(i), 0]):
+            raise ModalError(f"{p}: two FRFs for response {o} and reference {i} (one per pair is read)")
+        H[outs.index(o), ins.index(i)] = np.asarray(s["data"])
     if np.isnan(H).any():
         raise ModalError(f"{p}: the FRF matrix is incomplete (some response/reference pairs missing)")
     quantity = _QUANTITY.get(int(funcs[0].get("ordinate_spec_data_type", 12)), "accelerance")
-    return UffFrfs(x, H, tuple(outs), tuple(ins), quantity)
+    found = {float(m.group(1)) for s in funcs for k in ("id2", "id3", "id4", "id5")
+             if (m := _DECAY.search(str(s.get(k) or "")))}
+    return UffFrfs(x, H, tuple(outs), tuple(ins), quantity, found.pop() if len(found) == 1 else 0.0)
+
+
+def _record_key(records: list[dict]) -> list:
+    """How the records of one channel are told apart: their load case ids, else version (record)
+    numbers, else function ids when those differ, else their order in the file."""
+    for field in ("load_case_id", "ver_num", "func_id"):
+        values = [r.get(field) for r in records]
+        if None not in values and len(set(values)) == len(values):
+            return values
+    return list(range(len(records)))
 
 
 def _record(p: Path, funcs: list[dict]) -> UffRecord:
     dts = np.array([float(s.get("abscissa_inc") or np.diff(s["x"][:2])[0]) for s in funcs])
+    if not np.all(dts > 0):
+        raise ModalError(f"{p}: a time history has no positive sample interval ({dts.min():g} s)")
     if not np.allclose(dts, dts[0], rtol=1e-9):
         raise ModalError(f"{p}: time histories have mismatched sample rates "
                          f"({', '.join(f'{1 / d:g}' for d in sorted(set(dts)))} Hz)")
-    lengths = {len(s["data"]) for s in funcs}
-    if len(lengths) != 1:
-        raise ModalError(f"{p}: time histories have different lengths {sorted(lengths)}")
-    samples = np.column_stack([np.asarray(s["data"], float) for s in funcs])
-    names = tuple(channel_name(s["rsp_node"], s["rsp_dir"]) for s in funcs)
-    kinds = tuple("force" if int(s.get("ordinate_spec_data_type", 12)) == 13 else "acceleration"
-                  for s in funcs)
-    return UffRecord(samples, 1.0 / dts[0], names, kinds)
+    channels: dict[str, list[dict]] = {}
+    for s in funcs:   # a loop over records
+        channels.setdefault(channel_name(s["rsp_node"], s["rsp_dir"]), []).append(s)
+    names = tuple(channels)
+    kinds = tuple("force" if int(recs[0].get("ordinate_spec_data_type", 12)) == 13 else "acceleration"
+                  for recs in channels.values())
+    counts = {n: len(r) for n, r in channels.items()}
+    if len(set(counts.values())) != 1:
+        raise ModalError(f"{p}: channels hold different numbers of records ("
+                         + ", ".join(f"{n}: {c}" for n, c in counts.items()) + ")")
+    if counts[names[0]] == 1:
+        lengths = {len(r[0]["data"]) for r in channels.values()}
+        if len(lengths) != 1:
+            raise ModalError(f"{p}: time histories have different lengths {sorted(lengths)}")
+        samples = np.column_stack([np.asarray(r[0]["data"], float) for r in channels.values()])
+        return UffRecord(samples, 1.0 / dts[0], names, kinds)
+    return _hits(p, channels, names, kinds, 1.0 / dts[0])
+
+
+def _hits(p: Path, channels: dict[str, list[dict]], names: tuple[str, ...], kinds: tuple[str, ...],
+          fs: float) -> UffRecord:
+    """Several records per channel: record k of every channel (matched by load case, record number
+    or order) is hit k; hits are cut to the shortest record and laid end to end."""
+    from flexmodal.modal.impact import find_triggers
+
+    keys = [_record_key(r) for r in channels.values()]
+    order = sorted(keys[0], key=str)
+    odd = [n for n, k in zip(names, keys, strict=True) if sorted(k, key=str) != order]
+    if odd:
+        raise ModalError(f"{p}: channels {names[0]} and {odd[0]} hold records of different load cases "
+                         "or record numbers")
+    hits = [[recs[k.index(key)] for recs, k in zip(channels.values(), keys, strict=True)] for key in order]
+    length = min(len(r["data"]) for hit in hits for r in hit)
+    samples = np.concatenate([np.column_stack([np.asarray(r["data"], float)[:length] for r in hit])
+                              for hit in hits])
+    if "force" not in kinds:
+        return UffRecord(samples, fs, names, kinds, length)
+    f = kinds.index("force")
+    first = [find_triggers(samples[k * length:(k + 1) * length, f]) for k in range(len(hits))]
+    triggers = tuple(int(k * length + t[0]) for k, t in enumerate(first) if t.size)
+    return UffRecord(samples, fs, names, kinds, length, triggers)
 
 
 def write_frfs(path: str | Path, result: FrfResult) -> None:
-    """Write FRFs as dataset 58 (function type 4), one set per response/reference pair."""
+    """Write FRFs as dataset 58 (function type 4), one set per response/reference pair; the decay
+    rate of an exponential window they were measured with goes into id line 4 ("exponential window
+    decay R 1/s"), where :func:`read_uff` finds it again (other tools keep id lines as text)."""
     import pyuff
 
+    note = (f"exponential window decay {result.decay_rate_per_s:.9g} 1/s" if result.decay_rate_per_s
+            else "NONE")
     sets = []
     for o, oname in enumerate(result.outputs or [f"{k + 1}+z" for k in range(result.H.shape[0])]):
         for i, iname in enumerate(result.inputs or [f"{900 + k}+z" for k in range(result.H.shape[1])]):
             rn, rd = _node_dir(oname, o + 1)
             fn, fd = _node_dir(iname, 900 + i)
             sets.append(pyuff.prepare_58(
-                func_type=4, id1=f"FRF {oname}/{iname}", rsp_node=rn, rsp_dir=rd, ref_node=fn, ref_dir=fd,
+                func_type=4, id1=f"FRF {oname}/{iname}", id4=note, rsp_node=rn, rsp_dir=rd, ref_node=fn,
+                ref_dir=fd,
                 ordinate_spec_data_type=_SPEC.get(result.quantity, 12), orddenom_spec_data_type=13,
                 abscissa_spec_data_type=18, data=np.asarray(result.H[o, i], complex),
                 x=np.asarray(result.freq_hz, float), abscissa_spacing=1,

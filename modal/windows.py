@@ -9,12 +9,15 @@ every pole, which :func:`remove_added_damping` takes back out of identified pole
 from __future__ import annotations
 
 import numpy as np
-import scipy.signal
 
 from flexmodal.modal.errors import ModalError
 
 WINDOW_NAMES = ("rect", "hann", "flattop", "force", "exponential")
 _DEFAULTS = {"force": 0.05, "exponential": 0.01}  # the one home of the impact-window defaults
+# cosine-sum coefficients a_k of w[n] = sum_k (-1)^k a_k cos(2 pi k n / N): Hann, and the flat top of
+# D'Antona & Ferrero (2006) that scipy.signal.windows.flattop uses
+_COSINE_SUMS = {"hann": (0.5, 0.5),
+                "flattop": (0.21557895, 0.41663158, 0.277263158, 0.083578947, 0.006947368)}
 
 
 def parse_window(spec: str) -> tuple[str, float | None]:
@@ -45,14 +48,14 @@ def impact_windows(spec: str | None) -> tuple[str, str]:
 
 
 def window(spec: str, n: int) -> np.ndarray:
-    """Window samples [n] for a spec string (periodic Hann / flat-top as used for Welch averaging)."""
+    """Window samples [n] for a spec string (periodic Hann / flat-top as used for Welch averaging:
+    period ``n``, as ``scipy.signal.get_window(name, n, fftbins=True)``)."""
     name, param = parse_window(spec)
     if name == "rect":
         return np.ones(n)
-    if name == "hann":
-        return scipy.signal.get_window("hann", n, fftbins=True)
-    if name == "flattop":
-        return scipy.signal.get_window("flattop", n, fftbins=True)
+    if name in _COSINE_SUMS:
+        phase = 2 * np.pi * np.arange(n) / n
+        return sum((-1) ** k * a * np.cos(k * phase) for k, a in enumerate(_COSINE_SUMS[name]))
     if name == "force":
         w = np.zeros(n)
         w[: max(1, int(param * n))] = 1.0

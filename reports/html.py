@@ -5,8 +5,9 @@ is fetched from a network.  Sections (each only when its input is given): compar
 measured vs predicted modes (a compare.tables.Comparison), diagnosis summary (docs/formats.md,
 diagnosis JSON), frequency-vs-pose, trend and mode-shape plots, run metadata, channel list, data
 quality (trigger/overload/gap/corrupt events, rejected hits, coherence) with the FRF plot of each run
-and the stabilisation diagram of its identification, and the gap per mode before and after the
-diagnosed effect.
+and its identification (stabilisation diagram with the selected poles and band, measured vs
+synthesised FRFs, AutoMAC), the test-model MAC matrix where predictions share sensors with the
+measured modes, and the gap per mode before and after the diagnosed effect.
 
 This module renders what it is given: the caller (``flexmodal.api.report``) reads the runs, computes
 the comparison, each run's identification and the FE shapes on the arm.
@@ -77,6 +78,7 @@ def _mode_figures(measured: ModalTable | None, repeats: Sequence[ModalTable],
         figs.append(_fig(plots.plot_trends(ref, x, group, pose_unit(x), pose_unit(group)),
                          f"Trends of each mode's frequency with {x}, a line per {group} "
                          f"({table_name(ref, 'modes')})"))
+    figs += _test_model_mac(measured, predictions)
     for config, arm in shapes.items() if measured is not None else ():
         if isinstance(arm, str):
             figs.append({"png": None, "caption": arm})
@@ -85,6 +87,25 @@ def _mode_figures(measured: ModalTable | None, repeats: Sequence[ModalTable],
                          f"Measured mode shapes at {config} ({_pose_text(measured.pose(config))}) on the "
                          f"arm, with the frame FE model's best-matching mode (by MAC) as a curve"))
     return figs
+
+
+def _test_model_mac(measured: ModalTable | None, predictions: Sequence[tuple[str, ModalTable]]) -> list[dict]:
+    """MAC matrix of the measured shapes against the first prediction's at the sensors both give, for
+    the first configuration both hold (two or more shared sensors)."""
+    if measured is None or not predictions:
+        return []
+    name, pred = predictions[0]
+    sensors = [s for s in measured.sensors if s in pred.sensors]
+    configs = [c for c in ordered_configs(measured) if c in pred.configs]
+    if len(sensors) < 2 or not configs:
+        return []
+    c = configs[0]
+    a, b = measured.shapes(c, sensors), pred.shapes(c, sensors)
+    fig = plots.plot_mac(a, b, [f"{x:.4g} Hz" for x in measured.freq_hz(c)],
+                         [f"{x:.4g} Hz" for x in pred.freq_hz(c)], "measured mode", f"{name} mode",
+                         title=f"{c}: test-model MAC")
+    return [_fig(fig, f"{c}: MAC of the measured shapes against {name}'s at the {len(sensors)} sensors both "
+                      "give (values near 1 pair a measured mode with a predicted one)")]
 
 
 def _run_order(runs: Sequence[RunSummary]) -> list[RunSummary]:
@@ -142,32 +163,44 @@ def _run_rows(runs: Sequence[RunSummary]) -> tuple[list[dict], list[dict], list[
     return meta, quality, channel_sets
 
 
-def _stabilisation_figure(r: RunSummary, unit: str) -> dict | None:
+def _identification_figures(r: RunSummary, unit: str) -> list[dict]:
+    """The run's identification (``r.modes``, computed by the caller): its stabilisation diagram with
+    the selected poles and the band, the measured vs synthesised FRFs, and the AutoMAC of the shapes
+    (two or more outputs and modes)."""
     if r.modes is None:
-        return None
+        return []
     if isinstance(r.modes, str):
-        return {"png": None, "caption": f"{r.label}: no identification ({r.modes})"}
+        return [{"png": None, "caption": f"{r.label}: no identification ({r.modes})"}]
+    modes = r.modes
     try:
-        fig = plots.plot_identification_diagram(r.frf, r.modes, unit, title=r.label)
+        diagram = plots.plot_identification_diagram(r.frf, modes, unit, title=r.label)
     except ReportError as exc:
-        return {"png": None, "caption": f"{r.label}: {exc}"}
-    listed = ", ".join(f"{x:.4g}" for x in r.modes.freq_hz)
-    return _fig(fig, f"{r.label}: pLSCF stabilisation diagram ({r.modes.order_note}; filled: stable in "
-                     f"frequency, damping and shape) over the complex mode indicator function; "
-                     f"identified modes at {listed} Hz")
+        return [{"png": None, "caption": f"{r.label}: {exc}"}]
+    f = modes.band_freq_hz
+    listed = ", ".join(f"{x:.4g}" for x in modes.freq_hz)
+    figs = [_fig(diagram, f"{r.label}: pLSCF stabilisation diagram ({modes.order_note}; filled: stable "
+                          f"in frequency, damping and shape; crosses: poles of the {modes.freq_hz.size} "
+                          f"selected modes at {listed} Hz) over the complex mode indicator function, "
+                          f"identification band {f.min():.4g}-{f.max():.4g} Hz shaded"),
+            _fig(plots.plot_identification_synthesis(r.frf, modes, unit, title=f"{r.label}: synthesis"),
+                 f"{r.label}: measured FRFs and the FRFs synthesised from the identified modes and "
+                 "residuals (LSFD), with the FRAC of each pair")]
+    if modes.freq_hz.size >= 2 and modes.shapes.shape[0] >= 2:
+        names = [f"{x:.4g} Hz" for x in modes.freq_hz]
+        figs.append(_fig(plots.plot_mac(modes.shapes, labels_a=names, title=f"{r.label}: AutoMAC"),
+                         f"{r.label}: AutoMAC of the identified shapes at {modes.shapes.shape[0]} outputs "
+                         "(off-diagonal terms near 1: modes the sensors cannot tell apart)"))
+    return figs
 
 
 def _oma_figures(r: RunSummary) -> list[dict]:
-    """FDD and SSI figures of an output-only run (reports/oma.py); none for other runs without FRFs."""
-    from flexmodal.reports.oma import is_output_only, oma_figures
+    """FDD and SSI figures of an output-only run (reports/oma.py); none for a run given without them."""
+    from flexmodal.reports.oma import oma_figures
 
-    run = r.run
-    kinds = [c.kind for c in run.channels]
-    if not is_output_only(kinds, run.excitation):
+    if r.oma is None:
         return []
     return [_fig(fig, caption) if fig is not None else {"png": None, "caption": caption}
-            for fig, caption in oma_figures(run.samples, run.sample_rate_hz, [c.name for c in run.channels],
-                                            kinds, r.label)]
+            for fig, caption in oma_figures(r.oma, r.label)]
 
 
 def _run_figures(runs: Sequence[RunSummary]) -> list[dict]:
@@ -182,9 +215,7 @@ def _run_figures(runs: Sequence[RunSummary]) -> list[dict]:
                                         title=f"{r.label} ({r.run.excitation})"),
                          f"{r.label}: FRF magnitude, phase and coherence (input {inputs}, "
                          f"pose {_pose_text(r.run.pose)})"))
-        stab = _stabilisation_figure(r, unit)
-        if stab is not None:
-            figs.append(stab)
+        figs += _identification_figures(r, unit)
     return figs
 
 

@@ -1,20 +1,23 @@
-"""Report figures of output-only (operational) runs: the FDD singular values of the output cross-spectral
-matrix with the picked peaks, and the SSI-cov stabilisation diagram drawn over those singular values
+"""Report figures of output-only (operational) runs, drawn from the results the caller computed
+(``modal.oma.OmaResults``, :func:`flexmodal.modal.oma.output_only_results`): the FDD singular values of
+the output cross-spectral matrix with the picked peaks, and the SSI-cov stabilisation diagram drawn over
+the singular values of the outputs' cross-spectral matrix with SSI's references
 (:func:`flexmodal.reports.plots.plot_stabilisation`).  Units: frequency Hz, spectral densities in the
 outputs' unit squared per Hz (m/s² -> (m/s²)²/Hz), model order dimensionless."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 from matplotlib.figure import Figure
 
-from flexmodal.modal.errors import ModalError
-from flexmodal.modal.fdd import FddResult, cross_spectra
-from flexmodal.modal.oma import default_method, identify_output_only
-from flexmodal.modal.ssi import SsiResult
 from flexmodal.reports.plots import _COLOURS, plot_stabilisation
+
+if TYPE_CHECKING:
+    from flexmodal.modal.fdd import FddResult
+    from flexmodal.modal.oma import OmaResults
+    from flexmodal.modal.ssi import SsiResult
 
 
 def plot_fdd(result: FddResult, unit: str = "(m/s²)²/Hz", title: str = "") -> Figure:
@@ -39,46 +42,39 @@ def plot_fdd(result: FddResult, unit: str = "(m/s²)²/Hz", title: str = "") -> 
     return fig
 
 
-def plot_ssi_stabilisation(result: SsiResult, y: np.ndarray, sample_rate_hz: float,
+def plot_ssi_stabilisation(result: SsiResult, freq_hz: np.ndarray, spectrum: np.ndarray,
                            unit: str = "(m/s²)²/Hz", title: str = "") -> Figure:
     """SSI-cov poles per model order (filled: stable in frequency, damping and shape) over the singular
-    values of the cross-spectral matrix of the record ``y`` [n_samples, n_channels] with SSI's
-    references."""
-    nfft = int(min(4096, 2 ** np.floor(np.log2(max(16, y.shape[0] // 8)))))
-    f, G = cross_spectra(y, sample_rate_hz, result.references, nfft)
-    top = result.stabilisation.freq_hz.max(initial=f[-1])
-    band = (f > 0) & (f <= max(top * 1.1, f[1]))
-    fig = plot_stabilisation(f[band], np.moveaxis(G[band], 0, -1), result.stabilisation, unit, title=title)
+    values of the cross-spectral matrix ``spectrum`` [n_freq, n_outputs, n_refs] on ``freq_hz`` [Hz]."""
+    fig = plot_stabilisation(freq_hz, np.moveaxis(spectrum, 0, -1), result.stabilisation, unit, title=title)
     fig.axes[1].set_ylabel(f"FDD singular values [{unit}]")
     return fig
 
 
-def oma_figures(samples: np.ndarray, sample_rate_hz: float, names: Sequence[str], kinds: Sequence[str],
-                label: str, unit: str = "(m/s²)²/Hz") -> list[tuple[Figure | None, str]]:
+def oma_figures(oma: OmaResults, label: str, unit: str = "(m/s²)²/Hz") -> list[tuple[Figure | None, str]]:
     """The FDD and SSI figures of an output-only record, each with its caption (a figure of None with
     the reason in the caption when the method found nothing)."""
     out: list[tuple[Figure | None, str]] = []
-    for method in ("fdd", "ssi"):   # a loop over the two methods
-        try:
-            result, outputs = identify_output_only(samples, sample_rate_hz, names, kinds, method=method,
-                                                   where=label)
-        except ModalError as exc:
-            out.append((None, f"{label}: no {method.upper()} ({exc})"))
-            continue
-        modes = ", ".join(f"{f:.4g} Hz" for f in result.modes.freq_hz)
-        if isinstance(result, FddResult):
-            out.append((plot_fdd(result, unit, title=label), f"{label}: FDD, singular values of the output "
-                        f"cross-spectral matrix ({', '.join(outputs)}); peaks {modes}"))
-        else:
-            y = np.asarray(samples)[:, [list(names).index(o) for o in outputs]]
-            orders = f"{result.stabilisation.order.min()}-{result.stabilisation.order.max()}"
-            out.append((plot_ssi_stabilisation(result, y, sample_rate_hz, unit, title=label),
-                        f"{label}: SSI-cov stabilisation diagram, orders {orders} "
-                        f"(filled: stable in frequency, damping and shape), over the FDD singular values; "
-                        f"modes {modes} (unscaled shapes)"))
+    if isinstance(oma.fdd, str):
+        out.append((None, f"{label}: no FDD ({oma.fdd})"))
+    else:
+        out.append((plot_fdd(oma.fdd, unit, title=label), f"{label}: FDD, singular values of the output "
+                    f"cross-spectral matrix ({', '.join(oma.outputs)}); "
+                    f"peaks {_listed(oma.fdd.modes.freq_hz)}"))
+    if isinstance(oma.ssi, str):
+        out.append((None, f"{label}: no SSI ({oma.ssi})"))
+        return out
+    modes = _listed(oma.ssi.modes.freq_hz)
+    if oma.spectrum is None or oma.spectrum_hz is None:
+        out.append((None, f"{label}: SSI-cov modes {modes} (unscaled shapes); no stabilisation diagram "
+                          "drawn: no segment of the record is free of gaps for its spectrum"))
+        return out
+    orders = f"{oma.ssi.stabilisation.order.min()}-{oma.ssi.stabilisation.order.max()}"
+    out.append((plot_ssi_stabilisation(oma.ssi, oma.spectrum_hz, oma.spectrum, unit, title=label),
+                f"{label}: SSI-cov stabilisation diagram, orders {orders} (filled: stable in frequency, "
+                f"damping and shape), over the FDD singular values; modes {modes} (unscaled shapes)"))
     return out
 
 
-def is_output_only(kinds: Sequence[str], excitation: str) -> bool:
-    """True for a run that OMA identifies (operational excitation or no force channel)."""
-    return default_method(kinds, excitation) == "ssi"
+def _listed(freq_hz: np.ndarray) -> str:
+    return ", ".join(f"{f:.4g} Hz" for f in freq_hz)

@@ -4,8 +4,14 @@ Units sit on every axis.  Frequencies in Hz, FRF magnitude in the FRF's own unit
 (m/s²)/N by default), phase in degrees, coherence and MAC dimensionless (0..1), errors in %.
 
 * ``plot_frf``: magnitude, phase and ordinary coherence of the FRFs of one run;
-* ``plot_stabilisation``: given poles per model order (a modal.lscf.Stabilisation) over the complex
-  mode indicator function (CMIF, Shih et al. 1988: singular values of H(f) at each line, modal.peaks.cmif);
+* ``plot_stabilisation``: poles per model order (modal.lscf pLSCF) over the complex mode indicator
+  function (CMIF, Shih et al. 1988: singular values of H(f) at each line, modal.peaks.cmif), with the
+  poles of the selected modes and the identification band marked;
+* ``plot_identification_diagram`` / ``plot_identification_synthesis``: the same for a run's
+  identification (a modal.identify.Modes);
+* ``plot_synthesis``: measured vs synthesised FRFs (modal.lsfd from the identified modes), with the
+  FRAC of each pair;
+* ``plot_mac``: AutoMAC of the identified shapes, or test-model MAC matrix;
 * ``plot_freq_vs_pose``: measured vs predicted natural frequency across a pose variable, a line per
   model and mode, experiment points with ±1 standard deviation bars from repeated tests;
 * ``plot_trends``: frequency of each mode against one pose variable, a line per value of another
@@ -82,20 +88,34 @@ def plot_frf(freq_hz: np.ndarray, H: np.ndarray, coherence: np.ndarray | None = 
 
 
 def plot_stabilisation(freq_hz: np.ndarray, H: np.ndarray, poles, unit: str = "(m/s²)/N",
-                       title: str = "") -> Figure:
+                       title: str = "", selected: np.ndarray | None = None,
+                       band_hz: tuple[float, float] | None = None,
+                       modes_hz: np.ndarray | None = None) -> Figure:
     """Stable (filled) and unstable (open) poles per model order over the CMIF of H [n_out, n_in, n_freq].
 
     ``poles``: a ``modal.lscf.Stabilisation`` (or anything with equal-length ``order``, ``freq_hz`` [Hz]
-    and boolean ``stable`` arrays).
+    and boolean ``stable`` arrays).  ``selected`` [n_poles] marks the poles of the chosen modes (black
+    crosses), ``modes_hz`` the identified frequencies (dotted lines), ``band_hz`` the identification
+    band (shaded).
     """
     stable = np.asarray(poles.stable, bool)
     if not np.size(poles.order) == np.size(poles.freq_hz) == stable.size:
         raise ReportError("stabilisation: order, freq_hz and stable differ in length")
+    if selected is not None and np.size(selected) != stable.size:
+        raise ReportError("stabilisation: the selected-pole mask differs in length from the poles")
     fig = Figure(figsize=(8, 4))
     ax = fig.subplots()
+    if band_hz is not None:
+        ax.axvspan(*band_hz, color=_COLOURS[2], alpha=0.08, lw=0, label="identification band")
     ax.plot(poles.freq_hz[~stable], poles.order[~stable], "o", mfc="none", mec="0.6", ms=4,
             label="unstable pole")
     ax.plot(poles.freq_hz[stable], poles.order[stable], "o", color=_COLOURS[1], ms=4, label="stable pole")
+    if selected is not None:
+        sel = np.asarray(selected, bool)
+        ax.plot(poles.freq_hz[sel], poles.order[sel], "x", color="k", ms=5, mew=1.0,
+                label="pole of a selected mode")
+    for k, f in enumerate(np.atleast_1d(modes_hz) if modes_hz is not None else []):
+        ax.axvline(float(f), color="k", lw=0.6, ls=":", label="identified mode" if k == 0 else None)
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel("model order [-]")
     mif_ax = ax.twinx()
@@ -111,15 +131,93 @@ def plot_stabilisation(freq_hz: np.ndarray, H: np.ndarray, poles, unit: str = "(
     return fig
 
 
-def plot_identification_diagram(frf, modes, unit: str = "(m/s²)/N", title: str = "") -> Figure:
-    """The stabilisation diagram of an identification (``modes``: a ``modal.identify.Modes`` of the
-    pLSCF method) over the CMIF of the FRFs ``frf`` (a ``modal.frf.FrfResult``) in its band."""
+def plot_synthesis(freq_hz: np.ndarray, H: np.ndarray, synthesis: np.ndarray,
+                   labels: Sequence[str] = (), correlation: np.ndarray | None = None,
+                   unit: str = "(m/s²)/N", title: str = "", max_frfs: int = 6) -> Figure:
+    """Measured (solid) and synthesised (dashed, from the identified modes and residuals) FRFs:
+    magnitude (log) and phase [deg] of up to ``max_frfs`` FRFs of H, synthesis [n_out, n_in, n_freq]
+    (first reference), with each FRF's measured-vs-synthesised FRAC [-] in the legend."""
+    H, S = np.asarray(H), np.asarray(synthesis)
+    if H.shape != S.shape or H.shape[-1] != np.size(freq_hz):
+        raise ReportError(f"synthesis: FRFs {H.shape}, synthesis {S.shape} and {np.size(freq_hz)} lines "
+                          "differ")
+    H, S = H[:, 0, :], S[:, 0, :]
+    labels = list(labels) or [f"out {i + 1}" for i in range(H.shape[0])]
+    fig = Figure(figsize=(8, 5))
+    mag, ph = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
+    for i in range(min(max_frfs, H.shape[0])):
+        c = _COLOURS[i % len(_COLOURS)]
+        corr = f" (FRAC {float(np.asarray(correlation)[i, 0]):.3f})" if correlation is not None else ""
+        mag.semilogy(freq_hz, np.abs(H[i]), color=c, lw=0.9, label=f"{labels[i]} measured{corr}")
+        mag.semilogy(freq_hz, np.abs(S[i]), color=c, lw=1.1, ls="--", label=f"{labels[i]} synthesised")
+        ph.plot(freq_hz, np.degrees(np.angle(H[i])), color=c, lw=0.7)
+        ph.plot(freq_hz, np.degrees(np.angle(S[i])), color=c, lw=0.9, ls="--")
+    mag.set_ylabel(f"|H| [{unit}]")
+    ph.set_ylabel("phase [deg]")
+    ph.set_yticks([-180, -90, 0, 90, 180])
+    ph.set_xlabel("frequency [Hz]")
+    mag.legend(fontsize=6, ncol=2, loc="best")
+    for ax in (mag, ph):
+        ax.grid(True, which="both", alpha=0.3)
+    if title:
+        mag.set_title(title)
+    fig.subplots_adjust(left=0.11, right=0.97, bottom=0.1, top=0.93, hspace=0.1)
+    return fig
+
+
+def plot_mac(phi_a: np.ndarray, phi_b: np.ndarray | None = None, labels_a: Sequence[str] = (),
+             labels_b: Sequence[str] = (), name_a: str = "mode", name_b: str = "mode",
+             title: str = "") -> Figure:
+    """MAC matrix [-] (Allemang & Brown 1982) of shapes ``phi_a`` [n_points, n_a] against ``phi_b``
+    (default: itself, the AutoMAC), as a grey-scale grid with the values written in."""
+    a = np.atleast_2d(np.asarray(phi_a))
+    b = a if phi_b is None else np.atleast_2d(np.asarray(phi_b))
+    if a.shape[0] != b.shape[0]:
+        raise ReportError(f"MAC: shapes at {a.shape[0]} and {b.shape[0]} points cannot be compared")
+    m = mac(np.nan_to_num(a), np.nan_to_num(b))
+    la = list(labels_a) or [str(k + 1) for k in range(m.shape[0])]
+    lb = list(labels_b) or ([*la] if phi_b is None else [str(k + 1) for k in range(m.shape[1])])
+    size = 2.2 + 0.45 * max(m.shape)
+    fig = Figure(figsize=(min(size + 1.2, 9), min(size, 8)))
+    ax = fig.subplots()
+    im = ax.imshow(m, vmin=0, vmax=1, cmap="Greys", origin="upper")
+    for (i, j), v in np.ndenumerate(m):
+        ax.text(j, i, f"{v:.2f}", ha="center", va="center", fontsize=7, color="w" if v > 0.5 else "k")
+    ax.set_xticks(range(m.shape[1]), lb, rotation=45 if max(len(t) for t in lb) > 4 else 0, fontsize=7)
+    ax.set_yticks(range(m.shape[0]), la, fontsize=7)
+    ax.set_xlabel(name_b)
+    ax.set_ylabel(name_a)
+    fig.colorbar(im, ax=ax, label="MAC [-]", fraction=0.046, pad=0.04)
+    ax.set_title(title or ("AutoMAC" if phi_b is None else "MAC"), fontsize=9)
+    fig.tight_layout()
+    return fig
+
+
+
+def _identified_band(frf, modes) -> np.ndarray:
+    """Lines of the FRFs ``frf`` inside the band ``modes`` were identified in (above 0 Hz)."""
     if modes.stabilisation is None or modes.band_freq_hz is None:
         raise ReportError(f"no stabilisation diagram: the modes were identified by {modes.method!r}")
     lo, hi = float(modes.band_freq_hz.min()), float(modes.band_freq_hz.max())
-    band = (frf.freq_hz >= lo) & (frf.freq_hz <= hi)
-    return plot_stabilisation(frf.freq_hz[band], frf.H[..., band], modes.stabilisation, unit, title=title)
+    return (frf.freq_hz >= lo) & (frf.freq_hz <= hi) & (frf.freq_hz > 0)
 
+
+def plot_identification_diagram(frf, modes, unit: str = "(m/s²)/N", title: str = "") -> Figure:
+    """The stabilisation diagram of an identification (``modes``: a ``modal.identify.Modes`` of the
+    pLSCF method) over the CMIF of the FRFs ``frf`` (a ``modal.frf.FrfResult``) above 0 Hz, with the
+    poles of the selected modes, the identified frequencies and the identification band marked."""
+    f = frf.freq_hz[_identified_band(frf, modes)]
+    shown = frf.freq_hz > 0   # the whole measured range, the identification band shaded in it
+    return plot_stabilisation(frf.freq_hz[shown], frf.H[..., shown], modes.stabilisation, unit, title=title,
+                              selected=modes.selected, band_hz=(float(f.min()), float(f.max())),
+                              modes_hz=modes.freq_hz)
+
+
+def plot_identification_synthesis(frf, modes, unit: str = "(m/s²)/N", title: str = "") -> Figure:
+    """:func:`plot_synthesis` of an identification's synthesised FRFs against the measured ones."""
+    band = _identified_band(frf, modes)
+    return plot_synthesis(frf.freq_hz[band], frf.H[..., band], modes.synthesis, frf.outputs,
+                          modes.frf_synthesis_corr, unit, title=title)
 
 def _pose_values(table: ModalTable, pose_var: str) -> dict[str, float]:
     col = "pose." + pose_var

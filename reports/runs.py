@@ -1,9 +1,9 @@
 """What a report shows of a stored run (docs/hdf5-format.md): metadata, channels, data quality, FRFs.
 
 A :class:`RunSummary` holds what the caller read and computed (the ``daq.store.Run``, its FRFs and
-their identification); the properties here only count and summarise.  Impact hits come from the
-FRF provenance (``hits``: ``trigger``, ``accepted``, ``reason``); without it, rejected hits are the
-``note`` events whose detail starts with ``rejected``.
+their identification, or its output-only identification); the properties here only count and
+summarise.  Impact hits come from the FRF provenance (``hits``: ``trigger``, ``accepted``,
+``reason``); without it, rejected hits are the ``note`` events whose detail starts with ``rejected``.
 """
 
 from __future__ import annotations
@@ -19,18 +19,21 @@ if TYPE_CHECKING:
     from flexmodal.daq.store import Run
     from flexmodal.modal.frf import FrfResult
     from flexmodal.modal.identify import Modes
+    from flexmodal.modal.oma import OmaResults
 
 LOW_COHERENCE = 0.8
 
 
 @dataclass(frozen=True, eq=False)
 class RunSummary:
-    """A run for the report: ``run`` as read, its ``frf`` (None when not computed) and the ``modes``
-    identified from those FRFs (``modal.identify.Modes``), or the reason there are none (a string)."""
+    """A run for the report: ``run`` as read, its ``frf`` (None when not computed), the ``modes``
+    identified from those FRFs (``modal.identify.Modes``) or the reason there are none (a string), and
+    for an output-only run without FRFs its FDD and SSI results (``oma``, ``modal.oma.OmaResults``)."""
 
     run: Run
     frf: FrfResult | None = None
     modes: Modes | str | None = None
+    oma: OmaResults | None = None
 
     @property
     def label(self) -> str:

@@ -11,10 +11,9 @@ import can
 import numpy as np
 from cantools.database import Database
 from cantools.database.can import Message, Signal
+from stand_in import record_with
 
-from flexmodal.daq.acquire import acquire
 from flexmodal.daq.session import load_session
-from flexmodal.daq.store import read_run
 
 RATE = 500.0
 DROP = 600  # scan whose second frame is never sent
@@ -32,7 +31,7 @@ def _values(k: np.ndarray) -> np.ndarray:
     return np.column_stack([k % 30000] + [(k * (7 + j)) % 20001 - 10000 for j in range(7)]).astype(np.int16)
 
 
-def _device(channel: str, stop: threading.Event, sent: list) -> None:
+def _device(channel: str, stop: threading.Event) -> None:
     bus = can.Bus(interface="virtual", channel=channel, preserve_timestamps=True)
     listeners = can.interfaces.virtual.channels[channel]
     deadline = time.monotonic() + 30
@@ -50,7 +49,6 @@ def _device(channel: str, stop: threading.Event, sent: list) -> None:
                 bus.send(can.Message(arbitration_id=0x201, data=v[4:].tobytes(), timestamp=ts + 2e-4,
                                      is_extended_id=False))
         k = max(k, due)
-        sent.append(k)
         time.sleep(0.005)
     bus.shutdown()
 
@@ -64,15 +62,8 @@ def test_two_messages_without_counter_lossless_and_a_dropped_frame_detected(tmp_
     config.write_text(f'sample_rate_hz = {RATE}\n[[device]]\nname = "bus"\nprotocol = "can"\n'
                       f'interface = "virtual"\nchannel = "flexmodal-two-messages"\ndbc = "two.dbc"\n'
                       f'messages = ["ScanA", "ScanB"]\ncounter = ""\n{channels}')
-    stop, sent = threading.Event(), []
-    device = threading.Thread(target=_device, args=("flexmodal-two-messages", stop, sent), daemon=True)
-    device.start()
-    try:
-        summary = acquire(load_session(config), tmp_path / "run.h5", duration_s=3.0, quiet=True)
-    finally:
-        stop.set()
-        device.join(5)
-    run = read_run(tmp_path / "run.h5", summary.run_id)
+    run = record_with(lambda stop: _device("flexmodal-two-messages", stop), load_session(config),
+                      tmp_path / "run.h5", 3.0)
     n = int(3.0 * RATE)
     assert run.samples.shape == (n, 8)
     k = int(run.samples[0, 0]) + np.arange(n)  # the scans stored, from the first one received

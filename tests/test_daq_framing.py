@@ -4,13 +4,14 @@ stream that was sent, through the decoders and end to end over a pty into the HD
 
 from __future__ import annotations
 
+import json
 import threading
 import time
 
 import numpy as np
 import pytest
+from stand_in import record_with
 
-from flexmodal.daq.acquire import acquire
 from flexmodal.daq.serial_frames import (
     CsvDecoder,
     CustomDecoder,
@@ -20,7 +21,6 @@ from flexmodal.daq.serial_frames import (
     encode_custom,
 )
 from flexmodal.daq.session import load_session
-from flexmodal.daq.store import read_run
 from flexmodal.fixtures.sim_common import PtyLink
 
 SPEC = FrameSpec(b"\xa5\x5a", "<12h", scans=1, counter_bytes=2, checksum="crc16")  # the acceptance frame
@@ -155,17 +155,12 @@ def test_declared_framing_end_to_end_over_a_pty(tmp_path, framing):
     config = tmp_path / "mcu.toml"
     config.write_text(SESSION.format(rate=rate, port=link.path, sources=", ".join(f'"{c}"' for c in names),
                                      framing=declared, channels=channels))
-    stop = threading.Event()
-    device = threading.Thread(target=_stream, args=(link, records, rate, stop), daemon=True)
-    device.start()
     try:
-        summary = acquire(load_session(config), tmp_path / "run.h5", duration_s=n / rate, quiet=True)
+        run = record_with(lambda stop: _stream(link, records, rate, stop), load_session(config),
+                          tmp_path / "run.h5", n / rate)
     finally:
-        stop.set()
-        device.join(5)
         link.remove()
-    run = read_run(tmp_path / "run.h5", summary.run_id)
-    first = int(next(iter(__import__("json").loads(run.attrs["first_index"]).values())))
+    first = int(next(iter(json.loads(run.attrs["first_index"]).values())))
     ref = x[first:first + n]
     bad = np.isnan(run.samples).any(axis=1)
     expected_bad = np.zeros(n, bool)

@@ -7,13 +7,17 @@ process ended.  Waits are bounded; assertions are on counts and events.
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
+import pty
 import random
 import re
+import select
 import signal
 import subprocess
 import sys
+import termios
 import time
 from pathlib import Path
 
@@ -110,10 +114,12 @@ def test_sigterm_closes_the_run_cleanly(tmp_path, protocol):
     finally:
         proc.kill()
     assert proc.returncode == 128 + signal.SIGTERM, stderr
+    print(f"{protocol}: SIGTERM after {elapsed:.2f} s stopped in {took:.2f} s")
     assert took <= 3.0, f"took {took:.2f} s to stop"
     assert str(out) in stdout and not stderr  # the summary line, no traceback
     assert sim and not any(alive(p) for p in sim)  # the simulator went with it
     samples, events = plain_run(out)
+    print(f"{protocol}: kept {samples.shape[0] / RATES[protocol]:.2f} s of samples")
     assert samples.shape[0] >= (elapsed - 1.0) * RATES[protocol]
     assert ("stopped", samples.shape[0]) == events[-1][:2] and "SIGTERM" in events[-1][3]
     assert not np.isnan(samples).any()
@@ -135,12 +141,13 @@ def test_sighup_and_sigint_stop_the_same_way(tmp_path):
         assert samples.shape[0] > 2048 and events[-1][0] == "stopped" and sig.name in events[-1][3]
 
 
-def test_killed_simulator_is_a_lost_device_and_ends_the_session(tmp_path):
+@pytest.mark.parametrize("protocol,device", [("serial", "adc"), ("can", "can0"), ("modbus", "plc")])
+def test_killed_simulator_is_a_lost_device_and_ends_the_session(tmp_path, protocol, device):
     out = tmp_path / "run.h5"
-    config = session_file(tmp_path, "serial", "reconnect_timeout_s = 2.0\n")
+    config = session_file(tmp_path, protocol, "reconnect_timeout_s = 2.0\n")
     proc = start_acquire(config, out, 60)
     try:
-        assert wait_for(lambda: stored(out) > 2048, 60)
+        assert wait_for(lambda: stored(out) > RATES[protocol], 60)
         for pid in children(proc.pid):
             os.kill(pid, signal.SIGKILL)
         t_kill = time.monotonic()
@@ -149,7 +156,8 @@ def test_killed_simulator_is_a_lost_device_and_ends_the_session(tmp_path):
     finally:
         proc.kill()
     assert proc.returncode == 2
-    assert stderr.count("\n") == 1 and "device 'adc' lost" in stderr
+    assert stderr.count("\n") == 1 and f"device {device!r} lost" in stderr
+    print(f"{protocol}: session ended {took:.2f} s after the simulator was killed (timeout 2 s)")
     assert took <= 2.0 + 10.0  # the timeout, plus generous room for a loaded machine
     samples, events = plain_run(out)
     kinds = [e[0] for e in events]
@@ -314,6 +322,7 @@ def test_one_lost_device_never_holds_back_the_other(tmp_path):
     baseline = behind[t < t_kill].min()
     after = (t > t_kill) & (n < duration * fs)
     lag = behind[after] - baseline
+    print(f"healthy device: file behind real time by at most {lag.max():.2f} s after the other was lost")
     assert after.sum() >= 10 and lag.max() <= 1.5, f"file lagged real time by up to {lag.max():.2f} s"
     samples, events = plain_run(out)
     assert samples.shape[0] == duration * fs
@@ -323,3 +332,34 @@ def test_one_lost_device_never_holds_back_the_other(tmp_path):
     right = [e[:3] for e in events if e[3].startswith("right")]
     assert ("gap", last, samples.shape[0] - last) in right  # ... reported as one gap, sample for sample
     assert [e[0] for e in right].count("device_lost") == 1
+
+
+def test_closing_the_terminal_stops_cleanly(tmp_path):
+    """acquire with its live view on a pseudo-terminal that is its controlling terminal; closing the
+    terminal (master side) sends SIGHUP and leaves a display that can no longer be written."""
+    out = tmp_path / "run.h5"
+    master, slave = pty.openpty()
+
+    def own_terminal() -> None:
+        os.setsid()
+        fcntl.ioctl(slave, termios.TIOCSCTTY, 0)
+
+    proc = subprocess.Popen([sys.executable, "-m", "flexmodal", "acquire", "--config",
+                             str(session_file(tmp_path, "serial")), "--out", str(out), "--duration", "60"],
+                            cwd=REPO, stdin=slave, stdout=subprocess.PIPE, stderr=slave,
+                            preexec_fn=own_terminal, pass_fds=(slave,), text=True)
+    os.close(slave)
+    try:
+        end = time.monotonic() + 60
+        while stored(out) < 2048 and time.monotonic() < end:
+            if select.select([master], [], [], 0.05)[0]:
+                os.read(master, 65536)  # keep the terminal drained while it runs
+        os.close(master)  # the terminal goes away
+        stdout, _ = proc.communicate(timeout=30)
+    finally:
+        proc.kill()
+    assert proc.returncode == 128 + signal.SIGHUP
+    samples, events = plain_run(out)
+    assert samples.shape[0] >= 2048 and events[-1][0] == "stopped" and "SIGHUP" in events[-1][3]
+    assert not np.isnan(samples).any()
+

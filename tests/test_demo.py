@@ -4,6 +4,7 @@ and a report."""
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 import time
@@ -85,3 +86,12 @@ def test_demo_diagnosis_finds_the_elbow_with_a_realistic_residual(demo_dir: tupl
     v = json.loads((out / "diagnosis.json").read_text(), parse_constant=lambda c: pytest.fail(c))["verdict"]
     assert (v["effect"], v["location"]) == ("joint_stiffness", "elbow")
     assert 0.003 <= v["heldout_rms_rel_error_after"] <= 0.02
+
+
+def test_demo_report_shows_the_operational_runs_fdd_and_ssi(demo_dir: tuple[Path, float, str]) -> None:
+    """api.report computes the output-only results of DIR/operational.h5, reports/oma.py draws them."""
+    out, _, _ = demo_dir
+    text = (out / "report.html").read_text()
+    for what in ("FDD, singular values of the output cross-spectral", "SSI-cov stabilisation diagram"):
+        assert re.search(r'<img src="data:image/png;base64,[\w+/=]+" alt="operational\.h5::theta30: '
+                         + re.escape(what), text), what

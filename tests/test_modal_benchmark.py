@@ -1,19 +1,49 @@
-"""Smoke test of benchmarks/modal.py on tiny data (the timing itself is not a unit test)."""
+"""Smoke tests of benchmarks/modal.py, batch.py and memory.py on tiny data (the timing itself is not a
+unit test)."""
 
 from __future__ import annotations
 
 import importlib.util
 from pathlib import Path
 
+import pytest
 
-def test_benchmark_script_runs_and_reports_ratios_and_differences(capsys):
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "modal.py"
-    spec = importlib.util.spec_from_file_location("modal_benchmark", path)
+
+def _script(name: str):
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(f"{name}_benchmark", path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    assert module.main(["--duration-s", "4", "--nfft", "1024", "--responses", "2", "--frfs", "4",
-                        "--lines", "400", "--repeat", "1"]) == 0
+    return module
+
+
+def test_benchmark_script_runs_and_reports_ratios_and_differences(capsys, tmp_path):
+    assert _script("modal").main(["--duration-s", "4", "--nfft", "1024", "--responses", "2", "--frfs", "4",
+                        "--lines", "400", "--repeat", "1", "--process-nfft", "256",
+                        "--folder", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "ratio" in out and "max relative difference" in out
     assert "FFT floor: the 114 bare float32 FFTs" in out   # 3 channels x 38 half-overlapping segments
     assert "flexmodal modes found 6/6" in out
+    assert "PROC whole `flexmodal frf` process" in out and "flexmodal process / floor" in out
+    assert "; 155 segments" in out      # 4 s at 5 kHz in segments of 256 advancing by 128
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.slow
+def test_memory_benchmark_reports_peak_rss_linearity_and_equality(capsys, tmp_path):
+    assert _script("memory").main(["--durations", "2", "4", "--repeat", "1", "--folder", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert out.count("`flexmodal frf` peak RSS") == 2 and "(1.00 = linear)" in out
+    assert out.count("max relative difference of H 0.0e+00, of coherence 0.0e+00") == 2   # identical
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.slow
+def test_batch_benchmark_reports_every_case_against_serial(capsys, tmp_path):
+    assert _script("batch").main(["--runs", "4", "--duration-s", "1", "--repeat", "1",
+                                  "--folder", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "BATCH 4 runs" in out and "serial / this = 1.00x" in out
+    assert "--workers 2" in out and "default (by cost)" in out and "CLUSTER start-up" in out
+    assert list(tmp_path.iterdir()) == []

@@ -131,13 +131,14 @@ def _error_line(capsys) -> str:
 
 
 @pytest.mark.parametrize(("damage", "message"), [
-    ("nan", "holds nan"), ("constant", "'a2' is constant"), ("short", "shorter than one segment")])
+    ("nan", "only 0 of 15 segments usable, 8 needed (channel 'a1' holds nan at sample 100)"),
+    ("constant", "'a2' is constant"), ("short", "shorter than one segment")])
 def test_garbage_runs_exit_2_with_one_line(tmp_path, capsys, damage, message):
     f = np.random.default_rng(0).standard_normal((2048, 1))
     samples = np.column_stack([f, modal_response(f, FS, FN, ZETA, PHI, PHI[[0]])])
     nfft = "256"
-    if damage == "nan":
-        samples[100, 1] = np.nan
+    if damage == "nan":   # a NaN every 160 samples: each of the 15 segments of 256 holds one
+        samples[100::160, 1] = np.nan
     elif damage == "constant":
         samples[:, 2] = 1.5
     else:

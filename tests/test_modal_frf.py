@@ -138,3 +138,12 @@ def test_conversions_are_powers_of_i_omega():
     assert np.isnan(convert(acc, freq, "accelerance", "mobility")[0])
     with pytest.raises(ModalError, match="estimator"):
         estimate(welch_spectra(np.ones((64, 2)) + np.arange(64)[:, None], FS, [0], [1], 16), "H3")
+
+
+@pytest.mark.parametrize("name", ["hann", "flattop"])
+def test_windows_equal_scipy_periodic_windows(name):
+    from flexmodal.modal.windows import window
+
+    for n in (8, 255, 4096):
+        reference = scipy.signal.get_window(name, n, fftbins=True)
+        assert np.allclose(window(name, n), reference, rtol=0, atol=1e-14)

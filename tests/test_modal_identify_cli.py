@@ -77,3 +77,25 @@ def test_bad_identify_options_give_one_line_and_exit_2(tmp_path, capsys, args, m
     assert main(["identify", str(uff), "--out", str(tmp_path / "m.csv"), "--fmin", "5", *args]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and message in err[0], err
+
+
+def test_frfs_exported_by_flexmodal_carry_their_exponential_window_into_identify(tmp_path):
+    """An impact test's FRFs (exponential window) written to UFF and identified again give the
+    structure's damping, not the window's (issue 12: 2.2/1.5/1.1 % instead of 1.0 %)."""
+    from flexmodal.fixtures.modal_sim import modal_response
+    from flexmodal.modal.compute import frf_of_record
+    from flexmodal.modal.uff import read_uff
+
+    fs, record, hits = 256.0, 4096, 4
+    force = np.zeros((record * hits, 1))
+    for k in range(hits):
+        force[k * record + 64:k * record + 69, 0] = 100 * np.sin(np.pi * np.arange(5) / 4)
+    y = modal_response(force, fs, FN, ZETA, PHI, PHI[[0]])
+    res = frf_of_record(np.column_stack([force, y]), fs, ["1+z", "1+x", "2+x", "3+x"],
+                        ["force"] + ["acceleration"] * 3, excitation="impact", window="exponential:0.05")
+    assert res.decay_rate_per_s > 0.1
+    uff, out = tmp_path / "demo.uff", tmp_path / "modes.csv"
+    write_frfs(uff, res)
+    assert read_uff(uff).decay_rate_per_s == pytest.approx(res.decay_rate_per_s, rel=1e-8)
+    assert main(["identify", str(uff), "--out", str(out), "--fmin", "5", "--fmax", "100"]) == 0
+    assert np.allclose(ModalTable.read_csv(out).frame["damping_ratio"], ZETA, rtol=0.02)

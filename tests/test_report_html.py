@@ -111,11 +111,24 @@ def test_report_is_self_contained_and_holds_every_section(report):
     assert positions == sorted(positions)  # data-quality rows in pose order: 0, 60, 120 deg
     assert html.count(">1 / 3<") == 3  # one overload event of three samples per run
     images = re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', html)
-    # freq vs pose, 2 mode-shape figures, 3 FRF figures, 3 stabilisation diagrams, the gap plot
-    assert len(images) == 10
+    # freq vs pose, test-model MAC, 2 mode-shape figures; per run: FRF, stabilisation diagram with the
+    # selected poles, synthesis overlay, AutoMAC; the gap plot
+    assert len(images) == 17
     for b64 in images:
         pixels = mpimg.imread(io.BytesIO(base64.b64decode(b64)), format="png")
         assert pixels.std() > 0.02
+
+
+def test_report_shows_the_identification_of_each_run(report):
+    html = report.read_text()
+    for run in RUN_IDS:
+        label = f"runs.h5::{run}"
+        assert re.search(re.escape(label) + r": pLSCF stabilisation diagram \(model order \d+: .*"
+                         r"crosses: poles of the \d+ selected modes at .* Hz\) .*identification band .* Hz "
+                         "shaded", html)
+        assert f"{label}: measured FRFs and the FRFs synthesised from the identified modes" in html
+        assert f"{label}: AutoMAC of the identified shapes" in html
+    assert "theta0: MAC of the measured shapes against fe&#39;s at the" in html
 
 
 def test_report_tables_carry_units_and_numbers(report, inputs):
@@ -152,7 +165,7 @@ def test_report_cli_writes_the_same_sections(inputs, capsys):
     captured = capsys.readouterr()
     assert captured.out.strip() == str(out) and captured.err == ""
     html = out.read_text()
-    assert "joint_stiffness at elbow" in html and html.count("data:image/png;base64,") == 10
+    assert "joint_stiffness at elbow" in html and html.count("data:image/png;base64,") == 17
 
 
 def test_report_without_runs_or_poses_notes_what_it_cannot_draw(inputs, tmp_path):
@@ -163,7 +176,9 @@ def test_report_without_runs_or_poses_notes_what_it_cannot_draw(inputs, tmp_path
     html = out.read_text()
     assert "No mode shapes drawn for theta0: the measured table gives no pose.theta_deg for the rig" in html
     assert "Stored runs" not in html and "fe Δf [%]" in html
-    assert "data:image/png" not in html  # nothing varies with pose, no shapes: no figure at all
+    # nothing varies with pose, no shapes drawn: the one figure is the test-model MAC (needs no pose)
+    assert html.count("data:image/png") == 1
+    assert "theta0: MAC of the measured shapes against fe&#39;s" in html
 
 
 def test_report_cli_bad_inputs_exit_2(inputs, tmp_path, capsys):
@@ -181,4 +196,4 @@ def test_report_cli_bad_inputs_exit_2(inputs, tmp_path, capsys):
 def test_report_renders_in_headless_chromium_without_errors(report, tmp_path, chromium):
     page = render(chromium, report, tmp_path / "profile")
     assert_table_and_plot_visible(page)
-    assert len(page.layout["tables"]) >= 5 and len(page.layout["images"]) == 10
+    assert len(page.layout["tables"]) >= 5 and len(page.layout["images"]) == 17

@@ -1,24 +1,34 @@
-"""OMA report figures (reports/oma.py) and their place in the HTML report of an operational run."""
+"""OMA report figures (reports/oma.py), drawn from the results ``modal.oma.output_only_results``
+computes, and their place in the HTML report of an operational run (``api.report``)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.signal
 
+from flexmodal import api
 from flexmodal.daq.store import Channel, RunWriter
 from flexmodal.fixtures.shear_frame import shear_frame_record
-from flexmodal.modal.fdd import fdd
+from flexmodal.modal.fdd import cross_spectra, fdd
+from flexmodal.modal.oma import output_only_results
 from flexmodal.modal.ssi import ssi_cov
-from flexmodal.reports.html import write_report
 from flexmodal.reports.oma import oma_figures, plot_fdd, plot_ssi_stabilisation
 
 MASS = [3000.0, 2800.0, 2600.0, 2400.0, 2000.0]
 STIFF = [9.6e7, 8.8e7, 8.0e7, 7.2e7, 6.4e7]
+NAMES = [f"s{k + 1}" for k in range(5)]
+KINDS = ["acceleration"] * 5
 
 
 @pytest.fixture(scope="module")
 def frame():
     return shear_frame_record(MASS, STIFF, 0.01, duration_s=120.0, seed=5)
+
+
+@pytest.fixture(scope="module")
+def oma(frame):
+    return output_only_results(frame.samples, 256.0, NAMES, KINDS, where="frame")
 
 
 def test_fdd_figure_draws_every_singular_value_and_marks_the_modes(frame):
@@ -33,27 +43,54 @@ def test_fdd_figure_draws_every_singular_value_and_marks_the_modes(frame):
     assert ax.get_xlabel() == "frequency [Hz]" and "(m/s²)²/Hz" in ax.get_ylabel()
 
 
-def test_ssi_stabilisation_figure_draws_every_pole(frame):
+def test_ssi_stabilisation_figure_draws_every_pole_over_the_given_spectrum(frame):
     res = ssi_cov(frame.samples, 256.0, max_order=40)
-    fig = plot_ssi_stabilisation(res, frame.samples, 256.0)
+    f, G = cross_spectra(frame.samples, 256.0, range(5), 1024)
+    fig = plot_ssi_stabilisation(res, f[1:], G[1:])
     pts = np.concatenate([ln.get_xdata() for ln in fig.axes[0].get_lines()])
     assert pts.size == res.stabilisation.freq_hz.size
+    first = fig.axes[1].get_lines()[0]
+    assert np.allclose(first.get_ydata(), np.linalg.svd(G[1:], compute_uv=False)[:, 0])
     assert fig.axes[0].get_ylabel() == "model order [-]" and "FDD" in fig.axes[1].get_ylabel()
 
 
-def test_report_of_an_operational_run_shows_fdd_and_ssi(tmp_path, frame):
-    channels = [Channel(f"s{k + 1}", "acceleration", "m/s^2", location=f"floor{k + 1}") for k in range(5)]
+def test_output_only_results_find_the_frame_and_its_spectrum(frame, oma):
+    assert oma.outputs == tuple(NAMES)
+    for res in (oma.fdd, oma.ssi):   # every mode of the frame, within 1 % (closed-form eigenvalues)
+        found = np.sort(res.modes.freq_hz)
+        assert found.size == frame.freq_hz.size
+        assert np.allclose(found, np.sort(frame.freq_hz), rtol=0.01)
+    # the spectrum under the diagram: scipy's Welch cross-spectral densities, band up to 1.1 x top pole
+    nfft = 2048   # 120 s at 256 Hz / 8 -> 3840 samples -> the power of two below
+    top = oma.ssi.stabilisation.freq_hz.max()
+    assert oma.spectrum_hz[0] == pytest.approx(256.0 / nfft)
+    last_line = min(np.floor(1.1 * top * nfft / 256.0), nfft // 2) * 256.0 / nfft   # Nyquist at most
+    assert oma.spectrum_hz[-1] == pytest.approx(last_line)
+    y = frame.samples.T   # G_jk = E[Y_j Y_k*] = csd(y_k, y_j)
+    f, ref = scipy.signal.csd(y[None, :, :], y[:, None, :], fs=256.0, window="hann", nperseg=nfft,
+                              noverlap=nfft // 2)
+    band = (f > 0) & (f <= 1.1 * top)
+    assert np.allclose(oma.spectrum, np.moveaxis(ref, -1, 0)[band], rtol=1e-9, atol=0)
+
+
+def test_report_of_an_operational_run_shows_fdd_and_ssi(tmp_path, frame, oma):
+    channels = [Channel(name, "acceleration", "m/s^2", location=f"floor{k + 1}")
+                for k, name in enumerate(NAMES)]
     with RunWriter(tmp_path / "op.h5", "op", sample_rate_hz=256.0, channels=channels,
                    excitation="operational", pose={}) as w:
         w.append(frame.samples)
-    html = write_report(tmp_path / "r.html", runs=[tmp_path / "op.h5"]).read_text()
+    html = api.report(tmp_path / "r.html", runs=[tmp_path / "op.h5"]).read_text()
     assert "FDD, singular values of the output cross-spectral matrix (s1, s2, s3, s4, s5)" in html
     assert "SSI-cov stabilisation diagram" in html and html.count("data:image/png;base64") >= 2
+    listed = ", ".join(f"{f:.4g} Hz" for f in oma.ssi.modes.freq_hz)
+    assert f"modes {listed} (unscaled shapes)" in html
 
 
 def test_a_record_without_modes_gives_captions_not_figures():
     rng = np.random.default_rng(0)
     y = rng.standard_normal((4096, 2))   # white noise: no peak, no stable pole
-    figs = oma_figures(y, 256.0, ["a", "b"], ["acceleration"] * 2, "noise")
+    oma = output_only_results(y, 256.0, ["a", "b"], ["acceleration"] * 2, where="noise")
+    assert isinstance(oma.fdd, str) and isinstance(oma.ssi, str) and oma.spectrum is None
+    figs = oma_figures(oma, "noise")
     assert [fig for fig, _ in figs] == [None, None]
     assert "no FDD" in figs[0][1] and "no SSI" in figs[1][1]

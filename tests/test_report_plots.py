@@ -177,3 +177,58 @@ def test_frf_plot_shows_magnitude_and_phase_of_h():
     np.testing.assert_array_equal(coh_ax.get_lines()[0].get_ydata(), coh[0])
     assert mag.get_ylabel() == "|H| [m/N]"
     assert_units(fig)
+
+
+def _identified():
+    from flexmodal.fixtures.modal_sim import modal_frf
+    from flexmodal.modal.identify import identify
+
+    f = np.arange(1.0, 100.0, 0.05)
+    H = modal_frf(f, [20.0, 45.0, 70.0], [0.01, 0.02, 0.01], [[1.0, 0.6, 0.3], [0.5, -0.8, 0.9],
+                                                            [0.2, 0.4, -1.0]], [[1.0, 0.6, 0.3]])
+    return f, H, identify(f, H, fmin=5.0, fmax=90.0)
+
+
+def test_stabilisation_plot_marks_the_selected_poles_and_the_band():
+    f, H, modes = _identified()
+    fig = plots.plot_stabilisation(f, H, modes.stabilisation, selected=modes.selected,
+                                   band_hz=(5.0, 90.0), modes_hz=modes.freq_hz)
+    ax = fig.axes[0]
+    crosses = next(line for line in ax.get_lines() if line.get_label() == "pole of a selected mode")
+    st = modes.stabilisation
+    np.testing.assert_array_equal(crosses.get_xdata(), st.freq_hz[modes.selected])
+    np.testing.assert_array_equal(crosses.get_ydata(), st.order[modes.selected])
+    near = np.min(np.abs(crosses.get_xdata()[:, None] - np.array([20.0, 45.0, 70.0])[None]), axis=1)
+    assert np.all(near < 0.1)          # every selected pole belongs to one of the three modes
+    span = ax.patches[0]
+    assert np.isclose(span.get_x(), 5.0) and np.isclose(span.get_x() + span.get_width(), 90.0)
+    dotted = [line.get_xdata()[0] for line in ax.get_lines() if line.get_linestyle() == ":"]
+    assert dotted == list(modes.freq_hz)
+    assert_units(fig)
+    with pytest.raises(Exception, match="selected-pole mask differs"):
+        plots.plot_stabilisation(f, H, st, selected=modes.selected[:-1])
+
+
+def test_synthesis_plot_draws_measured_and_synthesised_frfs():
+    f, H, modes = _identified()
+    band = (f >= 5.0) & (f <= 90.0)
+    fig = plots.plot_synthesis(f[band], H[..., band], modes.synthesis, ["a", "b", "c"],
+                               modes.frf_synthesis_corr)
+    lines = fig.axes[0].get_lines()
+    np.testing.assert_allclose(lines[0].get_ydata(), np.abs(H[0, 0, band]))
+    np.testing.assert_allclose(lines[1].get_ydata(), np.abs(modes.synthesis[0, 0]))
+    assert "FRAC 1.000" in lines[0].get_label()
+    assert_units(fig)
+    with pytest.raises(Exception, match="synthesis: FRFs"):
+        plots.plot_synthesis(f, H, modes.synthesis)
+
+
+def test_mac_plot_writes_the_mac_values():
+    phi = np.array([[1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
+    fig = plots.plot_mac(phi)
+    values = [float(t.get_text()) for t in fig.axes[0].texts]
+    assert values == [1.0, 0.25, 0.25, 1.0]   # |phi1 . phi2|^2 / (2 * 2)
+    image = fig.axes[0].get_images()[0].get_array()
+    np.testing.assert_allclose(image, [[1.0, 0.25], [0.25, 1.0]])
+    with pytest.raises(Exception, match="cannot be compared"):
+        plots.plot_mac(phi, phi[:2])

@@ -1,0 +1,102 @@
+"""Live hit screening in the terminal: an impact session on the serial simulator with an injected double
+hit and an overload, its live view read from a pseudo-terminal; and the screening rules on known pulses."""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import pty
+import re
+import select
+import struct
+import subprocess
+import sys
+import termios
+import time
+from pathlib import Path
+
+import numpy as np
+
+from flexmodal.daq.hits import HitMonitor, double_hit
+
+REPO = Path(__file__).resolve().parents[1]
+ANSI = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]|\x1b\][^\x07]*\x07|\r")
+
+
+def test_screening_rules_on_known_pulses():
+    fs = 1000.0
+    f = np.zeros(6000)
+    for h in (1000, 2000, 3000, 4000, 5000, 5300):
+        f[h:h + 3] = 50.0
+    f[2015:2018] = 30.0  # the hammer bounced: a second pulse after the first ended
+    f[3000:3003] = 150.0  # beyond the 100 N full scale
+    f[4000:4003] = 3.0  # below min_peak
+    x = np.convolve(f, np.exp(-np.arange(200) / 30) * np.sin(np.arange(200) * 0.5))[:6000]
+    m = HitMonitor(0, 1, fs, 500, 10, 5.0, (100.0, np.inf))
+    rows = np.column_stack([f, x])
+    for a in range(0, 6000, 100):
+        m.add(rows[a:a + 100], a, [h for h in (1000, 2000, 3000, 4000, 5000, 5300) if a <= h < a + 100])
+    m.finish()
+    assert [(h.row, h.verdict, h.reason) for h in m.hits] == [
+        (1000, "accepted", ""), (2000, "rejected", "double hit"), (3000, "rejected", "overload"),
+        (4000, "rejected", "too weak"), (5000, "rejected", "cut short"), (5300, "accepted", "")]
+    freq, h1, coh = m.h1()  # two identical accepted hits: H1 is the exact ratio, coherence 1
+    ref = np.fft.rfft(x[990:1490]) / np.fft.rfft(f[990:1490])
+    np.testing.assert_allclose(h1, np.abs(ref), rtol=1e-9)
+    np.testing.assert_allclose(coh, 1.0, rtol=1e-9)
+    assert not double_hit(np.r_[0, 1.0, 0.5, 0.15, 0.05, 0.0], 1)  # a smooth decay is one hit
+
+
+def test_live_view_shows_rejections_with_reasons_within_a_second(tmp_path):
+    text = (REPO / "examples" / "sessions" / "serial-sim.toml").read_text()
+    text = text.replace('rig = "../rigs/', f'rig = "{REPO}/examples/rigs/')
+    text = text.replace("[simulator]\n", "[simulator]\ndouble_hit_at_s = 2.1\noverload_at_s = 4.1\n")
+    text = text.replace('location = "tip"', 'location = "tip"\nfull_scale = 199.9')  # F clips at 200 N
+    config = tmp_path / "impact.toml"
+    config.write_text(text)
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 60, 200, 0, 0))
+    env = {**os.environ, "COLUMNS": "200", "LINES": "60", "TERM": "xterm-256color"}
+    proc = subprocess.Popen([sys.executable, "-m", "flexmodal", "acquire", "--config", str(config), "--out",
+                             str(tmp_path / "run.h5"), "--duration", "6.5"], cwd=REPO,
+                            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=slave, env=env)
+    os.close(slave)
+    screen, arrived = b"", []  # bytes of the terminal, and (end offset, time) of each read
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        ready, _, _ = select.select([master], [], [], 0.5)
+        if ready:
+            try:
+                chunk = os.read(master, 65536)
+            except OSError:
+                break
+            if not chunk:
+                break
+            screen += chunk
+            arrived.append((len(screen), time.monotonic()))
+        elif proc.poll() is not None:
+            break
+    proc.communicate(timeout=30)
+    os.close(master)
+    assert proc.returncode == 0
+    ends = np.array([e for e, _ in arrived])
+    starts = [m.start() for m in re.finditer(b"acquiring", screen)] + [len(screen)]
+    frames = []  # (time the refresh reached the terminal, its text), one per refresh of the live view
+    for a, b in zip(starts[:-1], starts[1:], strict=True):
+        t = arrived[min(int(np.searchsorted(ends, b)), len(arrived) - 1)][1]
+        frames.append((t, ANSI.sub("", screen[a:b].decode(errors="replace"))))
+    stored = [(t, int(m.group(1)) / 2048.0) for t, f in frames
+              if (m := re.search(r"\s+[\d.]+ s\s+(\d+) samples", f))]
+    first_seen = {}
+    for t, frame in frames:
+        for hit_s, reason in re.findall(r"hit at\s+([\d.]+) s .*?REJECTED: ([a-z ]+)", frame):
+            first_seen.setdefault(reason, (float(hit_s), t))
+    assert {"double hit", "overload"} <= set(first_seen), first_seen
+    for reason in ("double hit", "overload"):
+        hit_s, t_shown = first_seen[reason]
+        t_hit = next(t for t, s_ in stored if s_ >= hit_s)  # the hit's samples reached the file
+        print(f"{reason}: shown {t_shown - t_hit:.2f} s after the hit's samples were stored")
+        assert t_shown - t_hit <= 1.0, f"{reason} shown {t_shown - t_hit:.2f} s after the hit"
+    frames = [f for _, f in frames]
+    last = frames[-1]
+    assert "|H1| a1" in last and "coh" in last and "ACCEPTED" in last

@@ -1,0 +1,189 @@
+"""Batch FRFs: the demo-like multi-run file works by default (serial chosen by cost, each file written
+by this process only), the cost rule itself, the LocalCluster serves no dashboard, and a scheduler and
+two workers started with the `dask` CLI on 127.0.0.1 give FRFs identical to the serial path."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+import urllib.error
+import urllib.request
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from flexmodal.app import main
+from flexmodal.daq.store import Channel, RunWriter, expand_runs
+from flexmodal.fixtures.modal_sim import modal_response
+from flexmodal.modal import batch
+from flexmodal.modal.runs_io import read_frf
+
+FS = 256.0
+FN, ZETA = np.array([12.0, 31.0, 55.0]), np.array([0.02, 0.01, 0.01])
+PHI = np.array([[1.0, 0.8, 0.3], [0.5, -0.6, 0.9], [0.2, -0.9, -0.7]])
+CHANNELS = [Channel("force", "force", "N")] + [Channel(f"a{k}", "acceleration", "m/s^2") for k in (1, 2, 3)]
+
+
+def _runs_file(path: Path, run_ids, n: int = 2048) -> Path:
+    for k, rid in enumerate(run_ids):
+        f = np.random.default_rng(k).standard_normal((n, 1))
+        with RunWriter(path, rid, sample_rate_hz=FS, channels=CHANNELS, excitation="random",
+                       pose={"k": k}) as w:
+            w.append(np.column_stack([f, modal_response(f, FS, FN, ZETA, PHI, PHI[[0]])]))
+    return path
+
+
+def test_default_frf_on_the_demo_runs_file_writes_every_run_serially(tmp_path, capsys, monkeypatch):
+    """The demo's ten simulated runs (impact and random at five poses) stored as in its runs.h5: the
+    default `flexmodal frf` picks the serial path (no cluster is started) and writes every run."""
+    from flexmodal.fixtures import demo
+    from flexmodal.models.rig import load_rig
+
+    path = tmp_path / "runs.h5"
+    runs = demo.simulate_campaign(load_rig(demo.DEMO_RIG), demo.DEMO_POSES)
+    for run in runs:
+        demo.store_test(path, run.run_id, run.test)
+
+    def no_cluster(*args, **kwargs):
+        raise AssertionError("a cluster was started for small runs")
+
+    monkeypatch.setattr(batch, "_on_cluster", no_cluster)
+    assert main(["--quiet", "frf", str(path)]) == 0
+    ids = sorted(run.run_id for run in runs)
+    assert len(ids) == 10 and capsys.readouterr().out.split() == [f"{path}:{rid}" for rid in ids]
+    for rid in ids:
+        frf = read_frf(path, rid)
+        assert frf is not None and frf.H.shape[1] == 1
+        if rid.endswith("random"):
+            assert frf.provenance["segments_skipped"] == 0 and frf.n_averages >= 8
+
+
+def test_cost_rule_goes_parallel_only_when_free_cpus_make_it_pay(monkeypatch):
+    """1 s of wall for the first GB; the cluster's predicted speed-up is the CPUs it can use (CPUs
+    less the other processes' load) over the CPUs the serial path already keeps busy."""
+    monkeypatch.setattr(batch.os, "cpu_count", lambda: 4)
+    monkeypatch.setattr(batch.os, "getloadavg", lambda: (1.0, 1.0, 1.0))    # only this process
+    gb = 1 << 30
+    # one busy CPU, 2 workers: speed-up 2, 100 s left saves 50 s > 3 start-ups: parallel
+    assert batch._serial_pays(1.0, 1.0, gb, 100 * gb, 100) is False
+    # 10 s left saves 5 s < 18 s: serial
+    assert batch._serial_pays(1.0, 1.0, gb, 10 * gb, 10) is True
+    assert batch._serial_pays(1.0, 1.0, gb, 100 * gb, 3) is True           # too few runs left
+    # the serial path already keeps 2 CPUs busy (its FFT threads): a 2-process cluster gains nothing
+    monkeypatch.setattr(batch.os, "getloadavg", lambda: (2.0, 2.0, 2.0))
+    assert batch._serial_pays(1.0, 2.0, gb, 100 * gb, 100) is True
+    # a loaded machine (load 10 on 2 CPUs, as measured here): no free CPU, serial
+    monkeypatch.setattr(batch.os, "cpu_count", lambda: 2)
+    monkeypatch.setattr(batch.os, "getloadavg", lambda: (10.0, 10.0, 10.0))
+    assert batch._serial_pays(1.0, 0.3, gb, 100 * gb, 100) is True
+    monkeypatch.setattr(batch.os, "cpu_count", lambda: 1)
+    assert batch._serial_pays(1.0, 1.0, gb, 100 * gb, 100) is True         # one CPU: never
+
+
+def test_results_wait_until_no_job_reads_their_file():
+    jobs = [("a.h5", "r0"), ("b.h5", "r0"), ("a.h5", "r1")]
+    got = []
+    deliver = batch._Deliver(jobs, lambda p, r, res: got.append((p, r, res)), lambda p: p)
+    deliver(0, "A0")
+    assert got == []                          # a.h5 still has r1 being read
+    deliver(1, "B0")
+    assert got == [("b.h5", "r0", "B0")]
+    deliver(2, "A1")
+    assert got[1:] == [("a.h5", "r0", "A0"), ("a.h5", "r1", "A1")]
+    into_out = []
+    deliver = batch._Deliver(jobs, lambda p, r, res: into_out.append(r), lambda p: "out.h5")
+    deliver(0, "A0")
+    assert into_out == ["r0"]                 # --out: no job reads out.h5
+
+
+def _get(url: str) -> int:
+    try:
+        with urllib.request.urlopen(url, timeout=5) as reply:
+            return reply.status
+    except urllib.error.HTTPError as exc:
+        return exc.code
+
+
+@pytest.mark.slow
+def test_local_cluster_serves_no_dashboard(tmp_path, monkeypatch):
+    """The LocalCluster of the batch path: its HTTP listener (which distributed always opens) is on
+    127.0.0.1 and answers 404 to the dashboard, status, health and metrics pages."""
+    seen = {}
+    real = batch._on_cluster
+
+    def spy(jobs, first, options, workers, scheduler, done):
+        from distributed import Client
+
+        def check(k, result):
+            if not seen:
+                client = Client.current()
+                port = client.scheduler_info()["services"]["dashboard"]
+                seen.update({p: _get(f"http://127.0.0.1:{port}{p}") for p in
+                             ("/status", "/health", "/metrics", "/info/main/workers.html")})
+                seen["address"] = client.scheduler.address
+            done(k, result)
+
+        real(jobs, first, options, workers, scheduler, check)
+
+    monkeypatch.setattr(batch, "_on_cluster", spy)
+    path = _runs_file(tmp_path / "runs.h5", ["r0", "r1"], n=1024)
+    batch.run_batch(expand_runs([path]), {"nfft": 256}, workers=1)
+    assert seen.pop("address").startswith("tcp://127.0.0.1:")
+    assert set(seen.values()) == {404}, seen
+
+
+def _start(args: list[str], log: Path) -> subprocess.Popen:
+    """A `dask` CLI process logging into ``log``, working in a folder of its own."""
+    (log.parent / "elsewhere").mkdir(exist_ok=True)
+    return subprocess.Popen([sys.executable, "-m", "dask", *args], stdout=log.open("w"),
+                            stderr=subprocess.STDOUT, cwd=log.parent / "elsewhere")
+
+
+@pytest.mark.slow
+def test_hundred_runs_on_a_dask_cli_scheduler_and_two_workers(tmp_path, capsys, monkeypatch):
+    """`dask scheduler` and `dask worker --nworkers 2` as their own processes on 127.0.0.1, without
+    dashboards; `flexmodal frf --scheduler` on 100 runs (ten files, named relative to this process's
+    folder, not the workers') read by the workers from their shared paths and written by the calling
+    process: FRFs identical to the serial path."""
+    monkeypatch.chdir(tmp_path)
+    files = [_runs_file(Path(f"f{j}.h5"), [f"r{k}" for k in range(10)], n=1024).name for j in range(10)]
+    serial = batch.run_batch(expand_runs(files), {"nfft": 256}, workers=0)
+    sched_file = tmp_path / "scheduler.json"
+    procs = []
+    try:
+        procs.append(_start(["scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                             "--scheduler-file", str(sched_file)], tmp_path / "scheduler.log"))
+        deadline = time.monotonic() + 60
+        while not sched_file.exists() or not sched_file.read_text().strip():
+            assert time.monotonic() < deadline and procs[0].poll() is None, \
+                (tmp_path / "scheduler.log").read_text()
+            time.sleep(0.2)
+        import json
+
+        address = json.loads(sched_file.read_text())["address"]
+        assert address.startswith("tcp://127.0.0.1:")
+        procs.append(_start(["worker", "--scheduler-file", str(sched_file), "--nworkers", "2", "--nthreads",
+                             "1", "--host", "127.0.0.1", "--no-dashboard", "--local-directory",
+                             str(tmp_path / "dask-worker")], tmp_path / "worker.log"))
+        from distributed import Client
+
+        with Client(address, timeout="30s") as client:
+            client.wait_for_workers(2, timeout=60)
+        assert main(["--quiet", "frf", *files, "--scheduler", address, "--nfft", "256"]) == 0
+    finally:
+        for p in reversed(procs):
+            p.terminate()
+        for p in reversed(procs):
+            try:
+                p.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait(timeout=5)
+    written = capsys.readouterr().out.split()
+    assert written == [f"{p}:r{k}" for p in files for k in range(10)]
+    stored = [read_frf(p, f"r{k}") for p in files for k in range(10)]
+    assert len(stored) == 100
+    for a, b in zip(serial, stored, strict=True):
+        assert np.array_equal(a.H, b.H) and np.array_equal(a.coherence, b.coherence)

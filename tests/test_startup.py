@@ -1,0 +1,40 @@
+"""Start-up cost of the command line: building the parser of every command (what `flexmodal --help`
+and `flexmodal CMD --help` do) imports no numerical or I/O library, and the streamed FRF path does not
+import scipy.fft or scipy.signal (measured in a fresh interpreter, not timed: the machine is shared)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+HEAVY = ("numpy", "scipy", "h5py", "pandas", "matplotlib", "distributed", "dask", "rich", "can", "pymodbus",
+         "serial")
+
+
+def _modules_after(code: str) -> set[str]:
+    probe = code + "\nimport json, sys\nprint(json.dumps(sorted(sys.modules)))\n"
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120,
+                          check=True)
+    return set(json.loads(done.stdout.strip().splitlines()[-1]))
+
+
+def test_every_help_imports_no_heavy_library():
+    loaded = _modules_after("from flexmodal.app import build_parser\nbuild_parser()")
+    assert not {m for m in loaded if m.split(".")[0] in HEAVY}
+
+
+def test_streamed_frf_imports_neither_scipy_fft_nor_scipy_signal(tmp_path):
+    import numpy as np
+
+    from flexmodal.daq.store import Channel, RunWriter
+
+    path = tmp_path / "run.h5"
+    samples = np.random.default_rng(0).standard_normal((4096, 2))
+    with RunWriter(path, "r", sample_rate_hz=100.0, channels=[Channel("F", "force", "N"),
+                   Channel("a", "acceleration", "m/s^2")], excitation="random", pose={}) as w:
+        w.append(samples)
+    command = ["--quiet", "frf", str(path), "--nfft", "256"]
+    loaded = _modules_after(f"from flexmodal.app import main\nassert main({json.dumps(command)}) == 0")
+    assert "scipy.fft" not in loaded and "scipy.signal" not in loaded and "scipy.special" not in loaded
+    assert "scipy.fft._pocketfft.pypocketfft" in loaded     # the FFT engine alone
