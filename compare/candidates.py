@@ -133,7 +133,7 @@ def single_candidates(rig: Rig, effects: Sequence[str], pose_values: Mapping[str
     return out
 
 
-def _components(c: Candidate) -> list[tuple[str, str, tuple[Param, ...]]]:
+def components(c: Candidate) -> list[tuple[str, str, tuple[Param, ...]]]:
     """(effect, location, params) of each effect in a candidate."""
     return [(e, loc, tuple(p for p in c.params if p.effect == e and p.handle.partition("@")[2] == loc))
             for e, loc in zip(c.effects, c.locations, strict=True)]
@@ -144,7 +144,7 @@ def combine(*cands: Candidate) -> Candidate | None:
     handles = [h for c in cands for h in c.handles]
     if len(set(handles)) != len(handles):
         return None
-    parts = sorted((part for c in cands for part in _components(c)), key=lambda t: (t[0], t[1]))
+    parts = sorted((part for c in cands for part in components(c)), key=lambda t: (t[0], t[1]))
     return Candidate(tuple(e for e, _, _ in parts), tuple(loc for _, loc, _ in parts),
                      tuple(p for _, _, ps in parts for p in ps))
 

@@ -23,8 +23,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("predicted", metavar="PRED.csv", nargs="+",
                    help="predicted modal tables; each names its source by its 'source' column, "
                         "else by its file name")
-    p.add_argument("--format", choices=("md", "csv", "tex", "html"), default="md",
-                   help="output format: Markdown, CSV, LaTeX booktabs table or HTML page (default md)")
+    p.add_argument("--format", choices=("md", "csv", "tex", "html", "json"), default="md",
+                   help="output format: Markdown, CSV (full precision), LaTeX booktabs table, HTML page or "
+                        "JSON rows (full precision) (default md)")
     p.add_argument("--layout", choices=("modes", "sources"), default="modes",
                    help="modes: a row per mode, a column per source (seed 001 Table 3.1); "
                         "sources: a row per source, a column per mode (seed 000 Table 2); default modes")

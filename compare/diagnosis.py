@@ -6,18 +6,22 @@
 2. ``where``: the modes and configurations that carry the gap, and the region of the arm whose handles'
    frequency sensitivities best explain the error pattern (R^2, compare/gap.py; among regions within
    ``REGION_TIE`` of the best, the verdict's), plus MAC/COMAC when shapes were measured.
-3. Ranking: every effect at every location (compare/candidates.py), then every pair of the
-   ``PAIR_POOL`` best single candidates and, only when no pair explains the gap, each of the
-   ``TRIPLE_PAIRS`` best pairs extended by one more single of the pool; each candidate is fitted by
-   bounded least squares (compare/fit.py) on the training configurations of every fold and scored on
-   the held-out ones.  Score (lower is better):
-   ``sqrt(heldout_rms^2 + scatter^2) * (1 + PENALTY * n_params)``: a complexity penalty, with the
-   scatter as a floor so that candidates within the noise are ordered by simplicity.
+3. Ranking: every effect at every location (compare/candidates.py) fitted to all data; the
+   ``PAIR_POOL`` best singles and their pairs (and, only when no pair explains the gap, each of the
+   ``TRIPLE_PAIRS`` best pairs extended by one more single of the pool).  Candidates are cross-validated,
+   best in-sample score first, while they can still win: every fold is refitted to convergence from
+   starts chosen on its own training data (compare/fit.py), so held-out errors are honest.  Score (lower
+   is better): ``sqrt(heldout_rms^2 + scatter^2) * (1 + PENALTY * n_params)``: a complexity penalty, with
+   the scatter as a floor so that candidates within the noise are ordered by simplicity.
    ``joint_stiffness_pose`` ranks above the constant ``joint_stiffness`` at the same joint only when its
-   held-out error is lower.
-4. Verdict: the best candidate, unless the nominal model itself (no parameters) scores at least as well,
-   then ``none``; ``explained`` is false when the best held-out RMS is above ``EXPLAINED_FACTOR`` times
-   the scatter.
+   held-out error is lower.  The scatter comes from the data when it can (compare/gap.py
+   ``estimate_scatter``), else from the caller.
+4. Verdict: the best candidate pruned of components that do not improve the held-out error beyond
+   noise or sit at their lower bound, passed over when a parameter runs out of range; ``none`` when the
+   nominal model itself (no parameters) scores at least as well.  ``explained`` is false when the held-out
+   RMS is above ``EXPLAINED_FACTOR`` times the scatter or the held-out residuals are structured;
+   parameters at bounds and parameters the data cannot identify are flagged; candidates equal within
+   noise are listed as alternatives with the measurement that would separate them.
 """
 
 from __future__ import annotations
@@ -33,26 +37,33 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from flexmodal.compare.candidates import Candidate, combine, parse_effects, single_candidates
+from flexmodal.compare.candidates import Candidate, combine, components, parse_effects, single_candidates
 from flexmodal.compare.errors import CompareError
-from flexmodal.compare.fit import Target, evaluate, fit_candidate, paired_modes
+from flexmodal.compare.fit import Target, design, evaluate, fit_candidate, paired_modes
 from flexmodal.compare.gap import (
     Measured,
     carriers,
     comac,
+    estimate_scatter,
     gap_summary,
     joint_angles_rad,
-    mac,
     prepare,
     region_scores,
     rms,
 )
 from flexmodal.compare.parametric import handles_for, pose_basis, reduce_family
+from flexmodal.modal.mac import mac_pairs
 from flexmodal.modal.table import ModalTable
 from flexmodal.models.effects import pose_stiffness
 from flexmodal.models.rig import Rig
 
 DEFAULT_SCATTER = 0.005
+BOUND_TOL = 1e-3
+"""A fitted parameter within this fraction of its range from a bound is at the bound."""
+UNIDENTIFIED_STD = 1.0
+HELDOUT_INFLATION = 1.5
+STRUCTURE_QUANTILE = 0.999
+MAX_ALTERNATIVES = 3
 NONE_FACTOR = 2.0
 EXPLAINED_FACTOR = 3.0
 PENALTY = 0.15
@@ -178,6 +189,7 @@ def _cross_validate(ctx: _Context, entry: dict, scatter: float) -> None:
     held = np.concatenate([err[f][~train[f]].ravel() for f in range(len(train))])
     entry.update(heldout_rms_rel_error=rms(held), heldout_max_rel_error=float(np.max(np.abs(held))),
                  score=_score(rms(held), cand.n_params, scatter), _theta_folds=res.theta,
+                 _n_heldout=held.size,
                  _heldout_freq_hz=_heldout_prediction(res.freq_hz, train))
 
 
@@ -263,32 +275,39 @@ def _where(ctx: _Context, base_err: np.ndarray, base_summary: dict, scatter: flo
     region = max(scores, key=scores.get) if scores else ""
     out = {"modes": [int(m) for m in modes], "configs": configs, "region": region,
            "region_scores": dict(sorted(scores.items(), key=lambda kv: -kv[1]))}
-    if meas.shapes is not None and base_shapes is not None:
-        macs = np.array([mac(meas.shapes[c], base_shapes[c]) for c in range(len(meas.configs))])
+    full = [] if meas.shapes is None or base_shapes is None else \
+        [c for c in range(len(meas.configs)) if not np.isnan(meas.shapes[c]).any()]   # complete shapes
+    if full:
+        macs = np.array([mac_pairs(meas.shapes[c], base_shapes[c]) for c in full])
         out["mac_per_mode"] = {str(m + 1): float(np.mean(macs[:, m])) for m in range(macs.shape[1])}
-        values = comac(meas.shapes, base_shapes)
+        values = comac(meas.shapes[full], base_shapes[full])
         out["comac"] = {s: float(v) for s, v in zip(meas.sensors, values, strict=True)}
     return out
 
 
 def diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str] = "all",
-             holdout: str | Sequence[str] = "auto", scatter: float = DEFAULT_SCATTER) -> dict:
+             holdout: str | Sequence[str] = "auto", scatter: float | None = None) -> dict:
     """Diagnose the gap between ``rig`` (nominal) and ``measured`` modes; returns the diagnosis.json dict.
 
     ``effects``: ``"all"`` or effect names; ``holdout``: ``"auto"`` or configurations to hold out;
-    ``scatter``: the relative measurement scatter of the frequencies (0.005 = 0.5 %; seed 003's Table 4
-    repeatability was 0.3-0.85 %).  Raises CompareError (one line) on inputs that do not fit the rig.
+    ``scatter``: the fallback relative measurement scatter of the frequencies (0.005 = 0.5 %; seed 003's
+    Table 4 repeatability was 0.3-0.85 %), used only when the data carry no estimate of their own
+    (repeated configurations or a ``freq_std_hz`` column, compare/gap.py ``estimate_scatter``); default
+    ``DEFAULT_SCATTER``.  Raises CompareError (one line) on inputs that do not fit the rig.
     """
     with threadpool_limits(limits=1, user_api="blas"):  # thousands of tiny eigenproblems
         return _diagnose(rig, measured, effects, holdout, scatter)
 
 
 def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], holdout: str | Sequence[str],
-              scatter: float) -> dict:
-    if not 0 < scatter < 1:
-        raise CompareError(f"--scatter must be a fraction in (0, 1) (got {scatter})")
+              fallback: float | None) -> dict:
+    fallback = DEFAULT_SCATTER if fallback is None else fallback
+    if not 0 < fallback < 1:
+        raise CompareError(f"--scatter must be a fraction in (0, 1) (got {fallback})")
     names = parse_effects(effects) if isinstance(effects, str) else parse_effects(",".join(effects))
     meas = prepare(rig, measured)
+    noise = estimate_scatter(measured, meas, fallback)
+    scatter = noise.value
     train, scheme = folds_for(meas.configs, holdout)
     ctx = _Context(rig, meas, train)
 
@@ -327,21 +346,125 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
         _pose_law_guard(ranking)
         ranking.sort(key=lambda e: e["score"])
         result["n_candidates"] = {"fitted": len(screened), "cross_validated": len(ranking)}
-    result["ranking"] = [{k: v for k, v in e.items() if not k.startswith("_")}
-                         for e in ranking[:RANKING_LENGTH]]
-    result["verdict"] = _verdict(ranking, baseline, before, scatter, meas, base_err)
+    for e in ranking:
+        _annotate(ctx, e, scatter)
+    result["ranking"] = [_public(e) for e in ranking[:RANKING_LENGTH]]
+    best = _choose(ctx, ranking, screened if ranking else [], scatter)
+    result["verdict"] = _verdict(ctx, best, ranking, baseline, before, scatter)
     if result["verdict"]["effect"] != "none":
         _confirm_region(where, rig, result["verdict"]["effect"], result["verdict"]["location"])
+    else:
+        result["where"] = {**where, "modes": [], "configs": [], "region": ""}
     result["scatter"] = scatter
+    result["scatter_source"] = {"source": noise.source, "detail": noise.detail}
     result["holdout"] = {"scheme": scheme, "n_folds": int(len(train) - 1)}
     result["configs"] = list(meas.configs)
-    result["predictions"] = _predictions(meas, base_f, ranking[0] if ranking else None)
-    if ranking and ranking[0]["effect"] == "joint_stiffness_pose":
-        best = ranking[0]
+    result["predictions"] = _predictions(meas, base_f, best)
+    if best is not None and best["effect"] == "joint_stiffness_pose":
         joint = rig.joint(best["location"])
         result["verdict"]["k_Nm_per_rad_per_config"] = {
             c: pose_stiffness(best["params"], meas.poses[i][joint.angle]) for i, c in enumerate(meas.configs)}
     return result
+
+
+def _public(entry: dict) -> dict:
+    return {k: v for k, v in entry.items() if not k.startswith("_")}
+
+
+def _annotate(ctx: _Context, entry: dict, scatter: float) -> None:
+    """Flag parameters at a bound and parameters the data cannot identify.
+
+    Identifiability: the linearised covariance of the fitted log-parameters, ``scatter^2 (J^T J)^+`` with
+    ``J`` the Jacobian of the relative frequency errors over all configurations (Gauss-Newton; Bates &
+    Watts 1988 §2.3); a parameter whose standard deviation exceeds ``UNIDENTIFIED_STD`` (a factor
+    e^1 = 2.7 for log-parameters, 1/rad for pose-law terms) is unidentified.
+    """
+    cand, theta = entry["_cand"], entry["_theta0"]
+    names = list(_params(cand, theta))
+    lo = np.array([p.lower for p in cand.params])
+    hi = np.array([p.upper for p in cand.params])
+    tol = BOUND_TOL * (hi - lo)
+    at_lo, at_hi = theta <= lo + tol, theta >= hi - tol
+    _, df, _, _ = evaluate(entry["_fam"], design(cand, ctx.target), theta[None], ctx.target)
+    jac = (df[0] / ctx.meas.freq_hz[..., None]).reshape(-1, cand.n_params)
+    _, sv, vt = np.linalg.svd(jac, full_matrices=False)
+    with np.errstate(over="ignore", divide="ignore"):
+        std = scatter * np.sqrt(np.sum((vt.T / np.maximum(sv, 1e-300)) ** 2, axis=1))
+    entry["params_at_bound"] = [n for n, a, b in zip(names, at_lo, at_hi, strict=True) if a or b]
+    entry["unidentified_params"] = [n for n, x in zip(names, std, strict=True) if not x <= UNIDENTIFIED_STD]
+    # a component whose every parameter sits at its lower bound adds nothing: the candidate is its rest
+    entry["_idle"] = [i for i, (_, _, ps) in enumerate(components(cand))
+                      if all(at_lo[cand.params.index(p)] for p in ps)]
+    # a parameter at its upper bound (or a pose-law term at either) is the fit running out of range
+    entry["_out_of_range"] = any(b or (a and p.power)
+                                 for p, a, b in zip(cand.params, at_lo, at_hi, strict=True))
+
+
+def _noise(best: dict, scatter: float) -> float:
+    """Margin by which another candidate's held-out RMS may exceed ``best``'s and still be equal within
+    noise: twice the standard error of the difference of two RMS estimates over the same ``N`` held-out
+    residuals, each ~ ``sigma / sqrt(2N)`` (chi distribution) with ``sigma`` the larger of the best
+    held-out RMS and the scatter."""
+    return 2 * math.sqrt(2) * max(best["heldout_rms_rel_error"], scatter) / math.sqrt(2 * best["_n_heldout"])
+
+
+def _sub_candidate(ctx: _Context, entry: dict, drop: int, pool: list[dict], scatter: float) -> dict | None:
+    """The candidate without component ``drop`` (found among the fitted ones or fitted now), validated."""
+    comps = components(entry["_cand"])
+    keep = [c for i, c in enumerate(comps) if i != drop]
+    if not keep:
+        return None
+    cand = Candidate(tuple(e for e, _, _ in keep), tuple(loc for _, loc, _ in keep),
+                     tuple(p for _, _, ps in keep for p in ps))
+    found = next((e for e in pool if e["_cand"] == cand), None)
+    if found is None:
+        found = _screen(ctx, cand, scatter)
+        pool.append(found)
+    if "score" not in found:
+        _cross_validate(ctx, found, scatter)
+    if "params_at_bound" not in found:
+        _annotate(ctx, found, scatter)
+    return found
+
+
+def _choose(ctx: _Context, ranking: list[dict], pool: list[dict], scatter: float) -> dict | None:
+    """The verdict's candidate: the best-scored one, with components pruned while dropping one does not
+    worsen the held-out error beyond noise (or the component sits at its lower bound, i.e. is absent);
+    candidates with a parameter run out of range are passed over."""
+    for best in ranking:
+        pruned = True
+        while pruned and len(best["_cand"].effects) > 1:
+            pruned = False
+            for i in range(len(best["_cand"].effects)):
+                sub = _sub_candidate(ctx, best, i, pool, scatter)
+                worse = sub["heldout_rms_rel_error"] - best["heldout_rms_rel_error"]
+                if i in best["_idle"] or worse <= _noise(best, scatter):
+                    best, pruned = sub, True
+                    break
+        if not best["_out_of_range"] and not best["_idle"]:
+            return best
+    return None
+
+
+def _structured(resid: np.ndarray, scatter: float) -> bool:
+    """Residuals [C, n] correlated across configurations or modes beyond the scatter.
+
+    Under pure scatter (held-out predictions inflate it by at most ``HELDOUT_INFLATION``) the per-mode
+    means over configurations and the per-configuration means over modes are normal with variance
+    ``sigma^2 / count``; their sums of squares scaled by ``count / sigma^2`` are chi-square with as many
+    degrees of freedom as means.  Structured when either exceeds its ``STRUCTURE_QUANTILE`` quantile.
+    """
+    from scipy.special import chdtri  # inverse chi-square survival function (lighter than scipy.stats)
+
+    sigma = HELDOUT_INFLATION * scatter
+    C, n = resid.shape
+    for axis, count in ((0, C), (1, n)):
+        if count < 2:
+            continue
+        means = resid.mean(axis=axis)
+        if count * np.sum(means**2) / sigma**2 > chdtri(means.size, 1.0 - STRUCTURE_QUANTILE):
+            return True
+    return False
 
 
 def _effect_region(rig: Rig, effect: str, location: str) -> str:
@@ -366,44 +489,118 @@ def _paired_shapes(ctx: _Context, fam) -> np.ndarray:
     return paired_modes(fam, np.zeros((1, len(ctx.meas.configs), 0)), ctx.target)[2][0]
 
 
-def _verdict(ranking: list[dict], baseline: dict, before: float, scatter: float, meas: Measured,
-             base_err: np.ndarray) -> dict:
+def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: dict, before: float,
+             scatter: float) -> dict:
+    meas = ctx.meas
     none = {"effect": "none", "location": "", "heldout_rms_rel_error_before": before,
             "heldout_rms_rel_error_after": before,
-            "explained": bool(before <= EXPLAINED_FACTOR * scatter)}
+            "explained": bool(before <= EXPLAINED_FACTOR * scatter), "alternatives": []}
     if baseline["rms_rel_error"] <= NONE_FACTOR * scatter:
         return {**none, "summary": f"baseline RMS gap {baseline['rms_rel_error']:.2%} is within "
                                    f"{NONE_FACTOR:g}x the measurement scatter ({scatter:.2%}): no unmodelled "
                                    "effect is needed"}
-    if not ranking:
+    if not ranking or best is None:
         return {**none, "summary": f"baseline RMS gap {baseline['rms_rel_error']:.2%} but no candidate "
-                                   "effect applies to this rig: the gap is unexplained"}
-    if ranking[0]["score"] >= _score(before, 0, scatter):
+                                   "effect applies to this rig within its parameter range: the gap is "
+                                   "unexplained"}
+    if best["score"] >= _score(before, 0, scatter):
         return {**none, "summary": f"no candidate beats the nominal model on held-out configurations once "
                                    f"its extra parameters are penalised (baseline held-out RMS {before:.2%}, "
-                                   f"best {ranking[0]['effect']} {ranking[0]['heldout_rms_rel_error']:.2%})"}
-    best = ranking[0]
+                                   f"best {best['effect']} {best['heldout_rms_rel_error']:.2%})"}
     after = best["heldout_rms_rel_error"]
-    explained = after <= EXPLAINED_FACTOR * scatter
+    resid = best["_heldout_freq_hz"] / meas.freq_hz - 1.0
+    structured = _structured(resid, scatter)
+    explained = after <= EXPLAINED_FACTOR * scatter and not structured
+    unidentified = best["unidentified_params"]
     verdict = {"effect": best["effect"], "location": best["location"],
                "heldout_rms_rel_error_before": before, "heldout_rms_rel_error_after": after,
-               "explained": bool(explained), "params": best["params"]}
-    resid = best["_heldout_freq_hz"] / meas.freq_hz - 1.0
+               "explained": bool(explained),
+               "params": {k: v for k, v in best["params"].items() if k not in unidentified},
+               "unidentified_params": list(unidentified), "params_at_bound": list(best["params_at_bound"]),
+               "structured_residuals": bool(structured)}
     worst = np.dstack(np.unravel_index(np.argsort(-np.abs(resid), axis=None)[:3], resid.shape))[0]
     remaining = [{"config": meas.configs[c], "mode": int(m + 1), "heldout_rel_error": float(resid[c, m])}
                  for c, m in worst]
     verdict["remaining"] = remaining
+    mine = set(zip(best["_cand"].effects, best["_cand"].locations, strict=True))
+    alts = [e for e in ranking if e is not best and not e["_out_of_range"] and not e["_idle"]
+            and not mine <= set(zip(e["_cand"].effects, e["_cand"].locations, strict=True))
+            and e["heldout_rms_rel_error"] - best["heldout_rms_rel_error"] <= _noise(best, scatter)
+            ][:MAX_ALTERNATIVES]
+    verdict["alternatives"] = [
+        {"effect": e["effect"], "location": e["location"], "params": e["params"],
+         "heldout_rms_rel_error": e["heldout_rms_rel_error"], **_separating_measurement(ctx, best, e)}
+        for e in alts]
+    verdict["ambiguous"] = bool(alts)
     text = (f"{best['effect']} at {best['location']} brings the held-out RMS gap from {before:.2%} to "
             f"{after:.2%}")
     if explained:
-        verdict["summary"] = text + f", within {EXPLAINED_FACTOR:g}x the measurement scatter ({scatter:.2%})"
+        text += f", within {EXPLAINED_FACTOR:g}x the measurement scatter ({scatter:.2%})"
     else:
         worst_txt = ", ".join(f"mode {r['mode']} at {r['config']} ({r['heldout_rel_error']:+.1%})"
                               for r in remaining)
-        verdict["summary"] = (text + f"; this stays above {EXPLAINED_FACTOR:g}x the scatter ({scatter:.2%}), "
-                              "so "
-                              f"no candidate explains the gap; largest held-out errors: {worst_txt}")
+        why = (f"its held-out residuals are structured (correlated across configurations or modes beyond "
+               f"the scatter {scatter:.2%})" if structured and after <= EXPLAINED_FACTOR * scatter else
+               f"this stays above {EXPLAINED_FACTOR:g}x the scatter ({scatter:.2%})")
+        text += f"; {why}, so no candidate explains the gap; largest held-out errors: {worst_txt}"
+    if unidentified:
+        text += f"; the data cannot identify {', '.join(unidentified)}"
+    if alts:
+        a0 = verdict["alternatives"][0]
+        names = ", ".join(f"{e['effect']} at {e['location']}" for e in alts)
+        text += f"; ambiguous: {names} fit(s) as well within noise"
+        if a0.get("separate_at"):
+            text += (f"; measuring {a0['separate_at']} (model mode {a0['separate_mode']}) would separate "
+                     f"the first by {a0['separate_rel_diff']:.1%}")
+    verdict["summary"] = text
     return verdict
+
+
+def _component_params(cand: Candidate, theta: np.ndarray) -> list[tuple[str, str, dict[str, float]]]:
+    """(effect, location, {param name: SI value}) of each component of a fitted candidate."""
+    out = []
+    for e, loc, ps in components(cand):
+        vals = {p.name: float(math.exp(theta[cand.params.index(p)])) if p.power == 0
+                else float(theta[cand.params.index(p)]) for p in ps}
+        out.append((e, loc, vals))
+    return out
+
+
+def _separating_measurement(ctx: _Context, a: dict, b: dict) -> dict:
+    """The pose (one pose variable moved over 13 points of its measured range, the others at the first
+    configuration's values) and model mode (up to two beyond the measured ones)
+    where the fitted candidates ``a`` and ``b`` differ most (full FE, models/predict.py)."""
+    from flexmodal.models.effects import apply_effect
+    from flexmodal.models.predict import predict
+
+    rig, meas = ctx.rig, ctx.meas
+    n = meas.freq_hz.shape[1] + 2
+    trial: dict[str, dict[str, float]] = {}
+    for v in rig.pose_variables:
+        vals = np.array([p[v] for p in meas.poses])
+        trial.update({f"{v}={x:g}": {**meas.poses[0], v: float(x)}
+                      for x in np.linspace(vals.min(), vals.max(), 13)})
+    if not trial:
+        return {}
+    freqs = []
+    for e in (a, b):
+        parts = _component_params(e["_cand"], e["_theta0"])
+        rows = []
+        for name, pose in trial.items():
+            r = rig
+            for eff, loc, params in parts:
+                r = apply_effect(r, eff, loc, params, pose=pose)
+            try:
+                rows.append(predict(r, {name: pose}, "fe", n).freq_hz(name))
+            except Exception:  # noqa: BLE001 - a pose the model cannot solve is just not suggested
+                rows.append(np.full(n, np.nan))
+        freqs.append(np.array(rows))
+    diff = np.abs(freqs[0] / freqs[1] - 1.0)
+    if not np.isfinite(diff).any():
+        return {}
+    i, m = np.unravel_index(np.nanargmax(diff), diff.shape)
+    return {"separate_at": list(trial)[i], "separate_mode": int(m + 1),
+            "separate_rel_diff": float(diff[i, m])}
 
 
 def _predictions(meas: Measured, base_f: np.ndarray, best: dict | None) -> dict:
@@ -422,9 +619,29 @@ def write_diagnosis(result: dict, out_dir: str | Path) -> tuple[Path, Path]:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     pj, ph = out / "diagnosis.json", out / "diagnosis.html"
-    pj.write_text(json.dumps(result, indent=2))
+    pj.write_text(to_json(result))
     ph.write_text(render_html(result))
     return pj, ph
+
+
+def _finite(x: object) -> object:
+    """``x`` with every non-finite float (NaN, +-Infinity) replaced by None, recursively."""
+    if isinstance(x, dict):
+        return {k: _finite(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_finite(v) for v in x]
+    if isinstance(x, (float, np.floating)):
+        return float(x) if math.isfinite(x) else None
+    if isinstance(x, np.integer):
+        return int(x)
+    if isinstance(x, np.bool_):
+        return bool(x)
+    return x
+
+
+def to_json(result: dict) -> str:
+    """The diagnosis as strict JSON (RFC 8259): no NaN or Infinity; a missing number is ``null``."""
+    return json.dumps(_finite(result), indent=2, allow_nan=False)
 
 
 def render_html(result: dict) -> str:

@@ -24,10 +24,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="'auto' (leave one configuration out; 5-fold above 10 configurations) or a "
                         "comma-separated list of configurations to hold out")
     p.add_argument("--scatter", type=opt.real(0.0, 1.0, lo_open=True, hi_open=True, name="fraction"),
-                   default=0.005,
-                   help="relative measurement scatter of the frequencies (fraction; default 0.005 = 0.5 %%)")
+                   default=None,
+                   help="fallback relative measurement scatter of the frequencies (fraction; default 0.005 = "
+                        "0.5 %%), used only when the table has no repeated configurations and no "
+                        "freq_std_hz column")
     p.add_argument("--selftest", type=opt.integer(1, 100000), metavar="N",
-                   help="blind self-check instead: N random rigs with withheld effects; prints accuracy")
+                   help="blind self-check instead: N random rigs simulated by an independent truth model "
+                        "(Timoshenko frame) with withheld effects; prints accuracy")
     p.add_argument("--seed", type=opt.seed, default=0, help="random seed of --selftest (default 0)")
     p.set_defaults(func=run)
 
@@ -36,10 +39,17 @@ def run(args: argparse.Namespace) -> int:
     from flexmodal.compare.errors import CompareError
 
     if args.selftest is not None:
-        from flexmodal.compare.selftest import format_summary, run_selftest
+        # the blind cases come from the independent truth model in fixtures (imported only here)
+        from flexmodal.fixtures.blind import format_summary, run_blind, summarise
 
-        summary = run_selftest(args.selftest, seed=args.seed, progress=not getattr(args, "quiet", False))
-        print(format_summary(summary))
+        def show(r) -> None:
+            c, v = r.case, r.verdict
+            print(f"{c.kind}/{c.category}: hidden {c.effect}@{c.location or '-'} -> {v['effect']}@"
+                  f"{v['location'] or '-'} ({r.seconds:.1f} s)", file=sys.stderr)
+
+        results = run_blind(args.selftest, seed=args.seed, progress=None if getattr(args, "quiet", False)
+                            else show)
+        print(format_summary(summarise(results)))
         return 0
     missing = [o for o in ("rig", "measured", "out") if getattr(args, o) is None]
     if missing:

@@ -1,12 +1,12 @@
 """Bounded least-squares fit of a candidate's parameters to measured frequencies, all folds at once.
 
 The residuals are relative frequency errors ``f_model / f_measured - 1`` over the training configurations
-of each fold.  The folds' parameter vectors are stacked into one block-diagonal problem so that a single
-``scipy.optimize.least_squares`` (trust-region reflective, bounds on the log-parameters) fits the full
-data set and every cross-validation fold together, with the analytic Jacobian from the eigenvalue
-sensitivities (``d f / d lambda = 1 / (8 pi^2 f)``).  Starts: the best points of a coarse grid evaluated in
-one batch (a multi-start without repeated solver calls), chosen per fold on its training configurations
-only, refined to convergence and the best kept per fold, so held-out scores come from honest refits.
+of each fold.  Every (fold, start) pair is an independent bounded Levenberg-Marquardt problem (bounds on
+the log-parameters), all evaluated together in one batch per iteration, with the analytic Jacobian from
+the eigenvalue sensitivities (``d f / d lambda = 1 / (8 pi^2 f)``).  Starts: the best points of a
+coarse grid evaluated in one batch (a multi-start without repeated solver calls), chosen per fold on its
+training configurations only, refined to convergence and the best kept per fold, so held-out scores
+come from honest refits.
 
 Mode pairing: model modes below 1e-3 of the lowest measured frequency are rigid-body modes and skipped,
 and so are modes the rig's sensors cannot see (e.g. axial modes of a straight arm under transverse
@@ -24,7 +24,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares, linear_sum_assignment
+from scipy.optimize import linear_sum_assignment
 
 from flexmodal.compare.candidates import Candidate
 from flexmodal.compare.parametric import ReducedFamily, lam_to_hz, solve_family
@@ -33,7 +33,10 @@ EXTRA_PAIRING_MODES = 2
 MAX_GRID = 81
 PAIRING_LOG_WIDTH = 0.25
 OBSERVABLE = 1e-6
-MAX_NFEV = 60
+MAX_ITER = 100
+FTOL = 1e-8
+XTOL = 1e-7
+MAX_DAMPING = 1e10
 N_STARTS = 3
 
 
@@ -133,10 +136,10 @@ def fit_candidate(fam: ReducedFamily, cand: Candidate, target: Target, train: np
     the start points are the product of the parameters' start grids (at most ``MAX_GRID``) plus
     ``starts``, shared ``[G, J]`` or per fold ``[F, G, J]`` (seeded starts of a combination, built from
     each fold's own part optima); each fold keeps the ``N_STARTS`` with the lowest cost on its
-    *training* configurations, and all folds' starts are refined together in one stacked trust-region
-    solve (block-diagonal Jacobian, so each block converges to its own fold's optimum); the best refined
-    start of each fold is kept.  The pose-law slope/curvature are regularised towards a constant
-    stiffness by residual rows ``reg_weight * theta * span^power`` (``span`` = joint angle range).
+    *training* configurations; every (fold, start) is refined to convergence as its own problem (batched
+    evaluations, ``_solve``) and the best refined start of each fold is kept.  The pose-law
+    slope/curvature are regularised towards a constant stiffness by residual rows
+    ``reg_weight * theta * span^power`` (``span`` = joint angle range).
     """
     D = design(cand, target)
     fm = target.freq_hz
@@ -164,7 +167,7 @@ def fit_candidate(fam: ReducedFamily, cand: Candidate, target: Target, train: np
         best = np.argsort(cost, axis=1)[:, :N_STARTS]
         x0 = grid[best].reshape(-1, J)
     k = best.shape[1]
-    x, c = _solve(fam, D, target, np.repeat(train, k, axis=0), reg, lower, upper, x0, MAX_NFEV)
+    x, c = _solve(fam, D, target, np.repeat(train, k, axis=0), reg, lower, upper, x0, MAX_ITER)
     pick = np.argmin(c.reshape(F, k), axis=1)
     theta = x.reshape(F, k, J)[np.arange(F), pick]
     f, _, mac, _ = evaluate(fam, D, theta, target)
@@ -172,49 +175,61 @@ def fit_candidate(fam: ReducedFamily, cand: Candidate, target: Target, train: np
 
 
 def _solve(fam: ReducedFamily, D: np.ndarray, target: Target, train: np.ndarray, reg: np.ndarray,
-           lower: np.ndarray, upper: np.ndarray, x0: np.ndarray, max_nfev: int
+           lower: np.ndarray, upper: np.ndarray, x0: np.ndarray, max_iter: int
            ) -> tuple[np.ndarray, np.ndarray]:
-    """One stacked trust-region least-squares solve over folds ``train`` [F, C]: theta [F, J], costs [F]."""
+    """Independent bounded least-squares fits, one per row of ``x0`` [B, J] on training mask ``train``
+    [B, C], evaluated together in batches: theta [B, J] and final costs [B] (sum of squares).
+
+    Levenberg-Marquardt with Marquardt's diagonal scaling (Marquardt 1963), each problem with its own
+    damping and stopping test; steps are projected onto the bounds and variables at a bound whose
+    gradient points outwards are held fixed for the step (an active-set projected LM, e.g. Kanzow,
+    Yamashita & Fukushima 2004).  A problem stops when a successful step lowers its cost by less than
+    ``FTOL`` relatively, moves theta by less than ``XTOL``, or its damping exceeds ``MAX_DAMPING``.
+    """
     fm = target.freq_hz
-    F, J = x0.shape
-    mask = np.repeat(train[:, :, None], fm.shape[1], axis=2)             # [F, C, n]
-    cache: dict[bytes, tuple] = {}
+    B, J = x0.shape
+    eye = np.eye(J)
 
-    def model(x: np.ndarray) -> tuple:
-        key = x.tobytes()
-        if key not in cache:
-            cache.clear()
-            cache[key] = evaluate(fam, D, x.reshape(F, J), target)
-        return cache[key]
+    def residuals(x: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        f, df, _, _ = evaluate(fam, D, x, target)
+        w = train[rows][:, :, None].astype(float)                          # held-out rows weigh 0
+        r = ((f / fm - 1.0) * w).reshape(len(x), -1)
+        jac = (df / fm[..., None] * w[..., None]).reshape(len(x), -1, J)
+        return (np.concatenate([r, reg * x], axis=1),
+                np.concatenate([jac, np.broadcast_to(eye * reg, (len(x), J, J))], axis=1))
 
-    def fun(x: np.ndarray) -> np.ndarray:
-        f = model(x)[0]
-        return np.concatenate([(f / fm - 1.0)[mask], (reg * x.reshape(F, J)).ravel()])
-
-    def jac(x: np.ndarray) -> np.ndarray:
-        g = model(x)[1] / fm[None, :, :, None]                           # [F, C, n, J]
-        out = np.zeros((int(mask.sum()) + F * J, F * J))
-        row = 0
-        for fo in range(F):
-            k = int(mask[fo].sum())
-            out[row:row + k, fo * J:(fo + 1) * J] = g[fo][mask[fo]]
-            row += k
-        out[row:] = np.kron(np.eye(F), np.diag(reg))
-        return out
-
-    lo, hi = np.tile(lower, F), np.tile(upper, F)
-    x0 = np.clip(x0.ravel(), lo + 1e-9, hi - 1e-9)
-    sol = least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", max_nfev=max_nfev,
-                        xtol=1e-6, ftol=1e-8, gtol=1e-10)
-    return sol.x.reshape(F, J), _fold_costs(sol.fun, mask, F, J, reg, sol.x)
-
-
-def _fold_costs(r: np.ndarray, mask: np.ndarray, F: int, J: int, reg: np.ndarray, x: np.ndarray
-                ) -> np.ndarray:
-    counts = mask.reshape(F, -1).sum(axis=1)
-    edges = np.concatenate([[0], np.cumsum(counts)])
-    data = np.array([np.sum(r[edges[i]:edges[i + 1]] ** 2) for i in range(F)])
-    return data + np.sum((reg * x.reshape(F, J)) ** 2, axis=1)
+    x = np.clip(x0, lower, upper)
+    r, jac = residuals(x, np.arange(B))
+    cost = np.sum(r**2, axis=1)
+    damping = np.full(B, 1e-3)
+    running = np.ones(B, bool)
+    for _ in range(max_iter):
+        todo = np.flatnonzero(running)
+        if not todo.size:
+            break
+        jt = np.swapaxes(jac[todo], 1, 2)
+        A = jt @ jac[todo]                                                  # [t, J, J]
+        g = (jt @ r[todo][..., None])[..., 0]                               # [t, J]
+        xt = x[todo]
+        fixed = ((xt <= lower) & (g > 0)) | ((xt >= upper) & (g < 0))
+        d = np.diagonal(A, axis1=1, axis2=2)
+        scale = np.maximum(d, 1e-12 * np.max(d, axis=1, keepdims=True) + 1e-300)
+        H = A + damping[todo, None, None] * (scale[:, :, None] * eye)
+        free = ~fixed
+        H = H * (free[:, :, None] & free[:, None, :]) + fixed[:, :, None] * eye
+        step = -np.linalg.solve(H, np.where(fixed, 0.0, g)[..., None])[..., 0]
+        xn = np.clip(xt + step, lower, upper)
+        rn, jn = residuals(xn, todo)
+        cn = np.sum(rn**2, axis=1)
+        better = cn < cost[todo]
+        moved = np.all(np.abs(xn - xt) <= XTOL * (XTOL + np.abs(xt)), axis=1)
+        small = better & (cost[todo] - cn <= FTOL * cost[todo])
+        ok = todo[better]
+        x[ok], r[ok], jac[ok], cost[ok] = xn[better], rn[better], jn[better], cn[better]
+        damping[ok] /= 3.0
+        damping[todo[~better]] *= 4.0
+        running[todo[small | moved | (damping[todo] > MAX_DAMPING)]] = False
+    return x, cost
 
 
 def _span(target: Target, handle: str) -> float:

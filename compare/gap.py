@@ -88,13 +88,6 @@ def carriers(per_item: dict[str, float], scatter: float) -> list[str]:
     return [k for k, v in per_item.items() if v > max(2 * scatter, 0.5 * top)]
 
 
-def mac(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """MAC between the columns of a [s, n] and b [s, n], pairwise on matching columns -> [n]."""
-    num = np.abs(np.sum(a.conj() * b, axis=0)) ** 2
-    den = np.sum(np.abs(a) ** 2, axis=0) * np.sum(np.abs(b) ** 2, axis=0)
-    return num / np.maximum(den, 1e-300)
-
-
 def comac(measured: np.ndarray, model: np.ndarray) -> np.ndarray:
     """COMAC per sensor over paired modes; shapes [k, s, n] stacked over configs, unit-scaled per mode."""
     def unit(x: np.ndarray) -> np.ndarray:
@@ -145,3 +138,42 @@ def joint_angles_rad(rig: Rig, poses: tuple[dict[str, float], ...]) -> dict[str,
     """Each joint's angle [rad] at every configuration (its fixed angle when it has no pose variable)."""
     return {j.name: np.array([math.radians(p[j.angle] if j.angle else j.angle_deg) for p in poses])
             for j in rig.joints}
+
+
+@dataclass(frozen=True)
+class Scatter:
+    """Relative measurement scatter of the frequencies (0.005 = 0.5 %) and where it came from."""
+
+    value: float
+    source: str        # "repeated configurations", "freq_std_hz column" or "--scatter (fallback)"
+    detail: str
+
+
+def estimate_scatter(table: ModalTable, meas: Measured, fallback: float) -> Scatter:
+    """Scatter from the data when it carries any, else ``fallback``.
+
+    In order: (1) configurations measured more than once at the same pose: the pooled standard deviation
+    of ``ln f`` within each group of repeats, per mode, ``sqrt(sum (ln f - mean)^2 / (N - G))`` (needs at
+    least two degrees of freedom); (2) a ``freq_std_hz`` column (e.g. identification uncertainty): the
+    RMS of ``freq_std_hz / freq_hz`` over its rows; (3) ``fallback``.
+    """
+    keys = [tuple(sorted(p.items())) for p in meas.poses]
+    groups: dict[tuple, list[int]] = {}
+    for i, k in enumerate(keys):
+        groups.setdefault(k, []).append(i)
+    reps = [g for g in groups.values() if len(g) > 1]
+    if reps:
+        logf = np.log(meas.freq_hz)
+        dev = np.concatenate([(logf[g] - logf[g].mean(axis=0)).ravel() for g in reps])
+        dof = sum((len(g) - 1) * meas.freq_hz.shape[1] for g in reps)
+        if dof >= 2:
+            value = float(np.sqrt(np.sum(dev**2) / dof))
+            return Scatter(max(value, 1e-6), "repeated configurations",
+                           f"{len(reps)} pose(s) measured more than once, {dof} degrees of freedom")
+    if "freq_std_hz" in table.frame.columns:
+        rel = (table.frame["freq_std_hz"] / table.frame["freq_hz"]).to_numpy(float)
+        rel = rel[np.isfinite(rel) & (rel > 0)]
+        if rel.size:
+            return Scatter(float(np.sqrt(np.mean(rel**2))), "freq_std_hz column",
+                           f"RMS of freq_std_hz / freq_hz over {rel.size} rows")
+    return Scatter(fallback, "--scatter (fallback)", "the data carry no repeats and no freq_std_hz column")

@@ -18,6 +18,7 @@ from __future__ import annotations
 import csv
 import html
 import io
+import json
 import math
 import re
 from collections.abc import Sequence
@@ -29,7 +30,7 @@ from flexmodal.compare.errors import CompareError
 from flexmodal.compare.pairing import MIN_MAC, Pairing, pair_modes
 from flexmodal.modal.table import ModalTable
 
-FORMATS = ("md", "csv", "tex", "html")
+FORMATS = ("md", "csv", "tex", "html", "json")
 LAYOUTS = ("modes", "sources")
 
 # per format: how each quantity is labelled (the unit is part of the label)
@@ -194,14 +195,28 @@ def _sources_grid(comp: Comparison) -> tuple[list[_Col], list[list[object]]]:
     return cols, rows
 
 
-def _fmt(quantity: str, value: object) -> str:
-    if value is None or (isinstance(value, float) and not np.isfinite(value)):
-        return ""
+def _plain(quantity: str, value: object) -> object:
+    """A cell as a plain value for data formats: full-precision float, int mode, text, or None."""
     if isinstance(value, tuple):  # (quantity, value) cell of the sources layout
-        return _fmt(*value)
+        return _plain(*value)
+    if value is None or (isinstance(value, float) and not np.isfinite(value)):
+        return None
     if quantity in _DIGITS and not isinstance(value, str):
-        return _DIGITS[quantity].format(int(value) if quantity.endswith("mode") else float(value))
+        return int(value) if quantity.endswith("mode") else float(value)
     return str(value)
+
+
+def _fmt(quantity: str, value: object, full: bool = False) -> str:
+    """A cell as text: rounded for display (md, tex, html) or, ``full``, the shortest repr that
+    round-trips the float exactly (csv)."""
+    if isinstance(value, tuple):
+        return _fmt(*value, full=full)
+    plain = _plain(quantity, value)
+    if plain is None:
+        return ""
+    if quantity in _DIGITS and not isinstance(plain, str):
+        return repr(plain) if full else _DIGITS[quantity].format(plain)
+    return plain
 
 
 def _header(col: _Col, fmt: str) -> str:
@@ -223,7 +238,7 @@ def _cells(cols: list[_Col], rows: list[list[object]], fmt: str) -> list[list[st
     """Body text, already safe for ``fmt`` (LaTeX-escaped for tex)."""
     labels = _LABELS[fmt]
     esc = _tex_escape if fmt == "tex" else str
-    return [[labels[str(v)] if c.quantity == "quantity" else esc(_fmt(c.quantity, v))
+    return [[labels[str(v)] if c.quantity == "quantity" else esc(_fmt(c.quantity, v, full=fmt == "csv"))
              for c, v in zip(cols, row, strict=True)] for row in rows]
 
 
@@ -293,14 +308,22 @@ th,td{{border-bottom:1px solid #ccc;padding:.25em .6em}} td.num{{text-align:righ
 
 def render(comp: Comparison, fmt: str = "md", layout: str = "modes",
            caption: str = "Measured and predicted natural frequencies") -> str:
-    """The comparison as text in ``fmt`` (md | csv | tex | html); html is a complete page."""
+    """The comparison as text in ``fmt`` (md | csv | tex | html | json); html is a complete page.
+
+    csv and json carry full-precision numbers (json: a list of row objects keyed by the csv headers,
+    ``null`` for empty cells, strict JSON); md, tex and html round for display."""
     if fmt not in FORMATS:
         raise CompareError(f"--format: unknown format {fmt!r} (expected one of {', '.join(FORMATS)})")
     if layout not in LAYOUTS:
         raise CompareError(f"--layout: unknown layout {layout!r} (expected one of {', '.join(LAYOUTS)})")
     cols, rows = _modes_grid(comp) if layout == "modes" else _sources_grid(comp)
-    label_fmt = "md" if fmt == "html" else fmt
+    label_fmt = {"html": "md", "json": "csv"}.get(fmt, fmt)
     head = [_header(c, label_fmt) for c in cols]
+    if fmt == "json":
+        labels = _LABELS["csv"]
+        return json.dumps([{h: labels[str(v)] if c.quantity == "quantity" else _plain(c.quantity, v)
+                            for h, c, v in zip(head, cols, row, strict=True)} for row in rows],
+                          indent=1, allow_nan=False) + "\n"
     body = _cells(cols, rows, label_fmt)
     notes = comp.notes()
     if fmt == "md":

@@ -236,7 +236,7 @@ def _topology(rig: Rig, elements: int | None, lumped: bool) -> _Topology:
                  (lk.stiffness_scale, lk.mass_scale))
 
     for mb in rig.members:
-        n_el = mb.elements or elements or DEFAULT_ELEMENTS
+        n_el = elements or mb.elements or DEFAULT_ELEMENTS
         st = np.linspace(0.0, 1.0, n_el + 1)
         dofs = np.array([[next(counter) for _ in range(3)] for _ in st])
         clamped = {"pin-pin": (False, False), "clamped-pin": (True, False), "clamped-clamped": (True, True)}

@@ -103,7 +103,7 @@ def predict(rig: Rig, poses: Mapping[str, Mapping[str, float]], model: str = "fe
         raise ModelError(f"number of modes must be a whole number >= 1 (got {n_modes!r})")
     records = []
     with threadpool_limits(limits=1, user_api="blas"):  # many small dense eigenproblems: threads contend
-        results = _SOLVERS[model](rig, list(poses.values()), n_modes, options)
+        results = list(_SOLVERS[model](rig, list(poses.values()), n_modes, options))  # solve inside the limit
     for (config, pose), (freq, shapes) in zip(poses.items(), results, strict=True):
         for i, f in enumerate(freq):
             row: dict[str, object] = {"config": str(config), "mode": i + 1, "freq_hz": float(f),

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 import re
 from html.parser import HTMLParser
 from pathlib import Path
@@ -58,12 +59,22 @@ def test_table_3_1_csv_reproduces_every_number(table31, capsys):
         assert float(row["experiment_freq_hz"]) == pytest.approx(ref["experiment_hz"], abs=5e-3)
         assert float(row["experiment_damping_pct"]) == pytest.approx(100 * ref["damping_ratio"], abs=5e-3)
         for column, source in TABLE31.items():
-            assert float(row[f"{source}_freq_hz"]) == pytest.approx(ref[column], abs=5e-3)
+            assert float(row[f"{source}_freq_hz"]) == ref[column]            # full precision, exact
             expected = 100 * (ref[column] - ref["experiment_hz"]) / ref["experiment_hz"]
-            assert float(row[f"{source}_err_pct"]) == pytest.approx(expected, abs=0.05)
-    assert rows[1]["assumed-modes_err_pct"] == "+40.8"  # (16.90 - 12.00) / 12.00
-    assert rows[3]["detailed-fem_err_pct"] == "+5.6"  # (60.60 - 57.37) / 57.37
-    assert rows[2]["detailed-fem_err_pct"] == "-20.3"  # (30.19 - 37.87) / 37.87
+            assert float(row[f"{source}_err_pct"]) == pytest.approx(expected, rel=1e-12)
+    assert float(rows[1]["assumed-modes_err_pct"]) == pytest.approx(40.8333333333, rel=1e-10)  # 16.90/12.00
+    assert float(rows[3]["detailed-fem_err_pct"]) == pytest.approx(5.63012027192, rel=1e-10)  # 60.60/57.37
+    assert not rows[1]["assumed-modes_err_pct"].startswith("+")       # a plain number, not display text
+
+
+def test_json_rows_carry_full_precision_and_md_rounds(table31, capsys):
+    seed, paths = table31
+    argv = ["compare", str(paths["experiment"]), str(paths["detailed-fem"])]
+    rows = json.loads(run_cli([*argv, "--format", "json"], capsys),
+                      parse_constant=lambda c: pytest.fail(f"non-standard JSON {c}"))
+    assert rows[3]["detailed-fem_freq_hz"] == seed["detailed_fem_hz"][3]
+    assert rows[3]["detailed-fem_err_pct"] == pytest.approx(100 * (60.60 - 57.37) / 57.37, rel=1e-12)
+    assert "| +5.6 |" in run_cli(argv, capsys)
 
 
 def test_table_3_1_markdown_has_units_in_every_header(table31, capsys):
@@ -176,5 +187,6 @@ def test_configurations_follow_pose_order_not_text_order(tmp_path, capsys):
     meas.write_text("config,mode,freq_hz,pose.theta_deg\n" + "".join(f"{c},1,{f},{t}\n" for c, t, f in rows))
     pred.write_text("config,mode,freq_hz,source\n" + "".join(f"{c},1,{1.1 * f},fe\n" for c, _, f in rows))
     out = run_cli(["compare", str(meas), str(pred), "--format", "csv"], capsys)
-    got = [(r["config"], r["fe_err_pct"]) for r in csv.DictReader(io.StringIO(out))]
-    assert got == [("theta0", "+10.0"), ("theta60", "+10.0"), ("theta120", "+10.0")]
+    got = [(r["config"], float(r["fe_err_pct"])) for r in csv.DictReader(io.StringIO(out))]
+    assert [c for c, _ in got] == ["theta0", "theta60", "theta120"]
+    assert [e for _, e in got] == pytest.approx([10.0] * 3, rel=1e-12)

