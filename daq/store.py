@@ -369,7 +369,7 @@ def open_read(path: str | Path) -> h5py.File:
     head, size = _superblock(p)
     if head[:8] != b"\x89HDF\r\n\x1a\n":
         if not h5py.is_hdf5(p):  # a user block moves the signature to 512, 1024, ... bytes
-            raise DaqError(f"{p}: not an HDF5 file")
+            raise DaqError(f"{p}: not a readable HDF5 run file (no HDF5 signature)")
         return _h5_open(p, swmr=False)
     if len(head) > 8 and head[8] not in (2, 3):  # superblock 0/1: never SWMR; HDF5 checks the size
         return _h5_open(p, swmr=False)
