@@ -352,13 +352,16 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
            measured: ModalTable | PathLike | None = None, repeats: Sequence[ModalTable | PathLike] = (),
            predictions: Sequence[ModalTable | PathLike | tuple[str, ModalTable]] = (), diagnosis=None,
            rig: Rig | PathLike | None = None, title: str = "flexmodal validation report",
+           oma_fmin: float | None = None, oma_fmax: float | None = None,
            progress: Callable[[str], None] | None = None) -> Path:
     """Write the self-contained HTML validation report ``out`` and return its path.
 
     ``runs``: HDF5 files (all their runs), ``FILE::RUN_ID`` or (file, id); their stored FRFs are shown
     with the stabilisation diagram of their identification (default options of :func:`identify`); a
     run without FRFs that is output-only (operational, or no force channel) with its FDD singular
-    values and SSI-cov stabilisation diagram (``modal.oma.output_only_results``, docs/oma.md).
+    values and SSI-cov stabilisation diagram (``modal.oma.output_only_results``, docs/oma.md), both
+    identified in the band ``oma_fmin``..``oma_fmax`` [Hz] (``identify --fmin/--fmax``; default the
+    whole record).
     ``measured``/``repeats``/``predictions``: modal tables; ``diagnosis``: a :func:`diagnose` result,
     a parsed diagnosis.json, or its path; ``rig``: draws the measured shapes on the arm.  Everything
     is computed here; ``reports.html`` only renders it."""
@@ -374,6 +377,11 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
 
     if not (runs or measured is not None or predictions or diagnosis is not None):
         raise ReportError("report: nothing to report (give RUN.h5 files, --measured, --pred or --diagnosis)")
+    for name, value in (("oma_fmin", oma_fmin), ("oma_fmax", oma_fmax)):
+        if value is not None and not (isinstance(value, int | float) and 0 < value < float("inf")):
+            raise ReportError(f"report: {name} = {value!r} must be a positive number of Hz")
+    if oma_fmin is not None and oma_fmax is not None and oma_fmin >= oma_fmax:
+        raise ReportError(f"report: oma_fmin = {oma_fmin:g} Hz must be below oma_fmax = {oma_fmax:g} Hz")
     step = progress or (lambda _msg: None)
     summaries = []
     for path, run_id in expand_runs(runs):
@@ -387,7 +395,8 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
                 modes = str(exc)
         elif default_method([c.kind for c in run.channels], run.excitation) == "ssi":
             oma = output_only_results(run.samples, run.sample_rate_hz, [c.name for c in run.channels],
-                                      [c.kind for c in run.channels], where=f"{path.name}::{run_id}")
+                                      [c.kind for c in run.channels], fmin=oma_fmin, fmax=oma_fmax,
+                                      where=f"{path.name}::{run_id}")
         summaries.append(RunSummary(run, frf, modes, oma))
     meas = _table(measured) if measured is not None else None
     named = _named(predictions)
