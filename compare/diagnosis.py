@@ -54,7 +54,7 @@ from flexmodal.compare.gap import (
 from flexmodal.compare.parametric import handles_for, pose_basis, reduce_family
 from flexmodal.modal.mac import mac_pairs
 from flexmodal.modal.table import ModalTable
-from flexmodal.models.effects import pose_stiffness
+from flexmodal.models.effects import REGISTRY, get_effect
 from flexmodal.models.rig import Rig
 
 DEFAULT_SCATTER = 0.005
@@ -101,17 +101,17 @@ def folds_for(configs: Sequence[str], holdout: str | Sequence[str] = "auto") -> 
     return train, scheme
 
 
-def _region_label(rig: Rig, handle: str) -> str:
-    what, _, loc = handle.partition("@")
-    if what in ("EI", "mu"):
-        return f"link:{loc}"
-    if what == "ks":
-        return f"point:{loc}"
-    if loc in [j.name for j in rig.joints]:
-        return f"joint:{loc}"
-    if loc in [m.name for m in rig.members]:
-        return f"member:{loc}"
-    return loc  # base, tip, sensors
+def _effect_region(rig: Rig, effect: str, location: str) -> str:
+    """The ``where.region`` label of one effect's location (e.g. ``joint:elbow``, ``link:link2``): the
+    registry entry's region kind, else the kind of the part the location names."""
+    kind = get_effect(effect).region
+    if kind:
+        return f"{kind}:{location}"
+    if location in [j.name for j in rig.joints]:
+        return f"joint:{location}"
+    if location in [m.name for m in rig.members]:
+        return f"member:{location}"
+    return location  # base, tip, sensors
 
 
 class _Context:
@@ -245,13 +245,14 @@ def _heldout_prediction(freq: np.ndarray, train: np.ndarray) -> np.ndarray:
     return out
 
 
-def _pose_law_guard(ranking: list[dict]) -> None:
-    """Rank ``joint_stiffness_pose`` below the constant stiffness at its joint unless better held out."""
-    const = {e["location"]: e for e in ranking if e["effect"] == "joint_stiffness"}
+def _refinement_guard(ranking: list[dict]) -> None:
+    """Rank an effect that refines another (registry ``refines``, e.g. ``joint_stiffness_pose`` of
+    ``joint_stiffness``) below that one at the same location unless better held out."""
+    plain = {(e["effect"], e["location"]): e for e in ranking}
     for e in ranking:
-        c = const.get(e["location"])
-        if e["effect"] == "joint_stiffness_pose" and c and \
-                e["heldout_rms_rel_error"] >= c["heldout_rms_rel_error"]:
+        refines = REGISTRY[e["effect"]].refines if e["effect"] in REGISTRY else ""
+        c = plain.get((refines, e["location"]))
+        if c and e["heldout_rms_rel_error"] >= c["heldout_rms_rel_error"]:
             e["score"] = max(e["score"], c["score"] * 1.001)
 
 
@@ -270,7 +271,7 @@ def _where(ctx: _Context, base_err: np.ndarray, base_summary: dict, scatter: flo
     sens = dl[0] / (8 * math.pi**2 * f[0][..., None] * meas.freq_hz[..., None])
     groups: dict[str, list[int]] = {}
     for i, hd in enumerate(ctx.handles):
-        groups.setdefault(_region_label(ctx.rig, hd.name), []).append(i)
+        groups.setdefault(_effect_region(ctx.rig, hd.effect, hd.location), []).append(i)
     scores = region_scores(base_err, sens, groups, weight)
     region = max(scores, key=scores.get) if scores else ""
     out = {"modes": [int(m) for m in modes], "configs": configs, "region": region,
@@ -343,7 +344,7 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
             screened += _triples(ctx, pairs[:TRIPLE_PAIRS], pool, scatter)
             _cross_validate_promising(ctx, screened, scatter)
         ranking = [e for e in screened if "score" in e]
-        _pose_law_guard(ranking)
+        _refinement_guard(ranking)
         ranking.sort(key=lambda e: e["score"])
         result["n_candidates"] = {"fitted": len(screened), "cross_validated": len(ranking)}
     for e in ranking:
@@ -360,10 +361,13 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
     result["holdout"] = {"scheme": scheme, "n_folds": int(len(train) - 1)}
     result["configs"] = list(meas.configs)
     result["predictions"] = _predictions(meas, base_f, best)
-    if best is not None and best["effect"] == "joint_stiffness_pose":
-        joint = rig.joint(best["location"])
-        result["verdict"]["k_Nm_per_rad_per_config"] = {
-            c: pose_stiffness(best["params"], meas.poses[i][joint.angle]) for i, c in enumerate(meas.configs)}
+    per_config = REGISTRY[best["effect"]].per_config if best is not None and best["effect"] in REGISTRY \
+        else None
+    if per_config is not None:
+        values = [per_config(rig, best["location"], best["params"], pose) for pose in meas.poses]
+        for name in values[0] if values else ():
+            result["verdict"][f"{name}_per_config"] = {c: v[name] for c, v in zip(meas.configs, values,
+                                                                                  strict=True)}
     return result
 
 
@@ -465,15 +469,6 @@ def _structured(resid: np.ndarray, scatter: float) -> bool:
         if count * np.sum(means**2) / sigma**2 > chdtri(means.size, 1.0 - STRUCTURE_QUANTILE):
             return True
     return False
-
-
-def _effect_region(rig: Rig, effect: str, location: str) -> str:
-    """The ``where.region`` label of one effect's location (e.g. ``joint:elbow``, ``link:link2``)."""
-    if effect.startswith("link_"):
-        return f"link:{location}"
-    if effect == "grounded_spring":
-        return f"point:{location}"
-    return _region_label(rig, f"x@{location}")
 
 
 def _confirm_region(where: dict, rig: Rig, effect: str, location: str) -> None:
