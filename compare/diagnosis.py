@@ -26,13 +26,11 @@
 
 from __future__ import annotations
 
-import html
 import itertools
 import json
 import math
 from collections.abc import Sequence
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -609,16 +607,6 @@ def _predictions(meas: Measured, base_f: np.ndarray, best: dict | None) -> dict:
     return out
 
 
-def write_diagnosis(result: dict, out_dir: str | Path) -> tuple[Path, Path]:
-    """Write ``diagnosis.json`` and a self-contained ``diagnosis.html`` into ``out_dir``."""
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    pj, ph = out / "diagnosis.json", out / "diagnosis.html"
-    pj.write_text(to_json(result))
-    ph.write_text(render_html(result))
-    return pj, ph
-
-
 def _finite(x: object) -> object:
     """``x`` with every non-finite float (NaN, +-Infinity) replaced by None, recursively."""
     if isinstance(x, dict):
@@ -637,38 +625,3 @@ def _finite(x: object) -> object:
 def to_json(result: dict) -> str:
     """The diagnosis as strict JSON (RFC 8259): no NaN or Infinity; a missing number is ``null``."""
     return json.dumps(_finite(result), indent=2, allow_nan=False)
-
-
-def render_html(result: dict) -> str:
-    """A simple self-contained HTML page of a diagnosis (the report package builds the full report)."""
-    e = html.escape
-    b, v, w = result["baseline"], result["verdict"], result["where"]
-    rows = "".join(
-        f"<tr><td>{i + 1}</td><td>{e(r['effect'])}</td><td>{e(r['location'])}</td>"
-        f"<td>{e(', '.join(f'{k}={x:.4g}' for k, x in r['params'].items()))}</td>"
-        f"<td>{r['fit_rms_rel_error']:.2%}</td><td>{r['heldout_rms_rel_error']:.2%}</td>"
-        f"<td>{r['n_params']}</td><td>{r['score']:.4f}</td></tr>" for i, r in enumerate(result["ranking"]))
-    pred = result.get("predictions", {})
-    prow = ""
-    for c, fm in pred.get("measured_hz", {}).items():
-        for m, f in enumerate(fm):
-            cells = [f"{pred[k][c][m]:.2f}" if k in pred else "" for k in ("baseline_hz", "best_heldout_hz")]
-            prow += (f"<tr><td>{e(c)}</td><td>{m + 1}</td><td>{f:.2f}</td><td>{cells[0]}</td>"
-                     f"<td>{cells[1]}</td></tr>")
-    per_mode = ", ".join(f"mode {k}: {x:.1%}" for k, x in b["per_mode"].items())
-    return f"""<!DOCTYPE html><html><head><meta charset="utf-8"><title>Sim-to-real gap diagnosis</title>
-<style>body{{font-family:sans-serif;max-width:60em;margin:2em auto}}table{{border-collapse:collapse}}
-td,th{{border:1px solid #bbb;padding:2px 6px;text-align:right}}</style></head><body>
-<h1>Sim-to-real gap diagnosis</h1>
-<h2>Verdict</h2><p><b>{e(v['effect'])}</b> at <b>{e(v.get('location', ''))}</b>; explained: {v['explained']}.
-{e(v.get('summary', ''))}</p>
-<h2>Baseline gap</h2><p>RMS {b['rms_rel_error']:.2%}, max {b['max_rel_error']:.2%} ({e(per_mode)}).</p>
-<h2>Where</h2><p>Modes {e(str(w['modes']))}, configurations {e(', '.join(w['configs']))}; region
-{e(w['region'])}.</p>
-<h2>Ranking</h2><p>Held out: {e(result.get('holdout', {}).get('scheme', ''))}; scatter
-{result.get('scatter', 0):.2%}.</p>
-<table><tr><th>#</th><th>effect</th><th>location</th><th>params</th><th>fit RMS</th><th>held-out RMS</th>
-<th>n</th><th>score</th></tr>{rows}</table>
-<h2>Frequencies [Hz]</h2><table><tr><th>config</th><th>mode</th><th>measured</th><th>baseline</th>
-<th>best (held out)</th></tr>{prow}</table></body></html>
-"""
