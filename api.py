@@ -270,10 +270,21 @@ def diagnose(rig: Rig | PathLike, measured: ModalTable | PathLike, *, effects: s
 
 
 def write_diagnosis(result, out_dir: PathLike) -> tuple[Path, Path]:
-    """Write ``diagnosis.json`` and ``diagnosis.html`` of a :func:`diagnose` result into ``out_dir``."""
-    from flexmodal.compare.diagnosis import write_diagnosis as _write
+    """Write ``diagnosis.json`` (strict JSON) and ``diagnosis.html`` of a :func:`diagnose` result into
+    ``out_dir``.  The page is the validation report's diagnosis section alone (one renderer,
+    reports/html.py)."""
+    import json
 
-    return _write(result, out_dir)
+    from flexmodal.compare.diagnosis import to_json
+    from flexmodal.reports.html import write_report
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    pj = out / "diagnosis.json"
+    text = to_json(result)
+    pj.write_text(text)
+    ph = write_report(out / "diagnosis.html", diagnosis=json.loads(text), title="Sim-to-real gap diagnosis")
+    return pj, ph
 
 
 # -- figures ---------------------------------------------------------------------------------------
