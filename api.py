@@ -270,10 +270,21 @@ def diagnose(rig: Rig | PathLike, measured: ModalTable | PathLike, *, effects: s
 
 
 def write_diagnosis(result, out_dir: PathLike) -> tuple[Path, Path]:
-    """Write ``diagnosis.json`` and ``diagnosis.html`` of a :func:`diagnose` result into ``out_dir``."""
-    from flexmodal.compare.diagnosis import write_diagnosis as _write
+    """Write ``diagnosis.json`` (strict JSON) and ``diagnosis.html`` of a :func:`diagnose` result into
+    ``out_dir``.  The page is the validation report's diagnosis section alone (one renderer,
+    reports/html.py)."""
+    import json
 
-    return _write(result, out_dir)
+    from flexmodal.compare.diagnosis import to_json
+    from flexmodal.reports.html import write_report
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    pj = out / "diagnosis.json"
+    text = to_json(result)
+    pj.write_text(text)
+    ph = write_report(out / "diagnosis.html", diagnosis=json.loads(text), title="Sim-to-real gap diagnosis")
+    return pj, ph
 
 
 # -- figures ---------------------------------------------------------------------------------------
@@ -352,13 +363,16 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
            measured: ModalTable | PathLike | None = None, repeats: Sequence[ModalTable | PathLike] = (),
            predictions: Sequence[ModalTable | PathLike | tuple[str, ModalTable]] = (), diagnosis=None,
            rig: Rig | PathLike | None = None, title: str = "flexmodal validation report",
+           oma_fmin: float | None = None, oma_fmax: float | None = None,
            progress: Callable[[str], None] | None = None) -> Path:
     """Write the self-contained HTML validation report ``out`` and return its path.
 
     ``runs``: HDF5 files (all their runs), ``FILE::RUN_ID`` or (file, id); their stored FRFs are shown
     with the stabilisation diagram of their identification (default options of :func:`identify`); a
     run without FRFs that is output-only (operational, or no force channel) with its FDD singular
-    values and SSI-cov stabilisation diagram (``modal.oma.output_only_results``, docs/oma.md).
+    values and SSI-cov stabilisation diagram (``modal.oma.output_only_results``, docs/oma.md), both
+    identified in the band ``oma_fmin``..``oma_fmax`` [Hz] (``identify --fmin/--fmax``; default the
+    whole record).
     ``measured``/``repeats``/``predictions``: modal tables; ``diagnosis``: a :func:`diagnose` result,
     a parsed diagnosis.json, or its path; ``rig``: draws the measured shapes on the arm.  Everything
     is computed here; ``reports.html`` only renders it."""
@@ -374,6 +388,11 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
 
     if not (runs or measured is not None or predictions or diagnosis is not None):
         raise ReportError("report: nothing to report (give RUN.h5 files, --measured, --pred or --diagnosis)")
+    for name, value in (("oma_fmin", oma_fmin), ("oma_fmax", oma_fmax)):
+        if value is not None and not (isinstance(value, int | float) and 0 < value < float("inf")):
+            raise ReportError(f"report: {name} = {value!r} must be a positive number of Hz")
+    if oma_fmin is not None and oma_fmax is not None and oma_fmin >= oma_fmax:
+        raise ReportError(f"report: oma_fmin = {oma_fmin:g} Hz must be below oma_fmax = {oma_fmax:g} Hz")
     step = progress or (lambda _msg: None)
     summaries = []
     for path, run_id in expand_runs(runs):
@@ -387,7 +406,8 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
                 modes = str(exc)
         elif default_method([c.kind for c in run.channels], run.excitation) == "ssi":
             oma = output_only_results(run.samples, run.sample_rate_hz, [c.name for c in run.channels],
-                                      [c.kind for c in run.channels], where=f"{path.name}::{run_id}")
+                                      [c.kind for c in run.channels], fmin=oma_fmin, fmax=oma_fmax,
+                                      where=f"{path.name}::{run_id}")
         summaries.append(RunSummary(run, frf, modes, oma))
     meas = _table(measured) if measured is not None else None
     named = _named(predictions)

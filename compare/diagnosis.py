@@ -26,13 +26,11 @@
 
 from __future__ import annotations
 
-import html
 import itertools
 import json
 import math
 from collections.abc import Sequence
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -54,7 +52,7 @@ from flexmodal.compare.gap import (
 from flexmodal.compare.parametric import handles_for, pose_basis, reduce_family
 from flexmodal.modal.mac import mac_pairs
 from flexmodal.modal.table import ModalTable
-from flexmodal.models.effects import pose_stiffness
+from flexmodal.models.effects import REGISTRY, get_effect
 from flexmodal.models.rig import Rig
 
 DEFAULT_SCATTER = 0.005
@@ -101,17 +99,17 @@ def folds_for(configs: Sequence[str], holdout: str | Sequence[str] = "auto") -> 
     return train, scheme
 
 
-def _region_label(rig: Rig, handle: str) -> str:
-    what, _, loc = handle.partition("@")
-    if what in ("EI", "mu"):
-        return f"link:{loc}"
-    if what == "ks":
-        return f"point:{loc}"
-    if loc in [j.name for j in rig.joints]:
-        return f"joint:{loc}"
-    if loc in [m.name for m in rig.members]:
-        return f"member:{loc}"
-    return loc  # base, tip, sensors
+def _effect_region(rig: Rig, effect: str, location: str) -> str:
+    """The ``where.region`` label of one effect's location (e.g. ``joint:elbow``, ``link:link2``): the
+    registry entry's region kind, else the kind of the part the location names."""
+    kind = get_effect(effect).region
+    if kind:
+        return f"{kind}:{location}"
+    if location in [j.name for j in rig.joints]:
+        return f"joint:{location}"
+    if location in [m.name for m in rig.members]:
+        return f"member:{location}"
+    return location  # base, tip, sensors
 
 
 class _Context:
@@ -245,13 +243,14 @@ def _heldout_prediction(freq: np.ndarray, train: np.ndarray) -> np.ndarray:
     return out
 
 
-def _pose_law_guard(ranking: list[dict]) -> None:
-    """Rank ``joint_stiffness_pose`` below the constant stiffness at its joint unless better held out."""
-    const = {e["location"]: e for e in ranking if e["effect"] == "joint_stiffness"}
+def _refinement_guard(ranking: list[dict]) -> None:
+    """Rank an effect that refines another (registry ``refines``, e.g. ``joint_stiffness_pose`` of
+    ``joint_stiffness``) below that one at the same location unless better held out."""
+    plain = {(e["effect"], e["location"]): e for e in ranking}
     for e in ranking:
-        c = const.get(e["location"])
-        if e["effect"] == "joint_stiffness_pose" and c and \
-                e["heldout_rms_rel_error"] >= c["heldout_rms_rel_error"]:
+        refines = REGISTRY[e["effect"]].refines if e["effect"] in REGISTRY else ""
+        c = plain.get((refines, e["location"]))
+        if c and e["heldout_rms_rel_error"] >= c["heldout_rms_rel_error"]:
             e["score"] = max(e["score"], c["score"] * 1.001)
 
 
@@ -270,7 +269,7 @@ def _where(ctx: _Context, base_err: np.ndarray, base_summary: dict, scatter: flo
     sens = dl[0] / (8 * math.pi**2 * f[0][..., None] * meas.freq_hz[..., None])
     groups: dict[str, list[int]] = {}
     for i, hd in enumerate(ctx.handles):
-        groups.setdefault(_region_label(ctx.rig, hd.name), []).append(i)
+        groups.setdefault(_effect_region(ctx.rig, hd.effect, hd.location), []).append(i)
     scores = region_scores(base_err, sens, groups, weight)
     region = max(scores, key=scores.get) if scores else ""
     out = {"modes": [int(m) for m in modes], "configs": configs, "region": region,
@@ -343,7 +342,7 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
             screened += _triples(ctx, pairs[:TRIPLE_PAIRS], pool, scatter)
             _cross_validate_promising(ctx, screened, scatter)
         ranking = [e for e in screened if "score" in e]
-        _pose_law_guard(ranking)
+        _refinement_guard(ranking)
         ranking.sort(key=lambda e: e["score"])
         result["n_candidates"] = {"fitted": len(screened), "cross_validated": len(ranking)}
     for e in ranking:
@@ -360,10 +359,13 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
     result["holdout"] = {"scheme": scheme, "n_folds": int(len(train) - 1)}
     result["configs"] = list(meas.configs)
     result["predictions"] = _predictions(meas, base_f, best)
-    if best is not None and best["effect"] == "joint_stiffness_pose":
-        joint = rig.joint(best["location"])
-        result["verdict"]["k_Nm_per_rad_per_config"] = {
-            c: pose_stiffness(best["params"], meas.poses[i][joint.angle]) for i, c in enumerate(meas.configs)}
+    per_config = REGISTRY[best["effect"]].per_config if best is not None and best["effect"] in REGISTRY \
+        else None
+    if per_config is not None:
+        values = [per_config(rig, best["location"], best["params"], pose) for pose in meas.poses]
+        for name in values[0] if values else ():
+            result["verdict"][f"{name}_per_config"] = {c: v[name] for c, v in zip(meas.configs, values,
+                                                                                  strict=True)}
     return result
 
 
@@ -465,15 +467,6 @@ def _structured(resid: np.ndarray, scatter: float) -> bool:
         if count * np.sum(means**2) / sigma**2 > chdtri(means.size, 1.0 - STRUCTURE_QUANTILE):
             return True
     return False
-
-
-def _effect_region(rig: Rig, effect: str, location: str) -> str:
-    """The ``where.region`` label of one effect's location (e.g. ``joint:elbow``, ``link:link2``)."""
-    if effect.startswith("link_"):
-        return f"link:{location}"
-    if effect == "grounded_spring":
-        return f"point:{location}"
-    return _region_label(rig, f"x@{location}")
 
 
 def _confirm_region(where: dict, rig: Rig, effect: str, location: str) -> None:
@@ -614,16 +607,6 @@ def _predictions(meas: Measured, base_f: np.ndarray, best: dict | None) -> dict:
     return out
 
 
-def write_diagnosis(result: dict, out_dir: str | Path) -> tuple[Path, Path]:
-    """Write ``diagnosis.json`` and a self-contained ``diagnosis.html`` into ``out_dir``."""
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    pj, ph = out / "diagnosis.json", out / "diagnosis.html"
-    pj.write_text(to_json(result))
-    ph.write_text(render_html(result))
-    return pj, ph
-
-
 def _finite(x: object) -> object:
     """``x`` with every non-finite float (NaN, +-Infinity) replaced by None, recursively."""
     if isinstance(x, dict):
@@ -642,38 +625,3 @@ def _finite(x: object) -> object:
 def to_json(result: dict) -> str:
     """The diagnosis as strict JSON (RFC 8259): no NaN or Infinity; a missing number is ``null``."""
     return json.dumps(_finite(result), indent=2, allow_nan=False)
-
-
-def render_html(result: dict) -> str:
-    """A simple self-contained HTML page of a diagnosis (the report package builds the full report)."""
-    e = html.escape
-    b, v, w = result["baseline"], result["verdict"], result["where"]
-    rows = "".join(
-        f"<tr><td>{i + 1}</td><td>{e(r['effect'])}</td><td>{e(r['location'])}</td>"
-        f"<td>{e(', '.join(f'{k}={x:.4g}' for k, x in r['params'].items()))}</td>"
-        f"<td>{r['fit_rms_rel_error']:.2%}</td><td>{r['heldout_rms_rel_error']:.2%}</td>"
-        f"<td>{r['n_params']}</td><td>{r['score']:.4f}</td></tr>" for i, r in enumerate(result["ranking"]))
-    pred = result.get("predictions", {})
-    prow = ""
-    for c, fm in pred.get("measured_hz", {}).items():
-        for m, f in enumerate(fm):
-            cells = [f"{pred[k][c][m]:.2f}" if k in pred else "" for k in ("baseline_hz", "best_heldout_hz")]
-            prow += (f"<tr><td>{e(c)}</td><td>{m + 1}</td><td>{f:.2f}</td><td>{cells[0]}</td>"
-                     f"<td>{cells[1]}</td></tr>")
-    per_mode = ", ".join(f"mode {k}: {x:.1%}" for k, x in b["per_mode"].items())
-    return f"""<!DOCTYPE html><html><head><meta charset="utf-8"><title>Sim-to-real gap diagnosis</title>
-<style>body{{font-family:sans-serif;max-width:60em;margin:2em auto}}table{{border-collapse:collapse}}
-td,th{{border:1px solid #bbb;padding:2px 6px;text-align:right}}</style></head><body>
-<h1>Sim-to-real gap diagnosis</h1>
-<h2>Verdict</h2><p><b>{e(v['effect'])}</b> at <b>{e(v.get('location', ''))}</b>; explained: {v['explained']}.
-{e(v.get('summary', ''))}</p>
-<h2>Baseline gap</h2><p>RMS {b['rms_rel_error']:.2%}, max {b['max_rel_error']:.2%} ({e(per_mode)}).</p>
-<h2>Where</h2><p>Modes {e(str(w['modes']))}, configurations {e(', '.join(w['configs']))}; region
-{e(w['region'])}.</p>
-<h2>Ranking</h2><p>Held out: {e(result.get('holdout', {}).get('scheme', ''))}; scatter
-{result.get('scatter', 0):.2%}.</p>
-<table><tr><th>#</th><th>effect</th><th>location</th><th>params</th><th>fit RMS</th><th>held-out RMS</th>
-<th>n</th><th>score</th></tr>{rows}</table>
-<h2>Frequencies [Hz]</h2><table><tr><th>config</th><th>mode</th><th>measured</th><th>baseline</th>
-<th>best (held out)</th></tr>{prow}</table></body></html>
-"""

@@ -1,12 +1,13 @@
 """Parameter-linear FE models for the gap diagnosis: K(h) = K0 + sum h_i K_i, M(h) = M0 + sum h_i M_i.
 
-Every candidate effect of models/effects.py enters the frame model linearly through a few *handles*
-(a joint spring k, an added mass m or inertia J, a grounded spring k, a link's stiffness or mass scale).
-All effect slots are built once into one *super rig* whose DOF layout holds them all (spring joints,
-a base spring, zero masses and zero springs at every candidate point), so each handle's matrices are
-exact differences in one layout: rank-one rows from ``FrameSystem.observe``/``joint_rotation`` for springs
-and point masses, one extra assembly per link for the link scales.  A rigid joint or clamped base is the
-same layout with a stiff spring (``RIGID_FACTOR`` EI/L, relative frequency error < 1e-6).
+Every effect of the registry (models/effects.py) enters the frame model linearly through a few
+*handles* (a joint spring k, an added mass m or inertia J, a grounded spring k, a link's stiffness or mass
+scale), which its entry lists with their matrices.  All effect slots are built once into one *super rig*
+whose DOF layout holds them all (spring joints, a base spring, zero masses and zero springs at every
+candidate point), so each handle's matrices are exact differences in one layout: rank-deficient rows from
+``FrameSystem.observe``/``joint_rotation`` for springs and point masses, one extra assembly per link for
+the link scales.  A rigid joint or clamped base is the same layout with a stiff spring
+(``models.effects.RIGID_FACTOR`` EI/L, relative frequency error < 1e-6).
 
 Modes are then computed on a small Ritz basis (Bathe 2014 §10.3.3; load-dependent Ritz vectors, Wilson,
 Yuan & Dickens 1982): the nominal modes plus, for each handle, its static correction ``(K+sM)^-1 R^T`` and
@@ -20,99 +21,37 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve, eigh
 
-from flexmodal.models.effects import effect_locations
+from flexmodal.compare.errors import CompareError
+from flexmodal.models.effects import REGISTRY, Handle
 from flexmodal.models.frame import assemble
-from flexmodal.models.rig import Mass, Rig, Spring
+from flexmodal.models.rig import Rig
 
-RIGID_FACTOR = 1e7
-"""A rigid joint or clamp is a spring of ``RIGID_FACTOR * EI / L`` in the super rig's layout."""
 EXTRA_MODES = 4
 """Nominal modes kept in the Ritz basis beyond the measured ones."""
 
 
-@dataclass(frozen=True)
-class Handle:
-    """One linear parameter of the frame model: ``kind`` is ``K`` (stiffness) or ``M`` (mass)."""
-
-    name: str          # e.g. "k@elbow", "m@tip", "EI@link2"
-    kind: str          # "K" or "M"
-    nominal: float     # value in the nominal rig (SI; link scales are multipliers, nominal 1)
-
-
-def _stiff(rig: Rig, link_name: str) -> float:
-    link = rig.link(link_name)
-    return RIGID_FACTOR * link.section.EI_Nm2 * link.stiffness_scale / link.length_m
-
-
 def handles_for(rig: Rig) -> list[Handle]:
-    """All handles the effects of models/effects.py can move on ``rig``."""
-    out = []
-    for name in effect_locations(rig, "joint_stiffness"):
-        j = rig.joint(name)
-        k = float(j.k_Nm_per_rad) if j.kind == "spring" else _stiff(rig, j.child)
-        out.append(Handle(f"k@{name}", "K", k))
-    for loc in effect_locations(rig, "joint_mass") + ["tip"]:
-        out += [Handle(f"m@{loc}", "M", 0.0), Handle(f"J@{loc}", "M", 0.0)]
-    if effect_locations(rig, "base_stiffness"):
-        b = rig.base
-        nominal = {"clamped": _stiff(rig, rig.links[0].name), "pinned": 0.0}.get(b.support,
-                                                                                 b.k_Nm_per_rad or 0.0)
-        out.append(Handle("k@base", "K", float(nominal)))
-    out += [Handle(f"k@{m}", "K", rig.members[[x.name for x in rig.members].index(m)].end_k_Nm_per_rad)
-            for m in effect_locations(rig, "end_restraint")]
-    if rig.sensors:
-        out.append(Handle("m@sensors", "M", 0.0))
-    out += [Handle(f"ks@{p}", "K", 0.0) for p in effect_locations(rig, "grounded_spring")]
-    out += [Handle(f"EI@{lk.name}", "K", 1.0) for lk in rig.links]
-    out += [Handle(f"mu@{lk.name}", "M", 1.0) for lk in rig.links]
-    return out
+    """All handles the registered effects (models/effects.py) can move on ``rig``, in registry order; a
+    handle two effects share (e.g. ``k@<joint>``) is listed once."""
+    out: dict[str, Handle] = {}
+    for effect in REGISTRY.values():
+        for h in effect.handles(rig):
+            out.setdefault(h.name, h)
+    return list(out.values())
 
 
 def super_rig(rig: Rig) -> Rig:
-    """The rig with every effect slot present at zero: spring joints/base (k = 0), zero masses/springs."""
-    joints = tuple(replace(j, kind="spring", k_Nm_per_rad=0.0) if j.kind != "pin" else j for j in rig.joints)
-    base = replace(rig.base, support="spring", k_Nm_per_rad=0.0) if effect_locations(rig, "base_stiffness") \
-        else rig.base
-    masses = tuple(Mass(rig.point_of(loc) if loc != "base" else rig.point_of(f"{rig.links[0].name}@0"), 0.0,
-                        0.0, name=f"slot@{loc}") for loc in effect_locations(rig, "joint_mass") + ["tip"])
-    springs = tuple(Spring(rig.point_of(p), 0.0, "transverse", name=f"slot@{p}")
-                    for p in effect_locations(rig, "grounded_spring"))
-    members = tuple(replace(m, end_k_Nm_per_rad=0.0) for m in rig.members)
-    return replace(rig, joints=joints, base=base, masses=rig.masses + masses, springs=rig.springs + springs,
-                   members=members)
-
-
-def _rows(system, rig: Rig, handle: Handle) -> np.ndarray | None:
-    """Rows R with K_h (or M_h) = R^T R for rank-deficient handles; None for link scales."""
-    what, _, loc = handle.name.partition("@")
-    if what == "k" and loc == "base":
-        return system.observe(f"{rig.links[0].name}@0", "rotation")[None]
-    if what == "k" and loc in [j.name for j in rig.joints]:
-        return system.joint_rotation(loc)[None]
-    if what == "k":  # member end restraint: each pinned end's rotation relative to its host
-        m = rig.members[[x.name for x in rig.members].index(loc)]
-        ends = {"pin-pin": (0, 1), "clamped-pin": (1,), "clamped-clamped": ()}[m.ends]
-        rows = []
-        for e in ends:
-            host = (m.start, m.end)[e]
-            own = system.observe(f"{m.name}@{e}", "rotation")
-            rows.append(own - (system.observe(str(host), "rotation") if host.link else 0.0))
-        return np.array(rows).reshape(-1, system.n_dof)
-    if what == "ks":
-        return system.observe(loc, "transverse")[None]
-    if what in ("m", "J"):
-        at = f"{rig.links[0].name}@0" if loc == "base" else loc
-        if loc == "sensors":
-            return np.array([system.observe(str(s.at), q) for s in rig.sensors for q in ("x", "y")])
-        if what == "m":
-            return np.array([system.observe(at, "x"), system.observe(at, "y")])
-        return system.observe(at, "rotation")[None]
-    return None
+    """The rig with every effect slot present at its handles' ``slot`` values (spring joints/base with
+    k = 0, zero masses and springs, link scales as they are)."""
+    srig = rig
+    for effect in REGISTRY.values():
+        srig = effect.slots(rig, srig)
+    return srig
 
 
 @dataclass(frozen=True)
@@ -132,38 +71,41 @@ class PoseBasis:
     groups: tuple[tuple[int, ...], ...]
 
 
-def _handle_matrices(sys0, sys2, rig: Rig, handles: Sequence[Handle]) -> list[tuple[np.ndarray, np.ndarray]]:
-    """(dK/dh, dM/dh) in the full DOF space; rank-one parts as R^T R, link scales from the x2 assembly."""
+def _handle_matrices(sys0, srig: Rig, pose: Mapping[str, float], handles: Sequence[Handle]
+                     ) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[np.ndarray | None]]:
+    """(dK/dh, dM/dh) in the full DOF space and the rows R of each handle (None for a unit change):
+    rank-deficient parts as R^T R, the others as the assembly after the effect's unit change minus the
+    super rig's (one assembly per distinct change, e.g. one per link for its stiffness and mass scales)."""
     n = sys0.n_dof
-    out = []
+    zero = np.zeros((n, n))
+    changed: dict[tuple, object] = {}
+    mats, all_rows = [], []
     for h in handles:
-        what, _, loc = h.name.partition("@")
-        rows = _rows(sys0, rig, h)
+        effect = REGISTRY[h.effect]
+        rows = effect.rows(sys0, srig, h)
+        all_rows.append(rows)
         if rows is not None:
             G = rows.T @ rows
-            out.append((G, np.zeros((n, n))) if h.kind == "K" else (np.zeros((n, n)), G))
-        else:
-            s2 = sys2[loc]
-            zero = np.zeros((n, n))
-            out.append((s2.K - sys0.K, zero) if what == "EI" else (zero, s2.M - sys0.M))
-    return out
+            mats.append((G, zero) if h.kind == "K" else (zero, G))
+            continue
+        if effect.unit_change is None:
+            raise CompareError(f"effect {h.effect!r}: handle {h.name!r} has neither rows nor a unit change")
+        key = (effect.unit_change, h.location)
+        if key not in changed:
+            changed[key] = assemble(effect.unit_change(srig, h.location), pose)
+        s2 = changed[key]
+        mats.append((s2.K - sys0.K, zero) if h.kind == "K" else (zero, s2.M - sys0.M))
+    return mats, all_rows
 
 
 def pose_basis(rig: Rig, handles: Sequence[Handle], pose: Mapping[str, float], n_measured: int) -> PoseBasis:
     """Assemble the super rig at ``pose`` and project the nominal model and every handle onto a Ritz basis."""
     srig = super_rig(rig)
     sys0 = assemble(srig, pose)
-    def doubled(name: str) -> Rig:
-        return replace(srig, links=tuple(
-            replace(x, stiffness_scale=2 * x.stiffness_scale, mass_scale=2 * x.mass_scale) if x.name == name
-            else x for x in srig.links))
-
-    sys2 = {lk.name: assemble(doubled(lk.name), pose) for lk in rig.links}
-    mats = _handle_matrices(sys0, sys2, srig, handles)
-    # the super rig is assembled with every handle at 0 except the link scales (at 1)
-    at = [1.0 if h.name.startswith(("EI@", "mu@")) else 0.0 for h in handles]
-    K = sys0.K + sum((h.nominal - a) * dK for h, a, (dK, _) in zip(handles, at, mats, strict=True))
-    M = sys0.M + sum((h.nominal - a) * dM for h, a, (_, dM) in zip(handles, at, mats, strict=True))
+    mats, all_rows = _handle_matrices(sys0, srig, pose, handles)
+    # the super rig is assembled with every handle at its slot value
+    K = sys0.K + sum((h.nominal - h.slot) * dK for h, (dK, _) in zip(handles, mats, strict=True))
+    M = sys0.M + sum((h.nominal - h.slot) * dM for h, (_, dM) in zip(handles, mats, strict=True))
     n = K.shape[0]
     n_modes = min(n, n_measured + EXTRA_MODES)
     shift = 1e-6 * float(np.median(np.diag(K) / np.maximum(np.diag(M), 1e-300)))
@@ -172,8 +114,7 @@ def pose_basis(rig: Rig, handles: Sequence[Handle], pose: Mapping[str, float], n
     fac = cho_factor(K + shift * M)
     cols, groups = [phi], []
     start = n_modes
-    for h, (dK, dM) in zip(handles, mats, strict=True):
-        rows = _rows(sys0, srig, h)
+    for h, (dK, dM), rows in zip(handles, mats, all_rows, strict=True):
         load = rows.T if rows is not None else (dK if h.kind == "K" else dM) @ phi[:, :n_measured]
         c1 = cho_solve(fac, load)
         block = _orthonormal(np.hstack([c1, cho_solve(fac, M @ c1)]), phi, M)

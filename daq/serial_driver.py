@@ -85,9 +85,12 @@ class SerialDriver(Driver):
                          if d.framing == "csv" else CustomDecoder(d.frame))
 
     def open(self) -> None:
+        """Open the port exclusively (POSIX: an advisory lock): a second reader of the same port, e.g.
+        another session, or a reconnect through a stale path that now names another device's pty, fails
+        to open (and retries) instead of silently taking part of the stream."""
         try:
             self._port = serial.serial_for_url(self.device.port, baudrate=self.device.baud,
-                                               timeout=READ_TIMEOUT_S)
+                                               timeout=READ_TIMEOUT_S, exclusive=True)
         except (serial.SerialException, OSError) as exc:
             raise DeviceLost(f"cannot open {self.device.port}: {exc}") from exc
         self._new_decoder()  # a partial frame from before a reconnect is garbage

@@ -108,9 +108,11 @@ def _lowest_peak(y: np.ndarray, sample_rate_hz: float, refs: Sequence[int] | Non
 
 
 def output_only_results(samples: np.ndarray, sample_rate_hz: float, names: Sequence[str],
-                        kinds: Sequence[str], *, where: str = "record") -> OmaResults:
-    """FDD and SSI-cov (default options of :func:`identify_output_only`) of a record [n_samples,
-    n_channels] sampled at ``sample_rate_hz`` [Hz], each method's failure kept as its message, and the
+                        kinds: Sequence[str], *, fmin: float | None = None, fmax: float | None = None,
+                        where: str = "record") -> OmaResults:
+    """FDD and SSI-cov (:func:`identify_output_only` with the band ``fmin``..``fmax`` [Hz], default the
+    whole record, and its other options at their defaults) of a record [n_samples, n_channels] sampled
+    at ``sample_rate_hz`` [Hz], each method's failure kept as its message, and the
     cross-spectral matrix under SSI's stabilisation diagram (Welch, Hann, 50 % overlap, segments of
     the power of two nearest 1/8 of the record, at most :data:`SPECTRUM_MAX_NFFT` samples)."""
     outputs = tuple(names[j] for j in output_channels(kinds))
@@ -118,7 +120,7 @@ def output_only_results(samples: np.ndarray, sample_rate_hz: float, names: Seque
     for method in ("fdd", "ssi"):   # a loop over the two methods
         try:
             found[method], outputs = identify_output_only(samples, sample_rate_hz, names, kinds,
-                                                          method=method, where=where)
+                                                          method=method, fmin=fmin, fmax=fmax, where=where)
         except ModalError as exc:
             found[method] = str(exc)
     fdd_res, ssi_res = found["fdd"], found["ssi"]

@@ -244,7 +244,22 @@ def _diagnosis_view(d: Mapping) -> dict:
                      "params": ", ".join(f"{k} = {v:.4g}" for k, v in r.get("params", {}).items()),
                      "fit": _pct(r.get("fit_rms_rel_error")), "heldout": _pct(r.get("heldout_rms_rel_error")),
                      "n_params": r.get("n_params", "")} for r in d.get("ranking", [])[:8]],
+        "holdout": str(d.get("holdout", {}).get("scheme", "")), "scatter": _pct(d.get("scatter")),
+        "frequencies": _diagnosis_frequencies(d.get("predictions", {})),
     }
+
+
+def _diagnosis_frequencies(pred: Mapping) -> list[dict]:
+    """Rows (config, mode, measured, nominal model, best candidate held out) [Hz] of the diagnosis'
+    ``predictions`` (docs/formats.md); a missing value is an empty cell."""
+    def hz(key: str, config: str, mode: int) -> str:
+        values = (pred.get(key) or {}).get(config) or []
+        v = values[mode] if mode < len(values) else None
+        return f"{v:.2f}" if v is not None else ""
+
+    return [{"config": c, "mode": m + 1, "measured": hz("measured_hz", c, m),
+             "baseline": hz("baseline_hz", c, m), "best": hz("best_heldout_hz", c, m)}
+            for c, fm in pred.get("measured_hz", {}).items() for m in range(len(fm))]
 
 
 def _measured_rows(measured: ModalTable) -> list[dict]:

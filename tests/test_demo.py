@@ -95,3 +95,16 @@ def test_demo_report_shows_the_operational_runs_fdd_and_ssi(demo_dir: tuple[Path
     for what in ("FDD, singular values of the output cross-spectral", "SSI-cov stabilisation diagram"):
         assert re.search(r'<img src="data:image/png;base64,[\w+/=]+" alt="operational\.h5::theta30: '
                          + re.escape(what), text), what
+
+
+def test_demo_report_lists_the_ssi_modes_the_demo_prints(demo_dir: tuple[Path, float, str]) -> None:
+    """The demo and its report identify the operational run with the same band (api.report's oma_fmin,
+    oma_fmax): the SSI modes in the report's caption are the ones printed, and no other."""
+    out, _, stdout = demo_dir
+    line = re.search(r"output-only \(SSI\) on the arm in operation at theta30: ([^;]*) Hz;", stdout).group(1)
+    printed = [float(f) for f in line.split(", ")]
+    caption = re.search(r"operational\.h5::theta30: SSI-cov stabilisation diagram, orders \d+-\d+ [^;]*; "
+                        r"modes ([^(]*) \(unscaled", (out / "report.html").read_text()).group(1)
+    listed = [float(f) for f in re.findall(r"([\d.]+) Hz", caption)]
+    assert len(printed) == 3 and len(listed) == len(printed), (printed, listed)
+    assert np.allclose(listed, printed, rtol=1e-3)   # 4 significant digits vs 2 decimals

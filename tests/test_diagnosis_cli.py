@@ -42,7 +42,14 @@ def test_writes_contract_json_and_html(measured, capsys):
                               "n_params", "score"}
     assert [e["score"] for e in res["ranking"]] == sorted(e["score"] for e in res["ranking"])
     assert "joint_mass+joint_stiffness" in {e["effect"] for e in res["ranking"]}   # alphabetical
-    assert (tmp_path / "out" / "diagnosis.html").read_text().startswith("<!DOCTYPE html>")
+    page = (tmp_path / "out" / "diagnosis.html").read_text()
+    assert page.startswith("<!DOCTYPE html>")       # the report's diagnosis section alone (one renderer)
+    v, pred = res["verdict"], res["predictions"]
+    assert f"{v['effect']} at {v['location']}" in page and '<h2 id="diagnosis">' in page
+    first = next(iter(pred["measured_hz"]))
+    assert "Natural frequencies [Hz]" in page and page.count("data:image/png;base64,") == 1   # the gap plot
+    for key in ("measured_hz", "baseline_hz", "best_heldout_hz"):
+        assert f'<td class="num">{pred[key][first][0]:.2f}</td>' in page
     assert "diagnosis.json" in capsys.readouterr().out
 
 

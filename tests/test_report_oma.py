@@ -3,6 +3,10 @@ computes, and their place in the HTML report of an operational run (``api.report
 
 from __future__ import annotations
 
+import re
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 import scipy.signal
@@ -13,6 +17,7 @@ from flexmodal.fixtures.shear_frame import shear_frame_record
 from flexmodal.modal.fdd import cross_spectra, fdd
 from flexmodal.modal.oma import output_only_results
 from flexmodal.modal.ssi import ssi_cov
+from flexmodal.reports.errors import ReportError
 from flexmodal.reports.oma import oma_figures, plot_fdd, plot_ssi_stabilisation
 
 MASS = [3000.0, 2800.0, 2600.0, 2400.0, 2000.0]
@@ -94,3 +99,41 @@ def test_a_record_without_modes_gives_captions_not_figures():
     figs = oma_figures(oma, "noise")
     assert [fig for fig, _ in figs] == [None, None]
     assert "no FDD" in figs[0][1] and "no SSI" in figs[1][1]
+
+
+def _operational_file(path, samples) -> None:
+    channels = [Channel(name, "acceleration", "m/s^2", location=f"floor{k + 1}")
+                for k, name in enumerate(NAMES)]
+    with RunWriter(path, "op", sample_rate_hz=256.0, channels=channels, excitation="operational",
+                   pose={}) as w:
+        w.append(samples)
+
+
+def test_report_identifies_output_only_runs_in_the_band_it_is_given(tmp_path, frame):
+    """oma_fmin/oma_fmax reach both methods: the frame's three modes inside 15-49 Hz, no others."""
+    _operational_file(tmp_path / "op.h5", frame.samples)
+    html = api.report(tmp_path / "r.html", runs=[tmp_path / "op.h5"], oma_fmin=15.0,
+                      oma_fmax=49.0).read_text()
+    inside = frame.freq_hz[(frame.freq_hz > 15.0) & (frame.freq_hz < 49.0)]   # 23.2, 36.1, 46.1 Hz
+    for caption in (r"SSI-cov stabilisation diagram, orders \d+-\d+ .*?; modes ([^(]*) \(unscaled",
+                    r"FDD, singular values of the output cross-spectral matrix [^;]*; peaks ([^\"<]*)"):
+        listed = [float(f) for f in re.findall(r"([\d.]+) Hz", re.search(caption, html).group(1))]
+        assert np.allclose(listed, inside, rtol=0.01), (caption, listed)
+
+
+@pytest.mark.parametrize("band,why", [((30.0, 20.0), "must be below"), ((-1.0, None), "positive number"),
+                                      ((None, float("nan")), "positive number")])
+def test_report_refuses_a_bad_output_only_band(tmp_path, band, why):
+    _operational_file(tmp_path / "op.h5", np.zeros((16, 5)))
+    with pytest.raises(ReportError, match=why):
+        api.report(tmp_path / "r.html", runs=[tmp_path / "op.h5"], oma_fmin=band[0], oma_fmax=band[1])
+    assert not (tmp_path / "r.html").exists()
+
+
+def test_report_cli_passes_the_band_and_refuses_a_bad_one(tmp_path):
+    _operational_file(tmp_path / "op.h5", np.zeros((16, 5)))
+    done = subprocess.run([sys.executable, "-m", "flexmodal", "report", str(tmp_path / "op.h5"), "--oma-fmin",
+                           "50", "--oma-fmax", "40", "--out", str(tmp_path / "r.html")], capture_output=True,
+                          text=True, timeout=60)
+    assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
+    assert "oma_fmin = 50 Hz must be below oma_fmax = 40 Hz" in done.stderr
