@@ -140,9 +140,6 @@ def _identify(args: argparse.Namespace) -> int:
     defaults = Thresholds()
     limits = Thresholds(defaults.need_min if args.need_min is None else args.need_min,
                         defaults.mpc_min if args.mpc_min is None else args.mpc_min)
-    if not 0 <= limits.mpc_min <= 1 or limits.need_min < 0:
-        raise ModalError(f"--mpc-min {limits.mpc_min:g} must lie in 0..1 and --need-min "
-                         f"{limits.need_min:g} be >= 0")
     refs = args.references.split(",") if args.references else None
     result = identify(args.input, method=args.method, fmin=args.fmin, fmax=args.fmax,
                       max_order=args.max_order, run_id=args.run, poles_hz=poles, thresholds=limits,

@@ -1,4 +1,4 @@
-"""Shape of a rig TOML document (CONTRACT §4) before its values are read.
+"""Shape of a rig TOML document (docs/formats.md, rig TOML) before its values are read.
 
 :func:`flexmodal.models.rig.parse_rig` reads values field by field; this module first checks the
 containers and the fields whose wrong type would otherwise escape as a Python exception or pass

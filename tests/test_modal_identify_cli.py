@@ -68,9 +68,9 @@ def test_exp_window_decay_removes_the_damping_a_window_added_to_external_frfs(tm
 @pytest.mark.parametrize("args, message", [
     (["--poles", "12,abc"], "--poles '12,abc': give frequencies in Hz"),
     (["--poles", "80"], "no stable pole within 5 % of 80 Hz"),
-    (["--mpc-min", "2"], "--mpc-min 2 must lie in 0..1"),
-    (["--exp-window-decay", "-1"], "decay -1 1/s must be >= 0"),
-    (["--max-order", "1"], "--max-order 1: must be 2 or more"),
+    (["--mpc-min", "2"], "argument --mpc-min: expected a finite fraction >= 0 and <= 1, got '2'"),
+    (["--exp-window-decay", "-1"], "argument --exp-window-decay: expected a finite number >= 0, got '-1'"),
+    (["--max-order", "1"], "argument --max-order: expected a model order >= 2 and <= 400, got '1'"),
 ])
 def test_bad_identify_options_give_one_line_and_exit_2(tmp_path, capsys, args, message):
     uff = _uff(tmp_path / "frf.uff")
