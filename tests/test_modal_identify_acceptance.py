@@ -171,17 +171,13 @@ def test_a_resonance_split_in_two_by_leakage_is_merged_back_into_one_mode():
     """Welch H1 at 2.5-4 lines per half-power band (Hann leakage) with little noise: the resonances
     are not single poles any more and high orders fit each with a close pair of poles of one shape;
     the pair is merged (with a warning) and the modes sit within 0.05 % of the truth."""
-    from flexmodal.fixtures.modal_sim import modal_response
+    from modal_cases import FOUR_MODES_HZ, four_mode_random_record
+
     from flexmodal.modal.compute import frf_of_record
 
-    fs = 1024.0
-    fn, zeta = np.array([31.0, 77.0, 140.0, 230.0]), np.array([0.02, 0.012, 0.01, 0.015])
-    phi = np.array([[1.0, 0.7, 0.4, -0.5], [0.5, -0.8, 0.9, 0.6], [0.3, 0.9, -0.6, 0.8]])
-    rng = np.random.default_rng(3)
-    force = rng.standard_normal((int(300 * fs), 1))
-    y = modal_response(force, fs, fn, zeta, phi, phi[[0]])
-    y += 0.01 * y.std(axis=0) * rng.standard_normal(y.shape)
-    res = frf_of_record(np.column_stack([force, y]), fs, ["f", "a1", "a2", "a3"],
+    fs, fn = 1024.0, FOUR_MODES_HZ
+    record = four_mode_random_record(np.random.default_rng(3), fs)
+    res = frf_of_record(record, fs, ["f", "a1", "a2", "a3"],
                         ["force"] + ["acceleration"] * 3, nfft=2048)
     modes = identify(res.freq_hz, res.H, fmin=10, fmax=400)
     assert modes.freq_hz.size == 4, modes.freq_hz

@@ -6,6 +6,7 @@ alone, and the modes of the model.  A random run with 1 % lost frames identifies
 from __future__ import annotations
 
 import numpy as np
+from modal_cases import four_mode_random_record
 
 from flexmodal.daq.store import Channel, Event, RunWriter, read_run
 from flexmodal.fixtures.modal_sim import modal_response
@@ -83,13 +84,8 @@ def test_a_random_run_with_one_percent_lost_frames_identifies_like_the_clean_run
     the Welch segments touching them are skipped (modal.spectra) and the modes stay within 0.1 % of
     the clean run's."""
     fs, frame = 1024.0, 32
-    fn, zeta = np.array([31.0, 77.0, 140.0, 230.0]), np.array([0.02, 0.012, 0.01, 0.015])
-    phi = np.array([[1.0, 0.7, 0.4, -0.5], [0.5, -0.8, 0.9, 0.6], [0.3, 0.9, -0.6, 0.8]])
     rng = np.random.default_rng(3)
-    force = rng.standard_normal((int(300 * fs), 1))
-    y = modal_response(force, fs, fn, zeta, phi, phi[[0]])
-    y += 0.01 * y.std(axis=0) * rng.standard_normal(y.shape)
-    clean = np.column_stack([force, y])
+    clean = four_mode_random_record(rng, fs)
     lost = np.flatnonzero(rng.random(clean.shape[0] // frame) < 0.01)
     gappy = clean.copy()
     gappy[(lost[:, None] * frame + np.arange(frame)).ravel()] = np.nan
