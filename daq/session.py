@@ -24,6 +24,7 @@ from flexmodal.daq.devices import driver_class, protocols
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.store import CHANNEL_KINDS, EXCITATIONS, Channel
 from flexmodal.valid_text import read_toml
+from flexmodal.valid_toml import Fields
 
 # Whole-number fields whose range every protocol shares (a TCP port given as a number, the Modbus unit id).
 INT_RANGES = {"baud": (1, 100_000_000), "bitrate": (1, 100_000_000), "device_id": (0, 247),
@@ -164,44 +165,14 @@ def unit_factor(from_unit: str, to_unit: str) -> float | None:
     return 1.0 if a == b else UNIT_FACTORS.get((a, b))
 
 
-class Table:
-    """Typed access to one TOML table with errors naming ``where`` and the key; ``base``: the folder
+class Table(Fields):
+    """Typed access to one table of a session config (:class:`flexmodal.valid_toml.Fields` with
+    ``DaqError``, ``key = value`` wording and the shared whole-number ranges); ``base``: the folder
     relative paths are taken from (the session file's)."""
 
-    def __init__(self, doc: dict, where: str, base: Path = Path()) -> None:
-        if not isinstance(doc, dict):
-            raise DaqError(f"{where}: expected a table")
-        self.doc, self.where, self.base = doc, where, base
-
-    def get(self, key: str, kind: type | tuple, default: Any = ..., *, check=None, why: str = ""):
-        if key not in self.doc:
-            if default is ...:
-                raise DaqError(f"{self.where}: missing field {key!r}")
-            return default
-        value = self.doc[key]
-        if kind is float and isinstance(value, int) and not isinstance(value, bool):
-            value = float(value)
-        if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
-            names = kind.__name__ if isinstance(kind, type) else "/".join(k.__name__ for k in kind)
-            raise DaqError(f"{self.where}: {key} = {value!r} is not a {names}")
-        if isinstance(value, float) and not math.isfinite(value):
-            raise DaqError(f"{self.where}: {key} = {value!r} is not a finite number")
-        lo, hi = INT_RANGES.get(key, (None, None)) if isinstance(value, int) else (None, None)
-        if (lo is not None and value < lo) or (hi is not None and value > hi):
-            raise DaqError(f"{self.where}: {key} = {value!r} is out of range {lo}..{hi}")
-        if check is not None and not check(value):
-            raise DaqError(f"{self.where}: {key} = {value!r} {why}")
-        return value
-
-    def choice(self, key: str, options: tuple[str, ...], default: Any = ...) -> str:
-        return self.get(key, str, default, check=lambda v: v in options,
-                        why=f"is not one of {', '.join(options)}")
-
-    def reject_unknown(self, known: set[str]) -> None:
-        """Refuse fields not in ``known``."""
-        extra = sorted(set(self.doc) - known)
-        if extra:
-            raise DaqError(f"{self.where}: unknown field {extra[0]!r}")
+    def __init__(self, doc: Any, where: str, base: Path = Path()) -> None:
+        super().__init__(doc, where, DaqError, ranges=INT_RANGES)
+        self.base = base
 
     def port(self, key: str) -> str:
         """A port path that must exist (or a URL such as loop://, or the simulator placeholder)."""
@@ -246,15 +217,13 @@ def _channel(doc: dict, where: str, devices: dict[str, Device]) -> ChannelMap:
                       "location", "direction", "device", "source", "full_scale", "counts_per_rev"})
     kind = t.choice("kind", CHANNEL_KINDS)
     unit = t.get("unit", str)
-    sensitivity = t.get("sensitivity", float, 1.0, check=lambda v: v != 0 and math.isfinite(v),
-                        why="must be finite and non-zero")
+    sensitivity = t.get("sensitivity", float, 1.0, check=bool, why="must be finite and non-zero")
     sens_unit = t.get("sensitivity_unit", str, "")
     if "counts_per_rev" in t.doc:  # an encoder's resolution: counts -> angle in `unit` (deg or rad)
         if kind != "encoder" or "sensitivity" in t.doc or unit not in ("deg", "rad"):
             raise DaqError(f"{where}: counts_per_rev is for kind = \"encoder\" with unit deg or rad and no "
                            "sensitivity")
-        sensitivity = t.get("counts_per_rev", float, check=lambda v: v > 0 and math.isfinite(v),
-                            why="must be > 0")
+        sensitivity = t.number("counts_per_rev", lo=0, lo_open=True)
         sens_unit = "counts/rev"
     elif "sensitivity" in t.doc and not sens_unit:
         raise DaqError(f"{where}: sensitivity {sensitivity} has no sensitivity_unit (e.g. \"mV/g\")")
@@ -280,7 +249,7 @@ def _channel(doc: dict, where: str, devices: dict[str, Device]) -> ChannelMap:
         Channel(name, kind, unit, sensitivity, sens_unit, t.get("location", str, ""),
                 t.get("direction", str, "")),
         device, source, scale=t.get("scale", float, 1.0), offset=t.get("offset", float, 0.0), factor=factor,
-        full_scale=t.get("full_scale", float, math.inf, check=lambda v: v > 0, why="must be > 0"))
+        full_scale=t.number("full_scale", math.inf, lo=0, lo_open=True))
 
 
 def _simulator(doc: dict, where: str, base: Path) -> Simulator:
@@ -289,30 +258,25 @@ def _simulator(doc: dict, where: str, base: Path) -> Simulator:
     s.reject_unknown({"protocol", "rig", "test", "seed", "pose", "corrupt_rate", "drop_at_s", "drop_s",
                       "disconnect_after_s", "disconnect_s", "scans_per_frame", "format", "fault_log",
                       "effects", "double_hit_at_s", "overload_at_s"})
-    seconds = {"check": lambda v: 0 <= v <= 86400, "why": "must be in [0, 86400] s"}
-    pose = s.get("pose", dict, {})
-    for k, v in pose.items():
-        if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
-            raise DaqError(f"{where}: pose.{k} = {v!r} is not a number")
+    seconds = {"lo": 0, "hi": 86400, "unit": "s"}
     log = s.get("fault_log", str, "", check=lambda v: v == Path(v).name and v not in (".", ".."),
                 why="must be a plain file name (it is written in the run file's folder)")
     return Simulator(
         protocol=s.choice("protocol", protocols()), rig=s.file("rig", "rig file") if "rig" in doc else "",
         test=s.choice("test", ("impact", "random", "sweep", "operational"), "impact"),
         seed=s.get("seed", int, 0, check=lambda v: 0 <= v < 2**32, why="must be in [0, 2**32)"),
-        pose={k: float(v) for k, v in pose.items()},
-        corrupt_rate=s.get("corrupt_rate", float, 0.0, check=lambda v: 0 <= v < 1, why="must be in [0, 1)"),
-        drop_at_s=s.get("drop_at_s", float, None, **seconds), drop_s=s.get("drop_s", float, 0.2, **seconds),
-        disconnect_after_s=s.get("disconnect_after_s", float, None, **seconds),
-        disconnect_s=s.get("disconnect_s", float, 0.5, **seconds),
+        pose=s.numbers("pose"), corrupt_rate=s.number("corrupt_rate", 0.0, lo=0, hi=1, hi_open=True),
+        drop_at_s=s.number("drop_at_s", None, **seconds), drop_s=s.number("drop_s", 0.2, **seconds),
+        disconnect_after_s=s.number("disconnect_after_s", None, **seconds),
+        disconnect_s=s.number("disconnect_s", 0.5, **seconds),
         scans_per_frame=s.get("scans_per_frame", int, 32, check=lambda v: 1 <= v <= 4096,
                               why="must be in 1..4096"),
         format=s.choice("format", ("int16", "int32", "float32"), "int16"), fault_log=log,
         effects=tuple(s.get("effects", list, [], check=lambda v: all(
             isinstance(e, str) and re.fullmatch(EFFECT_PATTERN, e) for e in v),
             why="must be a list of \"EFFECT@LOCATION:PARAM=NUMBER,...\"")),
-        double_hit_at_s=s.get("double_hit_at_s", float, None, **seconds),
-        overload_at_s=s.get("overload_at_s", float, None, **seconds))
+        double_hit_at_s=s.number("double_hit_at_s", None, **seconds),
+        overload_at_s=s.number("overload_at_s", None, **seconds))
 
 
 def parse_session(doc: dict, source: Path) -> Session:
@@ -322,7 +286,7 @@ def parse_session(doc: dict, source: Path) -> Session:
     t.reject_unknown({"sample_rate_hz", "duration_s", "excitation", "run_id", "notes", "pose", "pose_from",
                       "trigger", "simulator", "device", "channel", "reconnect_timeout_s",
                       "continue_on_device_loss"})
-    rate = t.get("sample_rate_hz", float, check=lambda v: 0 < v < 1e7, why="must be in (0, 1e7) Hz")
+    rate = t.number("sample_rate_hz", lo=0, hi=1e7, lo_open=True, hi_open=True, unit="Hz")
     base = source.resolve().parent
     sim = _simulator(doc["simulator"], f"{where}: simulator", base) if "simulator" in doc else None
     dev_docs = t.get("device", list, check=bool, why="must list at least one [[device]]")
@@ -352,16 +316,12 @@ def parse_session(doc: dict, source: Path) -> Session:
         trigger = Trigger(g.get("channel", str, check=lambda v: v in names, why="is not a channel"),
                           g.get("level", float), g.choice("slope", ("rising", "falling"), "rising"),
                           g.get("pretrigger_samples", int, 0, check=lambda v: v >= 0, why="must be >= 0"),
-                          g.get("holdoff_s", float, 0.5, check=lambda v: v >= 0, why="must be >= 0"),
+                          g.number("holdoff_s", 0.5, lo=0),
                           g.get("start", bool, False),
                           g.get("response", str, "", check=lambda v: v in names, why="is not a channel"),
-                          g.get("window_s", float, 1.0, check=lambda v: 0 < v <= 60,
-                                why="must be in (0, 60] s"),
-                          g.get("min_peak", float, None, check=lambda v: v >= 0, why="must be >= 0"))
-    pose = t.get("pose", dict, {})
-    for k, v in pose.items():
-        if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
-            raise DaqError(f"{where}: pose.{k} = {v!r} is not a finite number")
+                          g.number("window_s", 1.0, lo=0, hi=60, lo_open=True, unit="s"),
+                          g.number("min_peak", None, lo=0))
+    pose = t.numbers("pose")
     pose_from = t.get("pose_from", dict, {})
     for k, v in pose_from.items():
         if v not in names:
@@ -369,12 +329,11 @@ def parse_session(doc: dict, source: Path) -> Session:
     return Session(
         source=source, sample_rate_hz=rate, devices=tuple(devices.values()), channels=channels,
         excitation=t.choice("excitation", EXCITATIONS, "operational"),
-        duration_s=t.get("duration_s", float, None, check=lambda v: v > 0, why="must be > 0"),
+        duration_s=t.number("duration_s", None, lo=0, lo_open=True),
         run_id=t.get("run_id", str, "", check=lambda v: "/" not in v, why="must not contain '/'"),
-        notes=t.get("notes", str, ""), pose=dict(pose), pose_from=dict(pose_from), trigger=trigger,
+        notes=t.get("notes", str, ""), pose=pose, pose_from=dict(pose_from), trigger=trigger,
         simulator=sim,
-        reconnect_timeout_s=t.get("reconnect_timeout_s", float, 10.0, check=lambda v: 0 < v <= 3600,
-                                  why="must be in (0, 3600] s"),
+        reconnect_timeout_s=t.number("reconnect_timeout_s", 10.0, lo=0, hi=3600, lo_open=True, unit="s"),
         continue_on_device_loss=t.get("continue_on_device_loss", bool, False))
 
 

@@ -24,6 +24,7 @@ from typing import Any
 from flexmodal.models.errors import ModelError
 from flexmodal.models.rig_schema import check_document
 from flexmodal.valid_text import read_toml
+from flexmodal.valid_toml import DOTTED_PATH, Fields
 
 SECTION_SHAPES = ("square_tube", "rect_tube", "round_tube", "solid_rect", "custom")
 SUPPORTS = ("clamped", "pinned", "free", "spring")
@@ -186,256 +187,197 @@ class Rig:
 
 
 # ---------------------------------------------------------------------------------------------
-# parsing
+# parsing (flexmodal.valid_toml: errors name the file and the field's dotted path)
 
 
-class _Ctx:
-    """Error context: the file and the dotted field path."""
-
-    def __init__(self, source: str) -> None:
-        self.source = source
-
-    def fail(self, path: str, what: str) -> ModelError:
-        return ModelError(f"{self.source}: {path}: {what}")
+def _fields(doc: Any, source: str, path: str) -> Fields:
+    """Typed access to the table at ``path`` of the rig file ``source`` (errors: ModelError)."""
+    return Fields(doc, source, ModelError, path=path, wording=DOTTED_PATH)
 
 
-def _get(table: Mapping[str, Any], key: str, path: str, ctx: _Ctx, default: Any = ...) -> Any:
-    if key in table:
-        return table[key]
-    if default is ...:
-        raise ctx.fail(f"{path}.{key}" if path else key, "missing required field")
-    return default
+def _positive(t: Fields, key: str, default: Any = ..., *, allow_zero: bool = False) -> float:
+    return t.number(key, default, lo=0.0, lo_open=not allow_zero)
 
 
-def _positive(value: Any, path: str, ctx: _Ctx, allow_zero: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ctx.fail(path, f"must be a number (got {value!r})")
-    v = float(value)
-    if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
-        raise ctx.fail(path, f"must be {'>= 0' if allow_zero else '> 0'} (got {value!r})")
-    return v
+def _name(t: Fields) -> str:
+    return t.get("name", str, check=str.strip, why="must be a non-empty string")
 
 
-def _choice(value: Any, options: tuple[str, ...], path: str, ctx: _Ctx) -> str:
-    if value not in options:
-        raise ctx.fail(path, f"unknown value {value!r} (expected one of {', '.join(options)})")
-    return str(value)
+def _elements(t: Fields) -> int | None:
+    return t.get("elements", int, None, check=lambda n: n >= 1, why="must be a whole number >= 1")
 
 
-def _name(value: Any, path: str, ctx: _Ctx) -> str:
-    if not isinstance(value, str) or not value.strip():
-        raise ctx.fail(path, f"must be a non-empty string (got {value!r})")
-    return value
-
-
-def section_properties(spec: Mapping[str, Any], material: Mapping[str, float] | None, path: str,
-                       ctx: _Ctx | None = None) -> Section:
-    """Section properties from a section table and a material {E_Pa, rho_kg_m3}."""
-    ctx = ctx or _Ctx("<rig>")
+def section_properties(spec: Any, material: Mapping[str, float] | None, path: str,
+                       source: str = "<rig>") -> Section:
+    """Section properties from a section table and a material {E_Pa, rho_kg_m3} (Euler-Bernoulli:
+    EA, EI about the axis normal to the arm's plane, mass and rotary inertia per metre)."""
     if not isinstance(spec, Mapping):
-        raise ctx.fail(path, "must be a table such as { shape = \"square_tube\", ... }")
-    shape = _choice(_get(spec, "shape", path, ctx), SECTION_SHAPES, f"{path}.shape", ctx)
+        raise ModelError(f"{source}: {path}: must be a table such as {{ shape = \"square_tube\", ... }}")
+    t = _fields(spec, source, path)
+    shape = t.choice("shape", SECTION_SHAPES)
     if shape == "custom":
-        EA = _positive(_get(spec, "EA_N", path, ctx), f"{path}.EA_N", ctx)
-        EI = _positive(_get(spec, "EI_Nm2", path, ctx), f"{path}.EI_Nm2", ctx)
-        mpl = _positive(_get(spec, "mass_per_m_kg", path, ctx), f"{path}.mass_per_m_kg", ctx)
-        rot = _get(spec, "rotary_inertia_per_m_kgm", path, ctx, mpl * EI / EA)
-        rot = _positive(rot, f"{path}.rotary_inertia_per_m_kgm", ctx, allow_zero=True)
-        depth = _positive(_get(spec, "depth_m", path, ctx, 2.0 * math.sqrt(EI / EA)), f"{path}.depth_m", ctx)
-        return Section(shape, EA, EI, mpl, rot, depth)
+        EA, EI, mpl = (_positive(t, key) for key in ("EA_N", "EI_Nm2", "mass_per_m_kg"))
+        rot = _positive(t, "rotary_inertia_per_m_kgm", mpl * EI / EA, allow_zero=True)
+        return Section(shape, EA, EI, mpl, rot, _positive(t, "depth_m", 2.0 * math.sqrt(EI / EA)))
     if material is None:
-        raise ctx.fail(path, f"shape {shape!r} needs a material")
-
-    def dim(key: str) -> float:
-        return _positive(_get(spec, key, path, ctx), f"{path}.{key}", ctx)
-
+        raise t.fail("", f"shape {shape!r} needs a material")
     if shape == "square_tube":
-        b, t = dim("outer_m"), dim("wall_m")
-        if 2 * t >= b:
-            raise ctx.fail(f"{path}.wall_m", f"wall {t} m is too thick for outer size {b} m")
-        bi = b - 2 * t
+        b, wall = _positive(t, "outer_m"), _positive(t, "wall_m")
+        if 2 * wall >= b:
+            raise t.fail("wall_m", f"wall {wall} m is too thick for outer size {b} m")
+        bi = b - 2 * wall
         area, inertia, depth = b * b - bi * bi, (b**4 - bi**4) / 12.0, b
     elif shape == "rect_tube":
-        w, h, t = dim("width_m"), dim("height_m"), dim("wall_m")
-        if 2 * t >= min(w, h):
-            raise ctx.fail(f"{path}.wall_m", f"wall {t} m is too thick for a {w} x {h} m tube")
-        area = w * h - (w - 2 * t) * (h - 2 * t)
-        inertia, depth = (w * h**3 - (w - 2 * t) * (h - 2 * t) ** 3) / 12.0, h
+        w, h, wall = _positive(t, "width_m"), _positive(t, "height_m"), _positive(t, "wall_m")
+        if 2 * wall >= min(w, h):
+            raise t.fail("wall_m", f"wall {wall} m is too thick for a {w} x {h} m tube")
+        area = w * h - (w - 2 * wall) * (h - 2 * wall)
+        inertia, depth = (w * h**3 - (w - 2 * wall) * (h - 2 * wall) ** 3) / 12.0, h
     elif shape == "round_tube":
-        d, t = dim("outer_m"), dim("wall_m")
-        if 2 * t > d:
-            raise ctx.fail(f"{path}.wall_m", f"wall {t} m is too thick for outer diameter {d} m")
-        di = d - 2 * t
+        d, wall = _positive(t, "outer_m"), _positive(t, "wall_m")
+        if 2 * wall > d:
+            raise t.fail("wall_m", f"wall {wall} m is too thick for outer diameter {d} m")
+        di = d - 2 * wall
         area, inertia, depth = math.pi / 4 * (d**2 - di**2), math.pi / 64 * (d**4 - di**4), d
     else:  # solid_rect
-        w, h = dim("width_m"), dim("height_m")
+        w, h = _positive(t, "width_m"), _positive(t, "height_m")
         area, inertia, depth = w * h, w * h**3 / 12.0, h
     E, rho = material["E_Pa"], material["rho_kg_m3"]
     return Section(shape, E * area, E * inertia, rho * area, rho * inertia, depth)
 
 
-def _material(doc: Mapping[str, Any], spec: Any, path: str, ctx: _Ctx) -> Mapping[str, float] | None:
+def _material(doc: Mapping[str, Any], t: Fields) -> Mapping[str, float] | None:
+    """The material a table names (``material = "steel"`` or an inline table); None when it names none."""
+    spec, path = t.doc.get("material"), t.field("material")
     if spec is None:
         return None
     materials = doc.get("material", {})
     if isinstance(spec, str):
         if spec not in materials:
-            raise ctx.fail(path, f"unknown material {spec!r} (defined: {', '.join(materials) or 'none'})")
+            raise t.fail("material", f"unknown material {spec!r} (defined: {', '.join(materials) or 'none'})")
         spec, path = materials[spec], f"material.{spec}"
     if not isinstance(spec, Mapping):
-        raise ctx.fail(path, "must name a [material.<name>] table")
-    return {"E_Pa": _positive(_get(spec, "E_Pa", path, ctx), f"{path}.E_Pa", ctx),
-            "rho_kg_m3": _positive(_get(spec, "rho_kg_m3", path, ctx), f"{path}.rho_kg_m3", ctx)}
+        raise t.fail("material", "must name a [material.<name>] table")
+    m = _fields(spec, t.where, path)
+    return {"E_Pa": _positive(m, "E_Pa"), "rho_kg_m3": _positive(m, "rho_kg_m3")}
 
 
-def _elements(table: Mapping[str, Any], path: str, ctx: _Ctx) -> int | None:
-    n = table.get("elements")
-    if n is None:
-        return None
-    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
-        raise ctx.fail(f"{path}.elements", f"must be a whole number >= 1 (got {n!r})")
-    return n
+def _section(t: Fields, material: Mapping[str, float] | None) -> Section:
+    """The ``section`` of a link, segment or member table, made of ``material``."""
+    return section_properties(t.get("section", object), material, t.field("section"), t.where)
 
 
-def _parse_link(doc: Mapping[str, Any], t: Mapping[str, Any], i: int, ctx: _Ctx) -> Link:
-    path = f"link[{i}]"
-    name = _name(_get(t, "name", path, ctx), f"{path}.name", ctx)
-    length = _positive(_get(t, "length_m", path, ctx), f"{path}.length_m", ctx)
-    mat = _material(doc, t.get("material"), f"{path}.material", ctx)
-    section = section_properties(_get(t, "section", path, ctx), mat, f"{path}.section", ctx)
+def _parse_link(doc: Mapping[str, Any], t: Fields) -> Link:
+    name, length, material = _name(t), _positive(t, "length_m"), _material(doc, t)
+    section = _section(t, material)
     segments = []
-    for j, seg in enumerate(t.get("segments", [])):
-        sp = f"{path}.segments[{j}]"
-        a = _positive(_get(seg, "from", sp, ctx), f"{sp}.from", ctx, allow_zero=True)
-        b = _positive(_get(seg, "to", sp, ctx), f"{sp}.to", ctx)
+    for j, seg in enumerate(t.doc.get("segments", [])):
+        s = _fields(seg, t.where, f"{t.path}.segments[{j}]")
+        a, b = _positive(s, "from", allow_zero=True), _positive(s, "to")
         if not a < b <= length * (1 + 1e-9):
-            raise ctx.fail(sp, f"needs 0 <= from < to <= length_m ({length} m), got {a}..{b}")
-        smat = _material(doc, seg.get("material"), f"{sp}.material", ctx) or mat
-        segments.append(Segment(a, b, section_properties(_get(seg, "section", sp, ctx), smat,
-                                                         f"{sp}.section", ctx)))
-    scales = {k: _positive(t.get(k, 1.0), f"{path}.{k}", ctx) for k in ("stiffness_scale", "mass_scale")}
-    return Link(name, length, section, _elements(t, path, ctx), tuple(segments), **scales)
+            raise s.fail("", f"needs 0 <= from < to <= length_m ({length} m), got {a}..{b}")
+        segments.append(Segment(a, b, _section(s, _material(doc, s) or material)))
+    scales = {k: _positive(t, k, 1.0) for k in ("stiffness_scale", "mass_scale")}
+    return Link(name, length, section, _elements(t), tuple(segments), **scales)
 
 
-def _parse_point(text: Any, rig_or_links: Any, path: str, ctx: _Ctx | None = None) -> Point:
+def _parse_point(text: Any, rig_or_links: Any, path: str, source: str | None = None) -> Point:
     """Parse a point reference against a Rig or a {link name: Link} mapping plus joints."""
-    ctx = ctx or _Ctx(getattr(rig_or_links, "source", "<rig>"))
+    source = source or getattr(rig_or_links, "source", "<rig>")
+
+    def fail(what: str) -> ModelError:
+        return ModelError(f"{source}: {path}: {what}")
+
     if isinstance(rig_or_links, Rig):
         links = {lk.name: lk for lk in rig_or_links.links}
         joints = {j.name: j for j in rig_or_links.joints}
     else:
         links, joints = rig_or_links
     if not isinstance(text, str):
-        raise ctx.fail(path, f"must be a string like 'link1@0.5' (got {text!r})")
+        raise fail(f"must be a string like 'link1@0.5' (got {text!r})")
     if text == "tip":
         return Point(list(links)[-1], 1.0)
     if text in joints:
         return Point(joints[text].child, 0.0)
     head, sep, tail = text.partition("@")
     if not sep:
-        raise ctx.fail(path, f"{text!r} is not '<link>@<fraction>', 'ground@x,y', 'tip' or a joint name")
+        raise fail(f"{text!r} is not '<link>@<fraction>', 'ground@x,y', 'tip' or a joint name")
     try:
         if head == "ground":
             x, y = (float(v) for v in tail.split(","))
             return Point(None, 0.0, (x, y))
         frac = float(tail)
     except ValueError:
-        raise ctx.fail(path, f"cannot read the position in {text!r}") from None
+        raise fail(f"cannot read the position in {text!r}") from None
     if head not in links:
-        raise ctx.fail(path, f"{text!r} names no link (links: {', '.join(links)})")
+        raise fail(f"{text!r} names no link (links: {', '.join(links)})")
     if not 0.0 <= frac <= 1.0:
-        raise ctx.fail(path, f"{text!r}: the fraction must lie in [0, 1] (the member end is off its link)")
+        raise fail(f"{text!r}: the fraction must lie in [0, 1] (the member end is off its link)")
     return Point(head, frac)
+
+
+def _tables(doc: Mapping[str, Any], key: str, source: str) -> list[Fields]:
+    """The ``[[key]]`` tables of the document, each with its path ``key[i]``."""
+    return [_fields(t, source, f"{key}[{i}]") for i, t in enumerate(doc.get(key, []))]
 
 
 def parse_rig(doc: Mapping[str, Any], source: str = "<rig>") -> Rig:
     """Validate a parsed rig TOML document; raises ModelError naming the field on any mistake."""
     check_document(doc, source)
-    ctx = _Ctx(source)
+    top = _fields(doc, source, "")
     name = str(doc.get("name", Path(source).stem))
-    raw_links = _get(doc, "link", "", ctx)
-    if not isinstance(raw_links, list) or not raw_links:
-        raise ctx.fail("link", "needs at least one [[link]] table")
-    links = tuple(_parse_link(doc, t, i, ctx) for i, t in enumerate(raw_links))
+    top.get("link", list, check=bool, why="needs at least one [[link]] table")
+    links = tuple(_parse_link(doc, t) for t in _tables(doc, "link", source))
     link_names = [lk.name for lk in links]
     if len(set(link_names)) != len(link_names):
-        raise ctx.fail("link", f"duplicate link names in {link_names}")
+        raise top.fail("link", f"duplicate link names in {link_names}")
 
-    b = doc.get("base", {})
-    support = _choice(b.get("support", "clamped"), SUPPORTS, "base.support", ctx)
-    kb = b.get("k_Nm_per_rad")
-    if support == "spring":
-        kb = _positive(_get(b, "k_Nm_per_rad", "base", ctx), "base.k_Nm_per_rad", ctx)
-    base = Base(support, kb, b.get("angle"), float(b.get("angle_deg", 0.0)))
+    b = top.table("base", {})
+    support = b.choice("support", SUPPORTS, "clamped")
+    kb = _positive(b, "k_Nm_per_rad") if support == "spring" else b.doc.get("k_Nm_per_rad")
+    base = Base(support, kb, b.doc.get("angle"), float(b.doc.get("angle_deg", 0.0)))
 
     joints = []
-    for i, t in enumerate(doc.get("joint", [])):
-        path = f"joint[{i}]"
-        jname = _name(_get(t, "name", path, ctx), f"{path}.name", ctx)
-        parent, child = _get(t, "parent", path, ctx), _get(t, "child", path, ctx)
+    for t in _tables(doc, "joint", source):
+        jname = _name(t)
+        parent, child = t.get("parent", object), t.get("child", object)
         for key, val in (("parent", parent), ("child", child)):
             if val not in link_names:
-                raise ctx.fail(f"{path}.{key}", f"joint {jname!r} names a missing link {val!r}")
+                raise t.fail(key, f"joint {jname!r} names a missing link {val!r}")
         if link_names.index(child) != link_names.index(parent) + 1:
-            raise ctx.fail(path, f"joint {jname!r}: child {child!r} must be the link after {parent!r}")
-        kind = _choice(t.get("kind", "rigid"), JOINT_KINDS, f"{path}.kind", ctx)
-        k = t.get("k_Nm_per_rad")
-        if kind == "spring":
-            k = _positive(_get(t, "k_Nm_per_rad", path, ctx), f"{path}.k_Nm_per_rad", ctx)
-        joints.append(Joint(jname, parent, child, t.get("angle"), kind, k, float(t.get("angle_deg", 0.0))))
+            raise t.fail("", f"joint {jname!r}: child {child!r} must be the link after {parent!r}")
+        kind = t.choice("kind", JOINT_KINDS, "rigid")
+        k = _positive(t, "k_Nm_per_rad") if kind == "spring" else t.doc.get("k_Nm_per_rad")
+        joints.append(Joint(jname, parent, child, t.doc.get("angle"), kind, k,
+                            float(t.doc.get("angle_deg", 0.0))))
     joined = {j.child for j in joints}
     for lk in links[1:]:
         if lk.name not in joined:
-            raise ctx.fail("joint", f"link {lk.name!r} is joined to nothing (add a [[joint]] with child)")
+            raise top.fail("joint", f"link {lk.name!r} is joined to nothing (add a [[joint]] with child)")
     refs = ({lk.name: lk for lk in links}, {j.name: j for j in joints})
 
-    members = []
-    for i, t in enumerate(doc.get("member", [])):
-        path = f"member[{i}]"
-        mname = _name(_get(t, "name", path, ctx), f"{path}.name", ctx)
-        mat = _material(doc, t.get("material"), f"{path}.material", ctx)
-        members.append(Member(
-            mname,
-            _parse_point(_get(t, "from", path, ctx), refs, f"{path}.from", ctx),
-            _parse_point(_get(t, "to", path, ctx), refs, f"{path}.to", ctx),
-            section_properties(_get(t, "section", path, ctx), mat, f"{path}.section", ctx),
-            _choice(t.get("ends", "pin-pin"), MEMBER_ENDS, f"{path}.ends", ctx),
-            _elements(t, path, ctx),
-            _positive(t.get("end_k_Nm_per_rad", 0.0), f"{path}.end_k_Nm_per_rad", ctx, allow_zero=True),
-        ))
+    def point(t: Fields, key: str) -> Point:
+        return _parse_point(t.get(key, object), refs, t.field(key), source)
 
-    masses = []
-    for i, t in enumerate(doc.get("mass", [])):
-        path = f"mass[{i}]"
-        m = _get(t, "mass_kg", path, ctx)
-        if not isinstance(m, str):
-            m = _positive(m, f"{path}.mass_kg", ctx, allow_zero=True)
-        inertia = _positive(t.get("inertia_kgm2", 0.0), f"{path}.inertia_kgm2", ctx, allow_zero=True)
-        at = _parse_point(_get(t, "at", path, ctx), refs, f"{path}.at", ctx)
-        masses.append(Mass(at, m, inertia, str(t.get("name", ""))))
-
-    springs = []
-    for i, t in enumerate(doc.get("spring", [])):
-        path = f"spring[{i}]"
-        springs.append(Spring(
-            _parse_point(_get(t, "at", path, ctx), refs, f"{path}.at", ctx),
-            _positive(_get(t, "k_N_per_m", path, ctx), f"{path}.k_N_per_m", ctx),
-            _choice(t.get("direction", "transverse"), SPRING_DIRECTIONS, f"{path}.direction", ctx),
-            str(t.get("name", ""))))
-
-    sensors = []
-    for i, t in enumerate(doc.get("sensor", [])):
-        path = f"sensor[{i}]"
-        sensors.append(Sensor(
-            _name(_get(t, "name", path, ctx), f"{path}.name", ctx),
-            _parse_point(_get(t, "at", path, ctx), refs, f"{path}.at", ctx),
-            _choice(t.get("direction", "transverse"), DIRECTIONS, f"{path}.direction", ctx),
-            _positive(t.get("mass_kg", 0.0), f"{path}.mass_kg", ctx, allow_zero=True)))
+    members = tuple(Member(_name(t), point(t, "from"), point(t, "to"), _section(t, _material(doc, t)),
+                           t.choice("ends", MEMBER_ENDS, "pin-pin"), _elements(t),
+                           _positive(t, "end_k_Nm_per_rad", 0.0, allow_zero=True))
+                    for t in _tables(doc, "member", source))
+    masses = tuple(Mass(point(t, "at"),
+                        t.get("mass_kg", str) if isinstance(t.doc.get("mass_kg"), str)
+                        else _positive(t, "mass_kg", allow_zero=True),
+                        _positive(t, "inertia_kgm2", 0.0, allow_zero=True), str(t.doc.get("name", "")))
+                   for t in _tables(doc, "mass", source))
+    springs = tuple(Spring(point(t, "at"), _positive(t, "k_N_per_m"),
+                           t.choice("direction", SPRING_DIRECTIONS, "transverse"), str(t.doc.get("name", "")))
+                    for t in _tables(doc, "spring", source))
+    sensors = tuple(Sensor(_name(t), point(t, "at"), t.choice("direction", DIRECTIONS, "transverse"),
+                           _positive(t, "mass_kg", 0.0, allow_zero=True))
+                    for t in _tables(doc, "sensor", source))
     sensor_names = [s.name for s in sensors]
     if len(set(sensor_names)) != len(sensor_names):
-        raise ctx.fail("sensor", f"duplicate sensor names in {sensor_names}")
-    return Rig(name, links, tuple(joints), base, tuple(members), tuple(masses), tuple(springs),
-               tuple(sensors), source)
+        raise top.fail("sensor", f"duplicate sensor names in {sensor_names}")
+    return Rig(name, links, tuple(joints), base, members, masses, springs, sensors, source)
 
 
 def load_rig(path: str | Path) -> Rig:
