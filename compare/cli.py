@@ -7,18 +7,12 @@ import sys
 from pathlib import Path
 
 from flexmodal import valid_options as opt
+from flexmodal.cli_commands import command
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this package's sub-commands to the flexmodal parser."""
-    p = sub.add_parser(
-        "compare",
-        help="table of measured vs predicted modes (paired by MAC or frequency order)",
-        description="Pair every predicted modal table with the measured one (by MAC where both have "
-                    "shapes at two or more common sensors, else by ascending frequency) and print a "
-                    "table: frequencies [Hz], measured damping ratio [%], error (pred - meas)/meas [%] "
-                    "and MAC [-]. Unpaired modes are listed, never dropped.",
-    )
+    p = command(sub, "compare", _run)
     p.add_argument("measured", metavar="MEASURED.csv", help="measured modal table (docs/formats.md)")
     p.add_argument("predicted", metavar="PRED.csv", nargs="+",
                    help="predicted modal tables; each names its source by its 'source' column, "
@@ -35,10 +29,16 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="table caption (tex and html)")
     p.add_argument("--out", metavar="FILE",
                    help="write the table to FILE (prints the path) instead of stdout")
-    p.set_defaults(func=_run)
 
 
 def _run(args: argparse.Namespace) -> int:
+    """table of measured vs predicted modes (paired by MAC or frequency order)
+
+    Pair every predicted modal table with the measured one (by MAC where both have shapes at two or
+    more common sensors, else by ascending frequency) and print a table: frequencies [Hz], measured
+    damping ratio [%], error (pred - meas)/meas [%] and MAC [-]. Unpaired modes are listed, never
+    dropped.
+    """
     from flexmodal.api import compare_modes, format_comparison
 
     if args.out:

@@ -7,16 +7,12 @@ import os
 import sys
 
 from flexmodal import valid_options as opt
+from flexmodal.cli_commands import command
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this package's sub-commands to the flexmodal parser."""
-    p = sub.add_parser("acquire", help="record an acquisition session into an HDF5 run",
-                       description="Record the devices of a session config (TOML, docs/acquisition.md) into "
-                                   "a run of an HDF5 file (docs/hdf5-format.md). Stops at --duration (or the "
-                                   "session's duration_s) or on Ctrl-C, SIGTERM or SIGHUP, with everything "
-                                   "flushed and closed. Exit 0: done; 128+N: stopped early by signal N; "
-                                   "2: bad input, a lost device, a full disk or a write error (one line).")
+    p = command(sub, "acquire", _acquire)
     p.add_argument("--config", required=True, metavar="SESSION.toml", help="session config file")
     p.add_argument("--out", required=True, metavar="RUN.h5", help="HDF5 file (created, or a run is appended)")
     p.add_argument("--duration", type=opt.seconds, metavar="S", help="run length in seconds")
@@ -24,10 +20,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--recover", action="store_true",
                    help="RUN.h5 was left by a killed writer: clear its open-for-writing flags first "
                         "(refused while another acquire is writing it)")
-    p.set_defaults(func=_acquire)
 
 
 def _acquire(args: argparse.Namespace) -> int:
+    """record an acquisition session into an HDF5 run
+
+    Record the devices of a session config (TOML, docs/acquisition.md) into a run of an HDF5 file
+    (docs/hdf5-format.md). Stops at --duration (or the session's duration_s) or on Ctrl-C, SIGTERM or
+    SIGHUP, with everything flushed and closed. Exit 0: done; 128+N: stopped early by signal N; 2: bad
+    input, a lost device, a full disk or a write error (one line).
+    """
     from flexmodal.api import acquire
     from flexmodal.daq.acquire import WriteFailed
     from flexmodal.daq.errors import DaqError

@@ -6,6 +6,7 @@ import argparse
 import sys
 
 from flexmodal import valid_options as opt
+from flexmodal.cli_commands import command
 
 
 class _Estimators:
@@ -27,15 +28,7 @@ class _Estimators:
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this package's sub-commands to the flexmodal parser."""
-    p = sub.add_parser("frf", help="batch FRFs + coherence of stored runs, written back under /runs/<id>/frf",
-                       description="Compute FRFs and coherence of every run in the HDF5 files and write them "
-                                   "back under /runs/<id>/frf (or into --out). Random and sweep runs are "
-                                   "streamed block by block (memory does not grow with the record) and "
-                                   "segments holding NaN rows or touching gap/corrupt events are skipped. "
-                                   "Runs are computed here, one after the other, unless the measured cost "
-                                   "predicts that a dask LocalCluster of 2 processes pays for its start-up; "
-                                   "--workers N forces N processes (0: always here), --scheduler uses an "
-                                   "existing cluster. Prints one 'FILE:RUN_ID' line per run written.")
+    p = command(sub, "frf", _frf)
     p.add_argument("runs", nargs="+", metavar="RUN.h5", help="HDF5 run files (docs/hdf5-format.md)")
     p.add_argument("--estimator", default="H1", choices=_Estimators(), metavar="NAME",
                    help="FRF estimator: %(choices)s (default H1)")
@@ -53,18 +46,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="LocalCluster worker processes (0 = serial here; default: chosen by cost)")
     g.add_argument("--scheduler", default=None, metavar="ADDR", help="dask.distributed scheduler address")
     p.add_argument("--out", default=None, metavar="OUT.h5", help="write the FRFs into this file instead")
-    p.set_defaults(func=_frf)
 
-    q = sub.add_parser("identify", help="natural frequencies, damping and mode shapes -> modal table CSV",
-                       description="Identify modes from an HDF5 run (stored FRFs, or computed if absent) or "
-                                   "a UFF file (dataset 58 FRFs, function type 4, or time histories, type 1, "
-                                   "with a force reference) and write the modal table CSV (docs/formats.md) "
-                                   "with the validation columns mpc, mpd [deg] and synthesis_corr, and "
-                                   "the FRAC of each measured and synthesised FRF to "
-                                   "MODES.synthesis.csv. Each run of an HDF5 file is one configuration "
-                                   "(config = run id). Runs with excitation=operational or without a force "
-                                   "channel, and UFF time histories without a force, are identified "
-                                   "output-only (SSI-cov by default; docs/oma.md).")
+    q = command(sub, "identify", _identify)
     q.add_argument("input", metavar="INPUT", help="RUN.h5 or FILE.uff/.unv")
     q.add_argument("--out", required=True, metavar="MODES.csv", help="modal table to write")
     q.add_argument("--fmin", type=opt.hertz, default=None,
@@ -98,10 +81,18 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="ssi/fdd: reference output channels (default all outputs)")
     q.add_argument("--run", default=None, metavar="RUN_ID", help="only this run of an HDF5 file")
     q.add_argument("--uff", default=None, metavar="MODES.uff", help="also write the modes as UFF dataset 55")
-    q.set_defaults(func=_identify)
 
 
 def _frf(args: argparse.Namespace) -> int:
+    """batch FRFs + coherence of stored runs, written back under /runs/<id>/frf
+
+    Compute FRFs and coherence of every run in the HDF5 files and write them back under /runs/<id>/frf
+    (or into --out). Random and sweep runs are streamed block by block (memory does not grow with the
+    record) and segments holding NaN rows or touching gap/corrupt events are skipped. Runs are computed
+    here, one after the other, unless the measured cost predicts that a dask LocalCluster of 2 processes
+    pays for its start-up; --workers N forces N processes (0: always here), --scheduler uses an existing
+    cluster. Prints one 'FILE:RUN_ID' line per run written.
+    """
     from flexmodal.api import compute_frfs
     from flexmodal.modal.errors import ModalError
     from flexmodal.valid_output import hdf5_output
@@ -118,6 +109,15 @@ def _frf(args: argparse.Namespace) -> int:
 
 
 def _identify(args: argparse.Namespace) -> int:
+    """natural frequencies, damping and mode shapes -> modal table CSV
+
+    Identify modes from an HDF5 run (stored FRFs, or computed if absent) or a UFF file (dataset 58 FRFs,
+    function type 4, or time histories, type 1, with a force reference) and write the modal table CSV
+    (docs/formats.md) with the validation columns mpc, mpd [deg] and synthesis_corr, and the FRAC of each
+    measured and synthesised FRF to MODES.synthesis.csv. Each run of an HDF5 file is one configuration
+    (config = run id). Runs with excitation=operational or without a force channel, and UFF time
+    histories without a force, are identified output-only (SSI-cov by default; docs/oma.md).
+    """
     from flexmodal.api import identify
     from flexmodal.modal.errors import ModalError
     from flexmodal.valid_output import output_file

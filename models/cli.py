@@ -6,6 +6,7 @@ import argparse
 import sys
 
 from flexmodal import valid_options as opt
+from flexmodal.cli_commands import command
 from flexmodal.models.rig_schema import MAX_ELEMENTS
 
 MODEL_CHOICES = ("fe", "assumed-modes", "lumped-mass", "blevins")
@@ -13,12 +14,7 @@ MODEL_CHOICES = ("fe", "assumed-modes", "lumped-mass", "blevins")
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this package's sub-commands to the flexmodal parser."""
-    p = sub.add_parser(
-        "predict", help="predicted natural frequencies and mode shapes of a rig for each pose",
-        description="Predict the modes of the arm described by RIG.toml for every configuration in "
-                    "POSES.csv (columns config, pose.<name>; angles in degrees, masses in kg) and write "
-                    "a modal table CSV (config, mode, freq_hz [Hz], source, pose.*, shape.<sensor>). "
-                    "Rigid-body (0 Hz) modes are left out.")
+    p = command(sub, "predict", _predict)
     p.add_argument("rig", metavar="RIG.toml", help="rig description (docs/formats.md)")
     p.add_argument("--model", required=True, choices=MODEL_CHOICES,
                    help="fe: planar frame finite elements; assumed-modes: exact beam eigenfunctions "
@@ -39,10 +35,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--coordinates", choices=("planar", "transverse"), default="planar",
                    help="lumped-mass: both in-plane translations per mass (default) or only the one "
                         "normal to its link (seed 003's choice)")
-    p.set_defaults(func=_predict)
 
 
 def _predict(args: argparse.Namespace) -> int:
+    """predicted natural frequencies and mode shapes of a rig for each pose
+
+    Predict the modes of the arm described by RIG.toml for every configuration in POSES.csv (columns
+    config, pose.<name>; angles in degrees, masses in kg) and write a modal table CSV (config, mode,
+    freq_hz [Hz], source, pose.*, shape.<sensor>). Rigid-body (0 Hz) modes are left out.
+    """
     from flexmodal.api import load_rig, predict, read_poses
     from flexmodal.models.errors import ModelError
     from flexmodal.valid_output import output_file

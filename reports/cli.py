@@ -5,16 +5,12 @@ from __future__ import annotations
 import argparse
 import sys
 
+from flexmodal.cli_commands import command
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this package's sub-commands to the flexmodal parser."""
-    p = sub.add_parser(
-        "report",
-        help="self-contained HTML validation report from runs, modes, predictions and a diagnosis",
-        description="Write one HTML file (images embedded, no scripts, nothing fetched from a network): "
-                    "run metadata, channels, data quality (events, rejected hits, coherence), FRF plots, "
-                    "measured vs predicted modes (table and plots) and the gap diagnosis.",
-    )
+    p = command(sub, "report", _run)
     p.add_argument("runs", metavar="RUN.h5", nargs="*",
                    help="stored runs (docs/hdf5-format.md): a file means all its runs, FILE::RUN_ID one run")
     p.add_argument("--measured", metavar="MODES.csv", help="identified modes (modal table, docs/formats.md)")
@@ -31,10 +27,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--oma-fmax", metavar="HZ", type=float,
                    help="output-only runs: identify (SSI, FDD) below this frequency (as identify --fmax)")
     p.add_argument("--out", metavar="REPORT.html", required=True, help="the HTML file to write")
-    p.set_defaults(func=_run)
 
 
 def _run(args: argparse.Namespace) -> int:
+    """self-contained HTML validation report from runs, modes, predictions and a diagnosis
+
+    Write one HTML file (images embedded, no scripts, nothing fetched from a network): run metadata,
+    channels, data quality (events, rejected hits, coherence), FRF plots, measured vs predicted modes
+    (table and plots) and the gap diagnosis.
+    """
     from flexmodal.daq.run_schema import check_run_file
     from flexmodal.daq.store import expand_runs
     from flexmodal.reports.errors import ReportError
