@@ -269,6 +269,12 @@ class RunWriter:
             self._file.close()
 
 
+# lookup3's mixing rounds as (x, y, z, k) on the state (a, b, c) = (0, 1, 2): in ``mix`` each round is
+# ``x = (x - y) ^ rot(y, k); y += z``, in ``final`` it is ``x = (x ^ y) - rot(y, k)`` (lookup3.c).
+_LOOKUP3_MIX = ((0, 2, 1, 4), (1, 0, 2, 6), (2, 1, 0, 8), (0, 2, 1, 16), (1, 0, 2, 19), (2, 1, 0, 4))
+_LOOKUP3_FINAL = ((2, 1, 14), (0, 2, 11), (1, 0, 25), (2, 1, 16), (0, 2, 4), (1, 0, 14), (2, 1, 24))
+
+
 def _lookup3(data: bytes, initval: int = 0) -> int:
     """Bob Jenkins' lookup3 ``hashlittle``, the checksum of HDF5 metadata (superblock v2/v3)."""
     m = 0xFFFFFFFF
@@ -276,43 +282,24 @@ def _lookup3(data: bytes, initval: int = 0) -> int:
     def rot(x: int, k: int) -> int:
         return ((x << k) | (x >> (32 - k))) & m
 
-    def word(block: bytes, i: int) -> int:
-        return int.from_bytes(block[i:i + 4], "little")
+    def absorb(state: list[int], block: bytes) -> None:
+        for j in range(3):
+            state[j] = (state[j] + int.from_bytes(block[4 * j:4 * j + 4], "little")) & m
 
-    a = b = c = (0xDEADBEEF + len(data) + initval) & m
+    state = [(0xDEADBEEF + len(data) + initval) & m] * 3
     i = 0
     while len(data) - i > 12:  # a 48-byte superblock: not a hot path
-        a = (a + word(data, i)) & m
-        b = (b + word(data, i + 4)) & m
-        c = (c + word(data, i + 8)) & m
-        a = ((a - c) & m) ^ rot(c, 4)
-        c = (c + b) & m
-        b = ((b - a) & m) ^ rot(a, 6)
-        a = (a + c) & m
-        c = ((c - b) & m) ^ rot(b, 8)
-        b = (b + a) & m
-        a = ((a - c) & m) ^ rot(c, 16)
-        c = (c + b) & m
-        b = ((b - a) & m) ^ rot(a, 19)
-        a = (a + c) & m
-        c = ((c - b) & m) ^ rot(b, 4)
-        b = (b + a) & m
+        absorb(state, data[i:i + 12])
+        for x, y, z, k in _LOOKUP3_MIX:
+            state[x] = ((state[x] - state[y]) & m) ^ rot(state[y], k)
+            state[y] = (state[y] + state[z]) & m
         i += 12
-    tail = data[i:]
-    if not tail:
-        return c
-    tail = tail + bytes(12 - len(tail))
-    a = (a + word(tail, 0)) & m
-    b = (b + word(tail, 4)) & m
-    c = (c + word(tail, 8)) & m
-    c = ((c ^ b) - rot(b, 14)) & m
-    a = ((a ^ c) - rot(c, 11)) & m
-    b = ((b ^ a) - rot(a, 25)) & m
-    c = ((c ^ b) - rot(b, 16)) & m
-    a = ((a ^ c) - rot(c, 4)) & m
-    b = ((b ^ a) - rot(a, 14)) & m
-    c = ((c ^ b) - rot(b, 24)) & m
-    return c
+    if i == len(data):
+        return state[2]
+    absorb(state, data[i:] + bytes(12 - (len(data) - i)))
+    for x, y, k in _LOOKUP3_FINAL:
+        state[x] = ((state[x] ^ state[y]) - rot(state[y], k)) & m
+    return state[2]
 
 
 def recover(path: str | Path) -> bool:
