@@ -66,6 +66,21 @@ def _reference(protocol: str, rate: float):
     return src, np.array([c.step for c in src.channels])
 
 
+def _acquired(config: Path, duration_s: float = DURATION_S):
+    """Acquire ``config`` into run.h5 beside it, which must exit 0: the finished process, the stored run
+    and the simulator's sample index of the run's first row."""
+    out = config.parent / "run.h5"
+    done = _acquire(config, out, duration_s)
+    assert done.returncode == 0, done.stderr
+    return (done, *_run(out))
+
+
+def _assert_emitted(run, first: int, protocol: str, rate: float, n: int) -> None:
+    """The run holds the ``n`` samples the simulator emitted from ``first`` on, cleanly (see below)."""
+    src, steps = _reference(protocol, rate)
+    _assert_clean(run, src.physical(first, n), steps, n)
+
+
 def _assert_clean(run, expected: np.ndarray, steps: np.ndarray, n: int) -> None:
     assert run.samples.shape[0] == n  # same count
     assert not np.isnan(run.samples).any()  # no gaps
@@ -76,14 +91,9 @@ def _assert_clean(run, expected: np.ndarray, steps: np.ndarray, n: int) -> None:
 
 @pytest.mark.parametrize("protocol,rate", [("serial", 2048.0), ("can", 512.0)])
 def test_streamed_samples_equal_emitted(tmp_path, protocol, rate):
-    out = tmp_path / "run.h5"
-    done = _acquire(_session(tmp_path, protocol), out)
-    assert done.returncode == 0, done.stderr
-    assert done.stdout.count("\n") == 1 and str(out) in done.stdout  # one summary line on stdout
-    run, first = _run(out)
-    src, steps = _reference(protocol, rate)
-    n = int(DURATION_S * rate)
-    _assert_clean(run, src.physical(first, n), steps, n)
+    done, run, first = _acquired(_session(tmp_path, protocol))
+    assert done.stdout.count("\n") == 1 and str(tmp_path / "run.h5") in done.stdout  # one summary line
+    _assert_emitted(run, first, protocol, rate, int(DURATION_S * rate))
     assert run.channels[1].sensitivity_unit == "mV/g" and run.channels[1].unit == "m/s^2"
     assert [e.kind for e in run.events].count("trigger") >= 2  # impacts every 2 s detected on F
 
@@ -92,19 +102,12 @@ def test_streamed_samples_equal_emitted(tmp_path, protocol, rate):
 def test_serial_csv_lines(tmp_path):
     config = _session(tmp_path, "serial")
     config.write_text(config.read_text().replace('framing = "binary"', 'framing = "csv"'))
-    out = tmp_path / "run.h5"
-    done = _acquire(config, out, 3.0)
-    assert done.returncode == 0, done.stderr
-    run, first = _run(out)
-    src, steps = _reference("serial", 2048.0)
-    _assert_clean(run, src.physical(first, 6144), steps, 6144)
+    _, run, first = _acquired(config, 3.0)
+    _assert_emitted(run, first, "serial", 2048.0, 6144)
 
 
 def test_modbus_polled_samples_equal_emitted(tmp_path):
-    out = tmp_path / "run.h5"
-    done = _acquire(_session(tmp_path, "modbus"), out)
-    assert done.returncode == 0, done.stderr
-    run, _ = _run(out)
+    _, run, _ = _acquired(_session(tmp_path, "modbus"))
     counter = run.samples[:, 0].astype(int)  # the device's sample counter register, stored as a channel
     np.testing.assert_array_equal(counter, np.arange(counter.size))  # every poll got the next sample
     src, steps = _reference("modbus", 200.0)
@@ -117,12 +120,8 @@ def test_run_starts_pretrigger_samples_before_the_first_impact(tmp_path):
     config = _session(tmp_path, "serial")
     text = config.read_text().replace("pretrigger_samples = 64\n", "pretrigger_samples = 64\nstart = true\n")
     config.write_text(text)
-    out = tmp_path / "run.h5"
-    done = _acquire(config, out, 3.0)
-    assert done.returncode == 0, done.stderr
-    run, first = _run(out)
-    src, steps = _reference("serial", 2048.0)
-    _assert_clean(run, src.physical(first, 6144), steps, 6144)
+    _, run, first = _acquired(config, 3.0)
+    _assert_emitted(run, first, "serial", 2048.0, 6144)
     triggers = [e.sample_index for e in run.events if e.kind == "trigger"]
     assert triggers[0] == 64  # the pretrigger samples come first
     assert run.samples[63, 0] < 5.0 <= run.samples[64, 0]  # F crosses the 5 N level there
@@ -133,10 +132,7 @@ def test_modbus_rtu_over_a_pty_pair(tmp_path):
     config = _session(tmp_path, "modbus")
     text = config.read_text().replace('transport = "tcp"', 'transport = "rtu"\nbaud = 115200')
     config.write_text(text.replace('host = "127.0.0.1"\n', ""))
-    out = tmp_path / "run.h5"
-    done = _acquire(config, out, 3.0)
-    assert done.returncode == 0, done.stderr
-    run, _ = _run(out)
+    _, run, _ = _acquired(config, 3.0)
     counter = run.samples[:, 0]
     np.testing.assert_array_equal(counter, np.arange(600))
     src, steps = _reference("modbus", 200.0)
@@ -147,12 +143,8 @@ def test_can_on_the_virtual_bus_in_one_process(tmp_path):
     config = _session(tmp_path, "can")
     text = re.sub(r'interface = "slcan".*\n', 'interface = "virtual"\n', config.read_text())
     config.write_text(re.sub(r'channel = "@simulator".*\n', 'channel = "flexmodal-test"\n', text))
-    out = tmp_path / "run.h5"
-    done = _acquire(config, out, 3.0)
-    assert done.returncode == 0, done.stderr
-    run, first = _run(out)
-    src, steps = _reference("can", 512.0)
-    _assert_clean(run, src.physical(first, 1536), steps, 1536)
+    _, run, first = _acquired(config, 3.0)
+    _assert_emitted(run, first, "can", 512.0, 1536)
 
 
 def _fault_window(log: list[dict]) -> tuple[int, int]:
