@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import RIGS
 
 from flexmodal.app import main
 from flexmodal.modal.table import ModalTable
@@ -12,30 +13,7 @@ from flexmodal.models.errors import ModelError
 from flexmodal.models.predict import MODELS, load_external, predict
 from flexmodal.models.rig import load_rig
 
-SEED003 = """
-name = "seed003"
-[material.al]
-E_Pa = 75e9
-rho_kg_m3 = 2700
-[[link]]
-name = "link1"
-length_m = 0.60
-material = "al"
-section = { shape = "square_tube", outer_m = 0.040, wall_m = 0.0011 }
-[[link]]
-name = "link2"
-length_m = 0.76
-material = "al"
-section = { shape = "square_tube", outer_m = 0.040, wall_m = 0.0011 }
-[[joint]]
-name = "elbow"
-parent = "link1"
-child = "link2"
-angle = "theta_deg"
-[[sensor]]
-name = "a1"
-at = "link2@1.0"
-"""
+SEED003 = (RIGS / "seed003_two_link.toml").read_text()  # a copy is edited into bad rigs below
 
 
 def write(tmp_path, text: str, name: str = "rig.toml"):
@@ -86,7 +64,7 @@ BAD_RIGS = {
     "member off its link": (SEED003 + '[[member]]\nname = "pusher"\nfrom = "link1@0.3"\nto = "link2@1.2"\n'
                             'section = { shape = "custom", EA_N = 1e6, EI_Nm2 = 10.0, '
                             'mass_per_m_kg = 0.1 }\n', "link2@1.2"),
-    "zero wall": (SEED003.replace("wall_m = 0.0011 }\n[[link]]", "wall_m = 0.0 }\n[[link]]", 1), "wall_m"),
+    "zero wall": (SEED003.replace("wall_m = 0.0011 }", "wall_m = 0.0 }", 1), "wall_m"),
 }
 
 

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from flexmodal.modal.table import ModalTable
 from flexmodal.models.arm_shapes import arm_modes
 from flexmodal.models.frame import frame_modes
-from flexmodal.models.rig import load_rig, parse_rig
+from flexmodal.models.rig import load_rig
 from flexmodal.reports import plots
 
 
@@ -60,41 +62,10 @@ def test_freq_vs_pose_uses_a_stored_standard_deviation(shared_dir):
     assert half == sorted(rep["sd_hz"].round(6))
 
 
-PAYLOAD_RIG = """
-name = "payload-arm"
-[material.al]
-E_Pa = 70e9
-rho_kg_m3 = 2700
-[[link]]
-name = "lower"
-length_m = 0.5
-material = "al"
-section = { shape = "square_tube", outer_m = 0.03, wall_m = 0.002 }
-elements = 6
-[[link]]
-name = "upper"
-length_m = 0.5
-material = "al"
-section = { shape = "square_tube", outer_m = 0.025, wall_m = 0.0015 }
-elements = 6
-[[joint]]
-name = "elbow"
-parent = "lower"
-child = "upper"
-angle = "theta_deg"
-[[mass]]
-at = "tip"
-mass_kg = "payload_kg"
-[[sensor]]
-name = "s1"
-at = "upper@1.0"
-"""
 
 
 def test_payload_trends_plot_the_frame_model_and_fall_with_payload():
-    import tomllib
-
-    rig = parse_rig(tomllib.loads(PAYLOAD_RIG), "payload")
+    rig = load_rig(Path(__file__).parent / "data" / "payload_arm.toml")
     rows = []
     for theta in (0.0, 90.0):
         for payload in (0.0, 0.5, 1.0, 2.0):
