@@ -196,14 +196,17 @@ def _fields(doc: Any, source: str, path: str) -> Fields:
 
 
 def _positive(t: Fields, key: str, default: Any = ..., *, allow_zero: bool = False) -> float:
+    """A finite number > 0 (>= 0 with ``allow_zero``), in the SI unit its name ends with."""
     return t.number(key, default, lo=0.0, lo_open=not allow_zero)
 
 
 def _name(t: Fields) -> str:
+    """The table's ``name``: a string with more than white space."""
     return t.get("name", str, check=str.strip, why="must be a non-empty string")
 
 
 def _elements(t: Fields) -> int | None:
+    """The table's ``elements`` (finite elements per link or member), None when not given."""
     return t.get("elements", int, None, check=lambda n: n >= 1, why="must be a whole number >= 1")
 
 
