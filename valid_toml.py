@@ -98,16 +98,16 @@ class Fields:
                                                       **words)
         return self.error(f"{self.where}: {text}")
 
-    def sub(self, key: str, doc: Any, where: str | None = None) -> Fields:
+    def sub(self, key: str, doc: Any) -> Fields:
         """The table ``doc`` found at ``key`` of this one, with the same error type and wording."""
-        return Fields(doc, self.where if where is None else where, self.error, path=self.field(key),
-                      wording=self.wording, ranges=self.ranges)
+        return Fields(doc, self.where, self.error, path=self.field(key), wording=self.wording,
+                      ranges=self.ranges)
 
     def get(self, key: str, kind: type | tuple[type, ...], default: Any = ..., *,
             check: Callable[[Any], Any] | None = None, why: str = "") -> Any:
         """The value of ``key``, of type ``kind`` (an int is taken for a float; a bool is never a
-        number; a float must be finite), passing ``check`` (else ``why`` says the rule it breaks);
-        ``default`` when absent (required when no default is given)."""
+        number; a float must be finite; ``object`` takes any value), passing ``check`` (else ``why``
+        says the rule it breaks); ``default`` when absent (required when no default is given)."""
         if key not in self.doc:
             if default is ...:
                 raise self._bad("missing", key, None)
