@@ -102,3 +102,15 @@ def test_blind_self_check_measures_the_truth_model():
         np.testing.assert_array_equal(freq[k], truth_modes(rig, pose, 8).freq_hz[:3])
         fe = frame_modes(rig, pose, 6).freq_hz
         assert np.max(np.abs(freq[k] / fe[fe > 1e-3][:3] - 1)) > 1e-3
+
+
+def test_full_scale_by_kind_names_a_missing_kind():
+    """``simulate(full_scale={kind: value})`` (the simulators' ADC chain) refuses a record with a channel
+    kind it does not cover, naming the kind."""
+    from flexmodal.fixtures.errors import FixtureError
+
+    rig = load_rig(DEMO_RIG)
+    with pytest.raises(FixtureError, match="no value for channel kind 'acceleration'"):
+        simulate(rig, POSE, duration_s=0.1, full_scale={"force": 500.0}, truth=bench_arm(rig))
+    test = simulate(rig, POSE, duration_s=0.1, full_scale={"force": 500.0, "acceleration": 20.0})
+    np.testing.assert_array_equal(test.full_scale, [500.0] + [20.0] * len(rig.sensors))
