@@ -84,10 +84,13 @@ def test_demo_diagnosis_finds_the_elbow_with_a_realistic_residual(demo_dir: tupl
     diagnosis's (compare/): with this truth it adds a second component that absorbs the model form
     (``link_stiffness`` of link2 or ``joint_mass`` at the elbow, reported as ambiguous), so the exact
     effect string is not asserted here."""
-    out, _, _ = demo_dir
+    out, _, stdout = demo_dir
     v = json.loads((out / "diagnosis.json").read_text(), parse_constant=lambda c: pytest.fail(c))["verdict"]
     assert "joint_stiffness" in v["effect"].split("+") and "elbow" in v["location"].split("+"), v
     assert 0.003 <= v["heldout_rms_rel_error_after"] <= 0.02
+    said = re.search(r"^fits as well within noise: (.*)$", stdout, re.MULTILINE)
+    assert bool(said) == v["ambiguous"]                    # the demo prints the ambiguity it was told
+    assert all(f"{a['effect']} at {a['location']}" in said.group(1) for a in v["alternatives"] if said)
 
 
 def test_demo_records_come_from_the_truth_model(demo_dir: tuple[Path, float, str]) -> None:
