@@ -176,3 +176,14 @@ def test_the_bench_arms_impact_record_carries_its_modes_and_mode_dependent_dampi
     good = (res.coherence > 0.999) & (res.freq_hz > 10)
     assert good.sum() > 100
     np.testing.assert_allclose(res.H[:, 0][good], exact[good], rtol=0.02)
+
+
+def test_options_naming_nothing_in_the_rig_are_refused():
+    """An offset for a mass the rig does not have, or an unknown observed quantity, is one clear error."""
+    from flexmodal.fixtures.errors import FixtureError
+
+    rig = load_rig(DEMO_RIG)
+    with pytest.raises(FixtureError, match="'motor' is not a mass of rig 'demo-arm'"):
+        truth_modes(rig, {"theta_deg": 0.0}, 2, TruthOptions(mass_offset_m={"motor": (0.0, 0.01)}))
+    with pytest.raises(FixtureError, match="'twist' is not one of"):
+        truth_modes(rig, {"theta_deg": 0.0}, 2, observe=[("tip", "twist")])
