@@ -110,9 +110,9 @@ def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: 
     """Batch FRFs of stored runs (a file means all its runs, ``FILE::RUN_ID`` or (file, id) one run),
     written back into each file or into ``out``; returns the (file, run id) pairs written.
 
-    Runs are computed here one after the other unless the measured cost predicts that a dask
-    LocalCluster pays for its start-up (``workers`` None, see ``modal.batch.run_batch``); ``workers``
-    N forces a LocalCluster of N processes, 0 computes here, ``scheduler`` sends the runs to that
+    Runs are computed here one after the other unless the measured cost predicts that a
+    pool of local processes pays for its start-up (``workers`` None, see ``modal.batch.run_batch``);
+    ``workers`` N forces a pool of N processes, 0 computes here, ``scheduler`` sends the runs to that
     address.  Estimators registered in this process
     (``modal.frf.register_estimator``) reach worker processes only if they register them too."""
     from flexmodal.modal.batch import frf_batch

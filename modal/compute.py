@@ -141,8 +141,11 @@ def frf_of_record(samples, sample_rate_hz: float, names: Sequence[str], kinds: S
     else:
         used_nfft = default_nfft(samples.shape[0]) if nfft is None else int(nfft)
         used_window = window or "hann"
-        spectra = welch_spectra(samples, sample_rate_hz, inputs, outputs, used_nfft, overlap=overlap,
-                                window_spec=used_window, workers=workers, skip=skip, min_segments=0)
+        try:
+            spectra = welch_spectra(samples, sample_rate_hz, inputs, outputs, used_nfft, overlap=overlap,
+                                    window_spec=used_window, workers=workers, skip=skip, min_segments=0)
+        except ModalError as exc:
+            raise ModalError(f"{where}: {exc}") from None
         _check_welch(spectra, samples, names, inputs + outputs, where, len(skip))
         extra = {"overlap": overlap, "averaging": "linear", "segments_used": spectra.n_averages,
                  "segments_skipped": spectra.n_skipped}

@@ -9,6 +9,7 @@ float32 records are transformed in single precision and accumulated in double pr
 
 from __future__ import annotations
 
+import collections
 import functools
 import os
 import queue
@@ -304,11 +305,19 @@ def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
     read_rows = max((block - 1) * step + nfft, _READ_BYTES // row_bytes)
     read_rows = -(-read_rows // chunk) * chunk                       # whole storage chunks
     n_threads = min(_thread_count(workers), -(-n_seg // block))
-    work = [_Work(windows, n_in, step, block) for _ in range(n_threads)]
+    free: queue.SimpleQueue = queue.SimpleQueue()      # one set of work buffers per thread
+    for _ in range(n_threads):
+        free.put(_Work(windows, n_in, step, block))
     n_ch, n_freq = len(chans), nfft // 2 + 1
     total = [np.zeros((n_ch - n_in, n_in, n_freq), complex), np.zeros((n_in, n_in, n_freq), complex),
              np.zeros((n_ch - n_in, n_freq)), np.zeros(n_ch), 0]
     pool = ThreadPoolExecutor(n_threads) if n_threads > 1 else None
+    pending: collections.deque = collections.deque()
+
+    def add(part: tuple) -> None:           # block sums added in segment order, whatever the threads
+        for k, value in enumerate(part):
+            total[k] += value
+
     done, tail_start, tail = 0, 0, None
     try:
         for r0, rows in _row_blocks(samples, read_rows):
@@ -316,14 +325,21 @@ def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
             ready = min(n_seg, (r0 + rows.shape[0] - nfft) // step + 1)   # segments complete by now
             jobs = [s0 for s0 in range(done, ready, block) if min(s0 + block, n_seg) <= ready]
 
-            def run(t: int, jobs=jobs, sources=sources) -> list:
-                return [work[t].sums(sources, cols, windows, n_in, step, s0, min(block, n_seg - s0),
-                                     skipped, detrend) for s0 in jobs[t::n_threads]]
+            def run(s0: int, sources=sources) -> tuple:
+                work = free.get()                   # whichever thread is free takes the next block
+                try:
+                    return work.sums(sources, cols, windows, n_in, step, s0, min(block, n_seg - s0),
+                                     skipped, detrend)
+                finally:
+                    free.put(work)
 
-            parts = [run(0)] if pool is None else list(pool.map(run, range(n_threads)))
-            for i in range(len(jobs)):              # added in segment order, whatever the threads
-                for k, value in enumerate(parts[i % n_threads][i // n_threads]):
-                    total[k] += value
+            if pool is None:
+                for s0 in jobs:
+                    add(run(s0))
+            else:       # blocks of the next read start while these finish; at most 2 per thread queued
+                pending.extend(pool.submit(run, s0) for s0 in jobs)
+                while len(pending) > 2 * n_threads:
+                    add(pending.popleft().result())
             if jobs:
                 done = min(jobs[-1] + block, n_seg)
             start = done * step
@@ -332,8 +348,12 @@ def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
             else:   # a read block shorter than the segment block still open: keep both
                 tail = np.concatenate([tail[start - tail_start:], rows])
                 tail_start = start
+        while pending:
+            add(pending.popleft().result())
     finally:
         if pool is not None:
+            for fut in pending:
+                fut.cancel()
             pool.shutdown()
     g_xf, g_ff, g_xx, mean_sum, n_used = total
     if n_used < min_segments:
