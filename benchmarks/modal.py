@@ -23,6 +23,10 @@ as the environment sets them, e.g. ``OPENBLAS_NUM_THREADS=1``; modal.lscf itself
 from __future__ import annotations
 
 import argparse
+import os
+import resource
+import shutil
+import subprocess
 import sys
 import tempfile
 import time
@@ -131,20 +135,46 @@ def bench_frf(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: int)
           f"coherence {np.max(np.abs(ac[:, lines] - bc[:, lines])[good]):.1e}")
 
 
+def _child_env(cache: str | None) -> dict:
+    """The environment of the timed child processes: with ``cache`` a folder, Python caches the
+    bytecode of flexmodal's modules there (as an installed package has it), else none is written
+    (``PYTHONDONTWRITEBYTECODE=1``, as in a sandbox that sets it: every module compiled each time)."""
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONDONTWRITEBYTECODE", "PYTHONPYCACHEPREFIX")}
+    if cache is None:
+        env["PYTHONDONTWRITEBYTECODE"] = "1"
+    else:
+        env["PYTHONPYCACHEPREFIX"] = cache
+    return env
+
+
+def _child(command: list[str], env: dict) -> tuple[float, float]:
+    """Wall and CPU time (s, user + system of the child) of one child process."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    subprocess.run(command, check=True, timeout=600, stdout=subprocess.DEVNULL, env=env)
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
+
+
+def _spread(values) -> str:
+    return f"{np.median(values):.3f} s ({np.min(values):.3f}-{np.max(values):.3f})"
+
+
 def bench_process(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: int, folder: str) -> None:
     """The whole ``flexmodal frf`` process (start-up, imports, streaming the stored float32 run, H1 +
     coherence, writing them) against pyFRF in this process on the same samples as float64, and
-    against the floor: h5py reading the samples plus the bare FFTs."""
-    import os
-    import resource
-    import subprocess
+    against the floor: h5py reading the samples plus the bare FFTs.  Then where the process's time
+    goes (start-up, imports, the streamed estimate in this process, the rest) and the bound that the
+    interpreter's own start-up puts on the ratio."""
 
-    import h5py
-
-    from flexmodal.daq.store import Channel, RunWriter
+    from flexmodal.daq.store import Channel, RunWriter, open_run
+    from flexmodal.modal.batch import idle_cpus
+    from flexmodal.modal.compute import compute_frf
 
     samples = _record(duration_s, fs, n_resp)
     path, out = os.path.join(folder, "bench_run.h5"), os.path.join(folder, "bench_frf.h5")
+    cache = tempfile.mkdtemp(prefix="flexmodal-pyc-", dir=folder)
     channels = [Channel("F", "force", "N")] + [Channel(f"a{k}", "acceleration", "m/s^2")
                                                for k in range(1, n_resp + 1)]
     with RunWriter(path, "r", sample_rate_hz=fs, channels=channels, excitation="random", pose={}) as w:
@@ -154,30 +184,41 @@ def bench_process(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: 
     del samples
     command = [sys.executable, "-m", "flexmodal", "--quiet", "frf", path, "--nfft", str(nfft),
                "--workers", "0", "--out", out]
+    cached, uncached = _child_env(cache), _child_env(None)
+    floors = {"python -c pass": [sys.executable, "-c", "pass"],
+              "import numpy, h5py": [sys.executable, "-c", "import numpy, h5py"],
+              "imports of `frf`": [sys.executable, "-c", "import flexmodal.app, flexmodal.api, "
+                                   "flexmodal.modal.batch, flexmodal.valid_output"]}
 
     def theirs():
         h1_, _, coh = _pyfrf(exc, resp, fs, nfft)
         return h1_, coh
 
-    child_cpu = []
+    times: dict[str, list] = {k: [] for k in ("ours", "uncached", "estimate", *floors)}
 
     def ours():
         if os.path.exists(out):
             os.remove(out)
-        before = resource.getrusage(resource.RUSAGE_CHILDREN)
-        subprocess.run(command, check=True, timeout=600, stdout=subprocess.DEVNULL)
-        after = resource.getrusage(resource.RUSAGE_CHILDREN)
-        child_cpu.append(after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime)
+        times["ours"].append(_child(command, cached))
 
-    def read():
-        with h5py.File(path, "r") as f:
-            return f["runs/r/samples"][()]
+    def estimate():
+        with open_run(path, "r") as run:
+            compute_frf(run, nfft=nfft, workers=idle_cpus())
 
     try:
-        (t_theirs, c_theirs, _), (t_ours, _, _) = _timed(theirs, ours, repeat)
-        t_read = float(np.median([_wall(read) for _ in range(repeat)]))
+        _child(command, cached)                 # fills the bytecode cache
+        (t_theirs, c_theirs, _), _ = _timed(theirs, ours, repeat)
+        for _ in range(repeat):
+            os.remove(out)
+            times["uncached"].append(_child(command, uncached))
+            for name, cmd in floors.items():
+                times[name].append(_child(cmd, cached))
+            t0, c0 = time.perf_counter(), time.process_time()
+            estimate()
+            times["estimate"].append((time.perf_counter() - t0, time.process_time() - c0))
+        t_read = float(np.median([_wall(lambda: _read(path)) for _ in range(repeat)]))
         n_seg = (n - nfft) // (nfft // 2) + 1
-        floor = t_read + _fft_floor((n_resp + 1) * n_seg, nfft, repeat)
+        t_fft = _fft_floor((n_resp + 1) * n_seg, nfft, repeat)
         from flexmodal.modal.runs_io import read_frf
 
         got = read_frf(out, "r")
@@ -185,13 +226,34 @@ def bench_process(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: 
         for p in (path, out):
             if os.path.exists(p):
                 os.remove(p)
+        shutil.rmtree(cache, ignore_errors=True)
+    wall = {k: np.array(v)[:, 0] for k, v in times.items()}
+    cpu = {k: float(np.median(np.array(v)[:, 1])) for k, v in times.items()}
+    t_ours, floor = float(np.median(wall["ours"])), t_read + t_fft
+    start = float(np.median(wall["import numpy, h5py"]))
     print(f"PROC whole `flexmodal frf` process, {n_resp} responses x 1 reference, {duration_s:g} s at "
-          f"{fs:g} Hz, nfft {nfft}, H1 + coherence: pyFRF in-process (float64) {t_theirs:.3f} s, "
-          f"flexmodal process {t_ours:.3f} s, ratio {t_theirs / t_ours:.1f}x "
-          f"(medians of {repeat}); CPU pyFRF {c_theirs:.3f} s, flexmodal process "
-          f"{np.median(child_cpu):.3f} s, ratio {c_theirs / np.median(child_cpu):.1f}x")
-    print(f"     floor: h5py read {t_read:.3f} s + bare FFTs = {floor:.3f} s; flexmodal process / floor = "
-          f"{t_ours / floor:.2f}; {got.n_averages} segments")
+          f"{fs:g} Hz, nfft {nfft}, H1 + coherence, bytecode cached: pyFRF in-process (float64) "
+          f"{t_theirs:.3f} s, flexmodal process {_spread(wall['ours'])}, ratio {t_theirs / t_ours:.1f}x "
+          f"(medians of {repeat}); CPU pyFRF {c_theirs:.3f} s, flexmodal process {cpu['ours']:.3f} s, "
+          f"ratio {c_theirs / cpu['ours']:.1f}x; without a bytecode cache the process takes "
+          f"{_spread(wall['uncached'])}")
+    print(f"     floor: h5py read {t_read:.3f} s + bare FFTs {t_fft:.3f} s = {floor:.3f} s; flexmodal "
+          f"process / floor = {t_ours / floor:.2f}; {got.n_averages} segments")
+    print(f"     where it goes (wall; CPU): interpreter `python -c pass` {_spread(wall['python -c pass'])}; "
+          f"`import numpy, h5py` {_spread(wall['import numpy, h5py'])}; all imports of `frf` "
+          f"{_spread(wall['imports of `frf`'])}; streamed estimate in-process {_spread(wall['estimate'])}"
+          f" ({cpu['estimate']:.3f} s CPU); the rest (parser, checks, writing) "
+          f"{t_ours - float(np.median(wall['imports of `frf`'])) - float(np.median(wall['estimate'])):.3f} s")
+    print(f"     bounds: any process that starts Python and imports numpy + h5py, reads and transforms "
+          f"takes >= {start + floor:.3f} s, so none is more than {t_theirs / (start + floor):.1f}x faster "
+          f"than pyFRF here; that start alone is {start / (t_theirs / 10):.2f}x pyFRF's time / 10")
+
+
+def _read(path: str) -> np.ndarray:
+    import h5py
+
+    with h5py.File(path, "r") as f:
+        return f["runs/r/samples"][()]
 
 
 def _wall(fn) -> float:
