@@ -9,7 +9,6 @@ import numpy as np
 
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult, coherence, estimate, estimator_name
-from flexmodal.modal.impact import impact_spectra
 from flexmodal.modal.spectra import Spectra, welch_spectra
 from flexmodal.modal.windows import added_decay_rate_per_s, impact_windows
 
@@ -127,6 +126,8 @@ def frf_of_record(samples, sample_rate_hz: float, names: Sequence[str], kinds: S
     if excitation == "impact":
         if len(inputs) != 1:
             raise ModalError(f"{where}: impact processing needs exactly one force channel")
+        from flexmodal.modal.impact import impact_spectra  # only impact runs need it
+
         samples = np.asarray(samples[()])
         check_samples(samples, names, where, allow_nan=True)
         fw, ew = impact_windows(window)

@@ -60,6 +60,12 @@ def rfft(x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     return _pocketfft().r2c(x, axes=[x.ndim - 1], forward=True, inorm=0, out=out, nthreads=1)
 
 
+def rfftfreq(nfft: int, sample_rate_hz: float) -> np.ndarray:
+    """Frequencies (Hz) of the ``nfft // 2 + 1`` lines of a real FFT, computed as
+    ``numpy.fft.rfftfreq(nfft, 1 / sample_rate_hz)`` does (same values) without importing numpy.fft."""
+    return np.arange(nfft // 2 + 1) * (1.0 / (nfft * (1.0 / sample_rate_hz)))
+
+
 @dataclass(frozen=True)
 class Spectra:
     """Averaged one-sided spectra: ``freq_hz`` [n_freq], ``g_xf`` [n_out, n_in, n_freq],
@@ -121,7 +127,7 @@ def spectra_of_segments(segments: np.ndarray, n_in: int, sample_rate_hz: float,
     g_xf, g_ff, g_xx = _products(x, n_in, w)
     norm = 1.0 if w is not None else 1.0 / segments.shape[0]
     scale = density_scale(x.shape[-1], nfft, sample_rate_hz, scale_window) * norm
-    return Spectra(np.fft.rfftfreq(nfft, 1.0 / sample_rate_hz), g_xf * scale, g_ff * scale,
+    return Spectra(rfftfreq(nfft, sample_rate_hz), g_xf * scale, g_ff * scale,
                    g_xx * scale, segments.shape[0])
 
 
@@ -360,5 +366,5 @@ def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
         raise ModalError(f"only {n_used} of {n_seg} segments usable (NaN/inf samples or skipped "
                          f"intervals in the others); at least {min_segments} needed")
     scale = density_scale(g_xx.shape[-1], nfft, sample_rate_hz, w_out) / max(n_used, 1)
-    return Spectra(np.fft.rfftfreq(nfft, 1.0 / sample_rate_hz), g_xf * scale, g_ff * scale,
+    return Spectra(rfftfreq(nfft, sample_rate_hz), g_xf * scale, g_ff * scale,
                    g_xx * scale, n_used, n_seg - n_used, mean_sum / max(n_used, 1))

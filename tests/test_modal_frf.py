@@ -103,9 +103,10 @@ def test_blocked_threaded_spectra_equal_scipy_csd_for_any_channel_order(overlap,
     kw = dict(fs=fs, window=scipy.signal.get_window("hann", nfft), nperseg=nfft, noverlap=noverlap,
               detrend="constant")
     for k, o in enumerate([3, 0]):
-        _, gxf = scipy.signal.csd(samples[:, 2], samples[:, o], **kw)     # E[conj(F) X]
+        freq, gxf = scipy.signal.csd(samples[:, 2], samples[:, o], **kw)     # E[conj(F) X]
         _, gxx = scipy.signal.welch(samples[:, o], **kw)
         for s in (s1, s2):
+            assert np.array_equal(s.freq_hz, freq)           # the same lines, to the last bit
             assert np.allclose(s.g_xf[k, 0], gxf, rtol=1e-10, atol=1e-12 * np.abs(gxf).max())
             assert np.allclose(s.g_xx[k], gxx, rtol=1e-10, atol=1e-12 * gxx.max())
     assert np.allclose(s1.g_ff[0, 0].real, scipy.signal.welch(samples[:, 2], **kw)[1], rtol=1e-10)
