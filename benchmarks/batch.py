@@ -4,12 +4,13 @@ Writes ``--runs`` files (default 8 and 100) of one random run each (1 force + 16
 ``--duration-s`` at 5 kHz, float32, the run store's layout) into a temporary folder, then times, per
 round and in this order: ``--workers 0`` (serial, the reference), the default (serial or a pool as
 the measured cost decides) and ``--workers 2`` (a pool of 2 local processes).  Prints medians and
-spread (min-max) over ``--repeat`` rounds, the ratios against the serial run of the same rounds and
-the CPUs each kept busy (CPU time of the process and its children over wall time), then the start-up
-cost of the pool (``--workers 2`` less ``--workers 0`` on two 1 s runs: the figure behind
-``modal.batch.POOL_START_S``).  The machine may be shared: read the ratios, and the CPU load printed
-with them.
-Usage: ``python benchmarks/batch.py [--runs 8 100] [--duration-s 60] [--repeat 3] [--folder DIR]``
+spread (min-max) over ``--repeat`` rounds (one count per ``--runs`` entry, default 3 and 1, so
+the whole benchmark takes about 2 minutes on a quiet 2-core machine), the ratios against the serial
+run of the same rounds and the CPUs each kept busy (CPU time of the process and its children over
+wall time), then the start-up cost of the pool (``--workers 2`` less ``--workers 0`` on two 1 s
+runs: the figure behind ``modal.batch.POOL_START_S``).  The machine may be shared: read the ratios,
+and the CPU load printed with them.
+Usage: ``python benchmarks/batch.py [--runs 8 100] [--duration-s 60] [--repeat 3 1] [--folder DIR]``
 """
 
 from __future__ import annotations
@@ -90,17 +91,17 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--runs", type=int, nargs="+", default=[8, 100])
     p.add_argument("--duration-s", type=float, default=60.0)
-    p.add_argument("--repeat", type=int, default=3)
+    p.add_argument("--repeat", type=int, nargs="+", default=[3, 1], help="rounds per --runs entry")
     p.add_argument("--folder", default=None, help="where the run files go (default: a temporary folder)")
     a = p.parse_args(argv)
     folder = tempfile.mkdtemp(prefix="flexmodal-batch-", dir=a.folder)
     try:
-        for n_runs in a.runs:
+        for n_runs, repeat in zip(a.runs, a.repeat + a.repeat[-1:] * len(a.runs), strict=False):
             paths = write_runs(folder, n_runs, a.duration_s)
-            bench(paths, a.repeat, folder)
+            bench(paths, repeat, folder)
             for path in paths:
                 os.remove(path)
-        pool_start_up(folder, a.repeat)
+        pool_start_up(folder, a.repeat[0])
     finally:
         shutil.rmtree(folder, ignore_errors=True)
     return 0

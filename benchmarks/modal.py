@@ -23,6 +23,8 @@ as the environment sets them, e.g. ``OPENBLAS_NUM_THREADS=1``; modal.lscf itself
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import os
 import resource
 import shutil
@@ -239,11 +241,15 @@ def bench_process(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: 
           f"{_spread(wall['uncached'])}")
     print(f"     floor: h5py read {t_read:.3f} s + bare FFTs {t_fft:.3f} s = {floor:.3f} s; flexmodal "
           f"process / floor = {t_ours / floor:.2f}; {got.n_averages} segments")
-    print(f"     where it goes (wall; CPU): interpreter `python -c pass` {_spread(wall['python -c pass'])}; "
-          f"`import numpy, h5py` {_spread(wall['import numpy, h5py'])}; all imports of `frf` "
-          f"{_spread(wall['imports of `frf`'])}; streamed estimate in-process {_spread(wall['estimate'])}"
-          f" ({cpu['estimate']:.3f} s CPU); the rest (parser, checks, writing) "
-          f"{t_ours - float(np.median(wall['imports of `frf`'])) - float(np.median(wall['estimate'])):.3f} s")
+    def med(key: str, i: int) -> float:       # median wall (i = 0) or CPU (i = 1) time
+        return float(np.median(np.array(times[key])[:, i]))
+
+    rest = [med("ours", i) - med("imports of `frf`", i) - med("estimate", i) for i in (0, 1)]
+    print("     where it goes, wall (CPU): " + "; ".join(
+        f"{name} {_spread(wall[key])} ({cpu[key]:.3f})" for name, key in (
+            ("`python -c pass`", "python -c pass"), ("`import numpy, h5py`", "import numpy, h5py"),
+            ("all imports of `frf`", "imports of `frf`"), ("streamed estimate in-process", "estimate")))
+        + f"; the rest (parser, checks, writing) {rest[0]:.3f} s ({rest[1]:.3f})")
     print(f"     bounds: any process that starts Python and imports numpy + h5py, reads and transforms "
           f"takes >= {start + floor:.3f} s, so none is more than {t_theirs / (start + floor):.1f}x faster "
           f"than pyFRF here; that start alone is {start / (t_theirs / 10):.2f}x pyFRF's time / 10")
@@ -278,7 +284,7 @@ def bench_lscf(n_frf: int, n_lines: int, repeat: int) -> None:
     def theirs():
         m = EMA.Model(frf=H[:, 0], freq=f, lower=1, upper=200, pol_order_high=30, frf_form="accelerance")
         m.get_poles(show_progress=False)
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), contextlib.redirect_stderr(io.StringIO()):   # its progress bar
             warnings.simplefilter("ignore")
             m.select_closest_poles(FN)
         return m.nat_freq, m.nat_xi
