@@ -4,12 +4,13 @@ Writes ``--runs`` files (default 8 and 100) of one random run each (1 force + 16
 ``--duration-s`` at 5 kHz, float32, the run store's layout) into a temporary folder, then times, per
 round and in this order: ``--workers 0`` (serial, the reference), the default (serial or a pool as
 the measured cost decides) and ``--workers 2`` (a pool of 2 local processes).  Prints medians and
-spread (min-max) over ``--repeat`` rounds (one count per ``--runs`` entry, default 3 and 1, so
-the whole benchmark takes about 2 minutes on a quiet 2-core machine), the ratios against the serial
-run of the same rounds and the CPUs each kept busy (CPU time of the process and its children over
-wall time), then the start-up cost of the pool (``--workers 2`` less ``--workers 0`` on two 1 s
-runs: the figure behind ``modal.batch.POOL_START_S``).  The machine may be shared: read the ratios,
-and the CPU load printed with them.
+spread (min-max) over ``--repeat`` rounds (one count per ``--runs`` entry, default 3 and 1, so the
+whole benchmark takes about 2 minutes on a quiet 2-core machine), the ratios against the serial run
+of the same rounds and the CPUs the serial and default processes kept busy (CPU time over wall time;
+the pool's workers are the fork server's children, not counted); then the start-up cost of the pool
+(``--workers 2`` less ``--workers 0`` on two 1 s runs: the figure behind
+``modal.batch.POOL_START_S``).  The machine may be shared: read the ratios, and the CPU load printed
+with them.
 Usage: ``python benchmarks/batch.py [--runs 8 100] [--duration-s 60] [--repeat 3 1] [--folder DIR]``
 """
 
@@ -68,8 +69,9 @@ def bench(paths: list[str], repeat: int, folder: str) -> None:
           f"(load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs):")
     for name, ts in times.items():
         wall, cpu = np.array(ts).T
+        busy = "pool workers not counted" if "pool" in name else f"{np.median(cpu / wall):.2f}"
         print(f"     {name:22s} median {np.median(wall):7.2f} s (spread {min(wall):.2f}-{max(wall):.2f} s), "
-              f"serial / this = {ref / np.median(wall):.2f}x, CPUs busy {np.median(cpu / wall):.2f}")
+              f"serial / this = {ref / np.median(wall):.2f}x, CPUs busy {busy}")
 
 
 def pool_start_up(folder: str, repeat: int) -> None:

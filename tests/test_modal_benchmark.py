@@ -48,5 +48,5 @@ def test_batch_benchmark_reports_every_case_against_serial(capsys, tmp_path):
     out = capsys.readouterr().out
     assert "BATCH 4 runs" in out and "serial / this = 1.00x" in out
     assert "--workers 2 (pool)" in out and "default (by cost)" in out and "POOL start-up" in out
-    assert out.count("CPUs busy") == 3
+    assert out.count("CPUs busy") == 3 and "CPUs busy pool workers not counted" in out
     assert list(tmp_path.iterdir()) == []
