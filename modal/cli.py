@@ -7,22 +7,23 @@ import sys
 
 from flexmodal import valid_options as opt
 
+BUILT_IN_ESTIMATORS = ("H1", "H2", "Hv")   # modal.frf.ESTIMATORS as shipped (tested equal)
+
 
 class _Estimators:
-    """The names of the registry ``modal.frf.ESTIMATORS`` (any case), read only when argparse checks or
-    lists them, so building the parser imports no numpy."""
+    """The names of the registry ``modal.frf.ESTIMATORS`` (any case), read only when argparse checks a
+    value (the command then imports numpy anyway); listing them in ``--help`` reads the registry only
+    if ``modal.frf`` is already imported (estimators are registered by importing it), else names
+    BUILT_IN_ESTIMATORS: so neither building the parser nor ``frf --help`` imports numpy."""
 
     def __contains__(self, name: object) -> bool:
-        return any(k.lower() == str(name).lower() for k in self._names())
-
-    def __iter__(self):
-        return iter(self._names())
-
-    @staticmethod
-    def _names() -> list[str]:
         from flexmodal.modal.frf import ESTIMATORS
 
-        return list(ESTIMATORS)
+        return any(k.lower() == str(name).lower() for k in ESTIMATORS)
+
+    def __iter__(self):
+        frf = sys.modules.get("flexmodal.modal.frf")
+        return iter(BUILT_IN_ESTIMATORS if frf is None else list(frf.ESTIMATORS))
 
 
 def register(sub: argparse._SubParsersAction) -> None:
