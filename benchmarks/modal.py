@@ -9,7 +9,10 @@
 
 3. The whole process: ``flexmodal frf`` (nfft 4096, H1 + coherence) on that record stored as a run
    (float32, the run store's layout), against pyFRF in this process on the same samples as float64
-   and against the floor of h5py reading the samples plus the bare FFTs.
+   and against the floor of h5py reading the samples plus the bare FFTs; where the process's time
+   goes (interpreter, imports, estimate, the rest) and the bound the start-up puts on any ratio.
+4. That estimate in memory with 1 and 2 threads against its bare FFTs on one thread (pocketfft as
+   flexmodal calls it, and numpy.fft): the cost of the passes besides the FFT.
 
 Each round runs the reference first, then flexmodal, on the same data in this process; prints the
 median wall and CPU times over ``--repeat`` rounds, their ratios and the differences of the results.
@@ -24,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import functools
 import io
 import os
 import resource
@@ -66,9 +70,13 @@ def _ratio_line(name_ref: str, t_ref: float, c_ref: float, t_ours: float, c_ours
             f"(CPU {c_ref:.3f} s vs {c_ours:.3f} s, {c_ref / c_ours:.1f}x; medians of {repeat})")
 
 
-def _fft_floor(n_transforms: int, nfft: int, repeat: int) -> float:
-    """Median wall time (s) of ``n_transforms`` float32 real FFTs of ``nfft`` points, done as
-    scipy.fft.rfft over a block of segments of flexmodal's block size, with every CPU."""
+def _all_cpus_rfft(block: np.ndarray) -> np.ndarray:
+    return scipy.fft.rfft(block, axis=-1, workers=-1)
+
+
+def _fft_floor(n_transforms: int, nfft: int, repeat: int, fft=_all_cpus_rfft) -> float:
+    """Median wall time (s) of ``n_transforms`` float32 real FFTs of ``nfft`` points, done by ``fft``
+    (default scipy.fft.rfft with every CPU) over a block of segments of flexmodal's block size."""
     rows = max(1, _BLOCK_BYTES // (4 * nfft))
     block = np.random.default_rng(2).standard_normal((rows, nfft)).astype(np.float32)
     n_blocks = n_transforms / block.shape[0]
@@ -76,11 +84,12 @@ def _fft_floor(n_transforms: int, nfft: int, repeat: int) -> float:
     for _ in range(repeat):
         t0 = time.perf_counter()
         for _ in range(int(np.ceil(n_blocks))):
-            scipy.fft.rfft(block, axis=-1, workers=-1)
+            fft(block)
         times.append((time.perf_counter() - t0) * n_blocks / np.ceil(n_blocks))
     return float(np.median(times))
 
 
+@functools.lru_cache(maxsize=1)
 def _record(duration_s: float, fs: float, n_resp: int) -> np.ndarray:
     """1 random force + ``n_resp`` responses of 4 modes (1 % noise), float32 [n, 1 + n_resp]."""
     rng = np.random.default_rng(0)
@@ -255,6 +264,34 @@ def bench_process(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: 
           f"than pyFRF here; that start alone is {start / (t_theirs / 10):.2f}x pyFRF's time / 10")
 
 
+def bench_kernel(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: int) -> None:
+    """The estimate of the PROC case in memory (H1 + coherence, Hann, nfft ``nfft``) with 1 and 2
+    threads, against its bare FFTs on one thread (scipy's pocketfft as flexmodal calls it, and
+    numpy.fft.rfft on the same float32 blocks): what the passes besides the FFT cost, what a second
+    thread gains."""
+    from flexmodal.modal.spectra import rfft
+
+    samples = _record(duration_s, fs, n_resp)
+    n_fft = (n_resp + 1) * ((samples.shape[0] - nfft) // (nfft // 2) + 1)
+
+    def estimate(threads: int):
+        s = welch_spectra(samples, fs, [0], list(range(1, n_resp + 1)), nfft, workers=threads)
+        return h1(s), coherence(s)
+
+    times: dict[int, list] = {1: [], 2: []}
+    for _ in range(repeat):
+        for threads in times:
+            t0, c0 = time.perf_counter(), time.process_time()
+            estimate(threads)
+            times[threads].append((time.perf_counter() - t0, time.process_time() - c0))
+    (w1, c1), (w2, c2) = (np.median(np.array(times[k]), axis=0) for k in times)
+    wf, wn = _fft_floor(n_fft, nfft, repeat, rfft), _fft_floor(n_fft, nfft, repeat, np.fft.rfft)
+    print(f"KERNEL the PROC estimate in memory: 1 thread {w1:.3f} s ({c1:.3f} s CPU), 2 threads {w2:.3f} s "
+          f"({c2:.3f} s CPU): {w1 / w2:.2f}x for {c2 / c1:.2f}x the CPU; its bare FFTs on 1 thread "
+          f"{wf:.3f} s, so the other passes take {w1 - wf:.3f} s ({(w1 - wf) / w1:.0%}); numpy.fft.rfft on "
+          f"the same float32 blocks {wn:.3f} s = {wn / wf:.1f}x scipy's pocketfft (medians of {repeat})")
+
+
 def _read(path: str) -> np.ndarray:
     import h5py
 
@@ -325,6 +362,7 @@ def main(argv: list[str] | None = None) -> int:
     a = p.parse_args(argv)
     bench_frf(a.duration_s, a.sample_rate_hz, a.responses, a.nfft, a.repeat)
     bench_process(a.duration_s, a.sample_rate_hz, a.responses, a.process_nfft, a.repeat, a.folder)
+    bench_kernel(a.duration_s, a.sample_rate_hz, a.responses, a.process_nfft, a.repeat)
     bench_lscf(a.frfs, a.lines, a.repeat)
     return 0
 
