@@ -113,7 +113,9 @@ def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: 
     Runs are computed here one after the other unless the measured cost predicts that a
     pool of local processes pays for its start-up (``workers`` None, see ``modal.batch.run_batch``);
     ``workers`` N forces a pool of N processes, 0 computes here, ``scheduler`` sends the runs to that
-    address.  Estimators registered in this process
+    address.  Worker processes start from a fork server that imports the calling script again as
+    ``__mp_main__``, so a script calling this without ``workers=0`` keeps its own work under
+    ``if __name__ == "__main__":``.  Estimators registered in this process
     (``modal.frf.register_estimator``) reach worker processes only if they register them too."""
     from flexmodal.modal.batch import frf_batch
 
