@@ -201,7 +201,8 @@ def bench_process(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: 
     floors = {"python -c pass": [sys.executable, "-c", "pass"],
               "import numpy, h5py": [sys.executable, "-c", "import numpy, h5py"],
               "imports of `frf`": [sys.executable, "-c", "import flexmodal.app, flexmodal.api, "
-                                   "flexmodal.modal.batch, flexmodal.valid_output"]}
+                                   "flexmodal.modal.batch, flexmodal.valid_output"],
+              "frf --help": [sys.executable, "-m", "flexmodal", "frf", "--help"]}
 
     def theirs():
         h1_, _, coh = _pyfrf(exc, resp, fs, nfft)
@@ -264,6 +265,8 @@ def bench_process(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: 
     print(f"     bounds: any process that starts Python and imports numpy + h5py, reads and transforms "
           f"takes >= {start + floor:.3f} s, so none is more than {t_theirs / (start + floor):.1f}x faster "
           f"than pyFRF here; that start alone is {start / (t_theirs / 10):.2f}x pyFRF's time / 10")
+    print(f"HELP `flexmodal frf --help`, bytecode cached: {_spread(wall['frf --help'])} "
+          f"({cpu['frf --help']:.3f} s CPU)")
 
 
 def bench_kernel(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: int) -> None:

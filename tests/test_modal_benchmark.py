@@ -28,6 +28,7 @@ def test_benchmark_script_runs_and_reports_ratios_and_differences(capsys, tmp_pa
     assert "PROC whole `flexmodal frf` process" in out and "flexmodal process / floor" in out
     assert "; 155 segments" in out      # 4 s at 5 kHz in segments of 256 advancing by 128
     assert "without a bytecode cache" in out and "`import numpy, h5py`" in out and "the rest (parser" in out
+    assert "HELP `flexmodal frf --help`, bytecode cached: " in out
     assert "so none is more than" in out and "KERNEL the PROC estimate in memory: 1 thread" in out
     assert list(tmp_path.iterdir()) == []
 
