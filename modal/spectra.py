@@ -192,10 +192,15 @@ class _Work:
     def __init__(self, windows: np.ndarray, n_in: int, step: int, block: int) -> None:
         n_ch, nfft = windows.shape
         n_freq = nfft // 2 + 1
-        self.rows = np.empty((n_ch, (block - 1) * step + nfft), windows.dtype)
-        self.buf = np.empty((n_ch, block, nfft), windows.dtype)
-        self.spec = np.empty((n_ch, block, n_freq), np.result_type(windows.dtype, np.complex64))
-        self.work = np.empty((n_ch - n_in, block, n_freq), np.result_type(windows.dtype, np.complex64))
+        real, cplx = np.dtype(windows.dtype), np.result_type(windows.dtype, np.complex64)
+        self.rows = np.empty((n_ch, (block - 1) * step + nfft), real)
+        self.spec = np.empty((n_ch, block, n_freq), cplx)
+        # the windowed segments are dead once transformed: the products reuse their memory
+        seg_bytes = n_ch * block * nfft * real.itemsize
+        work_bytes = (n_ch - n_in) * block * n_freq * cplx.itemsize
+        shared = np.empty(max(seg_bytes, work_bytes), np.uint8)
+        self.buf = shared[:seg_bytes].view(real).reshape(n_ch, block, nfft)
+        self.work = shared[:work_bytes].view(cplx).reshape(n_ch - n_in, block, n_freq)
 
     def sums(self, sources, cols, windows: np.ndarray, n_in: int, step: int, first: int, b: int,
              skip: np.ndarray, detrend: bool) -> tuple:

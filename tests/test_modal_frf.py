@@ -148,3 +148,15 @@ def test_windows_equal_scipy_periodic_windows(name):
     for n in (8, 255, 4096):
         reference = scipy.signal.get_window(name, n, fftbins=True)
         assert np.allclose(window(name, n), reference, rtol=0, atol=1e-14)
+
+
+def test_tiny_segments_with_many_outputs_equal_scipy_csd():
+    """nfft 8 and 11 outputs: the products of a block need more memory than its windowed segments
+    (whose buffer they reuse); every cross- and auto-spectrum still equals scipy.signal.csd."""
+    x = np.random.default_rng(0).standard_normal((400, 12))
+    s = welch_spectra(x, 10.0, [0], list(range(1, 12)), 8)
+    kw = dict(fs=10.0, window="hann", nperseg=8, noverlap=4)
+    for k in range(11):
+        _, gxf = scipy.signal.csd(x[:, 0], x[:, k + 1], **kw)
+        assert np.allclose(s.g_xf[k, 0], gxf, rtol=1e-10, atol=1e-14)
+        assert np.allclose(s.g_xx[k], scipy.signal.welch(x[:, k + 1], **kw)[1], rtol=1e-10, atol=1e-14)
