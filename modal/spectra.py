@@ -186,6 +186,22 @@ def skipped_segments(intervals: Sequence[tuple[int, int]], n_seg: int, nfft: int
     return np.cumsum(marks[:-1]) > 0
 
 
+_MAX_WINDOW_LINES = 8      # a window whose spectrum has more lines is detrended before windowing
+
+
+def _window_lines(exact: np.ndarray, windows: np.ndarray) -> np.ndarray | None:
+    """The first k lines [n_ch, k] of the real FFT of every channel's window as used (``windows``,
+    possibly rounded to single precision) when the exact windows' spectra (``exact``, double) are
+    zero to rounding beyond them (|W| <= 64 eps sum|w|) and k <= _MAX_WINDOW_LINES: the periodic
+    cosine windows (rect 1 line, hann 2, flattop 5); None for any other window.  The lines left out
+    of a single-precision window are its rounding, ~1e-9 of sum|w|, below the FFT's own."""
+    big = np.abs(rfft(exact)) > 64 * np.finfo(float).eps * np.abs(exact).sum(axis=1, keepdims=True)
+    k = int(np.flatnonzero(big.any(axis=0))[-1]) + 1 if big.any() else 1
+    if k > _MAX_WINDOW_LINES:
+        return None
+    return rfft(windows.astype(float))[:, :k].astype(np.result_type(windows.dtype, np.complex64))
+
+
 class _Work:
     """One thread's work buffers, sized for ``block`` segments."""
 
@@ -203,35 +219,50 @@ class _Work:
         self.work = shared[:work_bytes].view(cplx).reshape(n_ch - n_in, block, n_freq)
 
     def sums(self, sources, cols, windows: np.ndarray, n_in: int, step: int, first: int, b: int,
-             skip: np.ndarray, detrend: bool) -> tuple:
+             skip: np.ndarray, detrend: bool, lines: np.ndarray | None) -> tuple:
         """(g_xf, g_ff, g_xx, sum of segment means, segments used) over segments ``first`` ..
-        ``first + b - 1``: a channel-major copy of their samples (from the
-        row-major ``sources`` pieces, transposed in cache-sized tiles), the mean-removed windowed
-        segments from a strided view of it, one real FFT over every segment and channel, the products.
-        Segments holding a non-finite sample or marked in ``skip`` are zeroed and not counted."""
+        ``first + b - 1``: a channel-major copy of their samples less the block's first sample (from
+        the row-major ``sources`` pieces, transposed in cache-sized tiles), the windowed segments
+        from a strided view of it, one real FFT over every segment and channel, the products.
+        Each segment's mean is removed (``detrend``): where the windows' spectra ``lines`` are given
+        (their first lines, the rest zero to rounding, as for the cosine windows), by subtracting
+        mean x spectrum of the window from those lines of the transform (the FFT is linear: the same
+        as removing it before windowing, without a pass over the segments), else before windowing.
+        Removing the block's first sample first keeps a large offset out of the single-precision
+        FFT.  Segments holding a non-finite sample or marked in ``skip`` are zeroed and not counted."""
         nfft = windows.shape[1]
         length = (b - 1) * step + nfft
         rows = self.rows[:, :length]
         g0 = first * step
+        offset = np.zeros(rows.shape[0], rows.dtype)
+        if detrend:
+            start, arr = next((st, a) for st, a in sources if st <= g0 < st + a.shape[0])
+            value = np.asarray(arr[g0 - start, cols], rows.dtype)
+            offset[np.isfinite(value)] = value[np.isfinite(value)]
         for start, arr in sources:
             lo, hi = max(g0, start), min(g0 + length, start + arr.shape[0])
             for t0 in range(lo, hi, _TILE):
                 t1 = min(hi, t0 + _TILE)
-                rows[:, t0 - g0:t1 - g0] = arr[t0 - start:t1 - start, cols].T
+                np.subtract(arr[t0 - start:t1 - start, cols].T, offset[:, None], out=rows[:, t0 - g0:t1 - g0])
         view = np.lib.stride_tricks.sliding_window_view(rows, nfft, axis=1)[:, ::step]
         means = _segment_means(rows, view, step)
         bad = skip[first:first + b] | ~np.isfinite(means[:, :, 0]).all(axis=0)
         seg = self.buf[:, :b]
         with np.errstate(invalid="ignore"):
-            if detrend:
+            if detrend and lines is None:
                 np.subtract(view, means, out=seg)
                 seg *= windows[:, None, :]
             else:
                 np.multiply(view, windows[:, None, :], out=seg)
         if bad.any():
             seg[:, bad] = 0
-        a, c, d = _products(rfft(seg, self.spec[:, :b]), n_in, None, self.work)
-        return a, c, d, means[:, ~bad, 0].sum(axis=1, dtype=float), b - int(bad.sum())
+        spec = rfft(seg, self.spec[:, :b])
+        used = means[:, ~bad, 0].sum(axis=1, dtype=float) + offset * (b - int(bad.sum()))
+        if detrend and lines is not None:
+            means[:, bad] = 0
+            spec[:, :, :lines.shape[1]] -= means * lines[:, None, :]
+        a, c, d = _products(spec, n_in, None, self.work)
+        return a, c, d, used, b - int(bad.sum())
 
 
 def _row_blocks(samples, rows_per_block: int) -> Iterator[tuple[int, np.ndarray]]:
@@ -306,10 +337,11 @@ def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
     dtype = np.float32 if samples.dtype == np.float32 else np.float64
     w_out = _window_array(window_spec, nfft)
     w_in = w_out if input_window_spec is None else _window_array(input_window_spec, nfft)
-    windows = np.vstack([np.repeat(w_in[None], n_in, 0),
-                         np.repeat(w_out[None], len(outputs), 0)]).astype(dtype)
+    exact = np.vstack([np.repeat(w_in[None], n_in, 0), np.repeat(w_out[None], len(outputs), 0)])
+    windows = exact.astype(dtype)
     n_seg = (n_samples - nfft) // step + 1
     skipped = skipped_segments(skip, n_seg, nfft, step)
+    lines = _window_lines(exact, windows) if detrend else None
     block = max(1, min(n_seg, _BLOCK_BYTES // (len(chans) * nfft * np.dtype(dtype).itemsize)))
     chunk = (getattr(samples, "chunks", None) or (1,))[0]
     row_bytes = samples.shape[1] * np.dtype(samples.dtype).itemsize
@@ -340,7 +372,7 @@ def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
                 work = free.get()                   # whichever thread is free takes the next block
                 try:
                     return work.sums(sources, cols, windows, n_in, step, s0, min(block, n_seg - s0),
-                                     skipped, detrend)
+                                     skipped, detrend, lines)
                 finally:
                     free.put(work)
 
