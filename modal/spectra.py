@@ -257,7 +257,7 @@ class _Work:
         if bad.any():
             seg[:, bad] = 0
         spec = rfft(seg, self.spec[:, :b])
-        used = means[:, ~bad, 0].sum(axis=1, dtype=float) + offset * (b - int(bad.sum()))
+        used = means[:, ~bad, 0].sum(axis=1, dtype=float) + offset.astype(float) * (b - int(bad.sum()))
         if detrend and lines is not None:
             means[:, bad] = 0
             spec[:, :, :lines.shape[1]] -= means * lines[:, None, :]

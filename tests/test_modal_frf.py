@@ -174,6 +174,8 @@ def test_float32_record_with_a_large_offset_keeps_single_precision_accuracy(wind
     kw = dict(fs=100.0, window=scipy.signal.get_window(window, 1024), nperseg=1024, noverlap=512,
               detrend="constant")
     x = x32.astype(float)
+    segments = np.lib.stride_tricks.sliding_window_view(x, 1024, axis=0)[::512]   # [seg, ch, 1024]
+    assert np.allclose(s.mean, segments.mean(axis=(0, 2)), rtol=1e-10, atol=0)   # mean of segment means
     for k in (1, 2):
         _, gxf = scipy.signal.csd(x[:, 0], x[:, k], **kw)
         _, gxx = scipy.signal.welch(x[:, k], **kw)
