@@ -277,12 +277,12 @@ def write_diagnosis(result, out_dir: PathLike) -> tuple[Path, Path]:
 
     from flexmodal.compare.diagnosis import to_json
     from flexmodal.reports.html import write_report
+    from flexmodal.valid_output import write_text
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    pj = out / "diagnosis.json"
     text = to_json(result)
-    pj.write_text(text)
+    pj = write_text(out / "diagnosis.json", text)
     ph = write_report(out / "diagnosis.html", diagnosis=json.loads(text), title="Sim-to-real gap diagnosis")
     return pj, ph
 

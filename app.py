@@ -60,7 +60,8 @@ def _package_errors() -> tuple[type[BaseException], ...]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the CLI; returns the process exit code (0 ok, 2 bad input, 1 internal error).
+    """Run the CLI; returns the process exit code (0 ok, 2 bad input, 1 internal error, 128 + N stopped
+    by signal N: 130 for Ctrl-C).
 
     Handlers registered by the packages take the parsed namespace and return an exit code; they
     must write results only to stdout and progress/logs only to stderr (docs/formats.md).
@@ -73,7 +74,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     except _package_errors() as exc:  # one line even when a quoted library message had several
         print(f"flexmodal: error: {' '.join(str(exc).split())}", file=sys.stderr)
-        return 2
+        signum = getattr(exc, "signum", 0)  # stopped by a signal before any work (daq.acquire.Stopped)
+        return 128 + signum if signum else 2
     except (FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError) as exc:
         where = exc.filename if exc.filename is not None else ""
         print(f"flexmodal: error: {where}: {exc.strerror or exc}", file=sys.stderr)
