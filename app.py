@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import signal
 import sys
 from collections.abc import Sequence
 
@@ -81,12 +82,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"flexmodal: error: {where}: {exc.strerror or exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("flexmodal: interrupted", file=sys.stderr)
         if argv is None:  # the command itself: outputs are closed or removed by now, so skip the
-            sys.stdout.flush()  # interpreter's tear-down (seconds of garbage collection after a demo)
-            sys.stderr.flush()
-            os._exit(130)
+            _leave_interrupted()  # interpreter's tear-down (seconds of garbage collection after a demo)
+        print("flexmodal: interrupted", file=sys.stderr)
         return 130
+    finally:
+        if argv is None:  # done: a Ctrl-C during the interpreter's tear-down still ends it the same way
+            signal.signal(signal.SIGINT, lambda _signum, _frame: _leave_interrupted())
+
+
+def _leave_interrupted() -> None:
+    """Say so on stderr and end the process at once with exit code 130."""
+    print("flexmodal: interrupted", file=sys.stderr)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(130)
 
 
 if __name__ == "__main__":

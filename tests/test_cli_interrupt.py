@@ -1,9 +1,10 @@
 """Issue 13: Ctrl-C (SIGINT) stops `flexmodal demo` promptly with exit 130 and leaves no output behind.
 
 The demo runs as the real console script; SIGINT is sent once a given output file exists.  Measured
-(load average about 2; issue 13 asks for 1 s): 0.03-0.06 s while identifying or diagnosing, 0.2-0.6 s
-during the serial acquisition, 1.6 s when SIGINT lands while the acquisition's simulator child is
-still starting (the acquisition waits for its endpoint line before it looks at the signal).
+before issue 13's last fixes (load average about 2): 0.03-0.06 s while identifying or diagnosing,
+0.2-0.6 s during the serial acquisition, 1.6 s when SIGINT landed while the acquisition's simulator
+child was still starting; that wait is now interruptible (fixtures.sim_serve, 0.05-0.07 s, and
+tests/test_interrupt_commands.py), so the limit is the issue's 1 s.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ import pytest
 
 from flexmodal.fixtures.demo import OUTPUTS
 
-EXIT_LIMIT_S = 2.0  # issue 13: 1 s; the margin covers a machine shared by seven test runs
+EXIT_LIMIT_S = 1.0  # issue 13
 
 
 def _interrupt_demo(out: Path, when_exists: str, after_s: float) -> tuple[int, float, str]:
@@ -51,6 +52,7 @@ def _check(out: Path, code: int, seconds: float, err: str) -> None:
     assert "flexmodal: interrupted" in err.strip().splitlines(), err[-2000:]
     assert "Traceback" not in ours, err[-2000:]
     assert seconds < EXIT_LIMIT_S, f"exit took {seconds:.2f} s"
+    print(f"exit 130 {seconds:.3f} s after SIGINT")  # shown with pytest -s
     left = [name for name in OUTPUTS if (out / name).exists()]
     assert not left, f"half-written outputs left behind: {left}"
 
