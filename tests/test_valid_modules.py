@@ -175,3 +175,17 @@ def test_uff_records() -> None:
             check_functions("f.uff", [{**ok, **change}])
     with pytest.raises(ModalError, match="missing field 'data'"):
         check_functions("f.uff", [{k: v for k, v in ok.items() if k != "data"}])
+
+
+def test_naming_puts_the_file_in_front_of_messages_that_lack_it():
+    from flexmodal.valid_text import naming
+
+    with pytest.raises(ModalError, match=r"^runs\.h5:r1: identify: no stable poles$"):
+        with naming("runs.h5:r1", ModalError):
+            raise ModalError("identify: no stable poles")
+    with pytest.raises(ModalError, match=r"^runs\.h5:r1: record too short$"):  # not named twice
+        with naming("runs.h5:r1", ModalError):
+            raise ModalError("runs.h5:r1: record too short")
+    with pytest.raises(KeyError):  # other errors pass unchanged
+        with naming("runs.h5:r1", ModalError):
+            raise KeyError("x")
