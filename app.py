@@ -67,6 +67,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     Handlers registered by the packages take the parsed namespace and return an exit code; they
     must write results only to stdout and progress/logs only to stderr (docs/formats.md).
     """
+    if argv is None:  # after a Ctrl-C this process ends with os._exit; multiprocessing's resource tracker
+        # (a child that dask's LocalCluster starts, launched with our -W options) would then print a
+        # multi-line warning about the semaphores it cleans up after us, below our one line
+        sys.warnoptions.append("ignore::UserWarning:multiprocessing.resource_tracker")
     try:
         args = build_parser().parse_args(argv)
         return int(args.func(args) or 0)
@@ -92,11 +96,31 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _leave_interrupted() -> None:
-    """Say so on stderr and end the process at once with exit code 130."""
+    """Say so on stderr, end the child processes and end this one at once with exit code 130."""
     print("flexmodal: interrupted", file=sys.stderr)
     sys.stdout.flush()
     sys.stderr.flush()
+    _end_children()
     os._exit(130)
+
+
+def _end_children() -> None:
+    """SIGTERM every child process (dask nannies, a simulator, an eigen worker), so that none outlives
+    the command by the second or more it would take to notice (Linux /proc; multiprocessing's resource
+    tracker ignores SIGTERM and still cleans up after us)."""
+    me = os.getpid()
+    try:
+        pids = [int(p) for p in os.listdir("/proc") if p.isdigit()]
+    except OSError:
+        return
+    for pid in pids:
+        try:
+            with open(f"/proc/{pid}/stat", "rb") as fh:
+                parent = int(fh.read().rsplit(b")", 1)[1].split()[1])
+            if parent == me:
+                os.kill(pid, signal.SIGTERM)
+        except (OSError, ValueError, IndexError):
+            continue
 
 
 if __name__ == "__main__":

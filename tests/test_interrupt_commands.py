@@ -125,6 +125,29 @@ def test_frf_over_several_runs(runs_file, tmp_path):
             assert read_frf(out, rid).H.shape[:2] == (3, 1)
 
 
+def descendants(pid: int) -> list[int]:
+    found, todo = [], [pid]
+    while todo:
+        kids = children(todo.pop())
+        found += kids
+        todo += kids
+    return found
+
+
+def test_frf_on_a_dask_local_cluster(runs_file, tmp_path):
+    """--workers 2: SIGINT while the LocalCluster's processes start; the command and every process it
+    started (nannies, workers; they hold its stderr) are gone within the limit."""
+    seen: list[int] = []
+
+    def cluster_starting(pid: int) -> bool:
+        seen[:] = sorted(set(seen) | set(descendants(pid)))
+        return len(seen) >= 3  # resource tracker and nannies
+
+    args = ["frf", str(runs_file), "--workers", "2", "--out", "frf.h5"]
+    check(*interrupt(args, tmp_path, cluster_starting), tmp_path)
+    assert [pid for pid in seen if alive(pid)] == []
+
+
 def test_identify(runs_file, tmp_path):
     check(*interrupt(["identify", str(runs_file), "--out", "modes.csv"], tmp_path, after_cpu(1.2)), tmp_path,
           ("modes.csv", "modes.synthesis.csv"))
