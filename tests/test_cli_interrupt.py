@@ -9,13 +9,11 @@ tests/test_interrupt_commands.py), so the limit is the issue's 1 s.
 
 from __future__ import annotations
 
-import signal
-import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
+from interrupt_support import interrupt
 
 from flexmodal.fixtures.demo import OUTPUTS
 
@@ -23,25 +21,15 @@ EXIT_LIMIT_S = 1.0  # issue 13
 
 
 def _interrupt_demo(out: Path, when_exists: str, after_s: float) -> tuple[int, float, str]:
-    exe = Path(sys.executable).with_name("flexmodal")
-    proc = subprocess.Popen([str(exe), "demo", "--out", str(out)], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
-    try:
-        t0 = time.monotonic()
-        while not (out / when_exists).exists():
-            assert proc.poll() is None, f"demo ended before {when_exists} appeared: {proc.stderr.read()}"
-            assert time.monotonic() - t0 < 240, f"{when_exists} did not appear within 240 s"
-            time.sleep(0.02)
-        time.sleep(after_s)
-        assert proc.poll() is None
-        sent = time.monotonic()
-        proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=30)
-        return proc.returncode, time.monotonic() - sent, err
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+    """SIGINT ``after_s`` seconds after ``out/when_exists`` appeared."""
+    seen: list[float] = []
+
+    def ready(_pid: int) -> bool:
+        if not seen and (out / when_exists).exists():
+            seen.append(time.monotonic())
+        return bool(seen) and time.monotonic() - seen[0] >= after_s
+
+    return interrupt(["demo", "--out", str(out)], out.parent, ready, ready_within_s=240.0)
 
 
 def _check(out: Path, code: int, seconds: float, err: str) -> None:

@@ -11,79 +11,21 @@ limit below is the issue's 1 s.
 
 from __future__ import annotations
 
-import os
-import signal
 import subprocess
-import sys
-import time
 from collections.abc import Callable
 from pathlib import Path
 
 import h5py
 import numpy as np
 import pytest
+from interrupt_support import EXE, children, cpu_s, descendants, interrupt, still_alive
 from modal_cases import four_mode_random_record
 
 from flexmodal.daq.store import Channel, RunWriter
 
 REPO = Path(__file__).resolve().parents[1]
 RIGS = REPO / "examples" / "rigs"
-EXE = str(Path(sys.executable).with_name("flexmodal"))
 LIMIT_S = 1.0  # issue 13
-TICK = os.sysconf("SC_CLK_TCK")
-
-
-def cpu_s(pid: int) -> float:
-    """User + system CPU seconds used so far by process ``pid`` (0 once it is gone)."""
-    try:
-        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    except (FileNotFoundError, ProcessLookupError):
-        return 0.0
-    return (int(fields[11]) + int(fields[12])) / TICK
-
-
-def children(pid: int) -> list[int]:
-    """Live child processes of ``pid`` (from /proc, no psutil)."""
-    kids = []
-    for stat in Path("/proc").glob("[0-9]*/stat"):
-        try:
-            fields = stat.read_text().rsplit(")", 1)[1].split()
-        except (FileNotFoundError, ProcessLookupError):
-            continue
-        if int(fields[1]) == pid and fields[0] != "Z":
-            kids.append(int(stat.parent.name))
-    return kids
-
-
-def alive(pid: int) -> bool:
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
-    except (FileNotFoundError, ProcessLookupError):
-        return False
-
-
-def interrupt(args: list[str], cwd: Path, ready: Callable[[int], bool]) -> tuple[int, float, str]:
-    """Run ``flexmodal --quiet ARGS``; once ``ready(pid)`` holds, send SIGINT.  Returns (exit code,
-    seconds from the signal to the exit, stderr)."""
-    proc = subprocess.Popen([EXE, "--quiet", *args], cwd=cwd, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE, text=True)
-    try:
-        t0 = time.monotonic()
-        while not ready(proc.pid):
-            assert proc.poll() is None, f"ended before the signal: {proc.stderr.read()[-2000:]}"
-            assert time.monotonic() - t0 < 120, "not ready within 120 s"
-            time.sleep(0.01)
-        assert proc.poll() is None, "ended before the signal"
-        sent = time.monotonic()
-        proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=30)
-        return proc.returncode, time.monotonic() - sent, err
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-
-
 def after_cpu(seconds: float) -> Callable[[int], bool]:
     return lambda pid: cpu_s(pid) >= seconds
 
@@ -125,15 +67,6 @@ def test_frf_over_several_runs(runs_file, tmp_path):
             assert read_frf(out, rid).H.shape[:2] == (3, 1)
 
 
-def descendants(pid: int) -> list[int]:
-    found, todo = [], [pid]
-    while todo:
-        kids = children(todo.pop())
-        found += kids
-        todo += kids
-    return found
-
-
 def test_frf_on_a_dask_local_cluster(runs_file, tmp_path):
     """--workers 2: SIGINT while the LocalCluster's processes start; the command and every process it
     started (nannies, workers; they hold its stderr) are gone within the limit."""
@@ -145,7 +78,7 @@ def test_frf_on_a_dask_local_cluster(runs_file, tmp_path):
 
     args = ["frf", str(runs_file), "--workers", "2", "--out", "frf.h5"]
     check(*interrupt(args, tmp_path, cluster_starting), tmp_path)
-    assert [pid for pid in seen if alive(pid)] == []
+    assert still_alive(seen, LIMIT_S) == []
 
 
 def test_identify(runs_file, tmp_path):
@@ -182,8 +115,7 @@ def test_predict_with_a_large_frame(tmp_path):
 
     check(*interrupt(["predict", str(RIGS / "demo_arm.toml"), "--model", "fe", "--poses", "poses.csv",
                       "--out", "pred.csv", "--elements", "400"], tmp_path, solving), tmp_path, ("pred.csv",))
-    time.sleep(0.2)
-    assert not alive(seen[0]), "the eigen worker outlived the command"
+    assert still_alive(seen, LIMIT_S) == [], "the eigen worker outlived the command"
 
 
 def test_diagnose(tmp_path):
@@ -220,5 +152,4 @@ def test_acquire_while_its_simulator_starts(tmp_path):
                                    tmp_path, starting)
     check(code, seconds, err, tmp_path, ("run.h5",))
     assert "stopped by SIGINT before any sample was stored" in err
-    time.sleep(0.5)
-    assert not alive(seen[0]), "the simulator child outlived the command"
+    assert still_alive(seen, LIMIT_S) == [], "the simulator child outlived the command"
