@@ -12,6 +12,7 @@ limit below is the issue's 1 s.
 from __future__ import annotations
 
 import subprocess
+import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -153,3 +154,31 @@ def test_acquire_while_its_simulator_starts(tmp_path):
     check(code, seconds, err, tmp_path, ("run.h5",))
     assert "stopped by SIGINT before any sample was stored" in err
     assert still_alive(seen, LIMIT_S) == [], "the simulator child outlived the command"
+
+
+@pytest.mark.parametrize("protocol", ["serial", "can", "modbus"])
+def test_acquire_mid_recording(tmp_path, protocol):
+    """SIGINT while recording from a simulator child: the run is closed with what was recorded (that
+    is the point of acquire, not a half-written file: plain h5py reads it), the simulator child ends
+    with the command, exit 130 (a duration was asked for)."""
+    text = (REPO / "examples" / "sessions" / f"{protocol}-sim.toml").read_text()
+    text = text.replace('rig = "../rigs/', f'rig = "{RIGS}/').replace('dbc = "../../fixtures/',
+                                                                     f'dbc = "{REPO}/fixtures/')
+    (tmp_path / "s.toml").write_text(text)
+    out, seen, since = tmp_path / "run.h5", [], []
+
+    def recording(pid: int) -> bool:
+        seen[:] = children(pid) or seen
+        if not since and out.exists():
+            since.append(time.monotonic())
+        return bool(since) and time.monotonic() - since[0] >= 0.5
+
+    code, seconds, err = interrupt(["acquire", "--config", "s.toml", "--out", "run.h5", "--duration", "30"],
+                                   tmp_path, recording)
+    assert (code, err) == (130, ""), err[-2000:]
+    assert seconds < LIMIT_S, f"exit took {seconds:.2f} s"
+    print(f"exit 130 {seconds:.3f} s after SIGINT")
+    with h5py.File(out, "r") as f:
+        run = next(iter(f["runs"].values()))
+        assert run["samples"].shape[0] > 0
+    assert still_alive(seen, LIMIT_S) == []
