@@ -15,8 +15,6 @@ socketcan and pcan give) and the parts of one scan sent within half a period of 
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
 from flexmodal.daq.dbc import load_messages
@@ -25,7 +23,6 @@ from flexmodal.daq.errors import DaqError
 
 COUNTER_SIGNAL = "Seq"
 MAX_FRAMES_PER_READ = 20000
-MAX_READ_S = 0.1  # a read hands over what it has after this long, so the reader sees a stop promptly
 
 
 class CanDriver(Driver):
@@ -118,8 +115,7 @@ class CanDriver(Driver):
         msgs = []
         try:
             msg = self._bus.recv(timeout=0.05)
-            until = time.monotonic() + MAX_READ_S  # a backlog after a stall could take seconds to drain
-            while msg is not None and len(msgs) < MAX_FRAMES_PER_READ and time.monotonic() < until:
+            while msg is not None and len(msgs) < MAX_FRAMES_PER_READ:
                 msgs.append(msg)
                 msg = self._bus.recv(timeout=0)
         except (can.CanError, serial.SerialException, OSError) as exc:
