@@ -147,6 +147,7 @@ def _in_pool(jobs, first: int, options: dict, workers: int, done: Callable[[int,
     context.set_forkserver_preload([__name__])
     one_thread = {**options, "workers": 1}
     pool = ProcessPoolExecutor(workers, mp_context=context)
+    interrupted = False
     try:
         futures = {pool.submit(frf_job, str(Path(jobs[k][0]).resolve()), jobs[k][1], one_thread): k
                    for k in range(first, len(jobs))}   # absolute: the fork server keeps its own folder
@@ -157,8 +158,11 @@ def _in_pool(jobs, first: int, options: dict, workers: int, done: Callable[[int,
                 if fut.exception() is not None:
                     raise _failed(jobs[k], fut.exception())
                 done(k, fut.result())
+    except KeyboardInterrupt:  # Ctrl-C: leave now, not after the running jobs (the CLI ends the fork
+        interrupted = True     # server with its own children; the workers see their pipes close)
+        raise
     finally:
-        pool.shutdown(wait=True, cancel_futures=True)
+        pool.shutdown(wait=not interrupted, cancel_futures=True)
 
 
 def _on_cluster(jobs, first: int, options: dict, scheduler: str,
@@ -171,6 +175,7 @@ def _on_cluster(jobs, first: int, options: dict, scheduler: str,
         client = Client(scheduler, timeout="10s")
     except OSError as exc:
         raise ModalError(f"scheduler {scheduler}: cannot connect ({exc})") from None
+    interrupted = False
     try:
         futures = {client.submit(frf_job, str(Path(jobs[k][0]).resolve()), jobs[k][1], options, pure=False): k
                    for k in range(first, len(jobs))}   # absolute paths: workers run elsewhere
@@ -179,8 +184,12 @@ def _on_cluster(jobs, first: int, options: dict, scheduler: str,
             if fut.status == "error":
                 raise _failed(jobs[k], fut.exception())
             done(k, fut.result())
+    except KeyboardInterrupt:  # Ctrl-C: leave now (the CLI ends the cluster's processes with its own)
+        interrupted = True
+        raise
     finally:
-        client.close()
+        if not interrupted:
+            client.close()
 
 
 def frf_batch(paths: Sequence[str | Path], options: dict, *, workers: int | None = None,
