@@ -7,6 +7,7 @@ concurrently and the results are the same whichever path computed them."""
 from __future__ import annotations
 
 import os
+import signal
 import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -135,6 +136,21 @@ def _failed(job: tuple[str, str], exc: BaseException) -> ModalError:
     return exc if isinstance(exc, ModalError) else ModalError(f"{job[0]}:{job[1]}: {exc}")
 
 
+def _end_with_parent() -> None:
+    """Initializer of a pool worker: on Linux, have the kernel send it SIGTERM when its parent (the
+    fork server) ends, so that a worker started while Ctrl-C ends the command cannot outlive it; leave
+    at once if the parent is already gone (the worker then belongs to init)."""
+    parent = os.getppid()
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)   # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):   # not Linux: the pipes to the caller still end it later
+        return
+    if parent == 1 or os.getppid() != parent:
+        os._exit(1)
+
+
 def _in_pool(jobs, first: int, options: dict, workers: int, done: Callable[[int, FrfResult], None]) -> None:
     """Jobs ``first``.. on ``workers`` local processes, one FFT thread each; ``done(k, result)`` in
     completion order.  The processes come from a fork server that has imported only this module
@@ -146,7 +162,7 @@ def _in_pool(jobs, first: int, options: dict, workers: int, done: Callable[[int,
     context = multiprocessing.get_context("forkserver")
     context.set_forkserver_preload([__name__])
     one_thread = {**options, "workers": 1}
-    pool = ProcessPoolExecutor(workers, mp_context=context)
+    pool = ProcessPoolExecutor(workers, mp_context=context, initializer=_end_with_parent)
     interrupted = False
     try:
         futures = {pool.submit(frf_job, str(Path(jobs[k][0]).resolve()), jobs[k][1], one_thread): k
@@ -158,8 +174,10 @@ def _in_pool(jobs, first: int, options: dict, workers: int, done: Callable[[int,
                 if fut.exception() is not None:
                     raise _failed(jobs[k], fut.exception())
                 done(k, fut.result())
-    except KeyboardInterrupt:  # Ctrl-C: leave now, not after the running jobs (the CLI ends the fork
-        interrupted = True     # server with its own children; the workers see their pipes close)
+    except KeyboardInterrupt:  # Ctrl-C: leave now, not after the running jobs; the workers are the fork
+        interrupted = True     # server's children, so the CLI's ending of its own would miss them
+        for process in list((pool._processes or {}).values()):   # no public way before Python 3.14
+            process.terminate()
         raise
     finally:
         pool.shutdown(wait=not interrupted, cancel_futures=True)
