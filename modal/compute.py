@@ -9,9 +9,9 @@ import numpy as np
 
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult, coherence, estimate, estimator_name
-from flexmodal.modal.impact import impact_spectra
 from flexmodal.modal.spectra import Spectra, welch_spectra
 from flexmodal.modal.windows import added_decay_rate_per_s, impact_windows
+from flexmodal.valid_text import naming
 
 DEFAULT_NFFT_MAX = 8192
 MIN_SEGMENTS = 8
@@ -127,6 +127,8 @@ def frf_of_record(samples, sample_rate_hz: float, names: Sequence[str], kinds: S
     if excitation == "impact":
         if len(inputs) != 1:
             raise ModalError(f"{where}: impact processing needs exactly one force channel")
+        from flexmodal.modal.impact import impact_spectra  # only impact runs need it
+
         samples = np.asarray(samples[()])
         check_samples(samples, names, where, allow_nan=True)
         fw, ew = impact_windows(window)
@@ -141,8 +143,11 @@ def frf_of_record(samples, sample_rate_hz: float, names: Sequence[str], kinds: S
     else:
         used_nfft = default_nfft(samples.shape[0]) if nfft is None else int(nfft)
         used_window = window or "hann"
-        spectra = welch_spectra(samples, sample_rate_hz, inputs, outputs, used_nfft, overlap=overlap,
-                                window_spec=used_window, workers=workers, skip=skip, min_segments=0)
+        try:
+            spectra = welch_spectra(samples, sample_rate_hz, inputs, outputs, used_nfft, overlap=overlap,
+                                    window_spec=used_window, workers=workers, skip=skip, min_segments=0)
+        except ModalError as exc:
+            raise ModalError(f"{where}: {exc}") from None
         _check_welch(spectra, samples, names, inputs + outputs, where, len(skip))
         extra = {"overlap": overlap, "averaging": "linear", "segments_used": spectra.n_averages,
                  "segments_skipped": spectra.n_skipped}
@@ -161,7 +166,8 @@ def compute_frf(run, *, estimator: str = "H1", nfft: int | None = None, window: 
     overloads = [e.sample_index + k for e in run.events if e.kind == "overload"
                  for k in range(max(1, e.count))]
     where = f"{run.path}:{run.run_id}"
-    return frf_of_record(run.samples, run.sample_rate_hz, [c.name for c in run.channels],
-                           [c.kind for c in run.channels], excitation=run.excitation, estimator=estimator,
-                           nfft=nfft, window=window, overlap=overlap, where=where, triggers=triggers,
-                           overload_samples=overloads, averaging=averaging, skip=skip, workers=workers)
+    with naming(where, ModalError):  # messages from the spectra layer name the run too
+        return frf_of_record(run.samples, run.sample_rate_hz, [c.name for c in run.channels],
+                             [c.kind for c in run.channels], excitation=run.excitation, estimator=estimator,
+                             nfft=nfft, window=window, overlap=overlap, where=where, triggers=triggers,
+                             overload_samples=overloads, averaging=averaging, skip=skip, workers=workers)
