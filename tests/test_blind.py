@@ -38,6 +38,7 @@ def first_eight():
     return run_blind(8, seed=0)
 
 
+@pytest.mark.timeout(900)           # ~60 s on a quiet machine (case generation included), more under load
 def test_first_eight_blind_cases_are_all_right(first_eight):
     s = _check(first_eight)
     assert s["n_library"] == 6 and s["n_none"] == 1 and s["n_outside"] == 1
@@ -63,6 +64,7 @@ def test_shapes_separate_look_alikes_that_frequencies_leave_ambiguous(first_eigh
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(1800)          # 36 cases: 2-4 min on a quiet machine, 10+ min under load
 def test_36_blind_cases_meet_the_targets_and_the_docs_quote_them():
     from conftest import REPO
 
