@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import sys
 
 import pytest
 
@@ -79,3 +80,16 @@ def test_36_blind_cases_meet_the_targets_and_the_docs_quote_them():
     assert s["heldout_after_within_2x_scatter"] == 1.0
     assert s["outside_flagged"] >= 2 / 3
     assert doc.doc_block("blind") == doc.blind_block(results)
+
+
+def test_benchmark_script_times_the_six_pose_case_and_finds_its_effect(capsys, monkeypatch):
+    """benchmarks/diagnose_blind.py (the source of docs/diagnosis.md's timing line) runs as written."""
+    from conftest import REPO
+
+    spec = importlib.util.spec_from_file_location("diagnose_blind", REPO / "benchmarks" / "diagnose_blind.py")
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    monkeypatch.setattr(sys, "argv", ["diagnose_blind.py", "--cases", "0", "--timing-runs", "1"])
+    assert bench.main() == 0
+    out = capsys.readouterr().out
+    assert "time, 6 poses x 4 modes" in out and "verdict joint_mass+joint_stiffness@elbow" in out
