@@ -185,7 +185,7 @@ def _equivalent(ctx: _Context, freq_err: np.ndarray, shape_misfit: np.ndarray, s
     ``scatter * sqrt(chi2 / dof)``: the frequency RMS itself without shapes; with shapes, the frequency
     RMS a candidate would need to be as unlikely as it is on both."""
     chi2, dof = float(np.sum(np.square(freq_err))) / scatter**2, freq_err.size
-    if ctx.shape_dof > 0 and shape_misfit.size:
+    if ctx.shape_dof > 0 and shape_misfit.size and math.isfinite(ctx.shape_floor):
         floor = max(ctx.shape_floor / ctx.shape_dof, SHAPE_SCATTER_MIN**2)
         chi2 += float(np.sum(shape_misfit)) / floor
         dof += ctx.shape_dof * shape_misfit.size

@@ -75,6 +75,8 @@ def test_equivalent_error_is_the_frequency_rms_without_shapes_and_the_chi_square
     value, _ = _equivalent(ctx, err, np.array([2e-4, 4e-4]), scatter)
     chi2 = np.sum(err**2) / scatter**2 + 6e-4 / SHAPE_SCATTER_MIN**2
     assert value == pytest.approx(scatter * math.sqrt(chi2 / 8), rel=1e-12)
+    ctx.shape_floor = math.inf                                              # no complete shape anywhere
+    assert _equivalent(ctx, err, np.array([2e-4]), scatter) == (pytest.approx(np.sqrt(np.mean(err**2))), 4)
 
 
 def test_partners_are_the_singles_whose_full_fe_sensitivities_explain_the_lead_residual(rig):
