@@ -7,12 +7,15 @@
    frequency sensitivities best explain the error pattern (R^2, compare/gap.py; among regions within
    ``REGION_TIE`` of the best, the verdict's), plus MAC/COMAC when shapes were measured.
 3. Ranking: every effect at every location (compare/candidates.py) fitted to all data; the
-   ``PAIR_POOL`` best singles and their pairs (and, only when no pair explains the gap, each of the
-   ``TRIPLE_PAIRS`` best pairs extended by one more single of the pool).  Candidates are cross-validated,
-   best in-sample score first, while they can still win: every fold is refitted to convergence from
-   starts chosen on its own training data (compare/fit.py), so held-out errors are honest.  Score (lower
-   is better): ``sqrt(heldout_rms^2 + scatter^2) * (1 + PENALTY * n_params)``: a complexity penalty, with
-   the scatter as a floor so that candidates within the noise are ordered by simplicity.
+   ``PAIR_POOL`` best singles and their pairs, the best single paired with its ``PARTNERS`` score-test
+   partners (``_partners``), and, only when no pair explains the gap, each of the ``TRIPLE_PAIRS`` best
+   pairs extended by one more single of the pool.  Candidates are cross-validated, best in-sample score
+   first, while they can still win: every fold is refitted to convergence from starts chosen on its own
+   training data (compare/fit.py), so held-out errors are honest.  Score (lower is better):
+   ``sqrt(h^2 + scatter^2) * (1 + PENALTY * n_params)``: a complexity penalty, with the scatter as a
+   floor so that candidates within the noise are ordered by simplicity; ``h`` is the held-out frequency
+   RMS, or with measured shapes the frequency-equivalent error of the held-out frequencies and shape
+   misfits together (``_equivalent``).
    ``joint_stiffness_pose`` ranks above the constant ``joint_stiffness`` at the same joint only when its
    held-out error is lower.  The scatter comes from the data when it can (compare/gap.py
    ``estimate_scatter``), else from the caller.
