@@ -8,7 +8,6 @@ import math
 import numpy as np
 import pytest
 
-from flexmodal.compare.diagnosis import to_json
 from flexmodal.fixtures.blind import format_summary, run_blind, summarise
 from flexmodal.fixtures.truth_arm import POISSON, TruthOptions, truth_modes
 from flexmodal.models.frame import frame_modes
@@ -58,9 +57,9 @@ def test_blind_subset_against_the_independent_truth():
     s = summarise(results)
     print(format_summary(s))
     for r in results:                                                 # strict JSON for every verdict
-        json.loads(to_json({"verdict": r.verdict}), parse_constant=lambda c: pytest.fail(c))
-        if r.verdict["effect"] == "none":
-            assert r.verdict["alternatives"] == []
+        json.loads(r.verdict.to_json(), parse_constant=lambda c: pytest.fail(c))
+        if r.verdict.effect == "none":
+            assert r.verdict.alternatives == ()
     assert s["none_accuracy"] == 1.0
     assert s["outside_flagged"] == 1.0
     assert s["heldout_after_within_2x_scatter"] == 1.0
