@@ -31,8 +31,8 @@ if TYPE_CHECKING:
 __all__ = [
     "Identification", "acquire", "compare_modes", "compute_frf", "compute_frfs", "diagnose",
     "format_comparison", "identify", "list_runs", "load_rig", "plot_comparison", "plot_frf", "plot_gap",
-    "plot_mode_shapes", "plot_stabilisation", "predict", "read_poses", "read_run", "read_table", "report",
-    "write_diagnosis",
+    "plot_mode_shapes", "plot_stabilisation", "predict", "read_diagnosis", "read_poses", "read_run",
+    "read_table", "report", "write_diagnosis",
 ]
 
 SHAPE_CONFIGS = 2              # configurations whose mode shapes a report draws on the arm (first, last)
@@ -285,6 +285,14 @@ def write_diagnosis(result: Diagnosis, out_dir: PathLike) -> tuple[Path, Path]:
     return pj, ph
 
 
+def read_diagnosis(path: PathLike) -> Diagnosis:
+    """A diagnosis.json (docs/formats.md) read back into the :func:`diagnose` result it was written
+    from; ReportError naming the file and the key when it is not one."""
+    from flexmodal.reports.html import load_diagnosis
+
+    return load_diagnosis(path)
+
+
 # -- figures ---------------------------------------------------------------------------------------
 
 def plot_frf(frf: FrfResult, title: str = "") -> Figure:
@@ -354,10 +362,9 @@ def _diagnosis(diagnosis: Diagnosis | Mapping | PathLike) -> Diagnosis:
     from flexmodal.compare.errors import CompareError
     from flexmodal.compare.result import Diagnosis
     from flexmodal.reports.errors import ReportError
-    from flexmodal.reports.html import load_diagnosis
 
     if isinstance(diagnosis, str | Path):
-        return load_diagnosis(diagnosis)
+        return read_diagnosis(diagnosis)
     if isinstance(diagnosis, Mapping):
         try:
             return Diagnosis.from_dict(dict(diagnosis))
