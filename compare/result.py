@@ -18,12 +18,13 @@ parameters).  Keys this version does not know are ignored on reading.
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import types
 import typing
 from dataclasses import dataclass, field, fields
-from typing import Any, ClassVar, Self
+from typing import Any, Self
 
 from flexmodal.compare.errors import CompareError
 
@@ -62,9 +63,19 @@ def _kind(value: object) -> str:
     return "null" if value is None else type(value).__name__
 
 
+def _key(where: str, name: str) -> str:
+    """The key path ``name`` below ``where`` (``verdict.explained``; ``where`` empty at the top)."""
+    return f"{where}.{name}" if where else name
+
+
+@functools.cache
+def _hints(cls: type) -> dict[str, Any]:
+    return typing.get_type_hints(cls)
+
+
 def _load(tp: Any, value: object, where: str) -> object:
-    """``value`` (parsed JSON) checked against the type hint ``tp`` and converted to it; CompareError
-    naming the key path ``where`` when it does not fit."""
+    """``value`` (parsed JSON) at the key path ``where`` checked against the type hint ``tp`` and
+    converted to it; CompareError naming the path when it does not fit."""
     origin, args = typing.get_origin(tp), typing.get_args(tp)
     if origin in (types.UnionType, typing.Union):
         if value is None and type(None) in args:
@@ -82,7 +93,7 @@ def _load(tp: Any, value: object, where: str) -> object:
     if origin is dict:
         if not isinstance(value, dict):
             raise CompareError(f"{where}: expected an object (got {_kind(value)})")
-        return {k: _load(args[1], v, f"{where}.{k}") for k, v in value.items()}
+        return {k: _load(args[1], v, _key(where, k)) for k, v in value.items()}
     if tp is float:                  # null: a number that was not finite (strict JSON has no NaN)
         if value is None or (isinstance(value, int | float) and not isinstance(value, bool)):
             return None if value is None else float(value)
@@ -101,7 +112,6 @@ class _Record:
     the keys ``<name>S`` of its object as ``{name: value}``."""
 
     __slots__ = ()
-    _hints: ClassVar[dict[str, dict[str, Any]]] = {}
 
     def __post_init__(self) -> None:
         for f in fields(self):  # type: ignore[arg-type]
@@ -124,35 +134,35 @@ class _Record:
         return json.dumps(self.to_dict(), indent=2, allow_nan=False)
 
     @classmethod
-    def from_dict(cls, data: dict[str, object], where: str = "diagnosis") -> Self:
-        """The record from parsed JSON; CompareError naming the key path (``where``) of a missing
-        required key or a value of the wrong type."""
-        hints = cls._hints.get(cls.__name__)
-        if hints is None:
-            hints = cls._hints[cls.__name__] = typing.get_type_hints(cls)
+    def from_dict(cls, data: dict[str, object], where: str = "") -> Self:
+        """The record from parsed JSON found at the key path ``where`` (empty: the document); a
+        missing required key or a value of the wrong type is a CompareError naming its key path
+        (``no 'verdict.explained'``, ``baseline.rms_rel_error: expected a number (got str '12 %')``)."""
+        hints = _hints(cls)
         values: dict[str, object] = {}
         for f in fields(cls):  # type: ignore[arg-type]
             suffix = f.metadata.get("suffix")
             if suffix:
-                values[f.name] = {k[:-len(suffix)]: _load(hints[f.name].__args__[1], v, f"{where}.{k}")
+                inner = typing.get_args(hints[f.name])[1]
+                values[f.name] = {k[:-len(suffix)]: _load(inner, v, _key(where, k))
                                   for k, v in data.items() if k.endswith(suffix)}
             elif f.name in data:
-                values[f.name] = _load(hints[f.name], data[f.name], f"{where}.{f.name}")
+                values[f.name] = _load(hints[f.name], data[f.name], _key(where, f.name))
             elif f.default is not None:
-                raise CompareError(f"{where}: no {f.name!r}")
+                raise CompareError(f"no {_key(where, f.name)!r}")
         return cls(**values)
 
     @classmethod
-    def from_json(cls, text: str, where: str = "diagnosis") -> Self:
-        """The record from JSON text (``to_json``'s inverse); CompareError on text that is not JSON
-        or not this record."""
+    def from_json(cls, text: str) -> Self:
+        """The record from the JSON text of a document (``to_json``'s inverse); CompareError on text
+        that is not JSON or not this record."""
         try:
             data = json.loads(text)
         except json.JSONDecodeError as exc:
-            raise CompareError(f"{where}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+            raise CompareError(f"not valid JSON ({exc.msg} at line {exc.lineno})") from None
         if not isinstance(data, dict):
-            raise CompareError(f"{where}: expected an object (got {_kind(data)})")
-        return cls.from_dict(data, where)
+            raise CompareError(f"expected a JSON object (got {_kind(data)})")
+        return cls.from_dict(data)
 
 
 _RECORD = {"frozen": True, "slots": True, "kw_only": True}

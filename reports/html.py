@@ -334,6 +334,6 @@ def load_diagnosis(path: str | Path) -> Diagnosis:
     JSON or not a diagnosis."""
     p = Path(path)
     try:
-        return Diagnosis.from_json(read_text(p, ReportError, "diagnosis JSON file"), where=str(p))
+        return Diagnosis.from_json(read_text(p, ReportError, "diagnosis JSON file"))
     except CompareError as exc:
-        raise ReportError(str(exc)) from None
+        raise ReportError(f"{p}: {exc}") from None
