@@ -298,6 +298,24 @@ class Predictions(_Record):
     best_fit_hz: dict[str, Hz] | None = None
     best_heldout_hz: dict[str, Hz] | None = None
 
+    def rms_rel_error_per_mode(self, predicted: dict[str, Hz]) -> dict[str, float | None]:
+        """RMS over configurations of ``f_predicted / f_measured - 1`` per mode ({"1": fraction, ...}) of
+        one of the tables (e.g. ``self.best_heldout_hz``) against ``measured_hz``; configurations or
+        values it lacks (None) are left out; None for a mode with no pair at all."""
+        import numpy as np
+
+        configs = [c for c in self.measured_hz if c in predicted]
+        n = max((len(self.measured_hz[c]) for c in configs), default=0)
+
+        def grid(table: dict[str, Hz]) -> np.ndarray:
+            rows = [[np.nan if v is None else v for v in table[c][:n]] for c in configs]
+            return np.array([r + [np.nan] * (n - len(r)) for r in rows], float).reshape(len(configs), n)
+
+        err = grid(predicted) / grid(self.measured_hz) - 1.0
+        count = np.isfinite(err).sum(axis=0)
+        mean_square = np.nansum(err**2, axis=0) / np.maximum(count, 1)
+        return {str(m + 1): float(np.sqrt(mean_square[m])) if count[m] else None for m in range(n)}
+
 
 @dataclass(**_RECORD)
 class Diagnosis(_Record):
@@ -315,3 +333,14 @@ class Diagnosis(_Record):
     holdout: Holdout | None = None
     configs: tuple[str, ...] | None = None
     predictions: Predictions | None = None
+
+    def per_mode_after(self) -> dict[str, float | None] | None:
+        """RMS relative error per mode with the best candidate (``baseline.per_mode`` is the one before):
+        of its held-out predictions, or of its fit to all configurations when none of them was held
+        out; None without a best candidate."""
+        pred = self.predictions
+        for table in (pred.best_heldout_hz, pred.best_fit_hz) if pred is not None else ():
+            after = pred.rms_rel_error_per_mode(table) if table else {}
+            if any(v is not None for v in after.values()):
+                return after
+        return None

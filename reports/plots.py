@@ -367,44 +367,16 @@ def plot_mode_shapes(arm, measured: ModalTable, config: str, title: str = "") ->
     return fig
 
 
-def rms_per_mode(measured_hz: Mapping[str, Sequence[float | None]],
-                 predicted_hz: Mapping[str, Sequence[float | None]]) -> dict[str, float]:
-    """RMS over configurations of (f_pred / f_meas - 1) per mode, {"1": fraction, ...}, from
-    {config: [f_mode1, f_mode2, ...] Hz} tables; configurations missing from either table and values
-    that are None (no prediction) are left out, a mode with no pair at all is NaN."""
-    configs = [c for c in measured_hz if c in predicted_hz]
-    n = max((len(measured_hz[c]) for c in configs), default=0)
-
-    def grid(table: Mapping[str, Sequence[float | None]]) -> np.ndarray:
-        rows = [[np.nan if v is None else v for v in table[c]][:n] for c in configs]
-        return np.array([r + [np.nan] * (n - len(r)) for r in rows], float).reshape(len(configs), n)
-
-    with np.errstate(invalid="ignore"):
-        err = grid(predicted_hz) / grid(measured_hz) - 1.0
-    count = np.sum(np.isfinite(err), axis=0)
-    total = np.nansum(err**2, axis=0)
-    return {str(m + 1): float(np.sqrt(total[m] / count[m])) if count[m] else math.nan for m in range(n)}
-
-
 def gap_per_mode(diagnosis: Diagnosis) -> tuple[list[str], np.ndarray, np.ndarray | None]:
-    """Modes, per-mode relative error [fraction] before and after the verdict's effect (None without a
-    best candidate).
-
-    ``before`` is ``baseline.per_mode``; ``after`` the RMS over configurations per mode of the best
-    candidate's held-out predictions (``predictions.best_heldout_hz`` against ``measured_hz``), or of its
-    fit to all configurations (``best_fit_hz``) when no configuration was held out.
-    """
-    before = diagnosis.baseline.per_mode
-    pred = diagnosis.predictions
-    after_src = None
-    for table in (pred.best_heldout_hz, pred.best_fit_hz) if pred is not None else ():
-        if table and not after_src:
-            after = rms_per_mode(pred.measured_hz, table)
-            after_src = after if any(math.isfinite(v) for v in after.values()) else None
+    """Modes, per-mode relative error [fraction] before (``baseline.per_mode``) and after the verdict's
+    effect (``Diagnosis.per_mode_after``; None without a best candidate), NaN where there is none."""
+    before, after = diagnosis.baseline.per_mode, diagnosis.per_mode_after()
     modes = sorted(before, key=lambda m: (len(m), m))
-    b = np.array([np.nan if before[m] is None else before[m] for m in modes], float)
-    a = np.array([after_src.get(m, np.nan) for m in modes]) if after_src else None
-    return modes, b, a
+
+    def values(per_mode: Mapping[str, float | None]) -> np.ndarray:
+        return np.array([np.nan if per_mode.get(m) is None else per_mode[m] for m in modes], float)
+
+    return modes, values(before), values(after) if after is not None else None
 
 
 def plot_gap(diagnosis: Diagnosis, title: str = "") -> Figure:

@@ -130,7 +130,7 @@ def test_the_records_and_the_documented_keys_are_the_same():
 def blind_diagnosis(i: int) -> Diagnosis:
     """Case ``i`` of the blind check's default subset (``fixtures/blind.py``, seed 0), diagnosed now."""
     rng = np.random.default_rng(0)
-    cases = [make_case(rng, CATEGORIES[k], KINDS[k]) for k in range(i + 1)]
+    cases = [make_case(rng, CATEGORIES[k % len(CATEGORIES)], KINDS[k % len(KINDS)]) for k in range(i + 1)]
     return diagnose(cases[i].rig, cases[i].table)
 
 
@@ -155,6 +155,10 @@ def test_diagnose_returns_the_tree_written_as_strict_documented_json(live):
         check_tree(d)
     assert [d.verdict.effect == "none" for d in live] == [False, True]
     assert live[1].verdict.alternatives == () and live[1].where.region == ""
+    assert live[1].per_mode_after() is None
+    for d in live:   # the per-mode RMS of the nominal model's frequencies is the baseline's, computed apart
+        per_mode = d.predictions.rms_rel_error_per_mode(d.predictions.baseline_hz)
+        assert per_mode == pytest.approx(d.baseline.per_mode, rel=1e-12, abs=1e-15)
 
 
 @pytest.mark.slow
