@@ -366,19 +366,23 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
         _confirm_region(where, rig, verdict["effect"], verdict["location"])
     else:
         where = {**where, "modes": [], "configs": [], "region": ""}
-    per_config = REGISTRY[best["effect"]].per_config if best is not None and best["effect"] in REGISTRY \
-        else None
-    values = [per_config(rig, best["location"], best["params"], pose) for pose in meas.poses] if per_config \
-        else []
     return Diagnosis(
         baseline=Baseline(**baseline), where=Where(**where),
         ranking=tuple(CandidateScore(**_public(e)) for e in ranking[:RANKING_LENGTH]),
-        verdict=_typed_verdict(verdict, {name: {c: v[name] for c, v in zip(meas.configs, values, strict=True)}
-                                         for name in (values[0] if values else ())}),
-        n_candidates=n_candidates, scatter=scatter,
-        scatter_source=ScatterSource(source=noise.source, detail=noise.detail),
+        verdict=_typed_verdict(verdict, _per_config(rig, meas, best)), n_candidates=n_candidates,
+        scatter=scatter, scatter_source=ScatterSource(source=noise.source, detail=noise.detail),
         holdout=Holdout(scheme=scheme, n_folds=int(len(train) - 1)), configs=meas.configs,
         predictions=_predictions(meas, base_f, best))
+
+
+def _per_config(rig: Rig, meas: Measured, best: dict | None) -> dict[str, dict[str, float]]:
+    """Pose-dependent parameters of the candidate ``best`` per configuration, {name: {config: value}}
+    (its registry entry's ``per_config``; empty when it has none)."""
+    entry = REGISTRY.get(best["effect"]) if best is not None else None
+    if entry is None or entry.per_config is None or not meas.poses:
+        return {}
+    values = [entry.per_config(rig, best["location"], best["params"], pose) for pose in meas.poses]
+    return {name: {c: v[name] for c, v in zip(meas.configs, values, strict=True)} for name in values[0]}
 
 
 def _typed_verdict(verdict: dict, per_config: dict[str, dict[str, float]]) -> Verdict:
