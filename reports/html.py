@@ -233,7 +233,7 @@ def _diagnosis_view(d: Diagnosis) -> dict:
         "baseline_rms": _pct(d.baseline.rms_rel_error), "baseline_max": _pct(d.baseline.max_rel_error),
         "where": f"modes {', '.join(str(m) for m in where.modes) or '-'}; configurations "
                  f"{', '.join(where.configs) or '-'}" + (f"; region {where.region}" if where.region else ""),
-        "verdict": f"{verdict.effect} at {verdict.location or '-'}",
+        "verdict": f"{verdict.effect} at {verdict.location}" if verdict.location else verdict.effect,
         "summary": verdict.summary or "",
         "heldout": " / ".join(_pct(x) for x in (verdict.heldout_rms_rel_error_before,
                                                  verdict.heldout_rms_rel_error_after)),

@@ -408,6 +408,7 @@ def plot_gap(diagnosis: Diagnosis, title: str = "") -> Figure:
         ax2.grid(True, axis="y", alpha=0.3)
     else:
         ax2.set_visible(False)
-    fig.suptitle(title or f"gap per mode: {verdict.effect} at {verdict.location or '-'}")
+    named = f"{verdict.effect} at {verdict.location}" if verdict.location else verdict.effect
+    fig.suptitle(title or f"gap per mode: {named}")
     fig.tight_layout()
     return fig
