@@ -9,7 +9,8 @@ Units sit in the names as they do in the JSON: ``*_rel_error`` is a relative fre
 fraction, (predicted - measured) / measured (0.05 = 5 %); ``*_hz`` is Hz; an effect parameter's name
 ends with its SI unit (``k_Nm_per_rad``, ``mass_kg``).  Every number in the tree is a finite Python
 ``float``/``int`` or None (``null`` in the JSON: a missing number, e.g. the held-out prediction of a
-configuration no fold held out).  Sequences are tuples; mappings are plain dicts keyed as in the JSON.
+configuration no fold held out).  The tree is immutable all the way down: sequences are tuples and
+mappings are read-only ``FrozenMap`` objects keyed as in the JSON, so a record is also hashable.
 
 A field whose default is None is optional: None means the key is absent from the JSON (a hand-written
 file with only the keys of docs/formats.md loads; so does a ``none`` verdict, which has no fitted
@@ -23,6 +24,7 @@ import json
 import math
 import types
 import typing
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, fields
 from typing import Any, Self
 
@@ -32,11 +34,36 @@ Hz = tuple[float | None, ...]
 """Frequencies [Hz] of modes 1..n of one configuration; None where there is no value."""
 
 
+class FrozenMap(Mapping[str, Any]):
+    """The read-only mapping of the tree (parameters, per-mode errors, frequency tables): equal to a
+    dict with the same items, hashable, in the insertion order of the dict it was made from."""
+
+    __slots__ = ("_items",)
+
+    def __init__(self, items: Mapping[str, Any] | None = None) -> None:
+        self._items = dict(items or {})
+
+    def __getitem__(self, key: str) -> Any:
+        return self._items[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._items)
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def __hash__(self) -> int:
+        return hash(frozenset(self._items.items()))
+
+    def __repr__(self) -> str:
+        return repr(self._items)
+
+
 def _clean(value: object) -> object:
-    """``value`` with numpy scalars and arrays made Python numbers and tuples, non-finite floats None
-    and lists tuples (recursively through tuples, lists and dicts; records are left as they are)."""
-    if isinstance(value, dict):
-        return {str(k): _clean(v) for k, v in value.items()}
+    """``value`` with numpy scalars and arrays made Python numbers and tuples, non-finite floats None,
+    lists tuples and mappings FrozenMaps (recursively; records are left as they are)."""
+    if isinstance(value, Mapping):
+        return FrozenMap({str(k): _clean(v) for k, v in value.items()})
     if isinstance(value, list | tuple):
         return tuple(_clean(v) for v in value)
     if isinstance(value, bool | str | _Record) or value is None:
@@ -54,7 +81,7 @@ def _plain(value: object) -> object:
         return value.to_dict()
     if isinstance(value, tuple):
         return [_plain(v) for v in value]
-    if isinstance(value, dict):
+    if isinstance(value, Mapping):
         return {k: _plain(v) for k, v in value.items()}
     return value
 
@@ -90,7 +117,7 @@ def _load(tp: Any, value: object, where: str) -> object:
         if not isinstance(value, list):
             raise CompareError(f"{where}: expected a list (got {_kind(value)})")
         return tuple(_load(args[0], v, f"{where}[{i}]") for i, v in enumerate(value))
-    if origin is dict:
+    if origin is Mapping:
         if not isinstance(value, dict):
             raise CompareError(f"{where}: expected an object (got {_kind(value)})")
         return {k: _load(args[1], v, _key(where, k)) for k, v in value.items()}
@@ -175,8 +202,8 @@ class Baseline(_Record):
 
     rms_rel_error: float
     max_rel_error: float
-    per_mode: dict[str, float]
-    per_config: dict[str, float]
+    per_mode: Mapping[str, float]
+    per_config: Mapping[str, float]
 
 
 @dataclass(**_RECORD)
@@ -189,9 +216,9 @@ class Where(_Record):
     modes: tuple[int, ...]
     configs: tuple[str, ...]
     region: str
-    region_scores: dict[str, float] | None = None
-    mac_per_mode: dict[str, float | None] | None = None
-    comac: dict[str, float | None] | None = None
+    region_scores: Mapping[str, float] | None = None
+    mac_per_mode: Mapping[str, float | None] | None = None
+    comac: Mapping[str, float | None] | None = None
 
 
 @dataclass(**_RECORD)
@@ -203,7 +230,7 @@ class CandidateScore(_Record):
 
     effect: str
     location: str
-    params: dict[str, float | None]
+    params: Mapping[str, float | None]
     fit_rms_rel_error: float
     n_params: int
     mac_mean: float | None = None
@@ -231,7 +258,7 @@ class Alternative(_Record):
 
     effect: str
     location: str
-    params: dict[str, float | None]
+    params: Mapping[str, float | None]
     heldout_rms_rel_error: float
     separate_at: str | None = None
     separate_mode: int | None = None
@@ -251,7 +278,7 @@ class Verdict(_Record):
     heldout_rms_rel_error_before: float
     heldout_rms_rel_error_after: float
     explained: bool
-    params: dict[str, float | None] | None = None
+    params: Mapping[str, float | None] | None = None
     unidentified_params: tuple[str, ...] | None = None
     params_at_bound: tuple[str, ...] | None = None
     structured_residuals: bool | None = None
@@ -259,7 +286,7 @@ class Verdict(_Record):
     alternatives: tuple[Alternative, ...] | None = None
     ambiguous: bool | None = None
     summary: str | None = None
-    per_config: dict[str, dict[str, float | None]] = field(default_factory=dict,
+    per_config: Mapping[str, Mapping[str, float | None]] = field(default_factory=FrozenMap,
                                                            metadata={"suffix": "_per_config"})
 
 
@@ -293,12 +320,12 @@ class Predictions(_Record):
     """Frequencies [Hz] per configuration: measured, of the nominal model, of the best candidate fitted
     to all configurations and as predicted by the fold that held each configuration out."""
 
-    measured_hz: dict[str, Hz]
-    baseline_hz: dict[str, Hz]
-    best_fit_hz: dict[str, Hz] | None = None
-    best_heldout_hz: dict[str, Hz] | None = None
+    measured_hz: Mapping[str, Hz]
+    baseline_hz: Mapping[str, Hz]
+    best_fit_hz: Mapping[str, Hz] | None = None
+    best_heldout_hz: Mapping[str, Hz] | None = None
 
-    def rms_rel_error_per_mode(self, predicted: dict[str, Hz]) -> dict[str, float | None]:
+    def rms_rel_error_per_mode(self, predicted: Mapping[str, Hz]) -> Mapping[str, float | None]:
         """RMS over configurations of ``f_predicted / f_measured - 1`` per mode ({"1": fraction, ...}) of
         one of the tables (e.g. ``self.best_heldout_hz``) against ``measured_hz``; configurations or
         values it lacks (None) are left out; None for a mode with no pair at all."""
@@ -307,7 +334,7 @@ class Predictions(_Record):
         configs = [c for c in self.measured_hz if c in predicted]
         n = max((len(self.measured_hz[c]) for c in configs), default=0)
 
-        def grid(table: dict[str, Hz]) -> np.ndarray:
+        def grid(table: Mapping[str, Hz]) -> np.ndarray:
             rows = [[np.nan if v is None else v for v in table[c][:n]] for c in configs]
             return np.array([r + [np.nan] * (n - len(r)) for r in rows], float).reshape(len(configs), n)
 
@@ -334,7 +361,7 @@ class Diagnosis(_Record):
     configs: tuple[str, ...] | None = None
     predictions: Predictions | None = None
 
-    def per_mode_after(self) -> dict[str, float | None] | None:
+    def per_mode_after(self) -> Mapping[str, float | None] | None:
         """RMS relative error per mode with the best candidate (``baseline.per_mode`` is the one before):
         of its held-out predictions, or of its fit to all configurations when none of them was held
         out; None without a best candidate."""

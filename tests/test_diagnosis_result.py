@@ -14,6 +14,7 @@ import dataclasses
 import functools
 import json
 import math
+import pickle
 import re
 import typing
 
@@ -180,7 +181,13 @@ def test_records_are_frozen(live):
         d.ranking[0].score = 0.0                                        # type: ignore[misc]
     with pytest.raises((AttributeError, TypeError)):
         d.verdict.note = "x"                                            # type: ignore[attr-defined]
+    with pytest.raises(TypeError):
+        d.ranking[0].params["k_Nm_per_rad"] = 1.0                       # type: ignore[index]
+    with pytest.raises(TypeError):
+        d.predictions.measured_hz[d.configs[0]][0] = 1.0               # type: ignore[index]
     assert isinstance(d.ranking, tuple) and isinstance(d.where.modes, tuple)
+    copy = pickle.loads(pickle.dumps(d))                                # immutable all the way: hashable
+    assert copy == d and hash(copy) == hash(d) and copy is not d
 
 
 def test_numbers_are_python_and_finite_or_null_and_per_config_keys_round_trip():
