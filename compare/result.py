@@ -1,7 +1,7 @@
 """The diagnosis result: a tree of frozen records, written as diagnosis.json and read back from it.
 
 :func:`flexmodal.compare.diagnosis.diagnose` returns a :class:`Diagnosis`.  ``Diagnosis.to_json()`` is
-the text of diagnosis.json (docs/formats.md, "Diagnosis JSON"; the further keys in docs/diagnosis.md):
+the text of diagnosis.json (docs/formats.md, "Diagnosis JSON", whose key table lists every field):
 strict JSON (RFC 8259), so a number that is not finite is written ``null``; ``Diagnosis.from_json()``
 reads it back and ``from_json(x.to_json()) == x``.
 
@@ -287,7 +287,7 @@ class Verdict(_Record):
     ambiguous: bool | None = None
     summary: str | None = None
     per_config: Mapping[str, Mapping[str, float | None]] = field(default_factory=FrozenMap,
-                                                           metadata={"suffix": "_per_config"})
+                                                              metadata={"suffix": "_per_config"})
 
 
 @dataclass(**_RECORD)
