@@ -78,14 +78,45 @@ def test_demo_report_renders_in_headless_chromium(demo_dir: tuple[Path, float, s
 
 
 def test_demo_diagnosis_finds_the_elbow_with_a_realistic_residual(demo_dir: tuple[Path, float, str]) -> None:
-    """The demo's "real" arm is the independent Timoshenko model: the right effect is found and the
-    held-out gap after it stays between 0.3 % and 2 % (a model-form residual, not a circular 0.00 %)."""
-    import json
+    """The demo's "real" arm is the independent truth model (``bench_arm``): the held-out gap after the
+    verdict stays between 0.3 % and 2 % (a model-form residual, not a circular 0.00 %) and the hidden
+    joint stiffness at the elbow is one of the verdict's components.  The verdict itself is the
+    diagnosis's (compare/): with this truth it adds a second component that absorbs the model form
+    (``link_stiffness`` of link2 or ``joint_mass`` at the elbow, reported as ambiguous), so the exact
+    effect string is not asserted here."""
+    out, _, stdout = demo_dir
+    v = json.loads((out / "diagnosis.json").read_text(), parse_constant=lambda c: pytest.fail(c))["verdict"]
+    assert "joint_stiffness" in v["effect"].split("+") and "elbow" in v["location"].split("+"), v
+    assert 0.003 <= v["heldout_rms_rel_error_after"] <= 0.02
+    said = re.search(r"^fits as well within noise: (.*)$", stdout, re.MULTILINE)
+    assert bool(said) == v["ambiguous"]                    # the demo prints the ambiguity it was told
+    assert all(f"{a['effect']} at {a['location']}" in said.group(1) for a in v["alternatives"] if said)
+
+
+def test_demo_records_come_from_the_truth_model(demo_dir: tuple[Path, float, str]) -> None:
+    """Every record the demo analyses is the truth model's: operational.h5 is ``operational_test``'s
+    record, and at every pose (theta30's impact run acquired through the serial simulator included) the
+    identified frequencies are the truth model's within 0.3 % and more than 1 % from the diagnosis's FE
+    model (with the same hidden spring) on some mode."""
+    from flexmodal.daq.store import read_run
+    from flexmodal.fixtures.demo import DEMO_EFFECTS, DEMO_POSES, OPERATIONAL_POSE, operational_test
+    from flexmodal.fixtures.rig_sim import DEMO_RIG, simulate
+    from flexmodal.fixtures.truth_arm import bench_arm
+    from flexmodal.modal.table import ModalTable
+    from flexmodal.models.rig import load_rig
 
     out, _, _ = demo_dir
-    v = json.loads((out / "diagnosis.json").read_text(), parse_constant=lambda c: pytest.fail(c))["verdict"]
-    assert (v["effect"], v["location"]) == ("joint_stiffness", "elbow")
-    assert 0.003 <= v["heldout_rms_rel_error_after"] <= 0.02
+    rig = load_rig(DEMO_RIG)
+    stored = read_run(out / "operational.h5", OPERATIONAL_POSE).samples
+    np.testing.assert_allclose(stored, operational_test(rig).samples.astype(stored.dtype), rtol=0, atol=0)
+    measured = ModalTable.read_csv(out / "modes.csv")
+    for config, pose in DEMO_POSES.items():
+        found = measured.freq_hz(config)
+        n = found.size
+        real = simulate(rig, pose, duration_s=0.1, effects=DEMO_EFFECTS, truth=bench_arm(rig)).natural_freq_hz
+        fe = simulate(rig, pose, duration_s=0.1, effects=DEMO_EFFECTS).natural_freq_hz
+        np.testing.assert_allclose(found, real[:n], rtol=3e-3, err_msg=config)
+        assert np.max(np.abs(found / fe[:n] - 1)) > 0.01, (config, found, fe[:n])
 
 
 def test_demo_report_shows_the_operational_runs_fdd_and_ssi(demo_dir: tuple[Path, float, str]) -> None:
