@@ -71,9 +71,11 @@ def acquire(session: PathLike | Session, out: PathLike, *, duration_s: float | N
     from flexmodal.daq.acquire import acquire as _acquire
     from flexmodal.daq.errors import DaqError
     from flexmodal.daq.session import load_session
+    from flexmodal.valid_output import hdf5_output
 
     if isinstance(session, str | Path):
         session = load_session(session)
+    hdf5_output(out, DaqError, "run file (--out)")
     if duration_s is not None and duration_s <= 0:
         raise DaqError(f"--duration {duration_s}: must be > 0 seconds")
     if recover and Path(out).exists():
@@ -95,6 +97,11 @@ def compute_frf(run: Run | PathLike, *, estimator: str = "H1", nfft: int | None 
 
     if isinstance(run, str | Path):
         run = read_run(run)
+    if store:
+        from flexmodal.modal.errors import ModalError
+        from flexmodal.valid_output import hdf5_output
+
+        hdf5_output(run.path, ModalError, "run file (store=True)")
     result = _compute(run, estimator=estimator, nfft=nfft, window=window, overlap=overlap,
                       averaging=averaging)
     if store:
@@ -118,6 +125,11 @@ def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: 
     (``modal.frf.register_estimator``) reach worker processes only if they register them too."""
     from flexmodal.modal.batch import frf_batch
 
+    if out is not None:
+        from flexmodal.modal.errors import ModalError
+        from flexmodal.valid_output import hdf5_output
+
+        hdf5_output(out, ModalError, "FRF file (--out)")
     options = {"estimator": estimator, "nfft": nfft, "window": window, "overlap": overlap,
                "averaging": averaging}
     return frf_batch(runs, options, workers=workers, scheduler=scheduler, out=out, quiet=quiet)
@@ -275,12 +287,13 @@ def write_diagnosis(result: Diagnosis, out_dir: PathLike) -> tuple[Path, Path]:
     """Write ``diagnosis.json`` (strict JSON) and ``diagnosis.html`` of a :func:`diagnose` result into
     ``out_dir``.  The page is the validation report's diagnosis section alone (one renderer,
     reports/html.py)."""
+    from flexmodal.compare.errors import CompareError
     from flexmodal.reports.html import write_report
+    from flexmodal.valid_output import output_dir, write_text
 
-    out = Path(out_dir)
+    out = output_dir(out_dir, CompareError, "diagnosis folder (--out)")
     out.mkdir(parents=True, exist_ok=True)
-    pj = out / "diagnosis.json"
-    pj.write_text(result.to_json())
+    pj = write_text(out / "diagnosis.json", result.to_json())
     ph = write_report(out / "diagnosis.html", diagnosis=result, title="Sim-to-real gap diagnosis")
     return pj, ph
 
@@ -382,7 +395,8 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
            rig: Rig | PathLike | None = None, title: str = "flexmodal validation report",
            oma_fmin: float | None = None, oma_fmax: float | None = None,
            progress: Callable[[str], None] | None = None) -> Path:
-    """Write the self-contained HTML validation report ``out`` and return its path.
+    """Write the self-contained HTML validation report ``out`` (its folder must exist; checked before
+    any work) and return its path.
 
     ``runs``: HDF5 files (all their runs), ``FILE::RUN_ID`` or (file, id); their stored FRFs are shown
     with the stabilisation diagram of their identification (default options of :func:`identify`); a
@@ -393,13 +407,16 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     ``measured``/``repeats``/``predictions``: modal tables; ``diagnosis``: a :func:`diagnose` result,
     a parsed diagnosis.json, or its path; ``rig``: draws the measured shapes on the arm.  Everything
     is computed here; ``reports.html`` only renders it."""
+    from flexmodal.reports.errors import ReportError
+    from flexmodal.valid_output import output_file
+
+    output_file(out, ReportError, "report (--out)")
     from flexmodal.compare.tables import compare_tables, ordered_configs, table_name
     from flexmodal.daq.store import expand_runs
     from flexmodal.modal.errors import ModalError
     from flexmodal.modal.oma import default_method, output_only_results
     from flexmodal.modal.runs_io import read_frf
     from flexmodal.modal.sources import identify_frf
-    from flexmodal.reports.errors import ReportError
     from flexmodal.reports.html import write_report
     from flexmodal.reports.runs import RunSummary
 

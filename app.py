@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import signal
 import sys
 from collections.abc import Sequence
 
@@ -60,11 +61,16 @@ def _package_errors() -> tuple[type[BaseException], ...]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the CLI; returns the process exit code (0 ok, 2 bad input, 1 internal error).
+    """Run the CLI; returns the process exit code (0 ok, 2 bad input, 1 internal error, 128 + N stopped
+    by signal N: 130 for Ctrl-C).
 
     Handlers registered by the packages take the parsed namespace and return an exit code; they
     must write results only to stdout and progress/logs only to stderr (docs/formats.md).
     """
+    if argv is None:  # after a Ctrl-C this process ends with os._exit; multiprocessing's resource tracker
+        # (a child that dask's LocalCluster starts, launched with our -W options) would then print a
+        # multi-line warning about the semaphores it cleans up after us, below our one line
+        sys.warnoptions.append("ignore::UserWarning:multiprocessing.resource_tracker")
     try:
         args = build_parser().parse_args(argv)
         return int(args.func(args) or 0)
@@ -73,18 +79,48 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     except _package_errors() as exc:  # one line even when a quoted library message had several
         print(f"flexmodal: error: {' '.join(str(exc).split())}", file=sys.stderr)
-        return 2
+        signum = getattr(exc, "signum", 0)  # stopped by a signal before any work (daq.acquire.Stopped)
+        return 128 + signum if signum else 2
     except (FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError) as exc:
         where = exc.filename if exc.filename is not None else ""
         print(f"flexmodal: error: {where}: {exc.strerror or exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("flexmodal: interrupted", file=sys.stderr)
         if argv is None:  # the command itself: outputs are closed or removed by now, so skip the
-            sys.stdout.flush()  # interpreter's tear-down (seconds of garbage collection after a demo)
-            sys.stderr.flush()
-            os._exit(130)
+            _leave_interrupted()  # interpreter's tear-down (seconds of garbage collection after a demo)
+        print("flexmodal: interrupted", file=sys.stderr)
         return 130
+    finally:
+        if argv is None:  # done: a Ctrl-C during the interpreter's tear-down still ends it the same way
+            signal.signal(signal.SIGINT, lambda _signum, _frame: _leave_interrupted())
+
+
+def _leave_interrupted() -> None:
+    """Say so on stderr, end the child processes and end this one at once with exit code 130."""
+    print("flexmodal: interrupted", file=sys.stderr)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    _end_children()
+    os._exit(130)
+
+
+def _end_children() -> None:
+    """SIGTERM every child process (dask nannies, a simulator, an eigen worker), so that none outlives
+    the command by the second or more it would take to notice (Linux /proc; multiprocessing's resource
+    tracker ignores SIGTERM and still cleans up after us)."""
+    me = os.getpid()
+    try:
+        pids = [int(p) for p in os.listdir("/proc") if p.isdigit()]
+    except OSError:
+        return
+    for pid in pids:
+        try:
+            with open(f"/proc/{pid}/stat", "rb") as fh:
+                parent = int(fh.read().rsplit(b")", 1)[1].split()[1])
+            if parent == me:
+                os.kill(pid, signal.SIGTERM)
+        except (OSError, ValueError, IndexError):
+            continue
 
 
 if __name__ == "__main__":

@@ -9,7 +9,8 @@ offending byte.  The module imports nothing from the flexmodal packages, so ever
 from __future__ import annotations
 
 import tomllib
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 ErrorType = Callable[[str], Exception]
@@ -21,6 +22,18 @@ def one_line(text: object) -> str:
     :data:`MAX_MESSAGE_CHARS` characters: library messages quoted inside a one-line error."""
     flat = " ".join(str(text).split())
     return flat if len(flat) <= MAX_MESSAGE_CHARS else flat[:MAX_MESSAGE_CHARS - 3] + "..."
+
+
+@contextmanager
+def naming(where: str | Path, error: type[Exception]) -> Iterator[None]:
+    """Errors of type ``error`` raised inside that do not name ``where`` (a file, or ``FILE:RUN``) are
+    raised again, same type, as ``"{where}: {message}"``: every error line about a file names it."""
+    try:
+        yield
+    except error as exc:
+        if str(where) in str(exc):
+            raise
+        raise type(exc)(f"{where}: {exc}") from None
 
 
 def read_bytes(path: str | Path, error: ErrorType, what: str = "file") -> bytes:

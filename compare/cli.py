@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
 from flexmodal import valid_options as opt
 
@@ -43,15 +42,13 @@ def _run(args: argparse.Namespace) -> int:
 
     if args.out:
         from flexmodal.compare.errors import CompareError
-        from flexmodal.valid_output import output_file
+        from flexmodal.valid_output import output_file, write_text
 
         output_file(args.out, CompareError, "table (--out)")
     comp = compare_modes(args.measured, *args.predicted, min_mac=args.min_mac)
     text = format_comparison(comp, args.format, args.layout, args.caption)
     if args.out:
-        out = Path(args.out)
-        out.write_text(text, encoding="utf-8")
-        print(out)
+        print(write_text(args.out, text))
     else:
         sys.stdout.write(text)
     return 0

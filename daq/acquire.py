@@ -60,6 +60,15 @@ class WriteFailed(DaqError):
     """
 
 
+class Stopped(DaqError):
+    """A stop signal (``signum``) ended the session before any sample was stored: the CLI exits
+    128 + signum with this one line."""
+
+    def __init__(self, message: str, signum: int) -> None:
+        super().__init__(message)
+        self.signum = signum
+
+
 @dataclass(frozen=True)
 class Summary:
     """What a session stored; ``signal`` the number of the signal that stopped it (0: none) and
@@ -601,8 +610,9 @@ class _Recorder:
     def summary(self) -> Summary:
         if self.writer is None and self.written == 0:
             if self.stopper.signum:
-                raise DaqError(f"{self.session.source}: stopped by "
-                               f"{signal.Signals(self.stopper.signum).name} before any sample was stored")
+                raise Stopped(f"{self.session.source}: stopped by "
+                              f"{signal.Signals(self.stopper.signum).name} before any sample was stored",
+                              self.stopper.signum)
             if self.waiting:
                 t = self.session.trigger
                 raise DaqError(f"{self.session.source}: trigger: no {t.slope} crossing of {t.level:g} on "

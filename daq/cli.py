@@ -32,10 +32,8 @@ def _acquire(args: argparse.Namespace) -> int:
     from flexmodal.daq.acquire import WriteFailed
     from flexmodal.daq.errors import DaqError
     from flexmodal.daq.session import load_session
-    from flexmodal.valid_output import hdf5_output
 
     session = load_session(args.config)
-    hdf5_output(args.out, DaqError, "run file (--out)")
     try:
         summary = acquire(session, args.out, duration_s=args.duration, run_id=args.run_id,
                           recover=args.recover, quiet=args.quiet)

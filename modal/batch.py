@@ -140,6 +140,7 @@ def _on_cluster(jobs, first: int, options: dict, workers: int | None, scheduler:
                                    host="127.0.0.1", dashboard_address=None, silence_logs=40,
                                    scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
             client = Client(cluster)
+    interrupted = False
     try:
         futures = {client.submit(frf_job, str(Path(jobs[k][0]).resolve()), jobs[k][1], options, pure=False): k
                    for k in range(first, len(jobs))}   # absolute paths: workers run elsewhere
@@ -152,10 +153,14 @@ def _on_cluster(jobs, first: int, options: dict, workers: int | None, scheduler:
             except Exception as exc:  # a worker-side failure: name the run
                 raise ModalError(f"{jobs[k][0]}:{jobs[k][1]}: {exc}") from None
             done(k, result)
+    except KeyboardInterrupt:  # Ctrl-C: leave now (the CLI ends the cluster's processes with its own)
+        interrupted = True
+        raise
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        if not interrupted:
+            client.close()
+            if cluster is not None:
+                cluster.close()
 
 
 def frf_batch(paths: Sequence[str | Path], options: dict, *, workers: int | None = None,

@@ -103,11 +103,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _frf(args: argparse.Namespace) -> int:
     from flexmodal.api import compute_frfs
-    from flexmodal.modal.errors import ModalError
-    from flexmodal.valid_output import hdf5_output
-
-    if args.out:
-        hdf5_output(args.out, ModalError, "FRF file (--out)")
 
     written = compute_frfs(args.runs, estimator=args.estimator, nfft=args.nfft, window=args.window,
                            overlap=args.overlap, averaging=args.averaging, workers=args.workers,

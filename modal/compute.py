@@ -12,6 +12,7 @@ from flexmodal.modal.frf import FrfResult, coherence, estimate, estimator_name
 from flexmodal.modal.impact import impact_spectra
 from flexmodal.modal.spectra import Spectra, welch_spectra
 from flexmodal.modal.windows import added_decay_rate_per_s, impact_windows
+from flexmodal.valid_text import naming
 
 DEFAULT_NFFT_MAX = 8192
 MIN_SEGMENTS = 8
@@ -161,7 +162,8 @@ def compute_frf(run, *, estimator: str = "H1", nfft: int | None = None, window: 
     overloads = [e.sample_index + k for e in run.events if e.kind == "overload"
                  for k in range(max(1, e.count))]
     where = f"{run.path}:{run.run_id}"
-    return frf_of_record(run.samples, run.sample_rate_hz, [c.name for c in run.channels],
-                           [c.kind for c in run.channels], excitation=run.excitation, estimator=estimator,
-                           nfft=nfft, window=window, overlap=overlap, where=where, triggers=triggers,
-                           overload_samples=overloads, averaging=averaging, skip=skip, workers=workers)
+    with naming(where, ModalError):  # messages from the spectra layer name the run too
+        return frf_of_record(run.samples, run.sample_rate_hz, [c.name for c in run.channels],
+                             [c.kind for c in run.channels], excitation=run.excitation, estimator=estimator,
+                             nfft=nfft, window=window, overlap=overlap, where=where, triggers=triggers,
+                             overload_samples=overloads, averaging=averaging, skip=skip, workers=workers)

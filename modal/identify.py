@@ -31,6 +31,7 @@ from flexmodal.modal.mac import mac, mass_normalised, to_real, unit_max
 from flexmodal.modal.peaks import cmif, pick_peaks, quadrature_shapes
 from flexmodal.modal.table import ModalTable
 from flexmodal.modal.windows import remove_added_damping
+from flexmodal.valid_output import atomic_path
 
 METHODS = ("lscf", "peak")
 INDICATORS = ("mpc", "mpd", "synthesis_corr")   # per-mode validation columns of the modal table
@@ -341,8 +342,9 @@ def write_synthesis_csv(out: str | Path, modes_by_config: Mapping[str, tuple[Mod
             rows += [{"config": config, "output": outputs[o], "input": i + 1,
                       "synthesis_corr": float(corr[o, i])} for o, i in np.ndindex(*corr.shape)]
     path = synthesis_path(out)
-    pd.DataFrame(rows, columns=["config", "output", "input", "synthesis_corr"]).to_csv(
-        path, index=False, float_format="%.9g")
+    with atomic_path(path) as tmp:
+        pd.DataFrame(rows, columns=["config", "output", "input", "synthesis_corr"]).to_csv(
+            tmp, index=False, float_format="%.9g")
     return path
 
 

@@ -16,6 +16,7 @@ import numpy as np
 
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult
+from flexmodal.valid_output import signals_deferred
 
 
 def write_frf(path: str | Path, run_id: str, result: FrfResult) -> None:
@@ -24,7 +25,7 @@ def write_frf(path: str | Path, run_id: str, result: FrfResult) -> None:
         f = h5py.File(path, "a", libver="latest")
     except OSError as exc:
         raise ModalError(f"{path}: cannot open for writing FRFs ({exc})") from None
-    with f:
+    with f, signals_deferred():  # Ctrl-C waits for the group to be whole (milliseconds)
         g = f.require_group(f"runs/{run_id}")
         if "frf" in g:
             del g["frf"]

@@ -15,6 +15,7 @@ from flexmodal.modal.identify import Modes, identify, modes_table
 from flexmodal.modal.oma import OUTPUT_ONLY_METHODS, default_method, identify_output_only
 from flexmodal.modal.runs_io import read_frf
 from flexmodal.modal.table import ModalTable
+from flexmodal.valid_text import naming
 
 
 def _driving_point(run, result: FrfResult) -> int | None:
@@ -82,8 +83,9 @@ def identify_input(path: str | Path, *, method: str | None = None, fmin: float |
                 modes = res.modes
             else:
                 result = read_frf(p, run.run_id) or compute_frf(run)
-                modes = identify_frf(result, driving_point=_driving_point(run, result), method=chosen,
-                                     **options)
+                with naming(f"{p}:{run.run_id}", ModalError):
+                    modes = identify_frf(result, driving_point=_driving_point(run, result), method=chosen,
+                                         **options)
                 outputs = result.outputs
             found[run.run_id] = (modes, outputs)
             tables.append(modes_table(modes, outputs, config=run.run_id, pose=run.pose).frame)
@@ -103,7 +105,8 @@ def identify_input(path: str | Path, *, method: str | None = None, fmin: float |
                                data.outputs, data.inputs, data.decay_rate_per_s)
         else:
             result = _uff_record_frfs(p, data)
-        modes = identify_frf(result, method=chosen, **options)
+        with naming(p, ModalError):
+            modes = identify_frf(result, method=chosen, **options)
         found[p.stem] = (modes, result.outputs)
         tables.append(modes_table(modes, result.outputs, config=p.stem).frame)
     return ModalTable.from_frame(pd.concat(tables, ignore_index=True), str(p)), found

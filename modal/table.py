@@ -17,6 +17,7 @@ import pandas as pd
 
 from flexmodal.modal.errors import ModalError
 from flexmodal.valid_csv import read_table
+from flexmodal.valid_output import atomic_path
 
 REQUIRED = ("config", "mode", "freq_hz")
 POSE_PREFIX = "pose."
@@ -90,12 +91,14 @@ class ModalTable:
         return cls.from_frame(df, str(path))
 
     def to_csv(self, path: str | Path) -> None:
-        """Write CSV; complex shapes as ``a+bj`` text, floats with full precision."""
+        """Write CSV (whole or not at all, valid_output.atomic_path); complex shapes as ``a+bj`` text,
+        floats with full precision."""
         df = self.frame.copy()
         for col in self.shape_columns:
             if np.iscomplexobj(df[col].to_numpy()):
                 df[col] = [f"{v.real:.9g}{v.imag:+.9g}j" for v in df[col].to_numpy()]
-        df.to_csv(path, index=False, float_format="%.9g")
+        with atomic_path(path) as tmp:
+            df.to_csv(tmp, index=False, float_format="%.9g")
 
     # -- views ---------------------------------------------------------------------------------
     @property

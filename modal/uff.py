@@ -22,6 +22,7 @@ import numpy as np
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult
 from flexmodal.modal.valid_uff import check_functions
+from flexmodal.valid_output import atomic_path
 
 _AXES = "xyz"
 _SPEC = {"accelerance": 12, "mobility": 11, "receptance": 8}
@@ -203,7 +204,8 @@ def write_frfs(path: str | Path, result: FrfResult) -> None:
                 x=np.asarray(result.freq_hz, float), abscissa_spacing=1,
                 abscissa_min=float(result.freq_hz[0]),
                 abscissa_inc=float(result.freq_hz[1] - result.freq_hz[0]), num_pts=len(result.freq_hz)))
-    pyuff.UFF(str(path)).write_sets(sets, mode="overwrite")
+    with atomic_path(path) as tmp:
+        pyuff.UFF(str(tmp)).write_sets(sets, mode="overwrite")
 
 
 def write_modes(path: str | Path, freq_hz: Sequence[float], damping_ratio: Sequence[float],
@@ -223,4 +225,5 @@ def write_modes(path: str | Path, freq_hz: Sequence[float], damping_ratio: Seque
             n_data_per_node=3, load_case=1, mode_n=r + 1, freq=float(fn), modal_m=0.0,
             modal_damp_vis=float(zeta),
             modal_damp_his=0.0, node_nums=np.array(node_ids), r1=comp[:, 0], r2=comp[:, 1], r3=comp[:, 2]))
-    pyuff.UFF(str(path)).write_sets(sets, mode="overwrite")
+    with atomic_path(path) as tmp:
+        pyuff.UFF(str(tmp)).write_sets(sets, mode="overwrite")

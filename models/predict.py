@@ -37,15 +37,18 @@ def _elastic(freq_hz: np.ndarray, shapes: np.ndarray | None, n_modes: int, where
 
 
 def _fe(rig: Rig, poses: list[Mapping[str, float]], n_modes: int, options: Mapping) -> Iterator[Result]:
-    """Frame FE, assembled in chunks of poses (models.frame.assemble_many), one eigensolve per pose."""
-    from flexmodal.models.frame import assemble_many, solve_modes
+    """Frame FE, assembled in chunks of poses (models.frame.assemble_many), one eigensolve per pose; large
+    frames are solved in a worker process that Ctrl-C abandons at once (models.eigen_worker)."""
+    from flexmodal.models.eigen_worker import FrameSolver
+    from flexmodal.models.frame import assemble_many
 
     mechanisms = 3 + sum(j.kind != "rigid" for j in rig.joints)  # at most this many rigid-body modes
-    for start in range(0, len(poses), FE_CHUNK):
-        for system in assemble_many(rig, poses[start:start + FE_CHUNK], options.get("elements_per_link"),
-                                    bool(options.get("lumped_mass", False))):
-            modes = solve_modes(system, min(n_modes + mechanisms, system.n_dof))
-            yield _elastic(modes.freq_hz, modes.sensor_shapes, n_modes, f"{rig.source}: model 'fe'")
+    with FrameSolver() as solve:
+        for start in range(0, len(poses), FE_CHUNK):
+            for system in assemble_many(rig, poses[start:start + FE_CHUNK], options.get("elements_per_link"),
+                                        bool(options.get("lumped_mass", False))):
+                modes = solve(system, min(n_modes + mechanisms, system.n_dof))
+                yield _elastic(modes.freq_hz, modes.sensor_shapes, n_modes, f"{rig.source}: model 'fe'")
 
 
 def _one_by_one(solve: Callable[[Rig, Mapping[str, float], int, Mapping], Result]) -> Callable:

@@ -38,11 +38,9 @@ def _run(args: argparse.Namespace) -> int:
     from flexmodal.daq.run_schema import check_run_file
     from flexmodal.daq.store import expand_runs
     from flexmodal.reports.errors import ReportError
-    from flexmodal.valid_output import output_file
 
     if not (args.runs or args.measured or args.pred or args.diagnosis):
         raise ReportError("report: nothing to report (give RUN.h5 files, --measured, --pred or --diagnosis)")
-    output_file(args.out, ReportError, "report (--out)")
     for path, run_id in expand_runs(args.runs):
         check_run_file(path, run_id)
     from flexmodal.api import report  # the inputs are sound: now the heavy imports

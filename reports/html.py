@@ -30,6 +30,7 @@ from flexmodal.modal.table import ModalTable
 from flexmodal.reports import plots
 from flexmodal.reports.errors import ReportError
 from flexmodal.reports.runs import LOW_COHERENCE, RunSummary
+from flexmodal.valid_output import write_text
 from flexmodal.valid_text import read_text
 
 UNIT_SUFFIXES = {"_deg": "deg", "_kg": "kg", "_m": "m", "_rad": "rad", "_n": "N"}
@@ -325,8 +326,7 @@ def write_report(out_path: str | Path, *, runs: Sequence[RunSummary] = (),
         figures_diagnosis=figures_diag)
     out = Path(out_path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(html, encoding="utf-8")
-    return out
+    return write_text(out, html)
 
 
 def load_diagnosis(path: str | Path) -> Diagnosis:

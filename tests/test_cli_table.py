@@ -269,7 +269,7 @@ ROWS: list[Row] = [
     row("identify-poles-text", IDENTIFY + " --poles abc", ("--poles", "abc")),
     row("identify-decay-nan", IDENTIFY + " --exp-window-decay nan", ("--exp-window-decay", "nan")),
     row("frf-nfft-zero", "frf {d}/run.h5 --nfft 0", ("--nfft", "'0'")),
-    row("frf-nfft-huge", "frf {d}/run.h5 --nfft 1048576", ("nfft", "1048576")),
+    row("frf-nfft-huge", "frf {d}/run.h5 --nfft 1048576", ("run.h5:", "nfft", "1048576")),
     row("frf-overlap-one", "frf {d}/run.h5 --overlap 1", ("--overlap", "'1'")),
     row("frf-overlap-nan", "frf {d}/run.h5 --overlap nan", ("--overlap", "nan")),
     row("frf-workers-negative", "frf {d}/run.h5 --workers -1", ("--workers", "-1")),
@@ -328,7 +328,7 @@ ROWS: list[Row] = [
         ("out.h5", "does not exist")),
     # -- UFF, mathtext, missing inputs --------------------------------------------------------------
     row("uff-lengths", "identify {d}/f.uff --out {d}/m.csv", ("f.uff", "num_pts = 101")),
-    row("uff-flat", "identify {d}/f.uff --out {d}/m.csv", ("no stable poles",)),
+    row("uff-flat", "identify {d}/f.uff --out {d}/m.csv", ("f.uff:", "no stable poles")),
     row("uff-garbage", "identify {d}/f.uff --out {d}/m.csv", ("f.uff",), {"f.uff": BINARY}),
     row("uff-empty", "identify {d}/f.uff --out {d}/m.csv", ("f.uff",), {"f.uff": ""}),
     row("report-mathtext-channel", REPORT, code=0, words=()),

@@ -175,3 +175,61 @@ def test_uff_records() -> None:
             check_functions("f.uff", [{**ok, **change}])
     with pytest.raises(ModalError, match="missing field 'data'"):
         check_functions("f.uff", [{k: v for k, v in ok.items() if k != "data"}])
+
+
+def test_naming_puts_the_file_in_front_of_messages_that_lack_it():
+    from flexmodal.valid_text import naming
+
+    with pytest.raises(ModalError, match=r"^runs\.h5:r1: identify: no stable poles$"):
+        with naming("runs.h5:r1", ModalError):
+            raise ModalError("identify: no stable poles")
+    with pytest.raises(ModalError, match=r"^runs\.h5:r1: record too short$"):  # not named twice
+        with naming("runs.h5:r1", ModalError):
+            raise ModalError("runs.h5:r1: record too short")
+    with pytest.raises(KeyError):  # other errors pass unchanged
+        with naming("runs.h5:r1", ModalError):
+            raise KeyError("x")
+
+
+@pytest.mark.parametrize("call", ["acquire", "compute_frfs", "compute_frf", "report", "write_diagnosis"])
+def test_api_functions_that_write_probe_their_output_before_any_work(tmp_path, monkeypatch, call):
+    """The output's folder is a regular file: each API writer fails at once with its package's error
+    naming the path, before the work it guards (replaced here by a function that must not run)."""
+    from flexmodal import api
+    from flexmodal.compare.errors import CompareError
+    from flexmodal.reports.errors import ReportError
+
+    def never(*_args, **_kw):
+        raise AssertionError("the work started before the output was checked")
+
+    (tmp_path / "plain").write_text("not a folder")
+    bad = tmp_path / "plain" / "out.h5"
+    run = tmp_path / "run.h5"
+    with RunWriter(run, "r1", sample_rate_hz=256.0, channels=[Channel("F", "force", "N"),
+                   Channel("a", "acceleration", "m/s^2")], excitation="random", pose={}) as w:
+        w.append(np.random.default_rng(0).standard_normal((4096, 2)))
+    cases = {
+        "acquire": (DaqError, "flexmodal.daq.acquire.acquire",
+                    lambda: api.acquire(SESSIONS / "serial-sim.toml", bad)),
+        "compute_frfs": (ModalError, "flexmodal.modal.batch.frf_batch",
+                         lambda: api.compute_frfs([run], out=bad)),
+        "compute_frf": (ModalError, "flexmodal.modal.compute.compute_frf",
+                        lambda: api.compute_frf(_moved(api.read_run(run), bad), store=True)),
+        "report": (ReportError, "flexmodal.daq.store.expand_runs", lambda: api.report(bad, runs=[run])),
+        "write_diagnosis": (CompareError, "flexmodal.compare.diagnosis.to_json",
+                            lambda: api.write_diagnosis({}, tmp_path / "plain" / "diag")),
+    }
+    error, work, act = cases[call]
+    monkeypatch.setattr(work, never)
+    with pytest.raises(error, match=str(tmp_path / "plain")):
+        act()
+
+
+SESSIONS = Path(__file__).resolve().parents[1] / "examples" / "sessions"
+
+
+def _moved(run, path: Path):
+    """``run`` as if it were stored in ``path``."""
+    import dataclasses
+
+    return dataclasses.replace(run, path=path)

@@ -1,0 +1,189 @@
+"""Issue 13, point 7: Ctrl-C (SIGINT) stops every long command within 1 s with exit 130, one line on
+stderr and no traceback, and leaves no output half-written (valid_output.atomic_path: the output is
+absent, or whole from before; no temporary file stays behind).
+
+Each command runs as the real console script on inputs big enough that it is still working when the
+signal comes: SIGINT is sent once the process has used a given amount of CPU time (past its imports,
+inside the computation), or once the child process it waits on exists.  Measured on the shared 2-core
+machine under load (load average 5-10, several test runs at once): 0.01-0.2 s for every case but
+acquire mid-recording (0.1-0.45 s: the readers, the simulator child and the file are closed first);
+the limit below is the issue's 1 s.  Known exception (slow case): a CAN reader that is draining an
+slcan backlog after a stall finishes that read first, 1.43 s once under load (daq/can_driver.py).
+"""
+
+from __future__ import annotations
+
+import subprocess
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from interrupt_support import EXE, children, cpu_s, descendants, interrupt, still_alive
+from modal_cases import four_mode_random_record
+
+from flexmodal.daq.store import Channel, RunWriter
+
+REPO = Path(__file__).resolve().parents[1]
+RIGS = REPO / "examples" / "rigs"
+LIMIT_S = 1.0  # issue 13
+def after_cpu(seconds: float) -> Callable[[int], bool]:
+    return lambda pid: cpu_s(pid) >= seconds
+
+
+def check(code: int, seconds: float, err: str, folder: Path, absent: tuple[str, ...] = ()) -> None:
+    assert code == 130, err[-2000:]
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err[-2000:]
+    assert seconds < LIMIT_S, f"exit took {seconds:.2f} s"
+    print(f"exit 130 {seconds:.3f} s after SIGINT")  # shown with pytest -s
+    assert [p.name for p in folder.rglob("*.part")] == []
+    assert [name for name in absent if (folder / name).exists()] == []
+
+
+@pytest.fixture(scope="module")
+def runs_file(tmp_path_factory) -> Path:
+    """Four random-test runs of 10 min at 1024 Hz (force + 3 accelerations, 4 known modes), no FRFs."""
+    path = tmp_path_factory.mktemp("runs") / "runs.h5"
+    record = four_mode_random_record(np.random.default_rng(3), 1024.0, 600.0)
+    channels = [Channel("F", "force", "N")] + [Channel(f"a{k}", "acceleration", "m/s^2") for k in (1, 2, 3)]
+    for k in range(4):
+        with RunWriter(path, f"r{k}", sample_rate_hz=1024.0, channels=channels, excitation="random",
+                       pose={"theta_deg": 10.0 * k}) as writer:
+            writer.append(record)
+    return path
+
+
+def test_frf_over_several_runs(runs_file, tmp_path):
+    """Serial batch into --out, interrupted once the first run's FRFs are there: the runs written
+    before the signal are whole, and the file closed cleanly."""
+    out = tmp_path / "frf.h5"
+    check(*interrupt(["frf", str(runs_file), "--workers", "0", "--nfft", "256", "--out", str(out)],
+                     tmp_path, lambda _pid: out.exists()), tmp_path)
+    from flexmodal.modal.runs_io import read_frf
+
+    if out.exists():
+        with h5py.File(out, "r") as f:  # plain h5py: the file was closed cleanly
+            written = list(f["runs"]) if "runs" in f else []
+        for rid in written:
+            assert read_frf(out, rid).H.shape[:2] == (3, 1)
+
+
+def test_frf_on_a_dask_local_cluster(runs_file, tmp_path):
+    """--workers 2: SIGINT while the LocalCluster's processes start; the command and every process it
+    started (nannies, workers; they hold its stderr) are gone within the limit."""
+    seen: list[int] = []
+
+    def cluster_starting(pid: int) -> bool:
+        seen[:] = sorted(set(seen) | set(descendants(pid)))
+        return len(seen) >= 3  # resource tracker and nannies
+
+    args = ["frf", str(runs_file), "--workers", "2", "--out", "frf.h5"]
+    check(*interrupt(args, tmp_path, cluster_starting), tmp_path)
+    assert still_alive(seen, LIMIT_S) == []
+
+
+def test_identify(runs_file, tmp_path):
+    check(*interrupt(["identify", str(runs_file), "--out", "modes.csv"], tmp_path, after_cpu(1.2)), tmp_path,
+          ("modes.csv", "modes.synthesis.csv"))
+
+
+def test_report(runs_file, tmp_path):
+    check(*interrupt(["report", str(runs_file), "--out", "report.html"], tmp_path, after_cpu(1.2)),
+          tmp_path, ("report.html",))
+
+
+def _poses(path: Path, n: int, step_deg: float) -> Path:
+    path.write_text("config,pose.theta_deg\n" + "".join(f"c{k},{k * step_deg:g}\n" for k in range(n)))
+    return path
+
+
+def _soft_elbow_rig(tmp_path: Path) -> Path:
+    text = (RIGS / "demo_arm.toml").read_text()
+    assert text.count('kind = "rigid"') == 1
+    rig = tmp_path / "soft.toml"
+    rig.write_text(text.replace('kind = "rigid"', 'kind = "spring"\nk_Nm_per_rad = 8000.0'))
+    return rig
+
+
+def test_predict_with_a_large_frame(tmp_path):
+    """2400-DOF frames: the eigen-solve runs in a worker process, which is killed with the command."""
+    _poses(tmp_path / "poses.csv", 2, 30.0)
+    seen: list[int] = []
+
+    def solving(pid: int) -> bool:
+        seen[:] = children(pid) or seen
+        return bool(seen) and cpu_s(seen[0]) >= 0.5  # the worker is inside its first eigen-solve
+
+    check(*interrupt(["predict", str(RIGS / "demo_arm.toml"), "--model", "fe", "--poses", "poses.csv",
+                      "--out", "pred.csv", "--elements", "400"], tmp_path, solving), tmp_path, ("pred.csv",))
+    assert still_alive(seen, LIMIT_S) == [], "the eigen worker outlived the command"
+
+
+@pytest.mark.slow  # ~10 s; pure-Python work is interrupted as in identify and report
+def test_diagnose(tmp_path):
+    rig = RIGS / "demo_arm.toml"
+    measured = tmp_path / "measured.csv"
+    subprocess.run([EXE, "--quiet", "predict", str(_soft_elbow_rig(tmp_path)), "--model", "fe", "--poses",
+                    str(_poses(tmp_path / "poses.csv", 8, 15.0)), "--out", str(measured)], check=True,
+                   capture_output=True)
+    check(*interrupt(["diagnose", "--rig", str(rig), "--measured", str(measured), "--out", "dg"],
+                     tmp_path, after_cpu(1.2)), tmp_path, ("dg/diagnosis.json", "dg/diagnosis.html"))
+
+
+@pytest.mark.slow  # ~10 s; pure-Python work is interrupted as in identify and report
+def test_compare_of_large_tables(tmp_path):
+    poses = str(_poses(tmp_path / "poses.csv", 400, 0.3))
+    for rig, out in ((RIGS / "demo_arm.toml", "pred.csv"), (_soft_elbow_rig(tmp_path), "meas.csv")):
+        subprocess.run([EXE, "--quiet", "predict", str(rig), "--model", "fe", "--poses", poses, "--modes",
+                        "8", "--out", str(tmp_path / out)], check=True, capture_output=True)
+    check(*interrupt(["compare", "meas.csv", "pred.csv", "--out", "table.md"], tmp_path, after_cpu(1.0)),
+          tmp_path, ("table.md",))
+
+
+def test_acquire_while_its_simulator_starts(tmp_path):
+    """SIGINT while the session's simulator child is still importing: the launcher stops waiting for
+    its endpoint at once, the child is ended, nothing was stored, exit 130."""
+    text = (REPO / "examples" / "sessions" / "serial-sim.toml").read_text()
+    (tmp_path / "s.toml").write_text(text.replace('rig = "../rigs/', f'rig = "{RIGS}/'))
+    seen: list[int] = []
+
+    def starting(pid: int) -> bool:
+        seen[:] = children(pid) or seen
+        return bool(seen)
+
+    code, seconds, err = interrupt(["acquire", "--config", "s.toml", "--out", "run.h5", "--duration", "5"],
+                                   tmp_path, starting)
+    check(code, seconds, err, tmp_path, ("run.h5",))
+    assert "stopped by SIGINT before any sample was stored" in err
+    assert still_alive(seen, LIMIT_S) == [], "the simulator child outlived the command"
+
+
+@pytest.mark.parametrize("protocol", ["serial", pytest.param("can", marks=pytest.mark.slow),
+                                      pytest.param("modbus", marks=pytest.mark.slow)])
+def test_acquire_mid_recording(tmp_path, protocol):
+    """SIGINT while recording from a simulator child: the run is closed with what was recorded (that
+    is the point of acquire, not a half-written file: plain h5py reads it), the simulator child ends
+    with the command, exit 130 (a duration was asked for)."""
+    text = (REPO / "examples" / "sessions" / f"{protocol}-sim.toml").read_text()
+    text = text.replace('rig = "../rigs/', f'rig = "{RIGS}/').replace('dbc = "../../fixtures/',
+                                                                     f'dbc = "{REPO}/fixtures/')
+    (tmp_path / "s.toml").write_text(text)
+    out, seen, since = tmp_path / "run.h5", [], []
+
+    def recording(pid: int) -> bool:
+        seen[:] = children(pid) or seen
+        if not since and out.exists():
+            since.append(time.monotonic())
+        return bool(since) and time.monotonic() - since[0] >= 0.5
+
+    code, seconds, err = interrupt(["acquire", "--config", "s.toml", "--out", "run.h5", "--duration", "30"],
+                                   tmp_path, recording)
+    assert (code, err) == (130, ""), err[-2000:]
+    assert seconds < LIMIT_S, f"exit took {seconds:.2f} s"
+    print(f"exit 130 {seconds:.3f} s after SIGINT")
+    with h5py.File(out, "r") as f:
+        run = next(iter(f["runs"].values()))
+        assert run["samples"].shape[0] > 0
+    assert still_alive(seen, LIMIT_S) == []
