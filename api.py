@@ -113,16 +113,19 @@ def compute_frf(run: Run | PathLike, *, estimator: str = "H1", nfft: int | None 
 
 def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: str = "H1",
                  nfft: int | None = None, window: str | None = None, overlap: float = 0.5,
-                 averaging: str = "linear", workers: int | None = None, scheduler: str | None = None,
+                 averaging: str = "linear", workers: int | None = 0, scheduler: str | None = None,
                  out: PathLike | None = None, quiet: bool = True) -> list[tuple[str, str]]:
     """Batch FRFs of stored runs (a file means all its runs, ``FILE::RUN_ID`` or (file, id) one run),
     written back into each file or into ``out``; returns the (file, run id) pairs written.
 
-    Runs are computed here one after the other unless the measured cost predicts that a dask
-    LocalCluster pays for its start-up (``workers`` None, see ``modal.batch.run_batch``); ``workers``
-    N forces a LocalCluster of N processes, 0 computes here, ``scheduler`` sends the runs to that
-    address.  Estimators registered in this process
-    (``modal.frf.register_estimator``) reach worker processes only if they register them too."""
+    ``workers`` 0 (the default) computes the runs here one after the other; None chooses as the
+    ``frf`` command does (here, or a pool of local processes once the measured cost predicts that it
+    pays for its start-up, see ``modal.batch.run_batch``); N forces a pool of N processes;
+    ``scheduler`` sends the runs to that dask address.  Pool workers start from a fork server that
+    imports the calling script again as ``__mp_main__`` (as ``multiprocessing`` does), so a script
+    passing ``workers`` None or N keeps its own work under ``if __name__ == "__main__":``.
+    Estimators registered in this process (``modal.frf.register_estimator``) reach worker processes
+    only if they register them too."""
     from flexmodal.modal.batch import frf_batch
 
     if out is not None:

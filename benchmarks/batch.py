@@ -2,18 +2,23 @@
 
 Writes ``--runs`` files (default 8 and 100) of one random run each (1 force + 16 accelerations,
 ``--duration-s`` at 5 kHz, float32, the run store's layout) into a temporary folder, then times, per
-round and in this order: ``--workers 0`` (serial, the reference), the default (serial or cluster as
-the measured cost decides) and ``--workers 2`` (a LocalCluster of 2 processes).  Prints medians and
-spread (min-max) over ``--repeat`` rounds and the ratios against the serial run of the same rounds,
-then the start-up cost of the LocalCluster alone (the figure behind ``modal.batch.CLUSTER_START_S``).
-The machine may be shared: read the ratios, and the CPU load printed with them.
-Usage: ``python benchmarks/batch.py [--runs 8 100] [--duration-s 60] [--repeat 3] [--folder DIR]``
+round and in this order: ``--workers 0`` (serial, the reference), the default (serial or a pool as
+the measured cost decides) and ``--workers 2`` (a pool of 2 local processes).  Prints medians and
+spread (min-max) over ``--repeat`` rounds (one count per ``--runs`` entry, default 3 and 1, so the
+whole benchmark takes about 2 minutes on a quiet 2-core machine), the ratios against the serial run
+of the same rounds and the CPUs the serial and default processes kept busy (CPU time over wall time;
+the pool's workers are the fork server's children, not counted); then the start-up cost of the pool
+(``--workers 2`` less ``--workers 0`` on two 1 s runs: the figure behind
+``modal.batch.POOL_START_S``).  The machine may be shared: read the ratios, and the CPU load printed
+with them.
+Usage: ``python benchmarks/batch.py [--runs 8 100] [--duration-s 60] [--repeat 3 1] [--folder DIR]``
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import resource
 import shutil
 import subprocess
 import sys
@@ -35,64 +40,70 @@ def write_runs(folder: str, n_runs: int, duration_s: float) -> list[str]:
     return paths
 
 
-def _frf_process(paths: list[str], extra: list[str], out: str) -> float:
-    """Wall time (s) of one whole `flexmodal frf` process over ``paths`` writing into ``out``."""
+def _frf_process(paths: list[str], extra: list[str], out: str) -> tuple[float, float]:
+    """Wall time and CPU time (s; the process and its worker processes) of one whole `flexmodal frf`
+    process over ``paths`` writing into ``out``."""
     if os.path.exists(out):
         os.remove(out)
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     subprocess.run([sys.executable, "-m", "flexmodal", "--quiet", "frf", *paths, "--nfft", "4096",
                     "--out", out, *extra], check=True, timeout=3600, stdout=subprocess.DEVNULL)
-    return time.perf_counter() - t0
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
+
+
+CASES = {"serial (--workers 0)": ["--workers", "0"], "default (by cost)": [],
+         "--workers 2 (pool)": ["--workers", "2"]}
 
 
 def bench(paths: list[str], repeat: int, folder: str) -> None:
-    cases = {"serial (--workers 0)": ["--workers", "0"], "default (by cost)": [],
-             "--workers 2": ["--workers", "2"]}
-    times: dict[str, list[float]] = {name: [] for name in cases}
+    times: dict[str, list[tuple[float, float]]] = {name: [] for name in CASES}
     out = os.path.join(folder, "frf_out.h5")
     for _ in range(repeat):
-        for name, extra in cases.items():
+        for name, extra in CASES.items():
             times[name].append(_frf_process(paths, extra, out))
-    ref = np.median(times["serial (--workers 0)"])
+    ref = np.median([w for w, _ in times["serial (--workers 0)"]])
     print(f"BATCH {len(paths)} runs of {os.path.getsize(paths[0]) / 1e6:.0f} MB, nfft 4096 "
           f"(load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs):")
     for name, ts in times.items():
-        print(f"     {name:22s} median {np.median(ts):7.2f} s (spread {min(ts):.2f}-{max(ts):.2f} s), "
-              f"serial / this = {ref / np.median(ts):.2f}x")
+        wall, cpu = np.array(ts).T
+        busy = "pool workers not counted" if "pool" in name else f"{np.median(cpu / wall):.2f}"
+        print(f"     {name:22s} median {np.median(wall):7.2f} s (spread {min(wall):.2f}-{max(wall):.2f} s), "
+              f"serial / this = {ref / np.median(wall):.2f}x, CPUs busy {busy}")
 
 
-def cluster_start_up(repeat: int) -> None:
-    """Wall time of a fresh process that imports the batch module, starts its LocalCluster of 2
-    processes (no task) and closes it."""
-    code = ("import time; t = time.perf_counter()\n"
-            "from flexmodal.modal import batch\n"
-            "batch._on_cluster([], 0, {}, 2, None, lambda k, r: None)\n"
-            "print(time.perf_counter() - t)\n")
-    runs = []
+def pool_start_up(folder: str, repeat: int) -> None:
+    """Wall time `--workers 2` adds to `--workers 0` on two 1 s runs: starting the pool's fork server
+    and its 2 processes, their imports and first tasks."""
+    paths = write_runs(folder, 2, 1.0)
+    out = os.path.join(folder, "frf_out.h5")
+    extra = []
     for _ in range(repeat):
-        t0 = time.perf_counter()
-        subprocess.run([sys.executable, "-c", f"if __name__ == '__main__':\n    exec({code!r})"],
-                       check=True, timeout=300, stdout=subprocess.DEVNULL)
-        runs.append(time.perf_counter() - t0)
-    print(f"CLUSTER start-up + close of a 2-process LocalCluster (whole process): median "
-          f"{np.median(runs):.2f} s (spread {min(runs):.2f}-{max(runs):.2f} s)")
+        pool = _frf_process(paths, ["--workers", "2"], out)[0]
+        extra.append(pool - _frf_process(paths, ["--workers", "0"], out)[0])
+    for path in paths:
+        os.remove(path)
+    print(f"POOL start-up of 2 local processes (--workers 2 less --workers 0 on two 1 s runs): median "
+          f"{np.median(extra):.2f} s (spread {min(extra):.2f}-{max(extra):.2f} s)")
 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--runs", type=int, nargs="+", default=[8, 100])
     p.add_argument("--duration-s", type=float, default=60.0)
-    p.add_argument("--repeat", type=int, default=3)
+    p.add_argument("--repeat", type=int, nargs="+", default=[3, 1], help="rounds per --runs entry")
     p.add_argument("--folder", default=None, help="where the run files go (default: a temporary folder)")
     a = p.parse_args(argv)
     folder = tempfile.mkdtemp(prefix="flexmodal-batch-", dir=a.folder)
     try:
-        for n_runs in a.runs:
+        for n_runs, repeat in zip(a.runs, a.repeat + a.repeat[-1:] * len(a.runs), strict=False):
             paths = write_runs(folder, n_runs, a.duration_s)
-            bench(paths, a.repeat, folder)
+            bench(paths, repeat, folder)
             for path in paths:
                 os.remove(path)
-        cluster_start_up(a.repeat)
+        pool_start_up(folder, a.repeat[0])
     finally:
         shutil.rmtree(folder, ignore_errors=True)
     return 0

@@ -7,8 +7,10 @@
    every location, pairs of the best eight, leave-one-configuration-out) is timed, wall and CPU, best of
    ``--timing-runs``.  Target: <= 2 s (seed 003's double-stage GA took 1.8 s for one identification).
 2. Accuracy: ``--cases`` blind cases of fixtures/blind.py (the independent Timoshenko truth model);
-   prints top-1 effect and location accuracy, ``none`` accuracy, the held-out gap after a right
-   verdict against 2x the injected scatter and how often effects outside the library are flagged.
+   prints one line per case (truth, verdict, right or not, ambiguous, explained, held-out after; the
+   table docs/diagnosis.md quotes), then top-1 effect and location accuracy, ``none`` accuracy, the
+   held-out gap after a right verdict against 2x the injected scatter and how often effects outside
+   the library are flagged.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 
 from flexmodal.compare.diagnosis import diagnose  # noqa: E402
-from flexmodal.fixtures.blind import format_summary, run_blind, summarise  # noqa: E402
+from flexmodal.fixtures.blind import format_summary, format_table, run_blind, summarise  # noqa: E402
 from flexmodal.modal.table import ModalTable  # noqa: E402
 from flexmodal.models.effects import apply_effect  # noqa: E402
 from flexmodal.models.frame import frame_modes  # noqa: E402
@@ -69,7 +71,9 @@ def main() -> int:
           f"held-out {v.heldout_rms_rel_error_before:.2%} -> {v.heldout_rms_rel_error_after:.2%} "
           f"(top {n_cand} listed)")
     if args.cases > 0:
-        print(format_summary(summarise(run_blind(args.cases, seed=args.seed))))
+        results = run_blind(args.cases, seed=args.seed)
+        print(format_table(results))
+        print(format_summary(summarise(results)))
     return 0
 
 

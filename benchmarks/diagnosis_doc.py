@@ -4,8 +4,8 @@
     python benchmarks/diagnosis_doc.py --blind --write   # both blocks, written into docs/diagnosis.md
 
 Blocks sit between ``<!-- NAME:begin -->`` and ``<!-- NAME:end -->`` (NAME = seed003, blind).  The
-blind block is the 36-case run of fixtures/blind.py (seed 0) without its timing line (a measurement
-that varies; tests/test_fixtures_truth_arm.py re-runs it under ``-m slow``).
+blind block is the 36-case run of fixtures/blind.py (seed 0): its per-case table and summary without
+the timing line (a measurement that varies; tests/test_blind.py re-runs it under ``-m slow``).
 """
 
 from __future__ import annotations
@@ -67,13 +67,15 @@ def seed003_block(shared: Path = REPO.parent / "shared") -> str:
     ])
 
 
-def blind_block(n: int = BLIND_CASES, seed: int = 0) -> str:
-    """The blind run's summary as a fenced block, without the timing line."""
-    from flexmodal.fixtures.blind import format_summary, run_blind, summarise
+def blind_block(results: list | None = None, seed: int = 0) -> str:
+    """The blind run's per-case table and summary as a fenced block, without the timing line;
+    ``results``: those of ``run_blind(BLIND_CASES, seed)`` when already computed."""
+    from flexmodal.fixtures.blind import format_summary, format_table, run_blind, summarise
 
-    lines = format_summary(summarise(run_blind(n, seed=seed))).splitlines()
-    body = "\n".join(x for x in lines if not x.startswith("time per case"))
-    return f"`fixtures/blind.py`, {n} cases, seed {seed}:\n\n```\n{body}\n```"
+    results = run_blind(BLIND_CASES, seed=seed) if results is None else results
+    lines = format_summary(summarise(results)).splitlines()
+    body = "\n".join([format_table(results)] + [x for x in lines if not x.startswith("time per case")])
+    return f"`fixtures/blind.py`, {len(results)} cases, seed {seed}:\n\n```\n{body}\n```"
 
 
 def doc_block(name: str) -> str:

@@ -9,7 +9,10 @@
 
 3. The whole process: ``flexmodal frf`` (nfft 4096, H1 + coherence) on that record stored as a run
    (float32, the run store's layout), against pyFRF in this process on the same samples as float64
-   and against the floor of h5py reading the samples plus the bare FFTs.
+   and against the floor of h5py reading the samples plus the bare FFTs; where the process's time
+   goes (interpreter, imports, estimate, the rest) and the bound the start-up puts on any ratio.
+4. That estimate in memory with 1 and 2 threads against its bare FFTs on one thread (pocketfft as
+   flexmodal calls it, and numpy.fft): the cost of the passes besides the FFT.
 
 Each round runs the reference first, then flexmodal, on the same data in this process; prints the
 median wall and CPU times over ``--repeat`` rounds, their ratios and the differences of the results.
@@ -23,6 +26,13 @@ as the environment sets them, e.g. ``OPENBLAS_NUM_THREADS=1``; modal.lscf itself
 from __future__ import annotations
 
 import argparse
+import contextlib
+import functools
+import io
+import os
+import resource
+import shutil
+import subprocess
 import sys
 import tempfile
 import time
@@ -60,21 +70,28 @@ def _ratio_line(name_ref: str, t_ref: float, c_ref: float, t_ours: float, c_ours
             f"(CPU {c_ref:.3f} s vs {c_ours:.3f} s, {c_ref / c_ours:.1f}x; medians of {repeat})")
 
 
-def _fft_floor(n_transforms: int, nfft: int, repeat: int) -> float:
-    """Median wall time (s) of ``n_transforms`` float32 real FFTs of ``nfft`` points, done as
-    scipy.fft.rfft over a block of segments of flexmodal's block size, with every CPU."""
+def _all_cpus_rfft(block: np.ndarray) -> np.ndarray:
+    return scipy.fft.rfft(block, axis=-1, workers=-1)
+
+
+def _fft_floor(n_transforms: int, nfft: int, repeat: int, fft=_all_cpus_rfft,
+               clock=time.perf_counter) -> float:
+    """Median time (s; wall, or the ``clock`` given) of ``n_transforms`` float32 real FFTs of ``nfft``
+    points, done by ``fft`` (default scipy.fft.rfft with every CPU) over blocks of segments of
+    flexmodal's block size."""
     rows = max(1, _BLOCK_BYTES // (4 * nfft))
     block = np.random.default_rng(2).standard_normal((rows, nfft)).astype(np.float32)
     n_blocks = n_transforms / block.shape[0]
     times = []
     for _ in range(repeat):
-        t0 = time.perf_counter()
+        t0 = clock()
         for _ in range(int(np.ceil(n_blocks))):
-            scipy.fft.rfft(block, axis=-1, workers=-1)
-        times.append((time.perf_counter() - t0) * n_blocks / np.ceil(n_blocks))
+            fft(block)
+        times.append((clock() - t0) * n_blocks / np.ceil(n_blocks))
     return float(np.median(times))
 
 
+@functools.lru_cache(maxsize=1)
 def _record(duration_s: float, fs: float, n_resp: int) -> np.ndarray:
     """1 random force + ``n_resp`` responses of 4 modes (1 % noise), float32 [n, 1 + n_resp]."""
     rng = np.random.default_rng(0)
@@ -131,20 +148,46 @@ def bench_frf(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: int)
           f"coherence {np.max(np.abs(ac[:, lines] - bc[:, lines])[good]):.1e}")
 
 
+def _child_env(cache: str | None) -> dict:
+    """The environment of the timed child processes: with ``cache`` a folder, Python caches the
+    bytecode of flexmodal's modules there (as an installed package has it), else none is written
+    (``PYTHONDONTWRITEBYTECODE=1``, as in a sandbox that sets it: every module compiled each time)."""
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONDONTWRITEBYTECODE", "PYTHONPYCACHEPREFIX")}
+    if cache is None:
+        env["PYTHONDONTWRITEBYTECODE"] = "1"
+    else:
+        env["PYTHONPYCACHEPREFIX"] = cache
+    return env
+
+
+def _child(command: list[str], env: dict) -> tuple[float, float]:
+    """Wall and CPU time (s, user + system of the child) of one child process."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    subprocess.run(command, check=True, timeout=600, stdout=subprocess.DEVNULL, env=env)
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
+
+
+def _spread(values) -> str:
+    return f"{np.median(values):.3f} s ({np.min(values):.3f}-{np.max(values):.3f})"
+
+
 def bench_process(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: int, folder: str) -> None:
     """The whole ``flexmodal frf`` process (start-up, imports, streaming the stored float32 run, H1 +
     coherence, writing them) against pyFRF in this process on the same samples as float64, and
-    against the floor: h5py reading the samples plus the bare FFTs."""
-    import os
-    import resource
-    import subprocess
+    against the floor: h5py reading the samples plus the bare FFTs.  Then where the process's time
+    goes (start-up, imports, the streamed estimate in this process, the rest) and the bound that the
+    interpreter's own start-up puts on the ratio."""
 
-    import h5py
-
-    from flexmodal.daq.store import Channel, RunWriter
+    from flexmodal.daq.store import Channel, RunWriter, open_run
+    from flexmodal.modal.batch import idle_cpus
+    from flexmodal.modal.compute import compute_frf
 
     samples = _record(duration_s, fs, n_resp)
     path, out = os.path.join(folder, "bench_run.h5"), os.path.join(folder, "bench_frf.h5")
+    cache = tempfile.mkdtemp(prefix="flexmodal-pyc-", dir=folder)
     channels = [Channel("F", "force", "N")] + [Channel(f"a{k}", "acceleration", "m/s^2")
                                                for k in range(1, n_resp + 1)]
     with RunWriter(path, "r", sample_rate_hz=fs, channels=channels, excitation="random", pose={}) as w:
@@ -154,30 +197,42 @@ def bench_process(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: 
     del samples
     command = [sys.executable, "-m", "flexmodal", "--quiet", "frf", path, "--nfft", str(nfft),
                "--workers", "0", "--out", out]
+    cached, uncached = _child_env(cache), _child_env(None)
+    floors = {"python -c pass": [sys.executable, "-c", "pass"],
+              "import numpy, h5py": [sys.executable, "-c", "import numpy, h5py"],
+              "imports of `frf`": [sys.executable, "-c", "import flexmodal.app, flexmodal.api, "
+                                   "flexmodal.modal.batch, flexmodal.valid_output"],
+              "frf --help": [sys.executable, "-m", "flexmodal", "frf", "--help"]}
 
     def theirs():
         h1_, _, coh = _pyfrf(exc, resp, fs, nfft)
         return h1_, coh
 
-    child_cpu = []
+    times: dict[str, list] = {k: [] for k in ("ours", "uncached", "estimate", *floors)}
 
     def ours():
         if os.path.exists(out):
             os.remove(out)
-        before = resource.getrusage(resource.RUSAGE_CHILDREN)
-        subprocess.run(command, check=True, timeout=600, stdout=subprocess.DEVNULL)
-        after = resource.getrusage(resource.RUSAGE_CHILDREN)
-        child_cpu.append(after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime)
+        times["ours"].append(_child(command, cached))
 
-    def read():
-        with h5py.File(path, "r") as f:
-            return f["runs/r/samples"][()]
+    def estimate():
+        with open_run(path, "r") as run:
+            compute_frf(run, nfft=nfft, workers=idle_cpus())
 
     try:
-        (t_theirs, c_theirs, _), (t_ours, _, _) = _timed(theirs, ours, repeat)
-        t_read = float(np.median([_wall(read) for _ in range(repeat)]))
+        _child(command, cached)                 # fills the bytecode cache
+        (t_theirs, c_theirs, _), _ = _timed(theirs, ours, repeat)
+        for _ in range(repeat):
+            os.remove(out)
+            times["uncached"].append(_child(command, uncached))
+            for name, cmd in floors.items():
+                times[name].append(_child(cmd, cached))
+            t0, c0 = time.perf_counter(), time.process_time()
+            estimate()
+            times["estimate"].append((time.perf_counter() - t0, time.process_time() - c0))
+        t_read = float(np.median([_wall(lambda: _read(path)) for _ in range(repeat)]))
         n_seg = (n - nfft) // (nfft // 2) + 1
-        floor = t_read + _fft_floor((n_resp + 1) * n_seg, nfft, repeat)
+        t_fft = _fft_floor((n_resp + 1) * n_seg, nfft, repeat)
         from flexmodal.modal.runs_io import read_frf
 
         got = read_frf(out, "r")
@@ -185,13 +240,68 @@ def bench_process(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: 
         for p in (path, out):
             if os.path.exists(p):
                 os.remove(p)
+        shutil.rmtree(cache, ignore_errors=True)
+    wall = {k: np.array(v)[:, 0] for k, v in times.items()}
+    cpu = {k: float(np.median(np.array(v)[:, 1])) for k, v in times.items()}
+    t_ours, floor = float(np.median(wall["ours"])), t_read + t_fft
+    start = float(np.median(wall["import numpy, h5py"]))
     print(f"PROC whole `flexmodal frf` process, {n_resp} responses x 1 reference, {duration_s:g} s at "
-          f"{fs:g} Hz, nfft {nfft}, H1 + coherence: pyFRF in-process (float64) {t_theirs:.3f} s, "
-          f"flexmodal process {t_ours:.3f} s, ratio {t_theirs / t_ours:.1f}x "
-          f"(medians of {repeat}); CPU pyFRF {c_theirs:.3f} s, flexmodal process "
-          f"{np.median(child_cpu):.3f} s, ratio {c_theirs / np.median(child_cpu):.1f}x")
-    print(f"     floor: h5py read {t_read:.3f} s + bare FFTs = {floor:.3f} s; flexmodal process / floor = "
-          f"{t_ours / floor:.2f}; {got.n_averages} segments")
+          f"{fs:g} Hz, nfft {nfft}, H1 + coherence, bytecode cached: pyFRF in-process (float64) "
+          f"{t_theirs:.3f} s, flexmodal process {_spread(wall['ours'])}, ratio {t_theirs / t_ours:.1f}x "
+          f"(medians of {repeat}); CPU pyFRF {c_theirs:.3f} s, flexmodal process {cpu['ours']:.3f} s, "
+          f"ratio {c_theirs / cpu['ours']:.1f}x; without a bytecode cache the process takes "
+          f"{_spread(wall['uncached'])}")
+    print(f"     floor: h5py read {t_read:.3f} s + bare FFTs {t_fft:.3f} s = {floor:.3f} s; flexmodal "
+          f"process / floor = {t_ours / floor:.2f}; {got.n_averages} segments")
+    def med(key: str, i: int) -> float:       # median wall (i = 0) or CPU (i = 1) time
+        return float(np.median(np.array(times[key])[:, i]))
+
+    rest = [med("ours", i) - med("imports of `frf`", i) - med("estimate", i) for i in (0, 1)]
+    print("     where it goes, wall (CPU): " + "; ".join(
+        f"{name} {_spread(wall[key])} ({cpu[key]:.3f})" for name, key in (
+            ("`python -c pass`", "python -c pass"), ("`import numpy, h5py`", "import numpy, h5py"),
+            ("all imports of `frf`", "imports of `frf`"), ("streamed estimate in-process", "estimate")))
+        + f"; the rest (parser, checks, writing) {rest[0]:.3f} s ({rest[1]:.3f})")
+    print(f"     bounds: any process that starts Python and imports numpy + h5py, reads and transforms "
+          f"takes >= {start + floor:.3f} s, so none is more than {t_theirs / (start + floor):.1f}x faster "
+          f"than pyFRF here; that start alone is {start / (t_theirs / 10):.2f}x pyFRF's time / 10")
+    print(f"HELP `flexmodal frf --help`, bytecode cached: {_spread(wall['frf --help'])} "
+          f"({cpu['frf --help']:.3f} s CPU)")
+
+
+def bench_kernel(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: int) -> None:
+    """The estimate of the PROC case in memory (H1 + coherence, Hann, nfft ``nfft``) with 1 and 2
+    threads, against its bare FFTs on one thread (scipy's pocketfft as flexmodal calls it, and
+    numpy.fft.rfft on the same float32 blocks): what the passes besides the FFT cost, what a second
+    thread gains."""
+    from flexmodal.modal.spectra import rfft
+
+    samples = _record(duration_s, fs, n_resp)
+    n_fft = (n_resp + 1) * ((samples.shape[0] - nfft) // (nfft // 2) + 1)
+
+    def estimate(threads: int):
+        s = welch_spectra(samples, fs, [0], list(range(1, n_resp + 1)), nfft, workers=threads)
+        return h1(s), coherence(s)
+
+    times: dict[int, list] = {1: [], 2: []}
+    for _ in range(repeat):
+        for threads in times:
+            t0, c0 = time.perf_counter(), time.process_time()
+            estimate(threads)
+            times[threads].append((time.perf_counter() - t0, time.process_time() - c0))
+    (w1, c1), (w2, c2) = (np.median(np.array(times[k]), axis=0) for k in times)
+    cf, cn = (_fft_floor(n_fft, nfft, repeat, fft, time.process_time) for fft in (rfft, np.fft.rfft))
+    print(f"KERNEL the PROC estimate in memory: 1 thread {w1:.3f} s ({c1:.3f} s CPU), 2 threads {w2:.3f} s "
+          f"({c2:.3f} s CPU): {w1 / w2:.2f}x for {c2 / c1:.2f}x the CPU; in CPU on 1 thread its bare FFTs "
+          f"take {cf:.3f} s, so the other passes {c1 - cf:.3f} s ({(c1 - cf) / c1:.0%}); numpy.fft.rfft "
+          f"on the same float32 blocks {cn:.3f} s = {cn / cf:.1f}x scipy's pocketfft (medians of {repeat})")
+
+
+def _read(path: str) -> np.ndarray:
+    import h5py
+
+    with h5py.File(path, "r") as f:
+        return f["runs/r/samples"][()]
 
 
 def _wall(fn) -> float:
@@ -216,7 +326,7 @@ def bench_lscf(n_frf: int, n_lines: int, repeat: int) -> None:
     def theirs():
         m = EMA.Model(frf=H[:, 0], freq=f, lower=1, upper=200, pol_order_high=30, frf_form="accelerance")
         m.get_poles(show_progress=False)
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), contextlib.redirect_stderr(io.StringIO()):   # its progress bar
             warnings.simplefilter("ignore")
             m.select_closest_poles(FN)
         return m.nat_freq, m.nat_xi
@@ -257,6 +367,7 @@ def main(argv: list[str] | None = None) -> int:
     a = p.parse_args(argv)
     bench_frf(a.duration_s, a.sample_rate_hz, a.responses, a.nfft, a.repeat)
     bench_process(a.duration_s, a.sample_rate_hz, a.responses, a.process_nfft, a.repeat, a.folder)
+    bench_kernel(a.duration_s, a.sample_rate_hz, a.responses, a.process_nfft, a.repeat)
     bench_lscf(a.frfs, a.lines, a.repeat)
     return 0
 

@@ -7,12 +7,15 @@
    frequency sensitivities best explain the error pattern (R^2, compare/gap.py; among regions within
    ``REGION_TIE`` of the best, the verdict's), plus MAC/COMAC when shapes were measured.
 3. Ranking: every effect at every location (compare/candidates.py) fitted to all data; the
-   ``PAIR_POOL`` best singles and their pairs (and, only when no pair explains the gap, each of the
-   ``TRIPLE_PAIRS`` best pairs extended by one more single of the pool).  Candidates are cross-validated,
-   best in-sample score first, while they can still win: every fold is refitted to convergence from
-   starts chosen on its own training data (compare/fit.py), so held-out errors are honest.  Score (lower
-   is better): ``sqrt(heldout_rms^2 + scatter^2) * (1 + PENALTY * n_params)``: a complexity penalty, with
-   the scatter as a floor so that candidates within the noise are ordered by simplicity.
+   ``PAIR_POOL`` best singles and their pairs, the best single paired with its ``PARTNERS`` score-test
+   partners (``_partners``), and, only when no pair explains the gap, each of the ``TRIPLE_PAIRS`` best
+   pairs extended by one more single of the pool.  Candidates are cross-validated, best in-sample score
+   first, while they can still win: every fold is refitted to convergence from starts chosen on its own
+   training data (compare/fit.py), so held-out errors are honest.  Score (lower is better):
+   ``sqrt(h^2 + scatter^2) * (1 + PENALTY * n_params)``: a complexity penalty, with the scatter as a
+   floor so that candidates within the noise are ordered by simplicity; ``h`` is the held-out frequency
+   RMS, or with measured shapes the frequency-equivalent error of the held-out frequencies and shape
+   misfits together (``_equivalent``).
    ``joint_stiffness_pose`` ranks above the constant ``joint_stiffness`` at the same joint only when its
    held-out error is lower.  The scatter comes from the data when it can (compare/gap.py
    ``estimate_scatter``), else from the caller.
@@ -68,6 +71,8 @@ from flexmodal.models.effects import REGISTRY, get_effect
 from flexmodal.models.rig import Rig
 
 DEFAULT_SCATTER = 0.005
+SHAPE_SCATTER_MIN = 1e-3
+"""No mode shape is measured better than 0.1 % of its norm per sensor (floor of the shape noise)."""
 BOUND_TOL = 1e-3
 """A fitted parameter within this fraction of its range from a bound is at the bound."""
 UNIDENTIFIED_STD = 1.0
@@ -78,6 +83,7 @@ NONE_FACTOR = 2.0
 EXPLAINED_FACTOR = 3.0
 PENALTY = 0.15
 PAIR_POOL = 8
+PARTNERS = 3
 TRIPLE_PAIRS = 3
 MIN_CROSS_VALIDATED = 6
 REGION_TIE = 0.8
@@ -138,6 +144,8 @@ class _Context:
             keep = [rows.index(s) for s in meas.sensors]
             self.bases = [replace(b, sensors=b.sensors[keep]) for b in self.bases]
         self.target = Target(meas.freq_hz, meas.shapes, joint_angles_rad(rig, meas.poses))
+        self.shape_dof = len(meas.sensors) - 1 if meas.shapes is not None else 0
+        self.shape_floor = math.inf      # smallest in-sample mean (1 - MAC) of any model fitted so far
 
     def family(self, handles: Sequence[str]):
         idx = [self.index[h] for h in handles]
@@ -170,6 +178,44 @@ def _score(heldout: float, n_params: int, scatter: float) -> float:
     return math.hypot(heldout, scatter) * (1 + PENALTY * n_params)
 
 
+def _shape_misfit(mac: np.ndarray | None) -> np.ndarray:
+    """``1 - MAC`` of the paired modes with complete measured shapes (flat; empty without shapes)."""
+    if mac is None:
+        return np.zeros(0)
+    d = 1.0 - np.asarray(mac, float).ravel()
+    return np.clip(d[np.isfinite(d)], 0.0, None)
+
+
+def _equivalent(ctx: _Context, freq_err: np.ndarray, shape_misfit: np.ndarray, scatter: float
+                ) -> tuple[float, int]:
+    """Frequency-equivalent RMS error of frequencies and shapes together, and its degrees of freedom.
+
+    Gaussian log-likelihood of both kinds of residual, each over its own noise level (a chi-square
+    sum): a relative frequency error counts ``(e / scatter)^2`` with one degree of freedom; a mode with
+    ``s`` measured sensors counts ``(1 - MAC) / floor`` with ``s - 1`` (1 - MAC of a shape with independent
+    per-sensor noise is a chi-square over the ``s - 1`` directions orthogonal to the true shape, scaled by
+    the relative noise squared, Allemang 2003).  ``floor`` is the shape noise per degree of freedom: the
+    smallest in-sample mean ``1 - MAC`` of any model fitted to these data (the noise estimate of the
+    largest model, as in Mallows' Cp, Mallows 1973), never below ``SHAPE_SCATTER_MIN^2``.  The result is
+    ``scatter * sqrt(chi2 / dof)``: the frequency RMS itself without shapes; with shapes, the frequency
+    RMS a candidate would need to be as unlikely as it is on both."""
+    chi2, dof = float(np.sum(np.square(freq_err))) / scatter**2, freq_err.size
+    if ctx.shape_dof > 0 and shape_misfit.size and math.isfinite(ctx.shape_floor):
+        floor = max(ctx.shape_floor / ctx.shape_dof, SHAPE_SCATTER_MIN**2)
+        chi2 += float(np.sum(shape_misfit)) / floor
+        dof += ctx.shape_dof * shape_misfit.size
+    return scatter * math.sqrt(chi2 / max(dof, 1)), dof
+
+
+def _rescore(ctx: _Context, entry: dict, scatter: float) -> None:
+    """(Re)compute ``entry``'s scores from its stored residuals with the current shape noise floor."""
+    fit, _ = _equivalent(ctx, entry["_fit_err"], entry["_fit_shape"], scatter)
+    entry["_lower"] = _score(fit, entry["n_params"], scatter)
+    if "_held_err" in entry:
+        held, dof = _equivalent(ctx, entry["_held_err"], entry["_held_shape"], scatter)
+        entry.update(score=_score(held, entry["n_params"], scatter), _heldout_eq=held, _n_eq=dof)
+
+
 def _screen(ctx: _Context, cand: Candidate, scatter: float, parts: Sequence[dict] = ()) -> dict:
     """Fit ``cand`` to all configurations (fold 0 only); seeded from the ``parts``' optima for a
     combination.  ``_lower`` is the score it would get if its held-out error equalled this in-sample one
@@ -182,8 +228,12 @@ def _screen(ctx: _Context, cand: Candidate, scatter: float, parts: Sequence[dict
              "fit_rms_rel_error": rms(err), "n_params": cand.n_params}
     if res.mac is not None:
         entry["mac_mean"] = float(np.nanmean(res.mac[0]))
+    shape = _shape_misfit(None if res.mac is None else res.mac[0])
+    if shape.size:
+        ctx.shape_floor = min(ctx.shape_floor, float(np.mean(shape)))
     entry.update(_cand=cand, _parts=tuple(parts), _fam=fam, _theta0=res.theta[0], _freq_hz=res.freq_hz[0],
-                 _lower=_score(rms(err), cand.n_params, scatter))
+                 _fit_err=err.ravel(), _fit_shape=shape)
+    _rescore(ctx, entry, scatter)
     return entry
 
 
@@ -197,15 +247,21 @@ def _cross_validate(ctx: _Context, entry: dict, scatter: float) -> None:
     res = fit_candidate(entry["_fam"], cand, ctx.target, train, starts=starts)
     err = res.freq_hz / ctx.meas.freq_hz[None] - 1.0                    # [F, C, n]
     held = np.concatenate([err[f][~train[f]].ravel() for f in range(len(train))])
+    shape = _shape_misfit(None if res.mac is None else
+                          np.concatenate([res.mac[f][~train[f]].ravel() for f in range(len(train))]))
     entry.update(heldout_rms_rel_error=rms(held), heldout_max_rel_error=float(np.max(np.abs(held))),
-                 score=_score(rms(held), cand.n_params, scatter), _theta_folds=res.theta,
-                 _n_heldout=held.size,
+                 _theta_folds=res.theta, _held_err=held, _held_shape=shape,
                  _heldout_freq_hz=_heldout_prediction(res.freq_hz, train))
+    if shape.size:
+        entry["heldout_shape_rms_error"] = math.sqrt(float(np.mean(shape)) / max(ctx.shape_dof, 1))
+    _rescore(ctx, entry, scatter)
 
 
 def _cross_validate_promising(ctx: _Context, entries: Sequence[dict], scatter: float) -> None:
     """Cross-validate, best in-sample score first, every entry that could still beat the best held-out
     score so far (``_lower`` below it), and at least ``MIN_CROSS_VALIDATED`` in all."""
+    for e in entries:
+        _rescore(ctx, e, scatter)            # the shape noise floor may have dropped since
     done = [e for e in entries if "score" in e]
     for e in sorted((e for e in entries if "score" not in e), key=lambda e: e["_lower"]):
         if len(done) >= MIN_CROSS_VALIDATED and e["_lower"] >= min(d["score"] for d in done):
@@ -231,6 +287,42 @@ def _combo_starts(cand: Candidate, parts: Sequence[tuple[Candidate, np.ndarray]]
         block[:, :, idx] = grid[None]
         starts.append(block)
     return np.concatenate(starts, axis=1)
+
+
+def _partners(ctx: _Context, lead: dict, others: Sequence[dict]) -> list[dict]:
+    """The ``PARTNERS`` singles of ``others`` whose parameters best explain what ``lead`` (a fitted single)
+    leaves: forward stepwise selection by the score (Lagrange-multiplier) test, Rao 1948.
+
+    Each candidate's columns are the derivatives of the relative frequencies with respect to its
+    parameters at ``lead``'s fit (every handle at its nominal value except ``lead``'s), from one solve of
+    the model with every handle; its statistic is the fraction R^2 of ``lead``'s in-sample residual that
+    a linear least-squares fit by those columns removes.  A single that is poor on its own (its fit
+    alone runs to a bound) but completes ``lead`` is found this way although it misses the pair pool."""
+    others = [e for e in others if combine(lead["_cand"], e["_cand"]) is not None]
+    if not others:
+        return []
+    fam = ctx.family([h.name for h in ctx.handles])
+    cand = lead["_cand"]
+    h_lead = evaluate(lead["_fam"], design(cand, ctx.target), lead["_theta0"][None], ctx.target)[3][0]
+    h = np.repeat(fam.nominal[None, None], len(ctx.meas.configs), axis=1)
+    h[0][:, [ctx.index[n] for n in cand.handles]] = h_lead
+    f, dlam, _, _ = paired_modes(fam, h, ctx.target)
+    dfdh = dlam[0] / (8 * math.pi**2 * f[0][..., None] * ctx.meas.freq_hz[..., None])   # [C, n, H]
+    resid = lead["_fit_err"]
+    total = float(resid @ resid)
+    stats = []
+    for e in others:
+        c = e["_cand"]
+        cols = np.einsum("cnh,chj->cnj", dfdh[..., [ctx.index[n] for n in c.handles]],
+                         design(c, ctx.target)).reshape(-1, c.n_params)
+        norm = np.linalg.norm(cols, axis=0)
+        if total == 0 or not np.any(norm > 0):
+            stats.append(0.0)
+            continue
+        coef, *_ = np.linalg.lstsq(cols[:, norm > 0] / norm[norm > 0], resid, rcond=None)
+        fit = cols[:, norm > 0] / norm[norm > 0] @ coef
+        stats.append(float(fit @ fit) / total)
+    return [others[i] for i in np.argsort(stats)[::-1][:PARTNERS]]
 
 
 def _triples(ctx: _Context, pairs: Sequence[dict], pool: Sequence[dict], scatter: float) -> list[dict]:
@@ -262,7 +354,7 @@ def _refinement_guard(ranking: list[dict]) -> None:
     for e in ranking:
         refines = REGISTRY[e["effect"]].refines if e["effect"] in REGISTRY else ""
         c = plain.get((refines, e["location"]))
-        if c and e["heldout_rms_rel_error"] >= c["heldout_rms_rel_error"]:
+        if c and e["_heldout_eq"] >= c["_heldout_eq"]:
             e["score"] = max(e["score"], c["score"] * 1.001)
 
 
@@ -331,6 +423,9 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
     baseline = gap_summary(base_err, meas.configs)
     held_mask = ~train[1:].all(axis=0)
     before = rms(base_err[held_mask])
+    base_shape = _shape_misfit(None if base_mac is None else base_mac[0][held_mask])
+    if base_shape.size:
+        ctx.shape_floor = float(np.mean(_shape_misfit(base_mac[0])))
     base_shapes = _paired_shapes(ctx, base_fam) if meas.shapes is not None else None
     where = _where(ctx, base_err, baseline, scatter, base_shapes)
 
@@ -348,12 +443,16 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
                 cand = combine(a["_cand"], b["_cand"])
                 if cand is not None:
                     pairs.append(_screen(ctx, cand, scatter, (a, b)))
+        lead = min(pool, key=lambda e: e["score"], default=None)
+        for b in _partners(ctx, lead, [e for e in screened if e not in pool]) if lead else ():
+            pairs.append(_screen(ctx, combine(lead["_cand"], b["_cand"]), scatter, (lead, b)))
         screened += pairs
         _cross_validate_promising(ctx, screened, scatter)
         pairs.sort(key=lambda e: e.get("score", math.inf))
         if pairs and pairs[0].get("heldout_rms_rel_error", math.inf) > EXPLAINED_FACTOR * scatter:
             screened += _triples(ctx, pairs[:TRIPLE_PAIRS], pool, scatter)
             _cross_validate_promising(ctx, screened, scatter)
+        _cross_validate_promising(ctx, screened, scatter)     # once more at the final shape floor
         ranking = [e for e in screened if "score" in e]
         _refinement_guard(ranking)
         ranking.sort(key=lambda e: e["score"])
@@ -361,7 +460,8 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
     for e in ranking:
         _annotate(ctx, e, scatter)
     best = _choose(ctx, ranking, screened if ranking else [], scatter)
-    verdict = _verdict(ctx, best, ranking, baseline, before, scatter)
+    nominal = _equivalent(ctx, base_err[held_mask].ravel(), base_shape, scatter)[0]
+    verdict = _verdict(ctx, best, ranking, baseline, before, nominal, scatter)
     if verdict["effect"] != "none":
         _confirm_region(where, rig, verdict["effect"], verdict["location"])
     else:
@@ -427,11 +527,11 @@ def _annotate(ctx: _Context, entry: dict, scatter: float) -> None:
 
 
 def _noise(best: dict, scatter: float) -> float:
-    """Margin by which another candidate's held-out RMS may exceed ``best``'s and still be equal within
-    noise: twice the standard error of the difference of two RMS estimates over the same ``N`` held-out
-    residuals, each ~ ``sigma / sqrt(2N)`` (chi distribution) with ``sigma`` the larger of the best
-    held-out RMS and the scatter."""
-    return 2 * math.sqrt(2) * max(best["heldout_rms_rel_error"], scatter) / math.sqrt(2 * best["_n_heldout"])
+    """Margin by which another candidate's held-out (frequency-equivalent, ``_equivalent``) RMS may
+    exceed ``best``'s and still be equal within noise: twice the standard error of the difference of two
+    RMS estimates over the same ``N`` held-out degrees of freedom, each ~ ``sigma / sqrt(2N)`` (chi
+    distribution) with ``sigma`` the larger of the best held-out RMS and the scatter."""
+    return 2 * math.sqrt(2) * max(best["_heldout_eq"], scatter) / math.sqrt(2 * best["_n_eq"])
 
 
 def _sub_candidate(ctx: _Context, entry: dict, drop: int, pool: list[dict], scatter: float) -> dict | None:
@@ -463,7 +563,7 @@ def _choose(ctx: _Context, ranking: list[dict], pool: list[dict], scatter: float
             pruned = False
             for i in range(len(best["_cand"].effects)):
                 sub = _sub_candidate(ctx, best, i, pool, scatter)
-                worse = sub["heldout_rms_rel_error"] - best["heldout_rms_rel_error"]
+                worse = sub["_heldout_eq"] - best["_heldout_eq"]
                 if i in best["_idle"] or worse <= _noise(best, scatter):
                     best, pruned = sub, True
                     break
@@ -507,7 +607,9 @@ def _paired_shapes(ctx: _Context, fam) -> np.ndarray:
 
 
 def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: dict, before: float,
-             scatter: float) -> dict:
+             nominal: float, scatter: float) -> dict:
+    """The verdict block; ``before`` is the nominal model's held-out frequency RMS, ``nominal`` its
+    frequency-equivalent held-out RMS with shapes (``_equivalent``)."""
     meas = ctx.meas
     none = {"effect": "none", "location": "", "heldout_rms_rel_error_before": before,
             "heldout_rms_rel_error_after": before,
@@ -520,7 +622,7 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
         return {**none, "summary": f"baseline RMS gap {baseline['rms_rel_error']:.2%} but no candidate "
                                    "effect applies to this rig within its parameter range: the gap is "
                                    "unexplained"}
-    if best["score"] >= _score(before, 0, scatter):
+    if best["score"] >= _score(nominal, 0, scatter):
         return {**none, "summary": f"no candidate beats the nominal model on held-out configurations once "
                                    f"its extra parameters are penalised (baseline held-out RMS {before:.2%}, "
                                    f"best {best['effect']} {best['heldout_rms_rel_error']:.2%})"}
@@ -542,7 +644,7 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
     mine = set(zip(best["_cand"].effects, best["_cand"].locations, strict=True))
     alts = [e for e in ranking if e is not best and not e["_out_of_range"] and not e["_idle"]
             and not mine <= set(zip(e["_cand"].effects, e["_cand"].locations, strict=True))
-            and e["heldout_rms_rel_error"] - best["heldout_rms_rel_error"] <= _noise(best, scatter)
+            and e["_heldout_eq"] - best["_heldout_eq"] <= _noise(best, scatter)
             ][:MAX_ALTERNATIVES]
     verdict["alternatives"] = [
         {"effect": e["effect"], "location": e["location"], "params": e["params"],

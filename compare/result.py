@@ -226,7 +226,8 @@ class CandidateScore(_Record):
     """One cross-validated candidate of the ranking: ``effect`` (effects joined by ``+``) at ``location``
     with its fitted ``params`` (SI, unit in the name); ``fit_rms_rel_error`` over all configurations,
     ``heldout_rms_rel_error``/``heldout_max_rel_error`` over the held-out ones, ``n_params`` fitted,
-    ``score`` the ranking key (lower is better), ``mac_mean`` [-] of the paired shapes."""
+    ``score`` the ranking key (lower is better), ``mac_mean`` [-] of the paired shapes and
+    ``heldout_shape_rms_error`` [-], sqrt(mean(1 - MAC) / (sensors - 1)) of the held-out shapes."""
 
     effect: str
     location: str
@@ -236,6 +237,7 @@ class CandidateScore(_Record):
     mac_mean: float | None = None
     heldout_rms_rel_error: float
     heldout_max_rel_error: float | None = None
+    heldout_shape_rms_error: float | None = None
     score: float
     params_at_bound: tuple[str, ...] | None = None
     unidentified_params: tuple[str, ...] | None = None

@@ -1,12 +1,13 @@
-"""Batch FRFs of many stored runs: serially, on a dask.distributed LocalCluster (worker processes bound
-to 127.0.0.1, no dashboard) or on an existing scheduler, chosen by measured cost when not asked for.
-Workers stream a run from its (shared) path and return its FRFs; the calling process writes every
-result back, each file only once no worker reads it any more (HDF5 locks a file being written), so
-files are never written concurrently and the results are the same whichever path computed them."""
+"""Batch FRFs of many stored runs: serially, on a pool of local worker processes, or on an existing
+dask.distributed scheduler, chosen by measured cost when not asked for.  Workers stream a run from
+its (shared) path and return its FRFs; the calling process writes every result back, each file only
+once no worker reads it any more (HDF5 locks a file being written), so files are never written
+concurrently and the results are the same whichever path computed them."""
 
 from __future__ import annotations
 
 import os
+import signal
 import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -19,8 +20,8 @@ from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult
 from flexmodal.modal.runs_io import write_frf
 
-CLUSTER_START_S = 6.0   # import distributed, start 2 worker processes, first task (benchmarks/batch.py)
-AUTO_WORKERS = 2        # processes of the cluster the automatic choice starts
+POOL_START_S = 1.0      # start 2 worker processes, their imports, first task (benchmarks/batch.py)
+AUTO_WORKERS = 2        # processes of the pool the automatic choice starts
 MIN_SPEEDUP = 1.5       # go parallel only when the predicted speed-up is at least this,
 PAYS_FACTOR = 3.0       # the predicted saving at least 3 start-ups,
 MIN_PARALLEL_RUNS = 4   # and at least this many runs remain
@@ -32,6 +33,14 @@ def frf_job(path: str, run_id: str, options: dict) -> FrfResult:
 
     with open_run(path, run_id) as run:
         return compute_frf(run, **options)
+
+
+def idle_cpus() -> int:
+    """CPUs the other processes leave idle (CPUs less the 1-minute load average, rounded; at least 1):
+    the FFT threads of the serial path.  On a busy machine a second thread only adds contention
+    (measured under load 6 on 2 CPUs: 8 runs of 60 s took 1.13 s with 2 threads, 0.82 s with 1)."""
+    cpus = os.cpu_count() or 1
+    return max(1, min(cpus, cpus - round(os.getloadavg()[0])))
 
 
 def run_bytes(jobs: Sequence[tuple[str, str]]) -> list[int]:
@@ -68,12 +77,12 @@ class _Deliver:
 
 
 def _serial_pays(elapsed_s: float, cpu_s: float, bytes_done: int, bytes_left: int, runs_left: int) -> bool:
-    """True while computing the rest here is predicted no worse than a cluster of AUTO_WORKERS.
+    """True while computing the rest here is predicted no worse than a pool of AUTO_WORKERS processes.
 
     From the runs done so far (``elapsed_s`` wall, ``cpu_s`` CPU of this process, every thread):
     the rest takes ``elapsed_s / bytes_done * bytes_left`` here; this process keeps ``cpu_s /
     elapsed_s`` CPUs busy (its FFT threads), the other processes of the machine take the 1-minute
-    load average less that, and a cluster's speed-up is the CPUs it could use over those this process
+    load average less that, and a pool's speed-up is the CPUs it could use over those this process
     already uses.  Parallel only for a speed-up of MIN_SPEEDUP or more saving PAYS_FACTOR start-ups."""
     cpus = os.cpu_count() or 1
     if runs_left < MIN_PARALLEL_RUNS or cpus < 2 or bytes_done == 0 or elapsed_s <= 0:
@@ -82,19 +91,18 @@ def _serial_pays(elapsed_s: float, cpu_s: float, bytes_done: int, bytes_left: in
     busy = max(1.0, cpu_s / elapsed_s)
     free = min(cpus, max(1.0, cpus - (os.getloadavg()[0] - busy)))
     speedup = min(AUTO_WORKERS, free) / busy
-    return speedup < MIN_SPEEDUP or rest * (1 - 1 / speedup) < PAYS_FACTOR * CLUSTER_START_S
+    return speedup < MIN_SPEEDUP or rest * (1 - 1 / speedup) < PAYS_FACTOR * POOL_START_S
 
 
 def run_batch(jobs: Sequence[tuple[str, str]], options: dict, *, workers: int | None = None,
               scheduler: str | None = None, out: str | None = None,
               on_done: Callable[[str, str, FrfResult], None] | None = None) -> list[FrfResult]:
     """FRFs of every (file, run_id) job in order.  ``workers`` 0 computes serially here, > 0 on a
-    LocalCluster of that many processes, None (automatic) serially for as long as the measured cost
-    of the runs done predicts no gain from a cluster (:func:`_serial_pays`), then on a cluster of
-    AUTO_WORKERS;
-    ``scheduler`` sends every job to an existing cluster.  ``on_done(file, run_id, result)`` gets each
-    result once no unfinished job reads the file it will be written to (``out`` if given, else its
-    own file): that is when the caller may write it."""
+    pool of that many local processes, None (automatic) serially for as long as the measured cost
+    of the runs done predicts no gain from a pool (:func:`_serial_pays`), then on a pool of
+    AUTO_WORKERS; ``scheduler`` sends every job to an existing dask cluster.
+    ``on_done(file, run_id, result)`` gets each result once no unfinished job reads the file it
+    will be written to (``out`` if given, else its own file): that is when the caller may write it."""
     results: list[FrfResult | None] = [None] * len(jobs)
     deliver = _Deliver(jobs, on_done, lambda p: p if out is None else str(out))
 
@@ -112,55 +120,94 @@ def run_batch(jobs: Sequence[tuple[str, str]], options: dict, *, workers: int | 
                                                       len(jobs) - first):
                 workers = AUTO_WORKERS
                 break
-            done(first, frf_job(*jobs[first], {"workers": -1, **options}))
+            done(first, frf_job(*jobs[first], {"workers": idle_cpus(), **options}))
             first += 1
         if first == len(jobs):
             return results
-    _on_cluster(jobs, first, options, workers, scheduler, done)
+    if scheduler is None:
+        _in_pool(jobs, first, options, int(workers), done)
+    else:
+        _on_cluster(jobs, first, options, scheduler, done)
     return results
 
 
-def _on_cluster(jobs, first: int, options: dict, workers: int | None, scheduler: str | None,
-                done: Callable[[int, FrfResult], None]) -> None:
-    """Jobs ``first``.. on a LocalCluster of ``workers`` processes (bound to 127.0.0.1, no dashboard,
-    no HTTP routes) or on the cluster at ``scheduler``; ``done(k, result)`` in completion order."""
-    import dask
-    from distributed import Client, LocalCluster, as_completed
+def _failed(job: tuple[str, str], exc: BaseException) -> ModalError:
+    """A worker-side failure as one ModalError naming the run (a ModalError passes unchanged)."""
+    return exc if isinstance(exc, ModalError) else ModalError(f"{job[0]}:{job[1]}: {exc}")
 
-    cluster = None
-    if scheduler is not None:
-        try:
-            client = Client(scheduler, timeout="10s")
-        except OSError as exc:
-            raise ModalError(f"scheduler {scheduler}: cannot connect ({exc})") from None
-    else:
-        quiet_http = {"distributed.scheduler.http.routes": [], "distributed.worker.http.routes": []}
-        with dask.config.set(quiet_http):
-            cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
-                                   host="127.0.0.1", dashboard_address=None, silence_logs=40,
-                                   scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
-            client = Client(cluster)
+
+def _end_with_parent() -> None:
+    """Initializer of a pool worker: on Linux, have the kernel send it SIGTERM when its parent (the
+    fork server) ends, so that a worker started while Ctrl-C ends the command cannot outlive it; leave
+    at once if the parent is already gone (the worker then belongs to init)."""
+    parent = os.getppid()
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)   # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):   # not Linux: the pipes to the caller still end it later
+        return
+    if parent == 1 or os.getppid() != parent:
+        os._exit(1)
+
+
+def _in_pool(jobs, first: int, options: dict, workers: int, done: Callable[[int, FrfResult], None]) -> None:
+    """Jobs ``first``.. on ``workers`` local processes, one FFT thread each; ``done(k, result)`` in
+    completion order.  The processes come from a fork server that has imported only this module
+    (no threads or open files of the caller are inherited; 0.3-1 s to start, not the seconds of a
+    dask LocalCluster); each opens the runs it computes read-only, and only the caller writes."""
+    import multiprocessing
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+    context = multiprocessing.get_context("forkserver")
+    context.set_forkserver_preload([__name__])
+    one_thread = {**options, "workers": 1}
+    pool = ProcessPoolExecutor(workers, mp_context=context, initializer=_end_with_parent)
+    interrupted = False
+    try:
+        futures = {pool.submit(frf_job, str(Path(jobs[k][0]).resolve()), jobs[k][1], one_thread): k
+                   for k in range(first, len(jobs))}   # absolute: the fork server keeps its own folder
+        while futures:
+            finished, _ = wait(futures, return_when=FIRST_COMPLETED)
+            for fut in finished:
+                k = futures.pop(fut)
+                if fut.exception() is not None:
+                    raise _failed(jobs[k], fut.exception())
+                done(k, fut.result())
+    except KeyboardInterrupt:  # Ctrl-C: leave now, not after the running jobs; the workers are the fork
+        interrupted = True     # server's children, so the CLI's ending of its own would miss them
+        for process in list((pool._processes or {}).values()):   # no public way before Python 3.14
+            process.terminate()
+        raise
+    finally:
+        pool.shutdown(wait=not interrupted, cancel_futures=True)
+
+
+def _on_cluster(jobs, first: int, options: dict, scheduler: str,
+                done: Callable[[int, FrfResult], None]) -> None:
+    """Jobs ``first``.. on the dask.distributed cluster at ``scheduler`` (its workers read the runs
+    from the same paths); ``done(k, result)`` in completion order."""
+    from distributed import Client, as_completed
+
+    try:
+        client = Client(scheduler, timeout="10s")
+    except OSError as exc:
+        raise ModalError(f"scheduler {scheduler}: cannot connect ({exc})") from None
     interrupted = False
     try:
         futures = {client.submit(frf_job, str(Path(jobs[k][0]).resolve()), jobs[k][1], options, pure=False): k
                    for k in range(first, len(jobs))}   # absolute paths: workers run elsewhere
         for fut in as_completed(list(futures)):
             k = futures[fut]
-            try:
-                result = fut.result()
-            except ModalError:
-                raise
-            except Exception as exc:  # a worker-side failure: name the run
-                raise ModalError(f"{jobs[k][0]}:{jobs[k][1]}: {exc}") from None
-            done(k, result)
+            if fut.status == "error":
+                raise _failed(jobs[k], fut.exception())
+            done(k, fut.result())
     except KeyboardInterrupt:  # Ctrl-C: leave now (the CLI ends the cluster's processes with its own)
         interrupted = True
         raise
     finally:
         if not interrupted:
             client.close()
-            if cluster is not None:
-                cluster.close()
 
 
 def frf_batch(paths: Sequence[str | Path], options: dict, *, workers: int | None = None,

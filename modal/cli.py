@@ -7,22 +7,23 @@ import sys
 
 from flexmodal import valid_options as opt
 
+BUILT_IN_ESTIMATORS = ("H1", "H2", "Hv")   # modal.frf.ESTIMATORS as shipped (tested equal)
+
 
 class _Estimators:
-    """The names of the registry ``modal.frf.ESTIMATORS`` (any case), read only when argparse checks or
-    lists them, so building the parser imports no numpy."""
+    """The names of the registry ``modal.frf.ESTIMATORS`` (any case), read only when argparse checks a
+    value (the command then imports numpy anyway); listing them in ``--help`` reads the registry only
+    if ``modal.frf`` is already imported (estimators are registered by importing it), else names
+    BUILT_IN_ESTIMATORS: so neither building the parser nor ``frf --help`` imports numpy."""
 
     def __contains__(self, name: object) -> bool:
-        return any(k.lower() == str(name).lower() for k in self._names())
-
-    def __iter__(self):
-        return iter(self._names())
-
-    @staticmethod
-    def _names() -> list[str]:
         from flexmodal.modal.frf import ESTIMATORS
 
-        return list(ESTIMATORS)
+        return any(k.lower() == str(name).lower() for k in ESTIMATORS)
+
+    def __iter__(self):
+        frf = sys.modules.get("flexmodal.modal.frf")
+        return iter(BUILT_IN_ESTIMATORS if frf is None else list(frf.ESTIMATORS))
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -33,9 +34,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "streamed block by block (memory does not grow with the record) and "
                                    "segments holding NaN rows or touching gap/corrupt events are skipped. "
                                    "Runs are computed here, one after the other, unless the measured cost "
-                                   "predicts that a dask LocalCluster of 2 processes pays for its start-up; "
+                                   "predicts that a pool of 2 local processes pays for its start-up; "
                                    "--workers N forces N processes (0: always here), --scheduler uses an "
-                                   "existing cluster. Prints one 'FILE:RUN_ID' line per run written.")
+                                   "existing dask cluster. Prints one 'FILE:RUN_ID' line per run written.")
     p.add_argument("runs", nargs="+", metavar="RUN.h5", help="HDF5 run files (docs/hdf5-format.md)")
     p.add_argument("--estimator", default="H1", choices=_Estimators(), metavar="NAME",
                    help="FRF estimator: %(choices)s (default H1)")
@@ -50,7 +51,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="averaging of impact hits (default linear)")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--workers", type=opt.workers, default=None,
-                   help="LocalCluster worker processes (0 = serial here; default: chosen by cost)")
+                   help="local worker processes (0 = serial here; default: chosen by cost)")
     g.add_argument("--scheduler", default=None, metavar="ADDR", help="dask.distributed scheduler address")
     p.add_argument("--out", default=None, metavar="OUT.h5", help="write the FRFs into this file instead")
     p.set_defaults(func=_frf)

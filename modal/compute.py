@@ -9,7 +9,6 @@ import numpy as np
 
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult, coherence, estimate, estimator_name
-from flexmodal.modal.impact import impact_spectra
 from flexmodal.modal.spectra import Spectra, welch_spectra
 from flexmodal.modal.windows import added_decay_rate_per_s, impact_windows
 from flexmodal.valid_text import naming
@@ -128,6 +127,8 @@ def frf_of_record(samples, sample_rate_hz: float, names: Sequence[str], kinds: S
     if excitation == "impact":
         if len(inputs) != 1:
             raise ModalError(f"{where}: impact processing needs exactly one force channel")
+        from flexmodal.modal.impact import impact_spectra  # only impact runs need it
+
         samples = np.asarray(samples[()])
         check_samples(samples, names, where, allow_nan=True)
         fw, ew = impact_windows(window)
@@ -142,8 +143,11 @@ def frf_of_record(samples, sample_rate_hz: float, names: Sequence[str], kinds: S
     else:
         used_nfft = default_nfft(samples.shape[0]) if nfft is None else int(nfft)
         used_window = window or "hann"
-        spectra = welch_spectra(samples, sample_rate_hz, inputs, outputs, used_nfft, overlap=overlap,
-                                window_spec=used_window, workers=workers, skip=skip, min_segments=0)
+        try:
+            spectra = welch_spectra(samples, sample_rate_hz, inputs, outputs, used_nfft, overlap=overlap,
+                                    window_spec=used_window, workers=workers, skip=skip, min_segments=0)
+        except ModalError as exc:
+            raise ModalError(f"{where}: {exc}") from None
         _check_welch(spectra, samples, names, inputs + outputs, where, len(skip))
         extra = {"overlap": overlap, "averaging": "linear", "segments_used": spectra.n_averages,
                  "segments_skipped": spectra.n_skipped}

@@ -9,6 +9,7 @@ float32 records are transformed in single precision and accumulated in double pr
 
 from __future__ import annotations
 
+import collections
 import functools
 import os
 import queue
@@ -57,6 +58,12 @@ def rfft(x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     """Real FFT along the last axis (unnormalised, as ``scipy.fft.rfft``), single precision for
     float32 input; into ``out`` when given (complex, last axis ``n // 2 + 1``)."""
     return _pocketfft().r2c(x, axes=[x.ndim - 1], forward=True, inorm=0, out=out, nthreads=1)
+
+
+def rfftfreq(nfft: int, sample_rate_hz: float) -> np.ndarray:
+    """Frequencies (Hz) of the ``nfft // 2 + 1`` lines of a real FFT, computed as
+    ``numpy.fft.rfftfreq(nfft, 1 / sample_rate_hz)`` does (same values) without importing numpy.fft."""
+    return np.arange(nfft // 2 + 1) * (1.0 / (nfft * (1.0 / sample_rate_hz)))
 
 
 @dataclass(frozen=True)
@@ -120,7 +127,7 @@ def spectra_of_segments(segments: np.ndarray, n_in: int, sample_rate_hz: float,
     g_xf, g_ff, g_xx = _products(x, n_in, w)
     norm = 1.0 if w is not None else 1.0 / segments.shape[0]
     scale = density_scale(x.shape[-1], nfft, sample_rate_hz, scale_window) * norm
-    return Spectra(np.fft.rfftfreq(nfft, 1.0 / sample_rate_hz), g_xf * scale, g_ff * scale,
+    return Spectra(rfftfreq(nfft, sample_rate_hz), g_xf * scale, g_ff * scale,
                    g_xx * scale, segments.shape[0])
 
 
@@ -179,47 +186,83 @@ def skipped_segments(intervals: Sequence[tuple[int, int]], n_seg: int, nfft: int
     return np.cumsum(marks[:-1]) > 0
 
 
+_MAX_WINDOW_LINES = 8      # a window whose spectrum has more lines is detrended before windowing
+
+
+def _window_lines(exact: np.ndarray, windows: np.ndarray) -> np.ndarray | None:
+    """The first k lines [n_ch, k] of the real FFT of every channel's window as used (``windows``,
+    possibly rounded to single precision) when the exact windows' spectra (``exact``, double) are
+    zero to rounding beyond them (|W| <= 64 eps sum|w|) and k <= _MAX_WINDOW_LINES: the periodic
+    cosine windows (rect 1 line, hann 2, flattop 5); None for any other window.  The lines left out
+    of a single-precision window are its rounding, ~1e-9 of sum|w|, below the FFT's own."""
+    big = np.abs(rfft(exact)) > 64 * np.finfo(float).eps * np.abs(exact).sum(axis=1, keepdims=True)
+    k = int(np.flatnonzero(big.any(axis=0))[-1]) + 1 if big.any() else 1
+    if k > _MAX_WINDOW_LINES:
+        return None
+    return rfft(windows.astype(float))[:, :k].astype(np.result_type(windows.dtype, np.complex64))
+
+
 class _Work:
     """One thread's work buffers, sized for ``block`` segments."""
 
     def __init__(self, windows: np.ndarray, n_in: int, step: int, block: int) -> None:
         n_ch, nfft = windows.shape
         n_freq = nfft // 2 + 1
-        self.rows = np.empty((n_ch, (block - 1) * step + nfft), windows.dtype)
-        self.buf = np.empty((n_ch, block, nfft), windows.dtype)
-        self.spec = np.empty((n_ch, block, n_freq), np.result_type(windows.dtype, np.complex64))
-        self.work = np.empty((n_ch - n_in, block, n_freq), np.result_type(windows.dtype, np.complex64))
+        real, cplx = np.dtype(windows.dtype), np.result_type(windows.dtype, np.complex64)
+        self.rows = np.empty((n_ch, (block - 1) * step + nfft), real)
+        self.spec = np.empty((n_ch, block, n_freq), cplx)
+        # the windowed segments are dead once transformed: the products reuse their memory
+        seg_bytes = n_ch * block * nfft * real.itemsize
+        work_bytes = (n_ch - n_in) * block * n_freq * cplx.itemsize
+        shared = np.empty(max(seg_bytes, work_bytes), np.uint8)
+        self.buf = shared[:seg_bytes].view(real).reshape(n_ch, block, nfft)
+        self.work = shared[:work_bytes].view(cplx).reshape(n_ch - n_in, block, n_freq)
 
     def sums(self, sources, cols, windows: np.ndarray, n_in: int, step: int, first: int, b: int,
-             skip: np.ndarray, detrend: bool) -> tuple:
+             skip: np.ndarray, detrend: bool, lines: np.ndarray | None) -> tuple:
         """(g_xf, g_ff, g_xx, sum of segment means, segments used) over segments ``first`` ..
-        ``first + b - 1``: a channel-major copy of their samples (from the
-        row-major ``sources`` pieces, transposed in cache-sized tiles), the mean-removed windowed
-        segments from a strided view of it, one real FFT over every segment and channel, the products.
-        Segments holding a non-finite sample or marked in ``skip`` are zeroed and not counted."""
+        ``first + b - 1``: a channel-major copy of their samples less the block's first sample (from
+        the row-major ``sources`` pieces, transposed in cache-sized tiles), the windowed segments
+        from a strided view of it, one real FFT over every segment and channel, the products.
+        Each segment's mean is removed (``detrend``): where the windows' spectra ``lines`` are given
+        (their first lines, the rest zero to rounding, as for the cosine windows), by subtracting
+        mean x spectrum of the window from those lines of the transform (the FFT is linear: the same
+        as removing it before windowing, without a pass over the segments), else before windowing.
+        Removing the block's first sample first keeps a large offset out of the single-precision
+        FFT.  Segments holding a non-finite sample or marked in ``skip`` are zeroed and not counted."""
         nfft = windows.shape[1]
         length = (b - 1) * step + nfft
         rows = self.rows[:, :length]
         g0 = first * step
+        offset = np.zeros(rows.shape[0], rows.dtype)
+        if detrend:
+            start, arr = next((st, a) for st, a in sources if st <= g0 < st + a.shape[0])
+            value = np.asarray(arr[g0 - start, cols], rows.dtype)
+            offset[np.isfinite(value)] = value[np.isfinite(value)]
         for start, arr in sources:
             lo, hi = max(g0, start), min(g0 + length, start + arr.shape[0])
             for t0 in range(lo, hi, _TILE):
                 t1 = min(hi, t0 + _TILE)
-                rows[:, t0 - g0:t1 - g0] = arr[t0 - start:t1 - start, cols].T
+                np.subtract(arr[t0 - start:t1 - start, cols].T, offset[:, None], out=rows[:, t0 - g0:t1 - g0])
         view = np.lib.stride_tricks.sliding_window_view(rows, nfft, axis=1)[:, ::step]
         means = _segment_means(rows, view, step)
         bad = skip[first:first + b] | ~np.isfinite(means[:, :, 0]).all(axis=0)
         seg = self.buf[:, :b]
         with np.errstate(invalid="ignore"):
-            if detrend:
+            if detrend and lines is None:
                 np.subtract(view, means, out=seg)
                 seg *= windows[:, None, :]
             else:
                 np.multiply(view, windows[:, None, :], out=seg)
         if bad.any():
             seg[:, bad] = 0
-        a, c, d = _products(rfft(seg, self.spec[:, :b]), n_in, None, self.work)
-        return a, c, d, means[:, ~bad, 0].sum(axis=1, dtype=float), b - int(bad.sum())
+        spec = rfft(seg, self.spec[:, :b])
+        used = means[:, ~bad, 0].sum(axis=1, dtype=float) + offset.astype(float) * (b - int(bad.sum()))
+        if detrend and lines is not None:
+            means[:, bad] = 0
+            spec[:, :, :lines.shape[1]] -= means * lines[:, None, :]
+        a, c, d = _products(spec, n_in, None, self.work)
+        return a, c, d, used, b - int(bad.sum())
 
 
 def _row_blocks(samples, rows_per_block: int) -> Iterator[tuple[int, np.ndarray]]:
@@ -294,21 +337,30 @@ def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
     dtype = np.float32 if samples.dtype == np.float32 else np.float64
     w_out = _window_array(window_spec, nfft)
     w_in = w_out if input_window_spec is None else _window_array(input_window_spec, nfft)
-    windows = np.vstack([np.repeat(w_in[None], n_in, 0),
-                         np.repeat(w_out[None], len(outputs), 0)]).astype(dtype)
+    exact = np.vstack([np.repeat(w_in[None], n_in, 0), np.repeat(w_out[None], len(outputs), 0)])
+    windows = exact.astype(dtype)
     n_seg = (n_samples - nfft) // step + 1
     skipped = skipped_segments(skip, n_seg, nfft, step)
+    lines = _window_lines(exact, windows) if detrend else None
     block = max(1, min(n_seg, _BLOCK_BYTES // (len(chans) * nfft * np.dtype(dtype).itemsize)))
     chunk = (getattr(samples, "chunks", None) or (1,))[0]
     row_bytes = samples.shape[1] * np.dtype(samples.dtype).itemsize
     read_rows = max((block - 1) * step + nfft, _READ_BYTES // row_bytes)
     read_rows = -(-read_rows // chunk) * chunk                       # whole storage chunks
     n_threads = min(_thread_count(workers), -(-n_seg // block))
-    work = [_Work(windows, n_in, step, block) for _ in range(n_threads)]
+    free: queue.SimpleQueue = queue.SimpleQueue()      # one set of work buffers per thread
+    for _ in range(n_threads):
+        free.put(_Work(windows, n_in, step, block))
     n_ch, n_freq = len(chans), nfft // 2 + 1
     total = [np.zeros((n_ch - n_in, n_in, n_freq), complex), np.zeros((n_in, n_in, n_freq), complex),
              np.zeros((n_ch - n_in, n_freq)), np.zeros(n_ch), 0]
     pool = ThreadPoolExecutor(n_threads) if n_threads > 1 else None
+    pending: collections.deque = collections.deque()
+
+    def add(part: tuple) -> None:           # block sums added in segment order, whatever the threads
+        for k, value in enumerate(part):
+            total[k] += value
+
     done, tail_start, tail = 0, 0, None
     try:
         for r0, rows in _row_blocks(samples, read_rows):
@@ -316,14 +368,21 @@ def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
             ready = min(n_seg, (r0 + rows.shape[0] - nfft) // step + 1)   # segments complete by now
             jobs = [s0 for s0 in range(done, ready, block) if min(s0 + block, n_seg) <= ready]
 
-            def run(t: int, jobs=jobs, sources=sources) -> list:
-                return [work[t].sums(sources, cols, windows, n_in, step, s0, min(block, n_seg - s0),
-                                     skipped, detrend) for s0 in jobs[t::n_threads]]
+            def run(s0: int, sources=sources) -> tuple:
+                work = free.get()                   # whichever thread is free takes the next block
+                try:
+                    return work.sums(sources, cols, windows, n_in, step, s0, min(block, n_seg - s0),
+                                     skipped, detrend, lines)
+                finally:
+                    free.put(work)
 
-            parts = [run(0)] if pool is None else list(pool.map(run, range(n_threads)))
-            for i in range(len(jobs)):              # added in segment order, whatever the threads
-                for k, value in enumerate(parts[i % n_threads][i // n_threads]):
-                    total[k] += value
+            if pool is None:
+                for s0 in jobs:
+                    add(run(s0))
+            else:       # blocks of the next read start while these finish; at most 2 per thread queued
+                pending.extend(pool.submit(run, s0) for s0 in jobs)
+                while len(pending) > 2 * n_threads:
+                    add(pending.popleft().result())
             if jobs:
                 done = min(jobs[-1] + block, n_seg)
             start = done * step
@@ -332,13 +391,17 @@ def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
             else:   # a read block shorter than the segment block still open: keep both
                 tail = np.concatenate([tail[start - tail_start:], rows])
                 tail_start = start
+        while pending:
+            add(pending.popleft().result())
     finally:
         if pool is not None:
+            for fut in pending:
+                fut.cancel()
             pool.shutdown()
     g_xf, g_ff, g_xx, mean_sum, n_used = total
     if n_used < min_segments:
         raise ModalError(f"only {n_used} of {n_seg} segments usable (NaN/inf samples or skipped "
                          f"intervals in the others); at least {min_segments} needed")
     scale = density_scale(g_xx.shape[-1], nfft, sample_rate_hz, w_out) / max(n_used, 1)
-    return Spectra(np.fft.rfftfreq(nfft, 1.0 / sample_rate_hz), g_xf * scale, g_ff * scale,
+    return Spectra(rfftfreq(nfft, sample_rate_hz), g_xf * scale, g_ff * scale,
                    g_xx * scale, n_used, n_seg - n_used, mean_sum / max(n_used, 1))

@@ -1,14 +1,12 @@
-"""The independent truth model against known answers, and the blind check built on it."""
+"""The independent truth model against known answers (its blind check: tests/test_blind.py)."""
 
 from __future__ import annotations
 
-import json
 import math
 
 import numpy as np
 import pytest
 
-from flexmodal.fixtures.blind import format_summary, run_blind, summarise
 from flexmodal.fixtures.truth_arm import POISSON, TruthOptions, truth_modes
 from flexmodal.models.frame import frame_modes
 from flexmodal.models.rig import load_rig, parse_rig
@@ -48,32 +46,3 @@ def test_simply_supported_thick_beam_matches_timoshenko_closed_form():
     np.testing.assert_allclose(sorted(flexural)[:3], bending, rtol=2e-3)
     euler = [(n * math.pi / L) ** 2 * math.sqrt(EI / mu) / (2 * math.pi) for n in (1, 2, 3)]
     assert bending[2] < 0.9 * euler[2]                                # and shear lowers mode 3 by > 10 %
-
-
-def test_blind_subset_against_the_independent_truth():
-    """Eight blind cases (every kind of rig and case, incl. one outside the library and one none); the
-    figures of the full 36-case run are in docs/diagnosis.md (benchmarks/diagnose_blind.py)."""
-    results = run_blind(8, seed=0)
-    s = summarise(results)
-    print(format_summary(s))
-    for r in results:                                                 # strict JSON for every verdict
-        json.loads(r.verdict.to_json(), parse_constant=lambda c: pytest.fail(c))
-        if r.verdict.effect == "none":
-            assert r.verdict.alternatives == ()
-    assert s["none_accuracy"] == 1.0
-    assert s["outside_flagged"] == 1.0
-    assert s["heldout_after_within_2x_scatter"] == 1.0
-    assert s["top1_effect_accuracy"] >= 0.5
-
-
-@pytest.mark.slow
-def test_docs_quote_the_36_case_blind_run():
-    """docs/diagnosis.md's blind-run block is exactly what benchmarks/diagnosis_doc.py computes now."""
-    import importlib.util
-
-    from conftest import REPO
-
-    spec = importlib.util.spec_from_file_location("diagnosis_doc", REPO / "benchmarks" / "diagnosis_doc.py")
-    doc = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(doc)
-    assert doc.doc_block("blind") == doc.blind_block()

@@ -71,13 +71,13 @@ def test_frf_over_several_runs(runs_file, tmp_path):
 
 
 def test_frf_on_a_dask_local_cluster(runs_file, tmp_path):
-    """--workers 2: SIGINT while the LocalCluster's processes start; the command and every process it
-    started (nannies, workers; they hold its stderr) are gone within the limit."""
+    """--workers 2: SIGINT while the pool's processes start; the command and every process it started
+    (fork server, workers; they hold its stderr) are gone within the limit."""
     seen: list[int] = []
 
     def cluster_starting(pid: int) -> bool:
         seen[:] = sorted(set(seen) | set(descendants(pid)))
-        return len(seen) >= 3  # resource tracker and nannies
+        return len(seen) >= 3  # fork server, resource tracker, workers
 
     args = ["frf", str(runs_file), "--workers", "2", "--out", "frf.h5"]
     check(*interrupt(args, tmp_path, cluster_starting), tmp_path)

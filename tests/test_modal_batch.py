@@ -1,14 +1,12 @@
 """Batch FRFs: the demo-like multi-run file works by default (serial chosen by cost, each file written
-by this process only), the cost rule itself, the LocalCluster serves no dashboard, and a scheduler and
-two workers started with the `dask` CLI on 127.0.0.1 give FRFs identical to the serial path."""
+by this process only), the cost rule itself, a pool of local processes and a scheduler and two
+workers started with the `dask` CLI on 127.0.0.1 give FRFs identical to the serial path."""
 
 from __future__ import annotations
 
 import subprocess
 import sys
 import time
-import urllib.error
-import urllib.request
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +16,7 @@ from flexmodal.app import main
 from flexmodal.daq.store import Channel, RunWriter, expand_runs
 from flexmodal.fixtures.modal_sim import modal_response
 from flexmodal.modal import batch
+from flexmodal.modal.errors import ModalError
 from flexmodal.modal.runs_io import read_frf
 
 FS = 256.0
@@ -46,10 +45,10 @@ def test_default_frf_on_the_demo_runs_file_writes_every_run_serially(tmp_path, c
     for run in runs:
         demo.store_test(path, run.run_id, run.test)
 
-    def no_cluster(*args, **kwargs):
-        raise AssertionError("a cluster was started for small runs")
+    def no_pool(*args, **kwargs):
+        raise AssertionError("worker processes were started for small runs")
 
-    monkeypatch.setattr(batch, "_on_cluster", no_cluster)
+    monkeypatch.setattr(batch, "_in_pool", no_pool)
     assert main(["--quiet", "frf", str(path)]) == 0
     ids = sorted(run.run_id for run in runs)
     assert len(ids) == 10 and capsys.readouterr().out.split() == [f"{path}:{rid}" for rid in ids]
@@ -61,17 +60,17 @@ def test_default_frf_on_the_demo_runs_file_writes_every_run_serially(tmp_path, c
 
 
 def test_cost_rule_goes_parallel_only_when_free_cpus_make_it_pay(monkeypatch):
-    """1 s of wall for the first GB; the cluster's predicted speed-up is the CPUs it can use (CPUs
+    """1 s of wall for the first GB; the pool's predicted speed-up is the CPUs it can use (CPUs
     less the other processes' load) over the CPUs the serial path already keeps busy."""
     monkeypatch.setattr(batch.os, "cpu_count", lambda: 4)
     monkeypatch.setattr(batch.os, "getloadavg", lambda: (1.0, 1.0, 1.0))    # only this process
     gb = 1 << 30
     # one busy CPU, 2 workers: speed-up 2, 100 s left saves 50 s > 3 start-ups: parallel
     assert batch._serial_pays(1.0, 1.0, gb, 100 * gb, 100) is False
-    # 10 s left saves 5 s < 18 s: serial
-    assert batch._serial_pays(1.0, 1.0, gb, 10 * gb, 10) is True
+    # 4 s left saves 2 s < 3 start-ups of the pool: serial
+    assert batch._serial_pays(1.0, 1.0, gb, 4 * gb, 10) is True
     assert batch._serial_pays(1.0, 1.0, gb, 100 * gb, 3) is True           # too few runs left
-    # the serial path already keeps 2 CPUs busy (its FFT threads): a 2-process cluster gains nothing
+    # the serial path already keeps 2 CPUs busy (its FFT threads): a 2-process pool gains nothing
     monkeypatch.setattr(batch.os, "getloadavg", lambda: (2.0, 2.0, 2.0))
     assert batch._serial_pays(1.0, 2.0, gb, 100 * gb, 100) is True
     # a loaded machine (load 10 on 2 CPUs, as measured here): no free CPU, serial
@@ -80,6 +79,13 @@ def test_cost_rule_goes_parallel_only_when_free_cpus_make_it_pay(monkeypatch):
     assert batch._serial_pays(1.0, 0.3, gb, 100 * gb, 100) is True
     monkeypatch.setattr(batch.os, "cpu_count", lambda: 1)
     assert batch._serial_pays(1.0, 1.0, gb, 100 * gb, 100) is True         # one CPU: never
+
+
+def test_serial_fft_threads_are_the_cpus_other_processes_leave_idle(monkeypatch):
+    monkeypatch.setattr(batch.os, "cpu_count", lambda: 2)
+    for load, threads in ((0.2, 2), (0.7, 1), (6.0, 1)):
+        monkeypatch.setattr(batch.os, "getloadavg", lambda load=load: (load, load, load))
+        assert batch.idle_cpus() == threads
 
 
 def test_results_wait_until_no_job_reads_their_file():
@@ -98,40 +104,21 @@ def test_results_wait_until_no_job_reads_their_file():
     assert into_out == ["r0"]                 # --out: no job reads out.h5
 
 
-def _get(url: str) -> int:
-    try:
-        with urllib.request.urlopen(url, timeout=5) as reply:
-            return reply.status
-    except urllib.error.HTTPError as exc:
-        return exc.code
-
-
-@pytest.mark.slow
-def test_local_cluster_serves_no_dashboard(tmp_path, monkeypatch):
-    """The LocalCluster of the batch path: its HTTP listener (which distributed always opens) is on
-    127.0.0.1 and answers 404 to the dashboard, status, health and metrics pages."""
-    seen = {}
-    real = batch._on_cluster
-
-    def spy(jobs, first, options, workers, scheduler, done):
-        from distributed import Client
-
-        def check(k, result):
-            if not seen:
-                client = Client.current()
-                port = client.scheduler_info()["services"]["dashboard"]
-                seen.update({p: _get(f"http://127.0.0.1:{port}{p}") for p in
-                             ("/status", "/health", "/metrics", "/info/main/workers.html")})
-                seen["address"] = client.scheduler.address
-            done(k, result)
-
-        real(jobs, first, options, workers, scheduler, check)
-
-    monkeypatch.setattr(batch, "_on_cluster", spy)
-    path = _runs_file(tmp_path / "runs.h5", ["r0", "r1"], n=1024)
-    batch.run_batch(expand_runs([path]), {"nfft": 256}, workers=1)
-    assert seen.pop("address").startswith("tcp://127.0.0.1:")
-    assert set(seen.values()) == {404}, seen
+def test_pool_of_two_processes_equals_serial_and_names_a_failing_run(tmp_path, monkeypatch):
+    """`--workers 2`: two local processes (from a fork server, so the caller's folder change does not
+    matter: they get absolute paths) compute the runs of two files given by relative names; the FRFs
+    written by this process equal the serial ones bit for bit.  A run that fails in a worker becomes
+    one ModalError naming its file and run."""
+    monkeypatch.chdir(tmp_path)
+    files = [_runs_file(Path(f"f{j}.h5"), ["r0", "r1", "r2"], n=1024).name for j in range(2)]
+    serial = batch.run_batch(expand_runs(files), {"nfft": 256}, workers=0)
+    assert main(["--quiet", "frf", *files, "--workers", "2", "--nfft", "256"]) == 0
+    stored = [read_frf(p, f"r{k}") for p in files for k in range(3)]
+    for a, b in zip(serial, stored, strict=True):
+        assert np.array_equal(a.H, b.H) and np.array_equal(a.coherence, b.coherence)
+    with pytest.raises(ModalError, match=r"f[01]\.h5:r[012]: record of 1024 samples is shorter than one "
+                                         r"segment \(nfft 4096\)$"):
+        batch.run_batch(expand_runs(files), {"nfft": 4096}, workers=2)   # longer than the 1024 samples
 
 
 def _start(args: list[str], log: Path) -> subprocess.Popen:

@@ -27,6 +27,9 @@ def test_benchmark_script_runs_and_reports_ratios_and_differences(capsys, tmp_pa
     assert "flexmodal modes found 6/6" in out
     assert "PROC whole `flexmodal frf` process" in out and "flexmodal process / floor" in out
     assert "; 155 segments" in out      # 4 s at 5 kHz in segments of 256 advancing by 128
+    assert "without a bytecode cache" in out and "`import numpy, h5py`" in out and "the rest (parser" in out
+    assert "HELP `flexmodal frf --help`, bytecode cached: " in out
+    assert "so none is more than" in out and "KERNEL the PROC estimate in memory: 1 thread" in out
     assert list(tmp_path.iterdir()) == []
 
 
@@ -45,5 +48,6 @@ def test_batch_benchmark_reports_every_case_against_serial(capsys, tmp_path):
                                   "--folder", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "BATCH 4 runs" in out and "serial / this = 1.00x" in out
-    assert "--workers 2" in out and "default (by cost)" in out and "CLUSTER start-up" in out
+    assert "--workers 2 (pool)" in out and "default (by cost)" in out and "POOL start-up" in out
+    assert out.count("CPUs busy") == 3 and "CPUs busy pool workers not counted" in out
     assert list(tmp_path.iterdir()) == []

@@ -103,9 +103,10 @@ def test_blocked_threaded_spectra_equal_scipy_csd_for_any_channel_order(overlap,
     kw = dict(fs=fs, window=scipy.signal.get_window("hann", nfft), nperseg=nfft, noverlap=noverlap,
               detrend="constant")
     for k, o in enumerate([3, 0]):
-        _, gxf = scipy.signal.csd(samples[:, 2], samples[:, o], **kw)     # E[conj(F) X]
+        freq, gxf = scipy.signal.csd(samples[:, 2], samples[:, o], **kw)     # E[conj(F) X]
         _, gxx = scipy.signal.welch(samples[:, o], **kw)
         for s in (s1, s2):
+            assert np.array_equal(s.freq_hz, freq)           # the same lines, to the last bit
             assert np.allclose(s.g_xf[k, 0], gxf, rtol=1e-10, atol=1e-12 * np.abs(gxf).max())
             assert np.allclose(s.g_xx[k], gxx, rtol=1e-10, atol=1e-12 * gxx.max())
     assert np.allclose(s1.g_ff[0, 0].real, scipy.signal.welch(samples[:, 2], **kw)[1], rtol=1e-10)
@@ -147,3 +148,36 @@ def test_windows_equal_scipy_periodic_windows(name):
     for n in (8, 255, 4096):
         reference = scipy.signal.get_window(name, n, fftbins=True)
         assert np.allclose(window(name, n), reference, rtol=0, atol=1e-14)
+
+
+def test_tiny_segments_with_many_outputs_equal_scipy_csd():
+    """nfft 8 and 11 outputs: the products of a block need more memory than its windowed segments
+    (whose buffer they reuse); every cross- and auto-spectrum still equals scipy.signal.csd."""
+    x = np.random.default_rng(0).standard_normal((400, 12))
+    s = welch_spectra(x, 10.0, [0], list(range(1, 12)), 8)
+    kw = dict(fs=10.0, window="hann", nperseg=8, noverlap=4)
+    for k in range(11):
+        _, gxf = scipy.signal.csd(x[:, 0], x[:, k + 1], **kw)
+        assert np.allclose(s.g_xf[k, 0], gxf, rtol=1e-10, atol=1e-14)
+        assert np.allclose(s.g_xx[k], scipy.signal.welch(x[:, k + 1], **kw)[1], rtol=1e-10, atol=1e-14)
+
+
+@pytest.mark.parametrize("window", ["hann", "flattop"])
+def test_float32_record_with_a_large_offset_keeps_single_precision_accuracy(window):
+    """A float32 record riding on offsets up to 2e4 times its fluctuation (a biased force sensor):
+    the spectra equal scipy.signal.csd of the same stored samples in double precision to 2e-6 on every
+    line but the two the mean removal sets (the offset is taken out before the single-precision FFT;
+    removing a single-precision mean of 2e4 after the fact left 4e-3 through the flat-top's lines)."""
+    rng = np.random.default_rng(5)
+    x32 = (rng.standard_normal((200_000, 3)) + np.array([2e4, -50.0, 1e3])).astype(np.float32)
+    s = welch_spectra(x32, 100.0, [0], [1, 2], 1024, window_spec=window)
+    kw = dict(fs=100.0, window=scipy.signal.get_window(window, 1024), nperseg=1024, noverlap=512,
+              detrend="constant")
+    x = x32.astype(float)
+    segments = np.lib.stride_tricks.sliding_window_view(x, 1024, axis=0)[::512]   # [seg, ch, 1024]
+    assert np.allclose(s.mean, segments.mean(axis=(0, 2)), rtol=1e-10, atol=0)   # mean of segment means
+    for k in (1, 2):
+        _, gxf = scipy.signal.csd(x[:, 0], x[:, k], **kw)
+        _, gxx = scipy.signal.welch(x[:, k], **kw)
+        assert np.max(np.abs(s.g_xf[k - 1, 0, 2:] - gxf[2:])) <= 2e-6 * np.abs(gxf[2:]).max()
+        assert np.max(np.abs(s.g_xx[k - 1, 2:] / gxx[2:] - 1)) <= 2e-6

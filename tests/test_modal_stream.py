@@ -158,13 +158,16 @@ def _random_session(tmp_path: Path, sim: dict) -> Path:
 def test_random_run_with_one_percent_corrupt_frames_matches_the_clean_signal(tmp_path):
     """`sim serve` (serial, random test) with 1 % corrupt frames through `flexmodal acquire`: the FRFs
     of the stored run (segments touching NaN rows or corrupt events skipped) are within 1 % / 1 deg of
-    the FRFs of the clean signal the simulator emitted, wherever the coherence is above 0.95."""
+    the FRFs of the clean signal the simulator emitted, wherever the coherence is above 0.95.  The two
+    estimates differ by the random error of the skipped segments, which falls as one over the root of
+    the record length: at coherence 0.95 its largest value over ~65 lines was 1.28 % for 8 s records,
+    0.98 % for 16 s and 0.78 % for 32 s (one draw each), hence 32 s."""
     from flexmodal.fixtures.sim_source import sim_source
 
     out = tmp_path / "run.h5"
     done = subprocess.run([sys.executable, "-m", "flexmodal", "--quiet", "acquire", "--config",
                            str(_random_session(tmp_path, {"corrupt_rate": 0.01})), "--out", str(out),
-                           "--duration", "8"], cwd=REPO, capture_output=True, text=True, timeout=120)
+                           "--duration", "32"], cwd=REPO, capture_output=True, text=True, timeout=240)
     assert done.returncode == 0, done.stderr
     with h5py.File(out, "r") as f:
         run_id = next(iter(f["runs"]))

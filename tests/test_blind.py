@@ -1,0 +1,95 @@
+"""Blind accuracy of the gap diagnosis against the independent truth model (fixtures/blind.py).
+
+The default run diagnoses the first eight cases (every rig kind; single, weak and paired effects, one
+``none``, one effect outside the library; two mass look-alikes that only the measured shapes separate
+and a pair whose second part is poor on its own).  The full 36-case run is ``slow``: it asserts the
+acceptance targets and that docs/diagnosis.md quotes exactly its table.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import sys
+
+import pytest
+
+from flexmodal.compare.diagnosis import diagnose
+from flexmodal.fixtures.blind import format_summary, format_table, run_blind, summarise
+from flexmodal.modal.table import ModalTable
+
+
+def _strict(text: str) -> dict:
+    return json.loads(text, parse_constant=lambda c: pytest.fail(f"non-standard JSON constant {c}"))
+
+
+def _check(results) -> dict:
+    s = summarise(results)
+    print(format_table(results))
+    print(format_summary(s))
+    for r in results:
+        _strict(r.verdict.to_json())
+        if r.verdict.effect == "none":
+            assert r.verdict.alternatives == ()
+    return s
+
+
+@pytest.fixture(scope="module")
+def first_eight():
+    return run_blind(8, seed=0)
+
+
+@pytest.mark.timeout(900)           # ~60 s on a quiet machine (case generation included), more under load
+def test_first_eight_blind_cases_are_all_right(first_eight):
+    s = _check(first_eight)
+    assert s["n_library"] == 6 and s["n_none"] == 1 and s["n_outside"] == 1
+    assert s["top1_effect_accuracy"] == 1.0 and s["location_accuracy"] == 1.0
+    assert s["none_accuracy"] == 1.0
+    assert s["outside_flagged"] == 1.0
+    assert s["heldout_after_within_2x_scatter"] == 1.0
+
+
+@pytest.mark.parametrize("index", [3, 4])
+def test_shapes_separate_look_alikes_that_frequencies_leave_ambiguous(first_eight, index):
+    """Cases 3 (sensor + tip mass vs link + tip mass) and 4 (weak base stiffness vs sensor mass): right
+    and unambiguous with their measured shapes; without the shape columns the frequencies alone leave
+    the right answer only among the alternatives of an ambiguous verdict."""
+    r = first_eight[index]
+    assert r.case.shapes and r.location_ok and not r.verdict.ambiguous
+    frame = r.case.table.frame
+    bare = ModalTable.from_frame(frame[[c for c in frame.columns if not c.startswith("shape.")]], "<bare>")
+    v = diagnose(r.case.rig, bare).verdict
+    assert v.ambiguous
+    assert (r.case.effect, r.case.location) in {(v.effect, v.location)} | {
+        (a.effect, a.location) for a in v.alternatives}
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(1800)          # 36 cases: 2-4 min on a quiet machine, 10+ min under load
+def test_36_blind_cases_meet_the_targets_and_the_docs_quote_them():
+    from conftest import REPO
+
+    spec = importlib.util.spec_from_file_location("diagnosis_doc", REPO / "benchmarks" / "diagnosis_doc.py")
+    doc = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(doc)
+    results = run_blind(doc.BLIND_CASES, seed=0)
+    s = _check(results)
+    assert s["n_library"] == 30 and s["n_none"] == 3 and s["n_outside"] == 3
+    assert s["top1_effect_accuracy"] >= 0.94 and s["location_accuracy"] >= 0.94
+    assert s["none_accuracy"] == 1.0
+    assert s["heldout_after_within_2x_scatter"] == 1.0
+    assert s["outside_flagged"] >= 2 / 3
+    assert doc.doc_block("blind") == doc.blind_block(results)
+
+
+def test_benchmark_script_times_the_six_pose_case_and_finds_its_effect(capsys, monkeypatch):
+    """benchmarks/diagnose_blind.py (the source of docs/diagnosis.md's timing line) runs as written."""
+    from conftest import REPO
+
+    spec = importlib.util.spec_from_file_location("diagnose_blind", REPO / "benchmarks" / "diagnose_blind.py")
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    monkeypatch.setattr(sys, "argv", ["diagnose_blind.py", "--cases", "0", "--timing-runs", "1"])
+    assert bench.main() == 0
+    out = capsys.readouterr().out
+    assert "time, 6 poses x 4 modes" in out and "verdict joint_mass+joint_stiffness@elbow" in out
