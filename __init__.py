@@ -15,8 +15,8 @@ __version__ = "0.1.0"
 __all__ = [
     "Identification", "acquire", "compare_modes", "compute_frf", "compute_frfs", "diagnose",
     "format_comparison", "identify", "list_runs", "load_rig", "plot_comparison", "plot_frf", "plot_gap",
-    "plot_mode_shapes", "plot_stabilisation", "predict", "read_poses", "read_run", "read_table", "report",
-    "write_diagnosis",
+    "plot_mode_shapes", "plot_stabilisation", "predict", "read_diagnosis", "read_poses", "read_run",
+    "read_table", "report", "write_diagnosis",
 ]
 
 

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
+    from flexmodal.compare.result import Diagnosis
     from flexmodal.compare.tables import Comparison
     from flexmodal.daq.acquire import Summary
     from flexmodal.daq.session import Session
@@ -30,8 +31,8 @@ if TYPE_CHECKING:
 __all__ = [
     "Identification", "acquire", "compare_modes", "compute_frf", "compute_frfs", "diagnose",
     "format_comparison", "identify", "list_runs", "load_rig", "plot_comparison", "plot_frf", "plot_gap",
-    "plot_mode_shapes", "plot_stabilisation", "predict", "read_poses", "read_run", "read_table", "report",
-    "write_diagnosis",
+    "plot_mode_shapes", "plot_stabilisation", "predict", "read_diagnosis", "read_poses", "read_run",
+    "read_table", "report", "write_diagnosis",
 ]
 
 SHAPE_CONFIGS = 2              # configurations whose mode shapes a report draws on the arm (first, last)
@@ -275,32 +276,37 @@ def format_comparison(comparison: Comparison, fmt: str = "md", layout: str = "mo
 
 
 def diagnose(rig: Rig | PathLike, measured: ModalTable | PathLike, *, effects: str | Sequence[str] = "all",
-             holdout: str | Sequence[str] = "auto", scatter: float = 0.005):
+             holdout: str | Sequence[str] = "auto", scatter: float = 0.005) -> Diagnosis:
     """Sim-to-real gap diagnosis of the nominal ``rig`` against ``measured`` modes over several poses:
     where the gap is, which unmodelled effect explains it, judged on held-out configurations
-    (docs/diagnosis.md; the result is what diagnosis.json holds, docs/formats.md)."""
+    (docs/diagnosis.md).  The result is a tree of frozen records (compare/result.py:
+    ``.verdict.effect``, ``.ranking[0].params``, ...); ``.to_json()`` is diagnosis.json (docs/formats.md)."""
     from flexmodal.compare.diagnosis import diagnose as _diagnose
 
     return _diagnose(_rig(rig), _table(measured), effects=effects, holdout=holdout, scatter=scatter)
 
 
-def write_diagnosis(result, out_dir: PathLike) -> tuple[Path, Path]:
+def write_diagnosis(result: Diagnosis, out_dir: PathLike) -> tuple[Path, Path]:
     """Write ``diagnosis.json`` (strict JSON) and ``diagnosis.html`` of a :func:`diagnose` result into
     ``out_dir``.  The page is the validation report's diagnosis section alone (one renderer,
     reports/html.py)."""
-    import json
-
-    from flexmodal.compare.diagnosis import to_json
     from flexmodal.compare.errors import CompareError
     from flexmodal.reports.html import write_report
     from flexmodal.valid_output import output_dir, write_text
 
     out = output_dir(out_dir, CompareError, "diagnosis folder (--out)")
     out.mkdir(parents=True, exist_ok=True)
-    text = to_json(result)
-    pj = write_text(out / "diagnosis.json", text)
-    ph = write_report(out / "diagnosis.html", diagnosis=json.loads(text), title="Sim-to-real gap diagnosis")
+    pj = write_text(out / "diagnosis.json", result.to_json())
+    ph = write_report(out / "diagnosis.html", diagnosis=result, title="Sim-to-real gap diagnosis")
     return pj, ph
+
+
+def read_diagnosis(path: PathLike) -> Diagnosis:
+    """A diagnosis.json (docs/formats.md) read back into the :func:`diagnose` result it was written
+    from; ReportError naming the file and the key when it is not one."""
+    from flexmodal.reports.html import load_diagnosis
+
+    return load_diagnosis(path)
 
 
 # -- figures ---------------------------------------------------------------------------------------
@@ -358,26 +364,37 @@ def plot_comparison(measured: ModalTable | PathLike,
     return plots.plot_freq_vs_pose(meas, _named(predicted), pose_var, pose_unit(pose_var), title=title)
 
 
-def plot_gap(diagnosis, title: str = "") -> Figure:
-    """Per-mode relative frequency error [%] before and after the diagnosed effect (a diagnosis
-    result or a parsed diagnosis.json)."""
+def plot_gap(diagnosis: Diagnosis | Mapping | PathLike, title: str = "") -> Figure:
+    """Per-mode relative frequency error [%] before and after the diagnosed effect (a :func:`diagnose`
+    result, a parsed diagnosis.json or its path)."""
     from flexmodal.reports import plots
 
-    return plots.plot_gap(_diagnosis_dict(diagnosis), title=title)
+    return plots.plot_gap(_diagnosis(diagnosis), title=title)
 
 
-def _diagnosis_dict(diagnosis) -> Mapping:
-    """A diagnosis as the mapping diagnosis.json holds (results with ``to_json`` are converted)."""
-    import json
+def _diagnosis(diagnosis: Diagnosis | Mapping | PathLike) -> Diagnosis:
+    """A :func:`diagnose` result as it is, or read from a parsed diagnosis.json or its path
+    (ReportError naming the key that does not fit docs/formats.md)."""
+    from flexmodal.compare.errors import CompareError
+    from flexmodal.compare.result import Diagnosis
+    from flexmodal.reports.errors import ReportError
 
-    return json.loads(diagnosis.to_json()) if hasattr(diagnosis, "to_json") else diagnosis
+    if isinstance(diagnosis, str | Path):
+        return read_diagnosis(diagnosis)
+    if isinstance(diagnosis, Mapping):
+        try:
+            return Diagnosis.from_dict(dict(diagnosis))
+        except CompareError as exc:
+            raise ReportError(str(exc)) from None
+    return diagnosis
 
 
 # -- report ----------------------------------------------------------------------------------------
 
 def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (),
            measured: ModalTable | PathLike | None = None, repeats: Sequence[ModalTable | PathLike] = (),
-           predictions: Sequence[ModalTable | PathLike | tuple[str, ModalTable]] = (), diagnosis=None,
+           predictions: Sequence[ModalTable | PathLike | tuple[str, ModalTable]] = (),
+           diagnosis: Diagnosis | Mapping | PathLike | None = None,
            rig: Rig | PathLike | None = None, title: str = "flexmodal validation report",
            oma_fmin: float | None = None, oma_fmax: float | None = None,
            progress: Callable[[str], None] | None = None) -> Path:
@@ -403,7 +420,7 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     from flexmodal.modal.oma import default_method, output_only_results
     from flexmodal.modal.runs_io import read_frf
     from flexmodal.modal.sources import identify_frf
-    from flexmodal.reports.html import load_diagnosis, write_report
+    from flexmodal.reports.html import write_report
     from flexmodal.reports.runs import RunSummary
 
     if not (runs or measured is not None or predictions or diagnosis is not None):
@@ -448,9 +465,7 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
             missing = [v for v in rig.pose_variables if v not in pose]
             shapes[config] = (f"No mode shapes drawn for {config}: the measured table gives no "
                               f"pose.{missing[0]} for the rig") if missing else arm_modes(rig, pose, common)
-    if isinstance(diagnosis, str | Path):
-        diagnosis = load_diagnosis(diagnosis)
     return write_report(out, runs=summaries, comparison=comparison, measured=meas,
                         repeats=[_table(r) for r in repeats], predictions=named, shapes=shapes,
-                        diagnosis=_diagnosis_dict(diagnosis) if diagnosis is not None else None,
+                        diagnosis=_diagnosis(diagnosis) if diagnosis is not None else None,
                         rig_name=getattr(rig, "name", ""), title=title, progress=progress)

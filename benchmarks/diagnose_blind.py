@@ -64,11 +64,11 @@ def main() -> int:
         res = diagnose(rig, table)
         walls.append(time.perf_counter() - w0)
         cpus.append(time.process_time() - c0)
-    v = res["verdict"]
-    n_cand = len({(e["effect"], e["location"]) for e in res["ranking"]})
+    v = res.verdict
+    n_cand = len({(e.effect, e.location) for e in res.ranking})
     print(f"time, 6 poses x 4 modes, all candidates + pairs: wall {min(walls):.2f} s, cpu {min(cpus):.2f} s "
-          f"(best of {args.timing_runs}; target <= 2 s); verdict {v['effect']}@{v['location']} "
-          f"held-out {v['heldout_rms_rel_error_before']:.2%} -> {v['heldout_rms_rel_error_after']:.2%} "
+          f"(best of {args.timing_runs}; target <= 2 s); verdict {v.effect}@{v.location} "
+          f"held-out {v.heldout_rms_rel_error_before:.2%} -> {v.heldout_rms_rel_error_after:.2%} "
           f"(top {n_cand} listed)")
     if args.cases > 0:
         results = run_blind(args.cases, seed=args.seed)

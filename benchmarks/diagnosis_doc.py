@@ -43,27 +43,27 @@ def seed003_block(shared: Path = REPO.parent / "shared") -> str:
     table = seed003_table(shared)
     split = diagnose(rig, table, holdout="theta30,theta90,theta150")
     loo = diagnose(rig, table)
-    b, v = split["baseline"], split["verdict"]
-    best = next(e for e in split["ranking"] if (e["effect"], e["location"]) == (v["effect"], v["location"]))
-    top = split["ranking"][0]
-    params = ", ".join(f"{k} = {x:.4g}" for k, x in v["params"].items())
-    alts = "; ".join(f"{a['effect']} at {a['location']} ({_pct(a['heldout_rms_rel_error'])})"
-                     for a in v["alternatives"]) or "none"
-    lv = loo["verdict"]
+    b, v = split.baseline, split.verdict
+    best = next(e for e in split.ranking if (e.effect, e.location) == (v.effect, v.location))
+    top = split.ranking[0]
+    params = ", ".join(f"{k} = {x:.4g}" for k, x in v.params.items())
+    alts = "; ".join(f"{a.effect} at {a.location} ({_pct(a.heldout_rms_rel_error)})"
+                     for a in v.alternatives) or "none"
+    lv = loo.verdict
     return "\n".join([
-        f"Rigid-joint baseline: RMS {_pct(b['rms_rel_error'])}, max {_pct(b['max_rel_error'])} (f2 at 0°, "
+        f"Rigid-joint baseline: RMS {_pct(b.rms_rel_error)}, max {_pct(b.max_rel_error)} (f2 at 0°, "
         f"the "
-        f"paper's 72 %); `where`: modes {split['where']['modes']}, region `{split['where']['region']}`.",
+        f"paper's 72 %); `where`: modes {list(split.where.modes)}, region `{split.where.region}`.",
         f"Fitted on 0/60/120° and predicting 30/90/150° (`--holdout theta30,theta90,theta150`), every "
-        f"fit refitted without the held-out poses: verdict **{v['effect']} at {v['location']}** "
-        f"({params}; unidentified: {', '.join(v['unidentified_params']) or 'none'}), held-out RMS "
-        f"{_pct(v['heldout_rms_rel_error_before'])} → **{_pct(v['heldout_rms_rel_error_after'])}** "
-        f"(fit {_pct(best['fit_rms_rel_error'])}); explained: {str(v['explained']).lower()}.",
-        f"Best-scored candidate {top['effect']} at {top['location']}: {_pct(top['heldout_rms_rel_error'])} "
+        f"fit refitted without the held-out poses: verdict **{v.effect} at {v.location}** "
+        f"({params}; unidentified: {', '.join(v.unidentified_params) or 'none'}), held-out RMS "
+        f"{_pct(v.heldout_rms_rel_error_before)} → **{_pct(v.heldout_rms_rel_error_after)}** "
+        f"(fit {_pct(best.fit_rms_rel_error)}); explained: {str(v.explained).lower()}.",
+        f"Best-scored candidate {top.effect} at {top.location}: {_pct(top.heldout_rms_rel_error)} "
         f"held out, pruned to the verdict because with 6 held-out residuals the difference is within noise; "
         f"alternatives within noise: {alts}.",
-        f"Leave one configuration out: {lv['effect']} at {lv['location']}, "
-        f"{_pct(lv['heldout_rms_rel_error_before'])} → {_pct(lv['heldout_rms_rel_error_after'])}.",
+        f"Leave one configuration out: {lv.effect} at {lv.location}, "
+        f"{_pct(lv.heldout_rms_rel_error_before)} → {_pct(lv.heldout_rms_rel_error_after)}.",
     ])
 
 

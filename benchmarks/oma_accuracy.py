@@ -109,10 +109,10 @@ def arm_rows() -> list[str]:
                     + ", ".join(f"{a:.2f}/{b:.2f}" for a, b in zip(f_oma, f_imp, strict=True))
                     + f" Hz | {100 * np.abs(f_oma / f_imp - 1).max():.3f} % |")
     for name, table in zip(("OMA", "impact"), tables, strict=True):
-        v = diagnose(rig, table)["verdict"]
-        rows.append(f"| diagnose on the {name} table | {v['effect']} at {v['location']}, "
-                    f"k = {v['params']['k_Nm_per_rad']:.0f} N m/rad (hidden: 8000) | "
-                    f"explained: {v['explained']} |")
+        v = diagnose(rig, table).verdict
+        rows.append(f"| diagnose on the {name} table | {v.effect} at {v.location}, "
+                    f"k = {v.params['k_Nm_per_rad']:.0f} N m/rad (hidden: 8000) | "
+                    f"explained: {v.explained} |")
     return rows
 
 

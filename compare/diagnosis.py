@@ -30,7 +30,6 @@
 from __future__ import annotations
 
 import itertools
-import json
 import math
 from collections.abc import Sequence
 from dataclasses import replace
@@ -53,6 +52,19 @@ from flexmodal.compare.gap import (
     rms,
 )
 from flexmodal.compare.parametric import handles_for, pose_basis, reduce_family
+from flexmodal.compare.result import (
+    Alternative,
+    Baseline,
+    CandidateCount,
+    CandidateScore,
+    Diagnosis,
+    Holdout,
+    Predictions,
+    Remaining,
+    ScatterSource,
+    Verdict,
+    Where,
+)
 from flexmodal.modal.mac import mac_pairs
 from flexmodal.modal.table import ModalTable
 from flexmodal.models.effects import REGISTRY, get_effect
@@ -377,8 +389,9 @@ def _where(ctx: _Context, base_err: np.ndarray, base_summary: dict, scatter: flo
 
 
 def diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str] = "all",
-             holdout: str | Sequence[str] = "auto", scatter: float | None = None) -> dict:
-    """Diagnose the gap between ``rig`` (nominal) and ``measured`` modes; returns the diagnosis.json dict.
+             holdout: str | Sequence[str] = "auto", scatter: float | None = None) -> Diagnosis:
+    """Diagnose the gap between ``rig`` (nominal) and ``measured`` modes; returns the diagnosis
+    (compare/result.py; ``.to_json()`` is diagnosis.json).
 
     ``effects``: ``"all"`` or effect names; ``holdout``: ``"auto"`` or configurations to hold out;
     ``scatter``: the fallback relative measurement scatter of the frequencies (0.005 = 0.5 %; seed 003's
@@ -391,7 +404,7 @@ def diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str] = "all
 
 
 def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], holdout: str | Sequence[str],
-              fallback: float | None) -> dict:
+              fallback: float | None) -> Diagnosis:
     fallback = DEFAULT_SCATTER if fallback is None else fallback
     if not 0 < fallback < 1:
         raise CompareError(f"--scatter must be a fraction in (0, 1) (got {fallback})")
@@ -416,8 +429,8 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
     base_shapes = _paired_shapes(ctx, base_fam) if meas.shapes is not None else None
     where = _where(ctx, base_err, baseline, scatter, base_shapes)
 
-    result = {"baseline": baseline, "where": where, "ranking": [], "verdict": {}}
     ranking: list[dict] = []
+    n_candidates = None
     if baseline["rms_rel_error"] > NONE_FACTOR * scatter:
         singles = single_candidates(rig, names, {v: [p[v] for p in meas.poses] for v in rig.pose_variables})
         screened = [_screen(ctx, c, scatter) for c in singles]
@@ -443,30 +456,41 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
         ranking = [e for e in screened if "score" in e]
         _refinement_guard(ranking)
         ranking.sort(key=lambda e: e["score"])
-        result["n_candidates"] = {"fitted": len(screened), "cross_validated": len(ranking)}
+        n_candidates = CandidateCount(fitted=len(screened), cross_validated=len(ranking))
     for e in ranking:
         _annotate(ctx, e, scatter)
-    result["ranking"] = [_public(e) for e in ranking[:RANKING_LENGTH]]
     best = _choose(ctx, ranking, screened if ranking else [], scatter)
     nominal = _equivalent(ctx, base_err[held_mask].ravel(), base_shape, scatter)[0]
-    result["verdict"] = _verdict(ctx, best, ranking, baseline, before, nominal, scatter)
-    if result["verdict"]["effect"] != "none":
-        _confirm_region(where, rig, result["verdict"]["effect"], result["verdict"]["location"])
+    verdict = _verdict(ctx, best, ranking, baseline, before, nominal, scatter)
+    if verdict["effect"] != "none":
+        _confirm_region(where, rig, verdict["effect"], verdict["location"])
     else:
-        result["where"] = {**where, "modes": [], "configs": [], "region": ""}
-    result["scatter"] = scatter
-    result["scatter_source"] = {"source": noise.source, "detail": noise.detail}
-    result["holdout"] = {"scheme": scheme, "n_folds": int(len(train) - 1)}
-    result["configs"] = list(meas.configs)
-    result["predictions"] = _predictions(meas, base_f, best)
-    per_config = REGISTRY[best["effect"]].per_config if best is not None and best["effect"] in REGISTRY \
-        else None
-    if per_config is not None:
-        values = [per_config(rig, best["location"], best["params"], pose) for pose in meas.poses]
-        for name in values[0] if values else ():
-            result["verdict"][f"{name}_per_config"] = {c: v[name] for c, v in zip(meas.configs, values,
-                                                                                  strict=True)}
-    return result
+        where = {**where, "modes": [], "configs": [], "region": ""}
+    return Diagnosis(
+        baseline=Baseline(**baseline), where=Where(**where),
+        ranking=tuple(CandidateScore(**_public(e)) for e in ranking[:RANKING_LENGTH]),
+        verdict=_typed_verdict(verdict, _per_config(rig, meas, best)), n_candidates=n_candidates,
+        scatter=scatter, scatter_source=ScatterSource(source=noise.source, detail=noise.detail),
+        holdout=Holdout(scheme=scheme, n_folds=int(len(train) - 1)), configs=meas.configs,
+        predictions=_predictions(meas, base_f, best))
+
+
+def _per_config(rig: Rig, meas: Measured, best: dict | None) -> dict[str, dict[str, float]]:
+    """Pose-dependent parameters of the candidate ``best`` per configuration, {name: {config: value}}
+    (its registry entry's ``per_config``; empty when it has none)."""
+    entry = REGISTRY.get(best["effect"]) if best is not None else None
+    if entry is None or entry.per_config is None or not meas.poses:
+        return {}
+    values = [entry.per_config(rig, best["location"], best["params"], pose) for pose in meas.poses]
+    return {name: {c: v[name] for c, v in zip(meas.configs, values, strict=True)} for name in values[0]}
+
+
+def _typed_verdict(verdict: dict, per_config: dict[str, dict[str, float]]) -> Verdict:
+    """The verdict record of ``_verdict``'s working dict, with the pose-dependent parameters
+    ``per_config`` ({name: {config: value}}) of the verdict's candidate."""
+    records = {"remaining": Remaining, "alternatives": Alternative}
+    fields = {k: tuple(records[k](**x) for x in v) if k in records else v for k, v in verdict.items()}
+    return Verdict(**fields, per_config=per_config)
 
 
 def _public(entry: dict) -> dict:
@@ -698,32 +722,10 @@ def _separating_measurement(ctx: _Context, a: dict, b: dict) -> dict:
             "separate_rel_diff": float(diff[i, m])}
 
 
-def _predictions(meas: Measured, base_f: np.ndarray, best: dict | None) -> dict:
-    def table(f: np.ndarray) -> dict:
-        return {c: [float(v) for v in f[i]] for i, c in enumerate(meas.configs)}
+def _predictions(meas: Measured, base_f: np.ndarray, best: dict | None) -> Predictions:
+    def table(f: np.ndarray) -> dict[str, np.ndarray]:
+        return dict(zip(meas.configs, f, strict=True))
 
-    out = {"measured_hz": table(meas.freq_hz), "baseline_hz": table(base_f)}
-    if best is not None:
-        out["best_fit_hz"] = table(best["_freq_hz"])
-        out["best_heldout_hz"] = table(best["_heldout_freq_hz"])
-    return out
-
-
-def _finite(x: object) -> object:
-    """``x`` with every non-finite float (NaN, +-Infinity) replaced by None, recursively."""
-    if isinstance(x, dict):
-        return {k: _finite(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_finite(v) for v in x]
-    if isinstance(x, (float, np.floating)):
-        return float(x) if math.isfinite(x) else None
-    if isinstance(x, np.integer):
-        return int(x)
-    if isinstance(x, np.bool_):
-        return bool(x)
-    return x
-
-
-def to_json(result: dict) -> str:
-    """The diagnosis as strict JSON (RFC 8259): no NaN or Infinity; a missing number is ``null``."""
-    return json.dumps(_finite(result), indent=2, allow_nan=False)
+    return Predictions(measured_hz=table(meas.freq_hz), baseline_hz=table(base_f),
+                       best_fit_hz=table(best["_freq_hz"]) if best is not None else None,
+                       best_heldout_hz=table(best["_heldout_freq_hz"]) if best is not None else None)

@@ -44,8 +44,8 @@ def run(args: argparse.Namespace) -> int:
 
         def show(r) -> None:
             c, v = r.case, r.verdict
-            print(f"{c.kind}/{c.category}: hidden {c.effect}@{c.location or '-'} -> {v['effect']}@"
-                  f"{v['location'] or '-'} ({r.seconds:.1f} s)", file=sys.stderr)
+            print(f"{c.kind}/{c.category}: hidden {c.effect}@{c.location or '-'} -> {v.effect}@"
+                  f"{v.location or '-'} ({r.seconds:.1f} s)", file=sys.stderr)
 
         results = run_blind(args.selftest, seed=args.seed, progress=None if getattr(args, "quiet", False)
                             else show)
@@ -70,10 +70,10 @@ def run(args: argparse.Namespace) -> int:
         print(f"diagnosing {table.source} against {rig.source} ...", file=sys.stderr)
     result = diagnose(rig, table, effects=args.effects, holdout=args.holdout, scatter=args.scatter)
     pj, ph = write_diagnosis(result, args.out)
-    v = result["verdict"]
-    print(f"verdict: {v['effect']} at {v['location'] or '-'}; held-out RMS "
-          f"{v['heldout_rms_rel_error_before']:.2%} -> {v['heldout_rms_rel_error_after']:.2%}; "
-          f"explained: {str(v['explained']).lower()}")
+    v = result.verdict
+    print(f"verdict: {v.effect} at {v.location or '-'}; held-out RMS "
+          f"{v.heldout_rms_rel_error_before:.2%} -> {v.heldout_rms_rel_error_after:.2%}; "
+          f"explained: {str(v.explained).lower()}")
     print(pj)
     print(ph)
     return 0

@@ -16,7 +16,6 @@ the comparison, each run's identification and the FE shapes on the arm.
 from __future__ import annotations
 
 import base64
-import json
 from collections.abc import Callable, Mapping, Sequence
 from datetime import UTC, datetime
 from pathlib import Path
@@ -24,6 +23,8 @@ from pathlib import Path
 import jinja2
 import pandas as pd
 
+from flexmodal.compare.errors import CompareError
+from flexmodal.compare.result import Diagnosis, Predictions
 from flexmodal.compare.tables import Comparison, html_fragment, natural_key, ordered_configs, table_name
 from flexmodal.modal.table import ModalTable
 from flexmodal.reports import plots
@@ -221,46 +222,45 @@ def _run_figures(runs: Sequence[RunSummary]) -> list[dict]:
     return figs
 
 
-def _pct(value) -> str:
-    """A fraction as percent with three significant digits (0.0002 -> 0.02)."""
-    return f"{100 * float(value):.3g}" if value is not None else ""
+def _pct(value: float | None) -> str:
+    """A fraction as percent with three significant digits (0.0002 -> 0.02); empty when missing."""
+    return f"{100 * value:.3g}" if value is not None else ""
 
 
-def _diagnosis_view(d: Mapping) -> dict:
-    base, where, verdict = d.get("baseline", {}), d.get("where", {}), d.get("verdict", {})
-    region = where.get("region", "")
+def _diagnosis_view(d: Diagnosis) -> dict:
+    """The template's diagnosis section: the typed result as display text."""
+    where, verdict = d.where, d.verdict
     return {
-        "baseline_rms": _pct(base.get("rms_rel_error")), "baseline_max": _pct(base.get("max_rel_error")),
-        "where": f"modes {', '.join(str(m) for m in where.get('modes', [])) or '-'}; configurations "
-                 f"{', '.join(str(c) for c in where.get('configs', [])) or '-'}"
-                 + (f"; region {region}" if region else ""),
-        "verdict": f"{verdict.get('effect', '?')} at {verdict.get('location', '?')}",
-        "summary": str(verdict.get("summary", "")),
-        "heldout": f"{_pct(verdict.get('heldout_rms_rel_error_before'))} / "
-                   f"{_pct(verdict.get('heldout_rms_rel_error_after'))}",
-        "explained": bool(verdict.get("explained")),
-        "explained_text": "yes" if verdict.get("explained") else "no: the best candidate leaves a gap above "
-                                                                  "the measurement scatter",
-        "ranking": [{"effect": r.get("effect"), "location": r.get("location"),
-                     "params": ", ".join(f"{k} = {v:.4g}" for k, v in r.get("params", {}).items()),
-                     "fit": _pct(r.get("fit_rms_rel_error")), "heldout": _pct(r.get("heldout_rms_rel_error")),
-                     "n_params": r.get("n_params", "")} for r in d.get("ranking", [])[:8]],
-        "holdout": str(d.get("holdout", {}).get("scheme", "")), "scatter": _pct(d.get("scatter")),
-        "frequencies": _diagnosis_frequencies(d.get("predictions", {})),
+        "baseline_rms": _pct(d.baseline.rms_rel_error), "baseline_max": _pct(d.baseline.max_rel_error),
+        "where": f"modes {', '.join(str(m) for m in where.modes) or '-'}; configurations "
+                 f"{', '.join(where.configs) or '-'}" + (f"; region {where.region}" if where.region else ""),
+        "verdict": f"{verdict.effect} at {verdict.location}" if verdict.location else verdict.effect,
+        "summary": verdict.summary or "",
+        "heldout": " / ".join(_pct(x) for x in (verdict.heldout_rms_rel_error_before,
+                                                 verdict.heldout_rms_rel_error_after)),
+        "explained": verdict.explained,
+        "explained_text": "yes" if verdict.explained else "no: the best candidate leaves a gap above "
+                                                          "the measurement scatter",
+        "ranking": [{"effect": r.effect, "location": r.location,
+                     "params": ", ".join(f"{k} = {v:.4g}" for k, v in r.params.items() if v is not None),
+                     "fit": _pct(r.fit_rms_rel_error), "heldout": _pct(r.heldout_rms_rel_error),
+                     "n_params": r.n_params} for r in d.ranking[:8]],
+        "holdout": d.holdout.scheme if d.holdout is not None else "", "scatter": _pct(d.scatter),
+        "frequencies": _diagnosis_frequencies(d.predictions) if d.predictions is not None else [],
     }
 
 
-def _diagnosis_frequencies(pred: Mapping) -> list[dict]:
+def _diagnosis_frequencies(pred: Predictions) -> list[dict]:
     """Rows (config, mode, measured, nominal model, best candidate held out) [Hz] of the diagnosis'
-    ``predictions`` (docs/formats.md); a missing value is an empty cell."""
-    def hz(key: str, config: str, mode: int) -> str:
-        values = (pred.get(key) or {}).get(config) or []
+    predictions; a missing value is an empty cell."""
+    def hz(table: Mapping[str, Sequence[float | None]] | None, config: str, mode: int) -> str:
+        values = (table or {}).get(config) or ()
         v = values[mode] if mode < len(values) else None
         return f"{v:.2f}" if v is not None else ""
 
-    return [{"config": c, "mode": m + 1, "measured": hz("measured_hz", c, m),
-             "baseline": hz("baseline_hz", c, m), "best": hz("best_heldout_hz", c, m)}
-            for c, fm in pred.get("measured_hz", {}).items() for m in range(len(fm))]
+    return [{"config": c, "mode": m + 1, "measured": hz(pred.measured_hz, c, m),
+             "baseline": hz(pred.baseline_hz, c, m), "best": hz(pred.best_heldout_hz, c, m)}
+            for c, fm in pred.measured_hz.items() for m in range(len(fm))]
 
 
 def _measured_rows(measured: ModalTable) -> list[dict]:
@@ -287,7 +287,7 @@ def write_report(out_path: str | Path, *, runs: Sequence[RunSummary] = (),
                  comparison: Comparison | None = None, measured: ModalTable | None = None,
                  repeats: Sequence[ModalTable] = (), predictions: Sequence[tuple[str, ModalTable]] = (),
                  shapes: Mapping[str, object] | None = None,
-                 diagnosis: Mapping | None = None, rig_name: str = "",
+                 diagnosis: Diagnosis | None = None, rig_name: str = "",
                  title: str = "flexmodal validation report",
                  progress: Callable[[str], None] | None = None) -> Path:
     """Render one self-contained HTML report to ``out_path`` and return its path.
@@ -296,8 +296,9 @@ def write_report(out_path: str | Path, *, runs: Sequence[RunSummary] = (),
     ``comparison``: measured vs predicted modes (compare.tables.compare_tables).  ``measured``:
     identified modes; ``repeats``: further measured tables of the same configurations (error bars);
     ``predictions``: (name, table) pairs.  ``shapes``: {config: models.arm_shapes.ArmModes, or the
-    reason none is drawn} for the mode-shape plots.  ``diagnosis``: a parsed diagnosis.json
-    (docs/formats.md).  ``progress`` is called with a short message per step.
+    reason none is drawn} for the mode-shape plots.  ``diagnosis``: a compare.result.Diagnosis (the
+    one renderer of a diagnosis: ``diagnose`` writes its diagnosis.html with it too).  ``progress`` is
+    called with a short message per step.
     """
     step = progress or (lambda _msg: None)
     summaries = _run_order(runs)
@@ -306,13 +307,9 @@ def write_report(out_path: str | Path, *, runs: Sequence[RunSummary] = (),
     figures_modes = _mode_figures(measured, repeats, predictions, shapes or {})
     step("plotting runs")
     figures_runs = _run_figures(summaries)
-    figures_diag = []
-    if diagnosis is not None:
-        try:
-            figures_diag.append(_fig(plots.plot_gap(diagnosis), "Relative frequency error per mode of the "
-                                     "nominal model and with the diagnosed effect; held-out RMS error"))
-        except ReportError as exc:
-            raise ReportError(f"diagnosis: {exc}") from None
+    figures_diag = [] if diagnosis is None else [
+        _fig(plots.plot_gap(diagnosis), "Relative frequency error per mode of the nominal model and with "
+                                        "the diagnosed effect; held-out RMS error")]
     meta, quality, channel_sets = _run_rows(summaries)
     inputs = [str(p) for p in dict.fromkeys(str(s.run.path) for s in summaries)]
     inputs += [t.source for t in ([measured] if measured is not None else []) + list(repeats)]
@@ -332,13 +329,11 @@ def write_report(out_path: str | Path, *, runs: Sequence[RunSummary] = (),
     return write_text(out, html)
 
 
-def load_diagnosis(path: str | Path) -> dict:
-    """Read a diagnosis.json (docs/formats.md); ReportError naming the file when it is not JSON."""
+def load_diagnosis(path: str | Path) -> Diagnosis:
+    """Read a diagnosis.json (docs/formats.md); ReportError naming the file and the key when it is not
+    JSON or not a diagnosis."""
     p = Path(path)
     try:
-        doc = json.loads(read_text(p, ReportError, "diagnosis JSON file"))
-    except json.JSONDecodeError as exc:
-        raise ReportError(f"{p}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
-    if not isinstance(doc, dict) or "baseline" not in doc:
-        raise ReportError(f"{p}: not a diagnosis (no 'baseline' object)")
-    return doc
+        return Diagnosis.from_json(read_text(p, ReportError, "diagnosis JSON file"))
+    except CompareError as exc:
+        raise ReportError(f"{p}: {exc}") from None

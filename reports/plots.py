@@ -26,6 +26,7 @@ from __future__ import annotations
 import io
 import math
 from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING
 
 import matplotlib
 
@@ -40,6 +41,9 @@ from flexmodal.modal.mac import mac, to_real  # noqa: E402
 from flexmodal.modal.peaks import cmif  # noqa: E402
 from flexmodal.modal.table import ModalTable  # noqa: E402
 from flexmodal.reports.errors import ReportError  # noqa: E402
+
+if TYPE_CHECKING:
+    from flexmodal.compare.result import Diagnosis
 
 FRF_UNITS = {"accelerance": "(m/s²)/N", "mobility": "(m/s)/N", "receptance": "m/N"}
 _COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf")
@@ -363,47 +367,23 @@ def plot_mode_shapes(arm, measured: ModalTable, config: str, title: str = "") ->
     return fig
 
 
-def rms_per_mode(measured_hz: Mapping[str, Sequence[float]], predicted_hz: Mapping[str, Sequence[float]]
-                 ) -> dict[str, float]:
-    """RMS over configurations of (f_pred / f_meas - 1) per mode, {"1": fraction, ...}, from
-    {config: [f_mode1, f_mode2, ...] Hz} tables (configurations in both only)."""
-    errors: dict[str, list[float]] = {}
-    for config, fm in measured_hz.items():
-        fp = predicted_hz.get(config)
-        for m, (a, b) in enumerate(zip(fm, fp or [], strict=False)):
-            errors.setdefault(str(m + 1), []).append(float(b) / float(a) - 1.0)
-    return {m: float(np.sqrt(np.mean(np.square(e)))) for m, e in errors.items()}
+def gap_per_mode(diagnosis: Diagnosis) -> tuple[list[str], np.ndarray, np.ndarray | None]:
+    """Modes, per-mode relative error [fraction] before (``baseline.per_mode``) and after the verdict's
+    effect (``Diagnosis.per_mode_after``; None without a best candidate), NaN where there is none."""
+    before, after = diagnosis.baseline.per_mode, diagnosis.per_mode_after()
+    modes = sorted(before, key=lambda m: (len(m), m))
+
+    def values(per_mode: Mapping[str, float | None]) -> np.ndarray:
+        return np.array([np.nan if per_mode.get(m) is None else per_mode[m] for m in modes], float)
+
+    return modes, values(before), values(after) if after is not None else None
 
 
-def gap_per_mode(diagnosis: Mapping) -> tuple[list[str], np.ndarray, np.ndarray | None]:
-    """Modes, per-mode relative error before [fraction] and after the verdict's effect (None if absent).
-
-    ``before`` is ``baseline.per_mode`` (docs/formats.md); ``after`` the first present of
-    ``verdict.per_mode_after``, the held-out then the fitted predictions of the best candidate
-    (``predictions.best_heldout_hz`` / ``best_fit_hz`` against ``predictions.measured_hz``, RMS over
-    configurations per mode), or ``ranking[0].per_mode``.
-    """
-    try:
-        before = dict(diagnosis["baseline"]["per_mode"])
-    except (KeyError, TypeError):
-        raise ReportError("diagnosis: no baseline.per_mode to plot") from None
-    pred = diagnosis.get("predictions", {})
-    after_src = diagnosis.get("verdict", {}).get("per_mode_after")
-    for key in ("best_heldout_hz", "best_fit_hz"):
-        if not after_src and key in pred and "measured_hz" in pred:
-            after_src = rms_per_mode(pred["measured_hz"], pred[key])
-    after_src = after_src or (diagnosis.get("ranking") or [{}])[0].get("per_mode")
-    modes = sorted(before, key=lambda m: (len(str(m)), str(m)))
-    b = np.array([float(before[m]) for m in modes])
-    a = np.array([float(after_src.get(m, np.nan)) for m in modes]) if after_src else None
-    return [str(m) for m in modes], b, a
-
-
-def plot_gap(diagnosis: Mapping, title: str = "") -> Figure:
+def plot_gap(diagnosis: Diagnosis, title: str = "") -> Figure:
     """Bars of the per-mode relative frequency error [%] before and after the diagnosed effect, and the
     held-out RMS error [%] before and after (docs/formats.md ``verdict``)."""
     modes, before, after = gap_per_mode(diagnosis)
-    verdict = diagnosis.get("verdict", {})
+    verdict = diagnosis.verdict
     fig = Figure(figsize=(8, 3.6))
     ax, ax2 = fig.subplots(1, 2, gridspec_kw={"width_ratios": [3, 1]})
     x = np.arange(len(modes))
@@ -412,14 +392,14 @@ def plot_gap(diagnosis: Mapping, title: str = "") -> Figure:
     bars = [ax.bar(x - shift, 100 * before, w, color="0.6", label="nominal model")]
     if after is not None:
         bars.append(ax.bar(x + w / 2, 100 * after, w, color=_COLOURS[0],
-                           label=f"with {verdict.get('effect', 'effect')}"))
+                           label=f"with {verdict.effect}"))
     for container in bars:
         ax.bar_label(container, fmt="{:.3g} %", fontsize=7)
     ax.set_xticks(x, [f"mode {m}" for m in modes])
     ax.set_ylabel("relative frequency error [%]")
     ax.legend(fontsize=7)
     ax.grid(True, axis="y", alpha=0.3)
-    totals = [verdict.get("heldout_rms_rel_error_before"), verdict.get("heldout_rms_rel_error_after")]
+    totals = [verdict.heldout_rms_rel_error_before, verdict.heldout_rms_rel_error_after]
     if all(v is not None for v in totals):
         ax2.bar_label(ax2.bar([0, 1], [100 * float(v) for v in totals], color=["0.6", _COLOURS[0]]),
                       fmt="{:.3g} %", fontsize=7)
@@ -428,6 +408,7 @@ def plot_gap(diagnosis: Mapping, title: str = "") -> Figure:
         ax2.grid(True, axis="y", alpha=0.3)
     else:
         ax2.set_visible(False)
-    fig.suptitle(title or f"gap per mode: {verdict.get('effect', '?')} at {verdict.get('location', '?')}")
+    named = f"{verdict.effect} at {verdict.location}" if verdict.location else verdict.effect
+    fig.suptitle(title or f"gap per mode: {named}")
     fig.tight_layout()
     return fig

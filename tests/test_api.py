@@ -64,9 +64,9 @@ def test_the_worked_example_compares_and_diagnoses_the_hidden_elbow(example):
     pairing = comparison.pairings[0]
     assert len(pairing.pairs) == 15 and {p.method for p in pairing.pairs} == {"mac"}
     assert min(p.mac for p in pairing.pairs) > 0.9
-    verdict = api._diagnosis_dict(example["diagnosis"])["verdict"]
-    assert "joint_stiffness" in verdict["effect"] and verdict["location"].startswith("elbow")
-    assert verdict["heldout_rms_rel_error_after"] < 0.1 * verdict["heldout_rms_rel_error_before"]
+    verdict = example["diagnosis"].verdict
+    assert "joint_stiffness" in verdict.effect and verdict.location.startswith("elbow")
+    assert verdict.heldout_rms_rel_error_after < 0.1 * verdict.heldout_rms_rel_error_before
     for name, png in (("fig_frf", "frf"), ("fig_stab", "stabilisation"), ("fig_cmp", "comparison"),
                       ("fig_shapes", "shapes"), ("fig_gap", "gap")):
         assert isinstance(example[name], Figure) and (example["dir"] / f"{png}.png").stat().st_size > 10_000

@@ -14,7 +14,7 @@ import sys
 
 import pytest
 
-from flexmodal.compare.diagnosis import diagnose, to_json
+from flexmodal.compare.diagnosis import diagnose
 from flexmodal.fixtures.blind import format_summary, format_table, run_blind, summarise
 from flexmodal.modal.table import ModalTable
 
@@ -28,9 +28,9 @@ def _check(results) -> dict:
     print(format_table(results))
     print(format_summary(s))
     for r in results:
-        _strict(to_json({"verdict": r.verdict}))
-        if r.verdict["effect"] == "none":
-            assert r.verdict["alternatives"] == []
+        _strict(r.verdict.to_json())
+        if r.verdict.effect == "none":
+            assert r.verdict.alternatives == ()
     return s
 
 
@@ -55,13 +55,13 @@ def test_shapes_separate_look_alikes_that_frequencies_leave_ambiguous(first_eigh
     and unambiguous with their measured shapes; without the shape columns the frequencies alone leave
     the right answer only among the alternatives of an ambiguous verdict."""
     r = first_eight[index]
-    assert r.case.shapes and r.location_ok and not r.verdict["ambiguous"]
+    assert r.case.shapes and r.location_ok and not r.verdict.ambiguous
     frame = r.case.table.frame
     bare = ModalTable.from_frame(frame[[c for c in frame.columns if not c.startswith("shape.")]], "<bare>")
-    v = diagnose(r.case.rig, bare)["verdict"]
-    assert v["ambiguous"]
-    assert (r.case.effect, r.case.location) in {(v["effect"], v["location"])} | {
-        (a["effect"], a["location"]) for a in v["alternatives"]}
+    v = diagnose(r.case.rig, bare).verdict
+    assert v.ambiguous
+    assert (r.case.effect, r.case.location) in {(v.effect, v.location)} | {
+        (a.effect, a.location) for a in v.alternatives}
 
 
 @pytest.mark.slow

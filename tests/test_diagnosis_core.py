@@ -84,17 +84,17 @@ def test_noise_free_joint_stiffness_is_recovered_exactly(rig):
     k_true = 2500.0
     table = _table(rig, apply_effect(rig, "joint_stiffness", "elbow", {"k_Nm_per_rad": k_true}), POSES)
     res = diagnose(rig, table, effects="joint_stiffness,tip_mass,link_stiffness")
-    top = res["ranking"][0]
-    assert (top["effect"], top["location"]) == ("joint_stiffness", "elbow")
-    assert top["params"]["k_Nm_per_rad"] == pytest.approx(k_true, rel=1e-3)
-    assert top["heldout_rms_rel_error"] < 1e-4
-    assert res["verdict"]["explained"] is True
+    top = res.ranking[0]
+    assert (top.effect, top.location) == ("joint_stiffness", "elbow")
+    assert top.params["k_Nm_per_rad"] == pytest.approx(k_true, rel=1e-3)
+    assert top.heldout_rms_rel_error < 1e-4
+    assert res.verdict.explained is True
 
 
 def test_no_effect_gives_none(rig):
     res = diagnose(rig, _table(rig, rig, POSES))
-    assert res["verdict"]["effect"] == "none" and res["ranking"] == []
-    assert res["baseline"]["rms_rel_error"] < 1e-5
+    assert res.verdict.effect == "none" and res.ranking == ()
+    assert res.baseline.rms_rel_error < 1e-5
 
 
 def test_gap_summary_and_folds():

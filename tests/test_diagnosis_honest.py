@@ -11,7 +11,7 @@ import pytest
 from scipy.optimize import least_squares
 
 from flexmodal.compare.candidates import combine, single_candidates
-from flexmodal.compare.diagnosis import _Context, _structured, diagnose, folds_for, to_json
+from flexmodal.compare.diagnosis import _Context, _structured, diagnose, folds_for
 from flexmodal.compare.fit import design, evaluate
 from flexmodal.compare.gap import estimate_scatter, prepare
 from flexmodal.modal.table import ModalTable
@@ -56,7 +56,7 @@ def _refit_heldout(rig, table, entry) -> float:
     meas = prepare(rig, table)
     train, _ = folds_for(meas.configs)
     ctx = _Context(rig, meas, train)
-    cand = _candidate(rig, meas, entry["effect"], entry["location"])
+    cand = _candidate(rig, meas, entry.effect, entry.location)
     fam, D = ctx.family(cand.handles), design(cand, ctx.target)
     lo = np.array([p.lower for p in cand.params])
     hi = np.array([p.upper for p in cand.params])
@@ -92,11 +92,11 @@ def test_heldout_error_equals_a_from_scratch_refit(rig, hidden, seed):
         real = apply_effect(real, effect, loc, params)
     table = _table(rig, real, (0, 30, 60, 90, 120, 150), 4, 0.005, seed)
     res = diagnose(rig, table)
-    entries = res["ranking"][:3]
-    assert res["verdict"]["effect"] in {e["effect"] for e in entries}
+    entries = res.ranking[:3]
+    assert res.verdict.effect in {e.effect for e in entries}
     for e in entries:
         refit = _refit_heldout(rig, table, e)
-        assert e["heldout_rms_rel_error"] == pytest.approx(refit, abs=1e-3), e["effect"]   # 0.1 pp
+        assert e.heldout_rms_rel_error == pytest.approx(refit, abs=1e-3), e.effect   # 0.1 pp
 
 
 def _strict(text: str):
@@ -111,9 +111,9 @@ def test_json_is_strict_with_empty_shape_cells_and_where_is_empty_for_none(rig, 
     frame = table.frame.copy()
     frame.loc[frame.config == "theta45", [c for c in frame.columns if c.startswith("shape.")]] = np.nan
     res = diagnose(rig, ModalTable.from_frame(frame, "<holes>"))
-    doc = _strict(to_json(res))
+    doc = _strict(res.to_json())
     assert doc["verdict"]["effect"] == "joint_stiffness"
-    none = _strict(to_json(diagnose(rig, _table(rig, rig, (0, 45, 90, 135), 3, 0.002, 6))))
+    none = _strict(diagnose(rig, _table(rig, rig, (0, 45, 90, 135), 3, 0.002, 6)).to_json())
     assert none["verdict"]["effect"] == "none"
     assert none["where"]["modes"] == [] and none["where"]["configs"] == [] and none["where"]["region"] == ""
 
@@ -145,8 +145,8 @@ def test_structured_residuals_are_told_from_scatter():
 def test_inertia_the_data_cannot_see_is_reported_unidentified(rig):
     real = apply_effect(rig, "tip_mass", "tip", {"mass_kg": 0.25, "inertia_kgm2": 0.0})
     res = diagnose(rig, _table(rig, real, (0, 45, 90, 135), 2, 0.004, 8))
-    v = res["verdict"]
-    assert v["effect"] == "tip_mass"
-    assert "inertia_kgm2" in v["unidentified_params"] and "inertia_kgm2" not in v["params"]
-    assert v["params"]["mass_kg"] == pytest.approx(0.25, rel=0.1)
-    assert not any(p.startswith("mass") for p in v["params_at_bound"])
+    v = res.verdict
+    assert v.effect == "tip_mass"
+    assert "inertia_kgm2" in v.unidentified_params and "inertia_kgm2" not in v.params
+    assert v.params["mass_kg"] == pytest.approx(0.25, rel=0.1)
+    assert not any(p.startswith("mass") for p in v.params_at_bound)

@@ -104,8 +104,8 @@ def test_a_registered_effect_is_diagnosed_and_fitted(toy, rig):
         recs += [{"config": f"c{i}", "mode": m + 1, "freq_hz": f[m], "pose.theta_deg": p["theta_deg"]}
                  for m in range(4)]
     result = diagnose(rig, ModalTable.from_records(recs, "<toy>"), scatter=0.002)
-    v = result["verdict"]
-    assert (v["effect"], v["location"], v["explained"]) == (toy, "tip", True)
-    assert math.isclose(v["params"]["k_N_per_m"], k_true, rel_tol=0.01)
-    assert v["heldout_rms_rel_error_after"] < 1e-3
-    assert toy in {e["effect"] for e in result["ranking"]}
+    v = result.verdict
+    assert (v.effect, v.location, v.explained) == (toy, "tip", True)
+    assert math.isclose(v.params["k_N_per_m"], k_true, rel_tol=0.01)
+    assert v.heldout_rms_rel_error_after < 1e-3
+    assert toy in {e.effect for e in result.ranking}

@@ -27,21 +27,21 @@ def seed003_result(shared_dir, rigs_dir):
 
 
 def test_seed003_rigid_joint_gap_is_on_f2_at_the_elbow(seed003_result):
-    b, w = seed003_result["baseline"], seed003_result["where"]
-    assert b["max_rel_error"] == pytest.approx(158.41 / 92.2 - 1, abs=2e-3)   # the paper's 72 % on f2
-    assert b["per_mode"]["2"] > 5 * b["per_mode"]["1"]
-    assert w["modes"] == [2]
-    assert w["region"] == "joint:elbow"
+    b, w = seed003_result.baseline, seed003_result.where
+    assert b.max_rel_error == pytest.approx(158.41 / 92.2 - 1, abs=2e-3)   # the paper's 72 % on f2
+    assert b.per_mode["2"] > 5 * b.per_mode["1"]
+    assert w.modes == (2,)
+    assert w.region == "joint:elbow"
 
 
 def test_seed003_one_parameter_set_for_all_poses_and_its_limit(seed003_result):
-    v = seed003_result["verdict"]
-    assert v["heldout_rms_rel_error_before"] > 0.4
-    assert v["heldout_rms_rel_error_after"] <= 0.08          # fit on 0/60/120 deg, predict 30/90/150 deg
-    assert v["explained"] is False                           # still far above Table 4's < 0.85 % scatter
-    assert "joint_stiffness" in v["effect"] and "elbow" in v["location"]
-    pairs = [e for e in seed003_result["ranking"] if e["effect"].count("+") == 1]
-    assert min(e["heldout_rms_rel_error"] for e in pairs) > 0.05   # two effects are not enough
+    v = seed003_result.verdict
+    assert v.heldout_rms_rel_error_before > 0.4
+    assert v.heldout_rms_rel_error_after <= 0.08          # fit on 0/60/120 deg, predict 30/90/150 deg
+    assert v.explained is False                           # still far above Table 4's < 0.85 % scatter
+    assert "joint_stiffness" in v.effect and "elbow" in v.location
+    pairs = [e for e in seed003_result.ranking if e.effect.count("+") == 1]
+    assert min(e.heldout_rms_rel_error for e in pairs) > 0.05   # two effects are not enough
 
 
 IN = 0.0254
@@ -86,12 +86,12 @@ def test_seed001_pusher_mode_points_at_an_end_restraint_between_pinned_and_clamp
         recs += [{"config": f"theta{th:g}", "mode": k + 1, "freq_hz": f[k], "pose.theta_deg": th}
                  for k in range(6)]
     res = diagnose(rig, ModalTable.from_records(recs, "seed001-like"))
-    v = res["verdict"]
-    assert (v["effect"], v["location"]) == ("end_restraint", "pusher")
-    assert res["where"]["modes"] == [5] and res["where"]["region"] == "member:pusher"
-    assert v["params"]["k_Nm_per_rad"] == pytest.approx(10**log_k, rel=1e-3)
+    v = res.verdict
+    assert (v.effect, v.location) == ("end_restraint", "pusher")
+    assert res.where.modes == (5,) and res.where.region == "member:pusher"
+    assert v.params["k_Nm_per_rad"] == pytest.approx(10**log_k, rel=1e-3)
     clamped = replace(rig, members=(replace(rig.members[0], ends="clamped-clamped"),))
-    fitted = apply_effect(rig, "end_restraint", "pusher", v["params"])
+    fitted = apply_effect(rig, "end_restraint", "pusher", v.params)
     assert pusher_hz(rig) < pusher_hz(fitted) < pusher_hz(clamped)
 
 
@@ -119,9 +119,9 @@ def test_seed002_f2_over_f1_points_at_the_hub_inertia():
                                      for i in range(3) for m in range(2)])
     res = diagnose(rig, table, effects="joint_mass")
     assert 3.24 < f[1] / f[0] < 6.27                  # between pinned-free and clamped-free
-    top = res["ranking"][0]
-    assert (top["effect"], top["location"]) == ("joint_mass", "base")
-    assert top["params"]["inertia_kgm2"] == pytest.approx(J_hub, rel=0.01)
+    top = res.ranking[0]
+    assert (top.effect, top.location) == ("joint_mass", "base")
+    assert top.params["inertia_kgm2"] == pytest.approx(J_hub, rel=0.01)
 
 
 def test_seed000_damping_alone_cannot_explain_table2(shared_dir):

@@ -19,7 +19,8 @@ LAYERS = ("daq", "modal", "models", "compare", "reports", "api", "fixtures", "ap
 CLI_MODULES = ("cli.py", "diagnosis_cli.py", "__main__.py")
 # what reports/ may import from below it: data types and small display helpers, no solver
 REPORT_IMPORTS = {"flexmodal.compare.tables", "flexmodal.modal.table", "flexmodal.modal.mac",
-                  "flexmodal.modal.peaks", "flexmodal.valid_text", "flexmodal.valid_output"}
+                  "flexmodal.modal.peaks", "flexmodal.valid_text", "flexmodal.valid_output",
+                  "flexmodal.compare.result", "flexmodal.compare.errors"}   # the diagnosis records
 
 
 def _sources() -> list[Path]:

@@ -110,10 +110,10 @@ def test_arm_in_operation_matches_impact_tests_and_gives_the_same_diagnosis(tmp_
         f_oma, f_imp = oma.freq_hz(config), imp.freq_hz(config)
         assert f_oma.size == f_imp.size == 3
         assert np.max(np.abs(f_oma / f_imp - 1)) < 0.005, (config, f_oma, f_imp)
-    verdicts = [diagnose(rig, table)["verdict"] for table in (oma, imp)]
-    assert verdicts[0]["effect"] == verdicts[1]["effect"] == "joint_stiffness"
-    assert verdicts[0]["location"] == verdicts[1]["location"] == "elbow"
-    assert verdicts[0]["explained"] and verdicts[1]["explained"]
+    verdicts = [diagnose(rig, table).verdict for table in (oma, imp)]
+    assert verdicts[0].effect == verdicts[1].effect == "joint_stiffness"
+    assert verdicts[0].location == verdicts[1].location == "elbow"
+    assert verdicts[0].explained and verdicts[1].explained
 
 
 def test_operational_run_acquired_from_the_serial_simulator(tmp_path):

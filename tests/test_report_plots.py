@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from flexmodal.compare.result import Baseline, Diagnosis, Predictions, Verdict, Where
 from flexmodal.modal.table import ModalTable
 from flexmodal.models.arm_shapes import arm_modes
 from flexmodal.models.frame import frame_modes
@@ -87,29 +89,41 @@ def test_payload_trends_plot_the_frame_model_and_fall_with_payload():
     assert np.all(np.diff(first) < 0)  # mode 1 falls as the payload grows (seed 001's trend)
 
 
+def _gap_diagnosis(best_heldout_hz: dict, best_fit_hz: dict) -> Diagnosis:
+    measured = {"a": (10.0, 20.0, 30.0), "b": (10.0, 40.0, 30.0)}
+    return Diagnosis(
+        baseline=Baseline(rms_rel_error=0.3, max_rel_error=0.57, per_mode={"1": 0.09, "2": 0.57, "10": 0.2},
+                          per_config={"a": 0.3, "b": 0.3}),
+        where=Where(modes=(2,), configs=("a",), region="joint:elbow"), ranking=(),
+        verdict=Verdict(effect="joint_stiffness", location="elbow", heldout_rms_rel_error_before=0.597,
+                        heldout_rms_rel_error_after=0.051, explained=True),
+        predictions=Predictions(measured_hz=measured, baseline_hz=measured, best_fit_hz=best_fit_hz,
+                                best_heldout_hz=best_heldout_hz))
+
+
 def test_gap_bars_are_the_diagnosis_errors_in_percent():
-    d = {"baseline": {"per_mode": {"1": 0.09, "2": 0.57, "10": 0.2}},
-         "verdict": {"effect": "joint_stiffness", "location": "elbow",
-                     "per_mode_after": {"1": 0.01, "2": 0.02},
-                     "heldout_rms_rel_error_before": 0.597, "heldout_rms_rel_error_after": 0.051}}
+    """Before: ``baseline.per_mode``; after: the RMS over configurations, per mode, of the best candidate's
+    held-out predictions against the measured frequencies (None, never held out, is left out)."""
+    d = _gap_diagnosis({"a": (11.0, 20.0, None), "b": (9.0, 44.0, None)},
+                       {"a": (10.0, 20.0, 30.0), "b": (10.0, 40.0, 30.0)})
     modes, before, after = plots.gap_per_mode(d)
     assert modes == ["1", "2", "10"]
     np.testing.assert_array_equal(before, [0.09, 0.57, 0.2])
-    np.testing.assert_array_equal(after[:2], [0.01, 0.02])
-    assert np.isnan(after[2])
+    np.testing.assert_allclose(after[:2], [0.1, np.sqrt(0.01 / 2)], rtol=1e-12)
+    assert np.isnan(after[2])                                  # no mode 10 in the predictions
     fig = plots.plot_gap(d)
     heights = [p.get_height() for p in fig.axes[0].patches]
-    np.testing.assert_allclose(heights[:5], [9.0, 57.0, 20.0, 1.0, 2.0])
+    np.testing.assert_allclose(heights[:5], [9.0, 57.0, 20.0, 10.0, 100 * np.sqrt(0.005)], rtol=1e-12)
     np.testing.assert_allclose([p.get_height() for p in fig.axes[1].patches], [59.7, 5.1])
     assert fig.axes[0].get_ylabel().endswith("[%]") and fig.axes[1].get_ylabel().endswith("[%]")
-    # after the effect from the best candidate's held-out predictions: RMS over configs per mode
-    d2 = {"baseline": {"per_mode": {"1": 0.5, "2": 0.5}},
-          "predictions": {"measured_hz": {"a": [10.0, 20.0], "b": [10.0, 40.0]},
-                          "best_heldout_hz": {"a": [11.0, 20.0], "b": [9.0, 44.0]},
-                          "best_fit_hz": {"a": [10.0, 20.0], "b": [10.0, 40.0]}}}
-    np.testing.assert_allclose(plots.gap_per_mode(d2)[2], [0.1, np.sqrt(0.01 / 2)], rtol=1e-12)
-    with pytest.raises(ValueError, match="baseline.per_mode"):
-        plots.plot_gap({"verdict": {}})
+    # nothing held out: the fit to all configurations
+    fit = _gap_diagnosis({"a": (None,) * 3, "b": (None,) * 3},
+                         {"a": (11.0, 22.0, 30.0), "b": (9.0, 44.0, 30.0)})
+    np.testing.assert_allclose(plots.gap_per_mode(fit)[2][:2], [0.1, 0.1], rtol=1e-12)
+    # no best candidate (a "none" verdict): the nominal model's bars only
+    none = replace(d, predictions=replace(d.predictions, best_fit_hz=None, best_heldout_hz=None))
+    assert plots.gap_per_mode(none)[2] is None
+    assert len(plots.plot_gap(none).axes[0].patches) == 3
 
 
 def test_mode_shapes_measured_points_sit_on_the_model_curve(rigs_dir):

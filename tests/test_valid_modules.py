@@ -197,6 +197,7 @@ def test_api_functions_that_write_probe_their_output_before_any_work(tmp_path, m
     naming the path, before the work it guards (replaced here by a function that must not run)."""
     from flexmodal import api
     from flexmodal.compare.errors import CompareError
+    from flexmodal.compare.result import Diagnosis
     from flexmodal.reports.errors import ReportError
 
     def never(*_args, **_kw):
@@ -216,8 +217,9 @@ def test_api_functions_that_write_probe_their_output_before_any_work(tmp_path, m
         "compute_frf": (ModalError, "flexmodal.modal.compute.compute_frf",
                         lambda: api.compute_frf(_moved(api.read_run(run), bad), store=True)),
         "report": (ReportError, "flexmodal.daq.store.expand_runs", lambda: api.report(bad, runs=[run])),
-        "write_diagnosis": (CompareError, "flexmodal.compare.diagnosis.to_json",
-                            lambda: api.write_diagnosis({}, tmp_path / "plain" / "diag")),
+        "write_diagnosis": (CompareError, "flexmodal.compare.result.Diagnosis.to_json",
+                            lambda: api.write_diagnosis(Diagnosis.from_json(DIAGNOSIS.read_text()),
+                                                        tmp_path / "plain" / "diag")),
     }
     error, work, act = cases[call]
     monkeypatch.setattr(work, never)
@@ -226,6 +228,7 @@ def test_api_functions_that_write_probe_their_output_before_any_work(tmp_path, m
 
 
 SESSIONS = Path(__file__).resolve().parents[1] / "examples" / "sessions"
+DIAGNOSIS = Path(__file__).resolve().parent / "data" / "diagnosis" / "blind_none.json"
 
 
 def _moved(run, path: Path):
