@@ -54,7 +54,16 @@ def test_written_files_get_the_umask_permissions(tmp_path):
     assert path.stat().st_mode & 0o777 == 0o640
 
 
-def test_signals_deferred_holds_sigint_until_the_block_is_whole():
+@pytest.fixture
+def python_sigint():
+    """SIGINT raising KeyboardInterrupt, as in an interactive Python, even where this test process
+    was started with SIGINT ignored (a shell's background job): the tests below send themselves one."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)
+
+
+def test_signals_deferred_holds_sigint_until_the_block_is_whole(python_sigint):
     done = []
     with pytest.raises(KeyboardInterrupt):
         with signals_deferred():
@@ -65,7 +74,7 @@ def test_signals_deferred_holds_sigint_until_the_block_is_whole():
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
-def test_a_frf_group_interrupted_while_written_is_whole(tmp_path):
+def test_a_frf_group_interrupted_while_written_is_whole(tmp_path, python_sigint):
     """Ctrl-C arriving while write_frf writes: the group is completed, then KeyboardInterrupt."""
     import h5py
 
