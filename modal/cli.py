@@ -116,7 +116,7 @@ def _identify(args: argparse.Namespace) -> int:
     """
     from flexmodal.api import identify
     from flexmodal.modal.errors import ModalError
-    from flexmodal.valid_output import output_file
+    from flexmodal.valid_output import output_file, signals_deferred
 
     if args.fmin is not None and args.fmax is not None and args.fmin >= args.fmax:
         raise ModalError(f"--fmin {args.fmin:g} Hz must lie below --fmax {args.fmax:g} Hz")
@@ -140,9 +140,10 @@ def _identify(args: argparse.Namespace) -> int:
     result = identify(args.input, method=args.method, fmin=args.fmin, fmax=args.fmax,
                       max_order=args.max_order, run_id=args.run, poles_hz=poles, thresholds=limits,
                       decay_rate_per_s=args.exp_window_decay, references=refs)
-    result.table.to_csv(args.out)
     modes_by_config = {c: (m, result.outputs[c]) for c, m in result.modes.items()}
-    write_synthesis_csv(args.out, modes_by_config)
+    with signals_deferred():   # the modal table and its synthesis file: both written, or neither
+        result.table.to_csv(args.out)
+        write_synthesis_csv(args.out, modes_by_config)
     for config, (modes, _) in modes_by_config.items():
         if modes.order_note and not getattr(args, "quiet", False):
             print(f"flexmodal: {config}: {modes.order_note}", file=sys.stderr)
