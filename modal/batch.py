@@ -45,11 +45,11 @@ def idle_cpus() -> int:
 
 def run_bytes(jobs: Sequence[tuple[str, str]]) -> list[int]:
     """Bytes of samples of every (file, run_id) job, from the file metadata."""
-    import h5py
+    from flexmodal.daq.store import open_read
 
     sizes = []
     for path, rid in jobs:
-        with h5py.File(path, "r", libver="latest", swmr=True) as f:
+        with open_read(path) as f:   # a truncated file fails here at once, as everywhere else
             ds = f.get(f"runs/{rid}/samples")
             sizes.append(0 if ds is None else int(ds.size) * ds.dtype.itemsize)
     return sizes
