@@ -120,10 +120,17 @@ def _identify(args: argparse.Namespace) -> int:
 
     if args.fmin is not None and args.fmax is not None and args.fmin >= args.fmax:
         raise ModalError(f"--fmin {args.fmin:g} Hz must lie below --fmax {args.fmax:g} Hz")
-    output_file(args.out, ModalError, "modal table (--out)")
+    output_file(args.out, ModalError, "modal table (--out)", inputs=(args.input,))
     if args.uff:
-        output_file(args.uff, ModalError, "UFF file (--uff)")
-    from flexmodal.modal.identify import Thresholds, write_synthesis_csv  # the heavy imports, after
+        output_file(args.uff, ModalError, "UFF file (--uff)", inputs=(args.input, args.out))
+    from flexmodal.modal.identify import (  # the heavy imports, after
+        Thresholds,
+        synthesis_path,
+        write_synthesis_csv,
+    )
+
+    output_file(synthesis_path(args.out), ModalError, "FRF synthesis table (next to --out)",
+                inputs=(args.input, args.out, args.uff))
 
     poles = None
     if args.poles is not None:

@@ -48,7 +48,7 @@ def _predict(args: argparse.Namespace) -> int:
     from flexmodal.models.errors import ModelError
     from flexmodal.valid_output import output_file
 
-    output_file(args.out, ModelError, "prediction table (--out)")
+    output_file(args.out, ModelError, "prediction table (--out)", inputs=(args.rig, args.poses))
     rig = load_rig(args.rig)
     poses = read_poses(args.poses)
     if not poses:
