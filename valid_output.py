@@ -28,7 +28,7 @@ from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from flexmodal.valid_text import ErrorType, one_line
+from flexmodal.valid_text import ErrorType, file_kind, one_line
 
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 SPECIAL_ROOTS = ("/dev", "/proc", "/sys")  # device and kernel files: never an output file ...
@@ -42,16 +42,6 @@ def _probe(folder: Path, target: Path, error: ErrorType) -> None:
         raise error(f"{target}: cannot write in {folder} ({exc.strerror or exc})") from None
     os.close(fd)
     os.unlink(probe)
-
-
-def _kind(mode: int) -> str:
-    """What a non-regular file is, in words (``stat`` mode)."""
-    for test, name in ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
-                       (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
-                       (stat.S_ISSOCK, "a socket")):
-        if test(mode):
-            return name
-    return "not a regular file"
 
 
 def _under(path: Path, roots: Iterable[str]) -> bool:
@@ -78,7 +68,7 @@ def _regular_target(path: str | Path, error: ErrorType, what: str,
     if st is not None and stat.S_ISDIR(st.st_mode):
         raise error(f"{p}: is a directory, expected a path for the {what}")
     if st is not None and not stat.S_ISREG(st.st_mode):
-        raise error(f"{p}: is {_kind(st.st_mode)}, not a regular file for the {what} (refusing to "
+        raise error(f"{p}: is {file_kind(st.st_mode)}, not a regular file for the {what} (refusing to "
                     "write there)")
     for source in inputs:
         if source is None or str(source) in ("", "-"):

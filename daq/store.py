@@ -26,6 +26,7 @@ import h5py
 import numpy as np
 
 from flexmodal.daq.errors import DaqError
+from flexmodal.valid_text import regular_file
 
 CHANNEL_KINDS = ("acceleration", "force", "strain", "encoder", "voltage", "other")
 EVENT_KINDS = ("trigger", "gap", "overload", "corrupt", "reconnect", "note", "device_lost", "overrun",
@@ -332,7 +333,9 @@ LIVE_RECHECK_S = 0.2  # a live writer grows its file to the stored end-of-file a
 
 
 def _superblock(path: Path) -> tuple[bytes, int]:
-    """The first bytes of ``path`` and its size; DaqError when it is missing or not a file."""
+    """The first bytes of ``path`` and its size; DaqError when it is missing or not a regular file (a
+    FIFO would block the open, a device never end)."""
+    regular_file(path, DaqError, "run file")
     try:
         with open(path, "rb") as fh:
             return fh.read(SUPERBLOCK_BYTES), os.fstat(fh.fileno()).st_size
@@ -385,10 +388,13 @@ def _h5_open(path: Path, *, swmr: bool) -> h5py.File:
 
 def list_runs(path: str | Path) -> list[str]:
     """Run ids stored in ``path`` (sorted)."""
+    from flexmodal.daq.run_schema import member
+
     with open_read(path) as f:
-        if "runs" in f and not isinstance(f["runs"], h5py.Group):
+        runs = member(f, "runs", str(path))
+        if runs is not None and not isinstance(runs, h5py.Group):
             raise DaqError(f"{path}: '/runs' is not a group of runs")
-        return sorted(f["runs"].keys()) if "runs" in f else []
+        return sorted(runs.keys()) if runs is not None else []
 
 
 def _text(value) -> str:
@@ -400,14 +406,14 @@ def open_run(path: str | Path, run_id: str) -> Iterator[Run]:
     """One run with its ``samples`` left on disk: an h5py dataset, valid inside the ``with`` block
     (read it in blocks, e.g. ``samples[a:b]``, so memory does not grow with the record).  The run's
     structure is checked first (:func:`flexmodal.daq.run_schema.check_run_group`)."""
-    with open_read(path) as f:
-        key = f"runs/{run_id}"
-        if key not in f:
-            known = ", ".join(sorted(f["runs"])) if "runs" in f else "none"
-            raise DaqError(f"{path}: no run {run_id!r} (runs: {known})")
-        from flexmodal.daq.run_schema import check_run_group
+    from flexmodal.daq.run_schema import check_run_group, member
 
-        g = f[key]
+    with open_read(path) as f:
+        runs = member(f, "runs", str(path))
+        g = member(runs, run_id, f"{path}: run {run_id!r}") if isinstance(runs, h5py.Group) else None
+        if g is None:
+            known = ", ".join(sorted(runs)) if isinstance(runs, h5py.Group) else "none"
+            raise DaqError(f"{path}: no run {run_id!r} (runs: {known})")
         check_run_group(g, f"{path}: run {run_id!r}")
         try:
             run = _checked_run(g, Path(path), run_id)
@@ -455,9 +461,7 @@ def expand_runs(runs: Sequence[str | Path | tuple[str | Path, str]]) -> list[tup
             continue
         text = str(entry)
         file, sep, run_id = text.partition("::")
-        path = Path(file)
-        if not path.is_file():
-            raise FileNotFoundError(2, "run file not found", str(path))
+        path = regular_file(file, DaqError, "run file")
         if sep:
             out.append((path, run_id))
             continue

@@ -19,6 +19,7 @@ from flexmodal.modal.compute import compute_frf
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult
 from flexmodal.modal.runs_io import write_frf
+from flexmodal.valid_text import one_line
 
 POOL_START_S = 1.0      # start 2 worker processes, their imports, first task (benchmarks/batch.py)
 AUTO_WORKERS = 2        # processes of the pool the automatic choice starts
@@ -32,7 +33,10 @@ def frf_job(path: str, run_id: str, options: dict) -> FrfResult:
     from flexmodal.daq.store import open_run
 
     with open_run(path, run_id) as run:
-        return compute_frf(run, **options)
+        try:
+            return compute_frf(run, **options)
+        except OSError as exc:  # a damaged chunk met while streaming the samples
+            raise ModalError(f"{path}: run {run_id!r}: cannot read the samples ({one_line(exc)})") from None
 
 
 def idle_cpus() -> int:
