@@ -225,13 +225,19 @@ def predict(rig: Rig | PathLike, poses: Mapping[str, Mapping[str, float]] | Moda
     from flexmodal.models.errors import ModelError
     from flexmodal.models.predict import predict as _predict
 
+    rig = _rig(rig)
     if isinstance(poses, str | Path):
-        poses = read_poses(poses)
+        where, poses = poses, read_poses(poses)
+        have = set().union(*poses.values()) if poses else set()
+        missing = [v for v in rig.pose_variables if v not in have]
+        if missing:  # the poses file lacks the column, not the rig its variable
+            raise ModelError(f"{where}: no column 'pose.{missing[0]}' (rig {rig.source} needs the pose "
+                             f"variable {missing[0]!r}; pose columns are named pose.<variable>)")
     elif not isinstance(poses, Mapping):
         poses = {c: poses.pose(c) for c in poses.configs}
     if not poses:
         raise ModelError("predict: no configurations")
-    return _predict(_rig(rig), poses, model, n_modes, source=source, progress=progress, **options)
+    return _predict(rig, poses, model, n_modes, source=source, progress=progress, **options)
 
 
 # -- comparison and diagnosis ----------------------------------------------------------------------

@@ -195,8 +195,9 @@ def _on_cluster(jobs, first: int, options: dict, scheduler: str,
 
     try:
         client = Client(scheduler, timeout="10s")
-    except OSError as exc:
-        raise ModalError(f"scheduler {scheduler}: cannot connect ({exc})") from None
+    except (OSError, ValueError, TypeError) as exc:  # unreachable, or not an address (ValueError)
+        raise ModalError(f"--scheduler {scheduler!r}: cannot connect ({one_line(exc)}; expected an address "
+                         "such as tcp://127.0.0.1:8786)") from None
     interrupted = False
     try:
         futures = {client.submit(frf_job, str(Path(jobs[k][0]).resolve()), jobs[k][1], options, pure=False): k

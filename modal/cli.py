@@ -135,10 +135,11 @@ def _identify(args: argparse.Namespace) -> int:
     poles = None
     if args.poles is not None:
         try:
-            poles = [float(v) for v in args.poles.split(",") if v.strip()]
-        except ValueError:
-            raise ModalError(f"--poles {args.poles!r}: give frequencies in Hz separated by commas") from None
-        if not poles or min(poles) <= 0:
+            poles = [opt.positive_hz(v) for v in args.poles.split(",") if v.strip()]
+        except argparse.ArgumentTypeError:
+            raise ModalError(f"--poles {args.poles!r}: give finite positive frequencies in Hz separated by "
+                             "commas") from None
+        if not poles:
             raise ModalError(f"--poles {args.poles!r}: give positive frequencies in Hz")
     defaults = Thresholds()
     limits = Thresholds(defaults.need_min if args.need_min is None else args.need_min,

@@ -33,6 +33,19 @@ def _parse_complex(value: object) -> complex:
     return complex(text)
 
 
+def _numbers(column: pd.Series, name: str, source: str) -> pd.Series:
+    """``column`` as finite floats (empty cells stay NaN: not given); text or an infinity raises
+    ModalError naming the row (header = row 1) and the value."""
+    values = pd.to_numeric(column, errors="coerce").astype(float)
+    given = column.notna() & (column.astype(str).str.strip() != "")
+    bad = given & (values.isna() | np.isinf(values))
+    if bad.any():
+        row = int(np.flatnonzero(bad.to_numpy())[0])
+        raise ModalError(f"{source}: row {row + 2}: column {name!r} is not a finite number "
+                         f"({column.iloc[row]!r})")
+    return values
+
+
 @dataclass(frozen=True)
 class ModalTable:
     """A validated modal table; ``frame`` is sorted by config then mode and must not be mutated."""
@@ -66,17 +79,21 @@ class ModalTable:
         if dup.any():
             r = df[dup].iloc[0]
             raise ModalError(f"{source}: config {r['config']!r} lists mode {int(r['mode'])} twice")
-        if "damping_ratio" in df.columns:
-            df["damping_ratio"] = pd.to_numeric(df["damping_ratio"], errors="coerce")
-        for col in [c for c in df.columns if c.startswith(POSE_PREFIX)]:
-            converted = pd.to_numeric(df[col], errors="coerce")
-            if not converted.isna().all():
-                df[col] = converted
+        for col in [c for c in df.columns if c == "damping_ratio" or c.startswith(POSE_PREFIX)]:
+            df[col] = _numbers(df[col], col, source)
+        if "damping_ratio" in df.columns and (df["damping_ratio"] >= 1).any():
+            row = int(np.flatnonzero((df["damping_ratio"] >= 1).to_numpy())[0])
+            value = df["damping_ratio"].iloc[row]
+            raise ModalError(f"{source}: row {row + 2}: damping_ratio = {value:g} is not below 1 (a "
+                             f"fraction: {value:g} % is {value / 100:g})")
         for col in [c for c in df.columns if c.startswith(SHAPE_PREFIX)]:
             try:
                 values = np.array([_parse_complex(v) for v in df[col]], dtype=complex)
             except ValueError:
                 raise ModalError(f"{source}: column {col!r} holds a value that is not a number") from None
+            if np.isinf(values).any():
+                row = int(np.flatnonzero(np.isinf(values))[0])
+                raise ModalError(f"{source}: row {row + 2}: column {col!r} holds an infinite value")
             df[col] = values.real if np.all(values.imag == 0) else values
         df = df.sort_values(["config", "mode"], kind="stable").reset_index(drop=True)
         return cls(df, source)
@@ -146,8 +163,8 @@ def poses_from_csv(path: str | Path) -> dict[str, dict[str, float]]:
         pose = {}
         for c in cols:
             value = pd.to_numeric(row[c], errors="coerce")
-            if pd.isna(value):
-                raise ModalError(f"{p}: config {row['config']!r}: {c} is not a number ({row[c]!r})")
+            if pd.isna(value) or not np.isfinite(value):
+                raise ModalError(f"{p}: config {row['config']!r}: {c} is not a finite number ({row[c]!r})")
             pose[c[len(POSE_PREFIX):]] = float(value)
         out[str(row["config"])] = pose
     return out
