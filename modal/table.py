@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -88,7 +89,8 @@ class ModalTable:
                              f"fraction: {value:g} % is {value / 100:g})")
         for col in [c for c in df.columns if c.startswith(SHAPE_PREFIX)]:
             try:
-                values = np.array([_parse_complex(v) for v in df[col]], dtype=complex)
+                values = (df[col].to_numpy(complex) if df[col].dtype.kind in "fiuc"   # numbers: at once
+                          else np.array([_parse_complex(v) for v in df[col]], dtype=complex))
             except ValueError:
                 raise ModalError(f"{source}: column {col!r} holds a value that is not a number") from None
             if np.isinf(values).any():
@@ -117,11 +119,24 @@ class ModalTable:
         with atomic_path(path) as tmp:
             df.to_csv(tmp, index=False, float_format="%.9g")
 
-    # -- views ---------------------------------------------------------------------------------
+    # -- views (each configuration's rows are found once, so a view costs no scan of the table) ----
+    @cached_property
+    def _rows_of(self) -> dict[str, np.ndarray]:
+        """Row positions of every configuration, configurations in order of first appearance."""
+        codes, names = pd.factorize(self.frame["config"], sort=False)
+        order = np.argsort(codes, kind="stable")
+        bounds = np.cumsum(np.bincount(codes, minlength=len(names)))[:-1]
+        return {str(n): rows for n, rows in zip(names, np.split(order, bounds), strict=True)}
+
+    @cached_property
+    def _columns(self) -> dict[str, np.ndarray]:
+        """Every column as a numpy array (read once)."""
+        return {c: self.frame[c].to_numpy() for c in self.frame.columns}
+
     @property
     def configs(self) -> list[str]:
         """Configuration ids in order of first appearance."""
-        return list(dict.fromkeys(self.frame["config"]))
+        return list(self._rows_of)
 
     @property
     def pose_columns(self) -> list[str]:
@@ -135,22 +150,36 @@ class ModalTable:
     def sensors(self) -> list[str]:
         return [c[len(SHAPE_PREFIX):] for c in self.shape_columns]
 
+    def has_config(self, config: str) -> bool:
+        return config in self._rows_of
+
+    def _positions(self, config: str) -> np.ndarray:
+        return self._rows_of.get(config, np.zeros(0, int))
+
     def rows(self, config: str) -> pd.DataFrame:
-        return self.frame[self.frame["config"] == config]
+        return self.frame.iloc[self._positions(config)]
+
+    def column(self, config: str, name: str) -> np.ndarray:
+        """Values of column ``name`` on the rows of ``config`` (in table order)."""
+        return self._columns[name][self._positions(config)]
 
     def freq_hz(self, config: str) -> np.ndarray:
-        return self.rows(config)["freq_hz"].to_numpy(float)
+        return self.column(config, "freq_hz").astype(float)
 
     def pose(self, config: str) -> dict[str, float]:
         """Pose of a configuration as {variable: value} without the ``pose.`` prefix."""
-        row = self.rows(config).iloc[0]
-        return {c[len(POSE_PREFIX):]: row[c] for c in self.pose_columns if pd.notna(row[c])}
+        first = self._positions(config)[:1]
+        if not first.size:
+            raise KeyError(config)
+        return {c[len(POSE_PREFIX):]: v for c in self.pose_columns
+                if pd.notna(v := self._columns[c][first[0]])}
 
     def shapes(self, config: str, sensors: Sequence[str] | None = None) -> np.ndarray:
         """Mode shapes [n_sensors, n_modes] of one configuration (NaN where absent)."""
         cols = [SHAPE_PREFIX + s for s in (sensors if sensors is not None else self.sensors)]
-        rows = self.rows(config)
-        return np.array([rows[c].to_numpy() if c in rows else np.full(len(rows), np.nan) for c in cols])
+        at = self._positions(config)
+        return np.array([self._columns[c][at] if c in self._columns else np.full(at.size, np.nan)
+                         for c in cols]).reshape(len(cols), at.size)
 
 
 def poses_from_csv(path: str | Path) -> dict[str, dict[str, float]]:
