@@ -76,12 +76,13 @@ def member(parent: h5py.Group, name: str, where: str, error: type[Exception] = D
 
 
 def check_filters(d: h5py.Dataset, where: str, error: type[Exception] = DaqError) -> None:
-    """Raise ``error`` when dataset ``d`` is stored with a filter (compression) this HDF5 lacks: its
-    data could not be read (HDF5 filter registry, ``H5Zfilter_avail``)."""
+    """Raise ``error`` when dataset ``d`` is stored with a required filter (compression) this HDF5
+    lacks: its data could not be read (HDF5 filter registry, ``H5Zfilter_avail``; an optional filter
+    that is missing was skipped when the data were written)."""
     plist = d.id.get_create_plist()
     for i in range(plist.get_nfilters()):
-        code, _flags, _values, name = plist.get_filter(i)
-        if not h5py.h5z.filter_avail(code):
+        code, flags, _values, name = plist.get_filter(i)
+        if not flags & h5py.h5z.FLAG_OPTIONAL and not h5py.h5z.filter_avail(code):
             label = name.decode(errors="replace") if isinstance(name, bytes) else str(name)
             raise error(f"{where}: {d.name.rsplit('/', 1)[-1]!r} is compressed with filter {code} "
                         f"({label or 'unnamed'}), which is not installed (pip install hdf5plugin)")

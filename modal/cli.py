@@ -137,7 +137,7 @@ def _identify(args: argparse.Namespace) -> int:
         try:
             poles = [opt.positive_hz(v) for v in args.poles.split(",") if v.strip()]
         except argparse.ArgumentTypeError:
-            raise ModalError(f"--poles {args.poles!r}: give finite positive frequencies in Hz separated by "
+            raise ModalError(f"--poles {args.poles!r}: give frequencies in Hz (finite, > 0) separated by "
                              "commas") from None
         if not poles:
             raise ModalError(f"--poles {args.poles!r}: give positive frequencies in Hz")
