@@ -113,3 +113,11 @@ def test_docs_stand_alone():
     formats = (REPO / "docs" / "formats.md").read_text(encoding="utf-8")
     for heading in ("## Command conventions", "## Modal table CSV", "## Rig TOML", "## Diagnosis JSON"):
         assert heading in formats
+
+
+def test_examples_hold_no_symlinks_and_the_demo_rig_copy_is_the_fixture():
+    """examples/ works from a plain copy of the tree (zip, Windows): no links; the demo arm users read
+    there is byte for byte the one the demo simulates (copy fixtures/rigs/demo_arm.toml when it changes)."""
+    assert [str(p) for p in (REPO / "examples").rglob("*") if p.is_symlink()] == []
+    assert ((REPO / "examples" / "rigs" / "demo_arm.toml").read_bytes()
+            == (REPO / "fixtures" / "rigs" / "demo_arm.toml").read_bytes())
