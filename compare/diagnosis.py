@@ -584,7 +584,8 @@ def _annotate(ctx: _Context, entry: dict, scatter: float) -> None:
     lo_i, hi_i = theta - half, theta + half
     entry["_param_sd"] = std
     entry["_param_intervals"] = {
-        n: (float(np.exp(min(a, 700.0))), float(np.exp(min(b, 700.0)))) if p.power == 0 else (float(a), float(b))
+        n: (float(np.exp(min(a, 700.0))), float(np.exp(min(b, 700.0)))) if p.power == 0
+        else (float(a), float(b))
         for n, p, a, b in zip(names, cand.params, lo_i, hi_i, strict=True)}
     entry["params_at_bound"] = [n for n, a, b in zip(names, at_lo, at_hi, strict=True) if a or b]
     entry["unidentified_params"] = [n for n, x in zip(names, std, strict=True) if not x <= UNIDENTIFIED_STD]
