@@ -172,7 +172,7 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
     ``ssi`` (also ``fdd``), whose ``references`` are channel names (docs/oma.md); output-only shapes
     are unscaled.  docs/modal.md."""
     from flexmodal.modal.identify import modes_table
-    from flexmodal.modal.sources import identify_frf, identify_input
+    from flexmodal.modal.sources import by_reciprocity, identify_frf, identify_input
 
     options = {"method": method, "fmin": fmin, "fmax": fmax, "max_order": max_order, "poles_hz": poles_hz,
                "thresholds": thresholds, "decay_rate_per_s": decay_rate_per_s}
@@ -180,6 +180,7 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
         table, found = identify_input(source, run_id=run_id, references=references, **options)
         return Identification(table, {c: m for c, (m, _) in found.items()},
                               {c: tuple(o) for c, (_, o) in found.items()})
+    source = by_reciprocity(source)   # a roving-hammer set: the hammer points are the shapes' points
     modes = identify_frf(source, **{**options, "method": method or "lscf"})
     table = modes_table(modes, source.outputs, config=config, pose=pose)
     return Identification(table, {config: modes}, {config: tuple(source.outputs)})

@@ -63,7 +63,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "ssi/fdd shapes are unscaled (unit largest entry)")
     q.add_argument("--max-order", type=opt.model_order, default=None,
                    help="cap of the pLSCF model order (default: the order grows until the modes found "
-                        "stop growing, at most 200 / number of references); ssi: highest model order "
+                        "stop growing and explain every clear CMIF peak, at most 200 / number of "
+                        "references, more while clear peaks are unexplained); ssi: highest model order "
                         "(default 100)")
     q.add_argument("--poles", default=None, metavar="F1,F2,...",
                    help="pick the stable poles nearest these frequencies, Hz (exactly these modes, no "
@@ -82,6 +83,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="ssi/fdd: reference output channels (default all outputs)")
     q.add_argument("--run", default=None, metavar="RUN_ID", help="only this run of an HDF5 file")
     q.add_argument("--uff", default=None, metavar="MODES.uff", help="also write the modes as UFF dataset 55")
+    q.add_argument("--verbose", action="store_true",
+                   help="also print the per-mode lines behind each summary warning (--quiet: no warnings)")
 
 
 def _frf(args: argparse.Namespace) -> int:
@@ -144,11 +147,16 @@ def _identify(args: argparse.Namespace) -> int:
     with signals_deferred():   # the modal table and its synthesis file: both written, or neither
         result.table.to_csv(args.out)
         write_synthesis_csv(args.out, modes_by_config)
-    for config, (modes, _) in modes_by_config.items():
-        if modes.order_note and not getattr(args, "quiet", False):
+    quiet = getattr(args, "quiet", False)
+    for config, (modes, _) in modes_by_config.items():   # a loop over configurations
+        if quiet:
+            continue
+        if modes.order_note:
             print(f"flexmodal: {config}: {modes.order_note}", file=sys.stderr)
         for warning in modes.warnings:
             print(f"flexmodal: warning: {config}: {warning}", file=sys.stderr)
+        for line in modes.details if args.verbose else ():
+            print(f"flexmodal: {config}: {line}", file=sys.stderr)
     if args.uff:
         from flexmodal.modal.uff import write_modes
 
