@@ -398,12 +398,14 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
            diagnosis: Diagnosis | Mapping | PathLike | None = None,
            rig: Rig | PathLike | None = None, title: str = "flexmodal validation report",
            oma_fmin: float | None = None, oma_fmax: float | None = None,
+           fmin: float | None = None, fmax: float | None = None,
            progress: Callable[[str], None] | None = None) -> Path:
     """Write the self-contained HTML validation report ``out`` (its folder must exist; checked before
     any work) and return its path.
 
     ``runs``: HDF5 files (all their runs), ``FILE::RUN_ID`` or (file, id); their stored FRFs are shown
-    with the stabilisation diagram of their identification (default options of :func:`identify`); a
+    with the stabilisation diagram of their identification (:func:`identify` in ``fmin``..``fmax`` [Hz],
+    as the measured table was identified, so diagram, caption and table agree); a
     run without FRFs that is output-only (operational, or no force channel) with its FDD singular
     values and SSI-cov stabilisation diagram (``modal.oma.output_only_results``, docs/oma.md), both
     identified in the band ``oma_fmin``..``oma_fmax`` [Hz] (``identify --fmin/--fmax``; default the
@@ -426,11 +428,13 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
 
     if not (runs or measured is not None or predictions or diagnosis is not None):
         raise ReportError("report: nothing to report (give RUN.h5 files, --measured, --pred or --diagnosis)")
-    for name, value in (("oma_fmin", oma_fmin), ("oma_fmax", oma_fmax)):
+    for name, value in (("oma_fmin", oma_fmin), ("oma_fmax", oma_fmax), ("fmin", fmin), ("fmax", fmax)):
         if value is not None and not (isinstance(value, int | float) and 0 < value < float("inf")):
             raise ReportError(f"report: {name} = {value!r} must be a positive number of Hz")
     if oma_fmin is not None and oma_fmax is not None and oma_fmin >= oma_fmax:
         raise ReportError(f"report: oma_fmin = {oma_fmin:g} Hz must be below oma_fmax = {oma_fmax:g} Hz")
+    if fmin is not None and fmax is not None and fmin >= fmax:
+        raise ReportError(f"report: fmin = {fmin:g} Hz must be below fmax = {fmax:g} Hz")
     step = progress or (lambda _msg: None)
     summaries = []
     for path, run_id in expand_runs(runs):
@@ -439,7 +443,7 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
         modes = oma = None
         if frf is not None:
             try:
-                modes = identify_frf(frf)
+                modes = identify_frf(frf, fmin=fmin, fmax=fmax)
             except ModalError as exc:
                 modes = str(exc)
         elif default_method([c.kind for c in run.channels], run.excitation) == "ssi":

@@ -263,7 +263,7 @@ def _simulator(doc: dict, where: str, base: Path) -> Simulator:
                 why="must be a plain file name (it is written in the run file's folder)")
     return Simulator(
         protocol=s.choice("protocol", protocols()), rig=s.file("rig", "rig file") if "rig" in doc else "",
-        test=s.choice("test", ("impact", "random", "sweep", "operational"), "impact"),
+        test=s.choice("test", ("impact", "random", "sweep", "operational", "moving"), "impact"),
         seed=s.get("seed", int, 0, check=lambda v: 0 <= v < 2**32, why="must be in [0, 2**32)"),
         pose=s.numbers("pose"), corrupt_rate=s.number("corrupt_rate", 0.0, lo=0, hi=1, hi_open=True),
         drop_at_s=s.number("drop_at_s", None, **seconds), drop_s=s.number("drop_s", 0.2, **seconds),

@@ -45,7 +45,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     g = p.add_mutually_exclusive_group()
     g.add_argument("--workers", type=opt.workers, default=None,
                    help="local worker processes (0 = serial here; default: chosen by cost)")
-    g.add_argument("--scheduler", default=None, metavar="ADDR", help="dask.distributed scheduler address")
+    g.add_argument("--scheduler", default=None, metavar="ADDR",
+                   help="dask.distributed scheduler address (needs the extra flexmodal[cluster])")
     p.add_argument("--out", default=None, metavar="OUT.h5", help="write the FRFs into this file instead")
 
     q = command(sub, "identify", _identify)

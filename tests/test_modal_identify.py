@@ -69,10 +69,10 @@ def test_impact_test_at_40db_with_exponential_window_gives_modes_within_acceptan
     _check(identify(res.freq_hz, res.H, fmin=5, fmax=100, decay_rate_per_s=res.decay_rate_per_s))
 
 
-def test_real_two_hit_record_gives_the_three_documented_modes(shared_dir):
+def test_real_two_hit_record_gives_the_three_documented_modes(data_dir):
     import lvm_read
 
-    data = lvm_read.read(str(shared_dir / "data" / "impact_two_hits.lvm"))[0]
+    data = lvm_read.read(str(data_dir / "real" / "impact_two_hits.lvm"))[0]
     samples = data["data"]
     res = frf_of_record(samples, 1 / data["Delta_X"][0], ["F", "m_1", "m_2"],
                         ["force", "acceleration", "acceleration"], excitation="impact")
