@@ -7,31 +7,14 @@ import sys
 
 from flexmodal import valid_options as opt
 from flexmodal.cli_commands import command
-
-BUILT_IN_ESTIMATORS = ("H1", "H2", "Hv")   # modal.frf.ESTIMATORS as shipped (tested equal)
-
-
-class _Estimators:
-    """The names of the registry ``modal.frf.ESTIMATORS`` (any case), read only when argparse checks a
-    value (the command then imports numpy anyway); listing them in ``--help`` reads the registry only
-    if ``modal.frf`` is already imported (estimators are registered by importing it), else names
-    BUILT_IN_ESTIMATORS: so neither building the parser nor ``frf --help`` imports numpy."""
-
-    def __contains__(self, name: object) -> bool:
-        from flexmodal.modal.frf import ESTIMATORS
-
-        return any(k.lower() == str(name).lower() for k in ESTIMATORS)
-
-    def __iter__(self):
-        frf = sys.modules.get("flexmodal.modal.frf")
-        return iter(BUILT_IN_ESTIMATORS if frf is None else list(frf.ESTIMATORS))
+from flexmodal.modal.registry import ESTIMATORS
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this package's sub-commands to the flexmodal parser."""
     p = command(sub, "frf", _frf)
     p.add_argument("runs", nargs="+", metavar="RUN.h5", help="HDF5 run files (docs/hdf5-format.md)")
-    p.add_argument("--estimator", default="H1", choices=_Estimators(), metavar="NAME",
+    p.add_argument("--estimator", default="H1", choices=ESTIMATORS, metavar="NAME",
                    help="FRF estimator: %(choices)s (default H1)")
     p.add_argument("--nfft", type=opt.integer(8, 1 << 24, name="segment length"), default=None,
                    help="segment length in samples for random/sweep runs (default: power of two <= 8192 "
