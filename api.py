@@ -172,7 +172,7 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
     ``ssi`` (also ``fdd``), whose ``references`` are channel names (docs/oma.md); output-only shapes
     are unscaled.  docs/modal.md."""
     from flexmodal.modal.identify import modes_table
-    from flexmodal.modal.sources import identify_frf, identify_input
+    from flexmodal.modal.sources import by_reciprocity, identify_frf, identify_input
 
     options = {"method": method, "fmin": fmin, "fmax": fmax, "max_order": max_order, "poles_hz": poles_hz,
                "thresholds": thresholds, "decay_rate_per_s": decay_rate_per_s}
@@ -180,9 +180,28 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
         table, found = identify_input(source, run_id=run_id, references=references, **options)
         return Identification(table, {c: m for c, (m, _) in found.items()},
                               {c: tuple(o) for c, (_, o) in found.items()})
+    source = by_reciprocity(source)   # a roving-hammer set: the hammer points are the shapes' points
     modes = identify_frf(source, **{**options, "method": method or "lscf"})
     table = modes_table(modes, source.outputs, config=config, pose=pose)
     return Identification(table, {config: modes}, {config: tuple(source.outputs)})
+
+
+def track(source: PathLike, *, pose_from: Mapping[str, str] | None = None, run_id: str | None = None,
+          fmin: float | None = None, fmax: float | None = None, window_s: float | None = None,
+          hop_s: float | None = None, bin_deg: float = 5.0, max_spread_deg: float = 5.0,
+          orders: Sequence[float] = (), max_order: int = 40):
+    """Modes of an arm while it moves (docs/oma.md, tracking): SSI-cov in sliding windows of an HDF5
+    run or UFF time histories, each tagged with the pose of its encoder channels (``pose_from``: pose
+    variable -> channel, degrees; default the record's one encoder), modes followed by frequency and MAC,
+    motor/gear harmonics (``orders`` per joint revolution, found from the data when empty) set apart.
+    Window length and hop [s] default from the slowest mode and the pose rate; windows whose pose
+    spreads more than ``max_spread_deg`` are skipped.  Returns ``modal.track.TrackResult``; its
+    ``table`` is the modal map (one configuration per ``bin_deg`` pose bin)."""
+    from flexmodal.modal.track import TrackOptions, track_input
+
+    options = TrackOptions(window_s=window_s, hop_s=hop_s, fmin=fmin, fmax=fmax, max_order=max_order,
+                           max_spread_deg=max_spread_deg, bin_deg=bin_deg, orders=tuple(orders))
+    return track_input(str(source), pose_from=pose_from, run_id=run_id, options=options)
 
 
 def read_table(path: PathLike) -> ModalTable:
@@ -397,12 +416,14 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
            diagnosis: Diagnosis | Mapping | PathLike | None = None,
            rig: Rig | PathLike | None = None, title: str = "flexmodal validation report",
            oma_fmin: float | None = None, oma_fmax: float | None = None,
+           fmin: float | None = None, fmax: float | None = None,
            progress: Callable[[str], None] | None = None) -> Path:
     """Write the self-contained HTML validation report ``out`` (its folder must exist; checked before
     any work) and return its path.
 
     ``runs``: HDF5 files (all their runs), ``FILE::RUN_ID`` or (file, id); their stored FRFs are shown
-    with the stabilisation diagram of their identification (default options of :func:`identify`); a
+    with the stabilisation diagram of their identification (:func:`identify` in ``fmin``..``fmax`` [Hz],
+    as the measured table was identified, so diagram, caption and table agree); a
     run without FRFs that is output-only (operational, or no force channel) with its FDD singular
     values and SSI-cov stabilisation diagram (``modal.oma.output_only_results``, docs/oma.md), both
     identified in the band ``oma_fmin``..``oma_fmax`` [Hz] (``identify --fmin/--fmax``; default the
@@ -425,11 +446,13 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
 
     if not (runs or measured is not None or predictions or diagnosis is not None):
         raise ReportError("report: nothing to report (give RUN.h5 files, --measured, --pred or --diagnosis)")
-    for name, value in (("oma_fmin", oma_fmin), ("oma_fmax", oma_fmax)):
+    for name, value in (("oma_fmin", oma_fmin), ("oma_fmax", oma_fmax), ("fmin", fmin), ("fmax", fmax)):
         if value is not None and not (isinstance(value, int | float) and 0 < value < float("inf")):
             raise ReportError(f"report: {name} = {value!r} must be a positive number of Hz")
     if oma_fmin is not None and oma_fmax is not None and oma_fmin >= oma_fmax:
         raise ReportError(f"report: oma_fmin = {oma_fmin:g} Hz must be below oma_fmax = {oma_fmax:g} Hz")
+    if fmin is not None and fmax is not None and fmin >= fmax:
+        raise ReportError(f"report: fmin = {fmin:g} Hz must be below fmax = {fmax:g} Hz")
     step = progress or (lambda _msg: None)
     summaries = []
     for path, run_id in expand_runs(runs):
@@ -438,7 +461,7 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
         modes = oma = None
         if frf is not None:
             try:
-                modes = identify_frf(frf)
+                modes = identify_frf(frf, fmin=fmin, fmax=fmax)
             except ModalError as exc:
                 modes = str(exc)
         elif default_method([c.kind for c in run.channels], run.excitation) == "ssi":
