@@ -319,7 +319,7 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
     ``ssi`` (also ``fdd``), whose ``references`` are channel names (docs/oma.md); output-only shapes
     are unscaled.  docs/modal.md."""
     from flexmodal.modal.identify import modes_table
-    from flexmodal.modal.sources import identify_frf, identify_input
+    from flexmodal.modal.sources import by_reciprocity, identify_frf, identify_input
 
     options = {"method": method, "fmin": fmin, "fmax": fmax, "max_order": max_order, "poles_hz": poles_hz,
                "thresholds": thresholds, "decay_rate_per_s": decay_rate_per_s}
@@ -327,9 +327,28 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
         table, found = identify_input(source, run_id=run_id, references=references, **options)
         return Identification(table, {c: m for c, (m, _) in found.items()},
                               {c: tuple(o) for c, (_, o) in found.items()})
+    source = by_reciprocity(source)   # a roving-hammer set: the hammer points are the shapes' points
     modes = identify_frf(source, **{**options, "method": method or "lscf"})
     table = modes_table(modes, source.outputs, config=config, pose=pose)
     return Identification(table, {config: modes}, {config: tuple(source.outputs)})
+
+
+def track(source: PathLike, *, pose_from: Mapping[str, str] | None = None, run_id: str | None = None,
+          fmin: float | None = None, fmax: float | None = None, window_s: float | None = None,
+          hop_s: float | None = None, bin_deg: float = 5.0, max_spread_deg: float = 5.0,
+          orders: Sequence[float] = (), max_order: int = 40):
+    """Modes of an arm while it moves (docs/oma.md, tracking): SSI-cov in sliding windows of an HDF5
+    run or UFF time histories, each tagged with the pose of its encoder channels (``pose_from``: pose
+    variable -> channel, degrees; default the record's one encoder), modes followed by frequency and MAC,
+    motor/gear harmonics (``orders`` per joint revolution, found from the data when empty) set apart.
+    Window length and hop [s] default from the slowest mode and the pose rate; windows whose pose
+    spreads more than ``max_spread_deg`` are skipped.  Returns ``modal.track.TrackResult``; its
+    ``table`` is the modal map (one configuration per ``bin_deg`` pose bin)."""
+    from flexmodal.modal.track import TrackOptions, track_input
+
+    options = TrackOptions(window_s=window_s, hop_s=hop_s, fmin=fmin, fmax=fmax, max_order=max_order,
+                           max_spread_deg=max_spread_deg, bin_deg=bin_deg, orders=tuple(orders))
+    return track_input(str(source), pose_from=pose_from, run_id=run_id, options=options)
 
 
 def read_table(path: PathLike) -> ModalTable:

@@ -428,3 +428,65 @@ def track_modes(samples: np.ndarray, sample_rate_hz: float, names: Sequence[str]
                 if skipped else ())
     return TrackResult(n_win / sample_rate_hz, n_hop / sample_rate_hz, tuple(windows), skipped, tuple(tracks),
                        tuple(harmonics), orders, table, out_names, warnings)
+
+
+def default_pose_from(names: Sequence[str], kinds: Sequence[str], pose: Mapping[str, float],
+                      where: str) -> dict[str, str]:
+    """The pose channels of a record when none are named: its one encoder channel for its one pose
+    variable (``pose`` as the run stores it; ``theta_deg`` when it stores none)."""
+    encoders = [n for n, k in zip(names, kinds, strict=True) if k == "encoder"]
+    variables = list(pose) or ["theta_deg"]
+    if len(encoders) == 1 and len(variables) == 1:
+        return {variables[0]: encoders[0]}
+    raise ModalError(f"{where}: {len(encoders)} encoder channel(s) for pose variable(s) "
+                     f"{', '.join(variables)}: name them with --pose-from VAR=CHANNEL,...")
+
+
+def track_input(path: str, *, pose_from: Mapping[str, str] | None = None, run_id: str | None = None,
+                options: TrackOptions = TrackOptions()) -> TrackResult:
+    """Track the modes of an HDF5 run (the file's only run, or ``run_id``) or of UFF dataset 58 time
+    histories; ``pose_from`` maps pose variables to encoder channels (degrees; default
+    :func:`default_pose_from`).  Channels named there are the pose, never outputs."""
+    from pathlib import Path
+
+    import h5py
+
+    p = Path(path)
+    if not p.is_file():
+        raise ModalError(f"{p}: input not found")
+    if h5py.is_hdf5(p):
+        from flexmodal.modal.sources import hdf5_runs
+
+        runs = list(hdf5_runs(p, run_id))
+        if len(runs) > 1:
+            raise ModalError(f"{p}: holds {len(runs)} runs; choose one with --run "
+                             f"({', '.join(r.run_id for r in runs)})")
+        run = runs[0]
+        samples, fs = run.samples, run.sample_rate_hz
+        names, kinds = [c.name for c in run.channels], [c.kind for c in run.channels]
+        where, pose = f"{p}:{run.run_id}", dict(run.pose)
+    else:
+        from flexmodal.modal.uff import UffFrfs, read_uff
+
+        data = read_uff(p)
+        if isinstance(data, UffFrfs):
+            raise ModalError(f"{p}: holds FRFs; tracking needs time histories (dataset 58, type 1)")
+        samples, fs, names, kinds = data.samples, data.sample_rate_hz, list(data.names), list(data.kinds)
+        where, pose = str(p), {}
+    if pose_from is None:
+        pose_from = default_pose_from(names, kinds, pose, where)
+    kinds = ["encoder" if n in pose_from.values() else k for n, k in zip(names, kinds, strict=True)]
+    return track_modes(samples, fs, names, kinds, pose_from, options, where)
+
+
+def write_harmonics_csv(path: str, harmonics: Sequence[Harmonic]) -> None:
+    """The harmonic poles, one row each: ``t_s``, ``freq_hz``, ``joint`` (pose variable, empty when found
+    by its sinusoid statistics), ``order`` (per joint revolution, 0 when not an order)."""
+    import pandas as pd
+
+    from flexmodal.valid_output import atomic_path
+
+    frame = pd.DataFrame([{"t_s": h.t_s, "freq_hz": h.freq_hz, "joint": h.joint, "order": h.order}
+                          for h in harmonics], columns=["t_s", "freq_hz", "joint", "order"])
+    with atomic_path(path) as tmp:
+        frame.to_csv(tmp, index=False, float_format="%.9g")
