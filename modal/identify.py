@@ -74,6 +74,8 @@ class Modes:
     selected: np.ndarray | None = None
     order_note: str = ""
     details: tuple[str, ...] = ()
+    freq_std_hz: np.ndarray | None = None      # 1-sigma [Hz], modal/uncertainty.py (None: not estimated)
+    damping_std: np.ndarray | None = None      # 1-sigma [-]
 
 
 @dataclass(frozen=True)
@@ -404,6 +406,8 @@ def modes_table(modes: Modes, outputs: Sequence[str], *, config: str = "run",
         row: dict[str, object] = {"config": config, "mode": r + 1, "freq_hz": float(modes.freq_hz[r]),
                                   "damping_ratio": float(modes.damping_ratio[r]), "source": source}
         row.update({k: float(getattr(modes, k)[r]) for k in INDICATORS if getattr(modes, k) is not None})
+        row.update({k: float(getattr(modes, k)[r]) for k in ("freq_std_hz", "damping_std")
+                    if getattr(modes, k) is not None})
         row.update({f"pose.{k}": v for k, v in (pose or {}).items()})
         row.update({f"shape.{name}": float(modes.shapes[j, r]) for j, name in enumerate(outputs)})
         records.append(row)

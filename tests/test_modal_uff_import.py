@@ -17,6 +17,7 @@ from flexmodal.modal.compute import compute_frf
 from flexmodal.modal.identify import identify
 from flexmodal.modal.sources import identify_input
 from flexmodal.modal.table import ModalTable
+from flexmodal.modal.uncertainty import with_uncertainty
 
 pyuff = pytest.importorskip("pyuff")
 DATA = Path(__file__).parent / "data" / "uff"
@@ -69,6 +70,8 @@ def test_multi_record_time_histories_identify_like_the_same_hits_in_hdf5(tmp_pat
     modes = found["hits"][0]
     assert np.allclose(modes.freq_hz, FN, rtol=2e-3)
     same = identify(ref.freq_hz, ref.H, fmin=10, fmax=300, decay_rate_per_s=ref.decay_rate_per_s)
+    same = with_uncertainty(same, ref.freq_hz, ref.H, ref.coherence, ref.n_averages, ref.quantity,
+                            ref.decay_rate_per_s)   # the identification's refinement (modal/uncertainty.py)
     assert np.allclose(modes.freq_hz, same.freq_hz, rtol=1e-5)
     assert np.allclose(modes.damping_ratio, same.damping_ratio, rtol=1e-3)
 
