@@ -31,10 +31,28 @@ import scipy.fft
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.windows import window
 
-_BLOCK_BYTES = 8 << 20      # windowed segments per block (with its spectra, fits the shared L3 cache)
+_BLOCK_BYTES = 4 << 20      # windowed segments per block (with its spectra, stays in the L3 cache)
 _READ_BYTES = 16 << 20      # samples read per block from a dataset on disk (rounded to whole chunks)
 _SHIFT_ROWS = 256           # rows per flat piece of the offset subtraction
 _BLAS_ONE_THREAD = 9216     # OpenBLAS runs a matrix-vector product of fewer elements on one thread
+
+
+DEFAULT_NFFT_MAX = 8192
+
+
+def default_nfft(n_samples: int) -> int:
+    """The one nfft policy of every Welch spectrum (FRFs, FDD, the SSI display): the largest power of
+    two giving at least 8 half-overlapping segments of ``n_samples``, at most 8192, at least 64.
+
+    Examples
+    --------
+    >>> default_nfft(30720), default_nfft(10 ** 7), default_nfft(100)
+    (4096, 8192, 64)
+    """
+    n = 64
+    while n * 2 <= min(DEFAULT_NFFT_MAX, n_samples // 4):
+        n *= 2
+    return n
 
 
 def rfftfreq(nfft: int, sample_rate_hz: float) -> np.ndarray:
