@@ -193,7 +193,8 @@ def poses_from_csv(path: str | Path) -> dict[str, dict[str, float]]:
         for c in cols:
             value = pd.to_numeric(row[c], errors="coerce")
             if pd.isna(value) or not np.isfinite(value):
-                raise ModalError(f"{p}: config {row['config']!r}: {c} is not a finite number ({row[c]!r})")
+                what = "is not a number" if pd.isna(value) else "is not finite"
+                raise ModalError(f"{p}: config {row['config']!r}: {c} {what} ({row[c]!r})")
             pose[c[len(POSE_PREFIX):]] = float(value)
         out[str(row["config"])] = pose
     return out
