@@ -7,7 +7,14 @@ is re-exported here lazily from :mod:`flexmodal.api`, so ``import flexmodal`` st
 
 from __future__ import annotations
 
+from flexmodal.daq.hooks import set_simulator_launcher
+
 __version__ = "0.1.0"
+
+# The built-in device simulators (flexmodal.fixtures) start a session's ``[simulator]``: registered here,
+# where the packages are put together, by name, so `daq` never imports `fixtures` and nothing is loaded
+# until a session asks for a simulator (``fm.acquire`` on an example session needs no extra import).
+set_simulator_launcher("flexmodal.fixtures.sim_serve:launch")
 
 # The public API (flexmodal.api), loaded on first use: ``flexmodal.identify(...)`` works after a bare
 # ``import flexmodal`` without importing numpy, h5py or matplotlib up front.  tests/test_api.py checks

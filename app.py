@@ -1,8 +1,9 @@
 """flexmodal command line: a thin dispatcher over the packages.
 
 Every sub-command is registered by its package's ``cli`` module (``register(subparsers)``), which
-imports its heavy dependencies only when the command runs.  Errors raised by a package's own error
-type, and missing or unreadable files, become one line on stderr and exit code 2 (docs/formats.md).
+imports its heavy dependencies only when the command runs.  Errors of the one family
+``flexmodal.checked_io.errors.FlexmodalError`` (each package raises its subclass), and missing or
+unreadable files, become one line on stderr and exit code 2 (docs/formats.md).
 """
 
 from __future__ import annotations
@@ -14,17 +15,11 @@ import signal
 import sys
 from collections.abc import Sequence
 
+from flexmodal.checked_io.errors import FlexmodalError
+
 COMMAND_MODULES = (
     "flexmodal.fixtures.cli", "flexmodal.daq.cli", "flexmodal.modal.cli", "flexmodal.models.cli",
     "flexmodal.compare.cli", "flexmodal.compare.diagnosis_cli", "flexmodal.reports.cli",
-)
-ERROR_TYPES = (
-    ("flexmodal.daq.errors", "DaqError"),
-    ("flexmodal.modal.errors", "ModalError"),
-    ("flexmodal.models.errors", "ModelError"),
-    ("flexmodal.compare.errors", "CompareError"),
-    ("flexmodal.reports.errors", "ReportError"),
-    ("flexmodal.fixtures.errors", "FixtureError"),
 )
 
 
@@ -56,10 +51,6 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _package_errors() -> tuple[type[BaseException], ...]:
-    return tuple(getattr(importlib.import_module(mod), cls) for mod, cls in ERROR_TYPES)
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; returns the process exit code (0 ok, 2 bad input, 1 internal error, 128 + N stopped
     by signal N: 130 for Ctrl-C).
@@ -77,7 +68,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except UsageError as exc:
         print(exc, file=sys.stderr)
         return 2
-    except _package_errors() as exc:  # one line even when a quoted library message had several
+    except FlexmodalError as exc:  # one line even when a quoted library message had several
         print(f"flexmodal: error: {' '.join(str(exc).split())}", file=sys.stderr)
         signum = getattr(exc, "signum", 0)  # stopped by a signal before any work (daq.acquire.Stopped)
         return 128 + signum if signum else 2

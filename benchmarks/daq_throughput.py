@@ -203,7 +203,6 @@ def bench_overrun(protocol: str, rate_hz: float, seconds: float, out_dir: Path) 
     of overrun events and the lag (s) the first one reported (nan without one)."""
     import tomllib
 
-    import flexmodal.fixtures  # noqa: F401  (registers the simulator launcher)
     from flexmodal.daq.session import parse_session
 
     path = Path(__file__).resolve().parents[1] / "examples" / "sessions" / f"{protocol}-sim.toml"

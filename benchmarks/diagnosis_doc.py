@@ -25,9 +25,9 @@ from flexmodal.modal.table import ModalTable  # noqa: E402
 from flexmodal.models.rig import load_rig  # noqa: E402
 
 
-def seed003_table(shared: Path) -> ModalTable:
-    """Seed 003 Table 3 (f1, f2 at six elbow angles) as a modal table."""
-    t3 = pd.read_csv(shared / "seeds" / "tables" / "seed003_table3_experimental.csv")
+def seed003_table(data: Path) -> ModalTable:
+    """Seed 003 Table 3 (f1, f2 at six elbow angles, from ``data``/seeds) as a modal table."""
+    t3 = pd.read_csv(data / "seeds" / "seed003_table3_experimental.csv")
     recs = [{"config": f"theta{int(r.theta_deg)}", "mode": m, "freq_hz": r[f"f{m}_hz"],
              "source": "experiment", "pose.theta_deg": r.theta_deg} for _, r in t3.iterrows() for m in (1, 2)]
     return ModalTable.from_records(recs, "seed003 Table 3")
@@ -37,10 +37,10 @@ def _pct(x: float) -> str:
     return f"{100 * x:.1f} %"
 
 
-def seed003_block(shared: Path = REPO.parent / "shared") -> str:
+def seed003_block(data: Path = REPO / "tests" / "data") -> str:
     """The markdown paragraph of seed 003's diagnosis, every number computed now."""
     rig = load_rig(REPO / "examples" / "rigs" / "seed003_two_link.toml")
-    table = seed003_table(shared)
+    table = seed003_table(data)
     split = diagnose(rig, table, holdout="theta30,theta90,theta150")
     loo = diagnose(rig, table)
     b, v = split.baseline, split.verdict

@@ -1,5 +1,7 @@
-"""The one error type of the `compare` package: its message is the one line the CLI prints (exit 2)."""
+"""The error type of the `compare` package (a :class:`~flexmodal.checked_io.errors.FlexmodalError`)."""
+
+from flexmodal.checked_io.errors import FlexmodalError
 
 
-class CompareError(ValueError):
+class CompareError(FlexmodalError):
     """Bad input for `compare`: the message names the file, field or value and what is wrong."""

@@ -1,5 +1,7 @@
-"""The one error type of the `daq` package: its message is the one line the CLI prints (exit 2)."""
+"""The error type of the `daq` package (a :class:`~flexmodal.checked_io.errors.FlexmodalError`)."""
+
+from flexmodal.checked_io.errors import FlexmodalError
 
 
-class DaqError(ValueError):
+class DaqError(FlexmodalError):
     """Bad input for `daq`: the message names the file, field or value and what is wrong."""

@@ -1,7 +1,7 @@
 """The hook a package above `daq` plugs in to start a session's ``[simulator]``.
 
-`daq` never imports the simulators (they live in ``flexmodal.fixtures``); ``flexmodal.fixtures``
-registers its launcher here when it is imported (the CLI always imports it).  A launcher is called as
+`daq` never imports the simulators (they live in ``flexmodal.fixtures``); the root package
+``flexmodal`` registers their launcher here by name, imported on first use.  A launcher is called as
 ``launch(simulator, session, quiet)`` with the validated :class:`flexmodal.daq.session.Simulator`
 (``fault_log`` already an absolute path inside the run's folder, or empty) and returns
 ``(endpoint, stop)``: the endpoint replacing the ``"@simulator"`` placeholder (a pty path, or
@@ -30,7 +30,7 @@ def simulator_launcher() -> Launcher:
     global _launcher
     if _launcher is None:
         raise DaqError("the session has a [simulator] but no simulator launcher is registered "
-                       "(import flexmodal.fixtures first)")
+                       "(set_simulator_launcher)")
     if isinstance(_launcher, str):
         module, _, name = _launcher.partition(":")
         _launcher = getattr(importlib.import_module(module), name)

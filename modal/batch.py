@@ -187,8 +187,11 @@ def _on_cluster(jobs, first: int, options: dict, scheduler: str,
                 done: Callable[[int, FrfResult], None]) -> None:
     """Jobs ``first``.. on the dask.distributed cluster at ``scheduler`` (its workers read the runs
     from the same paths); ``done(k, result)`` in completion order."""
-    from distributed import Client, as_completed
-
+    try:
+        from distributed import Client, as_completed
+    except ImportError:
+        raise ModalError(f"--scheduler {scheduler}: dask.distributed is not installed "
+                         "(pip install 'flexmodal[cluster]')") from None
     try:
         client = Client(scheduler, timeout="10s")
     except OSError as exc:

@@ -22,6 +22,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="output of flexmodal diagnose (docs/formats.md)")
     p.add_argument("--rig", metavar="RIG.toml", help="rig description, to draw mode shapes on the arm")
     p.add_argument("--title", default="flexmodal validation report", help="report title")
+    p.add_argument("--fmin", metavar="HZ", type=float,
+                   help="runs with FRFs: identify above this frequency (as identify --fmin)")
+    p.add_argument("--fmax", metavar="HZ", type=float,
+                   help="runs with FRFs: identify below this frequency (as identify --fmax)")
     p.add_argument("--oma-fmin", metavar="HZ", type=float,
                    help="output-only runs: identify (SSI, FDD) above this frequency (as identify --fmin)")
     p.add_argument("--oma-fmax", metavar="HZ", type=float,
@@ -50,6 +54,6 @@ def _run(args: argparse.Namespace) -> int:
     progress = None if quiet else (lambda msg: print(f"report: {msg}", file=sys.stderr))
     out = report(args.out, runs=args.runs, measured=args.measured, repeats=args.repeat, predictions=args.pred,
                  diagnosis=args.diagnosis, rig=args.rig, title=args.title, oma_fmin=args.oma_fmin,
-                 oma_fmax=args.oma_fmax, progress=progress)
+                 oma_fmax=args.oma_fmax, fmin=args.fmin, fmax=args.fmax, progress=progress)
     print(out)
     return 0

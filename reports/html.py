@@ -213,7 +213,7 @@ def _run_figures(runs: Sequence[RunSummary]) -> list[dict]:
             figs += _oma_figures(r)
             continue
         inputs = ", ".join(r.frf.inputs) or "force"
-        unit = plots.frf_unit(r.frf.quantity)
+        unit = r.frf_unit
         figs.append(_fig(plots.plot_frf(r.frf.freq_hz, r.frf.H, r.frf.coherence, r.frf.outputs, unit,
                                         title=f"{r.label} ({r.run.excitation})"),
                          f"{r.label}: FRF magnitude, phase and coherence (input {inputs}, "

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from matplotlib.figure import Figure
 
-from flexmodal.reports.plots import _COLOURS, plot_stabilisation
+from flexmodal.reports.plots import _COLOURS, log_axis, plot_stabilisation, text
 
 if TYPE_CHECKING:
     from flexmodal.modal.fdd import FddResult
@@ -23,7 +23,7 @@ if TYPE_CHECKING:
 def plot_fdd(result: FddResult, unit: str = "(m/s²)²/Hz", title: str = "") -> Figure:
     """Singular values of the output cross-spectral matrix [unit] against frequency [Hz], largest first,
     with the identified modes marked (Brincker et al. 2001)."""
-    fig = Figure(figsize=(8, 3.6))
+    fig = Figure(figsize=(8, 3.8), layout="constrained")
     ax = fig.subplots()
     for k, sv in enumerate(result.singular_values):
         ax.semilogy(result.freq_hz[1:], sv[1:], color=_COLOURS[k % len(_COLOURS)], lw=1.0 if k == 0 else 0.6,
@@ -33,12 +33,12 @@ def plot_fdd(result: FddResult, unit: str = "(m/s²)²/Hz", title: str = "") -> 
         ax.annotate(f"{f:.4g} Hz", (f, 1.0), xycoords=("data", "axes fraction"), fontsize=7, rotation=90,
                     va="top", ha="right")
     ax.set_xlabel("frequency [Hz]")
-    ax.set_ylabel(f"singular values of G_yy [{unit}]")
+    ax.set_ylabel(f"singular values of G_yy [{text(unit)}]")
+    log_axis(ax.yaxis)
     ax.set_xlim(float(result.freq_hz[1]), float(result.freq_hz[-1]))
     ax.legend(loc="upper right", fontsize=7, ncol=2)
     if title:
-        ax.set_title(title)
-    fig.subplots_adjust(left=0.1, right=0.97, bottom=0.14, top=0.9)
+        ax.set_title(text(title))
     return fig
 
 
@@ -46,9 +46,8 @@ def plot_ssi_stabilisation(result: SsiResult, freq_hz: np.ndarray, spectrum: np.
                            unit: str = "(m/s²)²/Hz", title: str = "") -> Figure:
     """SSI-cov poles per model order (filled: stable in frequency, damping and shape) over the singular
     values of the cross-spectral matrix ``spectrum`` [n_freq, n_outputs, n_refs] on ``freq_hz`` [Hz]."""
-    fig = plot_stabilisation(freq_hz, np.moveaxis(spectrum, 0, -1), result.stabilisation, unit, title=title)
-    fig.axes[1].set_ylabel(f"FDD singular values [{unit}]")
-    return fig
+    return plot_stabilisation(freq_hz, np.moveaxis(spectrum, 0, -1), result.stabilisation, unit, title=title,
+                              spectrum_name="FDD singular values")
 
 
 def oma_figures(oma: OmaResults, label: str, unit: str = "(m/s²)²/Hz") -> list[tuple[Figure | None, str]]:

@@ -1,4 +1,8 @@
-"""Report figures (matplotlib, Agg, no pyplot state): every function returns a ``Figure``.
+"""Report figures: every function returns a ``matplotlib.figure.Figure`` (no pyplot, no backend choice, no
+rcParams: library code changes no global matplotlib state, so figures display inline in Jupyter and a
+user's own mathtext keeps working).  Layouts are constrained (nothing leaves the canvas), log axes are
+labelled in plain text (:func:`log_axis`), labels from data escape ``$`` (:func:`text`), phase is drawn
+wrapped to ±180° with the line broken at each wrap (:func:`wrapped_phase_deg`).
 
 Units sit on every axis.  Frequencies in Hz, FRF magnitude in the FRF's own unit (accelerance
 (m/s²)/N by default), phase in degrees, coherence and MAC dimensionless (0..1), errors in %.
@@ -28,25 +32,22 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
-import matplotlib
+import numpy as np
+from matplotlib.axis import Axis
+from matplotlib.figure import Figure
+from matplotlib.ticker import Formatter, LogLocator, NullFormatter
 
-matplotlib.use("Agg")
-# Labels come from data (channel, sensor and configuration names): a "$" in them is text, not mathtext.
-matplotlib.rcParams["text.parse_math"] = False
-
-import numpy as np  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
-
-from flexmodal.modal.mac import mac, to_real  # noqa: E402
-from flexmodal.modal.peaks import cmif  # noqa: E402
-from flexmodal.modal.table import ModalTable  # noqa: E402
-from flexmodal.reports.errors import ReportError  # noqa: E402
+from flexmodal.modal.mac import mac, to_real
+from flexmodal.modal.peaks import cmif
+from flexmodal.modal.table import ModalTable
+from flexmodal.reports.errors import ReportError
 
 if TYPE_CHECKING:
     from flexmodal.compare.result import Diagnosis
 
 FRF_UNITS = {"accelerance": "(m/s²)/N", "mobility": "(m/s)/N", "receptance": "m/N"}
 _COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf")
+_SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
 
 
 def frf_unit(quantity: str) -> str:
@@ -54,10 +55,86 @@ def frf_unit(quantity: str) -> str:
     return FRF_UNITS.get(quantity, "FRF unit")
 
 
+def ratio_unit(out_units: Sequence[str], in_unit: str) -> str:
+    """Unit of a response per input from the channels' units: ``("g", "g"), "N"`` -> ``g/N``,
+    ``("m/s²",), "N"`` -> ``(m/s²)/N``; ``mixed/N`` when the outputs' units differ.
+
+    Examples
+    --------
+    >>> ratio_unit(["m/s^2", "m/s^2"], "N")
+    '(m/s²)/N'
+    >>> ratio_unit(["g"], "lbf")
+    'g/lbf'
+    """
+    units = {u.replace("^2", "²").replace("**2", "²") for u in out_units} or {"-"}
+    out = units.pop() if len(units) == 1 else "mixed"
+    return f"({out})/{in_unit}" if "/" in out else f"{out}/{in_unit}"
+
+
+def text(label: object) -> str:
+    """A label from data (channel, sensor, configuration names) as matplotlib text: a ``$`` in it is
+    a dollar sign, not the start of mathtext (per label; no global ``text.parse_math``)."""
+    return str(label).replace("$", r"\$")
+
+
+def tick_text(value: float) -> str:
+    """A log-axis tick as plain text (no mathtext): 0.01..9999 as decimals, else ``10⁵`` or ``2×10⁻³``.
+
+    Examples
+    --------
+    >>> [tick_text(v) for v in (0.05, 200.0, 1e5, 2e-3)]
+    ['0.05', '200', '10⁵', '2×10⁻³']
+    """
+    if value <= 0 or not math.isfinite(value):
+        return ""
+    if 0.01 <= value < 1e4:
+        return f"{value:g}"
+    exp = math.floor(math.log10(value) + 1e-9)
+    mantissa = round(value / 10.0 ** exp, 6)
+    power = "10" + str(exp).translate(_SUPERSCRIPT)
+    return power if mantissa == 1 else f"{mantissa:g}×{power}"
+
+
+class LogTicks(Formatter):
+    """Labels of a log axis in plain text (:func:`tick_text`): 1, 2 and 5 of each decade over up to
+    two and a half decades, decades only over more."""
+
+    def __call__(self, x: float, pos: int | None = None) -> str:
+        lo, hi = sorted(self.axis.get_view_interval())
+        if lo > 0 and hi / lo > 10 ** 2.5:
+            exp = math.floor(math.log10(x) + 1e-9)
+            if abs(x / 10.0 ** exp - 1.0) > 1e-6:
+                return ""
+        return tick_text(x)
+
+
+def log_axis(axis: Axis) -> None:
+    """Make a log-scaled ``axis`` readable without mathtext: ticks at 1, 2 and 5 per decade labelled
+    by :class:`LogTicks`, minor ticks unlabelled."""
+    axis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0), numticks=30))
+    axis.set_major_formatter(LogTicks())
+    axis.set_minor_formatter(NullFormatter())
+
+
+def wrapped_phase_deg(H: np.ndarray) -> np.ndarray:
+    """Phase of H [deg] wrapped to ±180, NaN at each line where it wraps, so a line drawn through it
+    breaks instead of jumping across the axis (the jump reads as corrupt data)."""
+    deg = np.degrees(np.angle(H))
+    jump = np.abs(np.diff(deg, axis=-1)) > 180.0
+    deg[..., 1:][jump] = np.nan
+    return deg
+
+
+def _phase_axis(ax) -> None:
+    ax.set_ylim(-185, 185)
+    ax.set_yticks([-180, -90, 0, 90, 180])
+    ax.set_ylabel("phase (wrapped) [deg]")
+
+
 def figure_png(fig: Figure, dpi: int = 100) -> bytes:
     """The figure as PNG bytes."""
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)  # layouts are set by each plot (no second "tight" draw)
+    fig.savefig(buf, format="png", dpi=dpi)  # constrained layout: everything inside the canvas
     return buf.getvalue()
 
 
@@ -69,47 +146,48 @@ def plot_frf(freq_hz: np.ndarray, H: np.ndarray, coherence: np.ndarray | None = 
         H = H[:, 0, :]
     labels = list(labels) or [f"out {i + 1}" for i in range(H.shape[0])]
     rows = 3 if coherence is not None else 2
-    fig = Figure(figsize=(8, 2.2 * rows + 0.6))
+    fig = Figure(figsize=(8, 2.2 * rows + 0.9), layout="constrained")
     axes = fig.subplots(rows, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1, 1][:rows]})
+    phase = wrapped_phase_deg(H)
     for i, label in enumerate(labels):
         c = _COLOURS[i % len(_COLOURS)]
-        axes[0].semilogy(freq_hz, np.abs(H[i]), color=c, lw=0.9, label=label)
-        axes[1].plot(freq_hz, np.degrees(np.angle(H[i])), color=c, lw=0.7)
+        axes[0].semilogy(freq_hz, np.abs(H[i]), color=c, lw=0.9, label=text(label))
+        axes[1].plot(freq_hz, phase[i], color=c, lw=0.7)
         if coherence is not None:
             axes[2].plot(freq_hz, np.asarray(coherence)[i], color=c, lw=0.7)
-    axes[0].set_ylabel(f"|H| [{unit}]")
-    axes[1].set_ylabel("phase [deg]")
-    axes[1].set_yticks([-180, -90, 0, 90, 180])
+    axes[0].set_ylabel(f"|H| [{text(unit)}]")
+    log_axis(axes[0].yaxis)
+    _phase_axis(axes[1])
     if coherence is not None:
         axes[2].set_ylabel("coherence [-]")
         axes[2].set_ylim(0, 1.05)
     axes[-1].set_xlabel("frequency [Hz]")
-    axes[0].legend(fontsize=7, ncol=min(len(labels), 5), loc="best")
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", fontsize=7,
+               ncol=min(len(labels), 6))
     for ax in axes:
         ax.grid(True, which="both", alpha=0.3)
     if title:
-        axes[0].set_title(title)
-    fig.subplots_adjust(left=0.11, right=0.97, bottom=0.08, top=0.94, hspace=0.12)
+        axes[0].set_title(text(title))
     return fig
 
 
 def plot_stabilisation(freq_hz: np.ndarray, H: np.ndarray, poles, unit: str = "(m/s²)/N",
                        title: str = "", selected: np.ndarray | None = None,
                        band_hz: tuple[float, float] | None = None,
-                       modes_hz: np.ndarray | None = None) -> Figure:
+                       modes_hz: np.ndarray | None = None, spectrum_name: str = "CMIF") -> Figure:
     """Stable (filled) and unstable (open) poles per model order over the CMIF of H [n_out, n_in, n_freq].
 
     ``poles``: a ``modal.lscf.Stabilisation`` (or anything with equal-length ``order``, ``freq_hz`` [Hz]
     and boolean ``stable`` arrays).  ``selected`` [n_poles] marks the poles of the chosen modes (black
     crosses), ``modes_hz`` the identified frequencies (dotted lines), ``band_hz`` the identification
-    band (shaded).
+    band (shaded); ``spectrum_name`` labels the singular-value axis (right).
     """
     stable = np.asarray(poles.stable, bool)
     if not np.size(poles.order) == np.size(poles.freq_hz) == stable.size:
         raise ReportError("stabilisation: order, freq_hz and stable differ in length")
     if selected is not None and np.size(selected) != stable.size:
         raise ReportError("stabilisation: the selected-pole mask differs in length from the poles")
-    fig = Figure(figsize=(8, 4))
+    fig = Figure(figsize=(8, 4.6), layout="constrained")
     ax = fig.subplots()
     if band_hz is not None:
         ax.axvspan(*band_hz, color=_COLOURS[2], alpha=0.08, lw=0, label="identification band")
@@ -127,13 +205,16 @@ def plot_stabilisation(freq_hz: np.ndarray, H: np.ndarray, poles, unit: str = "(
     mif_ax = ax.twinx()
     for k, sv in enumerate(cmif(H)):
         mif_ax.semilogy(freq_hz, sv, color=_COLOURS[0], lw=1.0 if k == 0 else 0.6,
-                        alpha=1.0 if k == 0 else 0.5)
-    mif_ax.set_ylabel(f"CMIF (singular values of H) [{unit}]")
+                        alpha=1.0 if k == 0 else 0.5,
+                        label=f"{spectrum_name} (singular values)" if k == 0 else None)
+    mif_ax.set_ylabel(f"{spectrum_name} [{text(unit)}]", color=_COLOURS[0])
+    log_axis(mif_ax.yaxis)
     ax.set_xlim(float(np.min(freq_hz)), float(np.max(freq_hz)))
-    ax.legend(loc="upper left", fontsize=7)
+    handles, names = ax.get_legend_handles_labels()
+    more, more_names = mif_ax.get_legend_handles_labels()
+    fig.legend(handles + more, names + more_names, loc="outside lower center", fontsize=7, ncol=3)
     if title:
-        ax.set_title(title)
-    fig.subplots_adjust(left=0.08, right=0.88, bottom=0.12, top=0.9)
+        ax.set_title(text(title))
     return fig
 
 
@@ -149,25 +230,26 @@ def plot_synthesis(freq_hz: np.ndarray, H: np.ndarray, synthesis: np.ndarray,
                           "differ")
     H, S = H[:, 0, :], S[:, 0, :]
     labels = list(labels) or [f"out {i + 1}" for i in range(H.shape[0])]
-    fig = Figure(figsize=(8, 5))
+    fig = Figure(figsize=(8, 5.6), layout="constrained")
     mag, ph = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
-    for i in range(min(max_frfs, H.shape[0])):
+    shown = min(max_frfs, H.shape[0])
+    ph_meas, ph_syn = wrapped_phase_deg(H[:shown]), wrapped_phase_deg(S[:shown])
+    for i in range(shown):
         c = _COLOURS[i % len(_COLOURS)]
         corr = f" (FRAC {float(np.asarray(correlation)[i, 0]):.3f})" if correlation is not None else ""
-        mag.semilogy(freq_hz, np.abs(H[i]), color=c, lw=0.9, label=f"{labels[i]} measured{corr}")
-        mag.semilogy(freq_hz, np.abs(S[i]), color=c, lw=1.1, ls="--", label=f"{labels[i]} synthesised")
-        ph.plot(freq_hz, np.degrees(np.angle(H[i])), color=c, lw=0.7)
-        ph.plot(freq_hz, np.degrees(np.angle(S[i])), color=c, lw=0.9, ls="--")
-    mag.set_ylabel(f"|H| [{unit}]")
-    ph.set_ylabel("phase [deg]")
-    ph.set_yticks([-180, -90, 0, 90, 180])
+        mag.semilogy(freq_hz, np.abs(H[i]), color=c, lw=0.9, label=f"{text(labels[i])} measured{corr}")
+        mag.semilogy(freq_hz, np.abs(S[i]), color=c, lw=1.1, ls="--", label=f"{text(labels[i])} synthesised")
+        ph.plot(freq_hz, ph_meas[i], color=c, lw=0.7)
+        ph.plot(freq_hz, ph_syn[i], color=c, lw=0.9, ls="--")
+    mag.set_ylabel(f"|H| [{text(unit)}]")
+    log_axis(mag.yaxis)
+    _phase_axis(ph)
     ph.set_xlabel("frequency [Hz]")
-    mag.legend(fontsize=6, ncol=2, loc="best")
+    fig.legend(*mag.get_legend_handles_labels(), loc="outside lower center", fontsize=6, ncol=3)
     for ax in (mag, ph):
         ax.grid(True, which="both", alpha=0.3)
     if title:
-        mag.set_title(title)
-    fig.subplots_adjust(left=0.11, right=0.97, bottom=0.1, top=0.93, hspace=0.1)
+        mag.set_title(text(title))
     return fig
 
 
@@ -184,18 +266,18 @@ def plot_mac(phi_a: np.ndarray, phi_b: np.ndarray | None = None, labels_a: Seque
     la = list(labels_a) or [str(k + 1) for k in range(m.shape[0])]
     lb = list(labels_b) or ([*la] if phi_b is None else [str(k + 1) for k in range(m.shape[1])])
     size = 2.2 + 0.45 * max(m.shape)
-    fig = Figure(figsize=(min(size + 1.2, 9), min(size, 8)))
+    fig = Figure(figsize=(min(size + 1.2, 9), min(size, 8)), layout="constrained")
     ax = fig.subplots()
     im = ax.imshow(m, vmin=0, vmax=1, cmap="Greys", origin="upper")
     for (i, j), v in np.ndenumerate(m):
         ax.text(j, i, f"{v:.2f}", ha="center", va="center", fontsize=7, color="w" if v > 0.5 else "k")
-    ax.set_xticks(range(m.shape[1]), lb, rotation=45 if max(len(t) for t in lb) > 4 else 0, fontsize=7)
-    ax.set_yticks(range(m.shape[0]), la, fontsize=7)
-    ax.set_xlabel(name_b)
-    ax.set_ylabel(name_a)
+    ax.set_xticks(range(m.shape[1]), [text(t) for t in lb], rotation=45 if max(len(t) for t in lb) > 4 else 0,
+                  fontsize=7, ha="right" if max(len(t) for t in lb) > 4 else "center")
+    ax.set_yticks(range(m.shape[0]), [text(t) for t in la], fontsize=7)
+    ax.set_xlabel(text(name_b))
+    ax.set_ylabel(text(name_a))
     fig.colorbar(im, ax=ax, label="MAC [-]", fraction=0.046, pad=0.04)
-    ax.set_title(title or ("AutoMAC" if phi_b is None else "MAC"), fontsize=9)
-    fig.tight_layout()
+    ax.set_title(text(title) if title else ("AutoMAC" if phi_b is None else "MAC"), fontsize=9)
     return fig
 
 
@@ -259,14 +341,14 @@ def plot_freq_vs_pose(measured: Sequence[ModalTable], predictions: Sequence[tupl
     ``measured`` may hold repeated tests (several tables over the same configurations): points are the
     mean, error bars ±1 sample standard deviation (or a ``freq_sd_hz`` column when given).
     """
-    fig = Figure(figsize=(8, 4.5))
+    fig = Figure(figsize=(8, 4.5), layout="constrained")
     ax = fig.subplots()
     for k, (name, table) in enumerate(predictions):
         x = _pose_values(table, pose_var)
         df = table.frame.assign(x=table.frame["config"].map(x)).sort_values("x")
         colour = _COLOURS[(k + 1) % len(_COLOURS)]
         for j, (mode, g) in enumerate(df.groupby("mode")):
-            ax.plot(g["x"], g["freq_hz"], "-", color=colour, lw=1.2, label=name if j == 0 else None)
+            ax.plot(g["x"], g["freq_hz"], "-", color=colour, lw=1.2, label=text(name) if j == 0 else None)
             if k == 0:
                 ax.annotate(f"mode {mode}", (g["x"].iloc[-1], g["freq_hz"].iloc[-1]), xytext=(4, 0),
                             textcoords="offset points", fontsize=7, va="center")
@@ -275,14 +357,15 @@ def plot_freq_vs_pose(measured: Sequence[ModalTable], predictions: Sequence[tupl
         ax.errorbar(stats["x"].to_numpy(float), stats["mean"].to_numpy(float),
                     yerr=stats["std"].to_numpy(float), fmt="o", color="k", ms=4, capsize=3,
                     label="experiment (mean ± 1 sd)")
-    ax.set_xlabel(f"{pose_var} [{unit}]")
+    ax.set_xlabel(f"{text(pose_var)} [{text(unit)}]")
     ax.set_ylabel("natural frequency [Hz]")
     ax.set_yscale("log")
+    log_axis(ax.yaxis)
+    ax.margins(x=0.08)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
+    fig.legend(*ax.get_legend_handles_labels(), loc="outside lower center", fontsize=8, ncol=4)
     if title:
-        ax.set_title(title)
-    fig.subplots_adjust(left=0.1, right=0.92, bottom=0.12, top=0.92)
+        ax.set_title(text(title))
     return fig
 
 
@@ -295,16 +378,16 @@ def plot_trends(table: ModalTable, x_var: str, group_var: str | None = None, x_u
     modes = sorted(df["mode"].unique())
     cols = min(3, len(modes))
     rows = math.ceil(len(modes) / cols)
-    fig = Figure(figsize=(3.2 * cols, 2.6 * rows + 0.4))
+    fig = Figure(figsize=(3.2 * cols, 2.6 * rows + 0.4), layout="constrained")
     axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False)).ravel()
     for ax, mode in zip(axes, modes, strict=False):
         sub = df[df["mode"] == mode]
         for k, (gval, g) in enumerate(sub.groupby("g")):
             g = g.sort_values("x")
-            label = f"{group_var} = {gval:g} {group_unit}" if group_var else None
+            label = text(f"{group_var} = {gval:g} {group_unit}") if group_var else None
             ax.plot(g["x"], g["freq_hz"], "o-", ms=3, color=_COLOURS[k % len(_COLOURS)], label=label)
         ax.set_title(f"mode {mode}", fontsize=9)
-        ax.set_xlabel(f"{x_var} [{x_unit}]")
+        ax.set_xlabel(f"{text(x_var)} [{text(x_unit)}]")
         ax.set_ylabel("frequency [Hz]")
         ax.grid(True, alpha=0.3)
     for ax in axes[len(modes):]:
@@ -312,8 +395,7 @@ def plot_trends(table: ModalTable, x_var: str, group_var: str | None = None, x_u
     if group_var:
         axes[0].legend(fontsize=7)
     if title:
-        fig.suptitle(title)
-    fig.tight_layout()
+        fig.suptitle(text(title))
     return fig
 
 
@@ -338,7 +420,7 @@ def plot_mode_shapes(arm, measured: ModalTable, config: str, title: str = "") ->
     n = shapes.shape[1]
     cols = min(3, n)
     rows = math.ceil(n / cols)
-    fig = Figure(figsize=(3.4 * cols, 3.0 * rows + 0.4))
+    fig = Figure(figsize=(3.4 * cols, 3.0 * rows + 0.9), layout="constrained")
     axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False)).ravel()
     for k, ax in enumerate(axes[:n]):
         meas = real_shapes[:, k]
@@ -351,19 +433,19 @@ def plot_mode_shapes(arm, measured: ModalTable, config: str, title: str = "") ->
         ax.plot(curve_xy[:, 0], curve_xy[:, 1], color="0.75", lw=2, label="undeformed arm")
         for i, (xy, d) in enumerate(zip(arm.link_xy, disp, strict=True)):
             ax.plot(*(xy + scale * d[:, None] * arm.link_normal[i]).T, color=_COLOURS[0], lw=1.3,
-                    label=f"FE mode {j + 1} ({arm.freq_hz[j]:.1f} Hz)" if i == 0 else None)
+                    label="FE model, best-matching mode" if i == 0 else None)
         pts = arm.sensor_xy + scale * meas[:, None] * arm.sensor_dir
         ax.plot(pts[:, 0], pts[:, 1], "o", color=_COLOURS[1], ms=5, label="measured")
-        ax.set_title(f"mode {k + 1}: {freqs[k]:.2f} Hz, MAC {macs[k, j]:.2f} [-]", fontsize=9)
+        ax.set_title(f"mode {k + 1}: {freqs[k]:.2f} Hz\nFE mode {j + 1}: {arm.freq_hz[j]:.1f} Hz, "
+                     f"MAC {macs[k, j]:.2f} [-]", fontsize=8)
         ax.set_aspect("equal", adjustable="datalim")
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")
         ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=6, loc="best")
     for ax in axes[n:]:
         ax.set_visible(False)
-    fig.suptitle(title or f"{config}: mode shapes (displacement exaggerated)")
-    fig.tight_layout()
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", fontsize=7, ncol=3)
+    fig.suptitle(text(title or f"{config}: mode shapes (displacement exaggerated)"))
     return fig
 
 
@@ -384,7 +466,7 @@ def plot_gap(diagnosis: Diagnosis, title: str = "") -> Figure:
     held-out RMS error [%] before and after (docs/formats.md ``verdict``)."""
     modes, before, after = gap_per_mode(diagnosis)
     verdict = diagnosis.verdict
-    fig = Figure(figsize=(8, 3.6))
+    fig = Figure(figsize=(8, 3.8), layout="constrained")
     ax, ax2 = fig.subplots(1, 2, gridspec_kw={"width_ratios": [3, 1]})
     x = np.arange(len(modes))
     w = 0.4 if after is not None else 0.6
@@ -392,7 +474,7 @@ def plot_gap(diagnosis: Diagnosis, title: str = "") -> Figure:
     bars = [ax.bar(x - shift, 100 * before, w, color="0.6", label="nominal model")]
     if after is not None:
         bars.append(ax.bar(x + w / 2, 100 * after, w, color=_COLOURS[0],
-                           label=f"with {verdict.effect}"))
+                           label=text(f"with {verdict.effect}")))
     for container in bars:
         ax.bar_label(container, fmt="{:.3g} %", fontsize=7)
     ax.set_xticks(x, [f"mode {m}" for m in modes])
@@ -409,6 +491,5 @@ def plot_gap(diagnosis: Diagnosis, title: str = "") -> Figure:
     else:
         ax2.set_visible(False)
     named = f"{verdict.effect} at {verdict.location}" if verdict.location else verdict.effect
-    fig.suptitle(title or f"gap per mode: {named}")
-    fig.tight_layout()
+    fig.suptitle(text(title or f"gap per mode: {named}"))
     return fig

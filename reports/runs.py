@@ -40,6 +40,18 @@ class RunSummary:
         return f"{self.run.path.name}::{self.run.run_id}"
 
     @property
+    def frf_unit(self) -> str:
+        """Unit of the run's FRFs from its channels' units (outputs per input: ``g/N``, ``(m/s²)/N``)."""
+        from flexmodal.reports.plots import frf_unit, ratio_unit
+
+        if self.frf is None:
+            return ""
+        units = {c.name: c.unit for c in self.run.channels}
+        if not all(n in units for n in (*self.frf.outputs, *self.frf.inputs[:1])) or not self.frf.inputs:
+            return frf_unit(self.frf.quantity)
+        return ratio_unit([units[n] for n in self.frf.outputs], units[self.frf.inputs[0]])
+
+    @property
     def n_samples(self) -> int:
         return int(np.shape(self.run.samples)[0])
 

@@ -1,4 +1,4 @@
-"""Shared test fixtures: paths to the repository, ../shared and the example rigs."""
+"""Shared test fixtures: paths to the repository, the committed test data and the example rigs."""
 
 from __future__ import annotations
 
@@ -7,15 +7,14 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
-SHARED = REPO.parent / "shared"
+DATA = REPO / "tests" / "data"
 RIGS = REPO / "examples" / "rigs"
 
 
 @pytest.fixture(scope="session")
-def shared_dir() -> Path:
-    """../shared beside the repository (seeds, tables, CONTRACT, real data)."""
-    assert SHARED.is_dir(), f"expected ../shared beside the repository at {SHARED}"
-    return SHARED
+def data_dir() -> Path:
+    """tests/data: the seed papers' tables (``seeds/``), a real impact record (``real/``) and others."""
+    return DATA
 
 
 @pytest.fixture(scope="session")

@@ -42,8 +42,8 @@ def run_cli(argv: list[str], capsys) -> str:
 
 
 @pytest.fixture()
-def table31(shared_dir, tmp_path):
-    seed = pd.read_csv(shared_dir / "seeds/tables/seed001_table3_1_system_frequencies.csv")
+def table31(data_dir, tmp_path):
+    seed = pd.read_csv(data_dir / "seeds/seed001_table3_1_system_frequencies.csv")
     paths = seed_to_modal_tables(seed, {**TABLE31, "experiment_hz": "experiment"}, tmp_path)
     return seed, paths
 
@@ -137,9 +137,9 @@ class _Cells(HTMLParser):
             self._cell.append(data)
 
 
-def test_table_2_sources_layout(shared_dir, tmp_path, capsys):
-    freq = pd.read_csv(shared_dir / "seeds/tables/seed000_table2_frequencies.csv")
-    damping = pd.read_csv(shared_dir / "seeds/tables/seed000_damping_logdec.csv")
+def test_table_2_sources_layout(data_dir, tmp_path, capsys):
+    freq = pd.read_csv(data_dir / "seeds/seed000_table2_frequencies.csv")
+    damping = pd.read_csv(data_dir / "seeds/seed000_damping_logdec.csv")
     wide = freq.pivot(index="mode", columns="source", values="freq_hz").reset_index()
     wide = wide.merge(damping, on="mode")
     paths = seed_to_modal_tables(wide, {"impact_experiment": "experiment", "fe_undamped": "fe-undamped",

@@ -116,3 +116,17 @@ def test_modbus_rtu_example(tmp_path):
     steps = np.array([c.step for c in src.channels])
     expected = src.physical(0, 200)[:, [0, 6]]
     assert (np.abs(run.samples[:, 1:] - expected) / steps[[0, 6]]).max() <= 1.0
+
+
+def test_api_acquire_starts_an_example_sessions_simulator_with_no_extra_import(tmp_path):
+    """``fm.acquire`` on examples/sessions/serial-sim.toml in a fresh interpreter that imports only
+    ``flexmodal``: the simulator launcher is found (and flexmodal.fixtures loaded) on demand."""
+    code = ("import sys, flexmodal as fm\n"
+            "assert 'flexmodal.fixtures' not in sys.modules\n"
+            f"s = fm.acquire({str(EXAMPLES / 'serial-sim.toml')!r}, {str(tmp_path / 'run.h5')!r}, "
+            "duration_s=0.5)\n"
+            "print(s.run_id)\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    run = read_run(tmp_path / "run.h5", proc.stdout.strip())
+    assert run.samples.shape[0] >= 1024 and run.samples.shape[1] == 7

@@ -13,8 +13,8 @@ RIG = "examples/rigs/seed003_two_link.toml"
 
 
 @pytest.fixture()
-def measured(tmp_path, shared_dir):
-    t3 = pd.read_csv(shared_dir / "seeds" / "tables" / "seed003_table3_experimental.csv")
+def measured(tmp_path, data_dir):
+    t3 = pd.read_csv(data_dir / "seeds" / "seed003_table3_experimental.csv")
     rows = [{"config": f"theta{int(r.theta_deg)}", "mode": m, "freq_hz": r[f"f{m}_hz"],
              "pose.theta_deg": r.theta_deg} for _, r in t3.iterrows() for m in (1, 2)]
     return tmp_path, pd.DataFrame(rows)

@@ -13,17 +13,17 @@ from flexmodal.modal.table import ModalTable
 from flexmodal.models.rig import load_rig, parse_rig
 
 
-def seed003_table(shared_dir) -> ModalTable:
-    t3 = pd.read_csv(shared_dir / "seeds" / "tables" / "seed003_table3_experimental.csv")
+def seed003_table(data_dir) -> ModalTable:
+    t3 = pd.read_csv(data_dir / "seeds" / "seed003_table3_experimental.csv")
     recs = [{"config": f"theta{int(r.theta_deg)}", "mode": m, "freq_hz": r[f"f{m}_hz"],
              "source": "experiment", "pose.theta_deg": r.theta_deg} for _, r in t3.iterrows() for m in (1, 2)]
     return ModalTable.from_records(recs, "seed003 Table 3")
 
 
 @pytest.fixture(scope="module")
-def seed003_result(shared_dir, rigs_dir):
+def seed003_result(data_dir, rigs_dir):
     rig = load_rig(rigs_dir / "seed003_two_link.toml")
-    return diagnose(rig, seed003_table(shared_dir), holdout="theta30,theta90,theta150")
+    return diagnose(rig, seed003_table(data_dir), holdout="theta30,theta90,theta150")
 
 
 def test_seed003_rigid_joint_gap_is_on_f2_at_the_elbow(seed003_result):
@@ -124,9 +124,9 @@ def test_seed002_f2_over_f1_points_at_the_hub_inertia():
     assert top.params["inertia_kgm2"] == pytest.approx(J_hub, rel=0.01)
 
 
-def test_seed000_damping_alone_cannot_explain_table2(shared_dir):
-    t2 = pd.read_csv(shared_dir / "seeds" / "tables" / "seed000_table2_frequencies.csv")
-    zeta = pd.read_csv(shared_dir / "seeds" / "tables" / "seed000_damping_logdec.csv")["damping_ratio"]
+def test_seed000_damping_alone_cannot_explain_table2(data_dir):
+    t2 = pd.read_csv(data_dir / "seeds" / "seed000_table2_frequencies.csv")
+    zeta = pd.read_csv(data_dir / "seeds" / "seed000_damping_logdec.csv")["damping_ratio"]
     zeta = zeta.to_numpy()
     fe = t2[t2.source == "fe_undamped"].freq_hz.to_numpy()
     exp = t2[t2.source == "impact_experiment"].freq_hz.to_numpy()
@@ -137,7 +137,7 @@ def test_seed000_damping_alone_cannot_explain_table2(shared_dir):
 
 
 @pytest.mark.slow
-def test_docs_quote_the_seed003_numbers_the_script_regenerates(shared_dir):
+def test_docs_quote_the_seed003_numbers_the_script_regenerates(data_dir):
     """docs/diagnosis.md's seed 003 paragraph is exactly what benchmarks/diagnosis_doc.py computes now."""
     import importlib.util
 
@@ -146,4 +146,4 @@ def test_docs_quote_the_seed003_numbers_the_script_regenerates(shared_dir):
     spec = importlib.util.spec_from_file_location("diagnosis_doc", REPO / "benchmarks" / "diagnosis_doc.py")
     doc = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(doc)
-    assert doc.doc_block("seed003") == doc.seed003_block(shared_dir)
+    assert doc.doc_block("seed003") == doc.seed003_block(data_dir)

@@ -1,5 +1,5 @@
 """The layout of docs/architecture.md, checked on the source (ast): imports only go down the data flow
-daq <- modal <- models <- compare <- reports <- api <- fixtures <- app (every */cli.py with app);
+checked_io <- daq <- modal <- models <- compare <- reports <- api <- fixtures <- app (*/cli.py with app);
 reports renders and computes nothing; docs stand alone (no reference to a contract file that is not in
 the repository, every docs path named in --help exists)."""
 
@@ -15,18 +15,19 @@ from conftest import REPO
 
 from flexmodal.app import build_parser
 
-LAYERS = ("daq", "modal", "models", "compare", "reports", "api", "fixtures", "app")
+LAYERS = ("checked_io", "daq", "modal", "models", "compare", "reports", "api", "fixtures", "app")
 CLI_MODULES = ("cli.py", "diagnosis_cli.py", "__main__.py")
 # what reports/ may import from below it: data types and small display helpers, no solver
 REPORT_IMPORTS = {"flexmodal.compare.tables", "flexmodal.modal.table", "flexmodal.modal.mac",
                   "flexmodal.modal.peaks", "flexmodal.valid_text", "flexmodal.valid_output",
-                  "flexmodal.compare.result", "flexmodal.compare.errors"}   # the diagnosis records
+                  "flexmodal.compare.result", "flexmodal.compare.errors",
+                  "flexmodal.checked_io.errors"}   # the diagnosis records
 
 
 def _sources() -> list[Path]:
     """Every module of the installed package but its root ``__init__.py`` (tests, benchmarks and any
     build/ output are not part of it)."""
-    packages = {"daq", "modal", "models", "compare", "reports", "fixtures"}
+    packages = {"checked_io", "daq", "modal", "models", "compare", "reports", "fixtures"}
     return sorted(p for p in REPO.rglob("*.py") if p.relative_to(REPO).parts[0] in packages
                   or p.relative_to(REPO) in (Path("app.py"), Path("api.py"), Path("__main__.py")))
 
@@ -113,3 +114,27 @@ def test_docs_stand_alone():
     formats = (REPO / "docs" / "formats.md").read_text(encoding="utf-8")
     for heading in ("## Command conventions", "## Modal table CSV", "## Rig TOML", "## Diagnosis JSON"):
         assert heading in formats
+
+
+def test_examples_hold_no_symlinks_and_the_demo_rig_copy_is_the_fixture():
+    """examples/ works from a plain copy of the tree (zip, Windows): no links; the demo arm users read
+    there is byte for byte the one the demo simulates (copy fixtures/rigs/demo_arm.toml when it changes)."""
+    assert [str(p) for p in (REPO / "examples").rglob("*") if p.is_symlink()] == []
+    assert ((REPO / "examples" / "rigs" / "demo_arm.toml").read_bytes()
+            == (REPO / "fixtures" / "rigs" / "demo_arm.toml").read_bytes())
+
+
+def test_every_package_error_is_one_of_the_family():
+    """One error family: each package's error type subclasses FlexmodalError, which the CLI catches."""
+    import importlib
+
+    from flexmodal.checked_io.errors import FlexmodalError
+
+    found = {}
+    for path in sorted(REPO.glob("*/errors.py")):
+        module = importlib.import_module(f"flexmodal.{path.parent.name}.errors")
+        found |= {name: obj for name, obj in vars(module).items() if isinstance(obj, type)
+                  and issubclass(obj, Exception) and obj.__module__ == module.__name__}
+    assert set(found) - {"FlexmodalError"} == {"DaqError", "ModalError", "ModelError", "CompareError",
+                                               "ReportError", "FixtureError"}
+    assert all(issubclass(cls, FlexmodalError) for cls in found.values())

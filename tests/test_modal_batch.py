@@ -174,3 +174,13 @@ def test_hundred_runs_on_a_dask_cli_scheduler_and_two_workers(tmp_path, capsys, 
     assert len(stored) == 100
     for a, b in zip(serial, stored, strict=True):
         assert np.array_equal(a.H, b.H) and np.array_equal(a.coherence, b.coherence)
+
+
+def test_scheduler_without_dask_installed_is_a_one_line_hint(tmp_path, monkeypatch, capsys):
+    """dask is the optional extra flexmodal[cluster]: without it, --scheduler exits 2 with one line
+    naming the extra (``sys.modules[...] = None`` makes the import fail as if it were not installed)."""
+    path = _runs_file(tmp_path / "runs.h5", ["r0"])
+    monkeypatch.setitem(sys.modules, "distributed", None)
+    assert main(["--quiet", "frf", str(path), "--scheduler", "127.0.0.1:1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "pip install 'flexmodal[cluster]'" in err and "127.0.0.1:1" in err

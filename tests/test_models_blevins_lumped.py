@@ -21,8 +21,8 @@ I_M4 = (0.040**4 - 0.0378**4) / 12
 A_M2 = 0.040**2 - 0.0378**2
 
 
-def test_seed003_table7_within_0_1_percent(shared_dir):
-    table = pd.read_csv(shared_dir / "seeds/tables/seed003_table7_blevins_theta0.csv")
+def test_seed003_table7_within_0_1_percent(data_dir):
+    table = pd.read_csv(data_dir / "seeds/seed003_table7_blevins_theta0.csv")
     f = beam_frequencies_hz("clamped-free", 1.36, E * I_M4, RHO * A_M2, 4)
     assert np.max(np.abs(f / table.freq_hz.to_numpy() - 1)) < 1e-3
     assert lambdas("clamped-free", 4) == pytest.approx(table["lambda"].to_numpy(), rel=1e-4)

@@ -137,9 +137,9 @@ def test_point_masses_and_sensor_mass_lower_the_frequencies(rigs_dir):
     assert f1 == pytest.approx(lam_to_hz(1.24792), rel=2e-4)
 
 
-def test_seed003_rigid_joint_table6_within_half_a_percent(rigs_dir, shared_dir):
+def test_seed003_rigid_joint_table6_within_half_a_percent(rigs_dir, data_dir):
     rig = load_rig(rigs_dir / "seed003_two_link.toml")
-    table = pd.read_csv(shared_dir / "seeds/tables/seed003_table6_rigid_joint_fem.csv")
+    table = pd.read_csv(data_dir / "seeds/seed003_table6_rigid_joint_fem.csv")
     ansys = table[["f1_hz", "f2_hz", "f3_hz", "f4_hz"]].to_numpy()
     ours = np.array([m.freq_hz for m in frame_modes_many(rig, [{"theta_deg": t} for t in table.theta_deg])])
     err = np.abs(ours / ansys - 1)

@@ -52,10 +52,10 @@ def test_freq_vs_pose_error_bars_are_mean_and_sample_sd_of_repeats():
     assert_units(fig)
 
 
-def test_freq_vs_pose_uses_a_stored_standard_deviation(shared_dir):
+def test_freq_vs_pose_uses_a_stored_standard_deviation(data_dir):
     import pandas as pd
 
-    rep = pd.read_csv(shared_dir / "seeds/tables/seed003_table4_repeatability.csv")
+    rep = pd.read_csv(data_dir / "seeds/seed003_table4_repeatability.csv")
     t = table([{"config": f"theta{r.theta_deg}", "mode": r.mode, "freq_hz": r.mean_hz, "freq_sd_hz": r.sd_hz,
                 "pose.theta_deg": r.theta_deg} for r in rep.itertuples()])
     fig = plots.plot_freq_vs_pose([t], [], "theta_deg")

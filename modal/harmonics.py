@@ -1,0 +1,141 @@
+"""Motor and gear harmonics in the response of a moving arm: orders of a joint's speed, and the
+amplitude statistics that tell a sinusoid from a mode's random response.
+
+A harmonic of order ``o`` of a joint turning at ``v`` rev/s sits at ``f = o v`` Hz: as the joint speeds
+up and slows down its frequency sweeps, while a mode's follows the pose.  The kurtosis
+``E[x^4] / E[x^2]^2`` of a signal band-passed around a peak is 1.5 for a sinusoid (constant envelope)
+and 3 for the Gaussian random response of a mode to broadband excitation (Brincker & Ventura,
+*Introduction to Operational Modal Analysis*, 2015, §10.4; Jacobsen, Andersen & Brincker 2006, IMAC
+XXIV, "Using EFDD as a robust technique for deterministic excitation in OMA").
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import scipy.fft
+import scipy.ndimage
+import scipy.signal
+
+MIN_POLES = 5            # orders are looked for in at least this many windows ...
+MIN_SPEED_SHARE = 0.2    # ... where the joint turns faster than this share of its fastest
+WHITEN_LINES = 31        # each window's order power is divided by its running median over this many lines
+ORDER_PROMINENCE = 10.0  # an order peak stands this many times above its surroundings (10 dB)
+
+
+def is_order(freq_hz: np.ndarray, speed_rev_per_s: float, orders: Sequence[float], tol: float) -> np.ndarray:
+    """For each frequency [Hz], the order (of ``orders``, per revolution) within relative ``tol`` of
+    ``freq_hz / speed_rev_per_s``, else 0.
+
+    Examples
+    --------
+    >>> is_order(np.array([30.0, 45.0]), 0.5, (60.0, 80.0), 0.02).tolist()
+    [60.0, 0.0]
+    """
+    f = np.asarray(freq_hz, float)
+    out = np.zeros(f.size)
+    if speed_rev_per_s <= 0 or not len(orders):
+        return out
+    o = np.asarray(orders, float)
+    err = np.abs(f[:, None] / (o[None, :] * speed_rev_per_s) - 1.0)
+    best = np.argmin(err, axis=1)
+    hit = err[np.arange(f.size), best] < tol
+    out[hit] = o[best[hit]]
+    return out
+
+
+def angle_resampled(y: np.ndarray, sample_rate_hz: float, angle_deg: np.ndarray) -> tuple[np.ndarray, float]:
+    """The window ``y`` [n, n_channels] resampled at ``n`` equal steps of joint angle (computed order
+    tracking, Fyfe & Munck 1997, Mech. Syst. Signal Process. 11(2)): the angle is the least-squares
+    quadratic through the encoder samples ``angle_deg`` [n] (sub-count resolution), monotone over a
+    window where the joint does not reverse.  Returns the resampled window and its angle span [rev]."""
+    n = y.shape[0]
+    t = np.arange(n) / sample_rate_hz
+    fit = np.polyval(np.polyfit(t, angle_deg, 2), t)
+    if fit[-1] < fit[0]:
+        fit = -fit
+    fit = np.maximum.accumulate(fit)
+    grid = np.linspace(fit[0], fit[-1], n)
+    at = np.interp(grid, fit, t) * sample_rate_hz
+    i = np.clip(at.astype(int), 0, n - 2)
+    w = (at - i)[:, None]
+    return (1 - w) * y[i] + w * y[i + 1], float(fit[-1] - fit[0]) / 360.0
+
+
+def order_spectrum(windows: Sequence[tuple[np.ndarray, np.ndarray]], sample_rate_hz: float,
+                   orders: np.ndarray) -> np.ndarray:
+    """Mean whitened order spectrum on ``orders`` [per revolution] of the ``windows`` (each a record
+    [n, n_channels] and its joint angle [n] in degrees): every window resampled in angle
+    (:func:`angle_resampled`), its Hann-windowed power summed over channels and divided by its running
+    median over ``WHITEN_LINES`` lines (a line stands out of it, a mode's broad peak much less),
+    interpolated onto ``orders`` (log-linear); NaN where fewer than ``MIN_POLES`` windows reach.  A
+    harmonic adds up at its order in every window; a mode, whose frequency does not follow the speed,
+    spreads over many orders."""
+    total = np.zeros(orders.size)
+    count = np.zeros(orders.size)
+    for y, angle in windows:   # a loop over windows
+        x, revs = angle_resampled(y - y.mean(axis=0), sample_rate_hz, angle)
+        if revs <= 0:
+            continue
+        power = np.sum(np.abs(scipy.fft.rfft(x * np.hanning(x.shape[0])[:, None], axis=0)) ** 2, axis=1)
+        o = np.arange(power.size) / revs
+        inside = (orders >= o[1]) & (orders <= o[-1])
+        white = power / scipy.ndimage.median_filter(power, WHITEN_LINES, mode="nearest")
+        total[inside] += np.interp(np.log(orders[inside]), np.log(o[1:]), white[1:])
+        count[inside] += 1
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(count >= MIN_POLES, total / np.maximum(count, 1), np.nan)
+
+
+def find_orders(windows: Sequence[tuple[np.ndarray, np.ndarray]], sample_rate_hz: float,
+                speed_rev_per_s: np.ndarray, band_hz: tuple[float, float], tol: float) -> tuple[float, ...]:
+    """Harmonic orders [per revolution] of a joint: the windows where it turns (``speed_rev_per_s``
+    [n_windows] above ``MIN_SPEED_SHARE`` of the fastest) are split in thirds by speed, and the
+    orders are the peaks of the smaller of the slowest and fastest thirds' :func:`order_spectrum` standing
+    ``ORDER_PROMINENCE`` times above their surroundings (a harmonic stands at its order at every speed; a
+    mode's apparent order ``f / v`` differs between the thirds), between ``band_hz`` [Hz] at the fastest
+    speed and at the slowest.  The order grid is log-spaced in steps of ``tol / 4``."""
+    v = np.asarray(speed_rev_per_s, float)
+    keep = np.flatnonzero(v > MIN_SPEED_SHARE * v.max(initial=0.0))
+    if keep.size < MIN_POLES:
+        return ()
+    lo, hi = max(band_hz[0], 1.0) / v.max(), band_hz[1] / v[keep].min()
+    orders = np.exp(np.arange(np.log(lo), np.log(hi), tol / 4))
+    third, two_thirds = np.percentile(v[keep], [100 / 3, 200 / 3])
+    slow, fast = keep[v[keep] <= third], keep[v[keep] >= two_thirds]
+    spec = np.fmin(order_spectrum([windows[k] for k in slow], sample_rate_hz, orders),
+                   order_spectrum([windows[k] for k in fast], sample_rate_hz, orders))
+    good = np.isfinite(spec)
+    level = np.log10(np.where(good, spec, 1.0))
+    peaks, _ = scipy.signal.find_peaks(level, prominence=np.log10(ORDER_PROMINENCE))
+    return tuple(float(orders[p]) for p in peaks if good[p])
+
+
+def sinusoid_kurtosis(y: np.ndarray, sample_rate_hz: float, freq_hz: np.ndarray, damping_ratio: np.ndarray,
+                      window_s: float, shapes: np.ndarray | None = None) -> np.ndarray:
+    """Kurtosis [n_poles] of the record ``y`` [n, n_channels] projected on each pole's shape (or summed
+    over channels) and band-passed (ideal, by FFT) to ``f +- max(3 zeta f, 4 / window_s)``; the outer
+    tenth at each end is left out (the circular filter's edges).  1.5 for a sinusoid, 3 for Gaussian
+    noise (module docstring).
+
+    Examples
+    --------
+    >>> t = np.arange(4096) / 1024.0
+    >>> y = np.sin(2 * np.pi * 50.25 * t)[:, None]
+    >>> round(float(sinusoid_kurtosis(y, 1024.0, np.array([50.25]), np.array([0.0]), 4.0)[0]), 2)
+    1.5
+    """
+    f = np.asarray(freq_hz, float)
+    if f.size == 0:
+        return np.zeros(0)
+    n = y.shape[0]
+    w = np.ones((y.shape[1], f.size)) if shapes is None else np.real(shapes)
+    Y = scipy.fft.rfft(y - y.mean(axis=0), axis=0) @ w                       # [n_freq, n_poles]
+    lines = scipy.fft.rfftfreq(n, 1.0 / sample_rate_hz)
+    half = np.maximum(3 * np.asarray(damping_ratio, float) * f, 4.0 / window_s)
+    mask = np.abs(lines[:, None] - f[None, :]) <= half[None, :]
+    x = scipy.fft.irfft(Y * mask, n, axis=0)[n // 10: n - n // 10]
+    m2 = np.mean(x**2, axis=0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(m2 > 0, np.mean(x**4, axis=0) / m2**2, 3.0)
