@@ -28,7 +28,7 @@ _spec.loader.exec_module(realdata)
 
 RECORDED = json.loads(realdata.SCORES.read_text())
 # entries whose default identification takes a few seconds: the default suite's share (~30 s)
-FAST = ("beam_ring_chirp", "lvm_impact_two_hits", "modelab_free_beam", "pyuff_meas_point")
+FAST = ("beam_ring_mimo_frf", "lvm_impact_two_hits", "modelab_free_beam", "pyuff_meas_point")
 SLOW = tuple(e for e in realdata.entries() if e not in FAST)
 
 
