@@ -23,7 +23,7 @@ from flexmodal.modal.lscf import (
     PoleClusters,
     Stabilisation,
     adaptive_stabilisation,
-    blas_pools,
+    one_blas_thread,
     pole_clusters,
     stable_clusters,
 )
@@ -353,7 +353,7 @@ def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: 
     warnings: list[str] = []
     extra: dict = {}
     if method == "lscf":
-        with blas_pools().limit(limits=1, user_api="blas"):   # small matrices: threads cost 10x when busy
+        with one_blas_thread():
             extra = _lscf(f, Hb, quantity=quantity, reference=reference, max_order=max_order,
                           poles_hz=poles_hz, limits=thresholds or Thresholds())
         fn, zeta, constants = extra.pop("fn"), extra.pop("zeta"), extra.pop("constants")
