@@ -19,6 +19,7 @@ from flexmodal.modal.compute import compute_frf
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult
 from flexmodal.modal.runs_io import write_frf
+from flexmodal.modal.spectra import usable_cpus
 
 POOL_START_S = 1.0      # start 2 worker processes, their imports, first task (benchmarks/batch.py)
 AUTO_WORKERS = 2        # processes of the pool the automatic choice starts
@@ -36,10 +37,11 @@ def frf_job(path: str, run_id: str, options: dict) -> FrfResult:
 
 
 def idle_cpus() -> int:
-    """CPUs the other processes leave idle (CPUs less the 1-minute load average, rounded; at least 1):
-    the FFT threads of the serial path.  On a busy machine a second thread only adds contention
-    (measured under load 6 on 2 CPUs: 8 runs of 60 s took 1.13 s with 2 threads, 0.82 s with 1)."""
-    cpus = os.cpu_count() or 1
+    """CPUs the other processes leave idle (the CPUs this process may use less the 1-minute load
+    average, rounded; at least 1): the FFT threads of the serial path.  On a busy machine a second
+    thread only adds contention (measured under load 6 on 2 CPUs: 8 runs of 60 s took 1.13 s with 2
+    threads, 0.82 s with 1)."""
+    cpus = usable_cpus()
     return max(1, min(cpus, cpus - round(os.getloadavg()[0])))
 
 
@@ -84,7 +86,7 @@ def _serial_pays(elapsed_s: float, cpu_s: float, bytes_done: int, bytes_left: in
     elapsed_s`` CPUs busy (its FFT threads), the other processes of the machine take the 1-minute
     load average less that, and a pool's speed-up is the CPUs it could use over those this process
     already uses.  Parallel only for a speed-up of MIN_SPEEDUP or more saving PAYS_FACTOR start-ups."""
-    cpus = os.cpu_count() or 1
+    cpus = usable_cpus()
     if runs_left < MIN_PARALLEL_RUNS or cpus < 2 or bytes_done == 0 or elapsed_s <= 0:
         return True
     rest = elapsed_s / bytes_done * bytes_left

@@ -25,11 +25,12 @@ def test_benchmark_script_runs_and_reports_ratios_and_differences(capsys, tmp_pa
     assert "ratio" in out and "max relative difference" in out
     assert "FFT floor: the 114 bare float32 FFTs" in out   # 3 channels x 38 half-overlapping segments
     assert "flexmodal modes found 6/6" in out
-    assert "PROC whole `flexmodal frf` process" in out and "flexmodal process / floor" in out
+    assert "PROC whole `flexmodal frf` process" in out and "process / floor = " in out
     assert "; 155 segments" in out      # 4 s at 5 kHz in segments of 256 advancing by 128
     assert "without a bytecode cache" in out and "`import numpy, h5py`" in out and "the rest (parser" in out
     assert "HELP `flexmodal frf --help`, bytecode cached: " in out
-    assert "so none is more than" in out and "KERNEL the PROC estimate in memory: 1 thread" in out
+    assert "so none is more than" in out and "KERNEL Welch H1 + H2 + coherence" in out
+    assert "(target <= 1.4)" in out and out.count("(target <= 0.6)") == 2 and "(target <= 2: process <=" in out
     assert list(tmp_path.iterdir()) == []
 
 
