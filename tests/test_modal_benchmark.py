@@ -48,7 +48,7 @@ def test_batch_benchmark_reports_every_case_against_serial(capsys, tmp_path):
     assert _script("batch").main(["--runs", "4", "--duration-s", "1", "--repeat", "1",
                                   "--folder", str(tmp_path)]) == 0
     out = capsys.readouterr().out
-    assert "BATCH 4 runs" in out and "serial / this = 1.00x" in out
+    assert "BATCH 4 runs" in out and "serial on 1 CPU / this = 1.00x" in out and "--workers 0 / this = 1.00x" in out
     assert "--workers 2 (pool)" in out and "default (by cost)" in out and "POOL start-up" in out
-    assert out.count("CPUs busy") == 3 and "CPUs busy pool workers not counted" in out
+    assert out.count("CPUs busy") == 4 and "CPUs busy pool workers not counted" in out
     assert list(tmp_path.iterdir()) == []
