@@ -274,7 +274,8 @@ def bench_kernel(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: i
     threads, against its bare FFTs on one thread (scipy's pocketfft as flexmodal calls it, and
     numpy.fft.rfft on the same float32 blocks): what the passes besides the FFT cost, what a second
     thread gains."""
-    from flexmodal.modal.spectra import rfft
+    def rfft(block):
+        return scipy.fft.rfft(block, axis=-1, workers=1)
 
     samples = _record(duration_s, fs, n_resp)
     n_fft = (n_resp + 1) * ((samples.shape[0] - nfft) // (nfft // 2) + 1)

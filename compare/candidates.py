@@ -13,7 +13,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-from flexmodal.models.effects import REGISTRY, Param, effect_names, get_effect
+from flexmodal.models.effects import REGISTRY, Param, get_effect, registered_effects
 from flexmodal.models.rig import Rig
 
 
@@ -75,7 +75,7 @@ def parse_effects(spec: str) -> tuple[str, ...]:
     from flexmodal.compare.errors import CompareError
 
     if spec.strip() == "all":
-        return effect_names()
+        return registered_effects()
     names = tuple(s.strip() for s in spec.split(",") if s.strip())
     bad = [n for n in names if n not in REGISTRY]
     if bad or not names:

@@ -35,6 +35,7 @@ from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
+from scipy.special import stdtrit
 from threadpoolctl import threadpool_limits
 
 from flexmodal.compare.candidates import Candidate, combine, components, parse_effects, single_candidates
@@ -71,6 +72,9 @@ from flexmodal.models.effects import REGISTRY, get_effect
 from flexmodal.models.rig import Rig
 
 DEFAULT_SCATTER = 0.005
+FALLBACK_SOURCE = "--scatter (fallback)"
+MIN_SCATTER = 1e-3
+"""No candidate is ranked against a scatter below the reduced (Ritz) model's own accuracy, 0.1 %."""
 SHAPE_SCATTER_MIN = 1e-3
 """No mode shape is measured better than 0.1 % of its norm per sensor (floor of the shape noise)."""
 BOUND_TOL = 1e-3
@@ -87,20 +91,33 @@ PARTNERS = 3
 TRIPLE_PAIRS = 3
 MIN_CROSS_VALIDATED = 6
 REGION_TIE = 0.8
+FEATURE_Z = 3.3
+"""A residual feature beyond 3.3 standard errors (two-sided 0.1 %) points outside the library."""
+COMAC_BAD = 0.8
+COMAC_GOOD = 0.95
+INTERVAL_METHOD = ("linearised (Gauss-Newton) covariance at the ranking scatter, widened to the "
+                   "jackknife over the cross-validation refits where larger; Student t quantile")
 RANKING_LENGTH = 25
 
 
-def folds_for(configs: Sequence[str], holdout: str | Sequence[str] = "auto") -> tuple[np.ndarray, str]:
+def folds_for(configs: Sequence[str], holdout: str | Sequence[str] = "auto",
+              poses: Sequence[dict[str, float]] | None = None) -> tuple[np.ndarray, str]:
     """Training masks [F, C] (fold 0 = all configurations) and a description of the scheme.
 
-    ``auto``: leave one configuration out up to 10 configurations, else 5-fold (interleaved).  A list of
-    configurations: one fold holding those out.
+    ``auto``: leave one *pose* out up to 10 distinct poses, else 5-fold over poses (interleaved); the
+    configurations of one pose (repeated measurements, e.g. impact and random runs) are held out
+    together, so a held-out configuration never has its twin in the training set.  Without ``poses``
+    every configuration is its own pose.  A list of configurations: one fold holding those out.
     """
     C = len(configs)
     if isinstance(holdout, str) and holdout.strip() == "auto":
-        k = C if C <= 10 else 5
-        held = [np.arange(C) % k == i for i in range(k)]
-        scheme = "leave-one-configuration-out" if k == C else f"{k}-fold over configurations"
+        keys = [tuple(sorted(p.items())) for p in poses] if poses is not None else list(range(C))
+        group = np.array([list(dict.fromkeys(keys)).index(k) for k in keys])
+        G = int(group.max()) + 1
+        k = G if G <= 10 else 5
+        held = [group % k == i for i in range(k)]
+        scheme = ("leave-one-configuration-out" if G == C else "leave-one-pose-out") if k == G else \
+            f"{k}-fold over {'configurations' if G == C else 'poses'}"
     else:
         listed = holdout.split(",") if isinstance(holdout, str) else holdout
         names = [h.strip() for h in listed if h.strip()]
@@ -146,6 +163,8 @@ class _Context:
         self.target = Target(meas.freq_hz, meas.shapes, joint_angles_rad(rig, meas.poses))
         self.shape_dof = len(meas.sensors) - 1 if meas.shapes is not None else 0
         self.shape_floor = math.inf      # smallest in-sample mean (1 - MAC) of any model fitted so far
+        keys = [tuple(sorted(p.items())) for p in meas.poses]
+        self.pose_share = len(set(keys)) / max(len(keys), 1)   # repeats add no model-form information
 
     def family(self, handles: Sequence[str]):
         idx = [self.index[h] for h in handles]
@@ -255,6 +274,23 @@ def _cross_validate(ctx: _Context, entry: dict, scatter: float) -> None:
     if shape.size:
         entry["heldout_shape_rms_error"] = math.sqrt(float(np.mean(shape)) / max(ctx.shape_dof, 1))
     _rescore(ctx, entry, scatter)
+
+
+def _scoring_scatter(noise, ranked: Sequence[dict]) -> tuple[float, float]:
+    """The scatter that ranks candidates, and its model-form floor: ``sqrt(sigma^2 + floor^2)``.
+
+    ``sigma`` is the measurement's own scatter (repeats or ``freq_std_hz``; 0 when only the fallback is
+    known).  ``floor`` is the model-form error the best candidate still leaves on configurations it did
+    not see, ``sqrt(max(h^2 - sigma^2, 0))`` with ``h`` the lowest held-out frequency RMS of the
+    cross-validated candidates.  So the penalty of an extra parameter is measured against what no
+    candidate can remove, however small the repeat scatter: the same data give the same ranking
+    whether a pose's runs come as one row or as repeats."""
+    sigma = 0.0 if noise.source == FALLBACK_SOURCE else noise.value
+    if not ranked:
+        return noise.value, 0.0
+    h = min(e["heldout_rms_rel_error"] for e in ranked)
+    floor = math.sqrt(max(h * h - sigma * sigma, 0.0))
+    return max(math.hypot(sigma, floor), MIN_SCATTER), floor
 
 
 def _cross_validate_promising(ctx: _Context, entries: Sequence[dict], scatter: float) -> None:
@@ -411,8 +447,9 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
     names = parse_effects(effects) if isinstance(effects, str) else parse_effects(",".join(effects))
     meas = prepare(rig, measured)
     noise = estimate_scatter(measured, meas, fallback)
-    scatter = noise.value
-    train, scheme = folds_for(meas.configs, holdout)
+    sigma = scatter = noise.value       # the measurement's scatter; ``scatter`` ranks (+ model-form floor)
+    floor = 0.0
+    train, scheme = folds_for(meas.configs, holdout, meas.poses)
     ctx = _Context(rig, meas, train)
 
     base_fam = ctx.family([])
@@ -431,7 +468,7 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
 
     ranking: list[dict] = []
     n_candidates = None
-    if baseline["rms_rel_error"] > NONE_FACTOR * scatter:
+    if baseline["rms_rel_error"] > NONE_FACTOR * sigma:
         singles = single_candidates(rig, names, {v: [p[v] for p in meas.poses] for v in rig.pose_variables})
         screened = [_screen(ctx, c, scatter) for c in singles]
         pool = sorted(screened, key=lambda e: e["_lower"])[:PAIR_POOL]
@@ -453,15 +490,21 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
             screened += _triples(ctx, pairs[:TRIPLE_PAIRS], pool, scatter)
             _cross_validate_promising(ctx, screened, scatter)
         _cross_validate_promising(ctx, screened, scatter)     # once more at the final shape floor
+        scatter, floor = _scoring_scatter(noise, [e for e in screened if "score" in e])
+        _cross_validate_promising(ctx, screened, scatter)     # rescored and extended at that scatter
         ranking = [e for e in screened if "score" in e]
         _refinement_guard(ranking)
         ranking.sort(key=lambda e: e["score"])
         n_candidates = CandidateCount(fitted=len(screened), cross_validated=len(ranking))
     for e in ranking:
         _annotate(ctx, e, scatter)
-    best = _choose(ctx, ranking, screened if ranking else [], scatter)
+    _order(ctx, ranking, scatter)
+    best, notes = _choose(ctx, ranking, screened if ranking else [], scatter)
+    if best is not None and best not in ranking:           # a pruned candidate validated by _choose
+        ranking.append(best)
+        _order(ctx, ranking, scatter)
     nominal = _equivalent(ctx, base_err[held_mask].ravel(), base_shape, scatter)[0]
-    verdict = _verdict(ctx, best, ranking, baseline, before, nominal, scatter)
+    verdict = _verdict(ctx, best, ranking, baseline, before, nominal, scatter, sigma, notes)
     if verdict["effect"] != "none":
         _confirm_region(where, rig, verdict["effect"], verdict["location"])
     else:
@@ -470,9 +513,23 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
         baseline=Baseline(**baseline), where=Where(**where),
         ranking=tuple(CandidateScore(**_public(e)) for e in ranking[:RANKING_LENGTH]),
         verdict=_typed_verdict(verdict, _per_config(rig, meas, best)), n_candidates=n_candidates,
-        scatter=scatter, scatter_source=ScatterSource(source=noise.source, detail=noise.detail),
+        scatter=scatter, scatter_source=ScatterSource(source=noise.source, detail=noise.detail,
+                                                      measurement=sigma, model_form_floor=floor),
         holdout=Holdout(scheme=scheme, n_folds=int(len(train) - 1)), configs=meas.configs,
         predictions=_predictions(meas, base_f, best))
+
+
+def scatter_line(result: Diagnosis) -> str:
+    """One line: the scatter the ranking used and where it came from (measurement + model-form floor)."""
+    src = result.scatter_source
+    if src is None or result.scatter is None:
+        return ""
+    meas = src.measurement if src.measurement is not None else result.scatter
+    floor = src.model_form_floor or 0.0
+    own = "none measured" if src.source == FALLBACK_SOURCE else f"{meas:.2%} from {src.source}"
+    return (f"scatter: {result.scatter:.2%} = measurement ({own}; {src.detail}) + model-form floor "
+            f"{floor:.2%} (held-out error of the best candidate beyond the measurement); judged against "
+            f"{meas:.2%}")
 
 
 def _per_config(rig: Rig, meas: Measured, best: dict | None) -> dict[str, dict[str, float]]:
@@ -516,6 +573,20 @@ def _annotate(ctx: _Context, entry: dict, scatter: float) -> None:
     _, sv, vt = np.linalg.svd(jac, full_matrices=False)
     with np.errstate(over="ignore", divide="ignore"):
         std = scatter * np.sqrt(np.sum((vt.T / np.maximum(sv, 1e-300)) ** 2, axis=1))
+    # jackknife over the cross-validation folds (each refitted without one pose or group), Efron 1982
+    folds = entry.get("_theta_folds")
+    if folds is not None and len(folds) >= 3:
+        k = len(folds)
+        jack = np.sqrt((k - 1) / k * np.sum((folds - folds.mean(axis=0)) ** 2, axis=0))
+        std = np.fmax(std, jack)
+    dof = max(jac.shape[0] * ctx.pose_share - cand.n_params, 1.0)
+    half = float(stdtrit(dof, 0.975)) * std
+    lo_i, hi_i = theta - half, theta + half
+    entry["_param_sd"] = std
+    entry["_param_intervals"] = {
+        n: (float(np.exp(min(a, 700.0))), float(np.exp(min(b, 700.0)))) if p.power == 0
+        else (float(a), float(b))
+        for n, p, a, b in zip(names, cand.params, lo_i, hi_i, strict=True)}
     entry["params_at_bound"] = [n for n, a, b in zip(names, at_lo, at_hi, strict=True) if a or b]
     entry["unidentified_params"] = [n for n, x in zip(names, std, strict=True) if not x <= UNIDENTIFIED_STD]
     # a component whose every parameter sits at its lower bound adds nothing: the candidate is its rest
@@ -526,12 +597,32 @@ def _annotate(ctx: _Context, entry: dict, scatter: float) -> None:
                                  for p, a, b in zip(cand.params, at_lo, at_hi, strict=True))
 
 
-def _noise(best: dict, scatter: float) -> float:
+def _order(ctx: _Context, ranking: list[dict], scatter: float) -> None:
+    """Sort ``ranking`` in place: the candidates whose held-out error is within noise of the best score's
+    (``_noise``) first, simplest first (fewest parameters, then score) -- the one-standard-error rule of
+    cross-validated model choice (Breiman et al. 1984, §3.4.3) -- then the others by score."""
+    if not ranking:
+        return
+    usable = [e for e in ranking if not e.get("_out_of_range") and not e.get("_idle")]
+    lead = min(usable or ranking, key=lambda e: e["score"])
+    limit = lead["_heldout_eq"] + _noise(lead, scatter, ctx.pose_share)
+
+    def key(e: dict) -> tuple:
+        near = e["_heldout_eq"] <= limit
+        return (0, e["n_params"], e["score"]) if near else (1, 0, e["score"])
+
+    ranking.sort(key=key)
+
+
+def _noise(best: dict, scatter: float, pose_share: float = 1.0) -> float:
     """Margin by which another candidate's held-out (frequency-equivalent, ``_equivalent``) RMS may
     exceed ``best``'s and still be equal within noise: twice the standard error of the difference of two
     RMS estimates over the same ``N`` held-out degrees of freedom, each ~ ``sigma / sqrt(2N)`` (chi
-    distribution) with ``sigma`` the larger of the best held-out RMS and the scatter."""
-    return 2 * math.sqrt(2) * max(best["_heldout_eq"], scatter) / math.sqrt(2 * best["_n_eq"])
+    distribution) with ``sigma`` the larger of the best held-out RMS and the scatter.  Repeats of a pose
+    share its model-form error: ``N`` counts distinct poses (``pose_share`` = distinct poses /
+    configurations)."""
+    n = max(best["_n_eq"] * pose_share, 1.0)
+    return 2 * math.sqrt(2) * max(best["_heldout_eq"], scatter) / math.sqrt(2 * n)
 
 
 def _sub_candidate(ctx: _Context, entry: dict, drop: int, pool: list[dict], scatter: float) -> dict | None:
@@ -553,23 +644,39 @@ def _sub_candidate(ctx: _Context, entry: dict, drop: int, pool: list[dict], scat
     return found
 
 
-def _choose(ctx: _Context, ranking: list[dict], pool: list[dict], scatter: float) -> dict | None:
-    """The verdict's candidate: the best-scored one, with components pruned while dropping one does not
-    worsen the held-out error beyond noise (or the component sits at its lower bound, i.e. is absent);
-    candidates with a parameter run out of range are passed over."""
+def _choose(ctx: _Context, ranking: list[dict], pool: list[dict], scatter: float
+            ) -> tuple[dict | None, list[str]]:
+    """The verdict's candidate and, when it is not the top of ``ranking``, why (one note per step): the
+    best-scored one, with components pruned while dropping one does not worsen the held-out error
+    beyond noise (or the component sits at its lower bound, i.e. is absent); candidates with a
+    parameter run out of range are passed over."""
+    notes: list[str] = []
     for best in ranking:
+        top = best
         pruned = True
         while pruned and len(best["_cand"].effects) > 1:
             pruned = False
             for i in range(len(best["_cand"].effects)):
                 sub = _sub_candidate(ctx, best, i, pool, scatter)
                 worse = sub["_heldout_eq"] - best["_heldout_eq"]
-                if i in best["_idle"] or worse <= _noise(best, scatter):
+                margin = _noise(best, scatter, ctx.pose_share)
+                if i in best["_idle"] or worse <= margin:
+                    dropped = best["_cand"].effects[i]
+                    notes.append(
+                        f"{best['effect']} pruned to {sub['effect']}: its {dropped} part sits at its lower "
+                        f"bound (absent)" if i in best["_idle"] else
+                        f"{best['effect']} at {best['location']} pruned to {sub['effect']} at "
+                        f"{sub['location']}: without {dropped} the held-out error rises by "
+                        f"{worse:.2%}, within the noise margin {margin:.2%} of "
+                        f"{max(best['_n_eq'] * ctx.pose_share, 1):.0f} held-out degrees of freedom")
                     best, pruned = sub, True
                     break
         if not best["_out_of_range"] and not best["_idle"]:
-            return best
-    return None
+            return best, notes
+        notes.append(f"{top['effect']} at {top['location']} passed over: "
+                     + ("a parameter runs to the end of its range" if best["_out_of_range"]
+                        else "a component sits at its lower bound"))
+    return None, notes
 
 
 def _structured(resid: np.ndarray, scatter: float) -> bool:
@@ -607,36 +714,52 @@ def _paired_shapes(ctx: _Context, fam) -> np.ndarray:
 
 
 def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: dict, before: float,
-             nominal: float, scatter: float) -> dict:
+             nominal: float, scatter: float, sigma: float, notes: Sequence[str] = ()) -> dict:
     """The verdict block; ``before`` is the nominal model's held-out frequency RMS, ``nominal`` its
-    frequency-equivalent held-out RMS with shapes (``_equivalent``)."""
+    frequency-equivalent held-out RMS with shapes (``_equivalent``); ``scatter`` ranks candidates (the
+    measurement's ``sigma`` plus the model-form floor), ``sigma`` judges what remains; ``notes`` say
+    why the verdict is not the top of the ranking (``_choose``)."""
     meas = ctx.meas
     none = {"effect": "none", "location": "", "heldout_rms_rel_error_before": before,
             "heldout_rms_rel_error_after": before,
-            "explained": bool(before <= EXPLAINED_FACTOR * scatter), "alternatives": []}
-    if baseline["rms_rel_error"] <= NONE_FACTOR * scatter:
-        return {**none, "summary": f"baseline RMS gap {baseline['rms_rel_error']:.2%} is within "
-                                   f"{NONE_FACTOR:g}x the measurement scatter ({scatter:.2%}): no unmodelled "
-                                   "effect is needed"}
+            "explained": bool(before <= EXPLAINED_FACTOR * sigma), "alternatives": [],
+            "gap_removed": 0.0, "remaining_over_scatter": before / sigma}
+    if baseline["rms_rel_error"] <= NONE_FACTOR * sigma:
+        return {**none, "grade": "explained", "summary": (
+            f"baseline RMS gap {baseline['rms_rel_error']:.2%} is within {NONE_FACTOR:g}x the measurement "
+            f"scatter ({sigma:.2%}): no unmodelled effect is needed")}
     if not ranking or best is None:
-        return {**none, "summary": f"baseline RMS gap {baseline['rms_rel_error']:.2%} but no candidate "
-                                   "effect applies to this rig within its parameter range: the gap is "
-                                   "unexplained"}
+        return {**none, "grade": "not explained", "flags": list(notes), "summary": (
+            f"baseline RMS gap {baseline['rms_rel_error']:.2%} but no candidate effect applies to this rig "
+            "within its parameter range: the gap is unexplained")}
     if best["score"] >= _score(nominal, 0, scatter):
-        return {**none, "summary": f"no candidate beats the nominal model on held-out configurations once "
-                                   f"its extra parameters are penalised (baseline held-out RMS {before:.2%}, "
-                                   f"best {best['effect']} {best['heldout_rms_rel_error']:.2%})"}
+        return {**none, "grade": "not explained" if before > EXPLAINED_FACTOR * sigma else "explained",
+                "summary": (f"no candidate beats the nominal model on held-out configurations once its "
+                            f"extra parameters are penalised against the scatter {scatter:.2%} (baseline "
+                            f"held-out RMS {before:.2%}, best {best['effect']} "
+                            f"{best['heldout_rms_rel_error']:.2%})")}
     after = best["heldout_rms_rel_error"]
     resid = best["_heldout_freq_hz"] / meas.freq_hz - 1.0
-    structured = _structured(resid, scatter)
-    explained = after <= EXPLAINED_FACTOR * scatter and not structured
+    structured = _structured(resid, sigma)
+    feature, flags = _residual_feature(ctx, best, resid, sigma)
+    explained = after <= EXPLAINED_FACTOR * sigma and not structured and not flags
+    removed = 1.0 - after / before if before > 0 else 0.0
+    grade = ("explained" if explained else "largely explained" if removed >= 0.75 else
+             "partly explained" if removed >= 0.3 else "not explained")
     unidentified = best["unidentified_params"]
+    rank = ranking.index(best) + 1
     verdict = {"effect": best["effect"], "location": best["location"],
                "heldout_rms_rel_error_before": before, "heldout_rms_rel_error_after": after,
                "explained": bool(explained),
                "params": {k: v for k, v in best["params"].items() if k not in unidentified},
                "unidentified_params": list(unidentified), "params_at_bound": list(best["params_at_bound"]),
-               "structured_residuals": bool(structured)}
+               "structured_residuals": bool(structured), "ranked": rank,
+               "why_not_top": "; ".join(notes) if rank > 1 and notes else None,
+               "grade": grade, "gap_removed": removed, "remaining_over_scatter": after / sigma,
+               "residual_feature": feature, "flags": flags,
+               "param_intervals": {k: v for k, v in best["_param_intervals"].items()
+                                   if k not in unidentified},
+               "interval_method": INTERVAL_METHOD}
     worst = np.dstack(np.unravel_index(np.argsort(-np.abs(resid), axis=None)[:3], resid.shape))[0]
     remaining = [{"config": meas.configs[c], "mode": int(m + 1), "heldout_rel_error": float(resid[c, m])}
                  for c, m in worst]
@@ -644,7 +767,7 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
     mine = set(zip(best["_cand"].effects, best["_cand"].locations, strict=True))
     alts = [e for e in ranking if e is not best and not e["_out_of_range"] and not e["_idle"]
             and not mine <= set(zip(e["_cand"].effects, e["_cand"].locations, strict=True))
-            and e["_heldout_eq"] - best["_heldout_eq"] <= _noise(best, scatter)
+            and e["_heldout_eq"] - best["_heldout_eq"] <= _noise(best, scatter, ctx.pose_share)
             ][:MAX_ALTERNATIVES]
     verdict["alternatives"] = [
         {"effect": e["effect"], "location": e["location"], "params": e["params"],
@@ -652,16 +775,18 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
         for e in alts]
     verdict["ambiguous"] = bool(alts)
     text = (f"{best['effect']} at {best['location']} brings the held-out RMS gap from {before:.2%} to "
-            f"{after:.2%}")
-    if explained:
-        text += f", within {EXPLAINED_FACTOR:g}x the measurement scatter ({scatter:.2%})"
-    else:
+            f"{after:.2%} ({removed:.0%} of the gap removed; {grade}); what remains is "
+            f"{after / sigma:.1f}x the measurement scatter {sigma:.2%}")
+    if not explained:
         worst_txt = ", ".join(f"mode {r['mode']} at {r['config']} ({r['heldout_rel_error']:+.1%})"
                               for r in remaining)
-        why = (f"its held-out residuals are structured (correlated across configurations or modes beyond "
-               f"the scatter {scatter:.2%})" if structured and after <= EXPLAINED_FACTOR * scatter else
-               f"this stays above {EXPLAINED_FACTOR:g}x the scatter ({scatter:.2%})")
-        text += f"; {why}, so no candidate explains the gap; largest held-out errors: {worst_txt}"
+        text += f"; largest held-out errors: {worst_txt}"
+        if feature:
+            text += f"; outside the library points: {feature}"
+    if flags:
+        text += "; flagged: " + "; ".join(flags)
+    if rank > 1 and notes:
+        text += f"; ranked {rank}: " + "; ".join(notes)
     if unidentified:
         text += f"; the data cannot identify {', '.join(unidentified)}"
     if alts:
@@ -673,6 +798,62 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
                      f"the first by {a0['separate_rel_diff']:.1%}")
     verdict["summary"] = text
     return verdict
+
+
+def _residual_feature(ctx: _Context, best: dict, resid: np.ndarray, sigma: float) -> tuple[str, list[str]]:
+    """What in the held-out residuals [C, n] of the verdict points outside the library, and flags.
+
+    Candidate features, each a z-like statistic against ``HELDOUT_INFLATION * sigma``: a mode whose
+    residual has one sign at every pose (its mean over configurations), a pose trend of one mode (the
+    least-squares slope of its residual on one pose variable, >= 3 distinct values), one configuration
+    (its mean over modes).  The largest beyond ``FEATURE_Z`` is reported.  With measured shapes, a
+    sensor whose COMAC with the verdict's fitted model is below ``COMAC_BAD`` while every other
+    sensor's is at least ``COMAC_GOOD`` is a flag (a sensor mounted elsewhere or on another direction
+    than the rig says, or a local effect no library entry has)."""
+    meas = ctx.meas
+    sd = HELDOUT_INFLATION * sigma
+    C, n = resid.shape
+    found: list[tuple[float, str]] = []
+    for m in range(n):
+        r = resid[:, m]
+        found.append((abs(r.mean()) * math.sqrt(C) / sd, f"mode {m + 1} ({r.mean():+.2%} on average at every "
+                                                         "pose)"))
+        for v in ctx.rig.pose_variables:
+            q = np.array([p[v] for p in meas.poses])
+            if len(np.unique(q)) < 3:
+                continue
+            dq = q - q.mean()
+            slope = float(dq @ r / (dq @ dq))
+            z = abs(slope) * math.sqrt(dq @ dq) / sd
+            found.append((z, f"a trend of mode {m + 1} with {v} ({slope * np.ptp(q):+.2%} over "
+                             f"{q.min():g}..{q.max():g})"))
+    if n > 1:
+        for c in range(C):
+            mean = resid[c].mean()
+            found.append((abs(mean) * math.sqrt(n) / sd, f"configuration {meas.configs[c]} ({mean:+.2%} on "
+                                                         "every mode)"))
+    z, text = max(found, key=lambda t: t[0]) if found else (0.0, "")
+    feature = text if z > FEATURE_Z else ""
+    flags: list[str] = []
+    if meas.shapes is not None and len(meas.sensors) >= 3:
+        full = [c for c in range(C) if not np.isnan(meas.shapes[c]).any()]
+        if full:
+            shapes = _fit_shapes(ctx, best)
+            values = comac(meas.shapes[full], shapes[full])
+            worst = int(np.argmin(values))
+            others = np.delete(values, worst)
+            if values[worst] < COMAC_BAD and others.min() >= COMAC_GOOD:
+                flags.append(f"the measured shapes disagree at sensor {meas.sensors[worst]} (COMAC "
+                             f"{values[worst]:.2f}; the other sensors >= {others.min():.2f})")
+                feature = feature or f"sensor {meas.sensors[worst]}"
+    return feature, flags
+
+
+def _fit_shapes(ctx: _Context, entry: dict) -> np.ndarray:
+    """Sensor shapes [C, n_sensors, n] of ``entry``'s fit to all configurations, paired as in the fit."""
+    cand = entry["_cand"]
+    h = evaluate(entry["_fam"], design(cand, ctx.target), entry["_theta0"][None], ctx.target)[3]
+    return paired_modes(entry["_fam"], h, ctx.target)[2][0]
 
 
 def _component_params(cand: Candidate, theta: np.ndarray) -> list[tuple[str, str, dict[str, float]]]:

@@ -60,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
     output_dir(args.out, CompareError, "diagnosis folder (--out)")  # before the heavy imports
     from flexmodal.api import diagnose, load_rig, read_table, write_diagnosis
     from flexmodal.compare.candidates import parse_effects
-    from flexmodal.compare.diagnosis import folds_for
+    from flexmodal.compare.diagnosis import folds_for, scatter_line
 
     rig = load_rig(args.rig)
     table = read_table(args.measured)
@@ -73,7 +73,10 @@ def run(args: argparse.Namespace) -> int:
     v = result.verdict
     print(f"verdict: {v.effect} at {v.location or '-'}; held-out RMS "
           f"{v.heldout_rms_rel_error_before:.2%} -> {v.heldout_rms_rel_error_after:.2%}; "
-          f"explained: {str(v.explained).lower()}")
+          f"explained: {str(v.explained).lower()} ({v.grade})")
+    print(scatter_line(result))
+    for name, (lo, hi) in (v.param_intervals or {}).items():
+        print(f"  {name} = {v.params[name]:.4g}  (95 % interval {lo:.4g} .. {hi:.4g})")
     print(pj)
     print(ph)
     return 0

@@ -272,7 +272,15 @@ class Verdict(_Record):
     """The chosen explanation (``effect`` ``"none"`` and ``location`` ``""`` when no effect is needed or
     none helps) and the held-out RMS error before and after it.  For a fitted effect: its ``params``
     (the identified ones), ``unidentified_params``, ``params_at_bound``, ``structured_residuals``, the
-    ``remaining`` largest held-out errors and ``ambiguous``; ``per_config``: pose-dependent parameters
+    ``remaining`` largest held-out errors and ``ambiguous``.  The graded verdict: ``ranked`` the
+    verdict's place in ``ranking`` (1 = top) and ``why_not_top`` when it is not first; ``grade``
+    (``explained``, ``largely explained``, ``partly explained``, ``not explained``), ``gap_removed``
+    the fraction of the held-out RMS gap removed (1 - after/before), ``remaining_over_scatter`` the
+    held-out RMS after over the measurement scatter, ``residual_feature`` what in the residual points
+    outside the library (a pose trend, one mode, one configuration, one sensor; empty when nothing
+    does) and ``flags`` the warnings that go with the verdict (e.g. a shape that disagrees at one
+    sensor); ``param_intervals`` a 95 % interval ``[low, high]`` per fitted parameter (SI) and
+    ``interval_method`` how they were computed.  ``per_config``: pose-dependent parameters
     per configuration, ``{name: {config: value}}``, written as the keys ``<name>_per_config``."""
 
     effect: str
@@ -288,6 +296,15 @@ class Verdict(_Record):
     alternatives: tuple[Alternative, ...] | None = None
     ambiguous: bool | None = None
     summary: str | None = None
+    ranked: int | None = None
+    why_not_top: str | None = None
+    grade: str | None = None
+    gap_removed: float | None = None
+    remaining_over_scatter: float | None = None
+    residual_feature: str | None = None
+    flags: tuple[str, ...] | None = None
+    param_intervals: Mapping[str, tuple[float | None, ...]] | None = None
+    interval_method: str | None = None
     per_config: Mapping[str, Mapping[str, float | None]] = field(default_factory=FrozenMap,
                                                               metadata={"suffix": "_per_config"})
 
@@ -303,10 +320,15 @@ class CandidateCount(_Record):
 @dataclass(**_RECORD)
 class ScatterSource(_Record):
     """Where the relative measurement scatter came from (compare/gap.py ``estimate_scatter``):
-    ``repeated configurations``, ``freq_std_hz column`` or ``--scatter (fallback)``, and how."""
+    ``repeated configurations``, ``freq_std_hz column`` or ``--scatter (fallback)``, and how;
+    ``measurement`` that scatter (fraction) and ``model_form_floor`` (fraction) the held-out error of
+    the best candidate beyond it: the ranking's ``scatter`` is ``sqrt(measurement^2 + floor^2)`` (the
+    measurement term 0 when it is only the fallback)."""
 
     source: str
     detail: str
+    measurement: float | None = None
+    model_form_floor: float | None = None
 
 
 @dataclass(**_RECORD)

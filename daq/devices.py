@@ -1,7 +1,7 @@
-"""The one driver interface (:class:`Driver`), the protocol registry, the reader thread, counter unwrapping.
+"""The one driver interface (:class:`Driver`), a protocol's driver, the reader thread, counter unwrapping.
 
 A protocol is a driver class (a subclass of :class:`Driver`, like python-can's ``BusABC``) plus one
-registry entry (:func:`register_protocol`): the class reads its ``[[device]]`` table
+registry entry (daq.protocols.register_protocol): the class reads its ``[[device]]`` table
 (:meth:`Driver.parse_device`) and then streams blocks.  A driver has ``name``, ``sources`` (names of the
 values it delivers, in column order), ``limits`` (raw values at or beyond which an input is clipped, or
 None) and three methods: ``open()``, ``read() -> list[Block]`` (waits at most ~0.1 s) and ``close()``.
@@ -11,7 +11,6 @@ with exponential back-off (0.02 s doubling to 0.25 s) and reports ``lost``/``rec
 
 from __future__ import annotations
 
-import importlib
 import queue
 import threading
 import time
@@ -22,6 +21,7 @@ from typing import TYPE_CHECKING, ClassVar
 import numpy as np
 
 from flexmodal.daq.errors import DaqError
+from flexmodal.daq.protocols import PROTOCOLS
 
 if TYPE_CHECKING:
     from flexmodal.daq.session import Device, DeviceTable
@@ -103,32 +103,6 @@ class Driver(ABC):
         """Disconnect (never raises)."""
 
 
-_PROTOCOLS: dict[str, str | type[Driver]] = {
-    "serial": "flexmodal.daq.serial_driver:SerialDriver",
-    "can": "flexmodal.daq.can_driver:CanDriver",
-    "modbus": "flexmodal.daq.modbus_driver:ModbusDriver",
-}
-
-
-def register_protocol(name: str, driver: str | type[Driver]) -> None:
-    """Make ``protocol = name`` usable in sessions: ``driver`` a Driver subclass or ``"module:Class"``."""
-    _PROTOCOLS[name] = driver
-
-
-def protocols() -> tuple[str, ...]:
-    """Names of the registered protocols."""
-    return tuple(_PROTOCOLS)
-
-
-def driver_class(protocol: str) -> type[Driver]:
-    """The Driver subclass registered for ``protocol`` (imported on first use)."""
-    entry = _PROTOCOLS[protocol]
-    if isinstance(entry, str):
-        module, _, cls = entry.partition(":")
-        entry = _PROTOCOLS[protocol] = getattr(importlib.import_module(module), cls)
-    return entry
-
-
 def unwrap(seq: int, last: int | None, modulus: int) -> int:
     """Unwrap a device counter taken modulo ``modulus`` to the index nearest ``last`` (ahead or behind)."""
     if last is None:
@@ -184,4 +158,4 @@ def run_reader(driver, out: queue.Queue, stop: threading.Event, stats: ReaderSta
 
 def make_driver(device: Device, session) -> Driver:
     """The driver for ``device`` (a daq.session.Device) of ``session``."""
-    return driver_class(device.protocol)(device, session.sample_rate_hz)
+    return PROTOCOLS.entry(device.protocol)(device, session.sample_rate_hz)

@@ -20,8 +20,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from flexmodal.daq.devices import driver_class, protocols
 from flexmodal.daq.errors import DaqError
+from flexmodal.daq.protocols import PROTOCOLS, registered_protocols
 from flexmodal.daq.store import CHANNEL_KINDS, EXCITATIONS, Channel
 from flexmodal.valid_text import read_toml
 from flexmodal.valid_toml import Fields
@@ -204,8 +204,8 @@ def _device(doc: dict, where: str, base: Path) -> Device:
     t = Table(doc, where, base)
     name = t.get("name", str, check=bool, why="is empty")
     t = DeviceTable(doc, f"{where.split(':')[0]}: device {name!r}", base)
-    protocol = t.choice("protocol", protocols())
-    return driver_class(protocol).parse_device(t, name)
+    protocol = t.choice("protocol", registered_protocols())
+    return PROTOCOLS.entry(protocol).parse_device(t, name)
 
 
 def _channel(doc: dict, where: str, devices: dict[str, Device]) -> ChannelMap:
@@ -242,7 +242,7 @@ def _channel(doc: dict, where: str, devices: dict[str, Device]) -> ChannelMap:
                        f"({', '.join(devices) or 'none defined'})")
     dev = devices[device]
     source = t.get("source", str, name)
-    known = driver_class(dev.protocol).known_sources(dev)
+    known = PROTOCOLS.entry(dev.protocol).known_sources(dev)
     if known is not None and source not in known:
         raise DaqError(f"{where}: source {source!r} is not one of device {device!r}'s {', '.join(known)}")
     return ChannelMap(
@@ -262,7 +262,8 @@ def _simulator(doc: dict, where: str, base: Path) -> Simulator:
     log = s.get("fault_log", str, "", check=lambda v: v == Path(v).name and v not in (".", ".."),
                 why="must be a plain file name (it is written in the run file's folder)")
     return Simulator(
-        protocol=s.choice("protocol", protocols()), rig=s.file("rig", "rig file") if "rig" in doc else "",
+        protocol=s.choice("protocol", registered_protocols()),
+        rig=s.file("rig", "rig file") if "rig" in doc else "",
         test=s.choice("test", ("impact", "random", "sweep", "operational", "moving"), "impact"),
         seed=s.get("seed", int, 0, check=lambda v: 0 <= v < 2**32, why="must be in [0, 2**32)"),
         pose=s.numbers("pose"), corrupt_rate=s.number("corrupt_rate", 0.0, lo=0, hi=1, hi_open=True),

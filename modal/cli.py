@@ -7,31 +7,14 @@ import sys
 
 from flexmodal import valid_options as opt
 from flexmodal.cli_commands import command
-
-BUILT_IN_ESTIMATORS = ("H1", "H2", "Hv")   # modal.frf.ESTIMATORS as shipped (tested equal)
-
-
-class _Estimators:
-    """The names of the registry ``modal.frf.ESTIMATORS`` (any case), read only when argparse checks a
-    value (the command then imports numpy anyway); listing them in ``--help`` reads the registry only
-    if ``modal.frf`` is already imported (estimators are registered by importing it), else names
-    BUILT_IN_ESTIMATORS: so neither building the parser nor ``frf --help`` imports numpy."""
-
-    def __contains__(self, name: object) -> bool:
-        from flexmodal.modal.frf import ESTIMATORS
-
-        return any(k.lower() == str(name).lower() for k in ESTIMATORS)
-
-    def __iter__(self):
-        frf = sys.modules.get("flexmodal.modal.frf")
-        return iter(BUILT_IN_ESTIMATORS if frf is None else list(frf.ESTIMATORS))
+from flexmodal.modal.registry import ESTIMATORS
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this package's sub-commands to the flexmodal parser."""
     p = command(sub, "frf", _frf)
     p.add_argument("runs", nargs="+", metavar="RUN.h5", help="HDF5 run files (docs/hdf5-format.md)")
-    p.add_argument("--estimator", default="H1", choices=_Estimators(), metavar="NAME",
+    p.add_argument("--estimator", default="H1", choices=ESTIMATORS, metavar="NAME",
                    help="FRF estimator: %(choices)s (default H1)")
     p.add_argument("--nfft", type=opt.integer(8, 1 << 24, name="segment length"), default=None,
                    help="segment length in samples for random/sweep runs (default: power of two <= 8192 "
@@ -64,7 +47,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "ssi/fdd shapes are unscaled (unit largest entry)")
     q.add_argument("--max-order", type=opt.model_order, default=None,
                    help="cap of the pLSCF model order (default: the order grows until the modes found "
-                        "stop growing, at most 200 / number of references); ssi: highest model order "
+                        "stop growing and explain every clear CMIF peak, at most 200 / number of "
+                        "references, more while clear peaks are unexplained); ssi: highest model order "
                         "(default 100)")
     q.add_argument("--poles", default=None, metavar="F1,F2,...",
                    help="pick the stable poles nearest these frequencies, Hz (exactly these modes, no "
@@ -83,6 +67,23 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="ssi/fdd: reference output channels (default all outputs)")
     q.add_argument("--run", default=None, metavar="RUN_ID", help="only this run of an HDF5 file")
     q.add_argument("--uff", default=None, metavar="MODES.uff", help="also write the modes as UFF dataset 55")
+    q.add_argument("--verbose", action="store_true",
+                   help="also print the per-mode lines behind each summary warning (--quiet: no warnings)")
+    t = q.add_argument_group("tracking a moving arm (--track; docs/oma.md)")
+    t.add_argument("--track", action="store_true",
+                   help="follow the modes in sliding windows tagged by the encoders' pose; write the modal "
+                        "map (one configuration per pose bin) and MODES.harmonics.csv")
+    t.add_argument("--pose-from", default=None, metavar="VAR=CHANNEL,...",
+                   help="encoder channel of each pose variable, degrees (default: the record's one encoder)")
+    t.add_argument("--window", type=opt.seconds, default=None, metavar="S",
+                   help="window length, s (default: 80 periods of the slowest mode)")
+    t.add_argument("--hop", type=opt.seconds, default=None, metavar="S",
+                   help="window step, s (default: a quarter pose bin at the 90th percentile pose rate)")
+    t.add_argument("--bin", type=opt.real(0.0), default=5.0, metavar="DEG", help="pose bin width (default 5)")
+    t.add_argument("--max-spread", type=opt.real(0.0), default=5.0, metavar="DEG",
+                   help="skip windows whose pose standard deviation exceeds DEG (default 5)")
+    t.add_argument("--orders", default=None, metavar="O1,O2,...",
+                   help="harmonic orders per joint revolution (default: found from the data)")
 
 
 def _frf(args: argparse.Namespace) -> int:
@@ -105,6 +106,54 @@ def _frf(args: argparse.Namespace) -> int:
     return 0
 
 
+def _pairs(text: str, what: str) -> dict[str, str]:
+    """``VAR=CHANNEL,...`` -> {VAR: CHANNEL} (ModalError naming the option)."""
+    from flexmodal.modal.errors import ModalError
+
+    pairs = [item.split("=") for item in text.split(",") if item.strip()]
+    if not pairs or any(len(p) != 2 or not p[0].strip() or not p[1].strip() for p in pairs):
+        raise ModalError(f"{what} {text!r}: expected VAR=CHANNEL[,VAR=CHANNEL...]")
+    return {k.strip(): v.strip() for k, v in pairs}
+
+
+def _track(args: argparse.Namespace) -> int:
+    """``identify --track``: the modal map of a moving arm and its harmonics (docs/oma.md)."""
+    from pathlib import Path
+
+    from flexmodal.api import track
+    from flexmodal.modal.errors import ModalError
+    from flexmodal.valid_output import output_file, signals_deferred
+
+    pose_from = _pairs(args.pose_from, "--pose-from") if args.pose_from else None
+    try:
+        orders = [float(v) for v in args.orders.split(",") if v.strip()] if args.orders else []
+    except ValueError:
+        raise ModalError(f"--orders {args.orders!r}: give orders per revolution, comma-separated") from None
+    if any(not o > 0 for o in orders):
+        raise ModalError(f"--orders {args.orders!r}: orders must be positive")
+    out = Path(args.out)
+    harmonics_csv = out.with_name(out.stem + ".harmonics.csv")
+    output_file(harmonics_csv, ModalError, "harmonics table")
+    from flexmodal.modal.track import write_harmonics_csv
+
+    result = track(args.input, pose_from=pose_from, run_id=args.run, fmin=args.fmin, fmax=args.fmax,
+                   window_s=args.window, hop_s=args.hop, bin_deg=args.bin, max_spread_deg=args.max_spread,
+                   orders=orders, max_order=args.max_order or 40)
+    with signals_deferred():   # the map and its harmonics: both written, or neither
+        result.table.to_csv(out)
+        write_harmonics_csv(str(harmonics_csv), result.harmonics)
+    if not getattr(args, "quiet", False):
+        found = "; ".join(f"{v}: {', '.join(f'{o:.6g}' for o in ords) or 'none'}"
+                          for v, ords in result.orders.items())
+        print(f"flexmodal: {len(result.windows)} windows of {result.window_s:.3g} s every "
+              f"{result.hop_s:.3g} s, {len(result.tracks)} modes tracked, {len(result.harmonics)} harmonic "
+              f"poles (orders per revolution {found})", file=sys.stderr)
+    for warning in result.warnings:
+        print(f"flexmodal: warning: {warning}", file=sys.stderr)
+    print(args.out)
+    return 0
+
+
 def _identify(args: argparse.Namespace) -> int:
     """natural frequencies, damping and mode shapes -> modal table CSV
 
@@ -122,6 +171,8 @@ def _identify(args: argparse.Namespace) -> int:
     if args.fmin is not None and args.fmax is not None and args.fmin >= args.fmax:
         raise ModalError(f"--fmin {args.fmin:g} Hz must lie below --fmax {args.fmax:g} Hz")
     output_file(args.out, ModalError, "modal table (--out)")
+    if args.track:
+        return _track(args)
     if args.uff:
         output_file(args.uff, ModalError, "UFF file (--uff)")
     from flexmodal.modal.identify import Thresholds, write_synthesis_csv  # the heavy imports, after
@@ -145,11 +196,16 @@ def _identify(args: argparse.Namespace) -> int:
     with signals_deferred():   # the modal table and its synthesis file: both written, or neither
         result.table.to_csv(args.out)
         write_synthesis_csv(args.out, modes_by_config)
-    for config, (modes, _) in modes_by_config.items():
-        if modes.order_note and not getattr(args, "quiet", False):
+    quiet = getattr(args, "quiet", False)
+    for config, (modes, _) in modes_by_config.items():   # a loop over configurations
+        if quiet:
+            continue
+        if modes.order_note:
             print(f"flexmodal: {config}: {modes.order_note}", file=sys.stderr)
         for warning in modes.warnings:
             print(f"flexmodal: warning: {config}: {warning}", file=sys.stderr)
+        for line in modes.details if args.verbose else ():
+            print(f"flexmodal: {config}: {line}", file=sys.stderr)
     if args.uff:
         from flexmodal.modal.uff import write_modes
 

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from flexmodal.modal.errors import ModalError
+from flexmodal.modal.registry import ESTIMATORS
 from flexmodal.modal.spectra import Spectra
 
 QUANTITIES = {"receptance": 0, "mobility": 1, "accelerance": 2}
@@ -95,31 +96,17 @@ def coherence(s: Spectra) -> np.ndarray:
 
 
 Estimator = Callable[[Spectra], np.ndarray]
-ESTIMATORS: dict[str, Estimator] = {"H1": h1, "H2": h2, "Hv": hv}
-"""The FRF estimators by name: each maps averaged spectra to H [n_out, n_in, n_freq].  A new estimator
-is one function and one :func:`register_estimator` call; ``flexmodal frf --estimator``, the stored
-``estimator`` attribute and :func:`estimate` all read this registry."""
-
-
-def register_estimator(name: str, func: Estimator) -> None:
-    """Add (or replace) the estimator ``name``; names are matched without regard to case."""
-    clash = [k for k in ESTIMATORS if k.lower() == name.lower() and k != name]
-    for k in clash:
-        del ESTIMATORS[k]
-    ESTIMATORS[name] = func
 
 
 def estimator_name(estimator: str) -> str:
-    """The registered spelling of ``estimator`` (``h1`` -> ``H1``); ModalError naming the choices."""
-    for name in ESTIMATORS:
-        if name.lower() == str(estimator).lower():
-            return name
-    raise ModalError(f"estimator {estimator!r}: use one of {', '.join(ESTIMATORS)}")
+    """The registered spelling of ``estimator`` (``h1`` -> ``H1``; modal.registry.ESTIMATORS);
+    ModalError naming the choices."""
+    return ESTIMATORS.name(estimator)
 
 
 def estimate(s: Spectra, estimator: str) -> np.ndarray:
     """FRFs [n_out, n_in, n_freq] of spectra ``s`` by the registered ``estimator`` (H1, H2, Hv, ...)."""
-    return ESTIMATORS[estimator_name(estimator)](s)
+    return ESTIMATORS.entry(estimator)(s)
 
 
 def convert(H: np.ndarray, freq_hz: np.ndarray, source: str, target: str) -> np.ndarray:

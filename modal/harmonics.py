@@ -15,11 +15,13 @@ from collections.abc import Sequence
 
 import numpy as np
 import scipy.fft
+import scipy.ndimage
+import scipy.signal
 
-MIN_POLES = 5            # an order is found from at least this many poles ...
-MIN_SPEED_RATIO = 1.2    # ... spanning at least this ratio of joint speeds (a mode's f does not follow v)
-MIN_SPEED_SHARE = 0.2    # poles of windows slower than this share of the fastest are left out
-MAX_GAP_SHARE = 1 / 3    # a harmonic's frequencies fill their span: no gap wider than this share of it
+MIN_POLES = 5            # orders are looked for in at least this many windows ...
+MIN_SPEED_SHARE = 0.2    # ... where the joint turns faster than this share of its fastest
+WHITEN_LINES = 31        # each window's order power is divided by its running median over this many lines
+ORDER_PROMINENCE = 10.0  # an order peak stands this many times above its surroundings (10 dB)
 
 
 def is_order(freq_hz: np.ndarray, speed_rev_per_s: float, orders: Sequence[float], tol: float) -> np.ndarray:
@@ -43,57 +45,71 @@ def is_order(freq_hz: np.ndarray, speed_rev_per_s: float, orders: Sequence[float
     return out
 
 
-def find_orders(freq_hz: np.ndarray, speed_rev_per_s: np.ndarray, tol: float) -> tuple[float, ...]:
-    """Orders (per revolution) that poles ``freq_hz`` [Hz] seen at joint speeds ``speed_rev_per_s``
-    follow: groups of at least ``MIN_POLES`` poles whose ``f / v`` agree within ``tol`` while their
-    speeds span a ratio of at least ``MIN_SPEED_RATIO`` and their frequencies fill that span
-    (:func:`_follows`); poles slower than ``MIN_SPEED_SHARE`` of the fastest are left out.  Each
-    order is its group's median.
+def angle_resampled(y: np.ndarray, sample_rate_hz: float, angle_deg: np.ndarray) -> tuple[np.ndarray, float]:
+    """The window ``y`` [n, n_channels] resampled at ``n`` equal steps of joint angle (computed order
+    tracking, Fyfe & Munck 1997, Mech. Syst. Signal Process. 11(2)): the angle is the least-squares
+    quadratic through the encoder samples ``angle_deg`` [n] (sub-count resolution), monotone over a
+    window where the joint does not reverse.  Returns the resampled window and its angle span [rev]."""
+    n = y.shape[0]
+    t = np.arange(n) / sample_rate_hz
+    fit = np.polyval(np.polyfit(t, angle_deg, 2), t)
+    if fit[-1] < fit[0]:
+        fit = -fit
+    fit = np.maximum.accumulate(fit)
+    grid = np.linspace(fit[0], fit[-1], n)
+    at = np.interp(grid, fit, t) * sample_rate_hz
+    i = np.clip(at.astype(int), 0, n - 2)
+    w = (at - i)[:, None]
+    return (1 - w) * y[i] + w * y[i + 1], float(fit[-1] - fit[0]) / 360.0
 
-    Examples
-    --------
-    >>> v = np.linspace(0.5, 1.0, 8)
-    >>> f = np.concatenate([120.0 * v, np.full(8, 37.0)])
-    >>> [round(o, 6) for o in find_orders(f, np.concatenate([v, v]), 0.02)]
-    [120.0]
-    """
-    f, v = np.asarray(freq_hz, float), np.asarray(speed_rev_per_s, float)
-    ok = (v > MIN_SPEED_SHARE * v.max(initial=0.0)) & (f > 0)
-    if ok.sum() < MIN_POLES:
+
+def order_spectrum(windows: Sequence[tuple[np.ndarray, np.ndarray]], sample_rate_hz: float,
+                   orders: np.ndarray) -> np.ndarray:
+    """Mean whitened order spectrum on ``orders`` [per revolution] of the ``windows`` (each a record
+    [n, n_channels] and its joint angle [n] in degrees): every window resampled in angle
+    (:func:`angle_resampled`), its Hann-windowed power summed over channels and divided by its running
+    median over ``WHITEN_LINES`` lines (a line stands out of it, a mode's broad peak much less),
+    interpolated onto ``orders`` (log-linear); NaN where fewer than ``MIN_POLES`` windows reach.  A
+    harmonic adds up at its order in every window; a mode, whose frequency does not follow the speed,
+    spreads over many orders."""
+    total = np.zeros(orders.size)
+    count = np.zeros(orders.size)
+    for y, angle in windows:   # a loop over windows
+        x, revs = angle_resampled(y - y.mean(axis=0), sample_rate_hz, angle)
+        if revs <= 0:
+            continue
+        power = np.sum(np.abs(scipy.fft.rfft(x * np.hanning(x.shape[0])[:, None], axis=0)) ** 2, axis=1)
+        o = np.arange(power.size) / revs
+        inside = (orders >= o[1]) & (orders <= o[-1])
+        white = power / scipy.ndimage.median_filter(power, WHITEN_LINES, mode="nearest")
+        total[inside] += np.interp(np.log(orders[inside]), np.log(o[1:]), white[1:])
+        count[inside] += 1
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(count >= MIN_POLES, total / np.maximum(count, 1), np.nan)
+
+
+def find_orders(windows: Sequence[tuple[np.ndarray, np.ndarray]], sample_rate_hz: float,
+                speed_rev_per_s: np.ndarray, band_hz: tuple[float, float], tol: float) -> tuple[float, ...]:
+    """Harmonic orders [per revolution] of a joint: the windows where it turns (``speed_rev_per_s``
+    [n_windows] above ``MIN_SPEED_SHARE`` of the fastest) are split in thirds by speed, and the
+    orders are the peaks of the smaller of the slowest and fastest thirds' :func:`order_spectrum` standing
+    ``ORDER_PROMINENCE`` times above their surroundings (a harmonic stands at its order at every speed; a
+    mode's apparent order ``f / v`` differs between the thirds), between ``band_hz`` [Hz] at the fastest
+    speed and at the slowest.  The order grid is log-spaced in steps of ``tol / 4``."""
+    v = np.asarray(speed_rev_per_s, float)
+    keep = np.flatnonzero(v > MIN_SPEED_SHARE * v.max(initial=0.0))
+    if keep.size < MIN_POLES:
         return ()
-    lo, vv, ff = np.log(f[ok] / v[ok]), v[ok], f[ok]
-    idx = np.argsort(lo)
-    lo, vv, ff = lo[idx], vv[idx], ff[idx]
-    left = np.ones(lo.size, bool)
-    found = []
-    while True:   # a loop over orders found: the fullest band of width 2 tol in log order, then the next
-        ends = np.searchsorted(lo, lo + 2 * tol, side="right")
-        cum = np.concatenate([[0], np.cumsum(left)])
-        count = cum[ends] - cum[:-1]
-        best = -1
-        for i in np.argsort(-count, kind="stable"):   # the fullest band whose speeds span enough
-            members = np.flatnonzero(left[i:ends[i]]) + i
-            if count[i] < MIN_POLES:
-                break
-            if _follows(ff[members], vv[members], tol):
-                best = i
-                break
-        if best < 0:
-            break
-        members = np.flatnonzero(left[best:ends[best]]) + best
-        found.append(float(np.exp(np.median(lo[members]))))
-        left[members] = False
-    return tuple(sorted(found))
-
-
-def _follows(freq_hz: np.ndarray, speed: np.ndarray, tol: float) -> bool:
-    """Poles of one order band follow the speed: their speeds span ``MIN_SPEED_RATIO`` and their
-    frequencies fill that span without a gap wider than ``MAX_GAP_SHARE`` of it (poles of different
-    modes that share an order by coincidence sit at a few far-apart frequencies)."""
-    if speed.max() < MIN_SPEED_RATIO * speed.min():
-        return False
-    lf = np.sort(np.log(freq_hz))
-    return float(np.diff(lf).max()) <= max(3 * tol, MAX_GAP_SHARE * float(lf[-1] - lf[0]))
+    lo, hi = max(band_hz[0], 1.0) / v.max(), band_hz[1] / v[keep].min()
+    orders = np.exp(np.arange(np.log(lo), np.log(hi), tol / 4))
+    third, two_thirds = np.percentile(v[keep], [100 / 3, 200 / 3])
+    slow, fast = keep[v[keep] <= third], keep[v[keep] >= two_thirds]
+    spec = np.fmin(order_spectrum([windows[k] for k in slow], sample_rate_hz, orders),
+                   order_spectrum([windows[k] for k in fast], sample_rate_hz, orders))
+    good = np.isfinite(spec)
+    level = np.log10(np.where(good, spec, 1.0))
+    peaks, _ = scipy.signal.find_peaks(level, prominence=np.log10(ORDER_PROMINENCE))
+    return tuple(float(orders[p]) for p in peaks if good[p])
 
 
 def sinusoid_kurtosis(y: np.ndarray, sample_rate_hz: float, freq_hz: np.ndarray, damping_ratio: np.ndarray,

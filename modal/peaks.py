@@ -30,6 +30,42 @@ def pick_peaks(freq_hz: np.ndarray, H: np.ndarray, *, coherence: np.ndarray | No
     return peaks
 
 
+def clear_peaks(freq_hz: np.ndarray, H: np.ndarray, *, prominence_db: float = 20.0) -> np.ndarray:
+    """Line indices of the peaks of the first CMIF of ``H`` [n_out, n_in, n_freq] that stand clearly
+    above the noise: ``prominence_db`` [dB] above the higher of the lowest points on either side before
+    a higher peak (a mode the data show; its count is a floor for what an identification must find).
+
+    Examples
+    --------
+    >>> f = np.arange(1.0, 200.0)
+    >>> H = (1 / (50.0 ** 2 - f ** 2 + 1j * f) + 1 / (120.0 ** 2 - f ** 2 + 2j * f))[None, None, :]
+    >>> f[clear_peaks(f, H)].tolist()
+    [50.0, 120.0]
+    """
+    ind = 20 * np.log10(cmif(np.asarray(H))[0] + 1e-300)
+    peaks, _ = scipy.signal.find_peaks(ind, prominence=prominence_db)
+    return peaks
+
+
+def visible_peaks(freq_hz: np.ndarray, H: np.ndarray, *, prominence_db: float = 3.0) -> np.ndarray:
+    """Frequencies [Hz], ascending, of the peaks standing ``prominence_db`` above their surroundings in
+    any FRF magnitude or any CMIF curve of ``H`` [n_out, n_in, n_freq]: where the data show a resonance
+    (a mode with none of these near it and no close neighbour is not one the FRFs show).
+
+    Examples
+    --------
+    >>> f = np.arange(1.0, 200.0)
+    >>> H = (1 / (50.0 ** 2 - f ** 2 + 1j * f))[None, None, :] * np.array([1.0, -2.0])[:, None, None]
+    >>> visible_peaks(f, H).tolist()
+    [50.0]
+    """
+    f = np.asarray(freq_hz, float)
+    curves = np.concatenate([np.abs(np.asarray(H)).reshape(-1, f.size), cmif(np.asarray(H))])
+    db = 20 * np.log10(curves + 1e-300)
+    lines = [scipy.signal.find_peaks(c, prominence=prominence_db)[0] for c in db]   # a loop over curves
+    return f[np.unique(np.concatenate(lines))]
+
+
 def quadrature_shapes(H_receptance: np.ndarray, lines: np.ndarray, reference: int = 0) -> np.ndarray:
     """Mode shapes [n_out, n_modes] as the imaginary part of the receptance at each resonance line
     (proportional damping, well separated modes)."""

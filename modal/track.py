@@ -57,7 +57,7 @@ class TrackOptions:
 
     window_s: float | None = None
     hop_s: float | None = None
-    periods: float = 60.0
+    periods: float = 80.0
     fmin: float | None = None
     fmax: float | None = None
     max_order: int = 40
@@ -215,18 +215,21 @@ def identify_windows(y: np.ndarray, pose: np.ndarray, pose_names: Sequence[str],
     return out, skipped, n_win, n_hop
 
 
-def mark_harmonics(windows: list[WindowPoles], options: TrackOptions
+def mark_harmonics(windows: list[WindowPoles], y: np.ndarray, pose: np.ndarray, sample_rate_hz: float,
+                   n_win: int, options: TrackOptions
                    ) -> tuple[list[WindowPoles], list[Harmonic], dict[str, tuple[float, ...]]]:
     """Flag each window's harmonic poles (module docstring) and list them; the orders per joint."""
     orders: dict[str, tuple[float, ...]] = {}
     joints = list(windows[0].rate_deg_per_s) if windows else []
-    for v in joints:   # a loop over pose variables
+    band = (options.fmin or 0.0, options.fmax or sample_rate_hz / 2)
+    for j, v in enumerate(joints):   # a loop over pose variables
         if options.orders:
             orders[v] = tuple(options.orders)
             continue
-        f = np.concatenate([w.freq_hz for w in windows])
-        speed = np.concatenate([np.full(w.freq_hz.size, abs(w.rate_deg_per_s[v]) / 360.0) for w in windows])
-        orders[v] = find_orders(f, speed, options.order_tol)
+        starts = [int(round(w.t_s * sample_rate_hz)) - n_win // 2 for w in windows]
+        pieces = [(y[a:a + n_win], pose[a:a + n_win, j]) for a in starts]
+        speed = np.array([abs(w.rate_deg_per_s[v]) / 360.0 for w in windows])
+        orders[v] = find_orders(pieces, sample_rate_hz, speed, band, options.order_tol)
     marked, found = [], []
     for w in windows:   # a loop over windows
         harm = np.zeros(w.freq_hz.size)
@@ -293,18 +296,21 @@ def follow(windows: Sequence[WindowPoles], options: TrackOptions) -> list[Track]
 
 
 def _stitch(tracks: list[Track], options: TrackOptions) -> list[Track]:
-    """Join a track to an earlier one that ended before it began when the earlier one's last
-    estimates and the later one's first agree within the gates (frequency and MAC): one mode whose
-    poles were missed for a while, or set aside as a harmonic where one crossed it."""
+    """Join a track to an earlier one that ended at most ``STITCH_GAP`` windows before it began when the
+    earlier one's last estimates, extrapolated linearly over the gap, and the later one's first agree
+    within the gates (frequency, widened in proportion to the gap beyond ``max_gap``, and MAC): one mode
+    whose poles were missed for a while, or set aside as a harmonic where one crossed it."""
     out: list[Track] = []
     for t in tracks:   # a loop over tracks, in order of their first window
         best, best_cost = -1, 1.0
         for i, u in enumerate(out):
             if u.windows[-1] >= t.windows[0] or t.windows[0] - u.windows[-1] > STITCH_GAP:
                 continue
-            n = min(3, u.freq_hz.size, t.freq_hz.size)
-            df = abs(np.median(t.freq_hz[:n]) - np.median(u.freq_hz[-n:])) / (options.gate_rel *
-                                                                               np.median(u.freq_hz[-n:]))
+            gap = int(t.windows[0] - u.windows[-1])
+            n = min(5, u.freq_hz.size)
+            slope = np.polyfit(u.windows[-n:], u.freq_hz[-n:], 1)[0] if n >= 2 else 0.0
+            pred = u.freq_hz[-1] + slope * gap
+            df = abs(t.freq_hz[0] - pred) / (options.gate_rel * max(1.0, gap / options.max_gap) * pred)
             dm = (1 - float(mac(u.shapes[:, -1:], t.shapes[:, :1])[0, 0])) / (1 - options.mac_min)
             if df <= 1 and dm <= 1 and df + dm < best_cost:
                 best, best_cost = i, df + dm
@@ -410,7 +416,7 @@ def track_modes(samples: np.ndarray, sample_rate_hz: float, names: Sequence[str]
     if not windows:
         raise ModalError(f"{where}: every window's pose spread exceeds {options.max_spread_deg:g} deg "
                          f"({skipped} skipped); use a shorter window or a larger spread")
-    windows, harmonics, orders = mark_harmonics(windows, options)
+    windows, harmonics, orders = mark_harmonics(windows, y, pose, sample_rate_hz, n_win, options)
     tracks = follow(windows, options)
     sines = [t for t in tracks if np.median(t.kurtosis) < options.kurtosis_max]
     tracks = [t for t in tracks if np.median(t.kurtosis) >= options.kurtosis_max]
@@ -422,3 +428,65 @@ def track_modes(samples: np.ndarray, sample_rate_hz: float, names: Sequence[str]
                 if skipped else ())
     return TrackResult(n_win / sample_rate_hz, n_hop / sample_rate_hz, tuple(windows), skipped, tuple(tracks),
                        tuple(harmonics), orders, table, out_names, warnings)
+
+
+def default_pose_from(names: Sequence[str], kinds: Sequence[str], pose: Mapping[str, float],
+                      where: str) -> dict[str, str]:
+    """The pose channels of a record when none are named: its one encoder channel for its one pose
+    variable (``pose`` as the run stores it; ``theta_deg`` when it stores none)."""
+    encoders = [n for n, k in zip(names, kinds, strict=True) if k == "encoder"]
+    variables = list(pose) or ["theta_deg"]
+    if len(encoders) == 1 and len(variables) == 1:
+        return {variables[0]: encoders[0]}
+    raise ModalError(f"{where}: {len(encoders)} encoder channel(s) for pose variable(s) "
+                     f"{', '.join(variables)}: name them with --pose-from VAR=CHANNEL,...")
+
+
+def track_input(path: str, *, pose_from: Mapping[str, str] | None = None, run_id: str | None = None,
+                options: TrackOptions = TrackOptions()) -> TrackResult:
+    """Track the modes of an HDF5 run (the file's only run, or ``run_id``) or of UFF dataset 58 time
+    histories; ``pose_from`` maps pose variables to encoder channels (degrees; default
+    :func:`default_pose_from`).  Channels named there are the pose, never outputs."""
+    from pathlib import Path
+
+    import h5py
+
+    p = Path(path)
+    if not p.is_file():
+        raise ModalError(f"{p}: input not found")
+    if h5py.is_hdf5(p):
+        from flexmodal.modal.sources import hdf5_runs
+
+        runs = list(hdf5_runs(p, run_id))
+        if len(runs) > 1:
+            raise ModalError(f"{p}: holds {len(runs)} runs; choose one with --run "
+                             f"({', '.join(r.run_id for r in runs)})")
+        run = runs[0]
+        samples, fs = run.samples, run.sample_rate_hz
+        names, kinds = [c.name for c in run.channels], [c.kind for c in run.channels]
+        where, pose = f"{p}:{run.run_id}", dict(run.pose)
+    else:
+        from flexmodal.modal.uff import UffFrfs, read_uff
+
+        data = read_uff(p)
+        if isinstance(data, UffFrfs):
+            raise ModalError(f"{p}: holds FRFs; tracking needs time histories (dataset 58, type 1)")
+        samples, fs, names, kinds = data.samples, data.sample_rate_hz, list(data.names), list(data.kinds)
+        where, pose = str(p), {}
+    if pose_from is None:
+        pose_from = default_pose_from(names, kinds, pose, where)
+    kinds = ["encoder" if n in pose_from.values() else k for n, k in zip(names, kinds, strict=True)]
+    return track_modes(samples, fs, names, kinds, pose_from, options, where)
+
+
+def write_harmonics_csv(path: str, harmonics: Sequence[Harmonic]) -> None:
+    """The harmonic poles, one row each: ``t_s``, ``freq_hz``, ``joint`` (pose variable, empty when found
+    by its sinusoid statistics), ``order`` (per joint revolution, 0 when not an order)."""
+    import pandas as pd
+
+    from flexmodal.valid_output import atomic_path
+
+    frame = pd.DataFrame([{"t_s": h.t_s, "freq_hz": h.freq_hz, "joint": h.joint, "order": h.order}
+                          for h in harmonics], columns=["t_s", "freq_hz", "joint", "order"])
+    with atomic_path(path) as tmp:
+        frame.to_csv(tmp, index=False, float_format="%.9g")

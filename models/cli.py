@@ -7,16 +7,15 @@ import sys
 
 from flexmodal import valid_options as opt
 from flexmodal.cli_commands import command
+from flexmodal.models.registry import MODELS
 from flexmodal.models.rig_schema import MAX_ELEMENTS
-
-MODEL_CHOICES = ("fe", "assumed-modes", "lumped-mass", "blevins")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this package's sub-commands to the flexmodal parser."""
     p = command(sub, "predict", _predict)
     p.add_argument("rig", metavar="RIG.toml", help="rig description (docs/formats.md)")
-    p.add_argument("--model", required=True, choices=MODEL_CHOICES,
+    p.add_argument("--model", required=True, choices=MODELS,
                    help="fe: planar frame finite elements; assumed-modes: exact beam eigenfunctions "
                         "(straight uniform arm only); lumped-mass: flexibility-matrix lumped masses "
                         "(seed 003); blevins: closed-form beam table (straight uniform arm, plain ends)")

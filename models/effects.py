@@ -42,6 +42,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from flexmodal.checked_io.registry import Registry
 from flexmodal.models.errors import ModelError
 from flexmodal.models.rig import Mass, Point, Rig, Spring
 
@@ -151,27 +152,28 @@ class Effect:
     draw: Callable[[Rig, str, float, np.random.Generator], dict[str, float]] | None = None
 
 
-REGISTRY: dict[str, Effect] = {}
+REGISTRY: Registry[Effect] = Registry("effect", ModelError)
 """Effects by name, in registration order (the order of candidates, handles and ``all``)."""
 
 
 def register_effect(effect: Effect) -> Effect:
     """Add ``effect`` to :data:`REGISTRY` (a name already registered is replaced in place)."""
-    REGISTRY[effect.name] = effect
-    return effect
+    return REGISTRY.register(effect.name, effect)
+
+
+def unregister_effect(name: str) -> None:
+    """Remove the effect ``name`` from :data:`REGISTRY`."""
+    REGISTRY.unregister(name)
+
+
+def registered_effects() -> tuple[str, ...]:
+    """Names of every registered effect, in registration order."""
+    return REGISTRY.names()
 
 
 def get_effect(name: str) -> Effect:
     """The registry entry of ``name``; ModelError naming the known effects otherwise."""
-    try:
-        return REGISTRY[name]
-    except KeyError:
-        raise ModelError(f"unknown effect {name!r} (expected one of {', '.join(REGISTRY)})") from None
-
-
-def effect_names() -> tuple[str, ...]:
-    """Names of every registered effect, in registration order."""
-    return tuple(REGISTRY)
+    return REGISTRY.entry(name)
 
 
 def effect_locations(rig: Rig, effect: str) -> list[str]:
@@ -554,8 +556,8 @@ def _link_effect(effect: str, field: str, handle: str, kind: str) -> Effect:
 register_effect(_link_effect("link_stiffness", "stiffness_scale", "EI", "K"))
 register_effect(_link_effect("link_mass", "mass_scale", "mu", "M"))
 
-EFFECTS = effect_names()
-"""The built-in library (docs/formats.md); :func:`effect_names` also lists effects registered later."""
+EFFECTS = registered_effects()
+"""The built-in library (docs/formats.md); :func:`registered_effects` also lists effects registered later."""
 EFFECT_PARAMS: dict[str, tuple[str, ...]] = {e.name: tuple(p.name for p in e.params)
                                              for e in REGISTRY.values()}
 """Parameter names of the built-in effects."""

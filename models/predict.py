@@ -21,9 +21,9 @@ from threadpoolctl import threadpool_limits
 from flexmodal.modal.mac import largest_positive
 from flexmodal.modal.table import POSE_PREFIX, SHAPE_PREFIX, ModalTable
 from flexmodal.models.errors import ModelError
+from flexmodal.models.registry import MODELS
 from flexmodal.models.rig import Rig
 
-MODELS = ("fe", "assumed-modes", "lumped-mass", "blevins")
 RIGID_HZ = 1e-3  # modes below this are rigid-body motion
 FE_CHUNK = 256  # poses assembled together by the frame FE
 Result = tuple[np.ndarray, np.ndarray | None]  # frequencies [Hz], shapes [n_sensors, n_modes] or None
@@ -36,7 +36,7 @@ def _elastic(freq_hz: np.ndarray, shapes: np.ndarray | None, n_modes: int, where
     return freq_hz[keep], None if shapes is None else shapes[:, keep]
 
 
-def _fe(rig: Rig, poses: list[Mapping[str, float]], n_modes: int, options: Mapping) -> Iterator[Result]:
+def solve_fe(rig: Rig, poses: list[Mapping[str, float]], n_modes: int, options: Mapping) -> Iterator[Result]:
     """Frame FE, assembled in chunks of poses (models.frame.assemble_many), one eigensolve per pose; large
     frames are solved in a worker process that Ctrl-C abandons at once (models.eigen_worker)."""
     from flexmodal.models.eigen_worker import FrameSolver
@@ -88,8 +88,10 @@ def _blevins(rig: Rig, pose: Mapping[str, float], n_modes: int, options: Mapping
     return beam_frequencies_hz(sb.condition, b.length_m, b.EI_Nm2, b.mass_per_m_kg, n_modes), None
 
 
-_SOLVERS: dict[str, Callable] = {"fe": _fe, "assumed-modes": _one_by_one(_assumed),
-                                 "lumped-mass": _one_by_one(_lumped), "blevins": _one_by_one(_blevins)}
+# the built-in entries of models.registry.MODELS (solve_fe above: every pose at once)
+solve_assumed_modes = _one_by_one(_assumed)
+solve_lumped_mass = _one_by_one(_lumped)
+solve_blevins = _one_by_one(_blevins)
 
 
 def predict(rig: Rig, poses: Mapping[str, Mapping[str, float]], model: str = "fe", n_modes: int = 4, *,
@@ -100,13 +102,12 @@ def predict(rig: Rig, poses: Mapping[str, Mapping[str, float]], model: str = "fe
     ``options``: ``elements_per_link``, ``lumped_mass`` (fe); ``masses_per_link``, ``coordinates``
     (lumped-mass).  ``source`` defaults to the model name.  ``progress(config)`` is called after each pose.
     """
-    if model not in _SOLVERS:
-        raise ModelError(f"unknown model {model!r} (expected one of {', '.join(MODELS)})")
+    solve = MODELS.entry(model)
     if isinstance(n_modes, bool) or not isinstance(n_modes, int) or n_modes < 1:
         raise ModelError(f"number of modes must be a whole number >= 1 (got {n_modes!r})")
     records = []
     with threadpool_limits(limits=1, user_api="blas"):  # many small dense eigenproblems: threads contend
-        results = list(_SOLVERS[model](rig, list(poses.values()), n_modes, options))  # solve inside the limit
+        results = list(solve(rig, list(poses.values()), n_modes, options))  # solve inside the limit
     for (config, pose), (freq, shapes) in zip(poses.items(), results, strict=True):
         for i, f in enumerate(freq):
             row: dict[str, object] = {"config": str(config), "mode": i + 1, "freq_hz": float(f),

@@ -7,9 +7,11 @@ import time
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from flexmodal.daq.acquire import acquire
-from flexmodal.daq.devices import Block, Driver, protocols, register_protocol
+from flexmodal.daq.devices import Block, Driver
+from flexmodal.daq.protocols import register_protocol, registered_protocols, unregister_protocol
 from flexmodal.daq.session import ChannelMap, Device, load_session
 from flexmodal.daq.store import Channel, read_run
 from flexmodal.daq.timeline import Timeline
@@ -67,6 +69,13 @@ device = "toy1"
 """
 
 
+@pytest.fixture(autouse=True)
+def _toy_unregistered_after():
+    yield
+    if "toy" in registered_protocols():
+        unregister_protocol("toy")
+
+
 def _toy_session(tmp_path, factor: float):
     register_protocol("toy", ToyDriver)
     path = tmp_path / "toy.toml"
@@ -76,7 +85,7 @@ def _toy_session(tmp_path, factor: float):
 
 def test_a_registered_protocol_records_exactly(tmp_path):
     session = _toy_session(tmp_path, 1.0)
-    assert "toy" in protocols()
+    assert "toy" in registered_protocols()
     summary = acquire(session, tmp_path / "run.h5", duration_s=1.0, quiet=True)
     run = read_run(tmp_path / "run.h5", summary.run_id)
     i = np.arange(1000.0)

@@ -58,7 +58,7 @@ def rig(rigs_dir):
 
 
 def test_the_builtin_library_is_the_registry():
-    assert fx.effect_names() == fx.EFFECTS == tuple(fx.REGISTRY)
+    assert fx.registered_effects() == fx.EFFECTS == tuple(fx.REGISTRY)
     assert all(isinstance(e, fx.Effect) for e in fx.REGISTRY.values())
     units = {p.name: p.unit for e in fx.REGISTRY.values() for p in e.params}
     assert units["k_Nm_per_rad"] == "N m/rad" and units["k_N_per_m"] == "N/m" and units["mass_kg"] == "kg"

@@ -14,6 +14,7 @@ from flexmodal.fixtures.modal_sim import modal_response
 from flexmodal.modal import frf as frf_mod
 from flexmodal.modal.compute import frf_of_record
 from flexmodal.modal.mac import largest_positive, to_real
+from flexmodal.modal.registry import register_estimator, registered_estimators, unregister_estimator
 from flexmodal.modal.windows import impact_windows, window
 
 FS = 256.0
@@ -36,9 +37,10 @@ def _h_mean(s) -> np.ndarray:
 
 
 @pytest.fixture
-def toy_estimator(monkeypatch):
-    monkeypatch.setitem(frf_mod.ESTIMATORS, "Hmean", _h_mean)   # one registry entry, undone afterwards
-    return "Hmean"
+def toy_estimator():
+    register_estimator("Hmean", _h_mean)   # one registry entry, undone afterwards
+    yield "Hmean"
+    unregister_estimator("Hmean")
 
 
 def test_a_registered_estimator_reaches_compute_cli_and_provenance(toy_estimator, tmp_path, capsys):
@@ -70,10 +72,13 @@ def test_an_unknown_estimator_is_one_line_and_exit_2(tmp_path, capsys):
     assert "\n" not in err and "'H3'" in err and "'Hv'" in err
 
 
-def test_register_estimator_replaces_a_name_of_another_case(monkeypatch):
-    monkeypatch.setattr(frf_mod, "ESTIMATORS", dict(frf_mod.ESTIMATORS))
-    frf_mod.register_estimator("h1", _h_mean)
-    assert list(frf_mod.ESTIMATORS) == ["H2", "Hv", "h1"] and frf_mod.estimator_name("H1") == "h1"
+def test_register_estimator_replaces_a_name_of_another_case():
+    register_estimator("h1", _h_mean)
+    try:
+        assert registered_estimators() == ("h1", "H2", "Hv") and frf_mod.estimator_name("H1") == "h1"
+    finally:
+        register_estimator("H1", frf_mod.h1)
+    assert registered_estimators() == ("H1", "H2", "Hv")
 
 
 def test_one_sign_convention_for_shapes():

@@ -10,7 +10,8 @@ from conftest import RIGS
 from flexmodal.app import main
 from flexmodal.modal.table import ModalTable
 from flexmodal.models.errors import ModelError
-from flexmodal.models.predict import MODELS, load_external, predict
+from flexmodal.models.predict import load_external, predict
+from flexmodal.models.registry import registered_models
 from flexmodal.models.rig import load_rig
 
 SEED003 = (RIGS / "seed003_two_link.toml").read_text()  # a copy is edited into bad rigs below
@@ -29,7 +30,7 @@ def poses_csv(tmp_path):
 
 def test_every_model_agrees_on_the_straight_arm(rigs_dir):
     rig = load_rig(rigs_dir / "seed003_two_link.toml")
-    tables = {m: predict(rig, {"theta0": {"theta_deg": 0.0}}, m, 4) for m in MODELS}
+    tables = {m: predict(rig, {"theta0": {"theta_deg": 0.0}}, m, 4) for m in registered_models()}
     blevins = tables["blevins"].freq_hz("theta0")
     assert tables["assumed-modes"].freq_hz("theta0") == pytest.approx(blevins, rel=1e-6)
     assert tables["fe"].freq_hz("theta0") == pytest.approx(blevins, rel=1e-2)  # FE adds rotary inertia
