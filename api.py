@@ -29,10 +29,10 @@ if TYPE_CHECKING:
     from flexmodal.models.rig import Rig
 
 __all__ = [
-    "Identification", "acquire", "compare_modes", "compute_frf", "compute_frfs", "diagnose",
-    "format_comparison", "identify", "list_runs", "load_rig", "plot_comparison", "plot_frf", "plot_gap",
-    "plot_mode_shapes", "plot_stabilisation", "predict", "read_diagnosis", "read_poses", "read_run",
-    "read_table", "report", "write_diagnosis",
+    "Identification", "SelfCheck", "acquire", "compare_modes", "compute_frf", "compute_frfs", "demo",
+    "diagnose", "format_comparison", "identify", "list_runs", "load_rig", "plot_comparison", "plot_frf",
+    "plot_gap", "plot_mode_shapes", "plot_stabilisation", "predict", "read_diagnosis", "read_poses",
+    "read_run", "read_table", "report", "selftest", "write_diagnosis",
 ]
 
 SHAPE_CONFIGS = 2              # configurations whose mode shapes a report draws on the arm (first, last)
@@ -300,6 +300,42 @@ class Identification:
     def warnings(self) -> list[str]:
         """``config: message`` for every warning met on the way."""
         return [f"{c}: {w}" for c, m in self.modes.items() for w in m.warnings]
+
+    def write(self, out: PathLike, *, uff: PathLike | None = None) -> Path:
+        """Write the modal table CSV ``out`` (docs/formats.md) and, beside it, ``MODES.synthesis.csv``
+        (the FRAC of every measured and synthesised FRF), both or neither (SIGINT/SIGTERM held);
+        with ``uff``, also the modes of the first configuration as UFF dataset 55.  Returns ``out``.
+
+        Examples
+        --------
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> import flexmodal as fm
+        >>> from flexmodal.fixtures.examples import impact_run
+        >>> folder = Path(tempfile.mkdtemp())
+        >>> ident = fm.identify(impact_run(folder), fmax=400.0)
+        >>> ident.write(folder / "modes.csv", uff=folder / "modes.uff").name
+        'modes.csv'
+        >>> sorted(p.name for p in folder.iterdir() if p.suffix != ".h5")
+        ['modes.csv', 'modes.synthesis.csv', 'modes.uff']
+        """
+        from flexmodal.modal.errors import ModalError
+        from flexmodal.modal.identify import write_synthesis_csv
+        from flexmodal.valid_output import output_file, signals_deferred
+
+        output_file(out, ModalError, "modal table (--out)")
+        if uff is not None:
+            output_file(uff, ModalError, "UFF file (--uff)")
+        modes_by_config = {c: (m, self.outputs[c]) for c, m in self.modes.items()}
+        with signals_deferred():   # the modal table and its synthesis file: both written, or neither
+            self.table.to_csv(out)
+            write_synthesis_csv(out, modes_by_config)
+        if uff is not None:
+            from flexmodal.modal.uff import write_modes
+
+            modes, outputs = next(iter(modes_by_config.values()))
+            write_modes(uff, modes.freq_hz, modes.damping_ratio, modes.shapes, outputs)
+        return Path(out)
 
 
 def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: float | None = None,
@@ -955,3 +991,72 @@ def report_pdf(html: PathLike, pdf: PathLike | None = None) -> Path:
 
     target = output_file(Path(html).with_suffix(".pdf") if pdf is None else pdf, ReportError, "PDF report")
     return print_pdf(html, target)
+
+
+# -- the simulated rig -----------------------------------------------------------------------------
+
+def demo(out_dir: PathLike = "flexmodal-demo", *, rig: PathLike | None = None, quiet: bool = True) -> Path:
+    """The main job end to end on the embedded simulated rig (``flexmodal demo``; no hardware).
+
+    Simulates impact and random tests of the demo arm (which hides a compliant elbow) in five poses,
+    one of them acquired through the serial stack, and writes ``runs.h5``, ``operational.h5``,
+    ``modes.csv``, ``fe.csv``, ``diagnosis.json``/``.html`` and ``report.html`` into ``out_dir``; the
+    comparison and the verdict, next to the hidden truth, go to stdout.
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        Output folder (created; its existing outputs are replaced).
+    rig : str or Path, optional
+        Simulate this rig TOML instead of the demo arm.
+    quiet : bool
+        No progress bar on stderr.
+
+    Returns
+    -------
+    Path
+        The report.
+    """
+    from flexmodal.fixtures.errors import FixtureError
+    from flexmodal.valid_output import output_dir
+
+    out = output_dir(out_dir, FixtureError, "demo folder (--out)")   # before the demo's heavy imports
+    from flexmodal.fixtures.demo import Writers, run_demo
+
+    return run_demo(out, Writers(write_diagnosis, report), None if rig is None else Path(rig), quiet=quiet)
+
+
+@dataclass(frozen=True)
+class SelfCheck:
+    """The blind self-check of the diagnosis: the ``results`` per case (``fixtures.blind.BlindResult``),
+    the accuracy ``summary`` (fractions) and its printed ``text``."""
+
+    results: tuple
+    summary: Mapping[str, float]
+    text: str
+
+
+def selftest(n_cases: int, *, seed: int = 0, progress: Callable[[object], None] | None = None) -> SelfCheck:
+    """Blind self-check of :func:`diagnose` (``flexmodal diagnose --selftest N``).
+
+    Random rigs are simulated by the independent truth model (a Timoshenko frame, fixtures/truth_arm.py)
+    with withheld effects, diagnosed, and the verdicts scored against what was hidden (docs/diagnosis.md).
+
+    Parameters
+    ----------
+    n_cases : int
+        Cases to run, the first of the fixed schedule.
+    seed : int
+        Random seed of the cases.
+    progress : callable, optional
+        Called with each case's result as it is done.
+
+    Returns
+    -------
+    SelfCheck
+    """
+    from flexmodal.fixtures.blind import format_summary, run_blind, summarise
+
+    results = run_blind(n_cases, seed=seed, progress=progress)
+    summary = summarise(results)
+    return SelfCheck(tuple(results), summary, format_summary(summary))

@@ -1,6 +1,6 @@
 """The demo's report is one a reviewer accepts: readable figures, a page to hand over, a PDF.
 
-The demo (fixtures.demo.run_demo: simulated impact, random and operational tests of the demo arm) runs
+The demo (api.demo: simulated impact, random and operational tests of the demo arm) runs
 in this process with ``reports.plots.figure_png`` observed, so every ``Figure`` the report embeds is
 kept and checked (tests/figure_lint.py): no tick label in mathtext markup, no text outside the canvas.
 Importing and drawing flexmodal's figures changes no global matplotlib state (backend, rcParams).
@@ -30,7 +30,7 @@ REPO = Path(__file__).resolve().parents[1]
 @pytest.fixture(scope="module")
 def demo_figures(tmp_path_factory):
     """(report path, [(caption-less figure, kind)]) of one in-process demo run."""
-    from flexmodal.fixtures.demo import run_demo
+    from flexmodal.api import demo
 
     out = tmp_path_factory.mktemp("demo_figures")
     seen = []
@@ -42,7 +42,7 @@ def demo_figures(tmp_path_factory):
 
     with pytest.MonkeyPatch.context() as mp, contextlib.redirect_stdout(io.StringIO()):
         mp.setattr(plots, "figure_png", keep)
-        report = run_demo(out, quiet=True)
+        report = demo(out, quiet=True)
     return report, seen
 
 
