@@ -632,10 +632,11 @@ def diagnose(rig: Rig | PathLike, measured: ModalTable | PathLike, *, effects: s
     return _diagnose(_rig(rig), _table(measured), effects=effects, holdout=holdout, scatter=scatter)
 
 
-def write_diagnosis(result: Diagnosis, out_dir: PathLike) -> tuple[Path, Path]:
+def write_diagnosis(result: Diagnosis, out_dir: PathLike,
+                    inputs: Sequence[PathLike] = ()) -> tuple[Path, Path]:
     """Write ``diagnosis.json`` (strict JSON) and ``diagnosis.html`` of a :func:`diagnose` result into
     ``out_dir``.  The page is the validation report's diagnosis section alone (one renderer,
-    reports/html.py)."""
+    reports/html.py), naming ``inputs`` (the rig and the measured modes it was diagnosed from)."""
     from flexmodal.compare.errors import CompareError
     from flexmodal.reports.html import write_report
     from flexmodal.valid_output import output_dir, write_text
@@ -643,7 +644,8 @@ def write_diagnosis(result: Diagnosis, out_dir: PathLike) -> tuple[Path, Path]:
     out = output_dir(out_dir, CompareError, "diagnosis folder (--out)")
     out.mkdir(parents=True, exist_ok=True)
     pj = write_text(out / "diagnosis.json", result.to_json())
-    ph = write_report(out / "diagnosis.html", diagnosis=result, title="Sim-to-real gap diagnosis")
+    ph = write_report(out / "diagnosis.html", diagnosis=result, title="Sim-to-real gap diagnosis",
+                      inputs=list(inputs))
     return pj, ph
 
 
@@ -968,10 +970,27 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
             missing = [v for v in rig.pose_variables if v not in pose]
             shapes[config] = (f"No mode shapes drawn for {config}: the measured table gives no "
                               f"pose.{missing[0]} for the rig") if missing else arm_modes(rig, pose, common)
+    inputs = [path for path, _ in expand_runs(runs)]
+    inputs += [t.source for t in ([meas] if meas is not None else []) + [_table(r) for r in repeats]]
+    inputs += [t.source for _, t in named]
+    inputs += [diagnosis] if isinstance(diagnosis, str | Path) else []
+    inputs += [rig.source] if rig is not None else []
     return write_report(out, runs=summaries, comparison=comparison, measured=meas,
                         repeats=[_table(r) for r in repeats], predictions=named, shapes=shapes,
                         diagnosis=_diagnosis(diagnosis) if diagnosis is not None else None,
-                        rig_name=getattr(rig, "name", ""), title=title, progress=progress)
+                        rig_name=getattr(rig, "name", ""), title=title, inputs=inputs, progress=progress)
+
+
+def report_pdf(html: PathLike, pdf: PathLike | None = None) -> Path:
+    """Print the HTML report ``html`` to ``pdf`` (default: beside it, ``.pdf``) with headless Chromium,
+    every run's block opened, tables whole with repeated headers; returns the PDF's path.  ReportError
+    (one line) where no Chromium is installed."""
+    from flexmodal.reports.errors import ReportError
+    from flexmodal.reports.pdf import print_pdf
+    from flexmodal.valid_output import output_file
+
+    target = output_file(Path(html).with_suffix(".pdf") if pdf is None else pdf, ReportError, "PDF report")
+    return print_pdf(html, target)
 
 
 # -- the simulated rig -----------------------------------------------------------------------------
