@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -95,6 +95,7 @@ FEATURE_Z = 3.3
 """A residual feature beyond 3.3 standard errors (two-sided 0.1 %) points outside the library."""
 COMAC_BAD = 0.8
 COMAC_GOOD = 0.95
+Z95 = 1.959963984540054
 INTERVAL_METHOD = ("linearised (Gauss-Newton) covariance at the ranking scatter, widened to the "
                    "jackknife over the cross-validation refits where larger; Student t quantile")
 RANKING_LENGTH = 25
@@ -519,6 +520,72 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
         predictions=_predictions(meas, base_f, best))
 
 
+def prediction_band(rig: Rig, measured: ModalTable, result: Diagnosis, poses: Sequence[dict[str, float]],
+                    pose_var: str | None = None):
+    """The verdict's model at ``poses`` (full pose dicts) with 95 % prediction intervals, as a
+    compare.modal_map.PredictionBand over ``pose_var`` (default: the rig's only pose variable).
+
+    The verdict's candidate is rebuilt from ``result`` (its effect, location and fitted parameters,
+    unidentified ones included, from ``result.ranking``), its linearised parameter covariance
+    ``scatter^2 (J^T J)^+`` computed on ``measured`` at ``result.scatter``, and at each new pose the
+    interval is ``f (1 +- 1.96 sqrt(g^T C g + scatter^2))`` with ``g`` the relative sensitivities there
+    (the interval of a new observation, Seber & Wild 1989 §5.1).  Modes are by ascending order, as many
+    as measured.  ``result`` with a ``none`` verdict gives the nominal model with ``+- 1.96 scatter``.
+    """
+    from flexmodal.compare.modal_map import PredictionBand
+
+    variables = rig.pose_variables
+    pose_var = pose_var or (variables[0] if len(variables) == 1 else None)
+    if pose_var not in variables:
+        raise CompareError(f"prediction band: name the pose variable to map over (rig has "
+                           f"{', '.join(variables) or 'none'})")
+    meas = prepare(rig, measured)
+    v = result.verdict
+    entry = next((e for e in result.ranking if (e.effect, e.location) == (v.effect, v.location)), None)
+    cand = _rebuild(rig, meas, v.effect, v.location) if entry is not None else None
+    scatter = result.scatter or DEFAULT_SCATTER
+    ctx = _Context(rig, meas, np.ones((1, len(meas.configs)), bool))
+    new = Measured(tuple(f"q{i}" for i in range(len(poses))), tuple(dict(p) for p in poses),
+                   np.repeat(meas.freq_hz[:1], len(poses), axis=0), None, ())
+    nctx = _Context(rig, new, np.ones((1, len(poses)), bool))
+    if cand is None:
+        f = evaluate(nctx.family([]), np.zeros((len(poses), 0, 0)), np.zeros((1, 0)), nctx.target)[0][0]
+        var = np.full(f.shape, scatter**2)
+    else:
+        theta = np.array([math.log(x) if p.power == 0 else x
+                          for p, x in zip(cand.params, _param_values(cand, entry.params), strict=True)])
+        D = design(cand, ctx.target)
+        _, df, _, _ = evaluate(ctx.family(cand.handles), D, theta[None], ctx.target)
+        cov = _linear_cov(df[0] / meas.freq_hz[..., None], scatter)
+        nfam = nctx.family(cand.handles)
+        f, dfn, _, _ = evaluate(nfam, design(cand, nctx.target), theta[None], nctx.target)
+        f = f[0]
+        g = dfn[0] / f[..., None]
+        var = np.einsum("cnj,jk,cnk->cn", g, cov, g) + scatter**2
+    half = Z95 * np.sqrt(var)
+    x = np.array([p[pose_var] for p in poses], float)
+    label = "nominal model" if cand is None else f"{v.effect} at {v.location}"
+    return PredictionBand(x, f, f * (1 - half), f * (1 + half), label)
+
+
+def _rebuild(rig: Rig, meas: Measured, effect: str, location: str) -> Candidate | None:
+    """The candidate named ``effect`` at ``location`` (as in a diagnosis: names joined by ``+``)."""
+    singles = single_candidates(rig, tuple(dict.fromkeys(effect.split("+"))),
+                                {v: [p[v] for p in meas.poses] for v in rig.pose_variables})
+    for n in range(1, 4):
+        for parts in itertools.combinations(singles, n):
+            cand = parts[0] if n == 1 else combine(*parts)
+            if cand is not None and (cand.effect, cand.location) == (effect, location):
+                return cand
+    return None
+
+
+def _param_values(cand: Candidate, params: Mapping) -> list[float]:
+    """The SI values of ``cand.params`` from a reported parameter mapping (names as ``_params`` makes)."""
+    names = list(_params(cand, np.zeros(cand.n_params)))
+    return [float(params[n]) for n in names]
+
+
 def scatter_line(result: Diagnosis) -> str:
     """One line: the scatter the ranking used and where it came from (measurement + model-form floor)."""
     src = result.scatter_source
@@ -526,10 +593,13 @@ def scatter_line(result: Diagnosis) -> str:
         return ""
     meas = src.measurement if src.measurement is not None else result.scatter
     floor = src.model_form_floor or 0.0
-    own = "none measured" if src.source == FALLBACK_SOURCE else f"{meas:.2%} from {src.source}"
-    return (f"scatter: {result.scatter:.2%} = measurement ({own}; {src.detail}) + model-form floor "
-            f"{floor:.2%} (held-out error of the best candidate beyond the measurement); judged against "
-            f"{meas:.2%}")
+    def pct(x: float) -> str:
+        return f"{100 * x:.2g} %"
+
+    own = "none measured" if src.source == FALLBACK_SOURCE else f"{pct(meas)} from {src.source}"
+    return (f"scatter: {pct(result.scatter)} = measurement ({own}; {src.detail}) + model-form floor "
+            f"{pct(floor)} (held-out error of the best candidate beyond the measurement); what remains is "
+            f"judged against {pct(meas)}")
 
 
 def _per_config(rig: Rig, meas: Measured, best: dict | None) -> dict[str, dict[str, float]]:
@@ -759,6 +829,7 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
                "residual_feature": feature, "flags": flags,
                "param_intervals": {k: v for k, v in best["_param_intervals"].items()
                                    if k not in unidentified},
+               "heldout_in_prediction_interval": list(_heldout_intervals(ctx, best, scatter)),
                "interval_method": INTERVAL_METHOD}
     worst = np.dstack(np.unravel_index(np.argsort(-np.abs(resid), axis=None)[:3], resid.shape))[0]
     remaining = [{"config": meas.configs[c], "mode": int(m + 1), "heldout_rel_error": float(resid[c, m])}
@@ -847,6 +918,33 @@ def _residual_feature(ctx: _Context, best: dict, resid: np.ndarray, sigma: float
                              f"{values[worst]:.2f}; the other sensors >= {others.min():.2f})")
                 feature = feature or f"sensor {meas.sensors[worst]}"
     return feature, flags
+
+
+def _linear_cov(rel_jac: np.ndarray, scatter: float) -> np.ndarray:
+    """Gauss-Newton covariance ``scatter^2 (J^T J)^+`` of the parameters from relative-frequency
+    derivatives ``rel_jac`` [..., J] (Bates & Watts 1988 §2.3)."""
+    J = rel_jac.reshape(-1, rel_jac.shape[-1])
+    return scatter**2 * np.linalg.pinv(J.T @ J)
+
+
+def _heldout_intervals(ctx: _Context, entry: dict, scatter: float) -> tuple[int, int]:
+    """(held-out frequencies inside their 95 % prediction interval, held-out frequencies): each fold's
+    fit predicts the configurations it did not see with variance ``g^T C g + scatter^2`` (``C`` the
+    fold's linearised parameter covariance, ``g`` the relative sensitivities at the held-out pose;
+    the prediction interval of a new observation, Seber & Wild 1989 §5.1)."""
+    cand = entry["_cand"]
+    train = ctx.train[1:]
+    f, df, _, _ = evaluate(entry["_fam"], design(cand, ctx.target), entry["_theta_folds"], ctx.target)
+    rel = df / ctx.meas.freq_hz[None, ..., None]
+    inside = total = 0
+    for k, tr in enumerate(train):
+        cov = _linear_cov(rel[k][tr], scatter)
+        g = rel[k][~tr]                                                     # [h, n, J]
+        var = np.einsum("hnj,jk,hnk->hn", g, cov, g) + scatter**2
+        err = f[k][~tr] / ctx.meas.freq_hz[~tr] - 1.0
+        inside += int(np.sum(np.abs(err) <= Z95 * np.sqrt(var)))
+        total += err.size
+    return inside, total
 
 
 def _fit_shapes(ctx: _Context, entry: dict) -> np.ndarray:

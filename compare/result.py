@@ -280,7 +280,9 @@ class Verdict(_Record):
     outside the library (a pose trend, one mode, one configuration, one sensor; empty when nothing
     does) and ``flags`` the warnings that go with the verdict (e.g. a shape that disagrees at one
     sensor); ``param_intervals`` a 95 % interval ``[low, high]`` per fitted parameter (SI) and
-    ``interval_method`` how they were computed.  ``per_config``: pose-dependent parameters
+    ``interval_method`` how they were computed; ``heldout_in_prediction_interval`` ``[inside, all]``:
+    the held-out frequencies inside their 95 % prediction interval from the fold that did not see
+    them.  ``per_config``: pose-dependent parameters
     per configuration, ``{name: {config: value}}``, written as the keys ``<name>_per_config``."""
 
     effect: str
@@ -305,6 +307,7 @@ class Verdict(_Record):
     flags: tuple[str, ...] | None = None
     param_intervals: Mapping[str, tuple[float | None, ...]] | None = None
     interval_method: str | None = None
+    heldout_in_prediction_interval: tuple[int, ...] | None = None
     per_config: Mapping[str, Mapping[str, float | None]] = field(default_factory=FrozenMap,
                                                               metadata={"suffix": "_per_config"})
 
