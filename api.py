@@ -29,10 +29,10 @@ if TYPE_CHECKING:
     from flexmodal.models.rig import Rig
 
 __all__ = [
-    "Identification", "acquire", "compare_modes", "compute_frf", "compute_frfs", "diagnose",
-    "format_comparison", "identify", "list_runs", "load_rig", "plot_comparison", "plot_frf", "plot_gap",
-    "plot_mode_shapes", "plot_stabilisation", "predict", "read_diagnosis", "read_poses", "read_run",
-    "read_table", "report", "write_diagnosis",
+    "Identification", "SelfCheck", "acquire", "compare_modes", "compute_frf", "compute_frfs", "demo",
+    "diagnose", "format_comparison", "identify", "list_runs", "load_rig", "plot_comparison", "plot_frf",
+    "plot_gap", "plot_mode_shapes", "plot_stabilisation", "predict", "read_diagnosis", "read_poses",
+    "read_run", "read_table", "report", "selftest", "write_diagnosis",
 ]
 
 SHAPE_CONFIGS = 2              # configurations whose mode shapes a report draws on the arm (first, last)
@@ -43,15 +43,63 @@ PathLike = str | Path
 # -- runs ------------------------------------------------------------------------------------------
 
 def list_runs(path: PathLike) -> list[str]:
-    """Run ids stored in an HDF5 run file (docs/hdf5-format.md), sorted."""
+    """Run ids stored in an HDF5 run file (docs/hdf5-format.md), sorted.
+
+    Parameters
+    ----------
+    path : str or Path
+        The run file.
+
+    Returns
+    -------
+    list of str
+        The run ids.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> import flexmodal as fm
+    >>> from flexmodal.fixtures.examples import impact_run
+    >>> path = impact_run(tempfile.mkdtemp())    # a simulated impact test of the demo arm
+    >>> fm.list_runs(path)
+    ['theta30']
+    """
     from flexmodal.daq.store import list_runs as _list
 
     return _list(path)
 
 
 def read_run(path: PathLike, run_id: str | None = None) -> Run:
-    """One stored run read into memory (``daq.store.Run``: samples [n_samples, n_channels] in physical
-    units, channels, events, pose).  ``run_id`` may be left out when the file holds one run."""
+    """One stored run read into memory.
+
+    Parameters
+    ----------
+    path : str or Path
+        The HDF5 run file (docs/hdf5-format.md).
+    run_id : str, optional
+        The run to read; may be left out when the file holds one run.
+
+    Returns
+    -------
+    daq.store.Run
+        ``samples`` [n_samples, n_channels] in physical units, ``channels``, ``events``, ``pose``
+        (degrees, kg), ``sample_rate_hz`` [Hz].
+
+    Raises
+    ------
+    DaqError
+        The file holds several runs and none is named, or the run is not a valid one.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> import flexmodal as fm
+    >>> from flexmodal.fixtures.examples import impact_run
+    >>> path = impact_run(tempfile.mkdtemp())    # a simulated impact test of the demo arm
+    >>> run = fm.read_run(path)
+    >>> run.samples.shape, [c.name for c in run.channels], run.pose
+    ((4096, 6), ['F', 'a1', 'a2', 'a3', 'a4', 'a5'], {'theta_deg': 30.0})
+    """
     from flexmodal.daq.errors import DaqError
     from flexmodal.daq.store import read_run as _read
 
@@ -65,9 +113,38 @@ def read_run(path: PathLike, run_id: str | None = None) -> Run:
 
 def acquire(session: PathLike | Session, out: PathLike, *, duration_s: float | None = None,
             run_id: str | None = None, recover: bool = False, quiet: bool = True) -> Summary:
-    """Record the devices of a session config (TOML path or ``daq.session.Session``;
-    docs/acquisition.md) into a run of the HDF5 file ``out``; ``recover`` first clears the
-    open-for-writing flags a killed writer left in ``out``.  Returns the acquisition summary."""
+    """Record the devices of a session config into a run of an HDF5 file.
+
+    Parameters
+    ----------
+    session : str, Path or daq.session.Session
+        The session config (TOML, docs/acquisition.md); a ``[simulator]`` table starts the simulated
+        device it names (serial over a pty, CAN over slcan, Modbus TCP on 127.0.0.1).
+    out : str or Path
+        The HDF5 run file to append the run to (docs/hdf5-format.md).
+    duration_s : float, optional
+        Stop after this many seconds of samples [s] (default: until Ctrl-C or the session's own end).
+    run_id : str, optional
+        Id of the new run (default: from the start time).
+    recover : bool
+        First clear the open-for-writing flags a killed writer left in ``out``.
+    quiet : bool
+        No live display on stderr.
+
+    Returns
+    -------
+    daq.acquire.Summary
+        What was stored: ``run_id``, ``n_samples``, ``n_channels``, ``sample_rate_hz`` [Hz], ``events``.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> import flexmodal as fm
+    >>> out = tempfile.mkdtemp() + "/run.h5"
+    >>> summary = fm.acquire("examples/sessions/serial-sim.toml", out, duration_s=1.0)
+    >>> summary.n_samples, summary.n_channels, summary.sample_rate_hz
+    (2048, 7, 2048.0)
+    """
     from flexmodal.daq.acquire import acquire as _acquire
     from flexmodal.daq.errors import DaqError
     from flexmodal.daq.session import load_session
@@ -90,9 +167,46 @@ def acquire(session: PathLike | Session, out: PathLike, *, duration_s: float | N
 def compute_frf(run: Run | PathLike, *, estimator: str = "H1", nfft: int | None = None,
                 window: str | None = None, overlap: float = 0.5, averaging: str = "linear",
                 store: bool = False) -> FrfResult:
-    """FRFs and coherence of one run (a ``Run``, or the path of a one-run file): ``H`` [n_out, n_in,
-    n_freq], ``coherence`` [n_out, n_freq], ``freq_hz`` (docs/modal.md for the estimators, windows and
-    impact processing).  ``store`` writes them back under ``/runs/<id>/frf`` of the run's file."""
+    """FRFs and coherence of one run (docs/modal.md: estimators, windows, impact processing).
+
+    Parameters
+    ----------
+    run : daq.store.Run, str or Path
+        A run read by :func:`read_run`, or the path of a file holding one run.
+    estimator : str
+        A registered FRF estimator (``H1``, ``H2``, ``Hv``; modal.registry.ESTIMATORS).
+    nfft : int, optional
+        Segment length [samples] of random and sweep runs (default: a power of two <= 8192 giving at
+        least 8 segments); impact runs use one record per hit.
+    window : str, optional
+        ``rect``, ``hann`` (default) or ``flattop`` for random runs; ``force:W,exponential:E``
+        (fractions of the record) for impact runs.
+    overlap : float
+        Segment overlap, a fraction in [0, 1).
+    averaging : {"linear", "exponential"}
+        Averaging of the impact hits.
+    store : bool
+        Also write the result under ``/runs/<id>/frf`` of the run's file.
+
+    Returns
+    -------
+    modal.frf.FrfResult
+        ``H`` [n_out, n_in, n_freq], ``coherence`` [n_out, n_freq], ``freq_hz`` [Hz], ``outputs``.
+
+    References
+    ----------
+    J. S. Bendat and A. G. Piersol, *Random Data*, 4th ed., Wiley, 2010, ch. 9 (H1, H2).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> import flexmodal as fm
+    >>> from flexmodal.fixtures.examples import impact_run
+    >>> path = impact_run(tempfile.mkdtemp())    # a simulated impact test of the demo arm
+    >>> frf = fm.compute_frf(path)
+    >>> frf.H.shape, frf.estimator, frf.outputs
+    ((5, 1, 983), 'H1', ('a1', 'a2', 'a3', 'a4', 'a5'))
+    """
     from flexmodal.modal.compute import compute_frf as _compute
 
     if isinstance(run, str | Path):
@@ -115,17 +229,50 @@ def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: 
                  nfft: int | None = None, window: str | None = None, overlap: float = 0.5,
                  averaging: str = "linear", workers: int | None = 0, scheduler: str | None = None,
                  out: PathLike | None = None, quiet: bool = True) -> list[tuple[str, str]]:
-    """Batch FRFs of stored runs (a file means all its runs, ``FILE::RUN_ID`` or (file, id) one run),
-    written back into each file or into ``out``; returns the (file, run id) pairs written.
+    """Batch FRFs of stored runs, written back into each file or into ``out``.
 
-    ``workers`` 0 (the default) computes the runs here one after the other; None chooses as the
-    ``frf`` command does (here, or a pool of local processes once the measured cost predicts that it
-    pays for its start-up, see ``modal.batch.run_batch``); N forces a pool of N processes;
-    ``scheduler`` sends the runs to that dask address.  Pool workers start from a fork server that
-    imports the calling script again as ``__mp_main__`` (as ``multiprocessing`` does), so a script
-    passing ``workers`` None or N keeps its own work under ``if __name__ == "__main__":``.
-    Estimators registered in this process (``modal.frf.register_estimator``) reach worker processes
-    only if they register them too."""
+    Parameters
+    ----------
+    runs : sequence of str, Path or (path, run id)
+        A file means all its runs, ``FILE::RUN_ID`` or ``(file, id)`` one run.
+    estimator, nfft, window, overlap, averaging
+        As :func:`compute_frf`.
+    workers : int or None
+        0 (the default) computes the runs here one after the other; None chooses as the ``frf``
+        command does (here, or a pool of local processes once the measured cost predicts that it
+        pays for its start-up, see ``modal.batch.run_batch``); N forces a pool of N processes.
+    scheduler : str, optional
+        Send the runs to the dask.distributed scheduler at this address (the extra
+        ``flexmodal[cluster]``).
+    out : str or Path, optional
+        Write the FRFs into this file instead of the inputs.
+    quiet : bool
+        No progress bar on stderr.
+
+    Returns
+    -------
+    list of (str, str)
+        The (file written, run id) pairs, in input order.
+
+    Notes
+    -----
+    Pool workers start from a fork server that imports the calling script again as ``__mp_main__`` (as
+    ``multiprocessing`` does), so a script passing ``workers`` None or N keeps its own work under
+    ``if __name__ == "__main__":``.  Estimators registered in this process
+    (``modal.registry.register_estimator``) reach worker processes only if they register them too.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> import flexmodal as fm
+    >>> from flexmodal.fixtures.examples import impact_run
+    >>> path = impact_run(tempfile.mkdtemp())    # a simulated impact test of the demo arm
+    >>> [run_id for _, run_id in fm.compute_frfs([path])]
+    ['theta30']
+    >>> from flexmodal.modal.runs_io import read_frf
+    >>> read_frf(path, "theta30").H.shape      # stored under /runs/theta30/frf
+    (5, 1, 983)
+    """
     from flexmodal.modal.batch import frf_batch
 
     if out is not None:
@@ -153,6 +300,42 @@ class Identification:
     def warnings(self) -> list[str]:
         """``config: message`` for every warning met on the way."""
         return [f"{c}: {w}" for c, m in self.modes.items() for w in m.warnings]
+
+    def write(self, out: PathLike, *, uff: PathLike | None = None) -> Path:
+        """Write the modal table CSV ``out`` (docs/formats.md) and, beside it, ``MODES.synthesis.csv``
+        (the FRAC of every measured and synthesised FRF), both or neither (SIGINT/SIGTERM held);
+        with ``uff``, also the modes of the first configuration as UFF dataset 55.  Returns ``out``.
+
+        Examples
+        --------
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> import flexmodal as fm
+        >>> from flexmodal.fixtures.examples import impact_run
+        >>> folder = Path(tempfile.mkdtemp())
+        >>> ident = fm.identify(impact_run(folder), fmax=400.0)
+        >>> ident.write(folder / "modes.csv", uff=folder / "modes.uff").name
+        'modes.csv'
+        >>> sorted(p.name for p in folder.iterdir() if p.suffix != ".h5")
+        ['modes.csv', 'modes.synthesis.csv', 'modes.uff']
+        """
+        from flexmodal.modal.errors import ModalError
+        from flexmodal.modal.identify import write_synthesis_csv
+        from flexmodal.valid_output import output_file, signals_deferred
+
+        output_file(out, ModalError, "modal table (--out)")
+        if uff is not None:
+            output_file(uff, ModalError, "UFF file (--uff)")
+        modes_by_config = {c: (m, self.outputs[c]) for c, m in self.modes.items()}
+        with signals_deferred():   # the modal table and its synthesis file: both written, or neither
+            self.table.to_csv(out)
+            write_synthesis_csv(out, modes_by_config)
+        if uff is not None:
+            from flexmodal.modal.uff import write_modes
+
+            modes, outputs = next(iter(modes_by_config.values()))
+            write_modes(uff, modes.freq_hz, modes.damping_ratio, modes.shapes, outputs)
+        return Path(out)
 
 
 def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: float | None = None,
@@ -205,14 +388,50 @@ def track(source: PathLike, *, pose_from: Mapping[str, str] | None = None, run_i
 
 
 def read_table(path: PathLike) -> ModalTable:
-    """A modal table CSV (docs/formats.md): one row per (configuration, mode)."""
+    """A modal table CSV (docs/formats.md): one row per (configuration, mode).
+
+    Parameters
+    ----------
+    path : str or Path
+        The CSV file: ``config``, ``mode``, ``freq_hz`` [Hz], optional ``damping_ratio``, ``source``,
+        ``pose.<var>`` and ``shape.<sensor>`` columns.
+
+    Returns
+    -------
+    modal.table.ModalTable
+
+    Examples
+    --------
+    >>> import flexmodal as fm
+    >>> table = fm.read_table("examples/measured/seed003_table3_f1f2.csv")   # seed 003, Table 3
+    >>> table.configs[:3], len(table.frame)
+    (['theta0', 'theta120', 'theta150'], 12)
+    """
     from flexmodal.modal.table import ModalTable
 
     return ModalTable.read_csv(path)
 
 
 def read_poses(path: PathLike) -> dict[str, dict[str, float]]:
-    """A POSES.csv (docs/formats.md): {config: {pose variable: value}} (degrees, kg)."""
+    """A POSES.csv (docs/formats.md): one row per configuration.
+
+    Parameters
+    ----------
+    path : str or Path
+        A CSV with a ``config`` column and ``pose.<var>`` columns (angles in degrees, masses in kg);
+        a modal table CSV works too.
+
+    Returns
+    -------
+    dict of str to dict of str to float
+        ``{config: {pose variable: value}}``.
+
+    Examples
+    --------
+    >>> import flexmodal as fm
+    >>> fm.read_poses("examples/measured/seed003_table3_f1f2.csv")["theta30"]
+    {'theta_deg': 30.0}
+    """
     from flexmodal.modal.table import poses_from_csv
 
     return poses_from_csv(path)
@@ -225,7 +444,30 @@ def _table(table: ModalTable | PathLike) -> ModalTable:
 # -- models ----------------------------------------------------------------------------------------
 
 def load_rig(path: PathLike) -> Rig:
-    """A rig description (TOML, docs/formats.md), validated."""
+    """A rig description (TOML, docs/formats.md), validated.
+
+    Parameters
+    ----------
+    path : str or Path
+        The rig TOML: links with sections and materials (SI units), joints, masses, sensors, pose
+        variables.
+
+    Returns
+    -------
+    models.rig.Rig
+
+    Raises
+    ------
+    ModelError
+        One line naming the file, table and field that is wrong.
+
+    Examples
+    --------
+    >>> import flexmodal as fm
+    >>> rig = fm.load_rig("examples/rigs/seed003_two_link.toml")
+    >>> rig.name, rig.pose_variables, [s.name for s in rig.sensors]
+    ('seed003-two-link', ('theta_deg',), ['a1', 'a2', 'a3'])
+    """
     from flexmodal.models.rig import load_rig as _load
 
     return _load(path)
@@ -238,9 +480,46 @@ def _rig(rig: Rig | PathLike) -> Rig:
 def predict(rig: Rig | PathLike, poses: Mapping[str, Mapping[str, float]] | ModalTable | PathLike,
             model: str = "fe", n_modes: int = 4, *, source: str | None = None,
             progress: Callable[[str], None] | None = None, **options: object) -> ModalTable:
-    """Predicted modes of ``rig`` for every configuration of ``poses`` (a POSES.csv path, a
-    {config: pose} mapping, or a modal table whose configurations and poses are taken) by ``model``
-    (``fe``, ``assumed-modes``, ``lumped-mass``, ``blevins``; docs/models.md for ``options``)."""
+    """Predicted modes of a rig for every configuration by one of the registered models.
+
+    Parameters
+    ----------
+    rig : models.rig.Rig, str or Path
+        The rig, or its TOML file.
+    poses : mapping, modal.table.ModalTable, str or Path
+        ``{config: {pose variable: value}}`` (degrees, kg), a POSES.csv path, or a modal table whose
+        configurations and poses are taken.
+    model : str
+        A registered model (models.registry.MODELS): ``fe``, ``assumed-modes``, ``lumped-mass``,
+        ``blevins``.
+    n_modes : int
+        Elastic modes per configuration (rigid-body modes are left out).
+    source : str, optional
+        Value of the ``source`` column (default: the model name).
+    progress : callable, optional
+        Called with each configuration once it is solved.
+    **options
+        Model options (docs/models.md): ``elements_per_link``, ``lumped_mass`` (fe);
+        ``masses_per_link``, ``coordinates`` (lumped-mass).
+
+    Returns
+    -------
+    modal.table.ModalTable
+        Natural frequencies [Hz] and mass-normalised shapes [kg^-1/2] at the rig's sensors.
+
+    References
+    ----------
+    A. E. Abdelraheim, M. Nejlaoui, N. A. Alqahtani, "Bioinspired Computation for Identifying Joint
+    Compliance in Biomimetic Flexible Manipulators", Biomimetics 11(7), 474 (2026): Table 6 (rigid-joint
+    FE, 25.33 and 158.45 Hz at 0 deg).
+
+    Examples
+    --------
+    >>> import flexmodal as fm
+    >>> fe = fm.predict("examples/rigs/seed003_two_link.toml", {"theta0": {"theta_deg": 0.0}}, "fe", 2)
+    >>> fe.frame["freq_hz"].round(1).tolist()
+    [25.3, 158.4]
+    """
     from flexmodal.models.errors import ModelError
     from flexmodal.models.predict import predict as _predict
 
@@ -272,9 +551,33 @@ def _named(tables: Iterable[ModalTable | PathLike | tuple[str, ModalTable]]) -> 
 def compare_modes(measured: ModalTable | PathLike,
                   *predicted: ModalTable | PathLike | tuple[str, ModalTable],
                   min_mac: float = 0.5) -> Comparison:
-    """Pair every predicted table with the measured one (by MAC where both have shapes at two or more
-    common sensors, else by frequency order); names come from the ``source`` column, else the file
-    name.  ``format_comparison`` prints it; docs/compare-and-report.md."""
+    """Pair every predicted table with the measured one (docs/compare-and-report.md).
+
+    Pairs by MAC where both tables have shapes at two or more common sensors, else by ascending
+    frequency; unpaired modes are kept.
+
+    Parameters
+    ----------
+    measured : modal.table.ModalTable, str or Path
+        The measured modal table.
+    *predicted : modal.table.ModalTable, str, Path or (name, table)
+        Predicted tables, named by their ``source`` column, else by the file name.
+    min_mac : float
+        MAC pairs below this value [0, 1] are rejected.
+
+    Returns
+    -------
+    compare.tables.Comparison
+        Printed by :func:`format_comparison`.
+
+    Examples
+    --------
+    >>> import flexmodal as fm
+    >>> measured = fm.read_table("examples/measured/seed003_table3_f1f2.csv")
+    >>> fe = fm.predict("examples/rigs/seed003_two_link.toml", measured, "fe", 2)
+    >>> print(fm.format_comparison(fm.compare_modes(measured, fe)).splitlines()[2])
+    | theta0 | 1 | 25.33 | 25.50 | -0.7 |
+    """
     from flexmodal.compare.errors import CompareError
     from flexmodal.compare.tables import compare_tables, table_name
 
@@ -287,8 +590,32 @@ def compare_modes(measured: ModalTable | PathLike,
 
 def format_comparison(comparison: Comparison, fmt: str = "md", layout: str = "modes",
                       caption: str = "Measured and predicted natural frequencies") -> str:
-    """The comparison as text: ``md``, ``csv`` (full precision), ``tex`` or ``html``; ``layout``
-    ``modes`` (a row per mode) or ``sources`` (a row per source)."""
+    """The comparison as text.
+
+    Parameters
+    ----------
+    comparison : compare.tables.Comparison
+        A :func:`compare_modes` result.
+    fmt : {"md", "csv", "tex", "html", "json"}
+        Markdown, CSV (full precision), LaTeX booktabs, an HTML page or JSON rows.
+    layout : {"modes", "sources"}
+        A row per mode and a column per source, or a row per source and a column per mode.
+    caption : str
+        Table caption (tex and html).
+
+    Returns
+    -------
+    str
+        Frequencies [Hz], measured damping ratio [%], error (pred - meas)/meas [%] and MAC [-].
+
+    Examples
+    --------
+    >>> import flexmodal as fm
+    >>> measured = fm.read_table("examples/measured/seed003_table3_f1f2.csv")
+    >>> fe = fm.predict("examples/rigs/seed003_two_link.toml", measured, "fe", 2)
+    >>> print(fm.format_comparison(fm.compare_modes(measured, fe), "csv").splitlines()[0])
+    config,mode,fe_freq_hz,experiment_freq_hz,fe_err_pct
+    """
     from flexmodal.compare.tables import render
 
     return render(comparison, fmt, layout, caption)
@@ -305,10 +632,11 @@ def diagnose(rig: Rig | PathLike, measured: ModalTable | PathLike, *, effects: s
     return _diagnose(_rig(rig), _table(measured), effects=effects, holdout=holdout, scatter=scatter)
 
 
-def write_diagnosis(result: Diagnosis, out_dir: PathLike) -> tuple[Path, Path]:
+def write_diagnosis(result: Diagnosis, out_dir: PathLike,
+                    inputs: Sequence[PathLike] = ()) -> tuple[Path, Path]:
     """Write ``diagnosis.json`` (strict JSON) and ``diagnosis.html`` of a :func:`diagnose` result into
     ``out_dir``.  The page is the validation report's diagnosis section alone (one renderer,
-    reports/html.py)."""
+    reports/html.py), naming ``inputs`` (the rig and the measured modes it was diagnosed from)."""
     from flexmodal.compare.errors import CompareError
     from flexmodal.reports.html import write_report
     from flexmodal.valid_output import output_dir, write_text
@@ -316,13 +644,39 @@ def write_diagnosis(result: Diagnosis, out_dir: PathLike) -> tuple[Path, Path]:
     out = output_dir(out_dir, CompareError, "diagnosis folder (--out)")
     out.mkdir(parents=True, exist_ok=True)
     pj = write_text(out / "diagnosis.json", result.to_json())
-    ph = write_report(out / "diagnosis.html", diagnosis=result, title="Sim-to-real gap diagnosis")
+    ph = write_report(out / "diagnosis.html", diagnosis=result, title="Sim-to-real gap diagnosis",
+                      inputs=list(inputs))
     return pj, ph
 
 
 def read_diagnosis(path: PathLike) -> Diagnosis:
-    """A diagnosis.json (docs/formats.md) read back into the :func:`diagnose` result it was written
-    from; ReportError naming the file and the key when it is not one."""
+    """A diagnosis.json (docs/formats.md) read back into the :func:`diagnose` result it came from.
+
+    Parameters
+    ----------
+    path : str or Path
+        The diagnosis.json written by :func:`write_diagnosis` or ``flexmodal diagnose``.
+
+    Returns
+    -------
+    compare.result.Diagnosis
+
+    Raises
+    ------
+    ReportError
+        Naming the file and the key when it is not a diagnosis.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> import flexmodal as fm
+    >>> out = tempfile.mkdtemp() + "/bad.json"
+    >>> _ = open(out, "w").write("{}")
+    >>> fm.read_diagnosis(out)
+    Traceback (most recent call last):
+    ...
+    flexmodal.reports.errors.ReportError: ...
+    """
     from flexmodal.reports.html import load_diagnosis
 
     return load_diagnosis(path)
@@ -331,7 +685,29 @@ def read_diagnosis(path: PathLike) -> Diagnosis:
 # -- figures ---------------------------------------------------------------------------------------
 
 def plot_frf(frf: FrfResult, title: str = "") -> Figure:
-    """Magnitude, phase [deg] and coherence [-] of the FRFs of one run (first reference)."""
+    """Magnitude, phase [deg] and coherence [-] of the FRFs of one run (first reference).
+
+    Parameters
+    ----------
+    frf : modal.frf.FrfResult
+        A :func:`compute_frf` result.
+    title : str
+        Figure title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> import flexmodal as fm
+    >>> from flexmodal.fixtures.examples import impact_run
+    >>> path = impact_run(tempfile.mkdtemp())    # a simulated impact test of the demo arm
+    >>> fig = fm.plot_frf(fm.compute_frf(path))
+    >>> len(fig.axes)
+    3
+    """
     from flexmodal.reports import plots
 
     return plots.plot_frf(frf.freq_hz, frf.H, frf.coherence, frf.outputs,
@@ -340,9 +716,41 @@ def plot_frf(frf: FrfResult, title: str = "") -> Figure:
 
 def plot_stabilisation(frf: FrfResult, modes: Modes | None = None, *, fmin: float | None = None,
                        fmax: float | None = None, max_order: int | None = None, title: str = "") -> Figure:
-    """Stabilisation diagram of the pLSCF identification of ``frf`` over the CMIF of its band: that of
-    ``modes`` (an :func:`identify` result's ``modes[config]``) if given, else of ``frf`` identified here
-    in [fmin, fmax] Hz with ``max_order`` (default: the order adapts to the data)."""
+    """Stabilisation diagram of the pLSCF identification of an FRF over the CMIF of its band.
+
+    Parameters
+    ----------
+    frf : modal.frf.FrfResult
+        A :func:`compute_frf` result.
+    modes : modal.identify.Modes, optional
+        The identification to draw (an :func:`identify` result's ``modes[config]``); else ``frf`` is
+        identified here.
+    fmin, fmax : float, optional
+        Band [Hz] of the identification done here.
+    max_order : int, optional
+        Highest pLSCF order (default: the order adapts to the data).
+    title : str
+        Figure title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    References
+    ----------
+    B. Peeters, H. Van der Auweraer, P. Guillaume, J. Leuridan, "The PolyMAX frequency-domain method",
+    Shock and Vibration 11 (2004) 395-409.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> import flexmodal as fm
+    >>> from flexmodal.fixtures.examples import impact_run
+    >>> path = impact_run(tempfile.mkdtemp())    # a simulated impact test of the demo arm
+    >>> fig = fm.plot_stabilisation(fm.compute_frf(path), fmax=400.0)
+    >>> type(fig).__name__
+    'Figure'
+    """
     from flexmodal.modal.sources import identify_frf
     from flexmodal.reports import plots
 
@@ -353,8 +761,36 @@ def plot_stabilisation(frf: FrfResult, modes: Modes | None = None, *, fmin: floa
 
 def plot_mode_shapes(rig: Rig | PathLike, measured: ModalTable | PathLike, config: str,
                      n_fe_modes: int = 8, title: str = "") -> Figure:
-    """Measured shapes of ``config`` at the rig's sensors drawn on the arm at its pose, each with the
-    best-matching (MAC) of the frame FE model's ``n_fe_modes`` lowest modes as a curve."""
+    """Measured shapes of one configuration drawn on the arm at its pose.
+
+    Each measured shape at the rig's sensors is drawn with the best-matching (MAC) of the frame FE
+    model's ``n_fe_modes`` lowest modes as a curve.
+
+    Parameters
+    ----------
+    rig : models.rig.Rig, str or Path
+        The rig, or its TOML file.
+    measured : modal.table.ModalTable, str or Path
+        Modal table with ``shape.<sensor>`` columns.
+    config : str
+        The configuration to draw.
+    n_fe_modes : int
+        FE modes to match against.
+    title : str
+        Figure title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> import flexmodal as fm
+    >>> rig = "examples/rigs/demo_arm.toml"
+    >>> fe = fm.predict(rig, {"theta30": {"theta_deg": 30.0}}, "fe", 3)
+    >>> type(fm.plot_mode_shapes(rig, fe, "theta30")).__name__
+    'Figure'
+    """
     from flexmodal.models.arm_shapes import arm_modes
     from flexmodal.reports import plots
 
@@ -368,8 +804,34 @@ def plot_comparison(measured: ModalTable | PathLike,
                     *predicted: ModalTable | PathLike | tuple[str, ModalTable], pose_var: str | None = None,
                     repeats: Sequence[ModalTable | PathLike] = (),
                     title: str = "") -> Figure:
-    """Measured (mean ± 1 sd over ``repeats``) and predicted natural frequencies [Hz] against the pose
-    variable ``pose_var`` (default the first that varies), a line per model and mode."""
+    """Measured and predicted natural frequencies [Hz] against a pose variable.
+
+    Parameters
+    ----------
+    measured : modal.table.ModalTable, str or Path
+        The measured modal table (its mean with ``repeats``, ± 1 standard deviation).
+    *predicted : modal.table.ModalTable, str, Path or (name, table)
+        Predicted tables, a line per model and mode.
+    pose_var : str, optional
+        The pose variable on the x axis (default: the first that varies).
+    repeats : sequence of modal tables or paths
+        Repeated measurements of the same configurations.
+    title : str
+        Figure title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> import flexmodal as fm
+    >>> measured = fm.read_table("examples/measured/seed003_table3_f1f2.csv")
+    >>> fe = fm.predict("examples/rigs/seed003_two_link.toml", measured, "fe", 2)
+    >>> fig = fm.plot_comparison(measured, fe)
+    >>> fig.axes[0].get_xlabel()
+    'theta_deg [deg]'
+    """
     from flexmodal.reports import plots
     from flexmodal.reports.errors import ReportError
     from flexmodal.reports.html import pose_unit, varying_pose_vars
@@ -384,8 +846,28 @@ def plot_comparison(measured: ModalTable | PathLike,
 
 
 def plot_gap(diagnosis: Diagnosis | Mapping | PathLike, title: str = "") -> Figure:
-    """Per-mode relative frequency error [%] before and after the diagnosed effect (a :func:`diagnose`
-    result, a parsed diagnosis.json or its path)."""
+    """Per-mode relative frequency error [%] before and after the diagnosed effect.
+
+    Parameters
+    ----------
+    diagnosis : compare.result.Diagnosis, mapping, str or Path
+        A :func:`diagnose` result, a parsed diagnosis.json or its path.
+    title : str
+        Figure title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> import flexmodal as fm
+    >>> result = fm.diagnose("examples/rigs/seed003_two_link.toml",
+    ...                      "examples/measured/seed003_table3_f1f2.csv", effects="joint_stiffness",
+    ...                      holdout="theta30,theta90,theta150")
+    >>> type(fm.plot_gap(result)).__name__
+    'Figure'
+    """
     from flexmodal.reports import plots
 
     return plots.plot_gap(_diagnosis(diagnosis), title=title)
@@ -488,7 +970,93 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
             missing = [v for v in rig.pose_variables if v not in pose]
             shapes[config] = (f"No mode shapes drawn for {config}: the measured table gives no "
                               f"pose.{missing[0]} for the rig") if missing else arm_modes(rig, pose, common)
+    inputs = [path for path, _ in expand_runs(runs)]
+    inputs += [t.source for t in ([meas] if meas is not None else []) + [_table(r) for r in repeats]]
+    inputs += [t.source for _, t in named]
+    inputs += [diagnosis] if isinstance(diagnosis, str | Path) else []
+    inputs += [rig.source] if rig is not None else []
     return write_report(out, runs=summaries, comparison=comparison, measured=meas,
                         repeats=[_table(r) for r in repeats], predictions=named, shapes=shapes,
                         diagnosis=_diagnosis(diagnosis) if diagnosis is not None else None,
-                        rig_name=getattr(rig, "name", ""), title=title, progress=progress)
+                        rig_name=getattr(rig, "name", ""), title=title, inputs=inputs, progress=progress)
+
+
+def report_pdf(html: PathLike, pdf: PathLike | None = None) -> Path:
+    """Print the HTML report ``html`` to ``pdf`` (default: beside it, ``.pdf``) with headless Chromium,
+    every run's block opened, tables whole with repeated headers; returns the PDF's path.  ReportError
+    (one line) where no Chromium is installed."""
+    from flexmodal.reports.errors import ReportError
+    from flexmodal.reports.pdf import print_pdf
+    from flexmodal.valid_output import output_file
+
+    target = output_file(Path(html).with_suffix(".pdf") if pdf is None else pdf, ReportError, "PDF report")
+    return print_pdf(html, target)
+
+
+# -- the simulated rig -----------------------------------------------------------------------------
+
+def demo(out_dir: PathLike = "flexmodal-demo", *, rig: PathLike | None = None, quiet: bool = True) -> Path:
+    """The main job end to end on the embedded simulated rig (``flexmodal demo``; no hardware).
+
+    Simulates impact and random tests of the demo arm (which hides a compliant elbow) in five poses,
+    one of them acquired through the serial stack, and writes ``runs.h5``, ``operational.h5``,
+    ``modes.csv``, ``fe.csv``, ``diagnosis.json``/``.html`` and ``report.html`` into ``out_dir``; the
+    comparison and the verdict, next to the hidden truth, go to stdout.
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        Output folder (created; its existing outputs are replaced).
+    rig : str or Path, optional
+        Simulate this rig TOML instead of the demo arm.
+    quiet : bool
+        No progress bar on stderr.
+
+    Returns
+    -------
+    Path
+        The report.
+    """
+    from flexmodal.fixtures.errors import FixtureError
+    from flexmodal.valid_output import output_dir
+
+    out = output_dir(out_dir, FixtureError, "demo folder (--out)")   # before the demo's heavy imports
+    from flexmodal.fixtures.demo import Writers, run_demo
+
+    return run_demo(out, Writers(write_diagnosis, report), None if rig is None else Path(rig), quiet=quiet)
+
+
+@dataclass(frozen=True)
+class SelfCheck:
+    """The blind self-check of the diagnosis: the ``results`` per case (``fixtures.blind.BlindResult``),
+    the accuracy ``summary`` (fractions) and its printed ``text``."""
+
+    results: tuple
+    summary: Mapping[str, float]
+    text: str
+
+
+def selftest(n_cases: int, *, seed: int = 0, progress: Callable[[object], None] | None = None) -> SelfCheck:
+    """Blind self-check of :func:`diagnose` (``flexmodal diagnose --selftest N``).
+
+    Random rigs are simulated by the independent truth model (a Timoshenko frame, fixtures/truth_arm.py)
+    with withheld effects, diagnosed, and the verdicts scored against what was hidden (docs/diagnosis.md).
+
+    Parameters
+    ----------
+    n_cases : int
+        Cases to run, the first of the fixed schedule.
+    seed : int
+        Random seed of the cases.
+    progress : callable, optional
+        Called with each case's result as it is done.
+
+    Returns
+    -------
+    SelfCheck
+    """
+    from flexmodal.fixtures.blind import format_summary, run_blind, summarise
+
+    results = run_blind(n_cases, seed=seed, progress=progress)
+    summary = summarise(results)
+    return SelfCheck(tuple(results), summary, format_summary(summary))

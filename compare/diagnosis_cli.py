@@ -39,17 +39,16 @@ def run(args: argparse.Namespace) -> int:
     from flexmodal.compare.errors import CompareError
 
     if args.selftest is not None:
-        # the blind cases come from the independent truth model in fixtures (imported only here)
-        from flexmodal.fixtures.blind import format_summary, run_blind, summarise
+        from flexmodal.api import selftest
 
         def show(r) -> None:
             c, v = r.case, r.verdict
             print(f"{c.kind}/{c.category}: hidden {c.effect}@{c.location or '-'} -> {v.effect}@"
                   f"{v.location or '-'} ({r.seconds:.1f} s)", file=sys.stderr)
 
-        results = run_blind(args.selftest, seed=args.seed, progress=None if getattr(args, "quiet", False)
-                            else show)
-        print(format_summary(summarise(results)))
+        check = selftest(args.selftest, seed=args.seed, progress=None if getattr(args, "quiet", False)
+                         else show)
+        print(check.text)
         return 0
     missing = [o for o in ("rig", "measured", "out") if getattr(args, o) is None]
     if missing:
@@ -69,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
     if not getattr(args, "quiet", False):
         print(f"diagnosing {table.source} against {rig.source} ...", file=sys.stderr)
     result = diagnose(rig, table, effects=args.effects, holdout=args.holdout, scatter=args.scatter)
-    pj, ph = write_diagnosis(result, args.out)
+    pj, ph = write_diagnosis(result, args.out, inputs=[rig.source, table.source])
     v = result.verdict
     print(f"verdict: {v.effect} at {v.location or '-'}; held-out RMS "
           f"{v.heldout_rms_rel_error_before:.2%} -> {v.heldout_rms_rel_error_after:.2%}; "

@@ -16,11 +16,12 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
 from flexmodal.daq.errors import DaqError
+from flexmodal.daq.faults import Faults
 from flexmodal.daq.protocols import PROTOCOLS, registered_protocols
 from flexmodal.daq.store import CHANNEL_KINDS, EXCITATIONS, Channel
 from flexmodal.valid_text import read_toml
@@ -115,7 +116,7 @@ class Trigger:
 class Simulator:
     """The simulator a session starts itself (docs/acquisition.md): only these validated options.
 
-    Times in seconds; ``fault_log`` is a file name inside the run file's folder (never elsewhere).
+    ``fault_log`` is a file name inside the run file's folder (never elsewhere).
     """
 
     protocol: str
@@ -123,21 +124,11 @@ class Simulator:
     test: str = "impact"
     seed: int = 0
     pose: dict = field(default_factory=dict)
-    corrupt_rate: float = 0.0
-    drop_at_s: float | None = None
-    drop_s: float = 0.2
-    disconnect_after_s: float | None = None
-    disconnect_s: float = 0.5
+    faults: Faults = Faults()
     scans_per_frame: int = 32
     format: str = "int16"
     fault_log: str = ""
     effects: tuple[str, ...] = ()  # hidden effects "EFFECT@LOCATION:PARAM=VALUE,..." (SI units)
-    double_hit_at_s: float | None = None  # impact test: this hit of the record bounces back
-    overload_at_s: float | None = None  # impact test: this hit of the record overloads the ADC
-
-    @property
-    def faults(self) -> bool:
-        return bool(self.corrupt_rate) or self.drop_at_s is not None or self.disconnect_after_s is not None
 
 
 @dataclass(frozen=True)
@@ -255,10 +246,9 @@ def _channel(doc: dict, where: str, devices: dict[str, Device]) -> ChannelMap:
 def _simulator(doc: dict, where: str, base: Path) -> Simulator:
     """The ``[simulator]`` block: known options only, each value checked (no free-form arguments)."""
     s = Table(doc, where, base)
-    s.reject_unknown({"protocol", "rig", "test", "seed", "pose", "corrupt_rate", "drop_at_s", "drop_s",
-                      "disconnect_after_s", "disconnect_s", "scans_per_frame", "format", "fault_log",
-                      "effects", "double_hit_at_s", "overload_at_s"})
-    seconds = {"lo": 0, "hi": 86400, "unit": "s"}
+    faults = fields(Faults)
+    s.reject_unknown({"protocol", "rig", "test", "seed", "pose", "scans_per_frame", "format", "fault_log",
+                      "effects"} | {f.name for f in faults})
     log = s.get("fault_log", str, "", check=lambda v: v == Path(v).name and v not in (".", ".."),
                 why="must be a plain file name (it is written in the run file's folder)")
     return Simulator(
@@ -266,18 +256,15 @@ def _simulator(doc: dict, where: str, base: Path) -> Simulator:
         rig=s.file("rig", "rig file") if "rig" in doc else "",
         test=s.choice("test", ("impact", "random", "sweep", "operational", "moving"), "impact"),
         seed=s.get("seed", int, 0, check=lambda v: 0 <= v < 2**32, why="must be in [0, 2**32)"),
-        pose=s.numbers("pose"), corrupt_rate=s.number("corrupt_rate", 0.0, lo=0, hi=1, hi_open=True),
-        drop_at_s=s.number("drop_at_s", None, **seconds), drop_s=s.number("drop_s", 0.2, **seconds),
-        disconnect_after_s=s.number("disconnect_after_s", None, **seconds),
-        disconnect_s=s.number("disconnect_s", 0.5, **seconds),
+        pose=s.numbers("pose"),
+        faults=Faults(**{f.name: s.number(f.name, f.default, unit="s" if f.name.endswith("_s") else "",
+                                          **f.metadata["range"]) for f in faults}),
         scans_per_frame=s.get("scans_per_frame", int, 32, check=lambda v: 1 <= v <= 4096,
                               why="must be in 1..4096"),
         format=s.choice("format", ("int16", "int32", "float32"), "int16"), fault_log=log,
         effects=tuple(s.get("effects", list, [], check=lambda v: all(
             isinstance(e, str) and re.fullmatch(EFFECT_PATTERN, e) for e in v),
-            why="must be a list of \"EFFECT@LOCATION:PARAM=NUMBER,...\"")),
-        double_hit_at_s=s.number("double_hit_at_s", None, **seconds),
-        overload_at_s=s.number("overload_at_s", None, **seconds))
+            why="must be a list of \"EFFECT@LOCATION:PARAM=NUMBER,...\"")))
 
 
 def parse_session(doc: dict, source: Path) -> Session:

@@ -166,7 +166,7 @@ def _identify(args: argparse.Namespace) -> int:
     """
     from flexmodal.api import identify
     from flexmodal.modal.errors import ModalError
-    from flexmodal.valid_output import output_file, signals_deferred
+    from flexmodal.valid_output import output_file
 
     if args.fmin is not None and args.fmax is not None and args.fmin >= args.fmax:
         raise ModalError(f"--fmin {args.fmin:g} Hz must lie below --fmax {args.fmax:g} Hz")
@@ -175,7 +175,7 @@ def _identify(args: argparse.Namespace) -> int:
         return _track(args)
     if args.uff:
         output_file(args.uff, ModalError, "UFF file (--uff)")
-    from flexmodal.modal.identify import Thresholds, write_synthesis_csv  # the heavy imports, after
+    from flexmodal.modal.identify import Thresholds  # the heavy imports, after
 
     poles = None
     if args.poles is not None:
@@ -192,12 +192,9 @@ def _identify(args: argparse.Namespace) -> int:
     result = identify(args.input, method=args.method, fmin=args.fmin, fmax=args.fmax,
                       max_order=args.max_order, run_id=args.run, poles_hz=poles, thresholds=limits,
                       decay_rate_per_s=args.exp_window_decay, references=refs)
-    modes_by_config = {c: (m, result.outputs[c]) for c, m in result.modes.items()}
-    with signals_deferred():   # the modal table and its synthesis file: both written, or neither
-        result.table.to_csv(args.out)
-        write_synthesis_csv(args.out, modes_by_config)
+    result.write(args.out, uff=args.uff)
     quiet = getattr(args, "quiet", False)
-    for config, (modes, _) in modes_by_config.items():   # a loop over configurations
+    for config, modes in result.modes.items():   # a loop over configurations
         if quiet:
             continue
         if modes.order_note:
@@ -206,10 +203,5 @@ def _identify(args: argparse.Namespace) -> int:
             print(f"flexmodal: warning: {config}: {warning}", file=sys.stderr)
         for line in modes.details if args.verbose else ():
             print(f"flexmodal: {config}: {line}", file=sys.stderr)
-    if args.uff:
-        from flexmodal.modal.uff import write_modes
-
-        modes, outputs = next(iter(modes_by_config.values()))
-        write_modes(args.uff, modes.freq_hz, modes.damping_ratio, modes.shapes, outputs)
     print(args.out)
     return 0

@@ -23,7 +23,7 @@ from flexmodal.modal.lscf import (
     PoleClusters,
     Stabilisation,
     adaptive_stabilisation,
-    blas_pools,
+    one_blas_thread,
     pole_clusters,
     stable_clusters,
 )
@@ -36,7 +36,7 @@ from flexmodal.valid_output import atomic_path
 
 METHODS = ("lscf", "peak")
 INDICATORS = ("mpc", "mpd", "synthesis_corr")   # per-mode validation columns of the modal table
-TOP_ORDERS = 0.75   # a mode's pole: median over its upper quarter of stable orders (they absorb noise best)
+TOP_ORDERS = 0.75   # a mode's frequency: median over its upper quarter of stable orders (least noise)
 VISIBLE_DB = 3.0   # a peak this prominent in some FRF or CMIF curve is a resonance the data show
 MIN_LINES_PER_BANDWIDTH = 8   # below this the Hann-window leakage bias on damping exceeds a few %
 
@@ -353,7 +353,7 @@ def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: 
     warnings: list[str] = []
     extra: dict = {}
     if method == "lscf":
-        with blas_pools().limit(limits=1, user_api="blas"):   # small matrices: threads cost 10x when busy
+        with one_blas_thread():
             extra = _lscf(f, Hb, quantity=quantity, reference=reference, max_order=max_order,
                           poles_hz=poles_hz, limits=thresholds or Thresholds())
         fn, zeta, constants = extra.pop("fn"), extra.pop("zeta"), extra.pop("constants")

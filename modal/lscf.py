@@ -60,9 +60,18 @@ class Stabilisation:
 
 
 @cache
-def blas_pools() -> ThreadpoolController:
+def _blas_pools() -> ThreadpoolController:
     """The BLAS thread pools, found once (a fresh ``threadpool_limits`` costs ~1 ms per call)."""
     return ThreadpoolController()
+
+
+def one_blas_thread():
+    """Context in which BLAS uses one thread: pLSCF's and LSFD's matrices are at most a few hundred
+    wide, and threads spinning on a shared machine cost more than they give (LSFD 10x slower on a busy
+    host).  Hold it over a whole identification: each switch back to several threads and down again
+    costs more CPU than the small products it brackets (stabilisation of 30 FRFs x 2000 lines: 25 ms of
+    CPU switching per call, 9 ms held)."""
+    return _blas_pools().limit(limits=1, user_api="blas")
 
 
 def _lag_sums(freq_hz: np.ndarray, H: np.ndarray, p_max: int, dt: float):
@@ -197,7 +206,7 @@ class PoleEstimator:
         scale = np.sqrt(np.vdot(H, H).real / H.size)                 # RMS of the FRFs
         if not scale > 0:
             raise ModalError(f"pLSCF: the FRFs are zero between {f.min():g} and {f.max():g} Hz")
-        with blas_pools().limit(limits=1, user_api="blas"):
+        with one_blas_thread():
             self._sums = _lag_sums(f, H / scale, self.p_cap, self.dt)
 
     def poles(self, orders: list[int]) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -208,7 +217,7 @@ class PoleEstimator:
         lags = slice(self.p_cap - p_max, self.p_cap + p_max + 1)
         r, s, t = (x[..., lags] for x in self._sums)
         # one BLAS thread: the matrices are small, and threads spinning on a shared machine cost more
-        with blas_pools().limit(limits=1, user_api="blas"):
+        with one_blas_thread():
             eqs = _NormalEquations(orders, r, s, t)
             band = (self.freq_hz.min(), self.freq_hz.max())
             return [_poles_of_order(i, p, eqs, self.dt, *band) for i, p in enumerate(orders)]
@@ -255,15 +264,16 @@ def stabilisation(freq_hz: np.ndarray, H: np.ndarray, orders: range | list[int],
     frequency within relative ``df``, in damping within relative ``dz`` and in shape with MAC >=
     ``mac_min`` (two or more outputs) against the nearest pole of the previous order."""
     orders = sorted({int(o) for o in orders})
-    found = PoleEstimator(freq_hz, H, orders[-1]).poles(orders)
-    return _flags(orders, found, df, dz, mac_min)
+    with one_blas_thread():
+        found = PoleEstimator(freq_hz, H, orders[-1]).poles(orders)
+        return _flags(orders, found, df, dz, mac_min)
 
 
 @dataclass(frozen=True)
 class PoleClusters:
     """Candidate modes of a stabilisation diagram, ascending in frequency: ``freq_hz``,
-    ``damping_ratio``, ``pole`` (rad/s) from the median of the upper quarter of orders of each
-    cluster's fully stable poles; ``n_stable`` the number of orders holding a fully stable pole of the
+    ``damping_ratio``, ``pole`` (rad/s) from the median of the upper quarter of orders (damping: of all
+    orders) of each cluster's fully stable poles; ``n_stable`` the number of orders holding a fully stable pole of the
     cluster, ``members`` the indices (into the Stabilisation arrays) of its poles."""
 
     freq_hz: np.ndarray
@@ -284,13 +294,15 @@ def _pole(fn: np.ndarray, zeta: np.ndarray) -> np.ndarray:
 
 
 def _summary(stab: Stabilisation, members: np.ndarray, stable: np.ndarray, top: float) -> tuple:
-    """(fn, zeta, n_stable orders, members) of one chain: medians over the fully
-    stable poles of its orders at or above the quantile ``top`` of them."""
+    """(fn, zeta, n_stable orders, members) of one chain: fn the median over the fully stable poles of
+    its orders at or above the quantile ``top`` of them, zeta the median over all its fully stable
+    poles (at a few lines per half-power band the upper orders split a leakage-broadened peak into a
+    pole pair whose damping is biased high)."""
     s = members[stable[members]]
     o = stab.order[s]
     ranked = np.sort(o)
     top = s[o >= ranked[int(np.ceil(top * (ranked.size - 1)))]]   # the quantile, without its overhead
-    f, z = np.median(stab.freq_hz[top]), np.median(stab.damping_ratio[top])
+    f, z = np.median(stab.freq_hz[top]), np.median(stab.damping_ratio[s])
     return f, z, np.unique(o).size, members
 
 
