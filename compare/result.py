@@ -268,6 +268,17 @@ class Alternative(_Record):
 
 
 @dataclass(**_RECORD)
+class NextMeasurement(_Record):
+    """An untested pose (``<pose var>=<value>``) worth measuring next, the model mode that carries most
+    of its value, and the expected information [nats] it brings on the choice between the verdict and
+    its alternatives (mean Kullback-Leibler divergence of their predictions)."""
+
+    pose: str
+    mode: int
+    information_nats: float
+
+
+@dataclass(**_RECORD)
 class Verdict(_Record):
     """The chosen explanation (``effect`` ``"none"`` and ``location`` ``""`` when no effect is needed or
     none helps) and the held-out RMS error before and after it.  For a fitted effect: its ``params``
@@ -280,7 +291,10 @@ class Verdict(_Record):
     outside the library (a pose trend, one mode, one configuration, one sensor; empty when nothing
     does) and ``flags`` the warnings that go with the verdict (e.g. a shape that disagrees at one
     sensor); ``param_intervals`` a 95 % interval ``[low, high]`` per fitted parameter (SI) and
-    ``interval_method`` how they were computed.  ``per_config``: pose-dependent parameters
+    ``interval_method`` how they were computed; ``heldout_in_prediction_interval`` ``[inside, all]``:
+    the held-out frequencies inside their 95 % prediction interval from the fold that did not see
+    them; ``next_measurements`` the untested poses that would best separate the verdict from its
+    alternatives, by expected information (empty when it has none).  ``per_config``: pose-dependent parameters
     per configuration, ``{name: {config: value}}``, written as the keys ``<name>_per_config``."""
 
     effect: str
@@ -305,6 +319,8 @@ class Verdict(_Record):
     flags: tuple[str, ...] | None = None
     param_intervals: Mapping[str, tuple[float | None, ...]] | None = None
     interval_method: str | None = None
+    heldout_in_prediction_interval: tuple[int, ...] | None = None
+    next_measurements: tuple[NextMeasurement, ...] | None = None
     per_config: Mapping[str, Mapping[str, float | None]] = field(default_factory=FrozenMap,
                                                               metadata={"suffix": "_per_config"})
 
