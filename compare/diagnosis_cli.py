@@ -71,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
     if not getattr(args, "quiet", False):
         print(f"diagnosing {table.source} against {rig.source} ...", file=sys.stderr)
     result = diagnose(rig, table, effects=args.effects, holdout=args.holdout, scatter=args.scatter)
-    pj, ph = write_diagnosis(result, args.out)
+    pj, ph = write_diagnosis(result, args.out, inputs=[rig.source, table.source])
     v = result.verdict
     print(f"verdict: {v.effect} at {v.location or '-'}; held-out RMS "
           f"{v.heldout_rms_rel_error_before:.2%} -> {v.heldout_rms_rel_error_after:.2%}; "

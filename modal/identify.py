@@ -36,7 +36,7 @@ from flexmodal.valid_output import atomic_path
 
 METHODS = ("lscf", "peak")
 INDICATORS = ("mpc", "mpd", "synthesis_corr")   # per-mode validation columns of the modal table
-TOP_ORDERS = 0.75   # a mode's pole: median over its upper quarter of stable orders (they absorb noise best)
+TOP_ORDERS = 0.75   # a mode's frequency: median over its upper quarter of stable orders (least noise)
 VISIBLE_DB = 3.0   # a peak this prominent in some FRF or CMIF curve is a resonance the data show
 MIN_LINES_PER_BANDWIDTH = 8   # below this the Hann-window leakage bias on damping exceeds a few %
 

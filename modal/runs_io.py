@@ -91,8 +91,8 @@ def read_frf(path: str | Path, run_id: str) -> FrfResult | None:
     """The stored FRFs of a run, or None when the run has no ``frf`` group.  The group is checked as
     the run group is (``daq.run_schema``): its type, links and filters, every dataset's rank, length
     and type, every attribute's type and range; ModalError names the file, run and item."""
+    from flexmodal.daq.h5file import open_read  # fails at once on a truncated file (SWMR would wait)
     from flexmodal.daq.run_schema import check_filters, member
-    from flexmodal.daq.store import open_read  # fails at once on a truncated file (SWMR would wait)
 
     where = f"{path}: run {run_id!r}: frf group"
     with open_read(path) as f:

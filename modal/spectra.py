@@ -133,12 +133,20 @@ def _window_array(spec: str | np.ndarray, nfft: int) -> np.ndarray:
     return w
 
 
+def usable_cpus() -> int:
+    """CPUs this process may run on (its affinity mask, e.g. ``taskset -c 0``; else every CPU)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):   # not Linux
+        return os.cpu_count() or 1
+
+
 def _thread_count(workers: int | None) -> int:
-    """Threads for ``workers`` as in scipy.fft: None -> 1, -1 -> every CPU, n -> n."""
+    """Threads for ``workers`` as in scipy.fft: None -> 1, -1 -> every usable CPU, n -> n."""
     if workers is None:
         return 1
     if workers < 0:
-        return max(1, (os.cpu_count() or 1) + 1 + workers)
+        return max(1, usable_cpus() + 1 + workers)
     return max(1, workers)
 
 
@@ -257,22 +265,27 @@ class _Plan:
         return g, auto, means.sum(axis=0), b - int(bad.sum())
 
 
-def _shift(block: np.ndarray, offset: np.ndarray, dtype, in_place: bool) -> np.ndarray:
-    """``block`` [n, n_cols] less ``offset`` [n_cols] as a row-major array of ``dtype`` (``in_place``
-    when ``block`` is already one), in flat pieces of whole rows (no loop over the few columns)."""
+def _shift(block: np.ndarray, offset: np.ndarray | None, dtype, in_place: bool) -> np.ndarray:
+    """``block`` [n, n_cols] less ``offset`` [n_cols] (None: nothing to take out) as a row-major array
+    of ``dtype``: ``block`` itself when it is one already and there is no offset, else changed
+    ``in_place`` when allowed, else a new array; subtracted in flat pieces of whole rows (no loop over
+    the few columns)."""
+    if offset is None:
+        return np.ascontiguousarray(block, dtype)
     out = block if in_place and block.dtype == dtype and block.flags.c_contiguous and block.flags.writeable \
         else np.empty(block.shape, dtype)
     n, n_cols = block.shape
     m = n // _SHIFT_ROWS * _SHIFT_ROWS
-    flat = np.tile(offset.astype(dtype), _SHIFT_ROWS)
+    flat = np.tile(offset, _SHIFT_ROWS)
     src = np.ascontiguousarray(block[:m])
     np.subtract(src.reshape(-1, _SHIFT_ROWS * n_cols), flat, out=out[:m].reshape(-1, _SHIFT_ROWS * n_cols),
                 casting="unsafe")
-    np.subtract(block[m:], offset.astype(dtype), out=out[m:], casting="unsafe")
+    np.subtract(block[m:], offset, out=out[m:], casting="unsafe")
     return out
 
 
-def _row_blocks(samples, rows_per_block: int, offset: np.ndarray, dtype) -> Iterator[tuple[int, np.ndarray]]:
+def _row_blocks(samples, rows_per_block: int, offset: np.ndarray | None, dtype
+                ) -> Iterator[tuple[int, np.ndarray]]:
     """(first row, rows [n, n_columns] less ``offset``, row-major ``dtype``) blocks of ``samples`` (an
     in-memory array, or an on-disk dataset (h5py)), read and shifted one block ahead in a background
     thread, so reading overlaps the FFTs; at most three blocks are held at a time."""
@@ -308,14 +321,22 @@ def _row_blocks(samples, rows_per_block: int, offset: np.ndarray, dtype) -> Iter
         reader.join()
 
 
-def _offsets(samples, nfft: int, dtype) -> np.ndarray:
-    """The offset taken out of every column before the FFTs: its first finite sample among the first
-    ``nfft`` rows (0 if none), so a large offset stays out of single-precision transforms."""
+_OFFSET_RATIO = 8   # an offset above 8 x the spread of the first segment is taken out before the FFT
+
+
+def _offsets(samples, nfft: int, dtype) -> np.ndarray | None:
+    """The offset taken out of every column before the FFTs, so a large one stays out of
+    single-precision transforms: its first finite sample among the first ``nfft`` rows where that
+    exceeds _OFFSET_RATIO times the spread (max - min) of those rows, else 0 (rounding the windowed
+    samples then costs at most 8 ulp of the spread, below the FFT's own); None when no column needs
+    one (the samples then go to the FFT without a copy)."""
     head = np.asarray(samples[:nfft], dtype)
     finite = np.isfinite(head)
-    first = np.argmax(finite, axis=0)
-    value = head[first, np.arange(head.shape[1])]
-    return np.where(finite.any(axis=0), value, 0).astype(dtype)
+    first = head[np.argmax(finite, axis=0), np.arange(head.shape[1])]
+    with np.errstate(invalid="ignore"):
+        spread = np.where(finite, head, -np.inf).max(axis=0) - np.where(finite, head, np.inf).min(axis=0)
+        big = finite.any(axis=0) & (np.abs(first) > _OFFSET_RATIO * spread)
+    return np.where(big, first, 0).astype(dtype) if big.any() else None
 
 
 def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
@@ -435,6 +456,6 @@ def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
                          f"intervals in the others); at least {min_segments} needed")
     scale = density_scale(n_freq, nfft, sample_rate_hz, w_out) / max(n_used, 1)
     pos = [c - lo for c in chans]                       # inputs then outputs among the transformed
-    mean = offset[chans].astype(float) + mean_sum[pos] / max(n_used, 1)
+    mean = mean_sum[pos] / max(n_used, 1) + (0 if offset is None else offset[chans].astype(float))
     return _spectra(g[:, pos], auto[:, pos], n_in, scale, rfftfreq(nfft, sample_rate_hz), n_used,
                     n_seg - n_used, mean)
