@@ -15,6 +15,7 @@ import signal
 import sys
 from collections.abc import Sequence
 
+from flexmodal import __version__
 from flexmodal.checked_io.errors import FlexmodalError
 
 COMMAND_MODULES = (
@@ -40,6 +41,8 @@ def build_parser() -> argparse.ArgumentParser:
         description="Experimental modal analysis and data acquisition for flexible robot arms.",
     )
     parser.add_argument("--quiet", action="store_true", help="silence progress output on stderr")
+    parser.add_argument("--version", action="version", version=f"flexmodal {__version__}",
+                        help="print flexmodal's version and exit")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
     for name in COMMAND_MODULES:

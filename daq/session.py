@@ -20,6 +20,7 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
+from flexmodal.daq.devices import SIMULATOR_PORT
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.faults import Faults
 from flexmodal.daq.protocols import PROTOCOLS, registered_protocols
@@ -30,8 +31,6 @@ from flexmodal.valid_toml import Fields
 # Whole-number fields whose range every protocol shares (a TCP port given as a number, the Modbus unit id).
 INT_RANGES = {"baud": (1, 100_000_000), "bitrate": (1, 100_000_000), "device_id": (0, 247),
               "port": (1, 65535)}
-SIMULATOR_PORT = "@simulator"  # placeholder for the endpoint of the session's own simulator
-REGISTER_TYPES = {"int16": 1, "uint16": 1, "int32": 2, "uint32": 2, "float32": 2}
 G_M_PER_S2 = 9.80665
 NUMBER = r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?"
 EFFECT_PATTERN = rf"\w+@[\w.@-]+:\w+={NUMBER}(,\w+={NUMBER})*"
@@ -45,42 +44,14 @@ UNIT_FACTORS = {
 
 
 @dataclass(frozen=True)
-class Register:
-    """One Modbus value: ``type`` int16|uint16|int32|uint32|float32, ``word_order`` big|little."""
-
-    name: str
-    address: int
-    type: str = "int16"
-    word_order: str = "big"
-    scale: float = 1.0
-    offset: float = 0.0
-    table: str = "holding"  # holding | input
-
-
-@dataclass(frozen=True)
 class Device:
-    """One device; only the fields of its protocol matter (see docs/acquisition.md)."""
+    """One ``[[device]]``: its name, its protocol and the configuration its driver parsed from the table
+    (a frozen dataclass the driver owns: daq.serial_driver.SerialConfig, daq.can_driver.CanConfig,
+    daq.modbus_driver.ModbusConfig, ...; docs/acquisition.md)."""
 
     name: str
     protocol: str
-    port: str = ""  # serial port / pyserial URL; slcan pty; Modbus RTU port
-    baud: int = 115200
-    framing: str = "binary"  # serial: binary | csv | custom
-    frame: Any = None  # serial, framing = "custom": its daq.serial_frames.FrameSpec
-    checksum: str = "none"  # serial, framing = "csv": checksum field at the end of each line
-    sources: tuple[str, ...] = ()  # serial: names of the frame columns, in order
-    interface: str = ""  # can: virtual | slcan (any python-can interface name)
-    channel: str = ""  # can: bus channel (virtual bus name)
-    bitrate: int = 500000
-    dbc: str = ""  # can: DBC file (absolute path after loading)
-    message: str = ""  # can: DBC message carrying the samples (default: the only multiplexed one)
-    transport: str = "tcp"  # modbus: tcp | rtu
-    host: str = "127.0.0.1"
-    tcp_port: int = 502
-    device_id: int = 1
-    registers: tuple[Register, ...] = ()
-    options: dict = field(default_factory=dict)  # fields of a protocol registered from outside flexmodal
-
+    config: Any
 
 @dataclass(frozen=True)
 class ChannelMap:
@@ -284,7 +255,7 @@ def parse_session(doc: dict, source: Path) -> Session:
         if dev.name in devices:
             raise DaqError(f"{where}: device {dev.name!r} is defined twice")
         devices[dev.name] = dev
-    uses_sim = any(SIMULATOR_PORT in (d.port, d.channel) for d in devices.values())
+    uses_sim = any(SIMULATOR_PORT in vars(d.config).values() for d in devices.values())
     if uses_sim and sim is None:
         raise DaqError(f"{where}: a device uses port {SIMULATOR_PORT!r} but there is no [simulator]")
     ch_docs = t.get("channel", list, check=bool, why="must list at least one [[channel]]")
