@@ -989,15 +989,20 @@ def _component_params(cand: Candidate, theta: np.ndarray) -> list[tuple[str, str
     return out
 
 
-def _trial_poses(ctx: _Context) -> dict[str, dict[str, float]]:
-    """Candidate poses for a next measurement: each pose variable moved over ``TRIAL_POINTS`` points of
-    its measured range (the others at the first configuration's values), {label: pose}."""
+def trial_poses(rig: Rig, poses: Sequence[dict[str, float]]) -> dict[str, dict[str, float]]:
+    """Candidate poses for a next measurement after measuring ``poses``: each pose variable moved over
+    ``TRIAL_POINTS`` points of its measured range (the others at the first pose's values),
+    {``<var>=<value>``: pose}; ``verdict.next_measurements`` and ``separate_at`` name them."""
     trial: dict[str, dict[str, float]] = {}
-    for v in ctx.rig.pose_variables:
-        vals = np.array([p[v] for p in ctx.meas.poses])
-        trial.update({f"{v}={x:g}": {**ctx.meas.poses[0], v: float(x)}
+    for v in rig.pose_variables:
+        vals = np.array([p[v] for p in poses])
+        trial.update({f"{v}={x:g}": {**poses[0], v: float(x)}
                       for x in np.linspace(vals.min(), vals.max(), TRIAL_POINTS)})
     return trial
+
+
+def _trial_poses(ctx: _Context) -> dict[str, dict[str, float]]:
+    return trial_poses(ctx.rig, ctx.meas.poses)
 
 
 def _trial_context(ctx: _Context, trial: dict[str, dict[str, float]]) -> _Context:
