@@ -10,6 +10,7 @@ docs/python-api.md.  Units: frequencies Hz, damping ratios as fractions, poses i
 
 from __future__ import annotations
 
+import html
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,8 +33,19 @@ __all__ = [
     "Identification", "SelfCheck", "acquire", "compare_modes", "compute_frf", "compute_frfs", "demo",
     "diagnose", "format_comparison", "identify", "list_runs", "load_rig", "plot_comparison", "plot_frf",
     "plot_gap", "plot_mode_shapes", "plot_stabilisation", "predict", "read_diagnosis", "read_poses",
-    "read_run", "read_table", "report", "selftest", "write_diagnosis",
+    "read_run", "read_table", "report", "selftest", "write_diagnosis", "report_pdf", "frf_from_arrays",
+    "FrfResult",
 ]
+
+
+def __getattr__(name: str):
+    """Result types exported here, loaded on first use (``fm.FrfResult``) so importing the API stays
+    cheap."""
+    if name == "FrfResult":
+        from flexmodal.modal.frf import FrfResult
+
+        return FrfResult
+    raise AttributeError(f"module 'flexmodal.api' has no attribute {name!r}")
 
 SHAPE_CONFIGS = 2              # configurations whose mode shapes a report draws on the arm (first, last)
 
@@ -156,7 +168,7 @@ def acquire(session: PathLike | Session, out: PathLike, *, duration_s: float | N
     if duration_s is not None and duration_s <= 0:
         raise DaqError(f"--duration {duration_s}: must be > 0 seconds")
     if recover and Path(out).exists():
-        from flexmodal.daq.store import recover as _recover
+        from flexmodal.daq.h5file import recover as _recover
 
         _recover(out)
     return _acquire(session, out, duration_s=duration_s, quiet=quiet, run_id=run_id)
@@ -223,6 +235,70 @@ def compute_frf(run: Run | PathLike, *, estimator: str = "H1", nfft: int | None 
 
         write_frf(run.path, run.run_id, result)
     return result
+
+
+def frf_from_arrays(freq_hz, H, *, coherence=None, quantity: str = "accelerance",
+                    outputs: Sequence[str] = (), inputs: Sequence[str] = (),
+                    decay_rate_per_s: float = 0.0) -> FrfResult:
+    """FRFs you already have (another tool's, a UFF file's, a simulation's) as the :class:`FrfResult`
+    every flexmodal function takes (:func:`identify`, :func:`plot_frf`, :func:`plot_stabilisation`).
+
+    Parameters
+    ----------
+    freq_hz : array_like [n_freq]
+        Frequency lines [Hz], finite, increasing, non-negative.
+    H : array_like [n_out, n_in, n_freq], [n_out, n_freq] or [n_freq]
+        Complex FRFs in ``quantity`` per input unit (one input when 2-D, one output too when 1-D).
+    coherence : array_like [n_out, n_freq], optional
+        Coherence [-] of each output (default: none).
+    quantity : {"accelerance", "mobility", "receptance"}
+        What H is: (m/s²)/N, (m/s)/N or m/N.
+    outputs, inputs : sequence of str
+        Channel names (default ``out 1``.. and ``in 1``..).
+    decay_rate_per_s : float
+        Decay rate [1/s] of an exponential window applied to the records (0: none), removed from the
+        identified damping.
+
+    Returns
+    -------
+    FrfResult
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import flexmodal as fm
+    >>> f = np.linspace(0.0, 100.0, 201)
+    >>> s, w0 = 2j * np.pi * f, 2 * np.pi * 40.0                    # one mode at 40 Hz, 2 % damping
+    >>> H = s**2 / (s**2 + 2 * 0.02 * w0 * s + w0**2)
+    >>> frf = fm.frf_from_arrays(f, H, outputs=["tip"])
+    >>> frf.H.shape, frf.outputs, frf.inputs
+    ((1, 1, 201), ('tip',), ('in 1',))
+    """
+    import numpy as np
+
+    from flexmodal.modal.errors import ModalError
+    from flexmodal.modal.frf import QUANTITIES, FrfResult
+
+    f = np.asarray(freq_hz, float)
+    h = np.asarray(H, complex)
+    h = h[None, None, :] if h.ndim == 1 else h[:, None, :] if h.ndim == 2 else h
+    if f.ndim != 1 or f.size < 2 or not np.all(np.isfinite(f)) or f[0] < 0 or np.any(np.diff(f) <= 0):
+        raise ModalError("frf_from_arrays: freq_hz must be finite, non-negative, increasing lines [Hz]")
+    if h.ndim != 3 or h.shape[-1] != f.size:
+        raise ModalError(f"frf_from_arrays: H {np.shape(H)} must be [n_out, n_in, n_freq], [n_out, n_freq] "
+                         f"with n_freq = {f.size}")
+    if quantity not in QUANTITIES:
+        raise ModalError(f"frf_from_arrays: quantity {quantity!r}: use one of {', '.join(QUANTITIES)}")
+    coh = None if coherence is None else np.asarray(coherence, float)
+    if coh is not None and coh.shape != (h.shape[0], f.size):
+        raise ModalError(f"frf_from_arrays: coherence {coh.shape} must be [n_out, n_freq] = "
+                         f"{(h.shape[0], f.size)}")
+    outs = tuple(outputs) or tuple(f"out {k + 1}" for k in range(h.shape[0]))
+    ins = tuple(inputs) or tuple(f"in {k + 1}" for k in range(h.shape[1]))
+    if len(outs) != h.shape[0] or len(ins) != h.shape[1]:
+        raise ModalError(f"frf_from_arrays: {len(outs)} output and {len(ins)} input names for H {h.shape}")
+    return FrfResult(f, h, coh, "given", "", 2 * (f.size - 1), 0, float("nan"), quantity, outs, ins,
+                     float(decay_rate_per_s), {"source": "frf_from_arrays"})
 
 
 def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: str = "H1",
@@ -300,6 +376,20 @@ class Identification:
     def warnings(self) -> list[str]:
         """``config: message`` for every warning met on the way."""
         return [f"{c}: {w}" for c, m in self.modes.items() for w in m.warnings]
+
+    def to_frame(self):
+        """The modal table as a pandas DataFrame (:meth:`ModalTable.to_frame`)."""
+        return self.table.to_frame()
+
+    def __repr__(self) -> str:
+        n = len(self.warnings)
+        return (f"Identification({len(self.modes)} configurations, {len(self.table.frame)} modes, "
+                f"{n} warning{'s' if n != 1 else ''}; .table, .modes[config], .warnings)")
+
+    def _repr_html_(self) -> str:
+        warned = "".join(f"<li>{html.escape(w)}</li>" for w in self.warnings[:10])
+        more = f"<li>... {len(self.warnings) - 10} more</li>" if len(self.warnings) > 10 else ""
+        return self.table._repr_html_() + (f"<p>Warnings:</p><ul>{warned}{more}</ul>" if warned else "")
 
     def write(self, out: PathLike, *, uff: PathLike | None = None) -> Path:
         """Write the modal table CSV ``out`` (docs/formats.md) and, beside it, ``MODES.synthesis.csv``

@@ -401,6 +401,44 @@ class Diagnosis(_Record):
     configs: tuple[str, ...] | None = None
     predictions: Predictions | None = None
 
+    # -- notebook display (reports engineer's block: to_frame, __repr__, _repr_html_) -----------------
+    def to_frame(self):
+        """The ranking of candidate effects as a pandas DataFrame, best first: ``rank``, ``effect``,
+        ``location``, ``n_params``, ``fit_rms_rel_error_pct`` and ``heldout_rms_rel_error_pct`` [%], and
+        one column per fitted parameter (its name carries its unit, ``k_Nm_per_rad``; empty where the
+        candidate has no such parameter)."""
+        import pandas as pd
+
+        rows = [{"rank": k + 1, "effect": r.effect, "location": r.location, "n_params": r.n_params,
+                 "fit_rms_rel_error_pct": 100 * r.fit_rms_rel_error,
+                 "heldout_rms_rel_error_pct": 100 * r.heldout_rms_rel_error, **dict(r.params)}
+                for k, r in enumerate(self.ranking)]
+        return pd.DataFrame(rows, columns=None if rows else ["rank", "effect", "location", "n_params",
+                                                             "fit_rms_rel_error_pct",
+                                                             "heldout_rms_rel_error_pct"])
+
+    def _verdict_line(self) -> str:
+        v = self.verdict
+        named = f"{v.effect} at {v.location}" if v.location else v.effect
+        return (f"{named}; held-out RMS error {100 * v.heldout_rms_rel_error_before:.3g} % -> "
+                f"{100 * v.heldout_rms_rel_error_after:.3g} %; explained: {'yes' if v.explained else 'no'}")
+
+    def __repr__(self) -> str:
+        return (f"Diagnosis({self._verdict_line()}; baseline RMS {100 * self.baseline.rms_rel_error:.3g} %, "
+                f"{len(self.ranking)} candidates ranked)")
+
+    def _repr_html_(self) -> str:
+        import html
+
+        from flexmodal.modal.table import display_html
+
+        shown = self.to_frame().head(8).rename(columns={"fit_rms_rel_error_pct": "fit RMS error [%]",
+                                                        "heldout_rms_rel_error_pct": "held-out RMS error [%]",
+                                                        "n_params": "parameters [count]"})
+        return display_html(f"Diagnosis: <b>{html.escape(self._verdict_line())}</b>; baseline RMS error "
+                            f"{100 * self.baseline.rms_rel_error:.3g} % (candidates, best first; "
+                            "<code>to_frame()</code> has all)", shown.round(4))
+
     def per_mode_after(self) -> Mapping[str, float | None] | None:
         """RMS relative error per mode with the best candidate (``baseline.per_mode`` is the one before):
         of its held-out predictions, or of its fit to all configurations when none of them was held

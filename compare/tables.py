@@ -71,6 +71,29 @@ class Comparison:
         df = self.measured.frame
         return "damping_ratio" in df and bool(np.isfinite(df["damping_ratio"].to_numpy(float)).any())
 
+    # -- notebook display: to_frame, __repr__, _repr_html_ ------------------------------------------
+    def to_frame(self, layout: str = "modes"):
+        """The comparison as a pandas DataFrame of full-precision numbers with units in the headers
+        (``fe f [Hz]``, ``experiment ζ [%]``, ``fe Δf [%]``, ``fe MAC [-]``): a row per measured mode
+        (``layout="modes"``) or per source and quantity (``"sources"``), as :func:`render` lays it out."""
+        import pandas as pd
+
+        cols, rows = _modes_grid(self) if layout == "modes" else _sources_grid(self)
+        return pd.DataFrame([[_plain(c.quantity, v) for c, v in zip(cols, row, strict=True)] for row in rows],
+                            columns=[_header(c, "md") for c in cols])
+
+    def __repr__(self) -> str:
+        parts = []
+        for p in self.pairings:
+            err = [q.rel_error for q in p.pairs]
+            rms = f", RMS Δf {100 * math.sqrt(sum(e * e for e in err) / len(err)):.3g} %" if err else ""
+            parts.append(f"{p.source}: {len(p.pairs)} paired{rms}")
+        return (f"Comparison({self.measured_name}: {len(self.configs)} configurations, "
+                f"{len(self.measured.frame)} measured modes; {'; '.join(parts)})")
+
+    def _repr_html_(self) -> str:
+        return html_fragment(self)
+
     def notes(self) -> list[str]:
         """One line per unpaired mode, naming source, configuration, mode and frequency [Hz]."""
         out = []

@@ -8,6 +8,7 @@ Extra columns are kept.  The table is shared by the modal engine (measured), the
 
 from __future__ import annotations
 
+import html
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -134,6 +135,36 @@ class ModalTable:
         cols = [SHAPE_PREFIX + s for s in (sensors if sensors is not None else self.sensors)]
         rows = self.rows(config)
         return np.array([rows[c].to_numpy() if c in rows else np.full(len(rows), np.nan) for c in cols])
+
+
+    # -- notebook display (Jupyter shows _repr_html_, print and the REPL __repr__) --------------------
+    def to_frame(self) -> pd.DataFrame:
+        """A copy of the table as a DataFrame, one row per mode, with the contract's columns and units in
+        their names (docs/formats.md): ``config``, ``mode``, ``freq_hz`` [Hz], ``damping_ratio`` [-],
+        ``pose.<var>``, ``shape.<sensor>``."""
+        return self.frame.copy()
+
+    def __repr__(self) -> str:
+        f = self.frame["freq_hz"].to_numpy(float)
+        span = f"{f.min():.4g}-{f.max():.4g} Hz" if f.size else "no modes"
+        return (f"ModalTable({self.source!r}: {len(self.configs)} configurations, {len(self.frame)} modes, "
+                f"{span}, shapes at {len(self.sensors)} sensors)")
+
+    def _repr_html_(self) -> str:
+        df = self.frame
+        shown = pd.DataFrame({"config": df["config"], **{c: df[c] for c in self.pose_columns},
+                              "mode": df["mode"], "f [Hz]": df["freq_hz"].map("{:.2f}".format)})
+        if "damping_ratio" in df:
+            shown["ζ [%]"] = (100 * df["damping_ratio"]).map(lambda z: f"{z:.2f}" if pd.notna(z) else "")
+        note = f"; shapes at {', '.join(self.sensors)} in <code>to_frame()</code>" if self.sensors else ""
+        return display_html(f"Modal table <b>{html.escape(self.source)}</b>: {len(self.configs)} "
+                            f"configurations, {len(df)} modes{note}", shown)
+
+
+def display_html(summary: str, frame: pd.DataFrame, max_rows: int = 30) -> str:
+    """A notebook display: one line of ``summary`` (HTML) over ``frame`` as an HTML table (at most
+    ``max_rows`` rows, pandas elides the middle of longer ones)."""
+    return f"<p>{summary}</p>" + frame.to_html(index=False, max_rows=max_rows, escape=True, border=0)
 
 
 def poses_from_csv(path: str | Path) -> dict[str, dict[str, float]]:
