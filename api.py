@@ -165,6 +165,10 @@ def acquire(session: PathLike | Session, out: PathLike, *, duration_s: float | N
     if isinstance(session, str | Path):
         session = load_session(session)
     hdf5_output(out, DaqError, "run file (--out)")
+    if run_id is not None:
+        from flexmodal.daq.run_schema import check_run_id
+
+        check_run_id(run_id, "--run-id")
     if duration_s is not None and duration_s <= 0:
         raise DaqError(f"--duration {duration_s}: must be > 0 seconds")
     if recover and Path(out).exists():

@@ -34,6 +34,7 @@ from flexmodal.daq.run_schema import (
     EVENT_KINDS,
     EXCITATIONS,
     check_run_group,
+    check_run_id,
     member,
     utf8,
 )
@@ -137,6 +138,8 @@ class RunWriter:
         self.flush_interval_s = float(flush_interval_s)
         self._file = self._open()
         try:
+            if self.run_id in self._file.require_group("runs"):
+                raise DaqError(f"{self.path}: already holds a run {self.run_id!r} (choose another --run-id)")
             group = self._file.require_group("runs").create_group(self.run_id)
             group.attrs["sample_rate_hz"] = float(sample_rate_hz)
             group.attrs["start_time"] = start_time or _iso_now()
@@ -166,8 +169,7 @@ class RunWriter:
 
     def _validate(self, sample_rate_hz: float, excitation: str, pose: dict) -> None:
         where = f"{self.path}: run {self.run_id!r}"
-        if not self.run_id or "/" in self.run_id:
-            raise DaqError(f"{self.path}: run id {self.run_id!r} must be non-empty without '/'")
+        check_run_id(self.run_id, f"{self.path}: run id")
         if not self.channels or not all(isinstance(c, Channel) for c in self.channels):
             raise DaqError(f"{where}: channels must be a non-empty sequence of Channel")
         names = [c.name for c in self.channels]

@@ -635,6 +635,10 @@ ROWS: list[Row] = [
     row("rig-1000-links-fe", PREDICT, ("rig.toml", "degrees of freedom", "GiB"), rig(big_rig(1000))),
     row("rig-1000-links-lumped", PREDICT.replace("fe", "lumped-mass"), ("rig.toml", "coordinates"),
         rig(big_rig(1000))),
+    row("acquire-run-id-dot", ACQUIRE + " --run-id .", ("--run-id", "'.'")),
+    row("acquire-run-id-slash", ACQUIRE + " --run-id a/b", ("--run-id", "'a/b'")),
+    row("acquire-can-cannot-open", ACQUIRE.replace("{d}/session.toml", "{d}/can.toml"),
+        ("can9", "cannot open"), {"can.toml": CAN.replace('channel = "can0"', 'channel = "can9"'), "can-module.dbc": DBC}),
     # -- controls: the unmodified base files work ---------------------------------------------------
     row("control-predict", PREDICT, (), code=0),
     row("control-compare", COMPARE, (), code=0),
