@@ -638,7 +638,8 @@ ROWS: list[Row] = [
     row("acquire-run-id-dot", ACQUIRE + " --run-id .", ("--run-id", "'.'")),
     row("acquire-run-id-slash", ACQUIRE + " --run-id a/b", ("--run-id", "'a/b'")),
     row("acquire-can-cannot-open", ACQUIRE.replace("{d}/session.toml", "{d}/can.toml"),
-        ("can9", "cannot open"), {"can.toml": CAN.replace('channel = "can0"', 'channel = "can9"'), "can-module.dbc": DBC}),
+        ("can9", "cannot open"),
+        {"can.toml": CAN.replace('channel = "can0"', 'channel = "can9"'), "can-module.dbc": DBC}),
     # -- controls: the unmodified base files work ---------------------------------------------------
     row("control-predict", PREDICT, (), code=0),
     row("control-compare", COMPARE, (), code=0),
