@@ -1137,7 +1137,10 @@ def demo(out_dir: PathLike = "flexmodal-demo", *, rig: PathLike | None = None, q
     from flexmodal.valid_output import output_dir
 
     out = output_dir(out_dir, FixtureError, "demo folder (--out)")   # before the demo's heavy imports
-    from flexmodal.fixtures.demo import Writers, run_demo
+    from flexmodal.fixtures.demo import OUTPUTS, Writers, run_demo
+
+    tables = [name for name in OUTPUTS if not name.endswith(".h5")]   # the run files are replaced whole
+    output_dir(out, FixtureError, "demo folder (--out)", files=tables, inputs=[rig])
 
     return run_demo(out, Writers(write_diagnosis, report), None if rig is None else Path(rig), quiet=quiet)
 

@@ -138,8 +138,6 @@ class RunWriter:
         self.flush_interval_s = float(flush_interval_s)
         self._file = self._open()
         try:
-            if self.run_id in self._file.require_group("runs"):
-                raise DaqError(f"{self.path}: already holds a run {self.run_id!r} (choose another --run-id)")
             group = self._file.require_group("runs").create_group(self.run_id)
             group.attrs["sample_rate_hz"] = float(sample_rate_hz)
             group.attrs["start_time"] = start_time or _iso_now()
@@ -184,6 +182,8 @@ class RunWriter:
             raise DaqError(f"{where}: pose must be a dict, got {type(pose).__name__}")
 
     def _open(self) -> h5py.File:
+        if self.path.exists() or self.path.is_symlink():  # a FIFO or device would block or be destroyed
+            regular_file(self.path, DaqError, "run file")
         try:
             f = h5py.File(self.path, "a", libver="latest", rdcc_nbytes=CHUNK_CACHE_BYTES)
         except OSError as exc:

@@ -640,6 +640,11 @@ ROWS: list[Row] = [
     row("acquire-can-cannot-open", ACQUIRE.replace("{d}/session.toml", "{d}/can.toml"),
         ("can9", "cannot open"),
         {"can.toml": CAN.replace('channel = "can0"', 'channel = "can9"'), "can-module.dbc": DBC}),
+    row("session-dbc-fifo", ACQUIRE, ("session.toml", "FIFO", "dbc file"),
+        {"session.toml": CAN.replace('dbc = "can-module.dbc"', 'dbc = "fifo"'), "fifo": fifo}),
+    row("demo-table-fifo", "demo --out {d}/demo", ("modes.csv", "FIFO"), {"demo/modes.csv": fifo}),
+    row("demo-report-is-rig", "demo --rig {d}/demo/report.html --out {d}/demo", ("report.html", "input"),
+        {"demo/report.html": RIG}),
     # -- controls: the unmodified base files work ---------------------------------------------------
     row("control-predict", PREDICT, (), code=0),
     row("control-compare", COMPARE, (), code=0),
