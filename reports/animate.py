@@ -99,7 +99,8 @@ def arm_pairs(arm, measured: ModalTable, config: str, n_predicted: int | None = 
 
     ``arm``: a ``models.arm_shapes.ArmModes`` at the configuration's pose.  Test: the measured shape
     at the sensors (each along its measuring direction), joined from the arm's base along the arm.
-    Model: the FE mode with the highest MAC at the sensors, along the links.
+    Model: the FE mode with the highest MAC at the sensors, along the links, signed to move in phase
+    with the test.
     """
     names = list(arm.sensor_names)
     if len(names) < 2:
@@ -114,9 +115,9 @@ def arm_pairs(arm, measured: ModalTable, config: str, n_predicted: int | None = 
     test_line = (tuple(range(len(test_xy))),)
     model_line = (tuple(range(len(curve))),)          # the links, base to tip, as one line
 
-    def model(j: int) -> Shape:
-        return Shape(f"FE mode {j + 1}: {arm.freq_hz[j]:.4g} Hz", curve, _scaled(curve, model_disp[:, j, :]),
-                     model_line)
+    def model(j: int, sign: float = 1.0) -> Shape:
+        return Shape(f"FE mode {j + 1}: {arm.freq_hz[j]:.4g} Hz", curve,
+                     _scaled(curve, sign * model_disp[:, j, :]).astype(complex), model_line)
 
     pairs: list[tuple[Shape | None, Shape | None]] = []
     used = set()
@@ -126,7 +127,8 @@ def arm_pairs(arm, measured: ModalTable, config: str, n_predicted: int | None = 
         disp = np.vstack([np.zeros((1, 2)), (measured_shapes[:, k, None] * arm.sensor_dir)[along]])
         test = Shape(f"mode {k + 1}: {freqs[k]:.4g} Hz (MAC {macs[k, j]:.2f} with FE mode {j + 1})", test_xy,
                      _scaled(test_xy, disp).astype(complex), test_line, tuple(range(1, len(test_xy))))
-        pairs.append((test, model(j)))
+        in_phase = float(arm.sensor_disp[:, j] @ measured_shapes[:, k]) >= 0   # shapes' signs are arbitrary
+        pairs.append((test, model(j, 1.0 if in_phase else -1.0)))
     last = len(arm.freq_hz) if n_predicted is None else min(n_predicted, len(arm.freq_hz))
     pairs += [(None, model(j)) for j in range(last) if j not in used and arm.freq_hz[j] > 0]
     return pairs
@@ -141,11 +143,11 @@ def _box(shape: Shape) -> tuple[float, float, float, float]:
     return float(lo[0] - pad), float(lo[1] - pad), float(size[0]), float(size[1])
 
 
-def svg(shape: Shape, width_px: int = 330) -> str:
+def svg(shape: Shape, width_px: int = 260) -> str:
     """One animated shape as an inline ``<svg>`` (y up; the data in ``data-shape`` for :data:`SCRIPT`),
     showing the undeformed structure (grey) and the moving one."""
     x0, y0, w, h = _box(shape)
-    height_px = int(round(width_px * min(max(h / w, 0.3), 1.6)))
+    height_px = int(round(width_px * min(max(h / w, 0.3), 1.2)))
     flip = np.array([1.0, -1.0])
     xy = shape.xy * flip
     d = shape.disp * flip

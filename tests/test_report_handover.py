@@ -145,7 +145,8 @@ def test_stabilisation_diagrams_select_the_modes_of_the_table_of_the_same_run(de
     report, figures = demo_figures
     table = ModalTable.read_csv(report.parent / "modes.csv")
     html = report.read_text()
-    captions = [re.sub(r"<[^>]+>", "", c) for c in re.findall(r"<figcaption>(.*?)</figcaption>", html)]
+    captions = [re.sub(r"<[^>]+>", "", c)
+                for c in re.findall(r'<img src="data:image/png[^>]*><figcaption>(.*?)</figcaption>', html)]
     report_figures = figures[len(figures) - len(captions):]          # diagnosis.html's figure came first
     checked = 0
     for fig, caption in zip(report_figures, captions, strict=True):
