@@ -168,7 +168,7 @@ def acquire(session: PathLike | Session, out: PathLike, *, duration_s: float | N
     if duration_s is not None and duration_s <= 0:
         raise DaqError(f"--duration {duration_s}: must be > 0 seconds")
     if recover and Path(out).exists():
-        from flexmodal.daq.store import recover as _recover
+        from flexmodal.daq.h5file import recover as _recover
 
         _recover(out)
     return _acquire(session, out, duration_s=duration_s, quiet=quiet, run_id=run_id)

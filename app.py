@@ -1,15 +1,14 @@
 """flexmodal command line: a thin dispatcher over the packages.
 
-Every sub-command is registered by its package's ``cli`` module (``register(subparsers)``), which
-imports its heavy dependencies only when the command runs.  Errors of the one family
-``flexmodal.checked_io.errors.FlexmodalError`` (each package raises its subclass), and missing or
-unreadable files, become one line on stderr and exit code 2 (docs/formats.md).
+Every sub-command comes from the command registry (cli_commands.COMMANDS: each entry adds its
+sub-commands to the parser and imports its heavy dependencies only when the command runs).  Errors of
+the one family ``flexmodal.checked_io.errors.FlexmodalError`` (each package raises its subclass), and
+missing or unreadable files, become one line on stderr and exit code 2 (docs/formats.md).
 """
 
 from __future__ import annotations
 
 import argparse
-import importlib
 import os
 import signal
 import sys
@@ -17,11 +16,7 @@ from collections.abc import Sequence
 
 from flexmodal import __version__
 from flexmodal.checked_io.errors import FlexmodalError
-
-COMMAND_MODULES = (
-    "flexmodal.fixtures.cli", "flexmodal.daq.cli", "flexmodal.modal.cli", "flexmodal.models.cli",
-    "flexmodal.compare.cli", "flexmodal.compare.diagnosis_cli", "flexmodal.reports.cli",
-)
+from flexmodal.cli_commands import COMMANDS
 
 
 class UsageError(Exception):
@@ -45,8 +40,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="print flexmodal's version and exit")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
-    for name in COMMAND_MODULES:
-        importlib.import_module(name).register(sub)
+    for add in COMMANDS.values():   # the command registry (cli_commands.COMMANDS), in its order
+        add(sub)
     for command in sub.choices.values():  # `flexmodal CMD --quiet` works as well as `flexmodal --quiet CMD`
         if "--quiet" not in command._option_string_actions:
             command.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,

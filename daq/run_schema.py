@@ -16,7 +16,23 @@ import h5py
 import numpy as np
 
 from flexmodal.daq.errors import DaqError
-from flexmodal.daq.store import CHANNEL_FIELDS, EVENT_DTYPE, EXCITATIONS
+from flexmodal.daq.h5file import open_read
+
+CHANNEL_KINDS = ("acceleration", "force", "strain", "encoder", "voltage", "other")
+EVENT_KINDS = ("trigger", "gap", "overload", "corrupt", "reconnect", "note", "device_lost", "overrun",
+               "stopped")
+EXCITATIONS = ("impact", "random", "sweep", "free-decay", "operational")
+CHANNEL_FIELDS = ("name", "kind", "unit", "sensitivity", "sensitivity_unit", "location", "direction")
+EVENT_DETAIL_BYTES = 200
+
+
+def utf8(n_bytes: int) -> np.dtype:
+    """A fixed-width UTF-8 string type of ``n_bytes`` (at least 1) for HDF5 compound tables."""
+    return h5py.string_dtype("utf-8", max(int(n_bytes), 1))
+
+
+EVENT_DTYPE = np.dtype([("kind", utf8(16)), ("sample_index", "i8"), ("count", "i8"),
+                        ("detail", utf8(EVENT_DETAIL_BYTES))])
 
 RUN_FIELDS = {"channels": CHANNEL_FIELDS, "events": EVENT_DTYPE.names}
 NUMERIC_FIELDS = {"sensitivity": "f", "sample_index": "i", "count": "i"}
@@ -91,10 +107,8 @@ def check_run_group(g: h5py.Group, where: str) -> None:
 
 
 def check_run_file(path: str | Path, run_id: str) -> None:
-    """Open ``path`` (:func:`flexmodal.daq.store.open_read`) and check run ``run_id`` without reading
+    """Open ``path`` (:func:`flexmodal.daq.h5file.open_read`) and check run ``run_id`` without reading
     its samples: lets a command refuse a bad run file before it starts working."""
-    from flexmodal.daq.store import open_read
-
     with open_read(path) as f:
         key = f"runs/{run_id}"
         if key not in f:

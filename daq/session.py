@@ -24,7 +24,8 @@ from flexmodal.daq.devices import SIMULATOR_PORT
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.faults import Faults
 from flexmodal.daq.protocols import PROTOCOLS, registered_protocols
-from flexmodal.daq.store import CHANNEL_KINDS, EXCITATIONS, Channel
+from flexmodal.daq.run_schema import CHANNEL_KINDS, EXCITATIONS
+from flexmodal.daq.store import Channel
 from flexmodal.valid_text import read_toml
 from flexmodal.valid_toml import Fields
 

@@ -48,7 +48,7 @@ def idle_cpus() -> int:
 
 def run_bytes(jobs: Sequence[tuple[str, str]]) -> list[int]:
     """Bytes of samples of every (file, run_id) job, from the file metadata."""
-    from flexmodal.daq.store import open_read
+    from flexmodal.daq.h5file import open_read
 
     sizes = []
     for path, rid in jobs:

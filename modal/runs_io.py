@@ -46,7 +46,7 @@ def write_frf(path: str | Path, run_id: str, result: FrfResult) -> None:
 
 def read_frf(path: str | Path, run_id: str) -> FrfResult | None:
     """The stored FRFs of a run, or None when the run has no ``frf`` group."""
-    from flexmodal.daq.store import open_read  # fails at once on a truncated file (SWMR would wait)
+    from flexmodal.daq.h5file import open_read  # fails at once on a truncated file (SWMR would wait)
 
     with open_read(path) as f:
         key = f"runs/{run_id}/frf"

@@ -38,6 +38,7 @@ from flexmodal.reports import animate, plots
 from flexmodal.reports.errors import ReportError
 from flexmodal.reports.geometry import Geometry
 from flexmodal.reports.runs import LOW_COHERENCE, RunSummary
+from flexmodal.reports.sections import SECTIONS, ReportInputs
 from flexmodal.valid_output import write_text
 from flexmodal.valid_text import read_text
 
@@ -408,7 +409,14 @@ def write_report(out_path: str | Path, *, runs: Sequence[RunSummary] = (),
     figures_diag = [] if diagnosis is None else [
         _fig(plots.plot_gap(diagnosis), "Relative frequency error per mode of the nominal model and with "
                                         "the diagnosed effect; held-out RMS error")]
-    _number([*figures_modes, *animations, *(f for s in run_sections for f in s["figures"]), *figures_diag])
+    given = ReportInputs(tuple(summaries), comparison, measured, tuple(repeats), tuple(predictions), shapes,
+                         diagnosis, rig_name)
+    added = [{"id": f"section-{name}", "title": section.title,
+              "figures": [_fig(fig, caption) for fig, caption in section.figures(given)]}
+             for name, section in SECTIONS.items()]   # the registered sections (reports.sections)
+    added = [a for a in added if a["figures"]]
+    _number([*figures_modes, *animations, *(f for s in run_sections for f in s["figures"]), *figures_diag,
+             *(f for a in added for f in a["figures"])])
     meta, quality, channel_sets = _run_rows(summaries)
     if inputs is None:
         inputs = [s.run.path for s in summaries]
@@ -421,7 +429,8 @@ def write_report(out_path: str | Path, *, runs: Sequence[RunSummary] = (),
                           ("animations", "Animated mode shapes", bool(animations)),
                           ("identified", "Identified modes", measured is not None),
                           ("runs", "Stored runs", bool(meta)),
-                          ("gap", "Gap before and after the diagnosed effect", bool(figures_diag))],
+                          ("gap", "Gap before and after the diagnosed effect", bool(figures_diag)),
+                          *((a["id"], a["title"], True) for a in added)],
                          run_sections)
     env = jinja2.Environment(loader=jinja2.PackageLoader("flexmodal.reports", "templates"),
                              autoescape=jinja2.select_autoescape(["html"]), undefined=jinja2.StrictUndefined)
@@ -434,7 +443,7 @@ def write_report(out_path: str | Path, *, runs: Sequence[RunSummary] = (),
         measured_rows=_measured_rows(measured) if measured is not None else [],
         measured_source=relative_name(measured.source, out.parent) if measured is not None else "",
         runs=meta, quality=quality, channel_sets=channel_sets, low_coherence=LOW_COHERENCE,
-        run_sections=run_sections, figures_diagnosis=figures_diag)
+        run_sections=run_sections, figures_diagnosis=figures_diag, added_sections=added)
     out.parent.mkdir(parents=True, exist_ok=True)
     return write_text(out, html)
 

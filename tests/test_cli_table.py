@@ -89,7 +89,7 @@ def truncated_run(path: Path) -> None:
 
 def truncated_live_run(path: Path) -> None:
     """A truncated file whose superblock still says a writer has it open (a killed writer's file)."""
-    from flexmodal.daq.store import _lookup3
+    from flexmodal.daq.h5file import _lookup3
 
     write_run(path)
     data = bytearray(path.read_bytes()[:60000])

@@ -1,5 +1,5 @@
 """Known answers for the validation modules of issue 13 (valid_text, valid_csv, valid_options,
-valid_output, daq.run_schema / daq.store.open_read, models.rig_schema, modal.valid_uff)."""
+valid_output, daq.run_schema / daq.h5file.open_read, models.rig_schema, modal.valid_uff)."""
 
 from __future__ import annotations
 
@@ -15,7 +15,8 @@ import pytest
 
 from flexmodal import valid_options as opt
 from flexmodal.daq.errors import DaqError
-from flexmodal.daq.store import Channel, RunWriter, list_runs, open_read, read_run
+from flexmodal.daq.h5file import open_read
+from flexmodal.daq.store import Channel, RunWriter, list_runs, read_run
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.valid_uff import check_functions
 from flexmodal.models.errors import ModelError
