@@ -159,7 +159,7 @@ def svg(shape: Shape, width_px: int = 260) -> str:
     def pts(line: Sequence[int]) -> str:
         return " ".join(f"{xy[i, 0]:.5g},{xy[i, 1]:.5g}" for i in line)
 
-    parts = [f'<svg class="fm-shape" xmlns="http://www.w3.org/2000/svg" role="img" '
+    parts = [f'<svg class="fm-shape" role="img" '
              f'aria-label="{html.escape(shape.title)}" width="{width_px}" height="{height_px}" '
              f'viewBox="{x0:.5g} {-(y0 + h):.5g} {w:.5g} {h:.5g}" preserveAspectRatio="xMidYMid meet" '
              f"data-shape='{html.escape(json.dumps(data, separators=(',', ':')), quote=True)}'>"]

@@ -113,7 +113,7 @@ def test_arm_report_animates_test_beside_model_for_each_pose(arm_page):
     page, seen = arm_page
     _clean(seen["events"])
     html = page.read_text()
-    body = html.split("<body>")[1].replace('xmlns="http://www.w3.org/2000/svg"', "")
+    body = html.split("<body>")[1]
     assert "<script src" not in html and "http" not in body
     # first and last pose drawn; per pose 3 measured modes beside their FE modes, and FE mode 4 alone
     assert seen["phases"]["0"]["count"] == 2 * (3 * 2 + 1)
