@@ -613,13 +613,19 @@ def predict(rig: Rig | PathLike, poses: Mapping[str, Mapping[str, float]] | Moda
     from flexmodal.models.errors import ModelError
     from flexmodal.models.predict import predict as _predict
 
+    rig = _rig(rig)
     if isinstance(poses, str | Path):
-        poses = read_poses(poses)
+        where, poses = poses, read_poses(poses)
+        have = set().union(*poses.values()) if poses else set()
+        missing = [v for v in rig.pose_variables if v not in have]
+        if missing:  # the poses file lacks the column, not the rig its variable
+            raise ModelError(f"{where}: no column 'pose.{missing[0]}' (rig {rig.source} needs the pose "
+                             f"variable {missing[0]!r}; pose columns are named pose.<variable>)")
     elif not isinstance(poses, Mapping):
         poses = {c: poses.pose(c) for c in poses.configs}
     if not poses:
         raise ModelError("predict: no configurations")
-    return _predict(_rig(rig), poses, model, n_modes, source=source, progress=progress, **options)
+    return _predict(rig, poses, model, n_modes, source=source, progress=progress, **options)
 
 
 # -- comparison and diagnosis ----------------------------------------------------------------------
@@ -722,6 +728,20 @@ def diagnose(rig: Rig | PathLike, measured: ModalTable | PathLike, *, effects: s
     return _diagnose(_rig(rig), _table(measured), effects=effects, holdout=holdout, scatter=scatter)
 
 
+def _paths(sources: Iterable[object]) -> list[PathLike]:
+    """The files among ``sources`` (paths, ``FILE::RUN_ID``, (file, run id); objects are skipped):
+    the inputs an output must not replace."""
+    found: list[PathLike] = []
+    for s in sources:
+        if isinstance(s, tuple) and s and isinstance(s[0], str | Path):
+            found.append(s[0])
+        elif isinstance(s, Path):
+            found.append(s)
+        elif isinstance(s, str):
+            found.append(s.partition("::")[0])
+    return found
+
+
 def write_diagnosis(result: Diagnosis, out_dir: PathLike,
                     inputs: Sequence[PathLike] = ()) -> tuple[Path, Path]:
     """Write ``diagnosis.json`` (strict JSON) and ``diagnosis.html`` of a :func:`diagnose` result into
@@ -731,7 +751,8 @@ def write_diagnosis(result: Diagnosis, out_dir: PathLike,
     from flexmodal.reports.html import write_report
     from flexmodal.valid_output import output_dir, write_text
 
-    out = output_dir(out_dir, CompareError, "diagnosis folder (--out)")
+    out = output_dir(out_dir, CompareError, "diagnosis folder (--out)",
+                     files=("diagnosis.json", "diagnosis.html"), inputs=inputs)
     out.mkdir(parents=True, exist_ok=True)
     pj = write_text(out / "diagnosis.json", result.to_json())
     ph = write_report(out / "diagnosis.html", diagnosis=result, title="Sim-to-real gap diagnosis",
@@ -1008,7 +1029,8 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     from flexmodal.reports.errors import ReportError
     from flexmodal.valid_output import output_file
 
-    output_file(out, ReportError, "report (--out)")
+    sources = [*runs, measured, *repeats, *predictions, diagnosis, rig]
+    output_file(out, ReportError, "report (--out)", inputs=_paths(sources))
     from flexmodal.compare.tables import compare_tables, ordered_configs, table_name
     from flexmodal.daq.store import expand_runs
     from flexmodal.modal.errors import ModalError

@@ -47,6 +47,7 @@ def _run(args: argparse.Namespace) -> int:
     """
     from flexmodal.daq.run_schema import check_run_file
     from flexmodal.daq.store import expand_runs
+    from flexmodal.modal.runs_io import read_frf
     from flexmodal.reports.errors import ReportError
 
     if args.pdf:
@@ -60,6 +61,7 @@ def _run(args: argparse.Namespace) -> int:
         raise ReportError("report: nothing to report (give RUN.h5 files, --measured, --pred or --diagnosis)")
     for path, run_id in expand_runs(args.runs):
         check_run_file(path, run_id)
+        read_frf(path, run_id)  # a stored FRF group that is not what flexmodal writes: refused now
     from flexmodal.api import report, report_pdf  # the inputs are sound: now the heavy imports
 
     quiet = getattr(args, "quiet", False)
