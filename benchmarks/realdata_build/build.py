@@ -280,8 +280,8 @@ def _mimo_h1(recs: list[dict]) -> tuple[np.ndarray, np.ndarray]:
 
 _MIMO_SOURCE = dict(
     repository=MIMO[0], commit=MIMO[1], paths=[f"sample_data/{k}.mat" for k in MIMO_RECORDS],
-    licence="BSD-style (MIMO-FRF LICENSE, Copyright (c) 2015 Flávio Ribeiro): redistribution with the "
-            "copyright notice",
+    licence="BSD-2-Clause (MIMO-FRF LICENSE, Copyright (c) 2015 Flávio Ribeiro): redistribution with "
+            "the copyright notice",
     structure="very flexible beam-ring (wing-like) test article driven by two piezoelectric patches "
               "(upper, lower), accelerometers at the upper and lower tip (flavioluiz/experimental-results "
               "beam-ring); 120 s exponential sine sweeps ~0.1-250 Hz at 1 kHz, symmetric (patches in phase) "
@@ -505,8 +505,8 @@ def build_pyuff_mps_oma() -> None:
     _source(name, input="mps_set1.uff", kind_short="output-only, analyser 58b export, shared node/dir",
             repository=repo, commit=commit, paths=["data/MPSTD#Set001_2024_10_08_10_27_07.uff"],
             licence="MIT (pyuff LICENSE)",
-            kind="output-only acceleration records exported by a commercial analyser as binary UFF 58b "
-                 "(id lines 'MPS set1 Dof1..4'); two channels share node 1 and direction +Z",
+            kind="output-only acceleration records exported by a measurement system (not named in pyuff) "
+                 "as binary UFF 58b (id lines 'MPS set1 Dof1..4'); two channels share node 1, direction +Z",
             structure="not documented in pyuff (a test file for its 58b reader, added in commit 4a1c7b2, "
                       "2024)",
             derived="mps_set1.uff: dataset 58b time histories (single precision), the four records with "
@@ -551,7 +551,7 @@ commits (see that script's docstring); only derived data files are kept, under t
 
 README_TAIL = """
 Licences: each folder's LICENSE.txt is the source repository's licence file at the pinned commit, and
-its derived data file is redistributed under that licence (MIT, BSD-style, LGPL-3.0 or GPL-3.0) as a
+its derived data file is redistributed under that licence (MIT, BSD-2-Clause, LGPL-3.0 or GPL-3.0) as a
 separate work, with the notice it asks for; none of the sources' code is included.
 """
 
