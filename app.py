@@ -3,7 +3,8 @@
 Every sub-command comes from the command registry (cli_commands.COMMANDS: each entry adds its
 sub-commands to the parser and imports its heavy dependencies only when the command runs).  Errors of
 the one family ``flexmodal.checked_io.errors.FlexmodalError`` (each package raises its subclass), and
-missing or unreadable files, become one line on stderr and exit code 2 (docs/formats.md).
+operating-system errors (a missing or unreadable file, a full disk) become one line on stderr and exit
+code 2 (docs/formats.md).
 """
 
 from __future__ import annotations
@@ -70,9 +71,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"flexmodal: error: {' '.join(str(exc).split())}", file=sys.stderr)
         signum = getattr(exc, "signum", 0)  # stopped by a signal before any work (daq.acquire.Stopped)
         return 128 + signum if signum else 2
-    except (FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError) as exc:
-        where = exc.filename if exc.filename is not None else ""
-        print(f"flexmodal: error: {where}: {exc.strerror or exc}", file=sys.stderr)
+    except OSError as exc:  # missing or unreadable files, a full disk, an I/O error: named, one line
+        where = f"{exc.filename}: " if exc.filename is not None else ""
+        print(f"flexmodal: error: {where}{' '.join(str(exc.strerror or exc).split())}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         if argv is None:  # the command itself: outputs are closed or removed by now, so skip the
