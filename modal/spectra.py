@@ -7,13 +7,15 @@ Conventions: ``g_xf[o, i] = E[X_o conj(F_i)]``, ``g_ff[i, j] = E[F_i conj(F_j)]`
 one-sided densities scaled like ``scipy.signal.csd(..., scaling="density")`` (units^2/Hz).  One gap rule:
 a segment holding a NaN/inf sample in a used channel, or touching a skipped interval, is left out.
 
-One pass per block of segments: the samples, row-major as stored, less the block's first sample
-(so a large offset never reaches a single-precision FFT), are windowed straight from a strided view
-(segments overlap in memory, no transpose), transformed
-with ``scipy.fft.rfft`` along the sample axis (float32 records in single precision), each segment's
-mean taken out of the first lines of its transform, and the cross-spectra formed as one batched
-matrix product over the segment axis per block (``[f, channel, segment] @ [f, segment, reference]``)
-with the auto-spectra as one more reduction; block sums are accumulated in double precision.
+One pass per block of segments, on a block in cache: the samples, row-major as stored, less the
+block's first sample (so a large offset never reaches a single-precision FFT) from a strided view
+(segments overlap in memory; no transpose, no float64 copy of float32 data), their sums (each
+segment's mean, and the only check for NaN/inf samples), the window, one real FFT along the sample
+axis with ``scipy.fft.rfft`` (float32 records in single precision), each segment's mean times the
+window's spectrum taken out of the first lines of its transform (windows with a long spectrum: the
+mean taken out before windowing), then the cross-spectra against the references as one batched
+matrix product over the segment axis (``[f, channel, segment] @ [f, segment, reference]``) and the
+auto-spectra as one reduction; block sums are accumulated in double precision, in segment order.
 """
 
 from __future__ import annotations
@@ -34,8 +36,6 @@ from flexmodal.modal.windows import window
 
 _BLOCK_BYTES = 4 << 20      # windowed segments per block (with its spectra, stays in the L3 cache)
 _READ_BYTES = 16 << 20      # samples read per block from a dataset on disk (rounded to whole chunks)
-
-
 DEFAULT_NFFT_MAX = 8192
 
 
@@ -85,7 +85,7 @@ def density_scale(n_freq: int, nfft: int, sample_rate_hz: float, w: np.ndarray) 
     return scale
 
 
-def products(spec: np.ndarray, refs: Sequence[int], weights: np.ndarray | None = None
+def _products(spec: np.ndarray, refs: Sequence[int], weights: np.ndarray | None = None
              ) -> tuple[np.ndarray, np.ndarray]:
     """(Weighted) sums over segments of the spectral products of one block ``spec`` [seg, f, ch]:
     ``g`` [f, ch, ref] = sum X_ch conj(X_ref), one batched matrix product over the segment axis, and
@@ -119,7 +119,7 @@ def spectra_of_segments(segments: np.ndarray, n_in: int, sample_rate_hz: float,
     nfft = segments.shape[-1]
     spec = scipy.fft.rfft(np.swapaxes(segments, 1, 2), axis=1)                 # [seg, f, ch]
     w = None if weights is None else np.asarray(weights, float)
-    g, auto = products(spec, range(n_in), w)
+    g, auto = _products(spec, range(n_in), w)
     norm = 1.0 if w is not None else 1.0 / segments.shape[0]
     scale = density_scale(spec.shape[1], nfft, sample_rate_hz, scale_window) * norm
     return _spectra(g, auto, n_in, scale, rfftfreq(nfft, sample_rate_hz), segments.shape[0])
@@ -256,7 +256,7 @@ class _Plan:
             k = self.lines.shape[0]
             spec[:, :k] -= means[:, None, :].astype(spec.real.dtype) * self.lines
         used = b - int(bad.sum())
-        g, auto = products(spec, self.refs)
+        g, auto = _products(spec, self.refs)
         return g, auto, means.sum(axis=0) + offset[self.cols].astype(float) * used, used
 
 
