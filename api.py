@@ -34,7 +34,7 @@ __all__ = [
     "diagnose", "format_comparison", "identify", "list_runs", "load_rig", "plot_comparison", "plot_frf",
     "plot_gap", "plot_mode_shapes", "plot_stabilisation", "predict", "read_diagnosis", "read_poses",
     "read_run", "read_table", "report", "selftest", "write_diagnosis", "report_pdf", "frf_from_arrays",
-    "FrfResult",
+    "FrfResult", "animate_mode",
 ]
 
 
@@ -613,13 +613,19 @@ def predict(rig: Rig | PathLike, poses: Mapping[str, Mapping[str, float]] | Moda
     from flexmodal.models.errors import ModelError
     from flexmodal.models.predict import predict as _predict
 
+    rig = _rig(rig)
     if isinstance(poses, str | Path):
-        poses = read_poses(poses)
+        where, poses = poses, read_poses(poses)
+        have = set().union(*poses.values()) if poses else set()
+        missing = [v for v in rig.pose_variables if v not in have]
+        if missing:  # the poses file lacks the column, not the rig its variable
+            raise ModelError(f"{where}: no column 'pose.{missing[0]}' (rig {rig.source} needs the pose "
+                             f"variable {missing[0]!r}; pose columns are named pose.<variable>)")
     elif not isinstance(poses, Mapping):
         poses = {c: poses.pose(c) for c in poses.configs}
     if not poses:
         raise ModelError("predict: no configurations")
-    return _predict(_rig(rig), poses, model, n_modes, source=source, progress=progress, **options)
+    return _predict(rig, poses, model, n_modes, source=source, progress=progress, **options)
 
 
 # -- comparison and diagnosis ----------------------------------------------------------------------
@@ -722,6 +728,20 @@ def diagnose(rig: Rig | PathLike, measured: ModalTable | PathLike, *, effects: s
     return _diagnose(_rig(rig), _table(measured), effects=effects, holdout=holdout, scatter=scatter)
 
 
+def _paths(sources: Iterable[object]) -> list[PathLike]:
+    """The files among ``sources`` (paths, ``FILE::RUN_ID``, (file, run id); objects are skipped):
+    the inputs an output must not replace."""
+    found: list[PathLike] = []
+    for s in sources:
+        if isinstance(s, tuple) and s and isinstance(s[0], str | Path):
+            found.append(s[0])
+        elif isinstance(s, Path):
+            found.append(s)
+        elif isinstance(s, str):
+            found.append(s.partition("::")[0])
+    return found
+
+
 def write_diagnosis(result: Diagnosis, out_dir: PathLike,
                     inputs: Sequence[PathLike] = ()) -> tuple[Path, Path]:
     """Write ``diagnosis.json`` (strict JSON) and ``diagnosis.html`` of a :func:`diagnose` result into
@@ -731,7 +751,8 @@ def write_diagnosis(result: Diagnosis, out_dir: PathLike,
     from flexmodal.reports.html import write_report
     from flexmodal.valid_output import output_dir, write_text
 
-    out = output_dir(out_dir, CompareError, "diagnosis folder (--out)")
+    out = output_dir(out_dir, CompareError, "diagnosis folder (--out)",
+                     files=("diagnosis.json", "diagnosis.html"), inputs=inputs)
     out.mkdir(parents=True, exist_ok=True)
     pj = write_text(out / "diagnosis.json", result.to_json())
     ph = write_report(out / "diagnosis.html", diagnosis=result, title="Sim-to-real gap diagnosis",
@@ -988,7 +1009,7 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
            diagnosis: Diagnosis | Mapping | PathLike | None = None,
            rig: Rig | PathLike | None = None, title: str = "flexmodal validation report",
            oma_fmin: float | None = None, oma_fmax: float | None = None,
-           fmin: float | None = None, fmax: float | None = None,
+           fmin: float | None = None, fmax: float | None = None, geometry: PathLike | None = None,
            progress: Callable[[str], None] | None = None) -> Path:
     """Write the self-contained HTML validation report ``out`` (its folder must exist; checked before
     any work) and return its path.
@@ -1001,12 +1022,15 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     identified in the band ``oma_fmin``..``oma_fmax`` [Hz] (``identify --fmin/--fmax``; default the
     whole record).
     ``measured``/``repeats``/``predictions``: modal tables; ``diagnosis``: a :func:`diagnose` result,
-    a parsed diagnosis.json, or its path; ``rig``: draws the measured shapes on the arm.  Everything
+    a parsed diagnosis.json, or its path; ``rig``: draws the measured shapes on the arm and animates
+    them beside the FE model's; ``geometry``: a Universal File with the test geometry (datasets 15 or
+    2411, 82, 18 or 2420) to animate the measured modes on (their sensors named ``<node>+z``...).  Everything
     is computed here; ``reports.html`` only renders it."""
     from flexmodal.reports.errors import ReportError
     from flexmodal.valid_output import output_file
 
-    output_file(out, ReportError, "report (--out)")
+    sources = [*runs, measured, *repeats, *predictions, diagnosis, rig]
+    output_file(out, ReportError, "report (--out)", inputs=_paths(sources))
     from flexmodal.compare.tables import compare_tables, ordered_configs, table_name
     from flexmodal.daq.store import expand_runs
     from flexmodal.modal.errors import ModalError
@@ -1065,10 +1089,64 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     inputs += [t.source for _, t in named]
     inputs += [diagnosis] if isinstance(diagnosis, str | Path) else []
     inputs += [rig.source] if rig is not None else []
+    inputs += [geometry] if geometry is not None else []
+    geo = None
+    if geometry is not None:
+        from flexmodal.reports.geometry import read_uff_geometry
+
+        geo = read_uff_geometry(geometry)
     return write_report(out, runs=summaries, comparison=comparison, measured=meas,
                         repeats=[_table(r) for r in repeats], predictions=named, shapes=shapes,
                         diagnosis=_diagnosis(diagnosis) if diagnosis is not None else None,
-                        rig_name=getattr(rig, "name", ""), title=title, inputs=inputs, progress=progress)
+                        rig_name=getattr(rig, "name", ""), title=title, inputs=inputs, geometry=geo,
+                        progress=progress)
+
+
+def animate_mode(out: PathLike, measured: ModalTable | PathLike, config: str, mode: int = 1, *,
+                 rig: Rig | PathLike | None = None, geometry: PathLike | None = None, frames: int = 24,
+                 fps: int = 12) -> Path:
+    """An animated GIF of one measured mode for slides (matplotlib's PillowWriter): with ``rig``, the
+    mode at the sensors on the arm beside the frame FE model's best-matching mode; with ``geometry``
+    (a Universal File: nodes, trace lines, coordinate systems), the mode on the test structure.
+    ``mode`` is 1-based; returns ``out``.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import flexmodal as fm
+    >>> from flexmodal.fixtures.rig_sim import DEMO_RIG
+    >>> rig = fm.load_rig(DEMO_RIG)
+    >>> table = fm.predict(rig, {"theta60": {"theta_deg": 60.0}}, "fe", n_modes=2)
+    >>> gif = fm.animate_mode(Path(tempfile.mkdtemp()) / "mode1.gif", table, "theta60", 1, rig=rig)
+    >>> gif.read_bytes()[:6]
+    b'GIF89a'
+    """
+    from flexmodal.reports import animate
+    from flexmodal.reports.errors import ReportError
+    from flexmodal.valid_output import output_file
+
+    target = output_file(out, ReportError, "GIF (out)")
+    table = _table(measured)
+    if config not in table.configs:
+        raise ReportError(f"{table.source}: no configuration {config!r} (have {', '.join(table.configs)})")
+    n = len(table.freq_hz(config))
+    if not 1 <= mode <= n:
+        raise ReportError(f"{table.source}: {config} has modes 1..{n}, not {mode}")
+    if (rig is None) == (geometry is None):
+        raise ReportError("animate_mode: give the rig or a UFF geometry (one of them)")
+    if geometry is not None:
+        from flexmodal.reports.geometry import read_uff_geometry
+
+        shapes = [animate.geometry_shapes(read_uff_geometry(geometry), table, config)[mode - 1]]
+    else:
+        from flexmodal.models.arm_shapes import arm_modes
+
+        rig = _rig(rig)
+        sensors = [s.name for s in rig.sensors if s.name in table.sensors]
+        test, model = animate.arm_pairs(arm_modes(rig, table.pose(config), sensors), table, config)[mode - 1]
+        shapes = [s for s in (test, model) if s is not None]
+    return animate.write_gif(shapes, target, frames=frames, fps=fps)
 
 
 def report_pdf(html: PathLike, pdf: PathLike | None = None) -> Path:

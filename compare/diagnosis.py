@@ -52,7 +52,7 @@ from flexmodal.compare.gap import (
     region_scores,
     rms,
 )
-from flexmodal.compare.parametric import handles_for, pose_basis, reduce_family
+from flexmodal.compare.parametric import handles_for, lam_to_hz, pose_basis, reduce_family, solve_family
 from flexmodal.compare.result import (
     Alternative,
     Baseline,
@@ -161,11 +161,11 @@ def _effect_region(rig: Rig, effect: str, location: str) -> str:
 class _Context:
     """Everything the candidate fits share: pose bases, handles, target, folds."""
 
-    def __init__(self, rig: Rig, meas: Measured, train: np.ndarray) -> None:
+    def __init__(self, rig: Rig, meas: Measured, train: np.ndarray, n_modes: int | None = None) -> None:
         self.rig, self.meas, self.train = rig, meas, train
         self.handles = handles_for(rig)
         self.index = {h.name: i for i, h in enumerate(self.handles)}
-        n = meas.freq_hz.shape[1]
+        n = meas.freq_hz.shape[1] if n_modes is None else n_modes
         self.bases = [pose_basis(rig, self.handles, p, n) for p in meas.poses]
         if meas.sensors:
             rows = [s.name for s in rig.sensors]
@@ -372,11 +372,12 @@ def _partners(ctx: _Context, lead: dict, others: Sequence[dict]) -> list[dict]:
     return [others[i] for i in np.argsort(stats)[::-1][:PARTNERS]]
 
 
-def _triples(ctx: _Context, pairs: Sequence[dict], pool: Sequence[dict], scatter: float) -> list[dict]:
-    """Each of the best pairs extended by each single of the pool (only tried when no pair explains)."""
+def _triples(ctx: _Context, pairs: Sequence[dict], singles: Sequence[dict], scatter: float) -> list[dict]:
+    """Each of the best pairs extended by its ``PARTNERS`` score-test partners among the singles
+    (``_partners``; only tried when no pair explains)."""
     out, seen = [], set()
     for pair in pairs:
-        for single in pool:
+        for single in _partners(ctx, pair, singles):
             cand = combine(pair["_cand"], single["_cand"])
             if cand is None or (cand.effect, cand.location, cand.params) in seen:
                 continue
@@ -482,6 +483,7 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
     if baseline["rms_rel_error"] > NONE_FACTOR * sigma:
         singles = single_candidates(rig, names, {v: [p[v] for p in meas.poses] for v in rig.pose_variables})
         screened = [_screen(ctx, c, scatter) for c in singles]
+        fitted_singles = list(screened)
         pool = sorted(screened, key=lambda e: e["_lower"])[:PAIR_POOL]
         for e in pool:
             _cross_validate(ctx, e, scatter)
@@ -498,7 +500,7 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
         _cross_validate_promising(ctx, screened, scatter)
         pairs.sort(key=lambda e: e.get("score", math.inf))
         if pairs and pairs[0].get("heldout_rms_rel_error", math.inf) > EXPLAINED_FACTOR * scatter:
-            screened += _triples(ctx, pairs[:TRIPLE_PAIRS], pool, scatter)
+            screened += _triples(ctx, pairs[:TRIPLE_PAIRS], fitted_singles, scatter)
             _cross_validate_promising(ctx, screened, scatter)
         _cross_validate_promising(ctx, screened, scatter)     # once more at the final shape floor
         scatter, floor = _scoring_scatter(noise, [e for e in screened if "score" in e])
@@ -987,47 +989,56 @@ def _component_params(cand: Candidate, theta: np.ndarray) -> list[tuple[str, str
     return out
 
 
-def _trial_poses(ctx: _Context) -> dict[str, dict[str, float]]:
-    """Candidate poses for a next measurement: each pose variable moved over ``TRIAL_POINTS`` points of
-    its measured range (the others at the first configuration's values), {label: pose}."""
+def trial_poses(rig: Rig, poses: Sequence[dict[str, float]]) -> dict[str, dict[str, float]]:
+    """Candidate poses for a next measurement after measuring ``poses``: each pose variable moved over
+    ``TRIAL_POINTS`` points of its measured range (the others at the first pose's values),
+    {``<var>=<value>``: pose}; ``verdict.next_measurements`` and ``separate_at`` name them."""
     trial: dict[str, dict[str, float]] = {}
-    for v in ctx.rig.pose_variables:
-        vals = np.array([p[v] for p in ctx.meas.poses])
-        trial.update({f"{v}={x:g}": {**ctx.meas.poses[0], v: float(x)}
+    for v in rig.pose_variables:
+        vals = np.array([p[v] for p in poses])
+        trial.update({f"{v}={x:g}": {**poses[0], v: float(x)}
                       for x in np.linspace(vals.min(), vals.max(), TRIAL_POINTS)})
     return trial
 
 
-def _fe_frequencies(ctx: _Context, entry: dict, trial: dict[str, dict[str, float]]) -> np.ndarray:
-    """Full-FE frequencies [P, n + 2] of ``entry``'s fitted candidate at the ``trial`` poses
-    (models/predict.py; NaN where the model cannot be solved); cached on the entry."""
-    from flexmodal.models.effects import apply_effect
-    from flexmodal.models.predict import predict
+def _trial_poses(ctx: _Context) -> dict[str, dict[str, float]]:
+    return trial_poses(ctx.rig, ctx.meas.poses)
 
-    if "_fe_trial" in entry:
-        return entry["_fe_trial"]
-    n = ctx.meas.freq_hz.shape[1] + 2
-    parts = _component_params(entry["_cand"], entry["_theta0"])
-    rows = []
-    for name, pose in trial.items():
-        r = ctx.rig
-        for eff, loc, params in parts:
-            r = apply_effect(r, eff, loc, params, pose=pose)
-        try:
-            rows.append(predict(r, {name: pose}, "fe", n).freq_hz(name))
-        except Exception:  # noqa: BLE001 - a pose the model cannot solve is just not suggested
-            rows.append(np.full(n, np.nan))
-    entry["_fe_trial"] = np.array(rows)
-    return entry["_fe_trial"]
+
+def _trial_context(ctx: _Context, trial: dict[str, dict[str, float]]) -> _Context:
+    """A context over the ``trial`` poses (reduced models there; frequencies are placeholders), cached."""
+    key = tuple(trial)
+    cached = getattr(ctx, "_trial", None)
+    if cached is None or cached[0] != key:
+        poses = tuple(trial.values())
+        n = ctx.meas.freq_hz.shape[1]
+        new = Measured(key, poses, np.repeat(ctx.meas.freq_hz[:1], len(poses), axis=0), None, ())
+        nctx = _Context(ctx.rig, new, np.ones((1, len(poses)), bool), n_modes=n + 2)
+        ctx._trial = (key, nctx)
+    return ctx._trial[1]
+
+
+def _trial_frequencies(ctx: _Context, entry: dict, trial: dict[str, dict[str, float]]) -> np.ndarray:
+    """Frequencies [P, n + 2] of ``entry``'s fitted candidate at the ``trial`` poses (its reduced model,
+    modes in ascending order); cached on the entry."""
+    if "_trial_f" not in entry:
+        nctx = _trial_context(ctx, trial)
+        cand = entry["_cand"]
+        fam = nctx.family(cand.handles)
+        h = np.exp(design(cand, nctx.target) @ entry["_theta0"])[None] if cand.n_params else \
+            np.ones((1, len(trial), 0))
+        lam, _, _ = solve_family(fam, h, ctx.meas.freq_hz.shape[1] + 2)
+        entry["_trial_f"] = lam_to_hz(lam[0])
+    return entry["_trial_f"]
 
 
 def _separating_measurement(ctx: _Context, a: dict, b: dict) -> dict:
     """The pose (``_trial_poses``) and model mode (up to two beyond the measured ones) where the fitted
-    candidates ``a`` and ``b`` differ most (full FE, models/predict.py)."""
+    candidates ``a`` and ``b`` differ most (their reduced models, compare/parametric.py)."""
     trial = _trial_poses(ctx)
     if not trial:
         return {}
-    diff = np.abs(_fe_frequencies(ctx, a, trial) / _fe_frequencies(ctx, b, trial) - 1.0)
+    diff = np.abs(_trial_frequencies(ctx, a, trial) / _trial_frequencies(ctx, b, trial) - 1.0)
     if not np.isfinite(diff).any():
         return {}
     i, m = np.unravel_index(np.nanargmax(diff), diff.shape)
@@ -1041,10 +1052,13 @@ def _predictive(ctx: _Context, entry: dict, nctx: _Context, scatter: float) -> t
     cand = entry["_cand"]
     _, df, _, _ = evaluate(entry["_fam"], design(cand, ctx.target), entry["_theta0"][None], ctx.target)
     cov = _linear_cov(df[0] / ctx.meas.freq_hz[..., None], scatter)
-    f, dfn, _, _ = evaluate(nctx.family(cand.handles), design(cand, nctx.target), entry["_theta0"][None],
-                            nctx.target)
-    g = dfn[0] / f[0][..., None]
-    return f[0], np.einsum("cnj,jk,cnk->cn", g, cov, g)
+    n = ctx.meas.freq_hz.shape[1]
+    h = np.exp(design(cand, nctx.target) @ entry["_theta0"])[None]
+    lam, dlam, _ = solve_family(nctx.family(cand.handles), h, n)
+    f = lam_to_hz(lam[0])
+    dl = dlam[0] * h[0][:, None, :]                                    # d lambda / d log h
+    g = (dl @ design(cand, nctx.target)) / (8 * math.pi**2 * np.maximum(f, 1e-12) ** 2)[..., None]
+    return f, np.einsum("cnj,jk,cnk->cn", g, cov, g)
 
 
 def _next_measurements(ctx: _Context, best: dict, alts: Sequence[dict], scatter: float) -> list[dict]:
@@ -1062,18 +1076,17 @@ def _next_measurements(ctx: _Context, best: dict, alts: Sequence[dict], scatter:
     if not trial or not alts:
         return []
     measured = {tuple(sorted(p.items())) for p in ctx.meas.poses}
-    labels = [k for k, p in trial.items() if tuple(sorted(p.items())) not in measured]
-    if not labels:
+    keep = [i for i, p in enumerate(trial.values()) if tuple(sorted(p.items())) not in measured]
+    if not keep:
         return []
-    poses = tuple(trial[k] for k in labels)
-    new = Measured(tuple(labels), poses, np.repeat(ctx.meas.freq_hz[:1], len(poses), axis=0), None, ())
-    nctx = _Context(ctx.rig, new, np.ones((1, len(poses)), bool))
-    fa, va = _predictive(ctx, best, nctx, scatter)
+    labels = [list(trial)[i] for i in keep]
+    nctx = _trial_context(ctx, trial)
+    fa, va = (x[keep] for x in _predictive(ctx, best, nctx, scatter))
     va = va + scatter**2
     info = np.zeros(fa.shape)
     value = np.zeros(len(labels))
     for e in alts:
-        fb, vb = _predictive(ctx, e, nctx, scatter)
+        fb, vb = (x[keep] for x in _predictive(ctx, e, nctx, scatter))
         vb = vb + scatter**2
         d = fb / fa - 1.0
         each = np.nan_to_num(0.5 * ((va - vb) ** 2 / (va * vb) + d**2 * (1 / va + 1 / vb)))

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field, fields
 from typing import Any, Self
 
 from flexmodal.compare.errors import CompareError
+from flexmodal.valid_text import loads_json
 
 Hz = tuple[float | None, ...]
 """Frequencies [Hz] of modes 1..n of one configuration; None where there is no value."""
@@ -183,10 +184,7 @@ class _Record:
     def from_json(cls, text: str) -> Self:
         """The record from the JSON text of a document (``to_json``'s inverse); CompareError on text
         that is not JSON or not this record."""
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise CompareError(f"not valid JSON ({exc.msg} at line {exc.lineno})") from None
+        data = loads_json(text, "diagnosis", CompareError, "diagnosis document")
         if not isinstance(data, dict):
             raise CompareError(f"expected a JSON object (got {_kind(data)})")
         return cls.from_dict(data)

@@ -13,6 +13,7 @@ from pathlib import Path
 import h5py
 
 from flexmodal.daq.errors import DaqError
+from flexmodal.valid_text import regular_file
 
 # lookup3's mixing rounds as (x, y, z, k) on the state (a, b, c) = (0, 1, 2): in ``mix`` each round is
 # ``x = (x - y) ^ rot(y, k); y += z``, in ``final`` it is ``x = (x ^ y) - rot(y, k)`` (lookup3.c).
@@ -77,7 +78,9 @@ LIVE_RECHECK_S = 0.2  # a live writer grows its file to the stored end-of-file a
 
 
 def _superblock(path: Path) -> tuple[bytes, int]:
-    """The first bytes of ``path`` and its size; DaqError when it is missing or not a file."""
+    """The first bytes of ``path`` and its size; DaqError when it is missing or not a regular file (a
+    FIFO would block the open, a device never end)."""
+    regular_file(path, DaqError, "run file")
     try:
         with open(path, "rb") as fh:
             return fh.read(SUPERBLOCK_BYTES), os.fstat(fh.fileno()).st_size

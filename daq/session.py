@@ -32,6 +32,7 @@ from flexmodal.valid_toml import Fields
 # Whole-number fields whose range every protocol shares (a TCP port given as a number, the Modbus unit id).
 INT_RANGES = {"baud": (1, 100_000_000), "bitrate": (1, 100_000_000), "device_id": (0, 247),
               "port": (1, 65535)}
+MIN_HIT_SAMPLES = 16  # samples of an impact window after its pretrigger samples (an FFT needs a few)
 G_M_PER_S2 = 9.80665
 NUMBER = r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?"
 EFFECT_PATTERN = rf"\w+@[\w.@-]+:\w+={NUMBER}(,\w+={NUMBER})*"
@@ -140,7 +141,11 @@ class Table(Fields):
     def port(self, key: str) -> str:
         """A port path that must exist (or a URL such as loop://, or the simulator placeholder)."""
         port = self.get(key, str)
-        if not ("://" in port or port == SIMULATOR_PORT or Path(port).exists()):
+        scheme, url, _ = port.partition("://")
+        if url and not _serial_url_scheme(scheme):
+            raise DaqError(f"{self.where}: {key} {port!r}: pyserial knows no {scheme!r}:// URL (loop://, "
+                           "socket://, rfc2217://, spy://, ... or a device path such as /dev/ttyUSB0)")
+        if not (url or port == SIMULATOR_PORT or Path(port).exists()):
             raise DaqError(f"{self.where}: {key} {port!r} does not exist")
         return port
 
@@ -150,6 +155,19 @@ class Table(Fields):
         if not Path(path).is_file():
             raise DaqError(f"{self.where}: {what} {path!r} does not exist")
         return path
+
+
+def _serial_url_scheme(scheme: str) -> bool:
+    """Whether pyserial's ``serial_for_url`` has a handler for ``scheme://`` (its
+    ``serial.urlhandler.protocol_<scheme>`` module)."""
+    import importlib.util
+
+    if not scheme.isidentifier():
+        return False
+    try:
+        return importlib.util.find_spec(f"serial.urlhandler.protocol_{scheme.lower()}") is not None
+    except (ImportError, ValueError):
+        return False
 
 
 class DeviceTable(Table):
@@ -281,6 +299,11 @@ def parse_session(doc: dict, source: Path) -> Session:
                           g.get("response", str, "", check=lambda v: v in names, why="is not a channel"),
                           g.number("window_s", 1.0, lo=0, hi=60, lo_open=True, unit="s"),
                           g.number("min_peak", None, lo=0))
+        window = int(trigger.window_s * rate)
+        if window < trigger.pretrigger_samples + MIN_HIT_SAMPLES:
+            raise DaqError(f"{where}: trigger: window_s = {trigger.window_s:g} s holds {window} samples at "
+                           f"{rate:g} Hz; a hit needs at least pretrigger_samples + {MIN_HIT_SAMPLES} = "
+                           f"{trigger.pretrigger_samples + MIN_HIT_SAMPLES}")
     pose = t.numbers("pose")
     pose_from = t.get("pose_from", dict, {})
     for k, v in pose_from.items():

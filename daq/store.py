@@ -34,8 +34,10 @@ from flexmodal.daq.run_schema import (
     EVENT_KINDS,
     EXCITATIONS,
     check_run_group,
+    member,
     utf8,
 )
+from flexmodal.valid_text import regular_file
 
 CHUNK_BYTES = 1 << 20  # target size of one samples chunk
 CHUNK_CACHE_BYTES = 16 << 20  # room for partly filled chunks, so appends never re-read from disk
@@ -269,9 +271,10 @@ class RunWriter:
 def list_runs(path: str | Path) -> list[str]:
     """Run ids stored in ``path`` (sorted)."""
     with open_read(path) as f:
-        if "runs" in f and not isinstance(f["runs"], h5py.Group):
+        runs = member(f, "runs", str(path))
+        if runs is not None and not isinstance(runs, h5py.Group):
             raise DaqError(f"{path}: '/runs' is not a group of runs")
-        return sorted(f["runs"].keys()) if "runs" in f else []
+        return sorted(runs.keys()) if runs is not None else []
 
 
 def _text(value) -> str:
@@ -284,12 +287,11 @@ def open_run(path: str | Path, run_id: str) -> Iterator[Run]:
     (read it in blocks, e.g. ``samples[a:b]``, so memory does not grow with the record).  The run's
     structure is checked first (:func:`flexmodal.daq.run_schema.check_run_group`)."""
     with open_read(path) as f:
-        key = f"runs/{run_id}"
-        if key not in f:
-            known = ", ".join(sorted(f["runs"])) if "runs" in f else "none"
+        runs = member(f, "runs", str(path))
+        g = member(runs, run_id, f"{path}: run {run_id!r}") if isinstance(runs, h5py.Group) else None
+        if g is None:
+            known = ", ".join(sorted(runs)) if isinstance(runs, h5py.Group) else "none"
             raise DaqError(f"{path}: no run {run_id!r} (runs: {known})")
-
-        g = f[key]
         check_run_group(g, f"{path}: run {run_id!r}")
         try:
             run = _checked_run(g, Path(path), run_id)
@@ -337,9 +339,7 @@ def expand_runs(runs: Sequence[str | Path | tuple[str | Path, str]]) -> list[tup
             continue
         text = str(entry)
         file, sep, run_id = text.partition("::")
-        path = Path(file)
-        if not path.is_file():
-            raise FileNotFoundError(2, "run file not found", str(path))
+        path = regular_file(file, DaqError, "run file")
         if sep:
             out.append((path, run_id))
             continue

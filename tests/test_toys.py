@@ -21,6 +21,7 @@ sys.path.insert(0, str(REPO / "tests"))
 @pytest.fixture
 def toy(request):
     """Import ``toys.<name>`` (which registers it) and unregister it afterwards."""
+    from flexmodal.cli_commands import COMMANDS
     from flexmodal.daq.protocols import PROTOCOLS
     from flexmodal.modal.registry import ESTIMATORS
     from flexmodal.models.effects import REGISTRY as EFFECTS
@@ -30,7 +31,7 @@ def toy(request):
     kind = request.param
     module = importlib.import_module(f"toys.{kind}")
     registry = {"toy_estimator": ESTIMATORS, "toy_model": MODELS, "toy_protocol": PROTOCOLS,
-                "toy_effect": EFFECTS, "toy_section": SECTIONS}[kind]
+                "toy_effect": EFFECTS, "toy_section": SECTIONS, "toy_command": COMMANDS}[kind]
     assert module.NAME in registry
     yield module
     registry.unregister(module.NAME)
@@ -122,3 +123,13 @@ def test_toy_report_section_in_the_report_and_its_contents(toy, tmp_path):
     html = out.read_text()
     assert f'<h2 id="section-{toy.NAME}">{toy.TITLE}</h2>' in html
     assert f'href="#section-{toy.NAME}"' in html and "one bar per row of the modal table" in html
+
+
+@pytest.mark.parametrize("toy", ["toy_command"], indirect=True)
+def test_toy_command_in_help_and_run(toy, capsys):
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    assert "count the modes of each configuration" in capsys.readouterr().out
+    assert main([toy.NAME, str(REPO / "examples" / "measured" / "seed003_table3_f1f2.csv")]) == 0
+    lines = capsys.readouterr().out.split("\n")
+    assert "theta0 2" in lines and "theta150 2" in lines

@@ -83,7 +83,7 @@ def test_output_paths(tmp_path: Path) -> None:
     (tmp_path / "f.txt").write_text("x")
     for call, message in [(lambda: output_file(tmp_path / "no" / "a.csv", Bad), "does not exist"),
                           (lambda: output_file(tmp_path, Bad), "is a directory"),
-                          (lambda: output_file("/proc/a.csv", Bad), "cannot write in /proc"),
+                          (lambda: output_file("/proc/a.csv", Bad), "/proc/a.csv: is a device or process"),
                           (lambda: output_dir(tmp_path / "f.txt", Bad), "not a directory"),
                           (lambda: output_dir(tmp_path / "f.txt" / "sub", Bad), "not a directory"),
                           (lambda: hdf5_output(tmp_path / "f.txt", Bad), "not an HDF5 file")]:
