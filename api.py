@@ -30,11 +30,11 @@ if TYPE_CHECKING:
     from flexmodal.models.rig import Rig
 
 __all__ = [
-    "Identification", "SelfCheck", "acquire", "compare_modes", "compute_frf", "compute_frfs", "demo",
-    "diagnose", "format_comparison", "identify", "list_runs", "load_rig", "plot_comparison", "plot_frf",
-    "plot_gap", "plot_mode_shapes", "plot_stabilisation", "predict", "read_diagnosis", "read_poses",
-    "read_run", "read_table", "report", "selftest", "write_diagnosis", "report_pdf", "frf_from_arrays",
-    "FrfResult", "animate_mode",
+    "FrfResult", "Identification", "SelfCheck", "acquire", "animate_mode", "compare_modes", "compute_frf",
+    "compute_frfs", "demo", "diagnose", "format_comparison", "frf_from_arrays", "identify", "list_runs",
+    "load_rig", "plot_comparison", "plot_frf", "plot_gap", "plot_mode_shapes", "plot_stabilisation",
+    "predict", "read_diagnosis", "read_poses", "read_run", "read_table", "report", "report_pdf", "selftest",
+    "serve_simulator", "write_diagnosis",
 ]
 
 
@@ -1228,3 +1228,43 @@ def selftest(n_cases: int, *, seed: int = 0, progress: Callable[[object], None] 
     results = run_blind(n_cases, seed=seed, progress=progress)
     summary = summarise(results)
     return SelfCheck(tuple(results), summary, format_summary(summary))
+
+
+def serve_simulator(protocol: str, *, faults: Mapping[str, float | None] | None = None, stdout=None,
+                    **options: object) -> None:
+    """Run a simulated device streaming the simulated rig (``flexmodal sim serve``) until SIGTERM/SIGINT
+    or ``duration`` seconds of samples.
+
+    Parameters
+    ----------
+    protocol : str
+        A protocol with a simulator (fixtures.simulators): ``serial`` (a pty), ``can`` (an slcan
+        adapter on a pty) or ``modbus`` (TCP on 127.0.0.1, or RTU over a pty pair).
+    faults : mapping, optional
+        Faults to inject, by the field names of daq.faults.Faults (``corrupt_rate``, ``drop_at_s``
+        [s], ...).
+    stdout : file, optional
+        Where the endpoint (pty path or ``host:port``) is written as the first line (default
+        ``sys.stdout``).
+    **options
+        The other fields of fixtures.sim_serve.ServeOptions: ``rig`` (TOML path; default the demo arm),
+        ``test``, ``rate`` [Hz], ``pose`` (degrees, kg), ``seed``, ``effects``
+        ("EFFECT@LOCATION:PARAM=VALUE,..."), ``duration`` [s], ``link``, ``port``, ``transport``,
+        ``framing``, ``format``, ``scans_per_frame``, ``fault_log``, ``exit_with_parent``, ``quiet``.
+    """
+    import sys
+
+    from flexmodal.daq.faults import Faults
+    from flexmodal.fixtures.errors import FixtureError
+    from flexmodal.fixtures.sim_serve import ServeOptions, serve
+
+    if options.get("fault_log"):
+        from flexmodal.valid_output import output_file
+
+        output_file(options["fault_log"], FixtureError, "fault log (--fault-log)",
+                    inputs=(options.get("rig"),))
+    try:
+        chosen = ServeOptions(protocol, faults=Faults(**(faults or {})), **options)
+    except TypeError as exc:
+        raise FixtureError(f"serve_simulator: {exc}") from None
+    serve(chosen, stdout or sys.stdout)
