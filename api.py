@@ -30,11 +30,11 @@ if TYPE_CHECKING:
     from flexmodal.models.rig import Rig
 
 __all__ = [
-    "Identification", "SelfCheck", "acquire", "compare_modes", "compute_frf", "compute_frfs", "demo",
-    "diagnose", "format_comparison", "identify", "list_runs", "load_rig", "plot_comparison", "plot_frf",
-    "plot_gap", "plot_mode_shapes", "plot_stabilisation", "predict", "read_diagnosis", "read_poses",
-    "read_run", "read_table", "report", "selftest", "write_diagnosis", "report_pdf", "frf_from_arrays",
-    "FrfResult",
+    "FrfResult", "Identification", "SelfCheck", "acquire", "animate_mode", "compare_modes", "compute_frf",
+    "compute_frfs", "demo", "diagnose", "format_comparison", "frf_from_arrays", "identify", "list_runs",
+    "load_rig", "plot_comparison", "plot_frf", "plot_gap", "plot_mode_shapes", "plot_stabilisation",
+    "predict", "read_diagnosis", "read_poses", "read_run", "read_table", "report", "report_pdf", "selftest",
+    "serve_simulator", "write_diagnosis",
 ]
 
 
@@ -1013,7 +1013,7 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
            diagnosis: Diagnosis | Mapping | PathLike | None = None,
            rig: Rig | PathLike | None = None, title: str = "flexmodal validation report",
            oma_fmin: float | None = None, oma_fmax: float | None = None,
-           fmin: float | None = None, fmax: float | None = None,
+           fmin: float | None = None, fmax: float | None = None, geometry: PathLike | None = None,
            progress: Callable[[str], None] | None = None) -> Path:
     """Write the self-contained HTML validation report ``out`` (its folder must exist; checked before
     any work) and return its path.
@@ -1026,7 +1026,9 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     identified in the band ``oma_fmin``..``oma_fmax`` [Hz] (``identify --fmin/--fmax``; default the
     whole record).
     ``measured``/``repeats``/``predictions``: modal tables; ``diagnosis``: a :func:`diagnose` result,
-    a parsed diagnosis.json, or its path; ``rig``: draws the measured shapes on the arm.  Everything
+    a parsed diagnosis.json, or its path; ``rig``: draws the measured shapes on the arm and animates
+    them beside the FE model's; ``geometry``: a Universal File with the test geometry (datasets 15 or
+    2411, 82, 18 or 2420) to animate the measured modes on (their sensors named ``<node>+z``...).  Everything
     is computed here; ``reports.html`` only renders it."""
     from flexmodal.reports.errors import ReportError
     from flexmodal.valid_output import output_file
@@ -1091,10 +1093,64 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     inputs += [t.source for _, t in named]
     inputs += [diagnosis] if isinstance(diagnosis, str | Path) else []
     inputs += [rig.source] if rig is not None else []
+    inputs += [geometry] if geometry is not None else []
+    geo = None
+    if geometry is not None:
+        from flexmodal.reports.geometry import read_uff_geometry
+
+        geo = read_uff_geometry(geometry)
     return write_report(out, runs=summaries, comparison=comparison, measured=meas,
                         repeats=[_table(r) for r in repeats], predictions=named, shapes=shapes,
                         diagnosis=_diagnosis(diagnosis) if diagnosis is not None else None,
-                        rig_name=getattr(rig, "name", ""), title=title, inputs=inputs, progress=progress)
+                        rig_name=getattr(rig, "name", ""), title=title, inputs=inputs, geometry=geo,
+                        progress=progress)
+
+
+def animate_mode(out: PathLike, measured: ModalTable | PathLike, config: str, mode: int = 1, *,
+                 rig: Rig | PathLike | None = None, geometry: PathLike | None = None, frames: int = 24,
+                 fps: int = 12) -> Path:
+    """An animated GIF of one measured mode for slides (matplotlib's PillowWriter): with ``rig``, the
+    mode at the sensors on the arm beside the frame FE model's best-matching mode; with ``geometry``
+    (a Universal File: nodes, trace lines, coordinate systems), the mode on the test structure.
+    ``mode`` is 1-based; returns ``out``.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import flexmodal as fm
+    >>> from flexmodal.fixtures.rig_sim import DEMO_RIG
+    >>> rig = fm.load_rig(DEMO_RIG)
+    >>> table = fm.predict(rig, {"theta60": {"theta_deg": 60.0}}, "fe", n_modes=2)
+    >>> gif = fm.animate_mode(Path(tempfile.mkdtemp()) / "mode1.gif", table, "theta60", 1, rig=rig)
+    >>> gif.read_bytes()[:6]
+    b'GIF89a'
+    """
+    from flexmodal.reports import animate
+    from flexmodal.reports.errors import ReportError
+    from flexmodal.valid_output import output_file
+
+    target = output_file(out, ReportError, "GIF (out)")
+    table = _table(measured)
+    if config not in table.configs:
+        raise ReportError(f"{table.source}: no configuration {config!r} (have {', '.join(table.configs)})")
+    n = len(table.freq_hz(config))
+    if not 1 <= mode <= n:
+        raise ReportError(f"{table.source}: {config} has modes 1..{n}, not {mode}")
+    if (rig is None) == (geometry is None):
+        raise ReportError("animate_mode: give the rig or a UFF geometry (one of them)")
+    if geometry is not None:
+        from flexmodal.reports.geometry import read_uff_geometry
+
+        shapes = [animate.geometry_shapes(read_uff_geometry(geometry), table, config)[mode - 1]]
+    else:
+        from flexmodal.models.arm_shapes import arm_modes
+
+        rig = _rig(rig)
+        sensors = [s.name for s in rig.sensors if s.name in table.sensors]
+        test, model = animate.arm_pairs(arm_modes(rig, table.pose(config), sensors), table, config)[mode - 1]
+        shapes = [s for s in (test, model) if s is not None]
+    return animate.write_gif(shapes, target, frames=frames, fps=fps)
 
 
 def report_pdf(html: PathLike, pdf: PathLike | None = None) -> Path:
@@ -1179,3 +1235,43 @@ def selftest(n_cases: int, *, seed: int = 0, progress: Callable[[object], None] 
     results = run_blind(n_cases, seed=seed, progress=progress)
     summary = summarise(results)
     return SelfCheck(tuple(results), summary, format_summary(summary))
+
+
+def serve_simulator(protocol: str, *, faults: Mapping[str, float | None] | None = None, stdout=None,
+                    **options: object) -> None:
+    """Run a simulated device streaming the simulated rig (``flexmodal sim serve``) until SIGTERM/SIGINT
+    or ``duration`` seconds of samples.
+
+    Parameters
+    ----------
+    protocol : str
+        A protocol with a simulator (fixtures.simulators): ``serial`` (a pty), ``can`` (an slcan
+        adapter on a pty) or ``modbus`` (TCP on 127.0.0.1, or RTU over a pty pair).
+    faults : mapping, optional
+        Faults to inject, by the field names of daq.faults.Faults (``corrupt_rate``, ``drop_at_s``
+        [s], ...).
+    stdout : file, optional
+        Where the endpoint (pty path or ``host:port``) is written as the first line (default
+        ``sys.stdout``).
+    **options
+        The other fields of fixtures.sim_serve.ServeOptions: ``rig`` (TOML path; default the demo arm),
+        ``test``, ``rate`` [Hz], ``pose`` (degrees, kg), ``seed``, ``effects``
+        ("EFFECT@LOCATION:PARAM=VALUE,..."), ``duration`` [s], ``link``, ``port``, ``transport``,
+        ``framing``, ``format``, ``scans_per_frame``, ``fault_log``, ``exit_with_parent``, ``quiet``.
+    """
+    import sys
+
+    from flexmodal.daq.faults import Faults
+    from flexmodal.fixtures.errors import FixtureError
+    from flexmodal.fixtures.sim_serve import ServeOptions, serve
+
+    if options.get("fault_log"):
+        from flexmodal.valid_output import output_file
+
+        output_file(options["fault_log"], FixtureError, "fault log (--fault-log)",
+                    inputs=(options.get("rig"),))
+    try:
+        chosen = ServeOptions(protocol, faults=Faults(**(faults or {})), **options)
+    except TypeError as exc:
+        raise FixtureError(f"serve_simulator: {exc}") from None
+    serve(chosen, stdout or sys.stdout)

@@ -280,8 +280,8 @@ def _mimo_h1(recs: list[dict]) -> tuple[np.ndarray, np.ndarray]:
 
 _MIMO_SOURCE = dict(
     repository=MIMO[0], commit=MIMO[1], paths=[f"sample_data/{k}.mat" for k in MIMO_RECORDS],
-    licence="BSD-style (MIMO-FRF LICENSE, Copyright (c) 2015 Flávio Ribeiro): redistribution with the "
-            "copyright notice",
+    licence="BSD-2-Clause (MIMO-FRF LICENSE, Copyright (c) 2015 Flávio Ribeiro): redistribution with "
+            "the copyright notice",
     structure="very flexible beam-ring (wing-like) test article driven by two piezoelectric patches "
               "(upper, lower), accelerometers at the upper and lower tip (flavioluiz/experimental-results "
               "beam-ring); 120 s exponential sine sweeps ~0.1-250 Hz at 1 kHz, symmetric (patches in phase) "
@@ -471,6 +471,33 @@ def build_pyfrf_impact_frf() -> None:
             script="benchmarks/realdata_build/build.py pyfrf_impact_frf")
 
 
+@builder
+def build_pyfrf_impact_single_hit() -> None:
+    """The first of pyFRF's five hits alone: a single-hit impact test (no averaging, no coherence)."""
+    name = "pyfrf_impact_single_hit"
+    repo, commit = PYFRF
+    hit = np.load(io.BytesIO(blob(repo, commit, "data/measurements_1.npy")))
+    fs = 1.0 / (hit[0, 1] - hit[0, 0])
+    d = entry_dir(name)
+    write_time_uff(d / "impact_hit1.uff", fs, [
+        {"node": 1, "dir": 3, "kind": "force", "records": [hit[1]], "id1": "Force hammer"},
+        {"node": 2, "dir": 3, "kind": "acceleration", "records": [hit[2]], "id1": "Acceleration"}])
+    check_uff(d / "impact_hit1.uff", [hit[1], hit[2]])
+    ref = json.loads((entry_dir("pyfrf_impact_5hits") / "reference.json").read_text())
+    write_json(d / "reference.json", {**ref, "notes": ref["notes"] + "  Same reference as pyfrf_impact_5hits "
+                                      "(from all five hits); this entry holds the first hit only."})
+    _source(name, input="impact_hit1.uff", kind_short="impact, single hit, dense/close modes",
+            repository=repo, commit=commit, paths=["data/measurements_1.npy"],
+            licence="LGPL-3.0 (pyFRF LICENSE at the commit that added the data; the repository was "
+                    "relicensed MIT by its authors in 2023, commit 635e14b)",
+            kind="impact test, one hit (force + acceleration time histories), dense modes with close "
+                 "pairs, light damping",
+            structure="unnamed test piece of pyFRF's showcase (LADISK, University of Ljubljana, 2016)",
+            derived="impact_hit1.uff: dataset 58b time histories (single precision) of measurements_1.npy: "
+                    "force node 1 +z (ordinate type 13), acceleration node 2 +z, 25 600 Hz, 25 600 samples",
+            script="benchmarks/realdata_build/build.py pyfrf_impact_single_hit")
+
+
 # ------------------------------------------------------------------ pyuff MPS output-only export
 @builder
 def build_pyuff_mps_oma() -> None:
@@ -505,8 +532,8 @@ def build_pyuff_mps_oma() -> None:
     _source(name, input="mps_set1.uff", kind_short="output-only, analyser 58b export, shared node/dir",
             repository=repo, commit=commit, paths=["data/MPSTD#Set001_2024_10_08_10_27_07.uff"],
             licence="MIT (pyuff LICENSE)",
-            kind="output-only acceleration records exported by a commercial analyser as binary UFF 58b "
-                 "(id lines 'MPS set1 Dof1..4'); two channels share node 1 and direction +Z",
+            kind="output-only acceleration records exported by a measurement system (not named in pyuff) "
+                 "as binary UFF 58b (id lines 'MPS set1 Dof1..4'); two channels share node 1, direction +Z",
             structure="not documented in pyuff (a test file for its 58b reader, added in commit 4a1c7b2, "
                       "2024)",
             derived="mps_set1.uff: dataset 58b time histories (single precision), the four records with "
@@ -551,7 +578,7 @@ commits (see that script's docstring); only derived data files are kept, under t
 
 README_TAIL = """
 Licences: each folder's LICENSE.txt is the source repository's licence file at the pinned commit, and
-its derived data file is redistributed under that licence (MIT, BSD-style, LGPL-3.0 or GPL-3.0) as a
+its derived data file is redistributed under that licence (MIT, BSD-2-Clause, LGPL-3.0 or GPL-3.0) as a
 separate work, with the notice it asks for; none of the sources' code is included.
 """
 
