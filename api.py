@@ -165,6 +165,10 @@ def acquire(session: PathLike | Session, out: PathLike, *, duration_s: float | N
     if isinstance(session, str | Path):
         session = load_session(session)
     hdf5_output(out, DaqError, "run file (--out)")
+    if run_id is not None:
+        from flexmodal.daq.run_schema import check_run_id
+
+        check_run_id(run_id, "--run-id")
     if duration_s is not None and duration_s <= 0:
         raise DaqError(f"--duration {duration_s}: must be > 0 seconds")
     if recover and Path(out).exists():
@@ -1189,7 +1193,10 @@ def demo(out_dir: PathLike = "flexmodal-demo", *, rig: PathLike | None = None, q
     from flexmodal.valid_output import output_dir
 
     out = output_dir(out_dir, FixtureError, "demo folder (--out)")   # before the demo's heavy imports
-    from flexmodal.fixtures.demo import Writers, run_demo
+    from flexmodal.fixtures.demo import OUTPUTS, Writers, run_demo
+
+    tables = [name for name in OUTPUTS if not name.endswith(".h5")]   # the run files are replaced whole
+    output_dir(out, FixtureError, "demo folder (--out)", files=tables, inputs=[rig])
 
     return run_demo(out, Writers(write_diagnosis, report), None if rig is None else Path(rig), quiet=quiet)
 

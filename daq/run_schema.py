@@ -75,6 +75,15 @@ def _check_attrs(g: h5py.Group, where: str) -> None:
                            "number")
 
 
+def check_run_id(run_id: str, where: str) -> str:
+    """``run_id`` when it can name a run group: not empty, not ``.`` or ``..``, without ``/`` or NUL
+    and at most 255 characters (HDF5 link names; ``.`` is the group itself)."""
+    if not run_id or run_id in (".", "..") or "/" in run_id or "\x00" in run_id or len(run_id) > 255:
+        raise DaqError(f"{where} {_short(run_id)!r} cannot name a run (non-empty, not '.' or '..', no '/', "
+                       "at most 255 characters)")
+    return run_id
+
+
 def member(parent: h5py.Group, name: str, where: str, error: type[Exception] = DaqError) -> object | None:
     """``parent[name]``, or None when there is no such member; an external link (never followed: it
     would read another file), a dangling or looping soft link, or an object HDF5 cannot open raises

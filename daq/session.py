@@ -26,7 +26,7 @@ from flexmodal.daq.faults import Faults
 from flexmodal.daq.protocols import PROTOCOLS, registered_protocols
 from flexmodal.daq.run_schema import CHANNEL_KINDS, EXCITATIONS
 from flexmodal.daq.store import Channel
-from flexmodal.valid_text import read_toml
+from flexmodal.valid_text import read_toml, regular_file
 from flexmodal.valid_toml import Fields
 
 # Whole-number fields whose range every protocol shares (a TCP port given as a number, the Modbus unit id).
@@ -152,8 +152,9 @@ class Table(Fields):
     def file(self, key: str, what: str) -> str:
         """A file path relative to ``base`` that must exist (absolute after this)."""
         path = _resolve(self.base, self.get(key, str))
-        if not Path(path).is_file():
+        if not Path(path).exists():
             raise DaqError(f"{self.where}: {what} {path!r} does not exist")
+        regular_file(path, lambda text: DaqError(f"{self.where}: {text}"), what)  # a FIFO would block
         return path
 
 
