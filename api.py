@@ -10,6 +10,7 @@ docs/python-api.md.  Units: frequencies Hz, damping ratios as fractions, poses i
 
 from __future__ import annotations
 
+import html
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,11 +30,22 @@ if TYPE_CHECKING:
     from flexmodal.models.rig import Rig
 
 __all__ = [
-    "Identification", "acquire", "compare_modes", "compute_frf", "compute_frfs", "diagnose",
-    "format_comparison", "identify", "list_runs", "load_rig", "plot_comparison", "plot_frf", "plot_gap",
-    "plot_mode_shapes", "plot_stabilisation", "predict", "read_diagnosis", "read_poses", "read_run",
-    "read_table", "report", "write_diagnosis",
+    "Identification", "SelfCheck", "acquire", "compare_modes", "compute_frf", "compute_frfs", "demo",
+    "diagnose", "format_comparison", "identify", "list_runs", "load_rig", "plot_comparison", "plot_frf",
+    "plot_gap", "plot_mode_shapes", "plot_stabilisation", "predict", "read_diagnosis", "read_poses",
+    "read_run", "read_table", "report", "selftest", "write_diagnosis", "report_pdf", "frf_from_arrays",
+    "FrfResult", "animate_mode",
 ]
+
+
+def __getattr__(name: str):
+    """Result types exported here, loaded on first use (``fm.FrfResult``) so importing the API stays
+    cheap."""
+    if name == "FrfResult":
+        from flexmodal.modal.frf import FrfResult
+
+        return FrfResult
+    raise AttributeError(f"module 'flexmodal.api' has no attribute {name!r}")
 
 SHAPE_CONFIGS = 2              # configurations whose mode shapes a report draws on the arm (first, last)
 
@@ -43,15 +55,63 @@ PathLike = str | Path
 # -- runs ------------------------------------------------------------------------------------------
 
 def list_runs(path: PathLike) -> list[str]:
-    """Run ids stored in an HDF5 run file (docs/hdf5-format.md), sorted."""
+    """Run ids stored in an HDF5 run file (docs/hdf5-format.md), sorted.
+
+    Parameters
+    ----------
+    path : str or Path
+        The run file.
+
+    Returns
+    -------
+    list of str
+        The run ids.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> import flexmodal as fm
+    >>> from flexmodal.fixtures.examples import impact_run
+    >>> path = impact_run(tempfile.mkdtemp())    # a simulated impact test of the demo arm
+    >>> fm.list_runs(path)
+    ['theta30']
+    """
     from flexmodal.daq.store import list_runs as _list
 
     return _list(path)
 
 
 def read_run(path: PathLike, run_id: str | None = None) -> Run:
-    """One stored run read into memory (``daq.store.Run``: samples [n_samples, n_channels] in physical
-    units, channels, events, pose).  ``run_id`` may be left out when the file holds one run."""
+    """One stored run read into memory.
+
+    Parameters
+    ----------
+    path : str or Path
+        The HDF5 run file (docs/hdf5-format.md).
+    run_id : str, optional
+        The run to read; may be left out when the file holds one run.
+
+    Returns
+    -------
+    daq.store.Run
+        ``samples`` [n_samples, n_channels] in physical units, ``channels``, ``events``, ``pose``
+        (degrees, kg), ``sample_rate_hz`` [Hz].
+
+    Raises
+    ------
+    DaqError
+        The file holds several runs and none is named, or the run is not a valid one.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> import flexmodal as fm
+    >>> from flexmodal.fixtures.examples import impact_run
+    >>> path = impact_run(tempfile.mkdtemp())    # a simulated impact test of the demo arm
+    >>> run = fm.read_run(path)
+    >>> run.samples.shape, [c.name for c in run.channels], run.pose
+    ((4096, 6), ['F', 'a1', 'a2', 'a3', 'a4', 'a5'], {'theta_deg': 30.0})
+    """
     from flexmodal.daq.errors import DaqError
     from flexmodal.daq.store import read_run as _read
 
@@ -65,9 +125,38 @@ def read_run(path: PathLike, run_id: str | None = None) -> Run:
 
 def acquire(session: PathLike | Session, out: PathLike, *, duration_s: float | None = None,
             run_id: str | None = None, recover: bool = False, quiet: bool = True) -> Summary:
-    """Record the devices of a session config (TOML path or ``daq.session.Session``;
-    docs/acquisition.md) into a run of the HDF5 file ``out``; ``recover`` first clears the
-    open-for-writing flags a killed writer left in ``out``.  Returns the acquisition summary."""
+    """Record the devices of a session config into a run of an HDF5 file.
+
+    Parameters
+    ----------
+    session : str, Path or daq.session.Session
+        The session config (TOML, docs/acquisition.md); a ``[simulator]`` table starts the simulated
+        device it names (serial over a pty, CAN over slcan, Modbus TCP on 127.0.0.1).
+    out : str or Path
+        The HDF5 run file to append the run to (docs/hdf5-format.md).
+    duration_s : float, optional
+        Stop after this many seconds of samples [s] (default: until Ctrl-C or the session's own end).
+    run_id : str, optional
+        Id of the new run (default: from the start time).
+    recover : bool
+        First clear the open-for-writing flags a killed writer left in ``out``.
+    quiet : bool
+        No live display on stderr.
+
+    Returns
+    -------
+    daq.acquire.Summary
+        What was stored: ``run_id``, ``n_samples``, ``n_channels``, ``sample_rate_hz`` [Hz], ``events``.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> import flexmodal as fm
+    >>> out = tempfile.mkdtemp() + "/run.h5"
+    >>> summary = fm.acquire("examples/sessions/serial-sim.toml", out, duration_s=1.0)
+    >>> summary.n_samples, summary.n_channels, summary.sample_rate_hz
+    (2048, 7, 2048.0)
+    """
     from flexmodal.daq.acquire import acquire as _acquire
     from flexmodal.daq.errors import DaqError
     from flexmodal.daq.session import load_session
@@ -79,7 +168,7 @@ def acquire(session: PathLike | Session, out: PathLike, *, duration_s: float | N
     if duration_s is not None and duration_s <= 0:
         raise DaqError(f"--duration {duration_s}: must be > 0 seconds")
     if recover and Path(out).exists():
-        from flexmodal.daq.store import recover as _recover
+        from flexmodal.daq.h5file import recover as _recover
 
         _recover(out)
     return _acquire(session, out, duration_s=duration_s, quiet=quiet, run_id=run_id)
@@ -90,9 +179,46 @@ def acquire(session: PathLike | Session, out: PathLike, *, duration_s: float | N
 def compute_frf(run: Run | PathLike, *, estimator: str = "H1", nfft: int | None = None,
                 window: str | None = None, overlap: float = 0.5, averaging: str = "linear",
                 store: bool = False) -> FrfResult:
-    """FRFs and coherence of one run (a ``Run``, or the path of a one-run file): ``H`` [n_out, n_in,
-    n_freq], ``coherence`` [n_out, n_freq], ``freq_hz`` (docs/modal.md for the estimators, windows and
-    impact processing).  ``store`` writes them back under ``/runs/<id>/frf`` of the run's file."""
+    """FRFs and coherence of one run (docs/modal.md: estimators, windows, impact processing).
+
+    Parameters
+    ----------
+    run : daq.store.Run, str or Path
+        A run read by :func:`read_run`, or the path of a file holding one run.
+    estimator : str
+        A registered FRF estimator (``H1``, ``H2``, ``Hv``; modal.registry.ESTIMATORS).
+    nfft : int, optional
+        Segment length [samples] of random and sweep runs (default: a power of two <= 8192 giving at
+        least 8 segments); impact runs use one record per hit.
+    window : str, optional
+        ``rect``, ``hann`` (default) or ``flattop`` for random runs; ``force:W,exponential:E``
+        (fractions of the record) for impact runs.
+    overlap : float
+        Segment overlap, a fraction in [0, 1).
+    averaging : {"linear", "exponential"}
+        Averaging of the impact hits.
+    store : bool
+        Also write the result under ``/runs/<id>/frf`` of the run's file.
+
+    Returns
+    -------
+    modal.frf.FrfResult
+        ``H`` [n_out, n_in, n_freq], ``coherence`` [n_out, n_freq], ``freq_hz`` [Hz], ``outputs``.
+
+    References
+    ----------
+    J. S. Bendat and A. G. Piersol, *Random Data*, 4th ed., Wiley, 2010, ch. 9 (H1, H2).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> import flexmodal as fm
+    >>> from flexmodal.fixtures.examples import impact_run
+    >>> path = impact_run(tempfile.mkdtemp())    # a simulated impact test of the demo arm
+    >>> frf = fm.compute_frf(path)
+    >>> frf.H.shape, frf.estimator, frf.outputs
+    ((5, 1, 983), 'H1', ('a1', 'a2', 'a3', 'a4', 'a5'))
+    """
     from flexmodal.modal.compute import compute_frf as _compute
 
     if isinstance(run, str | Path):
@@ -111,21 +237,118 @@ def compute_frf(run: Run | PathLike, *, estimator: str = "H1", nfft: int | None 
     return result
 
 
+def frf_from_arrays(freq_hz, H, *, coherence=None, quantity: str = "accelerance",
+                    outputs: Sequence[str] = (), inputs: Sequence[str] = (),
+                    decay_rate_per_s: float = 0.0) -> FrfResult:
+    """FRFs you already have (another tool's, a UFF file's, a simulation's) as the :class:`FrfResult`
+    every flexmodal function takes (:func:`identify`, :func:`plot_frf`, :func:`plot_stabilisation`).
+
+    Parameters
+    ----------
+    freq_hz : array_like [n_freq]
+        Frequency lines [Hz], finite, increasing, non-negative.
+    H : array_like [n_out, n_in, n_freq], [n_out, n_freq] or [n_freq]
+        Complex FRFs in ``quantity`` per input unit (one input when 2-D, one output too when 1-D).
+    coherence : array_like [n_out, n_freq], optional
+        Coherence [-] of each output (default: none).
+    quantity : {"accelerance", "mobility", "receptance"}
+        What H is: (m/s²)/N, (m/s)/N or m/N.
+    outputs, inputs : sequence of str
+        Channel names (default ``out 1``.. and ``in 1``..).
+    decay_rate_per_s : float
+        Decay rate [1/s] of an exponential window applied to the records (0: none), removed from the
+        identified damping.
+
+    Returns
+    -------
+    FrfResult
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import flexmodal as fm
+    >>> f = np.linspace(0.0, 100.0, 201)
+    >>> s, w0 = 2j * np.pi * f, 2 * np.pi * 40.0                    # one mode at 40 Hz, 2 % damping
+    >>> H = s**2 / (s**2 + 2 * 0.02 * w0 * s + w0**2)
+    >>> frf = fm.frf_from_arrays(f, H, outputs=["tip"])
+    >>> frf.H.shape, frf.outputs, frf.inputs
+    ((1, 1, 201), ('tip',), ('in 1',))
+    """
+    import numpy as np
+
+    from flexmodal.modal.errors import ModalError
+    from flexmodal.modal.frf import QUANTITIES, FrfResult
+
+    f = np.asarray(freq_hz, float)
+    h = np.asarray(H, complex)
+    h = h[None, None, :] if h.ndim == 1 else h[:, None, :] if h.ndim == 2 else h
+    if f.ndim != 1 or f.size < 2 or not np.all(np.isfinite(f)) or f[0] < 0 or np.any(np.diff(f) <= 0):
+        raise ModalError("frf_from_arrays: freq_hz must be finite, non-negative, increasing lines [Hz]")
+    if h.ndim != 3 or h.shape[-1] != f.size:
+        raise ModalError(f"frf_from_arrays: H {np.shape(H)} must be [n_out, n_in, n_freq], [n_out, n_freq] "
+                         f"with n_freq = {f.size}")
+    if quantity not in QUANTITIES:
+        raise ModalError(f"frf_from_arrays: quantity {quantity!r}: use one of {', '.join(QUANTITIES)}")
+    coh = None if coherence is None else np.asarray(coherence, float)
+    if coh is not None and coh.shape != (h.shape[0], f.size):
+        raise ModalError(f"frf_from_arrays: coherence {coh.shape} must be [n_out, n_freq] = "
+                         f"{(h.shape[0], f.size)}")
+    outs = tuple(outputs) or tuple(f"out {k + 1}" for k in range(h.shape[0]))
+    ins = tuple(inputs) or tuple(f"in {k + 1}" for k in range(h.shape[1]))
+    if len(outs) != h.shape[0] or len(ins) != h.shape[1]:
+        raise ModalError(f"frf_from_arrays: {len(outs)} output and {len(ins)} input names for H {h.shape}")
+    return FrfResult(f, h, coh, "given", "", 2 * (f.size - 1), 0, float("nan"), quantity, outs, ins,
+                     float(decay_rate_per_s), {"source": "frf_from_arrays"})
+
+
 def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: str = "H1",
                  nfft: int | None = None, window: str | None = None, overlap: float = 0.5,
                  averaging: str = "linear", workers: int | None = 0, scheduler: str | None = None,
                  out: PathLike | None = None, quiet: bool = True) -> list[tuple[str, str]]:
-    """Batch FRFs of stored runs (a file means all its runs, ``FILE::RUN_ID`` or (file, id) one run),
-    written back into each file or into ``out``; returns the (file, run id) pairs written.
+    """Batch FRFs of stored runs, written back into each file or into ``out``.
 
-    ``workers`` 0 (the default) computes the runs here one after the other; None chooses as the
-    ``frf`` command does (here, or a pool of local processes once the measured cost predicts that it
-    pays for its start-up, see ``modal.batch.run_batch``); N forces a pool of N processes;
-    ``scheduler`` sends the runs to that dask address.  Pool workers start from a fork server that
-    imports the calling script again as ``__mp_main__`` (as ``multiprocessing`` does), so a script
-    passing ``workers`` None or N keeps its own work under ``if __name__ == "__main__":``.
-    Estimators registered in this process (``modal.frf.register_estimator``) reach worker processes
-    only if they register them too."""
+    Parameters
+    ----------
+    runs : sequence of str, Path or (path, run id)
+        A file means all its runs, ``FILE::RUN_ID`` or ``(file, id)`` one run.
+    estimator, nfft, window, overlap, averaging
+        As :func:`compute_frf`.
+    workers : int or None
+        0 (the default) computes the runs here one after the other; None chooses as the ``frf``
+        command does (here, or a pool of local processes once the measured cost predicts that it
+        pays for its start-up, see ``modal.batch.run_batch``); N forces a pool of N processes.
+    scheduler : str, optional
+        Send the runs to the dask.distributed scheduler at this address (the extra
+        ``flexmodal[cluster]``).
+    out : str or Path, optional
+        Write the FRFs into this file instead of the inputs.
+    quiet : bool
+        No progress bar on stderr.
+
+    Returns
+    -------
+    list of (str, str)
+        The (file written, run id) pairs, in input order.
+
+    Notes
+    -----
+    Pool workers start from a fork server that imports the calling script again as ``__mp_main__`` (as
+    ``multiprocessing`` does), so a script passing ``workers`` None or N keeps its own work under
+    ``if __name__ == "__main__":``.  Estimators registered in this process
+    (``modal.registry.register_estimator``) reach worker processes only if they register them too.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> import flexmodal as fm
+    >>> from flexmodal.fixtures.examples import impact_run
+    >>> path = impact_run(tempfile.mkdtemp())    # a simulated impact test of the demo arm
+    >>> [run_id for _, run_id in fm.compute_frfs([path])]
+    ['theta30']
+    >>> from flexmodal.modal.runs_io import read_frf
+    >>> read_frf(path, "theta30").H.shape      # stored under /runs/theta30/frf
+    (5, 1, 983)
+    """
     from flexmodal.modal.batch import frf_batch
 
     if out is not None:
@@ -154,6 +377,56 @@ class Identification:
         """``config: message`` for every warning met on the way."""
         return [f"{c}: {w}" for c, m in self.modes.items() for w in m.warnings]
 
+    def to_frame(self):
+        """The modal table as a pandas DataFrame (:meth:`ModalTable.to_frame`)."""
+        return self.table.to_frame()
+
+    def __repr__(self) -> str:
+        n = len(self.warnings)
+        return (f"Identification({len(self.modes)} configurations, {len(self.table.frame)} modes, "
+                f"{n} warning{'s' if n != 1 else ''}; .table, .modes[config], .warnings)")
+
+    def _repr_html_(self) -> str:
+        warned = "".join(f"<li>{html.escape(w)}</li>" for w in self.warnings[:10])
+        more = f"<li>... {len(self.warnings) - 10} more</li>" if len(self.warnings) > 10 else ""
+        return self.table._repr_html_() + (f"<p>Warnings:</p><ul>{warned}{more}</ul>" if warned else "")
+
+    def write(self, out: PathLike, *, uff: PathLike | None = None) -> Path:
+        """Write the modal table CSV ``out`` (docs/formats.md) and, beside it, ``MODES.synthesis.csv``
+        (the FRAC of every measured and synthesised FRF), both or neither (SIGINT/SIGTERM held);
+        with ``uff``, also the modes of the first configuration as UFF dataset 55.  Returns ``out``.
+
+        Examples
+        --------
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> import flexmodal as fm
+        >>> from flexmodal.fixtures.examples import impact_run
+        >>> folder = Path(tempfile.mkdtemp())
+        >>> ident = fm.identify(impact_run(folder), fmax=400.0)
+        >>> ident.write(folder / "modes.csv", uff=folder / "modes.uff").name
+        'modes.csv'
+        >>> sorted(p.name for p in folder.iterdir() if p.suffix != ".h5")
+        ['modes.csv', 'modes.synthesis.csv', 'modes.uff']
+        """
+        from flexmodal.modal.errors import ModalError
+        from flexmodal.modal.identify import write_synthesis_csv
+        from flexmodal.valid_output import output_file, signals_deferred
+
+        output_file(out, ModalError, "modal table (--out)")
+        if uff is not None:
+            output_file(uff, ModalError, "UFF file (--uff)")
+        modes_by_config = {c: (m, self.outputs[c]) for c, m in self.modes.items()}
+        with signals_deferred():   # the modal table and its synthesis file: both written, or neither
+            self.table.to_csv(out)
+            write_synthesis_csv(out, modes_by_config)
+        if uff is not None:
+            from flexmodal.modal.uff import write_modes
+
+            modes, outputs = next(iter(modes_by_config.values()))
+            write_modes(uff, modes.freq_hz, modes.damping_ratio, modes.shapes, outputs)
+        return Path(out)
+
 
 def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: float | None = None,
              fmax: float | None = None, max_order: int | None = None, run_id: str | None = None,
@@ -172,7 +445,7 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
     ``ssi`` (also ``fdd``), whose ``references`` are channel names (docs/oma.md); output-only shapes
     are unscaled.  docs/modal.md."""
     from flexmodal.modal.identify import modes_table
-    from flexmodal.modal.sources import identify_frf, identify_input
+    from flexmodal.modal.sources import by_reciprocity, identify_frf, identify_input
 
     options = {"method": method, "fmin": fmin, "fmax": fmax, "max_order": max_order, "poles_hz": poles_hz,
                "thresholds": thresholds, "decay_rate_per_s": decay_rate_per_s}
@@ -180,6 +453,7 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
         table, found = identify_input(source, run_id=run_id, references=references, **options)
         return Identification(table, {c: m for c, (m, _) in found.items()},
                               {c: tuple(o) for c, (_, o) in found.items()})
+    source = by_reciprocity(source)   # a roving-hammer set: the hammer points are the shapes' points
     modes = identify_frf(source, **{**options, "method": method or "lscf"})
     table = modes_table(modes, source.outputs, config=config, pose=pose)
     return Identification(table, {config: modes}, {config: tuple(source.outputs)})
@@ -204,14 +478,50 @@ def track(source: PathLike, *, pose_from: Mapping[str, str] | None = None, run_i
 
 
 def read_table(path: PathLike) -> ModalTable:
-    """A modal table CSV (docs/formats.md): one row per (configuration, mode)."""
+    """A modal table CSV (docs/formats.md): one row per (configuration, mode).
+
+    Parameters
+    ----------
+    path : str or Path
+        The CSV file: ``config``, ``mode``, ``freq_hz`` [Hz], optional ``damping_ratio``, ``source``,
+        ``pose.<var>`` and ``shape.<sensor>`` columns.
+
+    Returns
+    -------
+    modal.table.ModalTable
+
+    Examples
+    --------
+    >>> import flexmodal as fm
+    >>> table = fm.read_table("examples/measured/seed003_table3_f1f2.csv")   # seed 003, Table 3
+    >>> table.configs[:3], len(table.frame)
+    (['theta0', 'theta120', 'theta150'], 12)
+    """
     from flexmodal.modal.table import ModalTable
 
     return ModalTable.read_csv(path)
 
 
 def read_poses(path: PathLike) -> dict[str, dict[str, float]]:
-    """A POSES.csv (docs/formats.md): {config: {pose variable: value}} (degrees, kg)."""
+    """A POSES.csv (docs/formats.md): one row per configuration.
+
+    Parameters
+    ----------
+    path : str or Path
+        A CSV with a ``config`` column and ``pose.<var>`` columns (angles in degrees, masses in kg);
+        a modal table CSV works too.
+
+    Returns
+    -------
+    dict of str to dict of str to float
+        ``{config: {pose variable: value}}``.
+
+    Examples
+    --------
+    >>> import flexmodal as fm
+    >>> fm.read_poses("examples/measured/seed003_table3_f1f2.csv")["theta30"]
+    {'theta_deg': 30.0}
+    """
     from flexmodal.modal.table import poses_from_csv
 
     return poses_from_csv(path)
@@ -224,7 +534,30 @@ def _table(table: ModalTable | PathLike) -> ModalTable:
 # -- models ----------------------------------------------------------------------------------------
 
 def load_rig(path: PathLike) -> Rig:
-    """A rig description (TOML, docs/formats.md), validated."""
+    """A rig description (TOML, docs/formats.md), validated.
+
+    Parameters
+    ----------
+    path : str or Path
+        The rig TOML: links with sections and materials (SI units), joints, masses, sensors, pose
+        variables.
+
+    Returns
+    -------
+    models.rig.Rig
+
+    Raises
+    ------
+    ModelError
+        One line naming the file, table and field that is wrong.
+
+    Examples
+    --------
+    >>> import flexmodal as fm
+    >>> rig = fm.load_rig("examples/rigs/seed003_two_link.toml")
+    >>> rig.name, rig.pose_variables, [s.name for s in rig.sensors]
+    ('seed003-two-link', ('theta_deg',), ['a1', 'a2', 'a3'])
+    """
     from flexmodal.models.rig import load_rig as _load
 
     return _load(path)
@@ -237,19 +570,62 @@ def _rig(rig: Rig | PathLike) -> Rig:
 def predict(rig: Rig | PathLike, poses: Mapping[str, Mapping[str, float]] | ModalTable | PathLike,
             model: str = "fe", n_modes: int = 4, *, source: str | None = None,
             progress: Callable[[str], None] | None = None, **options: object) -> ModalTable:
-    """Predicted modes of ``rig`` for every configuration of ``poses`` (a POSES.csv path, a
-    {config: pose} mapping, or a modal table whose configurations and poses are taken) by ``model``
-    (``fe``, ``assumed-modes``, ``lumped-mass``, ``blevins``; docs/models.md for ``options``)."""
+    """Predicted modes of a rig for every configuration by one of the registered models.
+
+    Parameters
+    ----------
+    rig : models.rig.Rig, str or Path
+        The rig, or its TOML file.
+    poses : mapping, modal.table.ModalTable, str or Path
+        ``{config: {pose variable: value}}`` (degrees, kg), a POSES.csv path, or a modal table whose
+        configurations and poses are taken.
+    model : str
+        A registered model (models.registry.MODELS): ``fe``, ``assumed-modes``, ``lumped-mass``,
+        ``blevins``.
+    n_modes : int
+        Elastic modes per configuration (rigid-body modes are left out).
+    source : str, optional
+        Value of the ``source`` column (default: the model name).
+    progress : callable, optional
+        Called with each configuration once it is solved.
+    **options
+        Model options (docs/models.md): ``elements_per_link``, ``lumped_mass`` (fe);
+        ``masses_per_link``, ``coordinates`` (lumped-mass).
+
+    Returns
+    -------
+    modal.table.ModalTable
+        Natural frequencies [Hz] and mass-normalised shapes [kg^-1/2] at the rig's sensors.
+
+    References
+    ----------
+    A. E. Abdelraheim, M. Nejlaoui, N. A. Alqahtani, "Bioinspired Computation for Identifying Joint
+    Compliance in Biomimetic Flexible Manipulators", Biomimetics 11(7), 474 (2026): Table 6 (rigid-joint
+    FE, 25.33 and 158.45 Hz at 0 deg).
+
+    Examples
+    --------
+    >>> import flexmodal as fm
+    >>> fe = fm.predict("examples/rigs/seed003_two_link.toml", {"theta0": {"theta_deg": 0.0}}, "fe", 2)
+    >>> fe.frame["freq_hz"].round(1).tolist()
+    [25.3, 158.4]
+    """
     from flexmodal.models.errors import ModelError
     from flexmodal.models.predict import predict as _predict
 
+    rig = _rig(rig)
     if isinstance(poses, str | Path):
-        poses = read_poses(poses)
+        where, poses = poses, read_poses(poses)
+        have = set().union(*poses.values()) if poses else set()
+        missing = [v for v in rig.pose_variables if v not in have]
+        if missing:  # the poses file lacks the column, not the rig its variable
+            raise ModelError(f"{where}: no column 'pose.{missing[0]}' (rig {rig.source} needs the pose "
+                             f"variable {missing[0]!r}; pose columns are named pose.<variable>)")
     elif not isinstance(poses, Mapping):
         poses = {c: poses.pose(c) for c in poses.configs}
     if not poses:
         raise ModelError("predict: no configurations")
-    return _predict(_rig(rig), poses, model, n_modes, source=source, progress=progress, **options)
+    return _predict(rig, poses, model, n_modes, source=source, progress=progress, **options)
 
 
 # -- comparison and diagnosis ----------------------------------------------------------------------
@@ -271,9 +647,33 @@ def _named(tables: Iterable[ModalTable | PathLike | tuple[str, ModalTable]]) -> 
 def compare_modes(measured: ModalTable | PathLike,
                   *predicted: ModalTable | PathLike | tuple[str, ModalTable],
                   min_mac: float = 0.5) -> Comparison:
-    """Pair every predicted table with the measured one (by MAC where both have shapes at two or more
-    common sensors, else by frequency order); names come from the ``source`` column, else the file
-    name.  ``format_comparison`` prints it; docs/compare-and-report.md."""
+    """Pair every predicted table with the measured one (docs/compare-and-report.md).
+
+    Pairs by MAC where both tables have shapes at two or more common sensors, else by ascending
+    frequency; unpaired modes are kept.
+
+    Parameters
+    ----------
+    measured : modal.table.ModalTable, str or Path
+        The measured modal table.
+    *predicted : modal.table.ModalTable, str, Path or (name, table)
+        Predicted tables, named by their ``source`` column, else by the file name.
+    min_mac : float
+        MAC pairs below this value [0, 1] are rejected.
+
+    Returns
+    -------
+    compare.tables.Comparison
+        Printed by :func:`format_comparison`.
+
+    Examples
+    --------
+    >>> import flexmodal as fm
+    >>> measured = fm.read_table("examples/measured/seed003_table3_f1f2.csv")
+    >>> fe = fm.predict("examples/rigs/seed003_two_link.toml", measured, "fe", 2)
+    >>> print(fm.format_comparison(fm.compare_modes(measured, fe)).splitlines()[2])
+    | theta0 | 1 | 25.33 | 25.50 | -0.7 |
+    """
     from flexmodal.compare.errors import CompareError
     from flexmodal.compare.tables import compare_tables, table_name
 
@@ -286,8 +686,32 @@ def compare_modes(measured: ModalTable | PathLike,
 
 def format_comparison(comparison: Comparison, fmt: str = "md", layout: str = "modes",
                       caption: str = "Measured and predicted natural frequencies") -> str:
-    """The comparison as text: ``md``, ``csv`` (full precision), ``tex`` or ``html``; ``layout``
-    ``modes`` (a row per mode) or ``sources`` (a row per source)."""
+    """The comparison as text.
+
+    Parameters
+    ----------
+    comparison : compare.tables.Comparison
+        A :func:`compare_modes` result.
+    fmt : {"md", "csv", "tex", "html", "json"}
+        Markdown, CSV (full precision), LaTeX booktabs, an HTML page or JSON rows.
+    layout : {"modes", "sources"}
+        A row per mode and a column per source, or a row per source and a column per mode.
+    caption : str
+        Table caption (tex and html).
+
+    Returns
+    -------
+    str
+        Frequencies [Hz], measured damping ratio [%], error (pred - meas)/meas [%] and MAC [-].
+
+    Examples
+    --------
+    >>> import flexmodal as fm
+    >>> measured = fm.read_table("examples/measured/seed003_table3_f1f2.csv")
+    >>> fe = fm.predict("examples/rigs/seed003_two_link.toml", measured, "fe", 2)
+    >>> print(fm.format_comparison(fm.compare_modes(measured, fe), "csv").splitlines()[0])
+    config,mode,fe_freq_hz,experiment_freq_hz,fe_err_pct
+    """
     from flexmodal.compare.tables import render
 
     return render(comparison, fmt, layout, caption)
@@ -304,24 +728,66 @@ def diagnose(rig: Rig | PathLike, measured: ModalTable | PathLike, *, effects: s
     return _diagnose(_rig(rig), _table(measured), effects=effects, holdout=holdout, scatter=scatter)
 
 
-def write_diagnosis(result: Diagnosis, out_dir: PathLike) -> tuple[Path, Path]:
+def _paths(sources: Iterable[object]) -> list[PathLike]:
+    """The files among ``sources`` (paths, ``FILE::RUN_ID``, (file, run id); objects are skipped):
+    the inputs an output must not replace."""
+    found: list[PathLike] = []
+    for s in sources:
+        if isinstance(s, tuple) and s and isinstance(s[0], str | Path):
+            found.append(s[0])
+        elif isinstance(s, Path):
+            found.append(s)
+        elif isinstance(s, str):
+            found.append(s.partition("::")[0])
+    return found
+
+
+def write_diagnosis(result: Diagnosis, out_dir: PathLike,
+                    inputs: Sequence[PathLike] = ()) -> tuple[Path, Path]:
     """Write ``diagnosis.json`` (strict JSON) and ``diagnosis.html`` of a :func:`diagnose` result into
     ``out_dir``.  The page is the validation report's diagnosis section alone (one renderer,
-    reports/html.py)."""
+    reports/html.py), naming ``inputs`` (the rig and the measured modes it was diagnosed from)."""
     from flexmodal.compare.errors import CompareError
     from flexmodal.reports.html import write_report
     from flexmodal.valid_output import output_dir, write_text
 
-    out = output_dir(out_dir, CompareError, "diagnosis folder (--out)")
+    out = output_dir(out_dir, CompareError, "diagnosis folder (--out)",
+                     files=("diagnosis.json", "diagnosis.html"), inputs=inputs)
     out.mkdir(parents=True, exist_ok=True)
     pj = write_text(out / "diagnosis.json", result.to_json())
-    ph = write_report(out / "diagnosis.html", diagnosis=result, title="Sim-to-real gap diagnosis")
+    ph = write_report(out / "diagnosis.html", diagnosis=result, title="Sim-to-real gap diagnosis",
+                      inputs=list(inputs))
     return pj, ph
 
 
 def read_diagnosis(path: PathLike) -> Diagnosis:
-    """A diagnosis.json (docs/formats.md) read back into the :func:`diagnose` result it was written
-    from; ReportError naming the file and the key when it is not one."""
+    """A diagnosis.json (docs/formats.md) read back into the :func:`diagnose` result it came from.
+
+    Parameters
+    ----------
+    path : str or Path
+        The diagnosis.json written by :func:`write_diagnosis` or ``flexmodal diagnose``.
+
+    Returns
+    -------
+    compare.result.Diagnosis
+
+    Raises
+    ------
+    ReportError
+        Naming the file and the key when it is not a diagnosis.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> import flexmodal as fm
+    >>> out = tempfile.mkdtemp() + "/bad.json"
+    >>> _ = open(out, "w").write("{}")
+    >>> fm.read_diagnosis(out)
+    Traceback (most recent call last):
+    ...
+    flexmodal.reports.errors.ReportError: ...
+    """
     from flexmodal.reports.html import load_diagnosis
 
     return load_diagnosis(path)
@@ -330,7 +796,29 @@ def read_diagnosis(path: PathLike) -> Diagnosis:
 # -- figures ---------------------------------------------------------------------------------------
 
 def plot_frf(frf: FrfResult, title: str = "") -> Figure:
-    """Magnitude, phase [deg] and coherence [-] of the FRFs of one run (first reference)."""
+    """Magnitude, phase [deg] and coherence [-] of the FRFs of one run (first reference).
+
+    Parameters
+    ----------
+    frf : modal.frf.FrfResult
+        A :func:`compute_frf` result.
+    title : str
+        Figure title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> import flexmodal as fm
+    >>> from flexmodal.fixtures.examples import impact_run
+    >>> path = impact_run(tempfile.mkdtemp())    # a simulated impact test of the demo arm
+    >>> fig = fm.plot_frf(fm.compute_frf(path))
+    >>> len(fig.axes)
+    3
+    """
     from flexmodal.reports import plots
 
     return plots.plot_frf(frf.freq_hz, frf.H, frf.coherence, frf.outputs,
@@ -339,9 +827,41 @@ def plot_frf(frf: FrfResult, title: str = "") -> Figure:
 
 def plot_stabilisation(frf: FrfResult, modes: Modes | None = None, *, fmin: float | None = None,
                        fmax: float | None = None, max_order: int | None = None, title: str = "") -> Figure:
-    """Stabilisation diagram of the pLSCF identification of ``frf`` over the CMIF of its band: that of
-    ``modes`` (an :func:`identify` result's ``modes[config]``) if given, else of ``frf`` identified here
-    in [fmin, fmax] Hz with ``max_order`` (default: the order adapts to the data)."""
+    """Stabilisation diagram of the pLSCF identification of an FRF over the CMIF of its band.
+
+    Parameters
+    ----------
+    frf : modal.frf.FrfResult
+        A :func:`compute_frf` result.
+    modes : modal.identify.Modes, optional
+        The identification to draw (an :func:`identify` result's ``modes[config]``); else ``frf`` is
+        identified here.
+    fmin, fmax : float, optional
+        Band [Hz] of the identification done here.
+    max_order : int, optional
+        Highest pLSCF order (default: the order adapts to the data).
+    title : str
+        Figure title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    References
+    ----------
+    B. Peeters, H. Van der Auweraer, P. Guillaume, J. Leuridan, "The PolyMAX frequency-domain method",
+    Shock and Vibration 11 (2004) 395-409.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> import flexmodal as fm
+    >>> from flexmodal.fixtures.examples import impact_run
+    >>> path = impact_run(tempfile.mkdtemp())    # a simulated impact test of the demo arm
+    >>> fig = fm.plot_stabilisation(fm.compute_frf(path), fmax=400.0)
+    >>> type(fig).__name__
+    'Figure'
+    """
     from flexmodal.modal.sources import identify_frf
     from flexmodal.reports import plots
 
@@ -352,8 +872,36 @@ def plot_stabilisation(frf: FrfResult, modes: Modes | None = None, *, fmin: floa
 
 def plot_mode_shapes(rig: Rig | PathLike, measured: ModalTable | PathLike, config: str,
                      n_fe_modes: int = 8, title: str = "") -> Figure:
-    """Measured shapes of ``config`` at the rig's sensors drawn on the arm at its pose, each with the
-    best-matching (MAC) of the frame FE model's ``n_fe_modes`` lowest modes as a curve."""
+    """Measured shapes of one configuration drawn on the arm at its pose.
+
+    Each measured shape at the rig's sensors is drawn with the best-matching (MAC) of the frame FE
+    model's ``n_fe_modes`` lowest modes as a curve.
+
+    Parameters
+    ----------
+    rig : models.rig.Rig, str or Path
+        The rig, or its TOML file.
+    measured : modal.table.ModalTable, str or Path
+        Modal table with ``shape.<sensor>`` columns.
+    config : str
+        The configuration to draw.
+    n_fe_modes : int
+        FE modes to match against.
+    title : str
+        Figure title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> import flexmodal as fm
+    >>> rig = "examples/rigs/demo_arm.toml"
+    >>> fe = fm.predict(rig, {"theta30": {"theta_deg": 30.0}}, "fe", 3)
+    >>> type(fm.plot_mode_shapes(rig, fe, "theta30")).__name__
+    'Figure'
+    """
     from flexmodal.models.arm_shapes import arm_modes
     from flexmodal.reports import plots
 
@@ -367,8 +915,34 @@ def plot_comparison(measured: ModalTable | PathLike,
                     *predicted: ModalTable | PathLike | tuple[str, ModalTable], pose_var: str | None = None,
                     repeats: Sequence[ModalTable | PathLike] = (),
                     title: str = "") -> Figure:
-    """Measured (mean ± 1 sd over ``repeats``) and predicted natural frequencies [Hz] against the pose
-    variable ``pose_var`` (default the first that varies), a line per model and mode."""
+    """Measured and predicted natural frequencies [Hz] against a pose variable.
+
+    Parameters
+    ----------
+    measured : modal.table.ModalTable, str or Path
+        The measured modal table (its mean with ``repeats``, ± 1 standard deviation).
+    *predicted : modal.table.ModalTable, str, Path or (name, table)
+        Predicted tables, a line per model and mode.
+    pose_var : str, optional
+        The pose variable on the x axis (default: the first that varies).
+    repeats : sequence of modal tables or paths
+        Repeated measurements of the same configurations.
+    title : str
+        Figure title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> import flexmodal as fm
+    >>> measured = fm.read_table("examples/measured/seed003_table3_f1f2.csv")
+    >>> fe = fm.predict("examples/rigs/seed003_two_link.toml", measured, "fe", 2)
+    >>> fig = fm.plot_comparison(measured, fe)
+    >>> fig.axes[0].get_xlabel()
+    'theta_deg [deg]'
+    """
     from flexmodal.reports import plots
     from flexmodal.reports.errors import ReportError
     from flexmodal.reports.html import pose_unit, varying_pose_vars
@@ -383,8 +957,28 @@ def plot_comparison(measured: ModalTable | PathLike,
 
 
 def plot_gap(diagnosis: Diagnosis | Mapping | PathLike, title: str = "") -> Figure:
-    """Per-mode relative frequency error [%] before and after the diagnosed effect (a :func:`diagnose`
-    result, a parsed diagnosis.json or its path)."""
+    """Per-mode relative frequency error [%] before and after the diagnosed effect.
+
+    Parameters
+    ----------
+    diagnosis : compare.result.Diagnosis, mapping, str or Path
+        A :func:`diagnose` result, a parsed diagnosis.json or its path.
+    title : str
+        Figure title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> import flexmodal as fm
+    >>> result = fm.diagnose("examples/rigs/seed003_two_link.toml",
+    ...                      "examples/measured/seed003_table3_f1f2.csv", effects="joint_stiffness",
+    ...                      holdout="theta30,theta90,theta150")
+    >>> type(fm.plot_gap(result)).__name__
+    'Figure'
+    """
     from flexmodal.reports import plots
 
     return plots.plot_gap(_diagnosis(diagnosis), title=title)
@@ -415,7 +1009,7 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
            diagnosis: Diagnosis | Mapping | PathLike | None = None,
            rig: Rig | PathLike | None = None, title: str = "flexmodal validation report",
            oma_fmin: float | None = None, oma_fmax: float | None = None,
-           fmin: float | None = None, fmax: float | None = None,
+           fmin: float | None = None, fmax: float | None = None, geometry: PathLike | None = None,
            progress: Callable[[str], None] | None = None) -> Path:
     """Write the self-contained HTML validation report ``out`` (its folder must exist; checked before
     any work) and return its path.
@@ -428,12 +1022,15 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     identified in the band ``oma_fmin``..``oma_fmax`` [Hz] (``identify --fmin/--fmax``; default the
     whole record).
     ``measured``/``repeats``/``predictions``: modal tables; ``diagnosis``: a :func:`diagnose` result,
-    a parsed diagnosis.json, or its path; ``rig``: draws the measured shapes on the arm.  Everything
+    a parsed diagnosis.json, or its path; ``rig``: draws the measured shapes on the arm and animates
+    them beside the FE model's; ``geometry``: a Universal File with the test geometry (datasets 15 or
+    2411, 82, 18 or 2420) to animate the measured modes on (their sensors named ``<node>+z``...).  Everything
     is computed here; ``reports.html`` only renders it."""
     from flexmodal.reports.errors import ReportError
     from flexmodal.valid_output import output_file
 
-    output_file(out, ReportError, "report (--out)")
+    sources = [*runs, measured, *repeats, *predictions, diagnosis, rig]
+    output_file(out, ReportError, "report (--out)", inputs=_paths(sources))
     from flexmodal.compare.tables import compare_tables, ordered_configs, table_name
     from flexmodal.daq.store import expand_runs
     from flexmodal.modal.errors import ModalError
@@ -487,7 +1084,147 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
             missing = [v for v in rig.pose_variables if v not in pose]
             shapes[config] = (f"No mode shapes drawn for {config}: the measured table gives no "
                               f"pose.{missing[0]} for the rig") if missing else arm_modes(rig, pose, common)
+    inputs = [path for path, _ in expand_runs(runs)]
+    inputs += [t.source for t in ([meas] if meas is not None else []) + [_table(r) for r in repeats]]
+    inputs += [t.source for _, t in named]
+    inputs += [diagnosis] if isinstance(diagnosis, str | Path) else []
+    inputs += [rig.source] if rig is not None else []
+    inputs += [geometry] if geometry is not None else []
+    geo = None
+    if geometry is not None:
+        from flexmodal.reports.geometry import read_uff_geometry
+
+        geo = read_uff_geometry(geometry)
     return write_report(out, runs=summaries, comparison=comparison, measured=meas,
                         repeats=[_table(r) for r in repeats], predictions=named, shapes=shapes,
                         diagnosis=_diagnosis(diagnosis) if diagnosis is not None else None,
-                        rig_name=getattr(rig, "name", ""), title=title, progress=progress)
+                        rig_name=getattr(rig, "name", ""), title=title, inputs=inputs, geometry=geo,
+                        progress=progress)
+
+
+def animate_mode(out: PathLike, measured: ModalTable | PathLike, config: str, mode: int = 1, *,
+                 rig: Rig | PathLike | None = None, geometry: PathLike | None = None, frames: int = 24,
+                 fps: int = 12) -> Path:
+    """An animated GIF of one measured mode for slides (matplotlib's PillowWriter): with ``rig``, the
+    mode at the sensors on the arm beside the frame FE model's best-matching mode; with ``geometry``
+    (a Universal File: nodes, trace lines, coordinate systems), the mode on the test structure.
+    ``mode`` is 1-based; returns ``out``.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import flexmodal as fm
+    >>> from flexmodal.fixtures.rig_sim import DEMO_RIG
+    >>> rig = fm.load_rig(DEMO_RIG)
+    >>> table = fm.predict(rig, {"theta60": {"theta_deg": 60.0}}, "fe", n_modes=2)
+    >>> gif = fm.animate_mode(Path(tempfile.mkdtemp()) / "mode1.gif", table, "theta60", 1, rig=rig)
+    >>> gif.read_bytes()[:6]
+    b'GIF89a'
+    """
+    from flexmodal.reports import animate
+    from flexmodal.reports.errors import ReportError
+    from flexmodal.valid_output import output_file
+
+    target = output_file(out, ReportError, "GIF (out)")
+    table = _table(measured)
+    if config not in table.configs:
+        raise ReportError(f"{table.source}: no configuration {config!r} (have {', '.join(table.configs)})")
+    n = len(table.freq_hz(config))
+    if not 1 <= mode <= n:
+        raise ReportError(f"{table.source}: {config} has modes 1..{n}, not {mode}")
+    if (rig is None) == (geometry is None):
+        raise ReportError("animate_mode: give the rig or a UFF geometry (one of them)")
+    if geometry is not None:
+        from flexmodal.reports.geometry import read_uff_geometry
+
+        shapes = [animate.geometry_shapes(read_uff_geometry(geometry), table, config)[mode - 1]]
+    else:
+        from flexmodal.models.arm_shapes import arm_modes
+
+        rig = _rig(rig)
+        sensors = [s.name for s in rig.sensors if s.name in table.sensors]
+        test, model = animate.arm_pairs(arm_modes(rig, table.pose(config), sensors), table, config)[mode - 1]
+        shapes = [s for s in (test, model) if s is not None]
+    return animate.write_gif(shapes, target, frames=frames, fps=fps)
+
+
+def report_pdf(html: PathLike, pdf: PathLike | None = None) -> Path:
+    """Print the HTML report ``html`` to ``pdf`` (default: beside it, ``.pdf``) with headless Chromium,
+    every run's block opened, tables whole with repeated headers; returns the PDF's path.  ReportError
+    (one line) where no Chromium is installed."""
+    from flexmodal.reports.errors import ReportError
+    from flexmodal.reports.pdf import print_pdf
+    from flexmodal.valid_output import output_file
+
+    target = output_file(Path(html).with_suffix(".pdf") if pdf is None else pdf, ReportError, "PDF report")
+    return print_pdf(html, target)
+
+
+# -- the simulated rig -----------------------------------------------------------------------------
+
+def demo(out_dir: PathLike = "flexmodal-demo", *, rig: PathLike | None = None, quiet: bool = True) -> Path:
+    """The main job end to end on the embedded simulated rig (``flexmodal demo``; no hardware).
+
+    Simulates impact and random tests of the demo arm (which hides a compliant elbow) in five poses,
+    one of them acquired through the serial stack, and writes ``runs.h5``, ``operational.h5``,
+    ``modes.csv``, ``fe.csv``, ``diagnosis.json``/``.html`` and ``report.html`` into ``out_dir``; the
+    comparison and the verdict, next to the hidden truth, go to stdout.
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        Output folder (created; its existing outputs are replaced).
+    rig : str or Path, optional
+        Simulate this rig TOML instead of the demo arm.
+    quiet : bool
+        No progress bar on stderr.
+
+    Returns
+    -------
+    Path
+        The report.
+    """
+    from flexmodal.fixtures.errors import FixtureError
+    from flexmodal.valid_output import output_dir
+
+    out = output_dir(out_dir, FixtureError, "demo folder (--out)")   # before the demo's heavy imports
+    from flexmodal.fixtures.demo import Writers, run_demo
+
+    return run_demo(out, Writers(write_diagnosis, report), None if rig is None else Path(rig), quiet=quiet)
+
+
+@dataclass(frozen=True)
+class SelfCheck:
+    """The blind self-check of the diagnosis: the ``results`` per case (``fixtures.blind.BlindResult``),
+    the accuracy ``summary`` (fractions) and its printed ``text``."""
+
+    results: tuple
+    summary: Mapping[str, float]
+    text: str
+
+
+def selftest(n_cases: int, *, seed: int = 0, progress: Callable[[object], None] | None = None) -> SelfCheck:
+    """Blind self-check of :func:`diagnose` (``flexmodal diagnose --selftest N``).
+
+    Random rigs are simulated by the independent truth model (a Timoshenko frame, fixtures/truth_arm.py)
+    with withheld effects, diagnosed, and the verdicts scored against what was hidden (docs/diagnosis.md).
+
+    Parameters
+    ----------
+    n_cases : int
+        Cases to run, the first of the fixed schedule.
+    seed : int
+        Random seed of the cases.
+    progress : callable, optional
+        Called with each case's result as it is done.
+
+    Returns
+    -------
+    SelfCheck
+    """
+    from flexmodal.fixtures.blind import format_summary, run_blind, summarise
+
+    results = run_blind(n_cases, seed=seed, progress=progress)
+    summary = summarise(results)
+    return SelfCheck(tuple(results), summary, format_summary(summary))

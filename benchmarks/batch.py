@@ -1,17 +1,17 @@
 """Benchmark: `flexmodal frf` on many runs, serial against 2 worker processes, as whole processes.
 
-Writes ``--runs`` files (default 8 and 100) of one random run each (1 force + 16 accelerations,
+Writes ``--runs`` files (default 1, 8 and 100) of one random run each (1 force + 16 accelerations,
 ``--duration-s`` at 5 kHz, float32, the run store's layout) into a temporary folder, then times, per
-round and in this order: ``--workers 0`` (serial, the reference), the default (serial or a pool as
-the measured cost decides) and ``--workers 2`` (a pool of 2 local processes).  Prints medians and
-spread (min-max) over ``--repeat`` rounds (one count per ``--runs`` entry, default 3 and 1, so the
-whole benchmark takes about 2 minutes on a quiet 2-core machine), the ratios against the serial run
-of the same rounds and the CPUs the serial and default processes kept busy (CPU time over wall time;
-the pool's workers are the fork server's children, not counted); then the start-up cost of the pool
-(``--workers 2`` less ``--workers 0`` on two 1 s runs: the figure behind
-``modal.batch.POOL_START_S``).  The machine may be shared: read the ratios, and the CPU load printed
-with them.
-Usage: ``python benchmarks/batch.py [--runs 8 100] [--duration-s 60] [--repeat 3 1] [--folder DIR]``
+round and in this order: serial on one CPU (``--workers 0`` with the process pinned to one CPU: the
+reference), ``--workers 0`` (serial here, FFT threads on the idle CPUs), the default (serial or a
+pool as the measured cost decides) and ``--workers 2`` (a pool of 2 local processes).  Prints
+medians and spread (min-max) over ``--repeat`` rounds (one count per ``--runs`` entry, default 3, 3
+and 1), the ratios against the one-CPU serial run and against ``--workers 0`` of the same rounds,
+and the CPUs the serial and default processes kept busy (CPU time over wall time; the pool's workers
+are the fork server's children, not counted); then the start-up cost of the pool (``--workers 2``
+less ``--workers 0`` on two 1 s runs: the figure behind ``modal.batch.POOL_START_S``).  The machine
+may be shared: read the ratios, and the load average printed with them.
+Usage: ``python benchmarks/batch.py [--runs 1 8 100] [--duration-s 60] [--repeat 3 3 1] [--folder DIR]``
 """
 
 from __future__ import annotations
@@ -40,38 +40,52 @@ def write_runs(folder: str, n_runs: int, duration_s: float) -> list[str]:
     return paths
 
 
+def _one_cpu() -> None:
+    """In the child before it starts: run on the first CPU of this process's mask only."""
+    os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
+
+
 def _frf_process(paths: list[str], extra: list[str], out: str) -> tuple[float, float]:
     """Wall time and CPU time (s; the process and its worker processes) of one whole `flexmodal frf`
-    process over ``paths`` writing into ``out``."""
+    process over ``paths`` writing into ``out`` (``extra`` ONE_CPU: ``--workers 0`` on one CPU)."""
     if os.path.exists(out):
         os.remove(out)
+    pin = extra is ONE_CPU
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     subprocess.run([sys.executable, "-m", "flexmodal", "--quiet", "frf", *paths, "--nfft", "4096",
-                    "--out", out, *extra], check=True, timeout=3600, stdout=subprocess.DEVNULL)
+                    "--out", out, *extra], check=True, timeout=3600, stdout=subprocess.DEVNULL,
+                   preexec_fn=_one_cpu if pin else None)
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     return wall, after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
 
 
-CASES = {"serial (--workers 0)": ["--workers", "0"], "default (by cost)": [],
+ONE_CPU = ["--workers", "0"]
+SERIAL = "serial (--workers 0)"
+CASES = {"serial on 1 CPU": ONE_CPU, SERIAL: ["--workers", "0"], "default (by cost)": [],
          "--workers 2 (pool)": ["--workers", "2"]}
 
 
 def bench(paths: list[str], repeat: int, folder: str) -> None:
     times: dict[str, list[tuple[float, float]]] = {name: [] for name in CASES}
     out = os.path.join(folder, "frf_out.h5")
+    load = os.getloadavg()[0]
     for _ in range(repeat):
         for name, extra in CASES.items():
             times[name].append(_frf_process(paths, extra, out))
-    ref = np.median([w for w, _ in times["serial (--workers 0)"]])
-    print(f"BATCH {len(paths)} runs of {os.path.getsize(paths[0]) / 1e6:.0f} MB, nfft 4096 "
-          f"(load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs):")
+    wall = {name: np.array(ts)[:, 0] for name, ts in times.items()}
+    print(f"BATCH {len(paths)} runs of {os.path.getsize(paths[0]) / 1e6:.0f} MB, nfft 4096 (load average "
+          f"{load:.1f} before, {os.getloadavg()[0]:.1f} after, on {os.cpu_count()} CPUs; ratios per round, "
+          f"median):")
     for name, ts in times.items():
-        wall, cpu = np.array(ts).T
-        busy = "pool workers not counted" if "pool" in name else f"{np.median(cpu / wall):.2f}"
-        print(f"     {name:22s} median {np.median(wall):7.2f} s (spread {min(wall):.2f}-{max(wall):.2f} s), "
-              f"serial / this = {ref / np.median(wall):.2f}x, CPUs busy {busy}")
+        cpu = np.array(ts)[:, 1]
+        busy = "pool workers not counted" if "pool" in name else f"{np.median(cpu / wall[name]):.2f}"
+        one = np.median(wall["serial on 1 CPU"] / wall[name])
+        here = np.median(wall[SERIAL] / wall[name])
+        print(f"     {name:22s} median {np.median(wall[name]):7.2f} s (spread {min(wall[name]):.2f}-"
+              f"{max(wall[name]):.2f} s), serial on 1 CPU / this = {one:.2f}x, --workers 0 / this = "
+              f"{here:.2f}x, CPUs busy {busy}")
 
 
 def pool_start_up(folder: str, repeat: int) -> None:
@@ -91,9 +105,9 @@ def pool_start_up(folder: str, repeat: int) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--runs", type=int, nargs="+", default=[8, 100])
+    p.add_argument("--runs", type=int, nargs="+", default=[1, 8, 100])
     p.add_argument("--duration-s", type=float, default=60.0)
-    p.add_argument("--repeat", type=int, nargs="+", default=[3, 1], help="rounds per --runs entry")
+    p.add_argument("--repeat", type=int, nargs="+", default=[3, 3, 1], help="rounds per --runs entry")
     p.add_argument("--folder", default=None, help="where the run files go (default: a temporary folder)")
     a = p.parse_args(argv)
     folder = tempfile.mkdtemp(prefix="flexmodal-batch-", dir=a.folder)

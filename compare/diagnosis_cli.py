@@ -7,6 +7,8 @@ import sys
 
 from flexmodal import valid_options as opt
 
+DIAGNOSIS_FILES = ("diagnosis.json", "diagnosis.html")  # what `diagnose` writes into its --out folder
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``diagnose`` to the flexmodal parser."""
@@ -39,17 +41,16 @@ def run(args: argparse.Namespace) -> int:
     from flexmodal.compare.errors import CompareError
 
     if args.selftest is not None:
-        # the blind cases come from the independent truth model in fixtures (imported only here)
-        from flexmodal.fixtures.blind import format_summary, run_blind, summarise
+        from flexmodal.api import selftest
 
         def show(r) -> None:
             c, v = r.case, r.verdict
             print(f"{c.kind}/{c.category}: hidden {c.effect}@{c.location or '-'} -> {v.effect}@"
                   f"{v.location or '-'} ({r.seconds:.1f} s)", file=sys.stderr)
 
-        results = run_blind(args.selftest, seed=args.seed, progress=None if getattr(args, "quiet", False)
-                            else show)
-        print(format_summary(summarise(results)))
+        check = selftest(args.selftest, seed=args.seed, progress=None if getattr(args, "quiet", False)
+                         else show)
+        print(check.text)
         return 0
     missing = [o for o in ("rig", "measured", "out") if getattr(args, o) is None]
     if missing:
@@ -57,10 +58,11 @@ def run(args: argparse.Namespace) -> int:
                            "(needs --rig, --measured and --out, or --selftest N)")
     from flexmodal.valid_output import output_dir
 
-    output_dir(args.out, CompareError, "diagnosis folder (--out)")  # before the heavy imports
+    output_dir(args.out, CompareError, "diagnosis folder (--out)", files=DIAGNOSIS_FILES,
+               inputs=(args.rig, args.measured))  # before the heavy imports
     from flexmodal.api import diagnose, load_rig, read_table, write_diagnosis
     from flexmodal.compare.candidates import parse_effects
-    from flexmodal.compare.diagnosis import folds_for
+    from flexmodal.compare.diagnosis import folds_for, scatter_line
 
     rig = load_rig(args.rig)
     table = read_table(args.measured)
@@ -69,11 +71,14 @@ def run(args: argparse.Namespace) -> int:
     if not getattr(args, "quiet", False):
         print(f"diagnosing {table.source} against {rig.source} ...", file=sys.stderr)
     result = diagnose(rig, table, effects=args.effects, holdout=args.holdout, scatter=args.scatter)
-    pj, ph = write_diagnosis(result, args.out)
+    pj, ph = write_diagnosis(result, args.out, inputs=[rig.source, table.source])
     v = result.verdict
     print(f"verdict: {v.effect} at {v.location or '-'}; held-out RMS "
           f"{v.heldout_rms_rel_error_before:.2%} -> {v.heldout_rms_rel_error_after:.2%}; "
-          f"explained: {str(v.explained).lower()}")
+          f"explained: {str(v.explained).lower()} ({v.grade})")
+    print(scatter_line(result))
+    for name, (lo, hi) in (v.param_intervals or {}).items():
+        print(f"  {name} = {v.params[name]:.4g}  (95 % interval {lo:.4g} .. {hi:.4g})")
     print(pj)
     print(ph)
     return 0

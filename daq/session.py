@@ -16,21 +16,23 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
+from flexmodal.daq.devices import SIMULATOR_PORT
 from flexmodal.daq.errors import DaqError
+from flexmodal.daq.faults import Faults
 from flexmodal.daq.protocols import PROTOCOLS, registered_protocols
-from flexmodal.daq.store import CHANNEL_KINDS, EXCITATIONS, Channel
+from flexmodal.daq.run_schema import CHANNEL_KINDS, EXCITATIONS
+from flexmodal.daq.store import Channel
 from flexmodal.valid_text import read_toml
 from flexmodal.valid_toml import Fields
 
 # Whole-number fields whose range every protocol shares (a TCP port given as a number, the Modbus unit id).
 INT_RANGES = {"baud": (1, 100_000_000), "bitrate": (1, 100_000_000), "device_id": (0, 247),
               "port": (1, 65535)}
-SIMULATOR_PORT = "@simulator"  # placeholder for the endpoint of the session's own simulator
-REGISTER_TYPES = {"int16": 1, "uint16": 1, "int32": 2, "uint32": 2, "float32": 2}
+MIN_HIT_SAMPLES = 16  # samples of an impact window after its pretrigger samples (an FFT needs a few)
 G_M_PER_S2 = 9.80665
 NUMBER = r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?"
 EFFECT_PATTERN = rf"\w+@[\w.@-]+:\w+={NUMBER}(,\w+={NUMBER})*"
@@ -44,42 +46,14 @@ UNIT_FACTORS = {
 
 
 @dataclass(frozen=True)
-class Register:
-    """One Modbus value: ``type`` int16|uint16|int32|uint32|float32, ``word_order`` big|little."""
-
-    name: str
-    address: int
-    type: str = "int16"
-    word_order: str = "big"
-    scale: float = 1.0
-    offset: float = 0.0
-    table: str = "holding"  # holding | input
-
-
-@dataclass(frozen=True)
 class Device:
-    """One device; only the fields of its protocol matter (see docs/acquisition.md)."""
+    """One ``[[device]]``: its name, its protocol and the configuration its driver parsed from the table
+    (a frozen dataclass the driver owns: daq.serial_driver.SerialConfig, daq.can_driver.CanConfig,
+    daq.modbus_driver.ModbusConfig, ...; docs/acquisition.md)."""
 
     name: str
     protocol: str
-    port: str = ""  # serial port / pyserial URL; slcan pty; Modbus RTU port
-    baud: int = 115200
-    framing: str = "binary"  # serial: binary | csv | custom
-    frame: Any = None  # serial, framing = "custom": its daq.serial_frames.FrameSpec
-    checksum: str = "none"  # serial, framing = "csv": checksum field at the end of each line
-    sources: tuple[str, ...] = ()  # serial: names of the frame columns, in order
-    interface: str = ""  # can: virtual | slcan (any python-can interface name)
-    channel: str = ""  # can: bus channel (virtual bus name)
-    bitrate: int = 500000
-    dbc: str = ""  # can: DBC file (absolute path after loading)
-    message: str = ""  # can: DBC message carrying the samples (default: the only multiplexed one)
-    transport: str = "tcp"  # modbus: tcp | rtu
-    host: str = "127.0.0.1"
-    tcp_port: int = 502
-    device_id: int = 1
-    registers: tuple[Register, ...] = ()
-    options: dict = field(default_factory=dict)  # fields of a protocol registered from outside flexmodal
-
+    config: Any
 
 @dataclass(frozen=True)
 class ChannelMap:
@@ -115,7 +89,7 @@ class Trigger:
 class Simulator:
     """The simulator a session starts itself (docs/acquisition.md): only these validated options.
 
-    Times in seconds; ``fault_log`` is a file name inside the run file's folder (never elsewhere).
+    ``fault_log`` is a file name inside the run file's folder (never elsewhere).
     """
 
     protocol: str
@@ -123,21 +97,11 @@ class Simulator:
     test: str = "impact"
     seed: int = 0
     pose: dict = field(default_factory=dict)
-    corrupt_rate: float = 0.0
-    drop_at_s: float | None = None
-    drop_s: float = 0.2
-    disconnect_after_s: float | None = None
-    disconnect_s: float = 0.5
+    faults: Faults = Faults()
     scans_per_frame: int = 32
     format: str = "int16"
     fault_log: str = ""
     effects: tuple[str, ...] = ()  # hidden effects "EFFECT@LOCATION:PARAM=VALUE,..." (SI units)
-    double_hit_at_s: float | None = None  # impact test: this hit of the record bounces back
-    overload_at_s: float | None = None  # impact test: this hit of the record overloads the ADC
-
-    @property
-    def faults(self) -> bool:
-        return bool(self.corrupt_rate) or self.drop_at_s is not None or self.disconnect_after_s is not None
 
 
 @dataclass(frozen=True)
@@ -177,7 +141,11 @@ class Table(Fields):
     def port(self, key: str) -> str:
         """A port path that must exist (or a URL such as loop://, or the simulator placeholder)."""
         port = self.get(key, str)
-        if not ("://" in port or port == SIMULATOR_PORT or Path(port).exists()):
+        scheme, url, _ = port.partition("://")
+        if url and not _serial_url_scheme(scheme):
+            raise DaqError(f"{self.where}: {key} {port!r}: pyserial knows no {scheme!r}:// URL (loop://, "
+                           "socket://, rfc2217://, spy://, ... or a device path such as /dev/ttyUSB0)")
+        if not (url or port == SIMULATOR_PORT or Path(port).exists()):
             raise DaqError(f"{self.where}: {key} {port!r} does not exist")
         return port
 
@@ -187,6 +155,19 @@ class Table(Fields):
         if not Path(path).is_file():
             raise DaqError(f"{self.where}: {what} {path!r} does not exist")
         return path
+
+
+def _serial_url_scheme(scheme: str) -> bool:
+    """Whether pyserial's ``serial_for_url`` has a handler for ``scheme://`` (its
+    ``serial.urlhandler.protocol_<scheme>`` module)."""
+    import importlib.util
+
+    if not scheme.isidentifier():
+        return False
+    try:
+        return importlib.util.find_spec(f"serial.urlhandler.protocol_{scheme.lower()}") is not None
+    except (ImportError, ValueError):
+        return False
 
 
 class DeviceTable(Table):
@@ -255,10 +236,9 @@ def _channel(doc: dict, where: str, devices: dict[str, Device]) -> ChannelMap:
 def _simulator(doc: dict, where: str, base: Path) -> Simulator:
     """The ``[simulator]`` block: known options only, each value checked (no free-form arguments)."""
     s = Table(doc, where, base)
-    s.reject_unknown({"protocol", "rig", "test", "seed", "pose", "corrupt_rate", "drop_at_s", "drop_s",
-                      "disconnect_after_s", "disconnect_s", "scans_per_frame", "format", "fault_log",
-                      "effects", "double_hit_at_s", "overload_at_s"})
-    seconds = {"lo": 0, "hi": 86400, "unit": "s"}
+    faults = fields(Faults)
+    s.reject_unknown({"protocol", "rig", "test", "seed", "pose", "scans_per_frame", "format", "fault_log",
+                      "effects"} | {f.name for f in faults})
     log = s.get("fault_log", str, "", check=lambda v: v == Path(v).name and v not in (".", ".."),
                 why="must be a plain file name (it is written in the run file's folder)")
     return Simulator(
@@ -266,18 +246,15 @@ def _simulator(doc: dict, where: str, base: Path) -> Simulator:
         rig=s.file("rig", "rig file") if "rig" in doc else "",
         test=s.choice("test", ("impact", "random", "sweep", "operational", "moving"), "impact"),
         seed=s.get("seed", int, 0, check=lambda v: 0 <= v < 2**32, why="must be in [0, 2**32)"),
-        pose=s.numbers("pose"), corrupt_rate=s.number("corrupt_rate", 0.0, lo=0, hi=1, hi_open=True),
-        drop_at_s=s.number("drop_at_s", None, **seconds), drop_s=s.number("drop_s", 0.2, **seconds),
-        disconnect_after_s=s.number("disconnect_after_s", None, **seconds),
-        disconnect_s=s.number("disconnect_s", 0.5, **seconds),
+        pose=s.numbers("pose"),
+        faults=Faults(**{f.name: s.number(f.name, f.default, unit="s" if f.name.endswith("_s") else "",
+                                          **f.metadata["range"]) for f in faults}),
         scans_per_frame=s.get("scans_per_frame", int, 32, check=lambda v: 1 <= v <= 4096,
                               why="must be in 1..4096"),
         format=s.choice("format", ("int16", "int32", "float32"), "int16"), fault_log=log,
         effects=tuple(s.get("effects", list, [], check=lambda v: all(
             isinstance(e, str) and re.fullmatch(EFFECT_PATTERN, e) for e in v),
-            why="must be a list of \"EFFECT@LOCATION:PARAM=NUMBER,...\"")),
-        double_hit_at_s=s.number("double_hit_at_s", None, **seconds),
-        overload_at_s=s.number("overload_at_s", None, **seconds))
+            why="must be a list of \"EFFECT@LOCATION:PARAM=NUMBER,...\"")))
 
 
 def parse_session(doc: dict, source: Path) -> Session:
@@ -297,7 +274,7 @@ def parse_session(doc: dict, source: Path) -> Session:
         if dev.name in devices:
             raise DaqError(f"{where}: device {dev.name!r} is defined twice")
         devices[dev.name] = dev
-    uses_sim = any(SIMULATOR_PORT in (d.port, d.channel) for d in devices.values())
+    uses_sim = any(SIMULATOR_PORT in vars(d.config).values() for d in devices.values())
     if uses_sim and sim is None:
         raise DaqError(f"{where}: a device uses port {SIMULATOR_PORT!r} but there is no [simulator]")
     ch_docs = t.get("channel", list, check=bool, why="must list at least one [[channel]]")
@@ -322,6 +299,11 @@ def parse_session(doc: dict, source: Path) -> Session:
                           g.get("response", str, "", check=lambda v: v in names, why="is not a channel"),
                           g.number("window_s", 1.0, lo=0, hi=60, lo_open=True, unit="s"),
                           g.number("min_peak", None, lo=0))
+        window = int(trigger.window_s * rate)
+        if window < trigger.pretrigger_samples + MIN_HIT_SAMPLES:
+            raise DaqError(f"{where}: trigger: window_s = {trigger.window_s:g} s holds {window} samples at "
+                           f"{rate:g} Hz; a hit needs at least pretrigger_samples + {MIN_HIT_SAMPLES} = "
+                           f"{trigger.pretrigger_samples + MIN_HIT_SAMPLES}")
     pose = t.numbers("pose")
     pose_from = t.get("pose_from", dict, {})
     for k, v in pose_from.items():

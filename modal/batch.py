@@ -6,6 +6,7 @@ concurrently and the results are the same whichever path computed them."""
 
 from __future__ import annotations
 
+import collections
 import os
 import signal
 import sys
@@ -19,6 +20,8 @@ from flexmodal.modal.compute import compute_frf
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult
 from flexmodal.modal.runs_io import write_frf
+from flexmodal.modal.spectra import usable_cpus
+from flexmodal.valid_text import one_line
 
 POOL_START_S = 1.0      # start 2 worker processes, their imports, first task (benchmarks/batch.py)
 AUTO_WORKERS = 2        # processes of the pool the automatic choice starts
@@ -32,26 +35,33 @@ def frf_job(path: str, run_id: str, options: dict) -> FrfResult:
     from flexmodal.daq.store import open_run
 
     with open_run(path, run_id) as run:
-        return compute_frf(run, **options)
+        try:
+            return compute_frf(run, **options)
+        except OSError as exc:  # a damaged chunk met while streaming the samples
+            raise ModalError(f"{path}: run {run_id!r}: cannot read the samples ({one_line(exc)})") from None
 
 
 def idle_cpus() -> int:
-    """CPUs the other processes leave idle (CPUs less the 1-minute load average, rounded; at least 1):
-    the FFT threads of the serial path.  On a busy machine a second thread only adds contention
-    (measured under load 6 on 2 CPUs: 8 runs of 60 s took 1.13 s with 2 threads, 0.82 s with 1)."""
-    cpus = os.cpu_count() or 1
+    """CPUs the other processes leave idle (the CPUs this process may use less the 1-minute load
+    average, rounded; at least 1): the FFT threads of the serial path.  On a busy machine a second
+    thread only adds contention (measured under load 6 on 2 CPUs: 8 runs of 60 s took 1.13 s with 2
+    threads, 0.82 s with 1)."""
+    cpus = usable_cpus()
     return max(1, min(cpus, cpus - round(os.getloadavg()[0])))
 
 
 def run_bytes(jobs: Sequence[tuple[str, str]]) -> list[int]:
     """Bytes of samples of every (file, run_id) job, from the file metadata."""
-    from flexmodal.daq.store import open_read
+    from flexmodal.daq.h5file import open_read
 
     sizes = []
     for path, rid in jobs:
         with open_read(path) as f:   # a truncated file fails here at once, as everywhere else
-            ds = f.get(f"runs/{rid}/samples")
-            sizes.append(0 if ds is None else int(ds.size) * ds.dtype.itemsize)
+            try:
+                ds = f.get(f"runs/{rid}/samples")
+            except (KeyError, RuntimeError, OSError):   # a broken link: the job itself names it
+                ds = None
+            sizes.append(int(ds.size) * ds.dtype.itemsize if hasattr(ds, "dtype") else 0)
     return sizes
 
 
@@ -84,7 +94,7 @@ def _serial_pays(elapsed_s: float, cpu_s: float, bytes_done: int, bytes_left: in
     elapsed_s`` CPUs busy (its FFT threads), the other processes of the machine take the 1-minute
     load average less that, and a pool's speed-up is the CPUs it could use over those this process
     already uses.  Parallel only for a speed-up of MIN_SPEEDUP or more saving PAYS_FACTOR start-ups."""
-    cpus = os.cpu_count() or 1
+    cpus = usable_cpus()
     if runs_left < MIN_PARALLEL_RUNS or cpus < 2 or bytes_done == 0 or elapsed_s <= 0:
         return True
     rest = elapsed_s / bytes_done * bytes_left
@@ -112,23 +122,54 @@ def run_batch(jobs: Sequence[tuple[str, str]], options: dict, *, workers: int | 
 
     first = 0
     if scheduler is None and not workers:
-        sizes = run_bytes(jobs) if workers is None else None
-        t0, c0 = time.perf_counter(), time.process_time()
-        while first < len(jobs):
-            if sizes is not None and not _serial_pays(time.perf_counter() - t0, time.process_time() - c0,
-                                                      sum(sizes[:first]), sum(sizes[first:]),
-                                                      len(jobs) - first):
-                workers = AUTO_WORKERS
-                break
-            done(first, frf_job(*jobs[first], {"workers": idle_cpus(), **options}))
-            first += 1
+        first = _here(jobs, options, done, run_bytes(jobs) if workers is None else None)
         if first == len(jobs):
             return results
+        workers = AUTO_WORKERS
     if scheduler is None:
         _in_pool(jobs, first, options, int(workers), done)
     else:
         _on_cluster(jobs, first, options, scheduler, done)
     return results
+
+
+def _here(jobs, options: dict, done: Callable[[int, FrfResult], None], sizes: list[int] | None) -> int:
+    """Jobs computed in this process, in order, ``done(k, result)`` for each; returns how many.
+
+    The CPUs other processes leave idle (:func:`idle_cpus`) are shared out as lanes: as many runs
+    at once as there are CPUs and runs left (threads: the reading and the FFTs release the GIL), the
+    rest as FFT threads of each run, so one long run and many short ones both keep the idle CPUs
+    busy.  With ``sizes`` (bytes of every run: the automatic choice) it stops submitting as soon as
+    :func:`_serial_pays` says a pool would pay for the rest; the runs already started finish here."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    cpus = idle_cpus()
+    lanes = max(1, min(cpus, len(jobs)))
+    threads = {"workers": max(1, cpus // lanes), **options}
+    t0, c0 = time.perf_counter(), time.process_time()
+    pool = ThreadPoolExecutor(lanes, thread_name_prefix="flexmodal-run") if lanes > 1 else None
+    running: collections.deque = collections.deque()
+    submitted = finished = 0
+    last = len(jobs)                 # jobs[last:] go to a pool
+    try:
+        while submitted < last or running:
+            while submitted < last and len(running) < lanes:
+                if sizes is not None and not _serial_pays(time.perf_counter() - t0, time.process_time() - c0,
+                                                          sum(sizes[:finished]), sum(sizes[finished:]),
+                                                          len(jobs) - submitted):
+                    last = submitted
+                    break
+                running.append(pool.submit(frf_job, *jobs[submitted], threads) if pool else None)
+                submitted += 1
+            if not running:
+                break
+            fut = running.popleft()
+            done(finished, fut.result() if fut is not None else frf_job(*jobs[finished], threads))
+            finished += 1
+    finally:
+        if pool is not None:
+            pool.shutdown(wait=not running, cancel_futures=True)
+    return finished
 
 
 def _failed(job: tuple[str, str], exc: BaseException) -> ModalError:
@@ -194,8 +235,9 @@ def _on_cluster(jobs, first: int, options: dict, scheduler: str,
                          "(pip install 'flexmodal[cluster]')") from None
     try:
         client = Client(scheduler, timeout="10s")
-    except OSError as exc:
-        raise ModalError(f"scheduler {scheduler}: cannot connect ({exc})") from None
+    except (OSError, ValueError, TypeError) as exc:  # unreachable, or not an address (ValueError)
+        raise ModalError(f"--scheduler {scheduler!r}: cannot connect ({one_line(exc)}; expected an address "
+                         "such as tcp://127.0.0.1:8786)") from None
     interrupted = False
     try:
         futures = {client.submit(frf_job, str(Path(jobs[k][0]).resolve()), jobs[k][1], options, pure=False): k

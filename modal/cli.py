@@ -47,7 +47,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "ssi/fdd shapes are unscaled (unit largest entry)")
     q.add_argument("--max-order", type=opt.model_order, default=None,
                    help="cap of the pLSCF model order (default: the order grows until the modes found "
-                        "stop growing, at most 200 / number of references); ssi: highest model order "
+                        "stop growing and explain every clear CMIF peak, at most 200 / number of "
+                        "references, more while clear peaks are unexplained); ssi: highest model order "
                         "(default 100)")
     q.add_argument("--poles", default=None, metavar="F1,F2,...",
                    help="pick the stable poles nearest these frequencies, Hz (exactly these modes, no "
@@ -66,6 +67,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="ssi/fdd: reference output channels (default all outputs)")
     q.add_argument("--run", default=None, metavar="RUN_ID", help="only this run of an HDF5 file")
     q.add_argument("--uff", default=None, metavar="MODES.uff", help="also write the modes as UFF dataset 55")
+    q.add_argument("--verbose", action="store_true",
+                   help="also print the per-mode lines behind each summary warning (--quiet: no warnings)")
     t = q.add_argument_group("tracking a moving arm (--track; docs/oma.md)")
     t.add_argument("--track", action="store_true",
                    help="follow the modes in sliding windows tagged by the encoders' pose; write the modal "
@@ -130,7 +133,7 @@ def _track(args: argparse.Namespace) -> int:
         raise ModalError(f"--orders {args.orders!r}: orders must be positive")
     out = Path(args.out)
     harmonics_csv = out.with_name(out.stem + ".harmonics.csv")
-    output_file(harmonics_csv, ModalError, "harmonics table")
+    output_file(harmonics_csv, ModalError, "harmonics table", inputs=(args.input, args.out))
     from flexmodal.modal.track import write_harmonics_csv
 
     result = track(args.input, pose_from=pose_from, run_id=args.run, fmin=args.fmin, fmax=args.fmax,
@@ -163,24 +166,28 @@ def _identify(args: argparse.Namespace) -> int:
     """
     from flexmodal.api import identify
     from flexmodal.modal.errors import ModalError
-    from flexmodal.valid_output import output_file, signals_deferred
+    from flexmodal.valid_output import output_file
 
     if args.fmin is not None and args.fmax is not None and args.fmin >= args.fmax:
         raise ModalError(f"--fmin {args.fmin:g} Hz must lie below --fmax {args.fmax:g} Hz")
-    output_file(args.out, ModalError, "modal table (--out)")
+    output_file(args.out, ModalError, "modal table (--out)", inputs=(args.input,))
     if args.track:
         return _track(args)
     if args.uff:
-        output_file(args.uff, ModalError, "UFF file (--uff)")
-    from flexmodal.modal.identify import Thresholds, write_synthesis_csv  # the heavy imports, after
+        output_file(args.uff, ModalError, "UFF file (--uff)", inputs=(args.input, args.out))
+    from flexmodal.modal.identify import Thresholds, synthesis_path  # the heavy imports, after
+
+    output_file(synthesis_path(args.out), ModalError, "FRF synthesis table (next to --out)",
+                inputs=(args.input, args.out, args.uff))
 
     poles = None
     if args.poles is not None:
         try:
-            poles = [float(v) for v in args.poles.split(",") if v.strip()]
-        except ValueError:
-            raise ModalError(f"--poles {args.poles!r}: give frequencies in Hz separated by commas") from None
-        if not poles or min(poles) <= 0:
+            poles = [opt.positive_hz(v) for v in args.poles.split(",") if v.strip()]
+        except argparse.ArgumentTypeError:
+            raise ModalError(f"--poles {args.poles!r}: give frequencies in Hz (finite, > 0) separated by "
+                             "commas") from None
+        if not poles:
             raise ModalError(f"--poles {args.poles!r}: give positive frequencies in Hz")
     defaults = Thresholds()
     limits = Thresholds(defaults.need_min if args.need_min is None else args.need_min,
@@ -189,19 +196,16 @@ def _identify(args: argparse.Namespace) -> int:
     result = identify(args.input, method=args.method, fmin=args.fmin, fmax=args.fmax,
                       max_order=args.max_order, run_id=args.run, poles_hz=poles, thresholds=limits,
                       decay_rate_per_s=args.exp_window_decay, references=refs)
-    modes_by_config = {c: (m, result.outputs[c]) for c, m in result.modes.items()}
-    with signals_deferred():   # the modal table and its synthesis file: both written, or neither
-        result.table.to_csv(args.out)
-        write_synthesis_csv(args.out, modes_by_config)
-    for config, (modes, _) in modes_by_config.items():
-        if modes.order_note and not getattr(args, "quiet", False):
+    result.write(args.out, uff=args.uff)
+    quiet = getattr(args, "quiet", False)
+    for config, modes in result.modes.items():   # a loop over configurations
+        if quiet:
+            continue
+        if modes.order_note:
             print(f"flexmodal: {config}: {modes.order_note}", file=sys.stderr)
         for warning in modes.warnings:
             print(f"flexmodal: warning: {config}: {warning}", file=sys.stderr)
-    if args.uff:
-        from flexmodal.modal.uff import write_modes
-
-        modes, outputs = next(iter(modes_by_config.values()))
-        write_modes(args.uff, modes.freq_hz, modes.damping_ratio, modes.shapes, outputs)
+        for line in modes.details if args.verbose else ():
+            print(f"flexmodal: {config}: {line}", file=sys.stderr)
     print(args.out)
     return 0

@@ -9,11 +9,10 @@ import numpy as np
 
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult, coherence, estimate, estimator_name
-from flexmodal.modal.spectra import Spectra, welch_spectra
+from flexmodal.modal.spectra import Spectra, default_nfft, welch_spectra
 from flexmodal.modal.windows import added_decay_rate_per_s, impact_windows
 from flexmodal.valid_text import naming
 
-DEFAULT_NFFT_MAX = 8192
 MIN_SEGMENTS = 8
 SKIPPED_EVENTS = ("gap", "corrupt")
 
@@ -79,14 +78,6 @@ def _check_welch(spectra: Spectra, samples, names: Sequence[str], chans: Sequenc
     if flat.any():
         k = int(np.argmax(flat))
         raise ModalError(f"{where}: channel {names[chans[k]]!r} is constant ({spectra.mean[k]:g} throughout)")
-
-
-def default_nfft(n_samples: int) -> int:
-    """Largest power of two giving at least 8 half-overlapping segments, at most 8192, at least 64."""
-    n = 64
-    while n * 2 <= min(DEFAULT_NFFT_MAX, n_samples // 4):
-        n *= 2
-    return n
 
 
 def frf_of_record(samples, sample_rate_hz: float, names: Sequence[str], kinds: Sequence[str],

@@ -24,12 +24,12 @@ import numpy as np
 import scipy.fft
 import scipy.signal
 
-from flexmodal.modal.compute import default_nfft
 from flexmodal.modal.damping import log_decrement
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.identify import Modes
 from flexmodal.modal.indicators import mpc, mpd
 from flexmodal.modal.mac import mac_pairs, to_real, unit_max
+from flexmodal.modal.spectra import default_nfft, welch_spectra
 
 # A mode's correlation function decays exponentially: R² of the log-decrement line >= 0.97 for the
 # shear frame's modes, 0.66-0.83 for peaks of noise
@@ -42,33 +42,27 @@ MIN_BELL_LINES = 12
 @dataclass(frozen=True)
 class FddResult:
     """``freq_hz`` [n_freq], ``singular_values`` [n_sv, n_freq] (units² / Hz, largest first), first
-    singular vectors ``vectors`` [n_channels, n_freq] and the picked ``modes``."""
+    singular vectors ``vectors`` [n_channels, n_freq], the picked ``modes`` and the cross-spectral
+    matrix ``spectrum`` [n_freq, n_channels, n_refs] (units² / Hz) they come from."""
 
     freq_hz: np.ndarray
     singular_values: np.ndarray
     vectors: np.ndarray
     modes: Modes
+    spectrum: np.ndarray | None = None
 
 
 def cross_spectra(y: np.ndarray, sample_rate_hz: float, references: Sequence[int], nfft: int
                   ) -> tuple[np.ndarray, np.ndarray]:
     """Welch cross-spectral densities G [n_freq, n_channels, n_refs] of ``y`` [n_samples, n_channels]
     (Hann window, 50 % overlap, segment means removed), ``G_jk = 2 E[Y_j Y_k*] / (fs sum w^2)``, and
-    the frequency lines [Hz].  Segments that touch a gap (a NaN row) are left out."""
-    step = nfft // 2
-    segs = np.lib.stride_tricks.sliding_window_view(y, nfft, axis=0)[::step]     # [seg, ch, nfft]
-    segs = segs[~np.isnan(segs).any(axis=(1, 2))]
-    if segs.shape[0] == 0:
+    the frequency lines [Hz]: flexmodal's one Welch engine (:func:`flexmodal.modal.spectra.welch_spectra`,
+    the references as its inputs, every channel as an output), with its gap rule: segments that touch
+    a gap (a NaN row) are left out."""
+    s = welch_spectra(y, sample_rate_hz, list(references), range(y.shape[1]), nfft, min_segments=0)
+    if s.n_averages == 0:
         raise ModalError(f"FDD: no segment of {nfft} samples free of gaps")
-    win = scipy.signal.get_window("hann", nfft)
-    X = scipy.fft.rfft((segs - segs.mean(axis=-1, keepdims=True)) * win, axis=-1)  # [seg, ch, f]
-    G = np.einsum("scf,srf->fcr", X, X[:, list(references)].conj()) / segs.shape[0]
-    scale = 2.0 / (sample_rate_hz * np.sum(win ** 2))
-    G *= scale
-    G[0] /= 2
-    if nfft % 2 == 0:
-        G[-1] /= 2
-    return np.fft.rfftfreq(nfft, 1 / sample_rate_hz), G
+    return s.freq_hz, np.moveaxis(s.g_xf, -1, 0)
 
 
 def fdd(y: np.ndarray, sample_rate_hz: float, *, references: Sequence[int] | None = None,
@@ -113,7 +107,7 @@ def fdd(y: np.ndarray, sample_rate_hz: float, *, references: Sequence[int] | Non
     complex_shapes = unit_max(U[lines, :, 0].T)
     modes = Modes(np.array(fn), np.array(zeta), to_real(complex_shapes), complex_shapes, "fdd", False,
                   tuple(warnings), mpc=mpc(complex_shapes), mpd=mpd(complex_shapes))
-    return FddResult(f, sv.T, U[:, :, 0].T, modes)
+    return FddResult(f, sv.T, U[:, :, 0].T, modes, G)
 
 
 def _efdd(freq_hz: np.ndarray, s1: np.ndarray, u1: np.ndarray, peak: int, sample_rate_hz: float,

@@ -23,19 +23,21 @@ from flexmodal.modal.lscf import (
     PoleClusters,
     Stabilisation,
     adaptive_stabilisation,
+    one_blas_thread,
     pole_clusters,
     stable_clusters,
 )
 from flexmodal.modal.lsfd import LsfdResult, lsfd
 from flexmodal.modal.mac import mac, mass_normalised, to_real, unit_max
-from flexmodal.modal.peaks import cmif, pick_peaks, quadrature_shapes
+from flexmodal.modal.peaks import clear_peaks, cmif, pick_peaks, quadrature_shapes, visible_peaks
 from flexmodal.modal.table import ModalTable
 from flexmodal.modal.windows import remove_added_damping
 from flexmodal.valid_output import atomic_path
 
 METHODS = ("lscf", "peak")
 INDICATORS = ("mpc", "mpd", "synthesis_corr")   # per-mode validation columns of the modal table
-TOP_ORDERS = 0.75   # a mode's pole: median over its upper quarter of stable orders (they absorb noise best)
+TOP_ORDERS = 0.75   # a mode's frequency: median over its upper quarter of stable orders (least noise)
+VISIBLE_DB = 3.0   # a peak this prominent in some FRF or CMIF curve is a resonance the data show
 MIN_LINES_PER_BANDWIDTH = 8   # below this the Hann-window leakage bias on damping exceeds a few %
 
 
@@ -43,7 +45,8 @@ MIN_LINES_PER_BANDWIDTH = 8   # below this the Hann-window leakage bias on dampi
 class Modes:
     """Identified modes: ``freq_hz``, ``damping_ratio`` [n_modes]; ``shapes`` [n_out, n_modes] real
     (mass-normalised when a driving point was given, else unit maximum); ``complex_shapes`` the
-    modal constants of the reference column before conversion; warnings met on the way.
+    modal constants of the reference column before conversion; ``warnings`` met on the way, one line
+    per kind (a summary of what is said mode by mode), and ``details`` those per-mode lines.
 
     Validation (pLSCF): ``mpc`` [-] and ``mpd`` [deg] of the complex shapes, ``synthesis_corr`` [-]
     the FRAC of measured and synthesised FRFs (all of them) within three half-power bandwidths of each
@@ -70,6 +73,9 @@ class Modes:
     stabilisation: Stabilisation | None = None
     selected: np.ndarray | None = None
     order_note: str = ""
+    details: tuple[str, ...] = ()
+    freq_std_hz: np.ndarray | None = None      # 1-sigma [Hz], modal/uncertainty.py (None: not estimated)
+    damping_std: np.ndarray | None = None      # 1-sigma [-]
 
 
 @dataclass(frozen=True)
@@ -80,6 +86,12 @@ class Thresholds:
 
     need_min: float = 10.0
     mpc_min: float = 0.5
+
+
+def nyquist_note(fmax_hz: float, top_hz: float) -> str:
+    """The warning for an upper band edge above the data's highest frequency line (it is clipped)."""
+    return (f"--fmax {fmax_hz:g} Hz is above the highest frequency line, {top_hz:g} Hz (Nyquist); "
+            "clipped to it")
 
 
 def _band(freq_hz: np.ndarray, fmin: float | None, fmax: float | None) -> np.ndarray:
@@ -171,11 +183,54 @@ def _merge(clusters: PoleClusters, k: int, constants: np.ndarray) -> PoleCluster
                         out.members[:k] + (np.concatenate(clusters.members[k:k + 2]),) + out.members[k + 1:])
 
 
+def _protected(f: np.ndarray, clusters: PoleClusters, peaks_hz: np.ndarray) -> np.ndarray:
+    """[n_modes] True for the candidate nearest each clear CMIF peak (within its half-power band or two
+    lines): a mode the data show, which validation never drops."""
+    out = np.zeros(clusters.freq_hz.size, bool)
+    if clusters.freq_hz.size == 0 or peaks_hz.size == 0:
+        return out
+    k = np.argmin(np.abs(peaks_hz[:, None] - clusters.freq_hz[None, :]), axis=1)
+    reach = np.maximum(2 * clusters.damping_ratio[k] * clusters.freq_hz[k], 2 * np.median(np.diff(f)))
+    out[k[np.abs(peaks_hz - clusters.freq_hz[k]) <= reach]] = True
+    return out
+
+
+def _explained(f: np.ndarray, clusters: PoleClusters, peaks_hz: np.ndarray) -> int:
+    """How many of the clear CMIF peaks ``peaks_hz`` a mode of ``clusters`` explains (lies within its
+    half-power band or two lines of)."""
+    if clusters.freq_hz.size == 0 or peaks_hz.size == 0:
+        return 0
+    gap = np.abs(peaks_hz[:, None] - clusters.freq_hz[None, :])
+    reach = np.maximum(2 * clusters.damping_ratio * clusters.freq_hz, 2 * np.median(np.diff(f)))[None, :]
+    return int(np.any(gap <= reach, axis=1).sum())
+
+
+def _reach(f: np.ndarray, clusters: PoleClusters) -> np.ndarray:
+    """[n_modes] Hz: half the half-power bandwidth of each mode, at least 1.5 lines."""
+    return np.maximum(clusters.damping_ratio * clusters.freq_hz, 1.5 * np.median(np.diff(f)))
+
+
+def _unseen(f: np.ndarray, clusters: PoleClusters, visible_hz: np.ndarray | None) -> np.ndarray:
+    """[n_modes] True for a mode with no visible peak (:func:`modal.peaks.visible_peaks`) within its
+    half-power bandwidth (or 1.5 lines) and no other mode within three half-power bandwidths: a
+    resonance the FRFs do not show (a close neighbour may hide a mode's own peak)."""
+    fn, zeta = clusters.freq_hz, clusters.damping_ratio
+    if visible_hz is None or fn.size == 0:
+        return np.zeros(fn.size, bool)
+    seen = np.any(np.abs(visible_hz[None, :] - fn[:, None]) <= _reach(f, clusters)[:, None], axis=1)
+    gap = np.abs(fn[:, None] - fn[None, :]) + np.diag(np.full(fn.size, np.inf))
+    close = np.any(gap <= 3 * np.maximum(2 * zeta * fn, 1.5 * np.median(np.diff(f)))[:, None], axis=1)
+    return ~seen & ~close
+
+
 def _validate(f: np.ndarray, H: np.ndarray, clusters: PoleClusters, quantity: str, reference: int,
-              limits: Thresholds) -> tuple[PoleClusters, LsfdResult, list[str]]:
+              limits: Thresholds, peaks_hz: np.ndarray | None = None, visible_hz: np.ndarray | None = None
+              ) -> tuple[PoleClusters, LsfdResult, list[str]]:
     """LSFD of the candidate poles (:func:`_fit`); merge a pole pair that splits one mode
     (:func:`_split`), else drop the least needed failing mode, and refit until every mode passes (one
-    change at a time, so of two duplicates one stays)."""
+    change at a time, so of two duplicates one stays); a mode the FRFs do not show (:func:`_unseen`)
+    fails too.  The mode nearest a clear CMIF peak (``peaks_hz``, :func:`_protected`) is never
+    dropped."""
     warnings = []
     while True:   # a loop over merged or dropped modes (a few)
         fit = _fit(f, H, clusters, quantity)
@@ -194,11 +249,16 @@ def _validate(f: np.ndarray, H: np.ndarray, clusters: PoleClusters, quantity: st
         fails = fit.need < limits.need_min
         if phase is not None:
             fails |= phase < limits.mpc_min
+        shown = _protected(f, clusters, np.zeros(0) if peaks_hz is None else peaks_hz)
+        fails = (fails | _unseen(f, clusters, visible_hz)) & ~shown
         if not fails.any():
             return clusters, fit, warnings
         r = int(np.flatnonzero(fails)[np.argmin(fit.need[fails])])
         why = (f"F = {fit.need[r]:.3g} < {limits.need_min:g}: the measured FRFs do not need it"
-               if fit.need[r] < limits.need_min else f"MPC {phase[r]:.2f} < {limits.mpc_min:g}")
+               if fit.need[r] < limits.need_min else
+               f"MPC {phase[r]:.2f} < {limits.mpc_min:g}" if phase is not None and phase[r] < limits.mpc_min
+               else f"no FRF or CMIF peak of {VISIBLE_DB:g} dB within {_reach(f, clusters)[r]:.3g} Hz and "
+                    "no close mode: the FRFs show no resonance there")
         warnings.append(f"dropped the pole at {clusters.freq_hz[r]:.5g} Hz (damping "
                         f"{100 * clusters.damping_ratio[r]:.3g} %): {why}")
         clusters = clusters.subset(np.arange(clusters.freq_hz.size) != r)
@@ -206,13 +266,18 @@ def _validate(f: np.ndarray, H: np.ndarray, clusters: PoleClusters, quantity: st
 
 def _lscf(f: np.ndarray, H: np.ndarray, *, quantity: str, reference: int, max_order: int | None,
           poles_hz: Sequence[float] | None, limits: Thresholds) -> dict:
+    peaks_hz = f[clear_peaks(f, H)] if not poles_hz else np.zeros(0)   # picked poles: no floor
+    visible_hz = visible_peaks(f, H, prominence_db=VISIBLE_DB)
+
     def evaluate(stab: Stabilisation):
         if poles_hz:
-            return stable_clusters(stab, top=TOP_ORDERS).freq_hz.size, None
-        found = _validate(f, H, stable_clusters(stab, top=TOP_ORDERS), quantity, reference, limits)
-        return found[0].freq_hz.size, found
+            return stable_clusters(stab, top=TOP_ORDERS).freq_hz.size, 0, None
+        found = _validate(f, H, stable_clusters(stab, top=TOP_ORDERS), quantity, reference, limits, peaks_hz,
+                          visible_hz)
+        return found[0].freq_hz.size, _explained(f, found[0], peaks_hz), found
 
-    stab, note, found = adaptive_stabilisation(f, H, max_order=max_order, evaluate=evaluate)
+    stab, note, found = adaptive_stabilisation(f, H, max_order=max_order, evaluate=evaluate,
+                                               floor=peaks_hz.size)
     if poles_hz:
         clusters = _pick(pole_clusters(stab, TOP_ORDERS), poles_hz)
         fit, warnings = _fit(f, H, clusters, quantity), []
@@ -234,11 +299,40 @@ def _lscf(f: np.ndarray, H: np.ndarray, *, quantity: str, reference: int, max_or
             "stabilisation": stab, "selected": selected, "order_note": note, "warnings": warnings}
 
 
+ADVICE = {   # what to change when modes have few lines in their half-power band, by how the FRFs were made
+    "random": "the Hann window's leakage biases damping high at so few lines: use a longer nfft "
+              "(frf --nfft)",
+    "impact": "damping is unbiased if each hit's response died away within its record; if not, "
+              "record longer hits or use an exponential window (its damping is removed); nfft is not "
+              "the knob for impact runs",
+    None: "damping may be biased high if these FRFs were Welch-averaged (leakage); finer resolution "
+          "(longer records) resolves it",
+}
+
+
+def _resolution(f: np.ndarray, fn: np.ndarray, zeta: np.ndarray, excitation: str | None
+                ) -> tuple[list[str], tuple[str, ...]]:
+    """One summary warning for the modes with fewer than MIN_LINES_PER_BANDWIDTH lines in their
+    half-power band, with the advice right for ``excitation`` (``random`` for Welch-averaged FRFs of
+    random or sweep runs, ``impact``, None unknown), and the per-mode lines."""
+    lines = 2 * zeta * fn / float(np.median(np.diff(f)))
+    few = np.flatnonzero(lines < MIN_LINES_PER_BANDWIDTH)
+    details = tuple(f"mode at {fn[k]:.4g} Hz: {lines[k]:.1f} lines in its half-power band "
+                    f"(< {MIN_LINES_PER_BANDWIDTH})" for k in few)
+    if few.size == 0:
+        return [], details
+    at = ", ".join(f"{fn[k]:.4g}" for k in few[:4]) + (", ..." if few.size > 4 else "")
+    span = (f"{lines[few].min():.1f}" if few.size == 1 else f"{lines[few].min():.1f}-{lines[few].max():.1f}")
+    return [f"{few.size} of {fn.size} modes ({at} Hz) have {span} lines in their half-power band "
+            f"(< {MIN_LINES_PER_BANDWIDTH}): {ADVICE[excitation if excitation in ADVICE else None]}"], details
+
+
 def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: float | None = None,
              fmax: float | None = None, coherence: np.ndarray | None = None,
              quantity: str = "accelerance", decay_rate_per_s: float = 0.0, reference: int = 0,
              driving_point: int | None = None, max_order: int | None = None,
-             poles_hz: Sequence[float] | None = None, thresholds: Thresholds | None = None) -> Modes:
+             poles_hz: Sequence[float] | None = None, thresholds: Thresholds | None = None,
+             excitation: str | None = None) -> Modes:
     """Identify the modes of FRFs ``H`` [n_out, n_in, n_freq] in [fmin, fmax] Hz.
 
     ``quantity`` of H (accelerance, mobility, receptance); ``decay_rate_per_s`` [1/s] of an exponential
@@ -247,7 +341,9 @@ def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: 
     until the stable poles stop growing, capped by ``max_order``
     (:func:`modal.lscf.adaptive_stabilisation`); ``poles_hz`` picks the stable poles nearest these
     frequencies (and keeps exactly them); otherwise the automatically selected poles are validated by
-    the synthesis against ``thresholds`` (:class:`Thresholds`).
+    the synthesis against ``thresholds`` (:class:`Thresholds`).  ``excitation`` (``random``:
+    Welch-averaged FRFs, ``impact``, None unknown) chooses the advice given when modes have few lines in
+    their half-power band (one warning; the per-mode lines in ``Modes.details``).
     """
     if method not in METHODS:
         raise ModalError(f"method {method!r}: use one of {', '.join(METHODS)}")
@@ -260,11 +356,13 @@ def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: 
         raise ModalError(f"identify: exponential window decay {decay_rate_per_s:g} 1/s must be >= 0")
     band = _band(freq_hz, fmin, fmax)
     f, Hb = np.asarray(freq_hz, float)[band], H[..., band]
-    warnings: list[str] = []
+    warnings: list[str] = [nyquist_note(fmax, float(np.max(freq_hz)))] if fmax is not None \
+        and fmax > np.max(freq_hz) else []
     extra: dict = {}
     if method == "lscf":
-        extra = _lscf(f, Hb, quantity=quantity, reference=reference, max_order=max_order, poles_hz=poles_hz,
-                      limits=thresholds or Thresholds())
+        with one_blas_thread():
+            extra = _lscf(f, Hb, quantity=quantity, reference=reference, max_order=max_order,
+                          poles_hz=poles_hz, limits=thresholds or Thresholds())
         fn, zeta, constants = extra.pop("fn"), extra.pop("zeta"), extra.pop("constants")
         warnings += extra.pop("warnings")
     else:
@@ -287,12 +385,8 @@ def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: 
         zeta = np.array([h.damping_ratio for h in fits])
         used = np.array([int(np.argmin(np.abs(f - h.fn_hz))) for h in fits])
         constants = quadrature_shapes(rec, used, reference).astype(complex)
-    df = float(np.median(np.diff(f)))
-    for fr, z in zip(fn, zeta, strict=True):   # leakage biases damping when the band holds few lines
-        if 2 * z * fr < MIN_LINES_PER_BANDWIDTH * df:
-            warnings.append(f"mode at {fr:.4g} Hz: {2 * z * fr / df:.1f} lines in its half-power band "
-                            f"(< {MIN_LINES_PER_BANDWIDTH}); damping may be biased high if the FRFs "
-                            "were Welch-averaged, use a longer nfft")
+    coarse, details = _resolution(f, fn, zeta, excitation)
+    warnings += coarse
     keep = np.ones(fn.size, bool)
     if decay_rate_per_s:
         fn, zeta = remove_added_damping(fn, zeta, decay_rate_per_s)
@@ -305,7 +399,8 @@ def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: 
     order = np.flatnonzero(keep)[np.argsort(fn[keep])]
     per_mode = {k: extra[k][order] for k in ("mpc", "mpd", "synthesis_corr", "need") if k in extra}
     return Modes(fn[order], zeta[order], shapes[:, np.argsort(fn[keep])], constants[:, order], method, massn,
-                 tuple(warnings), **per_mode, **{k: v for k, v in extra.items() if k not in per_mode})
+                 tuple(warnings), **per_mode, **{k: v for k, v in extra.items() if k not in per_mode},
+                 details=details)
 
 
 def modes_table(modes: Modes, outputs: Sequence[str], *, config: str = "run",
@@ -318,6 +413,8 @@ def modes_table(modes: Modes, outputs: Sequence[str], *, config: str = "run",
         row: dict[str, object] = {"config": config, "mode": r + 1, "freq_hz": float(modes.freq_hz[r]),
                                   "damping_ratio": float(modes.damping_ratio[r]), "source": source}
         row.update({k: float(getattr(modes, k)[r]) for k in INDICATORS if getattr(modes, k) is not None})
+        row.update({k: float(getattr(modes, k)[r]) for k in ("freq_std_hz", "damping_std")
+                    if getattr(modes, k) is not None})
         row.update({f"pose.{k}": v for k, v in (pose or {}).items()})
         row.update({f"shape.{name}": float(modes.shapes[j, r]) for j, name in enumerate(outputs)})
         records.append(row)

@@ -60,9 +60,18 @@ class Stabilisation:
 
 
 @cache
-def _blas() -> ThreadpoolController:
+def _blas_pools() -> ThreadpoolController:
     """The BLAS thread pools, found once (a fresh ``threadpool_limits`` costs ~1 ms per call)."""
     return ThreadpoolController()
+
+
+def one_blas_thread():
+    """Context in which BLAS uses one thread: pLSCF's and LSFD's matrices are at most a few hundred
+    wide, and threads spinning on a shared machine cost more than they give (LSFD 10x slower on a busy
+    host).  Hold it over a whole identification: each switch back to several threads and down again
+    costs more CPU than the small products it brackets (stabilisation of 30 FRFs x 2000 lines: 25 ms of
+    CPU switching per call, 9 ms held)."""
+    return _blas_pools().limit(limits=1, user_api="blas")
 
 
 def _lag_sums(freq_hz: np.ndarray, H: np.ndarray, p_max: int, dt: float):
@@ -197,7 +206,7 @@ class PoleEstimator:
         scale = np.sqrt(np.vdot(H, H).real / H.size)                 # RMS of the FRFs
         if not scale > 0:
             raise ModalError(f"pLSCF: the FRFs are zero between {f.min():g} and {f.max():g} Hz")
-        with _blas().limit(limits=1, user_api="blas"):
+        with one_blas_thread():
             self._sums = _lag_sums(f, H / scale, self.p_cap, self.dt)
 
     def poles(self, orders: list[int]) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -208,7 +217,7 @@ class PoleEstimator:
         lags = slice(self.p_cap - p_max, self.p_cap + p_max + 1)
         r, s, t = (x[..., lags] for x in self._sums)
         # one BLAS thread: the matrices are small, and threads spinning on a shared machine cost more
-        with _blas().limit(limits=1, user_api="blas"):
+        with one_blas_thread():
             eqs = _NormalEquations(orders, r, s, t)
             band = (self.freq_hz.min(), self.freq_hz.max())
             return [_poles_of_order(i, p, eqs, self.dt, *band) for i, p in enumerate(orders)]
@@ -255,15 +264,16 @@ def stabilisation(freq_hz: np.ndarray, H: np.ndarray, orders: range | list[int],
     frequency within relative ``df``, in damping within relative ``dz`` and in shape with MAC >=
     ``mac_min`` (two or more outputs) against the nearest pole of the previous order."""
     orders = sorted({int(o) for o in orders})
-    found = PoleEstimator(freq_hz, H, orders[-1]).poles(orders)
-    return _flags(orders, found, df, dz, mac_min)
+    with one_blas_thread():
+        found = PoleEstimator(freq_hz, H, orders[-1]).poles(orders)
+        return _flags(orders, found, df, dz, mac_min)
 
 
 @dataclass(frozen=True)
 class PoleClusters:
     """Candidate modes of a stabilisation diagram, ascending in frequency: ``freq_hz``,
-    ``damping_ratio``, ``pole`` (rad/s) from the median of the upper quarter of orders of each
-    cluster's fully stable poles; ``n_stable`` the number of orders holding a fully stable pole of the
+    ``damping_ratio``, ``pole`` (rad/s) from the median of the upper quarter of orders (damping: of all
+    orders) of each cluster's fully stable poles; ``n_stable`` the number of orders holding a fully stable pole of the
     cluster, ``members`` the indices (into the Stabilisation arrays) of its poles."""
 
     freq_hz: np.ndarray
@@ -284,13 +294,15 @@ def _pole(fn: np.ndarray, zeta: np.ndarray) -> np.ndarray:
 
 
 def _summary(stab: Stabilisation, members: np.ndarray, stable: np.ndarray, top: float) -> tuple:
-    """(fn, zeta, n_stable orders, members) of one chain: medians over the fully
-    stable poles of its orders at or above the quantile ``top`` of them."""
+    """(fn, zeta, n_stable orders, members) of one chain: fn the median over the fully stable poles of
+    its orders at or above the quantile ``top`` of them, zeta the median over all its fully stable
+    poles (at a few lines per half-power band the upper orders split a leakage-broadened peak into a
+    pole pair whose damping is biased high)."""
     s = members[stable[members]]
     o = stab.order[s]
     ranked = np.sort(o)
     top = s[o >= ranked[int(np.ceil(top * (ranked.size - 1)))]]   # the quantile, without its overhead
-    f, z = np.median(stab.freq_hz[top]), np.median(stab.damping_ratio[top])
+    f, z = np.median(stab.freq_hz[top]), np.median(stab.damping_ratio[s])
     return f, z, np.unique(o).size, members
 
 
@@ -375,45 +387,75 @@ def _batch(lo: int, hi: int, n_in: int) -> list[int]:
     return [int(k) for k in o[(o % step == 0) | (o == hi)]]
 
 
+def default_caps(n_in: int, floor: int = 0, first_order: int = 24) -> tuple[int, int]:
+    """Default caps of the adaptive model order: ``DEFAULT_MAX_POLES`` poles shared among the ``n_in``
+    references, raised to 30 poles per mode the data show (``floor``: clear CMIF peaks; pLSCF needs
+    spare poles for the noise, more the more modes share the band) while some of those peaks are
+    still unexplained."""
+    base = max(first_order, DEFAULT_MAX_POLES // n_in)
+    return base, max(base, 30 * int(floor) // n_in)
+
+
+def _order_note(counts: list[tuple[int, int, int]], best: int, why: str, floor: int) -> str:
+    """The sentence saying which order was used and why, true to the counts (order, modes found, clear
+    CMIF peaks they explain)."""
+    order, n, shown = counts[best]
+    history = ", ".join(f"{c} at {o}" for o, c, _ in counts)
+    peaks = f"; they explain {shown} of the {floor} clear CMIF peaks" if floor else ""
+    return f"model order {order}: {n} modes, {why} ({history}){peaks}"
+
+
 def adaptive_stabilisation(freq_hz: np.ndarray, H: np.ndarray, *, max_order: int | None = None,
-                           evaluate: Callable[[Stabilisation], tuple[int, T]] | None = None,
-                           first_order: int = 24, growth: float = 1.5, patience: int = 2, **criteria
-                           ) -> tuple[Stabilisation, str, T | None]:
+                           evaluate: Callable[[Stabilisation], tuple[int, int, T]] | None = None,
+                           first_order: int = 24, growth: float = 1.5, patience: int = 2, floor: int = 0,
+                           **criteria) -> tuple[Stabilisation, str, T | None]:
     """Stabilisation diagram whose highest order is raised (by ``growth``, from ``first_order`` poles
     per reference) until the number of modes ``evaluate(diagram)`` finds has not grown for ``patience``
-    steps, the cap
-    ``max_order`` is reached or the band holds too few lines for a higher order.  ``evaluate`` returns
-    (number of modes, anything) and defaults to the number of :func:`stable_clusters`.  Returns the
-    diagram, a sentence saying which order was used and why, and ``evaluate``'s last result."""
+    steps, once at least one mode is found and the modes have explained all ``floor`` clear CMIF
+    peaks (:func:`modal.peaks.clear_peaks`), or until the cap: ``max_order`` when
+    given, else :func:`default_caps` (the higher one while clear peaks are unexplained), never more than
+    the band's lines allow.  ``evaluate`` returns
+    (number of modes, number of clear peaks they explain, anything) and defaults to the number of
+    :func:`stable_clusters` (explaining none).  Returns the diagram of the highest order whose modes
+    explain the most clear peaks, a sentence saying which order was used and why (true to the counts),
+    and ``evaluate``'s result at that order."""
     f = np.asarray(freq_hz, float)
     n_in = H.shape[1]
     line_cap = (f.size - 2) // 2
-    cap = min(line_cap, max_order if max_order is not None else max(first_order, DEFAULT_MAX_POLES // n_in))
+    base, far = (max_order, max_order) if max_order is not None else default_caps(n_in, floor, first_order)
+    cap = min(line_cap, far)
     if cap < 2:
         raise ModalError(f"pLSCF: {f.size} lines are too few for a model")
     if evaluate is None:
-        def evaluate(stab: Stabilisation) -> tuple[int, None]:
-            return stable_clusters(stab).freq_hz.size, None
+        def evaluate(stab: Stabilisation) -> tuple[int, int, None]:
+            return stable_clusters(stab).freq_hz.size, 0, None
     estimator = PoleEstimator(f, H, cap)
     top = min(cap, max(4, -(-first_order // n_in)))
     orders = _batch(2, top, n_in)
     found = estimator.poles(orders)
-    counts: list[tuple[int, int]] = []
+    counts: list[tuple[int, int, int]] = []
+    best = (-1, None, None)   # (index into counts, diagram, evaluate's value)
     while True:   # a loop over a few growing orders
         stab = _flags(orders, found, **criteria)
-        n, value = evaluate(stab)
-        counts.append((top, n))
-        if len(counts) > patience and max(c for _, c in counts[-patience:]) <= counts[-patience - 1][1]:
-            note = (f"model order {top}: the modes found stopped growing ({counts[-patience - 1][1]} at "
-                    f"order {counts[-patience - 1][0]}, " + ", ".join(f"{c} at {o}" for o, c in
-                                                                    counts[-patience:]) + ")")
+        n, shown, value = evaluate(stab)
+        counts.append((top, n, shown))
+        if shown >= max((s for _, _, s in counts[:-1]), default=-1):
+            best = (len(counts) - 1, stab, value)
+        most = max(c for _, c, _ in counts)
+        held = [c for _, c, _ in counts[-patience - 1:]]
+        if (len(counts) > patience and most >= 1 and counts[best[0]][2] >= floor
+                and max(held[1:]) <= held[0]):
+            why = (f"the modes found fell from {held[0]} to {held[-1]}" if held[-1] < held[0]
+                   else "the modes found stopped growing")
             break
-        if top >= cap:
-            why = "the band's lines cap" if cap == line_cap else "the maximum order caps"
-            note = f"model order {top}: {why} the order ({n} modes found)"
+        limit = cap if counts[best[0]][2] < floor or most < 1 else min(cap, base)
+        if top >= limit:
+            why = ("the band's lines cap the order" if top >= line_cap
+                   else "--max-order caps the order" if max_order is not None
+                   else "the default cap (a higher one: --max-order)")
             break
-        nxt = min(cap, max(top + 2, int(round(top * growth))))
+        nxt = min(limit, max(top + 2, int(round(top * growth))))
         more = _batch(top + 1, nxt, n_in)
         found += estimator.poles(more)
         orders, top = orders + more, nxt
-    return stab, note, value
+    return best[1], _order_note(counts, best[0], why, floor), best[2]

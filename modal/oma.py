@@ -23,10 +23,12 @@ import numpy as np
 from flexmodal.modal.compute import check_samples
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.fdd import FddResult, cross_spectra, fdd
+from flexmodal.modal.identify import nyquist_note
+from flexmodal.modal.spectra import default_nfft
 from flexmodal.modal.ssi import SsiResult, ssi_cov
 
 OUTPUT_ONLY_METHODS = ("ssi", "fdd")
-SPECTRUM_MAX_NFFT = 4096    # lines of the spectrum under the SSI stabilisation diagram: <= 2049
+FROM_FDD = object()         # SSI sized for fmin, else half the lowest FDD peak (identify_output_only)
 SPECTRUM_MARGIN = 1.1       # ... up to 10 % above the highest pole drawn
 
 
@@ -61,11 +63,14 @@ def output_channels(kinds: Sequence[str]) -> list[int]:
 def identify_output_only(samples: np.ndarray, sample_rate_hz: float, names: Sequence[str],
                          kinds: Sequence[str], *, method: str = "ssi", fmin: float | None = None,
                          fmax: float | None = None, max_order: int | None = None,
-                         references: Sequence[str] | None = None, where: str = "record"
+                         references: Sequence[str] | None = None, where: str = "record",
+                         lowest_hz: float | None | object = FROM_FDD
                          ) -> tuple[SsiResult | FddResult, tuple[str, ...]]:
     """SSI-cov or FDD of the response channels of a record [n_samples, n_channels]; returns the
     method's result (with ``.modes``) and the output channel names.  ``references`` name output
-    channels (default all); ``max_order`` is SSI's highest model order (default 100)."""
+    channels (default all); ``max_order`` is SSI's highest model order (default 100); ``lowest_hz``
+    the lowest frequency SSI's Hankel matrix is sized for (None: none; default :data:`FROM_FDD`:
+    ``fmin``, else half the lowest FDD peak)."""
     if method not in OUTPUT_ONLY_METHODS:
         raise ModalError(f"method {method!r} is not output-only ({', '.join(OUTPUT_ONLY_METHODS)})")
     samples = np.asarray(samples)
@@ -87,11 +92,15 @@ def identify_output_only(samples: np.ndarray, sample_rate_hz: float, names: Sequ
         if method == "ssi":
             result = ssi_cov(y, sample_rate_hz, references=refs, fmin=fmin, fmax=fmax,
                              max_order=100 if max_order is None else max_order,
-                             lowest_hz=fmin or _lowest_peak(y, sample_rate_hz, refs, fmax))
+                             lowest_hz=(fmin or _lowest_peak(y, sample_rate_hz, refs, fmax))
+                             if lowest_hz is FROM_FDD else lowest_hz)
         else:
             result = fdd(y, sample_rate_hz, references=refs, fmin=fmin, fmax=fmax)
     except ModalError as exc:
         raise ModalError(f"{where}: {exc}") from None
+    if fmax is not None and fmax > sample_rate_hz / 2:
+        note = nyquist_note(fmax, sample_rate_hz / 2)
+        result = replace(result, modes=replace(result.modes, warnings=(note, *result.modes.warnings)))
     if len(outputs) == 1:   # MAC, MPC, MPD and the singular vectors of one channel are always "perfect"
         warn = "one output channel: no shape criterion can tell modes from noise peaks"
         result = replace(result, modes=replace(result.modes, warnings=(*result.modes.warnings, warn)))
@@ -113,25 +122,36 @@ def output_only_results(samples: np.ndarray, sample_rate_hz: float, names: Seque
     """FDD and SSI-cov (:func:`identify_output_only` with the band ``fmin``..``fmax`` [Hz], default the
     whole record, and its other options at their defaults) of a record [n_samples, n_channels] sampled
     at ``sample_rate_hz`` [Hz], each method's failure kept as its message, and the
-    cross-spectral matrix under SSI's stabilisation diagram (Welch, Hann, 50 % overlap, segments of
-    the power of two nearest 1/8 of the record, at most :data:`SPECTRUM_MAX_NFFT` samples)."""
+    cross-spectral matrix under SSI's stabilisation diagram.  One Welch spectrum serves all three:
+    FDD's (every output against every output, :func:`flexmodal.modal.spectra.default_nfft`), whose
+    lowest peak also sizes SSI's Hankel matrix when ``fmin`` is not given; it is computed apart only
+    when FDD fails."""
     outputs = tuple(names[j] for j in output_channels(kinds))
-    found: dict[str, SsiResult | FddResult | str] = {}
-    for method in ("fdd", "ssi"):   # a loop over the two methods
+
+    def run(method: str, lowest_hz) -> SsiResult | FddResult | str:
+        nonlocal outputs
         try:
-            found[method], outputs = identify_output_only(samples, sample_rate_hz, names, kinds,
-                                                          method=method, fmin=fmin, fmax=fmax, where=where)
+            result, outputs = identify_output_only(samples, sample_rate_hz, names, kinds, method=method,
+                                                   fmin=fmin, fmax=fmax, where=where, lowest_hz=lowest_hz)
         except ModalError as exc:
-            found[method] = str(exc)
+            return str(exc)
+        return result
+
+    found = {"fdd": run("fdd", None)}
+    lowest = fmin or (0.5 * float(found["fdd"].modes.freq_hz.min())     # what _lowest_peak would find
+                      if isinstance(found["fdd"], FddResult) else None)
+    found["ssi"] = run("ssi", lowest)
     fdd_res, ssi_res = found["fdd"], found["ssi"]
     if not isinstance(ssi_res, SsiResult):
         return OmaResults(outputs, fdd_res, ssi_res)
-    y = np.asarray(samples)[:, [list(names).index(o) for o in outputs]].astype(float)
-    nfft = int(min(SPECTRUM_MAX_NFFT, 2 ** np.floor(np.log2(max(16, y.shape[0] // 8)))))
-    try:
-        f, G = cross_spectra(y, sample_rate_hz, ssi_res.references, nfft)
-    except ModalError:   # no segment free of gaps: SSI's modes without the spectrum
-        return OmaResults(outputs, fdd_res, ssi_res)
+    if isinstance(fdd_res, FddResult) and fdd_res.spectrum.shape[2] == len(ssi_res.references):
+        f, G = fdd_res.freq_hz, fdd_res.spectrum          # every output is a reference of both
+    else:
+        y = np.asarray(samples)[:, [list(names).index(o) for o in outputs]].astype(float)
+        try:
+            f, G = cross_spectra(y, sample_rate_hz, ssi_res.references, default_nfft(y.shape[0]))
+        except ModalError:   # no segment free of gaps: SSI's modes without the spectrum
+            return OmaResults(outputs, fdd_res, ssi_res)
     top = SPECTRUM_MARGIN * ssi_res.stabilisation.freq_hz.max(initial=f[-1] / SPECTRUM_MARGIN)
     band = (f > 0) & (f <= max(top, f[1]))
     return OmaResults(outputs, fdd_res, ssi_res, f[band], G[band])

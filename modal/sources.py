@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from pathlib import Path
 
 import h5py
+import numpy as np
 import pandas as pd
 
 from flexmodal.modal.compute import compute_frf, frf_of_record
@@ -15,7 +17,7 @@ from flexmodal.modal.identify import Modes, identify, modes_table
 from flexmodal.modal.oma import OUTPUT_ONLY_METHODS, default_method, identify_output_only
 from flexmodal.modal.runs_io import read_frf
 from flexmodal.modal.table import ModalTable
-from flexmodal.valid_text import naming
+from flexmodal.valid_text import naming, regular_file
 
 
 def _driving_point(run, result: FrfResult) -> int | None:
@@ -46,14 +48,44 @@ def hdf5_runs(path: str | Path, run_id: str | None = None):
         yield read_run(path, rid)
 
 
+def by_reciprocity(result: FrfResult) -> FrfResult:
+    """FRFs with more references than responses (a roving-hammer test: one accelerometer, the hammer
+    at each point) read by Maxwell-Betti reciprocity, ``H_jk = H_kj``: the hammer points become the
+    outputs (the points of the shapes) and the accelerometers the references, so pLSCF fits them with
+    as few references as there are sensors.  Other FRFs are returned as they are."""
+    n_out, n_in = result.H.shape[:2]
+    if n_in <= n_out:
+        return result
+    coh = result.coherence
+    if coh is not None:   # per response; the hammer points share it
+        coh = np.broadcast_to(np.mean(coh, axis=0), (n_in, coh.shape[-1])).copy()
+    return dataclasses.replace(result, H=np.ascontiguousarray(result.H.transpose(1, 0, 2)), coherence=coh,
+                               outputs=result.inputs, inputs=result.outputs)
+
+
+def excitation_of(result: FrfResult) -> str | None:
+    """How FRFs were made, for advice on resolution: ``impact`` (hit records, force/exponential
+    windows), ``random`` (Welch-averaged: random or sweep runs), None (stored FRFs, e.g. UFF)."""
+    if result.estimator == "stored":
+        return None
+    return "impact" if "force" in result.window or "exponential" in result.window else "random"
+
+
 def identify_frf(result: FrfResult, *, driving_point: int | None = None,
                  decay_rate_per_s: float | None = None, **options) -> Modes:
     """Modes of FRFs in memory (``modal.identify.identify`` with the result's quantity; ``options`` as
     there); ``decay_rate_per_s`` (1/s) overrides the exponential window the FRFs record."""
+    from flexmodal.modal.uncertainty import with_uncertainty
+
     decay = result.decay_rate_per_s if decay_rate_per_s is None else decay_rate_per_s
-    return identify(result.freq_hz, result.H, coherence=result.coherence,
-                    quantity=result.quantity if result.quantity in ("accelerance", "mobility", "receptance")
-                    else "accelerance", decay_rate_per_s=decay, driving_point=driving_point, **options)
+    options.setdefault("excitation", excitation_of(result))
+    quantity = result.quantity if result.quantity in ("accelerance", "mobility", "receptance") \
+        else "accelerance"
+    modes = identify(result.freq_hz, result.H, coherence=result.coherence, quantity=quantity,
+                     decay_rate_per_s=decay, driving_point=driving_point, **options)
+    # freq_std_hz / damping_std (issue 26): the poles refined with their FRF-noise uncertainty
+    return with_uncertainty(modes, result.freq_hz, result.H, result.coherence, result.n_averages, quantity,
+                            decay)
 
 
 def identify_input(path: str | Path, *, method: str | None = None, fmin: float | None = None,
@@ -66,9 +98,7 @@ def identify_input(path: str | Path, *, method: str | None = None, fmin: float |
     else ``lscf`` (modal.oma.default_method); ``references`` name the reference outputs of ssi/fdd.
     ``identify_options``: ``poles_hz``, ``thresholds``, ``decay_rate_per_s`` of
     :func:`modal.identify.identify` (the last overriding the FRFs' own exponential window)."""
-    p = Path(path)
-    if not p.is_file():
-        raise ModalError(f"{p}: input not found")
+    p = regular_file(path, ModalError, "RUN.h5 or UFF input")
     options = {"fmin": fmin, "fmax": fmax, "max_order": max_order, **identify_options}
     oma = {"fmin": fmin, "fmax": fmax, "max_order": max_order, "references": references}
     found: dict[str, tuple[Modes, tuple[str, ...]]] = {}
@@ -82,10 +112,11 @@ def identify_input(path: str | Path, *, method: str | None = None, fmin: float |
                                                     method=chosen, where=f"{p}:{run.run_id}", **oma)
                 modes = res.modes
             else:
-                result = read_frf(p, run.run_id) or compute_frf(run)
+                stored = read_frf(p, run.run_id) or compute_frf(run)
+                result = by_reciprocity(stored)
+                point = _driving_point(run, result) if result is stored else None
                 with naming(f"{p}:{run.run_id}", ModalError):
-                    modes = identify_frf(result, driving_point=_driving_point(run, result), method=chosen,
-                                         **options)
+                    modes = identify_frf(result, driving_point=point, method=chosen, **options)
                 outputs = result.outputs
             found[run.run_id] = (modes, outputs)
             tables.append(modes_table(modes, outputs, config=run.run_id, pose=run.pose).frame)
@@ -105,6 +136,7 @@ def identify_input(path: str | Path, *, method: str | None = None, fmin: float |
                                data.outputs, data.inputs, data.decay_rate_per_s)
         else:
             result = _uff_record_frfs(p, data)
+        result = by_reciprocity(result)
         with naming(p, ModalError):
             modes = identify_frf(result, method=chosen, **options)
         found[p.stem] = (modes, result.outputs)

@@ -1,16 +1,24 @@
-"""Averaged auto- and cross-spectra of all channels in one FFT pass (Welch 1967; Bendat & Piersol 2010 §11).
+"""Averaged auto- and cross-spectra of all channels in one FFT pass: the one Welch engine of flexmodal
+(Welch 1967; Bendat & Piersol 2010 §11), behind FRFs (:mod:`flexmodal.modal.compute`), impact hits
+(:mod:`flexmodal.modal.impact`) and the output cross-spectral matrix of FDD and of the SSI display
+(:mod:`flexmodal.modal.fdd`).
 
 Conventions: ``g_xf[o, i] = E[X_o conj(F_i)]``, ``g_ff[i, j] = E[F_i conj(F_j)]``, ``g_xx[o] = E[|X_o|^2]``,
-one-sided densities scaled like ``scipy.signal.csd(..., scaling="density")`` (units^2/Hz).  Segments are
-processed in blocks small enough to stay in cache: per block one real FFT over every segment and
-channel, then the products for all channel pairs at once; no loop over frequency lines or pairs.
-float32 records are transformed in single precision and accumulated in double precision.
+one-sided densities scaled like ``scipy.signal.csd(..., scaling="density")`` (units^2/Hz).  One gap rule:
+a segment holding a NaN/inf sample in a used channel, or touching a skipped interval, is left out.
+
+One pass per block of segments: the samples, row-major as stored, less the block's first sample
+(so a large offset never reaches a single-precision FFT), are windowed straight from a strided view
+(segments overlap in memory, no transpose), transformed
+with ``scipy.fft.rfft`` along the sample axis (float32 records in single precision), each segment's
+mean taken out of the first lines of its transform, and the cross-spectra formed as one batched
+matrix product over the segment axis per block (``[f, channel, segment] @ [f, segment, reference]``)
+with the auto-spectra as one more reduction; block sums are accumulated in double precision.
 """
 
 from __future__ import annotations
 
 import collections
-import functools
 import os
 import queue
 import threading
@@ -19,50 +27,36 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.fft
 
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.windows import window
 
-_BLOCK_BYTES = 8 << 20      # windowed segments per block (with its spectra, fits the shared L3 cache)
+_BLOCK_BYTES = 4 << 20      # windowed segments per block (with its spectra, stays in the L3 cache)
 _READ_BYTES = 16 << 20      # samples read per block from a dataset on disk (rounded to whole chunks)
-_TILE = 2048                # rows per tile of the block transpose (stays in L1/L2)
 
 
-@functools.cache
-def _pocketfft():
-    """scipy's pocketfft extension, the engine of ``scipy.fft.rfft``, loaded by itself: importing
-    ``scipy.fft`` costs 0.7-0.9 s (its array-API layers and scipy.special), the extension < 1 ms.
-    It is registered under its own name, so a later ``import scipy.fft`` shares it."""
-    import importlib.util
-    import sys
-
-    name = "scipy.fft._pocketfft.pypocketfft"
-    if name in sys.modules:
-        return sys.modules[name]
-    try:
-        spec = importlib.util.find_spec("scipy")
-        folder = os.path.join(os.path.dirname(spec.origin), "fft", "_pocketfft")
-        file = next(f for f in os.listdir(folder) if f.startswith("pypocketfft."))
-        spec = importlib.util.spec_from_file_location(name, os.path.join(folder, file))
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-        module.r2c                                         # noqa: B018 - the function used below
-    except (ImportError, OSError, StopIteration, AttributeError, TypeError):
-        import scipy.fft._pocketfft.pypocketfft as module  # the ordinary (slower) import
-        return module
-    sys.modules[name] = module
-    return module
+DEFAULT_NFFT_MAX = 8192
 
 
-def rfft(x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-    """Real FFT along the last axis (unnormalised, as ``scipy.fft.rfft``), single precision for
-    float32 input; into ``out`` when given (complex, last axis ``n // 2 + 1``)."""
-    return _pocketfft().r2c(x, axes=[x.ndim - 1], forward=True, inorm=0, out=out, nthreads=1)
+def default_nfft(n_samples: int) -> int:
+    """The one nfft policy of every Welch spectrum (FRFs, FDD, the SSI display): the largest power of
+    two giving at least 8 half-overlapping segments of ``n_samples``, at most 8192, at least 64.
+
+    Examples
+    --------
+    >>> default_nfft(30720), default_nfft(10 ** 7), default_nfft(100)
+    (4096, 8192, 64)
+    """
+    n = 64
+    while n * 2 <= min(DEFAULT_NFFT_MAX, n_samples // 4):
+        n *= 2
+    return n
 
 
 def rfftfreq(nfft: int, sample_rate_hz: float) -> np.ndarray:
-    """Frequencies (Hz) of the ``nfft // 2 + 1`` lines of a real FFT, computed as
-    ``numpy.fft.rfftfreq(nfft, 1 / sample_rate_hz)`` does (same values) without importing numpy.fft."""
+    """Frequencies (Hz) of the ``nfft // 2 + 1`` lines of a real FFT, as ``numpy.fft.rfftfreq(nfft,
+    1 / sample_rate_hz)`` computes them (the same values)."""
     return np.arange(nfft // 2 + 1) * (1.0 / (nfft * (1.0 / sample_rate_hz)))
 
 
@@ -91,28 +85,29 @@ def density_scale(n_freq: int, nfft: int, sample_rate_hz: float, w: np.ndarray) 
     return scale
 
 
-def _auto(z: np.ndarray, weights: np.ndarray | None) -> np.ndarray:
-    """Sum over segments (axis 1) of |z|^2 [c, f], computed on the real view (no complex temporaries)."""
-    v = z.view(z.real.dtype)                                        # [c, s, 2f]: re, im interleaved
-    sq = np.einsum("csf,csf->cf", v, v) if weights is None else np.einsum("csf,csf,s->cf", v, v, weights)
-    return sq[:, 0::2] + sq[:, 1::2]
+def products(spec: np.ndarray, refs: Sequence[int], weights: np.ndarray | None = None
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """(Weighted) sums over segments of the spectral products of one block ``spec`` [seg, f, ch]:
+    ``g`` [f, ch, ref] = sum X_ch conj(X_ref), one batched matrix product over the segment axis, and
+    ``auto`` [f, ch] = sum |X_ch|^2, one reduction over the real view (no complex temporaries)."""
+    refs = list(refs)
+    ref = (spec[:, :, refs[0]:refs[-1] + 1] if refs == list(range(refs[0], refs[-1] + 1))
+           else spec[:, :, refs]).conj()
+    if weights is not None:
+        ref *= weights[:, None, None]
+    g = np.matmul(spec.transpose(1, 2, 0), ref.transpose(1, 0, 2))
+    v = spec.view(spec.real.dtype).reshape(spec.shape[0], -1)      # re, im interleaved
+    sq = np.einsum("sk,sk->k", v, v) if weights is None else np.einsum("s,sk,sk->k", weights, v, v)
+    return g, (sq[0::2] + sq[1::2]).reshape(spec.shape[1:])
 
 
-def _products(x: np.ndarray, n_in: int, weights: np.ndarray | None, work: np.ndarray | None = None):
-    """(Weighted) sums over segments of the spectral products of one block ``x`` [ch, s, f] whose
-    first ``n_in`` channels are the inputs: g_xf [o, i, f], g_ff [i, i, f], g_xx [o, f].  ``work``
-    (at least [o, s, f], dtype of ``x``) takes the single-input products instead of a new array."""
-    f, y = x[:n_in], x[n_in:]
-    wy = y if weights is None else y * weights[None, :, None].astype(y.real.dtype)
-    if n_in == 1:
-        prod = np.multiply(wy, f[0].conj(), out=None if work is None else work[:, :y.shape[1]])
-        g_xf = prod.sum(axis=1)[:, None, :]
-        g_ff = _auto(f, weights)[:, None, :]
-    else:
-        wf = f if weights is None else f * weights[None, :, None].astype(f.real.dtype)
-        g_xf = np.einsum("osf,isf->oif", wy, f.conj())
-        g_ff = np.einsum("isf,jsf->ijf", wf, f.conj())
-    return g_xf, g_ff, _auto(y, weights)
+def _spectra(g: np.ndarray, auto: np.ndarray, n_in: int, scale: np.ndarray, freq_hz: np.ndarray,
+             n_averages: int, n_skipped: int = 0, mean: np.ndarray | None = None) -> Spectra:
+    """Spectra of the sums ``g`` [f, ch, n_in] and ``auto`` [f, ch] whose channels are the inputs
+    then the outputs, scaled by ``scale`` [f]."""
+    g_xf = np.moveaxis(g[:, n_in:], 0, -1) * scale
+    g_ff = np.moveaxis(g[:, :n_in], 0, -1) * scale
+    return Spectra(freq_hz, g_xf, g_ff, auto[:, n_in:].T * scale, n_averages, n_skipped, mean)
 
 
 def spectra_of_segments(segments: np.ndarray, n_in: int, sample_rate_hz: float,
@@ -122,13 +117,12 @@ def spectra_of_segments(segments: np.ndarray, n_in: int, sample_rate_hz: float,
     ``weights`` [n_seg] (summing to 1) gives a weighted average (linear: equal; exponential: decaying).
     """
     nfft = segments.shape[-1]
-    x = rfft(np.moveaxis(segments, 1, 0))
+    spec = scipy.fft.rfft(np.swapaxes(segments, 1, 2), axis=1)                 # [seg, f, ch]
     w = None if weights is None else np.asarray(weights, float)
-    g_xf, g_ff, g_xx = _products(x, n_in, w)
+    g, auto = products(spec, range(n_in), w)
     norm = 1.0 if w is not None else 1.0 / segments.shape[0]
-    scale = density_scale(x.shape[-1], nfft, sample_rate_hz, scale_window) * norm
-    return Spectra(rfftfreq(nfft, sample_rate_hz), g_xf * scale, g_ff * scale,
-                   g_xx * scale, segments.shape[0])
+    scale = density_scale(spec.shape[1], nfft, sample_rate_hz, scale_window) * norm
+    return _spectra(g, auto, n_in, scale, rfftfreq(nfft, sample_rate_hz), segments.shape[0])
 
 
 def _window_array(spec: str | np.ndarray, nfft: int) -> np.ndarray:
@@ -140,36 +134,21 @@ def _window_array(spec: str | np.ndarray, nfft: int) -> np.ndarray:
     return w
 
 
+def usable_cpus() -> int:
+    """CPUs this process may run on (its affinity mask, e.g. ``taskset -c 0``; else every CPU)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):   # not Linux
+        return os.cpu_count() or 1
+
+
 def _thread_count(workers: int | None) -> int:
-    """Threads for ``workers`` as in scipy.fft: None -> 1, -1 -> every CPU, n -> n."""
+    """Threads for ``workers`` as in scipy.fft: None -> 1, -1 -> every usable CPU, n -> n."""
     if workers is None:
         return 1
     if workers < 0:
-        return max(1, (os.cpu_count() or 1) + 1 + workers)
+        return max(1, usable_cpus() + 1 + workers)
     return max(1, workers)
-
-
-def _segment_means(rows: np.ndarray, view: np.ndarray, step: int) -> np.ndarray:
-    """Mean of every segment [ch, seg, 1], NaN for a segment holding a non-finite sample: from
-    (pairwise) sums of ``step``-sample pieces, each sample read once, when a segment is a whole number
-    of pieces, else directly.  This is also the pass that finds NaN/inf samples."""
-    nfft = view.shape[-1]
-    if nfft % step:
-        with np.errstate(invalid="ignore", over="ignore"):
-            return view.mean(axis=-1, keepdims=True)
-    with np.errstate(invalid="ignore", over="ignore"):
-        pieces = rows.reshape(rows.shape[0], -1, step).sum(axis=-1)   # not BLAS: its threads would spin
-    bad = ~np.isfinite(pieces)
-    if bad.any():
-        pieces[bad] = 0
-    cum = np.zeros((rows.shape[0], pieces.shape[1] + 1))
-    np.cumsum(pieces, axis=1, out=cum[:, 1:])
-    k = nfft // step
-    means = (cum[:, k:] - cum[:, :-k]) / nfft
-    if bad.any():
-        n_bad = np.concatenate([[0], np.cumsum(bad.any(axis=0))])
-        means[:, n_bad[k:] > n_bad[:-k]] = np.nan
-    return means[..., None].astype(rows.dtype)
 
 
 def skipped_segments(intervals: Sequence[tuple[int, int]], n_seg: int, nfft: int, step: int) -> np.ndarray:
@@ -186,94 +165,98 @@ def skipped_segments(intervals: Sequence[tuple[int, int]], n_seg: int, nfft: int
     return np.cumsum(marks[:-1]) > 0
 
 
-_MAX_WINDOW_LINES = 8      # a window whose spectrum has more lines is detrended before windowing
+_MAX_WINDOW_LINES = 8      # a window whose spectrum has more lines is taken out of every line
 
 
-def _window_lines(exact: np.ndarray, windows: np.ndarray) -> np.ndarray | None:
-    """The first k lines [n_ch, k] of the real FFT of every channel's window as used (``windows``,
-    possibly rounded to single precision) when the exact windows' spectra (``exact``, double) are
-    zero to rounding beyond them (|W| <= 64 eps sum|w|) and k <= _MAX_WINDOW_LINES: the periodic
-    cosine windows (rect 1 line, hann 2, flattop 5); None for any other window.  The lines left out
-    of a single-precision window are its rounding, ~1e-9 of sum|w|, below the FFT's own."""
-    big = np.abs(rfft(exact)) > 64 * np.finfo(float).eps * np.abs(exact).sum(axis=1, keepdims=True)
+def _window_lines(exact: np.ndarray, windows: np.ndarray) -> np.ndarray:
+    """The lines [f', n_ch] of the real FFT of every channel's window as used (``windows`` [n_ch,
+    nfft], possibly rounded to single precision) that a segment's mean times the window puts into its
+    transform: the first k when the exact windows' spectra (``exact``, double) are zero to rounding
+    beyond them (|W| <= 64 eps sum|w|) and k <= _MAX_WINDOW_LINES (the periodic cosine windows: rect
+    1 line, hann 2, flattop 5), else all.  The lines left out of a single-precision window are its
+    rounding, ~1e-9 of sum|w|, below the FFT's own."""
+    big = np.abs(np.fft.rfft(exact)) > 64 * np.finfo(float).eps * np.abs(exact).sum(axis=1, keepdims=True)
     k = int(np.flatnonzero(big.any(axis=0))[-1]) + 1 if big.any() else 1
-    if k > _MAX_WINDOW_LINES:
-        return None
-    return rfft(windows.astype(float))[:, :k].astype(np.result_type(windows.dtype, np.complex64))
+    lines = np.fft.rfft(windows.astype(float)).T
+    return lines[:k if k <= _MAX_WINDOW_LINES else None].astype(np.result_type(windows.dtype, np.complex64))
+
+
+_SUM_LANES = 256     # samples of a segment summed apart, in the segment's precision, before double
+
+
+def _segment_sums(seg: np.ndarray) -> np.ndarray:
+    """Sums [n_seg, n_ch] over the samples of segments ``seg`` [n_seg, nfft, n_ch]: each of q lanes
+    (q the largest divisor of nfft up to _SUM_LANES) adds every q-th sample in the segment's own
+    precision, a vectorised pass over whole rows of the contiguous segments (nfft / q terms each:
+    16 for nfft 4096), the lanes are then added in double precision; NaN/inf where a segment holds a
+    non-finite sample (this is also the pass that finds them)."""
+    n_seg, nfft, n_ch = seg.shape
+    q = next(d for d in range(min(nfft, _SUM_LANES), 0, -1) if nfft % d == 0)
+    lanes = np.add.reduce(seg.reshape(n_seg, nfft // q, q * n_ch), axis=1)        # [n_seg, q * n_ch]
+    return np.matmul(np.ones(q), lanes.reshape(n_seg, q, n_ch).astype(float))
 
 
 class _Work:
-    """One thread's work buffers, sized for ``block`` segments."""
+    """One thread's windowed-segment buffer, sized for ``block`` segments of every column."""
 
-    def __init__(self, windows: np.ndarray, n_in: int, step: int, block: int) -> None:
-        n_ch, nfft = windows.shape
-        n_freq = nfft // 2 + 1
-        real, cplx = np.dtype(windows.dtype), np.result_type(windows.dtype, np.complex64)
-        self.rows = np.empty((n_ch, (block - 1) * step + nfft), real)
-        self.spec = np.empty((n_ch, block, n_freq), cplx)
-        # the windowed segments are dead once transformed: the products reuse their memory
-        seg_bytes = n_ch * block * nfft * real.itemsize
-        work_bytes = (n_ch - n_in) * block * n_freq * cplx.itemsize
-        shared = np.empty(max(seg_bytes, work_bytes), np.uint8)
-        self.buf = shared[:seg_bytes].view(real).reshape(n_ch, block, nfft)
-        self.work = shared[:work_bytes].view(cplx).reshape(n_ch - n_in, block, n_freq)
+    def __init__(self, block: int, nfft: int, n_cols: int, dtype) -> None:
+        self.seg = np.empty((block, nfft * n_cols), dtype)
 
-    def sums(self, sources, cols, windows: np.ndarray, n_in: int, step: int, first: int, b: int,
-             skip: np.ndarray, detrend: bool, lines: np.ndarray | None) -> tuple:
-        """(g_xf, g_ff, g_xx, sum of segment means, segments used) over segments ``first`` ..
-        ``first + b - 1``: a channel-major copy of their samples less the block's first sample (from
-        the row-major ``sources`` pieces, transposed in cache-sized tiles), the windowed segments
-        from a strided view of it, one real FFT over every segment and channel, the products.
-        Each segment's mean is removed (``detrend``): where the windows' spectra ``lines`` are given
-        (their first lines, the rest zero to rounding, as for the cosine windows), by subtracting
-        mean x spectrum of the window from those lines of the transform (the FFT is linear: the same
-        as removing it before windowing, without a pass over the segments), else before windowing.
-        Removing the block's first sample first keeps a large offset out of the single-precision
-        FFT.  Segments holding a non-finite sample or marked in ``skip`` are zeroed and not counted."""
-        nfft = windows.shape[1]
-        length = (b - 1) * step + nfft
-        rows = self.rows[:, :length]
-        g0 = first * step
-        offset = np.zeros(rows.shape[0], rows.dtype)
-        if detrend:
-            start, arr = next((st, a) for st, a in sources if st <= g0 < st + a.shape[0])
-            value = np.asarray(arr[g0 - start, cols], rows.dtype)
-            offset[np.isfinite(value)] = value[np.isfinite(value)]
-        for start, arr in sources:
-            lo, hi = max(g0, start), min(g0 + length, start + arr.shape[0])
-            for t0 in range(lo, hi, _TILE):
-                t1 = min(hi, t0 + _TILE)
-                np.subtract(arr[t0 - start:t1 - start, cols].T, offset[:, None], out=rows[:, t0 - g0:t1 - g0])
-        view = np.lib.stride_tricks.sliding_window_view(rows, nfft, axis=1)[:, ::step]
-        means = _segment_means(rows, view, step)
-        bad = skip[first:first + b] | ~np.isfinite(means[:, :, 0]).all(axis=0)
-        seg = self.buf[:, :b]
-        with np.errstate(invalid="ignore"):
-            if detrend and lines is None:
-                np.subtract(view, means, out=seg)
-                seg *= windows[:, None, :]
-            else:
-                np.multiply(view, windows[:, None, :], out=seg)
+
+@dataclass(frozen=True)
+class _Plan:
+    """What every block needs: segment length and step, the flat window [nfft * n_cols] of every
+    column (row-major, as the samples), the columns ``cols`` transformed (a slice of the record's)
+    and the positions ``refs`` of the inputs among them, the window lines a unit mean puts into each
+    transform [k, n transformed] (None: no detrending), the skipped segments, FFT threads per block."""
+
+    nfft: int
+    step: int
+    flat_window: np.ndarray
+    cols: slice
+    refs: list[int]
+    lines: np.ndarray | None
+    skipped: np.ndarray
+    fft_workers: int
+
+    def sums(self, work: _Work, rows: np.ndarray, first: int, b: int) -> tuple:
+        """(g, auto, sum of segment means, segments used) of segments ``first`` .. ``first + b - 1``
+        over the transformed columns, whose samples are ``rows`` [(b - 1) * step + nfft, n_cols],
+        row-major: the segments less the block's first sample from a strided view of them (no
+        transpose; the offset kept out of single-precision transforms), their sums (the means, and
+        the check for non-finite samples), the window, one real FFT along the sample axis, each
+        segment's mean times the window's spectrum taken out of the transform (the FFT is linear:
+        the same as removing it before windowing), segments holding a non-finite sample or marked
+        skipped zeroed and not counted."""
+        n_cols = rows.shape[1]
+        isz = rows.itemsize
+        seg = work.seg[:b]
+        view = np.ndarray((b, self.nfft * n_cols), rows.dtype, rows, strides=(self.step * n_cols * isz, isz))
+        offset = np.where(np.isfinite(rows[0]), rows[0], 0)   # the block's first sample: exact to subtract
+        with np.errstate(invalid="ignore", over="ignore"):
+            np.subtract(view, np.tile(offset, self.nfft), out=seg)
+            means = _segment_sums(seg.reshape(b, self.nfft, n_cols))[:, self.cols] / self.nfft
+            np.multiply(seg, self.flat_window, out=seg)
+            spec = scipy.fft.rfft(seg.reshape(b, self.nfft, n_cols)[:, :, self.cols], axis=1,
+                                  workers=self.fft_workers)                         # [b, f, cols]
+        bad = self.skipped[first:first + b] | ~np.isfinite(means).all(axis=1)
         if bad.any():
-            seg[:, bad] = 0
-        spec = rfft(seg, self.spec[:, :b])
-        used = means[:, ~bad, 0].sum(axis=1, dtype=float) + offset.astype(float) * (b - int(bad.sum()))
-        if detrend and lines is not None:
-            means[:, bad] = 0
-            spec[:, :, :lines.shape[1]] -= means * lines[:, None, :]
-        a, c, d = _products(spec, n_in, None, self.work)
-        return a, c, d, used, b - int(bad.sum())
+            means[bad] = 0
+            spec[bad] = 0
+        if self.lines is not None:
+            k = self.lines.shape[0]
+            spec[:, :k] -= means[:, None, :].astype(spec.real.dtype) * self.lines
+        used = b - int(bad.sum())
+        g, auto = products(spec, self.refs)
+        return g, auto, means.sum(axis=0) + offset[self.cols].astype(float) * used, used
 
 
-def _row_blocks(samples, rows_per_block: int) -> Iterator[tuple[int, np.ndarray]]:
-    """(first row, rows [n, n_channels]) blocks of ``samples``: views of an in-memory array, or for
-    an on-disk dataset (h5py) reads done one block ahead in a background thread, so reading overlaps
-    the FFTs; at most three blocks are held at a time."""
+def _row_blocks(samples, rows_per_block: int, dtype) -> Iterator[tuple[int, np.ndarray]]:
+    """(first row, rows [n, n_columns] as a row-major ``dtype`` array) blocks of ``samples``: views of
+    an in-memory array that is one already, else read (an on-disk dataset, h5py) or converted one
+    block ahead in a background thread, so reading overlaps the FFTs; at most three blocks are held
+    at a time."""
     n = samples.shape[0]
-    if isinstance(samples, np.ndarray):
-        for r in range(0, n, rows_per_block):
-            yield r, samples[r:r + rows_per_block]
-        return
     ready: queue.Queue = queue.Queue(maxsize=1)
     stop = threading.Event()
 
@@ -282,7 +265,7 @@ def _row_blocks(samples, rows_per_block: int) -> Iterator[tuple[int, np.ndarray]
             for r in range(0, n, rows_per_block):
                 if stop.is_set():
                     return
-                ready.put((r, samples[r:r + rows_per_block]))
+                ready.put((r, np.ascontiguousarray(samples[r:r + rows_per_block], dtype)))
             ready.put(None)
         except BaseException as exc:  # handed to the consumer, raised there
             ready.put(exc)
@@ -315,12 +298,21 @@ def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
 
     Segments of ``nfft`` samples advance by ``nfft - round(overlap * nfft)``; each segment loses its
     mean (``detrend``) and is multiplied by its window (``input_window_spec`` on the inputs if given);
-    a window is a spec string (:mod:`modal.windows`) or an array of ``nfft`` samples.  Segments holding
-    a NaN/inf sample in any used channel, or touching one of the ``skip`` sample intervals (first
-    sample, count), are left out of the average (``n_skipped``); fewer than ``min_segments`` left is an
-    error.  Segments are processed in blocks at fixed segment indices, shared out to ``workers``
-    threads (as in scipy.fft: None one, -1 every CPU); the block sums are added in segment order, so
-    the result is the same for any thread count, timing or read block size.
+    a window is a spec string (:mod:`modal.windows`) or an array of ``nfft`` samples.  A column may be
+    both an input and an output (FDD's references).  Segments holding a NaN/inf sample in any used
+    channel, or touching one of the ``skip`` sample intervals (first sample, count), are left out of
+    the average (``n_skipped``); fewer than ``min_segments`` left is an error.  Segments are processed
+    in blocks at fixed segment indices, shared out to ``workers`` threads (as in scipy.fft: None one,
+    -1 every CPU); the block sums are added in segment order, so the result is the same for any thread
+    count, timing or read block size.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> x = np.random.default_rng(0).standard_normal((4096, 2))
+    >>> s = welch_spectra(x, 100.0, [0], [1], 256)
+    >>> s.g_xf.shape, s.g_ff.shape, s.g_xx.shape, s.n_averages
+    ((1, 1, 129), (1, 1, 129), (1, 129), 31)
     """
     n_samples = samples.shape[0]
     if nfft < 8:
@@ -330,67 +322,74 @@ def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
     if not 0.0 <= overlap < 1.0:
         raise ModalError(f"overlap {overlap}: must be in [0, 1)")
     step = nfft - int(round(overlap * nfft))
-    chans = [int(c) for c in inputs] + [int(c) for c in outputs]
     n_in = len(inputs)
-    contiguous = chans == list(range(chans[0], chans[0] + len(chans)))
-    cols = slice(chans[0], chans[0] + len(chans)) if contiguous else chans
-    dtype = np.float32 if samples.dtype == np.float32 else np.float64
+    chans = [int(c) for c in inputs] + [int(c) for c in outputs]
+    lo, hi = min(chans), max(chans) + 1
+    n_cols = samples.shape[1]
+    dtype = np.dtype(np.float32 if samples.dtype == np.float32 else np.float64)
     w_out = _window_array(window_spec, nfft)
     w_in = w_out if input_window_spec is None else _window_array(input_window_spec, nfft)
-    exact = np.vstack([np.repeat(w_in[None], n_in, 0), np.repeat(w_out[None], len(outputs), 0)])
+    exact = np.repeat(w_out[None], n_cols, 0)
+    exact[chans[:n_in]] = w_in
     windows = exact.astype(dtype)
     n_seg = (n_samples - nfft) // step + 1
-    skipped = skipped_segments(skip, n_seg, nfft, step)
-    lines = _window_lines(exact, windows) if detrend else None
-    block = max(1, min(n_seg, _BLOCK_BYTES // (len(chans) * nfft * np.dtype(dtype).itemsize)))
+    block = max(1, min(n_seg, _BLOCK_BYTES // (n_cols * nfft * dtype.itemsize)))
+    n_blocks = -(-n_seg // block)
+    n_threads = min(_thread_count(workers), n_blocks)
+    plan = _Plan(nfft, step, np.ascontiguousarray(windows.T).ravel(), slice(lo, hi), [c - lo for c in inputs],
+                 _window_lines(exact[lo:hi], windows[lo:hi]) if detrend else None,
+                 skipped_segments(skip, n_seg, nfft, step), max(1, _thread_count(workers) // n_threads))
     chunk = (getattr(samples, "chunks", None) or (1,))[0]
-    row_bytes = samples.shape[1] * np.dtype(samples.dtype).itemsize
+    row_bytes = n_cols * dtype.itemsize
     read_rows = max((block - 1) * step + nfft, _READ_BYTES // row_bytes)
     read_rows = -(-read_rows // chunk) * chunk                       # whole storage chunks
-    n_threads = min(_thread_count(workers), -(-n_seg // block))
     free: queue.SimpleQueue = queue.SimpleQueue()      # one set of work buffers per thread
     for _ in range(n_threads):
-        free.put(_Work(windows, n_in, step, block))
-    n_ch, n_freq = len(chans), nfft // 2 + 1
-    total = [np.zeros((n_ch - n_in, n_in, n_freq), complex), np.zeros((n_in, n_in, n_freq), complex),
-             np.zeros((n_ch - n_in, n_freq)), np.zeros(n_ch), 0]
+        free.put(_Work(block, nfft, n_cols, dtype))
+    n_freq = nfft // 2 + 1
+    total = [np.zeros((n_freq, hi - lo, n_in), complex), np.zeros((n_freq, hi - lo)), np.zeros(hi - lo), 0]
     pool = ThreadPoolExecutor(n_threads) if n_threads > 1 else None
     pending: collections.deque = collections.deque()
+
+    def run(j: int, rows: np.ndarray) -> tuple:
+        work = free.get()                   # whichever thread is free takes the next block
+        try:
+            return plan.sums(work, rows, j * block, min(block, n_seg - j * block))
+        finally:
+            free.put(work)
+
+    def submit(j: int, rows: np.ndarray) -> None:
+        if pool is None:
+            add(run(j, rows))
+            return
+        pending.append(pool.submit(run, j, rows))  # blocks of the next read start while these finish
+        while len(pending) > 2 * n_threads:
+            add(pending.popleft().result())
 
     def add(part: tuple) -> None:           # block sums added in segment order, whatever the threads
         for k, value in enumerate(part):
             total[k] += value
 
-    done, tail_start, tail = 0, 0, None
+    def span(j: int) -> tuple[int, int]:    # rows of segment block j
+        return j * block * step, (j * block + min(block, n_seg - j * block) - 1) * step + nfft
+
+    j, tail_start, tail = 0, 0, None      # tail: rows tail_start .. of the blocks not yet complete
     try:
-        for r0, rows in _row_blocks(samples, read_rows):
-            sources = [(tail_start, tail), (r0, rows)] if tail is not None else [(r0, rows)]
-            ready = min(n_seg, (r0 + rows.shape[0] - nfft) // step + 1)   # segments complete by now
-            jobs = [s0 for s0 in range(done, ready, block) if min(s0 + block, n_seg) <= ready]
-
-            def run(s0: int, sources=sources) -> tuple:
-                work = free.get()                   # whichever thread is free takes the next block
-                try:
-                    return work.sums(sources, cols, windows, n_in, step, s0, min(block, n_seg - s0),
-                                     skipped, detrend, lines)
-                finally:
-                    free.put(work)
-
-            if pool is None:
-                for s0 in jobs:
-                    add(run(s0))
-            else:       # blocks of the next read start while these finish; at most 2 per thread queued
-                pending.extend(pool.submit(run, s0) for s0 in jobs)
-                while len(pending) > 2 * n_threads:
-                    add(pending.popleft().result())
-            if jobs:
-                done = min(jobs[-1] + block, n_seg)
-            start = done * step
-            if start >= r0:
-                tail_start, tail = start, rows[start - r0:]
-            else:   # a read block shorter than the segment block still open: keep both
-                tail = np.concatenate([tail[start - tail_start:], rows])
-                tail_start = start
+        for r0, rows in _row_blocks(samples, read_rows, dtype):
+            end = r0 + rows.shape[0]
+            while j < n_blocks and span(j)[1] <= end:
+                first, last = span(j)
+                if first >= r0:
+                    submit(j, rows[first - r0:last - r0])
+                else:                       # the block straddles two reads: its rows alone joined
+                    submit(j, np.concatenate([tail[first - tail_start:], rows[:last - r0]]))
+                j += 1
+            if j < n_blocks:
+                first = span(j)[0]
+                if first >= r0:
+                    tail_start, tail = first, rows[first - r0:]
+                else:   # a read block shorter than the segment block still open: keep both
+                    tail, tail_start = np.concatenate([tail[first - tail_start:], rows]), first
         while pending:
             add(pending.popleft().result())
     finally:
@@ -398,10 +397,12 @@ def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
             for fut in pending:
                 fut.cancel()
             pool.shutdown()
-    g_xf, g_ff, g_xx, mean_sum, n_used = total
+    g, auto, mean_sum, n_used = total
     if n_used < min_segments:
         raise ModalError(f"only {n_used} of {n_seg} segments usable (NaN/inf samples or skipped "
                          f"intervals in the others); at least {min_segments} needed")
-    scale = density_scale(g_xx.shape[-1], nfft, sample_rate_hz, w_out) / max(n_used, 1)
-    return Spectra(rfftfreq(nfft, sample_rate_hz), g_xf * scale, g_ff * scale,
-                   g_xx * scale, n_used, n_seg - n_used, mean_sum / max(n_used, 1))
+    scale = density_scale(n_freq, nfft, sample_rate_hz, w_out) / max(n_used, 1)
+    pos = [c - lo for c in chans]                       # inputs then outputs among the transformed
+    mean = mean_sum[pos] / max(n_used, 1)
+    return _spectra(g[:, pos], auto[:, pos], n_in, scale, rfftfreq(nfft, sample_rate_hz), n_used,
+                    n_seg - n_used, mean)

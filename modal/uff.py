@@ -7,7 +7,9 @@ line; other function types in the same file are left aside) or 1
 responses with several records per channel (an impact test exported hit by hit, the hits told apart
 by load case id, record number or order) are assembled into hits of equal length.  Channels are
 named ``<node><sign><axis>`` (e.g. ``3+z``) from
-the node and direction codes.  Write: FRFs as dataset 58 type 4, modes as dataset 55 (real, three
+the node and direction codes; sensors sharing a node and direction (direction code 0: skewed or
+tri-axial sensors) are told apart by their ID line, else by their order within a load case
+(``5:0#1``, ``5:0#2``).  Write: FRFs as dataset 58 type 4, modes as dataset 55 (real, three
 components per node, the shape value in the channel's direction)."""
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult
 from flexmodal.modal.valid_uff import check_functions
 from flexmodal.valid_output import atomic_path
+from flexmodal.valid_text import regular_file
 
 _AXES = "xyz"
 _SPEC = {"accelerance": 12, "mobility": 11, "receptance": 8}
@@ -72,9 +75,7 @@ def read_uff(path: str | Path) -> UffFrfs | UffRecord:
     """FRFs (type 4) or a time record (type 1) from the dataset-58 sets of a UFF file."""
     import pyuff
 
-    p = Path(path)
-    if not p.is_file():
-        raise ModalError(f"{p}: UFF file not found")
+    p = regular_file(path, ModalError, "UFF file")
     try:
         sets = pyuff.UFF(str(p)).read_sets()
     except Exception as exc:  # pyuff raises bare Exceptions on malformed files
@@ -99,24 +100,46 @@ def read_uff(path: str | Path) -> UffFrfs | UffRecord:
                      "time response (1)")
 
 
+def _frf_outputs(p: Path, funcs: list[dict]) -> list[str]:
+    """The response channel of each FRF: ``<node><sign><axis>``, with ``#k`` when several FRFs share a
+    response and a reference: sensors told apart by their ID lines, or (direction code 0: skewed or
+    tri-axial sensors) by their order; other repeats are refused (a file written twice over)."""
+    outs = [channel_name(s["rsp_node"], s["rsp_dir"]) for s in funcs]
+    pairs = [(o, channel_name(s["ref_node"], s["ref_dir"])) for o, s in zip(outs, funcs, strict=True)]
+    names = list(outs)
+    for pair in dict.fromkeys(pairs):   # a loop over response/reference pairs
+        recs = [k for k, q in enumerate(pairs) if q == pair]
+        if len(recs) == 1:
+            continue
+        number = _by_id([funcs[k] for k in recs])
+        if len(set(number)) < len(recs):
+            if int(funcs[recs[0]]["rsp_dir"]) != 0:
+                raise ModalError(f"{p}: two FRFs for response {pair[0]} and reference {pair[1]} with the "
+                                 "same ID line (one per pair is read; sensors sharing a node and direction "
+                                 "need direction code 0 or different ID lines)")
+            number = list(range(1, len(recs) + 1))
+        for k, n in zip(recs, number, strict=True):
+            names[k] = f"{pair[0]}#{n}"
+    return names
+
+
 def _frfs(p: Path, funcs: list[dict]) -> UffFrfs:
     x = np.asarray(funcs[0]["x"], float)
+    names = _frf_outputs(p, funcs)
     outs, ins = [], []
-    for s in funcs:
+    for o, s in zip(names, funcs, strict=True):
         if np.asarray(s["x"]).shape != x.shape or not np.allclose(s["x"], x):
-            raise ModalError(f"{p}: FRF {channel_name(s['rsp_node'], s['rsp_dir'])} has a different "
-                             "frequency axis")
-        o, i = channel_name(s["rsp_node"], s["rsp_dir"]), channel_name(s["ref_node"], s["ref_dir"])
+            raise ModalError(f"{p}: FRF {o} has a different frequency axis")
+        i = channel_name(s["ref_node"], s["ref_dir"])
         outs += [o] if o not in outs else []
         ins += [i] if i not in ins else []
     H = np.full((len(outs), len(ins), x.size), np.nan, complex)
-    for s in funcs:   # a loop over FRFs
-        o, i = channel_name(s["rsp_node"], s["rsp_dir"]), channel_name(s["ref_node"], s["ref_dir"])
-        if not np.isnan(H[outs.index(o), ins.index(i), 0]):
-            raise ModalError(f"{p}: two FRFs for response {o} and reference {i} (one per pair is read)")
-        H[outs.index(o), ins.index(i)] = np.asarray(s["data"])
+    for o, s in zip(names, funcs, strict=True):   # a loop over FRFs
+        H[outs.index(o), ins.index(channel_name(s["ref_node"], s["ref_dir"]))] = np.asarray(s["data"])
     if np.isnan(H).any():
-        raise ModalError(f"{p}: the FRF matrix is incomplete (some response/reference pairs missing)")
+        j, i = np.argwhere(np.isnan(H[..., 0]))[0]
+        raise ModalError(f"{p}: the FRF matrix is incomplete: no FRF for response {outs[j]} and reference "
+                         f"{ins[i]}")
     quantity = _QUANTITY.get(int(funcs[0].get("ordinate_spec_data_type", 12)), "accelerance")
     found = {float(m.group(1)) for s in funcs for k in ("id2", "id3", "id4", "id5")
              if (m := _DECAY.search(str(s.get(k) or "")))}
@@ -133,6 +156,67 @@ def _record_key(records: list[dict]) -> list:
     return list(range(len(records)))
 
 
+def _split(funcs: list[dict], base: list[str], sensor) -> list[str]:
+    """``base`` names with ``#k`` appended where ``sensor(records of one name)`` numbers more than one
+    sensor (1-based, one number per record)."""
+    names = list(base)
+    for name in dict.fromkeys(base):   # a loop over nodes and directions
+        recs = [k for k, b in enumerate(base) if b == name]
+        number = sensor([funcs[k] for k in recs])
+        if len(set(number)) > 1:
+            for k, n in zip(recs, number, strict=True):
+                names[k] = f"{name}#{n}"
+    return names
+
+
+def _by_case(recs: list[dict]) -> list[int]:
+    """Response records of a node and direction sharing a load case (load case id, record number and
+    function id alike) are different sensors: numbered by their ID line when those tell them apart,
+    else by their order within the load case (forces are not split: one hammer or shaker per point)."""
+    if any(_is_force(r) for r in recs):
+        return [1] * len(recs)
+    cases = [tuple(str(r.get(field)) for field in ("load_case_id", "ver_num", "func_id")) for r in recs]
+    ids = _by_id(recs)
+    by_id = all(len({i for i, c in zip(ids, cases, strict=True) if c == case}) == cases.count(case)
+                for case in set(cases))
+    if by_id and len(set(ids)) == max(cases.count(case) for case in cases):
+        return ids
+    seen: dict[tuple, int] = {}
+    out = []
+    for case in cases:   # a loop over records
+        seen[case] = seen.get(case, 0) + 1
+        out.append(seen[case])
+    return out
+
+
+def _is_force(record: dict) -> bool:
+    return int(record.get("ordinate_spec_data_type", 12)) == 13
+
+
+def _by_id(recs: list[dict]) -> list[int]:
+    """Records of a node and direction with different ID lines are different sensors."""
+    ids = [str(r.get("id1", "")).strip() for r in recs]
+    order = list(dict.fromkeys(ids))
+    return [order.index(i) + 1 for i in ids]
+
+
+def _channel_names(funcs: list[dict]) -> list[str]:
+    """The channel of each time-history record: ``<node><sign><axis>`` from its node and direction;
+    when several sensors share a node and direction (direction code 0: skewed or tri-axial sensors)
+    their records are told apart, ``#k`` after the name, by the first reading that gives every channel
+    the same number of records: response records sharing a load case (the k-th of each is sensor k),
+    none (records told apart by load case, record number, function id or order are hits of one
+    channel), records with different ID lines, or every record its own sensor."""
+    base = [channel_name(s["rsp_node"], s["rsp_dir"]) for s in funcs]
+    readings = [_split(funcs, base, _by_case), base, _split(funcs, base, _by_id),
+                _split(funcs, base, lambda recs: list(range(1, len(recs) + 1)))]
+    for names in readings:   # a loop over four readings
+        counts = {n: names.count(n) for n in names}
+        if len(set(counts.values())) == 1:
+            return names
+    return base
+
+
 def _record(p: Path, funcs: list[dict]) -> UffRecord:
     dts = np.array([float(s.get("abscissa_inc") or np.diff(s["x"][:2])[0]) for s in funcs])
     if not np.all(dts > 0):
@@ -141,11 +225,10 @@ def _record(p: Path, funcs: list[dict]) -> UffRecord:
         raise ModalError(f"{p}: time histories have mismatched sample rates "
                          f"({', '.join(f'{1 / d:g}' for d in sorted(set(dts)))} Hz)")
     channels: dict[str, list[dict]] = {}
-    for s in funcs:   # a loop over records
-        channels.setdefault(channel_name(s["rsp_node"], s["rsp_dir"]), []).append(s)
+    for name, s in zip(_channel_names(funcs), funcs, strict=True):   # a loop over records
+        channels.setdefault(name, []).append(s)
     names = tuple(channels)
-    kinds = tuple("force" if int(recs[0].get("ordinate_spec_data_type", 12)) == 13 else "acceleration"
-                  for recs in channels.values())
+    kinds = tuple("force" if _is_force(recs[0]) else "acceleration" for recs in channels.values())
     counts = {n: len(r) for n, r in channels.items()}
     if len(set(counts.values())) != 1:
         raise ModalError(f"{p}: channels hold different numbers of records ("

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 from flexmodal.cli_commands import command
 
@@ -21,6 +22,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--diagnosis", metavar="diagnosis.json",
                    help="output of flexmodal diagnose (docs/formats.md)")
     p.add_argument("--rig", metavar="RIG.toml", help="rig description, to draw mode shapes on the arm")
+    p.add_argument("--geometry", metavar="GEOMETRY.uff",
+                   help="test geometry (UFF datasets 15/2411, 82, 18/2420) to animate the measured modes on")
     p.add_argument("--title", default="flexmodal validation report", help="report title")
     p.add_argument("--fmin", metavar="HZ", type=float,
                    help="runs with FRFs: identify above this frequency (as identify --fmin)")
@@ -31,6 +34,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--oma-fmax", metavar="HZ", type=float,
                    help="output-only runs: identify (SSI, FDD) below this frequency (as identify --fmax)")
     p.add_argument("--out", metavar="REPORT.html", required=True, help="the HTML file to write")
+    p.add_argument("--pdf", action="store_true",
+                   help="also print it to REPORT.pdf beside it with headless Chromium (A4, tables whole)")
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -38,22 +43,36 @@ def _run(args: argparse.Namespace) -> int:
 
     Write one HTML file (images embedded, no scripts, nothing fetched from a network): run metadata,
     channels, data quality (events, rejected hits, coherence), FRF plots, measured vs predicted modes
-    (table and plots) and the gap diagnosis.
+    (table and plots) and the gap diagnosis; with --pdf also REPORT.pdf, printed by headless Chromium.
     """
     from flexmodal.daq.run_schema import check_run_file
     from flexmodal.daq.store import expand_runs
+    from flexmodal.modal.runs_io import read_frf
     from flexmodal.reports.errors import ReportError
 
+    if args.pdf:
+        from flexmodal.reports.pdf import find_chromium
+        from flexmodal.valid_output import output_file
+
+        output_file(Path(args.out).with_suffix(".pdf"), ReportError, "PDF report (beside --out)")
+        if find_chromium() is None:
+            raise ReportError("report --pdf: no Chromium found (install chromium, or leave out --pdf)")
     if not (args.runs or args.measured or args.pred or args.diagnosis):
         raise ReportError("report: nothing to report (give RUN.h5 files, --measured, --pred or --diagnosis)")
     for path, run_id in expand_runs(args.runs):
         check_run_file(path, run_id)
-    from flexmodal.api import report  # the inputs are sound: now the heavy imports
+        read_frf(path, run_id)  # a stored FRF group that is not what flexmodal writes: refused now
+    from flexmodal.api import report, report_pdf  # the inputs are sound: now the heavy imports
 
     quiet = getattr(args, "quiet", False)
     progress = None if quiet else (lambda msg: print(f"report: {msg}", file=sys.stderr))
     out = report(args.out, runs=args.runs, measured=args.measured, repeats=args.repeat, predictions=args.pred,
                  diagnosis=args.diagnosis, rig=args.rig, title=args.title, oma_fmin=args.oma_fmin,
-                 oma_fmax=args.oma_fmax, fmin=args.fmin, fmax=args.fmax, progress=progress)
+                 oma_fmax=args.oma_fmax, fmin=args.fmin, fmax=args.fmax, geometry=args.geometry,
+                 progress=progress)
     print(out)
+    if args.pdf:
+        if progress:
+            progress("printing to PDF with headless Chromium")
+        print(report_pdf(out))
     return 0

@@ -1,13 +1,16 @@
 """The self-contained HTML validation report (jinja2 template ``templates/report.html``).
 
-One file: images are embedded as base64 PNG, the style sheet is inline, there is no script and nothing
-is fetched from a network.  Sections (each only when its input is given): comparison table of
-measured vs predicted modes (a compare.tables.Comparison), diagnosis summary (docs/formats.md,
-diagnosis JSON), frequency-vs-pose, trend and mode-shape plots, run metadata, channel list, data
-quality (trigger/overload/gap/corrupt events, rejected hits, coherence) with the FRF plot of each run
-and its identification (stabilisation diagram with the selected poles and band, measured vs
-synthesised FRFs, AutoMAC), the test-model MAC matrix where predictions share sensors with the
-measured modes, and the gap per mode before and after the diagnosed effect.
+One file: images are embedded as base64 PNG, the style sheet and the few lines of script are inline and
+nothing is fetched from a network.  A contents list links every section and each run's collapsed
+(``<details>``) block; figures and tables are numbered; the inputs are named relative to the report; a
+footer gives the versions of flexmodal and its key libraries; print CSS keeps tables whole with their
+header repeated on each page (the script opens the collapsed blocks for printing).  Sections (each only
+when its input is given): comparison table of measured vs predicted modes (a compare.tables.Comparison),
+diagnosis summary (docs/formats.md, diagnosis JSON), frequency-vs-pose, trend and mode-shape plots, run
+metadata, channel list, data quality (trigger/overload/gap/corrupt events, rejected hits, coherence)
+with the FRF plot of each run and its identification (stabilisation diagram with the selected poles
+and band, measured vs synthesised FRFs, AutoMAC), the test-model MAC matrix where predictions share
+sensors with the measured modes, and the gap per mode before and after the diagnosed effect.
 
 This module renders what it is given: the caller (``flexmodal.api.report``) reads the runs, computes
 the comparison, each run's identification and the FE shapes on the arm.
@@ -16,8 +19,12 @@ the comparison, each run's identification and the FE shapes on the arm.
 from __future__ import annotations
 
 import base64
+import numbers
+import os
+import platform
 from collections.abc import Callable, Mapping, Sequence
 from datetime import UTC, datetime
+from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 import jinja2
@@ -27,13 +34,16 @@ from flexmodal.compare.errors import CompareError
 from flexmodal.compare.result import Diagnosis, Predictions
 from flexmodal.compare.tables import Comparison, html_fragment, natural_key, ordered_configs, table_name
 from flexmodal.modal.table import ModalTable
-from flexmodal.reports import plots
+from flexmodal.reports import animate, plots
 from flexmodal.reports.errors import ReportError
+from flexmodal.reports.geometry import Geometry
 from flexmodal.reports.runs import LOW_COHERENCE, RunSummary
+from flexmodal.reports.sections import SECTIONS, ReportInputs
 from flexmodal.valid_output import write_text
 from flexmodal.valid_text import read_text
 
 UNIT_SUFFIXES = {"_deg": "deg", "_kg": "kg", "_m": "m", "_rad": "rad", "_n": "N"}
+KEY_LIBRARIES = ("numpy", "scipy", "pandas", "matplotlib", "h5py", "jinja2", "pyuff")
 
 
 def pose_unit(var: str) -> str:
@@ -45,7 +55,7 @@ def pose_unit(var: str) -> str:
 
 
 def _pose_text(pose: Mapping[str, object]) -> str:
-    return ", ".join(f"{k} = {v:g} {pose_unit(k)}" if isinstance(v, int | float) else f"{k} = {v}"
+    return ", ".join(f"{k} = {v:g} {pose_unit(k)}" if isinstance(v, numbers.Real) else f"{k} = {v}"
                      for k, v in pose.items())
 
 
@@ -90,6 +100,41 @@ def _mode_figures(measured: ModalTable | None, repeats: Sequence[ModalTable],
                          f"Measured mode shapes at {config} ({_pose_text(measured.pose(config))}) on the "
                          f"arm, with the frame FE model's best-matching mode (by MAC) as a curve"))
     return figs
+
+
+def _animations(measured: ModalTable | None, predictions: Sequence[tuple[str, ModalTable]],
+                shapes: Mapping[str, object], geometry: Geometry | None) -> list[dict]:
+    """Animated shapes per configuration: on the arm (``shapes``: {config: ArmModes}) the measured
+    modes beside the FE model's best-matching ones and the further predicted modes; on a test
+    ``geometry`` (UFF) the measured modes of the first and last configuration."""
+    if measured is None:
+        return []
+    out = []
+    n_pred = {c: len(t.freq_hz(c)) for c in measured.configs for _, t in predictions[:1] if c in t.configs}
+    for config, arm in shapes.items():
+        if isinstance(arm, str):
+            continue
+        pairs = animate.arm_pairs(arm, measured, config, n_pred.get(config, len(measured.freq_hz(config))))
+        out.append({"png": None, "rows": [_anim_row(t, m) for t, m in pairs],
+                    "heads": ("test (measured at the sensors)", "frame FE model (along the links)"),
+                    "caption": f"{config} ({_pose_text(measured.pose(config))}): each measured mode "
+                               "animated on the arm beside the FE mode it pairs with by MAC, then the "
+                               "further predicted modes; displacements exaggerated, undeformed arm dashed"})
+    if geometry is not None:
+        configs = ordered_configs(measured)
+        for config in dict.fromkeys([configs[0], configs[-1]]):
+            moving = animate.geometry_shapes(geometry, measured, config)
+            out.append({"png": None, "rows": [_anim_row(s, None) for s in moving],
+                        "heads": (f"test (on {Path(geometry.source).name})", ""),
+                        "caption": f"{config}: each measured mode animated on the test geometry "
+                                   f"({len(geometry.nodes)} nodes, {len(geometry.lines)} trace lines; "
+                                   "measured nodes marked); displacements exaggerated"})
+    return out
+
+
+def _anim_row(test: animate.Shape | None, model: animate.Shape | None) -> dict:
+    return {"test": animate.svg(test) if test else "", "test_title": test.title if test else "",
+            "model": animate.svg(model) if model else "", "model_title": model.title if model else ""}
 
 
 def _test_model_mac(measured: ModalTable | None, predictions: Sequence[tuple[str, ModalTable]]) -> list[dict]:
@@ -206,20 +251,68 @@ def _oma_figures(r: RunSummary) -> list[dict]:
             for fig, caption in oma_figures(r.oma, r.label)]
 
 
-def _run_figures(runs: Sequence[RunSummary]) -> list[dict]:
-    figs = []
-    for r in runs:
-        if r.frf is None:
-            figs += _oma_figures(r)
+def _run_figures(r: RunSummary) -> list[dict]:
+    if r.frf is None:
+        return _oma_figures(r)
+    inputs = ", ".join(r.frf.inputs) or "force"
+    unit = r.frf_unit
+    return [_fig(plots.plot_frf(r.frf.freq_hz, r.frf.H, r.frf.coherence, r.frf.outputs, unit,
+                                title=f"{r.label} ({r.run.excitation})"),
+                 f"{r.label}: FRF magnitude, phase and coherence (input {inputs}, "
+                 f"pose {_pose_text(r.run.pose)})"), *_identification_figures(r, unit)]
+
+
+def _run_sections(runs: Sequence[RunSummary]) -> list[dict]:
+    """One collapsible block per run: its anchor, a one-line summary and its figures."""
+    sections = []
+    for k, r in enumerate(runs):
+        figs = _run_figures(r)
+        drawn = sum(1 for f in figs if f["png"])
+        sections.append({"id": f"run-{k + 1}", "label": r.label, "figures": figs,
+                         "summary": f"{r.run.excitation}, {_pose_text(r.run.pose) or 'no pose'}; "
+                                    f"{drawn} figure{'s' if drawn != 1 else ''}"})
+    return sections
+
+
+def _number(figures: Sequence[dict]) -> None:
+    """Number the drawn figures in the order they appear (Figure 1, 2, ...), each with its anchor."""
+    drawn = [f for f in figures if f["png"] or f.get("rows")]
+    for k, f in enumerate(drawn):
+        f["number"], f["id"] = k + 1, f"figure-{k + 1}"
+
+
+def relative_name(path: str | Path, report_dir: Path) -> str:
+    """A file named relative to the report's folder (``runs.h5``, ``../data/modes.csv``), so the report
+    holds no absolute local path; a name that is not a file path (an in-memory table) as it is."""
+    p = Path(path)
+    if not p.is_absolute() and not p.exists():
+        return str(path)
+    try:
+        return Path(os.path.relpath(p.resolve(), report_dir.resolve())).as_posix()
+    except ValueError:  # another drive (Windows)
+        return p.name
+
+
+def versions() -> list[tuple[str, str]]:
+    """(name, version) of flexmodal, Python and the key libraries, for the report's footer."""
+    out = [("flexmodal", _version()), ("Python", platform.python_version())]
+    for name in KEY_LIBRARIES:
+        try:
+            out.append((name, version(name)))
+        except PackageNotFoundError:
             continue
-        inputs = ", ".join(r.frf.inputs) or "force"
-        unit = r.frf_unit
-        figs.append(_fig(plots.plot_frf(r.frf.freq_hz, r.frf.H, r.frf.coherence, r.frf.outputs, unit,
-                                        title=f"{r.label} ({r.run.excitation})"),
-                         f"{r.label}: FRF magnitude, phase and coherence (input {inputs}, "
-                         f"pose {_pose_text(r.run.pose)})"))
-        figs += _identification_figures(r, unit)
-    return figs
+    return out
+
+
+def _contents(sections: Sequence[tuple[str, str, bool]], run_sections: Sequence[dict]) -> list[dict]:
+    """Contents entries (anchor, title, children) of the sections shown; runs nested under theirs."""
+    out = []
+    for anchor, title, shown in sections:
+        if not shown:
+            continue
+        children = ([{"id": s["id"], "title": s["label"]} for s in run_sections] if anchor == "runs" else [])
+        out.append({"id": anchor, "title": title, "children": children})
+    return out
 
 
 def _pct(value: float | None) -> str:
@@ -233,7 +326,8 @@ def _diagnosis_view(d: Diagnosis) -> dict:
     return {
         "baseline_rms": _pct(d.baseline.rms_rel_error), "baseline_max": _pct(d.baseline.max_rel_error),
         "where": f"modes {', '.join(str(m) for m in where.modes) or '-'}; configurations "
-                 f"{', '.join(where.configs) or '-'}" + (f"; region {where.region}" if where.region else ""),
+                 f"{', '.join(sorted(where.configs, key=natural_key)) or '-'}"
+                 + (f"; region {where.region}" if where.region else ""),
         "verdict": f"{verdict.effect} at {verdict.location}" if verdict.location else verdict.effect,
         "summary": verdict.summary or "",
         "heldout": " / ".join(_pct(x) for x in (verdict.heldout_rms_rel_error_before,
@@ -260,7 +354,8 @@ def _diagnosis_frequencies(pred: Predictions) -> list[dict]:
 
     return [{"config": c, "mode": m + 1, "measured": hz(pred.measured_hz, c, m),
              "baseline": hz(pred.baseline_hz, c, m), "best": hz(pred.best_heldout_hz, c, m)}
-            for c, fm in pred.measured_hz.items() for m in range(len(fm))]
+            for c, fm in sorted(pred.measured_hz.items(), key=lambda kv: natural_key(kv[0]))
+            for m in range(len(fm))]
 
 
 def _measured_rows(measured: ModalTable) -> list[dict]:
@@ -275,8 +370,6 @@ def _measured_rows(measured: ModalTable) -> list[dict]:
 
 
 def _version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
     try:
         return version("flexmodal")
     except PackageNotFoundError:
@@ -288,7 +381,8 @@ def write_report(out_path: str | Path, *, runs: Sequence[RunSummary] = (),
                  repeats: Sequence[ModalTable] = (), predictions: Sequence[tuple[str, ModalTable]] = (),
                  shapes: Mapping[str, object] | None = None,
                  diagnosis: Diagnosis | None = None, rig_name: str = "",
-                 title: str = "flexmodal validation report",
+                 title: str = "flexmodal validation report", inputs: Sequence[str | Path] | None = None,
+                 geometry: Geometry | None = None,
                  progress: Callable[[str], None] | None = None) -> Path:
     """Render one self-contained HTML report to ``out_path`` and return its path.
 
@@ -297,34 +391,59 @@ def write_report(out_path: str | Path, *, runs: Sequence[RunSummary] = (),
     identified modes; ``repeats``: further measured tables of the same configurations (error bars);
     ``predictions``: (name, table) pairs.  ``shapes``: {config: models.arm_shapes.ArmModes, or the
     reason none is drawn} for the mode-shape plots.  ``diagnosis``: a compare.result.Diagnosis (the
-    one renderer of a diagnosis: ``diagnose`` writes its diagnosis.html with it too).  ``progress`` is
-    called with a short message per step.
+    one renderer of a diagnosis: ``diagnose`` writes its diagnosis.html with it too).  ``inputs``: the
+    files the results came from, when the results are given in memory (default: the runs' files and the
+    tables' sources); named relative to the report.  ``geometry``: a test geometry (UFF,
+    reports.geometry) to animate the measured modes on.  ``progress`` is called with a short message per step.
     """
+    out = Path(out_path)
     step = progress or (lambda _msg: None)
     summaries = _run_order(runs)
-    comparison_html = html_fragment(comparison) if comparison is not None else ""
+    comparison_html = "" if comparison is None else html_fragment(
+        comparison, caption="Table 1. Measured and predicted natural frequencies")
     step("plotting modes")
     figures_modes = _mode_figures(measured, repeats, predictions, shapes or {})
+    animations = _animations(measured, predictions, shapes or {}, geometry)
     step("plotting runs")
-    figures_runs = _run_figures(summaries)
+    run_sections = _run_sections(summaries)
     figures_diag = [] if diagnosis is None else [
         _fig(plots.plot_gap(diagnosis), "Relative frequency error per mode of the nominal model and with "
                                         "the diagnosed effect; held-out RMS error")]
+    given = ReportInputs(tuple(summaries), comparison, measured, tuple(repeats), tuple(predictions), shapes,
+                         diagnosis, rig_name)
+    added = [{"id": f"section-{name}", "title": section.title,
+              "figures": [_fig(fig, caption) for fig, caption in section.figures(given)]}
+             for name, section in SECTIONS.items()]   # the registered sections (reports.sections)
+    added = [a for a in added if a["figures"]]
+    _number([*figures_modes, *animations, *(f for s in run_sections for f in s["figures"]), *figures_diag,
+             *(f for a in added for f in a["figures"])])
     meta, quality, channel_sets = _run_rows(summaries)
-    inputs = [str(p) for p in dict.fromkeys(str(s.run.path) for s in summaries)]
-    inputs += [t.source for t in ([measured] if measured is not None else []) + list(repeats)]
-    inputs += [t.source for _, t in predictions]
+    if inputs is None:
+        inputs = [s.run.path for s in summaries]
+        inputs += [t.source for t in ([measured] if measured is not None else []) + list(repeats)]
+        inputs += [t.source for _, t in predictions]
+    named = list(dict.fromkeys(relative_name(p, out.parent) for p in inputs))
+    contents = _contents([("comparison", "Measured and predicted modes", bool(comparison_html)),
+                          ("diagnosis", "Sim-to-real gap diagnosis", diagnosis is not None),
+                          ("modes", "Modes across poses", bool(figures_modes)),
+                          ("animations", "Animated mode shapes", bool(animations)),
+                          ("identified", "Identified modes", measured is not None),
+                          ("runs", "Stored runs", bool(meta)),
+                          ("gap", "Gap before and after the diagnosed effect", bool(figures_diag)),
+                          *((a["id"], a["title"], True) for a in added)],
+                         run_sections)
     env = jinja2.Environment(loader=jinja2.PackageLoader("flexmodal.reports", "templates"),
                              autoescape=jinja2.select_autoescape(["html"]), undefined=jinja2.StrictUndefined)
     html = env.get_template("report.html").render(
-        title=title, generated=datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC"), version=_version(),
-        rig_name=rig_name, inputs=inputs, comparison_html=comparison_html,
+        title=title, generated=datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC"), versions=versions(),
+        rig_name=rig_name, inputs=named, comparison_html=comparison_html, contents=contents,
+        tables_before=1 if comparison_html else 0,
         diagnosis=_diagnosis_view(diagnosis) if diagnosis is not None else None,
-        figures_modes=figures_modes, measured_rows=_measured_rows(measured) if measured is not None else [],
-        measured_source=measured.source if measured is not None else "", runs=meta, quality=quality,
-        channel_sets=channel_sets, low_coherence=LOW_COHERENCE, figures_runs=figures_runs,
-        figures_diagnosis=figures_diag)
-    out = Path(out_path)
+        figures_modes=figures_modes, animations=animations, animation_script=animate.SCRIPT,
+        measured_rows=_measured_rows(measured) if measured is not None else [],
+        measured_source=relative_name(measured.source, out.parent) if measured is not None else "",
+        runs=meta, quality=quality, channel_sets=channel_sets, low_coherence=LOW_COHERENCE,
+        run_sections=run_sections, figures_diagnosis=figures_diag, added_sections=added)
     out.parent.mkdir(parents=True, exist_ok=True)
     return write_text(out, html)
 

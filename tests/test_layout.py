@@ -1,5 +1,5 @@
 """The layout of docs/architecture.md, checked on the source (ast): imports only go down the data flow
-checked_io <- daq <- modal <- models <- compare <- reports <- api <- fixtures <- app (*/cli.py with app);
+checked_io <- daq <- modal <- models <- compare <- reports <- fixtures <- api <- app (*/cli.py with app);
 reports renders and computes nothing; docs stand alone (no reference to a contract file that is not in
 the repository, every docs path named in --help exists)."""
 
@@ -15,13 +15,13 @@ from conftest import REPO
 
 from flexmodal.app import build_parser
 
-LAYERS = ("checked_io", "daq", "modal", "models", "compare", "reports", "api", "fixtures", "app")
+LAYERS = ("checked_io", "daq", "modal", "models", "compare", "reports", "fixtures", "api", "app")
 CLI_MODULES = ("cli.py", "diagnosis_cli.py", "__main__.py")
 # what reports/ may import from below it: data types and small display helpers, no solver
 REPORT_IMPORTS = {"flexmodal.compare.tables", "flexmodal.modal.table", "flexmodal.modal.mac",
                   "flexmodal.modal.peaks", "flexmodal.valid_text", "flexmodal.valid_output",
                   "flexmodal.compare.result", "flexmodal.compare.errors",
-                  "flexmodal.checked_io.errors"}   # the diagnosis records
+                  "flexmodal.checked_io.errors", "flexmodal.checked_io.registry"}   # the diagnosis records
 
 
 def _sources() -> list[Path]:

@@ -62,7 +62,7 @@ def test_default_frf_on_the_demo_runs_file_writes_every_run_serially(tmp_path, c
 def test_cost_rule_goes_parallel_only_when_free_cpus_make_it_pay(monkeypatch):
     """1 s of wall for the first GB; the pool's predicted speed-up is the CPUs it can use (CPUs
     less the other processes' load) over the CPUs the serial path already keeps busy."""
-    monkeypatch.setattr(batch.os, "cpu_count", lambda: 4)
+    monkeypatch.setattr(batch, "usable_cpus", lambda: 4)
     monkeypatch.setattr(batch.os, "getloadavg", lambda: (1.0, 1.0, 1.0))    # only this process
     gb = 1 << 30
     # one busy CPU, 2 workers: speed-up 2, 100 s left saves 50 s > 3 start-ups: parallel
@@ -74,15 +74,15 @@ def test_cost_rule_goes_parallel_only_when_free_cpus_make_it_pay(monkeypatch):
     monkeypatch.setattr(batch.os, "getloadavg", lambda: (2.0, 2.0, 2.0))
     assert batch._serial_pays(1.0, 2.0, gb, 100 * gb, 100) is True
     # a loaded machine (load 10 on 2 CPUs, as measured here): no free CPU, serial
-    monkeypatch.setattr(batch.os, "cpu_count", lambda: 2)
+    monkeypatch.setattr(batch, "usable_cpus", lambda: 2)
     monkeypatch.setattr(batch.os, "getloadavg", lambda: (10.0, 10.0, 10.0))
     assert batch._serial_pays(1.0, 0.3, gb, 100 * gb, 100) is True
-    monkeypatch.setattr(batch.os, "cpu_count", lambda: 1)
+    monkeypatch.setattr(batch, "usable_cpus", lambda: 1)
     assert batch._serial_pays(1.0, 1.0, gb, 100 * gb, 100) is True         # one CPU: never
 
 
 def test_serial_fft_threads_are_the_cpus_other_processes_leave_idle(monkeypatch):
-    monkeypatch.setattr(batch.os, "cpu_count", lambda: 2)
+    monkeypatch.setattr(batch, "usable_cpus", lambda: 2)
     for load, threads in ((0.2, 2), (0.7, 1), (6.0, 1)):
         monkeypatch.setattr(batch.os, "getloadavg", lambda load=load: (load, load, load))
         assert batch.idle_cpus() == threads
@@ -119,6 +119,36 @@ def test_pool_of_two_processes_equals_serial_and_names_a_failing_run(tmp_path, m
     with pytest.raises(ModalError, match=r"f[01]\.h5:r[012]: record of 1024 samples is shorter than one "
                                          r"segment \(nfft 4096\)$"):
         batch.run_batch(expand_runs(files), {"nfft": 4096}, workers=2)   # longer than the 1024 samples
+
+
+def test_serial_path_runs_as_many_runs_at_once_as_idle_cpus_with_the_same_results(tmp_path, monkeypatch):
+    """`--workers 0` with 2 idle CPUs: two runs at a time in threads of this process (each with one
+    FFT thread), written in order, each file only once no run of it is being read; the FRFs equal
+    those of one run at a time bit for bit.  One run alone gets both CPUs as FFT threads."""
+    import threading
+
+    files = [str(_runs_file(tmp_path / f"f{j}.h5", ["r0", "r1", "r2"], n=4096)) for j in range(2)]
+    jobs = expand_runs(files)
+    monkeypatch.setattr(batch, "idle_cpus", lambda: 1)
+    one = batch.run_batch(jobs, {"nfft": 256}, workers=0)
+    seen = []
+    real = batch.frf_job
+
+    def spy(path, run_id, options):
+        seen.append((threading.current_thread().name, options["workers"]))
+        return real(path, run_id, options)
+
+    monkeypatch.setattr(batch, "frf_job", spy)
+    monkeypatch.setattr(batch, "idle_cpus", lambda: 2)
+    written = []
+    two = batch.run_batch(jobs, {"nfft": 256}, workers=0, on_done=lambda p, r, res: written.append((p, r)))
+    assert len({name for name, _ in seen}) == 2 and {w for _, w in seen} == {1}
+    assert written == [(p, r) for p, r in jobs]
+    for a, b in zip(one, two, strict=True):
+        assert np.array_equal(a.H, b.H) and np.array_equal(a.coherence, b.coherence)
+    seen.clear()
+    batch.run_batch(jobs[:1], {"nfft": 256}, workers=0)
+    assert [w for _, w in seen] == [2]
 
 
 def _start(args: list[str], log: Path) -> subprocess.Popen:

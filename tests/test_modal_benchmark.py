@@ -25,11 +25,13 @@ def test_benchmark_script_runs_and_reports_ratios_and_differences(capsys, tmp_pa
     assert "ratio" in out and "max relative difference" in out
     assert "FFT floor: the 114 bare float32 FFTs" in out   # 3 channels x 38 half-overlapping segments
     assert "flexmodal modes found 6/6" in out
-    assert "PROC whole `flexmodal frf` process" in out and "flexmodal process / floor" in out
+    assert "PROC whole `flexmodal frf` process" in out and "process / floor = " in out
     assert "; 155 segments" in out      # 4 s at 5 kHz in segments of 256 advancing by 128
     assert "without a bytecode cache" in out and "`import numpy, h5py`" in out and "the rest (parser" in out
     assert "HELP `flexmodal frf --help`, bytecode cached: " in out
-    assert "so none is more than" in out and "KERNEL the PROC estimate in memory: 1 thread" in out
+    assert "so none is more than" in out and "KERNEL Welch H1 + H2 + coherence" in out
+    assert "(target <= 1.4)" in out and out.count("(target <= 0.6)") == 2
+    assert "(target <= 2: process <=" in out
     assert list(tmp_path.iterdir()) == []
 
 
@@ -47,7 +49,8 @@ def test_batch_benchmark_reports_every_case_against_serial(capsys, tmp_path):
     assert _script("batch").main(["--runs", "4", "--duration-s", "1", "--repeat", "1",
                                   "--folder", str(tmp_path)]) == 0
     out = capsys.readouterr().out
-    assert "BATCH 4 runs" in out and "serial / this = 1.00x" in out
+    assert "BATCH 4 runs" in out and "serial on 1 CPU / this = 1.00x" in out
+    assert "--workers 0 / this = 1.00x" in out
     assert "--workers 2 (pool)" in out and "default (by cost)" in out and "POOL start-up" in out
-    assert out.count("CPUs busy") == 3 and "CPUs busy pool workers not counted" in out
+    assert out.count("CPUs busy") == 4 and "CPUs busy pool workers not counted" in out
     assert list(tmp_path.iterdir()) == []

@@ -8,7 +8,7 @@ import pytest
 
 from flexmodal.fixtures.modal_sim import modal_frf, modal_response
 from flexmodal.modal.compute import frf_of_record
-from flexmodal.modal.identify import identify, identify_modes
+from flexmodal.modal.identify import ADVICE, identify, identify_modes
 from flexmodal.modal.mac import automac, mac, to_real, unit_max
 
 FN = np.array([12.0, 31.0, 55.0, 80.0])
@@ -104,9 +104,14 @@ def test_mac_tools_on_known_shapes():
 
 def test_coarse_resolution_is_reported_for_lightly_damped_modes():
     f = np.arange(5, 100, 0.1)       # 5.5 lines in the 55 Hz mode's band, at least 12 in the others
-    modes = identify(f, modal_frf(f, FN, ZETA, PHI, PHI[[0]]))
-    flagged = [w for w in modes.warnings if "lines in its half-power band" in w]
-    assert len(flagged) == 1 and "55" in flagged[0]
+    H = modal_frf(f, FN, ZETA, PHI, PHI[[0]])
+    modes = identify(f, H)
+    assert len(modes.details) == 1 and modes.details[0].startswith("mode at 55 Hz: 5.5 lines")
+    flagged = [w for w in modes.warnings if "half-power band" in w]
+    assert flagged == [f"1 of 4 modes (55 Hz) have 5.5 lines in their half-power band (< 8): {ADVICE[None]}"]
+    impact = identify(f, H, excitation="impact").warnings
+    assert [w for w in impact if "half-power band" in w][0].endswith("nfft is not the knob for impact runs")
+    assert "--nfft" in [w for w in identify(f, H, excitation="random").warnings if "half-power" in w][0]
 
 
 def test_poly_reference_lscf_with_two_inputs_is_exact():

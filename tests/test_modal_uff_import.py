@@ -17,6 +17,7 @@ from flexmodal.modal.compute import compute_frf
 from flexmodal.modal.identify import identify
 from flexmodal.modal.sources import identify_input
 from flexmodal.modal.table import ModalTable
+from flexmodal.modal.uncertainty import with_uncertainty
 
 pyuff = pytest.importorskip("pyuff")
 DATA = Path(__file__).parent / "data" / "uff"
@@ -69,6 +70,8 @@ def test_multi_record_time_histories_identify_like_the_same_hits_in_hdf5(tmp_pat
     modes = found["hits"][0]
     assert np.allclose(modes.freq_hz, FN, rtol=2e-3)
     same = identify(ref.freq_hz, ref.H, fmin=10, fmax=300, decay_rate_per_s=ref.decay_rate_per_s)
+    same = with_uncertainty(same, ref.freq_hz, ref.H, ref.coherence, ref.n_averages, ref.quantity,
+                            ref.decay_rate_per_s)   # the identification's refinement (modal/uncertainty.py)
     assert np.allclose(modes.freq_hz, same.freq_hz, rtol=1e-5)
     assert np.allclose(modes.damping_ratio, same.damping_ratio, rtol=1e-3)
 
@@ -190,3 +193,65 @@ def test_frfs_with_any_node_and_direction_numbering_are_identified(tmp_path, cap
     table = _identified(tmp_path / "numbering.uff", sets, tmp_path, capsys)
     assert np.allclose(table.freq_hz("numbering"), fn, rtol=1e-5)
     assert table.sensors == ["1001:0", "1002:5", "7-z"]
+
+
+def _th(data, node, direction, force=False, **extra):
+    return pyuff.prepare_58(func_type=1, rsp_node=node, rsp_dir=direction, ref_node=0, ref_dir=0,
+                            ordinate_spec_data_type=13 if force else 12, orddenom_spec_data_type=0,
+                            abscissa_spec_data_type=17, data=np.asarray(data, float),
+                            x=np.arange(len(data)) / FS, abscissa_spacing=1, abscissa_min=0.0,
+                            abscissa_inc=1 / FS, num_pts=len(data), **{"id1": "laser", **extra})
+
+
+def test_skewed_sensors_sharing_a_node_and_direction_code_0_are_separate_channels(tmp_path):
+    """Three laser beams at node 5 (direction code 0) and one at node 6 in one load case were refused
+    ("channels hold different numbers of records"); by order within the load case they are sensors
+    5:0#1..3, and with different ID lines the ID line tells them apart, whatever their order."""
+    from flexmodal.modal.uff import read_uff
+
+    rng = np.random.default_rng(5)
+    y = rng.standard_normal((256, 4))
+    path = tmp_path / "lasers.uff"
+    pyuff.UFF(str(path)).write_sets([_th(y[:, k], 5 if k < 3 else 6, 0, load_case_id=1) for k in range(4)],
+                                    mode="overwrite")
+    rec = read_uff(path)
+    assert rec.names == ("5:0#1", "5:0#2", "5:0#3", "6:0") and np.allclose(rec.samples, y, rtol=1e-6)
+    z = rng.standard_normal((256, 3))   # a second load case, beams written in another order
+    sets = [_th(y[:, k], 5, 0, id1=f"beam {'CAB'[k]}", load_case_id=1) for k in range(3)]
+    sets += [_th(z[:, k], 5, 0, id1=f"beam {'ABC'[k]}", load_case_id=2) for k in range(3)]
+    pyuff.UFF(str(path)).write_sets(sets, mode="overwrite")
+    rec = read_uff(path)
+    assert rec.names == ("5:0#1", "5:0#2", "5:0#3") and rec.hit_len == 256
+    assert np.allclose(rec.samples, np.concatenate([y[:, :3], z[:, [2, 0, 1]]]), rtol=1e-6)
+
+
+def test_tri_axial_sensors_with_direction_code_0_in_a_multi_hit_impact_export(tmp_path):
+    """Each hit a load case holding the force and three records of node 2 direction 0: three channels
+    of three hits each (the force is never split: one hammer per point)."""
+    from flexmodal.modal.uff import read_uff
+
+    rng = np.random.default_rng(6)
+    hits = [rng.standard_normal((512, 3)) for _ in range(3)]
+    sets = []
+    for h, resp in enumerate(hits):
+        force = np.zeros(512)
+        force[20:26] = 50 * np.sin(np.pi * np.arange(6) / 5)
+        sets += [_th(force, 1, 3, True, load_case_id=h + 1)]
+        sets += [_th(resp[:, k], 2, 0, load_case_id=h + 1) for k in range(3)]
+    path = tmp_path / "triax.uff"
+    pyuff.UFF(str(path)).write_sets(sets, mode="overwrite")
+    rec = read_uff(path)
+    assert rec.names == ("1+z", "2:0#1", "2:0#2", "2:0#3") and rec.hit_len == 512
+    assert np.allclose(rec.samples[:, 1:], np.concatenate(hits), rtol=1e-6)
+
+
+def test_frfs_of_tri_axial_sensors_with_direction_code_0_are_identified(tmp_path, capsys):
+    f = np.arange(0.0, 400.0, 0.25)
+    fn, zeta = np.array([60.0, 150.0, 310.0]), np.array([0.01, 0.01, 0.02])
+    phi = np.array([[1.0, 0.5, -0.4], [0.3, -0.9, 0.8], [-0.7, 0.6, 0.5]])
+    H = modal_frf(f, fn, zeta, phi, phi[[2]])
+    H[..., 0] = 0
+    sets = [_frf_set(f, H[k, 0], 4, 0, 7, -3) for k in range(3)]
+    table = _identified(tmp_path / "triax.uff", sets, tmp_path, capsys)
+    assert np.allclose(table.freq_hz("triax"), fn, rtol=1e-5)
+    assert table.sensors == ["4:0#1", "4:0#2", "4:0#3"]

@@ -65,8 +65,12 @@ def test_output_only_results_find_the_frame_and_its_spectrum(frame, oma):
         found = np.sort(res.modes.freq_hz)
         assert found.size == frame.freq_hz.size
         assert np.allclose(found, np.sort(frame.freq_hz), rtol=0.01)
-    # the spectrum under the diagram: scipy's Welch cross-spectral densities, band up to 1.1 x top pole
-    nfft = 2048   # 120 s at 256 Hz / 8 -> 3840 samples -> the power of two below
+    # the spectrum under the diagram: FDD's own (one Welch spectrum for both), scipy's Welch
+    # cross-spectral densities, band up to 1.1 x top pole
+    nfft = 4096   # the one nfft policy: 120 s at 256 Hz / 4 -> 7680 samples -> the power of two below
+    f_fdd = oma.fdd.freq_hz
+    assert f_fdd.size == nfft // 2 + 1
+    assert np.array_equal(oma.spectrum, oma.fdd.spectrum[(f_fdd > 0) & (f_fdd <= oma.spectrum_hz[-1])])
     top = oma.ssi.stabilisation.freq_hz.max()
     assert oma.spectrum_hz[0] == pytest.approx(256.0 / nfft)
     last_line = min(np.floor(1.1 * top * nfft / 256.0), nfft // 2) * 256.0 / nfft   # Nyquist at most
@@ -137,3 +141,22 @@ def test_report_cli_passes_the_band_and_refuses_a_bad_one(tmp_path):
                           text=True, timeout=60)
     assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
     assert "oma_fmin = 50 Hz must be below oma_fmax = 40 Hz" in done.stderr
+
+
+def test_output_only_results_compute_one_welch_spectrum(frame, oma, monkeypatch):
+    """FDD, the lowest peak that sizes SSI and the spectrum under SSI's diagram all come from one run of
+    the Welch engine (there were three: FDD twice and a display spectrum); the modes are unchanged."""
+    from flexmodal.modal import fdd as fdd_module
+
+    calls = []
+    real = fdd_module.welch_spectra
+
+    def counted(*args, **kwargs):
+        calls.append(args[4])
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(fdd_module, "welch_spectra", counted)
+    again = output_only_results(frame.samples, 256.0, NAMES, KINDS, where="frame")
+    assert calls == [4096]
+    assert np.array_equal(again.fdd.modes.freq_hz, oma.fdd.modes.freq_hz)
+    assert np.array_equal(again.ssi.modes.freq_hz, oma.ssi.modes.freq_hz)

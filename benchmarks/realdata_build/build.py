@@ -1,0 +1,563 @@
+"""Build the real-data corpus (tests/data/realdata/<entry>/): derive each entry's small data file from
+a fetched public snapshot and compute its reference modal table with an independent tool.
+
+Usage: ``python benchmarks/realdata_build/build.py [ENTRY ...]`` (all entries when none is named).
+Needs the snapshots (search tool ``fetch``, or ``git clone`` of the repository at the pinned commit
+into ``$REALDATA_MIRROR/<owner>+<name>/repo``), pyuff, sdypy-EMA and pyOMA2.  flexmodal is not used.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from common import (  # noqa: E402
+    blob,
+    check_uff,
+    ema_reference,
+    entry_dir,
+    h1,
+    oma_reference,
+    reference_json,
+    split_confident,
+    write_frf_uff,
+    write_json,
+    write_time_uff,
+)
+
+BUILDERS: dict[str, Callable[[], None]] = {}
+
+
+def builder(fn: Callable[[], None]) -> Callable[[], None]:
+    BUILDERS[fn.__name__.removeprefix("build_")] = fn
+    return fn
+
+
+def _source(name: str, **fields) -> None:
+    """source.json, and the source's licence file as it stood at the pinned commit (LICENSE.txt)."""
+    d = entry_dir(name)
+    licence = blob(fields["repository"], fields["commit"], fields.pop("licence_file", "LICENSE"))
+    (d / "LICENSE.txt").write_bytes(licence)
+    write_json(d / "source.json", {**fields, "licence_copy": "LICENSE.txt"})
+
+
+# ------------------------------------------------------------------------------------------ pyuff FRFs
+PYUFF = ("ladisk/pyuff", "44a12caa81907e2303956dbbb4fbc7267fb77881")
+
+
+@builder
+def build_pyuff_meas_point() -> None:
+    """pyuff's measured accelerances data/meas_point_1..3.txt: 1 Hz lines 0-1000 Hz; written as
+    pyuff's own README writes them (response node 1, references nodes 1-3, direction 1), band 20-1000."""
+    name = "pyuff_meas_point"
+    repo, commit = PYUFF
+    H = np.array([np.genfromtxt(io.BytesIO(blob(repo, commit, f"data/meas_point_{i}.txt")), dtype=complex)
+                  for i in (1, 2, 3)])
+    f = np.arange(H.shape[1], dtype=float)
+    band = f >= 20
+    d = entry_dir(name)
+    write_frf_uff(d / "meas_point.uff", f[band], H[:, band][None], rsp=[(1, 1)], ref=[(1, 1), (2, 1), (3, 1)],
+                  id1="TestCase")
+    check_uff(d / "meas_point.uff", list(H[:, band]))
+    approx = [51.5, 142.2, 278.7, 460.4, 687.2, 958.5]
+    modes = ema_reference(f[band], H[:, band], approx, lower=20, upper=1000, orders=(40, 60, 80))
+    write_json(d / "reference.json", reference_json(
+        modes, band_hz=(20, 1000), tol_pct=0.05, source="sdypy-EMA 0.31 LSCF on the three FRFs, 20-1000 Hz",
+        notes="Regression of issue 23: 6/6 modes within 0.05 % were found before commit 4d75f3a. "
+              "Damping 0.015-0.06 %: the half-power band is 0.1-0.5 of a 1 Hz line.",
+        extra={"regression": True}))
+    _source(name, input="meas_point.uff", kind_short="impact FRFs, 1 Hz lines, ζ≈2e-4 (regression)",
+            repository=repo, commit=commit, paths=[f"data/meas_point_{i}.txt" for i in (1, 2, 3)],
+            licence="MIT (pyuff LICENSE)", kind="impact FRFs, lightly damped, coarse resolution (1 Hz lines)",
+            structure="a lightly damped structure measured at the University of Ljubljana (LADISK), "
+                      "used in pyuff's README to show writing dataset 58; three accelerances",
+            derived="meas_point.uff: dataset 58 FRFs (function type 4, accelerance), lines 20-1000 Hz, "
+                    "response node 1 dir 1, references nodes 1-3 dir 1 as in pyuff's README",
+            script="benchmarks/realdata_build/build.py pyuff_meas_point")
+
+
+# --------------------------------------------------------------------------------- ModeLAB free beam
+MODELAB = ("alxhslm/ModeLAB", "4a27c9822565ba9eb282d479333d3d920899182c")
+
+
+def _signalcalc(text: bytes) -> tuple[np.ndarray, np.ndarray]:
+    lines = text.decode("latin-1").splitlines()
+    start = next(i for i, ln in enumerate(lines) if ln.startswith("Hz")) + 1
+    a = np.loadtxt(lines[start:])
+    return a[:, 0], a[:, 1] + 1j * a[:, 2]
+
+
+@builder
+def build_modelab_free_beam() -> None:
+    """ModeLAB's example: a free beam, roving hammer at 9 points, one accelerometer (DataPhysics
+    SignalCalc ASCII FRFs, 0.0195 Hz lines); the band ModeLAB analyses, 65-1000 Hz."""
+    name = "modelab_free_beam"
+    repo, commit = MODELAB
+    H, f = [], None
+    for i in range(1, 10):   # a loop over files
+        f, h = _signalcalc(blob(repo, commit, f"Example/SignalCalc/ASCII0000{i}/Hxysv0000{i}.txt"))
+        H.append(h)
+    H = np.array(H)
+    band = f >= 65
+    d = entry_dir(name)
+    write_frf_uff(d / "free_beam.uff", f[band], H[:, band][None], rsp=[(4, -1)],
+                  ref=[(k, 1) for k in range(1, 10)], binary=True, id1="SignalCalc Hxy")
+    check_uff(d / "free_beam.uff", list(H[:, band]))
+    # peaks of the mean |H| in ModeLAB's mode windows (setup.csv fLMode/fHMode: 108-116, 300-312,
+    # 590-600, 970-980 Hz)
+    approx = [112.0, 306.86, 596.37, 974.14]
+    modes = ema_reference(f[band], H[:, band], approx, lower=65, upper=1000, orders=(40, 60, 80))
+    write_json(d / "reference.json", reference_json(
+        modes, band_hz=(65, 1000), tol_pct=0.05,
+        source="sdypy-EMA 0.31 LSCF on the nine FRFs, 65-1000 Hz",
+        notes="Regression of issue 23: 4/4 modes within 0.05 % were found before commit 4d75f3a.",
+        extra={"regression": True}))
+    paths = [f"Example/SignalCalc/ASCII0000{i}/Hxysv0000{i}.txt" for i in range(1, 10)]
+    _source(name, input="free_beam.uff", kind_short="roving hammer, SignalCalc, ζ≈1e-4 (regression)",
+            repository=repo, commit=commit, paths=[*paths, "Example/SignalCalc/setup.csv"],
+            licence="GPL-3.0 (ModeLAB LICENSE); the derived data file is redistributed under that licence",
+            kind="roving-hammer impact FRFs exported by a commercial analyser (DataPhysics SignalCalc), "
+                 "free beam, very light damping (1-2 lines per half-power band)",
+            structure="free-free beam, hammer at 9 points along it (0.1-1.2 m), accelerometer at 0.5 m",
+            derived="free_beam.uff: dataset 58b (binary, single-precision complex) FRFs, accelerance "
+                    "(m/s^2)/N, 0.01953125 Hz lines 65-1000 Hz; response node 4 dir -1 (the "
+                    "accelerometer faces -x), references nodes 1-9 dir +1 (hammer positions)",
+            script="benchmarks/realdata_build/build.py modelab_free_beam")
+
+
+# ------------------------------------------------------------------------------- pyFRF impact, 5 hits
+PYFRF = ("ladisk/pyFRF", "55431fd3c328ddc719232cc34b891291c9982a2e")
+
+
+@builder
+def build_pyfrf_impact_5hits() -> None:
+    """pyFRF's 'real measurements' (data/measurements_1..5.npy, added in commit 55431fd, later
+    removed): five impact hits at one point, force and acceleration, 25.6 kHz, 1 s each."""
+    name = "pyfrf_impact_5hits"
+    repo, commit = PYFRF
+    hits = np.array([np.load(io.BytesIO(blob(repo, commit, f"data/measurements_{i}.npy")))
+                     for i in range(1, 6)])
+    fs = 1.0 / (hits[0, 0, 1] - hits[0, 0, 0])
+    d = entry_dir(name)
+    force, acc = hits[:, 1], hits[:, 2]
+    write_time_uff(d / "impact_5hits.uff", fs, [
+        {"node": 1, "dir": 3, "kind": "force", "records": list(force), "id1": "Force hammer"},
+        {"node": 2, "dir": 3, "kind": "acceleration", "records": list(acc), "id1": "Acceleration"}])
+    check_uff(d / "impact_5hits.uff", [*force, *acc])
+    f, H = h1(force, acc[:, None, :], fs)
+    band = (f >= 500) & (f <= 6500)
+    approx = [810, 851, 900, 1518, 2066, 2640, 3008, 3035, 3669, 3689, 4092, 4128, 4164, 4392, 4470, 4720,
+              5031,
+              5075, 5969, 6077]   # peaks of |H1| and clusters of stable poles, 500-6500 Hz
+    sure, unsure = split_confident(ema_reference(f[band], H[:, band], approx, lower=500, upper=6500,
+                                                 orders=(60, 80, 100)))
+    write_json(d / "reference.json", reference_json(
+        sure, band_hz=(500, 6500), uncertain_hz=unsure,
+        source="sdypy-EMA 0.31 LSCF on the H1 FRF (5 hits averaged, rectangular window), 500-6500 Hz",
+        notes="Modes kept where sdypy-EMA's stable poles appear in at least half of the model orders; "
+              "the hammer's force spectrum is 20 dB down at 6.8 kHz.  Close pairs near 4.13/4.16 and "
+              "5.03/5.08 kHz."))
+    _source(name, input="impact_5hits.uff", kind_short="impact, 5 hits, 1 point, dense/close modes",
+            repository=repo, commit=commit, paths=[f"data/measurements_{i}.npy" for i in range(1, 6)],
+            licence="LGPL-3.0 (pyFRF LICENSE at the commit that added the data; the repository was "
+                    "relicensed MIT by its authors in 2023, commit 635e14b)",
+            kind="impact test, one point, five hits (multi-hit average), time histories; dense modes with "
+                 "close pairs, light damping (0.02-0.1 %)",
+            structure="unnamed test piece of pyFRF's showcase (LADISK, University of Ljubljana, 2016)",
+            derived="impact_5hits.uff: dataset 58b time histories (single precision): force (ordinate "
+                    "type 13) as node 1 +z, acceleration (12) as node 2 +z (the source does not say where "
+                    "they were; node numbers are labels), one record per hit as load cases 1-5, 25 600 Hz, "
+                    "25 600 samples each",
+            script="benchmarks/realdata_build/build.py pyfrf_impact_5hits")
+
+
+# -------------------------------------------------------------------------- lvm_read impact, 2 hits
+LVM = ("ladisk/lvm_read", "a20623c1ad81f765e65cd28c50e60844b1289797")
+
+
+@builder
+def build_lvm_impact_two_hits() -> None:
+    """lvm_read's sample data/long_single_header_multi_ch.lvm (the project's shared
+    impact_two_hits.lvm): LabVIEW, hammer F and accelerations m_1, m_2, two triggered 8 s hits."""
+    import lvm_read
+
+    name = "lvm_impact_two_hits"
+    repo, commit = LVM
+    d = entry_dir(name)
+    tmp = d / "_src.lvm"
+    tmp.write_bytes(blob(repo, commit, "data/long_single_header_multi_ch.lvm"))
+    try:
+        seg = lvm_read.read(str(tmp), read_from_pickle=False, dump_file=False)[0]
+    finally:
+        tmp.unlink()
+    fs = 1.0 / seg["Delta_X"][0]
+    hits = seg["data"].reshape(2, 8192, 3)
+    force, acc = hits[:, :, 0], hits[:, :, 1:].transpose(0, 2, 1)
+    write_time_uff(d / "impact_two_hits.uff", fs, [
+        {"node": 1, "dir": 3, "kind": "force", "records": list(force), "id1": "F"},
+        {"node": 2, "dir": 3, "kind": "acceleration", "records": list(acc[:, 0]), "id1": "m_1"},
+        {"node": 3, "dir": 3, "kind": "acceleration", "records": list(acc[:, 1]), "id1": "m_2"}])
+    check_uff(d / "impact_two_hits.uff", [*force, *acc[:, 0], *acc[:, 1]])
+    # the responses have not died out by the end of the 8 s record (tail/peak 0.16): reference from the
+    # rectangular-window H1 and from an exponential window (1 % at the end) with its added damping
+    # sigma/omega removed; the two spread the damping range
+    n = force.shape[1]
+    t = np.arange(n) / fs
+    sigma = np.log(100) / t[-1]
+    approx = [15.87, 19.74, 21.12, 39.98, 70.5]
+    runs = []
+    for w in (np.ones(n), np.exp(-sigma * t)):   # a loop over the two windows
+        f, H = h1(force * w, acc * w, fs)
+        band = (f >= 5) & (f <= 100)
+        modes = ema_reference(f[band], H[:, band], approx, lower=5, upper=100, orders=(30, 40, 50))
+        if w[-1] < 1:
+            for m in modes:
+                m["damping_ratio"] -= sigma / (2 * np.pi * m["freq_hz"])
+                m["damping_range"] = [z - sigma / (2 * np.pi * m["freq_hz"]) for z in m["damping_range"]]
+        runs.append(modes)
+    merged = []
+    for a, b in zip(*runs, strict=True):
+        m = dict(a)
+        m["freq_hz"] = round(0.5 * (a["freq_hz"] + b["freq_hz"]), 6)
+        m["damping_ratio"] = float(f"{0.5 * (a['damping_ratio'] + b['damping_ratio']):.6g}")
+        scatter = max(a["freq_scatter_hz"], b["freq_scatter_hz"], abs(a["freq_hz"] - b["freq_hz"]) / 2)
+        m["freq_scatter_hz"] = float(f"{scatter:.3g}")
+        m["freq_range_hz"] = [min(a["freq_range_hz"][0], b["freq_range_hz"][0]),
+                              max(a["freq_range_hz"][1], b["freq_range_hz"][1])]
+        m["damping_range"] = [float(f"{min(a['damping_range'][0], b['damping_range'][0]):.6g}"),
+                              float(f"{max(a['damping_range'][1], b['damping_range'][1]):.6g}")]
+        m["stable_share"] = min(a["stable_share"], b["stable_share"])
+        m["estimator"] = "sdypy-EMA LSCF on H1, rectangular and exponential window (damping corrected)"
+        merged.append(m)
+    sure, unsure = split_confident(merged)
+    write_json(d / "reference.json", reference_json(
+        sure, band_hz=(5, 100), uncertain_hz=unsure,
+        source="sdypy-EMA 0.31 LSCF on H1 of the two hits, 5-100 Hz, rectangular and exponential window",
+        notes="The responses ring past the 8 s record (light damping): the damping range spans the "
+              "rectangular-window and the window-corrected estimates."))
+    _source(name, input="impact_two_hits.uff", kind_short="impact, 2 hits, LabVIEW, leakage",
+            repository=repo, commit=commit, paths=["data/long_single_header_multi_ch.lvm"],
+            licence="MIT (lvm_read LICENSE)",
+            kind="impact test, two hits, two accelerometers, time histories (LabVIEW LVM, 2013)",
+            structure="unnamed lightly damped structure; the project's shared/data/impact_two_hits.lvm is "
+                      "the "
+                      "same file (same MD5)",
+            derived="impact_two_hits.uff: dataset 58b time histories (single precision): F (force, node 1 "
+                    "+z), m_1 (node 2 +z), m_2 (node 3 +z) — the LVM names no locations, node numbers are "
+                    "labels — hits as load cases 1-2, 8192 samples at 1/0.000977 Hz",
+            script="benchmarks/realdata_build/build.py lvm_impact_two_hits")
+
+
+# ------------------------------------------------------------- beam-ring, two piezo inputs, sweeps
+MIMO = ("flavioluiz/MIMO-FRF", "d66b3c4cdbc2e08adaefd99aa60be2d146b71520")
+MIMO_RECORDS = ("symexc_1", "symexc_2", "asymexc_1", "asymexc_2")
+
+
+def _mimo_records() -> dict[str, dict]:
+    import scipy.io
+
+    return {k: scipy.io.loadmat(io.BytesIO(blob(*MIMO, f"sample_data/{k}.mat"))) for k in MIMO_RECORDS}
+
+
+def _mimo_h1(recs: list[dict]) -> tuple[np.ndarray, np.ndarray]:
+    """H1 [n_out, n_in, n_freq] from whole-record FFTs summed over records — the estimator of the
+    authors' codes/mimo_frf_H1.m (cross spectra of each test's full record, averaged over tests)."""
+    U = [np.fft.rfft(r["inputvalues"], axis=0) for r in recs]
+    Y = [np.fft.rfft(r["outputvalues"], axis=0) for r in recs]
+    Guu = sum(np.einsum("fi,fj->fij", u, u.conj()) for u in U)
+    Gyu = sum(np.einsum("fi,fj->fij", y, u.conj()) for y, u in zip(Y, U, strict=True))
+    H = np.einsum("fij,fjk->fik", Gyu, np.linalg.pinv(Guu))
+    dt = float(recs[0]["times"].ravel()[1] - recs[0]["times"].ravel()[0])
+    return np.fft.rfftfreq(recs[0]["inputvalues"].shape[0], dt), H.transpose(1, 2, 0)
+
+
+_MIMO_SOURCE = dict(
+    repository=MIMO[0], commit=MIMO[1], paths=[f"sample_data/{k}.mat" for k in MIMO_RECORDS],
+    licence="BSD-2-Clause (MIMO-FRF LICENSE, Copyright (c) 2015 Flávio Ribeiro): redistribution with "
+            "the copyright notice",
+    structure="very flexible beam-ring (wing-like) test article driven by two piezoelectric patches "
+              "(upper, lower), accelerometers at the upper and lower tip (flavioluiz/experimental-results "
+              "beam-ring); 120 s exponential sine sweeps ~0.1-250 Hz at 1 kHz, symmetric (patches in phase) "
+              "and antisymmetric (180 deg) excitation, two repetitions each",
+    caveat="the inputs are the patch drive voltages (commanded, not measured forces); they are exported as "
+           "the reference channels because flexmodal needs a force-type reference.  Accelerometers read "
+           "through a charge amplifier, 1 V per m/s^2, 0.2-100 Hz")
+
+
+@builder
+def build_beam_ring_mimo_frf() -> None:
+    """The beam-ring's 2 x 2 FRF matrix (H1 over the four sweeps, as the authors compute it), written
+    as a UFF 58 FRF export, 0.3-100 Hz."""
+    name = "beam_ring_mimo_frf"
+    recs = _mimo_records()
+    f, H = _mimo_h1(list(recs.values()))
+    band = (f >= 0.3) & (f <= 100)
+    d = entry_dir(name)
+    write_frf_uff(d / "beam_ring_frf.uff", f[band], H[:, :, band], rsp=[(11, 3), (12, 3)],
+                  ref=[(1, 3), (2, 3)], binary=True, id1="H1 MIMO")
+    check_uff(d / "beam_ring_frf.uff", [H[o, i, band] for o in range(2) for i in range(2)])
+    approx = [1.433, 11.225, 22.566, 28.125, 33.225, 65.441, 90.058]
+    sure, unsure = split_confident(ema_reference(f[band], H[:, :, band].reshape(4, -1), approx, lower=0.3,
+                                                 upper=100, orders=(40, 60, 80)))
+    write_json(d / "reference.json", reference_json(
+        sure, band_hz=(0.3, 100), uncertain_hz=unsure,
+        source="sdypy-EMA 0.31 LSCF on the four H1 FRFs (2 outputs x 2 inputs), 0.3-100 Hz",
+        notes="Candidates are the peaks of the mean |H|; 50 Hz (mains) is not a mode."))
+    _source(name, input="beam_ring_frf.uff", kind_short="sweep, 2 inputs, MIMO FRFs (UFF)",
+            kind="multi-reference (2 x 2) FRFs of sine-sweep tests, very flexible lightly damped structure",
+            derived="beam_ring_frf.uff: dataset 58b FRFs (single precision complex), responses nodes 11, 12 "
+                    "(+z), references nodes 1, 2 (+z, the two patches), 1/120 Hz lines 0.3-100 Hz; H1 as in "
+                    "the authors' codes/mimo_frf_H1.m over the four records",
+            script="benchmarks/realdata_build/build.py beam_ring_mimo_frf", **_MIMO_SOURCE)
+
+
+@builder
+def build_beam_ring_chirp() -> None:
+    """One symmetric sweep of the beam-ring as time histories (drive voltage + 2 accelerations),
+    decimated 1000 -> 250 Hz (zero-phase FIR anti-alias filter, applied alike to input and outputs)."""
+    from scipy.signal import decimate
+
+    name = "beam_ring_chirp"
+    recs = _mimo_records()
+    r = recs["symexc_1"]
+    u = decimate(r["inputvalues"][:, 0], 4, ftype="fir", zero_phase=True)
+    y = decimate(r["outputvalues"], 4, ftype="fir", axis=0, zero_phase=True)
+    fs = 250.0
+    d = entry_dir(name)
+    write_time_uff(d / "beam_ring_chirp.uff", fs, [
+        {"node": 1, "dir": 3, "kind": "force", "records": [u], "id1": "patch drive (V)", "units": "V"},
+        {"node": 11, "dir": 3, "kind": "acceleration", "records": [y[:, 0]], "id1": "upper tip"},
+        {"node": 12, "dir": 3, "kind": "acceleration", "records": [y[:, 1]], "id1": "lower tip"}])
+    check_uff(d / "beam_ring_chirp.uff", [u, y[:, 0], y[:, 1]])
+    # reference: the symmetric sweeps only (what this record can show), full rate, SISO H1 per output
+    sym = [recs["symexc_1"], recs["symexc_2"]]
+    U = [np.fft.rfft(s["inputvalues"][:, 0]) for s in sym]
+    Y = [np.fft.rfft(s["outputvalues"], axis=0) for s in sym]
+    H = (sum(yk * uk.conj()[:, None] for yk, uk in zip(Y, U, strict=True))
+         / sum(np.abs(uk) ** 2 for uk in U)[:, None])
+    f = np.fft.rfftfreq(sym[0]["inputvalues"].shape[0], 1e-3)
+    band = (f >= 0.3) & (f <= 100)
+    approx = [1.433, 11.225, 22.566, 28.125, 33.225, 65.441, 90.058]
+    sure, unsure = split_confident(ema_reference(f[band], H[band].T, approx, lower=0.3, upper=100,
+                                                 orders=(40, 60, 80)))
+    write_json(d / "reference.json", reference_json(
+        sure, band_hz=(0.3, 100), uncertain_hz=unsure,
+        source="sdypy-EMA 0.31 LSCF on the H1 FRFs of both symmetric sweeps (full 1 kHz records), 0.3-100 Hz",
+        notes="Modes the symmetric excitation does not show are left uncertain.  Decimated record: "
+              "Nyquist 125 Hz."))
+    _source(name, input="beam_ring_chirp.uff", kind_short="sine sweep, 1 input, time histories",
+            kind="single-reference sine-sweep (chirp) test, time histories, very flexible lightly damped "
+                 "structure",
+            derived="beam_ring_chirp.uff: dataset 58b time histories (single precision) of record symexc_1: "
+                    "drive voltage as node 1 +z (ordinate type 13, unit V), accelerations nodes 11, 12 +z; "
+                    "decimated by 4 to 250 Hz with scipy.signal.decimate (FIR, zero phase), 30 001 samples",
+            script="benchmarks/realdata_build/build.py beam_ring_chirp", **_MIMO_SOURCE)
+
+
+@builder
+def build_beam_ring_two_inputs() -> None:
+    """The beam-ring's symmetric and antisymmetric sweeps (symexc_1, asymexc_1) laid end to end as one
+    240 s record with both patch drives as references — the two-input test a lab records, from which
+    H1 with two references is formed.  Decimated 1000 -> 125 Hz (zero-phase FIR, alike on all channels)."""
+    from scipy.signal import decimate
+
+    name = "beam_ring_two_inputs"
+    recs = _mimo_records()
+    u = np.concatenate([recs[k]["inputvalues"] for k in ("symexc_1", "asymexc_1")])
+    y = np.concatenate([recs[k]["outputvalues"] for k in ("symexc_1", "asymexc_1")])
+    u = decimate(u, 8, ftype="fir", axis=0, zero_phase=True)
+    y = decimate(y, 8, ftype="fir", axis=0, zero_phase=True)
+    fs = 125.0
+    d = entry_dir(name)
+    write_time_uff(d / "beam_ring_two_inputs.uff", fs, [
+        {"node": 1, "dir": 3, "kind": "force", "records": [u[:, 0]], "id1": "upper drive", "units": "V"},
+        {"node": 2, "dir": 3, "kind": "force", "records": [u[:, 1]], "id1": "lower drive", "units": "V"},
+        {"node": 11, "dir": 3, "kind": "acceleration", "records": [y[:, 0]], "id1": "upper tip"},
+        {"node": 12, "dir": 3, "kind": "acceleration", "records": [y[:, 1]], "id1": "lower tip"}])
+    check_uff(d / "beam_ring_two_inputs.uff", [u[:, 0], u[:, 1], y[:, 0], y[:, 1]])
+    f, H = _mimo_h1(list(recs.values()))
+    band = (f >= 0.3) & (f <= 50)
+    approx = [1.433, 11.225, 22.566, 28.125, 33.225]
+    sure, unsure = split_confident(ema_reference(f[band], H[:, :, band].reshape(4, -1), approx, lower=0.3,
+                                                 upper=50, orders=(30, 40, 50)))
+    write_json(d / "reference.json", reference_json(
+        sure, band_hz=(0.3, 50), uncertain_hz=unsure,
+        source="sdypy-EMA 0.31 LSCF on the four full-rate H1 FRFs of all four sweeps, 0.3-50 Hz",
+        notes="Decimated record: Nyquist 62.5 Hz; the reference band stops at 50 Hz."))
+    _source(name, input="beam_ring_two_inputs.uff", kind_short="sweeps, 2 inputs, time histories (MIMO H1)",
+            kind="two-reference sine-sweep test from time histories (both patch drives, two tip "
+                 "accelerations)",
+            derived="beam_ring_two_inputs.uff: dataset 58b time histories (single precision) of symexc_1 "
+                    "followed by asymexc_1 (240 s): drives as nodes 1, 2 +z (ordinate type 13, unit V), "
+                    "accelerations nodes 11, 12 +z; decimated by 8 to 125 Hz (scipy.signal.decimate, FIR, "
+                    "zero phase), 30 001 samples",
+            script="benchmarks/realdata_build/build.py beam_ring_two_inputs", **_MIMO_SOURCE)
+
+
+@builder
+def build_beam_ring_output_only() -> None:
+    """The accelerations of one antisymmetric sweep (asymexc_1) alone: an output-only record whose
+    excitation is a sweep, not white noise.  Decimated 1000 -> 250 Hz."""
+    from scipy.signal import decimate
+
+    name = "beam_ring_output_only"
+    recs = _mimo_records()
+    y = decimate(recs["asymexc_1"]["outputvalues"], 4, ftype="fir", axis=0, zero_phase=True)
+    d = entry_dir(name)
+    write_time_uff(d / "beam_ring_outputs.uff", 250.0, [
+        {"node": 11, "dir": 3, "kind": "acceleration", "records": [y[:, 0]], "id1": "upper tip"},
+        {"node": 12, "dir": 3, "kind": "acceleration", "records": [y[:, 1]], "id1": "lower tip"}])
+    check_uff(d / "beam_ring_outputs.uff", [y[:, 0], y[:, 1]])
+    asym = [recs["asymexc_1"], recs["asymexc_2"]]
+    U = [np.fft.rfft(r["inputvalues"][:, 0]) for r in asym]
+    Y = [np.fft.rfft(r["outputvalues"], axis=0) for r in asym]
+    H = (sum(yk * uk.conj()[:, None] for yk, uk in zip(Y, U, strict=True))
+         / sum(np.abs(uk) ** 2 for uk in U)[:, None])
+    f = np.fft.rfftfreq(asym[0]["inputvalues"].shape[0], 1e-3)
+    band = (f >= 0.3) & (f <= 100)
+    approx = [1.433, 11.225, 22.566, 28.125, 33.225, 65.441, 90.058]
+    sure, unsure = split_confident(ema_reference(f[band], H[band].T, approx, lower=0.3, upper=100,
+                                                 orders=(40, 60, 80)))
+    write_json(d / "reference.json", reference_json(
+        sure, band_hz=(0.3, 100), uncertain_hz=unsure,
+        source="sdypy-EMA 0.31 LSCF on the H1 FRFs (drive voltage known to the reference only) of both "
+               "antisymmetric sweeps, 0.3-100 Hz",
+        notes="The identification sees the accelerations only; the reference uses the drives it is not "
+              "given."))
+    _source(name, input="beam_ring_outputs.uff", kind_short="output-only, swept (non-white) excitation",
+            kind="output-only record (two accelerations) of a sine-sweep test: excitation unknown to the "
+                 "identification and far from white noise",
+            derived="beam_ring_outputs.uff: dataset 58b time histories (single precision) of the two "
+                    "accelerations of record asymexc_1, nodes 11, 12 +z, decimated by 4 to 250 Hz "
+                    "(scipy.signal.decimate, FIR, zero phase), 30 001 samples",
+            script="benchmarks/realdata_build/build.py beam_ring_output_only", **_MIMO_SOURCE)
+
+
+@builder
+def build_pyfrf_impact_frf() -> None:
+    """pyFRF's five hits as the FRF an analyser exports: H1 averaged over the hits (rectangular
+    windows: the responses have decayed 60 dB by the end of each 1 s record), 1 Hz lines, 200-7000 Hz."""
+    name = "pyfrf_impact_frf"
+    repo, commit = PYFRF
+    hits = np.array([np.load(io.BytesIO(blob(repo, commit, f"data/measurements_{i}.npy")))
+                     for i in range(1, 6)])
+    fs = 1.0 / (hits[0, 0, 1] - hits[0, 0, 0])
+    f, H = h1(hits[:, 1], hits[:, 2][:, None, :], fs)
+    keep = (f >= 200) & (f <= 7000)
+    d = entry_dir(name)
+    write_frf_uff(d / "impact_h1.uff", f[keep], H[:, keep][None], rsp=[(2, 3)], ref=[(1, 3)], binary=True,
+                  id1="H1 5 avg")
+    check_uff(d / "impact_h1.uff", [H[0, keep]])
+    ref = json.loads((entry_dir("pyfrf_impact_5hits") / "reference.json").read_text())
+    write_json(d / "reference.json", {**ref, "notes": ref["notes"] + "  Same reference as pyfrf_impact_5hits "
+                                      "(the same H1); the FRF file spans 200-7000 Hz."})
+    _source(name, input="impact_h1.uff", kind_short="impact H1 FRF (UFF), dense/close modes",
+            repository=repo, commit=commit, paths=[f"data/measurements_{i}.npy" for i in range(1, 6)],
+            licence="LGPL-3.0 (pyFRF LICENSE at the commit that added the data; the repository was "
+                    "relicensed MIT by its authors in 2023, commit 635e14b)",
+            kind="impact FRF (H1 of five hits) exported as UFF 58: one FRF, 1 Hz lines, dense modes with "
+                 "close pairs, light damping",
+            structure="unnamed test piece of pyFRF's showcase (LADISK, University of Ljubljana, 2016)",
+            derived="impact_h1.uff: dataset 58b FRF (single precision complex), accelerance, response node 2 "
+                    "+z, reference node 1 +z, 1 Hz lines 200-7000 Hz; H1 = sum(Y F*) / sum(|F|^2) over the "
+                    "five hits, rectangular window",
+            script="benchmarks/realdata_build/build.py pyfrf_impact_frf")
+
+
+# ------------------------------------------------------------------ pyuff MPS output-only export
+@builder
+def build_pyuff_mps_oma() -> None:
+    """pyuff's data/MPSTD#Set001_2024_10_08_10_27_07.uff: an analyser's binary 58b export of four
+    output-only acceleration records (3200 Hz, 69.5 s); Dof1 and Dof4 share node 1, direction +Z and
+    are told apart only by their ID line.  Decimated 3200 -> 800 Hz to keep the file small."""
+    import pyuff
+    from scipy.signal import decimate
+
+    name = "pyuff_mps_oma"
+    repo, commit = PYUFF
+    d = entry_dir(name)
+    tmp = d / "_src.uff"
+    tmp.write_bytes(blob(repo, commit, "data/MPSTD#Set001_2024_10_08_10_27_07.uff"))
+    try:
+        sets = pyuff.UFF(str(tmp)).read_sets()
+    finally:
+        tmp.unlink()
+    fs = 1.0 / sets[0]["abscissa_inc"] / 4
+    y = decimate(np.array([s["data"] for s in sets]), 4, ftype="fir", axis=1, zero_phase=True)
+    write_time_uff(d / "mps_set1.uff", fs, [
+        {"node": s["rsp_node"], "dir": s["rsp_dir"], "kind": "acceleration", "records": [y[k]],
+         "id1": s["id1"]} for k, s in enumerate(sets)], id3=sets[0]["id3"])
+    check_uff(d / "mps_set1.uff", list(y))
+    approx = [39, 117, 127, 182, 224, 233, 349]   # clusters of SSI stable poles and coherence peaks
+    sure, unsure = split_confident(oma_reference(y.T, fs, approx))
+    write_json(d / "reference.json", reference_json(
+        sure, band_hz=(5, 320), uncertain_hz=unsure,
+        source="pyOMA2 SSI-cov on the four decimated records (block rows 30, 40, 50; orders to 60)",
+        notes="Weak output-only data: the channels are coherent only near 182 Hz; the other candidates "
+              "(stable-pole clusters of one SSI run) are left uncertain.  Mains harmonics at 100, 300 Hz."))
+    _source(name, input="mps_set1.uff", kind_short="output-only, analyser 58b export, shared node/dir",
+            repository=repo, commit=commit, paths=["data/MPSTD#Set001_2024_10_08_10_27_07.uff"],
+            licence="MIT (pyuff LICENSE)",
+            kind="output-only acceleration records exported by a measurement system (not named in pyuff) "
+                 "as binary UFF 58b (id lines 'MPS set1 Dof1..4'); two channels share node 1, direction +Z",
+            structure="not documented in pyuff (a test file for its 58b reader, added in commit 4a1c7b2, "
+                      "2024)",
+            derived="mps_set1.uff: dataset 58b time histories (single precision), the four records with "
+                    "their original id lines, nodes and directions, decimated by 4 to 800 Hz with "
+                    "scipy.signal.decimate (FIR, zero phase), 55 600 samples",
+            script="benchmarks/realdata_build/build.py pyuff_mps_oma")
+
+
+def write_readme() -> None:
+    """tests/data/realdata/README.md: the table of entries, from their source.json files."""
+    import json
+
+    from common import CORPUS
+
+    rows = []
+    for d in sorted(p.parent for p in CORPUS.glob("*/source.json")):
+        src = json.loads((d / "source.json").read_text())
+        ref = json.loads((d / "reference.json").read_text())
+        repo = src["repository"]
+        lo, hi = ref["band_hz"]
+        where = f"[{repo}](https://github.com/{repo}) `{src['commit'][:10]}`"
+        rows.append(f"| `{d.name}` | {src['kind']} | {where} | {src['licence']} | "
+                    f"{len(ref['modes'])} modes, {lo:g}-{hi:g} Hz, {ref['reference_source']} |")
+    (CORPUS / "README.md").write_text(README_HEAD + "\n".join(rows) + "\n" + README_TAIL)
+
+
+README_HEAD = """# Real-data corpus
+
+Measured data sets from public repositories, the judge of flexmodal's identification defaults
+(`benchmarks/realdata.py`, scoreboard in [docs/modal.md](../../../docs/modal.md), "Real-data scoreboard").
+Each folder holds one input `flexmodal identify` reads (a UFF 58 file derived from the source, written
+the way an analyser exports it), `source.json` (repository, commit, paths, licence, what the test is,
+how the file was derived) and `reference.json` (band, tolerance, reference modes with their scatter,
+candidates the reference could not confirm).  References come from independent tools (sdypy-EMA,
+pyOMA2), never from flexmodal.  Everything here is rebuilt by
+`python benchmarks/realdata_build/build.py` from snapshots of the source repositories at the pinned
+commits (see that script's docstring); only derived data files are kept, under the source's licence.
+
+| entry | kind | source (commit) | licence | reference |
+|---|---|---|---|---|
+"""
+
+README_TAIL = """
+Licences: each folder's LICENSE.txt is the source repository's licence file at the pinned commit, and
+its derived data file is redistributed under that licence (MIT, BSD-2-Clause, LGPL-3.0 or GPL-3.0) as a
+separate work, with the notice it asks for; none of the sources' code is included.
+"""
+
+
+if __name__ == "__main__":
+    for key in sys.argv[1:] or list(BUILDERS):
+        print(f"building {key}", flush=True)
+        BUILDERS[key]()
+    write_readme()

@@ -1,0 +1,336 @@
+"""Shared helpers of the real-data corpus build: read a fetched snapshot, write UFF 58 the way an
+analyser exports it, and compute reference modal tables with independent tools (sdypy-EMA's LSCF for
+FRFs, pyOMA2's SSI for output-only records) — never with flexmodal.
+
+Snapshots are read with ``git --git-dir <MIRROR>/<owner>+<name>/repo cat-file -p <commit>:<path>``,
+where MIRROR is ``$REALDATA_MIRROR`` (default ``/work/.mirror``, where the search tool's ``fetch``
+puts them).  Each build script pins the commit it read.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import warnings
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+CORPUS = ROOT / "tests" / "data" / "realdata"
+MIRROR = Path(os.environ.get("REALDATA_MIRROR", "/work/.mirror"))
+
+
+def git_dir(repo: str) -> Path:
+    """Git directory of the fetched snapshot of ``owner/name``."""
+    base = MIRROR / repo.replace("/", "+") / "repo"
+    return base / ".git" if (base / ".git").is_dir() else base
+
+
+def blob(repo: str, commit: str, path: str) -> bytes:
+    """Bytes of ``path`` at ``commit`` in the fetched snapshot of ``repo``."""
+    return subprocess.run(["git", "--git-dir", str(git_dir(repo)), "cat-file", "-p", f"{commit}:{path}"],
+                          check=True, capture_output=True).stdout
+
+
+def blob_to_file(repo: str, commit: str, path: str, dest: Path) -> Path:
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    dest.write_bytes(blob(repo, commit, path))
+    return dest
+
+
+def entry_dir(name: str) -> Path:
+    d = CORPUS / name
+    d.mkdir(parents=True, exist_ok=True)
+    return d
+
+
+def write_json(path: Path, obj: dict) -> None:
+    path.write_text(json.dumps(obj, indent=2, ensure_ascii=False) + "\n")
+
+
+# ---------------------------------------------------------------------------------------- UFF writers
+
+_SPEC = {"accelerance": 12, "mobility": 11, "receptance": 8}
+
+
+def _header(h: dict) -> str:
+    """The 11 ASCII records of a dataset 58 header, in the fixed-width layout of the UFF
+    specification (the widths pyuff writes with)."""
+    def ax(code: int, lab: str, units: str) -> str:
+        return f"{code:10d}{0:5d}{0:5d}{0:5d} {lab:<20s} {units:<20s}\n"
+
+    ids = "".join(f"{h.get(k, 'NONE'):<80s}\n" for k in ("id1", "id2", "id3", "id4", "id5"))
+    rec6 = (f"{h['func_type']:5d}{0:10d}{0:5d}{h.get('load_case_id', 0):10d} {'NONE':>10s}{h['rsp_node']:10d}"
+            f"{h['rsp_dir']:4d} {'NONE':>10s}{h['ref_node']:10d}{h['ref_dir']:4d}\n")
+    rec7 = f"{h['ord_data_type']:10d}{h['num_pts']:10d}{1:10d}{h['x0']:13.5e}{h['dx']:13.5e}{0.0:13.5e}\n"
+    return (ids + rec6 + rec7
+            + ax(h["abscissa_spec"], h.get("abscissa_lab", "NONE"), h.get("abscissa_units", "NONE"))
+            + ax(h["ordinate_spec"], h.get("ordinate_lab", "NONE"), h.get("ordinate_units", "NONE"))
+            + ax(h["denom_spec"], "NONE", "NONE") + ax(0, "NONE", "NONE"))
+
+
+def _write58b(path: Path, sets: list[tuple[dict, np.ndarray]]) -> None:
+    """Dataset 58b (binary, little-endian, single precision) — what analysers export for long
+    records.  pyuff's own 58b writer always writes doubles (and miscounts complex bytes), so the
+    records are laid out here; every file is read back through pyuff by :func:`check_uff`."""
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    with open(tmp, "wb") as fh:
+        for h, data in sets:   # a loop over records
+            values = (np.column_stack([data.real, data.imag]).ravel() if np.iscomplexobj(data) else data)
+            raw = np.asarray(values, "<f4").tobytes()
+            fh.write(f"{-1:6d}\n{58:6d}".encode())
+            fh.write(f"b{1:6d}{2:6d}{11:12d}{len(raw):12d}{0:6d}{0:6d}{0:12d}{0:12d}\n".encode())
+            fh.write(_header(h).encode())
+            fh.write(raw)
+            fh.write(f"{-1:6d}\n".encode())
+    tmp.replace(path)
+
+
+def write_frf_uff(path: Path, freq_hz: np.ndarray, H: np.ndarray, rsp: Sequence[tuple[int, int]],
+                  ref: Sequence[tuple[int, int]], *, quantity: str = "accelerance", binary: bool = False,
+                  id1: str = "FRF", id3: str = "NONE") -> None:
+    """FRFs H [n_rsp, n_ref, n_freq] as dataset 58, function type 4, one set per pair; ``rsp``/``ref``
+    are (node, direction code) pairs.  ``binary``: 58b with single-precision complex ordinates."""
+    import pyuff
+
+    freq_hz = np.asarray(freq_hz, float)
+    if binary:
+        sets = [({"id1": f"{id1} {rn}:{rd}/{fn}:{fd}", "id3": id3, "func_type": 4, "rsp_node": rn,
+                  "rsp_dir": rd, "ref_node": fn, "ref_dir": fd, "ord_data_type": 5, "num_pts": freq_hz.size,
+                  "x0": freq_hz[0], "dx": freq_hz[1] - freq_hz[0], "abscissa_spec": 18,
+                  "abscissa_lab": "Frequency", "abscissa_units": "Hz", "ordinate_spec": _SPEC[quantity],
+                  "denom_spec": 13}, np.asarray(H[o, i], complex))
+                for o, (rn, rd) in enumerate(rsp) for i, (fn, fd) in enumerate(ref)]
+        _write58b(path, sets)
+        return
+    sets = [pyuff.prepare_58(
+        func_type=4, id1=f"{id1} {rn}:{rd}/{fn}:{fd}", id3=id3, rsp_node=rn, rsp_dir=rd, ref_node=fn,
+        ref_dir=fd, ordinate_spec_data_type=_SPEC[quantity], orddenom_spec_data_type=13,
+        abscissa_spec_data_type=18, data=np.asarray(H[o, i], complex), x=freq_hz, abscissa_spacing=1,
+        abscissa_min=float(freq_hz[0]), abscissa_inc=float(freq_hz[1] - freq_hz[0]), num_pts=freq_hz.size)
+        for o, (rn, rd) in enumerate(rsp) for i, (fn, fd) in enumerate(ref)]
+    _write_ascii(path, sets)
+
+
+def write_time_uff(path: Path, fs_hz: float, channels: Sequence[dict], *, id3: str = "NONE") -> None:
+    """Time histories as dataset 58b, function type 1, single precision.  Each channel: ``node``,
+    ``dir``, ``kind`` ('force' -> ordinate data type 13, 'acceleration' -> 12, 'voltage' -> 0 with the
+    label 'Voltage'), ``records`` (a list of 1-D arrays: one record, or one per hit, told apart by load
+    case id 1, 2, ...), optional ``id1``."""
+    spec = {"force": (13, "Force", "N"), "acceleration": (12, "Acceleration", "m/s2")}
+    sets = []
+    for ch in channels:   # a loop over channels
+        records = ch["records"]
+        code, lab, units = spec[ch["kind"]]
+        for k, rec in enumerate(records):
+            rec = np.asarray(rec, float)
+            sets.append(({"id1": ch.get("id1", f"{lab} {ch['node']}:{ch['dir']}"), "id3": id3, "func_type": 1,
+                          "load_case_id": k + 1 if len(records) > 1 else 0, "rsp_node": ch["node"],
+                          "rsp_dir": ch["dir"], "ref_node": 0, "ref_dir": 0, "ord_data_type": 2,
+                          "num_pts": rec.size, "x0": 0.0, "dx": 1.0 / fs_hz, "abscissa_spec": 17,
+                          "abscissa_lab": "Time", "abscissa_units": "s", "ordinate_spec": code,
+                          "ordinate_lab": lab, "ordinate_units": ch.get("units", units), "denom_spec": 0},
+                         rec))
+    _write58b(path, sets)
+
+
+def _write_ascii(path: Path, sets: list[dict]) -> None:
+    import pyuff
+
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.unlink(missing_ok=True)
+    pyuff.UFF(str(tmp)).write_sets(sets, mode="overwrite")
+    tmp.replace(path)
+
+
+def check_uff(path: Path, expected: list[np.ndarray]) -> None:
+    """Read ``path`` back through pyuff and compare its dataset-58 ordinates with ``expected`` (in
+    file order) to single precision."""
+    import pyuff
+
+    sets = pyuff.UFF(str(path)).read_sets()
+    sets = [sets] if isinstance(sets, dict) else sets
+    assert len(sets) == len(expected), (len(sets), len(expected))
+    for s, e in zip(sets, expected, strict=True):
+        got = np.asarray(s["data"])
+        assert got.shape == np.shape(e), (got.shape, np.shape(e))
+        scale = float(np.max(np.abs(e))) or 1.0
+        assert np.max(np.abs(got - e)) <= 1e-6 * scale, np.max(np.abs(got - e)) / scale
+
+
+# ------------------------------------------------------------------------------ reference modal tables
+
+def ema_reference(freq_hz: np.ndarray, frf: np.ndarray, approx_hz: Sequence[float], *, lower: float,
+                  upper: float, orders: Sequence[int] = (40, 60, 80), frf_form: str = "accelerance",
+                  window_rel: float = 0.005) -> list[dict]:
+    """Reference modes of FRFs [n_frf, n_freq] with sdypy-EMA (LSCF + stabilisation).
+
+    For each highest model order in ``orders`` sdypy-EMA picks the stable pole closest to each
+    approximate frequency (``select_closest_poles``); the reference value is the median over those
+    picks, and its scatter the spread of the stable poles (within ``window_rel`` of it) over the upper
+    half of the model orders of every run — the estimator's own sensitivity to its order."""
+    from sdypy import EMA
+
+    # sdypy-EMA's pole picking searches windows of at least 2 Hz around each guess; the frequency
+    # axis is scaled so that the closest two guesses stand 40 "Hz" apart (LSCF poles scale with it,
+    # damping ratios do not), and the results scaled back
+    guesses = np.sort(np.asarray(approx_hz, float))
+    spacing = float(np.min(np.diff(guesses))) if guesses.size > 1 else float(guesses[0])
+    scale = max(1.0, 40.0 / spacing)
+    picks_f, picks_z, pool = [], [], [[] for _ in approx_hz]
+    for n in orders:   # a loop over reference runs
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            m = EMA.Model(frf=np.atleast_2d(frf), freq=np.asarray(freq_hz, float) * scale,
+                          lower=lower * scale, upper=upper * scale, pol_order_high=int(n), frf_form=frf_form)
+            m.get_poles(show_progress=False)
+            m.select_closest_poles([a * scale for a in approx_hz], f_window=0.5 * spacing * scale)
+        picks_f.append(np.asarray(m.nat_freq, float) / scale)
+        picks_z.append(np.asarray(m.nat_xi, float))
+        fs = np.asarray(m.f_stable, float) / scale
+        for j, fr in enumerate(picks_f[-1]):
+            if not fr > 0:   # no stable pole picked for this guess
+                continue
+            for k in range(fs.shape[1] // 2, fs.shape[1]):   # a loop over model orders
+                col = fs[:, k]
+                hit = np.flatnonzero((col > 0) & (np.abs(col / fr - 1) < window_rel))
+                if hit.size:
+                    pole = m.all_poles[k] / scale
+                    wn = np.abs(pole)
+                    zz = -np.real(pole) / wn
+                    ff = wn / 2 / np.pi
+                    best = np.argmin(np.abs(ff - col[hit[0]]))
+                    pool[j].append((ff[best], zz[best]))
+    F, Z = np.array(picks_f), np.array(picks_z)
+    possible = sum(n - n // 2 for n in orders)
+    modes = []
+    for j in range(len(approx_hz)):
+        f0, z0 = float(np.median(F[:, j])), float(np.median(Z[:, j]))
+        pf = np.array([p[0] for p in pool[j]] + list(F[:, j]))
+        pz = np.array([p[1] for p in pool[j]] + list(Z[:, j]))
+        mode = _mode(f0, z0, pf, pz, f"sdypy-EMA LSCF, orders {list(orders)}")
+        # a pick that wandered off its guess (to a neighbour's poles) confirms nothing
+        wandered = abs(f0 / approx_hz[j] - 1) > min(0.01, 0.25 * spacing / approx_hz[j])
+        mode["stable_share"] = 0.0 if wandered else round(len(pool[j]) / possible, 3)
+        if wandered:
+            mode["freq_hz"] = float(approx_hz[j])
+        modes.append(mode)
+    return modes
+
+
+def split_confident(modes: list[dict], min_share: float = 0.5,
+                    max_damping: float = 0.2) -> tuple[list[dict], list[float]]:
+    """Reference modes whose stable poles appear in at least ``min_share`` of the model orders with a
+    damping ratio below ``max_damping``, and the frequencies of the others (uncertain: neither
+    required nor counted as extras)."""
+    def ok(m: dict) -> bool:
+        return m["stable_share"] >= min_share and m.get("damping_ratio", 1.0) < max_damping
+
+    return [m for m in modes if ok(m)], sorted({m["freq_hz"] for m in modes if not ok(m)})
+
+
+def _mode(f0: float, z0: float, pf: np.ndarray, pz: np.ndarray, how: str) -> dict:
+    """A reference mode with its scatter: frequency std and range; damping range, widened to at least
+    +-10 % of the value (the spread any two good estimators of light damping show)."""
+    lo, hi = float(np.min(pz)), float(np.max(pz))
+    lo, hi = min(lo, 0.9 * z0), max(hi, 1.1 * z0)
+    return {"freq_hz": round(f0, 6), "damping_ratio": float(f"{z0:.6g}"),
+            "freq_scatter_hz": float(f"{np.std(pf):.3g}"),
+            "freq_range_hz": [round(float(np.min(pf)), 6), round(float(np.max(pf)), 6)],
+            "damping_range": [float(f"{lo:.6g}"), float(f"{hi:.6g}")], "n_estimates": int(pf.size),
+            "estimator": how}
+
+
+def tolerance_pct(modes: Sequence[dict]) -> float:
+    """0.1 % where every reference frequency's scatter (std) is below a third of it, else 0.5 %."""
+    worst = max(m["freq_scatter_hz"] / m["freq_hz"] for m in modes)
+    return 0.1 if worst < 0.001 / 3 else 0.5
+
+
+def reference_json(modes: list[dict], *, band_hz: Sequence[float], source: str, tol_pct: float | None = None,
+                   notes: str = "", uncertain_hz: Sequence[float] = (), extra: dict | None = None) -> dict:
+    """reference.json: the band, the tolerance, the reference modes, and ``uncertain_hz`` — candidate
+    modes the reference could not confirm (an identified mode within 0.5 % of one is not an extra)."""
+    return {"band_hz": [float(band_hz[0]), float(band_hz[1])],
+            "tolerance_pct": tol_pct if tol_pct is not None else tolerance_pct(modes),
+            "reference_source": source, "notes": notes, "modes": modes,
+            "uncertain_hz": [round(float(f), 3) for f in uncertain_hz], **(extra or {})}
+
+
+def stable_clusters(freq_hz: np.ndarray, frf: np.ndarray, *, lower: float, upper: float, order: int = 60,
+                    frf_form: str = "accelerance", min_share: float = 0.5,
+                    width_rel: float = 0.002) -> list[float]:
+    """Frequencies where sdypy-EMA's stable poles cluster in at least ``min_share`` of the model orders
+    (an analyst's reading of the stabilisation chart, used to list the modes a reference picks)."""
+    from sdypy import EMA
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        m = EMA.Model(frf=np.atleast_2d(frf), freq=np.asarray(freq_hz, float), lower=lower, upper=upper,
+                      pol_order_high=order, frf_form=frf_form)
+        m.get_poles(show_progress=False)
+        m.select_closest_poles([0.5 * (lower + upper)])
+    fs = np.sort(np.asarray(m.f_stable, float)[np.asarray(m.f_stable) > 0])
+    out, k = [], 0
+    while k < fs.size:   # a loop over clusters
+        j = np.searchsorted(fs, fs[k] * (1 + width_rel), side="right")
+        if j - k >= min_share * order:
+            out.append(float(np.median(fs[k:j])))
+        k = j
+    return out
+
+
+def h1(force: np.ndarray, resp: np.ndarray, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
+    """H1 FRFs [n_resp, n_freq] averaged over hits or blocks: ``force`` [n_blocks, n], ``resp``
+    [n_blocks, n_resp, n]; rectangular window (impact records that decay within the record)."""
+    F = np.fft.rfft(force, axis=-1)
+    Y = np.fft.rfft(resp, axis=-1)
+    H = np.einsum("brf,bf->rf", Y, F.conj()) / np.sum(np.abs(F) ** 2, axis=0)
+    return np.fft.rfftfreq(force.shape[-1], 1 / fs_hz), H
+
+
+def oma_reference(y: np.ndarray, fs_hz: float, approx_hz: Sequence[float], *,
+                  block_rows: Sequence[int] = (30, 40, 50), ordmax: int = 60) -> list[dict]:
+    """Reference modes of output-only records y [n_samples, n_channels] with pyOMA2's SSI-cov: one run
+    per number of block rows, ``mpe`` picking the stable pole nearest each approximate frequency
+    (order_in="find_min"); value = median over runs, scatter = their spread (at least +-10 % on
+    damping, as in :func:`_mode`)."""
+    import contextlib
+    import io
+    import logging
+
+    import pyoma2.algorithms.ssi  # noqa: F401
+    import pyoma2.setup.single  # noqa: F401
+    from pyoma2.algorithms.ssi import SSI
+    from pyoma2.setup.single import SingleSetup
+
+    for name in [n for n in logging.root.manager.loggerDict if n.startswith("pyoma2")]:
+        logging.getLogger(name).setLevel(logging.WARNING)
+    F = np.full((len(block_rows), len(approx_hz)), np.nan)
+    Z = np.full_like(F, np.nan)
+    for r, br in enumerate(block_rows):   # a loop over reference runs
+        setup = SingleSetup(np.asarray(y, float), fs=fs_hz)
+        alg = SSI(name="ssicov", method="cov", br=int(br), ordmax=ordmax, step=2)
+        setup.add_algorithms(alg)
+        with contextlib.redirect_stderr(io.StringIO()), warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            setup.run_by_name("ssicov")
+            for j, guess in enumerate(approx_hz):   # one pick per guess: a guess without poles is NaN
+                setup.mpe("ssicov", sel_freq=[float(guess)], order_in="find_min")
+                if np.size(alg.result.Fn):
+                    F[r, j], Z[r, j] = float(np.ravel(alg.result.Fn)[0]), float(np.ravel(alg.result.Xi)[0])
+    modes = []
+    for j, guess in enumerate(approx_hz):
+        if np.isnan(F[:, j]).any():
+            modes.append({"freq_hz": float(guess), "stable_share": 0.0})
+            continue
+        f0, z0 = float(np.median(F[:, j])), float(np.median(Z[:, j]))
+        how = f"pyOMA2 SSI-cov, block rows {list(block_rows)}, orders to {ordmax}"
+        mode = _mode(f0, z0, F[:, j], Z[:, j], how)
+        spread = float(np.ptp(F[:, j])) / f0
+        mode["stable_share"] = 1.0 if abs(f0 / guess - 1) < 0.01 and spread < 0.005 else 0.0
+        modes.append(mode)
+    return modes

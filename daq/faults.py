@@ -1,0 +1,41 @@
+"""The faults a simulated device injects, defined once (light: the command line builds ``sim serve``'s
+options from it without importing the run store)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+
+def _fault(default: float | None, help: str, lo: float = 0.0, hi: float = 86400.0, *,
+           lo_open: bool = False, hi_open: bool = False) -> Any:
+    return field(default=default, metadata={"help": help, "range": {"lo": lo, "hi": hi, "lo_open": lo_open,
+                                                                     "hi_open": hi_open}})
+
+
+@dataclass(frozen=True)
+class Faults:
+    """The faults a simulated device injects, defined once: the keys of a session's ``[simulator]``
+    table (docs/acquisition.md), the options of ``flexmodal sim serve`` (``--`` + the field name
+    without ``_s``, dashed: ``drop_at_s`` is ``--drop-at``) and what the simulators read.  Each field's
+    metadata holds its help and its range (times in seconds)."""
+
+    corrupt_rate: float = _fault(0.0, "fraction of frames corrupted (0.01 = 1 %%)", hi=1.0, hi_open=True)
+    drop_at_s: float | None = _fault(None, "drop a burst of frames starting at S seconds")
+    drop_s: float = _fault(0.2, "length of the dropped burst, s", lo_open=True)
+    disconnect_after_s: float | None = _fault(None, "disconnect after S seconds")
+    disconnect_s: float = _fault(0.5, "length of the disconnect, s", lo_open=True)
+    double_hit_at_s: float | None = _fault(
+        None, "impact test: the hit nearest S s into the record bounces back (a double hit)")
+    overload_at_s: float | None = _fault(None, "impact test: the hit nearest S s into the record overloads "
+                                               "the ADC")
+
+    @property
+    def on_link(self) -> bool:
+        """Whether the link itself misbehaves (corruption, a dropped burst or a disconnect)."""
+        return bool(self.corrupt_rate) or self.drop_at_s is not None or self.disconnect_after_s is not None
+
+
+def fault_flag(name: str) -> str:
+    """The ``sim serve`` option of the :class:`Faults` field ``name`` (``drop_at_s`` -> ``--drop-at``)."""
+    return "--" + name.removesuffix("_s").replace("_", "-")

@@ -1,0 +1,78 @@
+"""The HTML report printed to PDF by headless Chromium (``flexmodal report --pdf``).
+
+Chromium prints the report with its print style sheet (A4, whole tables with their header repeated on
+each page) and every run's collapsed block opened (a copy of the page with ``<details open>``, in a
+temporary folder; the report itself is not touched).  Chromium runs headless with a throw-away profile,
+no network services, under ``timeout``; the PDF is written next to nothing else and moved into place
+whole (valid_output.atomic_path).  Where no Chromium is installed the error is one line saying so.
+"""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+
+from flexmodal.reports.errors import ReportError
+from flexmodal.valid_output import atomic_path
+from flexmodal.valid_text import read_text
+
+CHROMIUM_NAMES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
+CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
+                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                  "--no-pdf-header-footer")
+PRINT_TIMEOUT_S = 120
+
+
+def find_chromium() -> str | None:
+    """Path of a Chromium (or Chrome) executable on PATH or at /usr/bin/chromium; None if none."""
+    for name in CHROMIUM_NAMES:
+        found = shutil.which(name)
+        if found:
+            return found
+    return "/usr/bin/chromium" if Path("/usr/bin/chromium").is_file() else None
+
+
+def opened_for_print(html: str) -> str:
+    """The page with every ``<details>`` block open (printing shows what a reader could expand).
+
+    Examples
+    --------
+    >>> opened_for_print('<details class="run"><summary>a</summary></details>')
+    '<details open class="run"><summary>a</summary></details>'
+    """
+    return re.sub(r"<details(?![^>]*\bopen\b)", "<details open", html)
+
+
+def print_pdf(html_path: str | Path, pdf_path: str | Path, chromium: str | None = None,
+              timeout_s: float = PRINT_TIMEOUT_S) -> Path:
+    """Print the report ``html_path`` to ``pdf_path`` with headless Chromium; return ``pdf_path``.
+
+    ReportError (one line) when no Chromium is found, when it fails or when it runs past ``timeout_s``.
+    """
+    exe = chromium or find_chromium()
+    if exe is None:
+        raise ReportError(f"report --pdf: no Chromium found (looked for {', '.join(CHROMIUM_NAMES)} on PATH "
+                          f"and /usr/bin/chromium); the HTML report is {html_path}")
+    html = read_text(Path(html_path), ReportError, "HTML report")
+    target = Path(pdf_path)
+    with tempfile.TemporaryDirectory(prefix="flexmodal-pdf-") as tmp, atomic_path(target) as part:
+        page = Path(tmp) / "report.html"
+        page.write_text(opened_for_print(html), encoding="utf-8")
+        printed = Path(tmp) / "report.pdf"
+        cmd = ["timeout", "-k", "5", str(int(timeout_s)), exe, *CHROMIUM_FLAGS,
+               f"--user-data-dir={Path(tmp) / 'profile'}", f"--print-to-pdf={printed}", page.as_uri()]
+        try:
+            done = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s + 10,
+                                  stdin=subprocess.DEVNULL)
+        except (OSError, subprocess.TimeoutExpired) as exc:
+            raise ReportError(f"report --pdf: {exe} did not print {html_path}: {exc}") from None
+        if done.returncode == 124:
+            raise ReportError(f"report --pdf: {exe} did not finish printing {html_path} in {timeout_s:g} s")
+        if done.returncode != 0 or not printed.is_file() or printed.stat().st_size == 0:
+            last = (done.stderr.strip().splitlines() or ["no message"])[-1]
+            raise ReportError(f"report --pdf: {exe} failed (exit {done.returncode}): {last}")
+        shutil.copyfile(printed, part)
+    return target

@@ -1,0 +1,38 @@
+"""The Examples of the docstrings run: every module of the package whose docstrings hold ``>>>`` lines
+is run through doctest (numpydoc Examples sections are doctests) from the repository's root, so a
+documented example that stops working fails the suite."""
+
+from __future__ import annotations
+
+import doctest
+import importlib
+
+import pytest
+from conftest import REPO
+
+PACKAGES = ("checked_io", "daq", "modal", "models", "compare", "reports", "fixtures")
+
+
+def _modules_with_examples() -> list[str]:
+    paths = [p for p in REPO.glob("*.py")] + [p for d in PACKAGES for p in (REPO / d).rglob("*.py")]
+    names = []
+    for path in sorted(paths):
+        if ">>> " not in path.read_text(encoding="utf-8"):
+            continue
+        rel = path.relative_to(REPO).with_suffix("")
+        parts = [part for part in rel.parts if part != "__init__"]
+        names.append(".".join(["flexmodal", *parts]))
+    return names
+
+
+def test_the_walk_finds_the_documented_modules():
+    assert {"flexmodal.checked_io.registry", "flexmodal.api"} <= set(_modules_with_examples())
+
+
+@pytest.mark.parametrize("name", _modules_with_examples())
+def test_docstring_examples_run(name, monkeypatch):
+    monkeypatch.chdir(REPO)   # the Examples use the repository's examples/ as a user's clone has them
+    module = importlib.import_module(name)
+    result = doctest.testmod(module, optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE,
+                             verbose=False, report=True)
+    assert result.attempted > 0 and result.failed == 0, result
