@@ -1003,6 +1003,35 @@ def _diagnosis(diagnosis: Diagnosis | Mapping | PathLike) -> Diagnosis:
 
 # -- report ----------------------------------------------------------------------------------------
 
+def _tracked_map_figures(inputs) -> list[tuple[Figure, str]]:
+    """The report's modal-map section: a measured table from ``identify --track`` (source ``track``)
+    drawn as frequency against its pose (compare/modal_map.py branches, reports/modal_map_plot.py),
+    with the first prediction's frequencies at the same configurations overlaid (``predict --poses
+    MAP.csv``); nothing for any other table."""
+    import numpy as np
+
+    from flexmodal.compare.modal_map import PredictionBand, modal_map
+    from flexmodal.reports.modal_map_plot import plot_modal_map
+
+    meas = inputs.measured
+    if meas is None or "source" not in meas.frame or not (meas.frame["source"] == "track").all() \
+            or len(meas.pose_columns) != 1:
+        return []
+    var = meas.pose_columns[0].removeprefix("pose.")
+    band, named = None, ""
+    for name, pred in inputs.predictions[:1]:
+        configs = sorted((c for c in meas.configs if c in pred.configs), key=lambda c: meas.pose(c)[var])
+        n = min((pred.freq_hz(c).size for c in configs), default=0)
+        if n:
+            f = np.array([pred.freq_hz(c)[:n] for c in configs])
+            band = PredictionBand(np.array([meas.pose(c)[var] for c in configs]), f, f, f, label=name)
+            named = f", {name}'s frequencies at the same poses as lines"
+    fig = plot_modal_map(modal_map(meas), band, pose_label=var,
+                         title="modes tracked while the arm moved (mean ± 95 % interval per pose bin)")
+    return [(fig, f"Natural frequency against {var} of the modes tracked while the arm moved (identify "
+                  f"--track: one point per pose bin, bars ± 1.96 standard errors of its windows){named}")]
+
+
 def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (),
            measured: ModalTable | PathLike | None = None, repeats: Sequence[ModalTable | PathLike] = (),
            predictions: Sequence[ModalTable | PathLike | tuple[str, ModalTable]] = (),
@@ -1039,6 +1068,10 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     from flexmodal.modal.sources import identify_frf
     from flexmodal.reports.html import write_report
     from flexmodal.reports.runs import RunSummary
+    from flexmodal.reports.sections import Section, register_section, registered_sections
+
+    if "modal-map" not in registered_sections():
+        register_section("modal-map", Section("Modal map of the moving arm", _tracked_map_figures))
 
     if not (runs or measured is not None or predictions or diagnosis is not None):
         raise ReportError("report: nothing to report (give RUN.h5 files, --measured, --pred or --diagnosis)")

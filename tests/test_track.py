@@ -173,3 +173,17 @@ def test_identify_track_cli_on_hdf5_and_uff(tmp_path, sweep, capsys):
     with pytest.raises(ModalError, match="not a channel"):
         track_modes(rec.samples, 1024.0, [c.name for c in rec.channels], [c.kind for c in rec.channels],
                     {"theta_deg": "enc_wrist"})
+
+
+def test_report_draws_the_tracked_map_with_the_model_overlaid(sweep, tmp_path):
+    from flexmodal import api
+
+    rig, rec, res = sweep
+    path = tmp_path / "map.csv"
+    res.table.to_csv(path)
+    predicted = api.predict(DEMO_RIG, path)
+    assert set(predicted.configs) == set(res.table.configs)           # predict --poses reads the map
+    html = api.report(tmp_path / "report.html", measured=path, predictions=[("FE model", predicted)])
+    text = html.read_text()
+    assert 'id="section-modal-map"' in text and "Modal map of the moving arm" in text
+    assert "modes tracked while the arm moved" in text and "FE model&#39;s frequencies" in text
