@@ -187,3 +187,32 @@ def test_report_draws_the_tracked_map_with_the_model_overlaid(sweep, tmp_path):
     text = html.read_text()
     assert 'id="section-modal-map"' in text and "Modal map of the moving arm" in text
     assert "modes tracked while the arm moved" in text and "FE model&#39;s frequencies" in text
+
+
+def test_modes_that_cross_are_not_swapped():
+    """Two modes with orthogonal shapes whose frequencies cross (60 -> 100 Hz and 100 -> 60 Hz while the
+    pose goes 0 -> 100 deg in 120 s): each track stays on its own branch through the crossing."""
+    from flexmodal.fixtures.moving_arm import PathModes, varying_modal_response
+
+    s_grid = np.linspace(0.0, 1.0, 5)
+    freq = np.column_stack([60 + 40 * s_grid, 100 - 40 * s_grid])
+    shapes = np.tile(np.array([[1.0, 0.0], [0.6, 0.5], [0.0, 1.0], [-0.4, 0.7]]), (5, 1, 1))
+    modes = PathModes(s_grid, freq, np.full_like(freq, 0.01), shapes,
+                      np.tile(np.array([[1.0, 1.0]]), (5, 1, 1)))
+    fs, n = 512.0, int(120 * 512)
+    s = np.arange(n) / (n - 1)
+    acc = varying_modal_response(np.random.default_rng(8).standard_normal((n, 1)), fs, s, modes)
+    acc += 1e-3 * acc.std() * np.random.default_rng(9).standard_normal(acc.shape)
+    names, kinds = ["y1", "y2", "y3", "y4", "enc"], ["acceleration"] * 4 + ["encoder"]
+    res = track_modes(np.column_stack([acc, 100 * s]), fs, names, kinds, {"q_deg": "enc"},
+                      TrackOptions(fmin=30.0, fmax=150.0))
+    assert len(res.tracks) == 2
+    branches = set()
+    for tr in res.tracks:
+        t = np.array([res.windows[i].t_s for i in tr.windows])
+        err = np.abs(tr.freq_hz[:, None] / np.column_stack([60 + t / 3, 100 - t / 3]) - 1)
+        branch = int(np.argmin(np.median(err, axis=0)))
+        assert np.all(err[:, branch] < 0.02)                          # the whole track on one branch ...
+        assert t.min() < 50 and t.max() > 70                           # ... through the crossing at 60 s
+        branches.add(branch)
+    assert branches == {0, 1}
