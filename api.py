@@ -1053,6 +1053,11 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
         raise ReportError(f"report: oma_fmin = {oma_fmin:g} Hz must be below oma_fmax = {oma_fmax:g} Hz")
     if fmin is not None and fmax is not None and fmin >= fmax:
         raise ReportError(f"report: fmin = {fmin:g} Hz must be below fmax = {fmax:g} Hz")
+    geo = None
+    if geometry is not None:    # read first: a bad geometry file stops the report before any work
+        from flexmodal.reports.geometry import read_uff_geometry
+
+        geo = read_uff_geometry(geometry)
     step = progress or (lambda _msg: None)
     summaries = []
     for path, run_id in expand_runs(runs):
@@ -1094,11 +1099,6 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     inputs += [diagnosis] if isinstance(diagnosis, str | Path) else []
     inputs += [rig.source] if rig is not None else []
     inputs += [geometry] if geometry is not None else []
-    geo = None
-    if geometry is not None:
-        from flexmodal.reports.geometry import read_uff_geometry
-
-        geo = read_uff_geometry(geometry)
     return write_report(out, runs=summaries, comparison=comparison, measured=meas,
                         repeats=[_table(r) for r in repeats], predictions=named, shapes=shapes,
                         diagnosis=_diagnosis(diagnosis) if diagnosis is not None else None,
