@@ -212,8 +212,8 @@ def test_uff_geometry_from_double_precision_nodes_and_2420_systems(tmp_path):
     rot = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
     path = tmp_path / "g.uff"
     uff = pyuff.UFF(str(path))
-    for s in (pyuff.prepare_2420(Part_UID=1, Part_Name="frame", CS_sys_labels=[7], CS_types=[0], CS_colors=[8],
-                                 CS_names=["rotated"], CS_matrices=[rot]),
+    for s in (pyuff.prepare_2420(Part_UID=1, Part_Name="frame", CS_sys_labels=[7], CS_types=[0],
+                                 CS_colors=[8], CS_names=["rotated"], CS_matrices=[rot]),
               pyuff.prepare_2411(node_nums=[10, 11], def_cs=[0, 7], disp_cs=[0, 7], color=[1, 1],
                                  x=[0.0, 1.0], y=[0.0, 0.0], z=[0.0, 0.0]),
               pyuff.prepare_82(trace_num=1, n_nodes=2, color=8, id="bar", nodes=np.array([10, 11]))):
