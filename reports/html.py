@@ -30,6 +30,8 @@ from pathlib import Path
 import jinja2
 import pandas as pd
 
+from flexmodal.checked_io.output import write_text
+from flexmodal.checked_io.text import read_text
 from flexmodal.compare.errors import CompareError
 from flexmodal.compare.result import Diagnosis, Predictions
 from flexmodal.compare.tables import Comparison, html_fragment, natural_key, ordered_configs, table_name
@@ -39,8 +41,6 @@ from flexmodal.reports.errors import ReportError
 from flexmodal.reports.geometry import Geometry
 from flexmodal.reports.runs import LOW_COHERENCE, RunSummary
 from flexmodal.reports.sections import SECTIONS, ReportInputs
-from flexmodal.valid_output import write_text
-from flexmodal.valid_text import read_text
 
 UNIT_SUFFIXES = {"_deg": "deg", "_kg": "kg", "_m": "m", "_rad": "rad", "_n": "N"}
 KEY_LIBRARIES = ("numpy", "scipy", "pandas", "matplotlib", "h5py", "jinja2", "pyuff")
