@@ -204,7 +204,7 @@ def bench_process(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: 
     floors = {"python -c pass": [sys.executable, "-c", "pass"],
               "import numpy, h5py": [sys.executable, "-c", "import numpy, h5py"],
               "imports of `frf`": [sys.executable, "-c", "import flexmodal.app, flexmodal.api, "
-                                   "flexmodal.modal.batch, flexmodal.valid_output"],
+                                   "flexmodal.modal.batch, flexmodal.checked_io.output"],
               "frf --help": [sys.executable, "-m", "flexmodal", "frf", "--help"]}
 
     def theirs():
