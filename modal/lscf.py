@@ -272,8 +272,8 @@ def stabilisation(freq_hz: np.ndarray, H: np.ndarray, orders: range | list[int],
 @dataclass(frozen=True)
 class PoleClusters:
     """Candidate modes of a stabilisation diagram, ascending in frequency: ``freq_hz``,
-    ``damping_ratio``, ``pole`` (rad/s) from the median of the upper quarter of orders (damping: of all
-    orders) of each cluster's fully stable poles; ``n_stable`` the number of orders holding a fully stable pole of the
+    ``damping_ratio``, ``pole`` (rad/s) from the median of the upper quarter of orders of each
+    cluster's fully stable poles; ``n_stable`` the number of orders holding a fully stable pole of the
     cluster, ``members`` the indices (into the Stabilisation arrays) of its poles."""
 
     freq_hz: np.ndarray
@@ -294,15 +294,13 @@ def _pole(fn: np.ndarray, zeta: np.ndarray) -> np.ndarray:
 
 
 def _summary(stab: Stabilisation, members: np.ndarray, stable: np.ndarray, top: float) -> tuple:
-    """(fn, zeta, n_stable orders, members) of one chain: fn the median over the fully stable poles of
-    its orders at or above the quantile ``top`` of them, zeta the median over all its fully stable
-    poles (at a few lines per half-power band the upper orders split a leakage-broadened peak into a
-    pole pair whose damping is biased high)."""
+    """(fn, zeta, n_stable orders, members) of one chain: medians over the fully
+    stable poles of its orders at or above the quantile ``top`` of them."""
     s = members[stable[members]]
     o = stab.order[s]
     ranked = np.sort(o)
     top = s[o >= ranked[int(np.ceil(top * (ranked.size - 1)))]]   # the quantile, without its overhead
-    f, z = np.median(stab.freq_hz[top]), np.median(stab.damping_ratio[s])
+    f, z = np.median(stab.freq_hz[top]), np.median(stab.damping_ratio[top])
     return f, z, np.unique(o).size, members
 
 
