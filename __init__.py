@@ -23,7 +23,8 @@ __all__ = [
     "Identification", "SelfCheck", "acquire", "compare_modes", "compute_frf", "compute_frfs", "demo",
     "diagnose", "format_comparison", "identify", "list_runs", "load_rig", "plot_comparison", "plot_frf",
     "plot_gap", "plot_mode_shapes", "plot_stabilisation", "predict", "read_diagnosis", "read_poses",
-    "read_run", "read_table", "report", "selftest", "write_diagnosis",
+    "read_run", "read_table", "report", "selftest", "write_diagnosis", "report_pdf", "frf_from_arrays",
+    "FrfResult", "animate_mode",
 ]
 
 

@@ -10,6 +10,7 @@ docs/python-api.md.  Units: frequencies Hz, damping ratios as fractions, poses i
 
 from __future__ import annotations
 
+import html
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,8 +33,19 @@ __all__ = [
     "Identification", "SelfCheck", "acquire", "compare_modes", "compute_frf", "compute_frfs", "demo",
     "diagnose", "format_comparison", "identify", "list_runs", "load_rig", "plot_comparison", "plot_frf",
     "plot_gap", "plot_mode_shapes", "plot_stabilisation", "predict", "read_diagnosis", "read_poses",
-    "read_run", "read_table", "report", "selftest", "write_diagnosis",
+    "read_run", "read_table", "report", "selftest", "write_diagnosis", "report_pdf", "frf_from_arrays",
+    "FrfResult", "animate_mode",
 ]
+
+
+def __getattr__(name: str):
+    """Result types exported here, loaded on first use (``fm.FrfResult``) so importing the API stays
+    cheap."""
+    if name == "FrfResult":
+        from flexmodal.modal.frf import FrfResult
+
+        return FrfResult
+    raise AttributeError(f"module 'flexmodal.api' has no attribute {name!r}")
 
 SHAPE_CONFIGS = 2              # configurations whose mode shapes a report draws on the arm (first, last)
 
@@ -156,7 +168,7 @@ def acquire(session: PathLike | Session, out: PathLike, *, duration_s: float | N
     if duration_s is not None and duration_s <= 0:
         raise DaqError(f"--duration {duration_s}: must be > 0 seconds")
     if recover and Path(out).exists():
-        from flexmodal.daq.store import recover as _recover
+        from flexmodal.daq.h5file import recover as _recover
 
         _recover(out)
     return _acquire(session, out, duration_s=duration_s, quiet=quiet, run_id=run_id)
@@ -223,6 +235,70 @@ def compute_frf(run: Run | PathLike, *, estimator: str = "H1", nfft: int | None 
 
         write_frf(run.path, run.run_id, result)
     return result
+
+
+def frf_from_arrays(freq_hz, H, *, coherence=None, quantity: str = "accelerance",
+                    outputs: Sequence[str] = (), inputs: Sequence[str] = (),
+                    decay_rate_per_s: float = 0.0) -> FrfResult:
+    """FRFs you already have (another tool's, a UFF file's, a simulation's) as the :class:`FrfResult`
+    every flexmodal function takes (:func:`identify`, :func:`plot_frf`, :func:`plot_stabilisation`).
+
+    Parameters
+    ----------
+    freq_hz : array_like [n_freq]
+        Frequency lines [Hz], finite, increasing, non-negative.
+    H : array_like [n_out, n_in, n_freq], [n_out, n_freq] or [n_freq]
+        Complex FRFs in ``quantity`` per input unit (one input when 2-D, one output too when 1-D).
+    coherence : array_like [n_out, n_freq], optional
+        Coherence [-] of each output (default: none).
+    quantity : {"accelerance", "mobility", "receptance"}
+        What H is: (m/s²)/N, (m/s)/N or m/N.
+    outputs, inputs : sequence of str
+        Channel names (default ``out 1``.. and ``in 1``..).
+    decay_rate_per_s : float
+        Decay rate [1/s] of an exponential window applied to the records (0: none), removed from the
+        identified damping.
+
+    Returns
+    -------
+    FrfResult
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import flexmodal as fm
+    >>> f = np.linspace(0.0, 100.0, 201)
+    >>> s, w0 = 2j * np.pi * f, 2 * np.pi * 40.0                    # one mode at 40 Hz, 2 % damping
+    >>> H = s**2 / (s**2 + 2 * 0.02 * w0 * s + w0**2)
+    >>> frf = fm.frf_from_arrays(f, H, outputs=["tip"])
+    >>> frf.H.shape, frf.outputs, frf.inputs
+    ((1, 1, 201), ('tip',), ('in 1',))
+    """
+    import numpy as np
+
+    from flexmodal.modal.errors import ModalError
+    from flexmodal.modal.frf import QUANTITIES, FrfResult
+
+    f = np.asarray(freq_hz, float)
+    h = np.asarray(H, complex)
+    h = h[None, None, :] if h.ndim == 1 else h[:, None, :] if h.ndim == 2 else h
+    if f.ndim != 1 or f.size < 2 or not np.all(np.isfinite(f)) or f[0] < 0 or np.any(np.diff(f) <= 0):
+        raise ModalError("frf_from_arrays: freq_hz must be finite, non-negative, increasing lines [Hz]")
+    if h.ndim != 3 or h.shape[-1] != f.size:
+        raise ModalError(f"frf_from_arrays: H {np.shape(H)} must be [n_out, n_in, n_freq], [n_out, n_freq] "
+                         f"with n_freq = {f.size}")
+    if quantity not in QUANTITIES:
+        raise ModalError(f"frf_from_arrays: quantity {quantity!r}: use one of {', '.join(QUANTITIES)}")
+    coh = None if coherence is None else np.asarray(coherence, float)
+    if coh is not None and coh.shape != (h.shape[0], f.size):
+        raise ModalError(f"frf_from_arrays: coherence {coh.shape} must be [n_out, n_freq] = "
+                         f"{(h.shape[0], f.size)}")
+    outs = tuple(outputs) or tuple(f"out {k + 1}" for k in range(h.shape[0]))
+    ins = tuple(inputs) or tuple(f"in {k + 1}" for k in range(h.shape[1]))
+    if len(outs) != h.shape[0] or len(ins) != h.shape[1]:
+        raise ModalError(f"frf_from_arrays: {len(outs)} output and {len(ins)} input names for H {h.shape}")
+    return FrfResult(f, h, coh, "given", "", 2 * (f.size - 1), 0, float("nan"), quantity, outs, ins,
+                     float(decay_rate_per_s), {"source": "frf_from_arrays"})
 
 
 def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: str = "H1",
@@ -300,6 +376,20 @@ class Identification:
     def warnings(self) -> list[str]:
         """``config: message`` for every warning met on the way."""
         return [f"{c}: {w}" for c, m in self.modes.items() for w in m.warnings]
+
+    def to_frame(self):
+        """The modal table as a pandas DataFrame (:meth:`ModalTable.to_frame`)."""
+        return self.table.to_frame()
+
+    def __repr__(self) -> str:
+        n = len(self.warnings)
+        return (f"Identification({len(self.modes)} configurations, {len(self.table.frame)} modes, "
+                f"{n} warning{'s' if n != 1 else ''}; .table, .modes[config], .warnings)")
+
+    def _repr_html_(self) -> str:
+        warned = "".join(f"<li>{html.escape(w)}</li>" for w in self.warnings[:10])
+        more = f"<li>... {len(self.warnings) - 10} more</li>" if len(self.warnings) > 10 else ""
+        return self.table._repr_html_() + (f"<p>Warnings:</p><ul>{warned}{more}</ul>" if warned else "")
 
     def write(self, out: PathLike, *, uff: PathLike | None = None) -> Path:
         """Write the modal table CSV ``out`` (docs/formats.md) and, beside it, ``MODES.synthesis.csv``
@@ -523,13 +613,19 @@ def predict(rig: Rig | PathLike, poses: Mapping[str, Mapping[str, float]] | Moda
     from flexmodal.models.errors import ModelError
     from flexmodal.models.predict import predict as _predict
 
+    rig = _rig(rig)
     if isinstance(poses, str | Path):
-        poses = read_poses(poses)
+        where, poses = poses, read_poses(poses)
+        have = set().union(*poses.values()) if poses else set()
+        missing = [v for v in rig.pose_variables if v not in have]
+        if missing:  # the poses file lacks the column, not the rig its variable
+            raise ModelError(f"{where}: no column 'pose.{missing[0]}' (rig {rig.source} needs the pose "
+                             f"variable {missing[0]!r}; pose columns are named pose.<variable>)")
     elif not isinstance(poses, Mapping):
         poses = {c: poses.pose(c) for c in poses.configs}
     if not poses:
         raise ModelError("predict: no configurations")
-    return _predict(_rig(rig), poses, model, n_modes, source=source, progress=progress, **options)
+    return _predict(rig, poses, model, n_modes, source=source, progress=progress, **options)
 
 
 # -- comparison and diagnosis ----------------------------------------------------------------------
@@ -632,6 +728,20 @@ def diagnose(rig: Rig | PathLike, measured: ModalTable | PathLike, *, effects: s
     return _diagnose(_rig(rig), _table(measured), effects=effects, holdout=holdout, scatter=scatter)
 
 
+def _paths(sources: Iterable[object]) -> list[PathLike]:
+    """The files among ``sources`` (paths, ``FILE::RUN_ID``, (file, run id); objects are skipped):
+    the inputs an output must not replace."""
+    found: list[PathLike] = []
+    for s in sources:
+        if isinstance(s, tuple) and s and isinstance(s[0], str | Path):
+            found.append(s[0])
+        elif isinstance(s, Path):
+            found.append(s)
+        elif isinstance(s, str):
+            found.append(s.partition("::")[0])
+    return found
+
+
 def write_diagnosis(result: Diagnosis, out_dir: PathLike,
                     inputs: Sequence[PathLike] = ()) -> tuple[Path, Path]:
     """Write ``diagnosis.json`` (strict JSON) and ``diagnosis.html`` of a :func:`diagnose` result into
@@ -641,7 +751,8 @@ def write_diagnosis(result: Diagnosis, out_dir: PathLike,
     from flexmodal.reports.html import write_report
     from flexmodal.valid_output import output_dir, write_text
 
-    out = output_dir(out_dir, CompareError, "diagnosis folder (--out)")
+    out = output_dir(out_dir, CompareError, "diagnosis folder (--out)",
+                     files=("diagnosis.json", "diagnosis.html"), inputs=inputs)
     out.mkdir(parents=True, exist_ok=True)
     pj = write_text(out / "diagnosis.json", result.to_json())
     ph = write_report(out / "diagnosis.html", diagnosis=result, title="Sim-to-real gap diagnosis",
@@ -898,7 +1009,7 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
            diagnosis: Diagnosis | Mapping | PathLike | None = None,
            rig: Rig | PathLike | None = None, title: str = "flexmodal validation report",
            oma_fmin: float | None = None, oma_fmax: float | None = None,
-           fmin: float | None = None, fmax: float | None = None,
+           fmin: float | None = None, fmax: float | None = None, geometry: PathLike | None = None,
            progress: Callable[[str], None] | None = None) -> Path:
     """Write the self-contained HTML validation report ``out`` (its folder must exist; checked before
     any work) and return its path.
@@ -911,12 +1022,15 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     identified in the band ``oma_fmin``..``oma_fmax`` [Hz] (``identify --fmin/--fmax``; default the
     whole record).
     ``measured``/``repeats``/``predictions``: modal tables; ``diagnosis``: a :func:`diagnose` result,
-    a parsed diagnosis.json, or its path; ``rig``: draws the measured shapes on the arm.  Everything
+    a parsed diagnosis.json, or its path; ``rig``: draws the measured shapes on the arm and animates
+    them beside the FE model's; ``geometry``: a Universal File with the test geometry (datasets 15 or
+    2411, 82, 18 or 2420) to animate the measured modes on (their sensors named ``<node>+z``...).  Everything
     is computed here; ``reports.html`` only renders it."""
     from flexmodal.reports.errors import ReportError
     from flexmodal.valid_output import output_file
 
-    output_file(out, ReportError, "report (--out)")
+    sources = [*runs, measured, *repeats, *predictions, diagnosis, rig]
+    output_file(out, ReportError, "report (--out)", inputs=_paths(sources))
     from flexmodal.compare.tables import compare_tables, ordered_configs, table_name
     from flexmodal.daq.store import expand_runs
     from flexmodal.modal.errors import ModalError
@@ -975,10 +1089,64 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     inputs += [t.source for _, t in named]
     inputs += [diagnosis] if isinstance(diagnosis, str | Path) else []
     inputs += [rig.source] if rig is not None else []
+    inputs += [geometry] if geometry is not None else []
+    geo = None
+    if geometry is not None:
+        from flexmodal.reports.geometry import read_uff_geometry
+
+        geo = read_uff_geometry(geometry)
     return write_report(out, runs=summaries, comparison=comparison, measured=meas,
                         repeats=[_table(r) for r in repeats], predictions=named, shapes=shapes,
                         diagnosis=_diagnosis(diagnosis) if diagnosis is not None else None,
-                        rig_name=getattr(rig, "name", ""), title=title, inputs=inputs, progress=progress)
+                        rig_name=getattr(rig, "name", ""), title=title, inputs=inputs, geometry=geo,
+                        progress=progress)
+
+
+def animate_mode(out: PathLike, measured: ModalTable | PathLike, config: str, mode: int = 1, *,
+                 rig: Rig | PathLike | None = None, geometry: PathLike | None = None, frames: int = 24,
+                 fps: int = 12) -> Path:
+    """An animated GIF of one measured mode for slides (matplotlib's PillowWriter): with ``rig``, the
+    mode at the sensors on the arm beside the frame FE model's best-matching mode; with ``geometry``
+    (a Universal File: nodes, trace lines, coordinate systems), the mode on the test structure.
+    ``mode`` is 1-based; returns ``out``.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import flexmodal as fm
+    >>> from flexmodal.fixtures.rig_sim import DEMO_RIG
+    >>> rig = fm.load_rig(DEMO_RIG)
+    >>> table = fm.predict(rig, {"theta60": {"theta_deg": 60.0}}, "fe", n_modes=2)
+    >>> gif = fm.animate_mode(Path(tempfile.mkdtemp()) / "mode1.gif", table, "theta60", 1, rig=rig)
+    >>> gif.read_bytes()[:6]
+    b'GIF89a'
+    """
+    from flexmodal.reports import animate
+    from flexmodal.reports.errors import ReportError
+    from flexmodal.valid_output import output_file
+
+    target = output_file(out, ReportError, "GIF (out)")
+    table = _table(measured)
+    if config not in table.configs:
+        raise ReportError(f"{table.source}: no configuration {config!r} (have {', '.join(table.configs)})")
+    n = len(table.freq_hz(config))
+    if not 1 <= mode <= n:
+        raise ReportError(f"{table.source}: {config} has modes 1..{n}, not {mode}")
+    if (rig is None) == (geometry is None):
+        raise ReportError("animate_mode: give the rig or a UFF geometry (one of them)")
+    if geometry is not None:
+        from flexmodal.reports.geometry import read_uff_geometry
+
+        shapes = [animate.geometry_shapes(read_uff_geometry(geometry), table, config)[mode - 1]]
+    else:
+        from flexmodal.models.arm_shapes import arm_modes
+
+        rig = _rig(rig)
+        sensors = [s.name for s in rig.sensors if s.name in table.sensors]
+        test, model = animate.arm_pairs(arm_modes(rig, table.pose(config), sensors), table, config)[mode - 1]
+        shapes = [s for s in (test, model) if s is not None]
+    return animate.write_gif(shapes, target, frames=frames, fps=fps)
 
 
 def report_pdf(html: PathLike, pdf: PathLike | None = None) -> Path:

@@ -1,26 +1,23 @@
 """flexmodal command line: a thin dispatcher over the packages.
 
-Every sub-command is registered by its package's ``cli`` module (``register(subparsers)``), which
-imports its heavy dependencies only when the command runs.  Errors of the one family
-``flexmodal.checked_io.errors.FlexmodalError`` (each package raises its subclass), and missing or
-unreadable files, become one line on stderr and exit code 2 (docs/formats.md).
+Every sub-command comes from the command registry (cli_commands.COMMANDS: each entry adds its
+sub-commands to the parser and imports its heavy dependencies only when the command runs).  Errors of
+the one family ``flexmodal.checked_io.errors.FlexmodalError`` (each package raises its subclass), and
+operating-system errors (a missing or unreadable file, a full disk) become one line on stderr and exit
+code 2 (docs/formats.md).
 """
 
 from __future__ import annotations
 
 import argparse
-import importlib
 import os
 import signal
 import sys
 from collections.abc import Sequence
 
+from flexmodal import __version__
 from flexmodal.checked_io.errors import FlexmodalError
-
-COMMAND_MODULES = (
-    "flexmodal.fixtures.cli", "flexmodal.daq.cli", "flexmodal.modal.cli", "flexmodal.models.cli",
-    "flexmodal.compare.cli", "flexmodal.compare.diagnosis_cli", "flexmodal.reports.cli",
-)
+from flexmodal.cli_commands import COMMANDS
 
 
 class UsageError(Exception):
@@ -40,10 +37,12 @@ def build_parser() -> argparse.ArgumentParser:
         description="Experimental modal analysis and data acquisition for flexible robot arms.",
     )
     parser.add_argument("--quiet", action="store_true", help="silence progress output on stderr")
+    parser.add_argument("--version", action="version", version=f"flexmodal {__version__}",
+                        help="print flexmodal's version and exit")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
-    for name in COMMAND_MODULES:
-        importlib.import_module(name).register(sub)
+    for add in COMMANDS.values():   # the command registry (cli_commands.COMMANDS), in its order
+        add(sub)
     for command in sub.choices.values():  # `flexmodal CMD --quiet` works as well as `flexmodal --quiet CMD`
         if "--quiet" not in command._option_string_actions:
             command.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
@@ -72,9 +71,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"flexmodal: error: {' '.join(str(exc).split())}", file=sys.stderr)
         signum = getattr(exc, "signum", 0)  # stopped by a signal before any work (daq.acquire.Stopped)
         return 128 + signum if signum else 2
-    except (FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError) as exc:
-        where = exc.filename if exc.filename is not None else ""
-        print(f"flexmodal: error: {where}: {exc.strerror or exc}", file=sys.stderr)
+    except OSError as exc:  # missing or unreadable files, a full disk, an I/O error: named, one line
+        where = f"{exc.filename}: " if exc.filename is not None else ""
+        print(f"flexmodal: error: {where}{' '.join(str(exc.strerror or exc).split())}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         if argv is None:  # the command itself: outputs are closed or removed by now, so skip the

@@ -1,9 +1,11 @@
-"""Registration of a CLI sub-command from its handler: the one shape every ``*/cli.py`` shares.
+"""The commands of the CLI: their registry and the one shape of a sub-command.
 
-A package's ``cli.register(sub)`` calls :func:`command` with the command's name and its handler; the
-handler's docstring is the command's text: its first line the one-line ``help`` listed by ``flexmodal
---help``, the paragraph after it the ``description`` of ``flexmodal NAME --help``.  The module imports
-only argparse, so building the parser stays cheap.
+``COMMANDS`` holds, by name, the functions ``add(subparsers)`` that add sub-commands to the parser (a
+built-in entry names a command module's ``register``, imported when the parser is built); app.py adds
+them in registration order.  An ``add`` calls :func:`command` with the command's name and its handler;
+the handler's docstring is the command's text: its first line the one-line ``help`` listed by
+``flexmodal --help``, the paragraph after it the ``description`` of ``flexmodal NAME --help``.  The
+module imports only argparse and the registry, so building the parser stays cheap.
 """
 
 from __future__ import annotations
@@ -11,7 +13,34 @@ from __future__ import annotations
 import argparse
 from collections.abc import Callable
 
+from flexmodal.checked_io.errors import FlexmodalError
+from flexmodal.checked_io.registry import Registry
+
 Handler = Callable[[argparse.Namespace], int]
+Adder = Callable[[argparse._SubParsersAction], None]
+
+COMMANDS: Registry[Adder] = Registry("command", FlexmodalError, {
+    "demo-sim": "flexmodal.fixtures.cli:register", "acquire": "flexmodal.daq.cli:register",
+    "frf-identify": "flexmodal.modal.cli:register", "predict": "flexmodal.models.cli:register",
+    "compare": "flexmodal.compare.cli:register", "diagnose": "flexmodal.compare.diagnosis_cli:register",
+    "report": "flexmodal.reports.cli:register",
+})
+
+
+def register_command(name: str, add: Adder) -> Adder:
+    """Add (or replace) the entry ``name``: ``add(subparsers)`` adds its sub-command(s) with
+    :func:`command`."""
+    return COMMANDS.register(name, add)
+
+
+def unregister_command(name: str) -> None:
+    """Remove the entry ``name`` (its sub-commands are no longer offered)."""
+    COMMANDS.unregister(name)
+
+
+def registered_commands() -> tuple[str, ...]:
+    """Names of the command entries, in the order their sub-commands are listed."""
+    return COMMANDS.names()
 
 
 def command(sub: argparse._SubParsersAction, name: str, run: Handler) -> argparse.ArgumentParser:

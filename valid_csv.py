@@ -1,8 +1,9 @@
 """CSV tables (modal tables, POSES.csv): UTF-8 text with one header line and equally long rows.
 
 :func:`read_table` reads a table into a pandas DataFrame after checking what pandas lets through
-silently or reports over several lines: an empty file, a header naming a column twice, rows with more
-or fewer fields than the header, missing required columns and empty cells in them.  Failures raise the
+silently or reports over several lines: an empty file, a header naming a column twice, a header
+separated by ``;`` or tabs (a spreadsheet export with decimal commas), rows with more or fewer fields
+than the header, missing required columns and empty cells in them.  Failures raise the
 calling package's error type with the file, line and column named.
 """
 
@@ -36,6 +37,9 @@ def read_table(path: str | Path, error: ErrorType, *, required: Sequence[str] = 
         if name in seen and name:
             raise error(f"{path}: line {rows[0][0]}: column {name!r} appears twice in the header")
         seen.add(name)
+    hint = _separator_hint(rows[0][1])
+    if hint and (len(header) == 1 or any(len(r) != len(header) for _, r in rows[1:])):
+        raise error(f"{path}: line {rows[0][0]}: {hint}")
     for line, row in rows[1:]:
         if len(row) != len(header):
             raise error(f"{path}: line {line}: {len(row)} fields, the header has {len(header)}")
@@ -55,6 +59,17 @@ def read_table(path: str | Path, error: ErrorType, *, required: Sequence[str] = 
             where = f"line {rows[1 + i][0]}" if 1 + i < len(rows) else f"data row {i + 1}"
             raise error(f"{path}: {where}: empty {col!r} cell")
     return frame
+
+
+def _separator_hint(header: Sequence[str]) -> str:
+    """Words for a header that is separated by ``;`` or tabs (a spreadsheet export in a locale with
+    decimal commas), or "" when it is not."""
+    text = ",".join(header)
+    for sep, name in ((";", "semicolons"), ("\t", "tabs")):
+        if text.count(sep) >= 1 and text.count(sep) >= len(header) - 1:
+            return (f"the header is separated by {name}, not commas (a spreadsheet export with decimal "
+                    "commas?): save the table as comma-separated values with '.' as decimal point")
+    return ""
 
 
 def _numbered_rows(text: str):

@@ -2,7 +2,10 @@
 
 :func:`output_file` and :func:`output_dir` prove that the target can be written by creating (and
 removing) a probe file where the output will go: permission bits alone say nothing for root, read-only
-mounts or ``/proc``.  :func:`hdf5_output` additionally refuses to append to an existing file that is
+mounts or ``/proc``.  Outputs are regular files only: a FIFO, a device, a socket, anything under
+``/dev``, ``/proc`` or ``/sys`` is refused, and so is an output that is one of the command's inputs
+(same file through symlinks and hard links) or, for a table or report, an existing HDF5 file (a run
+store is never replaced by a CSV).  :func:`hdf5_output` refuses to append to an existing file that is
 not HDF5 (it would be destroyed).  Failures raise the calling package's error type naming the path.
 
 Every output file is written through :func:`atomic_path` (a temporary file in the target's folder,
@@ -14,18 +17,22 @@ HDF5 file (FRFs written back into a run file) cannot be swapped whole; they run 
 
 from __future__ import annotations
 
+import errno
 import os
 import secrets
 import signal
+import stat
 import tempfile
 import threading
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from flexmodal.valid_text import ErrorType
+from flexmodal.valid_text import ErrorType, file_kind, one_line
 
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+SPECIAL_ROOTS = ("/dev", "/proc", "/sys")  # device and kernel files: never an output file ...
+WRITABLE_ROOTS = ("/dev/shm",)              # ... except shared memory, an ordinary tmpfs
 
 
 def _probe(folder: Path, target: Path, error: ErrorType) -> None:
@@ -37,23 +44,82 @@ def _probe(folder: Path, target: Path, error: ErrorType) -> None:
     os.unlink(probe)
 
 
-def output_file(path: str | Path, error: ErrorType, what: str = "output file") -> Path:
-    """``path`` as a writable file: its folder exists and takes new files, and it is not a folder."""
+def _under(path: Path, roots: Iterable[str]) -> bool:
+    return any(str(path) == root or str(path).startswith(root + "/") for root in roots)
+
+
+def _same_file(a: os.stat_result, b: os.stat_result) -> bool:
+    return (a.st_dev, a.st_ino) == (b.st_dev, b.st_ino)
+
+
+def _regular_target(path: str | Path, error: ErrorType, what: str,
+                    inputs: Iterable[str | Path | None]) -> Path:
+    """``path`` (through symlinks) is new or a regular file, under neither /dev nor /proc, and none of
+    ``inputs`` (same device and inode, symlinks and hard links included; same resolved path if new)."""
     p = Path(path)
-    if p.is_dir():
+    real = Path(os.path.realpath(p))
+    if any(_under(q, SPECIAL_ROOTS) and not _under(q, WRITABLE_ROOTS)
+           for q in (Path(os.path.abspath(p)), real)):
+        raise error(f"{p}: is a device or process file ({real}), not a regular file for the {what}")
+    try:
+        st: os.stat_result | None = os.stat(p)
+    except OSError:
+        st = None
+    if st is not None and stat.S_ISDIR(st.st_mode):
         raise error(f"{p}: is a directory, expected a path for the {what}")
+    if st is not None and not stat.S_ISREG(st.st_mode):
+        raise error(f"{p}: is {file_kind(st.st_mode)}, not a regular file for the {what} (refusing to "
+                    "write there)")
+    for source in inputs:
+        if source is None or str(source) in ("", "-"):
+            continue
+        try:
+            same = st is not None and _same_file(st, os.stat(source))
+        except OSError:
+            same = False
+        if same or Path(os.path.realpath(source)) == real:
+            raise error(f"{p}: is also an input or output of this command ({source}); refusing to "
+                        f"overwrite it with the {what}")
+    return p
+
+
+def _is_hdf5(path: Path) -> bool:
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(len(HDF5_SIGNATURE)) == HDF5_SIGNATURE
+    except OSError:
+        return False
+
+
+def _writable(path: str | Path, error: ErrorType, what: str, inputs: Iterable[str | Path | None]) -> Path:
+    p = _regular_target(path, error, what, inputs)
     folder = p.parent if str(p.parent) else Path(".")
     if not folder.is_dir():
         why = "is not a directory" if folder.exists() else "does not exist"
         raise error(f"{p}: cannot write the {what}: folder {folder} {why}")
     if p.exists() and not os.access(p, os.W_OK):
         raise error(f"{p}: the {what} exists and is not writable")
-    _probe(folder, p, error)
+    real_folder = Path(os.path.realpath(p)).parent
+    _probe(real_folder, p, error)
     return p
 
 
-def output_dir(path: str | Path, error: ErrorType, what: str = "output directory") -> Path:
-    """``path`` as a folder that exists or can be created and takes new files (it is not created)."""
+def output_file(path: str | Path, error: ErrorType, what: str = "output file", *,
+                inputs: Iterable[str | Path | None] = ()) -> Path:
+    """``path`` as a writable file that may be replaced whole: new or a regular file (a symlink is
+    followed: its target is written), its folder exists and takes new files, it is none of the
+    command's ``inputs`` and not an HDF5 file (a run store is never replaced by a table)."""
+    p = _writable(path, error, what, inputs)
+    if p.exists() and _is_hdf5(p):
+        raise error(f"{p}: is an HDF5 file (a run store?); refusing to replace it with the {what}; "
+                    "choose another --out")
+    return p
+
+
+def output_dir(path: str | Path, error: ErrorType, what: str = "output directory", *,
+               files: Iterable[str] = (), inputs: Iterable[str | Path | None] = ()) -> Path:
+    """``path`` as a folder that exists or can be created and takes new files (it is not created);
+    the ``files`` the command writes into it are checked as :func:`output_file` checks a file."""
     p = Path(path)
     if p.exists() and not p.is_dir():
         raise error(f"{p}: exists and is not a directory (the {what})")
@@ -63,33 +129,53 @@ def output_dir(path: str | Path, error: ErrorType, what: str = "output directory
     if not ancestor.is_dir():
         raise error(f"{p}: cannot create the {what}: {ancestor} is not a directory")
     _probe(ancestor, p, error)
+    inputs = list(inputs)
+    for name in files:
+        if p.is_dir():
+            output_file(p / name, error, f"{what} file {name}", inputs=inputs)
     return p
 
 
 def hdf5_output(path: str | Path, error: ErrorType, what: str = "HDF5 output file") -> Path:
     """A writable HDF5 target: new, or an existing HDF5 file (runs are appended, nothing else is lost)."""
-    p = output_file(path, error, what)
-    if p.exists():
-        with open(p, "rb") as fh:
-            head = fh.read(len(HDF5_SIGNATURE))
-        if head != HDF5_SIGNATURE:
-            raise error(f"{p}: exists and is not an HDF5 file (refusing to overwrite it; choose another "
-                        "--out)")
+    p = _writable(path, error, what, ())
+    if p.exists() and not _is_hdf5(p):
+        raise error(f"{p}: exists and is not an HDF5 file (refusing to overwrite it; choose another "
+                    "--out)")
     return p
+
+
+def write_failed(path: str | Path, exc: OSError) -> OSError:
+    """An ``OSError`` naming ``path`` for a write that failed (disk full, I/O error): the CLI prints it
+    as one line, ``PATH: reason``."""
+    reason = exc.strerror or one_line(exc)
+    return OSError(exc.errno or errno.EIO, f"{reason} (nothing was written)", str(path))
 
 
 @contextmanager
 def atomic_path(path: str | Path) -> Iterator[Path]:
     """A fresh temporary path next to ``path`` to write the whole output to; when the block ends it is
-    moved onto ``path`` (``os.replace``, atomic on POSIX), and on any exception it is removed.
+    moved onto ``path`` (``os.replace``, atomic on POSIX), and on any exception it is removed.  A
+    symlink ``path`` stays a link: its target is replaced.  An ``OSError`` inside the block (disk full,
+    I/O error) is raised again naming ``path`` (:func:`write_failed`).
 
     The temporary file is created with the usual permissions (0666 less the umask)."""
-    target = Path(path)
+    target = Path(os.path.realpath(path)) if os.path.islink(path) else Path(path)
+    if target.exists() and not target.is_file():
+        raise OSError(errno.EINVAL, "not a regular file (refusing to replace it)", str(path))
     tmp = target.with_name(f".{target.name}.{secrets.token_hex(4)}.part")
-    os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+    try:
+        os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+    except OSError as exc:
+        raise write_failed(path, exc) from None
     try:
         yield tmp
         os.replace(tmp, target)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        if exc.filename == str(path):
+            raise
+        raise write_failed(path, exc) from None
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise

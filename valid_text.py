@@ -1,13 +1,17 @@
 """Text inputs (TOML configs, CSV tables, JSON files): read them as UTF-8 text or fail with one line.
 
-Every loader of flexmodal reads its text files through :func:`read_text` (or :func:`read_toml`), which
-turns the ways a text file goes wrong (missing, a directory, unreadable, binary, not UTF-8, not TOML)
-into one exception of the calling package's error type whose message names the file, the line and the
-offending byte.  The module imports nothing from the flexmodal packages, so every package may use it.
+Every loader of flexmodal reads its text files through :func:`read_text` (or :func:`read_toml`,
+:func:`loads_json`), which turns the ways a text file goes wrong (missing, a FIFO or a device, a
+directory, unreadable, too large, binary, not UTF-8, not TOML, nested too deeply) into one exception
+of the calling package's error type whose message names the file, the line and the offending byte.
+The module imports nothing from the flexmodal packages, so every package may use it.
 """
 
 from __future__ import annotations
 
+import json
+import os
+import stat
 import tomllib
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -15,6 +19,8 @@ from pathlib import Path
 
 ErrorType = Callable[[str], Exception]
 MAX_MESSAGE_CHARS = 300  # a library message quoted in an error line is cut to this length
+MAX_TEXT_BYTES = 256 << 20  # a config, table or JSON file larger than this is refused unread
+MAX_NESTING = 100  # tables/arrays/objects nested deeper than this in TOML or JSON are refused
 
 
 def one_line(text: object) -> str:
@@ -36,17 +42,51 @@ def naming(where: str | Path, error: type[Exception]) -> Iterator[None]:
         raise type(exc)(f"{where}: {exc}") from None
 
 
-def read_bytes(path: str | Path, error: ErrorType, what: str = "file") -> bytes:
-    """The bytes of an existing regular file; ``error`` names the file when it is missing or unreadable."""
+def file_kind(mode: int) -> str:
+    """What a file that is not a regular file is, in words (from its ``stat`` mode)."""
+    for test, name in ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
+                       (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+                       (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return name
+    return "not a regular file"
+
+
+def regular_file(path: str | Path, error: ErrorType, what: str = "file") -> Path:
+    """``path`` when it names an existing regular file (symlinks followed); a FIFO, a device (it
+    would block or never end), a socket or a directory raises ``error`` naming the file."""
     p = Path(path)
-    if not p.exists():
-        raise error(f"{p}: {what} not found")
-    if p.is_dir():
-        raise error(f"{p}: is a directory, expected a {what}")
     try:
-        return p.read_bytes()
+        mode = os.stat(p).st_mode
+    except FileNotFoundError:
+        raise error(f"{p}: {what} not found") from None
     except OSError as exc:
         raise error(f"{p}: cannot read the {what} ({exc.strerror or one_line(exc)})") from None
+    if stat.S_ISDIR(mode):
+        raise error(f"{p}: is a directory, expected a {what}")
+    if not stat.S_ISREG(mode):
+        raise error(f"{p}: is {file_kind(mode)}, not a regular file (expected a {what})")
+    return p
+
+
+def read_bytes(path: str | Path, error: ErrorType, what: str = "file",
+               limit_bytes: int = MAX_TEXT_BYTES) -> bytes:
+    """The bytes of an existing regular file of at most ``limit_bytes``; ``error`` names the file when
+    it is missing, unreadable, not a regular file (a FIFO or ``/dev/zero`` is never waited on or read
+    without end) or too large."""
+    p = regular_file(path, error, what)
+    try:
+        fd = os.open(p, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)  # never waits, even if swapped for a FIFO
+        with os.fdopen(fd, "rb") as fh:
+            st = os.fstat(fh.fileno())
+            if not stat.S_ISREG(st.st_mode):
+                raise error(f"{p}: is {file_kind(st.st_mode)}, not a regular file (expected a {what})")
+            data = fh.read(limit_bytes + 1)
+    except OSError as exc:
+        raise error(f"{p}: cannot read the {what} ({exc.strerror or one_line(exc)})") from None
+    if len(data) > limit_bytes:
+        raise error(f"{p}: larger than {limit_bytes >> 20} MiB, too large for a {what}")
+    return data
 
 
 def decode_text(data: bytes, where: str | Path, error: ErrorType, what: str = "text file") -> str:
@@ -69,10 +109,47 @@ def read_text(path: str | Path, error: ErrorType, what: str = "text file") -> st
     return decode_text(read_bytes(path, error, what), path, error, what)
 
 
+def _depth(doc: object) -> int:
+    """Nesting depth of a parsed document (lists and dicts; iterative, so any depth is measured)."""
+    deepest, stack = 0, [(doc, 1)]
+    while stack:
+        node, level = stack.pop()
+        if isinstance(node, dict | list):
+            deepest = max(deepest, level)
+            stack.extend((child, level + 1) for child in (node.values() if isinstance(node, dict) else node))
+    return deepest
+
+
+def _parsed(doc: object, where: str | Path, error: ErrorType, what: str) -> object:
+    if _depth(doc) > MAX_NESTING:
+        raise error(f"{where}: nested more than {MAX_NESTING} levels deep, not a {what}")
+    return doc
+
+
 def read_toml(path: str | Path, error: ErrorType, what: str = "TOML file") -> dict:
-    """Parse a UTF-8 TOML file (TOML 1.0 via :mod:`tomllib`); a syntax error names its line and column."""
+    """Parse a UTF-8 TOML file (TOML 1.0 via :mod:`tomllib`); a syntax error names its line and column,
+    nesting deeper than :data:`MAX_NESTING` and integers longer than Python converts are refused."""
     text = read_text(path, error, what)
     try:
-        return tomllib.loads(text)
+        doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise error(f"{path}: not valid TOML ({one_line(exc)})") from None
+    except RecursionError:
+        raise error(f"{path}: nested too deeply, not a {what}") from None
+    except ValueError as exc:  # an integer of more than sys.get_int_max_str_digits() digits
+        raise error(f"{path}: not a valid {what} ({one_line(exc)})") from None
+    return _parsed(doc, path, error, what)  # type: ignore[return-value]
+
+
+def loads_json(text: str | bytes, where: str | Path, error: ErrorType, what: str = "JSON text") -> object:
+    """Parse JSON text read from ``where``; a syntax error, nesting deeper than :data:`MAX_NESTING`,
+    or an integer longer than Python converts raise ``error`` naming ``where``."""
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise error(f"{where}: not valid JSON ({exc.msg} at line {exc.lineno}, column {exc.colno})") from None
+    except RecursionError:
+        raise error(f"{where}: nested too deeply, not a {what}") from None
+    except (ValueError, TypeError) as exc:
+        raise error(f"{where}: not a valid {what} ({one_line(exc)})") from None
+    return _parsed(doc, where, error, what)

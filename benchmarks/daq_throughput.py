@@ -33,7 +33,10 @@ from pathlib import Path
 import numpy as np
 
 from flexmodal.daq.acquire import acquire  # noqa: E402
-from flexmodal.daq.session import ChannelMap, Device, Register, Session  # noqa: E402
+from flexmodal.daq.can_driver import CanConfig  # noqa: E402
+from flexmodal.daq.modbus_driver import ModbusConfig, Register  # noqa: E402
+from flexmodal.daq.serial_driver import SerialConfig  # noqa: E402
+from flexmodal.daq.session import ChannelMap, Device, Session  # noqa: E402
 from flexmodal.daq.store import Channel, RunWriter, list_runs, read_run  # noqa: E402
 from flexmodal.fixtures.sim_common import PtyLink  # noqa: E402
 from flexmodal.fixtures.sim_source import LSB_MV, SimChannel, SimSource  # noqa: E402
@@ -49,7 +52,7 @@ def synthetic_source(n_ch: int, rate_hz: float, n: int = 1 << 15) -> SimSource:
 
 def serial_session(port: str, n_ch: int, rate_hz: float) -> Session:
     names = tuple(f"c{i}" for i in range(n_ch))
-    dev = Device("adc", "serial", port=port, baud=12_000_000, framing="binary", sources=names)
+    dev = Device("adc", "serial", SerialConfig(port, tuple(names), baud=12_000_000))
     maps = tuple(ChannelMap(Channel(n, "other", "mV"), "adc", n, scale=LSB_MV) for n in names)
     return Session(Path("benchmark.toml"), rate_hz, (dev,), maps, run_id="bench")
 
@@ -132,7 +135,7 @@ def bench_can(n_frames: int = 30000) -> tuple[float, float]:
         link = PtyLink()
         feeder = threading.Thread(target=_feed, args=(link, data))
         if use_driver:
-            dev = Device("can0", "can", interface="slcan", channel=str(link.path), dbc=str(DEMO_DBC))
+            dev = Device("can0", "can", CanConfig("slcan", str(link.path), str(DEMO_DBC)))
             drv = CanDriver(dev, 1000.0)
             drv.open()
             feeder.start()
@@ -186,7 +189,7 @@ def bench_modbus(seconds: float = 3.0) -> tuple[float, float]:
     raw_rate = n / (time.perf_counter() - t0)
     client.close()
     regs = tuple(Register(f"r{i}", i) for i in range(9))
-    drv = ModbusDriver(Device("plc", "modbus", host="127.0.0.1", tcp_port=port, registers=regs), 1e6)
+    drv = ModbusDriver(Device("plc", "modbus", ModbusConfig("tcp", regs, tcp_port=port)), 1e6)
     drv.open()
     n, t0 = 0, time.perf_counter()
     while time.perf_counter() - t0 < seconds:

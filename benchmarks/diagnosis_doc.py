@@ -1,11 +1,13 @@
 """Regenerate the numbers docs/diagnosis.md quotes (tests re-run these functions and compare).
 
     python benchmarks/diagnosis_doc.py                   # print the seed 003 block
-    python benchmarks/diagnosis_doc.py --blind --write   # both blocks, written into docs/diagnosis.md
+    python benchmarks/diagnosis_doc.py --coverage --blind --write   # every block, into docs/diagnosis.md
 
-Blocks sit between ``<!-- NAME:begin -->`` and ``<!-- NAME:end -->`` (NAME = seed003, blind).  The
-blind block is the 36-case run of fixtures/blind.py (seed 0): its per-case table and summary without
-the timing line (a measurement that varies; tests/test_blind.py re-runs it under ``-m slow``).
+Blocks sit between ``<!-- NAME:begin -->`` and ``<!-- NAME:end -->`` (NAME = seed003, coverage,
+blind).  The blind block is the acceptance measurement: 36 cases of each of five draws of
+fixtures/blind.py's generator (seeds ``BLIND_SEEDS``), their summaries and the mean and worst over
+draws (tests/test_blind.py re-runs it under ``-m slow``); the coverage block the Monte-Carlo coverage
+of the identification's intervals (tests/test_modal_uncertainty.py re-runs it under ``-m slow``).
 """
 
 from __future__ import annotations
@@ -19,6 +21,8 @@ import pandas as pd
 REPO = Path(__file__).resolve().parents[1]
 DOC = REPO / "docs" / "diagnosis.md"
 BLIND_CASES = 36
+BLIND_SEEDS = (101, 102, 103, 104, 105)
+COVERAGE_RUNS = 400
 
 from flexmodal.compare.diagnosis import diagnose  # noqa: E402
 from flexmodal.modal.table import ModalTable  # noqa: E402
@@ -43,39 +47,66 @@ def seed003_block(data: Path = REPO / "tests" / "data") -> str:
     table = seed003_table(data)
     split = diagnose(rig, table, holdout="theta30,theta90,theta150")
     loo = diagnose(rig, table)
-    b, v = split.baseline, split.verdict
-    best = next(e for e in split.ranking if (e.effect, e.location) == (v.effect, v.location))
-    top = split.ranking[0]
-    params = ", ".join(f"{k} = {x:.4g}" for k, x in v.params.items())
-    alts = "; ".join(f"{a.effect} at {a.location} ({_pct(a.heldout_rms_rel_error)})"
-                     for a in v.alternatives) or "none"
-    lv = loo.verdict
+    b = split.baseline
+
+    def verdict(res) -> str:
+        v = res.verdict
+        entry = next(e for e in res.ranking if (e.effect, e.location) == (v.effect, v.location))
+        params = ", ".join(f"{k} = {x:.4g} [{v.param_intervals[k][0]:.4g}, {v.param_intervals[k][1]:.4g}]"
+                           for k, x in v.params.items())
+        alts = "; ".join(f"{a.effect} at {a.location} ({_pct(a.heldout_rms_rel_error)})"
+                         for a in v.alternatives) or "none"
+        why = f" ({v.why_not_top})" if v.why_not_top else ""
+        return (f"verdict **{v.effect} at {v.location}** (ranked {v.ranked}{why}; {params}; unidentified: "
+                f"{', '.join(v.unidentified_params) or 'none'}), held-out RMS "
+                f"{_pct(v.heldout_rms_rel_error_before)} → **{_pct(v.heldout_rms_rel_error_after)}** (fit "
+                f"{_pct(entry.fit_rms_rel_error)}; {v.grade}, {100 * v.gap_removed:.0f} % of the gap "
+                f"removed; "
+                f"ranking scatter {_pct(res.scatter)}, its model-form floor); alternatives within noise: "
+                f"{alts}; remaining feature: {v.residual_feature or 'none'}")
+
     return "\n".join([
         f"Rigid-joint baseline: RMS {_pct(b.rms_rel_error)}, max {_pct(b.max_rel_error)} (f2 at 0°, "
-        f"the "
-        f"paper's 72 %); `where`: modes {list(split.where.modes)}, region `{split.where.region}`.",
+        f"the paper's 72 %); `where`: modes {list(split.where.modes)}, region `{split.where.region}`.",
         f"Fitted on 0/60/120° and predicting 30/90/150° (`--holdout theta30,theta90,theta150`), every "
-        f"fit refitted without the held-out poses: verdict **{v.effect} at {v.location}** "
-        f"({params}; unidentified: {', '.join(v.unidentified_params) or 'none'}), held-out RMS "
-        f"{_pct(v.heldout_rms_rel_error_before)} → **{_pct(v.heldout_rms_rel_error_after)}** "
-        f"(fit {_pct(best.fit_rms_rel_error)}); explained: {str(v.explained).lower()}.",
-        f"Best-scored candidate {top.effect} at {top.location}: {_pct(top.heldout_rms_rel_error)} "
-        f"held out, pruned to the verdict because with 6 held-out residuals the difference is within noise; "
-        f"alternatives within noise: {alts}.",
-        f"Leave one configuration out: {lv.effect} at {lv.location}, "
-        f"{_pct(lv.heldout_rms_rel_error_before)} → {_pct(lv.heldout_rms_rel_error_after)}.",
+        f"fit refitted without the held-out poses: {verdict(split)}.",
+        f"Leave one pose out: {verdict(loo)}.",
+        "Parameters with their 95 % intervals in brackets (`verdict.param_intervals`).",
     ])
 
 
-def blind_block(results: list | None = None, seed: int = 0) -> str:
-    """The blind run's per-case table and summary as a fenced block, without the timing line;
-    ``results``: those of ``run_blind(BLIND_CASES, seed)`` when already computed."""
-    from flexmodal.fixtures.blind import format_summary, format_table, run_blind, summarise
+def blind_block(seeds: tuple[int, ...] = BLIND_SEEDS, cases: int = BLIND_CASES) -> str:
+    """The acceptance measurement: ``cases`` blind cases of each of the draws ``seeds`` (one draw of
+    fixtures/blind.py's generator each: new rigs, poses, magnitudes, scatter), each draw's summary and
+    misses, then the mean and worst over draws, as a fenced block (no timing)."""
+    from flexmodal.fixtures.blind import format_draws, format_summary, run_blind, summarise
 
-    results = run_blind(BLIND_CASES, seed=seed) if results is None else results
-    lines = format_summary(summarise(results)).splitlines()
-    body = "\n".join([format_table(results)] + [x for x in lines if not x.startswith("time per case")])
-    return f"`fixtures/blind.py`, {len(results)} cases, seed {seed}:\n\n```\n{body}\n```"
+    parts, draws = [], []
+    for seed in seeds:
+        s = summarise(run_blind(cases, seed=seed))
+        draws.append(s)
+        lines = [x for x in format_summary(s).splitlines() if not x.startswith("time per case")]
+        parts.append(f"draw seed {seed}:\n" + "\n".join("  " + x for x in lines))
+    body = "\n".join(parts + [format_draws(draws)])
+    return (f"`fixtures/blind.py`, {cases} cases in each of {len(seeds)} draws (seeds "
+            f"{', '.join(map(str, seeds))}; none of them used while the method was developed):\n\n"
+            f"```\n{body}\n```")
+
+
+def coverage_block(runs: int = COVERAGE_RUNS) -> str:
+    """Monte-Carlo coverage of the identification's 95 % intervals (fixtures/modal_coverage.py) for two
+    damping levels and resolutions, as a fenced block."""
+    from flexmodal.fixtures.modal_coverage import coverage
+
+    lines = []
+    for zeta, nfft in ((0.02, 1024), (0.03, 2048)):
+        c = coverage(runs, seed=7, zeta=zeta, nfft=nfft)
+        lines.append(f"zeta {zeta:.2f}/{0.8 * zeta:.3f}, nfft {nfft}, {c['n_runs']} records: frequency "
+                     f"{', '.join(f'{x:.1%}' for x in c['freq'])} (normalised error sd "
+                     f"{', '.join(f'{x:.2f}' for x in c['z_sd_freq'])}); damping "
+                     f"{', '.join(f'{x:.1%}' for x in c['damping'])}; the same sigma around the unrefined "
+                     f"pLSCF frequency {', '.join(f'{x:.1%}' for x in c['freq_plscf'])}")
+    return "```\n" + "\n".join(lines) + "\n```"
 
 
 def doc_block(name: str) -> str:
@@ -95,9 +126,12 @@ def write_block(name: str, block: str) -> None:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--write", action="store_true", help="replace the blocks in docs/diagnosis.md")
-    ap.add_argument("--blind", action="store_true", help="also the 36-case blind run (minutes)")
+    ap.add_argument("--blind", action="store_true", help="also the 5-draw blind measurement (long)")
+    ap.add_argument("--coverage", action="store_true", help="also the identification's Monte-Carlo coverage")
     args = ap.parse_args()
     blocks = {"seed003": seed003_block()}
+    if args.coverage:
+        blocks["coverage"] = coverage_block()
     if args.blind:
         blocks["blind"] = blind_block()
     for name, block in blocks.items():

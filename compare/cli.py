@@ -27,7 +27,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--caption", default="Measured and predicted natural frequencies",
                    help="table caption (tex and html)")
     p.add_argument("--out", metavar="FILE",
-                   help="write the table to FILE (prints the path) instead of stdout")
+                   help="write the table to FILE (prints the path) instead of stdout ('-': stdout)")
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -40,14 +40,15 @@ def _run(args: argparse.Namespace) -> int:
     """
     from flexmodal.api import compare_modes, format_comparison
 
-    if args.out:
+    to_file = args.out not in (None, "", "-")
+    if to_file:
         from flexmodal.compare.errors import CompareError
         from flexmodal.valid_output import output_file, write_text
 
-        output_file(args.out, CompareError, "table (--out)")
+        output_file(args.out, CompareError, "table (--out)", inputs=(args.measured, *args.predicted))
     comp = compare_modes(args.measured, *args.predicted, min_mac=args.min_mac)
     text = format_comparison(comp, args.format, args.layout, args.caption)
-    if args.out:
+    if to_file:
         print(write_text(args.out, text))
     else:
         sys.stdout.write(text)

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -52,7 +52,7 @@ from flexmodal.compare.gap import (
     region_scores,
     rms,
 )
-from flexmodal.compare.parametric import handles_for, pose_basis, reduce_family
+from flexmodal.compare.parametric import handles_for, lam_to_hz, pose_basis, reduce_family, solve_family
 from flexmodal.compare.result import (
     Alternative,
     Baseline,
@@ -60,6 +60,7 @@ from flexmodal.compare.result import (
     CandidateScore,
     Diagnosis,
     Holdout,
+    NextMeasurement,
     Predictions,
     Remaining,
     ScatterSource,
@@ -93,8 +94,18 @@ MIN_CROSS_VALIDATED = 6
 REGION_TIE = 0.8
 FEATURE_Z = 3.3
 """A residual feature beyond 3.3 standard errors (two-sided 0.1 %) points outside the library."""
-COMAC_BAD = 0.8
-COMAC_GOOD = 0.95
+COMAC_DROP = 0.05
+SENSOR_FACTOR = 10.0
+COMAC_NOISE = 1e-3
+"""One sensor whose 1 - COMAC is at least 0.05 and 10x the other sensors' median (never taken below
+0.1 %, the shape noise) flags the verdict."""
+Z95 = 1.959963984540054
+TRIAL_POINTS = 13
+MAX_ADVICE = 3
+RIVAL_MARGIN = 3.0
+MAX_RIVALS = 6
+"""An ambiguous verdict's next measurement is chosen against its rivals: the candidates (not supersets)
+within 3x the noise margin of its held-out error, at most 6 (the alternatives are those within 1x)."""
 INTERVAL_METHOD = ("linearised (Gauss-Newton) covariance at the ranking scatter, widened to the "
                    "jackknife over the cross-validation refits where larger; Student t quantile")
 RANKING_LENGTH = 25
@@ -150,11 +161,11 @@ def _effect_region(rig: Rig, effect: str, location: str) -> str:
 class _Context:
     """Everything the candidate fits share: pose bases, handles, target, folds."""
 
-    def __init__(self, rig: Rig, meas: Measured, train: np.ndarray) -> None:
+    def __init__(self, rig: Rig, meas: Measured, train: np.ndarray, n_modes: int | None = None) -> None:
         self.rig, self.meas, self.train = rig, meas, train
         self.handles = handles_for(rig)
         self.index = {h.name: i for i, h in enumerate(self.handles)}
-        n = meas.freq_hz.shape[1]
+        n = meas.freq_hz.shape[1] if n_modes is None else n_modes
         self.bases = [pose_basis(rig, self.handles, p, n) for p in meas.poses]
         if meas.sensors:
             rows = [s.name for s in rig.sensors]
@@ -361,11 +372,12 @@ def _partners(ctx: _Context, lead: dict, others: Sequence[dict]) -> list[dict]:
     return [others[i] for i in np.argsort(stats)[::-1][:PARTNERS]]
 
 
-def _triples(ctx: _Context, pairs: Sequence[dict], pool: Sequence[dict], scatter: float) -> list[dict]:
-    """Each of the best pairs extended by each single of the pool (only tried when no pair explains)."""
+def _triples(ctx: _Context, pairs: Sequence[dict], singles: Sequence[dict], scatter: float) -> list[dict]:
+    """Each of the best pairs extended by its ``PARTNERS`` score-test partners among the singles
+    (``_partners``; only tried when no pair explains)."""
     out, seen = [], set()
     for pair in pairs:
-        for single in pool:
+        for single in _partners(ctx, pair, singles):
             cand = combine(pair["_cand"], single["_cand"])
             if cand is None or (cand.effect, cand.location, cand.params) in seen:
                 continue
@@ -471,6 +483,7 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
     if baseline["rms_rel_error"] > NONE_FACTOR * sigma:
         singles = single_candidates(rig, names, {v: [p[v] for p in meas.poses] for v in rig.pose_variables})
         screened = [_screen(ctx, c, scatter) for c in singles]
+        fitted_singles = list(screened)
         pool = sorted(screened, key=lambda e: e["_lower"])[:PAIR_POOL]
         for e in pool:
             _cross_validate(ctx, e, scatter)
@@ -487,7 +500,7 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
         _cross_validate_promising(ctx, screened, scatter)
         pairs.sort(key=lambda e: e.get("score", math.inf))
         if pairs and pairs[0].get("heldout_rms_rel_error", math.inf) > EXPLAINED_FACTOR * scatter:
-            screened += _triples(ctx, pairs[:TRIPLE_PAIRS], pool, scatter)
+            screened += _triples(ctx, pairs[:TRIPLE_PAIRS], fitted_singles, scatter)
             _cross_validate_promising(ctx, screened, scatter)
         _cross_validate_promising(ctx, screened, scatter)     # once more at the final shape floor
         scatter, floor = _scoring_scatter(noise, [e for e in screened if "score" in e])
@@ -519,6 +532,72 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
         predictions=_predictions(meas, base_f, best))
 
 
+def prediction_band(rig: Rig, measured: ModalTable, result: Diagnosis, poses: Sequence[dict[str, float]],
+                    pose_var: str | None = None):
+    """The verdict's model at ``poses`` (full pose dicts) with 95 % prediction intervals, as a
+    compare.modal_map.PredictionBand over ``pose_var`` (default: the rig's only pose variable).
+
+    The verdict's candidate is rebuilt from ``result`` (its effect, location and fitted parameters,
+    unidentified ones included, from ``result.ranking``), its linearised parameter covariance
+    ``scatter^2 (J^T J)^+`` computed on ``measured`` at ``result.scatter``, and at each new pose the
+    interval is ``f (1 +- 1.96 sqrt(g^T C g + scatter^2))`` with ``g`` the relative sensitivities there
+    (the interval of a new observation, Seber & Wild 1989 §5.1).  Modes are by ascending order, as many
+    as measured.  ``result`` with a ``none`` verdict gives the nominal model with ``+- 1.96 scatter``.
+    """
+    from flexmodal.compare.modal_map import PredictionBand
+
+    variables = rig.pose_variables
+    pose_var = pose_var or (variables[0] if len(variables) == 1 else None)
+    if pose_var not in variables:
+        raise CompareError(f"prediction band: name the pose variable to map over (rig has "
+                           f"{', '.join(variables) or 'none'})")
+    meas = prepare(rig, measured)
+    v = result.verdict
+    entry = next((e for e in result.ranking if (e.effect, e.location) == (v.effect, v.location)), None)
+    cand = _rebuild(rig, meas, v.effect, v.location) if entry is not None else None
+    scatter = result.scatter or DEFAULT_SCATTER
+    ctx = _Context(rig, meas, np.ones((1, len(meas.configs)), bool))
+    new = Measured(tuple(f"q{i}" for i in range(len(poses))), tuple(dict(p) for p in poses),
+                   np.repeat(meas.freq_hz[:1], len(poses), axis=0), None, ())
+    nctx = _Context(rig, new, np.ones((1, len(poses)), bool))
+    if cand is None:
+        f = evaluate(nctx.family([]), np.zeros((len(poses), 0, 0)), np.zeros((1, 0)), nctx.target)[0][0]
+        var = np.full(f.shape, scatter**2)
+    else:
+        theta = np.array([math.log(x) if p.power == 0 else x
+                          for p, x in zip(cand.params, _param_values(cand, entry.params), strict=True)])
+        D = design(cand, ctx.target)
+        _, df, _, _ = evaluate(ctx.family(cand.handles), D, theta[None], ctx.target)
+        cov = _linear_cov(df[0] / meas.freq_hz[..., None], scatter)
+        nfam = nctx.family(cand.handles)
+        f, dfn, _, _ = evaluate(nfam, design(cand, nctx.target), theta[None], nctx.target)
+        f = f[0]
+        g = dfn[0] / f[..., None]
+        var = np.einsum("cnj,jk,cnk->cn", g, cov, g) + scatter**2
+    half = Z95 * np.sqrt(var)
+    x = np.array([p[pose_var] for p in poses], float)
+    label = "nominal model" if cand is None else f"{v.effect} at {v.location}"
+    return PredictionBand(x, f, f * (1 - half), f * (1 + half), label)
+
+
+def _rebuild(rig: Rig, meas: Measured, effect: str, location: str) -> Candidate | None:
+    """The candidate named ``effect`` at ``location`` (as in a diagnosis: names joined by ``+``)."""
+    singles = single_candidates(rig, tuple(dict.fromkeys(effect.split("+"))),
+                                {v: [p[v] for p in meas.poses] for v in rig.pose_variables})
+    for n in range(1, 4):
+        for parts in itertools.combinations(singles, n):
+            cand = parts[0] if n == 1 else combine(*parts)
+            if cand is not None and (cand.effect, cand.location) == (effect, location):
+                return cand
+    return None
+
+
+def _param_values(cand: Candidate, params: Mapping) -> list[float]:
+    """The SI values of ``cand.params`` from a reported parameter mapping (names as ``_params`` makes)."""
+    names = list(_params(cand, np.zeros(cand.n_params)))
+    return [float(params[n]) for n in names]
+
+
 def scatter_line(result: Diagnosis) -> str:
     """One line: the scatter the ranking used and where it came from (measurement + model-form floor)."""
     src = result.scatter_source
@@ -526,10 +605,13 @@ def scatter_line(result: Diagnosis) -> str:
         return ""
     meas = src.measurement if src.measurement is not None else result.scatter
     floor = src.model_form_floor or 0.0
-    own = "none measured" if src.source == FALLBACK_SOURCE else f"{meas:.2%} from {src.source}"
-    return (f"scatter: {result.scatter:.2%} = measurement ({own}; {src.detail}) + model-form floor "
-            f"{floor:.2%} (held-out error of the best candidate beyond the measurement); judged against "
-            f"{meas:.2%}")
+    def pct(x: float) -> str:
+        return f"{100 * x:.2g} %"
+
+    own = "none measured" if src.source == FALLBACK_SOURCE else f"{pct(meas)} from {src.source}"
+    return (f"scatter: {pct(result.scatter)} = measurement ({own}; {src.detail}) + model-form floor "
+            f"{pct(floor)} (held-out error of the best candidate beyond the measurement); what remains is "
+            f"judged against {pct(meas)}")
 
 
 def _per_config(rig: Rig, meas: Measured, best: dict | None) -> dict[str, dict[str, float]]:
@@ -545,7 +627,7 @@ def _per_config(rig: Rig, meas: Measured, best: dict | None) -> dict[str, dict[s
 def _typed_verdict(verdict: dict, per_config: dict[str, dict[str, float]]) -> Verdict:
     """The verdict record of ``_verdict``'s working dict, with the pose-dependent parameters
     ``per_config`` ({name: {config: value}}) of the verdict's candidate."""
-    records = {"remaining": Remaining, "alternatives": Alternative}
+    records = {"remaining": Remaining, "alternatives": Alternative, "next_measurements": NextMeasurement}
     fields = {k: tuple(records[k](**x) for x in v) if k in records else v for k, v in verdict.items()}
     return Verdict(**fields, per_config=per_config)
 
@@ -759,6 +841,7 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
                "residual_feature": feature, "flags": flags,
                "param_intervals": {k: v for k, v in best["_param_intervals"].items()
                                    if k not in unidentified},
+               "heldout_in_prediction_interval": list(_heldout_intervals(ctx, best, scatter)),
                "interval_method": INTERVAL_METHOD}
     worst = np.dstack(np.unravel_index(np.argsort(-np.abs(resid), axis=None)[:3], resid.shape))[0]
     remaining = [{"config": meas.configs[c], "mode": int(m + 1), "heldout_rel_error": float(resid[c, m])}
@@ -774,6 +857,11 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
          "heldout_rms_rel_error": e["heldout_rms_rel_error"], **_separating_measurement(ctx, best, e)}
         for e in alts]
     verdict["ambiguous"] = bool(alts)
+    rivals = [e for e in ranking if e is not best and not e["_out_of_range"] and not e["_idle"]
+              and not mine <= set(zip(e["_cand"].effects, e["_cand"].locations, strict=True))
+              and e["_heldout_eq"] - best["_heldout_eq"]
+              <= RIVAL_MARGIN * _noise(best, scatter, ctx.pose_share)][:MAX_RIVALS]
+    verdict["next_measurements"] = _next_measurements(ctx, best, rivals, scatter) if alts else []
     text = (f"{best['effect']} at {best['location']} brings the held-out RMS gap from {before:.2%} to "
             f"{after:.2%} ({removed:.0%} of the gap removed; {grade}); what remains is "
             f"{after / sigma:.1f}x the measurement scatter {sigma:.2%}")
@@ -796,6 +884,10 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
         if a0.get("separate_at"):
             text += (f"; measuring {a0['separate_at']} (model mode {a0['separate_mode']}) would separate "
                      f"the first by {a0['separate_rel_diff']:.1%}")
+        if verdict["next_measurements"]:
+            nxt = verdict["next_measurements"][0]
+            text += (f"; most informative next measurement: {nxt['pose']} (mode {nxt['mode']}, "
+                     f"{nxt['information_nats']:.1f} nats)")
     verdict["summary"] = text
     return verdict
 
@@ -806,10 +898,11 @@ def _residual_feature(ctx: _Context, best: dict, resid: np.ndarray, sigma: float
     Candidate features, each a z-like statistic against ``HELDOUT_INFLATION * sigma``: a mode whose
     residual has one sign at every pose (its mean over configurations), a pose trend of one mode (the
     least-squares slope of its residual on one pose variable, >= 3 distinct values), one configuration
-    (its mean over modes).  The largest beyond ``FEATURE_Z`` is reported.  With measured shapes, a
-    sensor whose COMAC with the verdict's fitted model is below ``COMAC_BAD`` while every other
-    sensor's is at least ``COMAC_GOOD`` is a flag (a sensor mounted elsewhere or on another direction
-    than the rig says, or a local effect no library entry has)."""
+    (its mean over modes).  The largest beyond ``FEATURE_Z`` is reported.  With measured shapes (three
+    sensors or more), a sensor whose ``1 - COMAC`` against the verdict's fitted model (Lieven & Ewins
+    1988) is at least ``COMAC_DROP`` and ``SENSOR_FACTOR`` times the other sensors' median is a flag:
+    a sensor mounted elsewhere or on another direction than the rig says, or a local effect no library
+    entry has."""
     meas = ctx.meas
     sd = HELDOUT_INFLATION * sigma
     C, n = resid.shape
@@ -838,15 +931,45 @@ def _residual_feature(ctx: _Context, best: dict, resid: np.ndarray, sigma: float
     if meas.shapes is not None and len(meas.sensors) >= 3:
         full = [c for c in range(C) if not np.isnan(meas.shapes[c]).any()]
         if full:
-            shapes = _fit_shapes(ctx, best)
-            values = comac(meas.shapes[full], shapes[full])
-            worst = int(np.argmin(values))
-            others = np.delete(values, worst)
-            if values[worst] < COMAC_BAD and others.min() >= COMAC_GOOD:
+            model = _fit_shapes(ctx, best)[full]
+            values = comac(meas.shapes[full], model)
+            drop = 1.0 - values
+            worst = int(np.argmax(drop))
+            others = np.delete(drop, worst)
+            if drop[worst] >= COMAC_DROP and drop[worst] >= SENSOR_FACTOR * max(float(np.median(others)),
+                                                                                 COMAC_NOISE):
                 flags.append(f"the measured shapes disagree at sensor {meas.sensors[worst]} (COMAC "
-                             f"{values[worst]:.2f}; the other sensors >= {others.min():.2f})")
+                             f"{values[worst]:.2f}, the other sensors {1 - others.max():.2f}-"
+                             f"{1 - others.min():.2f})")
                 feature = feature or f"sensor {meas.sensors[worst]}"
     return feature, flags
+
+
+def _linear_cov(rel_jac: np.ndarray, scatter: float) -> np.ndarray:
+    """Gauss-Newton covariance ``scatter^2 (J^T J)^+`` of the parameters from relative-frequency
+    derivatives ``rel_jac`` [..., J] (Bates & Watts 1988 §2.3)."""
+    J = rel_jac.reshape(-1, rel_jac.shape[-1])
+    return scatter**2 * np.linalg.pinv(J.T @ J)
+
+
+def _heldout_intervals(ctx: _Context, entry: dict, scatter: float) -> tuple[int, int]:
+    """(held-out frequencies inside their 95 % prediction interval, held-out frequencies): each fold's
+    fit predicts the configurations it did not see with variance ``g^T C g + scatter^2`` (``C`` the
+    fold's linearised parameter covariance, ``g`` the relative sensitivities at the held-out pose;
+    the prediction interval of a new observation, Seber & Wild 1989 §5.1)."""
+    cand = entry["_cand"]
+    train = ctx.train[1:]
+    f, df, _, _ = evaluate(entry["_fam"], design(cand, ctx.target), entry["_theta_folds"], ctx.target)
+    rel = df / ctx.meas.freq_hz[None, ..., None]
+    inside = total = 0
+    for k, tr in enumerate(train):
+        cov = _linear_cov(rel[k][tr], scatter)
+        g = rel[k][~tr]                                                     # [h, n, J]
+        var = np.einsum("hnj,jk,hnk->hn", g, cov, g) + scatter**2
+        err = f[k][~tr] / ctx.meas.freq_hz[~tr] - 1.0
+        inside += int(np.sum(np.abs(err) <= Z95 * np.sqrt(var)))
+        total += err.size
+    return inside, total
 
 
 def _fit_shapes(ctx: _Context, entry: dict) -> np.ndarray:
@@ -866,41 +989,112 @@ def _component_params(cand: Candidate, theta: np.ndarray) -> list[tuple[str, str
     return out
 
 
-def _separating_measurement(ctx: _Context, a: dict, b: dict) -> dict:
-    """The pose (one pose variable moved over 13 points of its measured range, the others at the first
-    configuration's values) and model mode (up to two beyond the measured ones)
-    where the fitted candidates ``a`` and ``b`` differ most (full FE, models/predict.py)."""
-    from flexmodal.models.effects import apply_effect
-    from flexmodal.models.predict import predict
-
-    rig, meas = ctx.rig, ctx.meas
-    n = meas.freq_hz.shape[1] + 2
+def trial_poses(rig: Rig, poses: Sequence[dict[str, float]]) -> dict[str, dict[str, float]]:
+    """Candidate poses for a next measurement after measuring ``poses``: each pose variable moved over
+    ``TRIAL_POINTS`` points of its measured range (the others at the first pose's values),
+    {``<var>=<value>``: pose}; ``verdict.next_measurements`` and ``separate_at`` name them."""
     trial: dict[str, dict[str, float]] = {}
     for v in rig.pose_variables:
-        vals = np.array([p[v] for p in meas.poses])
-        trial.update({f"{v}={x:g}": {**meas.poses[0], v: float(x)}
-                      for x in np.linspace(vals.min(), vals.max(), 13)})
+        vals = np.array([p[v] for p in poses])
+        trial.update({f"{v}={x:g}": {**poses[0], v: float(x)}
+                      for x in np.linspace(vals.min(), vals.max(), TRIAL_POINTS)})
+    return trial
+
+
+def _trial_poses(ctx: _Context) -> dict[str, dict[str, float]]:
+    return trial_poses(ctx.rig, ctx.meas.poses)
+
+
+def _trial_context(ctx: _Context, trial: dict[str, dict[str, float]]) -> _Context:
+    """A context over the ``trial`` poses (reduced models there; frequencies are placeholders), cached."""
+    key = tuple(trial)
+    cached = getattr(ctx, "_trial", None)
+    if cached is None or cached[0] != key:
+        poses = tuple(trial.values())
+        n = ctx.meas.freq_hz.shape[1]
+        new = Measured(key, poses, np.repeat(ctx.meas.freq_hz[:1], len(poses), axis=0), None, ())
+        nctx = _Context(ctx.rig, new, np.ones((1, len(poses)), bool), n_modes=n + 2)
+        ctx._trial = (key, nctx)
+    return ctx._trial[1]
+
+
+def _trial_frequencies(ctx: _Context, entry: dict, trial: dict[str, dict[str, float]]) -> np.ndarray:
+    """Frequencies [P, n + 2] of ``entry``'s fitted candidate at the ``trial`` poses (its reduced model,
+    modes in ascending order); cached on the entry."""
+    if "_trial_f" not in entry:
+        nctx = _trial_context(ctx, trial)
+        cand = entry["_cand"]
+        fam = nctx.family(cand.handles)
+        h = np.exp(design(cand, nctx.target) @ entry["_theta0"])[None] if cand.n_params else \
+            np.ones((1, len(trial), 0))
+        lam, _, _ = solve_family(fam, h, ctx.meas.freq_hz.shape[1] + 2)
+        entry["_trial_f"] = lam_to_hz(lam[0])
+    return entry["_trial_f"]
+
+
+def _separating_measurement(ctx: _Context, a: dict, b: dict) -> dict:
+    """The pose (``_trial_poses``) and model mode (up to two beyond the measured ones) where the fitted
+    candidates ``a`` and ``b`` differ most (their reduced models, compare/parametric.py)."""
+    trial = _trial_poses(ctx)
     if not trial:
         return {}
-    freqs = []
-    for e in (a, b):
-        parts = _component_params(e["_cand"], e["_theta0"])
-        rows = []
-        for name, pose in trial.items():
-            r = rig
-            for eff, loc, params in parts:
-                r = apply_effect(r, eff, loc, params, pose=pose)
-            try:
-                rows.append(predict(r, {name: pose}, "fe", n).freq_hz(name))
-            except Exception:  # noqa: BLE001 - a pose the model cannot solve is just not suggested
-                rows.append(np.full(n, np.nan))
-        freqs.append(np.array(rows))
-    diff = np.abs(freqs[0] / freqs[1] - 1.0)
+    diff = np.abs(_trial_frequencies(ctx, a, trial) / _trial_frequencies(ctx, b, trial) - 1.0)
     if not np.isfinite(diff).any():
         return {}
     i, m = np.unravel_index(np.nanargmax(diff), diff.shape)
     return {"separate_at": list(trial)[i], "separate_mode": int(m + 1),
             "separate_rel_diff": float(diff[i, m])}
+
+
+def _predictive(ctx: _Context, entry: dict, nctx: _Context, scatter: float) -> tuple[np.ndarray, np.ndarray]:
+    """``entry``'s fitted candidate at the poses of ``nctx``: frequencies [P, n] and the variance of
+    their relative prediction [P, n] from its linearised parameter covariance (reduced model)."""
+    cand = entry["_cand"]
+    _, df, _, _ = evaluate(entry["_fam"], design(cand, ctx.target), entry["_theta0"][None], ctx.target)
+    cov = _linear_cov(df[0] / ctx.meas.freq_hz[..., None], scatter)
+    n = ctx.meas.freq_hz.shape[1]
+    h = np.exp(design(cand, nctx.target) @ entry["_theta0"])[None]
+    lam, dlam, _ = solve_family(nctx.family(cand.handles), h, n)
+    f = lam_to_hz(lam[0])
+    dl = dlam[0] * h[0][:, None, :]                                    # d lambda / d log h
+    g = (dl @ design(cand, nctx.target)) / (8 * math.pi**2 * np.maximum(f, 1e-12) ** 2)[..., None]
+    return f, np.einsum("cnj,jk,cnk->cn", g, cov, g)
+
+
+def _next_measurements(ctx: _Context, best: dict, alts: Sequence[dict], scatter: float) -> list[dict]:
+    """Untested poses ranked by the expected information a measurement there brings on the choice
+    between the verdict and its rivals ``alts``: the Box & Hill (1967) discrimination criterion, the
+    symmetric Kullback-Leibler divergence between the two candidates' predictive normals of each
+    measured mode's relative frequency, ``0.5 [(v_a - v_b)^2 / (v_a v_b) + d^2 (1/v_a + 1/v_b)]`` with
+    ``d`` their relative difference and ``v = scatter^2 + g^T C g`` (each candidate's linearised
+    prediction variance: where a candidate is loosely pinned down it can follow a new point, and a
+    measurement there decides little), summed over modes.  Poses are ranked by ``sum (1 - exp(-I))``
+    over the rivals (each rival's information saturating: a pose that tells the verdict from every
+    rival beats one that tells it from one rival by a mile); ``information_nats`` is the mean over the
+    rivals.  At most ``MAX_ADVICE`` poses, each with the mode that carries most of it."""
+    trial = _trial_poses(ctx)
+    if not trial or not alts:
+        return []
+    measured = {tuple(sorted(p.items())) for p in ctx.meas.poses}
+    keep = [i for i, p in enumerate(trial.values()) if tuple(sorted(p.items())) not in measured]
+    if not keep:
+        return []
+    labels = [list(trial)[i] for i in keep]
+    nctx = _trial_context(ctx, trial)
+    fa, va = (x[keep] for x in _predictive(ctx, best, nctx, scatter))
+    va = va + scatter**2
+    info = np.zeros(fa.shape)
+    value = np.zeros(len(labels))
+    for e in alts:
+        fb, vb = (x[keep] for x in _predictive(ctx, e, nctx, scatter))
+        vb = vb + scatter**2
+        d = fb / fa - 1.0
+        each = np.nan_to_num(0.5 * ((va - vb) ** 2 / (va * vb) + d**2 * (1 / va + 1 / vb)))
+        info += each / len(alts)
+        value += 1.0 - np.exp(-each.sum(axis=1))        # chance-like share of this rival ruled out
+    order = [i for i in np.argsort(-value, kind="stable") if value[i] > 0][:MAX_ADVICE]
+    return [{"pose": labels[i], "mode": int(np.argmax(info[i]) + 1), "information_nats": float(info[i].sum())}
+            for i in order]
 
 
 def _predictions(meas: Measured, base_f: np.ndarray, best: dict | None) -> Predictions:

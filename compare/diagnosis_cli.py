@@ -7,6 +7,8 @@ import sys
 
 from flexmodal import valid_options as opt
 
+DIAGNOSIS_FILES = ("diagnosis.json", "diagnosis.html")  # what `diagnose` writes into its --out folder
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``diagnose`` to the flexmodal parser."""
@@ -56,7 +58,8 @@ def run(args: argparse.Namespace) -> int:
                            "(needs --rig, --measured and --out, or --selftest N)")
     from flexmodal.valid_output import output_dir
 
-    output_dir(args.out, CompareError, "diagnosis folder (--out)")  # before the heavy imports
+    output_dir(args.out, CompareError, "diagnosis folder (--out)", files=DIAGNOSIS_FILES,
+               inputs=(args.rig, args.measured))  # before the heavy imports
     from flexmodal.api import diagnose, load_rig, read_table, write_diagnosis
     from flexmodal.compare.candidates import parse_effects
     from flexmodal.compare.diagnosis import folds_for, scatter_line

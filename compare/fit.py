@@ -31,11 +31,13 @@ from flexmodal.compare.parametric import ReducedFamily, lam_to_hz, solve_family
 
 EXTRA_PAIRING_MODES = 2
 MAX_GRID = 81
+MAX_GRID_SEEDED = 27
+"""A combination seeded from its parts' optima adds at most 27 points of its own grid."""
 PAIRING_LOG_WIDTH = 0.25
 OBSERVABLE = 1e-6
 MAX_ITER = 100
-FTOL = 1e-8
-XTOL = 1e-7
+FTOL = 1e-6
+XTOL = 1e-5
 MAX_DAMPING = 1e10
 N_STARTS = 3
 
@@ -121,10 +123,10 @@ def evaluate(fam: ReducedFamily, D: np.ndarray, theta: np.ndarray, target: Targe
     return f, df, mac, h
 
 
-def _grid(cand: Candidate) -> np.ndarray:
+def _grid(cand: Candidate, most: int = 81) -> np.ndarray:
     pts = np.array(list(itertools.product(*[p.grid for p in cand.params])), float)
-    if len(pts) > MAX_GRID:
-        pts = pts[np.linspace(0, len(pts) - 1, MAX_GRID).round().astype(int)]
+    if len(pts) > most:
+        pts = pts[np.linspace(0, len(pts) - 1, most).round().astype(int)]
     return pts
 
 
@@ -148,7 +150,7 @@ def fit_candidate(fam: ReducedFamily, cand: Candidate, target: Target, train: np
     upper = np.array([p.upper for p in cand.params])
     reg = np.array([0.0 if p.power == 0 else reg_weight * _span(target, p.handle) ** p.power
                     for p in cand.params])
-    grid = _grid(cand)
+    grid = _grid(cand, MAX_GRID if starts is None else MAX_GRID_SEEDED)
     if starts is not None:                                              # seeded starts + the own grid
         starts = np.asarray(starts, float)
         grid = np.vstack([starts, grid]) if starts.ndim == 2 else np.concatenate(

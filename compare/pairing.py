@@ -19,6 +19,7 @@ Relative errors are fractions: (f_pred - f_meas) / f_meas.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -28,6 +29,7 @@ from flexmodal.modal.table import ModalTable
 
 MIN_MAC = 0.5
 FREQ_WEIGHT = 1e-3
+POSE_TOL = 1e-9  # pose values equal within this match a measured configuration to a predicted one
 
 
 @dataclass(frozen=True)
@@ -65,51 +67,71 @@ class Pairing:
     unpaired_predicted: tuple[ModeRef, ...]  # predicted modes matching no measured one (spurious/extra)
 
     def pair_of(self, config: str, measured_mode: int) -> Pair | None:
-        for p in self.pairs:
-            if p.measured.config == config and p.measured.mode == measured_mode:
-                return p
-        return None
+        return self._by_measured.get((config, measured_mode))
+
+    @cached_property
+    def _by_measured(self) -> dict[tuple[str, int], Pair]:
+        return {(p.measured.config, p.measured.mode): p for p in self.pairs}
 
 
 def common_sensors(measured: ModalTable, predicted: ModalTable, config: str,
                    pred_config: str | None = None) -> list[str]:
     """Sensors where both tables give a finite shape for every mode of ``config`` (``pred_config``)."""
-    out = []
-    for s in measured.sensors:
-        if s not in predicted.sensors:
-            continue
-        a = measured.shapes(config, [s])
-        b = predicted.shapes(pred_config or config, [s])
-        if np.all(np.isfinite(a)) and np.all(np.isfinite(b)):
-            out.append(s)
-    return out
+    both = [s for s in measured.sensors if s in set(predicted.sensors)]
+    if not both:
+        return []
+    a = np.isfinite(measured.shapes(config, both)).all(axis=1)
+    b = np.isfinite(predicted.shapes(pred_config or config, both)).all(axis=1)
+    return [s for s, ok in zip(both, a & b, strict=True) if ok]
 
 
-def partner_config(measured: ModalTable, predicted: ModalTable, config: str) -> str | None:
+def partner_config(measured: ModalTable, predicted: ModalTable, config: str,
+                   poses: PoseIndex | None = None) -> str | None:
     """The predicted configuration for measured ``config``: same name, else the only one with the same
-    non-empty pose (values equal within 1e-9), else None."""
-    if config in predicted.configs:
+    non-empty pose (values equal within 1e-9), else None.  ``poses``: ``PoseIndex(predicted)``, built
+    once when many configurations are matched."""
+    if predicted.has_config(config):
         return config
     pose = measured.pose(config)
     if not pose:
         return None
-    same = [c for c in predicted.configs if _same_pose(pose, predicted.pose(c))]
+    same = (poses or PoseIndex(predicted)).find(pose)
     return same[0] if len(same) == 1 else None
 
 
-def _same_pose(a: dict, b: dict) -> bool:
-    if set(a) != set(b):
-        return False
-    try:
-        return all(abs(float(a[k]) - float(b[k])) <= 1e-9 for k in a)
-    except (TypeError, ValueError):
-        return all(str(a[k]) == str(b[k]) for k in a)
+class PoseIndex:
+    """The configurations of a table by pose: those whose every pose variable equals a given pose's
+    within :data:`POSE_TOL` are found by a binary search on the first variable (not a scan)."""
+
+    def __init__(self, table: ModalTable) -> None:
+        groups: dict[tuple[str, ...], list[tuple[str, list[float]]]] = {}
+        for c in table.configs:
+            pose = table.pose(c)
+            if pose:
+                names = tuple(sorted(pose))
+                groups.setdefault(names, []).append((c, [float(pose[k]) for k in names]))
+        self._groups: dict[tuple[str, ...], tuple[list[str], np.ndarray]] = {}
+        for names, members in groups.items():
+            values = np.array([v for _, v in members], float)
+            order = np.argsort(values[:, 0], kind="stable")
+            self._groups[names] = ([members[i][0] for i in order], values[order])
+
+    def find(self, pose: dict) -> list[str]:
+        """Configurations with the same pose variables as ``pose``, each equal within POSE_TOL."""
+        names = tuple(sorted(pose))
+        if names not in self._groups:
+            return []
+        configs, values = self._groups[names]
+        want = np.array([float(pose[k]) for k in names])
+        lo = int(np.searchsorted(values[:, 0], want[0] - POSE_TOL, side="left"))
+        hi = int(np.searchsorted(values[:, 0], want[0] + POSE_TOL, side="right"))
+        near = np.abs(values[lo:hi] - want[None, :]) <= POSE_TOL
+        return [configs[lo + i] for i in np.flatnonzero(near.all(axis=1))]
 
 
 def _refs(table: ModalTable, config: str, label: str | None = None) -> list[ModeRef]:
-    rows = table.rows(config)
     return [ModeRef(label or config, int(m), float(f))
-            for m, f in zip(rows["mode"], rows["freq_hz"], strict=True)]
+            for m, f in zip(table.column(config, "mode"), table.column(config, "freq_hz"), strict=True)]
 
 
 def _pair_by_mac(meas: list[ModeRef], pred: list[ModeRef], macs: np.ndarray, min_mac: float,
@@ -142,9 +164,10 @@ def pair_modes(measured: ModalTable, predicted: ModalTable, source: str = "predi
     lone_meas: list[ModeRef] = []
     lone_pred: list[ModeRef] = []
     used_configs: set[str] = set()
+    poses = PoseIndex(predicted)
     for config in measured.configs:
         meas = _refs(measured, config)
-        pconfig = partner_config(measured, predicted, config)
+        pconfig = partner_config(measured, predicted, config, poses)
         if pconfig is None:
             lone_meas += meas
             continue
@@ -164,5 +187,6 @@ def pair_modes(measured: ModalTable, predicted: ModalTable, source: str = "predi
     for config in predicted.configs:
         if config not in used_configs:
             lone_pred += _refs(predicted, config)
-    pairs.sort(key=lambda p: (measured.configs.index(p.measured.config), p.measured.mode))
+    position = {c: i for i, c in enumerate(measured.configs)}
+    pairs.sort(key=lambda p: (position[p.measured.config], p.measured.mode))
     return Pairing(source, tuple(pairs), tuple(lone_meas), tuple(lone_pred))

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field, fields
 from typing import Any, Self
 
 from flexmodal.compare.errors import CompareError
+from flexmodal.valid_text import loads_json
 
 Hz = tuple[float | None, ...]
 """Frequencies [Hz] of modes 1..n of one configuration; None where there is no value."""
@@ -183,10 +184,7 @@ class _Record:
     def from_json(cls, text: str) -> Self:
         """The record from the JSON text of a document (``to_json``'s inverse); CompareError on text
         that is not JSON or not this record."""
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise CompareError(f"not valid JSON ({exc.msg} at line {exc.lineno})") from None
+        data = loads_json(text, "diagnosis", CompareError, "diagnosis document")
         if not isinstance(data, dict):
             raise CompareError(f"expected a JSON object (got {_kind(data)})")
         return cls.from_dict(data)
@@ -268,6 +266,17 @@ class Alternative(_Record):
 
 
 @dataclass(**_RECORD)
+class NextMeasurement(_Record):
+    """An untested pose (``<pose var>=<value>``) worth measuring next, the model mode that carries most
+    of its value, and the expected information [nats] it brings on the choice between the verdict and
+    its alternatives (mean Kullback-Leibler divergence of their predictions)."""
+
+    pose: str
+    mode: int
+    information_nats: float
+
+
+@dataclass(**_RECORD)
 class Verdict(_Record):
     """The chosen explanation (``effect`` ``"none"`` and ``location`` ``""`` when no effect is needed or
     none helps) and the held-out RMS error before and after it.  For a fitted effect: its ``params``
@@ -280,7 +289,10 @@ class Verdict(_Record):
     outside the library (a pose trend, one mode, one configuration, one sensor; empty when nothing
     does) and ``flags`` the warnings that go with the verdict (e.g. a shape that disagrees at one
     sensor); ``param_intervals`` a 95 % interval ``[low, high]`` per fitted parameter (SI) and
-    ``interval_method`` how they were computed.  ``per_config``: pose-dependent parameters
+    ``interval_method`` how they were computed; ``heldout_in_prediction_interval`` ``[inside, all]``:
+    the held-out frequencies inside their 95 % prediction interval from the fold that did not see
+    them; ``next_measurements`` the untested poses that would best separate the verdict from its
+    alternatives, by expected information (empty when it has none).  ``per_config``: pose-dependent parameters
     per configuration, ``{name: {config: value}}``, written as the keys ``<name>_per_config``."""
 
     effect: str
@@ -305,6 +317,8 @@ class Verdict(_Record):
     flags: tuple[str, ...] | None = None
     param_intervals: Mapping[str, tuple[float | None, ...]] | None = None
     interval_method: str | None = None
+    heldout_in_prediction_interval: tuple[int, ...] | None = None
+    next_measurements: tuple[NextMeasurement, ...] | None = None
     per_config: Mapping[str, Mapping[str, float | None]] = field(default_factory=FrozenMap,
                                                               metadata={"suffix": "_per_config"})
 
@@ -384,6 +398,44 @@ class Diagnosis(_Record):
     holdout: Holdout | None = None
     configs: tuple[str, ...] | None = None
     predictions: Predictions | None = None
+
+    # -- notebook display (reports engineer's block: to_frame, __repr__, _repr_html_) -----------------
+    def to_frame(self):
+        """The ranking of candidate effects as a pandas DataFrame, best first: ``rank``, ``effect``,
+        ``location``, ``n_params``, ``fit_rms_rel_error_pct`` and ``heldout_rms_rel_error_pct`` [%], and
+        one column per fitted parameter (its name carries its unit, ``k_Nm_per_rad``; empty where the
+        candidate has no such parameter)."""
+        import pandas as pd
+
+        rows = [{"rank": k + 1, "effect": r.effect, "location": r.location, "n_params": r.n_params,
+                 "fit_rms_rel_error_pct": 100 * r.fit_rms_rel_error,
+                 "heldout_rms_rel_error_pct": 100 * r.heldout_rms_rel_error, **dict(r.params)}
+                for k, r in enumerate(self.ranking)]
+        return pd.DataFrame(rows, columns=None if rows else ["rank", "effect", "location", "n_params",
+                                                             "fit_rms_rel_error_pct",
+                                                             "heldout_rms_rel_error_pct"])
+
+    def _verdict_line(self) -> str:
+        v = self.verdict
+        named = f"{v.effect} at {v.location}" if v.location else v.effect
+        return (f"{named}; held-out RMS error {100 * v.heldout_rms_rel_error_before:.3g} % -> "
+                f"{100 * v.heldout_rms_rel_error_after:.3g} %; explained: {'yes' if v.explained else 'no'}")
+
+    def __repr__(self) -> str:
+        return (f"Diagnosis({self._verdict_line()}; baseline RMS {100 * self.baseline.rms_rel_error:.3g} %, "
+                f"{len(self.ranking)} candidates ranked)")
+
+    def _repr_html_(self) -> str:
+        import html
+
+        from flexmodal.modal.table import display_html
+
+        shown = self.to_frame().head(8).rename(columns={"fit_rms_rel_error_pct": "fit RMS error [%]",
+                                                        "heldout_rms_rel_error_pct": "held-out RMS error [%]",
+                                                        "n_params": "parameters [count]"})
+        return display_html(f"Diagnosis: <b>{html.escape(self._verdict_line())}</b>; baseline RMS error "
+                            f"{100 * self.baseline.rms_rel_error:.3g} % (candidates, best first; "
+                            "<code>to_frame()</code> has all)", shown.round(4))
 
     def per_mode_after(self) -> Mapping[str, float | None] | None:
         """RMS relative error per mode with the best candidate (``baseline.per_mode`` is the one before):

@@ -23,11 +23,12 @@ import math
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
 from flexmodal.compare.errors import CompareError
-from flexmodal.compare.pairing import MIN_MAC, Pairing, pair_modes
+from flexmodal.compare.pairing import MIN_MAC, ModeRef, Pair, Pairing, pair_modes
 from flexmodal.modal.table import ModalTable
 
 FORMATS = ("md", "csv", "tex", "html", "json")
@@ -57,29 +58,76 @@ class Comparison:
     predictions: tuple[tuple[str, ModalTable], ...]
     pairings: tuple[Pairing, ...]
 
-    @property
+    @cached_property
     def configs(self) -> list[str]:
         """Measured configurations in pose order (``ordered_configs``), then those only predicted."""
         configs = ordered_configs(self.measured)
+        seen = set(configs)
         for (_, table), p in zip(self.predictions, self.pairings, strict=True):
             lone = {r.config for r in p.unpaired_predicted}
-            configs += [c for c in ordered_configs(table) if c in lone and c not in configs]
+            for c in ordered_configs(table):
+                if c in lone and c not in seen:
+                    configs.append(c)
+                    seen.add(c)
         return configs
 
-    @property
+    @cached_property
+    def _by_config(self) -> list[dict[str, tuple[list[ModeRef], list[ModeRef], list[Pair]]]]:
+        """Per pairing: config -> (unpaired measured, unpaired predicted, pairs), grouped once."""
+        out = []
+        for p in self.pairings:
+            groups: dict[str, tuple[list[ModeRef], list[ModeRef], list[Pair]]] = {}
+            for r in p.unpaired_measured:
+                groups.setdefault(r.config, ([], [], []))[0].append(r)
+            for r in p.unpaired_predicted:
+                groups.setdefault(r.config, ([], [], []))[1].append(r)
+            for q in p.pairs:
+                groups.setdefault(q.measured.config, ([], [], []))[2].append(q)
+            out.append(groups)
+        return out
+
+    def _of(self, k: int, config: str) -> tuple[list[ModeRef], list[ModeRef], list[Pair]]:
+        """Pairing ``k``'s unpaired measured, unpaired predicted modes and pairs of ``config``."""
+        return self._by_config[k].get(config, ([], [], []))
+
+    @cached_property
     def has_damping(self) -> bool:
         df = self.measured.frame
         return "damping_ratio" in df and bool(np.isfinite(df["damping_ratio"].to_numpy(float)).any())
+
+    # -- notebook display: to_frame, __repr__, _repr_html_ ------------------------------------------
+    def to_frame(self, layout: str = "modes"):
+        """The comparison as a pandas DataFrame of full-precision numbers with units in the headers
+        (``fe f [Hz]``, ``experiment ζ [%]``, ``fe Δf [%]``, ``fe MAC [-]``): a row per measured mode
+        (``layout="modes"``) or per source and quantity (``"sources"``), as :func:`render` lays it out."""
+        import pandas as pd
+
+        cols, rows = _modes_grid(self) if layout == "modes" else _sources_grid(self)
+        return pd.DataFrame([[_plain(c.quantity, v) for c, v in zip(cols, row, strict=True)] for row in rows],
+                            columns=[_header(c, "md") for c in cols])
+
+    def __repr__(self) -> str:
+        parts = []
+        for p in self.pairings:
+            err = [q.rel_error for q in p.pairs]
+            rms = f", RMS Δf {100 * math.sqrt(sum(e * e for e in err) / len(err)):.3g} %" if err else ""
+            parts.append(f"{p.source}: {len(p.pairs)} paired{rms}")
+        return (f"Comparison({self.measured_name}: {len(self.configs)} configurations, "
+                f"{len(self.measured.frame)} measured modes; {'; '.join(parts)})")
+
+    def _repr_html_(self) -> str:
+        return html_fragment(self)
 
     def notes(self) -> list[str]:
         """One line per unpaired mode, naming source, configuration, mode and frequency [Hz]."""
         out = []
         for config in self.configs:
-            for p in self.pairings:
+            for k, p in enumerate(self.pairings):
+                lone_meas, lone_pred, _ = self._of(k, config)
                 out += [f"{p.source}: no predicted mode pairs with measured mode {r.mode} of "
-                        f"{r.config} ({r.freq_hz:.2f} Hz)" for r in p.unpaired_measured if r.config == config]
+                        f"{r.config} ({r.freq_hz:.2f} Hz)" for r in lone_meas]
                 out += [f"{p.source}: mode {r.mode} of {r.config} ({r.freq_hz:.2f} Hz) pairs with no "
-                        f"measured mode" for r in p.unpaired_predicted if r.config == config]
+                        f"measured mode" for r in lone_pred]
         return out
 
 
@@ -93,12 +141,12 @@ def ordered_configs(table: ModalTable) -> list[str]:
     (``theta60`` before ``theta120``)."""
     df = table.frame
     cols = [c for c in table.pose_columns if df[c].dtype.kind in "fi"]
-    first = df.groupby("config")[cols].first() if cols else None
+    first = df.groupby("config", sort=False)[cols].first() if cols else None
+    poses = {} if first is None else dict(zip(first.index, np.nan_to_num(
+        first.to_numpy(float), nan=math.inf, posinf=math.inf).tolist(), strict=True))
 
     def key(config: str) -> tuple:
-        pose = () if first is None else tuple(
-            v if math.isfinite(v) else math.inf for v in first.loc[config].to_numpy(float))
-        return pose, natural_key(config)
+        return tuple(poses.get(config, ())), natural_key(config)
 
     return sorted(table.configs, key=key)
 
@@ -145,16 +193,18 @@ def _modes_grid(comp: Comparison) -> tuple[list[_Col], list[list[object]]]:
     cols += [_Col(p.source, "mac") for p in comp.pairings if any(q.method == "mac" for q in p.pairs)]
     cols += [_Col(p.source, "pmode") for p in comp.pairings
              if any(q.predicted.mode != q.measured.mode for q in p.pairs) or p.unpaired_predicted]
-    meas = comp.measured.frame
+    meas = comp.measured
     rows: list[list[object]] = []
     for config in comp.configs:
-        for _, m in meas[meas["config"] == config].iterrows():
-            cells: dict[tuple[str, str], object] = {("", "config"): config, ("", "mode"): int(m["mode"]),
-                                                    (comp.measured_name, "f"): float(m["freq_hz"])}
-            if comp.has_damping:
-                cells[(comp.measured_name, "zeta")] = 100.0 * float(m["damping_ratio"])
+        zetas = meas.column(config, "damping_ratio") if comp.has_damping else None
+        for i, (mode, freq) in enumerate(zip(meas.column(config, "mode"), meas.column(config, "freq_hz"),
+                                             strict=True)):
+            cells: dict[tuple[str, str], object] = {("", "config"): config, ("", "mode"): int(mode),
+                                                    (comp.measured_name, "f"): float(freq)}
+            if zetas is not None:
+                cells[(comp.measured_name, "zeta")] = 100.0 * float(zetas[i])
             for p in comp.pairings:
-                pair = p.pair_of(config, int(m["mode"]))
+                pair = p.pair_of(config, int(mode))
                 if pair is not None:
                     cells[(p.source, "f")] = pair.predicted.freq_hz
                     cells[(p.source, "err")] = 100.0 * pair.rel_error
@@ -162,8 +212,8 @@ def _modes_grid(comp: Comparison) -> tuple[list[_Col], list[list[object]]]:
                     cells[(p.source, "pmode")] = pair.predicted.mode
             rows.append([cells.get((c.source, c.quantity)) for c in cols])
         extra: dict[int, dict[tuple[str, str], object]] = {}  # unpaired predicted modes by mode number
-        for p in comp.pairings:
-            for r in (r for r in p.unpaired_predicted if r.config == config):
+        for k, p in enumerate(comp.pairings):
+            for r in comp._of(k, config)[1]:
                 cells = extra.setdefault(r.mode, {("", "config"): config})
                 cells[(p.source, "f")], cells[(p.source, "pmode")] = r.freq_hz, r.mode
         rows += [[cells.get((c.source, c.quantity)) for c in cols] for _, cells in sorted(extra.items())]
@@ -177,17 +227,19 @@ def _sources_grid(comp: Comparison) -> tuple[list[_Col], list[list[object]]]:
     cols = ([_Col("", "config")] if multi else []) + [_Col("", "source"), _Col("", "quantity")]
     cols += [_Col(f"mode {m}", "cell") for m in modes]
     rows: list[list[object]] = []
-    for config in [c for c in comp.configs if c in comp.measured.configs]:
-        sub = meas[meas["config"] == config].set_index("mode")
+    table = comp.measured
+    for config in [c for c in comp.configs if table.has_config(c)]:
+        mode_of = [int(m) for m in table.column(config, "mode")]
         lines: list[tuple[str, str, dict[int, float]]] = []
-        for p in comp.pairings:
-            pairs = [q for q in p.pairs if q.measured.config == config]
+        for k, p in enumerate(comp.pairings):
+            pairs = comp._of(k, config)[2]
             lines.append((p.source, "f", {q.measured.mode: q.predicted.freq_hz for q in pairs}))
-        lines.append((comp.measured_name, "f", sub["freq_hz"].to_dict()))
+        lines.append((comp.measured_name, "f", dict(zip(mode_of, table.freq_hz(config), strict=True))))
         if comp.has_damping:
-            lines.append((comp.measured_name, "zeta", (100.0 * sub["damping_ratio"]).to_dict()))
-        for p in comp.pairings:
-            pairs = [q for q in p.pairs if q.measured.config == config]
+            zeta = 100.0 * table.column(config, "damping_ratio").astype(float)
+            lines.append((comp.measured_name, "zeta", dict(zip(mode_of, zeta, strict=True))))
+        for k, p in enumerate(comp.pairings):
+            pairs = comp._of(k, config)[2]
             lines.append((p.source, "err", {q.measured.mode: 100.0 * q.rel_error for q in pairs}))
         for source, quantity, values in lines:
             head: list[object] = ([config] if multi else []) + [source, quantity]

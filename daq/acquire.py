@@ -34,12 +34,12 @@ from pathlib import Path
 
 import numpy as np
 
-from flexmodal.daq.devices import Block, ReaderStats, make_driver, run_reader
+from flexmodal.daq.devices import Block, ReaderStats, make_driver, run_reader, with_endpoint
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.hits import HitMonitor, sparkline
 from flexmodal.daq.hooks import simulator_launcher
 from flexmodal.daq.lock import WriterLock
-from flexmodal.daq.session import SIMULATOR_PORT, Session
+from flexmodal.daq.session import Session
 from flexmodal.daq.store import Event, RunWriter, list_runs
 from flexmodal.daq.timeline import Timeline
 
@@ -94,17 +94,8 @@ def _with_endpoint(session: Session, endpoint: str | None) -> Session:
     """The session with the '@simulator' placeholder replaced by the simulator's endpoint."""
     if endpoint is None:
         return session
-    devices = []
-    for d in session.devices:
-        if d.protocol == "modbus" and d.transport == "tcp" and d.port == SIMULATOR_PORT:
-            host, port = endpoint.rsplit(":", 1)
-            d = dataclasses.replace(d, host=host, tcp_port=int(port), port=port)
-        elif d.port == SIMULATOR_PORT:
-            d = dataclasses.replace(d, port=endpoint)
-        elif d.channel == SIMULATOR_PORT:
-            d = dataclasses.replace(d, channel=endpoint)
-        devices.append(d)
-    return dataclasses.replace(session, devices=tuple(devices))
+    return dataclasses.replace(session, devices=tuple(
+        dataclasses.replace(d, config=with_endpoint(d.config, endpoint)) for d in session.devices))
 
 
 def _start_simulator(session: Session, out: Path, quiet: bool):

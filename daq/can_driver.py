@@ -15,6 +15,8 @@ socketcan and pcan give) and the parts of one scan sent within half a period of 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from flexmodal.daq.dbc import load_messages
@@ -23,6 +25,20 @@ from flexmodal.daq.errors import DaqError
 
 COUNTER_SIGNAL = "Seq"
 MAX_FRAMES_PER_READ = 20000
+
+
+@dataclass(frozen=True)
+class CanConfig:
+    """A CAN device's ``[[device]]`` fields (docs/acquisition.md): the python-can ``interface`` and
+    ``channel``, ``bitrate``, the ``dbc`` file, the DBC ``messages`` carrying the samples (empty: the
+    only multiplexed one) and the scan ``counter`` signal ("" for none)."""
+
+    interface: str
+    channel: str
+    dbc: str
+    bitrate: int = 500000
+    messages: tuple[str, ...] = ()
+    counter: str = COUNTER_SIGNAL
 
 
 class CanDriver(Driver):
@@ -43,10 +59,9 @@ class CanDriver(Driver):
         messages = t.get("messages", list, [], check=lambda v: v and all(isinstance(m, str) for m in v),
                          why="must be a non-empty list of DBC message names")
         one = t.get("message", str, "")
-        return Device(name, cls.protocol, interface=interface, channel=channel,
-                      bitrate=t.get("bitrate", int, 500000), dbc=t.file("dbc", "dbc file"),
-                      message=",".join(messages) if messages else one,
-                      options={"counter": t.get("counter", str, COUNTER_SIGNAL)})
+        return Device(name, cls.protocol, CanConfig(
+            interface, channel, t.file("dbc", "dbc file"), t.get("bitrate", int, 500000),
+            tuple(messages) if messages else (one,) if one else (), t.get("counter", str, COUNTER_SIGNAL)))
 
     @classmethod
     def known_sources(cls, device):
@@ -54,15 +69,15 @@ class CanDriver(Driver):
 
     def __init__(self, device, sample_rate_hz: float) -> None:
         self.name = device.name
-        self.device = device
+        self.config = cfg = device.config
         self.fs = sample_rate_hz
-        self.layouts = load_messages(device.dbc, [m for m in device.message.split(",") if m])
-        counter = device.options.get("counter", COUNTER_SIGNAL)
+        self.layouts = load_messages(cfg.dbc, list(cfg.messages))
+        counter = cfg.counter
         self.counters = []
         for lay in self.layouts:
             names = [s.name for s in lay.signals]
             if counter and counter not in names:
-                raise DaqError(f"{device.dbc}: message {lay.name!r} has no scan counter signal {counter!r} "
+                raise DaqError(f"{cfg.dbc}: message {lay.name!r} has no scan counter signal {counter!r} "
                                "(name it with counter = \"...\", or counter = \"\" to place frames by "
                                "their timestamps)")
             self.counters.append(lay.signal(counter) if counter else None)
@@ -71,7 +86,7 @@ class CanDriver(Driver):
         self.sources = tuple(s.name for _, s in self.signals)
         dup = sorted({n for n in self.sources if self.sources.count(n) > 1})
         if dup:
-            raise DaqError(f"{device.dbc}: signal {dup[0]!r} is in more than one of the messages")
+            raise DaqError(f"{cfg.dbc}: signal {dup[0]!r} is in more than one of the messages")
         lims = np.array([s.limits for _, s in self.signals])
         self.limits = (lims[:, 0], lims[:, 1])
         self.parts: dict[tuple[int, int], int] = {}  # (message, multiplexer value) -> part of a scan
@@ -89,13 +104,13 @@ class CanDriver(Driver):
     def open(self) -> None:
         import can
 
-        kwargs = {"bitrate": self.device.bitrate}
-        if self.device.interface == "slcan":
+        kwargs = {"bitrate": self.config.bitrate}
+        if self.config.interface == "slcan":
             kwargs["sleep_after_open"] = 0.0
         try:
-            self._bus = can.Bus(interface=self.device.interface, channel=self.device.channel, **kwargs)
+            self._bus = can.Bus(interface=self.config.interface, channel=self.config.channel, **kwargs)
         except (can.CanError, OSError, ValueError) as exc:
-            raise DeviceLost(f"cannot open CAN {self.device.interface}:{self.device.channel}: {exc}") from exc
+            raise DeviceLost(f"cannot open CAN {self.config.interface}:{self.config.channel}: {exc}") from exc
         self._lost = None
 
     def close(self) -> None:
@@ -119,7 +134,7 @@ class CanDriver(Driver):
                 msgs.append(msg)
                 msg = self._bus.recv(timeout=0)
         except (can.CanError, serial.SerialException, OSError) as exc:
-            self._lost = f"CAN {self.device.channel}: {exc}"
+            self._lost = f"CAN {self.config.channel}: {exc}"
             if not msgs:  # otherwise hand over what arrived; the next read reports the loss
                 raise DeviceLost(self._lost) from exc
         return msgs

@@ -40,7 +40,7 @@ def _acquire(args: argparse.Namespace) -> int:
         summary = acquire(session, args.out, duration_s=args.duration, run_id=args.run_id,
                           recover=args.recover, quiet=args.quiet)
     except WriteFailed as exc:  # leave without closing the HDF5 file: it keeps its last flushed state
-        from flexmodal.daq.store import recover
+        from flexmodal.daq.h5file import recover
 
         recover(args.out)  # clear the open-for-writing flags (in place) so plain h5py opens the file
         print(f"flexmodal: error: {exc}", file=sys.stderr, flush=True)

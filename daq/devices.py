@@ -15,7 +15,7 @@ import queue
 import threading
 import time
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
@@ -26,6 +26,7 @@ from flexmodal.daq.protocols import PROTOCOLS
 if TYPE_CHECKING:
     from flexmodal.daq.session import Device, DeviceTable
 
+SIMULATOR_PORT = "@simulator"  # placeholder for the endpoint of the session's own simulator
 BACKOFF_START_S = 0.02
 BACKOFF_MAX_S = 0.25
 
@@ -85,7 +86,7 @@ class Driver(ABC):
     @classmethod
     def known_sources(cls, device: Device) -> tuple[str, ...] | None:
         """Source names a channel may map to (None: not known before opening, e.g. from a DBC file)."""
-        return device.sources
+        return device.config.sources
 
     @abstractmethod
     def __init__(self, device: Device, sample_rate_hz: float) -> None: ...
@@ -101,6 +102,15 @@ class Driver(ABC):
     @abstractmethod
     def close(self) -> None:
         """Disconnect (never raises)."""
+
+
+def with_endpoint(config, endpoint: str):
+    """A device's ``config`` with the ``"@simulator"`` placeholder replaced by the simulator's endpoint:
+    by the config's own ``with_endpoint`` (Modbus TCP splits ``host:port``), else in every field that
+    holds the placeholder."""
+    if hasattr(config, "with_endpoint"):
+        return config.with_endpoint(endpoint)
+    return replace(config, **{k: endpoint for k, v in vars(config).items() if v == SIMULATOR_PORT})
 
 
 def unwrap(seq: int, last: int | None, modulus: int) -> int:

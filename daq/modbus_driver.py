@@ -15,10 +15,11 @@ from __future__ import annotations
 
 import logging
 import time
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from flexmodal.daq.devices import Block, DeviceLost, Driver
+from flexmodal.daq.devices import SIMULATOR_PORT, Block, DeviceLost, Driver
 from flexmodal.daq.errors import DaqError
 
 READ_WINDOW_S = 0.05
@@ -28,6 +29,21 @@ MAX_REGISTERS_PER_READ = 125
 RAW_RANGE = {"int16": (-(2**15), 2**15 - 1), "uint16": (0, 2**16 - 1), "int32": (-(2**31), 2**31 - 1),
              "uint32": (0, 2**32 - 1), "float32": (-np.inf, np.inf)}
 
+
+REGISTER_TYPES = {"int16": 1, "uint16": 1, "int32": 2, "uint32": 2, "float32": 2}  # registers per value
+
+
+@dataclass(frozen=True)
+class Register:
+    """One Modbus value: ``type`` int16|uint16|int32|uint32|float32, ``word_order`` big|little."""
+
+    name: str
+    address: int
+    type: str = "int16"
+    word_order: str = "big"
+    scale: float = 1.0
+    offset: float = 0.0
+    table: str = "holding"  # holding | input
 
 def decode_registers(words: np.ndarray, offset: int, reg) -> np.ndarray:
     """Values of register definition ``reg`` at column ``offset`` of polls ``words`` [n, n_words] uint16."""
@@ -56,7 +72,7 @@ def _spans(registers) -> list[tuple[str, int, int]]:
 
 
 def _register(doc: dict, where: str):
-    from flexmodal.daq.session import REGISTER_TYPES, Register, Table
+    from flexmodal.daq.session import Table
 
     t = Table(doc, where)
     t.reject_unknown({"name", "address", "type", "word_order", "scale", "offset", "table"})
@@ -69,6 +85,33 @@ def _register(doc: dict, where: str):
         table=t.choice("table", ("holding", "input"), "holding"))
 
 
+@dataclass(frozen=True)
+class ModbusConfig:
+    """A Modbus device's ``[[device]]`` fields (docs/acquisition.md): ``transport`` tcp (``host``,
+    ``tcp_port``) or rtu (``port``, ``baud``), the unit ``device_id`` and the ``registers`` polled."""
+
+    transport: str
+    registers: tuple[Register, ...]
+    device_id: int = 1
+    host: str = "127.0.0.1"
+    tcp_port: int = 502
+    port: str = ""  # rtu: the serial port; tcp: the "@simulator" placeholder until the simulator starts
+    baud: int = 19200
+
+    @property
+    def sources(self) -> tuple[str, ...]:
+        return tuple(r.name for r in self.registers)
+
+    def with_endpoint(self, endpoint: str) -> ModbusConfig:
+        """Over TCP the simulator's endpoint is ``host:port``; over RTU, its pty."""
+        if self.port != SIMULATOR_PORT:
+            return self
+        if self.transport == "tcp":
+            host, port = endpoint.rsplit(":", 1)
+            return replace(self, host=host, tcp_port=int(port), port=port)
+        return replace(self, port=endpoint)
+
+
 class ModbusDriver(Driver):
     """Registers polled at the session rate (see the module docstring)."""
 
@@ -77,7 +120,7 @@ class ModbusDriver(Driver):
     @classmethod
     def parse_device(cls, t, name):
         """``transport`` tcp (``host``, ``port``) or rtu (``port``, ``baud``), ``device_id``, registers."""
-        from flexmodal.daq.session import SIMULATOR_PORT, Device
+        from flexmodal.daq.session import Device
 
         t.reject_unknown({"transport", "host", "port", "baud", "device_id", "register"})
         transport = t.choice("transport", ("tcp", "rtu"), "tcp")
@@ -87,26 +130,27 @@ class ModbusDriver(Driver):
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
             raise DaqError(f"{t.where}: duplicate register name {dup[0]!r}")
-        common = {"transport": transport, "device_id": t.get("device_id", int, 1), "registers": registers,
-                  "sources": tuple(names)}
+        unit = t.get("device_id", int, 1)
         if transport == "tcp":
             port = t.get("port", (int, str), 502)
             if isinstance(port, str) and port != SIMULATOR_PORT:
                 raise DaqError(f"{t.where}: port {port!r} is not a TCP port number")
-            return Device(name, cls.protocol, host=t.get("host", str, "127.0.0.1"), port=str(port),
-                          tcp_port=port if isinstance(port, int) else 0, **common)
-        return Device(name, cls.protocol, port=t.port("port"), baud=t.get("baud", int, 19200), **common)
+            return Device(name, cls.protocol, ModbusConfig(
+                transport, registers, unit, host=t.get("host", str, "127.0.0.1"),
+                tcp_port=port if isinstance(port, int) else 0, port=str(port)))
+        return Device(name, cls.protocol, ModbusConfig(transport, registers, unit, port=t.port("port"),
+                                                       baud=t.get("baud", int, 19200)))
 
     def __init__(self, device, sample_rate_hz: float) -> None:
         self.name = device.name
-        self.device = device
+        self.config = cfg = device.config
         self.fs = sample_rate_hz
-        self.sources = tuple(r.name for r in device.registers)
-        self.spans = _spans(device.registers)
+        self.sources = cfg.sources
+        self.spans = _spans(cfg.registers)
         base = {t: sum(c for _, _, c in self.spans[:i]) - a for i, (t, a, c) in enumerate(self.spans)}
-        self.columns = [base[r.table] + r.address for r in device.registers]
+        self.columns = [base[r.table] + r.address for r in cfg.registers]
         lims = np.array([sorted((lo * r.scale + r.offset, hi * r.scale + r.offset))
-                         for r in device.registers for lo, hi in [RAW_RANGE[r.type]]])
+                         for r in cfg.registers for lo, hi in [RAW_RANGE[r.type]]])
         self.limits = (lims[:, 0], lims[:, 1])
         self._client = None
         self._t0: float | None = None
@@ -118,7 +162,7 @@ class ModbusDriver(Driver):
         from pymodbus.client import ModbusSerialClient, ModbusTcpClient
 
         logging.getLogger("pymodbus").setLevel(logging.CRITICAL)  # failures become events, not log noise
-        d = self.device
+        d = self.config
         if d.transport == "tcp":
             client = ModbusTcpClient(d.host, port=d.tcp_port, timeout=ANSWER_TIMEOUT_S, retries=0)
         else:
@@ -145,7 +189,7 @@ class ModbusDriver(Driver):
         for table, address, count in self.spans:
             read = (self._client.read_holding_registers if table == "holding"
                     else self._client.read_input_registers)
-            rr = read(address, count=count, device_id=self.device.device_id)
+            rr = read(address, count=count, device_id=self.config.device_id)
             if rr.isError():
                 return None
             words += rr.registers
@@ -188,7 +232,7 @@ class ModbusDriver(Driver):
         if not slots.size:
             return []
         values = np.column_stack([decode_registers(words, c, r)
-                                  for c, r in zip(self.columns, self.device.registers, strict=True)])
+                                  for c, r in zip(self.columns, self.config.registers, strict=True)])
         split = np.flatnonzero(np.diff(slots) != 1) + 1
         out = []
         for a, b in zip(np.r_[0, split], np.r_[split, slots.size], strict=True):  # runs of consecutive polls

@@ -8,7 +8,6 @@ naming the file, run and item, instead of whatever numpy, json or h5py would rai
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -16,7 +15,24 @@ import h5py
 import numpy as np
 
 from flexmodal.daq.errors import DaqError
-from flexmodal.daq.store import CHANNEL_FIELDS, EVENT_DTYPE, EXCITATIONS
+from flexmodal.daq.h5file import open_read
+from flexmodal.valid_text import loads_json, one_line
+
+CHANNEL_KINDS = ("acceleration", "force", "strain", "encoder", "voltage", "other")
+EVENT_KINDS = ("trigger", "gap", "overload", "corrupt", "reconnect", "note", "device_lost", "overrun",
+               "stopped")
+EXCITATIONS = ("impact", "random", "sweep", "free-decay", "operational")
+CHANNEL_FIELDS = ("name", "kind", "unit", "sensitivity", "sensitivity_unit", "location", "direction")
+EVENT_DETAIL_BYTES = 200
+
+
+def utf8(n_bytes: int) -> np.dtype:
+    """A fixed-width UTF-8 string type of ``n_bytes`` (at least 1) for HDF5 compound tables."""
+    return h5py.string_dtype("utf-8", max(int(n_bytes), 1))
+
+
+EVENT_DTYPE = np.dtype([("kind", utf8(16)), ("sample_index", "i8"), ("count", "i8"),
+                        ("detail", utf8(EVENT_DETAIL_BYTES))])
 
 RUN_FIELDS = {"channels": CHANNEL_FIELDS, "events": EVENT_DTYPE.names}
 NUMERIC_FIELDS = {"sensitivity": "f", "sample_index": "i", "count": "i"}
@@ -48,17 +64,56 @@ def _check_attrs(g: h5py.Group, where: str) -> None:
                        f"{', '.join(EXCITATIONS)}")
     pose_text = _text(a["pose"])
     try:
-        pose = json.loads(pose_text) if pose_text is not None else None
-    except json.JSONDecodeError:
+        pose = loads_json(pose_text, where, DaqError) if pose_text is not None else None
+    except DaqError:
         pose = None
     if not isinstance(pose, dict):
-        raise DaqError(f"{where}: attribute pose = {a['pose']!r} is not a JSON object string")
+        raise DaqError(f"{where}: attribute pose = {_short(a['pose'])!r} is not a JSON object string")
+    for name, value in pose.items():
+        if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+            raise DaqError(f"{where}: attribute pose: {_short(name)} = {_short(value)} is not a finite "
+                           "number")
+
+
+def member(parent: h5py.Group, name: str, where: str, error: type[Exception] = DaqError) -> object | None:
+    """``parent[name]``, or None when there is no such member; an external link (never followed: it
+    would read another file), a dangling or looping soft link, or an object HDF5 cannot open raises
+    ``error`` naming ``where`` and the member."""
+    link = parent.get(name, getlink=True)
+    if link is None:
+        return None
+    if isinstance(link, h5py.ExternalLink):
+        raise error(f"{where}: {name!r} is an external link to {link.filename}:{link.path} (not followed)")
+    try:
+        return parent[name]
+    except (KeyError, RuntimeError, OSError, ValueError) as exc:
+        what = "a dangling or looping link" if isinstance(link, h5py.SoftLink) else "an unreadable object"
+        raise error(f"{where}: {name!r} is {what} ({_short(exc)})") from None
+
+
+def check_filters(d: h5py.Dataset, where: str, error: type[Exception] = DaqError) -> None:
+    """Raise ``error`` when dataset ``d`` is stored with a required filter (compression) this HDF5
+    lacks: its data could not be read (HDF5 filter registry, ``H5Zfilter_avail``; an optional filter
+    that is missing was skipped when the data were written)."""
+    plist = d.id.get_create_plist()
+    for i in range(plist.get_nfilters()):
+        code, flags, _values, name = plist.get_filter(i)
+        if not flags & h5py.h5z.FLAG_OPTIONAL and not h5py.h5z.filter_avail(code):
+            label = name.decode(errors="replace") if isinstance(name, bytes) else str(name)
+            raise error(f"{where}: {d.name.rsplit('/', 1)[-1]!r} is compressed with filter {code} "
+                        f"({label or 'unnamed'}), which is not installed (pip install hdf5plugin)")
+
+
+def _short(value: object) -> str:
+    """A value or message quoted in an error line: one line, at most 80 characters."""
+    text = one_line(value)
+    return text if len(text) <= 80 else text[:77] + "..."
 
 
 def _table(g: h5py.Group, name: str, where: str) -> h5py.Dataset:
-    if name not in g or not isinstance(g[name], h5py.Dataset):
+    d = member(g, name, where)
+    if not isinstance(d, h5py.Dataset):
         raise DaqError(f"{where}: has no {name!r} dataset")
-    d = g[name]
     fields = d.dtype.names or ()
     if d.ndim != 1 or not fields:
         raise DaqError(f"{where}: {name!r} is not a table of records (shape {d.shape}, type {d.dtype})")
@@ -80,23 +135,35 @@ def check_run_group(g: h5py.Group, where: str) -> None:
         raise DaqError(f"{where}: is not a group")
     _check_attrs(g, where)
     channels = _table(g, "channels", where)
-    _table(g, "events", where)
-    if "samples" not in g or not isinstance(g["samples"], h5py.Dataset):
+    events = _table(g, "events", where)
+    s = member(g, "samples", where)
+    if not isinstance(s, h5py.Dataset):
         raise DaqError(f"{where}: has no 'samples' dataset")
-    s = g["samples"]
     if s.ndim != 2 or s.dtype.kind not in "fiu":
         raise DaqError(f"{where}: 'samples' must be a 2-D numeric dataset (shape {s.shape}, type {s.dtype})")
     if s.shape[1] != channels.shape[0] or s.shape[1] == 0:
         raise DaqError(f"{where}: 'samples' has {s.shape[1]} columns but {channels.shape[0]} channels")
+    for d in (channels, events, s):
+        check_filters(d, where)
+    _check_names(channels, where)
+
+
+def _check_names(channels: h5py.Dataset, where: str) -> None:
+    """Channel names are unique: two sensors of one name would silently become one in the shapes."""
+    names = [_text(n) for n in channels["name"]]
+    seen: set[str | None] = set()
+    for n in names:
+        if n in seen:
+            raise DaqError(f"{where}: channel name {n!r} appears twice (each channel needs its own name)")
+        seen.add(n)
 
 
 def check_run_file(path: str | Path, run_id: str) -> None:
-    """Open ``path`` (:func:`flexmodal.daq.store.open_read`) and check run ``run_id`` without reading
+    """Open ``path`` (:func:`flexmodal.daq.h5file.open_read`) and check run ``run_id`` without reading
     its samples: lets a command refuse a bad run file before it starts working."""
-    from flexmodal.daq.store import open_read
-
     with open_read(path) as f:
-        key = f"runs/{run_id}"
-        if key not in f:
+        runs = member(f, "runs", str(path))
+        g = member(runs, run_id, f"{path}: run {run_id!r}") if isinstance(runs, h5py.Group) else None
+        if g is None:
             raise DaqError(f"{path}: no run {run_id!r}")
-        check_run_group(f[key], f"{path}: run {run_id!r}")
+        check_run_group(g, f"{path}: run {run_id!r}")

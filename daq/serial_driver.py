@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import select
 import time
+from dataclasses import dataclass
 
 import serial
 
@@ -45,6 +46,20 @@ def _frame_spec(t, n_sources: int) -> FrameSpec:
     return spec
 
 
+@dataclass(frozen=True)
+class SerialConfig:
+    """A serial device's ``[[device]]`` fields (docs/acquisition.md): ``port`` (a path or pyserial URL),
+    ``sources`` (the names of the frame's columns, in order), ``baud``, ``framing`` (binary, csv or
+    custom), ``frame`` (the custom framing's FrameSpec) and ``checksum`` (csv lines)."""
+
+    port: str
+    sources: tuple[str, ...]
+    baud: int = 115200
+    framing: str = "binary"
+    frame: FrameSpec | None = None
+    checksum: str = "none"
+
+
 class SerialDriver(Driver):
     """A device streaming binary frames or CSV lines; sample index from the frame sequence counter."""
 
@@ -66,21 +81,21 @@ class SerialDriver(Driver):
         check = t.choice("checksum", tuple(CHECKSUM_BYTES), "none")
         if check != "none" and framing != "csv":
             raise DaqError(f"{t.where}: checksum is for framing = \"csv\" (custom frames: frame.checksum)")
-        return Device(name, cls.protocol, port=port, baud=t.get("baud", int, 115200), framing=framing,
-                      sources=tuple(sources), frame=frame, checksum=check)
+        return Device(name, cls.protocol, SerialConfig(port, tuple(sources), t.get("baud", int, 115200),
+                                                       framing, frame, check))
 
     def __init__(self, device, sample_rate_hz: float) -> None:
         self.name = device.name
         self.sample_rate_hz = sample_rate_hz
-        self.device = device
-        self.sources = device.sources
+        self.config = device.config
+        self.sources = device.config.sources
         self.limits = None  # raw formats are self-describing; clipping is judged on full_scale
         self._port = None
         self._last: int | None = None
         self._new_decoder()
 
     def _new_decoder(self) -> None:
-        n, d = len(self.sources), self.device
+        n, d = len(self.sources), self.config
         self._decoder = (BinaryDecoder(n) if d.framing == "binary" else CsvDecoder(n, d.checksum)
                          if d.framing == "csv" else CustomDecoder(d.frame))
 
@@ -89,10 +104,10 @@ class SerialDriver(Driver):
         another session, or a reconnect through a stale path that now names another device's pty, fails
         to open (and retries) instead of silently taking part of the stream."""
         try:
-            self._port = serial.serial_for_url(self.device.port, baudrate=self.device.baud,
+            self._port = serial.serial_for_url(self.config.port, baudrate=self.config.baud,
                                                timeout=READ_TIMEOUT_S, exclusive=True)
         except (serial.SerialException, OSError) as exc:
-            raise DeviceLost(f"cannot open {self.device.port}: {exc}") from exc
+            raise DeviceLost(f"cannot open {self.config.port}: {exc}") from exc
         self._new_decoder()  # a partial frame from before a reconnect is garbage
 
     def _read_bytes(self) -> bytes:
@@ -126,12 +141,12 @@ class SerialDriver(Driver):
         try:
             data = self._read_bytes()
         except (serial.SerialException, OSError, TypeError, AttributeError) as exc:
-            raise DeviceLost(f"{self.device.port}: {exc}") from exc
+            raise DeviceLost(f"{self.config.port}: {exc}") from exc
         now = time.time()
         if not data:
             return []
         blocks = []
-        modulus = SEQ_MODULUS if self.device.framing == "binary" else 1 << 62  # others: unwrapped
+        modulus = SEQ_MODULUS if self.config.framing == "binary" else 1 << 62  # others: unwrapped
         for seq, values, corrupt in self._decoder.feed(data):
             first = unwrap(seq, self._last, modulus)
             self._last = first + values.shape[0]

@@ -233,6 +233,7 @@ def encode_csv(first_seq: int, values: np.ndarray, checksum_kind: str = "none") 
 CHECKSUM_BYTES = {"none": 0, "sum8": 1, "crc16": 2, "crc32": 4}
 SAMPLE_CODES = "bBhHiIqQefd"  # struct codes a sample may have (fixed sizes, no padding)
 COUNTER_CODES = {1: "B", 2: "H", 4: "I", 8: "Q"}
+MAX_SCAN_VALUES = 4096  # values in one scan of a declared layout (a 4096-channel ADC is far beyond any rig)
 
 
 def checksum(kind: str, data: bytes | memoryview) -> int:
@@ -270,6 +271,10 @@ class FrameSpec:
         if not body or not re.fullmatch(rf"(\d*[{SAMPLE_CODES}])+", body):
             raise ValueError(f"layout {self.layout!r} is not a byte order < or > and struct codes "
                              f"of {SAMPLE_CODES}")
+        n_values = sum(int(n or 1) for n, _ in re.findall(rf"(\d*)([{SAMPLE_CODES}])", body))
+        if n_values > MAX_SCAN_VALUES:  # counted before a scan's codes are spelled out one by one
+            raise ValueError(f"layout {self.layout!r} declares {n_values} values per scan (at most "
+                             f"{MAX_SCAN_VALUES})")
         if self.counter_bytes not in (0, *COUNTER_CODES):
             raise ValueError(f"counter_bytes {self.counter_bytes} is not 0, 1, 2, 4 or 8")
         if self.checksum not in CHECKSUM_BYTES:

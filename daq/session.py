@@ -20,18 +20,19 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
+from flexmodal.daq.devices import SIMULATOR_PORT
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.faults import Faults
 from flexmodal.daq.protocols import PROTOCOLS, registered_protocols
-from flexmodal.daq.store import CHANNEL_KINDS, EXCITATIONS, Channel
+from flexmodal.daq.run_schema import CHANNEL_KINDS, EXCITATIONS
+from flexmodal.daq.store import Channel
 from flexmodal.valid_text import read_toml
 from flexmodal.valid_toml import Fields
 
 # Whole-number fields whose range every protocol shares (a TCP port given as a number, the Modbus unit id).
 INT_RANGES = {"baud": (1, 100_000_000), "bitrate": (1, 100_000_000), "device_id": (0, 247),
               "port": (1, 65535)}
-SIMULATOR_PORT = "@simulator"  # placeholder for the endpoint of the session's own simulator
-REGISTER_TYPES = {"int16": 1, "uint16": 1, "int32": 2, "uint32": 2, "float32": 2}
+MIN_HIT_SAMPLES = 16  # samples of an impact window after its pretrigger samples (an FFT needs a few)
 G_M_PER_S2 = 9.80665
 NUMBER = r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?"
 EFFECT_PATTERN = rf"\w+@[\w.@-]+:\w+={NUMBER}(,\w+={NUMBER})*"
@@ -45,42 +46,14 @@ UNIT_FACTORS = {
 
 
 @dataclass(frozen=True)
-class Register:
-    """One Modbus value: ``type`` int16|uint16|int32|uint32|float32, ``word_order`` big|little."""
-
-    name: str
-    address: int
-    type: str = "int16"
-    word_order: str = "big"
-    scale: float = 1.0
-    offset: float = 0.0
-    table: str = "holding"  # holding | input
-
-
-@dataclass(frozen=True)
 class Device:
-    """One device; only the fields of its protocol matter (see docs/acquisition.md)."""
+    """One ``[[device]]``: its name, its protocol and the configuration its driver parsed from the table
+    (a frozen dataclass the driver owns: daq.serial_driver.SerialConfig, daq.can_driver.CanConfig,
+    daq.modbus_driver.ModbusConfig, ...; docs/acquisition.md)."""
 
     name: str
     protocol: str
-    port: str = ""  # serial port / pyserial URL; slcan pty; Modbus RTU port
-    baud: int = 115200
-    framing: str = "binary"  # serial: binary | csv | custom
-    frame: Any = None  # serial, framing = "custom": its daq.serial_frames.FrameSpec
-    checksum: str = "none"  # serial, framing = "csv": checksum field at the end of each line
-    sources: tuple[str, ...] = ()  # serial: names of the frame columns, in order
-    interface: str = ""  # can: virtual | slcan (any python-can interface name)
-    channel: str = ""  # can: bus channel (virtual bus name)
-    bitrate: int = 500000
-    dbc: str = ""  # can: DBC file (absolute path after loading)
-    message: str = ""  # can: DBC message carrying the samples (default: the only multiplexed one)
-    transport: str = "tcp"  # modbus: tcp | rtu
-    host: str = "127.0.0.1"
-    tcp_port: int = 502
-    device_id: int = 1
-    registers: tuple[Register, ...] = ()
-    options: dict = field(default_factory=dict)  # fields of a protocol registered from outside flexmodal
-
+    config: Any
 
 @dataclass(frozen=True)
 class ChannelMap:
@@ -168,7 +141,11 @@ class Table(Fields):
     def port(self, key: str) -> str:
         """A port path that must exist (or a URL such as loop://, or the simulator placeholder)."""
         port = self.get(key, str)
-        if not ("://" in port or port == SIMULATOR_PORT or Path(port).exists()):
+        scheme, url, _ = port.partition("://")
+        if url and not _serial_url_scheme(scheme):
+            raise DaqError(f"{self.where}: {key} {port!r}: pyserial knows no {scheme!r}:// URL (loop://, "
+                           "socket://, rfc2217://, spy://, ... or a device path such as /dev/ttyUSB0)")
+        if not (url or port == SIMULATOR_PORT or Path(port).exists()):
             raise DaqError(f"{self.where}: {key} {port!r} does not exist")
         return port
 
@@ -178,6 +155,19 @@ class Table(Fields):
         if not Path(path).is_file():
             raise DaqError(f"{self.where}: {what} {path!r} does not exist")
         return path
+
+
+def _serial_url_scheme(scheme: str) -> bool:
+    """Whether pyserial's ``serial_for_url`` has a handler for ``scheme://`` (its
+    ``serial.urlhandler.protocol_<scheme>`` module)."""
+    import importlib.util
+
+    if not scheme.isidentifier():
+        return False
+    try:
+        return importlib.util.find_spec(f"serial.urlhandler.protocol_{scheme.lower()}") is not None
+    except (ImportError, ValueError):
+        return False
 
 
 class DeviceTable(Table):
@@ -284,7 +274,7 @@ def parse_session(doc: dict, source: Path) -> Session:
         if dev.name in devices:
             raise DaqError(f"{where}: device {dev.name!r} is defined twice")
         devices[dev.name] = dev
-    uses_sim = any(SIMULATOR_PORT in (d.port, d.channel) for d in devices.values())
+    uses_sim = any(SIMULATOR_PORT in vars(d.config).values() for d in devices.values())
     if uses_sim and sim is None:
         raise DaqError(f"{where}: a device uses port {SIMULATOR_PORT!r} but there is no [simulator]")
     ch_docs = t.get("channel", list, check=bool, why="must list at least one [[channel]]")
@@ -309,6 +299,11 @@ def parse_session(doc: dict, source: Path) -> Session:
                           g.get("response", str, "", check=lambda v: v in names, why="is not a channel"),
                           g.number("window_s", 1.0, lo=0, hi=60, lo_open=True, unit="s"),
                           g.number("min_peak", None, lo=0))
+        window = int(trigger.window_s * rate)
+        if window < trigger.pretrigger_samples + MIN_HIT_SAMPLES:
+            raise DaqError(f"{where}: trigger: window_s = {trigger.window_s:g} s holds {window} samples at "
+                           f"{rate:g} Hz; a hit needs at least pretrigger_samples + {MIN_HIT_SAMPLES} = "
+                           f"{trigger.pretrigger_samples + MIN_HIT_SAMPLES}")
     pose = t.numbers("pose")
     pose_from = t.get("pose_from", dict, {})
     for k, v in pose_from.items():

@@ -14,7 +14,6 @@ See docs/hdf5-format.md.
 from __future__ import annotations
 
 import json
-import os
 import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -26,13 +25,20 @@ import h5py
 import numpy as np
 
 from flexmodal.daq.errors import DaqError
+from flexmodal.daq.h5file import open_read
+from flexmodal.daq.run_schema import (
+    CHANNEL_FIELDS,
+    CHANNEL_KINDS,
+    EVENT_DETAIL_BYTES,
+    EVENT_DTYPE,
+    EVENT_KINDS,
+    EXCITATIONS,
+    check_run_group,
+    member,
+    utf8,
+)
+from flexmodal.valid_text import regular_file
 
-CHANNEL_KINDS = ("acceleration", "force", "strain", "encoder", "voltage", "other")
-EVENT_KINDS = ("trigger", "gap", "overload", "corrupt", "reconnect", "note", "device_lost", "overrun",
-               "stopped")
-EXCITATIONS = ("impact", "random", "sweep", "free-decay", "operational")
-CHANNEL_FIELDS = ("name", "kind", "unit", "sensitivity", "sensitivity_unit", "location", "direction")
-EVENT_DETAIL_BYTES = 200
 CHUNK_BYTES = 1 << 20  # target size of one samples chunk
 CHUNK_CACHE_BYTES = 16 << 20  # room for partly filled chunks, so appends never re-read from disk
 
@@ -89,17 +95,13 @@ class Run:
     attrs: dict = field(default_factory=dict)
 
 
-def _utf8(n_bytes: int) -> np.dtype:
-    return h5py.string_dtype("utf-8", max(int(n_bytes), 1))
-
-
 def _channel_table(channels: tuple[Channel, ...]) -> np.ndarray:
     """Channels as a compound array; string widths fit the longest UTF-8 value (at least 16 bytes)."""
     widths = {
         f: max(16, *(len(str(getattr(c, f)).encode()) for c in channels))
         for f in CHANNEL_FIELDS if f != "sensitivity"
     }
-    dtype = np.dtype([(f, "f8") if f == "sensitivity" else (f, _utf8(widths[f])) for f in CHANNEL_FIELDS])
+    dtype = np.dtype([(f, "f8") if f == "sensitivity" else (f, utf8(widths[f])) for f in CHANNEL_FIELDS])
     table = np.zeros(len(channels), dtype=dtype)
     for f in CHANNEL_FIELDS:
         values = [getattr(c, f) for c in channels]
@@ -107,11 +109,8 @@ def _channel_table(channels: tuple[Channel, ...]) -> np.ndarray:
     return table
 
 
-EVENT_DTYPE = np.dtype([("kind", _utf8(16)), ("sample_index", "i8"), ("count", "i8"),
-                        ("detail", _utf8(EVENT_DETAIL_BYTES))])
 
-
-def _truncate_utf8(text: str, n_bytes: int) -> bytes:
+def _truncateutf8(text: str, n_bytes: int) -> bytes:
     return text.encode()[:n_bytes].decode("utf-8", "ignore").encode()
 
 
@@ -191,7 +190,7 @@ class RunWriter:
             if "already open for write" in str(exc):
                 raise DaqError(f"{self.path}: file is open by another writer or was not closed cleanly "
                                "(readable as it is; if no writer is running, `flexmodal acquire --recover` "
-                               "or flexmodal.daq.store.recover() makes it writable)") from exc
+                               "or flexmodal.daq.h5file.recover() makes it writable)") from exc
             raise DaqError(f"{self.path}: cannot open for writing ({exc})") from exc
         if f"runs/{self.run_id}" in f:
             f.close()
@@ -242,7 +241,7 @@ class RunWriter:
         rec["kind"] = [e.kind.encode() for e in events]
         rec["sample_index"] = [e.sample_index for e in events]
         rec["count"] = [e.count for e in events]
-        rec["detail"] = [_truncate_utf8(e.detail, EVENT_DETAIL_BYTES) for e in events]
+        rec["detail"] = [_truncateutf8(e.detail, EVENT_DETAIL_BYTES) for e in events]
         self._events.resize(self._n_events + len(events), axis=0)
         self._events[self._n_events:] = rec
         self._n_events += len(events)
@@ -269,126 +268,13 @@ class RunWriter:
             self._file.close()
 
 
-# lookup3's mixing rounds as (x, y, z, k) on the state (a, b, c) = (0, 1, 2): in ``mix`` each round is
-# ``x = (x - y) ^ rot(y, k); y += z``, in ``final`` it is ``x = (x ^ y) - rot(y, k)`` (lookup3.c).
-_LOOKUP3_MIX = ((0, 2, 1, 4), (1, 0, 2, 6), (2, 1, 0, 8), (0, 2, 1, 16), (1, 0, 2, 19), (2, 1, 0, 4))
-_LOOKUP3_FINAL = ((2, 1, 14), (0, 2, 11), (1, 0, 25), (2, 1, 16), (0, 2, 4), (1, 0, 14), (2, 1, 24))
-
-
-def _lookup3(data: bytes, initval: int = 0) -> int:
-    """Bob Jenkins' lookup3 ``hashlittle``, the checksum of HDF5 metadata (superblock v2/v3)."""
-    m = 0xFFFFFFFF
-
-    def rot(x: int, k: int) -> int:
-        return ((x << k) | (x >> (32 - k))) & m
-
-    def absorb(state: list[int], block: bytes) -> None:
-        for j in range(3):
-            state[j] = (state[j] + int.from_bytes(block[4 * j:4 * j + 4], "little")) & m
-
-    state = [(0xDEADBEEF + len(data) + initval) & m] * 3
-    i = 0
-    while len(data) - i > 12:  # a 48-byte superblock: not a hot path
-        absorb(state, data[i:i + 12])
-        for x, y, z, k in _LOOKUP3_MIX:
-            state[x] = ((state[x] - state[y]) & m) ^ rot(state[y], k)
-            state[y] = (state[y] + state[z]) & m
-        i += 12
-    if i == len(data):
-        return state[2]
-    absorb(state, data[i:] + bytes(12 - (len(data) - i)))
-    for x, y, k in _LOOKUP3_FINAL:
-        state[x] = ((state[x] ^ state[y]) - rot(state[y], k)) & m
-    return state[2]
-
-
-def recover(path: str | Path) -> bool:
-    """Clear the "open for writing" flags a killed writer left in the superblock (like ``h5clear -s``).
-
-    Only for a file that no process is writing any more (a live `acquire`'s lock is refused, see
-    daq.lock); afterwards it opens normally and takes new runs.  Returns False when the flags were
-    already clear.
-    """
-    from flexmodal.daq.lock import holder
-
-    path = Path(path)
-    pid = holder(path)
-    if pid is not None:
-        raise DaqError(f"{path}: being written by a running acquire (pid {pid or '?'}); not recovered")
-    with open(path, "r+b") as f:
-        head = f.read(48)
-        if head[:8] != b"\x89HDF\r\n\x1a\n" or head[8] not in (2, 3) or head[9] != 8:
-            raise DaqError(f"{path}: not an HDF5 file with a version 2/3 superblock")
-        if head[11] == 0:
-            return False
-        sb = head[:11] + b"\x00" + head[12:44]
-        f.seek(0)
-        f.write(sb + _lookup3(sb).to_bytes(4, "little"))
-    return True
-
-
-SUPERBLOCK_BYTES = 48  # a version 2/3 superblock with 8-byte addresses, checksum included
-LIVE_RECHECK_S = 0.2  # a live writer grows its file to the stored end-of-file at every flush
-
-
-def _superblock(path: Path) -> tuple[bytes, int]:
-    """The first bytes of ``path`` and its size; DaqError when it is missing or not a file."""
-    try:
-        with open(path, "rb") as fh:
-            return fh.read(SUPERBLOCK_BYTES), os.fstat(fh.fileno()).st_size
-    except FileNotFoundError:
-        raise DaqError(f"{path}: run file not found") from None
-    except OSError as exc:
-        raise DaqError(f"{path}: cannot read the run file ({exc.strerror or exc})") from None
-
-
-def open_read(path: str | Path) -> h5py.File:
-    """Open a run file for reading, failing at once on a truncated or foreign file.
-
-    A cleanly closed file (superblock status flags clear) opens without SWMR, so HDF5 runs its
-    end-of-file check.  A file with the open-for-writing flags set (a live writer, or a killed one)
-    opens in SWMR read mode, which skips that check and would retry a truncated file's missing
-    metadata for ever; its size is therefore first compared with the end-of-file address the
-    superblock stores (HDF5 file format specification, superblock version 2/3, 8-byte addresses:
-    bytes 28-35).
-    """
-    p = Path(path)
-    head, size = _superblock(p)
-    if head[:8] != b"\x89HDF\r\n\x1a\n":
-        if not h5py.is_hdf5(p):  # a user block moves the signature to 512, 1024, ... bytes
-            raise DaqError(f"{p}: not a readable HDF5 run file (no HDF5 signature)")
-        return _h5_open(p, swmr=False)
-    if len(head) > 8 and head[8] not in (2, 3):  # superblock 0/1: never SWMR; HDF5 checks the size
-        return _h5_open(p, swmr=False)
-    if len(head) < SUPERBLOCK_BYTES:
-        raise DaqError(f"{p}: truncated HDF5 file ({size} bytes, not even a superblock)")
-    live = head[11] != 0
-    stored_eof = int.from_bytes(head[28:36], "little")
-    if size < stored_eof and live:
-        time.sleep(LIVE_RECHECK_S)
-        head, size = _superblock(p)
-        stored_eof = int.from_bytes(head[28:36], "little")
-    if size < stored_eof:
-        raise DaqError(f"{p}: truncated HDF5 file ({size} of {stored_eof} bytes)")
-    return _h5_open(p, swmr=live)
-
-
-def _h5_open(path: Path, *, swmr: bool) -> h5py.File:
-    try:
-        return h5py.File(path, "r", libver="latest", swmr=swmr)
-    except OSError as exc:
-        text = " ".join(str(exc).split())
-        if "truncated file" in text:
-            raise DaqError(f"{path}: truncated HDF5 file ({text.partition('(')[2].rstrip(')')})") from None
-        raise DaqError(f"{path}: not a readable HDF5 file ({text[:200]})") from None
-
-
 def list_runs(path: str | Path) -> list[str]:
     """Run ids stored in ``path`` (sorted)."""
     with open_read(path) as f:
-        if "runs" in f and not isinstance(f["runs"], h5py.Group):
+        runs = member(f, "runs", str(path))
+        if runs is not None and not isinstance(runs, h5py.Group):
             raise DaqError(f"{path}: '/runs' is not a group of runs")
-        return sorted(f["runs"].keys()) if "runs" in f else []
+        return sorted(runs.keys()) if runs is not None else []
 
 
 def _text(value) -> str:
@@ -401,13 +287,11 @@ def open_run(path: str | Path, run_id: str) -> Iterator[Run]:
     (read it in blocks, e.g. ``samples[a:b]``, so memory does not grow with the record).  The run's
     structure is checked first (:func:`flexmodal.daq.run_schema.check_run_group`)."""
     with open_read(path) as f:
-        key = f"runs/{run_id}"
-        if key not in f:
-            known = ", ".join(sorted(f["runs"])) if "runs" in f else "none"
+        runs = member(f, "runs", str(path))
+        g = member(runs, run_id, f"{path}: run {run_id!r}") if isinstance(runs, h5py.Group) else None
+        if g is None:
+            known = ", ".join(sorted(runs)) if isinstance(runs, h5py.Group) else "none"
             raise DaqError(f"{path}: no run {run_id!r} (runs: {known})")
-        from flexmodal.daq.run_schema import check_run_group
-
-        g = f[key]
         check_run_group(g, f"{path}: run {run_id!r}")
         try:
             run = _checked_run(g, Path(path), run_id)
@@ -455,9 +339,7 @@ def expand_runs(runs: Sequence[str | Path | tuple[str | Path, str]]) -> list[tup
             continue
         text = str(entry)
         file, sep, run_id = text.partition("::")
-        path = Path(file)
-        if not path.is_file():
-            raise FileNotFoundError(2, "run file not found", str(path))
+        path = regular_file(file, DaqError, "run file")
         if sep:
             out.append((path, run_id))
             continue

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from flexmodal.daq.devices import Block
+from flexmodal.daq.errors import DaqError
 from flexmodal.daq.store import Event
 
 ANALOG_KINDS = ("acceleration", "force", "strain", "voltage")
@@ -51,6 +52,12 @@ class Timeline:
         self.tracks: dict[str, _Track] = {}
         for dev in session.devices:
             maps = [(i, c) for i, c in enumerate(session.channels) if c.device == dev.name]
+            for _, c in maps:
+                have = sources[dev.name]
+                if c.source not in have:
+                    known = ", ".join(have[:12]) + (", ..." if len(have) > 12 else "")
+                    raise DaqError(f"{session.source}: channel {c.channel.name!r}: source {c.source!r} is "
+                                   f"not a signal of device {dev.name!r} (it has: {known or 'none'})")
             src = np.array([sources[dev.name].index(c.source) for _, c in maps])
             g = np.array([c.gain() for _, c in maps])
             self.tracks[dev.name] = _Track(

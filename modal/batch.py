@@ -21,6 +21,7 @@ from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult
 from flexmodal.modal.runs_io import write_frf
 from flexmodal.modal.spectra import usable_cpus
+from flexmodal.valid_text import one_line
 
 POOL_START_S = 1.0      # start 2 worker processes, their imports, first task (benchmarks/batch.py)
 AUTO_WORKERS = 2        # processes of the pool the automatic choice starts
@@ -34,7 +35,10 @@ def frf_job(path: str, run_id: str, options: dict) -> FrfResult:
     from flexmodal.daq.store import open_run
 
     with open_run(path, run_id) as run:
-        return compute_frf(run, **options)
+        try:
+            return compute_frf(run, **options)
+        except OSError as exc:  # a damaged chunk met while streaming the samples
+            raise ModalError(f"{path}: run {run_id!r}: cannot read the samples ({one_line(exc)})") from None
 
 
 def idle_cpus() -> int:
@@ -48,13 +52,16 @@ def idle_cpus() -> int:
 
 def run_bytes(jobs: Sequence[tuple[str, str]]) -> list[int]:
     """Bytes of samples of every (file, run_id) job, from the file metadata."""
-    from flexmodal.daq.store import open_read
+    from flexmodal.daq.h5file import open_read
 
     sizes = []
     for path, rid in jobs:
         with open_read(path) as f:   # a truncated file fails here at once, as everywhere else
-            ds = f.get(f"runs/{rid}/samples")
-            sizes.append(0 if ds is None else int(ds.size) * ds.dtype.itemsize)
+            try:
+                ds = f.get(f"runs/{rid}/samples")
+            except (KeyError, RuntimeError, OSError):   # a broken link: the job itself names it
+                ds = None
+            sizes.append(int(ds.size) * ds.dtype.itemsize if hasattr(ds, "dtype") else 0)
     return sizes
 
 
@@ -228,8 +235,9 @@ def _on_cluster(jobs, first: int, options: dict, scheduler: str,
                          "(pip install 'flexmodal[cluster]')") from None
     try:
         client = Client(scheduler, timeout="10s")
-    except OSError as exc:
-        raise ModalError(f"scheduler {scheduler}: cannot connect ({exc})") from None
+    except (OSError, ValueError, TypeError) as exc:  # unreachable, or not an address (ValueError)
+        raise ModalError(f"--scheduler {scheduler!r}: cannot connect ({one_line(exc)}; expected an address "
+                         "such as tcp://127.0.0.1:8786)") from None
     interrupted = False
     try:
         futures = {client.submit(frf_job, str(Path(jobs[k][0]).resolve()), jobs[k][1], options, pure=False): k

@@ -133,7 +133,7 @@ def _track(args: argparse.Namespace) -> int:
         raise ModalError(f"--orders {args.orders!r}: orders must be positive")
     out = Path(args.out)
     harmonics_csv = out.with_name(out.stem + ".harmonics.csv")
-    output_file(harmonics_csv, ModalError, "harmonics table")
+    output_file(harmonics_csv, ModalError, "harmonics table", inputs=(args.input, args.out))
     from flexmodal.modal.track import write_harmonics_csv
 
     result = track(args.input, pose_from=pose_from, run_id=args.run, fmin=args.fmin, fmax=args.fmax,
@@ -170,20 +170,24 @@ def _identify(args: argparse.Namespace) -> int:
 
     if args.fmin is not None and args.fmax is not None and args.fmin >= args.fmax:
         raise ModalError(f"--fmin {args.fmin:g} Hz must lie below --fmax {args.fmax:g} Hz")
-    output_file(args.out, ModalError, "modal table (--out)")
+    output_file(args.out, ModalError, "modal table (--out)", inputs=(args.input,))
     if args.track:
         return _track(args)
     if args.uff:
-        output_file(args.uff, ModalError, "UFF file (--uff)")
-    from flexmodal.modal.identify import Thresholds  # the heavy imports, after
+        output_file(args.uff, ModalError, "UFF file (--uff)", inputs=(args.input, args.out))
+    from flexmodal.modal.identify import Thresholds, synthesis_path  # the heavy imports, after
+
+    output_file(synthesis_path(args.out), ModalError, "FRF synthesis table (next to --out)",
+                inputs=(args.input, args.out, args.uff))
 
     poles = None
     if args.poles is not None:
         try:
-            poles = [float(v) for v in args.poles.split(",") if v.strip()]
-        except ValueError:
-            raise ModalError(f"--poles {args.poles!r}: give frequencies in Hz separated by commas") from None
-        if not poles or min(poles) <= 0:
+            poles = [opt.positive_hz(v) for v in args.poles.split(",") if v.strip()]
+        except argparse.ArgumentTypeError:
+            raise ModalError(f"--poles {args.poles!r}: give frequencies in Hz (finite, > 0) separated by "
+                             "commas") from None
+        if not poles:
             raise ModalError(f"--poles {args.poles!r}: give positive frequencies in Hz")
     defaults = Thresholds()
     limits = Thresholds(defaults.need_min if args.need_min is None else args.need_min,

@@ -88,6 +88,12 @@ class Thresholds:
     mpc_min: float = 0.5
 
 
+def nyquist_note(fmax_hz: float, top_hz: float) -> str:
+    """The warning for an upper band edge above the data's highest frequency line (it is clipped)."""
+    return (f"--fmax {fmax_hz:g} Hz is above the highest frequency line, {top_hz:g} Hz (Nyquist); "
+            "clipped to it")
+
+
 def _band(freq_hz: np.ndarray, fmin: float | None, fmax: float | None) -> np.ndarray:
     f = np.asarray(freq_hz, float)
     lo = fmin if fmin is not None else (f[f > 0].min() if np.any(f > 0) else 0.0)
@@ -351,7 +357,8 @@ def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: 
         raise ModalError(f"identify: exponential window decay {decay_rate_per_s:g} 1/s must be >= 0")
     band = _band(freq_hz, fmin, fmax)
     f, Hb = np.asarray(freq_hz, float)[band], H[..., band]
-    warnings: list[str] = []
+    warnings: list[str] = [nyquist_note(fmax, float(np.max(freq_hz)))] if fmax is not None \
+        and fmax > np.max(freq_hz) else []
     extra: dict = {}
     if method == "lscf":
         with one_blas_thread():

@@ -23,6 +23,7 @@ import numpy as np
 from flexmodal.modal.compute import check_samples
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.fdd import FddResult, cross_spectra, fdd
+from flexmodal.modal.identify import nyquist_note
 from flexmodal.modal.spectra import default_nfft
 from flexmodal.modal.ssi import SsiResult, ssi_cov
 
@@ -97,6 +98,9 @@ def identify_output_only(samples: np.ndarray, sample_rate_hz: float, names: Sequ
             result = fdd(y, sample_rate_hz, references=refs, fmin=fmin, fmax=fmax)
     except ModalError as exc:
         raise ModalError(f"{where}: {exc}") from None
+    if fmax is not None and fmax > sample_rate_hz / 2:
+        note = nyquist_note(fmax, sample_rate_hz / 2)
+        result = replace(result, modes=replace(result.modes, warnings=(note, *result.modes.warnings)))
     if len(outputs) == 1:   # MAC, MPC, MPD and the singular vectors of one channel are always "perfect"
         warn = "one output channel: no shape criterion can tell modes from noise peaks"
         result = replace(result, modes=replace(result.modes, warnings=(*result.modes.warnings, warn)))

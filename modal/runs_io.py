@@ -8,6 +8,9 @@ software, time, processing details such as accepted and rejected hits).  Runs ar
 from __future__ import annotations
 
 import json
+import os
+import secrets
+import shutil
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -17,54 +20,185 @@ import numpy as np
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult
 from flexmodal.valid_output import signals_deferred
+from flexmodal.valid_text import loads_json, one_line
+
+FRF_GROUP = "frf"
+PARTIAL_PREFIX = ".frf-partial-"   # the group an FRF set is written into before it is renamed ``frf``
+METADATA_BYTES = 1 << 18          # room kept for HDF5 object headers and attributes beyond the arrays
 
 
 def write_frf(path: str | Path, run_id: str, result: FrfResult) -> None:
-    """Write (or replace) ``/runs/<run_id>/frf`` in the HDF5 file ``path``."""
+    """Write (or replace) ``/runs/<run_id>/frf`` in the HDF5 file ``path``: complete or not at all.
+
+    The arrays go into a hidden group that is renamed ``frf`` (replacing the old one) only once whole,
+    so a full disk, an I/O error or a signal leaves the previous FRFs (or none) and never half a group;
+    a device without room for the arrays is refused before the file is opened (the file stays
+    byte-identical).  Failures raise :class:`ModalError` naming the file and run."""
+    H = np.asarray(result.H, complex)
+    freq_hz = np.asarray(result.freq_hz, float)
+    coherence = np.asarray(result.coherence, float)
+    where = f"{path}: run {run_id!r}"
+    need = H.nbytes + freq_hz.nbytes + coherence.nbytes + METADATA_BYTES
+    target = Path(os.path.realpath(path))
+    free = shutil.disk_usage(target.parent if target.parent.is_dir() else Path(".")).free
+    if free < need:
+        raise ModalError(f"{where}: no space left on the device for the FRFs ({need / 1e6:.2f} MB needed, "
+                         f"{free / 1e6:.2f} MB free); the file is unchanged")
+    created = not target.exists()
     try:
         f = h5py.File(path, "a", libver="latest")
     except OSError as exc:
-        raise ModalError(f"{path}: cannot open for writing FRFs ({exc})") from None
-    with f, signals_deferred():  # Ctrl-C waits for the group to be whole (milliseconds)
-        g = f.require_group(f"runs/{run_id}")
-        if "frf" in g:
-            del g["frf"]
-        out = g.create_group("frf")
-        out.create_dataset("H", data=np.asarray(result.H, complex))
-        out.create_dataset("freq_hz", data=np.asarray(result.freq_hz, float))
-        out.create_dataset("coherence", data=np.asarray(result.coherence, float))
-        prov = {"software": "flexmodal.modal", "created": datetime.now(UTC).isoformat(timespec="seconds"),
-                **result.provenance}
-        out.attrs.update({"estimator": result.estimator, "window": result.window, "nfft": int(result.nfft),
-                          "n_averages": int(result.n_averages),
-                          "sample_rate_hz": float(result.sample_rate_hz),
-                          "quantity": result.quantity, "outputs": json.dumps(list(result.outputs)),
-                          "inputs": json.dumps(list(result.inputs)),
-                          "decay_rate_per_s": float(result.decay_rate_per_s),
-                          "provenance": json.dumps(prov)})
+        raise ModalError(f"{path}: cannot open for writing FRFs ({one_line(exc)})") from None
+    try:
+        with f, signals_deferred():  # Ctrl-C waits for the group to be whole (milliseconds)
+            g = f.require_group(f"runs/{run_id}")
+            for stale in [k for k in g if k.startswith(PARTIAL_PREFIX)]:  # left by a killed writer
+                del g[stale]
+            partial = PARTIAL_PREFIX + secrets.token_hex(4)
+            try:
+                _fill(g.create_group(partial), H, freq_hz, coherence, result)
+                if FRF_GROUP in g:
+                    del g[FRF_GROUP]
+                g.move(partial, FRF_GROUP)
+            except BaseException:
+                if partial in g:
+                    del g[partial]
+                raise
+    except OSError as exc:
+        if created:
+            target.unlink(missing_ok=True)
+        raise ModalError(f"{where}: cannot write the FRFs ({one_line(exc)}); the run keeps its previous "
+                         "FRFs, if any") from None
+
+
+def _fill(out: h5py.Group, H: np.ndarray, freq_hz: np.ndarray, coherence: np.ndarray,
+          result: FrfResult) -> None:
+    out.create_dataset("H", data=H)
+    out.create_dataset("freq_hz", data=freq_hz)
+    out.create_dataset("coherence", data=coherence)
+    prov = {"software": "flexmodal.modal", "created": datetime.now(UTC).isoformat(timespec="seconds"),
+            **result.provenance}
+    out.attrs.update({"estimator": result.estimator, "window": result.window, "nfft": int(result.nfft),
+                      "n_averages": int(result.n_averages),
+                      "sample_rate_hz": float(result.sample_rate_hz),
+                      "quantity": result.quantity, "outputs": json.dumps(list(result.outputs)),
+                      "inputs": json.dumps(list(result.inputs)),
+                      "decay_rate_per_s": float(result.decay_rate_per_s),
+                      "provenance": json.dumps(prov)})
 
 
 def read_frf(path: str | Path, run_id: str) -> FrfResult | None:
-    """The stored FRFs of a run, or None when the run has no ``frf`` group."""
-    from flexmodal.daq.store import open_read  # fails at once on a truncated file (SWMR would wait)
+    """The stored FRFs of a run, or None when the run has no ``frf`` group.  The group is checked as
+    the run group is (``daq.run_schema``): its type, links and filters, every dataset's rank, length
+    and type, every attribute's type and range; ModalError names the file, run and item."""
+    from flexmodal.daq.h5file import open_read  # fails at once on a truncated file (SWMR would wait)
+    from flexmodal.daq.run_schema import check_filters, member
 
+    where = f"{path}: run {run_id!r}: frf group"
     with open_read(path) as f:
-        key = f"runs/{run_id}/frf"
-        if key not in f:
+        runs = member(f, "runs", str(path), ModalError)
+        run = member(runs, run_id, f"{path}: run {run_id!r}", ModalError) if isinstance(runs, h5py.Group) \
+            else None
+        g = member(run, FRF_GROUP, where, ModalError) if isinstance(run, h5py.Group) else None
+        if g is None:
             return None
-        g = f[key]
-        a = dict(g.attrs)
+        if not isinstance(g, h5py.Group):
+            raise ModalError(f"{where}: is not a group (it is {type(g).__name__})")
+        data = {}
+        for name in ("freq_hz", "H", "coherence"):
+            d = member(g, name, where, ModalError)
+            if not isinstance(d, h5py.Dataset):
+                raise ModalError(f"{where}: lacks the dataset {name!r}")
+            check_filters(d, where, ModalError)
+            data[name] = d
+        freq_hz, H, coherence = _checked_arrays(data, where)
+        a = _Attrs(g.attrs, where)
+        outputs, inputs = a.names("outputs", H.shape[0]), a.names("inputs", H.shape[1])
+        return FrfResult(freq_hz, H, coherence, a.text("estimator"), a.text("window"),
+                         a.integer("nfft", 1), a.integer("n_averages", 1),
+                         a.number("sample_rate_hz", np.nan, positive=True),
+                         a.text("quantity", "accelerance"), outputs, inputs,
+                         a.number("decay_rate_per_s", 0.0), a.json("provenance", {}, dict))
 
-        def text(v) -> str:
-            return v.decode() if isinstance(v, bytes) else str(v)
 
-        try:
-            return FrfResult(g["freq_hz"][()], g["H"][()], g["coherence"][()], text(a["estimator"]),
-                             text(a["window"]), int(a["nfft"]), int(a["n_averages"]),
-                             float(a.get("sample_rate_hz", np.nan)), text(a.get("quantity", "accelerance")),
-                             tuple(json.loads(text(a.get("outputs", "[]")))),
-                             tuple(json.loads(text(a.get("inputs", "[]")))),
-                             float(a.get("decay_rate_per_s", 0.0)),
-                             json.loads(text(a.get("provenance", "{}"))))
-        except KeyError as exc:
-            raise ModalError(f"{path}: run {run_id!r}: frf group lacks {exc.args[0]!r}") from None
+def _checked_arrays(data: dict[str, h5py.Dataset], where: str) -> tuple[np.ndarray, ...]:
+    """freq_hz [n] finite and increasing, H [n_out, n_in, n] and coherence [n_out, n], all numeric."""
+    shapes = {k: d.shape for k, d in data.items()}
+    kinds = {k: d.dtype.kind for k, d in data.items()}
+    n = shapes["freq_hz"][0] if len(shapes["freq_hz"]) == 1 else -1
+    if n < 1 or kinds["freq_hz"] not in "fiu":
+        raise ModalError(f"{where}: 'freq_hz' must be a 1-D numeric dataset (shape {shapes['freq_hz']}, "
+                         f"type {data['freq_hz'].dtype})")
+    if len(shapes["H"]) != 3 or shapes["H"][2] != n or kinds["H"] not in "cfiu" or 0 in shapes["H"]:
+        raise ModalError(f"{where}: 'H' must be [outputs, inputs, {n} lines] of numbers (shape "
+                         f"{shapes['H']}, type {data['H'].dtype})")
+    if shapes["coherence"] != (shapes["H"][0], n) or kinds["coherence"] not in "fiu":
+        raise ModalError(f"{where}: 'coherence' must be [{shapes['H'][0]} outputs, {n} lines] of numbers "
+                         f"(shape {shapes['coherence']}, type {data['coherence'].dtype})")
+    try:
+        freq_hz, H, coherence = (np.asarray(data[k][()], t) for k, t in
+                                 (("freq_hz", float), ("H", complex), ("coherence", float)))
+    except OSError as exc:  # a damaged chunk
+        raise ModalError(f"{where}: cannot read ({one_line(exc)})") from None
+    if not np.isfinite(freq_hz).all() or (n > 1 and not (np.diff(freq_hz) > 0).all()) or freq_hz[0] < 0:
+        raise ModalError(f"{where}: 'freq_hz' must be finite, >= 0 and increasing")
+    return freq_hz, H, coherence
+
+
+class _Attrs:
+    """Typed getters over the attributes of a stored FRF group; ModalError names the attribute."""
+
+    def __init__(self, attrs: h5py.AttributeManager, where: str) -> None:
+        self.attrs, self.where = attrs, where
+
+    def _get(self, key: str, default: object) -> object:
+        if key in self.attrs:
+            return self.attrs[key]
+        if default is ...:
+            raise ModalError(f"{self.where}: lacks the attribute {key!r}")
+        return default
+
+    def _bad(self, key: str, value: object, expected: str) -> ModalError:
+        shown = one_line(value)
+        return ModalError(f"{self.where}: attribute {key} = {shown[:60]!r} is not {expected}")
+
+    def text(self, key: str, default: object = ...) -> str:
+        value = self._get(key, default)
+        if isinstance(value, bytes):
+            try:
+                value = value.decode()
+            except UnicodeDecodeError:
+                raise self._bad(key, value, "UTF-8 text") from None
+        if not isinstance(value, str):
+            raise self._bad(key, value, "a text")
+        return value
+
+    def integer(self, key: str, lo: int) -> int:
+        value = self._get(key, ...)
+        if isinstance(value, bool | np.bool_) or not isinstance(value, int | np.integer) or value < lo:
+            raise self._bad(key, value, f"a whole number >= {lo}")
+        return int(value)
+
+    def number(self, key: str, default: float, *, positive: bool = False) -> float:
+        value = self._get(key, default)
+        ok = isinstance(value, int | float | np.integer | np.floating) \
+            and not isinstance(value, bool | np.bool_)
+        if ok and key in self.attrs and not (np.isfinite(value) and (value > 0 if positive else value >= 0)):
+            ok = False
+        if not ok:
+            raise self._bad(key, value, f"a finite number {'> 0' if positive else '>= 0'}")
+        return float(value)
+
+    def json(self, key: str, default: object, kind: type) -> object:
+        if key not in self.attrs:
+            return default
+        doc = loads_json(self.text(key), f"{self.where}: attribute {key}", ModalError)
+        if not isinstance(doc, kind):
+            raise self._bad(key, doc, f"a JSON {kind.__name__}")
+        return doc
+
+    def names(self, key: str, count: int) -> tuple[str, ...]:
+        names = self.json(key, [], list)
+        if names and (len(names) != count or not all(isinstance(n, str) for n in names)):
+            raise self._bad(key, names, f"a JSON list of {count} channel names")
+        return tuple(names)

@@ -17,7 +17,7 @@ from flexmodal.modal.identify import Modes, identify, modes_table
 from flexmodal.modal.oma import OUTPUT_ONLY_METHODS, default_method, identify_output_only
 from flexmodal.modal.runs_io import read_frf
 from flexmodal.modal.table import ModalTable
-from flexmodal.valid_text import naming
+from flexmodal.valid_text import naming, regular_file
 
 
 def _driving_point(run, result: FrfResult) -> int | None:
@@ -101,9 +101,7 @@ def identify_input(path: str | Path, *, method: str | None = None, fmin: float |
     else ``lscf`` (modal.oma.default_method); ``references`` name the reference outputs of ssi/fdd.
     ``identify_options``: ``poles_hz``, ``thresholds``, ``decay_rate_per_s`` of
     :func:`modal.identify.identify` (the last overriding the FRFs' own exponential window)."""
-    p = Path(path)
-    if not p.is_file():
-        raise ModalError(f"{p}: input not found")
+    p = regular_file(path, ModalError, "RUN.h5 or UFF input")
     options = {"fmin": fmin, "fmax": fmax, "max_order": max_order, **identify_options}
     oma = {"fmin": fmin, "fmax": fmax, "max_order": max_order, "references": references}
     found: dict[str, tuple[Modes, tuple[str, ...]]] = {}

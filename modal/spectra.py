@@ -7,8 +7,9 @@ Conventions: ``g_xf[o, i] = E[X_o conj(F_i)]``, ``g_ff[i, j] = E[F_i conj(F_j)]`
 one-sided densities scaled like ``scipy.signal.csd(..., scaling="density")`` (units^2/Hz).  One gap rule:
 a segment holding a NaN/inf sample in a used channel, or touching a skipped interval, is left out.
 
-One pass per block of segments: the samples, row-major as stored, less a fixed offset per channel,
-are windowed straight from a strided view (segments overlap in memory, no transpose), transformed
+One pass per block of segments: the samples, row-major as stored, less the block's first sample
+(so a large offset never reaches a single-precision FFT), are windowed straight from a strided view
+(segments overlap in memory, no transpose), transformed
 with ``scipy.fft.rfft`` along the sample axis (float32 records in single precision), each segment's
 mean taken out of the first lines of its transform, and the cross-spectra formed as one batched
 matrix product over the segment axis per block (``[f, channel, segment] @ [f, segment, reference]``)
@@ -33,8 +34,6 @@ from flexmodal.modal.windows import window
 
 _BLOCK_BYTES = 4 << 20      # windowed segments per block (with its spectra, stays in the L3 cache)
 _READ_BYTES = 16 << 20      # samples read per block from a dataset on disk (rounded to whole chunks)
-_SHIFT_ROWS = 256           # rows per flat piece of the offset subtraction
-_BLAS_ONE_THREAD = 9216     # OpenBLAS runs a matrix-vector product of fewer elements on one thread
 
 
 DEFAULT_NFFT_MAX = 8192
@@ -91,7 +90,9 @@ def products(spec: np.ndarray, refs: Sequence[int], weights: np.ndarray | None =
     """(Weighted) sums over segments of the spectral products of one block ``spec`` [seg, f, ch]:
     ``g`` [f, ch, ref] = sum X_ch conj(X_ref), one batched matrix product over the segment axis, and
     ``auto`` [f, ch] = sum |X_ch|^2, one reduction over the real view (no complex temporaries)."""
-    ref = spec[:, :, list(refs)].conj()
+    refs = list(refs)
+    ref = (spec[:, :, refs[0]:refs[-1] + 1] if refs == list(range(refs[0], refs[-1] + 1))
+           else spec[:, :, refs]).conj()
     if weights is not None:
         ref *= weights[:, None, None]
     g = np.matmul(spec.transpose(1, 2, 0), ref.transpose(1, 0, 2))
@@ -180,37 +181,19 @@ def _window_lines(exact: np.ndarray, windows: np.ndarray) -> np.ndarray:
     return lines[:k if k <= _MAX_WINDOW_LINES else None].astype(np.result_type(windows.dtype, np.complex64))
 
 
-def _sum_rows(rows: np.ndarray, count: int) -> np.ndarray:
-    """Sums [len(rows) // count, n_ch] of consecutive pieces of ``count`` rows of ``rows`` [n, n_ch],
-    as matrix-vector products small enough for one BLAS thread, summed in double precision."""
-    n_ch = rows.shape[1]
-    part = next((d for d in range(min(count, _BLAS_ONE_THREAD // n_ch), 0, -1) if count % d == 0), 1)
-    n = rows.shape[0] // count * count
-    ones = np.ones(part, rows.dtype)
-    sums = np.matmul(ones, rows[:n].reshape(-1, part, n_ch))                # [n / part, n_ch]
-    return sums.reshape(-1, count // part, n_ch).sum(axis=1, dtype=float)
+_SUM_LANES = 256     # samples of a segment summed apart, in the segment's precision, before double
 
 
-def _segment_means(rows: np.ndarray, n_seg: int, nfft: int, step: int) -> np.ndarray:
-    """Mean [n_seg, n_ch] of each of ``n_seg`` segments of ``rows`` [n, n_ch] (segment k starts at row
-    k * step), NaN for a segment holding a non-finite sample: from the sums of ``step``-row pieces
-    (each sample read once) when a segment is a whole number of pieces, else from each segment.
-    This is also the pass that finds NaN/inf samples."""
-    with np.errstate(invalid="ignore", over="ignore"):
-        if nfft % step:
-            return np.stack([_sum_rows(rows[k * step:k * step + nfft], nfft)[0] for k in range(n_seg)]) / nfft
-        k = nfft // step
-        pieces = _sum_rows(rows[:(n_seg + k - 1) * step], step)
-    bad = ~np.isfinite(pieces)
-    if bad.any():
-        pieces[bad] = 0
-    cum = np.zeros((pieces.shape[0] + 1, pieces.shape[1]))
-    np.cumsum(pieces, axis=0, out=cum[1:])
-    means = (cum[k:] - cum[:-k]) / nfft
-    if bad.any():
-        n_bad = np.concatenate([np.zeros((1, bad.shape[1]), int), np.cumsum(bad, axis=0)])
-        means[n_bad[k:] > n_bad[:-k]] = np.nan
-    return means
+def _segment_sums(seg: np.ndarray) -> np.ndarray:
+    """Sums [n_seg, n_ch] over the samples of segments ``seg`` [n_seg, nfft, n_ch]: each of q lanes
+    (q the largest divisor of nfft up to _SUM_LANES) adds every q-th sample in the segment's own
+    precision, a vectorised pass over whole rows of the contiguous segments (nfft / q terms each:
+    16 for nfft 4096), the lanes are then added in double precision; NaN/inf where a segment holds a
+    non-finite sample (this is also the pass that finds them)."""
+    n_seg, nfft, n_ch = seg.shape
+    q = next(d for d in range(min(nfft, _SUM_LANES), 0, -1) if nfft % d == 0)
+    lanes = np.add.reduce(seg.reshape(n_seg, nfft // q, q * n_ch), axis=1)        # [n_seg, q * n_ch]
+    return np.matmul(np.ones(q), lanes.reshape(n_seg, q, n_ch).astype(float))
 
 
 class _Work:
@@ -238,22 +221,24 @@ class _Plan:
 
     def sums(self, work: _Work, rows: np.ndarray, first: int, b: int) -> tuple:
         """(g, auto, sum of segment means, segments used) of segments ``first`` .. ``first + b - 1``
-        over the transformed columns, whose samples (less the offsets) are ``rows``
-        [(b - 1) * step + nfft, n_cols], row-major: the windowed segments from a strided view of them
-        (no transpose), one real FFT along the sample axis, each segment's mean times the window's
-        spectrum taken out of the transform (the FFT is linear: the same as removing it before
-        windowing, without a pass over the segments), segments holding a non-finite sample or marked
+        over the transformed columns, whose samples are ``rows`` [(b - 1) * step + nfft, n_cols],
+        row-major: the segments less the block's first sample from a strided view of them (no
+        transpose; the offset kept out of single-precision transforms), their sums (the means, and
+        the check for non-finite samples), the window, one real FFT along the sample axis, each
+        segment's mean times the window's spectrum taken out of the transform (the FFT is linear:
+        the same as removing it before windowing), segments holding a non-finite sample or marked
         skipped zeroed and not counted."""
         n_cols = rows.shape[1]
         isz = rows.itemsize
         seg = work.seg[:b]
-        view = np.lib.stride_tricks.as_strided(rows, (b, self.nfft * n_cols), (self.step * n_cols * isz, isz),
-                                               writeable=False)
+        view = np.ndarray((b, self.nfft * n_cols), rows.dtype, rows, strides=(self.step * n_cols * isz, isz))
+        offset = np.where(np.isfinite(rows[0]), rows[0], 0)   # the block's first sample: exact to subtract
         with np.errstate(invalid="ignore", over="ignore"):
-            np.multiply(view, self.flat_window, out=seg)
+            np.subtract(view, np.tile(offset, self.nfft), out=seg)
+            means = _segment_sums(seg.reshape(b, self.nfft, n_cols))[:, self.cols] / self.nfft
+            np.multiply(seg, self.flat_window, out=seg)
             spec = scipy.fft.rfft(seg.reshape(b, self.nfft, n_cols)[:, :, self.cols], axis=1,
                                   workers=self.fft_workers)                         # [b, f, cols]
-        means = _segment_means(rows, b, self.nfft, self.step)[:, self.cols]
         bad = self.skipped[first:first + b] | ~np.isfinite(means).all(axis=1)
         if bad.any():
             means[bad] = 0
@@ -261,36 +246,17 @@ class _Plan:
         if self.lines is not None:
             k = self.lines.shape[0]
             spec[:, :k] -= means[:, None, :].astype(spec.real.dtype) * self.lines
+        used = b - int(bad.sum())
         g, auto = products(spec, self.refs)
-        return g, auto, means.sum(axis=0), b - int(bad.sum())
+        return g, auto, means.sum(axis=0) + offset[self.cols].astype(float) * used, used
 
 
-def _shift(block: np.ndarray, offset: np.ndarray | None, dtype, in_place: bool) -> np.ndarray:
-    """``block`` [n, n_cols] less ``offset`` [n_cols] (None: nothing to take out) as a row-major array
-    of ``dtype``: ``block`` itself when it is one already and there is no offset, else changed
-    ``in_place`` when allowed, else a new array; subtracted in flat pieces of whole rows (no loop over
-    the few columns)."""
-    if offset is None:
-        return np.ascontiguousarray(block, dtype)
-    out = block if in_place and block.dtype == dtype and block.flags.c_contiguous and block.flags.writeable \
-        else np.empty(block.shape, dtype)
-    n, n_cols = block.shape
-    m = n // _SHIFT_ROWS * _SHIFT_ROWS
-    flat = np.tile(offset, _SHIFT_ROWS)
-    src = np.ascontiguousarray(block[:m])
-    np.subtract(src.reshape(-1, _SHIFT_ROWS * n_cols), flat, out=out[:m].reshape(-1, _SHIFT_ROWS * n_cols),
-                casting="unsafe")
-    np.subtract(block[m:], offset, out=out[m:], casting="unsafe")
-    return out
-
-
-def _row_blocks(samples, rows_per_block: int, offset: np.ndarray | None, dtype
-                ) -> Iterator[tuple[int, np.ndarray]]:
-    """(first row, rows [n, n_columns] less ``offset``, row-major ``dtype``) blocks of ``samples`` (an
-    in-memory array, or an on-disk dataset (h5py)), read and shifted one block ahead in a background
-    thread, so reading overlaps the FFTs; at most three blocks are held at a time."""
+def _row_blocks(samples, rows_per_block: int, dtype) -> Iterator[tuple[int, np.ndarray]]:
+    """(first row, rows [n, n_columns] as a row-major ``dtype`` array) blocks of ``samples``: views of
+    an in-memory array that is one already, else read (an on-disk dataset, h5py) or converted one
+    block ahead in a background thread, so reading overlaps the FFTs; at most three blocks are held
+    at a time."""
     n = samples.shape[0]
-    fresh = not isinstance(samples, np.ndarray)       # a dataset's reads are new arrays: shifted in place
     ready: queue.Queue = queue.Queue(maxsize=1)
     stop = threading.Event()
 
@@ -299,7 +265,7 @@ def _row_blocks(samples, rows_per_block: int, offset: np.ndarray | None, dtype
             for r in range(0, n, rows_per_block):
                 if stop.is_set():
                     return
-                ready.put((r, _shift(np.asarray(samples[r:r + rows_per_block]), offset, dtype, fresh)))
+                ready.put((r, np.ascontiguousarray(samples[r:r + rows_per_block], dtype)))
             ready.put(None)
         except BaseException as exc:  # handed to the consumer, raised there
             ready.put(exc)
@@ -319,24 +285,6 @@ def _row_blocks(samples, rows_per_block: int, offset: np.ndarray | None, dtype
             except queue.Empty:
                 pass
         reader.join()
-
-
-_OFFSET_RATIO = 8   # an offset above 8 x the spread of the first segment is taken out before the FFT
-
-
-def _offsets(samples, nfft: int, dtype) -> np.ndarray | None:
-    """The offset taken out of every column before the FFTs, so a large one stays out of
-    single-precision transforms: its first finite sample among the first ``nfft`` rows where that
-    exceeds _OFFSET_RATIO times the spread (max - min) of those rows, else 0 (rounding the windowed
-    samples then costs at most 8 ulp of the spread, below the FFT's own); None when no column needs
-    one (the samples then go to the FFT without a copy)."""
-    head = np.asarray(samples[:nfft], dtype)
-    finite = np.isfinite(head)
-    first = head[np.argmax(finite, axis=0), np.arange(head.shape[1])]
-    with np.errstate(invalid="ignore"):
-        spread = np.where(finite, head, -np.inf).max(axis=0) - np.where(finite, head, np.inf).min(axis=0)
-        big = finite.any(axis=0) & (np.abs(first) > _OFFSET_RATIO * spread)
-    return np.where(big, first, 0).astype(dtype) if big.any() else None
 
 
 def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
@@ -398,7 +346,6 @@ def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
     free: queue.SimpleQueue = queue.SimpleQueue()      # one set of work buffers per thread
     for _ in range(n_threads):
         free.put(_Work(block, nfft, n_cols, dtype))
-    offset = _offsets(samples, nfft, dtype)
     n_freq = nfft // 2 + 1
     total = [np.zeros((n_freq, hi - lo, n_in), complex), np.zeros((n_freq, hi - lo)), np.zeros(hi - lo), 0]
     pool = ThreadPoolExecutor(n_threads) if n_threads > 1 else None
@@ -428,7 +375,7 @@ def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
 
     j, tail_start, tail = 0, 0, None      # tail: rows tail_start .. of the blocks not yet complete
     try:
-        for r0, rows in _row_blocks(samples, read_rows, offset, dtype):
+        for r0, rows in _row_blocks(samples, read_rows, dtype):
             end = r0 + rows.shape[0]
             while j < n_blocks and span(j)[1] <= end:
                 first, last = span(j)
@@ -456,6 +403,6 @@ def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
                          f"intervals in the others); at least {min_segments} needed")
     scale = density_scale(n_freq, nfft, sample_rate_hz, w_out) / max(n_used, 1)
     pos = [c - lo for c in chans]                       # inputs then outputs among the transformed
-    mean = mean_sum[pos] / max(n_used, 1) + (0 if offset is None else offset[chans].astype(float))
+    mean = mean_sum[pos] / max(n_used, 1)
     return _spectra(g[:, pos], auto[:, pos], n_in, scale, rfftfreq(nfft, sample_rate_hz), n_used,
                     n_seg - n_used, mean)

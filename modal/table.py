@@ -8,8 +8,10 @@ Extra columns are kept.  The table is shared by the modal engine (measured), the
 
 from __future__ import annotations
 
+import html
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -31,6 +33,19 @@ def _parse_complex(value: object) -> complex:
     if text.startswith("(") and text.endswith(")"):
         text = text[1:-1]
     return complex(text)
+
+
+def _numbers(column: pd.Series, name: str, source: str) -> pd.Series:
+    """``column`` as finite floats (empty cells stay NaN: not given); text or an infinity raises
+    ModalError naming the row (header = row 1) and the value."""
+    values = pd.to_numeric(column, errors="coerce").astype(float)
+    given = column.notna() & (column.astype(str).str.strip() != "")
+    bad = given & (values.isna() | np.isinf(values))
+    if bad.any():
+        row = int(np.flatnonzero(bad.to_numpy())[0])
+        raise ModalError(f"{source}: row {row + 2}: column {name!r} is not a finite number "
+                         f"({column.iloc[row]!r})")
+    return values
 
 
 @dataclass(frozen=True)
@@ -66,17 +81,22 @@ class ModalTable:
         if dup.any():
             r = df[dup].iloc[0]
             raise ModalError(f"{source}: config {r['config']!r} lists mode {int(r['mode'])} twice")
-        if "damping_ratio" in df.columns:
-            df["damping_ratio"] = pd.to_numeric(df["damping_ratio"], errors="coerce")
-        for col in [c for c in df.columns if c.startswith(POSE_PREFIX)]:
-            converted = pd.to_numeric(df[col], errors="coerce")
-            if not converted.isna().all():
-                df[col] = converted
+        for col in [c for c in df.columns if c == "damping_ratio" or c.startswith(POSE_PREFIX)]:
+            df[col] = _numbers(df[col], col, source)
+        if "damping_ratio" in df.columns and (df["damping_ratio"] >= 1).any():
+            row = int(np.flatnonzero((df["damping_ratio"] >= 1).to_numpy())[0])
+            value = df["damping_ratio"].iloc[row]
+            raise ModalError(f"{source}: row {row + 2}: damping_ratio = {value:g} is not below 1 (a "
+                             f"fraction: {value:g} % is {value / 100:g})")
         for col in [c for c in df.columns if c.startswith(SHAPE_PREFIX)]:
             try:
-                values = np.array([_parse_complex(v) for v in df[col]], dtype=complex)
+                values = (df[col].to_numpy(complex) if df[col].dtype.kind in "fiuc"   # numbers: at once
+                          else np.array([_parse_complex(v) for v in df[col]], dtype=complex))
             except ValueError:
                 raise ModalError(f"{source}: column {col!r} holds a value that is not a number") from None
+            if np.isinf(values).any():
+                row = int(np.flatnonzero(np.isinf(values))[0])
+                raise ModalError(f"{source}: row {row + 2}: column {col!r} holds an infinite value")
             df[col] = values.real if np.all(values.imag == 0) else values
         df = df.sort_values(["config", "mode"], kind="stable").reset_index(drop=True)
         return cls(df, source)
@@ -100,11 +120,24 @@ class ModalTable:
         with atomic_path(path) as tmp:
             df.to_csv(tmp, index=False, float_format="%.9g")
 
-    # -- views ---------------------------------------------------------------------------------
+    # -- views (each configuration's rows are found once, so a view costs no scan of the table) ----
+    @cached_property
+    def _rows_of(self) -> dict[str, np.ndarray]:
+        """Row positions of every configuration, configurations in order of first appearance."""
+        codes, names = pd.factorize(self.frame["config"], sort=False)
+        order = np.argsort(codes, kind="stable")
+        bounds = np.cumsum(np.bincount(codes, minlength=len(names)))[:-1]
+        return {str(n): rows for n, rows in zip(names, np.split(order, bounds), strict=True)}
+
+    @cached_property
+    def _columns(self) -> dict[str, np.ndarray]:
+        """Every column as a numpy array (read once)."""
+        return {c: self.frame[c].to_numpy() for c in self.frame.columns}
+
     @property
     def configs(self) -> list[str]:
         """Configuration ids in order of first appearance."""
-        return list(dict.fromkeys(self.frame["config"]))
+        return list(self._rows_of)
 
     @property
     def pose_columns(self) -> list[str]:
@@ -118,22 +151,66 @@ class ModalTable:
     def sensors(self) -> list[str]:
         return [c[len(SHAPE_PREFIX):] for c in self.shape_columns]
 
+    def has_config(self, config: str) -> bool:
+        return config in self._rows_of
+
+    def _positions(self, config: str) -> np.ndarray:
+        return self._rows_of.get(config, np.zeros(0, int))
+
     def rows(self, config: str) -> pd.DataFrame:
-        return self.frame[self.frame["config"] == config]
+        return self.frame.iloc[self._positions(config)]
+
+    def column(self, config: str, name: str) -> np.ndarray:
+        """Values of column ``name`` on the rows of ``config`` (in table order)."""
+        return self._columns[name][self._positions(config)]
 
     def freq_hz(self, config: str) -> np.ndarray:
-        return self.rows(config)["freq_hz"].to_numpy(float)
+        return self.column(config, "freq_hz").astype(float)
 
     def pose(self, config: str) -> dict[str, float]:
         """Pose of a configuration as {variable: value} without the ``pose.`` prefix."""
-        row = self.rows(config).iloc[0]
-        return {c[len(POSE_PREFIX):]: row[c] for c in self.pose_columns if pd.notna(row[c])}
+        first = self._positions(config)[:1]
+        if not first.size:
+            raise KeyError(config)
+        return {c[len(POSE_PREFIX):]: v for c in self.pose_columns
+                if pd.notna(v := self._columns[c][first[0]])}
 
     def shapes(self, config: str, sensors: Sequence[str] | None = None) -> np.ndarray:
         """Mode shapes [n_sensors, n_modes] of one configuration (NaN where absent)."""
         cols = [SHAPE_PREFIX + s for s in (sensors if sensors is not None else self.sensors)]
-        rows = self.rows(config)
-        return np.array([rows[c].to_numpy() if c in rows else np.full(len(rows), np.nan) for c in cols])
+        at = self._positions(config)
+        return np.array([self._columns[c][at] if c in self._columns else np.full(at.size, np.nan)
+                         for c in cols]).reshape(len(cols), at.size)
+
+
+    # -- notebook display (Jupyter shows _repr_html_, print and the REPL __repr__) --------------------
+    def to_frame(self) -> pd.DataFrame:
+        """A copy of the table as a DataFrame, one row per mode, with the contract's columns and units in
+        their names (docs/formats.md): ``config``, ``mode``, ``freq_hz`` [Hz], ``damping_ratio`` [-],
+        ``pose.<var>``, ``shape.<sensor>``."""
+        return self.frame.copy()
+
+    def __repr__(self) -> str:
+        f = self.frame["freq_hz"].to_numpy(float)
+        span = f"{f.min():.4g}-{f.max():.4g} Hz" if f.size else "no modes"
+        return (f"ModalTable({self.source!r}: {len(self.configs)} configurations, {len(self.frame)} modes, "
+                f"{span}, shapes at {len(self.sensors)} sensors)")
+
+    def _repr_html_(self) -> str:
+        df = self.frame
+        shown = pd.DataFrame({"config": df["config"], **{c: df[c] for c in self.pose_columns},
+                              "mode": df["mode"], "f [Hz]": df["freq_hz"].map("{:.2f}".format)})
+        if "damping_ratio" in df:
+            shown["ζ [%]"] = (100 * df["damping_ratio"]).map(lambda z: f"{z:.2f}" if pd.notna(z) else "")
+        note = f"; shapes at {', '.join(self.sensors)} in <code>to_frame()</code>" if self.sensors else ""
+        return display_html(f"Modal table <b>{html.escape(self.source)}</b>: {len(self.configs)} "
+                            f"configurations, {len(df)} modes{note}", shown)
+
+
+def display_html(summary: str, frame: pd.DataFrame, max_rows: int = 30) -> str:
+    """A notebook display: one line of ``summary`` (HTML) over ``frame`` as an HTML table (at most
+    ``max_rows`` rows, pandas elides the middle of longer ones)."""
+    return f"<p>{summary}</p>" + frame.to_html(index=False, max_rows=max_rows, escape=True, border=0)
 
 
 def poses_from_csv(path: str | Path) -> dict[str, dict[str, float]]:
@@ -146,8 +223,9 @@ def poses_from_csv(path: str | Path) -> dict[str, dict[str, float]]:
         pose = {}
         for c in cols:
             value = pd.to_numeric(row[c], errors="coerce")
-            if pd.isna(value):
-                raise ModalError(f"{p}: config {row['config']!r}: {c} is not a number ({row[c]!r})")
+            if pd.isna(value) or not np.isfinite(value):
+                what = "is not a number" if pd.isna(value) else "is not finite"
+                raise ModalError(f"{p}: config {row['config']!r}: {c} {what} ({row[c]!r})")
             pose[c[len(POSE_PREFIX):]] = float(value)
         out[str(row["config"])] = pose
     return out

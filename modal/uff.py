@@ -25,6 +25,7 @@ from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult
 from flexmodal.modal.valid_uff import check_functions
 from flexmodal.valid_output import atomic_path
+from flexmodal.valid_text import regular_file
 
 _AXES = "xyz"
 _SPEC = {"accelerance": 12, "mobility": 11, "receptance": 8}
@@ -74,9 +75,7 @@ def read_uff(path: str | Path) -> UffFrfs | UffRecord:
     """FRFs (type 4) or a time record (type 1) from the dataset-58 sets of a UFF file."""
     import pyuff
 
-    p = Path(path)
-    if not p.is_file():
-        raise ModalError(f"{p}: UFF file not found")
+    p = regular_file(path, ModalError, "UFF file")
     try:
         sets = pyuff.UFF(str(p)).read_sets()
     except Exception as exc:  # pyuff raises bare Exceptions on malformed files

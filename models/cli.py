@@ -47,21 +47,21 @@ def _predict(args: argparse.Namespace) -> int:
     from flexmodal.models.errors import ModelError
     from flexmodal.valid_output import output_file
 
-    output_file(args.out, ModelError, "prediction table (--out)")
+    output_file(args.out, ModelError, "prediction table (--out)", inputs=(args.rig, args.poses))
     rig = load_rig(args.rig)
     poses = read_poses(args.poses)
     if not poses:
         raise ModelError(f"{args.poses}: no configurations")
     options = {"elements_per_link": args.elements, "lumped_mass": args.lumped_mass_matrix,
                "masses_per_link": args.masses_per_link, "coordinates": args.coordinates}
-    if getattr(args, "quiet", False) or len(poses) < 50:
-        table = predict(rig, poses, args.model, args.modes, source=args.source, **options)
+    if getattr(args, "quiet", False) or len(poses) < 50:  # the path: an error names the poses file
+        table = predict(rig, args.poses, args.model, args.modes, source=args.source, **options)
     else:
         from rich.progress import Progress
 
         with Progress(transient=True, console=_stderr_console()) as bar:
             task = bar.add_task(f"predict ({args.model})", total=len(poses))
-            table = predict(rig, poses, args.model, args.modes, source=args.source,
+            table = predict(rig, args.poses, args.model, args.modes, source=args.source,
                             progress=lambda _c: bar.advance(task), **options)
     table.to_csv(args.out)
     print(args.out)

@@ -25,6 +25,7 @@ returns to full relative precision however stiff a spring is, and rigid-body mod
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
@@ -37,6 +38,7 @@ from flexmodal.models.errors import ModelError
 from flexmodal.models.rig import Point, Rig, Section
 
 DEFAULT_ELEMENTS = 10
+DENSE_COPIES = 6  # dense n x n float arrays alive per pose while assembling and solving (K, M, sums, eigh)
 QUANTITIES = ("transverse", "axial", "x", "y", "rotation", "curvature")
 _SNAP = 0.3  # an attachment point within this fraction of an element of a grid node moves that node
 
@@ -436,12 +438,34 @@ def assemble(rig: Rig, pose: Mapping[str, float], elements_per_link: int | None 
     return assemble_many(rig, [pose], elements_per_link, lumped_mass)[0]
 
 
+def available_memory_bytes() -> int:
+    """Memory the system can give this process now (Linux ``MemAvailable``; else free pages)."""
+    try:
+        with open("/proc/meminfo", "rb") as fh:
+            for line in fh:
+                if line.startswith(b"MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+
+
 def assemble_many(rig: Rig, poses: Sequence[Mapping[str, float]], elements_per_link: int | None = None,
                   lumped_mass: bool = False) -> list[FrameSystem]:
     """``assemble`` for several poses at once: element transforms and scatter vectorised over the poses."""
     topo = _topology(rig, elements_per_link, bool(lumped_mass))
     if not poses:
         return []
+    per_pose = DENSE_COPIES * (topo.n_dof + 1) ** 2 * 8   # bytes of K, M and their temporaries
+    room = available_memory_bytes()
+    if per_pose > room:
+        raise ModelError(f"{rig.source}: {topo.n_dof} degrees of freedom: the dense stiffness and mass "
+                         f"matrices need {per_pose / 2**30:.1f} GiB, more than the {room / 2**30:.1f} GiB of "
+                         "memory available (fewer links, members or elements)")
+    if len(poses) > 1 and len(poses) * per_pose > room:   # assembled a few poses at a time instead
+        half = len(poses) // 2
+        return (assemble_many(rig, poses[:half], elements_per_link, lumped_mass)
+                + assemble_many(rig, poses[half:], elements_per_link, lumped_mass))
     for pose in poses:
         rig.check_pose(pose)
     geometry = [_body_geometry(rig, pose) for pose in poses]

@@ -31,6 +31,7 @@ from flexmodal.models.frame import link_geometry
 from flexmodal.models.rig import Point, Rig
 
 _GAUSS2 = np.array([0.5 - 0.5 / math.sqrt(3.0), 0.5 + 0.5 / math.sqrt(3.0)])
+MAX_COORDS = 4000  # coordinates of the lumped-mass model (its dense flexibility matrix and eigenproblem)
 
 
 @dataclass(frozen=True, eq=False)
@@ -104,6 +105,9 @@ def lumped_mass_modes(rig: Rig, pose: Mapping[str, float], n_modes: int = 4, mas
         li = sensor_points[k][0]
         coords.append((n_mass_pts + k, normal[li] if s.direction == "transverse" else tangent[li]))
 
+    if len(coords) > MAX_COORDS:  # refused before the flexibility matrix (links x coordinates^2 work)
+        raise ModelError(f"{rig.source}: model 'lumped-mass' would have {len(coords)} coordinates (at most "
+                         f"{MAX_COORDS}; fewer links or --masses-per-link, or --model fe)")
     xy = np.array([starts[li] + s * tangent[li] for li, s, _ in all_points])
     pt_link = np.array([li for li, _, _ in all_points])
     pt_s = np.array([s for _, s, _ in all_points])

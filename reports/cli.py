@@ -22,6 +22,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--diagnosis", metavar="diagnosis.json",
                    help="output of flexmodal diagnose (docs/formats.md)")
     p.add_argument("--rig", metavar="RIG.toml", help="rig description, to draw mode shapes on the arm")
+    p.add_argument("--geometry", metavar="GEOMETRY.uff",
+                   help="test geometry (UFF datasets 15/2411, 82, 18/2420) to animate the measured modes on")
     p.add_argument("--title", default="flexmodal validation report", help="report title")
     p.add_argument("--fmin", metavar="HZ", type=float,
                    help="runs with FRFs: identify above this frequency (as identify --fmin)")
@@ -45,6 +47,7 @@ def _run(args: argparse.Namespace) -> int:
     """
     from flexmodal.daq.run_schema import check_run_file
     from flexmodal.daq.store import expand_runs
+    from flexmodal.modal.runs_io import read_frf
     from flexmodal.reports.errors import ReportError
 
     if args.pdf:
@@ -58,13 +61,15 @@ def _run(args: argparse.Namespace) -> int:
         raise ReportError("report: nothing to report (give RUN.h5 files, --measured, --pred or --diagnosis)")
     for path, run_id in expand_runs(args.runs):
         check_run_file(path, run_id)
+        read_frf(path, run_id)  # a stored FRF group that is not what flexmodal writes: refused now
     from flexmodal.api import report, report_pdf  # the inputs are sound: now the heavy imports
 
     quiet = getattr(args, "quiet", False)
     progress = None if quiet else (lambda msg: print(f"report: {msg}", file=sys.stderr))
     out = report(args.out, runs=args.runs, measured=args.measured, repeats=args.repeat, predictions=args.pred,
                  diagnosis=args.diagnosis, rig=args.rig, title=args.title, oma_fmin=args.oma_fmin,
-                 oma_fmax=args.oma_fmax, fmin=args.fmin, fmax=args.fmax, progress=progress)
+                 oma_fmax=args.oma_fmax, fmin=args.fmin, fmax=args.fmax, geometry=args.geometry,
+                 progress=progress)
     print(out)
     if args.pdf:
         if progress:

@@ -34,9 +34,11 @@ from flexmodal.compare.errors import CompareError
 from flexmodal.compare.result import Diagnosis, Predictions
 from flexmodal.compare.tables import Comparison, html_fragment, natural_key, ordered_configs, table_name
 from flexmodal.modal.table import ModalTable
-from flexmodal.reports import plots
+from flexmodal.reports import animate, plots
 from flexmodal.reports.errors import ReportError
+from flexmodal.reports.geometry import Geometry
 from flexmodal.reports.runs import LOW_COHERENCE, RunSummary
+from flexmodal.reports.sections import SECTIONS, ReportInputs
 from flexmodal.valid_output import write_text
 from flexmodal.valid_text import read_text
 
@@ -98,6 +100,41 @@ def _mode_figures(measured: ModalTable | None, repeats: Sequence[ModalTable],
                          f"Measured mode shapes at {config} ({_pose_text(measured.pose(config))}) on the "
                          f"arm, with the frame FE model's best-matching mode (by MAC) as a curve"))
     return figs
+
+
+def _animations(measured: ModalTable | None, predictions: Sequence[tuple[str, ModalTable]],
+                shapes: Mapping[str, object], geometry: Geometry | None) -> list[dict]:
+    """Animated shapes per configuration: on the arm (``shapes``: {config: ArmModes}) the measured
+    modes beside the FE model's best-matching ones and the further predicted modes; on a test
+    ``geometry`` (UFF) the measured modes of the first and last configuration."""
+    if measured is None:
+        return []
+    out = []
+    n_pred = {c: len(t.freq_hz(c)) for c in measured.configs for _, t in predictions[:1] if c in t.configs}
+    for config, arm in shapes.items():
+        if isinstance(arm, str):
+            continue
+        pairs = animate.arm_pairs(arm, measured, config, n_pred.get(config, len(measured.freq_hz(config))))
+        out.append({"png": None, "rows": [_anim_row(t, m) for t, m in pairs],
+                    "heads": ("test (measured at the sensors)", "frame FE model (along the links)"),
+                    "caption": f"{config} ({_pose_text(measured.pose(config))}): each measured mode "
+                               "animated on the arm beside the FE mode it pairs with by MAC, then the "
+                               "further predicted modes; displacements exaggerated, undeformed arm dashed"})
+    if geometry is not None:
+        configs = ordered_configs(measured)
+        for config in dict.fromkeys([configs[0], configs[-1]]):
+            moving = animate.geometry_shapes(geometry, measured, config)
+            out.append({"png": None, "rows": [_anim_row(s, None) for s in moving],
+                        "heads": (f"test (on {Path(geometry.source).name})", ""),
+                        "caption": f"{config}: each measured mode animated on the test geometry "
+                                   f"({len(geometry.nodes)} nodes, {len(geometry.lines)} trace lines; "
+                                   "measured nodes marked); displacements exaggerated"})
+    return out
+
+
+def _anim_row(test: animate.Shape | None, model: animate.Shape | None) -> dict:
+    return {"test": animate.svg(test) if test else "", "test_title": test.title if test else "",
+            "model": animate.svg(model) if model else "", "model_title": model.title if model else ""}
 
 
 def _test_model_mac(measured: ModalTable | None, predictions: Sequence[tuple[str, ModalTable]]) -> list[dict]:
@@ -239,7 +276,7 @@ def _run_sections(runs: Sequence[RunSummary]) -> list[dict]:
 
 def _number(figures: Sequence[dict]) -> None:
     """Number the drawn figures in the order they appear (Figure 1, 2, ...), each with its anchor."""
-    drawn = [f for f in figures if f["png"]]
+    drawn = [f for f in figures if f["png"] or f.get("rows")]
     for k, f in enumerate(drawn):
         f["number"], f["id"] = k + 1, f"figure-{k + 1}"
 
@@ -345,6 +382,7 @@ def write_report(out_path: str | Path, *, runs: Sequence[RunSummary] = (),
                  shapes: Mapping[str, object] | None = None,
                  diagnosis: Diagnosis | None = None, rig_name: str = "",
                  title: str = "flexmodal validation report", inputs: Sequence[str | Path] | None = None,
+                 geometry: Geometry | None = None,
                  progress: Callable[[str], None] | None = None) -> Path:
     """Render one self-contained HTML report to ``out_path`` and return its path.
 
@@ -355,7 +393,8 @@ def write_report(out_path: str | Path, *, runs: Sequence[RunSummary] = (),
     reason none is drawn} for the mode-shape plots.  ``diagnosis``: a compare.result.Diagnosis (the
     one renderer of a diagnosis: ``diagnose`` writes its diagnosis.html with it too).  ``inputs``: the
     files the results came from, when the results are given in memory (default: the runs' files and the
-    tables' sources); named relative to the report.  ``progress`` is called with a short message per step.
+    tables' sources); named relative to the report.  ``geometry``: a test geometry (UFF,
+    reports.geometry) to animate the measured modes on.  ``progress`` is called with a short message per step.
     """
     out = Path(out_path)
     step = progress or (lambda _msg: None)
@@ -364,12 +403,20 @@ def write_report(out_path: str | Path, *, runs: Sequence[RunSummary] = (),
         comparison, caption="Table 1. Measured and predicted natural frequencies")
     step("plotting modes")
     figures_modes = _mode_figures(measured, repeats, predictions, shapes or {})
+    animations = _animations(measured, predictions, shapes or {}, geometry)
     step("plotting runs")
     run_sections = _run_sections(summaries)
     figures_diag = [] if diagnosis is None else [
         _fig(plots.plot_gap(diagnosis), "Relative frequency error per mode of the nominal model and with "
                                         "the diagnosed effect; held-out RMS error")]
-    _number([*figures_modes, *(f for s in run_sections for f in s["figures"]), *figures_diag])
+    given = ReportInputs(tuple(summaries), comparison, measured, tuple(repeats), tuple(predictions), shapes,
+                         diagnosis, rig_name)
+    added = [{"id": f"section-{name}", "title": section.title,
+              "figures": [_fig(fig, caption) for fig, caption in section.figures(given)]}
+             for name, section in SECTIONS.items()]   # the registered sections (reports.sections)
+    added = [a for a in added if a["figures"]]
+    _number([*figures_modes, *animations, *(f for s in run_sections for f in s["figures"]), *figures_diag,
+             *(f for a in added for f in a["figures"])])
     meta, quality, channel_sets = _run_rows(summaries)
     if inputs is None:
         inputs = [s.run.path for s in summaries]
@@ -379,9 +426,11 @@ def write_report(out_path: str | Path, *, runs: Sequence[RunSummary] = (),
     contents = _contents([("comparison", "Measured and predicted modes", bool(comparison_html)),
                           ("diagnosis", "Sim-to-real gap diagnosis", diagnosis is not None),
                           ("modes", "Modes across poses", bool(figures_modes)),
+                          ("animations", "Animated mode shapes", bool(animations)),
                           ("identified", "Identified modes", measured is not None),
                           ("runs", "Stored runs", bool(meta)),
-                          ("gap", "Gap before and after the diagnosed effect", bool(figures_diag))],
+                          ("gap", "Gap before and after the diagnosed effect", bool(figures_diag)),
+                          *((a["id"], a["title"], True) for a in added)],
                          run_sections)
     env = jinja2.Environment(loader=jinja2.PackageLoader("flexmodal.reports", "templates"),
                              autoescape=jinja2.select_autoescape(["html"]), undefined=jinja2.StrictUndefined)
@@ -390,10 +439,11 @@ def write_report(out_path: str | Path, *, runs: Sequence[RunSummary] = (),
         rig_name=rig_name, inputs=named, comparison_html=comparison_html, contents=contents,
         tables_before=1 if comparison_html else 0,
         diagnosis=_diagnosis_view(diagnosis) if diagnosis is not None else None,
-        figures_modes=figures_modes, measured_rows=_measured_rows(measured) if measured is not None else [],
+        figures_modes=figures_modes, animations=animations, animation_script=animate.SCRIPT,
+        measured_rows=_measured_rows(measured) if measured is not None else [],
         measured_source=relative_name(measured.source, out.parent) if measured is not None else "",
         runs=meta, quality=quality, channel_sets=channel_sets, low_coherence=LOW_COHERENCE,
-        run_sections=run_sections, figures_diagnosis=figures_diag)
+        run_sections=run_sections, figures_diagnosis=figures_diag, added_sections=added)
     out.parent.mkdir(parents=True, exist_ok=True)
     return write_text(out, html)
 

@@ -10,8 +10,11 @@ comes from its own mutation, not from a broken base file.
 
 from __future__ import annotations
 
+import hashlib
 import json
+import os
 import shutil
+import stat
 import subprocess
 import sys
 import time
@@ -34,6 +37,10 @@ SESSION = (REPO / "examples" / "sessions" / "serial-sim.toml").read_text(encodin
     'rig = "../rigs/demo_arm.toml"', f'rig = "{REPO / "examples" / "rigs" / "demo_arm.toml"}"')
 MODBUS_SESSION = (REPO / "examples" / "sessions" / "modbus-sim.toml").read_text(encoding="utf-8").replace(
     'rig = "../rigs/demo_arm.toml"', f'rig = "{REPO / "examples" / "rigs" / "demo_arm.toml"}"')
+MCU = (REPO / "examples" / "sessions" / "mcu-serial.toml").read_text(encoding="utf-8").replace(
+    'port = "/dev/ttyACM0" ', 'port = "loop://" ')
+CAN = (REPO / "examples" / "sessions" / "can-module.toml").read_text(encoding="utf-8")
+DBC = (REPO / "examples" / "sessions" / "can-module.dbc").read_text(encoding="utf-8")
 POSES = "config,pose.theta_deg\ntheta0,0\ntheta60,60\n"
 BINARY = bytes(range(256)) * 4
 LATIN1_COMMENT = "# accelerometer sensitivity in mV/(m/s²) µ\n".encode("latin-1")
@@ -89,7 +96,7 @@ def truncated_run(path: Path) -> None:
 
 def truncated_live_run(path: Path) -> None:
     """A truncated file whose superblock still says a writer has it open (a killed writer's file)."""
-    from flexmodal.daq.store import _lookup3
+    from flexmodal.daq.h5file import _lookup3
 
     write_run(path)
     data = bytearray(path.read_bytes()[:60000])
@@ -125,6 +132,134 @@ def uff_cut_short(path: Path) -> None:
     uff_flat(path)
     lines = path.read_text().splitlines()
     path.write_text("\n".join(lines[:20] + lines[-1:]) + "\n")
+
+
+def fifo(path: Path) -> None:
+    os.mkfifo(path)
+
+
+def link_to(name: str) -> Callable[[Path], None]:
+    """A symlink to the row folder's ``name``."""
+    def make(path: Path) -> None:
+        path.symlink_to(path.parent / name)
+    return make
+
+
+def hard_link_to(name: str) -> Callable[[Path], None]:
+    def make(path: Path) -> None:
+        os.link(path.parent / name, path)
+    return make
+
+
+def sparse(head: str, size: int) -> Callable[[Path], None]:
+    """A file that starts with ``head`` and is ``size`` bytes long (a hole: no disk used)."""
+    def make(path: Path) -> None:
+        path.write_text(head)
+        os.truncate(path, size)
+    return make
+
+
+def h5_file(path: Path) -> None:
+    """An HDF5 file that is not a table (a run store where a CSV would go)."""
+    write_run(path)
+
+
+def soft_link_loop(path: Path) -> None:
+    write_run(path)
+    with h5py.File(path, "r+") as f:
+        del f["runs/r1"]
+        f["runs/r1"] = h5py.SoftLink("/runs/r2")
+        f["runs/r2"] = h5py.SoftLink("/runs/r1")
+
+
+def external_link(name: str) -> Callable[[h5py.Group], None]:
+    def change(g: h5py.Group) -> None:
+        del g[name]
+        g[name] = h5py.ExternalLink("missing.h5", "/x")
+    return change
+
+
+def dangling_soft(name: str) -> Callable[[h5py.Group], None]:
+    def change(g: h5py.Group) -> None:
+        del g[name]
+        g[name] = h5py.SoftLink("/nowhere")
+    return change
+
+
+def _rechunk(g: h5py.Group, **options) -> h5py.Dataset:
+    data, attrs = g["samples"][()], dict(g["samples"].attrs)
+    del g["samples"]
+    d = g.create_dataset("samples", data=data, chunks=(1024, data.shape[1]), **options)
+    d.attrs.update(attrs)
+    return d
+
+
+def damaged_chunk(path: Path) -> None:
+    """Samples stored gzip-compressed in chunks, one chunk's bytes overwritten."""
+    write_run(path)
+    with h5py.File(path, "r+") as f:
+        d = _rechunk(f["runs/r1"], compression="gzip")
+        offset = d.id.get_chunk_info(3).byte_offset
+    data = bytearray(path.read_bytes())
+    data[offset + 10:offset + 60] = b"\xff" * 50
+    path.write_bytes(bytes(data))
+
+
+def missing_filter(path: Path) -> None:
+    """Samples whose chunks need filter 32004 (LZ4, not installed here): written raw with the chunks'
+    filter masks saying it was applied, then the filter marked required in the pipeline message."""
+    write_run(path)
+    with h5py.File(path, "r+") as f:
+        g = f["runs/r1"]
+        data = g["samples"][()]
+        del g["samples"]
+        dcpl = h5py.h5p.create(h5py.h5p.DATASET_CREATE)
+        dcpl.set_chunk((1024, data.shape[1]))
+        dcpl.set_filter(32004, h5py.h5z.FLAG_OPTIONAL, (0,))
+        space = h5py.h5s.create_simple(data.shape)
+        d = h5py.h5d.create(g.id, b"samples", h5py.h5t.NATIVE_DOUBLE, space, dcpl=dcpl)
+        for r in range(0, data.shape[0], 1024):
+            d.write_direct_chunk((r, 0), np.ascontiguousarray(data[r:r + 1024]).tobytes(), filter_mask=0)
+    raw = bytearray(path.read_bytes())
+    at = raw.find(b"\x04\x7d\x00\x00\x01\x00")   # filter id 32004, no name, flags = optional
+    raw[at + 4:at + 6] = b"\x00\x00"                # flags = required
+    path.write_bytes(bytes(raw))
+
+
+def with_frf(change: Callable[[h5py.Group], None]) -> Callable[[Path], None]:
+    """A valid run with its FRFs stored, then ``change`` applied to the run group."""
+    def make(path: Path) -> None:
+        from flexmodal.api import compute_frf
+
+        write_run(path)
+        compute_frf(path, store=True)
+        with h5py.File(path, "r+") as f:
+            change(f["runs/r1"])
+    return make
+
+
+def duplicate_channel(g: h5py.Group) -> None:
+    table = g["channels"][()]
+    table[1]["name"] = table[0]["name"]
+    g["channels"][...] = table
+
+
+DEEP_TOML = "deep = " + "[" * 100_000 + "]" * 100_000 + "\n"
+DEEP_INLINE = "deep = " + "{a = " * 100_000 + "1" + "}" * 100_000 + "\n"
+LONG_INT = "big = " + "9" * 5001 + "\n"
+
+
+def big_rig(links: int) -> str:
+    """A clamped chain of ``links`` straight links (the seed-003 section), one sensor at the tip."""
+    head = RIG[:RIG.index("[[link]]")]
+    parts = [head] + [f'[[link]]\nname = "l{i}"\nlength_m = 0.5\nmaterial = "aluminium"\n'
+                      'section = { shape = "square_tube", outer_m = 0.040, wall_m = 0.0011 }\n'
+                      for i in range(links)]
+    parts.append('[base]\nsupport = "clamped"\n')
+    parts += [f'[[joint]]\nname = "j{i}"\nparent = "l{i - 1}"\nchild = "l{i}"\nangle = "theta_deg"\n'
+              'kind = "rigid"\n' for i in range(1, links)]
+    parts.append(f'[[sensor]]\nname = "a1"\nat = "l{links - 1}@1.0"\ndirection = "transverse"\n')
+    return "\n".join(parts)
 
 
 @dataclass(frozen=True)
@@ -336,6 +471,170 @@ ROWS: list[Row] = [
     row("missing-run", "frf {d}/nope.h5", "nope.h5"),
     row("missing-session", "acquire --config {d}/nope.toml --out {d}/o.h5", "nope.toml"),
     row("rig-is-dir", "predict {d} --model fe --poses {d}/poses.csv --out {d}/p.csv", "directory"),
+    # -- issue 24: outputs never destroy inputs ------------------------------------------------------
+    row("identify-out-is-input", "identify {d}/run.h5 --out {d}/run.h5", ("run.h5", "input")),
+    row("identify-out-link-to-input", "identify {d}/run.h5 --out {d}/l.csv", ("l.csv", "input"),
+        {"l.csv": link_to("run.h5")}),
+    row("identify-out-hdf5", "identify {d}/run.h5 --out {d}/other.h5", ("other.h5", "HDF5 file"),
+        {"other.h5": h5_file}),
+    row("identify-out-fifo", "identify {d}/run.h5 --out {d}/fifo", ("fifo", "FIFO"), {"fifo": fifo}),
+    row("identify-out-dev-null", "identify {d}/run.h5 --out /dev/null", ("/dev/null", "device")),
+    row("identify-out-dev-stdout", "identify {d}/run.h5 --out /dev/stdout", ("/dev/stdout", "device")),
+    row("identify-uff-is-out", IDENTIFY + " --uff {d}/modes-out.csv", ("modes-out.csv", "output")),
+    row("identify-uff-is-input", IDENTIFY + " --uff {d}/run.h5", ("run.h5",)),
+    row("identify-uff-fifo", IDENTIFY + " --uff {d}/fifo", ("fifo", "FIFO"), {"fifo": fifo}),
+    row("identify-synthesis-is-input", "identify {d}/run.h5 --out {d}/m.csv", ("m.synthesis.csv", "HDF5"),
+        {"m.synthesis.csv": h5_file}),
+    row("compare-out-run", COMPARE + " --out {d}/run.h5", ("run.h5", "HDF5 file")),
+    row("compare-out-measured", COMPARE + " --out {d}/modes.csv", ("modes.csv", "input")),
+    row("compare-out-hard-link", COMPARE + " --out {d}/h.csv", ("h.csv", "input"),
+        {"h.csv": hard_link_to("modes.csv")}),
+    row("compare-out-fifo", COMPARE + " --out {d}/fifo", ("fifo", "FIFO"), {"fifo": fifo}),
+    row("compare-out-dev-full", COMPARE + " --out /dev/full", ("/dev/full", "device")),
+    row("compare-out-dir", COMPARE + " --out {d}", ("is a directory",)),
+    row("predict-out-run", PREDICT.replace("{d}/pred.csv", "{d}/run.h5"), ("run.h5", "HDF5 file")),
+    row("predict-out-rig", PREDICT.replace("{d}/pred.csv", "{d}/rig.toml"), ("rig.toml", "input")),
+    row("predict-out-poses-link", PREDICT.replace("{d}/pred.csv", "{d}/l.csv"), ("l.csv", "input"),
+        {"l.csv": link_to("poses.csv")}),
+    row("predict-out-fifo", PREDICT.replace("{d}/pred.csv", "{d}/fifo"), ("fifo", "FIFO"), {"fifo": fifo}),
+    row("report-out-run", "report {d}/run.h5 --out {d}/run.h5", ("run.h5", "input")),
+    row("report-out-measured", "report --measured {d}/modes.csv --out {d}/modes.csv", ("modes.csv", "input")),
+    row("report-out-fifo", "report --measured {d}/modes.csv --out {d}/fifo", ("fifo", "FIFO"),
+        {"fifo": fifo}),
+    row("report-out-dev-null", "report --measured {d}/modes.csv --out /dev/null", ("/dev/null", "device")),
+    row("diagnose-out-json-is-input", DIAGNOSE, ("diagnosis.json", "input"),
+        {"diag/diagnosis.json": link_to("../modes.csv")}),
+    row("diagnose-out-json-fifo", DIAGNOSE, ("diagnosis.json", "FIFO"), {"diag/diagnosis.json": fifo}),
+    row("diagnose-out-html-hdf5", DIAGNOSE, ("diagnosis.html", "HDF5"), {"diag/diagnosis.html": h5_file}),
+    row("acquire-out-fifo", ACQUIRE.replace("{d}/out.h5", "{d}/fifo"), ("fifo", "FIFO"), {"fifo": fifo}),
+    row("acquire-out-dev-null", ACQUIRE.replace("{d}/out.h5", "/dev/null"), ("/dev/null", "device")),
+    row("acquire-out-session", ACQUIRE.replace("{d}/out.h5", "{d}/session.toml"),
+        ("session.toml", "not an HDF5 file")),
+    row("acquire-out-dir", ACQUIRE.replace("{d}/out.h5", "{d}"), ("is a directory",)),
+    row("frf-out-fifo", "frf {d}/run.h5 --out {d}/fifo", ("fifo", "FIFO"), {"fifo": fifo}),
+    row("frf-out-dev-null", "frf {d}/run.h5 --out /dev/null", ("/dev/null", "device")),
+    row("sim-fault-log-fifo", "sim serve --protocol serial --duration 1 --fault-log {d}/fifo",
+        ("fifo", "FIFO"), {"fifo": fifo}),
+    row("sim-fault-log-run", "sim serve --protocol serial --duration 1 --fault-log {d}/run.h5",
+        ("run.h5", "HDF5 file")),
+    row("sim-fault-log-rig", "sim serve --protocol serial --rig {d}/rig.toml --duration 1 --fault-log "
+        "{d}/rig.toml", ("rig.toml", "input")),
+    row("demo-out-fifo", "demo --out {d}/fifo", ("fifo", "not a directory"), {"fifo": fifo}),
+    # -- issue 24: inputs that would block or never end: FIFOs, devices, folders ----------------------
+    row("compare-measured-fifo", "compare {d}/fifo {d}/modes.csv", ("fifo", "FIFO"), {"fifo": fifo}),
+    row("compare-predicted-dev-zero", "compare {d}/modes.csv /dev/zero", ("/dev/zero", "character device")),
+    row("compare-measured-dir", "compare {d} {d}/modes.csv", ("is a directory",)),
+    row("predict-rig-fifo", PREDICT.replace("{d}/rig.toml", "{d}/fifo"), ("fifo", "FIFO"), {"fifo": fifo}),
+    row("predict-rig-dev-zero", PREDICT.replace("{d}/rig.toml", "/dev/zero"), ("/dev/zero", "device")),
+    row("predict-poses-fifo", PREDICT.replace("{d}/poses.csv", "{d}/fifo"), ("fifo", "FIFO"), {"fifo": fifo}),
+    row("predict-poses-dev-zero", PREDICT.replace("{d}/poses.csv", "/dev/zero"), ("/dev/zero", "device")),
+    row("acquire-session-fifo", ACQUIRE.replace("{d}/session.toml", "{d}/fifo"), ("fifo", "FIFO"),
+        {"fifo": fifo}),
+    row("acquire-session-dev-zero", ACQUIRE.replace("{d}/session.toml", "/dev/zero"),
+        ("/dev/zero", "device")),
+    row("identify-input-fifo", "identify {d}/fifo --out {d}/m.csv", ("fifo", "FIFO"), {"fifo": fifo}),
+    row("identify-input-dev-zero", "identify /dev/zero --out {d}/m.csv", ("/dev/zero", "device")),
+    row("frf-run-fifo", "frf {d}/fifo", ("fifo", "FIFO"), {"fifo": fifo}),
+    row("frf-run-dev-zero", "frf /dev/zero", ("/dev/zero", "device")),
+    row("report-run-fifo", "report {d}/fifo --out {d}/r.html", ("fifo", "FIFO"), {"fifo": fifo}),
+    row("report-diagnosis-fifo", "report --diagnosis {d}/fifo --out {d}/r.html", ("fifo", "FIFO"),
+        {"fifo": fifo}),
+    row("report-diagnosis-dev-zero", "report --diagnosis /dev/zero --out {d}/r.html",
+        ("/dev/zero", "device")),
+    row("report-rig-fifo", "report --measured {d}/modes.csv --rig {d}/fifo --out {d}/r.html",
+        ("fifo", "FIFO"), {"fifo": fifo}),
+    row("report-pred-dir", "report --pred {d} --out {d}/r.html", ("is a directory",)),
+    row("diagnose-rig-fifo", DIAGNOSE.replace("{d}/rig.toml", "{d}/fifo"), ("fifo", "FIFO"), {"fifo": fifo}),
+    row("diagnose-measured-dev-zero", DIAGNOSE.replace("{d}/modes.csv", "/dev/zero"),
+        ("/dev/zero", "device")),
+    row("sim-rig-fifo", "sim serve --protocol serial --rig {d}/fifo --duration 1", ("fifo", "FIFO"),
+        {"fifo": fifo}),
+    row("demo-rig-dev-zero", "demo --rig /dev/zero --out {d}/demo", ("/dev/zero", "device")),
+    row("modes-huge", COMPARE, ("modes.csv", "larger than"), {"modes.csv": sparse(MODES, 300 << 20)}),
+    # -- issue 24: parser depth and size extremes ----------------------------------------------------
+    row("rig-deep-array", PREDICT, ("rig.toml", "nested"), rig(RIG + DEEP_TOML)),
+    row("rig-deep-inline-table", PREDICT, ("rig.toml", "nested"), rig(RIG + DEEP_INLINE)),
+    row("rig-5001-digits", PREDICT, ("rig.toml", "digits"), rig(RIG + LONG_INT)),
+    row("session-deep-array", ACQUIRE, ("session.toml", "nested"), {"session.toml": SESSION + DEEP_TOML}),
+    row("session-5001-digits", ACQUIRE, ("session.toml", "digits"), {"session.toml": SESSION + LONG_INT}),
+    row("diagnosis-deep", "report --diagnosis {d}/d.json --out {d}/r.html", ("d.json", "nested"),
+        {"d.json": "[" * 100_000 + "]" * 100_000}),
+    row("diagnosis-deep-object", "report --diagnosis {d}/d.json --out {d}/r.html", ("d.json", "nested"),
+        {"d.json": '{"a": ' * 100_000 + "1" + "}" * 100_000}),
+    row("diagnosis-5001-digits", "report --diagnosis {d}/d.json --out {d}/r.html", ("d.json", "digits"),
+        {"d.json": "9" * 5001}),
+    row("run-pose-deep", IDENTIFY, ("run.h5", "pose")),
+    row("run-pose-5001-digits", "frf {d}/run.h5", ("run.h5", "pose")),
+    row("frf-provenance-deep", IDENTIFY, ("run.h5", "provenance", "nested")),
+    row("modes-long-field", COMPARE, ("modes.csv",), {"modes.csv": MODES + "x" * 200_000 + ",1,2,e,0\n"}),
+    # -- issue 24: foreign and damaged HDF5 ----------------------------------------------------------
+    row("run-link-loop-identify", IDENTIFY, ("run.h5", "looping link")),
+    row("run-link-loop-frf", "frf {d}/run.h5", ("run.h5", "looping link")),
+    row("run-link-loop-report", REPORT, ("run.h5", "looping link")),
+    row("run-external-link", IDENTIFY, ("run.h5", "external link", "not followed")),
+    row("samples-external-link", "frf {d}/run.h5", ("run.h5", "'samples'", "external link")),
+    row("samples-dangling-link", REPORT, ("run.h5", "'samples'", "dangling")),
+    row("samples-damaged-identify", IDENTIFY, ("run.h5", "r1", "cannot read")),
+    row("samples-damaged-frf", "frf {d}/run.h5 --workers 0", ("run.h5", "r1", "cannot read")),
+    row("samples-damaged-report", "report {d}/run.h5 --out {d}/r.html --quiet", ("run.h5", "cannot read")),
+    row("samples-filter-identify", IDENTIFY, ("run.h5", "filter 32004", "not installed")),
+    row("samples-filter-frf", "frf {d}/run.h5", ("run.h5", "filter 32004", "not installed")),
+    row("run-duplicate-channel", IDENTIFY, ("run.h5", "'F' appears twice")),
+    row("run-duplicate-channel-frf", "frf {d}/run.h5", ("run.h5", "'F' appears twice")),
+    row("run-pose-nan", IDENTIFY, ("run.h5", "theta_deg", "not a finite number")),
+    row("run-pose-text", "frf {d}/run.h5", ("run.h5", "theta_deg", "not a finite number")),
+    row("frf-group-dataset", IDENTIFY, ("run.h5", "frf group", "not a group")),
+    row("frf-group-dataset-report", REPORT, ("run.h5", "frf group", "not a group")),
+    row("frf-nfft-text", IDENTIFY, ("run.h5", "nfft", "'big'")),
+    row("frf-H-1d", IDENTIFY, ("run.h5", "'H'", "shape (5,)")),
+    row("frf-freq-nan", REPORT, ("run.h5", "freq_hz", "finite")),
+    row("frf-coherence-shape", IDENTIFY, ("run.h5", "coherence")),
+    row("frf-outputs-not-list", IDENTIFY, ("run.h5", "outputs")),
+    row("frf-H-external", IDENTIFY, ("run.h5", "'H'", "external link")),
+    row("frf-no-H", IDENTIFY, ("run.h5", "lacks", "'H'")),
+    # -- issue 24: impossible values refused ---------------------------------------------------------
+    row("identify-poles-nan", IDENTIFY + " --poles nan", ("--poles", "nan")),
+    row("identify-poles-inf", IDENTIFY + " --poles 50,inf", ("--poles", "inf")),
+    row("identify-poles-negative", IDENTIFY + " --poles=-5", ("--poles", "-5")),
+    row("identify-fmax-above-nyquist", IDENTIFY + " --method peak --fmax 5000",
+        ("above", "Nyquist", "clipped"), code=0),
+    row("frf-scheduler-not-url", "frf {d}/run.h5 --scheduler not-a-url", ("--scheduler", "not-a-url")),
+    row("modes-damping-percent", COMPARE, ("modes.csv", "damping_ratio = 1.5", "0.015"),
+        {"modes.csv": "config,mode,freq_hz,damping_ratio\nA,1,10,1.5\n"}),
+    row("modes-damping-text", COMPARE, ("modes.csv", "damping_ratio", "'low'"),
+        {"modes.csv": "config,mode,freq_hz,damping_ratio\nA,1,10,low\n"}),
+    row("modes-shape-inf-compare", COMPARE, ("modes.csv", "shape.a", "infinite"),
+        {"modes.csv": "config,mode,freq_hz,shape.a,shape.b\nA,1,10,inf,1\n"}),
+    row("modes-shape-inf-diagnose", DIAGNOSE, ("modes.csv", "shape.a1", "infinite"),
+        {"modes.csv": "config,mode,freq_hz,pose.theta_deg,shape.a1,shape.a2\nt0,1,20,0,-inf,1\n"}),
+    row("modes-pose-text", COMPARE, ("modes.csv", "pose.theta_deg", "'sixty'"),
+        {"modes.csv": MODES.replace("experiment,0\n", "experiment,sixty\n", 1)}),
+    row("modes-pose-inf-diagnose", DIAGNOSE, ("modes.csv", "pose.theta_deg", "inf"),
+        {"modes.csv": MODES.replace("experiment,0\n", "experiment,inf\n", 1)}),
+    row("poses-inf", PREDICT, ("poses.csv", "pose.theta_deg", "inf"),
+        {"poses.csv": POSES.replace("60,60", "60,inf")}),
+    row("poses-no-prefix", PREDICT, ("poses.csv", "pose.theta_deg"),
+        {"poses.csv": POSES.replace("pose.theta_deg", "theta_deg")}),
+    row("poses-semicolons", PREDICT, ("poses.csv", "semicolons", "decimal"),
+        {"poses.csv": "config;pose.theta_deg\ntheta0;0,5\n"}),
+    row("modes-semicolons", COMPARE, ("modes.csv", "semicolons", "decimal"),
+        {"modes.csv": MODES.replace(",", ";")}),
+    row("modes-tabs", COMPARE, ("modes.csv", "tabs"), {"modes.csv": MODES.replace(",", "\t")}),
+    row("session-layout-huge", ACQUIRE, ("session.toml", "999999999999 values"),
+        {"session.toml": MCU.replace('layout = "<12h"', 'layout = "<999999999999h"')}),
+    row("session-window-tiny", ACQUIRE, ("session.toml", "window_s", "samples"),
+        {"session.toml": MCU.replace("window_s = 1.0", "window_s = 5e-324")}),
+    row("session-serial-bogus-url", ACQUIRE, ("session.toml", "bogus://"),
+        {"session.toml": MCU.replace('port = "loop://" ', 'port = "bogus://x" ')}),
+    row("session-dbc-signal-missing", ACQUIRE, ("session.toml", "'zz'", "canmod"),
+        {"session.toml": CAN.replace('source = "a0"', 'source = "zz"'), "can-module.dbc": DBC}),
+    row("session-duplicate-channel", ACQUIRE, ("session.toml", "'F'", "twice"),
+        {"session.toml": SESSION.replace('name = "a1"', 'name = "F"')}),
+    row("session-pose-inf", ACQUIRE, ("session.toml", "pose.theta_deg", "inf"),
+        {"session.toml": SESSION.replace("theta_deg = 30.0", "theta_deg = inf")}),
+    row("rig-1000-links-fe", PREDICT, ("rig.toml", "degrees of freedom", "GiB"), rig(big_rig(1000))),
+    row("rig-1000-links-lumped", PREDICT.replace("fe", "lumped-mass"), ("rig.toml", "coordinates"),
+        rig(big_rig(1000))),
     # -- controls: the unmodified base files work ---------------------------------------------------
     row("control-predict", PREDICT, (), code=0),
     row("control-compare", COMPARE, (), code=0),
@@ -361,7 +660,37 @@ RUN_FILES = {
     "report-mathtext-channel": lambda p: write_run(p, channel_names=("F", "a$\\frac{1$")),
     "run-channel-kind": mutate_run(lambda g: g["channels"].__setitem__(
         0, tuple(b"hammer" if n == "kind" else g["channels"][0][n] for n in g["channels"].dtype.names))),
+    "run-pose-deep": mutate_run(set_attr("pose", "[" * 100_000 + "]" * 100_000)),
+    "run-pose-5001-digits": mutate_run(set_attr("pose", '{"theta_deg": ' + "9" * 5001 + "}")),
+    "frf-provenance-deep": with_frf(lambda g: g["frf"].attrs.__setitem__("provenance",
+                                                                          "[" * 100_000 + "]" * 100_000)),
+    "run-link-loop-identify": soft_link_loop, "run-link-loop-frf": soft_link_loop,
+    "run-link-loop-report": soft_link_loop,
+    "run-external-link": lambda p: (write_run(p), _edit(p, lambda f: external_link("r1")(f["runs"]))),
+    "samples-external-link": mutate_run(external_link("samples")),
+    "samples-dangling-link": mutate_run(dangling_soft("samples")),
+    "samples-damaged-identify": damaged_chunk, "samples-damaged-frf": damaged_chunk,
+    "samples-damaged-report": damaged_chunk,
+    "samples-filter-identify": missing_filter, "samples-filter-frf": missing_filter,
+    "run-duplicate-channel": mutate_run(duplicate_channel),
+    "run-duplicate-channel-frf": mutate_run(duplicate_channel),
+    "run-pose-nan": mutate_run(set_attr("pose", '{"theta_deg": NaN}')),
+    "run-pose-text": mutate_run(set_attr("pose", '{"theta_deg": "sixty"}')),
+    "frf-group-dataset": mutate_run(lambda g: g.__setitem__("frf", np.arange(3))),
+    "frf-group-dataset-report": mutate_run(lambda g: g.__setitem__("frf", np.arange(3))),
+    "frf-nfft-text": with_frf(lambda g: g["frf"].attrs.__setitem__("nfft", "big")),
+    "frf-H-1d": with_frf(lambda g: replace_dataset("H", np.ones(5))(g["frf"])),
+    "frf-freq-nan": with_frf(lambda g: g["frf/freq_hz"].__setitem__(3, np.nan)),
+    "frf-coherence-shape": with_frf(lambda g: replace_dataset("coherence", np.ones((7, 3)))(g["frf"])),
+    "frf-outputs-not-list": with_frf(lambda g: g["frf"].attrs.__setitem__("outputs", '{"a": 1}')),
+    "frf-H-external": with_frf(lambda g: external_link("H")(g["frf"])),
+    "frf-no-H": with_frf(lambda g: g["frf"].__delitem__("H")),
 }
+
+
+def _edit(path: Path, change: Callable[[h5py.File], None]) -> None:
+    with h5py.File(path, "r+") as f:
+        change(f)
 UFF_FILES = {"uff-lengths": uff_cut_short, "uff-flat": uff_flat}
 
 
@@ -375,6 +704,7 @@ def _prepare(r: Row, root: Path) -> Path:
         files["f.uff"] = UFF_FILES[r.name]
     for name, content in files.items():
         target = d / name
+        target.parent.mkdir(parents=True, exist_ok=True)
         if callable(content):
             content(target)
         elif isinstance(content, bytes):
@@ -389,10 +719,26 @@ class Outcome:
     code: int | None
     stderr: str
     seconds: float
+    changed: tuple[str, ...] = ()   # files of the row's folder that are not as they were before
+
+
+def _snapshot(folder: Path) -> dict[str, str]:
+    """Every entry under ``folder``: a regular file by its SHA-256, a link by its target, else its type."""
+    out = {}
+    for p in sorted(folder.rglob("*")):
+        st = p.lstat()
+        if stat.S_ISLNK(st.st_mode):
+            out[str(p.relative_to(folder))] = "link:" + os.readlink(p)
+        elif stat.S_ISREG(st.st_mode):
+            out[str(p.relative_to(folder))] = hashlib.sha256(p.read_bytes()).hexdigest()
+        else:
+            out[str(p.relative_to(folder))] = stat.filemode(st.st_mode)[0]
+    return out
 
 
 def _run(r: Row, root: Path, exe: str) -> Outcome:
     d = _prepare(r, root)
+    before = _snapshot(d)
     args = [a.replace("{d}", str(d)) for a in r.args]
     t0 = time.monotonic()
     try:
@@ -401,7 +747,11 @@ def _run(r: Row, root: Path, exe: str) -> Outcome:
     except subprocess.TimeoutExpired as exc:
         err = exc.stderr.decode(errors="replace") if isinstance(exc.stderr, bytes) else (exc.stderr or "")
         return Outcome(None, err, time.monotonic() - t0)
-    return Outcome(done.returncode, done.stderr, time.monotonic() - t0)
+    after = _snapshot(d)
+    changed = tuple(sorted(k for k in before if after.get(k) != before[k]))
+    if done.returncode == 2:   # a refused command leaves nothing of its own behind either
+        changed += tuple(sorted(k for k in after if k not in before))
+    return Outcome(done.returncode, done.stderr, time.monotonic() - t0, changed)
 
 
 def _console_script() -> str:
@@ -424,7 +774,7 @@ def test_table_covers_every_command_and_class() -> None:
     commands = {r.args[0] for r in ROWS}
     assert commands >= {"demo", "acquire", "sim", "frf", "identify", "predict", "compare", "diagnose",
                         "report"}
-    assert len([r for r in ROWS if r.code == 2]) >= 80
+    assert len(ROWS) >= 200 and len([r for r in ROWS if r.code == 2]) >= 190
     assert len({r.name for r in ROWS}) == len(ROWS)
 
 
@@ -439,6 +789,10 @@ def test_row(r: Row, outcomes: dict[str, Outcome]) -> None:
         assert len(lines) == 1, f"expected one line on stderr, got {len(lines)}: {out.stderr[-1000:]}"
         for word in r.words:
             assert word in lines[0], f"{word!r} not in {lines[0]!r}"
+        assert not out.changed, f"a refused command changed or left files: {out.changed}"
+    else:   # a warning the row expects (suspicious values are accepted with one)
+        for word in r.words:
+            assert word in out.stderr, f"{word!r} not in {out.stderr[-1000:]!r}"
 
 
 def test_row_times(outcomes: dict[str, Outcome]) -> None:

@@ -44,7 +44,7 @@ def test_mcu_custom_frames_example(tmp_path):
     link = PtyLink(tmp_path / "ttyACM0")
     config = _copy(tmp_path, "mcu-serial.toml", ('"/dev/ttyACM0"', f'"{link.path}"'))
     session = load_session(config)
-    spec = session.devices[0].frame
+    spec = session.devices[0].config.frame
     assert spec == FrameSpec(b"\xa5\x5a", "<12h", 1, 2, 0, "frames", "crc16")
     counts = np.random.default_rng(4).integers(-2000, 2000, (6000, 12)).astype(float)
     counts[:, 3] = 512 + np.arange(6000) % 7  # the elbow encoder

@@ -10,8 +10,8 @@ import sys
 import pytest
 
 from flexmodal.daq.errors import DaqError
+from flexmodal.daq.h5file import recover
 from flexmodal.daq.lock import WriterLock, holder, lock_path
-from flexmodal.daq.store import recover
 
 HOLD = ("import sys, time\nfrom flexmodal.daq.lock import WriterLock\nlock = WriterLock(sys.argv[1])\n"
         "print('locked', flush=True)\ntime.sleep(60)\n")

@@ -15,9 +15,9 @@ from cantools.database.conversion import BaseConversion
 
 from flexmodal.daq.dbc import MessageLayout, load_message
 from flexmodal.daq.devices import Block, unwrap
-from flexmodal.daq.modbus_driver import decode_registers
+from flexmodal.daq.modbus_driver import Register, decode_registers
 from flexmodal.daq.serial_frames import BinaryDecoder, CsvDecoder, crc16, encode_csv, encode_frames
-from flexmodal.daq.session import ChannelMap, Register
+from flexmodal.daq.session import ChannelMap
 from flexmodal.daq.store import Channel
 from flexmodal.daq.timeline import Timeline
 from flexmodal.fixtures.sim_can import DEMO_DBC, encode, sim_dbc

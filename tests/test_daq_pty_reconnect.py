@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from flexmodal.daq.devices import DeviceLost
-from flexmodal.daq.serial_driver import SerialDriver
+from flexmodal.daq.serial_driver import SerialConfig, SerialDriver
 from flexmodal.daq.serial_frames import encode_frames
 from flexmodal.daq.session import Device
 from flexmodal.fixtures.sim_common import PtyLink
@@ -25,7 +25,7 @@ SOURCES = ("a", "b")
 
 
 def _driver(path) -> SerialDriver:
-    return SerialDriver(Device("adc", "serial", port=str(path), sources=SOURCES), 1000.0)
+    return SerialDriver(Device("adc", "serial", SerialConfig(str(path), SOURCES)), 1000.0)
 
 
 def _read_all(driver: SerialDriver, n_samples: int, timeout_s: float = 5.0) -> np.ndarray:

@@ -4,6 +4,7 @@ overrun warning, and per-device release of rows on the timeline."""
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from types import SimpleNamespace
 
 import numpy as np
@@ -17,6 +18,14 @@ from flexmodal.daq.store import Channel, read_run
 from flexmodal.daq.timeline import Timeline
 
 
+@dataclass(frozen=True)
+class ToyConfig:
+    """The toy protocol's configuration: its sources and how much faster than the session it runs."""
+
+    rate_factor: float = 1.0
+    sources: tuple[str, ...] = ("up", "down")
+
+
 class ToyDriver(Driver):
     """Device sample i carries the values (i, -i), delivered at ``rate_factor`` x the session rate."""
 
@@ -25,12 +34,11 @@ class ToyDriver(Driver):
     @classmethod
     def parse_device(cls, t, name):
         t.reject_unknown({"rate_factor"})
-        return Device(name, cls.protocol, sources=("up", "down"),
-                      options={"rate_factor": t.get("rate_factor", float, 1.0)})
+        return Device(name, cls.protocol, ToyConfig(t.get("rate_factor", float, 1.0)))
 
     def __init__(self, device, sample_rate_hz):
-        self.name, self.sources = device.name, device.sources
-        self.rate = sample_rate_hz * device.options["rate_factor"]
+        self.name, self.sources = device.name, device.config.sources
+        self.rate = sample_rate_hz * device.config.rate_factor
         self.t0 = None
         self.n = 0
 

@@ -16,7 +16,8 @@ import numpy as np
 import pytest
 
 from flexmodal.daq.errors import DaqError
-from flexmodal.daq.store import Channel, Event, RunWriter, _lookup3, list_runs, read_run, recover
+from flexmodal.daq.h5file import _lookup3, recover
+from flexmodal.daq.store import Channel, Event, RunWriter, list_runs, read_run
 
 REPO = Path(__file__).resolve().parents[1]
 

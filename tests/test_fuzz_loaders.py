@@ -1,4 +1,6 @@
-"""Fuzz every file loader: session and rig TOML, modal and poses CSV, UFF and HDF5 run files.
+"""Fuzz every file loader: session and rig TOML, modal and poses CSV, UFF, HDF5 run files and their
+stored FRF groups, diagnosis JSON; each also at depth and size extremes (nesting 10^5 deep, integers of
+5001 digits, million-character values, 10^5 rows).
 
 Each property mutates a valid file (or its parsed document) at random and asserts that the loader
 either accepts it or raises its package's error type: nothing else escapes.  Known answers anchor the
@@ -267,6 +269,140 @@ def prop_run_file(mutation) -> None:
             pass
 
 
+# -- depth and size extremes (issue 24): every parser refuses them with its own error or copes ------------
+DEPTHS = st.sampled_from([99, 100, 101, 1_000, 100_000])
+DIGITS = st.sampled_from([4300, 4301, 5001, 100_000])
+
+
+@st.composite
+def extreme_value(draw, syntax: str) -> str:
+    """A TOML or JSON value at a parser's limits: nested arrays or tables DEPTHS deep, an integer of
+    DIGITS digits, a string of 200 000 characters, an exponent beyond float range."""
+    kind = draw(st.sampled_from(["array", "table", "int", "string", "float"]))
+    if kind in ("array", "table"):
+        n = draw(DEPTHS)
+        if kind == "array":
+            return "[" * n + "1" + "]" * n
+        key = "a = " if syntax == "toml" else '"a": '
+        return ("{" + key) * n + "1" + "}" * n
+    if kind == "int":
+        return draw(st.sampled_from(["", "-"])) + "9" * draw(DIGITS)
+    if kind == "string":
+        return '"' + "x" * 200_000 + '"'
+    return draw(st.sampled_from(["1e999", "-1e999", "1e-999", "9" * 400 + ".5"]))
+
+
+@st.composite
+def extreme_toml(draw, text: str) -> bytes:
+    """``text`` with one top-level value (a known key, or a new one) replaced by an extreme value."""
+    keys = [line.split("=", 1)[0].strip() for line in text.splitlines()
+            if "=" in line and not line.startswith(("#", " ", "["))]
+    key = draw(st.sampled_from(keys + ["extra_key"]))
+    value = draw(extreme_value("toml"))
+    lines = [f"{key} = {value}" if line.split("=", 1)[0].strip() == key and not line.startswith("#")
+             else line for line in text.splitlines()]
+    if key == "extra_key":
+        lines.insert(0, f"{key} = {value}")
+    return "\n".join(lines).encode()
+
+
+@st.composite
+def extreme_csv(draw, text: str) -> bytes:
+    """``text`` with an extreme cell, line or table size: a cell longer than the csv module's field
+    limit (200 000 characters), a number of DIGITS digits, 20 000 rows, 2 000 columns, or a line of
+    200 000 commas."""
+    header, *rows = text.splitlines()
+    kind = draw(st.sampled_from(["cell", "digits", "rows", "columns", "commas"]))
+    if kind == "cell":
+        rows[0] = "x" * 200_000 + rows[0][rows[0].index(","):]
+    elif kind == "digits":
+        cells = rows[0].split(",")
+        cells[draw(st.integers(1, len(cells) - 1))] = "9" * draw(DIGITS)
+        rows[0] = ",".join(cells)
+    elif kind == "rows":
+        rows = rows * (20_000 // len(rows))
+    elif kind == "columns":
+        header += "".join(f",shape.s{i}" for i in range(2_000))
+        rows = [r + ",1" * 2_000 for r in rows]
+    else:
+        rows.append("," * 200_000)
+    return "\n".join([header, *rows, ""]).encode()
+
+
+@prop(extreme_toml(SESSION_FILE.read_text(encoding="utf-8")))
+def prop_session_extreme(data: bytes) -> None:
+    _with_file(data, "session.toml", lambda p: _loads_or(DaqError, load_session, p))
+
+
+@prop(extreme_toml(RIG_FILE.read_text(encoding="utf-8")))
+def prop_rig_extreme(data: bytes) -> None:
+    _with_file(data, "rig.toml", lambda p: _loads_or(ModelError, load_rig, p))
+
+
+@prop(extreme_csv(MODES.read_text(encoding="utf-8")))
+def prop_modal_csv_extreme(data: bytes) -> None:
+    _with_file(data, "modes.csv", lambda p: _loads_or(ModalError, ModalTable.read_csv, p))
+
+
+@prop(extreme_csv(POSES))
+def prop_poses_csv_extreme(data: bytes) -> None:
+    _with_file(data, "poses.csv", lambda p: _loads_or(ModalError, poses_from_csv, p))
+
+
+@prop(extreme_value("json"))
+def prop_diagnosis_json_extreme(text: str) -> None:
+    from flexmodal.reports.errors import ReportError
+    from flexmodal.reports.html import load_diagnosis
+
+    _with_file(text.encode(), "diagnosis.json", lambda p: _loads_or(ReportError, load_diagnosis, p))
+
+
+@prop(st.sampled_from(["pose", "start_time", "excitation"]), extreme_value("json"))
+def prop_run_attribute_extreme(name: str, text: str) -> None:
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "run.h5"
+        path.write_bytes(RUN_BYTES)
+        with h5py.File(path, "r+") as f:
+            f["runs/r1"].attrs[name] = text
+        _loads_or(DaqError, lambda p: read_run(p, "r1"), path)
+
+
+@prop(st.sampled_from(["provenance", "outputs", "inputs", "nfft", "estimator"]), extreme_value("json"))
+def prop_frf_attribute_extreme(name: str, text: str) -> None:
+    from flexmodal.modal.runs_io import read_frf
+
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "run.h5"
+        path.write_bytes(FRF_RUN_BYTES)
+        with h5py.File(path, "r+") as f:
+            f["runs/r1/frf"].attrs[name] = text
+        _loads_or(ModalError, lambda p: read_frf(p, "r1"), path)
+
+
+@prop(st.sampled_from(["num_pts", "abscissa_inc"]), st.sampled_from(["999999999999", "0", "-5", "1e308"]))
+def prop_uff_header_extreme(field: str, value: str) -> None:
+    """A dataset-58 header announcing absurd sizes (line 7 of the set: number of points, spacing)."""
+    lines = UFF_TEXT.splitlines()
+    at = next(i for i, line in enumerate(lines) if line.strip() == "58") + 7
+    cells = lines[at].split()
+    cells[1 if field == "num_pts" else 4] = value
+    lines[at] = " ".join(cells)
+    _with_file("\n".join(lines).encode(), "frf.uff", lambda p: _loads_or(ModalError, read_uff, p))
+
+
+def _frf_run_bytes() -> bytes:
+    from flexmodal.api import compute_frf
+
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "run.h5"
+        path.write_bytes(RUN_BYTES)
+        compute_frf(path, store=True, nfft=256)
+        return path.read_bytes()
+
+
+FRF_RUN_BYTES = _frf_run_bytes()
+
+
 # -- known answers: the unmutated inputs load ---------------------------------------------------------
 def test_unmutated_inputs_load(tmp_path: Path) -> None:
     assert parse_session(SESSION_DOC, SESSION_FILE).sample_rate_hz == 2048.0
@@ -282,7 +418,10 @@ def test_unmutated_inputs_load(tmp_path: Path) -> None:
 
 
 DEFAULT = {prop_session_doc: 150, prop_session_text: 80, prop_rig_doc: 150, prop_rig_text: 80,
-           prop_modal_csv: 100, prop_poses_csv: 100, prop_uff: 60, prop_run_file: 80}
+           prop_modal_csv: 100, prop_poses_csv: 100, prop_uff: 60, prop_run_file: 80,
+           prop_session_extreme: 12, prop_rig_extreme: 12, prop_modal_csv_extreme: 6,
+           prop_poses_csv_extreme: 6, prop_diagnosis_json_extreme: 12, prop_run_attribute_extreme: 12,
+           prop_frf_attribute_extreme: 12, prop_uff_header_extreme: 8}
 
 
 @pytest.mark.parametrize("fn", list(DEFAULT), ids=[p.__name__ for p in DEFAULT])

@@ -13,7 +13,11 @@ slcan backlog after a stall finishes that read first, 1.43 s once under load (da
 
 from __future__ import annotations
 
+import contextlib
+import os
+import signal
 import subprocess
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -21,7 +25,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from interrupt_support import EXE, children, cpu_s, descendants, interrupt, still_alive
+from interrupt_support import EXE, alive, children, cpu_s, descendants, interrupt, still_alive
 from modal_cases import four_mode_random_record
 
 from flexmodal.daq.store import Channel, RunWriter
@@ -143,21 +147,46 @@ def test_compare_of_large_tables(tmp_path):
 
 
 def test_acquire_while_its_simulator_starts(tmp_path):
-    """SIGINT while the session's simulator child is still importing: the launcher stops waiting for
-    its endpoint at once, the child is ended, nothing was stored, exit 130."""
+    """SIGINT while the session's simulator child is still starting: the launcher stops waiting for
+    its endpoint at once, the child is ended, nothing was stored, exit 130.  The child is frozen
+    (SIGSTOP) the moment it appears and thawed only once the launcher's SIGTERM is pending on it, so it
+    cannot have started by the time SIGINT arrives however loaded the machine is: one outcome, one
+    message."""
     text = (REPO / "examples" / "sessions" / "serial-sim.toml").read_text()
     (tmp_path / "s.toml").write_text(text.replace('rig = "../rigs/', f'rig = "{RIGS}/'))
     seen: list[int] = []
 
+    def thaw_when_ended(kid: int) -> None:
+        deadline = time.monotonic() + 30.0
+        while time.monotonic() < deadline and alive(kid) and not _pending(kid, signal.SIGTERM):
+            time.sleep(0.005)
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(kid, signal.SIGCONT)
+
     def starting(pid: int) -> bool:
-        seen[:] = children(pid) or seen
+        if not seen and (kids := children(pid)):
+            seen[:] = kids
+            for kid in kids:
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(kid, signal.SIGSTOP)
+                threading.Thread(target=thaw_when_ended, args=(kid,), daemon=True).start()
         return bool(seen)
 
     code, seconds, err = interrupt(["acquire", "--config", "s.toml", "--out", "run.h5", "--duration", "5"],
                                    tmp_path, starting)
     check(code, seconds, err, tmp_path, ("run.h5",))
-    assert "stopped by SIGINT before any sample was stored" in err
+    assert "stopped by SIGINT before any sample was stored (the simulator was starting)" in err
     assert still_alive(seen, LIMIT_S) == [], "the simulator child outlived the command"
+
+
+def _pending(pid: int, signum: int) -> bool:
+    """Whether signal ``signum`` is pending on process ``pid`` (Linux /proc/PID/status SigPnd, ShdPnd)."""
+    try:
+        lines = Path(f"/proc/{pid}/status").read_text().splitlines()
+    except (FileNotFoundError, ProcessLookupError):
+        return False
+    masks = [int(line.split()[1], 16) for line in lines if line.startswith(("SigPnd:", "ShdPnd:"))]
+    return any(m >> (signum - 1) & 1 for m in masks)
 
 
 @pytest.mark.parametrize("protocol", ["serial", pytest.param("can", marks=pytest.mark.slow),

@@ -21,7 +21,7 @@ CLI_MODULES = ("cli.py", "diagnosis_cli.py", "__main__.py")
 REPORT_IMPORTS = {"flexmodal.compare.tables", "flexmodal.modal.table", "flexmodal.modal.mac",
                   "flexmodal.modal.peaks", "flexmodal.valid_text", "flexmodal.valid_output",
                   "flexmodal.compare.result", "flexmodal.compare.errors",
-                  "flexmodal.checked_io.errors"}   # the diagnosis records
+                  "flexmodal.checked_io.errors", "flexmodal.checked_io.registry"}   # the diagnosis records
 
 
 def _sources() -> list[Path]:

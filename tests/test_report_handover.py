@@ -145,7 +145,8 @@ def test_stabilisation_diagrams_select_the_modes_of_the_table_of_the_same_run(de
     report, figures = demo_figures
     table = ModalTable.read_csv(report.parent / "modes.csv")
     html = report.read_text()
-    captions = [re.sub(r"<[^>]+>", "", c) for c in re.findall(r"<figcaption>(.*?)</figcaption>", html)]
+    captions = [re.sub(r"<[^>]+>", "", c)
+                for c in re.findall(r'<img src="data:image/png[^>]*><figcaption>(.*?)</figcaption>', html)]
     report_figures = figures[len(figures) - len(captions):]          # diagnosis.html's figure came first
     checked = 0
     for fig, caption in zip(report_figures, captions, strict=True):
@@ -256,7 +257,7 @@ def test_report_has_contents_whose_links_land_and_numbered_figures_and_tables(pa
     info = page["info"]
     assert info["missing"] == [] and len(info["links"]) >= 6 + 11      # sections and the 11 runs
     n = len(info["caps"])
-    assert info["caps"] == [f"Figure {k}." for k in range(1, n + 1)] and n == 47
+    assert info["caps"] == [f"Figure {k}." for k in range(1, n + 1)] and n == 47 + 2   # 2 animated poses
     assert [t.split(".")[0] for t in info["tabs"]] == [f"Table {k}" for k in range(1, len(info["tabs"]) + 1)]
     assert info["details"] == 11 and info["open"] == 0              # one collapsed block per run
     assert info["figures_in_details"] == 10 * 4 + 2     # FRF, diagram, synthesis, AutoMAC; FDD and SSI

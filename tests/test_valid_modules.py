@@ -1,5 +1,5 @@
 """Known answers for the validation modules of issue 13 (valid_text, valid_csv, valid_options,
-valid_output, daq.run_schema / daq.store.open_read, models.rig_schema, modal.valid_uff)."""
+valid_output, daq.run_schema / daq.h5file.open_read, models.rig_schema, modal.valid_uff)."""
 
 from __future__ import annotations
 
@@ -15,7 +15,8 @@ import pytest
 
 from flexmodal import valid_options as opt
 from flexmodal.daq.errors import DaqError
-from flexmodal.daq.store import Channel, RunWriter, list_runs, open_read, read_run
+from flexmodal.daq.h5file import open_read
+from flexmodal.daq.store import Channel, RunWriter, list_runs, read_run
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.valid_uff import check_functions
 from flexmodal.models.errors import ModelError
@@ -82,7 +83,7 @@ def test_output_paths(tmp_path: Path) -> None:
     (tmp_path / "f.txt").write_text("x")
     for call, message in [(lambda: output_file(tmp_path / "no" / "a.csv", Bad), "does not exist"),
                           (lambda: output_file(tmp_path, Bad), "is a directory"),
-                          (lambda: output_file("/proc/a.csv", Bad), "cannot write in /proc"),
+                          (lambda: output_file("/proc/a.csv", Bad), "/proc/a.csv: is a device or process"),
                           (lambda: output_dir(tmp_path / "f.txt", Bad), "not a directory"),
                           (lambda: output_dir(tmp_path / "f.txt" / "sub", Bad), "not a directory"),
                           (lambda: hdf5_output(tmp_path / "f.txt", Bad), "not an HDF5 file")]:

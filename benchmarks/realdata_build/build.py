@@ -9,6 +9,7 @@ into ``$REALDATA_MIRROR/<owner>+<name>/repo``), pyuff, sdypy-EMA and pyOMA2.  fl
 from __future__ import annotations
 
 import io
+import json
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -23,6 +24,7 @@ from common import (  # noqa: E402
     ema_reference,
     entry_dir,
     h1,
+    oma_reference,
     reference_json,
     split_confident,
     write_frf_uff,
@@ -278,8 +280,8 @@ def _mimo_h1(recs: list[dict]) -> tuple[np.ndarray, np.ndarray]:
 
 _MIMO_SOURCE = dict(
     repository=MIMO[0], commit=MIMO[1], paths=[f"sample_data/{k}.mat" for k in MIMO_RECORDS],
-    licence="BSD-style (MIMO-FRF LICENSE, Copyright (c) 2015 Flávio Ribeiro): redistribution with the "
-            "copyright notice",
+    licence="BSD-2-Clause (MIMO-FRF LICENSE, Copyright (c) 2015 Flávio Ribeiro): redistribution with "
+            "the copyright notice",
     structure="very flexible beam-ring (wing-like) test article driven by two piezoelectric patches "
               "(upper, lower), accelerometers at the upper and lower tip (flavioluiz/experimental-results "
               "beam-ring); 120 s exponential sine sweeps ~0.1-250 Hz at 1 kHz, symmetric (patches in phase) "
@@ -359,6 +361,160 @@ def build_beam_ring_chirp() -> None:
             script="benchmarks/realdata_build/build.py beam_ring_chirp", **_MIMO_SOURCE)
 
 
+@builder
+def build_beam_ring_two_inputs() -> None:
+    """The beam-ring's symmetric and antisymmetric sweeps (symexc_1, asymexc_1) laid end to end as one
+    240 s record with both patch drives as references — the two-input test a lab records, from which
+    H1 with two references is formed.  Decimated 1000 -> 125 Hz (zero-phase FIR, alike on all channels)."""
+    from scipy.signal import decimate
+
+    name = "beam_ring_two_inputs"
+    recs = _mimo_records()
+    u = np.concatenate([recs[k]["inputvalues"] for k in ("symexc_1", "asymexc_1")])
+    y = np.concatenate([recs[k]["outputvalues"] for k in ("symexc_1", "asymexc_1")])
+    u = decimate(u, 8, ftype="fir", axis=0, zero_phase=True)
+    y = decimate(y, 8, ftype="fir", axis=0, zero_phase=True)
+    fs = 125.0
+    d = entry_dir(name)
+    write_time_uff(d / "beam_ring_two_inputs.uff", fs, [
+        {"node": 1, "dir": 3, "kind": "force", "records": [u[:, 0]], "id1": "upper drive", "units": "V"},
+        {"node": 2, "dir": 3, "kind": "force", "records": [u[:, 1]], "id1": "lower drive", "units": "V"},
+        {"node": 11, "dir": 3, "kind": "acceleration", "records": [y[:, 0]], "id1": "upper tip"},
+        {"node": 12, "dir": 3, "kind": "acceleration", "records": [y[:, 1]], "id1": "lower tip"}])
+    check_uff(d / "beam_ring_two_inputs.uff", [u[:, 0], u[:, 1], y[:, 0], y[:, 1]])
+    f, H = _mimo_h1(list(recs.values()))
+    band = (f >= 0.3) & (f <= 50)
+    approx = [1.433, 11.225, 22.566, 28.125, 33.225]
+    sure, unsure = split_confident(ema_reference(f[band], H[:, :, band].reshape(4, -1), approx, lower=0.3,
+                                                 upper=50, orders=(30, 40, 50)))
+    write_json(d / "reference.json", reference_json(
+        sure, band_hz=(0.3, 50), uncertain_hz=unsure,
+        source="sdypy-EMA 0.31 LSCF on the four full-rate H1 FRFs of all four sweeps, 0.3-50 Hz",
+        notes="Decimated record: Nyquist 62.5 Hz; the reference band stops at 50 Hz."))
+    _source(name, input="beam_ring_two_inputs.uff", kind_short="sweeps, 2 inputs, time histories (MIMO H1)",
+            kind="two-reference sine-sweep test from time histories (both patch drives, two tip "
+                 "accelerations)",
+            derived="beam_ring_two_inputs.uff: dataset 58b time histories (single precision) of symexc_1 "
+                    "followed by asymexc_1 (240 s): drives as nodes 1, 2 +z (ordinate type 13, unit V), "
+                    "accelerations nodes 11, 12 +z; decimated by 8 to 125 Hz (scipy.signal.decimate, FIR, "
+                    "zero phase), 30 001 samples",
+            script="benchmarks/realdata_build/build.py beam_ring_two_inputs", **_MIMO_SOURCE)
+
+
+@builder
+def build_beam_ring_output_only() -> None:
+    """The accelerations of one antisymmetric sweep (asymexc_1) alone: an output-only record whose
+    excitation is a sweep, not white noise.  Decimated 1000 -> 250 Hz."""
+    from scipy.signal import decimate
+
+    name = "beam_ring_output_only"
+    recs = _mimo_records()
+    y = decimate(recs["asymexc_1"]["outputvalues"], 4, ftype="fir", axis=0, zero_phase=True)
+    d = entry_dir(name)
+    write_time_uff(d / "beam_ring_outputs.uff", 250.0, [
+        {"node": 11, "dir": 3, "kind": "acceleration", "records": [y[:, 0]], "id1": "upper tip"},
+        {"node": 12, "dir": 3, "kind": "acceleration", "records": [y[:, 1]], "id1": "lower tip"}])
+    check_uff(d / "beam_ring_outputs.uff", [y[:, 0], y[:, 1]])
+    asym = [recs["asymexc_1"], recs["asymexc_2"]]
+    U = [np.fft.rfft(r["inputvalues"][:, 0]) for r in asym]
+    Y = [np.fft.rfft(r["outputvalues"], axis=0) for r in asym]
+    H = (sum(yk * uk.conj()[:, None] for yk, uk in zip(Y, U, strict=True))
+         / sum(np.abs(uk) ** 2 for uk in U)[:, None])
+    f = np.fft.rfftfreq(asym[0]["inputvalues"].shape[0], 1e-3)
+    band = (f >= 0.3) & (f <= 100)
+    approx = [1.433, 11.225, 22.566, 28.125, 33.225, 65.441, 90.058]
+    sure, unsure = split_confident(ema_reference(f[band], H[band].T, approx, lower=0.3, upper=100,
+                                                 orders=(40, 60, 80)))
+    write_json(d / "reference.json", reference_json(
+        sure, band_hz=(0.3, 100), uncertain_hz=unsure,
+        source="sdypy-EMA 0.31 LSCF on the H1 FRFs (drive voltage known to the reference only) of both "
+               "antisymmetric sweeps, 0.3-100 Hz",
+        notes="The identification sees the accelerations only; the reference uses the drives it is not "
+              "given."))
+    _source(name, input="beam_ring_outputs.uff", kind_short="output-only, swept (non-white) excitation",
+            kind="output-only record (two accelerations) of a sine-sweep test: excitation unknown to the "
+                 "identification and far from white noise",
+            derived="beam_ring_outputs.uff: dataset 58b time histories (single precision) of the two "
+                    "accelerations of record asymexc_1, nodes 11, 12 +z, decimated by 4 to 250 Hz "
+                    "(scipy.signal.decimate, FIR, zero phase), 30 001 samples",
+            script="benchmarks/realdata_build/build.py beam_ring_output_only", **_MIMO_SOURCE)
+
+
+@builder
+def build_pyfrf_impact_frf() -> None:
+    """pyFRF's five hits as the FRF an analyser exports: H1 averaged over the hits (rectangular
+    windows: the responses have decayed 60 dB by the end of each 1 s record), 1 Hz lines, 200-7000 Hz."""
+    name = "pyfrf_impact_frf"
+    repo, commit = PYFRF
+    hits = np.array([np.load(io.BytesIO(blob(repo, commit, f"data/measurements_{i}.npy")))
+                     for i in range(1, 6)])
+    fs = 1.0 / (hits[0, 0, 1] - hits[0, 0, 0])
+    f, H = h1(hits[:, 1], hits[:, 2][:, None, :], fs)
+    keep = (f >= 200) & (f <= 7000)
+    d = entry_dir(name)
+    write_frf_uff(d / "impact_h1.uff", f[keep], H[:, keep][None], rsp=[(2, 3)], ref=[(1, 3)], binary=True,
+                  id1="H1 5 avg")
+    check_uff(d / "impact_h1.uff", [H[0, keep]])
+    ref = json.loads((entry_dir("pyfrf_impact_5hits") / "reference.json").read_text())
+    write_json(d / "reference.json", {**ref, "notes": ref["notes"] + "  Same reference as pyfrf_impact_5hits "
+                                      "(the same H1); the FRF file spans 200-7000 Hz."})
+    _source(name, input="impact_h1.uff", kind_short="impact H1 FRF (UFF), dense/close modes",
+            repository=repo, commit=commit, paths=[f"data/measurements_{i}.npy" for i in range(1, 6)],
+            licence="LGPL-3.0 (pyFRF LICENSE at the commit that added the data; the repository was "
+                    "relicensed MIT by its authors in 2023, commit 635e14b)",
+            kind="impact FRF (H1 of five hits) exported as UFF 58: one FRF, 1 Hz lines, dense modes with "
+                 "close pairs, light damping",
+            structure="unnamed test piece of pyFRF's showcase (LADISK, University of Ljubljana, 2016)",
+            derived="impact_h1.uff: dataset 58b FRF (single precision complex), accelerance, response node 2 "
+                    "+z, reference node 1 +z, 1 Hz lines 200-7000 Hz; H1 = sum(Y F*) / sum(|F|^2) over the "
+                    "five hits, rectangular window",
+            script="benchmarks/realdata_build/build.py pyfrf_impact_frf")
+
+
+# ------------------------------------------------------------------ pyuff MPS output-only export
+@builder
+def build_pyuff_mps_oma() -> None:
+    """pyuff's data/MPSTD#Set001_2024_10_08_10_27_07.uff: an analyser's binary 58b export of four
+    output-only acceleration records (3200 Hz, 69.5 s); Dof1 and Dof4 share node 1, direction +Z and
+    are told apart only by their ID line.  Decimated 3200 -> 800 Hz to keep the file small."""
+    import pyuff
+    from scipy.signal import decimate
+
+    name = "pyuff_mps_oma"
+    repo, commit = PYUFF
+    d = entry_dir(name)
+    tmp = d / "_src.uff"
+    tmp.write_bytes(blob(repo, commit, "data/MPSTD#Set001_2024_10_08_10_27_07.uff"))
+    try:
+        sets = pyuff.UFF(str(tmp)).read_sets()
+    finally:
+        tmp.unlink()
+    fs = 1.0 / sets[0]["abscissa_inc"] / 4
+    y = decimate(np.array([s["data"] for s in sets]), 4, ftype="fir", axis=1, zero_phase=True)
+    write_time_uff(d / "mps_set1.uff", fs, [
+        {"node": s["rsp_node"], "dir": s["rsp_dir"], "kind": "acceleration", "records": [y[k]],
+         "id1": s["id1"]} for k, s in enumerate(sets)], id3=sets[0]["id3"])
+    check_uff(d / "mps_set1.uff", list(y))
+    approx = [39, 117, 127, 182, 224, 233, 349]   # clusters of SSI stable poles and coherence peaks
+    sure, unsure = split_confident(oma_reference(y.T, fs, approx))
+    write_json(d / "reference.json", reference_json(
+        sure, band_hz=(5, 320), uncertain_hz=unsure,
+        source="pyOMA2 SSI-cov on the four decimated records (block rows 30, 40, 50; orders to 60)",
+        notes="Weak output-only data: the channels are coherent only near 182 Hz; the other candidates "
+              "(stable-pole clusters of one SSI run) are left uncertain.  Mains harmonics at 100, 300 Hz."))
+    _source(name, input="mps_set1.uff", kind_short="output-only, analyser 58b export, shared node/dir",
+            repository=repo, commit=commit, paths=["data/MPSTD#Set001_2024_10_08_10_27_07.uff"],
+            licence="MIT (pyuff LICENSE)",
+            kind="output-only acceleration records exported by a measurement system (not named in pyuff) "
+                 "as binary UFF 58b (id lines 'MPS set1 Dof1..4'); two channels share node 1, direction +Z",
+            structure="not documented in pyuff (a test file for its 58b reader, added in commit 4a1c7b2, "
+                      "2024)",
+            derived="mps_set1.uff: dataset 58b time histories (single precision), the four records with "
+                    "their original id lines, nodes and directions, decimated by 4 to 800 Hz with "
+                    "scipy.signal.decimate (FIR, zero phase), 55 600 samples",
+            script="benchmarks/realdata_build/build.py pyuff_mps_oma")
+
+
 def write_readme() -> None:
     """tests/data/realdata/README.md: the table of entries, from their source.json files."""
     import json
@@ -395,7 +551,7 @@ commits (see that script's docstring); only derived data files are kept, under t
 
 README_TAIL = """
 Licences: each folder's LICENSE.txt is the source repository's licence file at the pinned commit, and
-its derived data file is redistributed under that licence (MIT, BSD-style, LGPL-3.0 or GPL-3.0) as a
+its derived data file is redistributed under that licence (MIT, BSD-2-Clause, LGPL-3.0 or GPL-3.0) as a
 separate work, with the notice it asks for; none of the sources' code is included.
 """
 

@@ -221,11 +221,15 @@ def ema_reference(freq_hz: np.ndarray, frf: np.ndarray, approx_hz: Sequence[floa
     return modes
 
 
-def split_confident(modes: list[dict], min_share: float = 0.5) -> tuple[list[dict], list[float]]:
-    """Reference modes whose stable poles appear in at least ``min_share`` of the model orders, and
-    the frequencies of the others (uncertain: neither required nor counted as extras)."""
-    sure = [m for m in modes if m["stable_share"] >= min_share]
-    return sure, sorted({m["freq_hz"] for m in modes if m["stable_share"] < min_share})
+def split_confident(modes: list[dict], min_share: float = 0.5,
+                    max_damping: float = 0.2) -> tuple[list[dict], list[float]]:
+    """Reference modes whose stable poles appear in at least ``min_share`` of the model orders with a
+    damping ratio below ``max_damping``, and the frequencies of the others (uncertain: neither
+    required nor counted as extras)."""
+    def ok(m: dict) -> bool:
+        return m["stable_share"] >= min_share and m.get("damping_ratio", 1.0) < max_damping
+
+    return [m for m in modes if ok(m)], sorted({m["freq_hz"] for m in modes if not ok(m)})
 
 
 def _mode(f0: float, z0: float, pf: np.ndarray, pz: np.ndarray, how: str) -> dict:
@@ -286,3 +290,47 @@ def h1(force: np.ndarray, resp: np.ndarray, fs_hz: float) -> tuple[np.ndarray, n
     Y = np.fft.rfft(resp, axis=-1)
     H = np.einsum("brf,bf->rf", Y, F.conj()) / np.sum(np.abs(F) ** 2, axis=0)
     return np.fft.rfftfreq(force.shape[-1], 1 / fs_hz), H
+
+
+def oma_reference(y: np.ndarray, fs_hz: float, approx_hz: Sequence[float], *,
+                  block_rows: Sequence[int] = (30, 40, 50), ordmax: int = 60) -> list[dict]:
+    """Reference modes of output-only records y [n_samples, n_channels] with pyOMA2's SSI-cov: one run
+    per number of block rows, ``mpe`` picking the stable pole nearest each approximate frequency
+    (order_in="find_min"); value = median over runs, scatter = their spread (at least +-10 % on
+    damping, as in :func:`_mode`)."""
+    import contextlib
+    import io
+    import logging
+
+    import pyoma2.algorithms.ssi  # noqa: F401
+    import pyoma2.setup.single  # noqa: F401
+    from pyoma2.algorithms.ssi import SSI
+    from pyoma2.setup.single import SingleSetup
+
+    for name in [n for n in logging.root.manager.loggerDict if n.startswith("pyoma2")]:
+        logging.getLogger(name).setLevel(logging.WARNING)
+    F = np.full((len(block_rows), len(approx_hz)), np.nan)
+    Z = np.full_like(F, np.nan)
+    for r, br in enumerate(block_rows):   # a loop over reference runs
+        setup = SingleSetup(np.asarray(y, float), fs=fs_hz)
+        alg = SSI(name="ssicov", method="cov", br=int(br), ordmax=ordmax, step=2)
+        setup.add_algorithms(alg)
+        with contextlib.redirect_stderr(io.StringIO()), warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            setup.run_by_name("ssicov")
+            for j, guess in enumerate(approx_hz):   # one pick per guess: a guess without poles is NaN
+                setup.mpe("ssicov", sel_freq=[float(guess)], order_in="find_min")
+                if np.size(alg.result.Fn):
+                    F[r, j], Z[r, j] = float(np.ravel(alg.result.Fn)[0]), float(np.ravel(alg.result.Xi)[0])
+    modes = []
+    for j, guess in enumerate(approx_hz):
+        if np.isnan(F[:, j]).any():
+            modes.append({"freq_hz": float(guess), "stable_share": 0.0})
+            continue
+        f0, z0 = float(np.median(F[:, j])), float(np.median(Z[:, j]))
+        how = f"pyOMA2 SSI-cov, block rows {list(block_rows)}, orders to {ordmax}"
+        mode = _mode(f0, z0, F[:, j], Z[:, j], how)
+        spread = float(np.ptp(F[:, j])) / f0
+        mode["stable_share"] = 1.0 if abs(f0 / guess - 1) < 0.01 and spread < 0.005 else 0.0
+        modes.append(mode)
+    return modes

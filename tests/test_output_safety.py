@@ -1,0 +1,217 @@
+"""Issue 24: outputs never destroy inputs, and writers cannot half-write.
+
+``valid_output`` refuses an output that is an input of the same command (same inode, through symlinks
+and hard links), an existing HDF5 file where a table goes, a FIFO, a device or a directory; it writes
+regular files only, whole, and through a symlink writes the link's target.  ``modal.runs_io.write_frf``
+leaves a complete FRF group or the previous state on a full disk (a real tmpfs where this process may
+mount one, else an injected lack of space), an I/O error or a signal.
+"""
+
+from __future__ import annotations
+
+import errno
+import hashlib
+import os
+import subprocess
+import sys
+from collections import namedtuple
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from flexmodal.modal import runs_io
+from flexmodal.modal.errors import ModalError
+from flexmodal.valid_output import atomic_path, hdf5_output, output_dir, output_file, write_text
+
+sys.path.insert(0, str(Path(__file__).parent))
+from test_cli_table import write_run  # noqa: E402  (the table's small valid run)
+
+
+class Bad(Exception):
+    pass
+
+
+def _digest(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _flexmodal() -> str:
+    return str(Path(sys.executable).with_name("flexmodal"))
+
+
+def test_an_input_is_never_an_output(tmp_path: Path) -> None:
+    src = tmp_path / "modes.csv"
+    src.write_text("config,mode,freq_hz\nA,1,10\n")
+    (tmp_path / "link.csv").symlink_to(src)
+    os.link(src, tmp_path / "hard.csv")
+    for out in (src, tmp_path / "link.csv", tmp_path / "hard.csv"):
+        with pytest.raises(Bad, match="is also an input or output of this command"):
+            output_file(out, Bad, inputs=[src])
+        with pytest.raises(Bad, match="is also an input or output of this command"):
+            output_file(src, Bad, inputs=[out])
+    with pytest.raises(Bad, match="diagnosis.json: is also an input"):
+        output_dir(tmp_path, Bad, files=["diagnosis.json"], inputs=[_same(tmp_path / "diagnosis.json", src)])
+    assert output_file(tmp_path / "new.csv", Bad, inputs=[src, None, "-"]) == tmp_path / "new.csv"
+
+
+def _same(path: Path, src: Path) -> Path:
+    os.link(src, path)
+    return src
+
+
+def test_special_files_and_run_stores_are_refused(tmp_path: Path) -> None:
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    run = tmp_path / "run.h5"
+    with h5py.File(run, "w") as f:
+        f["x"] = np.arange(3)
+    text = tmp_path / "notes.txt"
+    text.write_text("mine\n")
+    for call, message in [(lambda: output_file(fifo, Bad), "is a FIFO"),
+                          (lambda: hdf5_output(fifo, Bad), "is a FIFO"),
+                          (lambda: output_file("/dev/null", Bad), "device or process file"),
+                          (lambda: output_file("/dev/stdout", Bad), "device or process file"),
+                          (lambda: hdf5_output("/dev/zero", Bad), "device or process file"),
+                          (lambda: output_file(run, Bad), "is an HDF5 file"),
+                          (lambda: hdf5_output(text, Bad), "not an HDF5 file"),
+                          (lambda: output_file(tmp_path, Bad), "is a directory")]:
+        with pytest.raises(Bad, match=message):
+            call()
+    assert hdf5_output(run, Bad) == run and fifo.is_fifo()
+
+
+def test_a_symlinked_output_keeps_its_link(tmp_path: Path) -> None:
+    real = tmp_path / "data" / "table.csv"
+    real.parent.mkdir()
+    real.write_text("old\n")
+    link = tmp_path / "table.csv"
+    link.symlink_to(real)
+    write_text(output_file(link, Bad), "new\n")
+    assert link.is_symlink() and os.readlink(link) == str(real) and real.read_text() == "new\n"
+    dangling = tmp_path / "later.csv"
+    dangling.symlink_to(tmp_path / "data" / "later.csv")
+    write_text(output_file(dangling, Bad), "x\n")
+    assert dangling.is_symlink() and (tmp_path / "data" / "later.csv").read_text() == "x\n"
+
+
+def test_a_full_disk_names_the_output_and_leaves_the_old_file(tmp_path: Path) -> None:
+    target = tmp_path / "table.csv"
+    target.write_text("old\n")
+    with pytest.raises(OSError, match="No space left") as info, atomic_path(target) as tmp:
+        tmp.write_text("half")
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+    assert info.value.filename == str(target) and info.value.errno == errno.ENOSPC
+    assert "nothing was written" in info.value.strerror
+    assert target.read_text() == "old\n" and [p.name for p in tmp_path.iterdir()] == ["table.csv"]
+
+
+def _frf_groups(path: Path) -> list[str]:
+    with h5py.File(path, "r") as f:
+        return sorted(f["runs/r1"])
+
+
+def test_frf_written_into_a_hidden_group_survives_a_failure_half_way(tmp_path: Path, monkeypatch) -> None:
+    from flexmodal import api
+
+    run = tmp_path / "run.h5"
+    write_run(run)
+    first = api.compute_frf(run, store=True)
+    before = runs_io.read_frf(run, "r1")
+    real_fill = runs_io._fill
+
+    def fail_after_h(out, H, freq_hz, coherence, result):
+        out.create_dataset("H", data=H)
+        raise OSError(errno.EIO, "injected I/O error after H")
+
+    monkeypatch.setattr(runs_io, "_fill", fail_after_h)
+    with pytest.raises(ModalError, match=r"run.h5: run 'r1': cannot write the FRFs \(.*injected I/O"):
+        runs_io.write_frf(run, "r1", first)
+    monkeypatch.setattr(runs_io, "_fill", real_fill)
+    assert _frf_groups(run) == ["channels", "events", "frf", "samples"]
+    after = runs_io.read_frf(run, "r1")
+    np.testing.assert_array_equal(after.H, before.H)
+    assert after.provenance == before.provenance
+
+
+def _tmpfs(folder: Path, size: str) -> bool:
+    """Mount a tmpfs of ``size`` on ``folder``; False where this process may not mount."""
+    if os.geteuid() != 0:
+        return False
+    done = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(folder)],
+                          capture_output=True, timeout=30, check=False)
+    return done.returncode == 0
+
+
+def test_frf_on_a_full_disk_exits_2_and_leaves_the_run_byte_identical(tmp_path: Path, monkeypatch) -> None:
+    """A tmpfs with room for the run but not its FRFs (or, where mounting is refused, the same lack of
+    room reported by an injected ``shutil.disk_usage``): one line naming the file, exit 2."""
+    src = tmp_path / "src.h5"
+    write_run(src)
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    mounted = _tmpfs(disk, f"{src.stat().st_size // 1024 + 150}k")
+    try:
+        run = disk / "run.h5"
+        run.write_bytes(src.read_bytes())
+        digest = _digest(run)
+        if mounted:
+            done = subprocess.run([_flexmodal(), "frf", str(run), "--workers", "0"], capture_output=True,
+                                  text=True, timeout=120, stdin=subprocess.DEVNULL)
+            assert done.returncode == 2, done.stderr
+            lines = done.stderr.strip().splitlines()
+            assert len(lines) == 1 and "Traceback" not in done.stderr
+            message = lines[0]
+        else:
+            usage = namedtuple("usage", "total used free")
+            monkeypatch.setattr(runs_io.shutil, "disk_usage", lambda _p: usage(1 << 20, 1 << 20, 150_000))
+            from flexmodal import api
+            with pytest.raises(ModalError) as info:
+                api.compute_frf(run, store=True)
+            message = str(info.value)
+        assert f"{run}: run 'r1': no space left on the device" in message and "unchanged" in message
+        assert _digest(run) == digest
+    finally:
+        if mounted:
+            subprocess.run(["umount", str(disk)], capture_output=True, timeout=30, check=False)
+
+
+def test_a_stale_partial_group_is_cleared_by_the_next_write(tmp_path: Path) -> None:
+    from flexmodal import api
+
+    run = tmp_path / "run.h5"
+    write_run(run)
+    with h5py.File(run, "a") as f:
+        f["runs/r1"].create_group(runs_io.PARTIAL_PREFIX + "dead")
+    api.compute_frf(run, store=True)
+    assert _frf_groups(run) == ["channels", "events", "frf", "samples"]
+
+
+@pytest.mark.parametrize("command", [
+    "identify {d}/run.h5 --out {d}/run.h5",
+    "compare {d}/modes.csv {d}/modes.csv --out {d}/run.h5",
+    "compare {d}/modes.csv {d}/modes.csv --out {d}/modes.csv",
+    "compare {d}/modes.csv {d}/modes.csv --out {d}/fifo",
+    "predict {d}/rig.toml --model fe --poses {d}/poses.csv --out {d}/run.h5",
+    "predict {d}/rig.toml --model fe --poses {d}/poses.csv --out {d}/link.csv",
+    "report {d}/run.h5 --out {d}/run.h5",
+    "identify {d}/run.h5 --out {d}/m.csv --uff {d}/m.csv",
+])
+def test_cli_refuses_to_destroy_an_input(tmp_path: Path, command: str) -> None:
+    from conftest import REPO
+
+    write_run(tmp_path / "run.h5")
+    (tmp_path / "modes.csv").write_text(
+        (REPO / "examples" / "measured" / "seed003_table3_f1f2.csv").read_text())
+    (tmp_path / "rig.toml").write_text((REPO / "examples" / "rigs" / "seed003_two_link.toml").read_text())
+    (tmp_path / "poses.csv").write_text("config,pose.theta_deg\ntheta0,0\n")
+    (tmp_path / "link.csv").symlink_to(tmp_path / "poses.csv")
+    os.mkfifo(tmp_path / "fifo")
+    before = {p.name: _digest(p) for p in tmp_path.iterdir() if p.is_file()}
+    done = subprocess.run([_flexmodal(), *command.replace("{d}", str(tmp_path)).split()], capture_output=True,
+                          text=True, timeout=120, stdin=subprocess.DEVNULL)
+    assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert "Traceback" not in done.stderr
+    assert {p.name: _digest(p) for p in tmp_path.iterdir() if p.is_file()} == before
+    assert (tmp_path / "fifo").is_fifo() and (tmp_path / "link.csv").is_symlink()
