@@ -30,10 +30,14 @@ def pick_peaks(freq_hz: np.ndarray, H: np.ndarray, *, coherence: np.ndarray | No
     return peaks
 
 
-def clear_peaks(freq_hz: np.ndarray, H: np.ndarray, *, prominence_db: float = 20.0) -> np.ndarray:
+def clear_peaks(freq_hz: np.ndarray, H: np.ndarray, *, prominence_db: float = 10.0,
+                above_noise: float = 30.0, span: int = 50) -> np.ndarray:
     """Line indices of the peaks of the first CMIF of ``H`` [n_out, n_in, n_freq] that stand clearly
     above the noise: ``prominence_db`` [dB] above the higher of the lowest points on either side before
-    a higher peak (a mode the data show; its count is a floor for what an identification must find).
+    a higher peak, and ``above_noise`` times the noise of the curve around them (the median absolute
+    second difference of the CMIF in dB over ``span`` lines either side: a few tenths of a dB where
+    the FRFs are clean, several dB where noise dominates, e.g. at a zero of an impact's force
+    spectrum).  A mode the data show; their count is a floor for what an identification must find.
 
     Examples
     --------
@@ -43,8 +47,12 @@ def clear_peaks(freq_hz: np.ndarray, H: np.ndarray, *, prominence_db: float = 20
     [50.0, 120.0]
     """
     ind = 20 * np.log10(cmif(np.asarray(H))[0] + 1e-300)
-    peaks, _ = scipy.signal.find_peaks(ind, prominence=prominence_db)
-    return peaks
+    peaks, props = scipy.signal.find_peaks(ind, prominence=prominence_db)
+    if peaks.size == 0:
+        return peaks
+    rough = np.abs(np.diff(ind, 2))
+    noise = np.array([np.median(rough[max(0, k - span):k + span]) for k in peaks])   # a loop over peaks
+    return peaks[props["prominences"] >= above_noise * noise]
 
 
 def visible_peaks(freq_hz: np.ndarray, H: np.ndarray, *, prominence_db: float = 3.0) -> np.ndarray:
