@@ -273,8 +273,8 @@ def stabilisation(freq_hz: np.ndarray, H: np.ndarray, orders: range | list[int],
 class PoleClusters:
     """Candidate modes of a stabilisation diagram, ascending in frequency: ``freq_hz``,
     ``damping_ratio``, ``pole`` (rad/s) from the median of the upper quarter of orders (damping: of all
-    orders) of each cluster's fully stable poles; ``n_stable`` the number of orders holding a fully stable pole of the
-    cluster, ``members`` the indices (into the Stabilisation arrays) of its poles."""
+    orders) of each cluster's fully stable poles; ``n_stable`` the number of orders holding a fully
+    stable pole of the cluster, ``members`` the indices (into the Stabilisation arrays) of its poles."""
 
     freq_hz: np.ndarray
     damping_ratio: np.ndarray
