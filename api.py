@@ -30,11 +30,11 @@ if TYPE_CHECKING:
     from flexmodal.models.rig import Rig
 
 __all__ = [
-    "Identification", "SelfCheck", "acquire", "compare_modes", "compute_frf", "compute_frfs", "demo",
-    "diagnose", "format_comparison", "identify", "list_runs", "load_rig", "plot_comparison", "plot_frf",
-    "plot_gap", "plot_mode_shapes", "plot_stabilisation", "predict", "read_diagnosis", "read_poses",
-    "read_run", "read_table", "report", "selftest", "write_diagnosis", "report_pdf", "frf_from_arrays",
-    "FrfResult", "animate_mode",
+    "FrfResult", "Identification", "SelfCheck", "acquire", "animate_mode", "compare_modes", "compute_frf",
+    "compute_frfs", "demo", "diagnose", "format_comparison", "frf_from_arrays", "identify", "list_runs",
+    "load_rig", "plot_comparison", "plot_frf", "plot_gap", "plot_mode_shapes", "plot_stabilisation",
+    "predict", "read_diagnosis", "read_poses", "read_run", "read_table", "report", "report_pdf", "selftest",
+    "serve_simulator", "write_diagnosis",
 ]
 
 
@@ -157,14 +157,18 @@ def acquire(session: PathLike | Session, out: PathLike, *, duration_s: float | N
     >>> summary.n_samples, summary.n_channels, summary.sample_rate_hz
     (2048, 7, 2048.0)
     """
+    from flexmodal.checked_io.output import hdf5_output
     from flexmodal.daq.acquire import acquire as _acquire
     from flexmodal.daq.errors import DaqError
     from flexmodal.daq.session import load_session
-    from flexmodal.valid_output import hdf5_output
 
     if isinstance(session, str | Path):
         session = load_session(session)
     hdf5_output(out, DaqError, "run file (--out)")
+    if run_id is not None:
+        from flexmodal.daq.run_schema import check_run_id
+
+        check_run_id(run_id, "--run-id")
     if duration_s is not None and duration_s <= 0:
         raise DaqError(f"--duration {duration_s}: must be > 0 seconds")
     if recover and Path(out).exists():
@@ -224,8 +228,8 @@ def compute_frf(run: Run | PathLike, *, estimator: str = "H1", nfft: int | None 
     if isinstance(run, str | Path):
         run = read_run(run)
     if store:
+        from flexmodal.checked_io.output import hdf5_output
         from flexmodal.modal.errors import ModalError
-        from flexmodal.valid_output import hdf5_output
 
         hdf5_output(run.path, ModalError, "run file (store=True)")
     result = _compute(run, estimator=estimator, nfft=nfft, window=window, overlap=overlap,
@@ -352,8 +356,8 @@ def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: 
     from flexmodal.modal.batch import frf_batch
 
     if out is not None:
+        from flexmodal.checked_io.output import hdf5_output
         from flexmodal.modal.errors import ModalError
-        from flexmodal.valid_output import hdf5_output
 
         hdf5_output(out, ModalError, "FRF file (--out)")
     options = {"estimator": estimator, "nfft": nfft, "window": window, "overlap": overlap,
@@ -409,9 +413,9 @@ class Identification:
         >>> sorted(p.name for p in folder.iterdir() if p.suffix != ".h5")
         ['modes.csv', 'modes.synthesis.csv', 'modes.uff']
         """
+        from flexmodal.checked_io.output import output_file, signals_deferred
         from flexmodal.modal.errors import ModalError
         from flexmodal.modal.identify import write_synthesis_csv
-        from flexmodal.valid_output import output_file, signals_deferred
 
         output_file(out, ModalError, "modal table (--out)")
         if uff is not None:
@@ -747,9 +751,9 @@ def write_diagnosis(result: Diagnosis, out_dir: PathLike,
     """Write ``diagnosis.json`` (strict JSON) and ``diagnosis.html`` of a :func:`diagnose` result into
     ``out_dir``.  The page is the validation report's diagnosis section alone (one renderer,
     reports/html.py), naming ``inputs`` (the rig and the measured modes it was diagnosed from)."""
+    from flexmodal.checked_io.output import output_dir, write_text
     from flexmodal.compare.errors import CompareError
     from flexmodal.reports.html import write_report
-    from flexmodal.valid_output import output_dir, write_text
 
     out = output_dir(out_dir, CompareError, "diagnosis folder (--out)",
                      files=("diagnosis.json", "diagnosis.html"), inputs=inputs)
@@ -1026,8 +1030,8 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     them beside the FE model's; ``geometry``: a Universal File with the test geometry (datasets 15 or
     2411, 82, 18 or 2420) to animate the measured modes on (their sensors named ``<node>+z``...).  Everything
     is computed here; ``reports.html`` only renders it."""
+    from flexmodal.checked_io.output import output_file
     from flexmodal.reports.errors import ReportError
-    from flexmodal.valid_output import output_file
 
     sources = [*runs, measured, *repeats, *predictions, diagnosis, rig]
     output_file(out, ReportError, "report (--out)", inputs=_paths(sources))
@@ -1122,9 +1126,9 @@ def animate_mode(out: PathLike, measured: ModalTable | PathLike, config: str, mo
     >>> gif.read_bytes()[:6]
     b'GIF89a'
     """
+    from flexmodal.checked_io.output import output_file
     from flexmodal.reports import animate
     from flexmodal.reports.errors import ReportError
-    from flexmodal.valid_output import output_file
 
     target = output_file(out, ReportError, "GIF (out)")
     table = _table(measured)
@@ -1153,9 +1157,9 @@ def report_pdf(html: PathLike, pdf: PathLike | None = None) -> Path:
     """Print the HTML report ``html`` to ``pdf`` (default: beside it, ``.pdf``) with headless Chromium,
     every run's block opened, tables whole with repeated headers; returns the PDF's path.  ReportError
     (one line) where no Chromium is installed."""
+    from flexmodal.checked_io.output import output_file
     from flexmodal.reports.errors import ReportError
     from flexmodal.reports.pdf import print_pdf
-    from flexmodal.valid_output import output_file
 
     target = output_file(Path(html).with_suffix(".pdf") if pdf is None else pdf, ReportError, "PDF report")
     return print_pdf(html, target)
@@ -1185,11 +1189,14 @@ def demo(out_dir: PathLike = "flexmodal-demo", *, rig: PathLike | None = None, q
     Path
         The report.
     """
+    from flexmodal.checked_io.output import output_dir
     from flexmodal.fixtures.errors import FixtureError
-    from flexmodal.valid_output import output_dir
 
     out = output_dir(out_dir, FixtureError, "demo folder (--out)")   # before the demo's heavy imports
-    from flexmodal.fixtures.demo import Writers, run_demo
+    from flexmodal.fixtures.demo import OUTPUTS, Writers, run_demo
+
+    tables = [name for name in OUTPUTS if not name.endswith(".h5")]   # the run files are replaced whole
+    output_dir(out, FixtureError, "demo folder (--out)", files=tables, inputs=[rig])
 
     return run_demo(out, Writers(write_diagnosis, report), None if rig is None else Path(rig), quiet=quiet)
 
@@ -1228,3 +1235,43 @@ def selftest(n_cases: int, *, seed: int = 0, progress: Callable[[object], None] 
     results = run_blind(n_cases, seed=seed, progress=progress)
     summary = summarise(results)
     return SelfCheck(tuple(results), summary, format_summary(summary))
+
+
+def serve_simulator(protocol: str, *, faults: Mapping[str, float | None] | None = None, stdout=None,
+                    **options: object) -> None:
+    """Run a simulated device streaming the simulated rig (``flexmodal sim serve``) until SIGTERM/SIGINT
+    or ``duration`` seconds of samples.
+
+    Parameters
+    ----------
+    protocol : str
+        A protocol with a simulator (fixtures.simulators): ``serial`` (a pty), ``can`` (an slcan
+        adapter on a pty) or ``modbus`` (TCP on 127.0.0.1, or RTU over a pty pair).
+    faults : mapping, optional
+        Faults to inject, by the field names of daq.faults.Faults (``corrupt_rate``, ``drop_at_s``
+        [s], ...).
+    stdout : file, optional
+        Where the endpoint (pty path or ``host:port``) is written as the first line (default
+        ``sys.stdout``).
+    **options
+        The other fields of fixtures.sim_serve.ServeOptions: ``rig`` (TOML path; default the demo arm),
+        ``test``, ``rate`` [Hz], ``pose`` (degrees, kg), ``seed``, ``effects``
+        ("EFFECT@LOCATION:PARAM=VALUE,..."), ``duration`` [s], ``link``, ``port``, ``transport``,
+        ``framing``, ``format``, ``scans_per_frame``, ``fault_log``, ``exit_with_parent``, ``quiet``.
+    """
+    import sys
+
+    from flexmodal.daq.faults import Faults
+    from flexmodal.fixtures.errors import FixtureError
+    from flexmodal.fixtures.sim_serve import ServeOptions, serve
+
+    if options.get("fault_log"):
+        from flexmodal.checked_io.output import output_file
+
+        output_file(options["fault_log"], FixtureError, "fault log (--fault-log)",
+                    inputs=(options.get("rig"),))
+    try:
+        chosen = ServeOptions(protocol, faults=Faults(**(faults or {})), **options)
+    except TypeError as exc:
+        raise FixtureError(f"serve_simulator: {exc}") from None
+    serve(chosen, stdout or sys.stdout)

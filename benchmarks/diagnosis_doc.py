@@ -75,15 +75,17 @@ def seed003_block(data: Path = REPO / "tests" / "data") -> str:
     ])
 
 
-def blind_block(seeds: tuple[int, ...] = BLIND_SEEDS, cases: int = BLIND_CASES) -> str:
+def blind_block(seeds: tuple[int, ...] = BLIND_SEEDS, cases: int = BLIND_CASES,
+                results: dict | None = None) -> str:
     """The acceptance measurement: ``cases`` blind cases of each of the draws ``seeds`` (one draw of
     fixtures/blind.py's generator each: new rigs, poses, magnitudes, scatter), each draw's summary and
-    misses, then the mean and worst over draws, as a fenced block (no timing)."""
+    misses, then the mean and worst over draws, as a fenced block (no timing); ``results`` {seed:
+    run_blind's results} when already computed."""
     from flexmodal.fixtures.blind import format_draws, format_summary, run_blind, summarise
 
     parts, draws = [], []
     for seed in seeds:
-        s = summarise(run_blind(cases, seed=seed))
+        s = summarise(results[seed] if results else run_blind(cases, seed=seed))
         draws.append(s)
         lines = [x for x in format_summary(s).splitlines() if not x.startswith("time per case")]
         parts.append(f"draw seed {seed}:\n" + "\n".join("  " + x for x in lines))

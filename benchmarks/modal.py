@@ -204,7 +204,7 @@ def bench_process(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: 
     floors = {"python -c pass": [sys.executable, "-c", "pass"],
               "import numpy, h5py": [sys.executable, "-c", "import numpy, h5py"],
               "imports of `frf`": [sys.executable, "-c", "import flexmodal.app, flexmodal.api, "
-                                   "flexmodal.modal.batch, flexmodal.valid_output"],
+                                   "flexmodal.modal.batch, flexmodal.checked_io.output"],
               "frf --help": [sys.executable, "-m", "flexmodal", "frf", "--help"]}
 
     def theirs():
@@ -233,10 +233,12 @@ def bench_process(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: 
             t0, c0 = time.perf_counter(), time.process_time()
             estimate()
             times["estimate"].append((time.perf_counter() - t0, time.process_time() - c0))
-        t_read = float(np.median([_wall(lambda: _read(path)) for _ in range(repeat)]))
+        reads = np.array([_wall(lambda: _read(path)) for _ in range(repeat)])     # [round, (wall, CPU)]
+        t_read, c_read = np.median(reads, axis=0)
         n_seg = (n - nfft) // (nfft // 2) + 1
         threads = idle_cpus()                   # the FFT threads the `frf` process uses now
         t_fft = _fft_floor((n_resp + 1) * n_seg, nfft, repeat, workers=threads)
+        c_fft = _fft_floor((n_resp + 1) * n_seg, nfft, repeat, workers=1, clock=time.process_time)
         from flexmodal.modal.runs_io import read_frf
 
         got = read_frf(out, "r")
@@ -261,6 +263,10 @@ def bench_process(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: 
           f"(process - imports) / floor = {(t_ours - t_imports) / floor:.2f} (target <= 2: process <= "
           f"{2 * floor + t_imports:.3f} s); process / floor = {t_ours / floor:.2f}; {got.n_averages} "
           f"segments; load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
+    c_floor, c_imports = c_read + c_fft, cpu["imports of `frf`"]
+    print(f"     in CPU (steadier on a shared machine): read {c_read:.3f} s + bare FFTs on 1 thread "
+          f"{c_fft:.3f} s = {c_floor:.3f} s; imports of `frf` {c_imports:.3f} s; (process - imports) / "
+          f"floor = {(cpu['ours'] - c_imports) / c_floor:.2f} (target <= 2)")
     def med(key: str, i: int) -> float:       # median wall (i = 0) or CPU (i = 1) time
         return float(np.median(np.array(times[key])[:, i]))
 
@@ -336,10 +342,11 @@ def _read(path: str) -> np.ndarray:
         return f["runs/r/samples"][()]
 
 
-def _wall(fn) -> float:
-    t0 = time.perf_counter()
+def _wall(fn) -> tuple[float, float]:
+    """Wall and CPU time (s) of ``fn()``."""
+    t0, c0 = time.perf_counter(), time.process_time()
     fn()
-    return time.perf_counter() - t0
+    return time.perf_counter() - t0, time.process_time() - c0
 
 
 def bench_lscf(n_frf: int, n_lines: int, repeat: int) -> None:

@@ -28,8 +28,8 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, fields
 from typing import Any, Self
 
+from flexmodal.checked_io.text import loads_json
 from flexmodal.compare.errors import CompareError
-from flexmodal.valid_text import loads_json
 
 Hz = tuple[float | None, ...]
 """Frequencies [Hz] of modes 1..n of one configuration; None where there is no value."""

@@ -6,7 +6,7 @@ import argparse
 import os
 import sys
 
-from flexmodal import valid_options as opt
+from flexmodal.checked_io import options as opt
 from flexmodal.cli_commands import command
 
 

@@ -24,6 +24,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from flexmodal.checked_io.text import regular_file
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.h5file import open_read
 from flexmodal.daq.run_schema import (
@@ -34,10 +35,10 @@ from flexmodal.daq.run_schema import (
     EVENT_KINDS,
     EXCITATIONS,
     check_run_group,
+    check_run_id,
     member,
     utf8,
 )
-from flexmodal.valid_text import regular_file
 
 CHUNK_BYTES = 1 << 20  # target size of one samples chunk
 CHUNK_CACHE_BYTES = 16 << 20  # room for partly filled chunks, so appends never re-read from disk
@@ -166,8 +167,7 @@ class RunWriter:
 
     def _validate(self, sample_rate_hz: float, excitation: str, pose: dict) -> None:
         where = f"{self.path}: run {self.run_id!r}"
-        if not self.run_id or "/" in self.run_id:
-            raise DaqError(f"{self.path}: run id {self.run_id!r} must be non-empty without '/'")
+        check_run_id(self.run_id, f"{self.path}: run id")
         if not self.channels or not all(isinstance(c, Channel) for c in self.channels):
             raise DaqError(f"{where}: channels must be a non-empty sequence of Channel")
         names = [c.name for c in self.channels]
@@ -182,6 +182,8 @@ class RunWriter:
             raise DaqError(f"{where}: pose must be a dict, got {type(pose).__name__}")
 
     def _open(self) -> h5py.File:
+        if self.path.exists() or self.path.is_symlink():  # a FIFO or device would block or be destroyed
+            regular_file(self.path, DaqError, "run file")
         try:
             f = h5py.File(self.path, "a", libver="latest", rdcc_nbytes=CHUNK_CACHE_BYTES)
         except OSError as exc:

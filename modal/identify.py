@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from flexmodal.checked_io.output import atomic_path
 from flexmodal.modal.damping import half_power
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import convert
@@ -32,7 +33,6 @@ from flexmodal.modal.mac import mac, mass_normalised, to_real, unit_max
 from flexmodal.modal.peaks import clear_peaks, cmif, pick_peaks, quadrature_shapes, visible_peaks
 from flexmodal.modal.table import ModalTable
 from flexmodal.modal.windows import remove_added_damping
-from flexmodal.valid_output import atomic_path
 
 METHODS = ("lscf", "peak")
 INDICATORS = ("mpc", "mpd", "synthesis_corr")   # per-mode validation columns of the modal table

@@ -10,6 +10,7 @@ import h5py
 import numpy as np
 import pandas as pd
 
+from flexmodal.checked_io.text import naming, regular_file
 from flexmodal.modal.compute import compute_frf, frf_of_record
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult
@@ -17,7 +18,6 @@ from flexmodal.modal.identify import Modes, identify, modes_table
 from flexmodal.modal.oma import OUTPUT_ONLY_METHODS, default_method, identify_output_only
 from flexmodal.modal.runs_io import read_frf
 from flexmodal.modal.table import ModalTable
-from flexmodal.valid_text import naming, regular_file
 
 
 def _driving_point(run, result: FrfResult) -> int | None:

@@ -17,9 +17,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from flexmodal.checked_io.csv_tables import read_table
+from flexmodal.checked_io.output import atomic_path
 from flexmodal.modal.errors import ModalError
-from flexmodal.valid_csv import read_table
-from flexmodal.valid_output import atomic_path
 
 REQUIRED = ("config", "mode", "freq_hz")
 POSE_PREFIX = "pose."
@@ -111,7 +111,7 @@ class ModalTable:
         return cls.from_frame(df, str(path))
 
     def to_csv(self, path: str | Path) -> None:
-        """Write CSV (whole or not at all, valid_output.atomic_path); complex shapes as ``a+bj`` text,
+        """Write CSV (whole or not at all, checked_io.output.atomic_path); complex shapes as ``a+bj`` text,
         floats with full precision."""
         df = self.frame.copy()
         for col in self.shape_columns:

@@ -484,7 +484,7 @@ def write_harmonics_csv(path: str, harmonics: Sequence[Harmonic]) -> None:
     by its sinusoid statistics), ``order`` (per joint revolution, 0 when not an order)."""
     import pandas as pd
 
-    from flexmodal.valid_output import atomic_path
+    from flexmodal.checked_io.output import atomic_path
 
     frame = pd.DataFrame([{"t_s": h.t_s, "freq_hz": h.freq_hz, "joint": h.joint, "order": h.order}
                           for h in harmonics], columns=["t_s", "freq_hz", "joint", "order"])

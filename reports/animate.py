@@ -207,8 +207,8 @@ def write_gif(shapes: Sequence[Shape], path: str | Path, frames: int = 24, fps: 
     from matplotlib.animation import FuncAnimation, PillowWriter
     from matplotlib.figure import Figure
 
+    from flexmodal.checked_io.output import atomic_path
     from flexmodal.reports.plots import text
-    from flexmodal.valid_output import atomic_path
 
     if not shapes:
         raise ReportError("animation: no shapes to draw")

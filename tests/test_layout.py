@@ -19,7 +19,7 @@ LAYERS = ("checked_io", "daq", "modal", "models", "compare", "reports", "fixture
 CLI_MODULES = ("cli.py", "diagnosis_cli.py", "__main__.py")
 # what reports/ may import from below it: data types and small display helpers, no solver
 REPORT_IMPORTS = {"flexmodal.compare.tables", "flexmodal.modal.table", "flexmodal.modal.mac",
-                  "flexmodal.modal.peaks", "flexmodal.valid_text", "flexmodal.valid_output",
+                  "flexmodal.modal.peaks", "flexmodal.checked_io.text", "flexmodal.checked_io.output",
                   "flexmodal.compare.result", "flexmodal.compare.errors",
                   "flexmodal.checked_io.errors", "flexmodal.checked_io.registry"}   # the diagnosis records
 

@@ -1,6 +1,6 @@
 """Issue 24: outputs never destroy inputs, and writers cannot half-write.
 
-``valid_output`` refuses an output that is an input of the same command (same inode, through symlinks
+``checked_io.output`` refuses an output that is an input of the same command (same inode, through symlinks
 and hard links), an existing HDF5 file where a table goes, a FIFO, a device or a directory; it writes
 regular files only, whole, and through a symlink writes the link's target.  ``modal.runs_io.write_frf``
 leaves a complete FRF group or the previous state on a full disk (a real tmpfs where this process may
@@ -21,9 +21,9 @@ import h5py
 import numpy as np
 import pytest
 
+from flexmodal.checked_io.output import atomic_path, hdf5_output, output_dir, output_file, write_text
 from flexmodal.modal import runs_io
 from flexmodal.modal.errors import ModalError
-from flexmodal.valid_output import atomic_path, hdf5_output, output_dir, output_file, write_text
 
 sys.path.insert(0, str(Path(__file__).parent))
 from test_cli_table import write_run  # noqa: E402  (the table's small valid run)
@@ -215,3 +215,33 @@ def test_cli_refuses_to_destroy_an_input(tmp_path: Path, command: str) -> None:
     assert "Traceback" not in done.stderr
     assert {p.name: _digest(p) for p in tmp_path.iterdir() if p.is_file()} == before
     assert (tmp_path / "fifo").is_fifo() and (tmp_path / "link.csv").is_symlink()
+
+
+def test_a_fault_log_is_a_regular_file(tmp_path: Path) -> None:
+    """The simulator's fault log: a FIFO (no reader) or a device fails at once, never blocks."""
+    from flexmodal.fixtures.errors import FixtureError
+    from flexmodal.fixtures.sim_common import FaultLog
+
+    os.mkfifo(tmp_path / "fifo")
+    for path, message in [(tmp_path / "fifo", "cannot write the fault log"),
+                          ("/dev/null", "character device, not a regular file")]:
+        with pytest.raises(FixtureError, match=message):
+            FaultLog(path)
+    log = FaultLog(tmp_path / "faults.log")
+    log.write("drop", at_s=1.5)
+    log.close()
+    assert (tmp_path / "faults.log").read_text() == '{"fault": "drop", "at_s": 1.5}\n'
+
+
+def test_the_live_display_ends_its_last_frame_with_a_newline(capsys) -> None:
+    """On a stream that is not a terminal rich prints the last frame at the end without a newline; the
+    display adds it, so an error line printed next starts on its own line."""
+    from collections import Counter
+
+    from flexmodal.daq.acquire import Display
+
+    display = Display(("F", "a1"), ("N", "m/s^2"), quiet=False)
+    display.update(2048, 2048.0, 0, Counter(), force=True)
+    display.close()
+    err = capsys.readouterr().err
+    assert "acquiring" in err and err.endswith("\n") and not err.endswith("\n\n")

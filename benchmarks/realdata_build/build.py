@@ -471,6 +471,33 @@ def build_pyfrf_impact_frf() -> None:
             script="benchmarks/realdata_build/build.py pyfrf_impact_frf")
 
 
+@builder
+def build_pyfrf_impact_single_hit() -> None:
+    """The first of pyFRF's five hits alone: a single-hit impact test (no averaging, no coherence)."""
+    name = "pyfrf_impact_single_hit"
+    repo, commit = PYFRF
+    hit = np.load(io.BytesIO(blob(repo, commit, "data/measurements_1.npy")))
+    fs = 1.0 / (hit[0, 1] - hit[0, 0])
+    d = entry_dir(name)
+    write_time_uff(d / "impact_hit1.uff", fs, [
+        {"node": 1, "dir": 3, "kind": "force", "records": [hit[1]], "id1": "Force hammer"},
+        {"node": 2, "dir": 3, "kind": "acceleration", "records": [hit[2]], "id1": "Acceleration"}])
+    check_uff(d / "impact_hit1.uff", [hit[1], hit[2]])
+    ref = json.loads((entry_dir("pyfrf_impact_5hits") / "reference.json").read_text())
+    write_json(d / "reference.json", {**ref, "notes": ref["notes"] + "  Same reference as pyfrf_impact_5hits "
+                                      "(from all five hits); this entry holds the first hit only."})
+    _source(name, input="impact_hit1.uff", kind_short="impact, single hit, dense/close modes",
+            repository=repo, commit=commit, paths=["data/measurements_1.npy"],
+            licence="LGPL-3.0 (pyFRF LICENSE at the commit that added the data; the repository was "
+                    "relicensed MIT by its authors in 2023, commit 635e14b)",
+            kind="impact test, one hit (force + acceleration time histories), dense modes with close "
+                 "pairs, light damping",
+            structure="unnamed test piece of pyFRF's showcase (LADISK, University of Ljubljana, 2016)",
+            derived="impact_hit1.uff: dataset 58b time histories (single precision) of measurements_1.npy: "
+                    "force node 1 +z (ordinate type 13), acceleration node 2 +z, 25 600 Hz, 25 600 samples",
+            script="benchmarks/realdata_build/build.py pyfrf_impact_single_hit")
+
+
 # ------------------------------------------------------------------ pyuff MPS output-only export
 @builder
 def build_pyuff_mps_oma() -> None:
