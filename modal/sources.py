@@ -161,9 +161,14 @@ def _uff_record_frfs(p: Path, data) -> FrfResult:
             result = frf_of_record(data.samples[:n], data.sample_rate_hz, data.names, data.kinds, nfft=n,
                                    window="rect", where=str(p))
             return dataclasses.replace(result, provenance={**result.provenance, "excitation": "sweep"})
-        exc = "impact" if _impulsive(force) else "random"
-        return frf_of_record(data.samples, data.sample_rate_hz, data.names, data.kinds, excitation=exc,
-                             where=str(p))
+        if not _impulsive(force):
+            return frf_of_record(data.samples, data.sample_rate_hz, data.names, data.kinds, where=str(p))
+        from flexmodal.modal.impact import find_triggers
+
+        first = find_triggers(force)   # a record that starts at its hit keeps what lies before it
+        lead = min(0.02, first[0] / data.sample_rate_hz) if first.size else 0.02
+        return frf_of_record(data.samples, data.sample_rate_hz, data.names, data.kinds, excitation="impact",
+                             where=str(p), pretrigger_s=lead)
     n_hits = data.samples.shape[0] // data.hit_len
     if not data.triggers or len(data.triggers) != n_hits:
         raise ModalError(f"{p}: {n_hits} records per channel are read as impact hits, but the force shows "

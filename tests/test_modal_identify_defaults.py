@@ -214,3 +214,28 @@ def test_a_sine_sweep_in_uff_time_histories_gives_its_frf_from_the_whole_record(
     assert found.size == 3 and np.all(np.abs(found / fn - 1) < 5e-4), found
     assert np.all(np.abs(damping / zeta - 1) < 0.15), damping
     assert not any("nfft" in line for line in err), err
+
+
+def test_a_single_hit_record_that_starts_at_its_hit_is_identified(tmp_path, capsys):
+    """pyFRF's measurements_1: one hit 22 samples into the record, less than the default 0.02 s
+    pretrigger: it was refused ("no hammer hit found"); the record keeps what lies before the hit."""
+    from flexmodal.fixtures.modal_sim import modal_response
+
+    fs = 2048.0
+    force = np.zeros(4 * int(fs))
+    force[22:30] = 80.0 * np.sin(np.pi * np.arange(8) / 7)
+    fn, zeta = np.array([120.0, 310.0, 540.0]), np.array([0.01, 0.008, 0.006])
+    phi_out, phi_in = np.array([[1.0, -0.7, 0.5]]), np.array([[0.8, 0.6, -0.9]])
+    y = modal_response(force[:, None], fs, fn, zeta, phi_out, phi_in)
+    t = np.arange(force.size) / fs
+    sets = [pyuff.prepare_58(func_type=1, rsp_node=node, rsp_dir=3, ref_node=1, ref_dir=3,
+                             ordinate_spec_data_type=13 if node == 1 else 12, orddenom_spec_data_type=0,
+                             abscissa_spec_data_type=17, data=data, x=t, abscissa_spacing=1, abscissa_min=0.0,
+                             abscissa_inc=1 / fs, num_pts=t.size, id1="hit")
+            for node, data in ((1, force), (2, y[:, 0]))]
+    path = tmp_path / "hit.uff"
+    pyuff.UFF(str(path)).write_sets(sets, mode="overwrite")
+    code, err = _run(path, tmp_path, capsys, "--fmin", "50", "--fmax", "800")
+    assert code == 0, err
+    found = ModalTable.read_csv(tmp_path / "m.csv").freq_hz("hit")
+    assert found.size == 3 and np.all(np.abs(found / fn - 1) < 2e-3), found
