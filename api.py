@@ -1007,6 +1007,35 @@ def _diagnosis(diagnosis: Diagnosis | Mapping | PathLike) -> Diagnosis:
 
 # -- report ----------------------------------------------------------------------------------------
 
+def _tracked_map_figures(inputs) -> list[tuple[Figure, str]]:
+    """The report's modal-map section: a measured table from ``identify --track`` (source ``track``)
+    drawn as frequency against its pose (compare/modal_map.py branches, reports/modal_map_plot.py),
+    with the first prediction's frequencies at the same configurations overlaid (``predict --poses
+    MAP.csv``); nothing for any other table."""
+    import numpy as np
+
+    from flexmodal.compare.modal_map import PredictionBand, modal_map
+    from flexmodal.reports.modal_map_plot import plot_modal_map
+
+    meas = inputs.measured
+    if meas is None or "source" not in meas.frame or not (meas.frame["source"] == "track").all() \
+            or len(meas.pose_columns) != 1:
+        return []
+    var = meas.pose_columns[0].removeprefix("pose.")
+    band, named = None, ""
+    for name, pred in inputs.predictions[:1]:
+        configs = sorted((c for c in meas.configs if c in pred.configs), key=lambda c: meas.pose(c)[var])
+        n = min((pred.freq_hz(c).size for c in configs), default=0)
+        if n:
+            f = np.array([pred.freq_hz(c)[:n] for c in configs])
+            band = PredictionBand(np.array([meas.pose(c)[var] for c in configs]), f, f, f, label=name)
+            named = f", {name}'s frequencies at the same poses as lines"
+    fig = plot_modal_map(modal_map(meas), band, pose_label=var,
+                         title="modes tracked while the arm moved (mean ± 95 % interval per pose bin)")
+    return [(fig, f"Natural frequency against {var} of the modes tracked while the arm moved (identify "
+                  f"--track: one point per pose bin, bars ± 1.96 standard errors of its windows){named}")]
+
+
 def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (),
            measured: ModalTable | PathLike | None = None, repeats: Sequence[ModalTable | PathLike] = (),
            predictions: Sequence[ModalTable | PathLike | tuple[str, ModalTable]] = (),
@@ -1043,6 +1072,10 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     from flexmodal.modal.sources import identify_frf
     from flexmodal.reports.html import write_report
     from flexmodal.reports.runs import RunSummary
+    from flexmodal.reports.sections import Section, register_section, registered_sections
+
+    if "modal-map" not in registered_sections():
+        register_section("modal-map", Section("Modal map of the moving arm", _tracked_map_figures))
 
     if not (runs or measured is not None or predictions or diagnosis is not None):
         raise ReportError("report: nothing to report (give RUN.h5 files, --measured, --pred or --diagnosis)")
@@ -1053,6 +1086,11 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
         raise ReportError(f"report: oma_fmin = {oma_fmin:g} Hz must be below oma_fmax = {oma_fmax:g} Hz")
     if fmin is not None and fmax is not None and fmin >= fmax:
         raise ReportError(f"report: fmin = {fmin:g} Hz must be below fmax = {fmax:g} Hz")
+    geo = None
+    if geometry is not None:    # read first: a bad geometry file stops the report before any work
+        from flexmodal.reports.geometry import read_uff_geometry
+
+        geo = read_uff_geometry(geometry)
     step = progress or (lambda _msg: None)
     summaries = []
     for path, run_id in expand_runs(runs):
@@ -1094,11 +1132,6 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     inputs += [diagnosis] if isinstance(diagnosis, str | Path) else []
     inputs += [rig.source] if rig is not None else []
     inputs += [geometry] if geometry is not None else []
-    geo = None
-    if geometry is not None:
-        from flexmodal.reports.geometry import read_uff_geometry
-
-        geo = read_uff_geometry(geometry)
     return write_report(out, runs=summaries, comparison=comparison, measured=meas,
                         repeats=[_table(r) for r in repeats], predictions=named, shapes=shapes,
                         diagnosis=_diagnosis(diagnosis) if diagnosis is not None else None,
