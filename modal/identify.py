@@ -16,6 +16,8 @@ import numpy as np
 import pandas as pd
 
 from flexmodal.checked_io.output import atomic_path
+from flexmodal.contract.mac import mac, mass_normalised, to_real, unit_max
+from flexmodal.contract.table import ModalTable
 from flexmodal.modal.damping import half_power
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import convert
@@ -29,9 +31,7 @@ from flexmodal.modal.lscf import (
     stable_clusters,
 )
 from flexmodal.modal.lsfd import LsfdResult, lsfd
-from flexmodal.modal.mac import mac, mass_normalised, to_real, unit_max
 from flexmodal.modal.peaks import clear_peaks, cmif, pick_peaks, quadrature_shapes, visible_peaks
-from flexmodal.modal.table import ModalTable
 from flexmodal.modal.windows import remove_added_damping
 
 METHODS = ("lscf", "peak")

@@ -31,8 +31,8 @@ import scipy.sparse
 import scipy.sparse.csgraph
 from threadpoolctl import ThreadpoolController
 
+from flexmodal.contract.mac import mac_pairs
 from flexmodal.modal.errors import ModalError
-from flexmodal.modal.mac import mac_pairs
 
 T = TypeVar("T")
 DEFAULT_MAX_POLES = 200   # default cap of (model order x references) of the adaptive diagram

@@ -11,13 +11,13 @@ import numpy as np
 import pandas as pd
 
 from flexmodal.checked_io.text import naming, regular_file
+from flexmodal.contract.table import ModalTable
 from flexmodal.modal.compute import compute_frf, frf_of_record
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult
 from flexmodal.modal.identify import Modes, identify, modes_table
 from flexmodal.modal.oma import OUTPUT_ONLY_METHODS, default_method, identify_output_only
 from flexmodal.modal.runs_io import read_frf
-from flexmodal.modal.table import ModalTable
 
 
 def _driving_point(run, result: FrfResult) -> int | None:

@@ -15,10 +15,10 @@ from conftest import REPO
 
 from flexmodal.app import build_parser
 
-LAYERS = ("checked_io", "daq", "modal", "models", "compare", "reports", "fixtures", "api", "app")
+LAYERS = ("checked_io", "contract", "daq", "modal", "models", "compare", "reports", "fixtures", "api", "app")
 CLI_MODULES = ("cli.py", "diagnosis_cli.py", "__main__.py")
 # what reports/ may import from below it: data types and small display helpers, no solver
-REPORT_IMPORTS = {"flexmodal.compare.tables", "flexmodal.modal.table", "flexmodal.modal.mac",
+REPORT_IMPORTS = {"flexmodal.compare.tables", "flexmodal.contract.table", "flexmodal.contract.mac",
                   "flexmodal.modal.peaks", "flexmodal.checked_io.text", "flexmodal.checked_io.output",
                   "flexmodal.compare.result", "flexmodal.compare.errors",
                   "flexmodal.checked_io.errors", "flexmodal.checked_io.registry"}   # the diagnosis records
@@ -27,7 +27,7 @@ REPORT_IMPORTS = {"flexmodal.compare.tables", "flexmodal.modal.table", "flexmoda
 def _sources() -> list[Path]:
     """Every module of the installed package but its root ``__init__.py`` (tests, benchmarks and any
     build/ output are not part of it)."""
-    packages = {"checked_io", "daq", "modal", "models", "compare", "reports", "fixtures"}
+    packages = {"checked_io", "contract", "daq", "modal", "models", "compare", "reports", "fixtures"}
     return sorted(p for p in REPO.rglob("*.py") if p.relative_to(REPO).parts[0] in packages
                   or p.relative_to(REPO) in (Path("app.py"), Path("api.py"), Path("__main__.py")))
 
@@ -136,5 +136,5 @@ def test_every_package_error_is_one_of_the_family():
         found |= {name: obj for name, obj in vars(module).items() if isinstance(obj, type)
                   and issubclass(obj, Exception) and obj.__module__ == module.__name__}
     assert set(found) - {"FlexmodalError"} == {"DaqError", "ModalError", "ModelError", "CompareError",
-                                               "ReportError", "FixtureError"}
+                                               "ReportError", "FixtureError", "ContractError"}
     assert all(issubclass(cls, FlexmodalError) for cls in found.values())

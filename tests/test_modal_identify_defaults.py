@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 
 from flexmodal.app import main
+from flexmodal.contract.table import ModalTable
 from flexmodal.fixtures.modal_sim import modal_frf
 from flexmodal.modal.identify import Thresholds, _validate
 from flexmodal.modal.lscf import PoleClusters, _pole, adaptive_stabilisation
 from flexmodal.modal.peaks import clear_peaks, visible_peaks
-from flexmodal.modal.table import ModalTable
 
 pyuff = pytest.importorskip("pyuff")
 # like pyuff's data/meas_point_1..3 (one accelerometer, the hammer at three points, 1 Hz lines): six
