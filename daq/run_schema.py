@@ -14,9 +14,9 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from flexmodal.checked_io.text import loads_json, one_line
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.h5file import open_read
-from flexmodal.valid_text import loads_json, one_line
 
 CHANNEL_KINDS = ("acceleration", "force", "strain", "encoder", "voltage", "other")
 EVENT_KINDS = ("trigger", "gap", "overload", "corrupt", "reconnect", "note", "device_lost", "overrun",

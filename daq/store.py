@@ -24,6 +24,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from flexmodal.checked_io.text import regular_file
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.h5file import open_read
 from flexmodal.daq.run_schema import (
@@ -38,7 +39,6 @@ from flexmodal.daq.run_schema import (
     member,
     utf8,
 )
-from flexmodal.valid_text import regular_file
 
 CHUNK_BYTES = 1 << 20  # target size of one samples chunk
 CHUNK_CACHE_BYTES = 16 << 20  # room for partly filled chunks, so appends never re-read from disk

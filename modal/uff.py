@@ -21,11 +21,11 @@ from pathlib import Path
 
 import numpy as np
 
+from flexmodal.checked_io.output import atomic_path
+from flexmodal.checked_io.text import regular_file
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult
 from flexmodal.modal.valid_uff import check_functions
-from flexmodal.valid_output import atomic_path
-from flexmodal.valid_text import regular_file
 
 _AXES = "xyz"
 _SPEC = {"accelerance": 12, "mobility": 11, "receptance": 8}

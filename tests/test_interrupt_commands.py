@@ -1,5 +1,5 @@
 """Issue 13, point 7: Ctrl-C (SIGINT) stops every long command within 1 s with exit 130, one line on
-stderr and no traceback, and leaves no output half-written (valid_output.atomic_path: the output is
+stderr and no traceback, and leaves no output half-written (checked_io.output.atomic_path: the output is
 absent, or whole from before; no temporary file stays behind).
 
 Each command runs as the real console script on inputs big enough that it is still working when the

@@ -1,6 +1,6 @@
 """Issue 24: outputs never destroy inputs, and writers cannot half-write.
 
-``valid_output`` refuses an output that is an input of the same command (same inode, through symlinks
+``checked_io.output`` refuses an output that is an input of the same command (same inode, through symlinks
 and hard links), an existing HDF5 file where a table goes, a FIFO, a device or a directory; it writes
 regular files only, whole, and through a symlink writes the link's target.  ``modal.runs_io.write_frf``
 leaves a complete FRF group or the previous state on a full disk (a real tmpfs where this process may
@@ -21,9 +21,9 @@ import h5py
 import numpy as np
 import pytest
 
+from flexmodal.checked_io.output import atomic_path, hdf5_output, output_dir, output_file, write_text
 from flexmodal.modal import runs_io
 from flexmodal.modal.errors import ModalError
-from flexmodal.valid_output import atomic_path, hdf5_output, output_dir, output_file, write_text
 
 sys.path.insert(0, str(Path(__file__).parent))
 from test_cli_table import write_run  # noqa: E402  (the table's small valid run)
