@@ -21,12 +21,12 @@ if TYPE_CHECKING:
 
     from flexmodal.compare.result import Diagnosis
     from flexmodal.compare.tables import Comparison
+    from flexmodal.contract.table import ModalTable
     from flexmodal.daq.acquire import Summary
     from flexmodal.daq.session import Session
     from flexmodal.daq.store import Run
     from flexmodal.modal.frf import FrfResult
     from flexmodal.modal.identify import Modes
-    from flexmodal.modal.table import ModalTable
     from flexmodal.models.rig import Rig
 
 __all__ = [
@@ -34,7 +34,7 @@ __all__ = [
     "compute_frfs", "demo", "diagnose", "format_comparison", "frf_from_arrays", "identify", "list_runs",
     "load_rig", "plot_comparison", "plot_frf", "plot_gap", "plot_mode_shapes", "plot_stabilisation",
     "predict", "read_diagnosis", "read_poses", "read_run", "read_table", "report", "report_pdf", "selftest",
-    "serve_simulator", "write_diagnosis",
+    "serve_simulator", "track", "write_diagnosis",
 ]
 
 
@@ -492,7 +492,7 @@ def read_table(path: PathLike) -> ModalTable:
 
     Returns
     -------
-    modal.table.ModalTable
+    contract.table.ModalTable
 
     Examples
     --------
@@ -501,7 +501,7 @@ def read_table(path: PathLike) -> ModalTable:
     >>> table.configs[:3], len(table.frame)
     (['theta0', 'theta120', 'theta150'], 12)
     """
-    from flexmodal.modal.table import ModalTable
+    from flexmodal.contract.table import ModalTable
 
     return ModalTable.read_csv(path)
 
@@ -526,7 +526,7 @@ def read_poses(path: PathLike) -> dict[str, dict[str, float]]:
     >>> fm.read_poses("examples/measured/seed003_table3_f1f2.csv")["theta30"]
     {'theta_deg': 30.0}
     """
-    from flexmodal.modal.table import poses_from_csv
+    from flexmodal.contract.table import poses_from_csv
 
     return poses_from_csv(path)
 
@@ -580,7 +580,7 @@ def predict(rig: Rig | PathLike, poses: Mapping[str, Mapping[str, float]] | Moda
     ----------
     rig : models.rig.Rig, str or Path
         The rig, or its TOML file.
-    poses : mapping, modal.table.ModalTable, str or Path
+    poses : mapping, contract.table.ModalTable, str or Path
         ``{config: {pose variable: value}}`` (degrees, kg), a POSES.csv path, or a modal table whose
         configurations and poses are taken.
     model : str
@@ -598,7 +598,7 @@ def predict(rig: Rig | PathLike, poses: Mapping[str, Mapping[str, float]] | Moda
 
     Returns
     -------
-    modal.table.ModalTable
+    contract.table.ModalTable
         Natural frequencies [Hz] and mass-normalised shapes [kg^-1/2] at the rig's sensors.
 
     References
@@ -658,9 +658,9 @@ def compare_modes(measured: ModalTable | PathLike,
 
     Parameters
     ----------
-    measured : modal.table.ModalTable, str or Path
+    measured : contract.table.ModalTable, str or Path
         The measured modal table.
-    *predicted : modal.table.ModalTable, str, Path or (name, table)
+    *predicted : contract.table.ModalTable, str, Path or (name, table)
         Predicted tables, named by their ``source`` column, else by the file name.
     min_mac : float
         MAC pairs below this value [0, 1] are rejected.
@@ -885,7 +885,7 @@ def plot_mode_shapes(rig: Rig | PathLike, measured: ModalTable | PathLike, confi
     ----------
     rig : models.rig.Rig, str or Path
         The rig, or its TOML file.
-    measured : modal.table.ModalTable, str or Path
+    measured : contract.table.ModalTable, str or Path
         Modal table with ``shape.<sensor>`` columns.
     config : str
         The configuration to draw.
@@ -923,9 +923,9 @@ def plot_comparison(measured: ModalTable | PathLike,
 
     Parameters
     ----------
-    measured : modal.table.ModalTable, str or Path
+    measured : contract.table.ModalTable, str or Path
         The measured modal table (its mean with ``repeats``, ± 1 standard deviation).
-    *predicted : modal.table.ModalTable, str, Path or (name, table)
+    *predicted : contract.table.ModalTable, str, Path or (name, table)
         Predicted tables, a line per model and mode.
     pose_var : str, optional
         The pose variable on the x axis (default: the first that varies).
@@ -1007,6 +1007,35 @@ def _diagnosis(diagnosis: Diagnosis | Mapping | PathLike) -> Diagnosis:
 
 # -- report ----------------------------------------------------------------------------------------
 
+def _tracked_map_figures(inputs) -> list[tuple[Figure, str]]:
+    """The report's modal-map section: a measured table from ``identify --track`` (source ``track``)
+    drawn as frequency against its pose (compare/modal_map.py branches, reports/modal_map_plot.py),
+    with the first prediction's frequencies at the same configurations overlaid (``predict --poses
+    MAP.csv``); nothing for any other table."""
+    import numpy as np
+
+    from flexmodal.compare.modal_map import PredictionBand, modal_map
+    from flexmodal.reports.modal_map_plot import plot_modal_map
+
+    meas = inputs.measured
+    if meas is None or "source" not in meas.frame or not (meas.frame["source"] == "track").all() \
+            or len(meas.pose_columns) != 1:
+        return []
+    var = meas.pose_columns[0].removeprefix("pose.")
+    band, named = None, ""
+    for name, pred in inputs.predictions[:1]:
+        configs = sorted((c for c in meas.configs if c in pred.configs), key=lambda c: meas.pose(c)[var])
+        n = min((pred.freq_hz(c).size for c in configs), default=0)
+        if n:
+            f = np.array([pred.freq_hz(c)[:n] for c in configs])
+            band = PredictionBand(np.array([meas.pose(c)[var] for c in configs]), f, f, f, label=name)
+            named = f", {name}'s frequencies at the same poses as lines"
+    fig = plot_modal_map(modal_map(meas), band, pose_label=var,
+                         title="modes tracked while the arm moved (mean ± 95 % interval per pose bin)")
+    return [(fig, f"Natural frequency against {var} of the modes tracked while the arm moved (identify "
+                  f"--track: one point per pose bin, bars ± 1.96 standard errors of its windows){named}")]
+
+
 def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (),
            measured: ModalTable | PathLike | None = None, repeats: Sequence[ModalTable | PathLike] = (),
            predictions: Sequence[ModalTable | PathLike | tuple[str, ModalTable]] = (),
@@ -1043,6 +1072,10 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     from flexmodal.modal.sources import identify_frf
     from flexmodal.reports.html import write_report
     from flexmodal.reports.runs import RunSummary
+    from flexmodal.reports.sections import Section, register_section, registered_sections
+
+    if "modal-map" not in registered_sections():
+        register_section("modal-map", Section("Modal map of the moving arm", _tracked_map_figures))
 
     if not (runs or measured is not None or predictions or diagnosis is not None):
         raise ReportError("report: nothing to report (give RUN.h5 files, --measured, --pred or --diagnosis)")

@@ -308,10 +308,13 @@ def bench_kernel(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: i
         s = welch_spectra(samples, fs, [0], list(range(1, n_resp + 1)), nfft, workers=threads)
         return h1(s), h2(s), coherence(s)
 
-    def rounds() -> dict[int, np.ndarray]:
-        times: dict[int, list] = {1: [], 2: []}
+    def rounds() -> dict:
+        """Per round: the bare FFTs' CPU on one thread (the reference, first), then the estimate on
+        1 and 2 threads (wall, CPU)."""
+        times: dict = {"fft": [], 1: [], 2: []}
         for _ in range(repeat):
-            for threads in times:
+            times["fft"].append(_fft_floor(n_fft, nfft, 1, workers=1, clock=time.process_time))
+            for threads in (1, 2):
                 t0, c0 = time.perf_counter(), time.process_time()
                 estimate(threads)
                 times[threads].append((time.perf_counter() - t0, time.process_time() - c0))
@@ -320,19 +323,21 @@ def bench_kernel(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: i
     estimate(1)                                 # warm: buffers, FFT plans
     load = os.getloadavg()[0]
     quiet = rounds()
-    cf = _fft_floor(n_fft, nfft, repeat, workers=1, clock=time.process_time)
     with _other_core_busy():
         busy = rounds()
-    c1 = quiet[1][:, 1]
+    c1, cf = quiet[1][:, 1], quiet["fft"]
+    ratio = c1 / cf
     print(f"KERNEL Welch H1 + H2 + coherence, {n_resp} + 1 channels, {duration_s:g} s at {fs:g} Hz, nfft "
           f"{nfft}, float32 in memory (load average {load:.1f} on {os.cpu_count()} CPUs): CPU on 1 thread "
-          f"{_spread(c1)}, its {n_fft} bare FFTs' CPU on 1 thread {cf:.3f} s: {np.median(c1) / cf:.2f}x "
-          f"(target <= 1.4); the passes besides the FFTs {np.median(c1) - cf:.3f} s")
+          f"{_spread(c1)}, its {n_fft} bare FFTs' CPU on 1 thread {_spread(cf)} (the reference, first in "
+          f"each round): {np.median(ratio):.2f}x ({ratio.min():.2f}-{ratio.max():.2f}, per round) (target "
+          f"<= 1.4); the passes besides the FFTs {np.median(c1 - cf):.3f} s")
     for name, t in (("as it is", quiet), ("other core busy", busy)):
         ratio = t[2][:, 0] / t[1][:, 0]
         print(f"     wall, {name}: 1 thread {_spread(t[1][:, 0])}, 2 threads {_spread(t[2][:, 0])}: 2 / 1 = "
               f"{np.median(ratio):.2f} ({ratio.min():.2f}-{ratio.max():.2f}) (target <= 0.6); CPU 2 threads "
-              f"{np.median(t[2][:, 1]):.3f} s (medians of {repeat})")
+              f"{np.median(t[2][:, 1]):.3f} s (medians of {repeat}; load average now "
+              f"{os.getloadavg()[0]:.1f})")
 
 
 def _read(path: str) -> np.ndarray:
