@@ -21,7 +21,7 @@ import pandas as pd
 REPO = Path(__file__).resolve().parents[1]
 DOC = REPO / "docs" / "diagnosis.md"
 BLIND_CASES = 36
-BLIND_SEEDS = (101, 102, 103, 104, 105)
+BLIND_SEEDS = (106, 107, 108, 109, 110)
 COVERAGE_RUNS = 400
 
 from flexmodal.compare.diagnosis import diagnose  # noqa: E402
