@@ -95,6 +95,21 @@ def blind_block(seeds: tuple[int, ...] = BLIND_SEEDS, cases: int = BLIND_CASES,
             f"```\n{body}\n```")
 
 
+def advice_block(results: dict) -> str:
+    """Next-measurement advice on the acceptance draws: every ambiguous verdict measured once more at
+    its advised pose and at two random untested poses (fixtures/blind.py ``advice_trials``), per draw
+    and pooled, as a fenced block; ``results`` {seed: run_blind's results}."""
+    from flexmodal.fixtures.blind import advice_trials, format_advice
+
+    lines, pooled = [], []
+    for seed, res in results.items():
+        trials = advice_trials(res, seed=seed)
+        pooled += trials
+        lines.append(f"draw seed {seed}: {format_advice(trials)}")
+    lines.append(f"pooled: {format_advice(pooled)}")
+    return "```\n" + "\n".join(lines) + "\n```"
+
+
 def coverage_block(runs: int = COVERAGE_RUNS) -> str:
     """Monte-Carlo coverage of the identification's 95 % intervals (fixtures/modal_coverage.py) for two
     damping levels and resolutions, as a fenced block."""
