@@ -20,11 +20,11 @@ set_simulator_launcher("flexmodal.fixtures.sim_serve:launch")
 # ``import flexmodal`` without importing numpy, h5py or matplotlib up front.  tests/test_api.py checks
 # that this list is exactly ``flexmodal.api.__all__``.
 __all__ = [
-    "Identification", "SelfCheck", "acquire", "compare_modes", "compute_frf", "compute_frfs", "demo",
-    "diagnose", "format_comparison", "identify", "list_runs", "load_rig", "plot_comparison", "plot_frf",
-    "plot_gap", "plot_mode_shapes", "plot_stabilisation", "predict", "read_diagnosis", "read_poses",
-    "read_run", "read_table", "report", "selftest", "write_diagnosis", "report_pdf", "frf_from_arrays",
-    "FrfResult", "animate_mode",
+    "FrfResult", "Identification", "SelfCheck", "acquire", "animate_mode", "compare_modes", "compute_frf",
+    "compute_frfs", "demo", "diagnose", "format_comparison", "frf_from_arrays", "identify", "list_runs",
+    "load_rig", "plot_comparison", "plot_frf", "plot_gap", "plot_mode_shapes", "plot_stabilisation",
+    "predict", "read_diagnosis", "read_poses", "read_run", "read_table", "report", "report_pdf", "selftest",
+    "serve_simulator", "track", "write_diagnosis",
 ]
 
 

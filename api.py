@@ -21,20 +21,20 @@ if TYPE_CHECKING:
 
     from flexmodal.compare.result import Diagnosis
     from flexmodal.compare.tables import Comparison
+    from flexmodal.contract.table import ModalTable
     from flexmodal.daq.acquire import Summary
     from flexmodal.daq.session import Session
     from flexmodal.daq.store import Run
     from flexmodal.modal.frf import FrfResult
     from flexmodal.modal.identify import Modes
-    from flexmodal.modal.table import ModalTable
     from flexmodal.models.rig import Rig
 
 __all__ = [
-    "Identification", "SelfCheck", "acquire", "compare_modes", "compute_frf", "compute_frfs", "demo",
-    "diagnose", "format_comparison", "identify", "list_runs", "load_rig", "plot_comparison", "plot_frf",
-    "plot_gap", "plot_mode_shapes", "plot_stabilisation", "predict", "read_diagnosis", "read_poses",
-    "read_run", "read_table", "report", "selftest", "write_diagnosis", "report_pdf", "frf_from_arrays",
-    "FrfResult", "animate_mode",
+    "FrfResult", "Identification", "SelfCheck", "acquire", "animate_mode", "compare_modes", "compute_frf",
+    "compute_frfs", "demo", "diagnose", "format_comparison", "frf_from_arrays", "identify", "list_runs",
+    "load_rig", "plot_comparison", "plot_frf", "plot_gap", "plot_mode_shapes", "plot_stabilisation",
+    "predict", "read_diagnosis", "read_poses", "read_run", "read_table", "report", "report_pdf", "selftest",
+    "serve_simulator", "track", "write_diagnosis",
 ]
 
 
@@ -157,14 +157,18 @@ def acquire(session: PathLike | Session, out: PathLike, *, duration_s: float | N
     >>> summary.n_samples, summary.n_channels, summary.sample_rate_hz
     (2048, 7, 2048.0)
     """
+    from flexmodal.checked_io.output import hdf5_output
     from flexmodal.daq.acquire import acquire as _acquire
     from flexmodal.daq.errors import DaqError
     from flexmodal.daq.session import load_session
-    from flexmodal.valid_output import hdf5_output
 
     if isinstance(session, str | Path):
         session = load_session(session)
     hdf5_output(out, DaqError, "run file (--out)")
+    if run_id is not None:
+        from flexmodal.daq.run_schema import check_run_id
+
+        check_run_id(run_id, "--run-id")
     if duration_s is not None and duration_s <= 0:
         raise DaqError(f"--duration {duration_s}: must be > 0 seconds")
     if recover and Path(out).exists():
@@ -224,8 +228,8 @@ def compute_frf(run: Run | PathLike, *, estimator: str = "H1", nfft: int | None 
     if isinstance(run, str | Path):
         run = read_run(run)
     if store:
+        from flexmodal.checked_io.output import hdf5_output
         from flexmodal.modal.errors import ModalError
-        from flexmodal.valid_output import hdf5_output
 
         hdf5_output(run.path, ModalError, "run file (store=True)")
     result = _compute(run, estimator=estimator, nfft=nfft, window=window, overlap=overlap,
@@ -352,8 +356,8 @@ def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: 
     from flexmodal.modal.batch import frf_batch
 
     if out is not None:
+        from flexmodal.checked_io.output import hdf5_output
         from flexmodal.modal.errors import ModalError
-        from flexmodal.valid_output import hdf5_output
 
         hdf5_output(out, ModalError, "FRF file (--out)")
     options = {"estimator": estimator, "nfft": nfft, "window": window, "overlap": overlap,
@@ -409,9 +413,9 @@ class Identification:
         >>> sorted(p.name for p in folder.iterdir() if p.suffix != ".h5")
         ['modes.csv', 'modes.synthesis.csv', 'modes.uff']
         """
+        from flexmodal.checked_io.output import output_file, signals_deferred
         from flexmodal.modal.errors import ModalError
         from flexmodal.modal.identify import write_synthesis_csv
-        from flexmodal.valid_output import output_file, signals_deferred
 
         output_file(out, ModalError, "modal table (--out)")
         if uff is not None:
@@ -488,7 +492,7 @@ def read_table(path: PathLike) -> ModalTable:
 
     Returns
     -------
-    modal.table.ModalTable
+    contract.table.ModalTable
 
     Examples
     --------
@@ -497,7 +501,7 @@ def read_table(path: PathLike) -> ModalTable:
     >>> table.configs[:3], len(table.frame)
     (['theta0', 'theta120', 'theta150'], 12)
     """
-    from flexmodal.modal.table import ModalTable
+    from flexmodal.contract.table import ModalTable
 
     return ModalTable.read_csv(path)
 
@@ -522,7 +526,7 @@ def read_poses(path: PathLike) -> dict[str, dict[str, float]]:
     >>> fm.read_poses("examples/measured/seed003_table3_f1f2.csv")["theta30"]
     {'theta_deg': 30.0}
     """
-    from flexmodal.modal.table import poses_from_csv
+    from flexmodal.contract.table import poses_from_csv
 
     return poses_from_csv(path)
 
@@ -576,7 +580,7 @@ def predict(rig: Rig | PathLike, poses: Mapping[str, Mapping[str, float]] | Moda
     ----------
     rig : models.rig.Rig, str or Path
         The rig, or its TOML file.
-    poses : mapping, modal.table.ModalTable, str or Path
+    poses : mapping, contract.table.ModalTable, str or Path
         ``{config: {pose variable: value}}`` (degrees, kg), a POSES.csv path, or a modal table whose
         configurations and poses are taken.
     model : str
@@ -594,7 +598,7 @@ def predict(rig: Rig | PathLike, poses: Mapping[str, Mapping[str, float]] | Moda
 
     Returns
     -------
-    modal.table.ModalTable
+    contract.table.ModalTable
         Natural frequencies [Hz] and mass-normalised shapes [kg^-1/2] at the rig's sensors.
 
     References
@@ -654,9 +658,9 @@ def compare_modes(measured: ModalTable | PathLike,
 
     Parameters
     ----------
-    measured : modal.table.ModalTable, str or Path
+    measured : contract.table.ModalTable, str or Path
         The measured modal table.
-    *predicted : modal.table.ModalTable, str, Path or (name, table)
+    *predicted : contract.table.ModalTable, str, Path or (name, table)
         Predicted tables, named by their ``source`` column, else by the file name.
     min_mac : float
         MAC pairs below this value [0, 1] are rejected.
@@ -747,9 +751,9 @@ def write_diagnosis(result: Diagnosis, out_dir: PathLike,
     """Write ``diagnosis.json`` (strict JSON) and ``diagnosis.html`` of a :func:`diagnose` result into
     ``out_dir``.  The page is the validation report's diagnosis section alone (one renderer,
     reports/html.py), naming ``inputs`` (the rig and the measured modes it was diagnosed from)."""
+    from flexmodal.checked_io.output import output_dir, write_text
     from flexmodal.compare.errors import CompareError
     from flexmodal.reports.html import write_report
-    from flexmodal.valid_output import output_dir, write_text
 
     out = output_dir(out_dir, CompareError, "diagnosis folder (--out)",
                      files=("diagnosis.json", "diagnosis.html"), inputs=inputs)
@@ -881,7 +885,7 @@ def plot_mode_shapes(rig: Rig | PathLike, measured: ModalTable | PathLike, confi
     ----------
     rig : models.rig.Rig, str or Path
         The rig, or its TOML file.
-    measured : modal.table.ModalTable, str or Path
+    measured : contract.table.ModalTable, str or Path
         Modal table with ``shape.<sensor>`` columns.
     config : str
         The configuration to draw.
@@ -919,9 +923,9 @@ def plot_comparison(measured: ModalTable | PathLike,
 
     Parameters
     ----------
-    measured : modal.table.ModalTable, str or Path
+    measured : contract.table.ModalTable, str or Path
         The measured modal table (its mean with ``repeats``, ± 1 standard deviation).
-    *predicted : modal.table.ModalTable, str, Path or (name, table)
+    *predicted : contract.table.ModalTable, str, Path or (name, table)
         Predicted tables, a line per model and mode.
     pose_var : str, optional
         The pose variable on the x axis (default: the first that varies).
@@ -1003,6 +1007,35 @@ def _diagnosis(diagnosis: Diagnosis | Mapping | PathLike) -> Diagnosis:
 
 # -- report ----------------------------------------------------------------------------------------
 
+def _tracked_map_figures(inputs) -> list[tuple[Figure, str]]:
+    """The report's modal-map section: a measured table from ``identify --track`` (source ``track``)
+    drawn as frequency against its pose (compare/modal_map.py branches, reports/modal_map_plot.py),
+    with the first prediction's frequencies at the same configurations overlaid (``predict --poses
+    MAP.csv``); nothing for any other table."""
+    import numpy as np
+
+    from flexmodal.compare.modal_map import PredictionBand, modal_map
+    from flexmodal.reports.modal_map_plot import plot_modal_map
+
+    meas = inputs.measured
+    if meas is None or "source" not in meas.frame or not (meas.frame["source"] == "track").all() \
+            or len(meas.pose_columns) != 1:
+        return []
+    var = meas.pose_columns[0].removeprefix("pose.")
+    band, named = None, ""
+    for name, pred in inputs.predictions[:1]:
+        configs = sorted((c for c in meas.configs if c in pred.configs), key=lambda c: meas.pose(c)[var])
+        n = min((pred.freq_hz(c).size for c in configs), default=0)
+        if n:
+            f = np.array([pred.freq_hz(c)[:n] for c in configs])
+            band = PredictionBand(np.array([meas.pose(c)[var] for c in configs]), f, f, f, label=name)
+            named = f", {name}'s frequencies at the same poses as lines"
+    fig = plot_modal_map(modal_map(meas), band, pose_label=var,
+                         title="modes tracked while the arm moved (mean ± 95 % interval per pose bin)")
+    return [(fig, f"Natural frequency against {var} of the modes tracked while the arm moved (identify "
+                  f"--track: one point per pose bin, bars ± 1.96 standard errors of its windows){named}")]
+
+
 def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (),
            measured: ModalTable | PathLike | None = None, repeats: Sequence[ModalTable | PathLike] = (),
            predictions: Sequence[ModalTable | PathLike | tuple[str, ModalTable]] = (),
@@ -1026,8 +1059,8 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     them beside the FE model's; ``geometry``: a Universal File with the test geometry (datasets 15 or
     2411, 82, 18 or 2420) to animate the measured modes on (their sensors named ``<node>+z``...).  Everything
     is computed here; ``reports.html`` only renders it."""
+    from flexmodal.checked_io.output import output_file
     from flexmodal.reports.errors import ReportError
-    from flexmodal.valid_output import output_file
 
     sources = [*runs, measured, *repeats, *predictions, diagnosis, rig]
     output_file(out, ReportError, "report (--out)", inputs=_paths(sources))
@@ -1039,6 +1072,10 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     from flexmodal.modal.sources import identify_frf
     from flexmodal.reports.html import write_report
     from flexmodal.reports.runs import RunSummary
+    from flexmodal.reports.sections import Section, register_section, registered_sections
+
+    if "modal-map" not in registered_sections():
+        register_section("modal-map", Section("Modal map of the moving arm", _tracked_map_figures))
 
     if not (runs or measured is not None or predictions or diagnosis is not None):
         raise ReportError("report: nothing to report (give RUN.h5 files, --measured, --pred or --diagnosis)")
@@ -1049,6 +1086,11 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
         raise ReportError(f"report: oma_fmin = {oma_fmin:g} Hz must be below oma_fmax = {oma_fmax:g} Hz")
     if fmin is not None and fmax is not None and fmin >= fmax:
         raise ReportError(f"report: fmin = {fmin:g} Hz must be below fmax = {fmax:g} Hz")
+    geo = None
+    if geometry is not None:    # read first: a bad geometry file stops the report before any work
+        from flexmodal.reports.geometry import read_uff_geometry
+
+        geo = read_uff_geometry(geometry)
     step = progress or (lambda _msg: None)
     summaries = []
     for path, run_id in expand_runs(runs):
@@ -1090,11 +1132,6 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     inputs += [diagnosis] if isinstance(diagnosis, str | Path) else []
     inputs += [rig.source] if rig is not None else []
     inputs += [geometry] if geometry is not None else []
-    geo = None
-    if geometry is not None:
-        from flexmodal.reports.geometry import read_uff_geometry
-
-        geo = read_uff_geometry(geometry)
     return write_report(out, runs=summaries, comparison=comparison, measured=meas,
                         repeats=[_table(r) for r in repeats], predictions=named, shapes=shapes,
                         diagnosis=_diagnosis(diagnosis) if diagnosis is not None else None,
@@ -1122,9 +1159,9 @@ def animate_mode(out: PathLike, measured: ModalTable | PathLike, config: str, mo
     >>> gif.read_bytes()[:6]
     b'GIF89a'
     """
+    from flexmodal.checked_io.output import output_file
     from flexmodal.reports import animate
     from flexmodal.reports.errors import ReportError
-    from flexmodal.valid_output import output_file
 
     target = output_file(out, ReportError, "GIF (out)")
     table = _table(measured)
@@ -1153,9 +1190,9 @@ def report_pdf(html: PathLike, pdf: PathLike | None = None) -> Path:
     """Print the HTML report ``html`` to ``pdf`` (default: beside it, ``.pdf``) with headless Chromium,
     every run's block opened, tables whole with repeated headers; returns the PDF's path.  ReportError
     (one line) where no Chromium is installed."""
+    from flexmodal.checked_io.output import output_file
     from flexmodal.reports.errors import ReportError
     from flexmodal.reports.pdf import print_pdf
-    from flexmodal.valid_output import output_file
 
     target = output_file(Path(html).with_suffix(".pdf") if pdf is None else pdf, ReportError, "PDF report")
     return print_pdf(html, target)
@@ -1185,11 +1222,14 @@ def demo(out_dir: PathLike = "flexmodal-demo", *, rig: PathLike | None = None, q
     Path
         The report.
     """
+    from flexmodal.checked_io.output import output_dir
     from flexmodal.fixtures.errors import FixtureError
-    from flexmodal.valid_output import output_dir
 
     out = output_dir(out_dir, FixtureError, "demo folder (--out)")   # before the demo's heavy imports
-    from flexmodal.fixtures.demo import Writers, run_demo
+    from flexmodal.fixtures.demo import OUTPUTS, Writers, run_demo
+
+    tables = [name for name in OUTPUTS if not name.endswith(".h5")]   # the run files are replaced whole
+    output_dir(out, FixtureError, "demo folder (--out)", files=tables, inputs=[rig])
 
     return run_demo(out, Writers(write_diagnosis, report), None if rig is None else Path(rig), quiet=quiet)
 
@@ -1228,3 +1268,43 @@ def selftest(n_cases: int, *, seed: int = 0, progress: Callable[[object], None] 
     results = run_blind(n_cases, seed=seed, progress=progress)
     summary = summarise(results)
     return SelfCheck(tuple(results), summary, format_summary(summary))
+
+
+def serve_simulator(protocol: str, *, faults: Mapping[str, float | None] | None = None, stdout=None,
+                    **options: object) -> None:
+    """Run a simulated device streaming the simulated rig (``flexmodal sim serve``) until SIGTERM/SIGINT
+    or ``duration`` seconds of samples.
+
+    Parameters
+    ----------
+    protocol : str
+        A protocol with a simulator (fixtures.simulators): ``serial`` (a pty), ``can`` (an slcan
+        adapter on a pty) or ``modbus`` (TCP on 127.0.0.1, or RTU over a pty pair).
+    faults : mapping, optional
+        Faults to inject, by the field names of daq.faults.Faults (``corrupt_rate``, ``drop_at_s``
+        [s], ...).
+    stdout : file, optional
+        Where the endpoint (pty path or ``host:port``) is written as the first line (default
+        ``sys.stdout``).
+    **options
+        The other fields of fixtures.sim_serve.ServeOptions: ``rig`` (TOML path; default the demo arm),
+        ``test``, ``rate`` [Hz], ``pose`` (degrees, kg), ``seed``, ``effects``
+        ("EFFECT@LOCATION:PARAM=VALUE,..."), ``duration`` [s], ``link``, ``port``, ``transport``,
+        ``framing``, ``format``, ``scans_per_frame``, ``fault_log``, ``exit_with_parent``, ``quiet``.
+    """
+    import sys
+
+    from flexmodal.daq.faults import Faults
+    from flexmodal.fixtures.errors import FixtureError
+    from flexmodal.fixtures.sim_serve import ServeOptions, serve
+
+    if options.get("fault_log"):
+        from flexmodal.checked_io.output import output_file
+
+        output_file(options["fault_log"], FixtureError, "fault log (--fault-log)",
+                    inputs=(options.get("rig"),))
+    try:
+        chosen = ServeOptions(protocol, faults=Faults(**(faults or {})), **options)
+    except TypeError as exc:
+        raise FixtureError(f"serve_simulator: {exc}") from None
+    serve(chosen, stdout or sys.stdout)

@@ -204,7 +204,7 @@ def bench_process(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: 
     floors = {"python -c pass": [sys.executable, "-c", "pass"],
               "import numpy, h5py": [sys.executable, "-c", "import numpy, h5py"],
               "imports of `frf`": [sys.executable, "-c", "import flexmodal.app, flexmodal.api, "
-                                   "flexmodal.modal.batch, flexmodal.valid_output"],
+                                   "flexmodal.modal.batch, flexmodal.checked_io.output"],
               "frf --help": [sys.executable, "-m", "flexmodal", "frf", "--help"]}
 
     def theirs():
@@ -233,10 +233,12 @@ def bench_process(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: 
             t0, c0 = time.perf_counter(), time.process_time()
             estimate()
             times["estimate"].append((time.perf_counter() - t0, time.process_time() - c0))
-        t_read = float(np.median([_wall(lambda: _read(path)) for _ in range(repeat)]))
+        reads = np.array([_wall(lambda: _read(path)) for _ in range(repeat)])     # [round, (wall, CPU)]
+        t_read, c_read = np.median(reads, axis=0)
         n_seg = (n - nfft) // (nfft // 2) + 1
         threads = idle_cpus()                   # the FFT threads the `frf` process uses now
         t_fft = _fft_floor((n_resp + 1) * n_seg, nfft, repeat, workers=threads)
+        c_fft = _fft_floor((n_resp + 1) * n_seg, nfft, repeat, workers=1, clock=time.process_time)
         from flexmodal.modal.runs_io import read_frf
 
         got = read_frf(out, "r")
@@ -261,6 +263,10 @@ def bench_process(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: 
           f"(process - imports) / floor = {(t_ours - t_imports) / floor:.2f} (target <= 2: process <= "
           f"{2 * floor + t_imports:.3f} s); process / floor = {t_ours / floor:.2f}; {got.n_averages} "
           f"segments; load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
+    c_floor, c_imports = c_read + c_fft, cpu["imports of `frf`"]
+    print(f"     in CPU (steadier on a shared machine): read {c_read:.3f} s + bare FFTs on 1 thread "
+          f"{c_fft:.3f} s = {c_floor:.3f} s; imports of `frf` {c_imports:.3f} s; (process - imports) / "
+          f"floor = {(cpu['ours'] - c_imports) / c_floor:.2f} (target <= 2)")
     def med(key: str, i: int) -> float:       # median wall (i = 0) or CPU (i = 1) time
         return float(np.median(np.array(times[key])[:, i]))
 
@@ -302,10 +308,13 @@ def bench_kernel(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: i
         s = welch_spectra(samples, fs, [0], list(range(1, n_resp + 1)), nfft, workers=threads)
         return h1(s), h2(s), coherence(s)
 
-    def rounds() -> dict[int, np.ndarray]:
-        times: dict[int, list] = {1: [], 2: []}
+    def rounds() -> dict:
+        """Per round: the bare FFTs' CPU on one thread (the reference, first), then the estimate on
+        1 and 2 threads (wall, CPU)."""
+        times: dict = {"fft": [], 1: [], 2: []}
         for _ in range(repeat):
-            for threads in times:
+            times["fft"].append(_fft_floor(n_fft, nfft, 1, workers=1, clock=time.process_time))
+            for threads in (1, 2):
                 t0, c0 = time.perf_counter(), time.process_time()
                 estimate(threads)
                 times[threads].append((time.perf_counter() - t0, time.process_time() - c0))
@@ -314,19 +323,21 @@ def bench_kernel(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: i
     estimate(1)                                 # warm: buffers, FFT plans
     load = os.getloadavg()[0]
     quiet = rounds()
-    cf = _fft_floor(n_fft, nfft, repeat, workers=1, clock=time.process_time)
     with _other_core_busy():
         busy = rounds()
-    c1 = quiet[1][:, 1]
+    c1, cf = quiet[1][:, 1], quiet["fft"]
+    ratio = c1 / cf
     print(f"KERNEL Welch H1 + H2 + coherence, {n_resp} + 1 channels, {duration_s:g} s at {fs:g} Hz, nfft "
           f"{nfft}, float32 in memory (load average {load:.1f} on {os.cpu_count()} CPUs): CPU on 1 thread "
-          f"{_spread(c1)}, its {n_fft} bare FFTs' CPU on 1 thread {cf:.3f} s: {np.median(c1) / cf:.2f}x "
-          f"(target <= 1.4); the passes besides the FFTs {np.median(c1) - cf:.3f} s")
+          f"{_spread(c1)}, its {n_fft} bare FFTs' CPU on 1 thread {_spread(cf)} (the reference, first in "
+          f"each round): {np.median(ratio):.2f}x ({ratio.min():.2f}-{ratio.max():.2f}, per round) (target "
+          f"<= 1.4); the passes besides the FFTs {np.median(c1 - cf):.3f} s")
     for name, t in (("as it is", quiet), ("other core busy", busy)):
         ratio = t[2][:, 0] / t[1][:, 0]
         print(f"     wall, {name}: 1 thread {_spread(t[1][:, 0])}, 2 threads {_spread(t[2][:, 0])}: 2 / 1 = "
               f"{np.median(ratio):.2f} ({ratio.min():.2f}-{ratio.max():.2f}) (target <= 0.6); CPU 2 threads "
-              f"{np.median(t[2][:, 1]):.3f} s (medians of {repeat})")
+              f"{np.median(t[2][:, 1]):.3f} s (medians of {repeat}; load average now "
+              f"{os.getloadavg()[0]:.1f})")
 
 
 def _read(path: str) -> np.ndarray:
@@ -336,10 +347,11 @@ def _read(path: str) -> np.ndarray:
         return f["runs/r/samples"][()]
 
 
-def _wall(fn) -> float:
-    t0 = time.perf_counter()
+def _wall(fn) -> tuple[float, float]:
+    """Wall and CPU time (s) of ``fn()``."""
+    t0, c0 = time.perf_counter(), time.process_time()
     fn()
-    return time.perf_counter() - t0
+    return time.perf_counter() - t0, time.process_time() - c0
 
 
 def bench_lscf(n_frf: int, n_lines: int, repeat: int) -> None:

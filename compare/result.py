@@ -28,8 +28,8 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, fields
 from typing import Any, Self
 
+from flexmodal.checked_io.text import loads_json
 from flexmodal.compare.errors import CompareError
-from flexmodal.valid_text import loads_json
 
 Hz = tuple[float | None, ...]
 """Frequencies [Hz] of modes 1..n of one configuration; None where there is no value."""
@@ -427,7 +427,7 @@ class Diagnosis(_Record):
     def _repr_html_(self) -> str:
         import html
 
-        from flexmodal.modal.table import display_html
+        from flexmodal.contract.table import display_html
 
         shown = self.to_frame().head(8).rename(columns={"fit_rms_rel_error_pct": "fit RMS error [%]",
                                                         "heldout_rms_rel_error_pct": "held-out RMS error [%]",

@@ -233,6 +233,8 @@ class Display:
         if self.live is not None:
             try:
                 self.live.stop()
+                if self._last and not self.live.console.is_terminal:  # rich ends a terminal's last frame
+                    self.live.console.line()                          # only: a message below starts afresh
             except OSError:
                 pass
 
@@ -530,8 +532,12 @@ class _Recorder:
                 or bool(self.error))
 
     def run(self) -> Summary:
-        threads = [threading.Thread(target=run_reader, args=(drv, self.queue, self.stop, self.stats[name]),
-                                    name=f"reader-{name}", daemon=True) for name, drv in self.drivers.items()]
+        # a device that never opens ends the session within the reconnect timeout, or the duration if shorter
+        wait_s = self.session.reconnect_timeout_s if self.target is None else min(
+            self.session.reconnect_timeout_s, self.target / self.session.sample_rate_hz)
+        threads = [threading.Thread(target=run_reader, name=f"reader-{name}", daemon=True,
+                                    args=(drv, self.queue, self.stop, self.stats[name], wait_s))
+                   for name, drv in self.drivers.items()]
         t_begin = next_disk = time.monotonic()
         for th in threads:
             th.start()

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from flexmodal.daq.dbc import load_messages
-from flexmodal.daq.devices import Block, DeviceLost, Driver
+from flexmodal.daq.devices import PERMANENT_ERRNOS, Block, DeviceLost, Driver
 from flexmodal.daq.errors import DaqError
 
 COUNTER_SIGNAL = "Seq"
@@ -110,7 +110,10 @@ class CanDriver(Driver):
         try:
             self._bus = can.Bus(interface=self.config.interface, channel=self.config.channel, **kwargs)
         except (can.CanError, OSError, ValueError) as exc:
-            raise DeviceLost(f"cannot open CAN {self.config.interface}:{self.config.channel}: {exc}") from exc
+            permanent = isinstance(exc, ValueError | can.CanInterfaceNotImplementedError) or getattr(
+                exc, "errno", None) in PERMANENT_ERRNOS
+            raise DeviceLost(f"cannot open CAN {self.config.interface}:{self.config.channel}: {exc}",
+                             permanent=permanent) from exc
         self._lost = None
 
     def close(self) -> None:

@@ -11,6 +11,7 @@ with exponential back-off (0.02 s doubling to 0.25 s) and reports ``lost``/``rec
 
 from __future__ import annotations
 
+import errno
 import queue
 import threading
 import time
@@ -32,7 +33,15 @@ BACKOFF_MAX_S = 0.25
 
 
 class DeviceLost(Exception):
-    """The device stopped answering (unplugged, port closed, connection refused)."""
+    """The device stopped answering (unplugged, port closed, connection refused); ``permanent`` when
+    retrying cannot help (no such interface, the protocol family missing from the kernel)."""
+
+    def __init__(self, message: str, *, permanent: bool = False) -> None:
+        super().__init__(message)
+        self.permanent = permanent
+
+
+PERMANENT_ERRNOS = frozenset({errno.ENODEV, errno.EAFNOSUPPORT, errno.EPROTONOSUPPORT, errno.EINVAL})
 
 
 @dataclass
@@ -151,7 +160,7 @@ def run_reader(driver, out: queue.Queue, stop: threading.Event, stats: ReaderSta
                     stats.dropped_blocks += 1
         except DeviceLost as exc:
             driver.close()
-            if not ever_opened and time.monotonic() - t_start > first_open_timeout_s:
+            if not ever_opened and (exc.permanent or time.monotonic() - t_start > first_open_timeout_s):
                 out.put(Notice(driver.name, "error", error=DaqError(f"device {driver.name!r}: {exc}")))
                 return
             if opened:

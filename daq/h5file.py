@@ -12,8 +12,8 @@ from pathlib import Path
 
 import h5py
 
+from flexmodal.checked_io.text import regular_file
 from flexmodal.daq.errors import DaqError
-from flexmodal.valid_text import regular_file
 
 # lookup3's mixing rounds as (x, y, z, k) on the state (a, b, c) = (0, 1, 2): in ``mix`` each round is
 # ``x = (x - y) ^ rot(y, k); y += z``, in ``final`` it is ``x = (x ^ y) - rot(y, k)`` (lookup3.c).

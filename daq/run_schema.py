@@ -14,9 +14,9 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from flexmodal.checked_io.text import loads_json, one_line
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.h5file import open_read
-from flexmodal.valid_text import loads_json, one_line
 
 CHANNEL_KINDS = ("acceleration", "force", "strain", "encoder", "voltage", "other")
 EVENT_KINDS = ("trigger", "gap", "overload", "corrupt", "reconnect", "note", "device_lost", "overrun",
@@ -73,6 +73,15 @@ def _check_attrs(g: h5py.Group, where: str) -> None:
         if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
             raise DaqError(f"{where}: attribute pose: {_short(name)} = {_short(value)} is not a finite "
                            "number")
+
+
+def check_run_id(run_id: str, where: str) -> str:
+    """``run_id`` when it can name a run group: not empty, not ``.`` or ``..``, without ``/`` or NUL
+    and at most 255 characters (HDF5 link names; ``.`` is the group itself)."""
+    if not run_id or run_id in (".", "..") or "/" in run_id or "\x00" in run_id or len(run_id) > 255:
+        raise DaqError(f"{where} {_short(run_id)!r} cannot name a run (non-empty, not '.' or '..', no '/', "
+                       "at most 255 characters)")
+    return run_id
 
 
 def member(parent: h5py.Group, name: str, where: str, error: type[Exception] = DaqError) -> object | None:

@@ -20,14 +20,14 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
+from flexmodal.checked_io.text import read_toml, regular_file
+from flexmodal.checked_io.toml_fields import Fields
 from flexmodal.daq.devices import SIMULATOR_PORT
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.faults import Faults
 from flexmodal.daq.protocols import PROTOCOLS, registered_protocols
 from flexmodal.daq.run_schema import CHANNEL_KINDS, EXCITATIONS
 from flexmodal.daq.store import Channel
-from flexmodal.valid_text import read_toml
-from flexmodal.valid_toml import Fields
 
 # Whole-number fields whose range every protocol shares (a TCP port given as a number, the Modbus unit id).
 INT_RANGES = {"baud": (1, 100_000_000), "bitrate": (1, 100_000_000), "device_id": (0, 247),
@@ -130,7 +130,7 @@ def unit_factor(from_unit: str, to_unit: str) -> float | None:
 
 
 class Table(Fields):
-    """Typed access to one table of a session config (:class:`flexmodal.valid_toml.Fields` with
+    """Typed access to one table of a session config (:class:`flexmodal.checked_io.toml_fields.Fields` with
     ``DaqError``, ``key = value`` wording and the shared whole-number ranges); ``base``: the folder
     relative paths are taken from (the session file's)."""
 
@@ -152,8 +152,9 @@ class Table(Fields):
     def file(self, key: str, what: str) -> str:
         """A file path relative to ``base`` that must exist (absolute after this)."""
         path = _resolve(self.base, self.get(key, str))
-        if not Path(path).is_file():
+        if not Path(path).exists():
             raise DaqError(f"{self.where}: {what} {path!r} does not exist")
+        regular_file(path, lambda text: DaqError(f"{self.where}: {text}"), what)  # a FIFO would block
         return path
 
 

@@ -24,6 +24,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from flexmodal.checked_io.text import available_memory_bytes, regular_file
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.h5file import open_read
 from flexmodal.daq.run_schema import (
@@ -34,10 +35,10 @@ from flexmodal.daq.run_schema import (
     EVENT_KINDS,
     EXCITATIONS,
     check_run_group,
+    check_run_id,
     member,
     utf8,
 )
-from flexmodal.valid_text import regular_file
 
 CHUNK_BYTES = 1 << 20  # target size of one samples chunk
 CHUNK_CACHE_BYTES = 16 << 20  # room for partly filled chunks, so appends never re-read from disk
@@ -166,8 +167,7 @@ class RunWriter:
 
     def _validate(self, sample_rate_hz: float, excitation: str, pose: dict) -> None:
         where = f"{self.path}: run {self.run_id!r}"
-        if not self.run_id or "/" in self.run_id:
-            raise DaqError(f"{self.path}: run id {self.run_id!r} must be non-empty without '/'")
+        check_run_id(self.run_id, f"{self.path}: run id")
         if not self.channels or not all(isinstance(c, Channel) for c in self.channels):
             raise DaqError(f"{where}: channels must be a non-empty sequence of Channel")
         names = [c.name for c in self.channels]
@@ -182,6 +182,8 @@ class RunWriter:
             raise DaqError(f"{where}: pose must be a dict, got {type(pose).__name__}")
 
     def _open(self) -> h5py.File:
+        if self.path.exists() or self.path.is_symlink():  # a FIFO or device would block or be destroyed
+            regular_file(self.path, DaqError, "run file")
         try:
             f = h5py.File(self.path, "a", libver="latest", rdcc_nbytes=CHUNK_CACHE_BYTES)
         except OSError as exc:
@@ -322,8 +324,13 @@ def _checked_run(g: h5py.Group, path: Path, run_id: str) -> Run:
 
 
 def read_run(path: str | Path, run_id: str) -> Run:
-    """Read one run completely into memory."""
+    """Read one run completely into memory (refused when its samples would not fit: stream them with
+    :func:`open_run`)."""
     with open_run(path, run_id) as run:
+        need, room = run.samples.size * run.samples.dtype.itemsize, available_memory_bytes()
+        if need > room // 2:
+            raise DaqError(f"{path}: run {run_id!r}: {need / 2**30:.1f} GiB of samples do not fit in the "
+                           f"{room / 2**30:.1f} GiB of memory available (frf streams a run in blocks)")
         try:
             return replace(run, samples=run.samples[()])
         except OSError as exc:  # a damaged chunk

@@ -15,13 +15,13 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
+from flexmodal.checked_io.text import one_line
 from flexmodal.daq.store import expand_runs
 from flexmodal.modal.compute import compute_frf
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult
 from flexmodal.modal.runs_io import write_frf
 from flexmodal.modal.spectra import usable_cpus
-from flexmodal.valid_text import one_line
 
 POOL_START_S = 1.0      # start 2 worker processes, their imports, first task (benchmarks/batch.py)
 AUTO_WORKERS = 2        # processes of the pool the automatic choice starts

@@ -7,11 +7,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from flexmodal.checked_io.text import naming
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult, coherence, estimate, estimator_name
 from flexmodal.modal.spectra import Spectra, default_nfft, welch_spectra
 from flexmodal.modal.windows import added_decay_rate_per_s, impact_windows
-from flexmodal.valid_text import naming
 
 MIN_SEGMENTS = 8
 SKIPPED_EVENTS = ("gap", "corrupt")

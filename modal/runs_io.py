@@ -17,10 +17,10 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from flexmodal.checked_io.output import signals_deferred
+from flexmodal.checked_io.text import loads_json, one_line
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult
-from flexmodal.valid_output import signals_deferred
-from flexmodal.valid_text import loads_json, one_line
 
 FRF_GROUP = "frf"
 PARTIAL_PREFIX = ".frf-partial-"   # the group an FRF set is written into before it is renamed ``frf``

@@ -7,13 +7,15 @@ Conventions: ``g_xf[o, i] = E[X_o conj(F_i)]``, ``g_ff[i, j] = E[F_i conj(F_j)]`
 one-sided densities scaled like ``scipy.signal.csd(..., scaling="density")`` (units^2/Hz).  One gap rule:
 a segment holding a NaN/inf sample in a used channel, or touching a skipped interval, is left out.
 
-One pass per block of segments: the samples, row-major as stored, less the block's first sample
-(so a large offset never reaches a single-precision FFT), are windowed straight from a strided view
-(segments overlap in memory, no transpose), transformed
-with ``scipy.fft.rfft`` along the sample axis (float32 records in single precision), each segment's
-mean taken out of the first lines of its transform, and the cross-spectra formed as one batched
-matrix product over the segment axis per block (``[f, channel, segment] @ [f, segment, reference]``)
-with the auto-spectra as one more reduction; block sums are accumulated in double precision.
+One pass per block of segments, on a block in cache: the samples, row-major as stored, less the
+block's first sample (so a large offset never reaches a single-precision FFT) from a strided view
+(segments overlap in memory; no transpose, no float64 copy of float32 data), their sums (each
+segment's mean, and the only check for NaN/inf samples), the window, one real FFT along the sample
+axis with ``scipy.fft.rfft`` (float32 records in single precision), each segment's mean times the
+window's spectrum taken out of the first lines of its transform (windows with a long spectrum: the
+mean taken out before windowing), then the cross-spectra against the references as one batched
+matrix product over the segment axis (``[f, channel, segment] @ [f, segment, reference]``) and the
+auto-spectra as one reduction; block sums are accumulated in double precision, in segment order.
 """
 
 from __future__ import annotations
@@ -34,8 +36,6 @@ from flexmodal.modal.windows import window
 
 _BLOCK_BYTES = 4 << 20      # windowed segments per block (with its spectra, stays in the L3 cache)
 _READ_BYTES = 16 << 20      # samples read per block from a dataset on disk (rounded to whole chunks)
-
-
 DEFAULT_NFFT_MAX = 8192
 
 
@@ -85,7 +85,7 @@ def density_scale(n_freq: int, nfft: int, sample_rate_hz: float, w: np.ndarray) 
     return scale
 
 
-def products(spec: np.ndarray, refs: Sequence[int], weights: np.ndarray | None = None
+def _products(spec: np.ndarray, refs: Sequence[int], weights: np.ndarray | None = None
              ) -> tuple[np.ndarray, np.ndarray]:
     """(Weighted) sums over segments of the spectral products of one block ``spec`` [seg, f, ch]:
     ``g`` [f, ch, ref] = sum X_ch conj(X_ref), one batched matrix product over the segment axis, and
@@ -119,7 +119,7 @@ def spectra_of_segments(segments: np.ndarray, n_in: int, sample_rate_hz: float,
     nfft = segments.shape[-1]
     spec = scipy.fft.rfft(np.swapaxes(segments, 1, 2), axis=1)                 # [seg, f, ch]
     w = None if weights is None else np.asarray(weights, float)
-    g, auto = products(spec, range(n_in), w)
+    g, auto = _products(spec, range(n_in), w)
     norm = 1.0 if w is not None else 1.0 / segments.shape[0]
     scale = density_scale(spec.shape[1], nfft, sample_rate_hz, scale_window) * norm
     return _spectra(g, auto, n_in, scale, rfftfreq(nfft, sample_rate_hz), segments.shape[0])
@@ -165,20 +165,21 @@ def skipped_segments(intervals: Sequence[tuple[int, int]], n_seg: int, nfft: int
     return np.cumsum(marks[:-1]) > 0
 
 
-_MAX_WINDOW_LINES = 8      # a window whose spectrum has more lines is taken out of every line
+_MAX_WINDOW_LINES = 8      # a window whose spectrum has more lines is detrended before windowing
 
 
-def _window_lines(exact: np.ndarray, windows: np.ndarray) -> np.ndarray:
-    """The lines [f', n_ch] of the real FFT of every channel's window as used (``windows`` [n_ch,
-    nfft], possibly rounded to single precision) that a segment's mean times the window puts into its
-    transform: the first k when the exact windows' spectra (``exact``, double) are zero to rounding
-    beyond them (|W| <= 64 eps sum|w|) and k <= _MAX_WINDOW_LINES (the periodic cosine windows: rect
-    1 line, hann 2, flattop 5), else all.  The lines left out of a single-precision window are its
-    rounding, ~1e-9 of sum|w|, below the FFT's own."""
+def _window_lines(exact: np.ndarray, windows: np.ndarray) -> np.ndarray | None:
+    """The first k lines [k, n_ch] of the real FFT of every channel's window as used (``windows``
+    [n_ch, nfft], possibly rounded to single precision), all a segment's mean times the window puts
+    into its transform, when the exact windows' spectra (``exact``, double) are zero to rounding
+    beyond them (|W| <= 64 eps sum|w|) and k <= _MAX_WINDOW_LINES: the periodic cosine windows
+    (rect 1 line, hann 2, flattop 5); None for any other window.  The lines left out of a
+    single-precision window are its rounding, ~1e-9 of sum|w|, below the FFT's own."""
     big = np.abs(np.fft.rfft(exact)) > 64 * np.finfo(float).eps * np.abs(exact).sum(axis=1, keepdims=True)
     k = int(np.flatnonzero(big.any(axis=0))[-1]) + 1 if big.any() else 1
-    lines = np.fft.rfft(windows.astype(float)).T
-    return lines[:k if k <= _MAX_WINDOW_LINES else None].astype(np.result_type(windows.dtype, np.complex64))
+    if k > _MAX_WINDOW_LINES:
+        return None
+    return np.fft.rfft(windows.astype(float)).T[:k].astype(np.result_type(windows.dtype, np.complex64))
 
 
 _SUM_LANES = 256     # samples of a segment summed apart, in the segment's precision, before double
@@ -206,15 +207,19 @@ class _Work:
 @dataclass(frozen=True)
 class _Plan:
     """What every block needs: segment length and step, the flat window [nfft * n_cols] of every
-    column (row-major, as the samples), the columns ``cols`` transformed (a slice of the record's)
-    and the positions ``refs`` of the inputs among them, the window lines a unit mean puts into each
-    transform [k, n transformed] (None: no detrending), the skipped segments, FFT threads per block."""
+    column (row-major, as the samples), the columns ``cols`` transformed (a slice of the record's),
+    the positions ``refs`` of the inputs and ``used`` of every used channel among them, whether
+    segment means are removed (``detrend``) and the window lines a unit mean puts into each transform
+    [k, n transformed] (None: the means are removed before windowing), the skipped segments, FFT
+    threads per block."""
 
     nfft: int
     step: int
     flat_window: np.ndarray
     cols: slice
     refs: list[int]
+    used: list[int]
+    detrend: bool
     lines: np.ndarray | None
     skipped: np.ndarray
     fft_workers: int
@@ -235,19 +240,23 @@ class _Plan:
         offset = np.where(np.isfinite(rows[0]), rows[0], 0)   # the block's first sample: exact to subtract
         with np.errstate(invalid="ignore", over="ignore"):
             np.subtract(view, np.tile(offset, self.nfft), out=seg)
-            means = _segment_sums(seg.reshape(b, self.nfft, n_cols))[:, self.cols] / self.nfft
+            means = _segment_sums(seg.reshape(b, self.nfft, n_cols)) / self.nfft          # [b, n_cols]
+            if self.detrend and self.lines is None:     # a long window spectrum: remove before windowing
+                for k in range(b):    # a loop over the block's segments, each a flat pass
+                    seg[k] -= np.tile(means[k].astype(seg.dtype), self.nfft)
             np.multiply(seg, self.flat_window, out=seg)
             spec = scipy.fft.rfft(seg.reshape(b, self.nfft, n_cols)[:, :, self.cols], axis=1,
                                   workers=self.fft_workers)                         # [b, f, cols]
-        bad = self.skipped[first:first + b] | ~np.isfinite(means).all(axis=1)
+        means = means[:, self.cols]
+        bad = self.skipped[first:first + b] | ~np.isfinite(means[:, self.used]).all(axis=1)
         if bad.any():
             means[bad] = 0
             spec[bad] = 0
-        if self.lines is not None:
+        if self.detrend and self.lines is not None:
             k = self.lines.shape[0]
             spec[:, :k] -= means[:, None, :].astype(spec.real.dtype) * self.lines
         used = b - int(bad.sum())
-        g, auto = products(spec, self.refs)
+        g, auto = _products(spec, self.refs)
         return g, auto, means.sum(axis=0) + offset[self.cols].astype(float) * used, used
 
 
@@ -337,7 +346,7 @@ def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
     n_blocks = -(-n_seg // block)
     n_threads = min(_thread_count(workers), n_blocks)
     plan = _Plan(nfft, step, np.ascontiguousarray(windows.T).ravel(), slice(lo, hi), [c - lo for c in inputs],
-                 _window_lines(exact[lo:hi], windows[lo:hi]) if detrend else None,
+                 sorted({c - lo for c in chans}), detrend, _window_lines(exact[lo:hi], windows[lo:hi]),
                  skipped_segments(skip, n_seg, nfft, step), max(1, _thread_count(workers) // n_threads))
     chunk = (getattr(samples, "chunks", None) or (1,))[0]
     row_bytes = n_cols * dtype.itemsize

@@ -26,7 +26,7 @@ by their median frequency.
 
 The modal map.  Windows are binned by pose (``bin_deg`` per pose variable); each (bin, mode) row holds
 the mean frequency and damping ratio of the windows in it, their standard errors, the number of windows
-and the mean shape: a modal table (modal/table.py) whose configurations are pose bins, so that compare,
+and the mean shape: a modal table (contract/table.py) whose configurations are pose bins, so that compare,
 predict --poses and diagnose read it unchanged.
 """
 
@@ -38,16 +38,22 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from flexmodal.contract.mac import mac
+from flexmodal.contract.table import POSE_PREFIX, SHAPE_PREFIX, ModalTable
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.harmonics import find_orders, is_order, sinusoid_kurtosis
-from flexmodal.modal.mac import mac
 from flexmodal.modal.ssi import ssi_cov
-from flexmodal.modal.table import POSE_PREFIX, SHAPE_PREFIX, ModalTable
 
 MAX_REFS = 4               # SSI reference channels per window (the ones with the largest RMS)
 LOOK_S = 4.0              # the slowest mode is looked for in stretches this long ...
 LOOK_STRETCHES = 6        # ... this many, spread over the record
 STITCH_GAP = 40           # windows: a later track may continue an earlier one after this many
+SMOOTH_WINDOWS = 5        # the refinement's frequency track: a running median over this many estimates,
+SMOOTH_SPAN = 15          # then a quadratic Savitzky-Golay fit over this many
+REFINE_PERIODS = 150.0    # the refinement's window holds this many periods (at least the first pass's)
+REFINE_BAND = 0.4         # the refinement looks within +-40 % of the track's frequency ...
+REFINE_ORDER = 30         # ... with SSI model orders up to this, and block rows spanning lags of
+REFINE_LAG_PERIODS = 4.0  # this many periods (as many as the window holds, 40 samples per row)
 KURTOSIS_SINE = 2.0        # band-passed kurtosis below this: a sinusoid (1.5) rather than a mode (3)
 
 
@@ -70,6 +76,7 @@ class TrackOptions:
     orders: tuple[float, ...] = ()        # known harmonic orders per joint revolution; () finds them
     order_tol: float = 0.02
     kurtosis_max: float = KURTOSIS_SINE
+    refine: int = 2               # passes of the warped-time refinement (0: none)
 
 
 @dataclass(frozen=True)
@@ -333,6 +340,64 @@ def _predict(track: dict, k: int) -> float:
     return float(f[-1] + slope * (k - w[-1]))
 
 
+def refine(y: np.ndarray, sample_rate_hz: float, windows: Sequence[WindowPoles], tracks: Sequence[Track],
+           n_win: int, orders: Mapping[str, tuple[float, ...]], options: TrackOptions) -> list[Track]:
+    """Second pass: each mode re-identified at every window centre of its span, over the first pass's
+    window or ``REFINE_PERIODS`` periods if longer (warping keeps the drift out), in its own warped time
+    (:func:`flexmodal.modal.warp.warp` along the track's frequencies, median-smoothed over
+    ``SMOOTH_WINDOWS`` and interpolated in time), decimated to at least four times ``f_c (1 +
+    REFINE_BAND)``, by SSI-cov in ``f_c (1 +- REFINE_BAND)`` with block rows over ``REFINE_LAG_PERIODS``;
+    the selected mode nearest ``f_c`` within the gates (frequency and MAC with the track's nearest
+    first-pass shape) replaces the first pass's estimate, and fills the windows the first pass
+    missed.  A pole on a harmonic order (within ``order_tol``) is left out.  Tracks keep their order."""
+    import scipy.ndimage
+    import scipy.signal
+
+    from flexmodal.modal.warp import warp
+
+    fs = sample_rate_hz
+    centres = np.array([w.t_s for w in windows])
+    refs = _references(y)
+    out = []
+    for tr in tracks:   # a loop over modes
+        f_s = scipy.ndimage.median_filter(tr.freq_hz, min(SMOOTH_WINDOWS, tr.freq_hz.size), mode="nearest")
+        if f_s.size > SMOOTH_SPAN:
+            f_s = scipy.signal.savgol_filter(f_s, SMOOTH_SPAN, 2)
+        keep: list[tuple[int, float, float, np.ndarray]] = []
+        for k in range(int(tr.windows[0]), int(tr.windows[-1]) + 1):   # a loop over windows
+            mid = int(round(centres[k] * fs))
+            f_c = float(np.interp(centres[k], centres[tr.windows], f_s))
+            n = min(y.shape[0], max(n_win, int(REFINE_PERIODS / f_c * fs)))
+            a = int(np.clip(mid - n // 2, 0, y.shape[0] - n))
+            g = np.interp(np.arange(a, a + n) / fs, centres[tr.windows], f_s)
+            q = max(1, int(fs // (4 * (1 + REFINE_BAND) * f_c)))   # decimated to >= 4 x the band's top
+            seg = warp(y[a:a + n], fs, g, mid - a)
+            seg = scipy.signal.resample_poly(seg, 1, q, axis=0) if q > 1 else seg
+            rows = min(seg.shape[0] // 40, max(-(-REFINE_ORDER // len(refs)) + 2,
+                                               int(np.ceil(REFINE_LAG_PERIODS * fs / q / f_c))))
+            try:
+                m = ssi_cov(seg, fs / q, references=refs, fmin=(1 - REFINE_BAND) * f_c,
+                            fmax=(1 + REFINE_BAND) * f_c, max_order=REFINE_ORDER, block_rows=rows).modes
+            except ModalError:
+                continue
+            shape = tr.shapes[:, int(np.argmin(np.abs(tr.windows - k)))]   # the nearest first-pass shape
+            near = np.abs(m.freq_hz / f_c - 1) / options.gate_rel + (1 - mac(shape[:, None], m.shapes)[0]) / (
+                1 - options.mac_min)
+            j = int(np.argmin(near))
+            on_order = any(is_order(m.freq_hz[j:j + 1], abs(windows[k].rate_deg_per_s[v]) / 360.0, o,
+                                    options.order_tol)[0] for v, o in orders.items())
+            if near[j] <= 1 and not on_order:
+                keep.append((k, float(m.freq_hz[j]), float(m.damping_ratio[j]), m.shapes[:, j]))
+        if len(keep) < options.min_windows:
+            out.append(tr)
+            continue
+        idx = np.array([k for k, _, _, _ in keep])
+        kurt = np.interp(idx, tr.windows, tr.kurtosis)
+        out.append(Track(idx, np.array([f for _, f, _, _ in keep]), np.array([z for _, _, z, _ in keep]),
+                         np.column_stack([sh for _, _, _, sh in keep]), kurt))
+    return out
+
+
 def modal_map(windows: Sequence[WindowPoles], tracks: Sequence[Track], outputs: Sequence[str],
               bin_deg: float, source: str = "track") -> ModalTable:
     """The modal map (module docstring) as a modal table whose configurations are pose bins."""
@@ -422,6 +487,8 @@ def track_modes(samples: np.ndarray, sample_rate_hz: float, names: Sequence[str]
     tracks = [t for t in tracks if np.median(t.kurtosis) >= options.kurtosis_max]
     harmonics += [Harmonic(windows[k].t_s, float(f), "", 0.0) for t in sines
                   for k, f in zip(t.windows, t.freq_hz, strict=True)]
+    for _ in range(options.refine):   # each pass warps along the previous pass's frequencies
+        tracks = refine(y, sample_rate_hz, windows, tracks, n_win, orders, options)
     out_names = tuple(names[j] for j in outputs)
     table = modal_map(windows, tracks, out_names, options.bin_deg)
     warnings = ((f"{skipped} window(s) skipped: pose spread above {options.max_spread_deg:g} deg",)
@@ -484,7 +551,7 @@ def write_harmonics_csv(path: str, harmonics: Sequence[Harmonic]) -> None:
     by its sinusoid statistics), ``order`` (per joint revolution, 0 when not an order)."""
     import pandas as pd
 
-    from flexmodal.valid_output import atomic_path
+    from flexmodal.checked_io.output import atomic_path
 
     frame = pd.DataFrame([{"t_s": h.t_s, "freq_hz": h.freq_hz, "joint": h.joint, "order": h.order}
                           for h in harmonics], columns=["t_s", "freq_hz", "joint", "order"])

@@ -21,10 +21,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from flexmodal.checked_io.text import read_toml
+from flexmodal.checked_io.toml_fields import DOTTED_PATH, Fields
 from flexmodal.models.errors import ModelError
 from flexmodal.models.rig_schema import check_document
-from flexmodal.valid_text import read_toml
-from flexmodal.valid_toml import DOTTED_PATH, Fields
 
 SECTION_SHAPES = ("square_tube", "rect_tube", "round_tube", "solid_rect", "custom")
 SUPPORTS = ("clamped", "pinned", "free", "spring")
@@ -187,7 +187,7 @@ class Rig:
 
 
 # ---------------------------------------------------------------------------------------------
-# parsing (flexmodal.valid_toml: errors name the file and the field's dotted path)
+# parsing (flexmodal.checked_io.toml_fields: errors name the file and the field's dotted path)
 
 
 def _fields(doc: Any, source: str, path: str) -> Fields:

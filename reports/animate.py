@@ -29,8 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-from flexmodal.modal.mac import mac, to_real
-from flexmodal.modal.table import ModalTable
+from flexmodal.contract.mac import mac, to_real
+from flexmodal.contract.table import ModalTable
 from flexmodal.reports.errors import ReportError
 from flexmodal.reports.geometry import Geometry
 
@@ -207,8 +207,8 @@ def write_gif(shapes: Sequence[Shape], path: str | Path, frames: int = 24, fps: 
     from matplotlib.animation import FuncAnimation, PillowWriter
     from matplotlib.figure import Figure
 
+    from flexmodal.checked_io.output import atomic_path
     from flexmodal.reports.plots import text
-    from flexmodal.valid_output import atomic_path
 
     if not shapes:
         raise ReportError("animation: no shapes to draw")

@@ -30,17 +30,17 @@ from pathlib import Path
 import jinja2
 import pandas as pd
 
+from flexmodal.checked_io.output import write_text
+from flexmodal.checked_io.text import read_text
 from flexmodal.compare.errors import CompareError
 from flexmodal.compare.result import Diagnosis, Predictions
 from flexmodal.compare.tables import Comparison, html_fragment, natural_key, ordered_configs, table_name
-from flexmodal.modal.table import ModalTable
+from flexmodal.contract.table import ModalTable
 from flexmodal.reports import animate, plots
 from flexmodal.reports.errors import ReportError
 from flexmodal.reports.geometry import Geometry
 from flexmodal.reports.runs import LOW_COHERENCE, RunSummary
 from flexmodal.reports.sections import SECTIONS, ReportInputs
-from flexmodal.valid_output import write_text
-from flexmodal.valid_text import read_text
 
 UNIT_SUFFIXES = {"_deg": "deg", "_kg": "kg", "_m": "m", "_rad": "rad", "_n": "N"}
 KEY_LIBRARIES = ("numpy", "scipy", "pandas", "matplotlib", "h5py", "jinja2", "pyuff")
@@ -283,10 +283,15 @@ def _number(figures: Sequence[dict]) -> None:
 
 def relative_name(path: str | Path, report_dir: Path) -> str:
     """A file named relative to the report's folder (``runs.h5``, ``../data/modes.csv``), so the report
-    holds no absolute local path; a name that is not a file path (an in-memory table) as it is."""
+    holds no absolute local path; a file shipped inside flexmodal (the demo rig) as
+    ``flexmodal:fixtures/rigs/demo_arm.toml``; a name that is not a file path (an in-memory table) as
+    it is."""
     p = Path(path)
     if not p.is_absolute() and not p.exists():
         return str(path)
+    package = Path(__file__).resolve().parents[1]
+    if p.resolve().is_relative_to(package):
+        return f"flexmodal:{p.resolve().relative_to(package).as_posix()}"
     try:
         return Path(os.path.relpath(p.resolve(), report_dir.resolve())).as_posix()
     except ValueError:  # another drive (Windows)

@@ -4,7 +4,7 @@ Chromium prints the report with its print style sheet (A4, whole tables with the
 each page) and every run's collapsed block opened (a copy of the page with ``<details open>``, in a
 temporary folder; the report itself is not touched).  Chromium runs headless with a throw-away profile,
 no network services, under ``timeout``; the PDF is written next to nothing else and moved into place
-whole (valid_output.atomic_path).  Where no Chromium is installed the error is one line saying so.
+whole (checked_io.output.atomic_path).  Where no Chromium is installed the error is one line saying so.
 """
 
 from __future__ import annotations
@@ -15,9 +15,9 @@ import subprocess
 import tempfile
 from pathlib import Path
 
+from flexmodal.checked_io.output import atomic_path
+from flexmodal.checked_io.text import read_text
 from flexmodal.reports.errors import ReportError
-from flexmodal.valid_output import atomic_path
-from flexmodal.valid_text import read_text
 
 CHROMIUM_NAMES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
 CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",

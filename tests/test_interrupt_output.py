@@ -1,4 +1,4 @@
-"""Issue 13, "nothing half-written": outputs go through valid_output.atomic_path (whole or not at all),
+"""Issue 13, "nothing half-written": outputs go through checked_io.output.atomic_path (whole or not at all),
 in-place HDF5 updates hold Ctrl-C until they are whole, and the frame eigen-solve that runs in a worker
 process (so that Ctrl-C stays prompt) gives exactly the numbers of the in-process solve."""
 
@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 from threadpoolctl import threadpool_limits
 
+from flexmodal.checked_io.output import atomic_path, signals_deferred, write_text
 from flexmodal.models.eigen_worker import FrameSolver
 from flexmodal.models.errors import ModelError
 from flexmodal.models.frame import assemble_many, solve_modes
 from flexmodal.models.rig import load_rig
-from flexmodal.valid_output import atomic_path, signals_deferred, write_text
 
 
 def _leftovers(folder: Path) -> list[str]:

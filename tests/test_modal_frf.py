@@ -203,3 +203,22 @@ def test_float32_record_frfs_equal_double_precision_scipy_to_single_precision_ro
         for ours, ref in ((h1(s)[k - 1, 0], ref_h1), (h2(s)[k - 1, 0], ref_h2)):
             assert np.max(np.abs(ours - ref)[good] / np.abs(ref)[good]) <= 1e-5
         assert np.max(np.abs(coherence(s)[k - 1] - ref_c)[good]) <= 1e-5
+
+
+def test_any_window_array_and_an_unused_column_between_the_used_ones():
+    """A window given as samples (symmetric Hann: its spectrum is not a few lines, so each segment's
+    mean leaves before windowing) on a record with offsets, the force in the last column and an
+    unused column of NaN between the used ones (an encoder that dropped out): every spectrum equals
+    scipy.signal.csd, and no segment is left out for the unused column."""
+    rng = np.random.default_rng(7)
+    x = rng.standard_normal((6000, 4)) + np.array([5.0, np.nan, -2.0, 1.0])
+    x[:, 1] = np.nan
+    w = np.hanning(512)
+    s = welch_spectra(x, 100.0, [3], [0, 2], 512, window_spec=w)
+    assert s.n_skipped == 0
+    kw = dict(fs=100.0, window=w, nperseg=512, noverlap=256, detrend="constant")
+    for k, o in enumerate([0, 2]):
+        _, gxf = scipy.signal.csd(x[:, 3], x[:, o], **kw)
+        _, gxx = scipy.signal.welch(x[:, o], **kw)
+        assert np.allclose(s.g_xf[k, 0], gxf, rtol=1e-10, atol=1e-12 * np.abs(gxf).max())
+        assert np.allclose(s.g_xx[k], gxx, rtol=1e-10, atol=1e-12 * gxx.max())

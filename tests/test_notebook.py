@@ -79,3 +79,97 @@ def test_a_user_figure_after_flexmodals_renders_its_mathtext(executed):
     math_px, plain_px = map(float, re.search(r"mathtext ([\d.]+) px, plain ([\d.]+) px", text).groups())
     assert math_px < 0.8 * plain_px          # "$\zeta$" drawn as one glyph, not as seven characters
     assert any("image/png" in o.get("data", {}) for o in cell.outputs)
+
+
+# -- the notebook-friendly objects, without a kernel ------------------------------------------------
+
+def _two_mode_frf():
+    """FRFs of two outputs of a known two-mode system (accelerance, one input), 0..100 Hz."""
+    import numpy as np
+
+    f = np.linspace(0.0, 100.0, 801)
+    s = 2j * np.pi * f
+    modes = [(23.0, 0.012, np.array([1.0, 0.6])), (61.0, 0.02, np.array([-0.5, 1.0]))]
+    H = sum(np.outer(phi, [phi[0]])[:, :, None] / (s**2 + 4 * np.pi * z * fn * s + (2 * np.pi * fn) ** 2)
+            for fn, z, phi in modes) * s**2
+    return f, H, modes
+
+
+def test_frf_from_arrays_takes_keywords_and_feeds_identify():
+    import numpy as np
+
+    import flexmodal as fm
+
+    f, H, modes = _two_mode_frf()
+    frf = fm.frf_from_arrays(f, H, outputs=["tip", "mid"], inputs=["hammer"], quantity="accelerance")
+    assert isinstance(frf, fm.FrfResult) and frf.H.shape == (2, 1, f.size) and frf.inputs == ("hammer",)
+    table = fm.identify(frf, fmin=5.0, fmax=90.0).table
+    np.testing.assert_allclose(table.freq_hz("run"), [m[0] for m in modes], rtol=1e-4)
+    np.testing.assert_allclose(table.frame["damping_ratio"], [m[1] for m in modes], rtol=1e-3)
+    fig = fm.plot_frf(frf)
+    assert fig.axes[0].get_ylabel() == "|H| [(m/s²)/N]"
+    with pytest.raises(ValueError, match="frf_from_arrays: H .* n_freq = 801"):
+        fm.frf_from_arrays(f, H[..., :-1])
+    with pytest.raises(ValueError, match="quantity 'velocity'"):
+        fm.frf_from_arrays(f, H, quantity="velocity")
+    with pytest.raises(ValueError, match="increasing"):
+        fm.frf_from_arrays(f[::-1], H)
+
+
+def test_reprs_are_short_and_frames_carry_the_numbers(tmp_path):
+    import numpy as np
+    import pandas as pd
+
+    import flexmodal as fm
+
+    f, H, _ = _two_mode_frf()
+    ident = fm.identify(fm.frf_from_arrays(f, H, outputs=["tip", "mid"]), fmin=5.0, fmax=90.0)
+    assert re.fullmatch(r"Identification\(1 configurations, 2 modes, \d+ warnings?; \.table, "
+                        r"\.modes\[config\], \.warnings\)", repr(ident)), repr(ident)
+    assert len(repr(ident.table)) < 200 and "2 modes, 23-61 Hz" in repr(ident.table)
+    pd.testing.assert_frame_equal(ident.to_frame(), ident.table.frame)
+    predicted = fm.read_table(_shifted(ident.table, tmp_path))
+    comparison = fm.compare_modes(ident.table, predicted)
+    frame = comparison.to_frame()
+    csv = pd.read_csv(io.StringIO(fm.format_comparison(comparison, "csv")))
+    np.testing.assert_allclose(frame.select_dtypes("number").to_numpy(float),
+                               csv.select_dtypes("number").to_numpy(float), rtol=1e-12)
+    assert "shifted Δf [%]" in frame.columns and np.allclose(frame["shifted Δf [%]"], 5.0)
+    assert repr(comparison).startswith("Comparison(experiment: 1 configurations, 2 measured modes; shifted: "
+                                       "2 paired, RMS Δf 5 %")
+    assert "<table" in comparison._repr_html_()
+
+
+def _shifted(table, folder):
+    """The table with every frequency 5 % up, written as a CSV named 'shifted'."""
+    frame = table.frame.assign(freq_hz=table.frame["freq_hz"] * 1.05, source="shifted")
+    path = folder / "shifted.csv"
+    frame.to_csv(path, index=False)
+    return path
+
+
+def test_diagnosis_frame_is_its_ranking():
+    import json
+
+    import flexmodal as fm
+
+    diagnosis = fm.read_diagnosis(REPO / "tests" / "data" / "diagnosis" / _a_diagnosis())
+    frame = diagnosis.to_frame()
+    assert list(frame["effect"]) == [r.effect for r in diagnosis.ranking]
+    expected = [100 * r.heldout_rms_rel_error for r in diagnosis.ranking]
+    assert list(frame["heldout_rms_rel_error_pct"]) == expected
+    assert len(repr(diagnosis)) < 300 and repr(diagnosis).startswith("Diagnosis(")
+    assert "held-out RMS error [%]" in diagnosis._repr_html_() and json.loads(diagnosis.to_json())
+
+
+def _a_diagnosis() -> str:
+    return sorted(p.name for p in (REPO / "tests" / "data" / "diagnosis").glob("*.json"))[0]
+
+
+def test_version_flag(capsys):
+    import flexmodal
+    from flexmodal.app import main
+
+    with pytest.raises(SystemExit) as stop:
+        main(["--version"])
+    assert stop.value.code == 0 and capsys.readouterr().out.strip() == f"flexmodal {flexmodal.__version__}"

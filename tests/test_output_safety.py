@@ -1,6 +1,6 @@
 """Issue 24: outputs never destroy inputs, and writers cannot half-write.
 
-``valid_output`` refuses an output that is an input of the same command (same inode, through symlinks
+``checked_io.output`` refuses an output that is an input of the same command (same inode, through symlinks
 and hard links), an existing HDF5 file where a table goes, a FIFO, a device or a directory; it writes
 regular files only, whole, and through a symlink writes the link's target.  ``modal.runs_io.write_frf``
 leaves a complete FRF group or the previous state on a full disk (a real tmpfs where this process may
@@ -21,9 +21,9 @@ import h5py
 import numpy as np
 import pytest
 
+from flexmodal.checked_io.output import atomic_path, hdf5_output, output_dir, output_file, write_text
 from flexmodal.modal import runs_io
 from flexmodal.modal.errors import ModalError
-from flexmodal.valid_output import atomic_path, hdf5_output, output_dir, output_file, write_text
 
 sys.path.insert(0, str(Path(__file__).parent))
 from test_cli_table import write_run  # noqa: E402  (the table's small valid run)
@@ -215,3 +215,80 @@ def test_cli_refuses_to_destroy_an_input(tmp_path: Path, command: str) -> None:
     assert "Traceback" not in done.stderr
     assert {p.name: _digest(p) for p in tmp_path.iterdir() if p.is_file()} == before
     assert (tmp_path / "fifo").is_fifo() and (tmp_path / "link.csv").is_symlink()
+
+
+def test_a_fault_log_is_a_regular_file(tmp_path: Path) -> None:
+    """The simulator's fault log: a FIFO (no reader) or a device fails at once, never blocks."""
+    from flexmodal.fixtures.errors import FixtureError
+    from flexmodal.fixtures.sim_common import FaultLog
+
+    os.mkfifo(tmp_path / "fifo")
+    for path, message in [(tmp_path / "fifo", "cannot write the fault log"),
+                          ("/dev/null", "character device, not a regular file")]:
+        with pytest.raises(FixtureError, match=message):
+            FaultLog(path)
+    log = FaultLog(tmp_path / "faults.log")
+    log.write("drop", at_s=1.5)
+    log.close()
+    assert (tmp_path / "faults.log").read_text() == '{"fault": "drop", "at_s": 1.5}\n'
+
+
+def test_the_live_display_ends_its_last_frame_with_a_newline(capsys) -> None:
+    """On a stream that is not a terminal rich prints the last frame at the end without a newline; the
+    display adds it, so an error line printed next starts on its own line."""
+    from collections import Counter
+
+    from flexmodal.daq.acquire import Display
+
+    display = Display(("F", "a1"), ("N", "m/s^2"), quiet=False)
+    display.update(2048, 2048.0, 0, Counter(), force=True)
+    display.close()
+    err = capsys.readouterr().err
+    assert "acquiring" in err and err.endswith("\n") and not err.endswith("\n\n")
+
+
+@pytest.mark.parametrize("command", [
+    "compare {d}/modes.csv {d}/modes.csv --out {m}/table.md",
+    "predict {d}/rig.toml --model fe --poses {d}/poses.csv --out {m}/pred.csv",
+    "identify {d}/run.h5 --method peak --out {m}/modes.csv",
+    "report --measured {d}/modes.csv --out {m}/report.html",
+])
+def test_every_writer_on_a_full_disk_exits_2_with_one_line(tmp_path: Path, command: str, monkeypatch,
+                                                           capsys) -> None:
+    """A full tmpfs (or, where mounting is refused, an injected ENOSPC at the final rename): exit 2, one
+    line naming the output, nothing left on the device."""
+    from conftest import REPO
+
+    write_run(tmp_path / "run.h5")
+    (tmp_path / "modes.csv").write_text(
+        (REPO / "examples" / "measured" / "seed003_table3_f1f2.csv").read_text())
+    (tmp_path / "rig.toml").write_text((REPO / "examples" / "rigs" / "seed003_two_link.toml").read_text())
+    (tmp_path / "poses.csv").write_text("config,pose.theta_deg\ntheta0,0\n")
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    args = command.replace("{d}", str(tmp_path)).replace("{m}", str(disk)).split()
+    if _tmpfs(disk, "64k"):
+        try:
+            with open(disk / "fill", "wb", buffering=0) as fh, pytest.raises(OSError):   # fill it up
+                while True:
+                    fh.write(b"\0" * 4096)
+            done = subprocess.run([_flexmodal(), *args], capture_output=True, text=True, timeout=300,
+                                  stdin=subprocess.DEVNULL)
+            code, err = done.returncode, done.stderr
+            left = sorted(p.name for p in disk.iterdir())
+        finally:
+            subprocess.run(["umount", str(disk)], capture_output=True, timeout=30, check=False)
+    else:
+        from flexmodal.app import main
+        from flexmodal.checked_io import output as valid_output
+
+        def full(_src, _dst):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+        monkeypatch.setattr(valid_output.os, "replace", full)
+        code, err = main(["--quiet", *args]), capsys.readouterr().err
+        left = sorted(p.name for p in disk.iterdir() if p.name != "fill")
+    lines = err.strip().splitlines()
+    assert code == 2 and "Traceback" not in err, err[-2000:]
+    assert lines[-1].startswith(f"flexmodal: error: {disk}/") and "No space left on device" in lines[-1], err
+    assert left in ([], ["fill"])

@@ -199,3 +199,56 @@ def test_animated_gif_for_slides(tmp_path):
     both = fm.animate_mode(tmp_path / "arm.gif", measured, "theta60", 2, rig=rig, frames=8)
     with Image.open(both) as im:
         assert im.n_frames == 8 and im.size[0] > 1.8 * im.size[1]                  # test beside model
+
+
+def test_uff_geometry_from_double_precision_nodes_and_2420_systems(tmp_path):
+    """Dataset 2411 nodes and a 2420 system rotated 90° about z (local x = global y) placed at
+    (1, 0, 0): a node defined at local (1, 0, 0) sits at global (1, 1, 0) and measures local +x
+    along global +y."""
+    import pyuff
+
+    from flexmodal.reports.geometry import read_uff_geometry
+
+    rot = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
+    path = tmp_path / "g.uff"
+    uff = pyuff.UFF(str(path))
+    for s in (pyuff.prepare_2420(Part_UID=1, Part_Name="frame", CS_sys_labels=[7], CS_types=[0],
+                                 CS_colors=[8], CS_names=["rotated"], CS_matrices=[rot]),
+              pyuff.prepare_2411(node_nums=[10, 11], def_cs=[0, 7], disp_cs=[0, 7], color=[1, 1],
+                                 x=[0.0, 1.0], y=[0.0, 0.0], z=[0.0, 0.0]),
+              pyuff.prepare_82(trace_num=1, n_nodes=2, color=8, id="bar", nodes=np.array([10, 11]))):
+        uff.write_sets(s, mode="add")
+    g = read_uff_geometry(path)
+    np.testing.assert_allclose(g.xyz, [[0, 0, 0], [1, 1, 0]], atol=1e-12)
+    np.testing.assert_allclose(g.direction("11+x")[1], [0, 1, 0], atol=1e-12)
+    np.testing.assert_allclose(g.direction("10-y")[1], [0, -1, 0], atol=1e-12)
+    assert g.lines == ((0, 1),)
+    with pytest.raises(ValueError, match="no node 12"):
+        g.direction("12+z")
+
+
+def test_uff_geometry_reader_turns_any_broken_file_into_one_error(tmp_path):
+    """Fuzz: a valid geometry file cut short, or with a field replaced by junk, gives a Geometry or a
+    ReportError naming the file, never another exception."""
+    from hypothesis import HealthCheck, given, settings
+    from hypothesis import strategies as st
+
+    from flexmodal.reports.errors import ReportError
+    from flexmodal.reports.geometry import read_uff_geometry
+
+    good = UFF.read_text().split("    58")[0]              # the geometry part: datasets 18, 15, 82
+    path = tmp_path / "fuzz.uff"
+
+    @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+    @given(cut=st.integers(0, len(good)), at=st.integers(0, len(good)),
+           junk=st.text(alphabet="0123456789-+.eE xyz\n", max_size=12))
+    def check(cut, at, junk):
+        path.write_text(good[:at] + junk + good[at:cut] if at < cut else good[:cut])
+        try:
+            g = read_uff_geometry(path)
+        except ReportError as exc:
+            assert str(path) in str(exc) and "\n" not in str(exc)
+        else:
+            assert g.xyz.shape[1] == 3 and all(max(line) < len(g.nodes) for line in g.lines)
+
+    check()

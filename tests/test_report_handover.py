@@ -92,7 +92,7 @@ def test_wrapped_phase_breaks_the_line_instead_of_jumping():
 
 
 def test_trends_figure_is_readable():
-    from flexmodal.modal.table import ModalTable
+    from flexmodal.contract.table import ModalTable
 
     rows = [{"config": f"t{t}p{p}", "mode": m, "freq_hz": 10.0 * m / (1 + p) + t / 90,
              "pose.theta_deg": t, "pose.payload_kg": p}
@@ -140,7 +140,7 @@ print("ok")
 def test_stabilisation_diagrams_select_the_modes_of_the_table_of_the_same_run(demo_figures):
     """Each impact run's diagram (crosses), its caption and the demo's modal table (modes.csv, identified
     from those runs) give the same modes."""
-    from flexmodal.modal.table import ModalTable
+    from flexmodal.contract.table import ModalTable
 
     report, figures = demo_figures
     table = ModalTable.read_csv(report.parent / "modes.csv")
@@ -191,7 +191,9 @@ PRINT_JS = """(() => {
     return {caption: (t.caption || {}).textContent, left: r.left, right: r.right, scroll: t.scrollWidth,
             overflowing_cells: cells.length};
   });
-  return {width, tables: wide, page: document.documentElement.scrollWidth};
+  const heads = [...document.querySelectorAll('thead')].map(h => getComputedStyle(h).display);
+  const rows = [...document.querySelectorAll('tr')].map(r => getComputedStyle(r).breakInside);
+  return {width, tables: wide, page: document.documentElement.scrollWidth, heads, rows};
 })()"""
 
 
@@ -273,8 +275,8 @@ def test_report_names_inputs_relative_to_it_and_the_versions(page, demo_figures)
     assert "Inputs: runs.h5, operational.h5, " in text and str(report.parent) not in text
     assert re.search(r"Versions: flexmodal \S+, Python 3\.\d+\.\d+, numpy \d", text)
     diagnosis_page = (report.parent / "diagnosis.html").read_text()
-    assert "Inputs: modes.csv" in diagnosis_page or "Inputs: " in diagnosis_page and "none" not in \
-        diagnosis_page.split("Inputs: ")[1][:40]
+    named = re.search(r"Inputs: ([^<]*)\.</p>", diagnosis_page).group(1).split(", ")
+    assert len(named) == 2 and named[1] == "modes.csv" and named[0].endswith(".toml")   # rig, modes
     # configurations in natural order wherever they are listed
     for listing in re.findall(r"configurations ([\w, ]+);", text):
         names = listing.split(", ")
@@ -300,6 +302,9 @@ def test_printed_report_has_no_table_wider_than_the_page(page):
     wide = [t for t in tables if t["right"] > printed["width"] + 0.5 or t["left"] < -0.5
             or t["scroll"] > t["right"] - t["left"] + 1 or t["overflowing_cells"]]
     assert wide == []
+    # header rows repeat on every printed page, no row is split across two
+    assert printed["heads"] and set(printed["heads"]) == {"table-header-group"}
+    assert set(printed["rows"]) == {"avoid"}
 
 
 def test_report_pdf_prints_every_page(demo_figures, tmp_path):
@@ -325,3 +330,33 @@ def test_report_pdf_without_chromium_is_one_line_and_exit_2(demo_figures, tmp_pa
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "no Chromium found" in err and "Traceback" not in err
     assert not out.exists()
+
+
+def test_frf_axes_take_the_channels_units(tmp_path, rigs_dir):
+    """A session recorded in g: the same FRFs 9.81 times smaller than in m/s², labelled g/N."""
+    from dataclasses import replace
+
+    from flexmodal import api
+    from flexmodal.daq.store import RunWriter, read_run
+    from flexmodal.fixtures.rig_sim import simulate
+    from flexmodal.modal.compute import compute_frf
+    from flexmodal.modal.runs_io import write_frf
+    from flexmodal.models.rig import load_rig
+
+    test = simulate(load_rig(rigs_dir / "demo_arm.toml"), {"theta_deg": 30.0}, excitation="random",
+                    duration_s=4.0, sample_rate_hz=1024.0, n_modes=3)
+    acc = np.array([c.kind == "acceleration" for c in test.channels])
+    channels = [replace(c, unit="g") if c.kind == "acceleration" else c for c in test.channels]
+    runs = tmp_path / "g.h5"
+    with RunWriter(runs, "in-g", sample_rate_hz=1024.0, channels=channels, excitation="random",
+                   pose={"theta_deg": 30.0}) as w:
+        w.append(np.where(acc, test.samples / 9.80665, test.samples))
+    write_frf(runs, "in-g", compute_frf(read_run(runs, "in-g"), nfft=512))
+    seen = []
+    original = plots.figure_png
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(plots, "figure_png", lambda fig, dpi=100: seen.append(fig) or original(fig, dpi))
+        api.report(tmp_path / "r.html", runs=[runs])
+    frf_fig = next(f for f in seen if f.axes[0].get_ylabel().startswith("|H|"))
+    assert frf_fig.axes[0].get_ylabel() == "|H| [g/N]"
+    assert problems(frf_fig) == []

@@ -22,11 +22,11 @@ from matplotlib import image as mpimg
 
 from flexmodal import api
 from flexmodal.app import main
+from flexmodal.contract.table import ModalTable
 from flexmodal.daq.store import Event, RunWriter, read_run
 from flexmodal.fixtures.rig_sim import HiddenEffect, simulate
 from flexmodal.modal.compute import compute_frf
 from flexmodal.modal.runs_io import write_frf
-from flexmodal.modal.table import ModalTable
 from flexmodal.models.frame import frame_modes
 from flexmodal.models.rig import load_rig
 
@@ -197,3 +197,18 @@ def test_report_renders_in_headless_chromium_without_errors(report, tmp_path, ch
     page = render(chromium, report, tmp_path / "profile")
     assert_table_and_plot_visible(page)
     assert len(page.layout["tables"]) >= 5 and len(page.layout["images"]) == 17
+
+
+def test_report_cli_pdf_prints_beside_the_html_and_a_bad_geometry_is_one_line(inputs, tmp_path, capsys):
+    out = tmp_path / "printed.html"
+    assert main(["report", "--measured", str(inputs["measured"]), "--pred", str(inputs["pred"]),
+                 "--out", str(out), "--pdf", "--quiet"]) == 0
+    lines = capsys.readouterr().out.split()
+    assert lines == [str(out), str(out.with_suffix(".pdf"))]
+    assert out.with_suffix(".pdf").read_bytes().startswith(b"%PDF-")
+    bad = tmp_path / "bad.uff"
+    bad.write_text("not a universal file\n")
+    assert main(["report", "--measured", str(inputs["measured"]), "--geometry", str(bad),
+                 "--out", str(tmp_path / "g.html")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "bad.uff" in err and "Traceback" not in err

@@ -1,5 +1,6 @@
-"""Known answers for the validation modules of issue 13 (valid_text, valid_csv, valid_options,
-valid_output, daq.run_schema / daq.h5file.open_read, models.rig_schema, modal.valid_uff)."""
+"""Known answers for the validation modules of issue 13 (checked_io.text, checked_io.csv_tables,
+checked_io.options, checked_io.output, daq.run_schema / daq.h5file.open_read, models.rig_schema,
+modal.valid_uff)."""
 
 from __future__ import annotations
 
@@ -13,7 +14,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flexmodal import valid_options as opt
+from flexmodal.checked_io import options as opt
+from flexmodal.checked_io.csv_tables import read_table
+from flexmodal.checked_io.output import hdf5_output, output_dir, output_file
+from flexmodal.checked_io.text import decode_text, one_line, read_toml
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.h5file import open_read
 from flexmodal.daq.store import Channel, RunWriter, list_runs, read_run
@@ -21,9 +25,6 @@ from flexmodal.modal.errors import ModalError
 from flexmodal.modal.valid_uff import check_functions
 from flexmodal.models.errors import ModelError
 from flexmodal.models.rig_schema import check_document
-from flexmodal.valid_csv import read_table
-from flexmodal.valid_output import hdf5_output, output_dir, output_file
-from flexmodal.valid_text import decode_text, one_line, read_toml
 
 
 class Bad(ValueError):
@@ -179,7 +180,7 @@ def test_uff_records() -> None:
 
 
 def test_naming_puts_the_file_in_front_of_messages_that_lack_it():
-    from flexmodal.valid_text import naming
+    from flexmodal.checked_io.text import naming
 
     with pytest.raises(ModalError, match=r"^runs\.h5:r1: identify: no stable poles$"):
         with naming("runs.h5:r1", ModalError):

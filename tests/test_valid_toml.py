@@ -1,5 +1,6 @@
-"""Known answers for flexmodal.valid_toml, the one TOML field kit of the rig and session loaders: each
-getter's accepted values, and each failure's one line in both wordings, with the caller's error type."""
+"""Known answers for flexmodal.checked_io.toml_fields, the one TOML field kit of the rig and session
+loaders: each getter's accepted values, and each failure's one line in both wordings, with the caller's
+error type."""
 
 from __future__ import annotations
 
@@ -7,9 +8,9 @@ import math
 
 import pytest
 
+from flexmodal.checked_io.toml_fields import DOTTED_PATH, KEY_EQUALS, Fields, range_rule
 from flexmodal.daq.errors import DaqError
 from flexmodal.models.errors import ModelError
-from flexmodal.valid_toml import DOTTED_PATH, KEY_EQUALS, Fields, range_rule
 
 DOC = {"rate": 2048, "name": "adc", "flag": True, "port": 70000, "x": math.inf, "kind": "forse",
        "pose": {"theta_deg": 30, "payload_kg": 0.5}, "bad_pose": {"q": "up"}, "items": [1, 2]}

@@ -26,6 +26,7 @@ from common import (  # noqa: E402
     h1,
     oma_reference,
     reference_json,
+    reference_mode,
     split_confident,
     write_frf_uff,
     write_json,
@@ -469,6 +470,114 @@ def build_pyfrf_impact_frf() -> None:
                     "+z, reference node 1 +z, 1 Hz lines 200-7000 Hz; H1 = sum(Y F*) / sum(|F|^2) over the "
                     "five hits, rectangular window",
             script="benchmarks/realdata_build/build.py pyfrf_impact_frf")
+
+
+@builder
+def build_pyfrf_impact_single_hit() -> None:
+    """The first of pyFRF's five hits alone: a single-hit impact test (no averaging, no coherence)."""
+    name = "pyfrf_impact_single_hit"
+    repo, commit = PYFRF
+    hit = np.load(io.BytesIO(blob(repo, commit, "data/measurements_1.npy")))
+    fs = 1.0 / (hit[0, 1] - hit[0, 0])
+    d = entry_dir(name)
+    write_time_uff(d / "impact_hit1.uff", fs, [
+        {"node": 1, "dir": 3, "kind": "force", "records": [hit[1]], "id1": "Force hammer"},
+        {"node": 2, "dir": 3, "kind": "acceleration", "records": [hit[2]], "id1": "Acceleration"}])
+    check_uff(d / "impact_hit1.uff", [hit[1], hit[2]])
+    ref = json.loads((entry_dir("pyfrf_impact_5hits") / "reference.json").read_text())
+    write_json(d / "reference.json", {**ref, "notes": ref["notes"] + "  Same reference as pyfrf_impact_5hits "
+                                      "(from all five hits); this entry holds the first hit only."})
+    _source(name, input="impact_hit1.uff", kind_short="impact, single hit, dense/close modes",
+            repository=repo, commit=commit, paths=["data/measurements_1.npy"],
+            licence="LGPL-3.0 (pyFRF LICENSE at the commit that added the data; the repository was "
+                    "relicensed MIT by its authors in 2023, commit 635e14b)",
+            kind="impact test, one hit (force + acceleration time histories), dense modes with close "
+                 "pairs, light damping",
+            structure="unnamed test piece of pyFRF's showcase (LADISK, University of Ljubljana, 2016)",
+            derived="impact_hit1.uff: dataset 58b time histories (single precision) of measurements_1.npy: "
+                    "force node 1 +z (ordinate type 13), acceleration node 2 +z, 25 600 Hz, 25 600 samples",
+            script="benchmarks/realdata_build/build.py pyfrf_impact_single_hit")
+
+
+# ----------------------------------------------------- pyOMA steel frame, 3D laser + references
+PYOMA = ("pyOMA-dev/pyOMA", "c0e17452b284f7ed7ae7321189f3b907666e0207")
+
+
+def _pyoma_poles_reference(freq: np.ndarray, damp_pct: np.ndarray, approx_hz: list[float], *,
+                           first_order: int = 30, window_rel: float = 0.01) -> list[dict]:
+    """Reference modes from pyOMA's own stored SSI poles (modal_data.npz: frequency and damping in
+    percent per model order): for each guess, the poles within ``window_rel`` of it with damping below
+    5 % over the model orders from ``first_order`` up; value = median, scatter = their spread."""
+    modes = []
+    orders = range(first_order, freq.shape[0])
+    for guess in approx_hz:
+        pf, pz = [], []
+        for n in orders:   # a loop over model orders
+            row_f, row_z = freq[n, : n + 1], damp_pct[n, : n + 1] / 100
+            hit = np.flatnonzero((row_f > 0) & (np.abs(row_f / guess - 1) < window_rel) & (row_z > 0)
+                                 & (row_z < 0.05))
+            if hit.size:
+                k = hit[np.argmin(np.abs(row_f[hit] / guess - 1))]
+                pf.append(row_f[k])
+                pz.append(row_z[k])
+        share = len(pf) / len(orders)
+        if not pf:
+            modes.append({"freq_hz": float(guess), "stable_share": 0.0})
+            continue
+        pf, pz = np.array(pf), np.array(pz)
+        m = reference_mode(float(np.median(pf)), float(np.median(pz)), pf, pz,
+                  f"pyOMA SSI-cov poles stored with the data (modal_data.npz), orders {first_order}-"
+                  f"{freq.shape[0] - 1}")
+        m["stable_share"] = round(share, 3)
+        modes.append(m)
+    return modes
+
+
+@builder
+def build_pyoma_steel_frame() -> None:
+    """pyOMA's example measurement 10: a 1 m five-storey steel frame under fan (ambient) excitation, a
+    3D scanning laser vibrometer's three skewed beams at node 17 (velocities, direction code 0) and
+    two reference accelerometers at node 24; 256 Hz, 240 s.  Decimated to 64 Hz."""
+    from scipy.signal import decimate
+
+    name = "pyoma_steel_frame"
+    repo, commit = PYOMA
+    base = "tests/files/measurement_10"
+    data = np.load(io.BytesIO(blob(repo, commit, f"{base}/measurement_10.npy")))
+    poles = np.load(io.BytesIO(blob(repo, commit, f"{base}/modal_data.npz")), allow_pickle=False)
+    y = decimate(data[:, :5], 4, ftype="fir", axis=0, zero_phase=True)   # channel 5 is deleted in setup_info
+    d = entry_dir(name)
+    beams = [("vib_l", 28.866, -28.895), ("vib_r", 80.977, -25.551), ("vib_t", 55.879, 8.856)]
+    channels = [{"node": 17, "dir": 0, "kind": "velocity", "records": [y[:, k]],
+                 "id1": f"{lab} azimuth {az:g} elevation {el:g} deg"}
+                for k, (lab, az, el) in enumerate(beams)]
+    channels += [{"node": 24, "dir": 1, "kind": "acceleration", "records": [y[:, 3]], "id1": "ref_x"},
+                 {"node": 24, "dir": 2, "kind": "acceleration", "records": [y[:, 4]], "id1": "ref_y"}]
+    write_time_uff(d / "steel_frame_m10.uff", 64.0, channels)
+    check_uff(d / "steel_frame_m10.uff", [y[:, k] for k in range(5)])
+    approx = [1.23, 1.44, 1.65, 2.1, 4.02, 4.77, 6.68, 7.62, 9.66, 12.17, 12.6, 13.87]   # poles of order 50
+    sure, unsure = split_confident(_pyoma_poles_reference(poles["self.modal_frequencies"],
+                                                          poles["self.modal_damping"], approx))
+    write_json(d / "reference.json", reference_json(
+        sure, band_hz=(0.5, 25), uncertain_hz=unsure,
+        source="pyOMA's own SSI-cov poles of this measurement (modal_data.npz in the pyOMA repository), "
+               "orders 30-199",
+        notes="Output-only; the three laser channels share node 17 with direction code 0 (skewed beams, "
+              "azimuth/elevation in their id lines).  Decimated record: Nyquist 32 Hz."))
+    _source(name, input="steel_frame_m10.uff", kind_short="output-only, 3D laser (skewed, dir 0) + refs",
+            repository=repo, commit=commit,
+            paths=[f"{base}/measurement_10.npy", f"{base}/modal_data.npz", f"{base}/channel_dofs.txt",
+                   f"{base}/setup_info.txt"],
+            licence="GPL-3.0 (pyOMA LICENSE); the derived data file is redistributed under that licence",
+            kind="output-only (fan excitation) multi-channel record: three skewed laser-vibrometer beams at "
+                 "one node (velocities) and two reference accelerometers",
+            structure="1 m five-storey steel frame, fixed base, Institute of Structural Mechanics, "
+                      "Bauhaus-Universität Weimar (pyOMA's example data); at least eight modes below 15 Hz",
+            derived="steel_frame_m10.uff: dataset 58b time histories (single precision): vib_l, vib_r, vib_t "
+                    "as node 17 direction 0 (ordinate type 11, velocity; beam angles in id line 1), ref_x "
+                    "and ref_y as node 24 +x, +y (type 12); ref_z dropped as setup_info.txt deletes it; "
+                    "decimated by 4 to 64 Hz (scipy.signal.decimate, FIR, zero phase), 15 360 samples",
+            script="benchmarks/realdata_build/build.py pyoma_steel_frame")
 
 
 # ------------------------------------------------------------------ pyuff MPS output-only export

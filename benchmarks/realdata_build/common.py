@@ -117,10 +117,11 @@ def write_frf_uff(path: Path, freq_hz: np.ndarray, H: np.ndarray, rsp: Sequence[
 
 def write_time_uff(path: Path, fs_hz: float, channels: Sequence[dict], *, id3: str = "NONE") -> None:
     """Time histories as dataset 58b, function type 1, single precision.  Each channel: ``node``,
-    ``dir``, ``kind`` ('force' -> ordinate data type 13, 'acceleration' -> 12, 'voltage' -> 0 with the
-    label 'Voltage'), ``records`` (a list of 1-D arrays: one record, or one per hit, told apart by load
+    ``dir``, ``kind`` ('force' -> ordinate data type 13, 'acceleration' -> 12, 'velocity' -> 11),
+    ``records`` (a list of 1-D arrays: one record, or one per hit, told apart by load
     case id 1, 2, ...), optional ``id1``."""
-    spec = {"force": (13, "Force", "N"), "acceleration": (12, "Acceleration", "m/s2")}
+    spec = {"force": (13, "Force", "N"), "acceleration": (12, "Acceleration", "m/s2"),
+            "velocity": (11, "Velocity", "m/s")}
     sets = []
     for ch in channels:   # a loop over channels
         records = ch["records"]
@@ -211,7 +212,7 @@ def ema_reference(freq_hz: np.ndarray, frf: np.ndarray, approx_hz: Sequence[floa
         f0, z0 = float(np.median(F[:, j])), float(np.median(Z[:, j]))
         pf = np.array([p[0] for p in pool[j]] + list(F[:, j]))
         pz = np.array([p[1] for p in pool[j]] + list(Z[:, j]))
-        mode = _mode(f0, z0, pf, pz, f"sdypy-EMA LSCF, orders {list(orders)}")
+        mode = reference_mode(f0, z0, pf, pz, f"sdypy-EMA LSCF, orders {list(orders)}")
         # a pick that wandered off its guess (to a neighbour's poles) confirms nothing
         wandered = abs(f0 / approx_hz[j] - 1) > min(0.01, 0.25 * spacing / approx_hz[j])
         mode["stable_share"] = 0.0 if wandered else round(len(pool[j]) / possible, 3)
@@ -232,7 +233,7 @@ def split_confident(modes: list[dict], min_share: float = 0.5,
     return [m for m in modes if ok(m)], sorted({m["freq_hz"] for m in modes if not ok(m)})
 
 
-def _mode(f0: float, z0: float, pf: np.ndarray, pz: np.ndarray, how: str) -> dict:
+def reference_mode(f0: float, z0: float, pf: np.ndarray, pz: np.ndarray, how: str) -> dict:
     """A reference mode with its scatter: frequency std and range; damping range, widened to at least
     +-10 % of the value (the spread any two good estimators of light damping show)."""
     lo, hi = float(np.min(pz)), float(np.max(pz))
@@ -297,7 +298,7 @@ def oma_reference(y: np.ndarray, fs_hz: float, approx_hz: Sequence[float], *,
     """Reference modes of output-only records y [n_samples, n_channels] with pyOMA2's SSI-cov: one run
     per number of block rows, ``mpe`` picking the stable pole nearest each approximate frequency
     (order_in="find_min"); value = median over runs, scatter = their spread (at least +-10 % on
-    damping, as in :func:`_mode`)."""
+    damping, as in :func:`reference_mode`)."""
     import contextlib
     import io
     import logging
@@ -329,7 +330,7 @@ def oma_reference(y: np.ndarray, fs_hz: float, approx_hz: Sequence[float], *,
             continue
         f0, z0 = float(np.median(F[:, j])), float(np.median(Z[:, j]))
         how = f"pyOMA2 SSI-cov, block rows {list(block_rows)}, orders to {ordmax}"
-        mode = _mode(f0, z0, F[:, j], Z[:, j], how)
+        mode = reference_mode(f0, z0, F[:, j], Z[:, j], how)
         spread = float(np.ptp(F[:, j])) / f0
         mode["stable_share"] = 1.0 if abs(f0 / guess - 1) < 0.01 and spread < 0.005 else 0.0
         modes.append(mode)

@@ -28,7 +28,7 @@ from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from flexmodal.valid_text import ErrorType, file_kind, one_line
+from flexmodal.checked_io.text import ErrorType, file_kind, one_line
 
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 SPECIAL_ROOTS = ("/dev", "/proc", "/sys")  # device and kernel files: never an output file ...

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from flexmodal import valid_options as opt
+from flexmodal.checked_io import options as opt
 
 DIAGNOSIS_FILES = ("diagnosis.json", "diagnosis.html")  # what `diagnose` writes into its --out folder
 
@@ -56,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
     if missing:
         raise CompareError(f"diagnose: missing --{missing[0]} "
                            "(needs --rig, --measured and --out, or --selftest N)")
-    from flexmodal.valid_output import output_dir
+    from flexmodal.checked_io.output import output_dir
 
     output_dir(args.out, CompareError, "diagnosis folder (--out)", files=DIAGNOSIS_FILES,
                inputs=(args.rig, args.measured))  # before the heavy imports

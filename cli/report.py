@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from flexmodal.cli_commands import command
+from flexmodal.cli.commands import command
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -51,8 +51,8 @@ def _run(args: argparse.Namespace) -> int:
     from flexmodal.reports.errors import ReportError
 
     if args.pdf:
+        from flexmodal.checked_io.output import output_file
         from flexmodal.reports.pdf import find_chromium
-        from flexmodal.valid_output import output_file
 
         output_file(Path(args.out).with_suffix(".pdf"), ReportError, "PDF report (beside --out)")
         if find_chromium() is None:

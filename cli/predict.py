@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from flexmodal import valid_options as opt
-from flexmodal.cli_commands import command
+from flexmodal.checked_io import options as opt
+from flexmodal.cli.commands import command
 from flexmodal.models.registry import MODELS
 from flexmodal.models.rig_schema import MAX_ELEMENTS
 
@@ -44,8 +44,8 @@ def _predict(args: argparse.Namespace) -> int:
     freq_hz [Hz], source, pose.*, shape.<sensor>). Rigid-body (0 Hz) modes are left out.
     """
     from flexmodal.api import load_rig, predict, read_poses
+    from flexmodal.checked_io.output import output_file
     from flexmodal.models.errors import ModelError
-    from flexmodal.valid_output import output_file
 
     output_file(args.out, ModelError, "prediction table (--out)", inputs=(args.rig, args.poses))
     rig = load_rig(args.rig)

@@ -1,6 +1,6 @@
 """Typed fields of a parsed TOML document (rig TOML, session TOML): one validation kit for every package.
 
-:class:`Fields` wraps one table of a document read by :func:`flexmodal.valid_text.read_toml` and hands
+:class:`Fields` wraps one table of a document read by :func:`flexmodal.checked_io.text.read_toml` and hands
 out its values by type: a required or optional number with a range and finiteness, a string from a set,
 a whole number, a list, a sub-table.  Each failure raises the calling package's error type (``error``,
 e.g. ``DaqError``, ``ModelError``) with one line naming the file, the table and the field.  The words of
@@ -17,7 +17,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from flexmodal.valid_text import ErrorType
+from flexmodal.checked_io.text import ErrorType
 
 
 @dataclass(frozen=True)

@@ -6,8 +6,8 @@ import argparse
 import os
 import sys
 
-from flexmodal import valid_options as opt
-from flexmodal.cli_commands import command
+from flexmodal.checked_io import options as opt
+from flexmodal.cli.commands import command
 
 
 def register(sub: argparse._SubParsersAction) -> None:

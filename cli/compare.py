@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from flexmodal import valid_options as opt
-from flexmodal.cli_commands import command
+from flexmodal.checked_io import options as opt
+from flexmodal.cli.commands import command
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -42,8 +42,8 @@ def _run(args: argparse.Namespace) -> int:
 
     to_file = args.out not in (None, "", "-")
     if to_file:
+        from flexmodal.checked_io.output import output_file, write_text
         from flexmodal.compare.errors import CompareError
-        from flexmodal.valid_output import output_file, write_text
 
         output_file(args.out, CompareError, "table (--out)", inputs=(args.measured, *args.predicted))
     comp = compare_modes(args.measured, *args.predicted, min_mac=args.min_mac)

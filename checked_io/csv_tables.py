@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from flexmodal.valid_text import ErrorType, one_line, read_text
+from flexmodal.checked_io.text import ErrorType, one_line, read_text
 
 
 def read_table(path: str | Path, error: ErrorType, *, required: Sequence[str] = (),

@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from flexmodal import valid_options as opt
-from flexmodal.cli_commands import command
+from flexmodal.checked_io import options as opt
+from flexmodal.cli.commands import command
 from flexmodal.modal.registry import ESTIMATORS
 
 
@@ -121,8 +121,8 @@ def _track(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from flexmodal.api import track
+    from flexmodal.checked_io.output import output_file, signals_deferred
     from flexmodal.modal.errors import ModalError
-    from flexmodal.valid_output import output_file, signals_deferred
 
     pose_from = _pairs(args.pose_from, "--pose-from") if args.pose_from else None
     try:
@@ -165,8 +165,8 @@ def _identify(args: argparse.Namespace) -> int:
     histories without a force, are identified output-only (SSI-cov by default; docs/oma.md).
     """
     from flexmodal.api import identify
+    from flexmodal.checked_io.output import output_file
     from flexmodal.modal.errors import ModalError
-    from flexmodal.valid_output import output_file
 
     if args.fmin is not None and args.fmax is not None and args.fmin >= args.fmax:
         raise ModalError(f"--fmin {args.fmin:g} Hz must lie below --fmax {args.fmax:g} Hz")

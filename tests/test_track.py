@@ -1,0 +1,221 @@
+"""Tracking the modes of a moving arm (modal/track.py, harmonics.py, `identify --track`) on the moving
+simulator (fixtures/moving_arm.py): one 90 s elbow sweep 0 -> 150 -> 0 deg at 1024 Hz with motor/gear
+harmonics of three orders sweeping through the modes.  Judged against the truth model's frozen-pose
+modes solved afresh at each window's pose (not the simulator's interpolation) and against the
+harmonic orders the simulator was given."""
+
+import numpy as np
+import pytest
+
+from flexmodal.contract.table import ModalTable
+from flexmodal.daq.store import RunWriter
+from flexmodal.fixtures.moving_arm import ELBOW_SWEEP, frozen_truth, simulate_moving
+from flexmodal.fixtures.rig_sim import DEMO_RIG
+from flexmodal.modal.errors import ModalError
+from flexmodal.modal.harmonics import find_orders, is_order, sinusoid_kurtosis
+from flexmodal.modal.track import TrackOptions, track_modes
+from flexmodal.models.rig import load_rig
+
+# a 90 s sweep tracked (~25 s CPU, shared by the module) and the CLI on HDF5 and UFF: minutes under load
+pytestmark = pytest.mark.timeout(900)
+
+MOTOR_ORDERS = (36.0, 80.0, 260.0)   # per motor revolution, gear ratio 100
+FMAX_HZ = 400.0
+
+
+@pytest.fixture(scope="module")
+def sweep():
+    rig = load_rig(DEMO_RIG)
+    rec = simulate_moving(rig, ELBOW_SWEEP, sample_rate_hz=1024.0, orders=MOTOR_ORDERS, seed=3)
+    names, kinds = [c.name for c in rec.channels], [c.kind for c in rec.channels]
+    res = track_modes(rec.samples, rec.sample_rate_hz, names, kinds, {"theta_deg": "enc_elbow"},
+                      TrackOptions(fmax=FMAX_HZ))
+    return rig, rec, res
+
+
+def _truth_at(rig, theta):
+    return frozen_truth(rig, {"theta_deg": theta}, FMAX_HZ)
+
+
+def test_three_modes_tracked_within_one_percent_over_most_of_the_sweep(sweep):
+    rig, rec, res = sweep
+    assert len(res.tracks) == 3                                       # three modes, no harmonic among them
+    grid = np.arange(0.0, 150.1, 2.5)
+    truth = np.array([_truth_at(rig, th)[0] for th in grid])          # [poses, 3]
+    for k, tr in enumerate(res.tracks):
+        theta = np.array([res.windows[i].pose["theta_deg"] for i in tr.windows])
+        f_true = np.interp(theta, grid, truth[:, k])
+        err = np.abs(tr.freq_hz / f_true - 1)
+        assert err.max() < 0.1        # never another mode (the nearest is >= 60 % away): no swap
+        covered = np.mean(err < 0.01) * tr.windows.size / len(res.windows)
+        assert covered >= 0.8, (k, covered)
+
+
+def test_harmonic_orders_found_and_never_reported_as_modes(sweep):
+    rig, rec, res = sweep
+    joint_orders = np.array(MOTOR_ORDERS) * rec.gear_ratio            # per joint revolution
+    found = np.array(res.orders["theta_deg"])
+    assert found.size == 3
+    np.testing.assert_allclose(np.sort(found), joint_orders, rtol=0.01)
+    assert {round(h.order / o) for h in res.harmonics for o in found if abs(h.order / o - 1) < 1e-9} == {1}
+    for tr in res.tracks:                                              # no track follows a harmonic
+        speed = np.array([abs(res.windows[i].rate_deg_per_s["theta_deg"]) / 360 for i in tr.windows])
+        on_order = np.abs(tr.freq_hz[:, None] / (speed[:, None] * found[None, :]) - 1) < 0.02
+        assert on_order.any(axis=1).mean() < 0.05
+
+
+def test_modal_map_is_a_modal_table_of_pose_bins(sweep, tmp_path):
+    rig, rec, res = sweep
+    path = tmp_path / "map.csv"
+    res.table.to_csv(path)
+    table = ModalTable.read_csv(path)
+    assert len(table.configs) == 31                                   # 0, 5, ..., 150 deg
+    for config in table.configs:
+        theta = table.pose(config)["theta_deg"]
+        assert abs(theta - float(config.split("=")[1])) <= 2.5
+        f_true = _truth_at(rig, theta)[0]
+        rows = table.rows(config)
+        f_map = rows["freq_hz"].to_numpy()
+        modes = rows["mode"].to_numpy()
+        assert np.all(np.abs(f_map / f_true[modes - 1] - 1) < np.where(modes == 1, 0.05, 0.02))
+        assert np.all(rows["freq_std_hz"].fillna(0) >= 0) and np.all(rows["n_windows"] >= 1)
+    assert table.sensors == ["a1", "a2", "a3", "a4", "a5"]
+
+
+def test_damping_of_the_high_mode_where_the_window_holds_many_periods(sweep):
+    rig, rec, res = sweep
+    tr = res.tracks[2]                                                 # ~350 Hz: 800 periods per window
+    theta = np.array([res.windows[i].pose["theta_deg"] for i in tr.windows])
+    zeta = np.array([_truth_at(rig, th)[1][2] for th in theta[::10]])
+    err = np.abs(tr.damping_ratio[::10] / zeta - 1)
+    assert np.median(err) < 0.3
+
+
+def test_no_harmonic_no_order():
+    rig = load_rig(DEMO_RIG)
+    rec = simulate_moving(rig, ELBOW_SWEEP, duration_s=45.0, sample_rate_hz=1024.0, seed=5)
+    names, kinds = [c.name for c in rec.channels], [c.kind for c in rec.channels]
+    res = track_modes(rec.samples, rec.sample_rate_hz, names, kinds, {"theta_deg": "enc_elbow"},
+                      TrackOptions(fmax=FMAX_HZ, refine=0))
+    assert res.orders["theta_deg"] == () and not res.harmonics and len(res.tracks) == 3
+
+
+def test_windows_spreading_too_far_are_skipped_and_counted():
+    rig = load_rig(DEMO_RIG)
+    fast = type(ELBOW_SWEEP)({"theta_deg": 0.0}, {"theta_deg": 150.0}, 30.0)
+    rec = simulate_moving(rig, fast, sample_rate_hz=1024.0, seed=6)
+    names, kinds = [c.name for c in rec.channels], [c.kind for c in rec.channels]
+    res = track_modes(rec.samples, rec.sample_rate_hz, names, kinds, {"theta_deg": "enc_elbow"},
+                      TrackOptions(fmax=FMAX_HZ, window_s=2.0, max_spread_deg=3.0, refine=0))
+    spread = 150 / 2 * 2 * np.pi / 30 * 2.0 / np.sqrt(12)               # std of a 2 s window at top speed
+    assert spread > 3.0 and res.skipped > 0 and res.warnings
+    assert all(w.spread["theta_deg"] <= 3.0 for w in res.windows)
+
+
+def test_harmonic_helpers_against_closed_forms():
+    t = np.arange(8192) / 1024.0
+    rng = np.random.default_rng(0)
+    sine = np.sin(2 * np.pi * 100.0 * t)[:, None]
+    noise = rng.standard_normal((8192, 1))
+    k = sinusoid_kurtosis(np.hstack([sine, noise]), 1024.0, np.array([100.0, 100.0]), np.array([0.0, 0.3]),
+                          8.0, np.array([[1.0, 0.0], [0.0, 1.0]]))
+    assert k[0] == pytest.approx(1.5, abs=0.01) and k[1] == pytest.approx(3.0, abs=0.3)
+    assert is_order(np.array([50.0, 51.5]), 0.25, (200.0,), 0.02).tolist() == [200.0, 0.0]
+    # a joint turning at a varying speed: an order-120 line in angle plus broadband noise
+    fs, n = 1024.0, 2048
+    pieces, speeds = [], []
+    for v in np.linspace(0.2, 1.0, 30):            # rev/s, one window each
+        ang = 360 * v * np.arange(n) / fs
+        y = np.sin(2 * np.pi * 120 * ang / 360)[:, None] + rng.standard_normal((n, 1))
+        pieces.append((y, ang))
+        speeds.append(v)
+    found = find_orders(pieces, fs, np.array(speeds), (5.0, 400.0), 0.02)
+    assert len(found) == 1 and found[0] == pytest.approx(120.0, rel=0.01)
+
+
+def test_identify_track_cli_on_hdf5_and_uff(tmp_path, sweep, capsys):
+    import pyuff
+
+    from flexmodal.app import main
+
+    rig, rec, _ = sweep
+    n = int(30 * rec.sample_rate_hz)                                   # 0 -> 112 deg
+    run = tmp_path / "moving.h5"
+    with RunWriter(run, "m1", sample_rate_hz=rec.sample_rate_hz, channels=rec.channels,
+                   excitation="operational", pose={"theta_deg": 0.0}) as w:
+        w.append(rec.samples[:n])
+    out = tmp_path / "map.csv"
+    fast = ["--fmax", "400", "--window", "2", "--hop", "0.5"]
+    assert main(["--quiet", "identify", str(run), "--track", "--out", str(out), *fast]) == 0
+    table = ModalTable.read_csv(out)
+    assert sorted(set(table.frame["mode"])) == [1, 2, 3]
+    harm = (tmp_path / "map.harmonics.csv").read_text().splitlines()
+    assert harm[0] == "t_s,freq_hz,joint,order"
+    sets = [pyuff.prepare_58(func_type=1, rsp_node=k + 1, rsp_dir=1, ref_node=k + 1, ref_dir=1,
+                             ordinate_spec_data_type=12 if k < 5 else 1, orddenom_spec_data_type=0,
+                             abscissa_spec_data_type=17, data=rec.samples[:n, k],
+                             x=np.arange(n) / rec.sample_rate_hz, abscissa_spacing=1, abscissa_min=0.0,
+                             abscissa_inc=1 / rec.sample_rate_hz, num_pts=n, id1="t") for k in range(6)]
+    uff = tmp_path / "moving.uff"
+    pyuff.UFF(str(uff)).write_sets(sets, mode="overwrite")
+    out2 = tmp_path / "map_uff.csv"
+    assert main(["--quiet", "identify", str(uff), "--track", "--pose-from", "theta_deg=6+x",
+                 "--out", str(out2), *fast]) == 0
+    t2 = ModalTable.read_csv(out2)
+    assert t2.sensors == [f"{k + 1}+x" for k in range(5)]       # the encoder is the pose, not an output
+    common = sorted(set(table.configs) & set(t2.configs))
+    assert len(common) >= 15
+    def mean_freq(t):
+        return t.frame.set_index(["config", "mode"]).loc[common, "freq_hz"].groupby(level=1).mean()
+
+    np.testing.assert_allclose(mean_freq(t2), mean_freq(table), rtol=0.01)
+    capsys.readouterr()
+    assert main(["identify", str(uff), "--track", "--out", str(out2)]) == 2   # no encoder named
+    assert "--pose-from" in capsys.readouterr().err
+    assert main(["identify", str(run), "--track", "--pose-from", "theta_deg", "--out", str(out2)]) == 2
+    with pytest.raises(ModalError, match="not a channel"):
+        track_modes(rec.samples, 1024.0, [c.name for c in rec.channels], [c.kind for c in rec.channels],
+                    {"theta_deg": "enc_wrist"})
+
+
+def test_report_draws_the_tracked_map_with_the_model_overlaid(sweep, tmp_path):
+    from flexmodal import api
+
+    rig, rec, res = sweep
+    path = tmp_path / "map.csv"
+    res.table.to_csv(path)
+    predicted = api.predict(DEMO_RIG, path)
+    assert set(predicted.configs) == set(res.table.configs)           # predict --poses reads the map
+    html = api.report(tmp_path / "report.html", measured=path, predictions=[("FE model", predicted)])
+    text = html.read_text()
+    assert 'id="section-modal-map"' in text and "Modal map of the moving arm" in text
+    assert "modes tracked while the arm moved" in text and "FE model&#39;s frequencies" in text
+
+
+def test_modes_that_cross_are_not_swapped():
+    """Two modes with orthogonal shapes whose frequencies cross (60 -> 100 Hz and 100 -> 60 Hz while the
+    pose goes 0 -> 100 deg in 120 s): each track stays on its own branch through the crossing."""
+    from flexmodal.fixtures.moving_arm import PathModes, varying_modal_response
+
+    s_grid = np.linspace(0.0, 1.0, 5)
+    freq = np.column_stack([60 + 40 * s_grid, 100 - 40 * s_grid])
+    shapes = np.tile(np.array([[1.0, 0.0], [0.6, 0.5], [0.0, 1.0], [-0.4, 0.7]]), (5, 1, 1))
+    modes = PathModes(s_grid, freq, np.full_like(freq, 0.01), shapes,
+                      np.tile(np.array([[1.0, 1.0]]), (5, 1, 1)))
+    fs, n = 512.0, int(120 * 512)
+    s = np.arange(n) / (n - 1)
+    acc = varying_modal_response(np.random.default_rng(8).standard_normal((n, 1)), fs, s, modes)
+    acc += 1e-3 * acc.std() * np.random.default_rng(9).standard_normal(acc.shape)
+    names, kinds = ["y1", "y2", "y3", "y4", "enc"], ["acceleration"] * 4 + ["encoder"]
+    res = track_modes(np.column_stack([acc, 100 * s]), fs, names, kinds, {"q_deg": "enc"},
+                      TrackOptions(fmin=30.0, fmax=150.0))
+    assert len(res.tracks) == 2
+    branches = set()
+    for tr in res.tracks:
+        t = np.array([res.windows[i].t_s for i in tr.windows])
+        err = np.abs(tr.freq_hz[:, None] / np.column_stack([60 + t / 3, 100 - t / 3]) - 1)
+        branch = int(np.argmin(np.median(err, axis=0)))
+        assert np.all(err[:, branch] < 0.02)                          # the whole track on one branch ...
+        assert t.min() < 50 and t.max() > 70                           # ... through the crossing at 60 s
+        branches.add(branch)
+    assert branches == {0, 1}
