@@ -21,12 +21,12 @@ if TYPE_CHECKING:
 
     from flexmodal.compare.result import Diagnosis
     from flexmodal.compare.tables import Comparison
+    from flexmodal.contract.table import ModalTable
     from flexmodal.daq.acquire import Summary
     from flexmodal.daq.session import Session
     from flexmodal.daq.store import Run
     from flexmodal.modal.frf import FrfResult
     from flexmodal.modal.identify import Modes
-    from flexmodal.modal.table import ModalTable
     from flexmodal.models.rig import Rig
 
 __all__ = [
@@ -492,7 +492,7 @@ def read_table(path: PathLike) -> ModalTable:
 
     Returns
     -------
-    modal.table.ModalTable
+    contract.table.ModalTable
 
     Examples
     --------
@@ -501,7 +501,7 @@ def read_table(path: PathLike) -> ModalTable:
     >>> table.configs[:3], len(table.frame)
     (['theta0', 'theta120', 'theta150'], 12)
     """
-    from flexmodal.modal.table import ModalTable
+    from flexmodal.contract.table import ModalTable
 
     return ModalTable.read_csv(path)
 
@@ -526,7 +526,7 @@ def read_poses(path: PathLike) -> dict[str, dict[str, float]]:
     >>> fm.read_poses("examples/measured/seed003_table3_f1f2.csv")["theta30"]
     {'theta_deg': 30.0}
     """
-    from flexmodal.modal.table import poses_from_csv
+    from flexmodal.contract.table import poses_from_csv
 
     return poses_from_csv(path)
 
@@ -580,7 +580,7 @@ def predict(rig: Rig | PathLike, poses: Mapping[str, Mapping[str, float]] | Moda
     ----------
     rig : models.rig.Rig, str or Path
         The rig, or its TOML file.
-    poses : mapping, modal.table.ModalTable, str or Path
+    poses : mapping, contract.table.ModalTable, str or Path
         ``{config: {pose variable: value}}`` (degrees, kg), a POSES.csv path, or a modal table whose
         configurations and poses are taken.
     model : str
@@ -598,7 +598,7 @@ def predict(rig: Rig | PathLike, poses: Mapping[str, Mapping[str, float]] | Moda
 
     Returns
     -------
-    modal.table.ModalTable
+    contract.table.ModalTable
         Natural frequencies [Hz] and mass-normalised shapes [kg^-1/2] at the rig's sensors.
 
     References
@@ -658,9 +658,9 @@ def compare_modes(measured: ModalTable | PathLike,
 
     Parameters
     ----------
-    measured : modal.table.ModalTable, str or Path
+    measured : contract.table.ModalTable, str or Path
         The measured modal table.
-    *predicted : modal.table.ModalTable, str, Path or (name, table)
+    *predicted : contract.table.ModalTable, str, Path or (name, table)
         Predicted tables, named by their ``source`` column, else by the file name.
     min_mac : float
         MAC pairs below this value [0, 1] are rejected.
@@ -885,7 +885,7 @@ def plot_mode_shapes(rig: Rig | PathLike, measured: ModalTable | PathLike, confi
     ----------
     rig : models.rig.Rig, str or Path
         The rig, or its TOML file.
-    measured : modal.table.ModalTable, str or Path
+    measured : contract.table.ModalTable, str or Path
         Modal table with ``shape.<sensor>`` columns.
     config : str
         The configuration to draw.
@@ -923,9 +923,9 @@ def plot_comparison(measured: ModalTable | PathLike,
 
     Parameters
     ----------
-    measured : modal.table.ModalTable, str or Path
+    measured : contract.table.ModalTable, str or Path
         The measured modal table (its mean with ``repeats``, ± 1 standard deviation).
-    *predicted : modal.table.ModalTable, str, Path or (name, table)
+    *predicted : contract.table.ModalTable, str, Path or (name, table)
         Predicted tables, a line per model and mode.
     pose_var : str, optional
         The pose variable on the x axis (default: the first that varies).

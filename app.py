@@ -1,6 +1,6 @@
 """flexmodal command line: a thin dispatcher over the packages.
 
-Every sub-command comes from the command registry (cli_commands.COMMANDS: each entry adds its
+Every sub-command comes from the command registry (cli.commands.COMMANDS: each entry adds its
 sub-commands to the parser and imports its heavy dependencies only when the command runs).  Errors of
 the one family ``flexmodal.checked_io.errors.FlexmodalError`` (each package raises its subclass), and
 operating-system errors (a missing or unreadable file, a full disk) become one line on stderr and exit
@@ -17,7 +17,7 @@ from collections.abc import Sequence
 
 from flexmodal import __version__
 from flexmodal.checked_io.errors import FlexmodalError
-from flexmodal.cli_commands import COMMANDS
+from flexmodal.cli.commands import COMMANDS
 
 
 class UsageError(Exception):
@@ -41,7 +41,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="print flexmodal's version and exit")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
-    for add in COMMANDS.values():   # the command registry (cli_commands.COMMANDS), in its order
+    for add in COMMANDS.values():   # the command registry (cli.commands.COMMANDS), in its order
         add(sub)
     for command in sub.choices.values():  # `flexmodal CMD --quiet` works as well as `flexmodal --quiet CMD`
         if "--quiet" not in command._option_string_actions:

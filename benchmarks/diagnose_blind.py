@@ -29,6 +29,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "benchmarks"))
 
 from flexmodal.compare.diagnosis import diagnose  # noqa: E402
+from flexmodal.contract.table import ModalTable  # noqa: E402
 from flexmodal.fixtures.blind import (  # noqa: E402
     advice_trials,
     format_advice,
@@ -38,7 +39,6 @@ from flexmodal.fixtures.blind import (  # noqa: E402
     run_blind,
     summarise,
 )
-from flexmodal.modal.table import ModalTable  # noqa: E402
 from flexmodal.models.effects import apply_effect  # noqa: E402
 from flexmodal.models.frame import frame_modes  # noqa: E402
 from flexmodal.models.rig import load_rig  # noqa: E402

@@ -25,7 +25,7 @@ BLIND_SEEDS = (101, 102, 103, 104, 105)
 COVERAGE_RUNS = 400
 
 from flexmodal.compare.diagnosis import diagnose  # noqa: E402
-from flexmodal.modal.table import ModalTable  # noqa: E402
+from flexmodal.contract.table import ModalTable  # noqa: E402
 from flexmodal.models.rig import load_rig  # noqa: E402
 
 

@@ -22,8 +22,8 @@ import time
 
 import numpy as np
 
+from flexmodal.contract.mac import mac
 from flexmodal.fixtures.shear_frame import shear_frame_record
-from flexmodal.modal.mac import mac
 from flexmodal.modal.ssi import ssi_cov
 
 MASS = [3000.0, 2800.0, 2600.0, 2400.0, 2000.0, 2000.0]

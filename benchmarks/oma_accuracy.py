@@ -20,17 +20,17 @@ import numpy as np
 import pandas as pd
 
 from flexmodal.compare.diagnosis import diagnose
+from flexmodal.contract.mac import mac
+from flexmodal.contract.table import ModalTable
 from flexmodal.fixtures.demo import DEMO_EFFECTS, FMAX_HZ
 from flexmodal.fixtures.rig_sim import DEMO_RIG, simulate
 from flexmodal.fixtures.shear_frame import shear_frame_modes, shear_frame_record
 from flexmodal.modal.compute import frf_of_record
 from flexmodal.modal.fdd import fdd
 from flexmodal.modal.identify import identify, modes_table
-from flexmodal.modal.mac import mac
 from flexmodal.modal.multisetup import OmaSetup, ssi_multisetup
 from flexmodal.modal.oma import identify_output_only
 from flexmodal.modal.ssi import ssi_cov
-from flexmodal.modal.table import ModalTable
 from flexmodal.models.rig import load_rig
 
 MASS = [3000.0, 2800.0, 2600.0, 2400.0, 2000.0]

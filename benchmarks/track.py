@@ -85,12 +85,12 @@ def diagnosis_rows() -> list[str]:
     import pandas as pd
 
     from flexmodal.compare.diagnosis import diagnose
+    from flexmodal.contract.table import ModalTable
     from flexmodal.fixtures.demo import DEMO_EFFECTS
     from flexmodal.fixtures.rig_sim import simulate
     from flexmodal.fixtures.truth_arm import bench_arm
     from flexmodal.modal.identify import modes_table
     from flexmodal.modal.oma import identify_output_only
-    from flexmodal.modal.table import ModalTable
 
     rig = load_rig(DEMO_RIG)
     rec = simulate_moving(rig, ELBOW_SWEEP, sample_rate_hz=1024.0, orders=MOTOR_ORDERS, seed=7,

@@ -67,8 +67,8 @@ from flexmodal.compare.result import (
     Verdict,
     Where,
 )
-from flexmodal.modal.mac import mac_pairs
-from flexmodal.modal.table import ModalTable
+from flexmodal.contract.mac import mac_pairs
+from flexmodal.contract.table import ModalTable
 from flexmodal.models.effects import REGISTRY, get_effect
 from flexmodal.models.rig import Rig
 

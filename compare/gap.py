@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from flexmodal.compare.errors import CompareError
-from flexmodal.modal.table import ModalTable
+from flexmodal.contract.table import ModalTable
 from flexmodal.models.rig import Rig
 
 

@@ -60,7 +60,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from flexmodal.compare.errors import CompareError
-from flexmodal.modal.table import ModalTable
+from flexmodal.contract.table import ModalTable
 
 FREQ_LOG_WIDTH = 0.25
 """A 25 % (log) jump from the extrapolated frequency costs as much as a shape that does not correlate."""

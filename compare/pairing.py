@@ -5,7 +5,7 @@ assignment (Hungarian method, ``scipy.optimize.linear_sum_assignment``) on the c
 small frequency term ``freq_weight * |ln(f_pred / f_meas)|`` that breaks ties between shapes the sensors
 cannot tell apart; a pair whose MAC is below ``min_mac`` is rejected and both modes are listed as
 unpaired.  Without usable shapes the modes are paired in ascending frequency order (1st with 1st, ...).
-The Modal Assurance Criterion (Allemang & Brown 1982) is ``modal.mac.mac``.
+The Modal Assurance Criterion (Allemang & Brown 1982) is ``contract.mac.mac``.
 
 Configurations are matched by name; a measured configuration with no namesake is matched to the one
 predicted configuration with the same pose (every ``pose.<name>`` equal within 1e-9), so modes identified
@@ -24,8 +24,8 @@ from functools import cached_property
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from flexmodal.modal.mac import mac
-from flexmodal.modal.table import ModalTable
+from flexmodal.contract.mac import mac
+from flexmodal.contract.table import ModalTable
 
 MIN_MAC = 0.5
 FREQ_WEIGHT = 1e-3

@@ -428,7 +428,7 @@ class Diagnosis(_Record):
     def _repr_html_(self) -> str:
         import html
 
-        from flexmodal.modal.table import display_html
+        from flexmodal.contract.table import display_html
 
         shown = self.to_frame().head(8).rename(columns={"fit_rms_rel_error_pct": "fit RMS error [%]",
                                                         "heldout_rms_rel_error_pct": "held-out RMS error [%]",

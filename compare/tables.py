@@ -29,7 +29,7 @@ import numpy as np
 
 from flexmodal.compare.errors import CompareError
 from flexmodal.compare.pairing import MIN_MAC, ModeRef, Pair, Pairing, pair_modes
-from flexmodal.modal.table import ModalTable
+from flexmodal.contract.table import ModalTable
 
 FORMATS = ("md", "csv", "tex", "html", "json")
 LAYOUTS = ("modes", "sources")

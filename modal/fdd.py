@@ -24,11 +24,11 @@ import numpy as np
 import scipy.fft
 import scipy.signal
 
+from flexmodal.contract.mac import mac_pairs, to_real, unit_max
 from flexmodal.modal.damping import log_decrement
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.identify import Modes
 from flexmodal.modal.indicators import mpc, mpd
-from flexmodal.modal.mac import mac_pairs, to_real, unit_max
 from flexmodal.modal.spectra import default_nfft, welch_spectra
 
 # A mode's correlation function decays exponentially: R² of the log-decrement line >= 0.97 for the

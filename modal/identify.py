@@ -16,6 +16,8 @@ import numpy as np
 import pandas as pd
 
 from flexmodal.checked_io.output import atomic_path
+from flexmodal.contract.mac import mac, mass_normalised, to_real, unit_max
+from flexmodal.contract.table import ModalTable
 from flexmodal.modal.damping import half_power
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import convert
@@ -29,9 +31,7 @@ from flexmodal.modal.lscf import (
     stable_clusters,
 )
 from flexmodal.modal.lsfd import LsfdResult, lsfd
-from flexmodal.modal.mac import mac, mass_normalised, to_real, unit_max
 from flexmodal.modal.peaks import clear_peaks, cmif, pick_peaks, quadrature_shapes, visible_peaks
-from flexmodal.modal.table import ModalTable
 from flexmodal.modal.windows import remove_added_damping
 
 METHODS = ("lscf", "peak")
@@ -305,6 +305,7 @@ ADVICE = {   # what to change when modes have few lines in their half-power band
     "impact": "damping is unbiased if each hit's response died away within its record; if not, "
               "record longer hits or use an exponential window (its damping is removed); nfft is not "
               "the knob for impact runs",
+    "sweep": "the FRFs are the whole sweep's: finer resolution needs a longer record (a slower sweep)",
     None: "damping may be biased high if these FRFs were Welch-averaged (leakage); finer resolution "
           "(longer records) resolves it",
 }

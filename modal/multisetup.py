@@ -26,9 +26,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from flexmodal.contract.mac import mac, to_real, unit_max
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.identify import Modes
-from flexmodal.modal.mac import mac, to_real, unit_max
 from flexmodal.modal.ssi import ssi_cov
 
 

@@ -29,11 +29,11 @@ import scipy.linalg
 import scipy.signal
 from threadpoolctl import threadpool_limits
 
+from flexmodal.contract.mac import to_real, unit_max
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.identify import Modes
 from flexmodal.modal.indicators import mpc, mpd
 from flexmodal.modal.lscf import Stabilisation, _flags, pole_clusters
-from flexmodal.modal.mac import to_real, unit_max
 
 MPC_MIN = 0.7       # poles below this modal phase collinearity are noise (real modes have MPC ~ 1)
 MPD_MAX_DEG = 30.0  # poles whose entries scatter more than this from one phase line are noise

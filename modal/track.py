@@ -26,7 +26,7 @@ by their median frequency.
 
 The modal map.  Windows are binned by pose (``bin_deg`` per pose variable); each (bin, mode) row holds
 the mean frequency and damping ratio of the windows in it, their standard errors, the number of windows
-and the mean shape: a modal table (modal/table.py) whose configurations are pose bins, so that compare,
+and the mean shape: a modal table (contract/table.py) whose configurations are pose bins, so that compare,
 predict --poses and diagnose read it unchanged.
 """
 
@@ -38,11 +38,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from flexmodal.contract.mac import mac
+from flexmodal.contract.table import POSE_PREFIX, SHAPE_PREFIX, ModalTable
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.harmonics import find_orders, is_order, sinusoid_kurtosis
-from flexmodal.modal.mac import mac
 from flexmodal.modal.ssi import ssi_cov
-from flexmodal.modal.table import POSE_PREFIX, SHAPE_PREFIX, ModalTable
 
 MAX_REFS = 4               # SSI reference channels per window (the ones with the largest RMS)
 LOOK_S = 4.0              # the slowest mode is looked for in stretches this long ...

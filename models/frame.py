@@ -33,7 +33,7 @@ from functools import lru_cache
 import numpy as np
 from scipy.linalg import LinAlgError, eigh
 
-from flexmodal.modal.mac import largest_positive
+from flexmodal.contract.mac import largest_positive
 from flexmodal.models.errors import ModelError
 from flexmodal.models.rig import Point, Rig, Section
 

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import eigh
 
-from flexmodal.modal.mac import largest_positive
+from flexmodal.contract.mac import largest_positive
 from flexmodal.models.errors import ModelError
 from flexmodal.models.frame import link_geometry
 from flexmodal.models.rig import Point, Rig

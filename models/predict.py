@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from flexmodal.modal.mac import largest_positive
-from flexmodal.modal.table import POSE_PREFIX, SHAPE_PREFIX, ModalTable
+from flexmodal.contract.mac import largest_positive
+from flexmodal.contract.table import POSE_PREFIX, SHAPE_PREFIX, ModalTable
 from flexmodal.models.errors import ModelError
 from flexmodal.models.registry import MODELS
 from flexmodal.models.rig import Rig

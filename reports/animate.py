@@ -29,8 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-from flexmodal.modal.mac import mac, to_real
-from flexmodal.modal.table import ModalTable
+from flexmodal.contract.mac import mac, to_real
+from flexmodal.contract.table import ModalTable
 from flexmodal.reports.errors import ReportError
 from flexmodal.reports.geometry import Geometry
 

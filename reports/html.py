@@ -35,7 +35,7 @@ from flexmodal.checked_io.text import read_text
 from flexmodal.compare.errors import CompareError
 from flexmodal.compare.result import Diagnosis, Predictions
 from flexmodal.compare.tables import Comparison, html_fragment, natural_key, ordered_configs, table_name
-from flexmodal.modal.table import ModalTable
+from flexmodal.contract.table import ModalTable
 from flexmodal.reports import animate, plots
 from flexmodal.reports.errors import ReportError
 from flexmodal.reports.geometry import Geometry

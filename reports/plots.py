@@ -37,9 +37,9 @@ from matplotlib.axis import Axis
 from matplotlib.figure import Figure
 from matplotlib.ticker import Formatter, LogLocator, NullFormatter
 
-from flexmodal.modal.mac import mac, to_real
+from flexmodal.contract.mac import mac, to_real
+from flexmodal.contract.table import ModalTable
 from flexmodal.modal.peaks import cmif
-from flexmodal.modal.table import ModalTable
 from flexmodal.reports.errors import ReportError
 
 if TYPE_CHECKING:

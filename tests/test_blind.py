@@ -15,8 +15,8 @@ import sys
 import pytest
 
 from flexmodal.compare.diagnosis import diagnose
+from flexmodal.contract.table import ModalTable
 from flexmodal.fixtures.blind import format_summary, format_table, run_blind, summarise
-from flexmodal.modal.table import ModalTable
 
 
 def _strict(text: str) -> dict:

@@ -1,11 +1,11 @@
-"""flexmodal.cli_commands: a sub-command is registered from its handler, whose docstring is its help."""
+"""flexmodal.cli.commands: a sub-command is registered from its handler, whose docstring is its help."""
 
 from __future__ import annotations
 
 import argparse
 
 from flexmodal.app import build_parser
-from flexmodal.cli_commands import command
+from flexmodal.cli.commands import command
 
 
 def _toy(args: argparse.Namespace) -> int:

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from flexmodal.compare.pairing import pair_modes
-from flexmodal.modal.table import ModalTable
+from flexmodal.contract.table import ModalTable
 
 # clamped-free Euler-Bernoulli beam: beta_n L roots (Blevins 1979, table 8-1)
 BETA_L = np.array([1.87510407, 4.69409113, 7.85475744, 10.99554073, 14.13716839])

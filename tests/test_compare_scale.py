@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from flexmodal.compare.tables import compare_tables, render
-from flexmodal.modal.table import ModalTable
+from flexmodal.contract.table import ModalTable
 
 
 def _tables(n_rows: int) -> tuple[ModalTable, ModalTable]:

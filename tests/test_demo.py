@@ -98,11 +98,11 @@ def test_demo_records_come_from_the_truth_model(demo_dir: tuple[Path, float, str
     record, and at every pose (theta30's impact run acquired through the serial simulator included) the
     identified frequencies are the truth model's within 0.3 % and more than 1 % from the diagnosis's FE
     model (with the same hidden spring) on some mode."""
+    from flexmodal.contract.table import ModalTable
     from flexmodal.daq.store import read_run
     from flexmodal.fixtures.demo import DEMO_EFFECTS, DEMO_POSES, OPERATIONAL_POSE, operational_test
     from flexmodal.fixtures.rig_sim import DEMO_RIG, simulate
     from flexmodal.fixtures.truth_arm import bench_arm
-    from flexmodal.modal.table import ModalTable
     from flexmodal.models.rig import load_rig
 
     out, _, _ = demo_dir

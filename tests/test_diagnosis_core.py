@@ -8,8 +8,8 @@ import pytest
 from flexmodal.compare.diagnosis import diagnose, folds_for
 from flexmodal.compare.gap import comac, damped_frequency_shift, gap_summary
 from flexmodal.compare.parametric import handles_for, lam_to_hz, pose_basis, reduce_family, solve_family
-from flexmodal.modal.mac import mac_pairs as mac
-from flexmodal.modal.table import ModalTable
+from flexmodal.contract.mac import mac_pairs as mac
+from flexmodal.contract.table import ModalTable
 from flexmodal.models.effects import apply_effect
 from flexmodal.models.frame import frame_modes
 from flexmodal.models.rig import load_rig

@@ -18,7 +18,7 @@ from flexmodal.compare.diagnosis import (
     folds_for,
 )
 from flexmodal.compare.gap import prepare
-from flexmodal.modal.table import ModalTable
+from flexmodal.contract.table import ModalTable
 from flexmodal.models.effects import apply_effect
 from flexmodal.models.frame import frame_modes
 from flexmodal.models.rig import load_rig

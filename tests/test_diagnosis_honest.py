@@ -14,7 +14,7 @@ from flexmodal.compare.candidates import combine, single_candidates
 from flexmodal.compare.diagnosis import _Context, _structured, diagnose, folds_for
 from flexmodal.compare.fit import design, evaluate
 from flexmodal.compare.gap import estimate_scatter, prepare
-from flexmodal.modal.table import ModalTable
+from flexmodal.contract.table import ModalTable
 from flexmodal.models.effects import apply_effect
 from flexmodal.models.frame import frame_modes
 from flexmodal.models.rig import load_rig

@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from flexmodal.compare.diagnosis import diagnose, prediction_band
-from flexmodal.modal.table import ModalTable
+from flexmodal.contract.table import ModalTable
 from flexmodal.models.effects import apply_effect
 from flexmodal.models.frame import frame_modes
 from flexmodal.models.rig import load_rig

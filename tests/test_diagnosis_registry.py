@@ -13,7 +13,7 @@ import pytest
 from flexmodal.compare.candidates import parse_effects, single_candidates
 from flexmodal.compare.diagnosis import diagnose
 from flexmodal.compare.parametric import handles_for, lam_to_hz, pose_basis, reduce_family, solve_family
-from flexmodal.modal.table import ModalTable
+from flexmodal.contract.table import ModalTable
 from flexmodal.models import effects as fx
 from flexmodal.models.errors import ModelError
 from flexmodal.models.frame import frame_modes

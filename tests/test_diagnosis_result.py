@@ -34,8 +34,8 @@ from flexmodal.compare.result import (
     Where,
     _Record,
 )
+from flexmodal.contract.table import ModalTable
 from flexmodal.fixtures.blind import CATEGORIES, KINDS, make_case
-from flexmodal.modal.table import ModalTable
 from flexmodal.models.effects import apply_effect
 from flexmodal.models.frame import frame_modes
 from flexmodal.models.rig import load_rig

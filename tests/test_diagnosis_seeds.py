@@ -9,7 +9,7 @@ from scipy.optimize import brentq
 
 from flexmodal.compare.diagnosis import diagnose
 from flexmodal.compare.gap import damped_frequency_shift
-from flexmodal.modal.table import ModalTable
+from flexmodal.contract.table import ModalTable
 from flexmodal.models.rig import load_rig, parse_rig
 
 

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from flexmodal.app import main
+from flexmodal.contract.mac import largest_positive, to_real
 from flexmodal.daq.store import Channel, RunWriter
 from flexmodal.fixtures.modal_sim import modal_response
 from flexmodal.modal import frf as frf_mod
 from flexmodal.modal.compute import frf_of_record
-from flexmodal.modal.mac import largest_positive, to_real
 from flexmodal.modal.registry import register_estimator, registered_estimators, unregister_estimator
 from flexmodal.modal.windows import impact_windows, window
 

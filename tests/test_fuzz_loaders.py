@@ -22,11 +22,12 @@ from conftest import REPO
 from fuzz_support import LONG_EXAMPLES, prop, run_profile
 from hypothesis import strategies as st
 
+from flexmodal.contract.errors import ContractError
+from flexmodal.contract.table import ModalTable, poses_from_csv
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.session import load_session, parse_session
 from flexmodal.daq.store import Channel, RunWriter, list_runs, read_run
 from flexmodal.modal.errors import ModalError
-from flexmodal.modal.table import ModalTable, poses_from_csv
 from flexmodal.modal.uff import read_uff
 from flexmodal.models.errors import ModelError
 from flexmodal.models.rig import load_rig, parse_rig
@@ -150,7 +151,7 @@ def prop_modal_csv(data: bytes) -> None:
     def check(p: Path) -> None:
         try:
             table = ModalTable.read_csv(p)
-        except ModalError:
+        except ContractError:
             return
         frame = table.frame
         assert frame["config"].map(lambda c: isinstance(c, str) and c.strip() != "").all()
@@ -167,7 +168,7 @@ def prop_poses_csv(data: bytes) -> None:
     def check(p: Path) -> None:
         try:
             poses = poses_from_csv(p)
-        except ModalError:
+        except ContractError:
             return
         values = [v for pose in poses.values() for v in pose.values()]
         assert all(isinstance(v, float) and math.isfinite(v) for v in values)
@@ -341,12 +342,12 @@ def prop_rig_extreme(data: bytes) -> None:
 
 @prop(extreme_csv(MODES.read_text(encoding="utf-8")))
 def prop_modal_csv_extreme(data: bytes) -> None:
-    _with_file(data, "modes.csv", lambda p: _loads_or(ModalError, ModalTable.read_csv, p))
+    _with_file(data, "modes.csv", lambda p: _loads_or(ContractError, ModalTable.read_csv, p))
 
 
 @prop(extreme_csv(POSES))
 def prop_poses_csv_extreme(data: bytes) -> None:
-    _with_file(data, "poses.csv", lambda p: _loads_or(ModalError, poses_from_csv, p))
+    _with_file(data, "poses.csv", lambda p: _loads_or(ContractError, poses_from_csv, p))
 
 
 @prop(extreme_value("json"))

@@ -1,5 +1,9 @@
-"""The layout of docs/architecture.md, checked on the source (ast): imports only go down the data flow
-checked_io <- daq <- modal <- models <- compare <- reports <- fixtures <- api <- app (*/cli.py with app);
+"""The layout of docs/architecture.md, checked on the source (ast), as a rule over folders (no file
+exempted by its name): each folder of the package imports only the folders listed for it in ALLOWED,
+at run time (imports under ``if TYPE_CHECKING`` are types only).  ``modal`` and ``models`` are siblings:
+neither imports the other, both write the modal-table contract (``contract``).  The root modules stand
+with a folder: ``api.py`` and the root ``__init__.py`` (which re-exports the API and wires the built-in
+simulator launcher) are the API; ``app.py`` and ``__main__.py`` are the shell with ``cli/``.  Also:
 reports renders and computes nothing; docs stand alone (no reference to a contract file that is not in
 the repository, every docs path named in --help exists)."""
 
@@ -15,27 +19,45 @@ from conftest import REPO
 
 from flexmodal.app import build_parser
 
-LAYERS = ("checked_io", "daq", "modal", "models", "compare", "reports", "fixtures", "api", "app")
-CLI_MODULES = ("cli.py", "diagnosis_cli.py", "__main__.py")
+FOLDERS = ("checked_io", "contract", "daq", "modal", "models", "compare", "reports", "fixtures", "cli")
+_BELOW_COMPARE = {"checked_io", "contract", "daq", "modal", "models"}
+ALLOWED = {
+    "checked_io": set(),
+    "contract": {"checked_io"},
+    "daq": {"checked_io"},
+    "modal": {"checked_io", "contract", "daq"},
+    "models": {"checked_io", "contract", "daq"},
+    "compare": _BELOW_COMPARE,
+    "reports": _BELOW_COMPARE | {"compare"},
+    "fixtures": _BELOW_COMPARE | {"compare", "reports"},
+    "api": _BELOW_COMPARE | {"compare", "reports", "fixtures"},
+    "cli": _BELOW_COMPARE | {"compare", "reports", "fixtures", "api", "app"},
+}
+ALLOWED["app"] = ALLOWED["cli"] | {"cli"}
+ROOT = {"api.py": "api", "__init__.py": "api", "app.py": "app", "__main__.py": "app"}
 # what reports/ may import from below it: data types and small display helpers, no solver
-REPORT_IMPORTS = {"flexmodal.compare.tables", "flexmodal.modal.table", "flexmodal.modal.mac",
+REPORT_IMPORTS = {"flexmodal.compare.tables", "flexmodal.contract.table", "flexmodal.contract.mac",
                   "flexmodal.modal.peaks", "flexmodal.checked_io.text", "flexmodal.checked_io.output",
                   "flexmodal.compare.result", "flexmodal.compare.errors",
                   "flexmodal.checked_io.errors", "flexmodal.checked_io.registry"}   # the diagnosis records
 
 
 def _sources() -> list[Path]:
-    """Every module of the installed package but its root ``__init__.py`` (tests, benchmarks and any
-    build/ output are not part of it)."""
-    packages = {"checked_io", "daq", "modal", "models", "compare", "reports", "fixtures"}
-    return sorted(p for p in REPO.rglob("*.py") if p.relative_to(REPO).parts[0] in packages
-                  or p.relative_to(REPO) in (Path("app.py"), Path("api.py"), Path("__main__.py")))
+    """Every module of the installed package (tests, benchmarks and any build/ output are not part
+    of it)."""
+    return sorted(p for p in REPO.rglob("*.py") if p.relative_to(REPO).parts[0] in FOLDERS
+                  or str(p.relative_to(REPO)) in ROOT)
 
 
 def _layer(rel: Path) -> str:
-    if rel.name in CLI_MODULES or rel.parts[0] == "app.py":
-        return "app"
-    return rel.parts[0].removesuffix(".py")
+    """The folder a module stands in (a root module: the one it stands with, ROOT)."""
+    return ROOT[rel.name] if len(rel.parts) == 1 else rel.parts[0]
+
+
+def _target(module: str) -> str:
+    """The folder of an imported flexmodal module (``flexmodal.api`` and root names: api)."""
+    part = module.split(".")[1]
+    return part if part in FOLDERS or part == "app" else "api"
 
 
 def _runtime_imports(path: Path) -> list[str]:
@@ -58,11 +80,10 @@ def _runtime_imports(path: Path) -> list[str]:
 
 
 def _upward(path: Path, rel: Path | None = None) -> list[str]:
-    """Imports of ``path`` (standing at ``rel`` in the repository) from a layer above its own."""
+    """Imports of ``path`` (standing at ``rel`` in the repository) that its folder may not make."""
     rel = rel or path.relative_to(REPO)
-    mine = LAYERS.index(_layer(rel))
-    return [m for m in _runtime_imports(path)
-            if m.split(".")[1] in LAYERS and LAYERS.index(m.split(".")[1]) > mine]
+    mine = _layer(rel)
+    return [m for m in _runtime_imports(path) if _target(m) != mine and _target(m) not in ALLOWED[mine]]
 
 
 @pytest.mark.parametrize("rel", [str(p.relative_to(REPO)) for p in _sources()])
@@ -70,20 +91,20 @@ def test_no_module_imports_up_the_data_flow(rel):
     assert _upward(REPO / rel) == []
 
 
-def test_the_walk_sees_every_package_and_catches_an_upward_import(tmp_path):
-    layers = {_layer(p.relative_to(REPO)) for p in _sources()}
-    assert layers == set(LAYERS)
+def test_the_walk_sees_every_folder_and_catches_a_forbidden_import(tmp_path):
+    assert {_layer(p.relative_to(REPO)) for p in _sources()} == set(ALLOWED)
     probe = tmp_path / "probe.py"   # a modal module importing a model is caught, a typing-only import not
     probe.write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    import flexmodal.compare\n"
                      "def f():\n    from flexmodal.models.rig import Rig\n    from flexmodal import api\n")
     assert _upward(probe, Path("modal/probe.py")) == ["flexmodal.models.rig", "flexmodal.api"]
-    assert _upward(probe, Path("modal/cli.py")) == []
+    assert _upward(probe, Path("models/probe.py")) == ["flexmodal.api"]
+    probe.write_text("from flexmodal.modal.identify import identify\n")
+    assert _upward(probe, Path("models/probe.py")) == ["flexmodal.modal.identify"]   # siblings
+    assert _upward(probe, Path("compare/probe.py")) == []
 
 
 def test_reports_renders_and_solves_nothing():
     for path in sorted((REPO / "reports").glob("*.py")):
-        if path.name in CLI_MODULES:
-            continue
         below = [m for m in _runtime_imports(path) if not m.startswith("flexmodal.reports")]
         assert set(below) <= REPORT_IMPORTS, (path.name, sorted(set(below) - REPORT_IMPORTS))
 
@@ -136,5 +157,5 @@ def test_every_package_error_is_one_of_the_family():
         found |= {name: obj for name, obj in vars(module).items() if isinstance(obj, type)
                   and issubclass(obj, Exception) and obj.__module__ == module.__name__}
     assert set(found) - {"FlexmodalError"} == {"DaqError", "ModalError", "ModelError", "CompareError",
-                                               "ReportError", "FixtureError"}
+                                               "ReportError", "FixtureError", "ContractError"}
     assert all(issubclass(cls, FlexmodalError) for cls in found.values())

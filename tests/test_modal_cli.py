@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from flexmodal.app import main
+from flexmodal.contract.table import ModalTable
 from flexmodal.daq.store import Channel, RunWriter, expand_runs
 from flexmodal.fixtures.modal_sim import modal_response
 from flexmodal.modal.batch import run_batch
 from flexmodal.modal.frf import FrfResult
 from flexmodal.modal.runs_io import read_frf
-from flexmodal.modal.table import ModalTable
 from flexmodal.modal.uff import write_frfs
 
 FS = 256.0

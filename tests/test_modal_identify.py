@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from flexmodal.contract.mac import automac, mac, to_real, unit_max
 from flexmodal.fixtures.modal_sim import modal_frf, modal_response
 from flexmodal.modal.compute import frf_of_record
 from flexmodal.modal.identify import ADVICE, identify, identify_modes
-from flexmodal.modal.mac import automac, mac, to_real, unit_max
 
 FN = np.array([12.0, 31.0, 55.0, 80.0])
 ZETA = np.array([0.05, 0.02, 0.005, 0.01])

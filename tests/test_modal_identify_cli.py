@@ -8,9 +8,9 @@ import pandas as pd
 import pytest
 
 from flexmodal.app import main
+from flexmodal.contract.table import ModalTable
 from flexmodal.fixtures.modal_sim import modal_frf
 from flexmodal.modal.frf import FrfResult
-from flexmodal.modal.table import ModalTable
 from flexmodal.modal.uff import write_frfs
 
 FN, ZETA = np.array([12.0, 31.0, 55.0]), np.array([0.01, 0.01, 0.01])

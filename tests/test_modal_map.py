@@ -11,7 +11,7 @@ from scipy.linalg import eigh
 
 from flexmodal.compare import modal_map as mm
 from flexmodal.compare.errors import CompareError
-from flexmodal.modal.table import ModalTable
+from flexmodal.contract.table import ModalTable
 from flexmodal.reports import modal_map_plot
 
 

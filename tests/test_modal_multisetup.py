@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from flexmodal.contract.mac import mac, unit_max
 from flexmodal.fixtures.shear_frame import shear_frame_modes, shear_frame_record
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.identify import Modes
-from flexmodal.modal.mac import mac, unit_max
 from flexmodal.modal.multisetup import OmaSetup, merge_setups, ssi_multisetup
 
 N = 11

@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from flexmodal.contract.mac import mac
 from flexmodal.fixtures.shear_frame import shear_frame_modes, shear_frame_record
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.fdd import cross_spectra, fdd
-from flexmodal.modal.mac import mac
 from flexmodal.modal.ssi import covariances, ssi_cov
 
 MASS = [3000.0, 2800.0, 2600.0, 2400.0, 2000.0]

@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from flexmodal.contract.mac import mac
 from flexmodal.fixtures.rig_sim import simulate
 from flexmodal.modal.compute import frf_of_record
 from flexmodal.modal.identify import identify
-from flexmodal.modal.mac import mac
 from flexmodal.models.rig import load_rig
 
 ZETA = [0.005, 0.01, 0.02, 0.05, 0.01, 0.02, 0.01, 0.02, 0.01, 0.02, 0.01, 0.02]

@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 
 from flexmodal.app import main
+from flexmodal.contract.table import ModalTable
 from flexmodal.daq.store import Channel, Event, RunWriter, read_run
 from flexmodal.fixtures.modal_sim import modal_frf, modal_response
 from flexmodal.modal.compute import compute_frf
 from flexmodal.modal.identify import identify
 from flexmodal.modal.sources import identify_input
-from flexmodal.modal.table import ModalTable
 from flexmodal.modal.uncertainty import with_uncertainty
 
 pyuff = pytest.importorskip("pyuff")

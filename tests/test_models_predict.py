@@ -8,7 +8,7 @@ import pytest
 from conftest import RIGS
 
 from flexmodal.app import main
-from flexmodal.modal.table import ModalTable
+from flexmodal.contract.table import ModalTable
 from flexmodal.models.errors import ModelError
 from flexmodal.models.predict import load_external, predict
 from flexmodal.models.registry import registered_models

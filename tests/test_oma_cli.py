@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from flexmodal.app import main
+from flexmodal.contract.table import ModalTable
 from flexmodal.daq.store import Channel, RunWriter
 from flexmodal.fixtures.shear_frame import shear_frame_record
-from flexmodal.modal.table import ModalTable
 
 MASS = [3000.0, 2800.0, 2600.0, 2400.0, 2000.0]
 STIFF = [9.6e7, 8.8e7, 8.0e7, 7.2e7, 6.4e7]

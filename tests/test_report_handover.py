@@ -92,7 +92,7 @@ def test_wrapped_phase_breaks_the_line_instead_of_jumping():
 
 
 def test_trends_figure_is_readable():
-    from flexmodal.modal.table import ModalTable
+    from flexmodal.contract.table import ModalTable
 
     rows = [{"config": f"t{t}p{p}", "mode": m, "freq_hz": 10.0 * m / (1 + p) + t / 90,
              "pose.theta_deg": t, "pose.payload_kg": p}
@@ -140,7 +140,7 @@ print("ok")
 def test_stabilisation_diagrams_select_the_modes_of_the_table_of_the_same_run(demo_figures):
     """Each impact run's diagram (crosses), its caption and the demo's modal table (modes.csv, identified
     from those runs) give the same modes."""
-    from flexmodal.modal.table import ModalTable
+    from flexmodal.contract.table import ModalTable
 
     report, figures = demo_figures
     table = ModalTable.read_csv(report.parent / "modes.csv")

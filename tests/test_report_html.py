@@ -22,11 +22,11 @@ from matplotlib import image as mpimg
 
 from flexmodal import api
 from flexmodal.app import main
+from flexmodal.contract.table import ModalTable
 from flexmodal.daq.store import Event, RunWriter, read_run
 from flexmodal.fixtures.rig_sim import HiddenEffect, simulate
 from flexmodal.modal.compute import compute_frf
 from flexmodal.modal.runs_io import write_frf
-from flexmodal.modal.table import ModalTable
 from flexmodal.models.frame import frame_modes
 from flexmodal.models.rig import load_rig
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from flexmodal.compare.result import Baseline, Diagnosis, Predictions, Verdict, Where
-from flexmodal.modal.table import ModalTable
+from flexmodal.contract.table import ModalTable
 from flexmodal.models.arm_shapes import arm_modes
 from flexmodal.models.frame import frame_modes
 from flexmodal.models.rig import load_rig

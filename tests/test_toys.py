@@ -21,7 +21,7 @@ sys.path.insert(0, str(REPO / "tests"))
 @pytest.fixture
 def toy(request):
     """Import ``toys.<name>`` (which registers it) and unregister it afterwards."""
-    from flexmodal.cli_commands import COMMANDS
+    from flexmodal.cli.commands import COMMANDS
     from flexmodal.daq.protocols import PROTOCOLS
     from flexmodal.modal.registry import ESTIMATORS
     from flexmodal.models.effects import REGISTRY as EFFECTS

@@ -7,12 +7,12 @@ harmonic orders the simulator was given."""
 import numpy as np
 import pytest
 
+from flexmodal.contract.table import ModalTable
 from flexmodal.daq.store import RunWriter
 from flexmodal.fixtures.moving_arm import ELBOW_SWEEP, frozen_truth, simulate_moving
 from flexmodal.fixtures.rig_sim import DEMO_RIG
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.harmonics import find_orders, is_order, sinusoid_kurtosis
-from flexmodal.modal.table import ModalTable
 from flexmodal.modal.track import TrackOptions, track_modes
 from flexmodal.models.rig import load_rig
 

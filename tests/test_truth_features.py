@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from scipy.linalg import eig
 
+from flexmodal.contract.mac import mac
 from flexmodal.fixtures.rig_sim import DEMO_RIG, simulate
 from flexmodal.fixtures.truth_arm import (
     BENCH_RAYLEIGH,
@@ -21,7 +22,6 @@ from flexmodal.fixtures.truth_arm import (
 )
 from flexmodal.modal.compute import frf_of_record
 from flexmodal.modal.identify import identify
-from flexmodal.modal.mac import mac
 from flexmodal.models.frame import frame_modes
 from flexmodal.models.rig import load_rig, parse_rig
 

@@ -1,7 +1,7 @@
 """A toy CLI command, the whole of it: ``flexmodal modes-count MODES.csv`` prints how many modes each
 configuration of a modal table holds (through the public API)."""
 
-from flexmodal.cli_commands import command, register_command
+from flexmodal.cli.commands import command, register_command
 
 NAME = "modes-count"
 

@@ -19,7 +19,7 @@ import pandas as pd
 
 from flexmodal.checked_io.csv_tables import read_table
 from flexmodal.checked_io.output import atomic_path
-from flexmodal.modal.errors import ModalError
+from flexmodal.contract.errors import ContractError
 
 REQUIRED = ("config", "mode", "freq_hz")
 POSE_PREFIX = "pose."
@@ -35,16 +35,36 @@ def _parse_complex(value: object) -> complex:
     return complex(text)
 
 
+def _floats(column: pd.Series) -> pd.Series:
+    """``column`` as floats, NaN where a value is none: text, or a whole number too large for a float
+    (thousands of digits, which pandas cannot convert at once)."""
+    try:
+        return pd.to_numeric(column, errors="coerce").astype(float)
+    except OverflowError:
+        fitting = column.map(lambda v: v if _fits_float(v) else None)
+        return pd.to_numeric(fitting, errors="coerce").astype(float)
+
+
+def _fits_float(value: object) -> bool:
+    try:
+        float(value)
+    except OverflowError:
+        return False
+    except (TypeError, ValueError):
+        pass
+    return True
+
+
 def _numbers(column: pd.Series, name: str, source: str) -> pd.Series:
     """``column`` as finite floats (empty cells stay NaN: not given); text or an infinity raises
-    ModalError naming the row (header = row 1) and the value."""
-    values = pd.to_numeric(column, errors="coerce").astype(float)
+    ContractError naming the row (header = row 1) and the value."""
+    values = _floats(column)
     given = column.notna() & (column.astype(str).str.strip() != "")
     bad = given & (values.isna() | np.isinf(values))
     if bad.any():
         row = int(np.flatnonzero(bad.to_numpy())[0])
-        raise ModalError(f"{source}: row {row + 2}: column {name!r} is not a finite number "
-                         f"({column.iloc[row]!r})")
+        raise ContractError(f"{source}: row {row + 2}: column {name!r} is not a finite number "
+                            f"({column.iloc[row]!r})")
     return values
 
 
@@ -58,45 +78,45 @@ class ModalTable:
     # -- construction -------------------------------------------------------------------------
     @classmethod
     def from_frame(cls, frame: pd.DataFrame, source: str = "<table>") -> ModalTable:
-        """Validate a DataFrame with the contract's columns (raises ModalError naming the problem)."""
+        """Validate a DataFrame with the contract's columns (raises ContractError naming the problem)."""
         df = frame.copy()
         for col in REQUIRED:
             if col not in df.columns:
-                raise ModalError(f"{source}: missing required column {col!r}")
+                raise ContractError(f"{source}: missing required column {col!r}")
         df["config"] = df["config"].astype(str)
         for col in ("mode", "freq_hz"):
-            values = pd.to_numeric(df[col], errors="coerce")
-            bad = values.isna() | ~np.isfinite(values.astype(float))
+            values = _floats(df[col])
+            bad = values.isna() | ~np.isfinite(values)
             if bad.any():
                 row = int(np.flatnonzero(bad.to_numpy())[0])
-                raise ModalError(f"{source}: row {row + 2}: column {col!r} is not a number "
-                                 f"({df[col].iloc[row]!r})")
+                raise ContractError(f"{source}: row {row + 2}: column {col!r} is not a number "
+                                    f"({df[col].iloc[row]!r})")
             df[col] = values
         df["mode"] = df["mode"].astype(int)
         if (df["mode"] < 1).any():
-            raise ModalError(f"{source}: column 'mode' must be 1-based (found {int(df['mode'].min())})")
+            raise ContractError(f"{source}: column 'mode' must be 1-based (found {int(df['mode'].min())})")
         if (df["freq_hz"] < 0).any():
-            raise ModalError(f"{source}: column 'freq_hz' has a negative frequency")
+            raise ContractError(f"{source}: column 'freq_hz' has a negative frequency")
         dup = df.duplicated(["config", "mode"])
         if dup.any():
             r = df[dup].iloc[0]
-            raise ModalError(f"{source}: config {r['config']!r} lists mode {int(r['mode'])} twice")
+            raise ContractError(f"{source}: config {r['config']!r} lists mode {int(r['mode'])} twice")
         for col in [c for c in df.columns if c == "damping_ratio" or c.startswith(POSE_PREFIX)]:
             df[col] = _numbers(df[col], col, source)
         if "damping_ratio" in df.columns and (df["damping_ratio"] >= 1).any():
             row = int(np.flatnonzero((df["damping_ratio"] >= 1).to_numpy())[0])
             value = df["damping_ratio"].iloc[row]
-            raise ModalError(f"{source}: row {row + 2}: damping_ratio = {value:g} is not below 1 (a "
-                             f"fraction: {value:g} % is {value / 100:g})")
+            raise ContractError(f"{source}: row {row + 2}: damping_ratio = {value:g} is not below 1 (a "
+                                f"fraction: {value:g} % is {value / 100:g})")
         for col in [c for c in df.columns if c.startswith(SHAPE_PREFIX)]:
             try:
                 values = (df[col].to_numpy(complex) if df[col].dtype.kind in "fiuc"   # numbers: at once
                           else np.array([_parse_complex(v) for v in df[col]], dtype=complex))
             except ValueError:
-                raise ModalError(f"{source}: column {col!r} holds a value that is not a number") from None
+                raise ContractError(f"{source}: column {col!r} holds a value that is not a number") from None
             if np.isinf(values).any():
                 row = int(np.flatnonzero(np.isinf(values))[0])
-                raise ModalError(f"{source}: row {row + 2}: column {col!r} holds an infinite value")
+                raise ContractError(f"{source}: row {row + 2}: column {col!r} holds an infinite value")
             df[col] = values.real if np.all(values.imag == 0) else values
         df = df.sort_values(["config", "mode"], kind="stable").reset_index(drop=True)
         return cls(df, source)
@@ -107,7 +127,7 @@ class ModalTable:
 
     @classmethod
     def read_csv(cls, path: str | Path) -> ModalTable:
-        df = read_table(path, ModalError, required=REQUIRED, text_columns=("config",), what="modal table")
+        df = read_table(path, ContractError, required=REQUIRED, text_columns=("config",), what="modal table")
         return cls.from_frame(df, str(path))
 
     def to_csv(self, path: str | Path) -> None:
@@ -216,7 +236,7 @@ def display_html(summary: str, frame: pd.DataFrame, max_rows: int = 30) -> str:
 def poses_from_csv(path: str | Path) -> dict[str, dict[str, float]]:
     """Read POSES.csv (docs/formats.md without mode/freq_hz): {config: {pose variable: value}}."""
     p = Path(path)
-    df = read_table(p, ModalError, required=("config",), text_columns=("config",), what="poses table")
+    df = read_table(p, ContractError, required=("config",), text_columns=("config",), what="poses table")
     cols = [c for c in df.columns if c.startswith(POSE_PREFIX)]
     out: dict[str, dict[str, float]] = {}
     for _, row in df.iterrows():
@@ -225,7 +245,7 @@ def poses_from_csv(path: str | Path) -> dict[str, dict[str, float]]:
             value = pd.to_numeric(row[c], errors="coerce")
             if pd.isna(value) or not np.isfinite(value):
                 what = "is not a number" if pd.isna(value) else "is not finite"
-                raise ModalError(f"{p}: config {row['config']!r}: {c} {what} ({row[c]!r})")
+                raise ContractError(f"{p}: config {row['config']!r}: {c} {what} ({row[c]!r})")
             pose[c[len(POSE_PREFIX):]] = float(value)
         out[str(row["config"])] = pose
     return out

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from flexmodal.cli_commands import command
+from flexmodal.cli.commands import command
 
 
 def register(sub: argparse._SubParsersAction) -> None:

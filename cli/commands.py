@@ -20,10 +20,10 @@ Handler = Callable[[argparse.Namespace], int]
 Adder = Callable[[argparse._SubParsersAction], None]
 
 COMMANDS: Registry[Adder] = Registry("command", FlexmodalError, {
-    "demo-sim": "flexmodal.fixtures.cli:register", "acquire": "flexmodal.daq.cli:register",
-    "frf-identify": "flexmodal.modal.cli:register", "predict": "flexmodal.models.cli:register",
-    "compare": "flexmodal.compare.cli:register", "diagnose": "flexmodal.compare.diagnosis_cli:register",
-    "report": "flexmodal.reports.cli:register",
+    "demo-sim": "flexmodal.cli.simulate:register", "acquire": "flexmodal.cli.acquire:register",
+    "frf-identify": "flexmodal.cli.modal:register", "predict": "flexmodal.cli.predict:register",
+    "compare": "flexmodal.cli.compare:register", "diagnose": "flexmodal.cli.diagnose:register",
+    "report": "flexmodal.cli.report:register",
 })
 
 

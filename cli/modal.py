@@ -6,7 +6,7 @@ import argparse
 import sys
 
 from flexmodal.checked_io import options as opt
-from flexmodal.cli_commands import command
+from flexmodal.cli.commands import command
 from flexmodal.modal.registry import ESTIMATORS
 
 
