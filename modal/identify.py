@@ -305,6 +305,7 @@ ADVICE = {   # what to change when modes have few lines in their half-power band
     "impact": "damping is unbiased if each hit's response died away within its record; if not, "
               "record longer hits or use an exponential window (its damping is removed); nfft is not "
               "the knob for impact runs",
+    "sweep": "the FRFs are the whole sweep's: finer resolution needs a longer record (a slower sweep)",
     None: "damping may be biased high if these FRFs were Welch-averaged (leakage); finer resolution "
           "(longer records) resolves it",
 }

@@ -273,8 +273,8 @@ def stabilisation(freq_hz: np.ndarray, H: np.ndarray, orders: range | list[int],
 class PoleClusters:
     """Candidate modes of a stabilisation diagram, ascending in frequency: ``freq_hz``,
     ``damping_ratio``, ``pole`` (rad/s) from the median of the upper quarter of orders (damping: of all
-    orders) of each cluster's fully stable poles; ``n_stable`` the number of orders holding a fully stable pole of the
-    cluster, ``members`` the indices (into the Stabilisation arrays) of its poles."""
+    orders) of each cluster's fully stable poles; ``n_stable`` the number of orders holding a fully
+    stable pole of the cluster, ``members`` the indices (into the Stabilisation arrays) of its poles."""
 
     freq_hz: np.ndarray
     damping_ratio: np.ndarray
@@ -416,9 +416,11 @@ def adaptive_stabilisation(freq_hz: np.ndarray, H: np.ndarray, *, max_order: int
     given, else :func:`default_caps` (the higher one while clear peaks are unexplained), never more than
     the band's lines allow.  ``evaluate`` returns
     (number of modes, number of clear peaks they explain, anything) and defaults to the number of
-    :func:`stable_clusters` (explaining none).  Returns the diagram of the highest order whose modes
-    explain the most clear peaks, a sentence saying which order was used and why (true to the counts),
-    and ``evaluate``'s result at that order."""
+    :func:`stable_clusters` (explaining none).  Above the default cap the order is raised only while
+    that explains more clear peaks.  Returns the diagram of the highest order whose modes explain the
+    most clear peaks (above the default cap: only if they explain more than below it), a sentence
+    saying which order was used and why (true to the counts), and ``evaluate``'s result at that
+    order."""
     f = np.asarray(freq_hz, float)
     n_in = H.shape[1]
     line_cap = (f.size - 2) // 2
@@ -439,7 +441,8 @@ def adaptive_stabilisation(freq_hz: np.ndarray, H: np.ndarray, *, max_order: int
         stab = _flags(orders, found, **criteria)
         n, shown, value = evaluate(stab)
         counts.append((top, n, shown))
-        if shown >= max((s for _, _, s in counts[:-1]), default=-1):
+        before = max((s for _, _, s in counts[:-1]), default=-1)
+        if shown > before or (shown == before and top <= base):   # above the base cap: only for more
             best = (len(counts) - 1, stab, value)
         most = max(c for _, c, _ in counts)
         held = [c for _, c, _ in counts[-patience - 1:]]
@@ -447,6 +450,9 @@ def adaptive_stabilisation(freq_hz: np.ndarray, H: np.ndarray, *, max_order: int
                 and max(held[1:]) <= held[0]):
             why = (f"the modes found fell from {held[0]} to {held[-1]}" if held[-1] < held[0]
                    else "the modes found stopped growing")
+            break
+        if top > base and len(counts) > patience and counts[-patience - 1][2] >= shown:
+            why = "raising the order above the default cap explained no more clear CMIF peaks"
             break
         limit = cap if counts[best[0]][2] < floor or most < 1 else min(cap, base)
         if top >= limit:
