@@ -34,7 +34,7 @@ __all__ = [
     "compute_frfs", "demo", "diagnose", "format_comparison", "frf_from_arrays", "identify", "list_runs",
     "load_rig", "plot_comparison", "plot_frf", "plot_gap", "plot_mode_shapes", "plot_stabilisation",
     "predict", "read_diagnosis", "read_poses", "read_run", "read_table", "report", "report_pdf", "selftest",
-    "serve_simulator", "write_diagnosis",
+    "serve_simulator", "track", "write_diagnosis",
 ]
 
 

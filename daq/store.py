@@ -24,7 +24,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from flexmodal.checked_io.text import regular_file
+from flexmodal.checked_io.text import available_memory_bytes, regular_file
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.h5file import open_read
 from flexmodal.daq.run_schema import (
@@ -324,8 +324,13 @@ def _checked_run(g: h5py.Group, path: Path, run_id: str) -> Run:
 
 
 def read_run(path: str | Path, run_id: str) -> Run:
-    """Read one run completely into memory."""
+    """Read one run completely into memory (refused when its samples would not fit: stream them with
+    :func:`open_run`)."""
     with open_run(path, run_id) as run:
+        need, room = run.samples.size * run.samples.dtype.itemsize, available_memory_bytes()
+        if need > room // 2:
+            raise DaqError(f"{path}: run {run_id!r}: {need / 2**30:.1f} GiB of samples do not fit in the "
+                           f"{room / 2**30:.1f} GiB of memory available (frf streams a run in blocks)")
         try:
             return replace(run, samples=run.samples[()])
         except OSError as exc:  # a damaged chunk

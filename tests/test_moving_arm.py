@@ -2,6 +2,9 @@
 per-sample loop and against scipy's filter for frozen parameters, its path modes against the truth
 model solved afresh, its encoders and harmonics, and the `moving` test of the device simulators."""
 
+import json
+from pathlib import Path
+
 import numpy as np
 import pytest
 from scipy import signal
@@ -103,3 +106,28 @@ def test_moving_source_streams_counts_of_a_sweep_that_loops():
     assert deg.min() == pytest.approx(0.0, abs=0.1) and deg.max() == pytest.approx(150.0, abs=0.1)
     assert abs(deg[-1] - deg[0]) < 0.1                                    # the record loops seamlessly
     assert np.abs(src.counts[:, :-1]).max() < 2**15 - 1                    # no clipping of the accelerometers
+
+
+def test_session_example_records_the_moving_arm_over_serial(tmp_path):
+    """examples/sessions/serial-moving-sim.toml: `acquire` starts `sim serve --test moving`, stores the
+    accelerometers and the elbow encoder as an operational run whose pose comes from the encoder; the
+    encoder follows the simulated sweep from its start (0 deg, at rest) to the exact counts."""
+    from flexmodal.daq.acquire import acquire
+    from flexmodal.daq.session import load_session
+    from flexmodal.daq.store import read_run
+    from flexmodal.fixtures.sim_source import MOVING_PERIOD_S, MOVING_SPAN_DEG
+
+    example = Path(__file__).resolve().parents[1] / "examples" / "sessions" / "serial-moving-sim.toml"
+    session = tmp_path / "serial-moving-sim.toml"
+    session.write_text(example.read_text().replace('"../rigs/demo_arm.toml"', f'"{DEMO_RIG}"'))
+    out = tmp_path / "moving.h5"
+    acquire(load_session(session), out, duration_s=3.0, quiet=True, run_id="m1")
+    run = read_run(out, "m1")
+    names = [c.name for c in run.channels]
+    assert names == ["a1", "a2", "a3", "a4", "a5", "enc_elbow"] and run.excitation == "operational"
+    enc = run.samples[:, -1]
+    first = next(iter(json.loads(run.attrs["first_index"]).values()))  # the device's sample index of row 0
+    t = (first + np.arange(enc.size)) / run.sample_rate_hz
+    expected = MOVING_SPAN_DEG * 0.5 * (1 - np.cos(2 * np.pi * t / MOVING_PERIOD_S))
+    np.testing.assert_allclose(enc, expected, atol=360 / 4096)         # one count
+    assert run.pose["theta_deg"] == pytest.approx(enc.mean())           # pose_from: the encoder's mean

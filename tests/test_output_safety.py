@@ -245,3 +245,50 @@ def test_the_live_display_ends_its_last_frame_with_a_newline(capsys) -> None:
     display.close()
     err = capsys.readouterr().err
     assert "acquiring" in err and err.endswith("\n") and not err.endswith("\n\n")
+
+
+@pytest.mark.parametrize("command", [
+    "compare {d}/modes.csv {d}/modes.csv --out {m}/table.md",
+    "predict {d}/rig.toml --model fe --poses {d}/poses.csv --out {m}/pred.csv",
+    "identify {d}/run.h5 --method peak --out {m}/modes.csv",
+    "report --measured {d}/modes.csv --out {m}/report.html",
+])
+def test_every_writer_on_a_full_disk_exits_2_with_one_line(tmp_path: Path, command: str, monkeypatch,
+                                                           capsys) -> None:
+    """A full tmpfs (or, where mounting is refused, an injected ENOSPC at the final rename): exit 2, one
+    line naming the output, nothing left on the device."""
+    from conftest import REPO
+
+    write_run(tmp_path / "run.h5")
+    (tmp_path / "modes.csv").write_text(
+        (REPO / "examples" / "measured" / "seed003_table3_f1f2.csv").read_text())
+    (tmp_path / "rig.toml").write_text((REPO / "examples" / "rigs" / "seed003_two_link.toml").read_text())
+    (tmp_path / "poses.csv").write_text("config,pose.theta_deg\ntheta0,0\n")
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    args = command.replace("{d}", str(tmp_path)).replace("{m}", str(disk)).split()
+    if _tmpfs(disk, "64k"):
+        try:
+            with open(disk / "fill", "wb", buffering=0) as fh, pytest.raises(OSError):   # fill it up
+                while True:
+                    fh.write(b"\0" * 4096)
+            done = subprocess.run([_flexmodal(), *args], capture_output=True, text=True, timeout=300,
+                                  stdin=subprocess.DEVNULL)
+            code, err = done.returncode, done.stderr
+            left = sorted(p.name for p in disk.iterdir())
+        finally:
+            subprocess.run(["umount", str(disk)], capture_output=True, timeout=30, check=False)
+    else:
+        from flexmodal.app import main
+        from flexmodal.checked_io import output as valid_output
+
+        def full(_src, _dst):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+        monkeypatch.setattr(valid_output.os, "replace", full)
+        code, err = main(["--quiet", *args]), capsys.readouterr().err
+        left = sorted(p.name for p in disk.iterdir() if p.name != "fill")
+    lines = err.strip().splitlines()
+    assert code == 2 and "Traceback" not in err, err[-2000:]
+    assert lines[-1].startswith(f"flexmodal: error: {disk}/") and "No space left on device" in lines[-1], err
+    assert left in ([], ["fill"])

@@ -12,6 +12,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 @pytest.mark.slow   # a 90 s sweep tracked twice, a frozen-pose campaign and two diagnoses: minutes
+@pytest.mark.timeout(3600)
 def test_every_tracking_figure_of_docs_oma_is_reproduced():
     spec = importlib.util.spec_from_file_location("track_bench", REPO / "benchmarks" / "track.py")
     module = importlib.util.module_from_spec(spec)
