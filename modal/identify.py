@@ -212,14 +212,15 @@ def _reach(f: np.ndarray, clusters: PoleClusters) -> np.ndarray:
 
 def _unseen(f: np.ndarray, clusters: PoleClusters, visible_hz: np.ndarray | None) -> np.ndarray:
     """[n_modes] True for a mode with no visible peak (:func:`modal.peaks.visible_peaks`) within its
-    half-power bandwidth (or 1.5 lines) and no other mode within three half-power bandwidths: a
-    resonance the FRFs do not show (a close neighbour may hide a mode's own peak)."""
+    half-power bandwidth (or 1.5 lines) and no other mode within two of its half-power bandwidths: a
+    resonance the FRFs do not show (a close neighbour may hide a mode's own peak; three bandwidths
+    kept near-duplicates of real modes on the real-data impact entries)."""
     fn, zeta = clusters.freq_hz, clusters.damping_ratio
     if visible_hz is None or fn.size == 0:
         return np.zeros(fn.size, bool)
     seen = np.any(np.abs(visible_hz[None, :] - fn[:, None]) <= _reach(f, clusters)[:, None], axis=1)
     gap = np.abs(fn[:, None] - fn[None, :]) + np.diag(np.full(fn.size, np.inf))
-    close = np.any(gap <= 3 * np.maximum(2 * zeta * fn, 1.5 * np.median(np.diff(f)))[:, None], axis=1)
+    close = np.any(gap <= 2 * np.maximum(2 * zeta * fn, 1.5 * np.median(np.diff(f)))[:, None], axis=1)
     return ~seen & ~close
 
 
