@@ -16,6 +16,21 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+# light at import: the registries whose names the command line offers, the fault options of a simulator,
+# and the error family (one type per package), so the shell needs nothing past this module
+from flexmodal.checked_io.errors import FlexmodalError
+from flexmodal.compare.errors import CompareError
+from flexmodal.daq.errors import DaqError
+from flexmodal.daq.faults import Faults, fault_flag
+from flexmodal.fixtures.errors import FixtureError
+from flexmodal.fixtures.simulators import SIMULATORS
+from flexmodal.modal.errors import ModalError
+from flexmodal.modal.registry import ESTIMATORS, METHODS
+from flexmodal.models.errors import ModelError
+from flexmodal.models.registry import MODELS
+from flexmodal.models.rig_schema import MAX_ELEMENTS
+from flexmodal.reports.errors import ReportError
+
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
@@ -30,8 +45,10 @@ if TYPE_CHECKING:
     from flexmodal.models.rig import Rig
 
 __all__ = [
-    "FrfResult", "Identification", "SelfCheck", "acquire", "animate_mode", "compare_modes", "compute_frf",
-    "compute_frfs", "demo", "diagnose", "format_comparison", "frf_from_arrays", "identify", "list_runs",
+    "CompareError", "DaqError", "ESTIMATORS", "Faults", "FixtureError", "FlexmodalError", "FrfResult",
+    "Identification", "MAX_ELEMENTS", "METHODS", "MODELS", "ModalError", "ModelError", "ReportError",
+    "SIMULATORS", "SelfCheck", "acquire", "animate_mode", "compare_modes", "compute_frf", "compute_frfs",
+    "demo", "diagnose", "fault_flag", "format_comparison", "frf_from_arrays", "identify", "list_runs",
     "load_rig", "plot_comparison", "plot_frf", "plot_gap", "plot_mode_shapes", "plot_stabilisation",
     "predict", "read_diagnosis", "read_poses", "read_run", "read_table", "report", "report_pdf", "selftest",
     "serve_simulator", "track", "write_diagnosis",

@@ -30,9 +30,8 @@ def _acquire(args: argparse.Namespace) -> int:
     SIGHUP, with everything flushed and closed. Exit 0: done; 128+N: stopped early by signal N; 2: bad
     input, a lost device, a full disk or a write error (one line).
     """
-    from flexmodal.api import acquire
+    from flexmodal.api import DaqError, acquire
     from flexmodal.daq.acquire import WriteFailed
-    from flexmodal.daq.errors import DaqError
     from flexmodal.daq.session import load_session
 
     session = load_session(args.config)

@@ -42,8 +42,8 @@ def _run(args: argparse.Namespace) -> int:
 
     to_file = args.out not in (None, "", "-")
     if to_file:
+        from flexmodal.api import CompareError
         from flexmodal.checked_io.output import output_file, write_text
-        from flexmodal.compare.errors import CompareError
 
         output_file(args.out, CompareError, "table (--out)", inputs=(args.measured, *args.predicted))
     comp = compare_modes(args.measured, *args.predicted, min_mac=args.min_mac)

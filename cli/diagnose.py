@@ -38,7 +38,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from flexmodal.compare.errors import CompareError
+    from flexmodal.api import CompareError
 
     if args.selftest is not None:
         from flexmodal.api import selftest

@@ -5,9 +5,9 @@ from __future__ import annotations
 import argparse
 import sys
 
+from flexmodal.api import ESTIMATORS, METHODS
 from flexmodal.checked_io import options as opt
 from flexmodal.cli.commands import command
-from flexmodal.modal.registry import ESTIMATORS, METHODS
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -105,7 +105,7 @@ def _frf(args: argparse.Namespace) -> int:
 
 def _pairs(text: str, what: str) -> dict[str, str]:
     """``VAR=CHANNEL,...`` -> {VAR: CHANNEL} (ModalError naming the option)."""
-    from flexmodal.modal.errors import ModalError
+    from flexmodal.api import ModalError
 
     pairs = [item.split("=") for item in text.split(",") if item.strip()]
     if not pairs or any(len(p) != 2 or not p[0].strip() or not p[1].strip() for p in pairs):
@@ -117,9 +117,8 @@ def _track(args: argparse.Namespace) -> int:
     """``identify --track``: the modal map of a moving arm and its harmonics (docs/oma.md)."""
     from pathlib import Path
 
-    from flexmodal.api import track
+    from flexmodal.api import ModalError, track
     from flexmodal.checked_io.output import output_file, signals_deferred
-    from flexmodal.modal.errors import ModalError
 
     pose_from = _pairs(args.pose_from, "--pose-from") if args.pose_from else None
     try:
@@ -161,9 +160,8 @@ def _identify(args: argparse.Namespace) -> int:
     (config = run id). Runs with excitation=operational or without a force channel, and UFF time
     histories without a force, are identified output-only (SSI-cov by default; docs/oma.md).
     """
-    from flexmodal.api import identify
+    from flexmodal.api import ModalError, identify
     from flexmodal.checked_io.output import output_file
-    from flexmodal.modal.errors import ModalError
 
     if args.fmin is not None and args.fmax is not None and args.fmin >= args.fmax:
         raise ModalError(f"--fmin {args.fmin:g} Hz must lie below --fmax {args.fmax:g} Hz")

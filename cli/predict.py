@@ -5,10 +5,9 @@ from __future__ import annotations
 import argparse
 import sys
 
+from flexmodal.api import MAX_ELEMENTS, MODELS
 from flexmodal.checked_io import options as opt
 from flexmodal.cli.commands import command
-from flexmodal.models.registry import MODELS
-from flexmodal.models.rig_schema import MAX_ELEMENTS
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -43,9 +42,8 @@ def _predict(args: argparse.Namespace) -> int:
     config, pose.<name>; angles in degrees, masses in kg) and write a modal table CSV (config, mode,
     freq_hz [Hz], source, pose.*, shape.<sensor>). Rigid-body (0 Hz) modes are left out.
     """
-    from flexmodal.api import load_rig, predict, read_poses
+    from flexmodal.api import ModelError, load_rig, predict, read_poses
     from flexmodal.checked_io.output import output_file
-    from flexmodal.models.errors import ModelError
 
     output_file(args.out, ModelError, "prediction table (--out)", inputs=(args.rig, args.poses))
     rig = load_rig(args.rig)

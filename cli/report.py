@@ -45,10 +45,10 @@ def _run(args: argparse.Namespace) -> int:
     channels, data quality (events, rejected hits, coherence), FRF plots, measured vs predicted modes
     (table and plots) and the gap diagnosis; with --pdf also REPORT.pdf, printed by headless Chromium.
     """
+    from flexmodal.api import ReportError
     from flexmodal.daq.run_schema import check_run_file
     from flexmodal.daq.store import expand_runs
     from flexmodal.modal.runs_io import read_frf
-    from flexmodal.reports.errors import ReportError
 
     if args.pdf:
         from flexmodal.checked_io.output import output_file
