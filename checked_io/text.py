@@ -42,6 +42,19 @@ def naming(where: str | Path, error: type[Exception]) -> Iterator[None]:
         raise type(exc)(f"{where}: {exc}") from None
 
 
+def available_memory_bytes() -> int:
+    """Memory the system can give this process now (Linux ``MemAvailable``; else its free pages):
+    the bound of inputs read whole into memory and of matrices allocated from them."""
+    try:
+        with open("/proc/meminfo", "rb") as fh:
+            for line in fh:
+                if line.startswith(b"MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+
+
 def file_kind(mode: int) -> str:
     """What a file that is not a regular file is, in words (from its ``stat`` mode)."""
     for test, name in ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"),

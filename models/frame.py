@@ -25,7 +25,6 @@ returns to full relative precision however stiff a spring is, and rigid-body mod
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
@@ -33,6 +32,7 @@ from functools import lru_cache
 import numpy as np
 from scipy.linalg import LinAlgError, eigh
 
+from flexmodal.checked_io.text import available_memory_bytes
 from flexmodal.contract.mac import largest_positive
 from flexmodal.models.errors import ModelError
 from flexmodal.models.rig import Point, Rig, Section
@@ -436,18 +436,6 @@ def assemble(rig: Rig, pose: Mapping[str, float], elements_per_link: int | None 
     ``elements_per_link`` overrides the rig's ``elements`` (default 10 per link and per member).
     """
     return assemble_many(rig, [pose], elements_per_link, lumped_mass)[0]
-
-
-def available_memory_bytes() -> int:
-    """Memory the system can give this process now (Linux ``MemAvailable``; else free pages)."""
-    try:
-        with open("/proc/meminfo", "rb") as fh:
-            for line in fh:
-                if line.startswith(b"MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
 
 
 def assemble_many(rig: Rig, poses: Sequence[Mapping[str, float]], elements_per_link: int | None = None,

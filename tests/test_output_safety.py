@@ -279,8 +279,8 @@ def test_every_writer_on_a_full_disk_exits_2_with_one_line(tmp_path: Path, comma
         finally:
             subprocess.run(["umount", str(disk)], capture_output=True, timeout=30, check=False)
     else:
-        from flexmodal import valid_output
         from flexmodal.app import main
+        from flexmodal.checked_io import output as valid_output
 
         def full(_src, _dst):
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
