@@ -21,7 +21,7 @@ import pandas as pd
 REPO = Path(__file__).resolve().parents[1]
 DOC = REPO / "docs" / "diagnosis.md"
 BLIND_CASES = 36
-BLIND_SEEDS = (101, 102, 103, 104, 105)
+BLIND_SEEDS = (106, 107, 108, 109, 110)
 COVERAGE_RUNS = 400
 
 from flexmodal.compare.diagnosis import diagnose  # noqa: E402
@@ -93,6 +93,21 @@ def blind_block(seeds: tuple[int, ...] = BLIND_SEEDS, cases: int = BLIND_CASES,
     return (f"`fixtures/blind.py`, {cases} cases in each of {len(seeds)} draws (seeds "
             f"{', '.join(map(str, seeds))}; none of them used while the method was developed):\n\n"
             f"```\n{body}\n```")
+
+
+def advice_block(results: dict) -> str:
+    """Next-measurement advice on the acceptance draws: every ambiguous verdict measured once more at
+    its advised pose and at two random untested poses (fixtures/blind.py ``advice_trials``), per draw
+    and pooled, as a fenced block; ``results`` {seed: run_blind's results}."""
+    from flexmodal.fixtures.blind import advice_trials, format_advice
+
+    lines, pooled = [], []
+    for seed, res in results.items():
+        trials = advice_trials(res, seed=seed)
+        pooled += trials
+        lines.append(f"draw seed {seed}: {format_advice(trials)}")
+    lines.append(f"pooled: {format_advice(pooled)}")
+    return "```\n" + "\n".join(lines) + "\n```"
 
 
 def coverage_block(runs: int = COVERAGE_RUNS) -> str:

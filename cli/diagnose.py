@@ -79,6 +79,13 @@ def run(args: argparse.Namespace) -> int:
     print(scatter_line(result))
     for name, (lo, hi) in (v.param_intervals or {}).items():
         print(f"  {name} = {v.params[name]:.4g}  (95 % interval {lo:.4g} .. {hi:.4g})")
+    if v.residual_feature or v.flags:
+        print(f"remaining: {v.residual_feature or '-'}" + "".join(f"; flagged: {f}" for f in v.flags or ()))
+    if v.ranked and v.ranked > 1:
+        print(f"not the top of the ranking ({v.ranked}): {v.why_not_top}")
+    if v.next_measurements:
+        print("next measurement: " + "; ".join(f"{x.pose} (mode {x.mode}, {x.information_nats:.1f} nats)"
+                                               for x in v.next_measurements))
     print(pj)
     print(ph)
     return 0

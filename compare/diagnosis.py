@@ -73,7 +73,6 @@ from flexmodal.models.effects import REGISTRY, get_effect
 from flexmodal.models.rig import Rig
 
 DEFAULT_SCATTER = 0.005
-FALLBACK_SOURCE = "--scatter (fallback)"
 MIN_SCATTER = 1e-3
 """No candidate is ranked against a scatter below the reduced (Ritz) model's own accuracy, 0.1 %."""
 SHAPE_SCATTER_MIN = 1e-3
@@ -176,6 +175,7 @@ class _Context:
         self.shape_floor = math.inf      # smallest in-sample mean (1 - MAC) of any model fitted so far
         keys = [tuple(sorted(p.items())) for p in meas.poses]
         self.pose_share = len(set(keys)) / max(len(keys), 1)   # repeats add no model-form information
+        self.trial: tuple[tuple[str, ...], _Context] | None = None   # _trial_context's cache
 
     def family(self, handles: Sequence[str]):
         idx = [self.index[h] for h in handles]
@@ -290,15 +290,17 @@ def _cross_validate(ctx: _Context, entry: dict, scatter: float) -> None:
 def _scoring_scatter(noise, ranked: Sequence[dict]) -> tuple[float, float]:
     """The scatter that ranks candidates, and its model-form floor: ``sqrt(sigma^2 + floor^2)``.
 
-    ``sigma`` is the measurement's own scatter (repeats or ``freq_std_hz``; 0 when only the fallback is
-    known).  ``floor`` is the model-form error the best candidate still leaves on configurations it did
-    not see, ``sqrt(max(h^2 - sigma^2, 0))`` with ``h`` the lowest held-out frequency RMS of the
+    ``sigma`` is the measurement's own scatter (repeats or ``freq_std_hz``), else the fallback: the
+    lowest held-out error of many candidates fitted to a few residuals underestimates the noise (it
+    is the minimum of many), so it never stands for the noise alone.  ``floor`` is the model-form
+    error the best candidate still leaves on configurations it did not see,
+    ``sqrt(max(h^2 - sigma^2, 0))`` with ``h`` the lowest held-out frequency RMS of the
     cross-validated candidates.  So the penalty of an extra parameter is measured against what no
     candidate can remove, however small the repeat scatter: the same data give the same ranking
     whether a pose's runs come as one row or as repeats."""
-    sigma = 0.0 if noise.source == FALLBACK_SOURCE else noise.value
+    sigma = noise.value
     if not ranked:
-        return noise.value, 0.0
+        return sigma, 0.0
     h = min(e["heldout_rms_rel_error"] for e in ranked)
     floor = math.sqrt(max(h * h - sigma * sigma, 0.0))
     return max(math.hypot(sigma, floor), MIN_SCATTER), floor
@@ -608,7 +610,7 @@ def scatter_line(result: Diagnosis) -> str:
     def pct(x: float) -> str:
         return f"{100 * x:.2g} %"
 
-    own = "none measured" if src.source == FALLBACK_SOURCE else f"{pct(meas)} from {src.source}"
+    own = f"{pct(meas)} from {src.source}"
     return (f"scatter: {pct(result.scatter)} = measurement ({own}; {src.detail}) + model-form floor "
             f"{pct(floor)} (held-out error of the best candidate beyond the measurement); what remains is "
             f"judged against {pct(meas)}")
@@ -1008,14 +1010,12 @@ def _trial_poses(ctx: _Context) -> dict[str, dict[str, float]]:
 def _trial_context(ctx: _Context, trial: dict[str, dict[str, float]]) -> _Context:
     """A context over the ``trial`` poses (reduced models there; frequencies are placeholders), cached."""
     key = tuple(trial)
-    cached = getattr(ctx, "_trial", None)
-    if cached is None or cached[0] != key:
+    if ctx.trial is None or ctx.trial[0] != key:
         poses = tuple(trial.values())
         n = ctx.meas.freq_hz.shape[1]
         new = Measured(key, poses, np.repeat(ctx.meas.freq_hz[:1], len(poses), axis=0), None, ())
-        nctx = _Context(ctx.rig, new, np.ones((1, len(poses)), bool), n_modes=n + 2)
-        ctx._trial = (key, nctx)
-    return ctx._trial[1]
+        ctx.trial = (key, _Context(ctx.rig, new, np.ones((1, len(poses)), bool), n_modes=n + 2))
+    return ctx.trial[1]
 
 
 def _trial_frequencies(ctx: _Context, entry: dict, trial: dict[str, dict[str, float]]) -> np.ndarray:

@@ -336,8 +336,7 @@ class ScatterSource(_Record):
     """Where the relative measurement scatter came from (compare/gap.py ``estimate_scatter``):
     ``repeated configurations``, ``freq_std_hz column`` or ``--scatter (fallback)``, and how;
     ``measurement`` that scatter (fraction) and ``model_form_floor`` (fraction) the held-out error of
-    the best candidate beyond it: the ranking's ``scatter`` is ``sqrt(measurement^2 + floor^2)`` (the
-    measurement term 0 when it is only the fallback)."""
+    the best candidate beyond it: the ranking's ``scatter`` is ``sqrt(measurement^2 + floor^2)``."""
 
     source: str
     detail: str

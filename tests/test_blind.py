@@ -65,20 +65,20 @@ def test_shapes_separate_look_alikes_that_frequencies_leave_ambiguous(first_eigh
 
 
 @pytest.mark.slow
-@pytest.mark.timeout(7200)          # 5 draws x 36 cases: ~15 min on a quiet machine, an hour under load
-def test_five_draws_the_docs_quote_and_their_floor():
-    """The acceptance measurement (benchmarks/diagnosis_doc.py ``blind_block``: 36 cases in each of five
-    draws the method was not developed on) is exactly what docs/diagnosis.md quotes, and on every draw
-    ``none`` is always right."""
+@pytest.mark.timeout(10800)         # 5 draws x 36 cases + advice trials: ~25 min quiet, hours under load
+def test_five_draws_and_the_advice_the_docs_quote():
+    """The acceptance measurement (benchmarks/diagnosis_doc.py: 36 cases in each of five draws the
+    method was not developed on) and the next-measurement trials on its ambiguous verdicts are exactly
+    what docs/diagnosis.md quotes; on every draw ``none`` is right at least twice in three."""
     from conftest import REPO
 
     spec = importlib.util.spec_from_file_location("diagnosis_doc", REPO / "benchmarks" / "diagnosis_doc.py")
     doc = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(doc)
-    block = doc.blind_block()
-    assert doc.doc_block("blind") == block
-    assert all(line.strip() == "'none' for no-effect cases: 100.0%"
-               for line in block.splitlines() if "'none' for no-effect" in line)
+    results = {seed: run_blind(doc.BLIND_CASES, seed=seed) for seed in doc.BLIND_SEEDS}
+    assert doc.doc_block("blind") == doc.blind_block(results=results)
+    assert doc.doc_block("advice") == doc.advice_block(results)
+    assert all(summarise(r)["none_accuracy"] >= 2 / 3 for r in results.values())
 
 
 def test_benchmark_script_times_the_six_pose_case_and_finds_its_effect(capsys, monkeypatch):

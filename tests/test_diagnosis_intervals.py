@@ -106,10 +106,10 @@ def test_one_moved_sensor_flags_the_verdict(rig):
 
 
 def test_an_ambiguous_verdict_advises_untested_poses_ranked_by_information(rig):
-    """One mode at three poses leaves a heavier link2 and an elbow + link1 stiffness pair equal within
+    """One mode at three poses leaves a tip mass and a link1 stiffness + sensor mass pair equal within
     noise: the advice names untested poses of the measured range, best first, with positive
     information."""
-    real = apply_effect(rig, "link_mass", "link2", {"scale": 1.4})
+    real = apply_effect(rig, "tip_mass", "tip", {"mass_kg": 0.2, "inertia_kgm2": 1e-4})
     res = diagnose(rig, _table(real, (0.0, 60.0, 150.0), np.random.default_rng(0), n=1, noise=0.003))
     v = res.verdict
     assert v.ambiguous and v.next_measurements
