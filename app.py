@@ -90,8 +90,23 @@ def _leave_interrupted() -> None:
     print("flexmodal: interrupted", file=sys.stderr)
     sys.stdout.flush()
     sys.stderr.flush()
+    _close_hdf5_files()
     _end_children()
     os._exit(130)
+
+
+def _close_hdf5_files() -> None:
+    """Close every HDF5 file this process still has open, so that none keeps its open-for-writing
+    superblock flags after ``os._exit`` (which skips h5py's clean-up).  Writers open and close their
+    files with Ctrl-C deferred; this catches any file a signal left open anyway."""
+    h5py = sys.modules.get("h5py")  # not imported: no file to close
+    if h5py is None:
+        return
+    for fid in h5py.h5f.get_obj_ids(types=h5py.h5f.OBJ_FILE):
+        try:
+            h5py.File(fid).close()
+        except Exception:  # noqa: BLE001 - ending anyway: close what can be closed
+            continue
 
 
 def _end_children() -> None:
