@@ -75,7 +75,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         where = f"{exc.filename}: " if exc.filename is not None else ""
         print(f"flexmodal: error: {where}{' '.join(str(exc.strerror or exc).split())}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, Exception) as exc:
+        if not _from_interrupt(exc):  # a bug: the traceback, exit 1
+            raise
         if argv is None:  # the command itself: outputs are closed or removed by now, so skip the
             _leave_interrupted()  # interpreter's tear-down (seconds of garbage collection after a demo)
         print("flexmodal: interrupted", file=sys.stderr)
@@ -83,6 +85,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     finally:
         if argv is None:  # done: a Ctrl-C during the interpreter's tear-down still ends it the same way
             signal.signal(signal.SIGINT, lambda _signum, _frame: _leave_interrupted())
+
+
+def _from_interrupt(exc: BaseException) -> bool:
+    """Whether ``exc`` is a Ctrl-C, or an error a library raised from one (a KeyboardInterrupt met
+    while a class body was set up during an import comes back as RuntimeError, "Error calling
+    __set_name__", caused by it)."""
+    seen: set[int] = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
 
 
 def _leave_interrupted() -> None:
