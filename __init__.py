@@ -7,6 +7,7 @@ is re-exported here lazily from :mod:`flexmodal.api`, so ``import flexmodal`` st
 
 from __future__ import annotations
 
+from flexmodal.api import __all__ as _api_names
 from flexmodal.daq.hooks import set_simulator_launcher
 
 __version__ = "0.1.0"
@@ -16,16 +17,10 @@ __version__ = "0.1.0"
 # until a session asks for a simulator (``fm.acquire`` on an example session needs no extra import).
 set_simulator_launcher("flexmodal.fixtures.sim_serve:launch")
 
-# The public API (flexmodal.api), loaded on first use: ``flexmodal.identify(...)`` works after a bare
-# ``import flexmodal`` without importing numpy, h5py or matplotlib up front.  tests/test_api.py checks
-# that this list is exactly ``flexmodal.api.__all__``.
-__all__ = [
-    "FrfResult", "Identification", "SelfCheck", "acquire", "animate_mode", "compare_modes", "compute_frf",
-    "compute_frfs", "demo", "diagnose", "format_comparison", "frf_from_arrays", "identify", "list_runs",
-    "load_rig", "plot_comparison", "plot_frf", "plot_gap", "plot_mode_shapes", "plot_stabilisation",
-    "predict", "read_diagnosis", "read_poses", "read_run", "read_table", "report", "report_pdf", "selftest",
-    "serve_simulator", "track", "write_diagnosis",
-]
+# The public API (flexmodal.api), re-exported on first use: ``flexmodal.identify(...)`` works after a bare
+# ``import flexmodal`` without importing numpy, h5py or matplotlib up front (flexmodal.api imports its
+# dependencies inside its functions, so reading its list of names here costs nothing).
+__all__ = list(_api_names)
 
 
 def __getattr__(name: str):

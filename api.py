@@ -415,11 +415,12 @@ class Identification:
         """
         from flexmodal.checked_io.output import output_file, signals_deferred
         from flexmodal.modal.errors import ModalError
-        from flexmodal.modal.identify import write_synthesis_csv
+        from flexmodal.modal.identify import synthesis_path, write_synthesis_csv
 
         output_file(out, ModalError, "modal table (--out)")
+        output_file(synthesis_path(out), ModalError, "FRF synthesis table (next to --out)", inputs=(out, uff))
         if uff is not None:
-            output_file(uff, ModalError, "UFF file (--uff)")
+            output_file(uff, ModalError, "UFF file (--uff)", inputs=(out,))
         modes_by_config = {c: (m, self.outputs[c]) for c, m in self.modes.items()}
         with signals_deferred():   # the modal table and its synthesis file: both written, or neither
             self.table.to_csv(out)
@@ -1194,7 +1195,8 @@ def report_pdf(html: PathLike, pdf: PathLike | None = None) -> Path:
     from flexmodal.reports.errors import ReportError
     from flexmodal.reports.pdf import print_pdf
 
-    target = output_file(Path(html).with_suffix(".pdf") if pdf is None else pdf, ReportError, "PDF report")
+    target = output_file(Path(html).with_suffix(".pdf") if pdf is None else pdf, ReportError, "PDF report",
+                         inputs=(html,))
     return print_pdf(html, target)
 
 

@@ -75,7 +75,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         where = f"{exc.filename}: " if exc.filename is not None else ""
         print(f"flexmodal: error: {where}{' '.join(str(exc.strerror or exc).split())}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, Exception) as exc:
+        if not _from_interrupt(exc):  # a bug: the traceback, exit 1
+            raise
         if argv is None:  # the command itself: outputs are closed or removed by now, so skip the
             _leave_interrupted()  # interpreter's tear-down (seconds of garbage collection after a demo)
         print("flexmodal: interrupted", file=sys.stderr)
@@ -85,13 +87,41 @@ def main(argv: Sequence[str] | None = None) -> int:
             signal.signal(signal.SIGINT, lambda _signum, _frame: _leave_interrupted())
 
 
+def _from_interrupt(exc: BaseException) -> bool:
+    """Whether ``exc`` is a Ctrl-C, or an error a library raised from one (a KeyboardInterrupt met
+    while a class body was set up during an import comes back as RuntimeError, "Error calling
+    __set_name__", caused by it)."""
+    seen: set[int] = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
 def _leave_interrupted() -> None:
     """Say so on stderr, end the child processes and end this one at once with exit code 130."""
     print("flexmodal: interrupted", file=sys.stderr)
     sys.stdout.flush()
     sys.stderr.flush()
+    _close_hdf5_files()
     _end_children()
     os._exit(130)
+
+
+def _close_hdf5_files() -> None:
+    """Close every HDF5 file this process still has open, so that none keeps its open-for-writing
+    superblock flags after ``os._exit`` (which skips h5py's clean-up).  Writers open and close their
+    files with Ctrl-C deferred; this catches any file a signal left open anyway."""
+    h5py = sys.modules.get("h5py")  # not imported: no file to close
+    if h5py is None:
+        return
+    for fid in h5py.h5f.get_obj_ids(types=h5py.h5f.OBJ_FILE):
+        try:
+            h5py.File(fid).close()
+        except Exception:  # noqa: BLE001 - ending anyway: close what can be closed
+            continue
 
 
 def _end_children() -> None:

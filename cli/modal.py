@@ -7,7 +7,7 @@ import sys
 
 from flexmodal.checked_io import options as opt
 from flexmodal.cli.commands import command
-from flexmodal.modal.registry import ESTIMATORS
+from flexmodal.modal.registry import ESTIMATORS, METHODS
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -39,12 +39,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="lower band edge, Hz (default first line > 0)")
     q.add_argument("--fmax", type=opt.positive_hz, default=None,
                    help="upper band edge, Hz (default Nyquist)")
-    q.add_argument("--method", default=None, choices=["peak", "lscf", "ssi", "fdd"],
-                   help="lscf: pLSCF + stabilisation + LSFD (default with a force channel); "
-                        "peak: CMIF peaks, half-power damping, quadrature shapes; "
-                        "ssi: output-only SSI-cov + stabilisation (default for excitation=operational or "
-                        "no force channel); fdd: output-only frequency-domain decomposition, EFDD damping. "
-                        "ssi/fdd shapes are unscaled (unit largest entry)")
+    q.add_argument("--method", default=None, choices=METHODS,
+                   help="; ".join(f"{name}: {METHODS[name].caption}" for name in METHODS)
+                   + ". Output-only shapes are unscaled (unit largest entry)")
     q.add_argument("--max-order", type=opt.model_order, default=None,
                    help="cap of the pLSCF model order (default: the order grows until the modes found "
                         "stop growing and explain every clear CMIF peak, at most 200 / number of "

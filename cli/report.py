@@ -54,7 +54,8 @@ def _run(args: argparse.Namespace) -> int:
         from flexmodal.checked_io.output import output_file
         from flexmodal.reports.pdf import find_chromium
 
-        output_file(Path(args.out).with_suffix(".pdf"), ReportError, "PDF report (beside --out)")
+        output_file(Path(args.out).with_suffix(".pdf"), ReportError, "PDF report (beside --out)",
+                    inputs=(args.out,))
         if find_chromium() is None:
             raise ReportError("report --pdf: no Chromium found (install chromium, or leave out --pdf)")
     if not (args.runs or args.measured or args.pred or args.diagnosis):

@@ -34,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from flexmodal.checked_io.output import signals_deferred
 from flexmodal.daq.devices import Block, ReaderStats, make_driver, run_reader, with_endpoint
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.hits import HitMonitor, sparkline
@@ -625,7 +626,7 @@ def _store_pose(out: Path, run_id: str, pose: dict, spread: dict) -> None:
     min, max and number of samples), once the writer has closed the file."""
     import h5py
 
-    with h5py.File(out, "r+") as f:
+    with signals_deferred(), h5py.File(out, "r+") as f:  # opened and closed whole, Ctrl-C or not
         attrs = f[f"runs/{run_id}"].attrs
         attrs["pose"] = json.dumps(pose)
         attrs["pose_spread"] = json.dumps(spread)

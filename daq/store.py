@@ -24,6 +24,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from flexmodal.checked_io.output import signals_deferred
 from flexmodal.checked_io.text import available_memory_bytes, regular_file
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.h5file import open_read
@@ -136,26 +137,29 @@ class RunWriter:
         self._validate(sample_rate_hz, excitation, pose)
         self.n_channels = len(self.channels)
         self.flush_interval_s = float(flush_interval_s)
-        self._file = self._open()
-        try:
-            group = self._file.require_group("runs").create_group(self.run_id)
-            group.attrs["sample_rate_hz"] = float(sample_rate_hz)
-            group.attrs["start_time"] = start_time or _iso_now()
-            group.attrs["excitation"] = excitation
-            group.attrs["pose"] = json.dumps(pose)
-            for key, value in (attrs or {}).items():
-                ok = isinstance(value, (str, int, float, bool, np.number))
-                group.attrs[key] = value if ok else json.dumps(value)
-            group.create_dataset("channels", data=_channel_table(self.channels))
-            rows = int(max(256, min(65536, CHUNK_BYTES // (np.dtype(dtype).itemsize * self.n_channels))))
-            self._samples = group.create_dataset(
-                "samples", shape=(0, self.n_channels), maxshape=(None, self.n_channels),
-                chunks=(rows, self.n_channels), dtype=dtype, fillvalue=np.nan)  # never-written rows: NaN
-            self._events = group.create_dataset("events", shape=(0,), maxshape=(None,), chunks=(256,),
-                                                dtype=EVENT_DTYPE)
-            self._file.swmr_mode = True
-        except Exception:
-            self._file.close()
+        self._file: h5py.File | None = None
+        try:  # a Ctrl-C while the file opens or the run is laid out is held, then the file is closed
+            with signals_deferred():
+                self._file = self._open()
+                group = self._file.require_group("runs").create_group(self.run_id)
+                group.attrs["sample_rate_hz"] = float(sample_rate_hz)
+                group.attrs["start_time"] = start_time or _iso_now()
+                group.attrs["excitation"] = excitation
+                group.attrs["pose"] = json.dumps(pose)
+                for key, value in (attrs or {}).items():
+                    ok = isinstance(value, (str, int, float, bool, np.number))
+                    group.attrs[key] = value if ok else json.dumps(value)
+                group.create_dataset("channels", data=_channel_table(self.channels))
+                rows = int(max(256, min(65536, CHUNK_BYTES // (np.dtype(dtype).itemsize * self.n_channels))))
+                self._samples = group.create_dataset(
+                    "samples", shape=(0, self.n_channels), maxshape=(None, self.n_channels),
+                    chunks=(rows, self.n_channels), dtype=dtype, fillvalue=np.nan)  # never-written rows: NaN
+                self._events = group.create_dataset("events", shape=(0,), maxshape=(None,), chunks=(256,),
+                                                    dtype=EVENT_DTYPE)
+                self._file.swmr_mode = True
+        except BaseException:
+            if self._file is not None:
+                self._file.close()
             raise
         self.n_samples = 0
         self._n_events = 0
@@ -265,9 +269,10 @@ class RunWriter:
         self._last_flush = time.monotonic()
 
     def close(self) -> None:
-        if self._file.id.valid:
-            self.flush()
-            self._file.close()
+        with signals_deferred():  # the last flush and the close complete, Ctrl-C or not
+            if self._file.id.valid:
+                self.flush()
+                self._file.close()
 
 
 def list_runs(path: str | Path) -> list[str]:

@@ -91,9 +91,10 @@ def _serial_pays(elapsed_s: float, cpu_s: float, bytes_done: int, bytes_left: in
 
     From the runs done so far (``elapsed_s`` wall, ``cpu_s`` CPU of this process, every thread):
     the rest takes ``elapsed_s / bytes_done * bytes_left`` here; this process keeps ``cpu_s /
-    elapsed_s`` CPUs busy (its FFT threads), the other processes of the machine take the 1-minute
-    load average less that, and a pool's speed-up is the CPUs it could use over those this process
-    already uses.  Parallel only for a speed-up of MIN_SPEEDUP or more saving PAYS_FACTOR start-ups."""
+    elapsed_s`` CPUs busy (its run lanes and FFT threads), the other processes of the machine take
+    the 1-minute load average less that, and a pool's speed-up is the CPUs it could use over those
+    this process already uses.  Parallel only for a speed-up of MIN_SPEEDUP or more saving
+    PAYS_FACTOR start-ups."""
     cpus = usable_cpus()
     if runs_left < MIN_PARALLEL_RUNS or cpus < 2 or bytes_done == 0 or elapsed_s <= 0:
         return True
@@ -107,10 +108,11 @@ def _serial_pays(elapsed_s: float, cpu_s: float, bytes_done: int, bytes_left: in
 def run_batch(jobs: Sequence[tuple[str, str]], options: dict, *, workers: int | None = None,
               scheduler: str | None = None, out: str | None = None,
               on_done: Callable[[str, str, FrfResult], None] | None = None) -> list[FrfResult]:
-    """FRFs of every (file, run_id) job in order.  ``workers`` 0 computes serially here, > 0 on a
-    pool of that many local processes, None (automatic) serially for as long as the measured cost
-    of the runs done predicts no gain from a pool (:func:`_serial_pays`), then on a pool of
-    AUTO_WORKERS; ``scheduler`` sends every job to an existing dask cluster.
+    """FRFs of every (file, run_id) job in order.  ``workers`` 0 computes here (:func:`_here`: as many
+    runs at once as idle CPUs), > 0 on a pool of that many local processes, None (automatic) here
+    for as long as the measured cost of the runs done predicts no gain from a pool
+    (:func:`_serial_pays`), then on a pool of AUTO_WORKERS; ``scheduler`` sends every job to an
+    existing dask cluster.
     ``on_done(file, run_id, result)`` gets each result once no unfinished job reads the file it
     will be written to (``out`` if given, else its own file): that is when the caller may write it."""
     results: list[FrfResult | None] = [None] * len(jobs)

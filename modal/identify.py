@@ -32,9 +32,9 @@ from flexmodal.modal.lscf import (
 )
 from flexmodal.modal.lsfd import LsfdResult, lsfd
 from flexmodal.modal.peaks import clear_peaks, cmif, pick_peaks, quadrature_shapes, visible_peaks
+from flexmodal.modal.registry import METHODS, output_only
 from flexmodal.modal.windows import remove_added_damping
 
-METHODS = ("lscf", "peak")
 INDICATORS = ("mpc", "mpd", "synthesis_corr")   # per-mode validation columns of the modal table
 TOP_ORDERS = 0.75   # a mode's frequency: median over its upper quarter of stable orders (least noise)
 VISIBLE_DB = 3.0   # a peak this prominent in some FRF or CMIF curve is a resonance the data show
@@ -212,14 +212,15 @@ def _reach(f: np.ndarray, clusters: PoleClusters) -> np.ndarray:
 
 def _unseen(f: np.ndarray, clusters: PoleClusters, visible_hz: np.ndarray | None) -> np.ndarray:
     """[n_modes] True for a mode with no visible peak (:func:`modal.peaks.visible_peaks`) within its
-    half-power bandwidth (or 1.5 lines) and no other mode within three half-power bandwidths: a
-    resonance the FRFs do not show (a close neighbour may hide a mode's own peak)."""
+    half-power bandwidth (or 1.5 lines) and no other mode within two of its half-power bandwidths: a
+    resonance the FRFs do not show (a close neighbour may hide a mode's own peak; three bandwidths
+    kept near-duplicates of real modes on the real-data impact entries)."""
     fn, zeta = clusters.freq_hz, clusters.damping_ratio
     if visible_hz is None or fn.size == 0:
         return np.zeros(fn.size, bool)
     seen = np.any(np.abs(visible_hz[None, :] - fn[:, None]) <= _reach(f, clusters)[:, None], axis=1)
     gap = np.abs(fn[:, None] - fn[None, :]) + np.diag(np.full(fn.size, np.inf))
-    close = np.any(gap <= 3 * np.maximum(2 * zeta * fn, 1.5 * np.median(np.diff(f)))[:, None], axis=1)
+    close = np.any(gap <= 2 * np.maximum(2 * zeta * fn, 1.5 * np.median(np.diff(f)))[:, None], axis=1)
     return ~seen & ~close
 
 
@@ -328,6 +329,74 @@ def _resolution(f: np.ndarray, fn: np.ndarray, zeta: np.ndarray, excitation: str
             f"(< {MIN_LINES_PER_BANDWIDTH}): {ADVICE[excitation if excitation in ADVICE else None]}"], details
 
 
+@dataclass(frozen=True)
+class FrfInputs:
+    """What an FRF identification method (modal.registry.METHODS, input ``frf``) is given: ``freq_hz``
+    [Hz] and ``H`` [n_out, n_in, n_band] in the band, ``coherence`` [n_out, n_band] or None, the FRFs'
+    ``quantity``, the ``reference`` input column, ``max_order``, the ``poles_hz`` [Hz] to pick and the
+    validation ``thresholds``."""
+
+    freq_hz: np.ndarray
+    H: np.ndarray
+    coherence: np.ndarray | None
+    quantity: str
+    reference: int
+    max_order: int | None
+    poles_hz: Sequence[float] | None
+    thresholds: Thresholds
+
+
+@dataclass(frozen=True)
+class Poles:
+    """What an FRF identification method returns: ``freq_hz`` [Hz] and ``damping_ratio`` [n], the modal
+    ``constants`` [n_out, n] of the reference column, its ``warnings``, whether the constants are
+    ``scaled`` residues (mass-normalised shapes with a driving point) and the ``extra`` fields of
+    :class:`Modes` it sets (validation indicators, stabilisation diagram, ...)."""
+
+    freq_hz: np.ndarray
+    damping_ratio: np.ndarray
+    constants: np.ndarray
+    warnings: tuple[str, ...]
+    scaled: bool
+    extra: Mapping[str, object]
+
+
+def lscf_poles(inp: FrfInputs) -> Poles:
+    """pLSCF over an adaptive stabilisation diagram, automatic selection (or the poles nearest
+    ``poles_hz``), LSFD shapes and validation (the ``lscf`` method)."""
+    with one_blas_thread():
+        extra = _lscf(inp.freq_hz, inp.H, quantity=inp.quantity, reference=inp.reference,
+                      max_order=inp.max_order, poles_hz=inp.poles_hz, limits=inp.thresholds)
+    fn, zeta, constants = extra.pop("fn"), extra.pop("zeta"), extra.pop("constants")
+    warnings = extra.pop("warnings")
+    return Poles(fn, zeta, constants, tuple(warnings), True, extra)
+
+
+def peak_poles(inp: FrfInputs) -> Poles:
+    """CMIF peaks, half-power damping and quadrature shapes (the ``peak`` method)."""
+    f, Hb, coh = inp.freq_hz, inp.H, inp.coherence
+    warnings: list[str] = []
+    lines = pick_peaks(f, Hb, coherence=coh)
+    if lines.size == 0:
+        raise ModalError(f"identify: no resonance peak between {f.min():g} and {f.max():g} Hz")
+    rec = convert(Hb, f, inp.quantity, "receptance")
+    indicator = cmif(rec)[0]
+    fits = []
+    for k in lines:   # a loop over peaks (modes)
+        try:
+            fits.append(half_power(f, indicator, int(k)))
+        except ModalError as exc:
+            warnings.append(str(exc))
+    if not fits:
+        raise ModalError("identify: no peak had two half-power points (" + "; ".join(warnings) + ")")
+    warnings += [w for h in fits for w in h.warnings]
+    fn = np.array([h.fn_hz for h in fits])
+    zeta = np.array([h.damping_ratio for h in fits])
+    used = np.array([int(np.argmin(np.abs(f - h.fn_hz))) for h in fits])
+    constants = quadrature_shapes(rec, used, inp.reference).astype(complex)
+    return Poles(fn, zeta, constants, tuple(warnings), False, {})
+
+
 def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: float | None = None,
              fmax: float | None = None, coherence: np.ndarray | None = None,
              quantity: str = "accelerance", decay_rate_per_s: float = 0.0, reference: int = 0,
@@ -346,8 +415,9 @@ def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: 
     Welch-averaged FRFs, ``impact``, None unknown) chooses the advice given when modes have few lines in
     their half-power band (one warning; the per-mode lines in ``Modes.details``).
     """
-    if method not in METHODS:
-        raise ModalError(f"method {method!r}: use one of {', '.join(METHODS)}")
+    if method not in METHODS or output_only(method):
+        frf_methods = [m for m in METHODS if not output_only(m)]
+        raise ModalError(f"method {method!r}: use one of {', '.join(frf_methods)}")
     H = np.asarray(H)
     if H.ndim != 3 or H.shape[-1] != len(freq_hz):
         raise ModalError(f"identify: FRFs of shape {H.shape} do not match {len(freq_hz)} lines")
@@ -359,33 +429,11 @@ def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: 
     f, Hb = np.asarray(freq_hz, float)[band], H[..., band]
     warnings: list[str] = [nyquist_note(fmax, float(np.max(freq_hz)))] if fmax is not None \
         and fmax > np.max(freq_hz) else []
-    extra: dict = {}
-    if method == "lscf":
-        with one_blas_thread():
-            extra = _lscf(f, Hb, quantity=quantity, reference=reference, max_order=max_order,
-                          poles_hz=poles_hz, limits=thresholds or Thresholds())
-        fn, zeta, constants = extra.pop("fn"), extra.pop("zeta"), extra.pop("constants")
-        warnings += extra.pop("warnings")
-    else:
-        coh = coherence[:, band] if coherence is not None else None
-        lines = pick_peaks(f, Hb, coherence=coh)
-        if lines.size == 0:
-            raise ModalError(f"identify: no resonance peak between {f.min():g} and {f.max():g} Hz")
-        rec = convert(Hb, f, quantity, "receptance")
-        indicator = cmif(rec)[0]
-        fits = []
-        for k in lines:   # a loop over peaks (modes)
-            try:
-                fits.append(half_power(f, indicator, int(k)))
-            except ModalError as exc:
-                warnings.append(str(exc))
-        if not fits:
-            raise ModalError("identify: no peak had two half-power points (" + "; ".join(warnings) + ")")
-        warnings += [w for h in fits for w in h.warnings]
-        fn = np.array([h.fn_hz for h in fits])
-        zeta = np.array([h.damping_ratio for h in fits])
-        used = np.array([int(np.argmin(np.abs(f - h.fn_hz))) for h in fits])
-        constants = quadrature_shapes(rec, used, reference).astype(complex)
+    coh = coherence[:, band] if coherence is not None else None
+    found = METHODS.entry(method).runner()(FrfInputs(f, Hb, coh, quantity, reference, max_order, poles_hz,
+                                                     thresholds or Thresholds()))
+    fn, zeta, constants, extra = found.freq_hz, found.damping_ratio, found.constants, dict(found.extra)
+    warnings += found.warnings
     coarse, details = _resolution(f, fn, zeta, excitation)
     warnings += coarse
     keep = np.ones(fn.size, bool)
@@ -396,7 +444,7 @@ def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: 
                      f"(a spurious or aliased pole)" for fr in fn[~keep]]
         if not keep.any():
             raise ModalError("identify: every pole had less damping than the exponential window added")
-    shapes, massn = _shapes(constants[:, keep], driving_point if method == "lscf" else None)
+    shapes, massn = _shapes(constants[:, keep], driving_point if found.scaled else None)
     order = np.flatnonzero(keep)[np.argsort(fn[keep])]
     per_mode = {k: extra[k][order] for k in ("mpc", "mpd", "synthesis_corr", "need") if k in extra}
     return Modes(fn[order], zeta[order], shapes[:, np.argsort(fn[keep])], constants[:, order], method, massn,

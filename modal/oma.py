@@ -24,10 +24,10 @@ from flexmodal.modal.compute import check_samples
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.fdd import FddResult, cross_spectra, fdd
 from flexmodal.modal.identify import nyquist_note
+from flexmodal.modal.registry import METHODS, output_only
 from flexmodal.modal.spectra import default_nfft
 from flexmodal.modal.ssi import SsiResult, ssi_cov
 
-OUTPUT_ONLY_METHODS = ("ssi", "fdd")
 FROM_FDD = object()         # SSI sized for fmin, else half the lowest FDD peak (identify_output_only)
 SPECTRUM_MARGIN = 1.1       # ... up to 10 % above the highest pole drawn
 
@@ -71,8 +71,9 @@ def identify_output_only(samples: np.ndarray, sample_rate_hz: float, names: Sequ
     channels (default all); ``max_order`` is SSI's highest model order (default 100); ``lowest_hz``
     the lowest frequency SSI's Hankel matrix is sized for (None: none; default :data:`FROM_FDD`:
     ``fmin``, else half the lowest FDD peak)."""
-    if method not in OUTPUT_ONLY_METHODS:
-        raise ModalError(f"method {method!r} is not output-only ({', '.join(OUTPUT_ONLY_METHODS)})")
+    if method not in METHODS or not output_only(method):
+        raise ModalError(f"method {method!r} is not output-only "
+                         f"({', '.join(m for m in METHODS if output_only(m))})")
     samples = np.asarray(samples)
     gaps = np.isnan(samples).all(axis=1) if samples.ndim == 2 else np.zeros(0, bool)
     check_samples(samples[~gaps] if gaps.size else samples, names, where)   # NaN rows: lost samples
@@ -89,13 +90,8 @@ def identify_output_only(samples: np.ndarray, sample_rate_hz: float, names: Sequ
         refs = [out_names.index(r) for r in references]
     y = samples[:, outputs].astype(float)
     try:
-        if method == "ssi":
-            result = ssi_cov(y, sample_rate_hz, references=refs, fmin=fmin, fmax=fmax,
-                             max_order=100 if max_order is None else max_order,
-                             lowest_hz=(fmin or _lowest_peak(y, sample_rate_hz, refs, fmax))
-                             if lowest_hz is FROM_FDD else lowest_hz)
-        else:
-            result = fdd(y, sample_rate_hz, references=refs, fmin=fmin, fmax=fmax)
+        result = METHODS.entry(method).runner()(
+            ResponseInputs(y, sample_rate_hz, refs, fmin, fmax, max_order, lowest_hz))
     except ModalError as exc:
         raise ModalError(f"{where}: {exc}") from None
     if fmax is not None and fmax > sample_rate_hz / 2:
@@ -105,6 +101,35 @@ def identify_output_only(samples: np.ndarray, sample_rate_hz: float, names: Sequ
         warn = "one output channel: no shape criterion can tell modes from noise peaks"
         result = replace(result, modes=replace(result.modes, warnings=(*result.modes.warnings, warn)))
     return result, out_names
+
+
+@dataclass(frozen=True)
+class ResponseInputs:
+    """What an output-only identification method (modal.registry.METHODS, input ``response``) is given:
+    the response ``samples`` [n_samples, n_outputs] at ``sample_rate_hz`` [Hz], the ``references``
+    (output columns; None: all), the band ``fmin``..``fmax`` [Hz], ``max_order`` and ``lowest_hz``
+    (see :func:`identify_output_only`)."""
+
+    samples: np.ndarray
+    sample_rate_hz: float
+    references: Sequence[int] | None
+    fmin: float | None
+    fmax: float | None
+    max_order: int | None
+    lowest_hz: float | None | object
+
+
+def run_ssi(inp: ResponseInputs) -> SsiResult:
+    """SSI-cov with its stabilisation diagram (the ``ssi`` method)."""
+    lowest = ((inp.fmin or _lowest_peak(inp.samples, inp.sample_rate_hz, inp.references, inp.fmax))
+              if inp.lowest_hz is FROM_FDD else inp.lowest_hz)
+    return ssi_cov(inp.samples, inp.sample_rate_hz, references=inp.references, fmin=inp.fmin, fmax=inp.fmax,
+                   max_order=100 if inp.max_order is None else inp.max_order, lowest_hz=lowest)
+
+
+def run_fdd(inp: ResponseInputs) -> FddResult:
+    """Frequency domain decomposition (the ``fdd`` method)."""
+    return fdd(inp.samples, inp.sample_rate_hz, references=inp.references, fmin=inp.fmin, fmax=inp.fmax)
 
 
 def _lowest_peak(y: np.ndarray, sample_rate_hz: float, refs: Sequence[int] | None, fmax: float | None

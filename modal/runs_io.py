@@ -46,11 +46,9 @@ def write_frf(path: str | Path, run_id: str, result: FrfResult) -> None:
                          f"{free / 1e6:.2f} MB free); the file is unchanged")
     created = not target.exists()
     try:
-        f = h5py.File(path, "a", libver="latest")
-    except OSError as exc:
-        raise ModalError(f"{path}: cannot open for writing FRFs ({one_line(exc)})") from None
-    try:
-        with f, signals_deferred():  # Ctrl-C waits for the group to be whole (milliseconds)
+        # Ctrl-C waits for the group to be whole (milliseconds); the open is inside the deferral too, so a
+        # signal can never fall between opening the file and entering ``with f`` (it would stay open)
+        with signals_deferred(), _open_append(path) as f:
             g = f.require_group(f"runs/{run_id}")
             for stale in [k for k in g if k.startswith(PARTIAL_PREFIX)]:  # left by a killed writer
                 del g[stale]
@@ -69,6 +67,13 @@ def write_frf(path: str | Path, run_id: str, result: FrfResult) -> None:
             target.unlink(missing_ok=True)
         raise ModalError(f"{where}: cannot write the FRFs ({one_line(exc)}); the run keeps its previous "
                          "FRFs, if any") from None
+
+
+def _open_append(path: str | Path) -> h5py.File:
+    try:
+        return h5py.File(path, "a", libver="latest")
+    except OSError as exc:
+        raise ModalError(f"{path}: cannot open for writing FRFs ({one_line(exc)})") from None
 
 
 def _fill(out: h5py.Group, H: np.ndarray, freq_hz: np.ndarray, coherence: np.ndarray,

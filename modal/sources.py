@@ -16,7 +16,8 @@ from flexmodal.modal.compute import compute_frf, frf_of_record
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult
 from flexmodal.modal.identify import Modes, identify, modes_table
-from flexmodal.modal.oma import OUTPUT_ONLY_METHODS, default_method, identify_output_only
+from flexmodal.modal.oma import default_method, identify_output_only
+from flexmodal.modal.registry import output_only
 from flexmodal.modal.runs_io import read_frf
 
 
@@ -110,7 +111,7 @@ def identify_input(path: str | Path, *, method: str | None = None, fmin: float |
         for run in hdf5_runs(p, run_id):
             names, kinds = [c.name for c in run.channels], [c.kind for c in run.channels]
             chosen = method or default_method(kinds, run.excitation)
-            if chosen in OUTPUT_ONLY_METHODS:
+            if output_only(chosen):
                 res, outputs = identify_output_only(run.samples, run.sample_rate_hz, names, kinds,
                                                     method=chosen, where=f"{p}:{run.run_id}", **oma)
                 modes = res.modes
@@ -128,7 +129,7 @@ def identify_input(path: str | Path, *, method: str | None = None, fmin: float |
 
         data = read_uff(p)
         chosen = method or ("lscf" if isinstance(data, UffFrfs) else default_method(data.kinds))
-        if not isinstance(data, UffFrfs) and chosen in OUTPUT_ONLY_METHODS:
+        if not isinstance(data, UffFrfs) and output_only(chosen):
             res, outputs = identify_output_only(data.samples, data.sample_rate_hz, data.names, data.kinds,
                                                 method=chosen, where=str(p), **oma)
             found[p.stem] = (res.modes, outputs)

@@ -38,3 +38,35 @@ def chromium() -> str:
         exe = shutil.which("chromium")
     assert exe, "Debian's chromium is required for the report tests (apt-get install -y chromium)"
     return exe
+
+
+@pytest.fixture(scope="session")
+def demo_run(tmp_path_factory):
+    """One run of ``flexmodal demo --out DIR`` for the whole session (it takes 20-60 s: tests/test_demo.py
+    and tests/test_report_handover.py share it and only read its outputs): through the CLI's ``main``
+    in this process, with every figure the reports embed kept (``reports.plots.figure_png`` observed).
+    Returns (DIR, elapsed seconds, stdout, [figures]); the console script itself runs the demo in
+    tests/test_cli_interrupt.py and tests/test_foundation_cli.py."""
+    import contextlib
+    import io
+    import time
+
+    from flexmodal.app import main
+    from flexmodal.reports import plots
+
+    out = tmp_path_factory.mktemp("demo")
+    figures = []
+    original = plots.figure_png
+
+    def keep(fig, dpi=100):
+        figures.append(fig)
+        return original(fig, dpi)
+
+    stdout = io.StringIO()
+    start = time.perf_counter()
+    with pytest.MonkeyPatch.context() as mp, contextlib.redirect_stdout(stdout):
+        mp.setattr(plots, "figure_png", keep)
+        code = main(["demo", "--out", str(out)])
+    elapsed = time.perf_counter() - start
+    assert code == 0
+    return out, elapsed, stdout.getvalue(), figures

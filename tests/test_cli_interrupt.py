@@ -58,3 +58,32 @@ def test_ctrl_c_while_storing_runs(tmp_path: Path) -> None:
 def test_ctrl_c_in_later_steps(tmp_path: Path, when_exists: str, after_s: float) -> None:
     out = tmp_path / "demo"
     _check(out, *_interrupt_demo(out, when_exists, after_s))
+
+
+def test_a_library_error_raised_from_ctrl_c_is_an_interruption(monkeypatch, capsys):
+    """Ctrl-C met while a library sets up a class during an import reaches the CLI as RuntimeError
+    ("Error calling __set_name__") caused by the KeyboardInterrupt: still exit 130 and one line; an
+    error not caused by Ctrl-C stays a bug (raised)."""
+    import argparse
+
+    from flexmodal import app
+
+    def handler(raised: BaseException):
+        def run(_args):
+            raise raised
+        return run
+
+    try:
+        raise KeyboardInterrupt
+    except KeyboardInterrupt as interrupt:
+        wrapped = RuntimeError("Error calling __set_name__")
+        wrapped.__cause__ = interrupt
+    parser = argparse.ArgumentParser()
+    monkeypatch.setattr(app, "build_parser", lambda: parser)
+    monkeypatch.setattr(parser, "parse_args", lambda _argv: argparse.Namespace(func=handler(wrapped)))
+    assert app.main([]) == 130
+    assert capsys.readouterr().err == "flexmodal: interrupted\n"
+    bug = argparse.Namespace(func=handler(ValueError("bug")))
+    monkeypatch.setattr(parser, "parse_args", lambda _argv: bug)
+    with pytest.raises(ValueError, match="bug"):
+        app.main([])

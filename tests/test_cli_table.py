@@ -645,9 +645,11 @@ ROWS: list[Row] = [
     row("demo-table-fifo", "demo --out {d}/demo", ("modes.csv", "FIFO"), {"demo/modes.csv": fifo}),
     row("demo-report-is-rig", "demo --rig {d}/demo/report.html --out {d}/demo", ("report.html", "input"),
         {"demo/report.html": RIG}),
+    row("report-pdf-is-out", "report --measured {d}/modes.csv --out {d}/r.pdf --pdf", ("r.pdf", "output")),
     # -- controls: the unmodified base files work ---------------------------------------------------
     row("control-predict", PREDICT, (), code=0),
     row("control-compare", COMPARE, (), code=0),
+    row("control-compare-out-stdout", COMPARE + " --out -", (), code=0),
     row("control-identify-peak", IDENTIFY + " --method peak", (), code=0),
 ]
 RUN_FILES = {

@@ -1,62 +1,21 @@
-"""A protocol registered from outside flexmodal (a toy driver defined in this test only), the writer's
+"""A protocol registered from outside flexmodal (the toy driver of tests/toys/toy_protocol.py), the writer's
 overrun warning, and per-device release of rows on the timeline."""
 
 from __future__ import annotations
 
-import time
-from dataclasses import dataclass
+import importlib
+import sys
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from flexmodal.daq.acquire import acquire
-from flexmodal.daq.devices import Block, Driver
-from flexmodal.daq.protocols import register_protocol, registered_protocols, unregister_protocol
-from flexmodal.daq.session import ChannelMap, Device, load_session
+from flexmodal.daq.devices import Block
+from flexmodal.daq.protocols import registered_protocols, unregister_protocol
+from flexmodal.daq.session import ChannelMap, load_session
 from flexmodal.daq.store import Channel, read_run
 from flexmodal.daq.timeline import Timeline
-
-
-@dataclass(frozen=True)
-class ToyConfig:
-    """The toy protocol's configuration: its sources and how much faster than the session it runs."""
-
-    rate_factor: float = 1.0
-    sources: tuple[str, ...] = ("up", "down")
-
-
-class ToyDriver(Driver):
-    """Device sample i carries the values (i, -i), delivered at ``rate_factor`` x the session rate."""
-
-    protocol = "toy"
-
-    @classmethod
-    def parse_device(cls, t, name):
-        t.reject_unknown({"rate_factor"})
-        return Device(name, cls.protocol, ToyConfig(t.get("rate_factor", float, 1.0)))
-
-    def __init__(self, device, sample_rate_hz):
-        self.name, self.sources = device.name, device.config.sources
-        self.rate = sample_rate_hz * device.config.rate_factor
-        self.t0 = None
-        self.n = 0
-
-    def open(self):
-        self.t0 = self.t0 or time.monotonic()
-
-    def read(self):
-        time.sleep(0.02)
-        due = int((time.monotonic() - self.t0) * self.rate)
-        i = np.arange(self.n, due, dtype=float)
-        first, self.n = self.n, due
-        if not i.size:
-            return []
-        return [Block(self.name, first, np.column_stack([i, -i]), time.time() - i.size / self.rate)]
-
-    def close(self):
-        pass
-
 
 SESSION = """
 sample_rate_hz = 1000.0
@@ -82,10 +41,11 @@ def _toy_unregistered_after():
     yield
     if "toy" in registered_protocols():
         unregister_protocol("toy")
+        sys.modules.pop("toys.toy_protocol", None)
 
 
 def _toy_session(tmp_path, factor: float):
-    register_protocol("toy", ToyDriver)
+    importlib.import_module("toys.toy_protocol")   # registers the toy protocol (tests/toys/)
     path = tmp_path / "toy.toml"
     path.write_text(SESSION.format(factor=factor))
     return load_session(path)

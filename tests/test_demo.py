@@ -22,14 +22,10 @@ EXCITATIONS = {"impact", "random", "sweep", "free-decay", "operational"}
 
 
 @pytest.fixture(scope="module")
-def demo_dir(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, float, str]:
-    out = tmp_path_factory.mktemp("demo")
-    start = time.perf_counter()
-    result = subprocess.run([sys.executable, str(REPO / "app.py"), "demo", "--out", str(out)],
-                            capture_output=True, text=True, timeout=300)
-    elapsed = time.perf_counter() - start
-    assert result.returncode == 0, result.stderr
-    return out, elapsed, result.stdout
+def demo_dir(demo_run) -> tuple[Path, float, str]:
+    """(folder, seconds, stdout) of the session's demo (tests/conftest.py ``demo_run``)."""
+    out, elapsed, stdout, _ = demo_run
+    return out, elapsed, stdout
 
 
 def test_demo_finishes_in_under_two_minutes_and_leaves_its_files(demo_dir: tuple[Path, float, str]) -> None:

@@ -1,11 +1,12 @@
 """The effect registry (models/effects.py): a new effect is one entry, and the rig augmentation, the
-candidates, the fast parametric model and the diagnosis all see it.  The toy effect below lives only in
-this file: a grounded spring along the axis of the last link at the tip."""
+candidates, the fast parametric model and the diagnosis all see it.  The toy effect lives, whole, in
+tests/toys/toy_effect.py: a grounded spring along the axis of the last link at the tip."""
 
 from __future__ import annotations
 
+import importlib
 import math
-from dataclasses import replace
+import sys
 
 import numpy as np
 import pytest
@@ -19,37 +20,20 @@ from flexmodal.models.errors import ModelError
 from flexmodal.models.frame import frame_modes
 from flexmodal.models.rig import Point, Rig, Spring, load_rig
 
-TOY = "tip_axial_spring"
 POSES = [{"theta_deg": t} for t in (0.0, 30.0, 60.0, 90.0, 120.0, 150.0)]
 
 
-def _tip(rig: Rig) -> Point:
-    return Point(rig.links[-1].name, 1.0)
-
-
-def _toy_effect() -> fx.Effect:
-    def fit(rig: Rig, location: str) -> tuple[fx.Param, ...]:
-        last = rig.links[-1]
-        ref = last.section.EA_N / last.length_m
-        return (fx.Param(TOY, "k_N_per_m", "ka@tip", 0, *fx.log_range(ref, 1e-5, 1e1, 7)),)
-
-    return fx.Effect(
-        TOY, (fx.EffectParam("k_N_per_m", "N/m"),),
-        locations=lambda rig: ["tip"],
-        apply=lambda rig, loc, v, pose: replace(rig, springs=rig.springs + (
-            Spring(_tip(rig), v["k_N_per_m"], "axial", name=f"{TOY}@tip"),)),
-        fit=fit,
-        handles=lambda rig: [fx.Handle("ka@tip", "K", 0.0, TOY)],
-        rows=lambda system, srig, h: system.observe(f"{srig.links[-1].name}@1", "axial")[None],
-        slots=lambda rig, srig: replace(srig, springs=srig.springs + (
-            Spring(_tip(rig), 0.0, "axial", name="slot@tip_axial"),)),
-    )
-
-
 @pytest.fixture
-def toy(monkeypatch):
-    monkeypatch.setitem(fx.REGISTRY, TOY, _toy_effect())   # one registry entry, undone afterwards
-    return TOY
+def toy():
+    """The toy effect of tests/toys/toy_effect.py, registered by importing it and unregistered after."""
+    module = importlib.import_module("toys.toy_effect")
+    yield module.NAME
+    fx.unregister_effect(module.NAME)
+    sys.modules.pop("toys.toy_effect")
+
+
+def _tip(rig: Rig) -> Point:
+    return importlib.import_module("toys.toy_effect").tip_point(rig)
 
 
 @pytest.fixture(scope="module")

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 import signal
 import subprocess
 import threading
@@ -59,11 +60,25 @@ def runs_file(tmp_path_factory) -> Path:
     return path
 
 
-def test_frf_over_several_runs(runs_file, tmp_path):
+@pytest.fixture(scope="module")
+def many_runs(runs_file, tmp_path_factory) -> Path:
+    """``runs_file`` with 124 more runs, each a second name (HDF5 hard link) of one of its four: 128 runs
+    on the disk space of 4.  ``frf`` needs 3.2 s of CPU on them (measured; 0.56 s on the four runs,
+    which left a few tenths of a second after the first run's FRFs, so under load the signal could
+    land in the interpreter's tear-down), about 3 s after the trigger below."""
+    path = tmp_path_factory.mktemp("many_runs") / "runs.h5"
+    shutil.copyfile(runs_file, path)
+    with h5py.File(path, "a") as f:
+        for k in range(4, 128):
+            f[f"runs/r{k}"] = f[f"runs/r{k % 4}"]
+    return path
+
+
+def test_frf_over_several_runs(many_runs, tmp_path):
     """Serial batch into --out, interrupted once the first run's FRFs are there: the runs written
     before the signal are whole, and the file closed cleanly."""
     out = tmp_path / "frf.h5"
-    check(*interrupt(["frf", str(runs_file), "--workers", "0", "--nfft", "256", "--out", str(out)],
+    check(*interrupt(["frf", str(many_runs), "--workers", "0", "--nfft", "256", "--out", str(out)],
                      tmp_path, lambda _pid: out.exists()), tmp_path)
     from flexmodal.modal.runs_io import read_frf
 
@@ -88,13 +103,26 @@ def test_frf_on_a_dask_local_cluster(runs_file, tmp_path):
     assert still_alive(seen, LIMIT_S) == []
 
 
-def test_identify(runs_file, tmp_path):
-    check(*interrupt(["identify", str(runs_file), "--out", "modes.csv"], tmp_path, after_cpu(1.2)), tmp_path,
-          ("modes.csv", "modes.synthesis.csv"))
+@pytest.fixture(scope="module")
+def runs_with_frfs(runs_file, tmp_path_factory) -> Path:
+    """``runs_file`` with every run's FRFs stored (``flexmodal frf`` in place): identify and report then
+    identify each run from its stored FRFs, 11-18 s of CPU in all (measured: identify 11.3 s, report
+    17.9 s; on ``runs_file`` without FRFs they need 2.8 s and 2.0 s, which left 0.8-1.6 s of work after
+    the trigger, so under load the signal could land in the interpreter's tear-down)."""
+    path = tmp_path_factory.mktemp("frf_runs") / "runs.h5"
+    shutil.copyfile(runs_file, path)
+    subprocess.run([EXE, "--quiet", "frf", str(path), "--workers", "0"], check=True, capture_output=True,
+                   timeout=600)
+    return path
 
 
-def test_report(runs_file, tmp_path):
-    check(*interrupt(["report", str(runs_file), "--out", "report.html"], tmp_path, after_cpu(1.2)),
+def test_identify(runs_with_frfs, tmp_path):
+    check(*interrupt(["identify", str(runs_with_frfs), "--out", "modes.csv"], tmp_path, after_cpu(1.2)),
+          tmp_path, ("modes.csv", "modes.synthesis.csv"))
+
+
+def test_report(runs_with_frfs, tmp_path):
+    check(*interrupt(["report", str(runs_with_frfs), "--out", "report.html"], tmp_path, after_cpu(1.2)),
           tmp_path, ("report.html",))
 
 
@@ -130,8 +158,10 @@ def test_diagnose(tmp_path):
     rig = RIGS / "demo_arm.toml"
     measured = tmp_path / "measured.csv"
     subprocess.run([EXE, "--quiet", "predict", str(_soft_elbow_rig(tmp_path)), "--model", "fe", "--poses",
-                    str(_poses(tmp_path / "poses.csv", 8, 15.0)), "--out", str(measured)], check=True,
+                    str(_poses(tmp_path / "poses.csv", 32, 3.5)), "--out", str(measured)], check=True,
                    capture_output=True)
+    # 32 poses: diagnose needs 4.6 s of CPU (measured; 2.9 s for 8 poses), 3.4 s after the
+    # trigger, so the signal cannot land in the interpreter's tear-down however loaded the machine is
     check(*interrupt(["diagnose", "--rig", str(rig), "--measured", str(measured), "--out", "dg"],
                      tmp_path, after_cpu(1.2)), tmp_path, ("dg/diagnosis.json", "dg/diagnosis.html"))
 
@@ -142,6 +172,12 @@ def test_compare_of_large_tables(tmp_path):
     for rig, out in ((RIGS / "demo_arm.toml", "pred.csv"), (_soft_elbow_rig(tmp_path), "meas.csv")):
         subprocess.run([EXE, "--quiet", "predict", str(rig), "--model", "fe", "--poses", poses, "--modes",
                         "8", "--out", str(tmp_path / out)], check=True, capture_output=True)
+    for name in ("pred.csv", "meas.csv"):  # 30 copies of each configuration (96 000 rows): compare needs
+        # ~5 s of CPU (measured: 0.9 s on the 3 200 predicted rows, less than the trigger; 2.4 s on 10
+        # copies), >= 3 s after the trigger
+        header, *rows = (tmp_path / name).read_text().splitlines()
+        copies = [f"{c}r{j},{rest}" for j in range(30) for c, rest in (r.split(",", 1) for r in rows)]
+        (tmp_path / name).write_text("\n".join([header, *copies]) + "\n")
     check(*interrupt(["compare", "meas.csv", "pred.csv", "--out", "table.md"], tmp_path, after_cpu(1.0)),
           tmp_path, ("table.md",))
 

@@ -133,20 +133,24 @@ def test_serial_path_runs_as_many_runs_at_once_as_idle_cpus_with_the_same_result
     one = batch.run_batch(jobs, {"nfft": 256}, workers=0)
     seen = []
     real = batch.frf_job
+    both = threading.Barrier(2, timeout=60)     # the first two runs must be running at the same time
 
     def spy(path, run_id, options):
         seen.append((threading.current_thread().name, options["workers"]))
+        if len(seen) <= 2 and not both.broken:
+            both.wait()
         return real(path, run_id, options)
 
     monkeypatch.setattr(batch, "frf_job", spy)
     monkeypatch.setattr(batch, "idle_cpus", lambda: 2)
     written = []
     two = batch.run_batch(jobs, {"nfft": 256}, workers=0, on_done=lambda p, r, res: written.append((p, r)))
-    assert len({name for name, _ in seen}) == 2 and {w for _, w in seen} == {1}
+    assert len({name for name, _ in seen[:2]}) == 2 and {w for _, w in seen} == {1}
     assert written == [(p, r) for p, r in jobs]
     for a, b in zip(one, two, strict=True):
         assert np.array_equal(a.H, b.H) and np.array_equal(a.coherence, b.coherence)
     seen.clear()
+    both.abort()                                # one run alone: nothing to wait for
     batch.run_batch(jobs[:1], {"nfft": 256}, workers=0)
     assert [w for _, w in seen] == [2]
 

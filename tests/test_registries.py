@@ -22,6 +22,8 @@ FAMILIES = [
      modal_registry.registered_estimators, ("frf",), "--estimator"),
     ("model", model_registry.register_model, model_registry.unregister_model,
      model_registry.registered_models, ("predict",), "--model"),
+    ("method", modal_registry.register_method, modal_registry.unregister_method,
+     modal_registry.registered_methods, ("identify",), "--method"),
     ("simulator", simulators.register_simulator, simulators.unregister_simulator,
      simulators.registered_simulators, ("sim", "serve"), "--protocol"),
 ]
@@ -47,7 +49,8 @@ def _help(path: tuple[str, ...]) -> str:
 def test_help_choices_are_the_registry_toys_included(family):
     _, register, unregister, registered, path, option = family
     assert tuple(_option(path, option).choices) == registered()
-    register("toy-entry", lambda *args: None)
+    register("toy-entry", modal_registry.Method("frf", print, "a toy") if family[0] == "method"
+             else lambda *args: None)
     try:
         assert registered()[-1] == "toy-entry" and "toy-entry" in _option(path, option).choices
         assert "toy-entry" in _help(path)
@@ -60,6 +63,7 @@ def test_built_ins_resolve_to_what_their_family_needs():
     assert all(callable(modal_registry.ESTIMATORS[n]) for n in modal_registry.registered_estimators())
     assert all(callable(model_registry.MODELS[n]) for n in model_registry.registered_models())
     assert all(callable(simulators.SIMULATORS[n]) for n in simulators.registered_simulators())
+    assert all(callable(modal_registry.METHODS[n].runner()) for n in modal_registry.registered_methods())
     assert all(issubclass(protocols.PROTOCOLS[n], Driver) for n in protocols.registered_protocols())
     assert set(simulators.registered_simulators()) <= set(protocols.registered_protocols())
     assert all(isinstance(effects.REGISTRY[n], effects.Effect) for n in effects.registered_effects())

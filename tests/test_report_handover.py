@@ -11,8 +11,6 @@ text width no table is wider than the page; ``report --pdf`` prints it.  Chromiu
 
 from __future__ import annotations
 
-import contextlib
-import io
 import re
 import subprocess
 import sys
@@ -28,22 +26,11 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
-def demo_figures(tmp_path_factory):
-    """(report path, [(caption-less figure, kind)]) of one in-process demo run."""
-    from flexmodal.api import demo
-
-    out = tmp_path_factory.mktemp("demo_figures")
-    seen = []
-    original = plots.figure_png
-
-    def keep(fig, dpi=100):
-        seen.append(fig)
-        return original(fig, dpi)
-
-    with pytest.MonkeyPatch.context() as mp, contextlib.redirect_stdout(io.StringIO()):
-        mp.setattr(plots, "figure_png", keep)
-        report = demo(out, quiet=True)
-    return report, seen
+def demo_figures(demo_run):
+    """(report path, [(caption-less figure, kind)]) of the session's demo (tests/conftest.py
+    ``demo_run``: run in this process with every embedded figure kept)."""
+    out, _, _, figures = demo_run
+    return out / "report.html", figures
 
 
 def test_every_figure_of_the_demo_report_has_plain_ticks_and_stays_on_the_canvas(demo_figures):

@@ -23,7 +23,7 @@ def toy(request):
     """Import ``toys.<name>`` (which registers it) and unregister it afterwards."""
     from flexmodal.cli.commands import COMMANDS
     from flexmodal.daq.protocols import PROTOCOLS
-    from flexmodal.modal.registry import ESTIMATORS
+    from flexmodal.modal.registry import ESTIMATORS, METHODS
     from flexmodal.models.effects import REGISTRY as EFFECTS
     from flexmodal.models.registry import MODELS
     from flexmodal.reports.sections import SECTIONS
@@ -31,7 +31,8 @@ def toy(request):
     kind = request.param
     module = importlib.import_module(f"toys.{kind}")
     registry = {"toy_estimator": ESTIMATORS, "toy_model": MODELS, "toy_protocol": PROTOCOLS,
-                "toy_effect": EFFECTS, "toy_section": SECTIONS, "toy_command": COMMANDS}[kind]
+                "toy_effect": EFFECTS, "toy_section": SECTIONS, "toy_command": COMMANDS,
+                "toy_method": METHODS}[kind]
     assert module.NAME in registry
     yield module
     registry.unregister(module.NAME)
@@ -133,3 +134,20 @@ def test_toy_command_in_help_and_run(toy, capsys):
     assert main([toy.NAME, str(REPO / "examples" / "measured" / "seed003_table3_f1f2.csv")]) == 0
     lines = capsys.readouterr().out.split("\n")
     assert "theta0 2" in lines and "theta150 2" in lines
+
+
+@pytest.mark.parametrize("toy", ["toy_method"], indirect=True)
+def test_toy_identification_method_from_identify_command_to_the_modal_table(toy, tmp_path, capsys):
+    import flexmodal as fm
+
+    path = _random_run(tmp_path / "run.h5")
+    out = tmp_path / "modes.csv"
+    assert main(["--quiet", "identify", str(path), "--method", toy.NAME, "--out", str(out)]) == 0
+    frf = fm.compute_frf(path)
+    expected = frf.freq_hz[np.argmax(np.abs(frf.H).sum(axis=(0, 1)))]
+    table = fm.read_table(out)
+    line_hz = frf.freq_hz[1] - frf.freq_hz[0]   # identify refines the pole within its line
+    assert len(table.freq_hz("r1")) == 1 and abs(table.freq_hz("r1")[0] - expected) < line_hz
+    with pytest.raises(SystemExit):
+        main(["identify", "--help"])
+    assert "the line of the largest summed FRF magnitude" in " ".join(capsys.readouterr().out.split())

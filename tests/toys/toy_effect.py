@@ -9,7 +9,7 @@ from flexmodal.models.rig import Point, Spring
 NAME = "tip_axial_spring"
 
 
-def _tip(rig):
+def tip_point(rig):
     return Point(rig.links[-1].name, 1.0)
 
 
@@ -23,10 +23,10 @@ fx.register_effect(fx.Effect(
     NAME, (fx.EffectParam("k_N_per_m", "N/m"),),
     locations=lambda rig: ["tip"],
     apply=lambda rig, loc, v, pose: replace(rig, springs=rig.springs + (
-        Spring(_tip(rig), v["k_N_per_m"], "axial", name=f"{NAME}@tip"),)),
+        Spring(tip_point(rig), v["k_N_per_m"], "axial", name=f"{NAME}@tip"),)),
     fit=_fit,
     handles=lambda rig: [fx.Handle("ka@tip", "K", 0.0, NAME)],
     rows=lambda system, srig, h: system.observe(f"{srig.links[-1].name}@1", "axial")[None],
     slots=lambda rig, srig: replace(srig, springs=srig.springs + (
-        Spring(_tip(rig), 0.0, "axial", name="slot@tip_axial"),)),
+        Spring(tip_point(rig), 0.0, "axial", name="slot@tip_axial"),)),
 ))

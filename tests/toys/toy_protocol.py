@@ -1,5 +1,6 @@
-"""A toy acquisition protocol, the whole of it: a device whose sample i carries the values (i, -i),
-with its own configuration dataclass (``[[device]]`` field ``gain``)."""
+"""A toy acquisition protocol, the whole of it: a device whose sample i carries the values
+(gain i, -gain i), delivered at ``rate_factor`` x the session rate, with its own configuration
+dataclass (``[[device]]`` fields ``gain`` and ``rate_factor``)."""
 
 import time
 from dataclasses import dataclass
@@ -16,6 +17,7 @@ NAME = "toy"
 @dataclass(frozen=True)
 class ToyConfig:
     gain: float = 1.0
+    rate_factor: float = 1.0
     sources: tuple[str, ...] = ("up", "down")
 
 
@@ -24,12 +26,13 @@ class ToyDriver(Driver):
 
     @classmethod
     def parse_device(cls, t, name):
-        t.reject_unknown({"gain"})
-        return Device(name, cls.protocol, ToyConfig(t.get("gain", float, 1.0)))
+        t.reject_unknown({"gain", "rate_factor"})
+        config = ToyConfig(t.get("gain", float, 1.0), t.get("rate_factor", float, 1.0))
+        return Device(name, cls.protocol, config)
 
     def __init__(self, device, sample_rate_hz):
         self.name, self.sources, self.limits = device.name, device.config.sources, None
-        self.gain, self.rate = device.config.gain, sample_rate_hz
+        self.gain, self.rate = device.config.gain, sample_rate_hz * device.config.rate_factor
         self.t0, self.n = None, 0
 
     def open(self):
