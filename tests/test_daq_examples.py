@@ -120,9 +120,10 @@ def test_modbus_rtu_example(tmp_path):
 
 def test_api_acquire_starts_an_example_sessions_simulator_with_no_extra_import(tmp_path):
     """``fm.acquire`` on examples/sessions/serial-sim.toml in a fresh interpreter that imports only
-    ``flexmodal``: the simulator launcher is found (and flexmodal.fixtures loaded) on demand."""
+    ``flexmodal``: the simulator launcher is found (and the simulators loaded) on demand; importing
+    flexmodal loads only the light simulator registry that the API re-exports, never a simulator."""
     code = ("import sys, flexmodal as fm\n"
-            "assert 'flexmodal.fixtures' not in sys.modules\n"
+            "assert 'flexmodal.fixtures.sim_serve' not in sys.modules\n"
             f"s = fm.acquire({str(EXAMPLES / 'serial-sim.toml')!r}, {str(tmp_path / 'run.h5')!r}, "
             "duration_s=0.5)\n"
             "print(s.run_id)\n")
