@@ -141,18 +141,25 @@ class Rendered:
                 if e.get("method") == "Network.requestWillBeSent"]
 
 
+def open_page(browser: Browser, page: Path) -> str:
+    """Open ``page`` in a new 1280 x 900 tab of ``browser`` with the Runtime, Log, Page and Network
+    events on; returns the tab's session id once the page has loaded."""
+    target = browser.send("Target.createTarget", {"url": "about:blank"})["targetId"]
+    session = browser.send("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
+    for domain in ("Runtime", "Log", "Page", "Network"):
+        browser.send(f"{domain}.enable", {}, session)
+    browser.send("Emulation.setDeviceMetricsOverride",
+                 {"width": 1280, "height": 900, "deviceScaleFactor": 1, "mobile": False}, session)
+    browser.send("Page.navigate", {"url": page.resolve().as_uri()}, session)
+    browser.wait_event("Page.loadEventFired")
+    return session
+
+
 def render(exe: str, page: Path, profile: Path) -> Rendered:
     """Open ``page`` in a fresh headless Chromium; screenshot the page, its first table and image."""
     browser = Browser(exe, profile)
     try:
-        target = browser.send("Target.createTarget", {"url": "about:blank"})["targetId"]
-        session = browser.send("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
-        for domain in ("Runtime", "Log", "Page", "Network"):
-            browser.send(f"{domain}.enable", {}, session)
-        browser.send("Emulation.setDeviceMetricsOverride",
-                     {"width": 1280, "height": 900, "deviceScaleFactor": 1, "mobile": False}, session)
-        browser.send("Page.navigate", {"url": page.resolve().as_uri()}, session)
-        browser.wait_event("Page.loadEventFired")
+        session = open_page(browser, page)
         layout = browser.send("Runtime.evaluate", {"returnByValue": True, "expression": LAYOUT_JS},
                               session)["result"]["value"]
         full = _crop_png(browser, session, {"x": 0, "y": 0, "width": 1280, "height": layout["height"]})

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from browser import Browser
+from browser import Browser, open_page
 from conftest import REPO
 from matplotlib import image as mpimg
 
@@ -48,14 +48,7 @@ def _open(exe: str, page: Path, profile: Path) -> dict:
 
     browser = Browser(exe, profile)
     try:
-        target = browser.send("Target.createTarget", {"url": "about:blank"})["targetId"]
-        session = browser.send("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
-        for domain in ("Runtime", "Log", "Page", "Network"):
-            browser.send(f"{domain}.enable", {}, session)
-        browser.send("Emulation.setDeviceMetricsOverride",
-                     {"width": 1280, "height": 900, "deviceScaleFactor": 1, "mobile": False}, session)
-        browser.send("Page.navigate", {"url": page.resolve().as_uri()}, session)
-        browser.wait_event("Page.loadEventFired")
+        session = open_page(browser, page)
 
         def js(expression: str):
             return browser.send("Runtime.evaluate", {"returnByValue": True, "expression": expression},
