@@ -533,51 +533,71 @@ def _pyoma_poles_reference(freq: np.ndarray, damp_pct: np.ndarray, approx_hz: li
     return modes
 
 
-@builder
-def build_pyoma_steel_frame() -> None:
-    """pyOMA's example measurement 10: a 1 m five-storey steel frame under fan (ambient) excitation, a
-    3D scanning laser vibrometer's three skewed beams at node 17 (velocities, direction code 0) and
-    two reference accelerometers at node 24; 256 Hz, 240 s.  Decimated to 64 Hz."""
+def _pyoma_setup(name: str, m: int, approx_hz: list[float], floor_note: str, kind_short: str) -> None:
+    """One setup of pyOMA's example measurements of a 1 m five-storey steel frame under fan (ambient)
+    excitation: a 3D scanning laser vibrometer's three skewed beams at one node (velocities, direction
+    code 0; node and beam angles from channel_dofs.txt) and two reference accelerometers at node 24;
+    256 Hz, 240 s, decimated to 64 Hz.  Reference: pyOMA's stored SSI-cov poles of that setup."""
     from scipy.signal import decimate
 
-    name = "pyoma_steel_frame"
     repo, commit = PYOMA
-    base = "tests/files/measurement_10"
-    data = np.load(io.BytesIO(blob(repo, commit, f"{base}/measurement_10.npy")))
+    base = f"tests/files/measurement_{m}"
+    data = np.load(io.BytesIO(blob(repo, commit, f"{base}/measurement_{m}.npy")))
     poles = np.load(io.BytesIO(blob(repo, commit, f"{base}/modal_data.npz")), allow_pickle=False)
+    dofs = blob(repo, commit, f"{base}/channel_dofs.txt").decode().splitlines()[1:4]
+    beams = [(float(r.split()[2]), float(r.split()[3]), r.split()[4]) for r in dofs]
+    node = int(dofs[0].split()[1])
     y = decimate(data[:, :5], 4, ftype="fir", axis=0, zero_phase=True)   # channel 5 is deleted in setup_info
     d = entry_dir(name)
-    beams = [("vib_l", 28.866, -28.895), ("vib_r", 80.977, -25.551), ("vib_t", 55.879, 8.856)]
-    channels = [{"node": 17, "dir": 0, "kind": "velocity", "records": [y[:, k]],
-                 "id1": f"{lab} azimuth {az:g} elevation {el:g} deg"}
-                for k, (lab, az, el) in enumerate(beams)]
+    uff = f"steel_frame_m{m}.uff"
+    channels = [{"node": node, "dir": 0, "kind": "velocity", "records": [y[:, k]],
+                 "id1": f"{lab} azimuth {round(az, 3):g} elevation {round(el, 3):g} deg"}
+                for k, (az, el, lab) in enumerate(beams)]
     channels += [{"node": 24, "dir": 1, "kind": "acceleration", "records": [y[:, 3]], "id1": "ref_x"},
                  {"node": 24, "dir": 2, "kind": "acceleration", "records": [y[:, 4]], "id1": "ref_y"}]
-    write_time_uff(d / "steel_frame_m10.uff", 64.0, channels)
-    check_uff(d / "steel_frame_m10.uff", [y[:, k] for k in range(5)])
-    approx = [1.23, 1.44, 1.65, 2.1, 4.02, 4.77, 6.68, 7.62, 9.66, 12.17, 12.6, 13.87]   # poles of order 50
+    write_time_uff(d / uff, 64.0, channels)
+    check_uff(d / uff, [y[:, k] for k in range(5)])
     sure, unsure = split_confident(_pyoma_poles_reference(poles["self.modal_frequencies"],
-                                                          poles["self.modal_damping"], approx))
+                                                          poles["self.modal_damping"], approx_hz))
     write_json(d / "reference.json", reference_json(
         sure, band_hz=(0.5, 25), uncertain_hz=unsure,
         source="pyOMA's own SSI-cov poles of this measurement (modal_data.npz in the pyOMA repository), "
                "orders 30-199",
-        notes="Output-only; the three laser channels share node 17 with direction code 0 (skewed beams, "
-              "azimuth/elevation in their id lines).  Decimated record: Nyquist 32 Hz."))
-    _source(name, input="steel_frame_m10.uff", kind_short="output-only, 3D laser (skewed, dir 0) + refs",
+        notes=f"Output-only; the three laser channels share node {node} with direction code 0 (skewed "
+              f"beams, azimuth/elevation in their id lines){floor_note}.  Decimated record: Nyquist 32 Hz."))
+    _source(name, input=uff, kind_short=kind_short,
             repository=repo, commit=commit,
-            paths=[f"{base}/measurement_10.npy", f"{base}/modal_data.npz", f"{base}/channel_dofs.txt",
+            paths=[f"{base}/measurement_{m}.npy", f"{base}/modal_data.npz", f"{base}/channel_dofs.txt",
                    f"{base}/setup_info.txt"],
             licence="GPL-3.0 (pyOMA LICENSE); the derived data file is redistributed under that licence",
             kind="output-only (fan excitation) multi-channel record: three skewed laser-vibrometer beams at "
-                 "one node (velocities) and two reference accelerometers",
+                 f"one node (velocities) and two reference accelerometers{floor_note}",
             structure="1 m five-storey steel frame, fixed base, Institute of Structural Mechanics, "
                       "Bauhaus-Universität Weimar (pyOMA's example data); at least eight modes below 15 Hz",
-            derived="steel_frame_m10.uff: dataset 58b time histories (single precision): vib_l, vib_r, vib_t "
-                    "as node 17 direction 0 (ordinate type 11, velocity; beam angles in id line 1), ref_x "
-                    "and ref_y as node 24 +x, +y (type 12); ref_z dropped as setup_info.txt deletes it; "
-                    "decimated by 4 to 64 Hz (scipy.signal.decimate, FIR, zero phase), 15 360 samples",
-            script="benchmarks/realdata_build/build.py pyoma_steel_frame")
+            derived=f"{uff}: dataset 58b time histories (single precision): vib_l, vib_r, vib_t "
+                    f"as node {node} direction 0 (ordinate type 11, velocity; beam angles in id line 1), "
+                    "ref_x and ref_y as node 24 +x, +y (type 12); ref_z dropped as setup_info.txt deletes "
+                    "it; decimated by 4 to 64 Hz (scipy.signal.decimate, FIR, zero phase), 15 360 samples",
+            script=f"benchmarks/realdata_build/build.py {name}")
+
+
+@builder
+def build_pyoma_steel_frame() -> None:
+    """pyOMA's measurement 10: the lasers at node 17 (fourth floor); the guesses are pyOMA's poles of
+    order 50."""
+    _pyoma_setup("pyoma_steel_frame", 10, [1.23, 1.44, 1.65, 2.1, 4.02, 4.77, 6.68, 7.62, 9.66, 12.17, 12.6,
+                                           13.87], "", "output-only, 3D laser (skewed, dir 0) + refs")
+
+
+@builder
+def build_pyoma_steel_frame_floor1() -> None:
+    """pyOMA's measurement 2: the lasers at node 6 on the first floor, where the laser velocities are 2-6
+    times smaller than at the fourth floor; guesses from its poles of order 50 (and 13.71 Hz, a cluster
+    of its own)."""
+    _pyoma_setup("pyoma_steel_frame_floor1", 2, [1.23, 1.44, 1.65, 2.1, 4.02, 4.77, 6.68, 7.62, 9.66, 12.0,
+                                                 12.17, 12.6, 13.71, 13.87],
+                 "; the lasers on the first floor, near the fixed base (weak response)",
+                 "output-only, 3D laser on floor 1 (weak) + refs")
 
 
 # ------------------------------------------------------------------ pyuff MPS output-only export
