@@ -3,7 +3,8 @@ a fetched public snapshot and compute its reference modal table with an independ
 
 Usage: ``python benchmarks/realdata_build/build.py [ENTRY ...]`` (all entries when none is named).
 Needs the snapshots (search tool ``fetch``, or ``git clone`` of the repository at the pinned commit
-into ``$REALDATA_MIRROR/<owner>+<name>/repo``), pyuff, sdypy-EMA and pyOMA2.  flexmodal is not used.
+into ``$REALDATA_MIRROR/<owner>+<name>/repo``), pyuff, sdypy-EMA, pyOMA2 and npTDMS.  flexmodal is
+not used.
 """
 
 from __future__ import annotations
@@ -642,6 +643,68 @@ def build_pyuff_mps_oma() -> None:
                     "their original id lines, nodes and directions, decimated by 4 to 800 Hz with "
                     "scipy.signal.decimate (FIR, zero phase), 55 600 samples",
             script="benchmarks/realdata_build/build.py pyuff_mps_oma")
+
+
+# --------------------------------------------------------- OWI-Lab offshore wind turbine, operating
+OWI = ("OWI-Lab/sdypy_io_tdms", "ab81c619687b00d1758dbc94d8c3a1c238a317a0")
+
+
+@builder
+def build_owi_wind_turbine_oma() -> None:
+    """OWI-Lab's TDMS test record tests/static/good/good_tdms_1.tdms (2020-04-09 22:00, 10 min): eight
+    accelerations (g) of an operating offshore wind turbine, 30 Hz: transition piece (TP, level 19 m)
+    and tower (TW, levels 27, 41, 69 m), two horizontal axes each.  Output-only under wind, waves and
+    the rotor: the spectra carry rotor harmonics (1P = 0.2675 Hz and its multiples 3P, 6P, ...) beside
+    the structural modes.  Decimated to 15 Hz."""
+    import nptdms
+    from scipy.signal import decimate
+
+    name = "owi_wind_turbine_oma"
+    repo, commit = OWI
+    d = entry_dir(name)
+    tmp = d / "_src.tdms"
+    tmp.write_bytes(blob(repo, commit, "tests/static/good/good_tdms_1.tdms"))
+    try:
+        group = nptdms.TdmsFile.read(str(tmp))["acceleration"]
+        names = [c.name for c in group.channels()]
+        raw = np.array([c[:].astype(float) for c in group.channels()]) * 9.80665   # g -> m/s^2
+        fs = 1.0 / group.channels()[0].properties["wf_increment"]
+    finally:
+        tmp.unlink()
+    y = decimate(raw - raw.mean(axis=1, keepdims=True), 2, ftype="fir", axis=1, zero_phase=True)
+    fs /= 2
+    levels = sorted({int(n.split("_")[2].removeprefix("LAT")) for n in names})
+    channels = [{"node": levels.index(int(n.split("_")[2].removeprefix("LAT"))) + 1,
+                 "dir": 1 if n.endswith("_X") else 2, "kind": "acceleration", "records": [y[k]], "id1": n}
+                for k, n in enumerate(names)]
+    uff = "wind_turbine_20200409_2200.uff"
+    write_time_uff(d / uff, fs, channels)
+    check_uff(d / uff, list(y))
+    one_p = 0.2675   # the rotor speed: the first peak of the singular-value spectrum, 0.2675 Hz
+    harmonics = [k * one_p for k in (1, 3, 6, 9, 12, 15, 18)]   # those below 5 Hz
+    approx = [0.373, 1.47, 1.55, 3.18, 4.65]   # clusters of stable SSI poles off the harmonics, < 5 Hz
+    sure, unsure = split_confident(oma_reference(y.T, fs, approx, block_rows=(30, 40, 50), ordmax=80))
+    write_json(d / "reference.json", reference_json(
+        sure, band_hz=(0.2, 5.0), uncertain_hz=sorted([*unsure, *harmonics, 3.23]),
+        source="pyOMA2 SSI-cov on the eight decimated records (block rows 30, 40, 50; orders to 80)",
+        notes="Operating offshore wind turbine (structure inferred from OWI-Lab's channel names: TP = "
+              "transition piece, TW = tower, LATnn = level in m).  Rotor harmonics (1P = 0.2675 Hz; 3P, 6P, "
+              "9P, 12P, 15P, 18P) are forced responses, not modes: listed as uncertain (neither required nor "
+              "counted as extras), as are SSI clusters that move with the block rows, and 3.23 Hz, a "
+              "lightly damped cluster 0.6 % from 12P.  Only 10 minutes: 220 periods of the first mode."))
+    _source(name, input=uff, kind_short="output-only, operating wind turbine, rotor harmonics",
+            repository=repo, commit=commit, paths=["tests/static/good/good_tdms_1.tdms"],
+            licence="MIT (sdypy_io_tdms License)", licence_file="License",
+            kind="output-only accelerations of an operating offshore wind turbine (wind, waves, rotor): "
+                 "eight channels on the transition piece and tower; rotor harmonics in the band "
+                 "(NI TDMS record)",
+            structure="offshore wind turbine (OWI-Lab, Vrije Universiteit Brussel); channel names "
+                      "TP_ACC_LAT19_315deg_X/Y and TW_ACC_LAT27/41/69_031deg_X/Y; 2020-04-09 22:00, 600 s",
+            derived=f"{uff}: dataset 58b time histories (single precision, m/s^2 = g x 9.80665, mean "
+                    "removed), nodes 1-4 = levels 19, 27, 41, 69 m, direction +1/+2 = the sensors' X/Y "
+                    "axes (not a common frame: TP heading 315 deg, TW 31 deg); channel names in id line "
+                    "1; decimated by 2 to 15 Hz (scipy.signal.decimate, FIR, zero phase), 9 000 samples",
+            script=f"benchmarks/realdata_build/build.py {name}")
 
 
 def write_readme() -> None:
