@@ -707,6 +707,56 @@ def build_owi_wind_turbine_oma() -> None:
             script=f"benchmarks/realdata_build/build.py {name}")
 
 
+# ------------------------------------------------- UFFFiles.jl: an analyser's FRF export, kept as is
+UFFJL = ("maucejo/UFFFiles.jl", "32a97e2ae7150042b16709ae0578b2c542be327e")
+
+
+@builder
+def build_ufffiles_analyser_frf() -> None:
+    """UFFFiles.jl's test/datasets/dataset58_FRF.unv, kept byte for byte: one measured FRF (impact: the
+    same test's force record, dataset58_time.unv, is a 115 N hammer hit) as an analyser exported it on
+    2018-12-05 -- node names '.1.Z-' / '.56.Z' in the entity-name fields with node and direction 0,
+    ordinate type unknown (0) labelled 'Receptance (m/s)/N', complex single precision, 0-800 Hz at
+    0.5 Hz, the data block's last line filled with zeros.  Its coherence (dataset58_coh.unv) is 0.99+
+    at the peaks."""
+    import pyuff
+
+    name = "ufffiles_analyser_frf"
+    repo, commit = UFFJL
+    d = entry_dir(name)
+    raw = blob(repo, commit, "test/datasets/dataset58_FRF.unv")
+    (d / "dataset58_FRF.unv").write_bytes(raw)
+    rec = pyuff.UFF(str(d / "dataset58_FRF.unv")).read_sets()
+    n = rec["num_pts"]
+    f, H = np.asarray(rec["x"], float)[:n], np.asarray(rec["data"])[:n]
+    assert np.all(np.asarray(rec["data"])[n:] == 0)   # the padding of the last line
+    band = (f >= 30) & (f <= 650)
+    # peaks of |H| (coherence > 0.99) and clusters of sdypy-EMA's stable poles (order 80), 30-650 Hz
+    approx = [41.5, 61.8, 81.5, 96.1, 125.2, 140.5, 175.1, 207.0, 239.4, 248.7, 260.7, 299.3, 309.1, 324.2,
+              349.6, 376.1, 464.0, 470.4, 500.8, 542.7, 577.1, 619.0]
+    sure, unsure = split_confident(ema_reference(f[band], H[band][None], approx, lower=30, upper=650,
+                                                 orders=(60, 80, 100), frf_form="mobility"))
+    write_json(d / "reference.json", reference_json(
+        sure, band_hz=(30, 650), uncertain_hz=unsure,
+        source="sdypy-EMA 0.31 LSCF on the FRF (as mobility), 30-650 Hz",
+        notes="One FRF of an impact test; modes kept where sdypy-EMA's stable poles appear in at least "
+              "half of the model orders.  0.5 Hz lines: the lightest modes have 2-8 lines in their "
+              "half-power band."))
+    _source(name, input="dataset58_FRF.unv", kind_short="analyser UFF export as is: FRF, text node names",
+            repository=repo, commit=commit,
+            paths=["test/datasets/dataset58_FRF.unv", "test/datasets/dataset58_coh.unv",
+                   "test/datasets/dataset58_time.unv"],
+            licence="MIT (UFFFiles.jl LICENSE)",
+            kind="impact FRF exported by a measurement system as ASCII UFF 58, kept byte for byte: node "
+                 "names as text ('.1.Z-', '.56.Z') with node and direction 0, ordinate type 0 labelled "
+                 "'Receptance (m/s)/N', the last data line filled with zeros",
+            structure="not documented in UFFFiles.jl (a test file of its dataset-58 reader, added in "
+                      "2025; exported 2018-12-05)",
+            derived="dataset58_FRF.unv: the source file unchanged (1600 complex single-precision points, "
+                    "0-800 Hz at 0.5 Hz)",
+            script=f"benchmarks/realdata_build/build.py {name}")
+
+
 def write_readme() -> None:
     """tests/data/realdata/README.md: the table of entries, from their source.json files."""
     import json
