@@ -9,12 +9,12 @@
    the harmonic orders found against those simulated, and how many tracks follow a harmonic.
 2. Diagnosis: the demo arm with a hidden compliant elbow, `diagnose` on the tracked map of one sweep and
    on a frozen-pose campaign of operational records: verdict, fitted stiffness, held-out error.
-3. Speed (``--speed``): a 10-minute 16-channel record of the same sweep (16 accelerometers along the
-   arm, 1024 Hz) tracked in one process (one BLAS thread in SSI); its CPU time against real time (the
-   wall time on the shared 2-core machine depends on the other users).
+3. Speed (``--speed [MINUTES]``): a 10-minute (or MINUTES) 16-channel record of the same sweep (16
+   accelerometers along the arm, 1024 Hz) tracked in one process (one BLAS thread in SSI); its CPU time
+   against real time (the wall time on the shared 2-core machine depends on the other users).
 
 Prints markdown table rows; tests/test_track_docs.py checks that every row of parts 1-2 stands in
-docs/oma.md.  Usage: ``python benchmarks/track.py [--speed]``.
+docs/oma.md.  Usage: ``python benchmarks/track.py [--speed [MINUTES]]``.
 """
 
 from __future__ import annotations
@@ -187,24 +187,26 @@ def diagnosis_rows() -> list[str]:
     return rows
 
 
-def speed_rows() -> list[str]:
+def speed_rows(duration_s: float = 600.0) -> list[str]:
     rig = load_rig(DEMO_RIG)
     spots = [("link1", f) for f in np.linspace(0.1, 1.0, 6)] + [("link2", f)
                                                                  for f in np.linspace(0.1, 1.0, 10)]
     rig16 = dataclasses.replace(rig, sensors=tuple(Sensor(f"s{i + 1}", Point(link, float(f)))
                                                    for i, (link, f) in enumerate(spots)))
-    rec = simulate_moving(rig16, Trajectory({"theta_deg": 0.0}, {"theta_deg": 150.0}, 90.0), duration_s=600.0,
-                          sample_rate_hz=1024.0, orders=MOTOR_ORDERS, seed=4)
+    rec = simulate_moving(rig16, Trajectory({"theta_deg": 0.0}, {"theta_deg": 150.0}, 90.0),
+                          duration_s=duration_s, sample_rate_hz=1024.0, orders=MOTOR_ORDERS, seed=4)
     t0, c0 = time.perf_counter(), time.process_time()
     res = _track(rec)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-    return [f"| 10 min x 16 channels at 1024 Hz | {len(res.windows)} windows, {len(res.tracks)} modes | "
-            f"CPU {cpu:.0f} s = {cpu / 600:.2f} x real time (wall {wall:.0f} s on the shared machine) |"]
+    return [f"| {duration_s / 60:g} min x 16 channels at 1024 Hz | {len(res.windows)} windows, "
+            f"{len(res.tracks)} modes | CPU {cpu:.0f} s = {cpu / duration_s:.2f} x real time "
+            f"(wall {wall:.0f} s on the shared machine) |"]
 
 if __name__ == "__main__":
     print("\n".join(accuracy_rows()))
     print("\n".join(two_joint_rows()))
     print("\n".join(veering_rows()))
     print("\n".join(diagnosis_rows()))
-    if "--speed" in sys.argv[1:]:
-        print("\n".join(speed_rows()))
+    if "--speed" in sys.argv[1:]:   # --speed [minutes], default 10
+        rest = sys.argv[sys.argv.index("--speed") + 1:]
+        print("\n".join(speed_rows(60.0 * float(rest[0]) if rest else 600.0)))

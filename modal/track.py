@@ -564,9 +564,7 @@ def _lowest_mode_hz(y: np.ndarray, sample_rate_hz: float, options: TrackOptions)
     n = min(y.shape[0], int(LOOK_S * sample_rate_hz))
     found = []
     for a in np.unique(np.linspace(0, y.shape[0] - n, LOOK_STRETCHES).astype(int)):   # a loop over stretches
-        if not np.isfinite(y[a:a + n]).all():
-            continue
-        try:
+        try:   # SSI leaves lost samples (NaN rows) out of its covariances, up to half of the stretch
             modes = ssi_cov(y[a:a + n], sample_rate_hz, references=_references(y), fmax=options.fmax,
                             max_order=options.max_order).modes
         except ModalError:
