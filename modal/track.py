@@ -271,17 +271,22 @@ def mark_harmonics(windows: list[WindowPoles], y: np.ndarray, pose: np.ndarray, 
 
 
 def follow(windows: Sequence[WindowPoles], options: TrackOptions) -> list[Track]:
-    """Follow the non-harmonic poles from window to window (module docstring)."""
+    """Follow the non-harmonic poles from window to window (module docstring).  Over a stretch of skipped
+    windows (a gap, a spread) the frequency gate widens in proportion to the time elapsed beyond
+    ``max_gap + 1`` hops (the longest a track waits for a match when no window is skipped)."""
     open_: list[dict] = []
     done: list[dict] = []
+    hop = float(np.median(np.diff([w.t_s for w in windows]))) if len(windows) > 1 else 1.0
     for k, w in enumerate(windows):   # a loop over windows
         idx = np.flatnonzero(w.harmonic == 0)
         f, sh = w.freq_hz[idx], w.shapes[:, idx]
         if open_ and idx.size:
-            pred = np.array([_predict(t, k) for t in open_])
+            reach = (options.max_gap + 1) * hop   # the longest wait for a match when no window is skipped
+            pred = np.array([_predict(t, w.t_s, reach) for t in open_])
+            widen = np.array([max(1.0, (w.t_s - t["t"][-1]) / reach) for t in open_])
             last = np.column_stack([t["shapes"][-1] for t in open_])
             mac_ = mac(last, sh)
-            df = np.abs(f[None, :] - pred[:, None]) / (options.gate_rel * pred[:, None])
+            df = np.abs(f[None, :] - pred[:, None]) / (options.gate_rel * (pred * widen)[:, None])
             dm = (1 - mac_) / (1 - options.mac_min)
             cost = df + dm
             bad = (df > 1) | (dm > 1)
@@ -294,6 +299,7 @@ def follow(windows: Sequence[WindowPoles], options: TrackOptions) -> list[Track]
             t = open_[r]
             j = idx[c]
             t["windows"].append(k)
+            t["t"].append(w.t_s)
             t["freq"].append(w.freq_hz[j])
             t["zeta"].append(w.damping_ratio[j])
             t["shapes"].append(w.shapes[:, j])
@@ -307,20 +313,22 @@ def follow(windows: Sequence[WindowPoles], options: TrackOptions) -> list[Track]
         for c in range(idx.size):
             if c not in used:
                 j = idx[c]
-                open_.append({"windows": [k], "freq": [w.freq_hz[j]], "zeta": [w.damping_ratio[j]],
-                              "shapes": [w.shapes[:, j]], "kurt": [w.kurtosis[j]]})
+                open_.append({"windows": [k], "t": [w.t_s], "freq": [w.freq_hz[j]],
+                              "zeta": [w.damping_ratio[j]], "shapes": [w.shapes[:, j]],
+                              "kurt": [w.kurtosis[j]]})
     done += open_
     tracks = [Track(np.array(t["windows"]), np.array(t["freq"]), np.array(t["zeta"]),
                     np.column_stack(t["shapes"]), np.array(t["kurt"]))
               for t in sorted(done, key=lambda t: t["windows"][0])]
-    tracks = _stitch(tracks, options)
+    tracks = _stitch(tracks, options, np.array([w.t_s for w in windows]))
     return sorted([t for t in tracks if t.windows.size >= options.min_windows],
                   key=lambda t: float(np.median(t.freq_hz)))
 
 
-def _stitch(tracks: list[Track], options: TrackOptions) -> list[Track]:
+def _stitch(tracks: list[Track], options: TrackOptions, times: np.ndarray) -> list[Track]:
     """Join a track to an earlier one that ended at most ``STITCH_GAP`` windows before it began when the
-    earlier one's last estimates, extrapolated linearly over the gap, and the later one's first agree
+    earlier one's last estimates, extrapolated linearly in time over the gap (``times``: the windows'
+    centres, so windows skipped between count), and the later one's first agree
     within the gates (frequency, widened in proportion to the gap beyond ``max_gap``, and MAC): one mode
     whose poles were missed for a while, or set aside as a harmonic where one crossed it."""
     out: list[Track] = []
@@ -331,8 +339,8 @@ def _stitch(tracks: list[Track], options: TrackOptions) -> list[Track]:
                 continue
             gap = int(t.windows[0] - u.windows[-1])
             n = min(5, u.freq_hz.size)
-            slope = np.polyfit(u.windows[-n:], u.freq_hz[-n:], 1)[0] if n >= 2 else 0.0
-            pred = u.freq_hz[-1] + slope * gap
+            slope = np.polyfit(times[u.windows[-n:]], u.freq_hz[-n:], 1)[0] if n >= 2 else 0.0
+            pred = u.freq_hz[-1] + slope * (times[t.windows[0]] - times[u.windows[-1]])
             df = abs(t.freq_hz[0] - pred) / (options.gate_rel * max(1.0, gap / options.max_gap) * pred)
             dm = (1 - float(mac(u.shapes[:, -1:], t.shapes[:, :1])[0, 0])) / (1 - options.mac_min)
             if df <= 1 and dm <= 1 and df + dm < best_cost:
@@ -347,13 +355,18 @@ def _stitch(tracks: list[Track], options: TrackOptions) -> list[Track]:
     return out
 
 
-def _predict(track: dict, k: int) -> float:
-    """The track's frequency extrapolated to window ``k`` from its last two estimates."""
-    f, w = track["freq"], track["windows"]
+def _predict(track: dict, t_s: float, reach_s: float) -> float:
+    """The track's frequency extrapolated to time ``t_s`` from its last two estimates, or, beyond
+    ``reach_s`` after its last one (windows skipped between), along the least-squares line in time
+    through its last five (a two-point slope carried that far amplifies their scatter)."""
+    f, t = track["freq"], track["t"]
     if len(f) < 2:
         return float(f[-1])
-    slope = (f[-1] - f[-2]) / (w[-1] - w[-2])
-    return float(f[-1] + slope * (k - w[-1]))
+    if t_s - t[-1] > reach_s:
+        slope = np.polyfit(t[-5:], f[-5:], 1)[0]
+    else:
+        slope = (f[-1] - f[-2]) / (t[-1] - t[-2])
+    return float(f[-1] + slope * (t_s - t[-1]))
 
 
 def refine(y: np.ndarray, sample_rate_hz: float, windows: Sequence[WindowPoles], tracks: Sequence[Track],

@@ -96,7 +96,7 @@ def test_damping_within_30_percent_in_windows_holding_50_periods(sweep):
         err = np.abs(tr.damping_ratio / np.interp(theta, grid, zeta[:, k]) - 1)
         assert np.mean(err < 0.3) >= 0.8 and np.median(err) < 0.2, (k, np.mean(err < 0.3))
         bound = damping_bound(tr.freq_hz, tr.damping_ratio, tr.span_s)   # span sized for the median zeta
-        assert np.all(tr.span_s >= res.window_s - 1e-9) and np.all(bound < 0.15)
+        assert np.all(tr.span_s >= res.window_s - 1e-9) and np.all(bound < 0.2)
     rows = res.table.frame
     assert np.all(rows["damping_std"] >= 0.09 * rows["damping_ratio"]) and np.all(rows["damping_span_s"] > 0)
 
