@@ -23,6 +23,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.fft
 import scipy.signal
+from threadpoolctl import threadpool_limits
 
 from flexmodal.contract.mac import mac_pairs, to_real, unit_max
 from flexmodal.modal.damping import log_decrement
@@ -112,7 +113,8 @@ def fdd(y: np.ndarray, sample_rate_hz: float, *, references: Sequence[int] | Non
     modes = Modes(np.array(fn), np.array(zeta), to_real(complex_shapes), complex_shapes, "fdd", False,
                   tuple(warnings), mpc=mpc(complex_shapes), mpd=mpd(complex_shapes))
     if uncertainty_blocks:   # freq_std_hz / damping_std (issue 26)
-        std = _jackknife(y, sample_rate_hz, refs, nfft, lines, mac_min, uncertainty_blocks)
+        with threadpool_limits(1, "blas"):        # small batched SVDs: threads only spin on them
+            std = _jackknife(y, sample_rate_hz, refs, nfft, lines, mac_min, uncertainty_blocks)
         # a mode decaying over more than MAX_DECAY_FRACTION of a block: the blocks are not independent
         block_s = y.shape[0] / _n_blocks(y.shape[0], nfft, uncertainty_blocks) / sample_rate_hz
         std[1.0 / (modes.damping_ratio * 2 * np.pi * modes.freq_hz) > MAX_DECAY_FRACTION * block_s] = np.nan
