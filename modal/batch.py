@@ -25,7 +25,7 @@ from flexmodal.modal.spectra import usable_cpus
 POOL_START_S = 0.4      # CPU s a pool's start takes from the lanes: its fork server's imports
 AUTO_WORKERS = 2        # CPUs the automatic choice's pool and lane use at most
 MIN_SPEEDUP = 1.2       # go parallel only when the predicted speed-up is at least this,
-PAYS_FACTOR = 2.0       # the predicted saving at least 2 start-ups,
+PAYS_FACTOR = 1.0       # the predicted saving at least the CPU a start-up takes,
 MIN_PARALLEL_RUNS = 4   # and at least this many runs remain
 
 
@@ -96,7 +96,7 @@ def _serial_pays(elapsed_s: float, cpu_s: float, bytes_done: int, bytes_left: in
     average less that, and a pool's speed-up is the CPUs it could use (each process keeps one busy)
     over those this process already uses.  Parallel only for a speed-up of MIN_SPEEDUP or more
     saving PAYS_FACTOR start-ups (the pool starts in the background, so its start costs the CPU it
-    takes, not waiting)."""
+    takes from the lanes, not waiting)."""
     cpus = usable_cpus()
     if runs_left < MIN_PARALLEL_RUNS or cpus < 2 or bytes_done == 0 or elapsed_s <= 0:
         return True
