@@ -109,14 +109,19 @@ COST = """
 import os, sys, time
 import numpy as np
 from flexmodal.modal.batch import _Pool, frf_job
+from flexmodal.modal.runs_io import write_frf
 path, rid, repeat = sys.argv[1], sys.argv[2], int(sys.argv[3])
 options = {"nfft": 4096, "workers": 1}
-cpu = []
-for _ in range(repeat + 1):
+cpu, writes = [], []
+for k in range(repeat + 1):
     c0 = time.process_time()
-    frf_job(path, rid, options)
-    cpu.append(time.process_time() - c0)
-here = float(np.median(cpu[1:]))            # the first also imports daq.store
+    result = frf_job(path, rid, options)
+    c1 = time.process_time()
+    write_frf(path + ".out.h5", f"r{k}", result)
+    cpu.append(c1 - c0)
+    writes.append(time.process_time() - c1)
+os.remove(path + ".out.h5")
+here, write = float(np.median(cpu[1:])), float(np.median(writes[1:]))   # the first also imports
 pool = _Pool(1, options)
 try:
     pool.submit((path, rid)).result()       # started, warm
@@ -128,7 +133,7 @@ try:
 finally:
     pool.close(kill=False)
 wall, parent = np.median(np.array(walls), axis=0)
-print(here, wall, parent)
+print(here, wall, parent, write)
 """
 
 
@@ -137,12 +142,13 @@ def cost(folder: str, duration_s: float, repeat: int) -> None:
     ``duration_s`` in-process (one FFT thread, per byte of samples); the round trip of the same run
     through a warm pool of one process (its wall less the run's CPU: the per-task overhead when the
     worker's CPU is idle; and the CPU the caller spends per task: sending, receiving, unpickling the
-    result); the CPU of starting the pool (its fork server's imports: ``python -c 'import
-    flexmodal.modal.batch'``), the figure behind ``modal.batch.POOL_START_S``."""
+    result); the CPU of writing its FRFs (the caller's, whatever computed them); the CPU of
+    starting the pool (its fork server's imports: ``python -c 'import flexmodal.modal.batch'``), the
+    figure behind ``modal.batch.POOL_START_S``."""
     path = write_runs(folder, 1, duration_s)[0]
     out = subprocess.run([sys.executable, "-c", COST, path, "r0", str(repeat)], check=True, timeout=600,
                          capture_output=True, text=True).stdout.split()
-    here, wall, parent = (float(v) for v in out)
+    here, wall, parent, write = (float(v) for v in out)
     starts = []
     for _ in range(repeat):
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -153,7 +159,8 @@ def cost(folder: str, duration_s: float, repeat: int) -> None:
     os.remove(path)
     print(f"COST one run of {duration_s:g} s ({size / 1e6:.0f} MB, 17 channels) in-process: {here:.3f} s CPU "
           f"({here / size * 1e9:.2f} ns per byte); through a warm 1-process pool: {wall:.3f} s wall "
-          f"(per-task overhead {wall - here:+.3f} s), caller's CPU per task {parent:.4f} s; pool start "
+          f"(per-task overhead {wall - here:+.3f} s), caller's CPU per task {parent:.4f} s; writing its FRFs "
+          f"{write:.4f} s CPU; pool start "
           f"(fork server's imports): {np.median(starts):.2f} s CPU ({min(starts):.2f}-{max(starts):.2f}); "
           f"medians of {repeat}, load average {os.getloadavg()[0]:.1f}")
 
