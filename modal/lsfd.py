@@ -58,10 +58,12 @@ def synthesis_of(freq_hz: np.ndarray, poles: np.ndarray, residues: np.ndarray, q
     """[n_out, n_in, n_freq] the FRFs of modes with ``poles`` [n_modes] (upper half) and ``residues``
     [n_out, n_in, n_modes] (receptance form, as :class:`LsfdResult`), without residual terms, in
     ``quantity``."""
-    m = len(poles)
+    m, (n_out, n_in) = len(poles), np.shape(residues)[:2]
+    if m == 0:
+        return np.zeros((n_out, n_in, np.size(freq_hz)), complex)
     A = _basis(np.asarray(freq_hz, float), np.asarray(poles, complex), quantity, False)   # [nf, 2m]
     R = np.asarray(residues).reshape(-1, m)
-    return (A @ np.concatenate([R.real, R.imag], axis=1).T).T.reshape(*np.shape(residues)[:2], -1)
+    return (A @ np.concatenate([R.real, R.imag], axis=1).T).T.reshape(n_out, n_in, -1)
 
 
 def lsfd(freq_hz: np.ndarray, H: np.ndarray, poles: np.ndarray, *, quantity: str = "accelerance",

@@ -97,3 +97,9 @@ def test_a_broad_pole_whose_band_covers_a_mode_is_a_background_pole_not_merged_i
     assert warnings == ["kept the pole at 46 Hz (damping 10 %) in the synthesis as a background pole, no "
                         "mode: its half-power band covers the mode at 50 Hz, with the same shape (MAC 1.00), "
                         "whose band does not reach it"]
+
+
+def test_synthesis_of_no_mode_is_zero():
+    f = np.arange(1.0, 10.0)
+    assert synthesis_of(f, np.zeros(0, complex), np.zeros((2, 1, 0), complex)).shape == (2, 1, f.size)
+    assert not synthesis_of(f, np.zeros(0, complex), np.zeros((2, 1, 0), complex)).any()
