@@ -35,11 +35,12 @@ from pathlib import Path
 import numpy as np
 
 from flexmodal.checked_io.output import signals_deferred
-from flexmodal.daq.devices import Block, ReaderStats, make_driver, run_reader, with_endpoint
+from flexmodal.daq.devices import Block, ReaderStats, run_reader, with_endpoint
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.hits import HitMonitor, sparkline
 from flexmodal.daq.hooks import simulator_launcher
 from flexmodal.daq.lock import WriterLock
+from flexmodal.daq.protocols import make_driver
 from flexmodal.daq.session import Session
 from flexmodal.daq.store import Event, RunWriter, list_runs
 from flexmodal.daq.timeline import Timeline
@@ -330,7 +331,7 @@ class _Recorder:
                  quiet: bool, stopper: StopSignals) -> None:
         self.session, self.out, self.run_id, self.stamp = session, out, run_id, stamp
         self.target, self.stopper = target, stopper
-        self.drivers = {d.name: make_driver(d, session) for d in session.devices}
+        self.drivers = {d.name: make_driver(d, session.sample_rate_hz) for d in session.devices}
         self.timeline = Timeline(session, {k: v.sources for k, v in self.drivers.items()})
         self.queue: queue.Queue = queue.Queue(maxsize=QUEUE_BLOCKS)
         self.stop = threading.Event()

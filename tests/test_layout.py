@@ -159,3 +159,41 @@ def test_every_package_error_is_one_of_the_family():
     assert set(found) - {"FlexmodalError"} == {"DaqError", "ModalError", "ModelError", "CompareError",
                                                "ReportError", "FixtureError", "ContractError"}
     assert all(issubclass(cls, FlexmodalError) for cls in found.values())
+
+
+def _module_name(path: Path) -> str:
+    rel = path.relative_to(REPO).with_suffix("")
+    return ".".join(("flexmodal", *rel.parts)).removesuffix(".__init__")
+
+
+def _module_level_imports(path: Path) -> set[str]:
+    """flexmodal modules imported at module level, typing-only ones included (an ``if`` at top level)."""
+    found = set()
+    for node in ast.parse(path.read_text(encoding="utf-8")).body:
+        for n in ast.walk(node) if isinstance(node, ast.If | ast.Import | ast.ImportFrom) else ():
+            if isinstance(n, ast.Import):
+                found |= {a.name for a in n.names}
+            elif isinstance(n, ast.ImportFrom) and n.module and n.level == 0:
+                found.add(n.module)
+    return {m for m in found if m.startswith("flexmodal.")}
+
+
+def test_no_import_cycle_even_for_types():
+    """No module reaches itself through module-level imports (typing-only ones count: such a cycle is
+    a record living in the wrong module, as daq.session.Device did for daq.devices)."""
+    graph = {_module_name(p): _module_level_imports(p) for p in _sources()}
+    cycles, state = [], {}
+
+    def visit(module: str, path: list[str]) -> None:
+        state[module] = "open"
+        for nxt in sorted(graph.get(module, ())):
+            if state.get(nxt) == "open":
+                cycles.append(path[path.index(nxt):] + [nxt])
+            elif nxt not in state:
+                visit(nxt, [*path, nxt])
+        state[module] = "done"
+
+    for module in sorted(graph):
+        if module not in state:
+            visit(module, [module])
+    assert cycles == []
