@@ -85,6 +85,13 @@ class Summary:
     dropped_blocks: int
     signal: int = 0
     error: str = ""
+    bounded: bool = False  # the session had a duration (a signal then stopped it early)
+
+    @property
+    def exit_code(self) -> int:
+        """The command's exit code: 128 + the signal that stopped a session before its duration, else 0
+        (a session without a duration ends by a signal as planned)."""
+        return 128 + self.signal if self.signal and self.bounded else 0
 
     def line(self) -> str:
         ev = ", ".join(f"{k} {v}" for k, v in sorted(self.events.items())) or "none"
@@ -620,7 +627,7 @@ class _Recorder:
                                          f"{', '.join(self.drivers)}")
         return Summary(self.out, self.run_id, self.written, len(self.names), self.session.sample_rate_hz,
                        self.counts, sum(s.dropped_blocks for s in self.stats.values()), self.stopper.signum,
-                       self.error)
+                       self.error, self.target is not None)
 
 def _store_pose(out: Path, run_id: str, pose: dict, spread: dict) -> None:
     """Replace the run's ``pose`` by the encoder means and add ``pose_spread`` (JSON: per variable std,
