@@ -440,8 +440,10 @@ class Identification:
 
     def write(self, out: PathLike, *, uff: PathLike | None = None) -> Path:
         """Write the modal table CSV ``out`` (docs/formats.md) and, beside it, ``MODES.synthesis.csv``
-        (the FRAC of every measured and synthesised FRF), both or neither (SIGINT/SIGTERM held);
-        with ``uff``, also the modes of the first configuration as UFF dataset 55.  Returns ``out``.
+        (the FRAC of every measured and synthesised FRF) and, for pLSCF, ``MODES.diagram.npz`` (the
+        stabilisation diagrams ``identify --poles`` re-picks from, modal.diagrams), all or none
+        (SIGINT/SIGTERM held); with ``uff``, also the modes of the first configuration as UFF dataset
+        55.  Returns ``out``.
 
         Examples
         --------
@@ -454,20 +456,28 @@ class Identification:
         >>> ident.write(folder / "modes.csv", uff=folder / "modes.uff").name
         'modes.csv'
         >>> sorted(p.name for p in folder.iterdir() if p.suffix != ".h5")
-        ['modes.csv', 'modes.synthesis.csv', 'modes.uff']
+        ['modes.csv', 'modes.diagram.npz', 'modes.synthesis.csv', 'modes.uff']
         """
         from flexmodal.checked_io.output import output_file, signals_deferred
+        from flexmodal.modal.diagrams import StoredDiagram, diagram_path, write_diagrams
         from flexmodal.modal.errors import ModalError
         from flexmodal.modal.identify import synthesis_path, write_synthesis_csv
 
         output_file(out, ModalError, "modal table (--out)")
         output_file(synthesis_path(out), ModalError, "FRF synthesis table (next to --out)", inputs=(out, uff))
+        diagrams = [StoredDiagram(m.diagram_key, c, m.stabilisation, m.order_note)
+                    for c, m in self.modes.items() if m.stabilisation is not None and m.diagram_key]
+        if diagrams:
+            output_file(diagram_path(out), ModalError, "stabilisation diagrams (next to --out)",
+                        inputs=(out, uff))
         if uff is not None:
             output_file(uff, ModalError, "UFF file (--uff)", inputs=(out,))
         modes_by_config = {c: (m, self.outputs[c]) for c, m in self.modes.items()}
-        with signals_deferred():   # the modal table and its synthesis file: both written, or neither
+        with signals_deferred():   # the modal table, its synthesis and diagrams: all written, or none
             self.table.to_csv(out)
             write_synthesis_csv(out, modes_by_config)
+            if diagrams:
+                write_diagrams(diagram_path(out), diagrams)
         if uff is not None:
             from flexmodal.modal.uff import write_modes
 
@@ -481,7 +491,8 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
              config: str = "run", pose: Mapping[str, float] | None = None,
              poles_hz: Sequence[float] | None = None, thresholds: Thresholds | None = None,
              decay_rate_per_s: float | None = None, references: Sequence[str] | None = None,
-             out: PathLike | None = None, uff: PathLike | None = None) -> Identification:
+             out: PathLike | None = None, uff: PathLike | None = None,
+             from_diagram: bool = False) -> Identification:
     """Natural frequencies, damping ratios and mode shapes (docs/modal.md, docs/oma.md).
 
     Parameters
@@ -506,7 +517,9 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
         Their pose {variable: value} (degrees, kg).
     poles_hz : sequence of float, optional
         Pick the stable poles nearest these frequencies [Hz] (exactly these modes, no automatic
-        selection).
+        selection).  With ``out``, they are picked from the stabilisation diagram an earlier
+        identification stored beside it (``MODES.diagram.npz``) when that diagram was computed from the
+        same FRFs and options: the stabilisation runs once, the poles are picked many times.
     thresholds : modal.identify.Thresholds, optional
         Limits of the automatic selection (``need_min`` F statistic [-], ``mpc_min`` [0, 1]).
     decay_rate_per_s : float, optional
@@ -519,6 +532,10 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
         (:meth:`Identification.write`); the outputs are checked before any work.
     uff : str or Path, optional
         With ``out``: also the modes of the first configuration as UFF dataset 55.
+    from_diagram : bool
+        With ``poles_hz``: pick only from the stored diagram beside ``out`` (ModalError when it is
+        missing or was computed from other FRFs or options) instead of falling back to a new
+        stabilisation.
 
     Returns
     -------
@@ -552,18 +569,22 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
     >>> ident.table.frame[["freq_hz", "damping_ratio"]].round(4).values.tolist()
     [[40.0, 0.02]]
     """
+    from flexmodal.modal.errors import ModalError
+
     _check_band(fmin, fmax)
     if out is not None:
         _identification_outputs(out, uff, source)
-    elif uff is not None:
-        from flexmodal.modal.errors import ModalError
-
-        raise ModalError("identify: uff needs out (the modal table it goes with)")
+    elif uff is not None or from_diagram:
+        raise ModalError(f"identify: {'uff' if uff is not None else 'from_diagram'} needs out (the modal "
+                         "table it goes with)")
+    if from_diagram and not poles_hz:
+        raise ModalError("identify --from-diagram: give the poles to pick (--poles F1,F2,...)")
     from flexmodal.modal.identify import modes_table
     from flexmodal.modal.sources import by_reciprocity, identify_frf, identify_input
 
     options = {"method": method, "fmin": fmin, "fmax": fmax, "max_order": max_order, "poles_hz": poles_hz,
-               "thresholds": thresholds, "decay_rate_per_s": decay_rate_per_s}
+               "thresholds": thresholds, "decay_rate_per_s": decay_rate_per_s,
+               "diagrams": _stored_diagrams(out, from_diagram) if poles_hz and out is not None else None}
     if isinstance(source, str | Path):
         table, found = identify_input(source, run_id=run_id, references=references, **options)
         result = Identification(table, {c: m for c, (m, _) in found.items()},
@@ -578,6 +599,27 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
     return result
 
 
+def _stored_diagrams(out: PathLike, required: bool):
+    """The stabilisation diagrams stored beside ``out`` (modal.diagrams.DiagramStore), or None when
+    there are none to use: no file, or one that does not read (it is replaced by this run's) unless
+    ``required``."""
+    from flexmodal.modal.diagrams import DiagramStore, diagram_path, read_diagrams
+    from flexmodal.modal.errors import ModalError
+
+    path = diagram_path(out)
+    if not path.is_file():
+        if required:
+            raise ModalError(f"{path}: no stored stabilisation diagram (identify without --poles stores it "
+                             "beside --out)")
+        return None
+    try:
+        return DiagramStore(read_diagrams(path), str(path), required)
+    except ModalError:
+        if required:
+            raise
+        return None
+
+
 def _identification_outputs(out: PathLike, uff: PathLike | None, source: object) -> None:
     """Check the files identification writes (the modal table, its synthesis table, the UFF file)
     before any work: none of them an input, each replaceable (ModalError naming it)."""
@@ -588,9 +630,12 @@ def _identification_outputs(out: PathLike, uff: PathLike | None, source: object)
     output_file(out, ModalError, "modal table (--out)", inputs=inputs)
     if uff is not None:
         output_file(uff, ModalError, "UFF file (--uff)", inputs=(*inputs, out))
+    from flexmodal.modal.diagrams import diagram_path
     from flexmodal.modal.identify import synthesis_path
 
     output_file(synthesis_path(out), ModalError, "FRF synthesis table (next to --out)",
+                inputs=(*inputs, out, uff))
+    output_file(diagram_path(out), ModalError, "stabilisation diagrams (next to --out)",
                 inputs=(*inputs, out, uff))
 
 
@@ -953,9 +998,9 @@ def write_comparison(comparison: Comparison, out: PathLike, fmt: str = "md", lay
     >>> import flexmodal as fm
     >>> measured = fm.read_table("examples/measured/seed003_table3_f1f2.csv")
     >>> fe = fm.predict("examples/rigs/seed003_two_link.toml", measured, "fe", 2)
-    >>> path = fm.write_comparison(fm.compare_modes(measured, fe), tempfile.mkdtemp() + "/t.tex", "tex")
+    >>> path = fm.write_comparison(fm.compare_modes(measured, fe), tempfile.mkdtemp() + "/t.csv", "csv")
     >>> path.read_text().splitlines()[0]
-    '\\begin{table}'
+    'config,mode,fe_freq_hz,experiment_freq_hz,fe_err_pct'
     """
     from flexmodal.checked_io.output import output_file, write_text
     from flexmodal.compare.errors import CompareError
@@ -1588,10 +1633,32 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
 def animate_mode(out: PathLike, measured: ModalTable | PathLike, config: str, mode: int = 1, *,
                  rig: Rig | PathLike | None = None, geometry: PathLike | None = None, frames: int = 24,
                  fps: int = 12) -> Path:
-    """An animated GIF of one measured mode for slides (matplotlib's PillowWriter): with ``rig``, the
-    mode at the sensors on the arm beside the frame FE model's best-matching mode; with ``geometry``
-    (a Universal File: nodes, trace lines, coordinate systems), the mode on the test structure.
-    ``mode`` is 1-based; returns ``out``.
+    """An animated GIF of one measured mode for slides (matplotlib's PillowWriter).
+
+    Parameters
+    ----------
+    out : str or Path
+        The GIF to write (atomically).
+    measured : contract.table.ModalTable, str or Path
+        The modal table with ``shape.<sensor>`` columns.
+    config : str
+        The configuration whose mode is drawn.
+    mode : int
+        The mode, 1-based.
+    rig : models.rig.Rig, str or Path, optional
+        Draw the mode at the sensors on the arm beside the frame FE model's best-matching (MAC) mode.
+    geometry : str or Path, optional
+        Or a Universal File (nodes, trace lines, coordinate systems): the mode on the test structure.
+        Give the rig or the geometry.
+    frames : int
+        Frames per period of the animation.
+    fps : int
+        Frames per second [1/s].
+
+    Returns
+    -------
+    Path
+        ``out``.
 
     Examples
     --------
@@ -1633,9 +1700,37 @@ def animate_mode(out: PathLike, measured: ModalTable | PathLike, config: str, mo
 
 
 def report_pdf(html: PathLike, pdf: PathLike | None = None) -> Path:
-    """Print the HTML report ``html`` to ``pdf`` (default: beside it, ``.pdf``) with headless Chromium,
-    every run's block opened, tables whole with repeated headers; returns the PDF's path.  ReportError
-    (one line) where no Chromium is installed."""
+    """Print an HTML report to PDF with headless Chromium: A4, every run's block opened, tables whole
+    with their headers repeated on each page.
+
+    Parameters
+    ----------
+    html : str or Path
+        A report :func:`report` wrote.
+    pdf : str or Path, optional
+        The PDF to write (default: beside the HTML, ``.pdf``; never the HTML itself).
+
+    Returns
+    -------
+    Path
+        The PDF.
+
+    Raises
+    ------
+    ReportError
+        No Chromium installed (one line).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import flexmodal as fm
+    >>> measured = fm.read_table("examples/measured/seed003_table3_f1f2.csv")
+    >>> page = fm.report(Path(tempfile.mkdtemp()) / "report.html", measured=measured)
+    >>> pdf = fm.report_pdf(page)
+    >>> pdf.name, pdf.read_bytes()[:5]
+    ('report.pdf', b'%PDF-')
+    """
     from flexmodal.checked_io.output import output_file
     from flexmodal.reports.errors import ReportError
     from flexmodal.reports.pdf import print_pdf
@@ -1668,6 +1763,21 @@ def demo(out_dir: PathLike = "flexmodal-demo", *, rig: PathLike | None = None, q
     -------
     Path
         The report.
+
+    Raises
+    ------
+    FixtureError
+        The folder cannot hold the outputs (checked before any work; one line).
+
+    Examples
+    --------
+    The whole demo takes 20-60 s (tests/test_demo.py runs it); its folder is checked first:
+
+    >>> import flexmodal as fm
+    >>> fm.demo("examples/rigs/demo_arm.toml")
+    Traceback (most recent call last):
+    ...
+    flexmodal.fixtures.errors.FixtureError: examples/rigs/demo_arm.toml: exists and is not a directory ...
     """
     from flexmodal.checked_io.output import output_dir
     from flexmodal.fixtures.errors import FixtureError
@@ -1709,6 +1819,19 @@ def selftest(n_cases: int, *, seed: int = 0, progress: Callable[[object], None] 
     Returns
     -------
     SelfCheck
+        ``results`` per case, ``summary`` (accuracies as fractions [0, 1]) and the printed ``text``.
+
+    References
+    ----------
+    S. P. Timoshenko, "On the correction for shear of the differential equation for transverse
+    vibrations of prismatic bars", Philosophical Magazine 41 (1921) 744-746 (the truth model's beam).
+
+    Examples
+    --------
+    >>> import flexmodal as fm
+    >>> check = fm.selftest(1)
+    >>> len(check.results), check.text.splitlines()[0]
+    (1, 'cases: 1 (1 library effects, 0 none, 0 outside the library)')
     """
     from flexmodal.fixtures.blind import format_summary, run_blind, summarise
 
@@ -1738,6 +1861,27 @@ def serve_simulator(protocol: str, *, faults: Mapping[str, float | None] | None 
         ``test``, ``rate`` [Hz], ``pose`` (degrees, kg), ``seed``, ``effects``
         ("EFFECT@LOCATION:PARAM=VALUE,..."), ``duration`` [s], ``link``, ``port``, ``transport``,
         ``framing``, ``format``, ``scans_per_frame``, ``fault_log``, ``exit_with_parent``, ``quiet``.
+
+    Returns
+    -------
+    None
+        When the device stops (``duration`` reached, SIGTERM or SIGINT).
+
+    Raises
+    ------
+    FixtureError
+        An unknown option or a bad value (one line).
+
+    Examples
+    --------
+    A serial device on a pty streaming the demo arm for a quarter of a second:
+
+    >>> import io
+    >>> import flexmodal as fm
+    >>> endpoint = io.StringIO()
+    >>> fm.serve_simulator("serial", duration=0.25, stdout=endpoint, quiet=True)
+    >>> endpoint.getvalue().startswith("/")     # the pty a session's ``port`` names
+    True
     """
     import sys
 

@@ -50,6 +50,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     q.add_argument("--poles", default=None, metavar="F1,F2,...",
                    help="pick the stable poles nearest these frequencies, Hz (exactly these modes, no "
                         "automatic selection)")
+    q.add_argument("--from-diagram", action="store_true",
+                   help="with --poles: pick only from the stabilisation diagram an earlier identify stored "
+                        "beside --out (MODES.diagram.npz; an error when it was computed from another input "
+                        "or options). Without it a matching stored diagram is used too, else the "
+                        "stabilisation runs again")
     q.add_argument("--need-min", type=opt.real(0.0), default=None, metavar="F",
                    help="drop a mode whose F statistic in the FRF synthesis is below F (the FRFs do not "
                         "need it; default 10)")
@@ -167,7 +172,8 @@ def _identify(args: argparse.Namespace) -> int:
     refs = args.references.split(",") if args.references else None
     result = identify(args.input, method=args.method, fmin=args.fmin, fmax=args.fmax,
                       max_order=args.max_order, run_id=args.run, poles_hz=poles, thresholds=limits,
-                      decay_rate_per_s=args.exp_window_decay, references=refs, out=args.out, uff=args.uff)
+                      decay_rate_per_s=args.exp_window_decay, references=refs, out=args.out, uff=args.uff,
+                      from_diagram=args.from_diagram)
     quiet = getattr(args, "quiet", False)
     for config, modes in result.modes.items():   # a loop over configurations
         if quiet:
