@@ -79,7 +79,7 @@ def identify_frf(result: FrfResult, *, driving_point: int | None = None,
                  decay_rate_per_s: float | None = None, **options) -> Modes:
     """Modes of FRFs in memory (``modal.identify.identify`` with the result's quantity; ``options`` as
     there); ``decay_rate_per_s`` (1/s) overrides the exponential window the FRFs record."""
-    from flexmodal.modal.uncertainty import with_uncertainty
+    from flexmodal.modal.uncertainty import welch_noise, with_uncertainty
 
     decay = result.decay_rate_per_s if decay_rate_per_s is None else decay_rate_per_s
     options.setdefault("excitation", excitation_of(result))
@@ -87,9 +87,12 @@ def identify_frf(result: FrfResult, *, driving_point: int | None = None,
         else "accelerance"
     modes = identify(result.freq_hz, result.H, coherence=result.coherence, quantity=quantity,
                      decay_rate_per_s=decay, driving_point=driving_point, **options)
-    # freq_std_hz / damping_std (issue 26): the poles refined with their FRF-noise uncertainty
+    # freq_std_hz / damping_std (issue 26): the poles refined with their FRF-noise uncertainty (and
+    # with the window's leakage modelled for Welch-averaged FRFs)
+    welch = welch_noise(result.window, result.nfft, float(result.provenance.get("overlap", 0.5))) \
+        if excitation_of(result) == "random" else None
     return with_uncertainty(modes, result.freq_hz, result.H, result.coherence, result.n_averages, quantity,
-                            decay)
+                            decay, welch)
 
 
 def identify_input(path: str | Path, *, method: str | None = None, fmin: float | None = None,
