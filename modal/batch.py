@@ -255,8 +255,8 @@ class _Pool:
         self.ready: Future = Future()
         self._lock = threading.Lock()
         self._abandoned = False
-        if background:
-            threading.Thread(target=self._start, name="flexmodal-pool-start", daemon=True).start()
+        if background:   # not a daemon: the interpreter's exit waits for it to end what it started
+            threading.Thread(target=self._start, name="flexmodal-pool-start").start()
         else:
             self.ready.set_result(True)
 
@@ -280,7 +280,8 @@ class _Pool:
         """Shut the pool down; with ``kill`` (Ctrl-C, or a pool no longer needed) end its processes
         now, not after their jobs.  A pool still starting in the background is never waited for (the
         executor is busy spawning): the processes started so far are ended now, the others by the
-        starting thread once spawned."""
+        starting thread once spawned (the interpreter's exit waits for that thread: a process spawned
+        after this one's exit had removed the executor's semaphores would print a traceback)."""
         with self._lock:
             if not self.ready.done():
                 self._abandoned = True
