@@ -17,8 +17,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--estimator", default="H1", choices=ESTIMATORS, metavar="NAME",
                    help="FRF estimator: %(choices)s (default H1)")
     p.add_argument("--nfft", type=opt.integer(8, 1 << 24, name="segment length"), default=None,
-                   help="segment length in samples for random/sweep runs (default: power of two <= 8192 "
-                        "giving >= 8 segments); impact runs use one record per hit")
+                   help="segment length in samples for random runs (default: power of two <= 8192 "
+                        "giving >= 8 segments); impact runs use one record per hit, sweep runs one "
+                        "segment per sweep unless --nfft or --window is given")
     p.add_argument("--window", default=None,
                    help="window: rect|hann|flattop for random runs (default hann); impact runs "
                         "'force:W,exponential:E' (fractions; default force:0.05 and no "
@@ -93,8 +94,10 @@ def _frf(args: argparse.Namespace) -> int:
     """batch FRFs + coherence of stored runs, written back under /runs/<id>/frf
 
     Compute FRFs and coherence of every run in the HDF5 files and write them back under /runs/<id>/frf
-    (or into --out). Random and sweep runs are streamed block by block (memory does not grow with the
-    record) and segments holding NaN rows or touching gap/corrupt events are skipped. Runs are computed
+    (or into --out). Random runs are streamed block by block (memory does not grow with the
+    record) and segments holding NaN rows or touching gap/corrupt events are skipped; sweep runs are
+    read whole and cut into one rectangular segment per sweep (Welch, as random runs, when they hold
+    lost data or --nfft/--window is given). Runs are computed
     here, one after the other, unless the measured cost predicts that a pool of 2 local processes pays
     for its start-up; --workers N forces N processes (0: always here), --scheduler uses an existing dask
     cluster. Prints one 'FILE:RUN_ID' line per run written.
