@@ -81,6 +81,15 @@ def sweep_starts(forces: np.ndarray) -> np.ndarray | None:
     return np.concatenate([[0], (first - quiet_before) * n]).astype(np.int64)
 
 
+def sweep_plan(forces: np.ndarray) -> np.ndarray | None:
+    """The sweep starts of a force record [n_samples, n_forces] when its FRFs are to be formed one
+    segment per sweep: :func:`sweep_starts`, or None when the record is not a sweep or holds fewer
+    sweeps than forces (H1 of n inputs needs at least n independent segments; Welch then)."""
+    x = np.asarray(forces, float).reshape(np.shape(forces)[0], -1)
+    starts = sweep_starts(x)
+    return starts if starts is not None and starts.size >= x.shape[1] else None
+
+
 def sweep_segments(samples: np.ndarray, starts: np.ndarray, channels: list[int]) -> np.ndarray:
     """One segment per sweep [n_sweeps, n_channels, n_longest] of ``channels`` of ``samples``
     [n_samples, n_channels_all]: from each start to the next (the last to the record's end, an even
