@@ -349,19 +349,23 @@ def write_report(out_path: str | Path, *, runs: Sequence[RunSummary] = (),
     summaries = _run_order(runs)
     comparison_html = "" if comparison is None else html_fragment(
         comparison, caption="Table 1. Measured and predicted natural frequencies")
-    animations = _animations(measured, predictions, shapes or {}, geometry)
-    step("plotting runs")
-    run_sections = _run_sections(summaries)
     meta, quality, channel_sets = _run_rows(summaries)
     given = ReportInputs(tuple(summaries), comparison, measured, tuple(repeats), tuple(predictions), shapes,
                          diagnosis, rig_name)
-    blocks = {"comparison": (bool(comparison_html), []), "diagnosis": (diagnosis is not None, []),
-              "animations": (bool(animations), animations), "identified": (measured is not None, []),
-              "runs": (bool(meta), [f for s in run_sections for f in s["figures"]])}
-    sections = []   # every registered section (reports.sections) the report shows, in registration order
+    tables = {"comparison": bool(comparison_html), "diagnosis": diagnosis is not None,
+              "identified": measured is not None}
+    run_sections: list[dict] = []
+    sections = []   # every registered section (reports.sections) the report shows, drawn in page order
     for name, section in SECTIONS.items():
-        if section.block:
-            shown, figures = blocks[section.block]
+        if section.block == "animations":
+            figures = _animations(measured, predictions, shapes or {}, geometry)
+            shown = bool(figures)
+        elif section.block == "runs":
+            step("plotting runs")
+            run_sections = _run_sections(summaries)
+            figures, shown = [f for s in run_sections for f in s["figures"]], bool(meta)
+        elif section.block:
+            figures, shown = [], tables[section.block]
         else:
             step(f"plotting {section.title.lower()}")
             figures = [_fig(fig, caption) for fig, caption in section.figures(given)]
