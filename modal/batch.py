@@ -25,7 +25,7 @@ from flexmodal.modal.spectra import usable_cpus
 POOL_START_S = 0.4      # CPU s a pool's start takes from the lanes: its fork server's imports
 AUTO_WORKERS = 2        # CPUs the automatic choice's pool and lane use at most
 MIN_SPEEDUP = 1.2       # go parallel only when the predicted speed-up is at least this,
-PAYS_FACTOR = 2.0       # the predicted saving at least 2 start-ups,
+PAYS_FACTOR = 1.0       # the predicted saving at least the CPU a start-up takes,
 MIN_PARALLEL_RUNS = 4   # and at least this many runs remain
 
 
@@ -96,7 +96,7 @@ def _serial_pays(elapsed_s: float, cpu_s: float, bytes_done: int, bytes_left: in
     average less that, and a pool's speed-up is the CPUs it could use (each process keeps one busy)
     over those this process already uses.  Parallel only for a speed-up of MIN_SPEEDUP or more
     saving PAYS_FACTOR start-ups (the pool starts in the background, so its start costs the CPU it
-    takes, not waiting)."""
+    takes from the lanes, not waiting)."""
     cpus = usable_cpus()
     if runs_left < MIN_PARALLEL_RUNS or cpus < 2 or bytes_done == 0 or elapsed_s <= 0:
         return True
@@ -140,9 +140,10 @@ def _here(jobs, options: dict, done: Callable[[int, FrfResult], None], sizes: li
     at once as there are CPUs and runs left (threads: the reading and the FFTs release the GIL), the
     rest as FFT threads of each run, so one long run and many short ones both keep the idle CPUs
     busy.  With ``sizes`` (bytes of every run: the automatic choice), as soon as :func:`_serial_pays`
-    says a pool would pay for the rest, a :class:`_Pool` of one process per idle CPU but one starts in
-    the background while the lanes go on; once it runs, this process keeps one lane and the pool
-    takes every other job (two in flight per process), so its start-up costs no waiting."""
+    says a pool would pay for the rest, a :class:`_Pool` of one process per idle CPU but one (at most
+    AUTO_WORKERS CPUs in all) starts in the background while the lanes go on; once it runs, this
+    process keeps one lane and the pool takes every other job (two in flight per process), so its
+    start-up costs no waiting."""
     from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 
     cpus = idle_cpus()
@@ -161,7 +162,7 @@ def _here(jobs, options: dict, done: Callable[[int, FrfResult], None], sizes: li
             if pool is None and sizes and executor and bytes_done and not _serial_pays(
                     time.perf_counter() - t0, time.process_time() - c0, bytes_done, sum(sizes[submitted:]),
                     len(jobs) - submitted):
-                pool = _Pool(max(1, cpus - 1), options, background=True)
+                pool = _Pool(max(1, min(AUTO_WORKERS, cpus) - 1), options, background=True)
             joined = pool is not None and pool.ready.done() and pool.ready.exception() is None
             while submitted < len(jobs):
                 if joined and len(in_pool) < 2 * pool.workers:
@@ -253,8 +254,10 @@ class _Pool:
         self.executor = ProcessPoolExecutor(workers, mp_context=context, initializer=_start_worker,
                                             initargs=(self.pids,))
         self.ready: Future = Future()
-        if background:
-            threading.Thread(target=self._start, name="flexmodal-pool-start", daemon=True).start()
+        self._lock = threading.Lock()
+        self._abandoned = False
+        if background:   # not a daemon: the interpreter's exit waits for it to end what it started
+            threading.Thread(target=self._start, name="flexmodal-pool-start").start()
         else:
             self.ready.set_result(True)
 
@@ -265,6 +268,9 @@ class _Pool:
             self.ready.set_result(True)
         except BaseException as exc:  # noqa: BLE001 - a pool that cannot start: handed to the caller
             self.ready.set_exception(exc)
+        with self._lock:
+            if self._abandoned:     # closed while starting: ended here, once the executor is free
+                self._end(kill=True)
 
     def submit(self, job: tuple[str, str]):
         """Future of the FRFs of one (file, run_id) job (absolute path: the fork server keeps its own
@@ -272,13 +278,28 @@ class _Pool:
         return self.executor.submit(frf_job, str(Path(job[0]).resolve()), job[1], self.options)
 
     def close(self, kill: bool) -> None:
-        """Shut the pool down; with ``kill`` (Ctrl-C) end its processes now, not after their jobs."""
+        """Shut the pool down; with ``kill`` (Ctrl-C, or a pool no longer needed) end its processes
+        now, not after their jobs.  A pool still starting in the background is never waited for (the
+        executor is busy spawning): the processes started so far are ended now, the others by the
+        starting thread once spawned (the interpreter's exit waits for that thread: a process spawned
+        after this one's exit had removed the executor's semaphores would print a traceback)."""
+        with self._lock:
+            if not self.ready.done():
+                self._abandoned = True
+                self._kill()
+                return
+        self._end(kill)
+
+    def _kill(self) -> None:
+        while not self.pids.empty():
+            try:
+                os.kill(self.pids.get(), signal.SIGTERM)
+            except ProcessLookupError:   # ended already
+                pass
+
+    def _end(self, kill: bool) -> None:
         if kill:
-            while not self.pids.empty():
-                try:
-                    os.kill(self.pids.get(), signal.SIGTERM)
-                except ProcessLookupError:   # ended already
-                    pass
+            self._kill()
         self.executor.shutdown(wait=not kill, cancel_futures=True)
 
 

@@ -67,16 +67,20 @@ def test_cost_rule_goes_parallel_only_when_free_cpus_make_it_pay(monkeypatch):
     gb = 1 << 30
     # one busy CPU, 2 workers: speed-up 2, 100 s left saves 50 s > 3 start-ups: parallel
     assert batch._serial_pays(1.0, 1.0, gb, 100 * gb, 100) is False
-    # 1 s left saves 0.5 s < 2 start-ups of the pool (0.8 s of CPU): serial
-    assert batch._serial_pays(1.0, 1.0, gb, gb, 10) is True
+    # 0.5 s left saves 0.25 s < the CPU a start-up of the pool takes (0.4 s): serial
+    assert batch._serial_pays(1.0, 1.0, gb, gb // 2, 10) is True
     assert batch._serial_pays(1.0, 1.0, gb, 100 * gb, 3) is True           # too few runs left
     # the serial path already keeps 2 CPUs busy (its FFT threads): a 2-process pool gains nothing
     monkeypatch.setattr(batch.os, "getloadavg", lambda: (2.0, 2.0, 2.0))
     assert batch._serial_pays(1.0, 2.0, gb, 100 * gb, 100) is True
-    # 2 idle CPUs, two run lanes here keeping 1.4 of them busy (the GIL): processes gain 1.43x, parallel
+    # benchmarks/batch.py's runs of 60 s (21 MB, 0.035 s of CPU each) on 2 idle CPUs, the first two
+    # done by two lanes here keeping 1.4 CPUs busy (the GIL): processes would gain 1.43x; with 98
+    # runs left that saves 0.74 s > 0.4 s, parallel; with 6 left 0.05 s, serial
     monkeypatch.setattr(batch, "usable_cpus", lambda: 2)
     monkeypatch.setattr(batch.os, "getloadavg", lambda: (1.4, 1.4, 1.4))
-    assert batch._serial_pays(1.0, 1.4, gb, 10 * gb, 90) is False
+    run = 21 * 10 ** 6
+    assert batch._serial_pays(0.05, 0.07, 2 * run, 98 * run, 98) is False
+    assert batch._serial_pays(0.05, 0.07, 2 * run, 6 * run, 6) is True
     # a loaded machine (load 10 on 2 CPUs, as measured here): no free CPU, serial
     monkeypatch.setattr(batch.os, "getloadavg", lambda: (10.0, 10.0, 10.0))
     assert batch._serial_pays(1.0, 0.3, gb, 100 * gb, 100) is True

@@ -118,9 +118,9 @@ def test_a_mode_standing_clear_of_the_noise_in_the_cmif_is_never_dropped():
     strict = Thresholds(need_min=1e12, mpc_min=0.999999)
     peaks = f[clear_peaks(f, H)]
     assert np.allclose(peaks, fn, atol=0.1)
-    kept, _, warnings = _validate(f, H, cand, "accelerance", 0, strict, peaks)
+    kept, _, warnings, _ = _validate(f, H, cand, "accelerance", 0, strict, peaks)
     assert np.allclose(kept.freq_hz, fn) and not warnings
-    kept, _, warnings = _validate(f, H, cand, "accelerance", 0, strict)
+    kept, _, warnings, _ = _validate(f, H, cand, "accelerance", 0, strict)
     assert kept.freq_hz.size == 0 and all("F = " in w and "< 1e+12" in w for w in warnings)
 
 
@@ -135,7 +135,8 @@ def test_a_pole_the_frfs_show_no_resonance_for_is_dropped_with_the_reason():
     fn, zeta = np.array([60.0, 120.0, 150.0]), np.array([1e-3, 5e-3, 1e-3])
     cand = PoleClusters(fn, zeta, _pole(fn, zeta), np.full(3, 10), tuple(np.array([k]) for k in range(3)))
     visible = visible_peaks(f, H)
-    kept, _, warnings = _validate(f, H, cand, "accelerance", 0, Thresholds(), f[clear_peaks(f, H)], visible)
+    peaks = f[clear_peaks(f, H)]
+    kept, _, warnings, _ = _validate(f, H, cand, "accelerance", 0, Thresholds(), peaks, visible)
     assert np.allclose(kept.freq_hz, [60.0, 150.0])
     assert warnings == ["dropped the pole at 120 Hz (damping 0.5 %): no FRF or CMIF peak of 3 dB within "
                         "1.5 Hz and no close mode: the FRFs show no resonance there"]
@@ -190,7 +191,7 @@ def test_a_sine_sweep_in_uff_time_histories_gives_its_frf_from_the_whole_record(
     the default nfft hold under one line per half-power band, so the FRF comes from the whole sweep
     (one rectangular segment); damping within 15 %, and the resolution advice names the sweep."""
     from flexmodal.fixtures.modal_sim import modal_response
-    from flexmodal.modal.sources import _sweep
+    from flexmodal.modal.sweep import sweep_starts
 
     fs, t_s = 250.0, 120.0
     t = np.arange(int(fs * t_s)) / fs
@@ -199,7 +200,8 @@ def test_a_sine_sweep_in_uff_time_histories_gives_its_frf_from_the_whole_record(
     fn, zeta = np.array([11.2, 33.2, 65.4]), np.array([0.0015, 0.0015, 0.0015])
     phi = np.array([[1.0, 0.6, -0.4], [0.5, -0.8, 0.7]])
     y = modal_response(force[:, None], fs, fn, zeta, phi, phi[:1])
-    assert _sweep(force) and not _sweep(np.random.default_rng(0).standard_normal(t.size))
+    assert sweep_starts(force[:, None]).tolist() == [0]
+    assert sweep_starts(np.random.default_rng(0).standard_normal((t.size, 1))) is None
     sets = [pyuff.prepare_58(func_type=1, rsp_node=node, rsp_dir=3, ref_node=1, ref_dir=3,
                              ordinate_spec_data_type=13 if node == 1 else 12, orddenom_spec_data_type=0,
                              abscissa_spec_data_type=17, data=data, x=t, abscissa_spacing=1, abscissa_min=0.0,
