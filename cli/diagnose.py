@@ -62,7 +62,8 @@ def run(args: argparse.Namespace) -> int:
                inputs=(args.rig, args.measured))  # before the heavy imports
     from flexmodal.api import diagnose, load_rig, read_table, write_diagnosis
     from flexmodal.compare.candidates import parse_effects
-    from flexmodal.compare.diagnosis import folds_for, scatter_line
+    from flexmodal.compare.diagnosis import folds_for
+    from flexmodal.compare.verdict_text import scatter_line, verdict_words
 
     rig = load_rig(args.rig)
     table = read_table(args.measured)
@@ -74,8 +75,9 @@ def run(args: argparse.Namespace) -> int:
     pj, ph = write_diagnosis(result, args.out, inputs=[rig.source, table.source])
     v = result.verdict
     print(f"verdict: {v.effect} at {v.location or '-'}; held-out RMS "
-          f"{v.heldout_rms_rel_error_before:.2%} -> {v.heldout_rms_rel_error_after:.2%}; "
-          f"explained: {str(v.explained).lower()} ({v.grade})")
+          f"{v.heldout_rms_rel_error_before:.2%} -> {v.heldout_rms_rel_error_after:.2%}")
+    if verdict_words(result):
+        print(verdict_words(result))
     print(scatter_line(result))
     for name, (lo, hi) in (v.param_intervals or {}).items():
         print(f"  {name} = {v.params[name]:.4g}  (95 % interval {lo:.4g} .. {hi:.4g})")
