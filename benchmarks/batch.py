@@ -8,8 +8,10 @@ pool as the measured cost decides) and ``--workers 2`` (a pool of 2 local proces
 medians and spread (min-max) over ``--repeat`` rounds (one count per ``--runs`` entry, default 3, 3
 and 1), the ratios against the one-CPU serial run and against ``--workers 0`` of the same rounds,
 and the CPUs the serial and default processes kept busy (CPU time over wall time; the pool's workers
-are the fork server's children, not counted); then the start-up cost of the pool (``--workers 2``
-less ``--workers 0`` on two 1 s runs: the figure behind ``modal.batch.POOL_START_S``).  The machine
+are the fork server's children, not counted); first the figures of the automatic choice's cost
+model (COST: CPU per run and per byte, per-task overhead of a pool, CPU of a pool's start, the figure
+behind ``modal.batch.POOL_START_S``), last the wall a pool adds (``--workers 2`` less ``--workers 0``
+on two 1 s runs).  The machine
 may be shared: read the ratios, and the load average printed with them.
 Usage: ``python benchmarks/batch.py [--runs 1 8 100] [--duration-s 60] [--repeat 3 3 1] [--folder DIR]``
 """
@@ -103,6 +105,66 @@ def pool_start_up(folder: str, repeat: int) -> None:
           f"{np.median(extra):.2f} s (spread {min(extra):.2f}-{max(extra):.2f} s)")
 
 
+COST = """
+import os, sys, time
+import numpy as np
+from flexmodal.modal.batch import _Pool, frf_job
+from flexmodal.modal.runs_io import write_frf
+path, rid, repeat = sys.argv[1], sys.argv[2], int(sys.argv[3])
+options = {"nfft": 4096, "workers": 1}
+cpu, writes = [], []
+for k in range(repeat + 1):
+    c0 = time.process_time()
+    result = frf_job(path, rid, options)
+    c1 = time.process_time()
+    write_frf(path + ".out.h5", f"r{k}", result)
+    cpu.append(c1 - c0)
+    writes.append(time.process_time() - c1)
+os.remove(path + ".out.h5")
+here, write = float(np.median(cpu[1:])), float(np.median(writes[1:]))   # the first also imports
+pool = _Pool(1, options)
+try:
+    pool.submit((path, rid)).result()       # started, warm
+    walls = []
+    for _ in range(repeat):
+        t0, c0 = time.perf_counter(), time.process_time()
+        pool.submit((path, rid)).result()
+        walls.append((time.perf_counter() - t0, time.process_time() - c0))
+finally:
+    pool.close(kill=False)
+wall, parent = np.median(np.array(walls), axis=0)
+print(here, wall, parent, write)
+"""
+
+
+def cost(folder: str, duration_s: float, repeat: int) -> None:
+    """The figures of the automatic choice's cost model (modal.batch): CPU of one run of
+    ``duration_s`` in-process (one FFT thread, per byte of samples); the round trip of the same run
+    through a warm pool of one process (its wall less the run's CPU: the per-task overhead when the
+    worker's CPU is idle; and the CPU the caller spends per task: sending, receiving, unpickling the
+    result); the CPU of writing its FRFs (the caller's, whatever computed them); the CPU of
+    starting the pool (its fork server's imports: ``python -c 'import flexmodal.modal.batch'``), the
+    figure behind ``modal.batch.POOL_START_S``."""
+    path = write_runs(folder, 1, duration_s)[0]
+    out = subprocess.run([sys.executable, "-c", COST, path, "r0", str(repeat)], check=True, timeout=600,
+                         capture_output=True, text=True).stdout.split()
+    here, wall, parent, write = (float(v) for v in out)
+    starts = []
+    for _ in range(repeat):
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        subprocess.run([sys.executable, "-c", "import flexmodal.modal.batch"], check=True, timeout=600)
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        starts.append(after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime)
+    size = os.path.getsize(path)
+    os.remove(path)
+    print(f"COST one run of {duration_s:g} s ({size / 1e6:.0f} MB, 17 channels) in-process: {here:.3f} s CPU "
+          f"({here / size * 1e9:.2f} ns per byte); through a warm 1-process pool: {wall:.3f} s wall "
+          f"(per-task overhead {wall - here:+.3f} s), caller's CPU per task {parent:.4f} s; writing its FRFs "
+          f"{write:.4f} s CPU; pool start "
+          f"(fork server's imports): {np.median(starts):.2f} s CPU ({min(starts):.2f}-{max(starts):.2f}); "
+          f"medians of {repeat}, load average {os.getloadavg()[0]:.1f}")
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--runs", type=int, nargs="+", default=[1, 8, 100])
@@ -112,6 +174,7 @@ def main(argv: list[str] | None = None) -> int:
     a = p.parse_args(argv)
     folder = tempfile.mkdtemp(prefix="flexmodal-batch-", dir=a.folder)
     try:
+        cost(folder, a.duration_s, max(3, a.repeat[0]))
         for n_runs, repeat in zip(a.runs, a.repeat + a.repeat[-1:] * len(a.runs), strict=False):
             paths = write_runs(folder, n_runs, a.duration_s)
             bench(paths, repeat, folder)

@@ -332,12 +332,44 @@ def bench_kernel(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: i
           f"{_spread(c1)}, its {n_fft} bare FFTs' CPU on 1 thread {_spread(cf)} (the reference, first in "
           f"each round): {np.median(ratio):.2f}x ({ratio.min():.2f}-{ratio.max():.2f}, per round) (target "
           f"<= 1.4); the passes besides the FFTs {np.median(c1 - cf):.3f} s")
+    print("     where the CPU of 1 thread goes (cProfile, thread time, own time of each part): "
+          + _kernel_parts(lambda: estimate(1)))
     for name, t in (("as it is", quiet), ("other core busy", busy)):
         ratio = t[2][:, 0] / t[1][:, 0]
         print(f"     wall, {name}: 1 thread {_spread(t[1][:, 0])}, 2 threads {_spread(t[2][:, 0])}: 2 / 1 = "
               f"{np.median(ratio):.2f} ({ratio.min():.2f}-{ratio.max():.2f}) (target <= 0.6); CPU 2 threads "
               f"{np.median(t[2][:, 1]):.3f} s (medians of {repeat}; load average now "
               f"{os.getloadavg()[0]:.1f})")
+
+
+KERNEL_PARTS = {   # function (file name ending, function name) -> the part of the estimate it is
+    ("", "<built-in method scipy.fft._pocketfft.pypocketfft.r2c>"): "FFTs",
+    ("spectra.py", "_products"): "cross-spectra product",
+    ("", "<built-in method numpy._core._multiarray_umath.c_einsum>"): "auto-spectra",
+    ("", "<method 'conj' of 'numpy.ndarray' objects>"): "conjugate of the reference",
+    ("spectra.py", "sums"): "shift, window, mean removal (the block's passes)",
+    ("", "<method 'reduce' of 'numpy.ufunc' objects>"): "segment sums",
+}
+
+
+def _kernel_parts(fn) -> str:
+    """Own CPU time (thread time of the calling thread) of the parts of one call of ``fn`` (the Welch
+    estimate on one thread), from cProfile: the FFTs, each numpy pass, and the rest (Python, small
+    operations)."""
+    import cProfile
+    import pstats
+
+    profile = cProfile.Profile(timer=time.thread_time)
+    profile.runcall(fn)
+    stats = pstats.Stats(profile).stats
+    total = sum(v[2] for v in stats.values())
+    parts: dict[str, float] = {}
+    for (file, _, name), v in stats.items():
+        for (end, fname), part in KERNEL_PARTS.items():
+            if name == fname and file.endswith(end):
+                parts[part] = parts.get(part, 0.0) + v[2]
+    rest = total - sum(parts.values())
+    return "; ".join(f"{k} {v:.3f} s" for k, v in parts.items()) + f"; the rest {rest:.3f} s (of {total:.3f})"
 
 
 def _read(path: str) -> np.ndarray:

@@ -21,7 +21,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "giving >= 8 segments); impact runs use one record per hit")
     p.add_argument("--window", default=None,
                    help="window: rect|hann|flattop for random runs (default hann); impact runs "
-                        "'force:W,exponential:E' (fractions; default force:0.05,exponential:0.01)")
+                        "'force:W,exponential:E' (fractions; default force:0.05 and no "
+                        "window on the responses; 'exponential' alone is exponential:0.01)")
     p.add_argument("--overlap", type=opt.overlap, default=0.5, help="segment overlap fraction (default 0.5)")
     p.add_argument("--averaging", default="linear", choices=["linear", "exponential"],
                    help="averaging of impact hits (default linear)")

@@ -6,7 +6,6 @@ concurrently and the results are the same whichever path computed them."""
 
 from __future__ import annotations
 
-import collections
 import os
 import signal
 import sys
@@ -23,10 +22,10 @@ from flexmodal.modal.frf import FrfResult
 from flexmodal.modal.runs_io import write_frf
 from flexmodal.modal.spectra import usable_cpus
 
-POOL_START_S = 1.0      # start 2 worker processes, their imports, first task (benchmarks/batch.py)
-AUTO_WORKERS = 2        # processes of the pool the automatic choice starts
-MIN_SPEEDUP = 1.5       # go parallel only when the predicted speed-up is at least this,
-PAYS_FACTOR = 3.0       # the predicted saving at least 3 start-ups,
+POOL_START_S = 0.4      # CPU s a pool's start takes from the lanes: its fork server's imports
+AUTO_WORKERS = 2        # CPUs the automatic choice's pool and lane use at most
+MIN_SPEEDUP = 1.2       # go parallel only when the predicted speed-up is at least this,
+PAYS_FACTOR = 1.0       # the predicted saving at least the CPU a start-up takes,
 MIN_PARALLEL_RUNS = 4   # and at least this many runs remain
 
 
@@ -87,14 +86,17 @@ class _Deliver:
 
 
 def _serial_pays(elapsed_s: float, cpu_s: float, bytes_done: int, bytes_left: int, runs_left: int) -> bool:
-    """True while computing the rest here is predicted no worse than a pool of AUTO_WORKERS processes.
+    """True while computing the rest here is predicted no worse than with a pool joining in (one lane
+    here and a process per other CPU, at most AUTO_WORKERS CPUs in all).
 
     From the runs done so far (``elapsed_s`` wall, ``cpu_s`` CPU of this process, every thread):
     the rest takes ``elapsed_s / bytes_done * bytes_left`` here; this process keeps ``cpu_s /
-    elapsed_s`` CPUs busy (its run lanes and FFT threads), the other processes of the machine take
-    the 1-minute load average less that, and a pool's speed-up is the CPUs it could use over those
-    this process already uses.  Parallel only for a speed-up of MIN_SPEEDUP or more saving
-    PAYS_FACTOR start-ups."""
+    elapsed_s`` CPUs busy (its run lanes and FFT threads: less than its lanes, as the Python and
+    HDF5 parts of a run hold the GIL), the other processes of the machine take the 1-minute load
+    average less that, and a pool's speed-up is the CPUs it could use (each process keeps one busy)
+    over those this process already uses.  Parallel only for a speed-up of MIN_SPEEDUP or more
+    saving PAYS_FACTOR start-ups (the pool starts in the background, so its start costs the CPU it
+    takes from the lanes, not waiting)."""
     cpus = usable_cpus()
     if runs_left < MIN_PARALLEL_RUNS or cpus < 2 or bytes_done == 0 or elapsed_s <= 0:
         return True
@@ -109,10 +111,9 @@ def run_batch(jobs: Sequence[tuple[str, str]], options: dict, *, workers: int | 
               scheduler: str | None = None, out: str | None = None,
               on_done: Callable[[str, str, FrfResult], None] | None = None) -> list[FrfResult]:
     """FRFs of every (file, run_id) job in order.  ``workers`` 0 computes here (:func:`_here`: as many
-    runs at once as idle CPUs), > 0 on a pool of that many local processes, None (automatic) here
-    for as long as the measured cost of the runs done predicts no gain from a pool
-    (:func:`_serial_pays`), then on a pool of AUTO_WORKERS; ``scheduler`` sends every job to an
-    existing dask cluster.
+    runs at once as idle CPUs), > 0 on a pool of that many local processes, None (automatic) here,
+    with a pool joining in once the measured cost of the runs done predicts a gain from it
+    (:func:`_serial_pays`); ``scheduler`` sends every job to an existing dask cluster.
     ``on_done(file, run_id, result)`` gets each result once no unfinished job reads the file it
     will be written to (``out`` if given, else its own file): that is when the caller may write it."""
     results: list[FrfResult | None] = [None] * len(jobs)
@@ -122,56 +123,81 @@ def run_batch(jobs: Sequence[tuple[str, str]], options: dict, *, workers: int | 
         results[k] = result
         deliver(k, result)
 
-    first = 0
-    if scheduler is None and not workers:
-        first = _here(jobs, options, done, run_bytes(jobs) if workers is None else None)
-        if first == len(jobs):
-            return results
-        workers = AUTO_WORKERS
-    if scheduler is None:
-        _in_pool(jobs, first, options, int(workers), done)
+    if scheduler is not None:
+        _on_cluster(jobs, options, scheduler, done)
+    elif workers:
+        _in_pool(jobs, options, int(workers), done)
     else:
-        _on_cluster(jobs, first, options, scheduler, done)
+        _here(jobs, options, done, run_bytes(jobs) if workers is None else None)
     return results
 
 
-def _here(jobs, options: dict, done: Callable[[int, FrfResult], None], sizes: list[int] | None) -> int:
-    """Jobs computed in this process, in order, ``done(k, result)`` for each; returns how many.
+def _here(jobs, options: dict, done: Callable[[int, FrfResult], None], sizes: list[int] | None) -> None:
+    """Every job, ``done(k, result)`` for each in order, computed in this process and, when the
+    automatic choice says so, by a pool of processes joining in.
 
     The CPUs other processes leave idle (:func:`idle_cpus`) are shared out as lanes: as many runs
     at once as there are CPUs and runs left (threads: the reading and the FFTs release the GIL), the
     rest as FFT threads of each run, so one long run and many short ones both keep the idle CPUs
-    busy.  With ``sizes`` (bytes of every run: the automatic choice) it stops submitting as soon as
-    :func:`_serial_pays` says a pool would pay for the rest; the runs already started finish here."""
-    from concurrent.futures import ThreadPoolExecutor
+    busy.  With ``sizes`` (bytes of every run: the automatic choice), as soon as :func:`_serial_pays`
+    says a pool would pay for the rest, a :class:`_Pool` of one process per idle CPU but one starts in
+    the background while the lanes go on; once it runs, this process keeps one lane and the pool
+    takes every other job (two in flight per process), so its start-up costs no waiting."""
+    from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 
     cpus = idle_cpus()
     lanes = max(1, min(cpus, len(jobs)))
     threads = {"workers": max(1, cpus // lanes), **options}
     t0, c0 = time.perf_counter(), time.process_time()
-    pool = ThreadPoolExecutor(lanes, thread_name_prefix="flexmodal-run") if lanes > 1 else None
-    running: collections.deque = collections.deque()
-    submitted = finished = 0
-    last = len(jobs)                 # jobs[last:] go to a pool
+    executor = ThreadPoolExecutor(lanes, thread_name_prefix="flexmodal-run") if lanes > 1 else None
+    pool: _Pool | None = None
+    running: dict = {}               # future -> job (lanes and pool alike)
+    in_pool: set = set()             # those futures the pool computes
+    held: dict[int, FrfResult] = {}  # results waiting for those of earlier jobs
+    submitted = delivered = bytes_done = 0
+    interrupted = False
     try:
-        while submitted < last or running:
-            while submitted < last and len(running) < lanes:
-                if sizes is not None and not _serial_pays(time.perf_counter() - t0, time.process_time() - c0,
-                                                          sum(sizes[:finished]), sum(sizes[finished:]),
-                                                          len(jobs) - submitted):
-                    last = submitted
+        while delivered < len(jobs):
+            if pool is None and sizes and executor and bytes_done and not _serial_pays(
+                    time.perf_counter() - t0, time.process_time() - c0, bytes_done, sum(sizes[submitted:]),
+                    len(jobs) - submitted):
+                pool = _Pool(max(1, cpus - 1), options, background=True)
+            joined = pool is not None and pool.ready.done() and pool.ready.exception() is None
+            while submitted < len(jobs):
+                if joined and len(in_pool) < 2 * pool.workers:
+                    fut = pool.submit(jobs[submitted])
+                    in_pool.add(fut)
+                elif len(running) - len(in_pool) < (1 if joined else lanes):
+                    fut = executor.submit(frf_job, *jobs[submitted], threads) if executor else None
+                else:
                     break
-                running.append(pool.submit(frf_job, *jobs[submitted], threads) if pool else None)
+                running[fut] = submitted
                 submitted += 1
-            if not running:
-                break
-            fut = running.popleft()
-            done(finished, fut.result() if fut is not None else frf_job(*jobs[finished], threads))
-            finished += 1
-    finally:
+            if executor is None:     # one lane: computed right here
+                k = running.pop(None)
+                held[k] = frf_job(*jobs[k], threads)
+            else:
+                waits = set(running) | ({pool.ready} if pool is not None and not pool.ready.done() else set())
+                finished, _ = wait(waits, return_when=FIRST_COMPLETED)
+                for fut in finished & running.keys():
+                    k = running.pop(fut)
+                    if fut in in_pool:
+                        in_pool.discard(fut)
+                        if fut.exception() is not None:
+                            raise _failed(jobs[k], fut.exception())
+                    held[k] = fut.result()
+                    bytes_done += sizes[k] if sizes is not None else 0
+            while delivered in held:
+                done(delivered, held.pop(delivered))
+                delivered += 1
+    except KeyboardInterrupt:
+        interrupted = True
+        raise
+    finally:   # a pool that never joined in (the lanes were done first) is not waited for
         if pool is not None:
-            pool.shutdown(wait=not running, cancel_futures=True)
-    return finished
+            pool.close(kill=interrupted or not pool.ready.done())
+        if executor is not None:
+            executor.shutdown(wait=not running, cancel_futures=True)
 
 
 def _failed(job: tuple[str, str], exc: BaseException) -> ModalError:
@@ -180,9 +206,9 @@ def _failed(job: tuple[str, str], exc: BaseException) -> ModalError:
 
 
 def _end_with_parent() -> None:
-    """Initializer of a pool worker: on Linux, have the kernel send it SIGTERM when its parent (the
-    fork server) ends, so that a worker started while Ctrl-C ends the command cannot outlive it; leave
-    at once if the parent is already gone (the worker then belongs to init)."""
+    """On Linux, have the kernel send this worker SIGTERM when its parent (the fork server) ends, so
+    that a worker started while Ctrl-C ends the command cannot outlive it; leave at once if the parent
+    is already gone (the worker then belongs to init)."""
     parent = os.getppid()
     try:
         import ctypes
@@ -194,22 +220,96 @@ def _end_with_parent() -> None:
         os._exit(1)
 
 
-def _in_pool(jobs, first: int, options: dict, workers: int, done: Callable[[int, FrfResult], None]) -> None:
-    """Jobs ``first``.. on ``workers`` local processes, one FFT thread each; ``done(k, result)`` in
-    completion order.  The processes come from a fork server that has imported only this module
-    (no threads or open files of the caller are inherited; 0.3-1 s to start, not the seconds of a
-    dask LocalCluster); each opens the runs it computes read-only, and only the caller writes."""
-    import multiprocessing
-    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+def _start_worker(pids) -> None:
+    """Initializer of a pool worker: end with the fork server (:func:`_end_with_parent`), tell the
+    caller its process id through the queue ``pids`` (so a Ctrl-C can end it at once, with the public
+    ``os.kill``) and keep BLAS to one thread (the pool's processes already use every CPU it was
+    given; a BLAS pool of its own in each would only oversubscribe them)."""
+    _end_with_parent()
+    pids.put(os.getpid())
+    from threadpoolctl import threadpool_limits
 
-    context = multiprocessing.get_context("forkserver")
-    context.set_forkserver_preload([__name__])
-    one_thread = {**options, "workers": 1}
-    pool = ProcessPoolExecutor(workers, mp_context=context, initializer=_end_with_parent)
+    threadpool_limits(1, "blas")     # this worker process's own state, for its whole life
+
+
+class _Pool:
+    """``workers`` local processes for :func:`frf_job`, from a fork server that has imported only this
+    module (no threads or open files of the caller are inherited), one FFT thread each.  Each reports
+    its process id at start; :meth:`close` with ``kill`` ends them at once (SIGTERM), without the
+    private process table of the executor.  ``background`` starts the processes in a thread of this
+    process (the fork server's imports take 0.3-1 s) and completes :attr:`ready` once they run, so the
+    caller keeps computing meanwhile."""
+
+    def __init__(self, workers: int, options: dict, background: bool = False) -> None:
+        import multiprocessing
+        import threading
+        from concurrent.futures import Future, ProcessPoolExecutor
+
+        context = multiprocessing.get_context("forkserver")
+        context.set_forkserver_preload([__name__])
+        self.workers = workers
+        self.options = {**options, "workers": 1}
+        self.pids = context.SimpleQueue()
+        self.executor = ProcessPoolExecutor(workers, mp_context=context, initializer=_start_worker,
+                                            initargs=(self.pids,))
+        self.ready: Future = Future()
+        self._lock = threading.Lock()
+        self._abandoned = False
+        if background:
+            threading.Thread(target=self._start, name="flexmodal-pool-start", daemon=True).start()
+        else:
+            self.ready.set_result(True)
+
+    def _start(self) -> None:
+        try:   # one trivial task per process: each is spawned (and has started) when its task returns
+            for fut in [self.executor.submit(os.getpid) for _ in range(self.workers)]:
+                fut.result()
+            self.ready.set_result(True)
+        except BaseException as exc:  # noqa: BLE001 - a pool that cannot start: handed to the caller
+            self.ready.set_exception(exc)
+        with self._lock:
+            if self._abandoned:     # closed while starting: ended here, once the executor is free
+                self._end(kill=True)
+
+    def submit(self, job: tuple[str, str]):
+        """Future of the FRFs of one (file, run_id) job (absolute path: the fork server keeps its own
+        folder)."""
+        return self.executor.submit(frf_job, str(Path(job[0]).resolve()), job[1], self.options)
+
+    def close(self, kill: bool) -> None:
+        """Shut the pool down; with ``kill`` (Ctrl-C, or a pool no longer needed) end its processes
+        now, not after their jobs.  A pool still starting in the background is never waited for (the
+        executor is busy spawning): the processes started so far are ended now, the others by the
+        starting thread once spawned."""
+        with self._lock:
+            if not self.ready.done():
+                self._abandoned = True
+                self._kill()
+                return
+        self._end(kill)
+
+    def _kill(self) -> None:
+        while not self.pids.empty():
+            try:
+                os.kill(self.pids.get(), signal.SIGTERM)
+            except ProcessLookupError:   # ended already
+                pass
+
+    def _end(self, kill: bool) -> None:
+        if kill:
+            self._kill()
+        self.executor.shutdown(wait=not kill, cancel_futures=True)
+
+
+def _in_pool(jobs, options: dict, workers: int, done: Callable[[int, FrfResult], None]) -> None:
+    """Every job on a :class:`_Pool` of ``workers`` processes; ``done(k, result)`` in completion
+    order.  Each process opens the runs it computes read-only, and only the caller writes."""
+    from concurrent.futures import FIRST_COMPLETED, wait
+
+    pool = _Pool(workers, options)
     interrupted = False
     try:
-        futures = {pool.submit(frf_job, str(Path(jobs[k][0]).resolve()), jobs[k][1], one_thread): k
-                   for k in range(first, len(jobs))}   # absolute: the fork server keeps its own folder
+        futures = {pool.submit(job): k for k, job in enumerate(jobs)}
         while futures:
             finished, _ = wait(futures, return_when=FIRST_COMPLETED)
             for fut in finished:
@@ -219,16 +319,13 @@ def _in_pool(jobs, first: int, options: dict, workers: int, done: Callable[[int,
                 done(k, fut.result())
     except KeyboardInterrupt:  # Ctrl-C: leave now, not after the running jobs; the workers are the fork
         interrupted = True     # server's children, so the CLI's ending of its own would miss them
-        for process in list((pool._processes or {}).values()):   # no public way before Python 3.14
-            process.terminate()
         raise
     finally:
-        pool.shutdown(wait=not interrupted, cancel_futures=True)
+        pool.close(kill=interrupted)
 
 
-def _on_cluster(jobs, first: int, options: dict, scheduler: str,
-                done: Callable[[int, FrfResult], None]) -> None:
-    """Jobs ``first``.. on the dask.distributed cluster at ``scheduler`` (its workers read the runs
+def _on_cluster(jobs, options: dict, scheduler: str, done: Callable[[int, FrfResult], None]) -> None:
+    """Every job on the dask.distributed cluster at ``scheduler`` (its workers read the runs
     from the same paths); ``done(k, result)`` in completion order."""
     try:
         from distributed import Client, as_completed
@@ -243,7 +340,7 @@ def _on_cluster(jobs, first: int, options: dict, scheduler: str,
     interrupted = False
     try:
         futures = {client.submit(frf_job, str(Path(jobs[k][0]).resolve()), jobs[k][1], options, pure=False): k
-                   for k in range(first, len(jobs))}   # absolute paths: workers run elsewhere
+                   for k in range(len(jobs))}   # absolute paths: workers run elsewhere
         for fut in as_completed(list(futures)):
             k = futures[fut]
             if fut.status == "error":

@@ -10,7 +10,7 @@ import numpy as np
 from flexmodal.checked_io.text import naming
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult, coherence, estimate, estimator_name
-from flexmodal.modal.spectra import Spectra, default_nfft, welch_spectra
+from flexmodal.modal.spectra import Spectra, default_nfft, spectra_of_segments, welch_spectra
 from flexmodal.modal.windows import added_decay_rate_per_s, impact_windows
 
 MIN_SEGMENTS = 8
@@ -85,7 +85,8 @@ def frf_of_record(samples, sample_rate_hz: float, names: Sequence[str], kinds: S
                   window: str | None = None, overlap: float = 0.5, where: str = "record",
                   triggers: Sequence[int] | None = None, overload_samples: Sequence[int] = (),
                   averaging: str = "linear", skip: Sequence[tuple[int, int]] = (),
-                  pretrigger_s: float = 0.02, workers: int | None = None) -> FrfResult:
+                  pretrigger_s: float = 0.02, workers: int | None = None,
+                  sweeps: Sequence[int] | None = None) -> FrfResult:
     """FRFs of a record [n_samples, n_channels] (an array, or an h5py dataset read block by block) with
     channel ``names`` and ``kinds`` (force channels are the inputs; acceleration channels, or else every
     other non-encoder channel, the outputs).
@@ -131,6 +132,15 @@ def frf_of_record(samples, sample_rate_hz: float, names: Sequence[str], kinds: S
         used_window, used_nfft = f"{fw},{ew}", record
         extra = {"hits": [{"trigger": h.trigger, "accepted": h.accepted, "reason": h.reason} for h in hits],
                  "averaging": averaging}
+    elif sweeps is not None:
+        from flexmodal.modal.sweep import sweep_segments
+
+        samples = np.asarray(samples[()])
+        check_samples(samples, names, where)
+        segments = sweep_segments(samples, np.asarray(sweeps, np.int64), inputs + outputs)
+        used_window, used_nfft = "rect", segments.shape[-1]
+        spectra = spectra_of_segments(segments, len(inputs), sample_rate_hz, np.ones(used_nfft))
+        extra = {"excitation": "sweep", "sweeps": [int(k) for k in sweeps]}
     else:
         used_nfft = default_nfft(samples.shape[0]) if nfft is None else int(nfft)
         used_window = window or "hann"

@@ -45,17 +45,22 @@ def _solve_inputs(g_xf: np.ndarray, g_ff: np.ndarray) -> np.ndarray:
     """G_xf G_ff^-1 for every line: [n_out, n_in, f] (batched solve, no loop over lines)."""
     a = np.moveaxis(g_ff, -1, 0)                      # [f, i, j]
     b = np.moveaxis(g_xf, -1, 0)                      # [f, o, i]
-    # H G_ff = G_xf  <=>  G_ff^T H^T = G_xf^T
-    x = np.linalg.solve(np.swapaxes(a, 1, 2), np.swapaxes(b, 1, 2))
-    return np.moveaxis(np.swapaxes(x, 1, 2), 0, -1)
+    try:   # H G_ff = G_xf  <=>  G_ff^T H^T = G_xf^T
+        x = np.swapaxes(np.linalg.solve(np.swapaxes(a, 1, 2), np.swapaxes(b, 1, 2)), 1, 2)
+    except np.linalg.LinAlgError:
+        # a line where the inputs are not independent (no energy there, or fewer averages than inputs
+        # at that line): the minimum-norm solution, G_xf pinv(G_ff) (Bendat & Piersol 2010 §7.3)
+        x = b @ np.linalg.pinv(a, hermitian=True)
+    return np.moveaxis(x, 0, -1)
 
 
 def h1(s: Spectra) -> np.ndarray:
-    """H1 estimator [n_out, n_in, f]."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        if s.g_ff.shape[0] == 1:
-            return s.g_xf / s.g_ff[0, 0].real
-        return _solve_inputs(s.g_xf, s.g_ff)
+    """H1 estimator [n_out, n_in, f]; 0 at lines where the inputs carry no energy (the minimum-norm
+    solution, G_xf pinv(G_ff), as for several inputs; their coherence is 0)."""
+    if s.g_ff.shape[0] == 1:
+        gff = s.g_ff[0, 0].real
+        return np.divide(s.g_xf, gff, out=np.zeros_like(s.g_xf), where=gff > 0)
+    return _solve_inputs(s.g_xf, s.g_ff)
 
 
 def _single_input(s: Spectra, name: str) -> None:

@@ -3,9 +3,10 @@ linear or exponential averaging of the hit spectra (Brandt 2011 §13.6; Ewins 20
 
 Each hit is one record of ``record_len`` samples starting ``pretrigger`` samples before its trigger.
 Channel offsets are taken from the pretrigger samples.  The force gets the force window times the
-exponential window, the responses the exponential window, both starting at the record start, so the
-FRF is that of the structure with every pole's real part shifted by the window's decay rate
-(undone by :func:`modal.windows.remove_added_damping`).  A hit is rejected, with the reason kept,
+exponential window, the responses the exponential window (by default none: ``exponential:1``, see
+:func:`modal.windows.impact_windows`), both starting at the record start, so the FRF is that of the
+structure with every pole's real part shifted by the window's decay rate (undone by
+:func:`modal.windows.remove_added_damping`).  A hit is rejected, with the reason kept,
 for lost data (its record overlaps a gap or corrupt event or holds NaN rows), a truncated record (the
 data end before the record does), an overload (a flagged overload event or a clipped channel), a
 double hit (the force rises again after the pulse), or low coherence (its FRF disagrees with the
@@ -112,7 +113,7 @@ def _gap_reasons(samples: np.ndarray, starts: np.ndarray, record_len: int, chans
 def impact_spectra(samples: np.ndarray, sample_rate_hz: float, force_col: int, outputs: Sequence[int], *,
                    triggers: Sequence[int] | None = None, pretrigger_s: float = 0.02,
                    record_len: int | None = None, force_window: str = "force",
-                   exp_window: str = "exponential", averaging: str = "linear", n_exp: int = 4,
+                   exp_window: str = "exponential:1", averaging: str = "linear", n_exp: int = 4,
                    double_hit_fraction: float = 0.1, min_frac: float = 0.9, min_gap_s: float = 1.0,
                    overload_samples: Sequence[int] = (), gaps: Sequence[tuple[int, int]] = ()
                    ) -> tuple[Spectra, list[Hit]]:

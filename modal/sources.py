@@ -19,6 +19,7 @@ from flexmodal.modal.identify import Modes, identify, modes_table
 from flexmodal.modal.oma import default_method, identify_output_only
 from flexmodal.modal.registry import output_only
 from flexmodal.modal.runs_io import read_frf
+from flexmodal.modal.sweep import sweep_starts
 
 
 def _driving_point(run, result: FrfResult) -> int | None:
@@ -66,7 +67,7 @@ def by_reciprocity(result: FrfResult) -> FrfResult:
 
 def excitation_of(result: FrfResult) -> str | None:
     """How FRFs were made, for advice on resolution: ``impact`` (hit records, force/exponential
-    windows), ``sweep`` (one sweep's whole record), ``random`` (Welch-averaged: random or sweep runs),
+    windows), ``sweep`` (each sweep's whole record), ``random`` (Welch-averaged: random or sweep runs),
     None (stored FRFs, e.g. UFF)."""
     if result.estimator == "stored":
         return None
@@ -79,7 +80,7 @@ def identify_frf(result: FrfResult, *, driving_point: int | None = None,
                  decay_rate_per_s: float | None = None, **options) -> Modes:
     """Modes of FRFs in memory (``modal.identify.identify`` with the result's quantity; ``options`` as
     there); ``decay_rate_per_s`` (1/s) overrides the exponential window the FRFs record."""
-    from flexmodal.modal.uncertainty import with_uncertainty
+    from flexmodal.modal.uncertainty import welch_noise, with_uncertainty
 
     decay = result.decay_rate_per_s if decay_rate_per_s is None else decay_rate_per_s
     options.setdefault("excitation", excitation_of(result))
@@ -87,9 +88,12 @@ def identify_frf(result: FrfResult, *, driving_point: int | None = None,
         else "accelerance"
     modes = identify(result.freq_hz, result.H, coherence=result.coherence, quantity=quantity,
                      decay_rate_per_s=decay, driving_point=driving_point, **options)
-    # freq_std_hz / damping_std (issue 26): the poles refined with their FRF-noise uncertainty
+    # freq_std_hz / damping_std (issue 26): the poles refined with their FRF-noise uncertainty (and
+    # with the window's leakage modelled for Welch-averaged FRFs)
+    welch = welch_noise(result.window, result.nfft, float(result.provenance.get("overlap", 0.5))) \
+        if excitation_of(result) == "random" else None
     return with_uncertainty(modes, result.freq_hz, result.H, result.coherence, result.n_averages, quantity,
-                            decay)
+                            decay, welch)
 
 
 def identify_input(path: str | Path, *, method: str | None = None, fmin: float | None = None,
@@ -149,19 +153,21 @@ def identify_input(path: str | Path, *, method: str | None = None, fmin: float |
 
 
 def _uff_record_frfs(p: Path, data) -> FrfResult:
-    """FRFs of UFF time histories: one record per channel (a sine sweep: H1 of the whole record, one
-    rectangular segment; else impact or random by the force's crest factor), or hits assembled from
+    """FRFs of UFF time histories: one record per channel (sine sweeps: H1 of one rectangular segment
+    per sweep, :mod:`modal.sweep`; else impact or random by the force's crest factor), or hits assembled from
     several records per channel (impact, each record starting at its hit's start)."""
     if "force" not in data.kinds:
         raise ModalError(f"{p}: no force channel among the time histories {', '.join(data.names)} (a force "
                          "is a dataset 58 ordinate of data type 13), so no FRF can be formed")
     if data.hit_len is None:
-        force = data.samples[:, list(data.kinds).index("force")]
-        if _sweep(force):   # one sine sweep: its FRF from the whole record, at the finest resolution
-            n = data.samples.shape[0] - data.samples.shape[0] % 2
-            result = frf_of_record(data.samples[:n], data.sample_rate_hz, data.names, data.kinds, nfft=n,
-                                   window="rect", where=str(p))
-            return dataclasses.replace(result, provenance={**result.provenance, "excitation": "sweep"})
+        forces = data.samples[:, [j for j, k in enumerate(data.kinds) if k == "force"]]
+        starts = sweep_starts(forces)
+        # sine sweeps: one rectangular segment per sweep, at the finest resolution; H1 of several
+        # inputs needs at least as many sweeps (drive patterns) as inputs
+        if starts is not None and starts.size >= forces.shape[1]:
+            return frf_of_record(data.samples, data.sample_rate_hz, data.names, data.kinds, sweeps=starts,
+                                 where=str(p))
+        force = forces[:, 0]
         if not _impulsive(force):
             return frf_of_record(data.samples, data.sample_rate_hz, data.names, data.kinds, where=str(p))
         from flexmodal.modal.impact import find_triggers
@@ -177,23 +183,6 @@ def _uff_record_frfs(p: Path, data) -> FrfResult:
     lead = min(t - k * data.hit_len for k, t in enumerate(data.triggers))   # samples before each impact
     return frf_of_record(data.samples, data.sample_rate_hz, data.names, data.kinds, excitation="impact",
                          where=str(p), triggers=list(data.triggers), pretrigger_s=lead / data.sample_rate_hz)
-
-
-def _sweep(force, blocks: int = 16) -> bool:
-    """A force whose dominant frequency moves one way through the record (a sine sweep or chirp): the
-    peak of the spectrum of each of ``blocks`` blocks, leaving out the quiet ones (before and after the
-    sweep), rises (or falls) monotonically over at least four lines."""
-    x = np.asarray(force, float) - np.mean(force)
-    n = x.size // blocks
-    if n < 32:
-        return False
-    seg = x[:n * blocks].reshape(blocks, n)
-    energy = np.sum(seg ** 2, axis=1)
-    spec = np.abs(np.fft.rfft(seg[energy >= 0.05 * energy.max()] * np.hanning(n), axis=1))
-    peak = np.argmax(spec[:, 1:], axis=1) + 1
-    step = np.diff(peak)
-    one_way = np.all(step >= 0) or np.all(step <= 0)
-    return bool(peak.size >= 4 and one_way and abs(int(peak[-1] - peak[0])) >= 4)
 
 
 def _impulsive(force) -> bool:

@@ -261,10 +261,13 @@ class _Plan:
 
 
 def _row_blocks(samples, rows_per_block: int, dtype) -> Iterator[tuple[int, np.ndarray]]:
-    """(first row, rows [n, n_columns] as a row-major ``dtype`` array) blocks of ``samples``: views of
-    an in-memory array that is one already, else read (an on-disk dataset, h5py) or converted one
-    block ahead in a background thread, so reading overlaps the FFTs; at most three blocks are held
-    at a time."""
+    """(first row, rows [n, n_columns] as a row-major ``dtype`` array) blocks of ``samples``: an
+    in-memory array that is one already as one block (no copy, no thread: no segment block straddles
+    two reads), else blocks read (an on-disk dataset, h5py) or converted one block ahead in a
+    background thread, so reading overlaps the FFTs; at most three blocks are held at a time."""
+    if isinstance(samples, np.ndarray) and samples.dtype == dtype and samples.flags.c_contiguous:
+        yield 0, samples
+        return
     n = samples.shape[0]
     ready: queue.Queue = queue.Queue(maxsize=1)
     stop = threading.Event()

@@ -25,7 +25,7 @@ from flexmodal.checked_io.output import atomic_path
 from flexmodal.checked_io.text import available_memory_bytes, regular_file
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult
-from flexmodal.modal.valid_uff import check_functions
+from flexmodal.modal.valid_uff import check_functions, drop_line_padding
 
 _AXES = "xyz"
 _SPEC = {"accelerance": 12, "mobility": 11, "receptance": 8}
@@ -88,7 +88,7 @@ def read_uff(path: str | Path) -> UffFrfs | UffRecord:
     if not sets:
         raise ModalError(f"{p}: no dataset found (not a UFF file, or one pyuff cannot read)")
     types = sorted({int(s.get("type", -1)) for s in sets})
-    funcs = [s for s in sets if s.get("type") == 58]
+    funcs = drop_line_padding([s for s in sets if s.get("type") == 58])
     if not funcs:
         raise ModalError(f"{p}: no dataset 58 (found dataset types {types}; only 58 is read)")
     check_functions(p, funcs)

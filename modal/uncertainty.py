@@ -1,35 +1,48 @@
 """Uncertainty of identified natural frequencies and damping ratios from the FRF's own random error.
 
-``with_uncertainty(modes, freq_hz, H, coherence, n_averages, quantity="accelerance") -> Modes``
+``with_uncertainty(modes, freq_hz, H, coherence, n_averages, quantity="accelerance", decay_rate_per_s=0,
+welch=None) -> Modes``
     the hook of the identification (modal/sources.py ``identify_frf``, the demo): ``modes`` with
     ``freq_std_hz``/``damping_std`` set and its frequencies and damping ratios refined to the
     maximum-likelihood estimates below (their standard deviations belong to those: a pLSCF pole
     itself scatters about four times more, tests/test_modal_uncertainty.py); a mode whose refined
-    pole leaves its half-power band keeps its pLSCF values and gets NaN.
+    pole leaves its half-power band keeps its pLSCF values and gets NaN.  ``welch``
+    (:func:`welch_noise`) describes Welch-averaged FRFs (random excitation); None for FRFs without
+    leakage (impact records) or of unknown processing.
 
-``modal_uncertainty(freq_hz, H, coherence, n_averages, fn_hz, zeta, quantity="accelerance",
-overlap_correlation=HANN_50_CORRELATION, enbw_bins=HANN_ENBW_BINS) -> ModalUncertainty``
+``modal_uncertainty(freq_hz, H, coherence, n_averages, fn_hz, zeta, quantity="accelerance", ...,
+welch=None) -> ModalUncertainty``
     ``freq_std_hz`` [Hz], ``damping_std`` [-] one per mode (NaN where the bands hold too few lines),
     and the refined ``local_freq_hz``/``local_damping`` they belong to.
 
 1. Random error of the FRF estimate (Bendat & Piersol 2010, eq. 9.90): the normalised random error of
    |H| and the standard deviation of its phase [rad] are both ``sqrt(1 - g2) / (|g| sqrt(2 n_d))``
    with ``g2`` the (ordinary or multiple) coherence and ``n_d`` the number of independent averages, so
-   the real and imaginary parts of H carry ``sigma = |H| sqrt(1 - g2) / sqrt(2 n_d g2)`` each.  Welch
-   segments with 50 % overlap of a Hann window are correlated (``overlap_correlation`` = 0.167,
-   Harris 1978, Table 1); ``n_d = n_averages / (1 + 2 rho^2)`` (Welch 1967).  Neighbouring lines of a
-   windowed estimate are correlated: treating them as independent, the variance is widened by the
-   window's equivalent noise bandwidth in lines (``enbw_bins``, 1.5 for Hann).
+   the real and imaginary parts of H carry ``sigma = |H| sqrt(1 - g2) / sqrt(2 n_d g2)`` each.
+   Overlapping segments are correlated: ``n_d = n_averages / (1 + 2 sum_j c(j D)^2)`` with ``c`` the
+   window's normalised autocorrelation at the segment step D (Welch 1967; 0.167 for Hann at 50 %,
+   Harris 1978, Table 1).  The errors of lines j apart are correlated by ``|W2[j]|^2``, W2 the
+   normalised DFT of the squared window (Hann: 4/9, 1/36): the fit below is whitened by the banded
+   Cholesky factor of that correlation.  Without ``welch`` (impact records, stored FRFs) the lines are
+   taken as independent with the variance widened by ``enbw_bins`` (1.5, the Hann window's equivalent
+   noise bandwidth).
 2. On the lines within ``BAND_HALF_WIDTHS`` half-power bandwidths of any mode (at least
    ``MIN_LINES`` per mode), the receptance of every FRF column is the modal model
    ``sum_r A_r / (i w - lambda_r) + B_r / (i w - conj(lambda_r)) + R - S / w^2`` (upper and lower
    residuals R, S), with the poles ``lambda_r = -zeta_r w_r + i w_r sqrt(1 - zeta_r^2)`` shared by
    all columns and residues per column (rational-fraction modal model, Richardson & Formenti 1982).
+   A Welch estimate is not that model but its expectation under averaging: for white input
+   ``E[G_xy] / G_xx`` is the transform of the impulse response times the window's lag window ``c``
+   (Bendat & Piersol 2010 §8.5; Schmidt 1985), so with ``welch`` each pole term is
+   ``dt sum_n c[n] exp((lambda - i w) n dt)`` (one FFT per pole) -- the leakage that otherwise biases
+   every damping ratio high by several sigma at a few lines per half-power band.
    A few Gauss-Newton steps of variable projection (Golub & Pereyra 1973; Kaufman's Jacobian) from
    the identified poles give their weighted least-squares (maximum-likelihood under 1.) estimates;
    the covariance is the inverse of the Fisher information ``J_p^T (I - P) J_p`` of the poles' real
    and imaginary parts with the residues projected out (``P`` the projection onto their columns;
-   Pintelon, Guillaume & Schoukens 2007).
+   Pintelon, Guillaume & Schoukens 2007); with ``welch`` it is multiplied by the fit's chi^2 per
+   degree of freedom where that exceeds 1 (the Birge ratio: noise larger than the coherence says, e.g.
+   a coherence estimate biased high by few averages, or a band the local model does not fit).
 3. ``f_n = |lambda| / 2 pi`` and ``zeta = -Re(lambda) / |lambda|``: their standard deviations by the
    delta method.
 
@@ -56,10 +69,12 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
+import scipy.linalg
 
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import convert
 from flexmodal.modal.identify import Modes
+from flexmodal.modal.windows import window
 
 HANN_50_CORRELATION = 0.167
 """Correlation of consecutive Hann-windowed segments at 50 % overlap (Harris 1978, Table 1)."""
@@ -69,6 +84,8 @@ a windowed estimate are correlated, so a band of K lines carries the information
 BAND_HALF_WIDTHS = 3.0
 """Half-width of the local fit band in half-power bandwidths (2 zeta f_n)."""
 MIN_LINES = 7
+MAX_CORRELATED_LINES = 8
+LINE_CORRELATION_FLOOR = 1e-4
 GAUSS_NEWTON_STEPS = 8
 COHERENCE_MAX = 1.0 - 1e-6
 
@@ -100,39 +117,131 @@ def _real(z: np.ndarray) -> np.ndarray:
     return np.concatenate([z.real, z.imag], axis=0)
 
 
-def _information(w: np.ndarray, h: np.ndarray, s: np.ndarray, lam: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray]:
+@dataclass(frozen=True)
+class WelchNoise:
+    """What Welch averaging with one window does to an H1 estimate (module docstring, steps 1-2):
+    ``lag`` [nfft] the lag window (the window's autocorrelation, ``lag[0] = 1``), ``overlap_factor`` the
+    variance factor of overlapping segments ``1 + 2 sum_j lag[j D]^2`` (D the segment step; Welch 1967),
+    ``line_correlation`` [p + 1] the correlation of the errors of lines j apart (``|W2[j]|^2`` with W2
+    the normalised DFT of the squared window: 1, 4/9, 1/36 for Hann))."""
+
+    lag: np.ndarray
+    overlap_factor: float
+    line_correlation: np.ndarray
+
+
+def welch_noise(spec: str, nfft: int, overlap: float = 0.5) -> WelchNoise:
+    """:class:`WelchNoise` of Welch averaging with window ``spec`` over segments of ``nfft`` samples
+    overlapping by ``overlap`` (fraction).
+
+    Examples
+    --------
+    >>> u = welch_noise("hann", 1024)
+    >>> round(float(u.lag[512]), 4), round(u.overlap_factor, 4), u.line_correlation.round(4).tolist()
+    (0.1667, 1.0556, [1.0, 0.4444, 0.0278])
+    """
+    w = window(spec, nfft)
+    r = np.fft.irfft(np.abs(np.fft.rfft(w, 2 * nfft)) ** 2, 2 * nfft)[:nfft]
+    lag = r / r[0]
+    step = max(1, int(round(nfft * (1.0 - overlap))))
+    factor = 1.0 + 2.0 * float(np.sum(lag[step::step] ** 2))
+    w2 = np.abs(np.fft.fft(w**2)[:MAX_CORRELATED_LINES + 1] / np.sum(w**2)) ** 2
+    keep = np.flatnonzero(w2 >= LINE_CORRELATION_FLOOR)
+    return WelchNoise(lag, factor, w2[: keep[-1] + 1])
+
+
+def _basis(w: np.ndarray, lam: np.ndarray, lag: np.ndarray | None, df_hz: float
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Pole terms at ``w`` [K] rad/s of the poles ``lam`` [M] and of their conjugates, [K, M] each, and
+    their derivatives with respect to the pole: ``1/(i w - lam)`` without ``lag``; with the lag window
+    ``lag`` [N] of Welch averaging at line spacing ``df_hz`` (lines on bins k df_hz) their expected
+    Welch estimate ``dt sum_n lag[n] exp((lam - i w) n dt)``, dt = 1 / (N df_hz) (module docstring)."""
+    if lag is None:
+        a = 1.0 / (1j * w[:, None] - lam[None])
+        b = 1.0 / (1j * w[:, None] - np.conj(lam)[None])
+        return a, b, a**2, b**2
+    n = lag.size
+    dt = 1.0 / (n * df_hz)
+    t = np.arange(n) * dt
+    k = np.rint(w / (2 * np.pi * df_hz)).astype(int)
+    e = np.exp(np.outer(t, lam)) * lag[:, None]                       # [N, M]
+    terms = np.concatenate([e, np.conj(e), t[:, None] * e, t[:, None] * np.conj(e)], axis=1)
+    g = np.fft.fft(terms, axis=0)[k] * dt                             # [K, 4M]
+    return np.split(g, 4, axis=1)
+
+
+def _band_cholesky(lines: np.ndarray, line_correlation: np.ndarray) -> np.ndarray | None:
+    """Lower banded Cholesky factor (scipy.linalg.cholesky_banded layout) of the correlation matrix of
+    the errors at the FFT lines ``lines`` [K] (ascending integers); None when the lines are independent."""
+    p = line_correlation.size - 1
+    if p == 0:
+        return None
+    ab = np.zeros((p + 1, lines.size))
+    ab[0] = 1.0
+    for d in range(1, p + 1):                            # a loop over the few correlated offsets
+        gap = lines[d:] - lines[:-d]
+        ab[d, :-d] = np.where(gap <= p, line_correlation[np.minimum(gap, p)], 0.0)
+    return scipy.linalg.cholesky_banded(ab, lower=True)
+
+
+def _information(w: np.ndarray, h: np.ndarray, s: np.ndarray, lam: np.ndarray,
+                 noise: WelchNoise | None = None, df_hz: float = 0.0, chol: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, float]:
     """Fisher information [2M, 2M] of (Re, Im) of the poles ``lam`` [M] with the residues and residual
-    terms projected out, and the Gauss-Newton step [2M] towards the weighted least-squares poles
-    (``h`` [K, m] FRF columns in receptance at ``w`` [K] rad/s, ``s`` [K, m] their standard deviations)."""
-    a = 1.0 / (1j * w[:, None] - lam[None])                     # [K, M]
-    b = 1.0 / (1j * w[:, None] - np.conj(lam)[None])
+    terms projected out, the Gauss-Newton step [2M] towards the weighted least-squares poles and the
+    residual variance factor (chi^2 / degrees of freedom)
+    (``h`` [K, m] FRF columns in receptance at ``w`` [K] rad/s, ``s`` [K, m] their standard deviations;
+    ``noise``, ``df_hz`` as :func:`_basis`; ``chol`` the lines' correlation, :func:`_band_cholesky`)."""
+    a, b, da, db = _basis(w, lam, None if noise is None else noise.lag, df_hz)
     phi = np.concatenate([a, b, np.ones((w.size, 1)), -1.0 / w[:, None] ** 2], axis=1)   # [K, 2M + 2]
-    M = lam.size
+    M, P = lam.size, phi.shape[1]
     info = np.zeros((2 * M, 2 * M))
     grad = np.zeros(2 * M)
+    rss = 0.0
     for j in range(h.shape[1]):                       # a loop over FRF columns (few), not lines
-        wt = 1.0 / s[:, j]
-        A = _real(np.concatenate([phi, 1j * phi], axis=1) * wt[:, None])     # [2K, 2P] real columns
-        y = _real(h[:, j] * wt)
+        x = np.concatenate([phi, h[:, j:j + 1]], axis=1) / s[:, j:j + 1]
+        if chol is not None:                             # whitened: L^-1 D^-1 (D the standard deviations)
+            x = scipy.linalg.solve_banded((chol.shape[0] - 1, 0), chol, x)
+        A = _real(np.concatenate([x[:, :P], 1j * x[:, :P]], axis=1))         # [2K, 2P] real columns
+        y = _real(x[:, P])
         coef, *_ = np.linalg.lstsq(A, y, rcond=None)
-        P = phi.shape[1]
         c = coef[:P] + 1j * coef[P:]
         ca, cb = c[:M], c[M:2 * M]
-        d_re = a**2 * ca + b**2 * cb                                 # [K, M]
-        d_im = 1j * a**2 * ca - 1j * b**2 * cb
-        J = _real(np.concatenate([d_re, d_im], axis=1) * wt[:, None])   # [2K, 2M]
+        d = np.concatenate([da * ca + db * cb, 1j * da * ca - 1j * db * cb], axis=1) / s[:, j:j + 1]
+        if chol is not None:
+            d = scipy.linalg.solve_banded((chol.shape[0] - 1, 0), chol, d)
+        J = _real(d)                                     # [2K, 2M]
         Q, _ = np.linalg.qr(A)
         Jp = J - Q @ (Q.T @ J)
         info += Jp.T @ Jp
         grad += Jp.T @ (y - A @ coef)
-    return info, grad
+        rss += float(np.sum((y - A @ coef) ** 2))
+    dof = y.size * h.shape[1] - A.shape[1] * h.shape[1] - 2 * M
+    return info, grad, rss / dof if dof > 0 else 1.0
+
+
+def _refine(w: np.ndarray, h: np.ndarray, s: np.ndarray, lam: np.ndarray, noise: WelchNoise | None,
+            df_hz: float, chol: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, float]:
+    """Gauss-Newton steps of variable projection from ``lam``: the weighted least-squares poles, their
+    information and residual variance factor there (arguments as :func:`_information`)."""
+    for _ in range(GAUSS_NEWTON_STEPS):
+        info, grad, _ = _information(w, h, s, lam, noise, df_hz, chol)
+        try:
+            step = np.linalg.solve(info, grad)
+        except np.linalg.LinAlgError:
+            break
+        lam = lam + step[:lam.size] + 1j * step[lam.size:]
+        if np.all(np.abs(step) < 1e-10 * np.abs(np.concatenate([lam, lam]))):
+            break
+    info, _, factor = _information(w, h, s, lam, noise, df_hz, chol)
+    return lam, info, factor
 
 
 def modal_uncertainty(freq_hz: np.ndarray, H: np.ndarray, coherence: np.ndarray, n_averages: int,
                       fn_hz: np.ndarray, zeta: np.ndarray, *, quantity: str = "accelerance",
                       overlap_correlation: float = HANN_50_CORRELATION,
-                      enbw_bins: float = HANN_ENBW_BINS, decay_rate_per_s: float = 0.0) -> ModalUncertainty:
+                      enbw_bins: float = HANN_ENBW_BINS, decay_rate_per_s: float = 0.0,
+                      welch: WelchNoise | None = None) -> ModalUncertainty:
     """Standard deviations of the identified ``fn_hz`` [Hz] and ``zeta`` [-] (module docstring).
 
     ``H`` [n_out, n_in, n_freq] the FRFs the modes were identified from (``quantity`` of H),
@@ -144,6 +253,9 @@ def modal_uncertainty(freq_hz: np.ndarray, H: np.ndarray, coherence: np.ndarray,
     if H.ndim != 3 or H.shape[-1] != f.size or np.shape(coherence) != (H.shape[0], f.size):
         raise ModalError(f"FRF uncertainty: FRFs {H.shape} and coherence {np.shape(coherence)} do not "
                          f"match {f.size} lines")
+    if welch is not None:        # the window's own overlap factor and line correlation (no ENBW widening)
+        overlap_correlation = math.sqrt((welch.overlap_factor - 1.0) / 2.0)
+        enbw_bins = 1.0
     sd = frf_std(H, coherence, n_averages, overlap_correlation)
     pos = f > 0
     rec = np.zeros_like(H, dtype=complex)
@@ -165,21 +277,15 @@ def modal_uncertainty(freq_hz: np.ndarray, H: np.ndarray, coherence: np.ndarray,
     if fn.size == 0 or band.size < MIN_LINES * fn.size:
         return ModalUncertainty(nan, nan.copy(), nan.copy(), nan.copy())
     w = 2 * np.pi * f[band]
+    df = float(np.median(np.diff(f)))
     wn = 2 * np.pi * fn
     lam = -zeta * wn + 1j * wn * np.sqrt(np.clip(1.0 - zeta**2, 0.0, None))
     h, s = cols[band], sds[band]
-    for _ in range(GAUSS_NEWTON_STEPS):
-        info, grad = _information(w, h, s, lam)
-        try:
-            step = np.linalg.solve(info, grad)
-        except np.linalg.LinAlgError:
-            break
-        lam = lam + step[:fn.size] + 1j * step[fn.size:]
-        if np.all(np.abs(step) < 1e-10 * np.abs(np.concatenate([lam, lam]))):
-            break
-    info, _ = _information(w, h, s, lam)
+    lines = np.rint(f[band] / df).astype(int)
+    chol = None if welch is None else _band_cholesky(lines, welch.line_correlation)
+    lam, info, birge = _refine(w, h, s, lam, welch, df, chol)
     try:
-        cov = np.linalg.inv(info)
+        cov = np.linalg.inv(info) * (1.0 if welch is None else max(1.0, birge))
     except np.linalg.LinAlgError:
         return ModalUncertainty(nan, nan.copy(), nan.copy(), nan.copy())
     lam = lam + decay_rate_per_s                          # the exponential window's decay removed
@@ -199,7 +305,8 @@ def modal_uncertainty(freq_hz: np.ndarray, H: np.ndarray, coherence: np.ndarray,
 
 
 def with_uncertainty(modes: Modes, freq_hz: np.ndarray, H: np.ndarray, coherence: np.ndarray | None,
-                     n_averages: int, quantity: str = "accelerance", decay_rate_per_s: float = 0.0) -> Modes:
+                     n_averages: int, quantity: str = "accelerance", decay_rate_per_s: float = 0.0,
+                     welch: WelchNoise | None = None) -> Modes:
     """``modes`` (identified from ``H``) with refined poles and their standard deviations (module
     docstring); ``modes`` unchanged but for NaN standard deviations when there are no modes or
     fewer than two averages."""
@@ -207,7 +314,7 @@ def with_uncertainty(modes: Modes, freq_hz: np.ndarray, H: np.ndarray, coherence
     if n == 0 or n_averages < 2 or coherence is None:
         return replace(modes, freq_std_hz=np.full(n, np.nan), damping_std=np.full(n, np.nan))
     u = modal_uncertainty(freq_hz, H, coherence, n_averages, modes.freq_hz, modes.damping_ratio,
-                          quantity=quantity, decay_rate_per_s=decay_rate_per_s)
+                          quantity=quantity, decay_rate_per_s=decay_rate_per_s, welch=welch)
     ok = (np.abs(u.local_freq_hz - modes.freq_hz) <= modes.damping_ratio * modes.freq_hz) & \
         (u.local_damping > 0) & np.isfinite(u.freq_std_hz)
     return replace(modes, freq_hz=np.where(ok, u.local_freq_hz, modes.freq_hz),

@@ -93,7 +93,7 @@ def test_one_sign_convention_for_shapes():
 
 
 def test_impact_window_defaults_have_one_home():
-    assert impact_windows(None) == ("force:0.05", "exponential:0.01")
+    assert impact_windows(None) == ("force:0.05", "exponential:1")
     assert impact_windows("exponential:0.2") == ("force:0.05", "exponential:0.2")
     assert impact_windows("force:0.1,exponential") == ("force:0.1", "exponential:0.01")
     np.testing.assert_array_equal(window("force", 100), window("force:0.05", 100))

@@ -67,14 +67,21 @@ def test_cost_rule_goes_parallel_only_when_free_cpus_make_it_pay(monkeypatch):
     gb = 1 << 30
     # one busy CPU, 2 workers: speed-up 2, 100 s left saves 50 s > 3 start-ups: parallel
     assert batch._serial_pays(1.0, 1.0, gb, 100 * gb, 100) is False
-    # 4 s left saves 2 s < 3 start-ups of the pool: serial
-    assert batch._serial_pays(1.0, 1.0, gb, 4 * gb, 10) is True
+    # 0.5 s left saves 0.25 s < the CPU a start-up of the pool takes (0.4 s): serial
+    assert batch._serial_pays(1.0, 1.0, gb, gb // 2, 10) is True
     assert batch._serial_pays(1.0, 1.0, gb, 100 * gb, 3) is True           # too few runs left
     # the serial path already keeps 2 CPUs busy (its FFT threads): a 2-process pool gains nothing
     monkeypatch.setattr(batch.os, "getloadavg", lambda: (2.0, 2.0, 2.0))
     assert batch._serial_pays(1.0, 2.0, gb, 100 * gb, 100) is True
-    # a loaded machine (load 10 on 2 CPUs, as measured here): no free CPU, serial
+    # benchmarks/batch.py's runs of 60 s (21 MB, 0.035 s of CPU each) on 2 idle CPUs, the first two
+    # done by two lanes here keeping 1.4 CPUs busy (the GIL): processes would gain 1.43x; with 98
+    # runs left that saves 0.74 s > 0.4 s, parallel; with 6 left 0.05 s, serial
     monkeypatch.setattr(batch, "usable_cpus", lambda: 2)
+    monkeypatch.setattr(batch.os, "getloadavg", lambda: (1.4, 1.4, 1.4))
+    run = 21 * 10 ** 6
+    assert batch._serial_pays(0.05, 0.07, 2 * run, 98 * run, 98) is False
+    assert batch._serial_pays(0.05, 0.07, 2 * run, 6 * run, 6) is True
+    # a loaded machine (load 10 on 2 CPUs, as measured here): no free CPU, serial
     monkeypatch.setattr(batch.os, "getloadavg", lambda: (10.0, 10.0, 10.0))
     assert batch._serial_pays(1.0, 0.3, gb, 100 * gb, 100) is True
     monkeypatch.setattr(batch, "usable_cpus", lambda: 1)
@@ -153,6 +160,43 @@ def test_serial_path_runs_as_many_runs_at_once_as_idle_cpus_with_the_same_result
     both.abort()                                # one run alone: nothing to wait for
     batch.run_batch(jobs[:1], {"nfft": 256}, workers=0)
     assert [w for _, w in seen] == [2]
+
+
+def test_automatic_choice_has_a_pool_join_the_lanes_with_the_same_results(tmp_path, monkeypatch):
+    """Automatic choice, 2 idle CPUs, the cost rule saying a pool pays: the pool starts in the
+    background while this process computes, then takes jobs beside one lane here; every result is
+    delivered in order and equals the serial one bit for bit.  (The lanes here wait for the pool to
+    run before their first job, so the pool surely takes part, however slowly it starts.)"""
+    files = [str(_runs_file(tmp_path / f"f{j}.h5", ["r0", "r1", "r2"], n=4096)) for j in range(2)]
+    jobs = expand_runs(files)
+    serial = batch.run_batch(jobs, {"nfft": 256}, workers=0)
+    pools, here = [], []
+    real_pool, real_compute = batch._Pool, batch.compute_frf
+
+    def pool(*args, **kwargs):
+        pools.append(real_pool(*args, **kwargs))
+        return pools[-1]
+
+    def compute(run, **options):             # the lanes of this process only (workers import their own)
+        here.append(run.run_id)
+        if len(here) > 1:                     # the first job measures the cost; the others wait for the pool
+            deadline = time.monotonic() + 120
+            while not pools:                  # made once the first job is done
+                assert time.monotonic() < deadline
+                time.sleep(0.01)
+            assert pools[0].ready.result(timeout=120)
+        return real_compute(run, **options)
+
+    monkeypatch.setattr(batch, "idle_cpus", lambda: 2)
+    monkeypatch.setattr(batch, "_serial_pays", lambda *args: False)
+    monkeypatch.setattr(batch, "_Pool", pool)
+    monkeypatch.setattr(batch, "compute_frf", compute)
+    written = []
+    auto = batch.run_batch(jobs, {"nfft": 256}, on_done=lambda p, r, res: written.append((p, r)))
+    assert len(pools) == 1 and pools[0].workers == 1 and len(here) < len(jobs)   # the rest in the pool
+    assert written == [(p, r) for p, r in jobs]
+    for a, b in zip(serial, auto, strict=True):
+        assert np.array_equal(a.H, b.H) and np.array_equal(a.coherence, b.coherence)
 
 
 def _start(args: list[str], log: Path) -> subprocess.Popen:

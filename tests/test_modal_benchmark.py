@@ -31,6 +31,7 @@ def test_benchmark_script_runs_and_reports_ratios_and_differences(capsys, tmp_pa
     assert "HELP `flexmodal frf --help`, bytecode cached: " in out
     assert "so none is more than" in out and "KERNEL Welch H1 + H2 + coherence" in out
     assert "(target <= 1.4)" in out and out.count("(target <= 0.6)") == 2
+    assert "where the CPU of 1 thread goes" in out and "FFTs " in out and "cross-spectra product " in out
     assert "(target <= 2: process <=" in out and "in CPU (steadier on a shared machine)" in out
     assert list(tmp_path.iterdir()) == []
 
@@ -52,5 +53,6 @@ def test_batch_benchmark_reports_every_case_against_serial(capsys, tmp_path):
     assert "BATCH 4 runs" in out and "serial on 1 CPU / this = 1.00x" in out
     assert "--workers 0 / this = 1.00x" in out
     assert "--workers 2 (pool)" in out and "default (by cost)" in out and "POOL start-up" in out
+    assert "COST one run of 1 s" in out and "caller's CPU per task" in out and "pool start (fork server" in out
     assert out.count("CPUs busy") == 4 and "CPUs busy pool workers not counted" in out
     assert list(tmp_path.iterdir()) == []

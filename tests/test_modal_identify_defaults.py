@@ -190,7 +190,7 @@ def test_a_sine_sweep_in_uff_time_histories_gives_its_frf_from_the_whole_record(
     the default nfft hold under one line per half-power band, so the FRF comes from the whole sweep
     (one rectangular segment); damping within 15 %, and the resolution advice names the sweep."""
     from flexmodal.fixtures.modal_sim import modal_response
-    from flexmodal.modal.sources import _sweep
+    from flexmodal.modal.sweep import sweep_starts
 
     fs, t_s = 250.0, 120.0
     t = np.arange(int(fs * t_s)) / fs
@@ -199,7 +199,8 @@ def test_a_sine_sweep_in_uff_time_histories_gives_its_frf_from_the_whole_record(
     fn, zeta = np.array([11.2, 33.2, 65.4]), np.array([0.0015, 0.0015, 0.0015])
     phi = np.array([[1.0, 0.6, -0.4], [0.5, -0.8, 0.7]])
     y = modal_response(force[:, None], fs, fn, zeta, phi, phi[:1])
-    assert _sweep(force) and not _sweep(np.random.default_rng(0).standard_normal(t.size))
+    assert sweep_starts(force[:, None]).tolist() == [0]
+    assert sweep_starts(np.random.default_rng(0).standard_normal((t.size, 1))) is None
     sets = [pyuff.prepare_58(func_type=1, rsp_node=node, rsp_dir=3, ref_node=1, ref_dir=3,
                              ordinate_spec_data_type=13 if node == 1 else 12, orddenom_spec_data_type=0,
                              abscissa_spec_data_type=17, data=data, x=t, abscissa_spacing=1, abscissa_min=0.0,

@@ -195,6 +195,40 @@ def test_frfs_with_any_node_and_direction_numbering_are_identified(tmp_path, cap
     assert table.sensors == ["1001:0", "1002:5", "7-z"]
 
 
+def _analyser_frf_text(f: np.ndarray, data: np.ndarray) -> str:
+    """One FRF as an analyser writes it (UFFFiles.jl's test/datasets/dataset58_FRF.unv, 2018): node
+    names as entity names with node and direction 0, complex single precision six values a line, and
+    the last line filled up with zeros."""
+    values = np.column_stack([data.real, data.imag]).ravel()
+    values = np.concatenate([values, np.zeros(-values.size % 6)])
+    lines = ["".join(f"{v:13.5E}" for v in row) for row in values.reshape(-1, 6)]
+    head = ["    -1", "    58", "Frequency Response Function", "NONE", "05-Dec-18 14:22:22", "NONE", "NONE",
+            "    4         0    0         0 .1.Z-              0   0 .56.Z              0   0",
+            f"         5{f.size:10d}         1{f[0]:13.5E}{f[1] - f[0]:13.5E}{0:13.5E}",
+            "        18    0    0    0 NONE                 NONE",
+            "         0    0    0    0 Receptance           (m/s)/N",
+            "         0    0    0    0 NONE                 NONE",
+            "         2    0    0    0 NONE                 NONE"]
+    return "\n".join([*head, *lines, "    -1", ""])
+
+
+def test_an_analyser_frf_whose_last_data_line_is_filled_with_zeros_is_identified(tmp_path, capsys):
+    """1600 complex points fill 533 lines and 2 values; the analyser pads that line with 4 zeros, which
+    pyuff reads as 2 more points: they are dropped, not refused as a data block of the wrong length."""
+    f = np.arange(1600) * 0.5
+    fn, zeta = np.array([81.5, 175.0, 376.5]), np.array([0.01, 0.008, 0.006])
+    phi = np.array([[1.0, -0.6, 0.8]])
+    H = modal_frf(f, fn, zeta, phi, phi)[0, 0]
+    path = tmp_path / "padded.unv"
+    path.write_text(_analyser_frf_text(f, H))
+    assert _cli(path, tmp_path, capsys)[0] == 0
+    assert np.allclose(ModalTable.read_csv(tmp_path / "m.csv").freq_hz("padded"), fn, rtol=1e-4)
+    # a surplus that is not zero is data the header does not announce: refused with one line
+    path.write_text(_analyser_frf_text(f, H).replace(f"5{f.size:10d}", f"5{f.size - 2:10d}"))
+    _refused(path, tmp_path, capsys, "1602 data values and 1602 abscissa values, the header announces "
+             "num_pts = 1598 (values after the data block)")
+
+
 def _th(data, node, direction, force=False, **extra):
     return pyuff.prepare_58(func_type=1, rsp_node=node, rsp_dir=direction, ref_node=0, ref_dir=0,
                             ordinate_spec_data_type=13 if force else 12, orddenom_spec_data_type=0,

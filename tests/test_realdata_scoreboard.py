@@ -85,7 +85,7 @@ def test_each_entry_carries_its_source_licence_and_a_readable_reference():
         for m in reference["modes"]:
             assert lo <= m["freq_hz"] <= hi
             assert m["damping_range"][0] <= m["damping_ratio"] <= m["damping_range"][1]
-    assert total <= 8 * 2**20, f"the corpus holds {total} bytes (at most 8 MiB)"
+    assert total <= 12_000_000, f"the corpus holds {total} bytes (at most 12 MB)"
 
 
 def test_match_pairs_each_reference_mode_once_within_tolerance():

@@ -3,7 +3,8 @@ a fetched public snapshot and compute its reference modal table with an independ
 
 Usage: ``python benchmarks/realdata_build/build.py [ENTRY ...]`` (all entries when none is named).
 Needs the snapshots (search tool ``fetch``, or ``git clone`` of the repository at the pinned commit
-into ``$REALDATA_MIRROR/<owner>+<name>/repo``), pyuff, sdypy-EMA and pyOMA2.  flexmodal is not used.
+into ``$REALDATA_MIRROR/<owner>+<name>/repo``), pyuff, sdypy-EMA, pyOMA2 and npTDMS.  flexmodal is
+not used.
 """
 
 from __future__ import annotations
@@ -533,51 +534,71 @@ def _pyoma_poles_reference(freq: np.ndarray, damp_pct: np.ndarray, approx_hz: li
     return modes
 
 
-@builder
-def build_pyoma_steel_frame() -> None:
-    """pyOMA's example measurement 10: a 1 m five-storey steel frame under fan (ambient) excitation, a
-    3D scanning laser vibrometer's three skewed beams at node 17 (velocities, direction code 0) and
-    two reference accelerometers at node 24; 256 Hz, 240 s.  Decimated to 64 Hz."""
+def _pyoma_setup(name: str, m: int, approx_hz: list[float], floor_note: str, kind_short: str) -> None:
+    """One setup of pyOMA's example measurements of a 1 m five-storey steel frame under fan (ambient)
+    excitation: a 3D scanning laser vibrometer's three skewed beams at one node (velocities, direction
+    code 0; node and beam angles from channel_dofs.txt) and two reference accelerometers at node 24;
+    256 Hz, 240 s, decimated to 64 Hz.  Reference: pyOMA's stored SSI-cov poles of that setup."""
     from scipy.signal import decimate
 
-    name = "pyoma_steel_frame"
     repo, commit = PYOMA
-    base = "tests/files/measurement_10"
-    data = np.load(io.BytesIO(blob(repo, commit, f"{base}/measurement_10.npy")))
+    base = f"tests/files/measurement_{m}"
+    data = np.load(io.BytesIO(blob(repo, commit, f"{base}/measurement_{m}.npy")))
     poles = np.load(io.BytesIO(blob(repo, commit, f"{base}/modal_data.npz")), allow_pickle=False)
+    dofs = blob(repo, commit, f"{base}/channel_dofs.txt").decode().splitlines()[1:4]
+    beams = [(float(r.split()[2]), float(r.split()[3]), r.split()[4]) for r in dofs]
+    node = int(dofs[0].split()[1])
     y = decimate(data[:, :5], 4, ftype="fir", axis=0, zero_phase=True)   # channel 5 is deleted in setup_info
     d = entry_dir(name)
-    beams = [("vib_l", 28.866, -28.895), ("vib_r", 80.977, -25.551), ("vib_t", 55.879, 8.856)]
-    channels = [{"node": 17, "dir": 0, "kind": "velocity", "records": [y[:, k]],
-                 "id1": f"{lab} azimuth {az:g} elevation {el:g} deg"}
-                for k, (lab, az, el) in enumerate(beams)]
+    uff = f"steel_frame_m{m}.uff"
+    channels = [{"node": node, "dir": 0, "kind": "velocity", "records": [y[:, k]],
+                 "id1": f"{lab} azimuth {round(az, 3):g} elevation {round(el, 3):g} deg"}
+                for k, (az, el, lab) in enumerate(beams)]
     channels += [{"node": 24, "dir": 1, "kind": "acceleration", "records": [y[:, 3]], "id1": "ref_x"},
                  {"node": 24, "dir": 2, "kind": "acceleration", "records": [y[:, 4]], "id1": "ref_y"}]
-    write_time_uff(d / "steel_frame_m10.uff", 64.0, channels)
-    check_uff(d / "steel_frame_m10.uff", [y[:, k] for k in range(5)])
-    approx = [1.23, 1.44, 1.65, 2.1, 4.02, 4.77, 6.68, 7.62, 9.66, 12.17, 12.6, 13.87]   # poles of order 50
+    write_time_uff(d / uff, 64.0, channels)
+    check_uff(d / uff, [y[:, k] for k in range(5)])
     sure, unsure = split_confident(_pyoma_poles_reference(poles["self.modal_frequencies"],
-                                                          poles["self.modal_damping"], approx))
+                                                          poles["self.modal_damping"], approx_hz))
     write_json(d / "reference.json", reference_json(
         sure, band_hz=(0.5, 25), uncertain_hz=unsure,
         source="pyOMA's own SSI-cov poles of this measurement (modal_data.npz in the pyOMA repository), "
                "orders 30-199",
-        notes="Output-only; the three laser channels share node 17 with direction code 0 (skewed beams, "
-              "azimuth/elevation in their id lines).  Decimated record: Nyquist 32 Hz."))
-    _source(name, input="steel_frame_m10.uff", kind_short="output-only, 3D laser (skewed, dir 0) + refs",
+        notes=f"Output-only; the three laser channels share node {node} with direction code 0 (skewed "
+              f"beams, azimuth/elevation in their id lines){floor_note}.  Decimated record: Nyquist 32 Hz."))
+    _source(name, input=uff, kind_short=kind_short,
             repository=repo, commit=commit,
-            paths=[f"{base}/measurement_10.npy", f"{base}/modal_data.npz", f"{base}/channel_dofs.txt",
+            paths=[f"{base}/measurement_{m}.npy", f"{base}/modal_data.npz", f"{base}/channel_dofs.txt",
                    f"{base}/setup_info.txt"],
             licence="GPL-3.0 (pyOMA LICENSE); the derived data file is redistributed under that licence",
             kind="output-only (fan excitation) multi-channel record: three skewed laser-vibrometer beams at "
-                 "one node (velocities) and two reference accelerometers",
+                 f"one node (velocities) and two reference accelerometers{floor_note}",
             structure="1 m five-storey steel frame, fixed base, Institute of Structural Mechanics, "
                       "Bauhaus-Universität Weimar (pyOMA's example data); at least eight modes below 15 Hz",
-            derived="steel_frame_m10.uff: dataset 58b time histories (single precision): vib_l, vib_r, vib_t "
-                    "as node 17 direction 0 (ordinate type 11, velocity; beam angles in id line 1), ref_x "
-                    "and ref_y as node 24 +x, +y (type 12); ref_z dropped as setup_info.txt deletes it; "
-                    "decimated by 4 to 64 Hz (scipy.signal.decimate, FIR, zero phase), 15 360 samples",
-            script="benchmarks/realdata_build/build.py pyoma_steel_frame")
+            derived=f"{uff}: dataset 58b time histories (single precision): vib_l, vib_r, vib_t "
+                    f"as node {node} direction 0 (ordinate type 11, velocity; beam angles in id line 1), "
+                    "ref_x and ref_y as node 24 +x, +y (type 12); ref_z dropped as setup_info.txt deletes "
+                    "it; decimated by 4 to 64 Hz (scipy.signal.decimate, FIR, zero phase), 15 360 samples",
+            script=f"benchmarks/realdata_build/build.py {name}")
+
+
+@builder
+def build_pyoma_steel_frame() -> None:
+    """pyOMA's measurement 10: the lasers at node 17 (fourth floor); the guesses are pyOMA's poles of
+    order 50."""
+    _pyoma_setup("pyoma_steel_frame", 10, [1.23, 1.44, 1.65, 2.1, 4.02, 4.77, 6.68, 7.62, 9.66, 12.17, 12.6,
+                                           13.87], "", "output-only, 3D laser (skewed, dir 0) + refs")
+
+
+@builder
+def build_pyoma_steel_frame_floor1() -> None:
+    """pyOMA's measurement 2: the lasers at node 6 on the first floor, where the laser velocities are 2-6
+    times smaller than at the fourth floor; guesses from its poles of order 50 (and 13.71 Hz, a cluster
+    of its own)."""
+    _pyoma_setup("pyoma_steel_frame_floor1", 2, [1.23, 1.44, 1.65, 2.1, 4.02, 4.77, 6.68, 7.62, 9.66, 12.0,
+                                                 12.17, 12.6, 13.71, 13.87],
+                 "; the lasers on the first floor, near the fixed base (weak response)",
+                 "output-only, 3D laser on floor 1 (weak) + refs")
 
 
 # ------------------------------------------------------------------ pyuff MPS output-only export
@@ -622,6 +643,118 @@ def build_pyuff_mps_oma() -> None:
                     "their original id lines, nodes and directions, decimated by 4 to 800 Hz with "
                     "scipy.signal.decimate (FIR, zero phase), 55 600 samples",
             script="benchmarks/realdata_build/build.py pyuff_mps_oma")
+
+
+# --------------------------------------------------------- OWI-Lab offshore wind turbine, operating
+OWI = ("OWI-Lab/sdypy_io_tdms", "ab81c619687b00d1758dbc94d8c3a1c238a317a0")
+
+
+@builder
+def build_owi_wind_turbine_oma() -> None:
+    """OWI-Lab's TDMS test record tests/static/good/good_tdms_1.tdms (2020-04-09 22:00, 10 min): eight
+    accelerations (g) of an operating offshore wind turbine, 30 Hz: transition piece (TP, level 19 m)
+    and tower (TW, levels 27, 41, 69 m), two horizontal axes each.  Output-only under wind, waves and
+    the rotor: the spectra carry rotor harmonics (1P = 0.2675 Hz and its multiples 3P, 6P, ...) beside
+    the structural modes.  Decimated to 15 Hz."""
+    import nptdms
+    from scipy.signal import decimate
+
+    name = "owi_wind_turbine_oma"
+    repo, commit = OWI
+    d = entry_dir(name)
+    tmp = d / "_src.tdms"
+    tmp.write_bytes(blob(repo, commit, "tests/static/good/good_tdms_1.tdms"))
+    try:
+        group = nptdms.TdmsFile.read(str(tmp))["acceleration"]
+        names = [c.name for c in group.channels()]
+        raw = np.array([c[:].astype(float) for c in group.channels()]) * 9.80665   # g -> m/s^2
+        fs = 1.0 / group.channels()[0].properties["wf_increment"]
+    finally:
+        tmp.unlink()
+    y = decimate(raw - raw.mean(axis=1, keepdims=True), 2, ftype="fir", axis=1, zero_phase=True)
+    fs /= 2
+    levels = sorted({int(n.split("_")[2].removeprefix("LAT")) for n in names})
+    channels = [{"node": levels.index(int(n.split("_")[2].removeprefix("LAT"))) + 1,
+                 "dir": 1 if n.endswith("_X") else 2, "kind": "acceleration", "records": [y[k]], "id1": n}
+                for k, n in enumerate(names)]
+    uff = "wind_turbine_20200409_2200.uff"
+    write_time_uff(d / uff, fs, channels)
+    check_uff(d / uff, list(y))
+    one_p = 0.2675   # the rotor speed: the first peak of the singular-value spectrum, 0.2675 Hz
+    harmonics = [k * one_p for k in (1, 3, 6, 9, 12, 15, 18)]   # those below 5 Hz
+    approx = [0.373, 1.47, 1.55, 3.18, 4.65]   # clusters of stable SSI poles off the harmonics, < 5 Hz
+    sure, unsure = split_confident(oma_reference(y.T, fs, approx, block_rows=(30, 40, 50), ordmax=80))
+    write_json(d / "reference.json", reference_json(
+        sure, band_hz=(0.2, 5.0), uncertain_hz=sorted([*unsure, *harmonics, 3.23]),
+        source="pyOMA2 SSI-cov on the eight decimated records (block rows 30, 40, 50; orders to 80)",
+        notes="Operating offshore wind turbine (structure inferred from OWI-Lab's channel names: TP = "
+              "transition piece, TW = tower, LATnn = level in m).  Rotor harmonics (1P = 0.2675 Hz; 3P, 6P, "
+              "9P, 12P, 15P, 18P) are forced responses, not modes: listed as uncertain (neither required nor "
+              "counted as extras), as are SSI clusters that move with the block rows, and 3.23 Hz, a "
+              "lightly damped cluster 0.6 % from 12P.  Only 10 minutes: 220 periods of the first mode."))
+    _source(name, input=uff, kind_short="output-only, operating wind turbine, rotor harmonics",
+            repository=repo, commit=commit, paths=["tests/static/good/good_tdms_1.tdms"],
+            licence="MIT (sdypy_io_tdms License)", licence_file="License",
+            kind="output-only accelerations of an operating offshore wind turbine (wind, waves, rotor): "
+                 "eight channels on the transition piece and tower; rotor harmonics in the band "
+                 "(NI TDMS record)",
+            structure="offshore wind turbine (OWI-Lab, Vrije Universiteit Brussel); channel names "
+                      "TP_ACC_LAT19_315deg_X/Y and TW_ACC_LAT27/41/69_031deg_X/Y; 2020-04-09 22:00, 600 s",
+            derived=f"{uff}: dataset 58b time histories (single precision, m/s^2 = g x 9.80665, mean "
+                    "removed), nodes 1-4 = levels 19, 27, 41, 69 m, direction +1/+2 = the sensors' X/Y "
+                    "axes (not a common frame: TP heading 315 deg, TW 31 deg); channel names in id line "
+                    "1; decimated by 2 to 15 Hz (scipy.signal.decimate, FIR, zero phase), 9 000 samples",
+            script=f"benchmarks/realdata_build/build.py {name}")
+
+
+# ------------------------------------------------- UFFFiles.jl: an analyser's FRF export, kept as is
+UFFJL = ("maucejo/UFFFiles.jl", "32a97e2ae7150042b16709ae0578b2c542be327e")
+
+
+@builder
+def build_ufffiles_analyser_frf() -> None:
+    """UFFFiles.jl's test/datasets/dataset58_FRF.unv, kept byte for byte: one measured FRF (impact: the
+    same test's force record, dataset58_time.unv, is a 115 N hammer hit) as an analyser exported it on
+    2018-12-05 -- node names '.1.Z-' / '.56.Z' in the entity-name fields with node and direction 0,
+    ordinate type unknown (0) labelled 'Receptance (m/s)/N', complex single precision, 0-800 Hz at
+    0.5 Hz, the data block's last line filled with zeros.  Its coherence (dataset58_coh.unv) is 0.99+
+    at the peaks."""
+    import pyuff
+
+    name = "ufffiles_analyser_frf"
+    repo, commit = UFFJL
+    d = entry_dir(name)
+    raw = blob(repo, commit, "test/datasets/dataset58_FRF.unv")
+    (d / "dataset58_FRF.unv").write_bytes(raw)
+    rec = pyuff.UFF(str(d / "dataset58_FRF.unv")).read_sets()
+    n = rec["num_pts"]
+    f, H = np.asarray(rec["x"], float)[:n], np.asarray(rec["data"])[:n]
+    assert np.all(np.asarray(rec["data"])[n:] == 0)   # the padding of the last line
+    band = (f >= 30) & (f <= 650)
+    # peaks of |H| (coherence > 0.99) and clusters of sdypy-EMA's stable poles (order 80), 30-650 Hz
+    approx = [41.5, 61.8, 81.5, 96.1, 125.2, 140.5, 175.1, 207.0, 239.4, 248.7, 260.7, 299.3, 309.1, 324.2,
+              349.6, 376.1, 464.0, 470.4, 500.8, 542.7, 577.1, 619.0]
+    sure, unsure = split_confident(ema_reference(f[band], H[band][None], approx, lower=30, upper=650,
+                                                 orders=(60, 80, 100), frf_form="mobility"))
+    write_json(d / "reference.json", reference_json(
+        sure, band_hz=(30, 650), uncertain_hz=unsure,
+        source="sdypy-EMA 0.31 LSCF on the FRF (as mobility), 30-650 Hz",
+        notes="One FRF of an impact test; modes kept where sdypy-EMA's stable poles appear in at least "
+              "half of the model orders.  0.5 Hz lines: the lightest modes have 2-8 lines in their "
+              "half-power band."))
+    _source(name, input="dataset58_FRF.unv", kind_short="analyser UFF export as is: FRF, text node names",
+            repository=repo, commit=commit,
+            paths=["test/datasets/dataset58_FRF.unv", "test/datasets/dataset58_coh.unv",
+                   "test/datasets/dataset58_time.unv"],
+            licence="MIT (UFFFiles.jl LICENSE)",
+            kind="impact FRF exported by a measurement system as ASCII UFF 58, kept byte for byte: node "
+                 "names as text ('.1.Z-', '.56.Z') with node and direction 0, ordinate type 0 labelled "
+                 "'Receptance (m/s)/N', the last data line filled with zeros",
+            structure="not documented in UFFFiles.jl (a test file of its dataset-58 reader, added in "
+                      "2025; exported 2018-12-05)",
+            derived="dataset58_FRF.unv: the source file unchanged (1600 complex single-precision points, "
+                    "0-800 Hz at 0.5 Hz)",
+            script=f"benchmarks/realdata_build/build.py {name}")
 
 
 def write_readme() -> None:

@@ -172,7 +172,8 @@ def ema_reference(freq_hz: np.ndarray, frf: np.ndarray, approx_hz: Sequence[floa
     For each highest model order in ``orders`` sdypy-EMA picks the stable pole closest to each
     approximate frequency (``select_closest_poles``); the reference value is the median over those
     picks, and its scatter the spread of the stable poles (within ``window_rel`` of it) over the upper
-    half of the model orders of every run — the estimator's own sensitivity to its order."""
+    half of the model orders of every run — the estimator's own sensitivity to its order; poles of
+    negative damping (unstable, which sdypy-EMA can flag stable) are left out of it."""
     from sdypy import EMA
 
     # sdypy-EMA's pole picking searches windows of at least 2 Hz around each guess; the frequency
@@ -204,7 +205,8 @@ def ema_reference(freq_hz: np.ndarray, frf: np.ndarray, approx_hz: Sequence[floa
                     zz = -np.real(pole) / wn
                     ff = wn / 2 / np.pi
                     best = np.argmin(np.abs(ff - col[hit[0]]))
-                    pool[j].append((ff[best], zz[best]))
+                    if zz[best] > 0:   # sdypy-EMA's stability flags do not check the sign of damping
+                        pool[j].append((ff[best], zz[best]))
     F, Z = np.array(picks_f), np.array(picks_z)
     possible = sum(n - n // 2 for n in orders)
     modes = []
