@@ -101,21 +101,6 @@ def blind_block(seeds: tuple[int, ...] = BLIND_SEEDS, cases: int = BLIND_CASES,
             f"```\n{body}\n```")
 
 
-def advice_block(results: dict) -> str:
-    """Next-measurement advice on the acceptance draws: every ambiguous verdict measured once more at
-    its advised pose and at two random untested poses (fixtures/blind.py ``advice_trials``), per draw
-    and pooled, as a fenced block; ``results`` {seed: run_blind's results}."""
-    from flexmodal.fixtures.blind import advice_trials, format_advice
-
-    lines, pooled = [], []
-    for seed, res in results.items():
-        trials = advice_trials(res, seed=seed)
-        pooled += trials
-        lines.append(f"draw seed {seed}: {format_advice(trials)}")
-    lines.append(f"pooled: {format_advice(pooled)}")
-    return "```\n" + "\n".join(lines) + "\n```"
-
-
 def sparse_block(results: list | None = None, n: int = SPARSE_CASES, seed: int = SPARSE_SEED) -> str:
     """Next-measurement advice where it is needed: ``n`` cases of one library effect measured at three
     poses only (fixtures/blind.py ``sparse_case``), every ambiguous verdict measured once more at its

@@ -20,11 +20,15 @@
    held-out error is lower.  The scatter comes from the data when it can (compare/gap.py
    ``estimate_scatter``), else from the caller.
 4. Verdict: the best candidate pruned of components that do not improve the held-out error beyond
-   noise or sit at their lower bound, passed over when a parameter runs out of range; ``none`` when the
+   the nested margin (noise, or what absorbing the model-form error can gain, ``_nested_margin``) or
+   sit at their lower bound, passed over when a parameter runs out of range; ``none`` when the
    nominal model itself (no parameters) scores at least as well.  ``explained`` is false when the held-out
    RMS is above ``EXPLAINED_FACTOR`` times the scatter or the held-out residuals are structured;
    parameters at bounds and parameters the data cannot identify are flagged; candidates equal within
-   noise are listed as alternatives with the measurement that would separate them.
+   noise, and candidates with one component more within the nested margin, are listed as
+   alternatives with the measurement that would separate them (a ``none`` verdict lists the
+   candidates held out better than the nominal model).  Parameter intervals include a model-form
+   term (the held-out error taken as systematic per mode).
 """
 
 from __future__ import annotations
