@@ -256,8 +256,9 @@ class _Plan:
             k = self.lines.shape[0]
             spec[:, :k] -= means[:, None, :].astype(spec.real.dtype) * self.lines
         used = b - int(bad.sum())
-        g, auto = _products(spec, self.refs)
-        return g, auto, means.sum(axis=0) + offset[self.cols].astype(float) * used, used
+        g, auto = _products(spec, self.refs)    # in double here, so the ordered sums are plain adds
+        mean_sum = means.sum(axis=0) + offset[self.cols].astype(float) * used
+        return g.astype(complex), auto.astype(float), mean_sum, used
 
 
 def _row_blocks(samples, rows_per_block: int, dtype) -> Iterator[tuple[int, np.ndarray]]:
