@@ -538,8 +538,9 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
     verdict = _verdict(ctx, best, ranking, baseline, before, nominal, scatter, sigma, notes)
     if verdict["effect"] != "none":
         _confirm_region(where, rig, verdict["effect"], verdict["location"])
-    else:
+    else:                  # the candidates of a ``none`` verdict are alternatives, not its model
         where = {**where, "modes": [], "configs": [], "region": ""}
+        best = None
     return Diagnosis(
         baseline=Baseline(**baseline), where=Where(**where),
         ranking=tuple(CandidateScore(**_public(e)) for e in ranking[:RANKING_LENGTH]),
