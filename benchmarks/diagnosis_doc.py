@@ -27,7 +27,6 @@ FRESH_SEEDS = (211, 212, 213, 214, 215)
 whose misses were analysed (``BLIND_SEEDS``)."""
 SPARSE_CASES = 60
 SPARSE_SEED = 5
-COVERAGE_RUNS = 400
 
 from flexmodal.compare.diagnosis import diagnose  # noqa: E402
 from flexmodal.contract.table import ModalTable  # noqa: E402
@@ -113,20 +112,12 @@ def sparse_block(results: list | None = None, n: int = SPARSE_CASES, seed: int =
             f"{format_advice(advice_trials(results, seed=seed))}\n```")
 
 
-def coverage_block(runs: int = COVERAGE_RUNS) -> str:
-    """Monte-Carlo coverage of the identification's 95 % intervals (fixtures/modal_coverage.py) for two
-    damping levels and resolutions, as a fenced block."""
-    from flexmodal.fixtures.modal_coverage import coverage
+def coverage_block() -> str:
+    """Monte-Carlo coverage of the identification's 95 % intervals, EMA and output-only
+    (fixtures/modal_coverage.py ``coverage_block``), as a fenced block."""
+    from flexmodal.fixtures.modal_coverage import coverage_block as block
 
-    lines = []
-    for zeta, nfft in ((0.02, 1024), (0.03, 2048)):
-        c = coverage(runs, seed=7, zeta=zeta, nfft=nfft)
-        lines.append(f"zeta {zeta:.2f}/{0.8 * zeta:.3f}, nfft {nfft}, {c['n_runs']} records: frequency "
-                     f"{', '.join(f'{x:.1%}' for x in c['freq'])} (normalised error sd "
-                     f"{', '.join(f'{x:.2f}' for x in c['z_sd_freq'])}); damping "
-                     f"{', '.join(f'{x:.1%}' for x in c['damping'])}; the same sigma around the unrefined "
-                     f"pLSCF frequency {', '.join(f'{x:.1%}' for x in c['freq_plscf'])}")
-    return "```\n" + "\n".join(lines) + "\n```"
+    return block()
 
 
 def doc_block(name: str) -> str:
