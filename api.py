@@ -1114,14 +1114,14 @@ def format_diagnosis(result: Diagnosis) -> str:
     ...                      "examples/measured/seed003_table3_f1f2.csv", effects="joint_stiffness",
     ...                      holdout="theta30,theta90,theta150")
     >>> print(fm.format_diagnosis(result).splitlines()[0])   # doctest: +ELLIPSIS
-    verdict: joint_stiffness at ...; held-out RMS ...% -> ...%; explained: ...
+    verdict: joint_stiffness at ...; held-out RMS ...% -> ...%
     """
-    from flexmodal.compare.diagnosis import scatter_line
+    from flexmodal.compare.verdict_text import scatter_line, verdict_words
 
     v = result.verdict
     lines = [f"verdict: {v.effect} at {v.location or '-'}; held-out RMS "
-             f"{v.heldout_rms_rel_error_before:.2%} -> {v.heldout_rms_rel_error_after:.2%}; "
-             f"explained: {str(v.explained).lower()} ({v.grade})", scatter_line(result)]
+             f"{v.heldout_rms_rel_error_before:.2%} -> {v.heldout_rms_rel_error_after:.2%}"]
+    lines += [x for x in (verdict_words(result), scatter_line(result)) if x]
     lines += [f"  {name} = {v.params[name]:.4g}  (95 % interval {lo:.4g} .. {hi:.4g})"
               for name, (lo, hi) in (v.param_intervals or {}).items()]
     if v.residual_feature or v.flags:
