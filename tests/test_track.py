@@ -16,7 +16,7 @@ from flexmodal.modal.harmonics import find_orders, is_order, sinusoid_kurtosis
 from flexmodal.modal.track import TrackOptions, track_modes
 from flexmodal.models.rig import load_rig
 
-# a 90 s sweep tracked (~25 s CPU, shared by the module) and the CLI on HDF5 and UFF: minutes under load
+# a 90 s sweep tracked (~1 min CPU, shared by the module) and the CLI on HDF5 and UFF: minutes under load
 pytestmark = pytest.mark.timeout(1800)
 
 MOTOR_ORDERS = (36.0, 80.0, 260.0)   # per motor revolution, gear ratio 100
