@@ -7,7 +7,9 @@ signal comes: SIGINT is sent once the process has used a given amount of CPU tim
 inside the computation), or once the child process it waits on exists.  Measured on the shared 2-core
 machine under load (load average 5-10, several test runs at once): 0.01-0.2 s for every case but
 acquire mid-recording (0.1-0.45 s: the readers, the simulator child and the file are closed first);
-the limit below is the issue's 1 s.  Known exception (slow case): a CAN reader that is draining an
+the limit below is the issue's 1 s, counted without the time the command's processes (and this test)
+were runnable but waiting for a CPU (tests/cpu_wait.py; 26 Nov at load 20 with two busy loops beside
+it: 1.2-2.8 s wall for 0.17-0.29 s of it).  Known exception (slow case): a CAN reader that is draining an
 slcan backlog after a stall finishes that read first, 1.43 s once under load (daq/can_driver.py).
 """
 
