@@ -37,31 +37,40 @@ if TYPE_CHECKING:
     from flexmodal.compare.result import Diagnosis
     from flexmodal.compare.tables import Comparison
     from flexmodal.contract.table import ModalTable
-    from flexmodal.daq.acquire import Summary
+    from flexmodal.daq.acquire import Summary, WriteFailed
     from flexmodal.daq.session import Session
     from flexmodal.daq.store import Run
     from flexmodal.modal.frf import FrfResult
-    from flexmodal.modal.identify import Modes
+    from flexmodal.modal.identify import Modes, Thresholds
     from flexmodal.models.rig import Rig
 
 __all__ = [
     "CompareError", "DaqError", "ESTIMATORS", "Faults", "FixtureError", "FlexmodalError", "FrfResult",
     "Identification", "MAX_ELEMENTS", "METHODS", "MODELS", "ModalError", "ModelError", "ReportError",
-    "SIMULATORS", "SelfCheck", "acquire", "animate_mode", "compare_modes", "compute_frf", "compute_frfs",
-    "demo", "diagnose", "fault_flag", "format_comparison", "frf_from_arrays", "identify", "list_runs",
-    "load_rig", "plot_comparison", "plot_frf", "plot_gap", "plot_mode_shapes", "plot_stabilisation",
-    "predict", "read_diagnosis", "read_poses", "read_run", "read_table", "report", "report_pdf", "selftest",
-    "serve_simulator", "track", "write_diagnosis",
+    "SIMULATORS", "SelfCheck", "Thresholds", "WriteFailed", "acquire", "animate_mode", "compare_modes",
+    "compute_frf", "compute_frfs", "demo", "diagnose", "fault_flag", "format_comparison",
+    "format_diagnosis", "frf_from_arrays", "identify", "list_runs", "load_rig", "plot_comparison",
+    "plot_frf", "plot_gap", "plot_mode_shapes", "plot_stabilisation", "predict", "read_diagnosis",
+    "read_poses", "read_run", "read_table", "report", "report_pdf", "selftest", "serve_simulator", "track",
+    "write_comparison", "write_diagnosis",
 ]
 
 
 def __getattr__(name: str):
-    """Result types exported here, loaded on first use (``fm.FrfResult``) so importing the API stays
-    cheap."""
+    """Types exported here, loaded on first use (``fm.FrfResult``, ``fm.Thresholds``,
+    ``fm.WriteFailed``) so importing the API stays cheap."""
     if name == "FrfResult":
         from flexmodal.modal.frf import FrfResult
 
         return FrfResult
+    if name == "Thresholds":
+        from flexmodal.modal.identify import Thresholds
+
+        return Thresholds
+    if name == "WriteFailed":
+        from flexmodal.daq.acquire import WriteFailed
+
+        return WriteFailed
     raise AttributeError(f"module 'flexmodal.api' has no attribute {name!r}")
 
 SHAPE_CONFIGS = 2              # configurations whose mode shapes a report draws on the arm (first, last)
@@ -163,7 +172,17 @@ def acquire(session: PathLike | Session, out: PathLike, *, duration_s: float | N
     Returns
     -------
     daq.acquire.Summary
-        What was stored: ``run_id``, ``n_samples``, ``n_channels``, ``sample_rate_hz`` [Hz], ``events``.
+        What was stored: ``run_id``, ``n_samples``, ``n_channels``, ``sample_rate_hz`` [Hz], ``events``;
+        ``signal``/``error`` when it ended early, ``exit_code`` the command's.
+
+    Raises
+    ------
+    DaqError
+        Bad session, run id or output file (one line naming it).
+    WriteFailed
+        The run file could not be written (disk full, I/O error): its open-for-writing flags are
+        cleared, it holds the last flush.  HDF5 is left unusable for that file in this process: leave
+        it without closing (``os._exit``), as the ``acquire`` command does.
 
     Examples
     --------
@@ -175,6 +194,7 @@ def acquire(session: PathLike | Session, out: PathLike, *, duration_s: float | N
     (2048, 7, 2048.0)
     """
     from flexmodal.checked_io.output import hdf5_output
+    from flexmodal.daq.acquire import WriteFailed
     from flexmodal.daq.acquire import acquire as _acquire
     from flexmodal.daq.errors import DaqError
     from flexmodal.daq.session import load_session
@@ -192,7 +212,13 @@ def acquire(session: PathLike | Session, out: PathLike, *, duration_s: float | N
         from flexmodal.daq.h5file import recover as _recover
 
         _recover(out)
-    return _acquire(session, out, duration_s=duration_s, quiet=quiet, run_id=run_id)
+    try:
+        return _acquire(session, out, duration_s=duration_s, quiet=quiet, run_id=run_id)
+    except WriteFailed:
+        from flexmodal.daq.h5file import recover as _recover
+
+        _recover(out)   # clear the open-for-writing flags (in place) so plain h5py opens the file
+        raise
 
 
 # -- FRFs ------------------------------------------------------------------------------------------
@@ -414,8 +440,10 @@ class Identification:
 
     def write(self, out: PathLike, *, uff: PathLike | None = None) -> Path:
         """Write the modal table CSV ``out`` (docs/formats.md) and, beside it, ``MODES.synthesis.csv``
-        (the FRAC of every measured and synthesised FRF), both or neither (SIGINT/SIGTERM held);
-        with ``uff``, also the modes of the first configuration as UFF dataset 55.  Returns ``out``.
+        (the FRAC of every measured and synthesised FRF) and, for pLSCF, ``MODES.diagram.npz`` (the
+        stabilisation diagrams ``identify --poles`` re-picks from, modal.diagrams), all or none
+        (SIGINT/SIGTERM held); with ``uff``, also the modes of the first configuration as UFF dataset
+        55.  Returns ``out``.
 
         Examples
         --------
@@ -428,20 +456,28 @@ class Identification:
         >>> ident.write(folder / "modes.csv", uff=folder / "modes.uff").name
         'modes.csv'
         >>> sorted(p.name for p in folder.iterdir() if p.suffix != ".h5")
-        ['modes.csv', 'modes.synthesis.csv', 'modes.uff']
+        ['modes.csv', 'modes.diagram.npz', 'modes.synthesis.csv', 'modes.uff']
         """
         from flexmodal.checked_io.output import output_file, signals_deferred
+        from flexmodal.modal.diagrams import StoredDiagram, diagram_path, write_diagrams
         from flexmodal.modal.errors import ModalError
         from flexmodal.modal.identify import synthesis_path, write_synthesis_csv
 
         output_file(out, ModalError, "modal table (--out)")
         output_file(synthesis_path(out), ModalError, "FRF synthesis table (next to --out)", inputs=(out, uff))
+        diagrams = [StoredDiagram(m.diagram_key, c, m.stabilisation, m.order_note)
+                    for c, m in self.modes.items() if m.stabilisation is not None and m.diagram_key]
+        if diagrams:
+            output_file(diagram_path(out), ModalError, "stabilisation diagrams (next to --out)",
+                        inputs=(out, uff))
         if uff is not None:
             output_file(uff, ModalError, "UFF file (--uff)", inputs=(out,))
         modes_by_config = {c: (m, self.outputs[c]) for c, m in self.modes.items()}
-        with signals_deferred():   # the modal table and its synthesis file: both written, or neither
+        with signals_deferred():   # the modal table, its synthesis and diagrams: all written, or none
             self.table.to_csv(out)
             write_synthesis_csv(out, modes_by_config)
+            if diagrams:
+                write_diagrams(diagram_path(out), diagrams)
         if uff is not None:
             from flexmodal.modal.uff import write_modes
 
@@ -453,50 +489,235 @@ class Identification:
 def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: float | None = None,
              fmax: float | None = None, max_order: int | None = None, run_id: str | None = None,
              config: str = "run", pose: Mapping[str, float] | None = None,
-             poles_hz: Sequence[float] | None = None, thresholds=None,
-             decay_rate_per_s: float | None = None,
-             references: Sequence[str] | None = None) -> Identification:
-    """Natural frequencies [Hz], damping ratios and mode shapes of an HDF5 run file (each run one
-    configuration; stored FRFs, else computed), a UFF file (dataset 58 FRFs or time histories), or an
-    ``FrfResult`` in memory (then named ``config`` at ``pose``).  ``method``: ``lscf`` (pLSCF +
-    stabilisation + LSFD) or ``peak`` (CMIF peaks, half-power damping); ``max_order`` caps the pLSCF
-    order (default: it adapts to the data); ``poles_hz`` picks the stable poles nearest these
-    frequencies; ``thresholds`` (``modal.identify.Thresholds``) the automatic selection's limits;
-    ``decay_rate_per_s`` [1/s] the exponential window to take out (default: the one the FRFs record).
-    ``method`` None lets the data decide: ``lscf`` where a force channel exists, else output-only
-    ``ssi`` (also ``fdd``), whose ``references`` are channel names (docs/oma.md); output-only shapes
-    are unscaled.  docs/modal.md."""
+             poles_hz: Sequence[float] | None = None, thresholds: Thresholds | None = None,
+             decay_rate_per_s: float | None = None, references: Sequence[str] | None = None,
+             out: PathLike | None = None, uff: PathLike | None = None,
+             from_diagram: bool = False) -> Identification:
+    """Natural frequencies, damping ratios and mode shapes (docs/modal.md, docs/oma.md).
+
+    Parameters
+    ----------
+    source : str, Path or FrfResult
+        An HDF5 run file (each run one configuration; its stored FRFs, else computed), a UFF file
+        (dataset 58 FRFs, or time histories with a force reference), or FRFs in memory
+        (:func:`compute_frf`, :func:`frf_from_arrays`; then named ``config`` at ``pose``).
+    method : str, optional
+        A registered identification method (modal.registry.METHODS): ``lscf`` (pLSCF + stabilisation
+        + LSFD), ``peak`` (CMIF peaks, half-power damping), output-only ``ssi`` (SSI-cov) or ``fdd``.
+        Default: the data decide, ``lscf`` where a force channel exists, else ``ssi``.
+    fmin, fmax : float, optional
+        Band edges [Hz] (default: the first line above 0 Hz, Nyquist); ``fmin`` < ``fmax``.
+    max_order : int, optional
+        Cap of the pLSCF model order (default: it adapts to the data); ssi: highest model order.
+    run_id : str, optional
+        Only this run of an HDF5 file.
+    config : str
+        Configuration name of FRFs given in memory.
+    pose : mapping, optional
+        Their pose {variable: value} (degrees, kg).
+    poles_hz : sequence of float, optional
+        Pick the stable poles nearest these frequencies [Hz] (exactly these modes, no automatic
+        selection).  With ``out``, they are picked from the stabilisation diagram an earlier
+        identification stored beside it (``MODES.diagram.npz``) when that diagram was computed from the
+        same FRFs and options: the stabilisation runs once, the poles are picked many times.
+    thresholds : modal.identify.Thresholds, optional
+        Limits of the automatic selection (``need_min`` F statistic [-], ``mpc_min`` [0, 1]).
+    decay_rate_per_s : float, optional
+        Decay rate [1/s] of an exponential window the FRFs were measured with, its added damping
+        removed (default: the rate the FRFs record).
+    references : sequence of str, optional
+        ssi/fdd: reference output channels (default all outputs).
+    out : str or Path, optional
+        Also write the modal table CSV here and ``MODES.synthesis.csv`` beside it
+        (:meth:`Identification.write`); the outputs are checked before any work.
+    uff : str or Path, optional
+        With ``out``: also the modes of the first configuration as UFF dataset 55.
+    from_diagram : bool
+        With ``poles_hz``: pick only from the stored diagram beside ``out`` (ModalError when it is
+        missing or was computed from other FRFs or options) instead of falling back to a new
+        stabilisation.
+
+    Returns
+    -------
+    Identification
+        ``table`` (modal table: ``freq_hz`` [Hz], ``damping_ratio`` [-], ``shape.<output>``, ``mpc``,
+        ``mpd`` [deg], ``synthesis_corr``), ``modes[config]`` and ``warnings``.  Output-only shapes
+        are unscaled (unit largest entry).
+
+    Raises
+    ------
+    ModalError
+        Bad input or output (one line naming the file, option or value).
+
+    References
+    ----------
+    B. Peeters, H. Van der Auweraer, P. Guillaume, J. Leuridan, "The PolyMAX frequency-domain method",
+    Shock and Vibration 11 (2004) 395-409 (pLSCF).  B. Peeters, G. De Roeck, "Reference-based
+    stochastic subspace identification for output-only modal analysis", Mechanical Systems and Signal
+    Processing 13 (1999) 855-878 (SSI-cov).
+
+    Examples
+    --------
+    One mode at 40 Hz with 2 % damping (closed form), identified back:
+
+    >>> import numpy as np
+    >>> import flexmodal as fm
+    >>> f = np.linspace(0.0, 100.0, 401)
+    >>> s, w0 = 2j * np.pi * f, 2 * np.pi * 40.0
+    >>> H = s**2 / (s**2 + 2 * 0.02 * w0 * s + w0**2)
+    >>> ident = fm.identify(fm.frf_from_arrays(f, H, outputs=["tip"]))
+    >>> ident.table.frame[["freq_hz", "damping_ratio"]].round(4).values.tolist()
+    [[40.0, 0.02]]
+    """
+    from flexmodal.modal.errors import ModalError
+
+    _check_band(fmin, fmax)
+    if out is not None:
+        _identification_outputs(out, uff, source)
+    elif uff is not None or from_diagram:
+        raise ModalError(f"identify: {'uff' if uff is not None else 'from_diagram'} needs out (the modal "
+                         "table it goes with)")
+    if from_diagram and not poles_hz:
+        raise ModalError("identify --from-diagram: give the poles to pick (--poles F1,F2,...)")
     from flexmodal.modal.identify import modes_table
     from flexmodal.modal.sources import by_reciprocity, identify_frf, identify_input
 
     options = {"method": method, "fmin": fmin, "fmax": fmax, "max_order": max_order, "poles_hz": poles_hz,
-               "thresholds": thresholds, "decay_rate_per_s": decay_rate_per_s}
+               "thresholds": thresholds, "decay_rate_per_s": decay_rate_per_s,
+               "diagrams": _stored_diagrams(out, from_diagram) if poles_hz and out is not None else None}
     if isinstance(source, str | Path):
         table, found = identify_input(source, run_id=run_id, references=references, **options)
-        return Identification(table, {c: m for c, (m, _) in found.items()},
-                              {c: tuple(o) for c, (_, o) in found.items()})
-    source = by_reciprocity(source)   # a roving-hammer set: the hammer points are the shapes' points
-    modes = identify_frf(source, **{**options, "method": method or "lscf"})
-    table = modes_table(modes, source.outputs, config=config, pose=pose)
-    return Identification(table, {config: modes}, {config: tuple(source.outputs)})
+        result = Identification(table, {c: m for c, (m, _) in found.items()},
+                                {c: tuple(o) for c, (_, o) in found.items()})
+    else:
+        source = by_reciprocity(source)   # a roving-hammer set: the hammer points are the shapes' points
+        modes = identify_frf(source, **{**options, "method": method or "lscf"})
+        table = modes_table(modes, source.outputs, config=config, pose=pose)
+        result = Identification(table, {config: modes}, {config: tuple(source.outputs)})
+    if out is not None:
+        result.write(out, uff=uff)
+    return result
+
+
+def _stored_diagrams(out: PathLike, required: bool):
+    """The stabilisation diagrams stored beside ``out`` (modal.diagrams.DiagramStore), or None when
+    there are none to use: no file, or one that does not read (it is replaced by this run's) unless
+    ``required``."""
+    from flexmodal.modal.diagrams import DiagramStore, diagram_path, read_diagrams
+    from flexmodal.modal.errors import ModalError
+
+    path = diagram_path(out)
+    if not path.is_file():
+        if required:
+            raise ModalError(f"{path}: no stored stabilisation diagram (identify without --poles stores it "
+                             "beside --out)")
+        return None
+    try:
+        return DiagramStore(read_diagrams(path), str(path), required)
+    except ModalError:
+        if required:
+            raise
+        return None
+
+
+def _identification_outputs(out: PathLike, uff: PathLike | None, source: object) -> None:
+    """Check the files identification writes (the modal table, its synthesis table, the UFF file)
+    before any work: none of them an input, each replaceable (ModalError naming it)."""
+    from flexmodal.checked_io.output import output_file
+    from flexmodal.modal.errors import ModalError
+
+    inputs = _paths([source])
+    output_file(out, ModalError, "modal table (--out)", inputs=inputs)
+    if uff is not None:
+        output_file(uff, ModalError, "UFF file (--uff)", inputs=(*inputs, out))
+    from flexmodal.modal.diagrams import diagram_path
+    from flexmodal.modal.identify import synthesis_path
+
+    output_file(synthesis_path(out), ModalError, "FRF synthesis table (next to --out)",
+                inputs=(*inputs, out, uff))
+    output_file(diagram_path(out), ModalError, "stabilisation diagrams (next to --out)",
+                inputs=(*inputs, out, uff))
 
 
 def track(source: PathLike, *, pose_from: Mapping[str, str] | None = None, run_id: str | None = None,
           fmin: float | None = None, fmax: float | None = None, window_s: float | None = None,
           hop_s: float | None = None, bin_deg: float = 5.0, max_spread_deg: float = 5.0,
-          orders: Sequence[float] = (), max_order: int = 40):
-    """Modes of an arm while it moves (docs/oma.md, tracking): SSI-cov in sliding windows of an HDF5
-    run or UFF time histories, each tagged with the pose of its encoder channels (``pose_from``: pose
-    variable -> channel, degrees; default the record's one encoder), modes followed by frequency and MAC,
-    motor/gear harmonics (``orders`` per joint revolution, found from the data when empty) set apart.
-    Window length and hop [s] default from the slowest mode and the pose rate; windows whose pose
-    spreads more than ``max_spread_deg`` are skipped.  Returns ``modal.track.TrackResult``; its
-    ``table`` is the modal map (one configuration per ``bin_deg`` pose bin)."""
+          orders: Sequence[float] = (), max_order: int = 40, out: PathLike | None = None):
+    """Modes of an arm while it moves (docs/oma.md, tracking; ``identify --track``).
+
+    SSI-cov in sliding windows of an HDF5 run or UFF time histories, each window tagged with the pose
+    of its encoder channels; modes followed by frequency and MAC, motor/gear harmonics set apart.
+
+    Parameters
+    ----------
+    source : str or Path
+        An HDF5 run file or a UFF file of time histories with encoder channels.
+    pose_from : mapping, optional
+        Pose variable -> encoder channel [deg] (default: the record's one encoder).
+    run_id : str, optional
+        Only this run of an HDF5 file.
+    fmin, fmax : float, optional
+        Band edges [Hz].
+    window_s, hop_s : float, optional
+        Window length and step [s] (default: 80 periods of the slowest mode; a quarter pose bin at
+        the 90th percentile pose rate).
+    bin_deg : float
+        Pose bin width [deg] of the modal map.
+    max_spread_deg : float
+        Windows whose pose standard deviation exceeds this [deg] are skipped.
+    orders : sequence of float
+        Harmonic orders per joint revolution (default: found from the data).
+    max_order : int
+        Highest SSI model order.
+    out : str or Path, optional
+        Also write the modal map CSV here and ``MODES.harmonics.csv`` beside it, both or neither
+        (checked before any work).
+
+    Returns
+    -------
+    modal.track.TrackResult
+        ``table`` the modal map (one configuration per ``bin_deg`` pose bin), ``tracks``,
+        ``harmonics``, ``orders``, ``windows``, ``window_s``/``hop_s`` [s] and ``warnings``.
+
+    References
+    ----------
+    B. Peeters, G. De Roeck, "Reference-based stochastic subspace identification for output-only
+    modal analysis", Mechanical Systems and Signal Processing 13 (1999) 855-878.
+    """
+    _check_band(fmin, fmax)
+    if out is not None:
+        from flexmodal.checked_io.output import output_file
+        from flexmodal.modal.errors import ModalError
+
+        output_file(out, ModalError, "modal table (--out)", inputs=(source,))
+        output_file(_harmonics_path(out), ModalError, "harmonics table", inputs=(source, out))
     from flexmodal.modal.track import TrackOptions, track_input
 
     options = TrackOptions(window_s=window_s, hop_s=hop_s, fmin=fmin, fmax=fmax, max_order=max_order,
                            max_spread_deg=max_spread_deg, bin_deg=bin_deg, orders=tuple(orders))
-    return track_input(str(source), pose_from=pose_from, run_id=run_id, options=options)
+    result = track_input(str(source), pose_from=pose_from, run_id=run_id, options=options)
+    if out is not None:
+        from flexmodal.checked_io.output import signals_deferred
+        from flexmodal.modal.track import write_harmonics_csv
+
+        with signals_deferred():   # the map and its harmonics: both written, or neither
+            result.table.to_csv(out)
+            write_harmonics_csv(str(_harmonics_path(out)), result.harmonics)
+    return result
+
+
+def _harmonics_path(out: PathLike) -> Path:
+    """``MODES.harmonics.csv`` beside the modal map ``MODES.csv``."""
+    out = Path(out)
+    return out.with_name(out.stem + ".harmonics.csv")
+
+
+def _check_band(fmin: float | None, fmax: float | None) -> None:
+    """ModalError when both band edges [Hz] are given and ``fmin`` is not below ``fmax``."""
+    if fmin is not None and fmax is not None and fmin >= fmax:
+        from flexmodal.modal.errors import ModalError
+
+        raise ModalError(f"--fmin {fmin:g} Hz must lie below --fmax {fmax:g} Hz")
 
 
 def read_table(path: PathLike) -> ModalTable:
@@ -591,7 +812,8 @@ def _rig(rig: Rig | PathLike) -> Rig:
 
 def predict(rig: Rig | PathLike, poses: Mapping[str, Mapping[str, float]] | ModalTable | PathLike,
             model: str = "fe", n_modes: int = 4, *, source: str | None = None,
-            progress: Callable[[str], None] | None = None, **options: object) -> ModalTable:
+            progress: Callable[[str], None] | None = None, out: PathLike | None = None,
+            **options: object) -> ModalTable:
     """Predicted modes of a rig for every configuration by one of the registered models.
 
     Parameters
@@ -613,6 +835,8 @@ def predict(rig: Rig | PathLike, poses: Mapping[str, Mapping[str, float]] | Moda
     **options
         Model options (docs/models.md): ``elements_per_link``, ``lumped_mass`` (fe);
         ``masses_per_link``, ``coordinates`` (lumped-mass).
+    out : str or Path, optional
+        Also write the table as a modal table CSV here (checked before any work; never an input).
 
     Returns
     -------
@@ -633,12 +857,19 @@ def predict(rig: Rig | PathLike, poses: Mapping[str, Mapping[str, float]] | Moda
     [25.3, 158.4]
     """
     from flexmodal.models.errors import ModelError
+
+    if out is not None:
+        from flexmodal.checked_io.output import output_file
+
+        output_file(out, ModelError, "prediction table (--out)", inputs=_paths([rig, poses]))
     from flexmodal.models.predict import predict as _predict
 
     rig = _rig(rig)
     if isinstance(poses, str | Path):
         where, poses = poses, read_poses(poses)
-        have = set().union(*poses.values()) if poses else set()
+        if not poses:
+            raise ModelError(f"{where}: no configurations")
+        have = set().union(*poses.values())
         missing = [v for v in rig.pose_variables if v not in have]
         if missing:  # the poses file lacks the column, not the rig its variable
             raise ModelError(f"{where}: no column 'pose.{missing[0]}' (rig {rig.source} needs the pose "
@@ -647,7 +878,10 @@ def predict(rig: Rig | PathLike, poses: Mapping[str, Mapping[str, float]] | Moda
         poses = {c: poses.pose(c) for c in poses.configs}
     if not poses:
         raise ModelError("predict: no configurations")
-    return _predict(rig, poses, model, n_modes, source=source, progress=progress, **options)
+    table = _predict(rig, poses, model, n_modes, source=source, progress=progress, **options)
+    if out is not None:
+        table.to_csv(out)
+    return table
 
 
 # -- comparison and diagnosis ----------------------------------------------------------------------
@@ -739,15 +973,166 @@ def format_comparison(comparison: Comparison, fmt: str = "md", layout: str = "mo
     return render(comparison, fmt, layout, caption)
 
 
-def diagnose(rig: Rig | PathLike, measured: ModalTable | PathLike, *, effects: str | Sequence[str] = "all",
-             holdout: str | Sequence[str] = "auto", scatter: float = 0.005) -> Diagnosis:
-    """Sim-to-real gap diagnosis of the nominal ``rig`` against ``measured`` modes over several poses:
-    where the gap is, which unmodelled effect explains it, judged on held-out configurations
-    (docs/diagnosis.md).  The result is a tree of frozen records (compare/result.py:
-    ``.verdict.effect``, ``.ranking[0].params``, ...); ``.to_json()`` is diagnosis.json (docs/formats.md)."""
-    from flexmodal.compare.diagnosis import diagnose as _diagnose
+def write_comparison(comparison: Comparison, out: PathLike, fmt: str = "md", layout: str = "modes",
+                     caption: str = "Measured and predicted natural frequencies") -> Path:
+    """Write :func:`format_comparison`'s text to a file, atomically (never over one of the tables
+    compared).
 
-    return _diagnose(_rig(rig), _table(measured), effects=effects, holdout=holdout, scatter=scatter)
+    Parameters
+    ----------
+    comparison : compare.tables.Comparison
+        A :func:`compare_modes` result.
+    out : str or Path
+        The file to write.
+    fmt, layout, caption
+        As :func:`format_comparison`.
+
+    Returns
+    -------
+    Path
+        ``out``.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> import flexmodal as fm
+    >>> measured = fm.read_table("examples/measured/seed003_table3_f1f2.csv")
+    >>> fe = fm.predict("examples/rigs/seed003_two_link.toml", measured, "fe", 2)
+    >>> path = fm.write_comparison(fm.compare_modes(measured, fe), tempfile.mkdtemp() + "/t.csv", "csv")
+    >>> path.read_text().splitlines()[0]
+    'config,mode,fe_freq_hz,experiment_freq_hz,fe_err_pct'
+    """
+    from flexmodal.checked_io.output import output_file, write_text
+    from flexmodal.compare.errors import CompareError
+
+    tables = [comparison.measured, *(t for _, t in comparison.predictions)]
+    target = output_file(out, CompareError, "table (--out)", inputs=[t.source for t in tables])
+    return write_text(target, format_comparison(comparison, fmt, layout, caption))
+
+
+DIAGNOSIS_FILES = ("diagnosis.json", "diagnosis.html")   # what write_diagnosis writes into its folder
+
+
+def diagnose(rig: Rig | PathLike, measured: ModalTable | PathLike, *, effects: str | Sequence[str] = "all",
+             holdout: str | Sequence[str] = "auto", scatter: float | None = 0.005,
+             out_dir: PathLike | None = None, progress: Callable[[str], None] | None = None) -> Diagnosis:
+    """Sim-to-real gap diagnosis of a nominal rig against measured modes over several poses.
+
+    Where the gap is, which unmodelled effect (models/effects.py) at which location explains it, judged
+    by the error on held-out configurations (docs/diagnosis.md).
+
+    Parameters
+    ----------
+    rig : models.rig.Rig, str or Path
+        The nominal rig, or its TOML file.
+    measured : contract.table.ModalTable, str or Path
+        Measured modes with ``pose.<var>`` columns (degrees, kg), several configurations.
+    effects : str or sequence of str
+        ``"all"`` or the effect names to rank.
+    holdout : str or sequence of str
+        ``"auto"`` (leave one pose out; 5-fold above 10 poses) or the configurations to hold out.
+    scatter : float, optional
+        Fallback relative scatter of the measured frequencies [-] (0.005 = 0.5 %), used only when the
+        table carries no estimate (repeated configurations or ``freq_std_hz``); None: the default.
+    out_dir : str or Path, optional
+        Also write ``diagnosis.json`` and ``diagnosis.html`` into this folder (:func:`write_diagnosis`);
+        the folder is checked before any work.
+    progress : callable, optional
+        Called with one line once the inputs are read and checked, before the ranking.
+
+    Returns
+    -------
+    compare.result.Diagnosis
+        Frozen records: ``.verdict`` (effect, location, parameters with 95 % intervals, held-out RMS
+        relative error before/after [-]), ``.ranking``, ``.where``; ``.to_json()`` is diagnosis.json
+        (docs/formats.md); :func:`format_diagnosis` the command's summary.
+
+    Raises
+    ------
+    CompareError
+        Inputs that do not fit the rig, unknown effects, a bad hold-out (one line).
+
+    References
+    ----------
+    A. E. Abdelraheim, M. Nejlaoui, N. A. Alqahtani, "Bioinspired Computation for Identifying Joint
+    Compliance in Biomimetic Flexible Manipulators", Biomimetics 11(7), 474 (2026): Table 3 (the
+    measured frequencies), Table 6 (the joint-compliance model).
+
+    Examples
+    --------
+    Seed 003's two-link arm against its measured Table 3, the joint stiffness ranked:
+
+    >>> import flexmodal as fm
+    >>> result = fm.diagnose("examples/rigs/seed003_two_link.toml",
+    ...                      "examples/measured/seed003_table3_f1f2.csv", effects="joint_stiffness",
+    ...                      holdout="theta30,theta90,theta150")
+    >>> result.verdict.effect
+    'joint_stiffness'
+    >>> result.verdict.heldout_rms_rel_error_after < result.verdict.heldout_rms_rel_error_before
+    True
+    """
+    from flexmodal.compare.errors import CompareError
+
+    if out_dir is not None:
+        from flexmodal.checked_io.output import output_dir
+
+        output_dir(out_dir, CompareError, "diagnosis folder (--out)", files=DIAGNOSIS_FILES,
+                   inputs=_paths([rig, measured]))   # before the heavy imports
+    rig, table = _rig(rig), _table(measured)
+    from flexmodal.compare.candidates import parse_effects
+    from flexmodal.compare.diagnosis import diagnose as _diagnose
+    from flexmodal.compare.diagnosis import folds_for
+
+    parse_effects(effects if isinstance(effects, str) else ",".join(effects))  # bad input fails now
+    folds_for(table.configs, holdout)
+    if progress is not None:
+        progress(f"diagnosing {table.source} against {rig.source} ...")
+    result = _diagnose(rig, table, effects=effects, holdout=holdout, scatter=scatter)
+    if out_dir is not None:
+        write_diagnosis(result, out_dir, inputs=[rig.source, table.source])
+    return result
+
+
+def format_diagnosis(result: Diagnosis) -> str:
+    """The summary ``flexmodal diagnose`` prints: verdict, held-out improvement, scatter, parameters
+    with their 95 % intervals, what remains, and the next measurement.
+
+    Parameters
+    ----------
+    result : compare.result.Diagnosis
+        A :func:`diagnose` result (or :func:`read_diagnosis`).
+
+    Returns
+    -------
+    str
+        Lines of text (no final newline); errors in percent, parameters in the effect's SI units.
+
+    Examples
+    --------
+    >>> import flexmodal as fm
+    >>> result = fm.diagnose("examples/rigs/seed003_two_link.toml",
+    ...                      "examples/measured/seed003_table3_f1f2.csv", effects="joint_stiffness",
+    ...                      holdout="theta30,theta90,theta150")
+    >>> print(fm.format_diagnosis(result).splitlines()[0])   # doctest: +ELLIPSIS
+    verdict: joint_stiffness at ...; held-out RMS ...% -> ...%; explained: ...
+    """
+    from flexmodal.compare.diagnosis import scatter_line
+
+    v = result.verdict
+    lines = [f"verdict: {v.effect} at {v.location or '-'}; held-out RMS "
+             f"{v.heldout_rms_rel_error_before:.2%} -> {v.heldout_rms_rel_error_after:.2%}; "
+             f"explained: {str(v.explained).lower()} ({v.grade})", scatter_line(result)]
+    lines += [f"  {name} = {v.params[name]:.4g}  (95 % interval {lo:.4g} .. {hi:.4g})"
+              for name, (lo, hi) in (v.param_intervals or {}).items()]
+    if v.residual_feature or v.flags:
+        lines.append(f"remaining: {v.residual_feature or '-'}"
+                     + "".join(f"; flagged: {f}" for f in v.flags or ()))
+    if v.ranked and v.ranked > 1:
+        lines.append(f"not the top of the ranking ({v.ranked}): {v.why_not_top}")
+    if v.next_measurements:
+        lines.append("next measurement: " + "; ".join(
+            f"{x.pose} (mode {x.mode}, {x.information_nats:.1f} nats)" for x in v.next_measurements))
+    return "\n".join(lines)
 
 
 def _paths(sources: Iterable[object]) -> list[PathLike]:
@@ -766,18 +1151,44 @@ def _paths(sources: Iterable[object]) -> list[PathLike]:
 
 def write_diagnosis(result: Diagnosis, out_dir: PathLike,
                     inputs: Sequence[PathLike] = ()) -> tuple[Path, Path]:
-    """Write ``diagnosis.json`` (strict JSON) and ``diagnosis.html`` of a :func:`diagnose` result into
-    ``out_dir``.  The page is the validation report's diagnosis section alone (one renderer,
-    reports/html.py), naming ``inputs`` (the rig and the measured modes it was diagnosed from)."""
+    """Write ``diagnosis.json`` and ``diagnosis.html`` of a :func:`diagnose` result into a folder.
+
+    The JSON is strict (docs/formats.md, Diagnosis JSON); the page is the validation report's
+    diagnosis section alone (one renderer, reports/html.py).  Each file is written atomically.
+
+    Parameters
+    ----------
+    result : compare.result.Diagnosis
+        A :func:`diagnose` result.
+    out_dir : str or Path
+        The folder (created if missing; its two files replaced, never an input).
+    inputs : sequence of str or Path
+        The files the result came from (the rig and the measured modes), named on the page.
+
+    Returns
+    -------
+    (Path, Path)
+        The JSON and the HTML file.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> import flexmodal as fm
+    >>> result = fm.diagnose("examples/rigs/seed003_two_link.toml",
+    ...                      "examples/measured/seed003_table3_f1f2.csv", effects="joint_stiffness",
+    ...                      holdout="theta30,theta90,theta150")
+    >>> pj, ph = fm.write_diagnosis(result, tempfile.mkdtemp())
+    >>> pj.name, ph.name, fm.read_diagnosis(pj).verdict.effect
+    ('diagnosis.json', 'diagnosis.html', 'joint_stiffness')
+    """
     from flexmodal.checked_io.output import output_dir, write_text
     from flexmodal.compare.errors import CompareError
     from flexmodal.reports.html import write_report
 
-    out = output_dir(out_dir, CompareError, "diagnosis folder (--out)",
-                     files=("diagnosis.json", "diagnosis.html"), inputs=inputs)
+    out = output_dir(out_dir, CompareError, "diagnosis folder (--out)", files=DIAGNOSIS_FILES, inputs=inputs)
     out.mkdir(parents=True, exist_ok=True)
-    pj = write_text(out / "diagnosis.json", result.to_json())
-    ph = write_report(out / "diagnosis.html", diagnosis=result, title="Sim-to-real gap diagnosis",
+    pj = write_text(out / DIAGNOSIS_FILES[0], result.to_json())
+    ph = write_report(out / DIAGNOSIS_FILES[1], diagnosis=result, title="Sim-to-real gap diagnosis",
                       inputs=list(inputs))
     return pj, ph
 
@@ -1061,40 +1472,80 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
            rig: Rig | PathLike | None = None, title: str = "flexmodal validation report",
            oma_fmin: float | None = None, oma_fmax: float | None = None,
            fmin: float | None = None, fmax: float | None = None, geometry: PathLike | None = None,
-           progress: Callable[[str], None] | None = None) -> Path:
-    """Write the self-contained HTML validation report ``out`` (its folder must exist; checked before
-    any work) and return its path.
+           progress: Callable[[str], None] | None = None, pdf: bool = False) -> Path:
+    """Write the self-contained HTML validation report (docs/compare-and-report.md).
 
-    ``runs``: HDF5 files (all their runs), ``FILE::RUN_ID`` or (file, id); their stored FRFs are shown
-    with the stabilisation diagram of their identification (:func:`identify` in ``fmin``..``fmax`` [Hz],
-    as the measured table was identified, so diagram, caption and table agree); a
-    run without FRFs that is output-only (operational, or no force channel) with its FDD singular
-    values and SSI-cov stabilisation diagram (``modal.oma.output_only_results``, docs/oma.md), both
-    identified in the band ``oma_fmin``..``oma_fmax`` [Hz] (``identify --fmin/--fmax``; default the
-    whole record).
-    ``measured``/``repeats``/``predictions``: modal tables; ``diagnosis``: a :func:`diagnose` result,
-    a parsed diagnosis.json, or its path; ``rig``: draws the measured shapes on the arm and animates
-    them beside the FE model's; ``geometry``: a Universal File with the test geometry (datasets 15 or
-    2411, 82, 18 or 2420) to animate the measured modes on (their sensors named ``<node>+z``...).  Everything
-    is computed here; ``reports.html`` only renders it."""
+    One file, images embedded, nothing fetched from a network: run metadata, channels, data quality,
+    FRFs with the stabilisation diagram of their identification, measured vs predicted modes, mode
+    shapes on the arm, the gap diagnosis and every registered report section (reports/sections.py).
+    Everything is computed here; ``reports.html`` only renders it.  The output (and the inputs' runs)
+    are checked before any work.
+
+    Parameters
+    ----------
+    out : str or Path
+        The HTML file (its folder must exist; never one of the inputs).
+    runs : sequence of str, Path or (path, run id)
+        HDF5 files (all their runs), ``FILE::RUN_ID`` or (file, id).  Runs with stored FRFs are shown
+        with the stabilisation diagram of :func:`identify` in ``fmin``..``fmax``; output-only runs
+        (operational, or no force channel) with their FDD singular values and SSI-cov diagram in
+        ``oma_fmin``..``oma_fmax`` (docs/oma.md).
+    measured : contract.table.ModalTable, str or Path, optional
+        Identified modes.
+    repeats : sequence of modal tables or paths
+        Repeated tests of the same configurations (error bars).
+    predictions : sequence of modal tables, paths or (name, table)
+        Predicted modes, one table per model.
+    diagnosis : compare.result.Diagnosis, mapping or path, optional
+        A :func:`diagnose` result, a parsed diagnosis.json or its path.
+    rig : models.rig.Rig, str or Path, optional
+        Draws the measured shapes on the arm and animates them beside the FE model's.
+    title : str
+        The report's title.
+    oma_fmin, oma_fmax, fmin, fmax : float, optional
+        Identification bands [Hz] of output-only runs and of runs with FRFs (default: the whole
+        record).
+    geometry : str or Path, optional
+        A Universal File with the test geometry (datasets 15 or 2411, 82, 18 or 2420) to animate the
+        measured modes on (their sensors named ``<node>+z`` ...).
+    progress : callable, optional
+        Called with a short message per step.
+    pdf : bool
+        Also print the report to ``REPORT.pdf`` beside it with headless Chromium (:func:`report_pdf`);
+        a missing Chromium fails before any work.
+
+    Returns
+    -------
+    Path
+        The HTML report.
+
+    Raises
+    ------
+    ReportError
+        Nothing to report, a bad band, an output that would replace an input, no Chromium for ``pdf``.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import flexmodal as fm
+    >>> measured = fm.read_table("examples/measured/seed003_table3_f1f2.csv")
+    >>> fe = fm.predict("examples/rigs/seed003_two_link.toml", measured, "fe", 2)
+    >>> page = fm.report(Path(tempfile.mkdtemp()) / "report.html", measured=measured, predictions=[fe])
+    >>> "Measured and predicted modes" in page.read_text(encoding="utf-8")
+    True
+    """
     from flexmodal.checked_io.output import output_file
     from flexmodal.reports.errors import ReportError
 
     sources = [*runs, measured, *repeats, *predictions, diagnosis, rig]
     output_file(out, ReportError, "report (--out)", inputs=_paths(sources))
-    from flexmodal.compare.tables import compare_tables, ordered_configs, table_name
-    from flexmodal.daq.store import expand_runs
-    from flexmodal.modal.errors import ModalError
-    from flexmodal.modal.oma import default_method, output_only_results
-    from flexmodal.modal.runs_io import read_frf
-    from flexmodal.modal.sources import identify_frf
-    from flexmodal.reports.html import write_report
-    from flexmodal.reports.runs import RunSummary
-    from flexmodal.reports.sections import Section, register_section, registered_sections
+    if pdf:
+        from flexmodal.reports.pdf import find_chromium
 
-    if "modal-map" not in registered_sections():
-        register_section("modal-map", Section("Modal map of the moving arm", _tracked_map_figures))
-
+        output_file(Path(out).with_suffix(".pdf"), ReportError, "PDF report (beside --out)", inputs=(out,))
+        if find_chromium() is None:
+            raise ReportError("report --pdf: no Chromium found (install chromium, or leave out --pdf)")
     if not (runs or measured is not None or predictions or diagnosis is not None):
         raise ReportError("report: nothing to report (give RUN.h5 files, --measured, --pred or --diagnosis)")
     for name, value in (("oma_fmin", oma_fmin), ("oma_fmax", oma_fmax), ("fmin", fmin), ("fmax", fmax)):
@@ -1104,6 +1555,24 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
         raise ReportError(f"report: oma_fmin = {oma_fmin:g} Hz must be below oma_fmax = {oma_fmax:g} Hz")
     if fmin is not None and fmax is not None and fmin >= fmax:
         raise ReportError(f"report: fmin = {fmin:g} Hz must be below fmax = {fmax:g} Hz")
+    from flexmodal.daq.run_schema import check_run_file
+    from flexmodal.daq.store import expand_runs
+    from flexmodal.modal.runs_io import read_frf
+
+    for path, run_id in expand_runs(runs):   # a stored FRF group that is not what flexmodal writes:
+        check_run_file(path, run_id)         # refused now, before the heavy imports
+        read_frf(path, run_id)
+    from flexmodal.compare.tables import compare_tables, ordered_configs, table_name
+    from flexmodal.modal.errors import ModalError
+    from flexmodal.modal.oma import default_method, output_only_results
+    from flexmodal.modal.sources import identify_frf
+    from flexmodal.reports.html import write_report
+    from flexmodal.reports.runs import RunSummary
+    from flexmodal.reports.sections import Section, register_section, registered_sections
+
+    if "modal-map" not in registered_sections():
+        register_section("modal-map", Section("Modal map of the moving arm", _tracked_map_figures))
+
     geo = None
     if geometry is not None:    # read first: a bad geometry file stops the report before any work
         from flexmodal.reports.geometry import read_uff_geometry
@@ -1150,20 +1619,46 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     inputs += [diagnosis] if isinstance(diagnosis, str | Path) else []
     inputs += [rig.source] if rig is not None else []
     inputs += [geometry] if geometry is not None else []
-    return write_report(out, runs=summaries, comparison=comparison, measured=meas,
+    page = write_report(out, runs=summaries, comparison=comparison, measured=meas,
                         repeats=[_table(r) for r in repeats], predictions=named, shapes=shapes,
                         diagnosis=_diagnosis(diagnosis) if diagnosis is not None else None,
                         rig_name=getattr(rig, "name", ""), title=title, inputs=inputs, geometry=geo,
                         progress=progress)
+    if pdf:
+        step("printing to PDF with headless Chromium")
+        report_pdf(page)
+    return page
 
 
 def animate_mode(out: PathLike, measured: ModalTable | PathLike, config: str, mode: int = 1, *,
                  rig: Rig | PathLike | None = None, geometry: PathLike | None = None, frames: int = 24,
                  fps: int = 12) -> Path:
-    """An animated GIF of one measured mode for slides (matplotlib's PillowWriter): with ``rig``, the
-    mode at the sensors on the arm beside the frame FE model's best-matching mode; with ``geometry``
-    (a Universal File: nodes, trace lines, coordinate systems), the mode on the test structure.
-    ``mode`` is 1-based; returns ``out``.
+    """An animated GIF of one measured mode for slides (matplotlib's PillowWriter).
+
+    Parameters
+    ----------
+    out : str or Path
+        The GIF to write (atomically).
+    measured : contract.table.ModalTable, str or Path
+        The modal table with ``shape.<sensor>`` columns.
+    config : str
+        The configuration whose mode is drawn.
+    mode : int
+        The mode, 1-based.
+    rig : models.rig.Rig, str or Path, optional
+        Draw the mode at the sensors on the arm beside the frame FE model's best-matching (MAC) mode.
+    geometry : str or Path, optional
+        Or a Universal File (nodes, trace lines, coordinate systems): the mode on the test structure.
+        Give the rig or the geometry.
+    frames : int
+        Frames per period of the animation.
+    fps : int
+        Frames per second [1/s].
+
+    Returns
+    -------
+    Path
+        ``out``.
 
     Examples
     --------
@@ -1205,9 +1700,37 @@ def animate_mode(out: PathLike, measured: ModalTable | PathLike, config: str, mo
 
 
 def report_pdf(html: PathLike, pdf: PathLike | None = None) -> Path:
-    """Print the HTML report ``html`` to ``pdf`` (default: beside it, ``.pdf``) with headless Chromium,
-    every run's block opened, tables whole with repeated headers; returns the PDF's path.  ReportError
-    (one line) where no Chromium is installed."""
+    """Print an HTML report to PDF with headless Chromium: A4, every run's block opened, tables whole
+    with their headers repeated on each page.
+
+    Parameters
+    ----------
+    html : str or Path
+        A report :func:`report` wrote.
+    pdf : str or Path, optional
+        The PDF to write (default: beside the HTML, ``.pdf``; never the HTML itself).
+
+    Returns
+    -------
+    Path
+        The PDF.
+
+    Raises
+    ------
+    ReportError
+        No Chromium installed (one line).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import flexmodal as fm
+    >>> measured = fm.read_table("examples/measured/seed003_table3_f1f2.csv")
+    >>> page = fm.report(Path(tempfile.mkdtemp()) / "report.html", measured=measured)
+    >>> pdf = fm.report_pdf(page)
+    >>> pdf.name, pdf.read_bytes()[:5]
+    ('report.pdf', b'%PDF-')
+    """
     from flexmodal.checked_io.output import output_file
     from flexmodal.reports.errors import ReportError
     from flexmodal.reports.pdf import print_pdf
@@ -1240,6 +1763,21 @@ def demo(out_dir: PathLike = "flexmodal-demo", *, rig: PathLike | None = None, q
     -------
     Path
         The report.
+
+    Raises
+    ------
+    FixtureError
+        The folder cannot hold the outputs (checked before any work; one line).
+
+    Examples
+    --------
+    The whole demo takes 20-60 s (tests/test_demo.py runs it); its folder is checked first:
+
+    >>> import flexmodal as fm
+    >>> fm.demo("examples/rigs/demo_arm.toml")
+    Traceback (most recent call last):
+    ...
+    flexmodal.fixtures.errors.FixtureError: examples/rigs/demo_arm.toml: exists and is not a directory ...
     """
     from flexmodal.checked_io.output import output_dir
     from flexmodal.fixtures.errors import FixtureError
@@ -1281,6 +1819,19 @@ def selftest(n_cases: int, *, seed: int = 0, progress: Callable[[object], None] 
     Returns
     -------
     SelfCheck
+        ``results`` per case, ``summary`` (accuracies as fractions [0, 1]) and the printed ``text``.
+
+    References
+    ----------
+    S. P. Timoshenko, "On the correction for shear of the differential equation for transverse
+    vibrations of prismatic bars", Philosophical Magazine 41 (1921) 744-746 (the truth model's beam).
+
+    Examples
+    --------
+    >>> import flexmodal as fm
+    >>> check = fm.selftest(1)
+    >>> len(check.results), check.text.splitlines()[0]
+    (1, 'cases: 1 (1 library effects, 0 none, 0 outside the library)')
     """
     from flexmodal.fixtures.blind import format_summary, run_blind, summarise
 
@@ -1310,6 +1861,27 @@ def serve_simulator(protocol: str, *, faults: Mapping[str, float | None] | None 
         ``test``, ``rate`` [Hz], ``pose`` (degrees, kg), ``seed``, ``effects``
         ("EFFECT@LOCATION:PARAM=VALUE,..."), ``duration`` [s], ``link``, ``port``, ``transport``,
         ``framing``, ``format``, ``scans_per_frame``, ``fault_log``, ``exit_with_parent``, ``quiet``.
+
+    Returns
+    -------
+    None
+        When the device stops (``duration`` reached, SIGTERM or SIGINT).
+
+    Raises
+    ------
+    FixtureError
+        An unknown option or a bad value (one line).
+
+    Examples
+    --------
+    A serial device on a pty streaming the demo arm for a quarter of a second:
+
+    >>> import io
+    >>> import flexmodal as fm
+    >>> endpoint = io.StringIO()
+    >>> fm.serve_simulator("serial", duration=0.25, stdout=endpoint, quiet=True)
+    >>> endpoint.getvalue().startswith("/")     # the pty a session's ``port`` names
+    True
     """
     import sys
 

@@ -30,23 +30,16 @@ def _acquire(args: argparse.Namespace) -> int:
     SIGHUP, with everything flushed and closed. Exit 0: done; 128+N: stopped early by signal N; 2: bad
     input, a lost device, a full disk or a write error (one line).
     """
-    from flexmodal.api import DaqError, acquire
-    from flexmodal.daq.acquire import WriteFailed
-    from flexmodal.daq.session import load_session
+    from flexmodal.api import DaqError, WriteFailed, acquire
 
-    session = load_session(args.config)
     try:
-        summary = acquire(session, args.out, duration_s=args.duration, run_id=args.run_id,
+        summary = acquire(args.config, args.out, duration_s=args.duration, run_id=args.run_id,
                           recover=args.recover, quiet=args.quiet)
     except WriteFailed as exc:  # leave without closing the HDF5 file: it keeps its last flushed state
-        from flexmodal.daq.h5file import recover
-
-        recover(args.out)  # clear the open-for-writing flags (in place) so plain h5py opens the file
         print(f"flexmodal: error: {exc}", file=sys.stderr, flush=True)
         sys.stdout.flush()
         os._exit(2)
     print(summary.line(), flush=True)
     if summary.error:
         raise DaqError(summary.error)
-    early = args.duration is not None or session.duration_s is not None
-    return 128 + summary.signal if summary.signal and early else 0
+    return summary.exit_code

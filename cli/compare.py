@@ -38,18 +38,11 @@ def _run(args: argparse.Namespace) -> int:
     damping ratio [%], error (pred - meas)/meas [%] and MAC [-]. Unpaired modes are listed, never
     dropped.
     """
-    from flexmodal.api import compare_modes, format_comparison
+    from flexmodal.api import compare_modes, format_comparison, write_comparison
 
-    to_file = args.out not in (None, "", "-")
-    if to_file:
-        from flexmodal.api import CompareError
-        from flexmodal.checked_io.output import output_file, write_text
-
-        output_file(args.out, CompareError, "table (--out)", inputs=(args.measured, *args.predicted))
     comp = compare_modes(args.measured, *args.predicted, min_mac=args.min_mac)
-    text = format_comparison(comp, args.format, args.layout, args.caption)
-    if to_file:
-        print(write_text(args.out, text))
+    if args.out not in (None, "", "-"):
+        print(write_comparison(comp, args.out, args.format, args.layout, args.caption))
     else:
-        sys.stdout.write(text)
+        sys.stdout.write(format_comparison(comp, args.format, args.layout, args.caption))
     return 0

@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 from flexmodal.checked_io import options as opt
-
-DIAGNOSIS_FILES = ("diagnosis.json", "diagnosis.html")  # what `diagnose` writes into its --out folder
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -56,36 +55,13 @@ def run(args: argparse.Namespace) -> int:
     if missing:
         raise CompareError(f"diagnose: missing --{missing[0]} "
                            "(needs --rig, --measured and --out, or --selftest N)")
-    from flexmodal.checked_io.output import output_dir
+    from flexmodal.api import DIAGNOSIS_FILES, diagnose, format_diagnosis
 
-    output_dir(args.out, CompareError, "diagnosis folder (--out)", files=DIAGNOSIS_FILES,
-               inputs=(args.rig, args.measured))  # before the heavy imports
-    from flexmodal.api import diagnose, load_rig, read_table, write_diagnosis
-    from flexmodal.compare.candidates import parse_effects
-    from flexmodal.compare.diagnosis import folds_for, scatter_line
-
-    rig = load_rig(args.rig)
-    table = read_table(args.measured)
-    parse_effects(args.effects)  # bad --effects / --holdout fail before the progress line
-    folds_for(table.configs, args.holdout)
-    if not getattr(args, "quiet", False):
-        print(f"diagnosing {table.source} against {rig.source} ...", file=sys.stderr)
-    result = diagnose(rig, table, effects=args.effects, holdout=args.holdout, scatter=args.scatter)
-    pj, ph = write_diagnosis(result, args.out, inputs=[rig.source, table.source])
-    v = result.verdict
-    print(f"verdict: {v.effect} at {v.location or '-'}; held-out RMS "
-          f"{v.heldout_rms_rel_error_before:.2%} -> {v.heldout_rms_rel_error_after:.2%}; "
-          f"explained: {str(v.explained).lower()} ({v.grade})")
-    print(scatter_line(result))
-    for name, (lo, hi) in (v.param_intervals or {}).items():
-        print(f"  {name} = {v.params[name]:.4g}  (95 % interval {lo:.4g} .. {hi:.4g})")
-    if v.residual_feature or v.flags:
-        print(f"remaining: {v.residual_feature or '-'}" + "".join(f"; flagged: {f}" for f in v.flags or ()))
-    if v.ranked and v.ranked > 1:
-        print(f"not the top of the ranking ({v.ranked}): {v.why_not_top}")
-    if v.next_measurements:
-        print("next measurement: " + "; ".join(f"{x.pose} (mode {x.mode}, {x.information_nats:.1f} nats)"
-                                               for x in v.next_measurements))
-    print(pj)
-    print(ph)
+    quiet = getattr(args, "quiet", False)
+    result = diagnose(args.rig, args.measured, effects=args.effects, holdout=args.holdout,
+                      scatter=args.scatter, out_dir=args.out,
+                      progress=None if quiet else lambda line: print(line, file=sys.stderr))
+    print(format_diagnosis(result))
+    for name in DIAGNOSIS_FILES:
+        print(Path(args.out) / name)
     return 0

@@ -17,8 +17,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--estimator", default="H1", choices=ESTIMATORS, metavar="NAME",
                    help="FRF estimator: %(choices)s (default H1)")
     p.add_argument("--nfft", type=opt.integer(8, 1 << 24, name="segment length"), default=None,
-                   help="segment length in samples for random/sweep runs (default: power of two <= 8192 "
-                        "giving >= 8 segments); impact runs use one record per hit")
+                   help="segment length in samples for random runs (default: power of two <= 8192 "
+                        "giving >= 8 segments); impact runs use one record per hit, sweep runs one "
+                        "segment per sweep unless --nfft or --window is given")
     p.add_argument("--window", default=None,
                    help="window: rect|hann|flattop for random runs (default hann); impact runs "
                         "'force:W,exponential:E' (fractions; default force:0.05 and no "
@@ -51,6 +52,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     q.add_argument("--poles", default=None, metavar="F1,F2,...",
                    help="pick the stable poles nearest these frequencies, Hz (exactly these modes, no "
                         "automatic selection)")
+    q.add_argument("--from-diagram", action="store_true",
+                   help="with --poles: pick only from the stabilisation diagram an earlier identify stored "
+                        "beside --out (MODES.diagram.npz; an error when it was computed from another input "
+                        "or options). Without it a matching stored diagram is used too, else the "
+                        "stabilisation runs again")
     q.add_argument("--need-min", type=opt.real(0.0), default=None, metavar="F",
                    help="drop a mode whose F statistic in the FRF synthesis is below F (the FRFs do not "
                         "need it; default 10)")
@@ -88,8 +94,10 @@ def _frf(args: argparse.Namespace) -> int:
     """batch FRFs + coherence of stored runs, written back under /runs/<id>/frf
 
     Compute FRFs and coherence of every run in the HDF5 files and write them back under /runs/<id>/frf
-    (or into --out). Random and sweep runs are streamed block by block (memory does not grow with the
-    record) and segments holding NaN rows or touching gap/corrupt events are skipped. Runs are computed
+    (or into --out). Random runs are streamed block by block (memory does not grow with the
+    record) and segments holding NaN rows or touching gap/corrupt events are skipped; sweep runs are
+    read whole and cut into one rectangular segment per sweep (Welch, as random runs, when they hold
+    lost data or --nfft/--window is given). Runs are computed
     here, one after the other, unless the measured cost predicts that a pool of 2 local processes pays
     for its start-up; --workers N forces N processes (0: always here), --scheduler uses an existing dask
     cluster. Prints one 'FILE:RUN_ID' line per run written.
@@ -116,10 +124,7 @@ def _pairs(text: str, what: str) -> dict[str, str]:
 
 def _track(args: argparse.Namespace) -> int:
     """``identify --track``: the modal map of a moving arm and its harmonics (docs/oma.md)."""
-    from pathlib import Path
-
     from flexmodal.api import ModalError, track
-    from flexmodal.checked_io.output import output_file, signals_deferred
 
     pose_from = _pairs(args.pose_from, "--pose-from") if args.pose_from else None
     try:
@@ -128,17 +133,9 @@ def _track(args: argparse.Namespace) -> int:
         raise ModalError(f"--orders {args.orders!r}: give orders per revolution, comma-separated") from None
     if any(not o > 0 for o in orders):
         raise ModalError(f"--orders {args.orders!r}: orders must be positive")
-    out = Path(args.out)
-    harmonics_csv = out.with_name(out.stem + ".harmonics.csv")
-    output_file(harmonics_csv, ModalError, "harmonics table", inputs=(args.input, args.out))
-    from flexmodal.modal.track import write_harmonics_csv
-
     result = track(args.input, pose_from=pose_from, run_id=args.run, fmin=args.fmin, fmax=args.fmax,
                    window_s=args.window, hop_s=args.hop, bin_deg=args.bin, max_spread_deg=args.max_spread,
-                   orders=orders, max_order=args.max_order or 40)
-    with signals_deferred():   # the map and its harmonics: both written, or neither
-        result.table.to_csv(out)
-        write_harmonics_csv(str(harmonics_csv), result.harmonics)
+                   orders=orders, max_order=args.max_order or 40, out=args.out)
     if not getattr(args, "quiet", False):
         found = "; ".join(f"{v}: {', '.join(f'{o:.6g}' for o in ords) or 'none'}"
                           for v, ords in result.orders.items())
@@ -161,21 +158,10 @@ def _identify(args: argparse.Namespace) -> int:
     (config = run id). Runs with excitation=operational or without a force channel, and UFF time
     histories without a force, are identified output-only (SSI-cov by default; docs/oma.md).
     """
-    from flexmodal.api import ModalError, identify
-    from flexmodal.checked_io.output import output_file
+    from flexmodal.api import ModalError, Thresholds, identify
 
-    if args.fmin is not None and args.fmax is not None and args.fmin >= args.fmax:
-        raise ModalError(f"--fmin {args.fmin:g} Hz must lie below --fmax {args.fmax:g} Hz")
-    output_file(args.out, ModalError, "modal table (--out)", inputs=(args.input,))
     if args.track:
         return _track(args)
-    if args.uff:
-        output_file(args.uff, ModalError, "UFF file (--uff)", inputs=(args.input, args.out))
-    from flexmodal.modal.identify import Thresholds, synthesis_path  # the heavy imports, after
-
-    output_file(synthesis_path(args.out), ModalError, "FRF synthesis table (next to --out)",
-                inputs=(args.input, args.out, args.uff))
-
     poles = None
     if args.poles is not None:
         try:
@@ -185,14 +171,13 @@ def _identify(args: argparse.Namespace) -> int:
                              "commas") from None
         if not poles:
             raise ModalError(f"--poles {args.poles!r}: give positive frequencies in Hz")
-    defaults = Thresholds()
-    limits = Thresholds(defaults.need_min if args.need_min is None else args.need_min,
-                        defaults.mpc_min if args.mpc_min is None else args.mpc_min)
+    limits = Thresholds(**{k: v for k, v in (("need_min", args.need_min), ("mpc_min", args.mpc_min))
+                           if v is not None})
     refs = args.references.split(",") if args.references else None
     result = identify(args.input, method=args.method, fmin=args.fmin, fmax=args.fmax,
                       max_order=args.max_order, run_id=args.run, poles_hz=poles, thresholds=limits,
-                      decay_rate_per_s=args.exp_window_decay, references=refs)
-    result.write(args.out, uff=args.uff)
+                      decay_rate_per_s=args.exp_window_decay, references=refs, out=args.out, uff=args.uff,
+                      from_diagram=args.from_diagram)
     quiet = getattr(args, "quiet", False)
     for config, modes in result.modes.items():   # a loop over configurations
         if quiet:

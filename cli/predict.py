@@ -42,26 +42,21 @@ def _predict(args: argparse.Namespace) -> int:
     config, pose.<name>; angles in degrees, masses in kg) and write a modal table CSV (config, mode,
     freq_hz [Hz], source, pose.*, shape.<sensor>). Rigid-body (0 Hz) modes are left out.
     """
-    from flexmodal.api import ModelError, load_rig, predict, read_poses
-    from flexmodal.checked_io.output import output_file
+    from flexmodal.api import predict, read_poses
 
-    output_file(args.out, ModelError, "prediction table (--out)", inputs=(args.rig, args.poses))
-    rig = load_rig(args.rig)
-    poses = read_poses(args.poses)
-    if not poses:
-        raise ModelError(f"{args.poses}: no configurations")
     options = {"elements_per_link": args.elements, "lumped_mass": args.lumped_mass_matrix,
-               "masses_per_link": args.masses_per_link, "coordinates": args.coordinates}
-    if getattr(args, "quiet", False) or len(poses) < 50:  # the path: an error names the poses file
-        table = predict(rig, args.poses, args.model, args.modes, source=args.source, **options)
+               "masses_per_link": args.masses_per_link, "coordinates": args.coordinates,
+               "source": args.source, "out": args.out}
+    n_poses = 0 if getattr(args, "quiet", False) else len(read_poses(args.poses))
+    if n_poses < 50:  # the poses by path: an error names the file
+        predict(args.rig, args.poses, args.model, args.modes, **options)
     else:
         from rich.progress import Progress
 
         with Progress(transient=True, console=_stderr_console()) as bar:
-            task = bar.add_task(f"predict ({args.model})", total=len(poses))
-            table = predict(rig, args.poses, args.model, args.modes, source=args.source,
-                            progress=lambda _c: bar.advance(task), **options)
-    table.to_csv(args.out)
+            task = bar.add_task(f"predict ({args.model})", total=n_poses)
+            predict(args.rig, args.poses, args.model, args.modes, progress=lambda _c: bar.advance(task),
+                    **options)
     print(args.out)
     return 0
 

@@ -35,11 +35,12 @@ from pathlib import Path
 import numpy as np
 
 from flexmodal.checked_io.output import signals_deferred
-from flexmodal.daq.devices import Block, ReaderStats, make_driver, run_reader, with_endpoint
+from flexmodal.daq.devices import Block, ReaderStats, run_reader, with_endpoint
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.hits import HitMonitor, sparkline
 from flexmodal.daq.hooks import simulator_launcher
 from flexmodal.daq.lock import WriterLock
+from flexmodal.daq.protocols import make_driver
 from flexmodal.daq.session import Session
 from flexmodal.daq.store import Event, RunWriter, list_runs
 from flexmodal.daq.timeline import Timeline
@@ -84,6 +85,13 @@ class Summary:
     dropped_blocks: int
     signal: int = 0
     error: str = ""
+    bounded: bool = False  # the session had a duration (a signal then stopped it early)
+
+    @property
+    def exit_code(self) -> int:
+        """The command's exit code: 128 + the signal that stopped a session before its duration, else 0
+        (a session without a duration ends by a signal as planned)."""
+        return 128 + self.signal if self.signal and self.bounded else 0
 
     def line(self) -> str:
         ev = ", ".join(f"{k} {v}" for k, v in sorted(self.events.items())) or "none"
@@ -330,7 +338,7 @@ class _Recorder:
                  quiet: bool, stopper: StopSignals) -> None:
         self.session, self.out, self.run_id, self.stamp = session, out, run_id, stamp
         self.target, self.stopper = target, stopper
-        self.drivers = {d.name: make_driver(d, session) for d in session.devices}
+        self.drivers = {d.name: make_driver(d, session.sample_rate_hz) for d in session.devices}
         self.timeline = Timeline(session, {k: v.sources for k, v in self.drivers.items()})
         self.queue: queue.Queue = queue.Queue(maxsize=QUEUE_BLOCKS)
         self.stop = threading.Event()
@@ -619,7 +627,7 @@ class _Recorder:
                                          f"{', '.join(self.drivers)}")
         return Summary(self.out, self.run_id, self.written, len(self.names), self.session.sample_rate_hz,
                        self.counts, sum(s.dropped_blocks for s in self.stats.values()), self.stopper.signum,
-                       self.error)
+                       self.error, self.target is not None)
 
 def _store_pose(out: Path, run_id: str, pose: dict, spread: dict) -> None:
     """Replace the run's ``pose`` by the encoder means and add ``pose_spread`` (JSON: per variable std,

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from flexmodal.daq.dbc import load_messages
-from flexmodal.daq.devices import PERMANENT_ERRNOS, Block, DeviceLost, Driver
+from flexmodal.daq.devices import PERMANENT_ERRNOS, Block, Device, DeviceLost, Driver
 from flexmodal.daq.errors import DaqError
 
 COUNTER_SIGNAL = "Seq"
@@ -49,8 +49,6 @@ class CanDriver(Driver):
     @classmethod
     def parse_device(cls, t, name):
         """``interface`` (python-can), ``channel``, ``bitrate``, ``dbc`` file, ``message`` name."""
-        from flexmodal.daq.session import Device
-
         t.reject_unknown({"interface", "channel", "bitrate", "dbc", "message", "messages", "counter"})
         interface = t.get("interface", str)
         channel = t.port("channel") if interface == "slcan" else t.get("channel", str)

@@ -17,19 +17,27 @@ import threading
 import time
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
+from flexmodal.checked_io.toml_fields import Fields
 from flexmodal.daq.errors import DaqError
-from flexmodal.daq.protocols import PROTOCOLS
-
-if TYPE_CHECKING:
-    from flexmodal.daq.session import Device, DeviceTable
 
 SIMULATOR_PORT = "@simulator"  # placeholder for the endpoint of the session's own simulator
 BACKOFF_START_S = 0.02
 BACKOFF_MAX_S = 0.25
+
+
+@dataclass(frozen=True)
+class Device:
+    """One ``[[device]]``: its name, its protocol and the configuration its driver parsed from the table
+    (a frozen dataclass the driver owns: daq.serial_driver.SerialConfig, daq.can_driver.CanConfig,
+    daq.modbus_driver.ModbusConfig, ...; docs/acquisition.md)."""
+
+    name: str
+    protocol: str
+    config: Any
 
 
 class DeviceLost(Exception):
@@ -89,8 +97,9 @@ class Driver(ABC):
 
     @classmethod
     @abstractmethod
-    def parse_device(cls, table: DeviceTable, name: str) -> Device:
-        """The validated Device of one ``[[device]]`` table (``table.get``/``choice`` raise DaqError)."""
+    def parse_device(cls, table: Fields, name: str) -> Device:
+        """The validated Device of one ``[[device]]`` table (a daq.session.DeviceTable: ``get``,
+        ``choice``, ``port``, ``file``; each raises DaqError naming the field)."""
 
     @classmethod
     def known_sources(cls, device: Device) -> tuple[str, ...] | None:
@@ -173,8 +182,3 @@ def run_reader(driver, out: queue.Queue, stop: threading.Event, stats: ReaderSta
             out.put(Notice(driver.name, "error", error=exc))
             return
     driver.close()
-
-
-def make_driver(device: Device, session) -> Driver:
-    """The driver for ``device`` (a daq.session.Device) of ``session``."""
-    return PROTOCOLS.entry(device.protocol)(device, session.sample_rate_hz)

@@ -37,5 +37,21 @@ class Faults:
 
 
 def fault_flag(name: str) -> str:
-    """The ``sim serve`` option of the :class:`Faults` field ``name`` (``drop_at_s`` -> ``--drop-at``)."""
+    """The ``sim serve`` option of a :class:`Faults` field.
+
+    Parameters
+    ----------
+    name : str
+        A field of :class:`Faults` (a time in seconds ends in ``_s``).
+
+    Returns
+    -------
+    str
+        The command-line option: the name without its unit suffix, dashed.
+
+    Examples
+    --------
+    >>> fault_flag("drop_at_s")
+    '--drop-at'
+    """
     return "--" + name.removesuffix("_s").replace("_", "-")

@@ -19,7 +19,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from flexmodal.daq.devices import SIMULATOR_PORT, Block, DeviceLost, Driver
+from flexmodal.daq.devices import SIMULATOR_PORT, Block, Device, DeviceLost, Driver
 from flexmodal.daq.errors import DaqError
 
 READ_WINDOW_S = 0.05
@@ -120,8 +120,6 @@ class ModbusDriver(Driver):
     @classmethod
     def parse_device(cls, t, name):
         """``transport`` tcp (``host``, ``port``) or rtu (``port``, ``baud``), ``device_id``, registers."""
-        from flexmodal.daq.session import Device
-
         t.reject_unknown({"transport", "host", "port", "baud", "device_id", "register"})
         transport = t.choice("transport", ("tcp", "rtu"), "tcp")
         regs = t.get("register", list, check=bool, why="must list at least one register")

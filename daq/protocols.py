@@ -13,7 +13,7 @@ from flexmodal.checked_io.registry import Registry
 from flexmodal.daq.errors import DaqError
 
 if TYPE_CHECKING:
-    from flexmodal.daq.devices import Driver
+    from flexmodal.daq.devices import Device, Driver
 
 PROTOCOLS: Registry[type[Driver]] = Registry("protocol", DaqError, {
     "serial": "flexmodal.daq.serial_driver:SerialDriver",
@@ -35,3 +35,9 @@ def unregister_protocol(name: str) -> None:
 def registered_protocols() -> tuple[str, ...]:
     """Names of the acquisition protocols, in registration order."""
     return PROTOCOLS.names()
+
+
+def make_driver(device: Device, sample_rate_hz: float) -> Driver:
+    """The driver of the registered protocol of ``device``, for a session sampled at ``sample_rate_hz``
+    [Hz]."""
+    return PROTOCOLS.entry(device.protocol)(device, sample_rate_hz)

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import serial
 
-from flexmodal.daq.devices import Block, DeviceLost, Driver, unwrap
+from flexmodal.daq.devices import Block, Device, DeviceLost, Driver, unwrap
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.serial_frames import (
     CHECKSUM_BYTES,
@@ -68,8 +68,6 @@ class SerialDriver(Driver):
     @classmethod
     def parse_device(cls, t, name):
         """``port`` (path or pyserial URL), ``baud``, ``framing``, ``sources`` (the frame's columns)."""
-        from flexmodal.daq.session import Device
-
         t.reject_unknown({"port", "baud", "framing", "sources", "frame", "checksum"})
         port = t.port("port")
         sources = t.get("sources", list, check=lambda v: v and all(isinstance(s, str) for s in v),

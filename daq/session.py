@@ -22,7 +22,7 @@ from typing import Any
 
 from flexmodal.checked_io.text import read_toml, regular_file
 from flexmodal.checked_io.toml_fields import Fields
-from flexmodal.daq.devices import SIMULATOR_PORT
+from flexmodal.daq.devices import SIMULATOR_PORT, Device
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.faults import Faults
 from flexmodal.daq.protocols import PROTOCOLS, registered_protocols
@@ -44,16 +44,6 @@ UNIT_FACTORS = {
     ("ue", "µε"): 1.0, ("με", "µε"): 1.0,
 }
 
-
-@dataclass(frozen=True)
-class Device:
-    """One ``[[device]]``: its name, its protocol and the configuration its driver parsed from the table
-    (a frozen dataclass the driver owns: daq.serial_driver.SerialConfig, daq.can_driver.CanConfig,
-    daq.modbus_driver.ModbusConfig, ...; docs/acquisition.md)."""
-
-    name: str
-    protocol: str
-    config: Any
 
 @dataclass(frozen=True)
 class ChannelMap:

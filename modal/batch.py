@@ -140,9 +140,10 @@ def _here(jobs, options: dict, done: Callable[[int, FrfResult], None], sizes: li
     at once as there are CPUs and runs left (threads: the reading and the FFTs release the GIL), the
     rest as FFT threads of each run, so one long run and many short ones both keep the idle CPUs
     busy.  With ``sizes`` (bytes of every run: the automatic choice), as soon as :func:`_serial_pays`
-    says a pool would pay for the rest, a :class:`_Pool` of one process per idle CPU but one starts in
-    the background while the lanes go on; once it runs, this process keeps one lane and the pool
-    takes every other job (two in flight per process), so its start-up costs no waiting."""
+    says a pool would pay for the rest, a :class:`_Pool` of one process per idle CPU but one (at most
+    AUTO_WORKERS CPUs in all) starts in the background while the lanes go on; once it runs, this
+    process keeps one lane and the pool takes every other job (two in flight per process), so its
+    start-up costs no waiting."""
     from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 
     cpus = idle_cpus()
@@ -161,7 +162,7 @@ def _here(jobs, options: dict, done: Callable[[int, FrfResult], None], sizes: li
             if pool is None and sizes and executor and bytes_done and not _serial_pays(
                     time.perf_counter() - t0, time.process_time() - c0, bytes_done, sum(sizes[submitted:]),
                     len(jobs) - submitted):
-                pool = _Pool(max(1, cpus - 1), options, background=True)
+                pool = _Pool(max(1, min(AUTO_WORKERS, cpus) - 1), options, background=True)
             joined = pool is not None and pool.ready.done() and pool.ready.exception() is None
             while submitted < len(jobs):
                 if joined and len(in_pool) < 2 * pool.workers:
@@ -255,8 +256,8 @@ class _Pool:
         self.ready: Future = Future()
         self._lock = threading.Lock()
         self._abandoned = False
-        if background:
-            threading.Thread(target=self._start, name="flexmodal-pool-start", daemon=True).start()
+        if background:   # not a daemon: the interpreter's exit waits for it to end what it started
+            threading.Thread(target=self._start, name="flexmodal-pool-start").start()
         else:
             self.ready.set_result(True)
 
@@ -280,7 +281,8 @@ class _Pool:
         """Shut the pool down; with ``kill`` (Ctrl-C, or a pool no longer needed) end its processes
         now, not after their jobs.  A pool still starting in the background is never waited for (the
         executor is busy spawning): the processes started so far are ended now, the others by the
-        starting thread once spawned."""
+        starting thread once spawned (the interpreter's exit waits for that thread: a process spawned
+        after this one's exit had removed the executor's semaphores would print a traceback)."""
         with self._lock:
             if not self.ready.done():
                 self._abandoned = True

@@ -80,6 +80,15 @@ def _check_welch(spectra: Spectra, samples, names: Sequence[str], chans: Sequenc
         raise ModalError(f"{where}: channel {names[chans[k]]!r} is constant ({spectra.mean[k]:g} throughout)")
 
 
+def _sweeps_of(samples, inputs: Sequence[int]) -> np.ndarray | None:
+    """Sweep starts of a record labelled a sweep (:func:`modal.sweep.sweep_plan` on its forces), or None
+    (Welch) when its forces show no sweep, fewer sweeps than forces, or it holds lost (NaN) samples."""
+    from flexmodal.modal.sweep import sweep_plan
+
+    data = np.asarray(samples[()])
+    return sweep_plan(data[:, list(inputs)]) if np.isfinite(data).all() else None
+
+
 def frf_of_record(samples, sample_rate_hz: float, names: Sequence[str], kinds: Sequence[str],
                   *, excitation: str = "random", estimator: str = "H1", nfft: int | None = None,
                   window: str | None = None, overlap: float = 0.5, where: str = "record",
@@ -92,9 +101,13 @@ def frf_of_record(samples, sample_rate_hz: float, names: Sequence[str], kinds: S
     other non-encoder channel, the outputs).
 
     Impact records (``excitation == "impact"``) are read whole, cut into hits (``triggers`` or
-    detected), windowed ``window`` = "force:W,exponential:E" (default force:0.05,exponential:0.01) and
-    averaged, each record starting ``pretrigger_s`` before its trigger, hits touching NaN rows or a
-    ``skip`` interval rejected one by one; other records are
+    detected), windowed ``window`` = "force:W,exponential:E" (default force:0.05 and no window on the
+    responses, :func:`modal.windows.impact_windows`) and averaged, each record starting
+    ``pretrigger_s`` before its trigger, hits touching NaN rows or a ``skip`` interval rejected one by
+    one.  Swept-sine records with the sample indices ``sweeps`` where each sweep starts (found by
+    :func:`modal.sweep.sweep_plan` on the forces of an ``excitation == "sweep"`` record given no
+    ``nfft``, ``window`` or ``skip``) are cut into one segment per sweep, each transformed whole with
+    a rectangular window (zero-padded to the longest), and averaged.  Other records are
     streamed through Welch averaging with ``window`` (default hann), ``nfft``, ``overlap`` and
     ``workers`` FFT threads, leaving out segments that hold NaN/inf samples or touch a ``skip``
     interval (first sample, count: gap and corrupt events); fewer usable segments than
@@ -116,6 +129,8 @@ def frf_of_record(samples, sample_rate_hz: float, names: Sequence[str], kinds: S
     if not outputs:
         raise ModalError(f"{where}: no response channel besides the force")
     decay = 0.0
+    if excitation == "sweep" and sweeps is None and nfft is None and window is None and not skip:
+        sweeps = _sweeps_of(samples, inputs)
     if excitation == "impact":
         if len(inputs) != 1:
             raise ModalError(f"{where}: impact processing needs exactly one force channel")

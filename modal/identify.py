@@ -19,6 +19,7 @@ from flexmodal.checked_io.output import atomic_path
 from flexmodal.contract.mac import mac, mass_normalised, to_real, unit_max
 from flexmodal.contract.table import ModalTable
 from flexmodal.modal.damping import half_power
+from flexmodal.modal.diagrams import DiagramStore, StoredDiagram, inputs_key
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import convert
 from flexmodal.modal.indicators import frac, mpc, mpd
@@ -76,6 +77,7 @@ class Modes:
     details: tuple[str, ...] = ()
     freq_std_hz: np.ndarray | None = None      # 1-sigma [Hz], modal/uncertainty.py (None: not estimated)
     damping_std: np.ndarray | None = None      # 1-sigma [-]
+    diagram_key: str = ""   # modal.diagrams.inputs_key of the FRFs and options behind ``stabilisation``
 
 
 @dataclass(frozen=True)
@@ -266,7 +268,7 @@ def _validate(f: np.ndarray, H: np.ndarray, clusters: PoleClusters, quantity: st
 
 
 def _lscf(f: np.ndarray, H: np.ndarray, *, quantity: str, reference: int, max_order: int | None,
-          poles_hz: Sequence[float] | None, limits: Thresholds) -> dict:
+          poles_hz: Sequence[float] | None, limits: Thresholds, stored: StoredDiagram | None = None) -> dict:
     peaks_hz = f[clear_peaks(f, H)] if not poles_hz else np.zeros(0)   # picked poles: no floor
     visible_hz = visible_peaks(f, H, prominence_db=VISIBLE_DB)
 
@@ -277,8 +279,11 @@ def _lscf(f: np.ndarray, H: np.ndarray, *, quantity: str, reference: int, max_or
                           visible_hz)
         return found[0].freq_hz.size, _explained(f, found[0], peaks_hz), found
 
-    stab, note, found = adaptive_stabilisation(f, H, max_order=max_order, evaluate=evaluate,
-                                               floor=peaks_hz.size)
+    if poles_hz and stored is not None:   # run the stabilisation once, pick many times (modal.diagrams)
+        stab, note = stored.stabilisation, f"{stored.order_note}; poles picked from the stored diagram"
+    else:
+        stab, note, found = adaptive_stabilisation(f, H, max_order=max_order, evaluate=evaluate,
+                                                   floor=peaks_hz.size)
     if poles_hz:
         clusters = _pick(pole_clusters(stab, TOP_ORDERS), poles_hz)
         fit, warnings = _fit(f, H, clusters, quantity), []
@@ -333,8 +338,8 @@ def _resolution(f: np.ndarray, fn: np.ndarray, zeta: np.ndarray, excitation: str
 class FrfInputs:
     """What an FRF identification method (modal.registry.METHODS, input ``frf``) is given: ``freq_hz``
     [Hz] and ``H`` [n_out, n_in, n_band] in the band, ``coherence`` [n_out, n_band] or None, the FRFs'
-    ``quantity``, the ``reference`` input column, ``max_order``, the ``poles_hz`` [Hz] to pick and the
-    validation ``thresholds``."""
+    ``quantity``, the ``reference`` input column, ``max_order``, the ``poles_hz`` [Hz] to pick, the
+    validation ``thresholds`` and the ``stored`` diagram of these inputs, if any (modal.diagrams)."""
 
     freq_hz: np.ndarray
     H: np.ndarray
@@ -344,6 +349,7 @@ class FrfInputs:
     max_order: int | None
     poles_hz: Sequence[float] | None
     thresholds: Thresholds
+    stored: StoredDiagram | None = None   # a stored diagram of these inputs to pick ``poles_hz`` from
 
 
 @dataclass(frozen=True)
@@ -366,7 +372,8 @@ def lscf_poles(inp: FrfInputs) -> Poles:
     ``poles_hz``), LSFD shapes and validation (the ``lscf`` method)."""
     with one_blas_thread():
         extra = _lscf(inp.freq_hz, inp.H, quantity=inp.quantity, reference=inp.reference,
-                      max_order=inp.max_order, poles_hz=inp.poles_hz, limits=inp.thresholds)
+                      max_order=inp.max_order, poles_hz=inp.poles_hz, limits=inp.thresholds,
+                      stored=inp.stored)
     fn, zeta, constants = extra.pop("fn"), extra.pop("zeta"), extra.pop("constants")
     warnings = extra.pop("warnings")
     return Poles(fn, zeta, constants, tuple(warnings), True, extra)
@@ -402,7 +409,7 @@ def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: 
              quantity: str = "accelerance", decay_rate_per_s: float = 0.0, reference: int = 0,
              driving_point: int | None = None, max_order: int | None = None,
              poles_hz: Sequence[float] | None = None, thresholds: Thresholds | None = None,
-             excitation: str | None = None) -> Modes:
+             excitation: str | None = None, diagrams: DiagramStore | None = None) -> Modes:
     """Identify the modes of FRFs ``H`` [n_out, n_in, n_freq] in [fmin, fmax] Hz.
 
     ``quantity`` of H (accelerance, mobility, receptance); ``decay_rate_per_s`` [1/s] of an exponential
@@ -413,7 +420,9 @@ def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: 
     frequencies (and keeps exactly them); otherwise the automatically selected poles are validated by
     the synthesis against ``thresholds`` (:class:`Thresholds`).  ``excitation`` (``random``:
     Welch-averaged FRFs, ``impact``, None unknown) chooses the advice given when modes have few lines in
-    their half-power band (one warning; the per-mode lines in ``Modes.details``).
+    their half-power band (one warning; the per-mode lines in ``Modes.details``).  ``diagrams``: stored
+    stabilisation diagrams (modal.diagrams); ``poles_hz`` are picked from the one whose key matches
+    these FRFs and options instead of running the stabilisation again.
     """
     if method not in METHODS or output_only(method):
         frf_methods = [m for m in METHODS if not output_only(m)]
@@ -430,8 +439,12 @@ def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: 
     warnings: list[str] = [nyquist_note(fmax, float(np.max(freq_hz)))] if fmax is not None \
         and fmax > np.max(freq_hz) else []
     coh = coherence[:, band] if coherence is not None else None
+    limits = thresholds or Thresholds()
+    key = inputs_key(f, Hb, method=method, quantity=quantity, reference=reference, max_order=max_order,
+                     thresholds=limits)
+    stored = diagrams.find(key) if diagrams is not None and poles_hz else None
     found = METHODS.entry(method).runner()(FrfInputs(f, Hb, coh, quantity, reference, max_order, poles_hz,
-                                                     thresholds or Thresholds()))
+                                                     limits, stored))
     fn, zeta, constants, extra = found.freq_hz, found.damping_ratio, found.constants, dict(found.extra)
     warnings += found.warnings
     coarse, details = _resolution(f, fn, zeta, excitation)
@@ -449,7 +462,7 @@ def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: 
     per_mode = {k: extra[k][order] for k in ("mpc", "mpd", "synthesis_corr", "need") if k in extra}
     return Modes(fn[order], zeta[order], shapes[:, np.argsort(fn[keep])], constants[:, order], method, massn,
                  tuple(warnings), **per_mode, **{k: v for k, v in extra.items() if k not in per_mode},
-                 details=details)
+                 details=details, diagram_key=key)
 
 
 def modes_table(modes: Modes, outputs: Sequence[str], *, config: str = "run",

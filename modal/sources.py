@@ -19,7 +19,7 @@ from flexmodal.modal.identify import Modes, identify, modes_table
 from flexmodal.modal.oma import default_method, identify_output_only
 from flexmodal.modal.registry import output_only
 from flexmodal.modal.runs_io import read_frf
-from flexmodal.modal.sweep import sweep_starts
+from flexmodal.modal.sweep import sweep_plan
 
 
 def _driving_point(run, result: FrfResult) -> int | None:
@@ -68,8 +68,8 @@ def by_reciprocity(result: FrfResult) -> FrfResult:
 def excitation_of(result: FrfResult) -> str | None:
     """How FRFs were made, for advice on resolution: ``impact`` (hit records, force/exponential
     windows), ``sweep`` (each sweep's whole record), ``random`` (Welch-averaged: random or sweep runs),
-    None (stored FRFs, e.g. UFF)."""
-    if result.estimator == "stored":
+    None (stored FRFs, e.g. UFF, or FRFs given as arrays: api.frf_from_arrays)."""
+    if result.estimator in ("stored", "given"):
         return None
     if result.provenance.get("excitation") == "sweep":
         return "sweep"
@@ -161,10 +161,8 @@ def _uff_record_frfs(p: Path, data) -> FrfResult:
                          "is a dataset 58 ordinate of data type 13), so no FRF can be formed")
     if data.hit_len is None:
         forces = data.samples[:, [j for j, k in enumerate(data.kinds) if k == "force"]]
-        starts = sweep_starts(forces)
-        # sine sweeps: one rectangular segment per sweep, at the finest resolution; H1 of several
-        # inputs needs at least as many sweeps (drive patterns) as inputs
-        if starts is not None and starts.size >= forces.shape[1]:
+        starts = sweep_plan(forces)   # sine sweeps: one rectangular segment per sweep
+        if starts is not None:
             return frf_of_record(data.samples, data.sample_rate_hz, data.names, data.kinds, sweeps=starts,
                                  where=str(p))
         force = forces[:, 0]

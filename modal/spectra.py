@@ -256,15 +256,19 @@ class _Plan:
             k = self.lines.shape[0]
             spec[:, :k] -= means[:, None, :].astype(spec.real.dtype) * self.lines
         used = b - int(bad.sum())
-        g, auto = _products(spec, self.refs)
-        return g, auto, means.sum(axis=0) + offset[self.cols].astype(float) * used, used
+        g, auto = _products(spec, self.refs)    # in double here, so the ordered sums are plain adds
+        mean_sum = means.sum(axis=0) + offset[self.cols].astype(float) * used
+        return g.astype(complex), auto.astype(float), mean_sum, used
 
 
 def _row_blocks(samples, rows_per_block: int, dtype) -> Iterator[tuple[int, np.ndarray]]:
-    """(first row, rows [n, n_columns] as a row-major ``dtype`` array) blocks of ``samples``: views of
-    an in-memory array that is one already, else read (an on-disk dataset, h5py) or converted one
-    block ahead in a background thread, so reading overlaps the FFTs; at most three blocks are held
-    at a time."""
+    """(first row, rows [n, n_columns] as a row-major ``dtype`` array) blocks of ``samples``: an
+    in-memory array that is one already as one block (no copy, no thread: no segment block straddles
+    two reads), else blocks read (an on-disk dataset, h5py) or converted one block ahead in a
+    background thread, so reading overlaps the FFTs; at most three blocks are held at a time."""
+    if isinstance(samples, np.ndarray) and samples.dtype == dtype and samples.flags.c_contiguous:
+        yield 0, samples
+        return
     n = samples.shape[0]
     ready: queue.Queue = queue.Queue(maxsize=1)
     stop = threading.Event()

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 BLOCKS = 64          # blocks the force record is cut into to follow the swept frequency
-MIN_BLOCK = 32       # samples a block needs for its spectral peak to mean anything
+MIN_BLOCK = 128      # samples a block needs for its spectral peak to follow a sweep (64 lines)
 ACTIVE = 0.05        # a block is driven when its energy is at least this share of the largest's
 
 
@@ -39,12 +39,13 @@ def sweep_starts(forces: np.ndarray) -> np.ndarray | None:
     """Sample indices where the sweeps of a force record [n_samples, n_forces] start (the first is 0:
     a lead before the first sweep stays with it), or None when the record is not a sweep.
 
-    The record is cut into up to 64 blocks; the peak of the Hann spectrum summed over the forces (so
-    that drives in anti-phase do not cancel) follows the swept frequency through the driven blocks.  A
-    sweep rises monotonically over at least four blocks and four lines; a fall by more than half the
-    range starts the next one (down-sweeps are read reversed).  The next sweep starts at its first
-    driven block, or at the block before it when that one is quiet (a gap between sweeps: the cut
-    then falls before the sweep's first sample, which may lie inside its first driven block).
+    The record is cut into up to 64 blocks of at least 128 samples; the peak of the Hann spectrum
+    summed over the forces (so that drives in anti-phase do not cancel) follows the swept frequency
+    through the driven blocks.  A sweep rises monotonically over at least four blocks and four
+    lines; a fall by more than half the range starts the next one (down-sweeps are read reversed).
+    The next sweep starts at its first driven block, or at the block before it when that one is
+    quiet (a gap between sweeps: the cut then falls before the sweep's first sample, which may lie
+    inside its first driven block).
 
     Examples
     --------
@@ -60,12 +61,13 @@ def sweep_starts(forces: np.ndarray) -> np.ndarray | None:
     True
     """
     x = np.asarray(forces, float)
-    x = (x - x.mean(axis=0)).reshape(x.shape[0], -1)
+    x = x.reshape(x.shape[0], -1)
     blocks = min(BLOCKS, x.shape[0] // MIN_BLOCK)
     if blocks < 4:
         return None
     n = x.shape[0] // blocks
     seg = x[:n * blocks].reshape(blocks, n, x.shape[1])
+    seg = seg - seg.mean(axis=1, keepdims=True)   # each block's own offset (a half-quiet block's is large)
     energy = np.sum(seg ** 2, axis=(1, 2))
     driven = np.flatnonzero(energy >= ACTIVE * energy.max())
     spec = np.abs(np.fft.rfft(seg[driven] * np.hanning(n)[None, :, None], axis=1)).sum(axis=2)
@@ -79,6 +81,15 @@ def sweep_starts(forces: np.ndarray) -> np.ndarray | None:
     first = np.array([driven[a] for a, _ in runs[1:]], dtype=np.int64)
     quiet_before = ~np.isin(first - 1, driven)
     return np.concatenate([[0], (first - quiet_before) * n]).astype(np.int64)
+
+
+def sweep_plan(forces: np.ndarray) -> np.ndarray | None:
+    """The sweep starts of a force record [n_samples, n_forces] when its FRFs are to be formed one
+    segment per sweep: :func:`sweep_starts`, or None when the record is not a sweep or holds fewer
+    sweeps than forces (H1 of n inputs needs at least n independent segments; Welch then)."""
+    x = np.asarray(forces, float).reshape(np.shape(forces)[0], -1)
+    starts = sweep_starts(x)
+    return starts if starts is not None and starts.size >= x.shape[1] else None
 
 
 def sweep_segments(samples: np.ndarray, starts: np.ndarray, channels: list[int]) -> np.ndarray:

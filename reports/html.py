@@ -34,7 +34,7 @@ from flexmodal.checked_io.output import write_text
 from flexmodal.checked_io.text import read_text
 from flexmodal.compare.errors import CompareError
 from flexmodal.compare.result import Diagnosis, Predictions
-from flexmodal.compare.tables import Comparison, html_fragment, natural_key, ordered_configs, table_name
+from flexmodal.compare.tables import Comparison, html_fragment, natural_key, ordered_configs
 from flexmodal.contract.table import ModalTable
 from flexmodal.reports import animate, plots
 from flexmodal.reports.errors import ReportError
@@ -54,13 +54,16 @@ def pose_unit(var: str) -> str:
     return "-"
 
 
-def _pose_text(pose: Mapping[str, object]) -> str:
+def pose_text(pose: Mapping[str, object]) -> str:
+    """A pose as ``theta_deg = 30 deg, payload_kg = 0.5 kg``."""
     return ", ".join(f"{k} = {v:g} {pose_unit(k)}" if isinstance(v, numbers.Real) else f"{k} = {v}"
                      for k, v in pose.items())
 
 
 def _fig(fig, caption: str) -> dict:
-    return {"png": base64.b64encode(plots.figure_png(fig)).decode("ascii"), "caption": caption}
+    """A figure of the page: the PNG of ``fig`` (None: the caption alone, a note in its place)."""
+    png = None if fig is None else base64.b64encode(plots.figure_png(fig)).decode("ascii")
+    return {"png": png, "caption": caption}
 
 
 def varying_pose_vars(table: ModalTable) -> list[str]:
@@ -70,36 +73,6 @@ def varying_pose_vars(table: ModalTable) -> list[str]:
         if values.nunique() > 1 and values.dtype.kind in "fi":
             out.append(col[len("pose."):])
     return out
-
-
-def _mode_figures(measured: ModalTable | None, repeats: Sequence[ModalTable],
-                  predictions: Sequence[tuple[str, ModalTable]], shapes: Mapping[str, object]) -> list[dict]:
-    figs = []
-    ref = measured if measured is not None else (predictions[0][1] if predictions else None)
-    if ref is None:
-        return figs
-    varying = varying_pose_vars(ref)
-    meas = ([measured] if measured is not None else []) + list(repeats)
-    if varying:
-        var = varying[0]
-        figs.append(_fig(plots.plot_freq_vs_pose(meas, list(predictions), var, pose_unit(var)),
-                         f"Natural frequency against {var}: a line per model and mode, experiment mean "
-                         f"± 1 standard deviation over {len(meas)} test(s)"))
-    if len(varying) >= 2:
-        x = next((v for v in varying if "payload" in v), varying[1])
-        group = next(v for v in varying if v != x)
-        figs.append(_fig(plots.plot_trends(ref, x, group, pose_unit(x), pose_unit(group)),
-                         f"Trends of each mode's frequency with {x}, a line per {group} "
-                         f"({table_name(ref, 'modes')})"))
-    figs += _test_model_mac(measured, predictions)
-    for config, arm in shapes.items() if measured is not None else ():
-        if isinstance(arm, str):
-            figs.append({"png": None, "caption": arm})
-            continue
-        figs.append(_fig(plots.plot_mode_shapes(arm, measured, config),
-                         f"Measured mode shapes at {config} ({_pose_text(measured.pose(config))}) on the "
-                         f"arm, with the frame FE model's best-matching mode (by MAC) as a curve"))
-    return figs
 
 
 def _animations(measured: ModalTable | None, predictions: Sequence[tuple[str, ModalTable]],
@@ -117,7 +90,7 @@ def _animations(measured: ModalTable | None, predictions: Sequence[tuple[str, Mo
         pairs = animate.arm_pairs(arm, measured, config, n_pred.get(config, len(measured.freq_hz(config))))
         out.append({"png": None, "rows": [_anim_row(t, m) for t, m in pairs],
                     "heads": ("test (measured at the sensors)", "frame FE model (along the links)"),
-                    "caption": f"{config} ({_pose_text(measured.pose(config))}): each measured mode "
+                    "caption": f"{config} ({pose_text(measured.pose(config))}): each measured mode "
                                "animated on the arm beside the FE mode it pairs with by MAC, then the "
                                "further predicted modes; displacements exaggerated, undeformed arm dashed"})
     if geometry is not None:
@@ -135,25 +108,6 @@ def _animations(measured: ModalTable | None, predictions: Sequence[tuple[str, Mo
 def _anim_row(test: animate.Shape | None, model: animate.Shape | None) -> dict:
     return {"test": animate.svg(test) if test else "", "test_title": test.title if test else "",
             "model": animate.svg(model) if model else "", "model_title": model.title if model else ""}
-
-
-def _test_model_mac(measured: ModalTable | None, predictions: Sequence[tuple[str, ModalTable]]) -> list[dict]:
-    """MAC matrix of the measured shapes against the first prediction's at the sensors both give, for
-    the first configuration both hold (two or more shared sensors)."""
-    if measured is None or not predictions:
-        return []
-    name, pred = predictions[0]
-    sensors = [s for s in measured.sensors if s in pred.sensors]
-    configs = [c for c in ordered_configs(measured) if c in pred.configs]
-    if len(sensors) < 2 or not configs:
-        return []
-    c = configs[0]
-    a, b = measured.shapes(c, sensors), pred.shapes(c, sensors)
-    fig = plots.plot_mac(a, b, [f"{x:.4g} Hz" for x in measured.freq_hz(c)],
-                         [f"{x:.4g} Hz" for x in pred.freq_hz(c)], "measured mode", f"{name} mode",
-                         title=f"{c}: test-model MAC")
-    return [_fig(fig, f"{c}: MAC of the measured shapes against {name}'s at the {len(sensors)} sensors both "
-                      "give (values near 1 pair a measured mode with a predicted one)")]
 
 
 def _run_order(runs: Sequence[RunSummary]) -> list[RunSummary]:
@@ -184,7 +138,7 @@ def _run_rows(runs: Sequence[RunSummary]) -> tuple[list[dict], list[dict], list[
     for r in runs:
         label, run = r.label, r.run
         meta.append({"file": run.path.name, "run_id": run.run_id, "start_time": _start_time(run.start_time),
-                     "excitation": run.excitation, "pose": _pose_text(run.pose),
+                     "excitation": run.excitation, "pose": pose_text(run.pose),
                      "fs": f"{run.sample_rate_hz:g}", "duration": f"{r.duration_s:.2f}",
                      "n_samples": r.n_samples, "n_channels": len(run.channels)})
         counts = r.event_counts
@@ -259,7 +213,7 @@ def _run_figures(r: RunSummary) -> list[dict]:
     return [_fig(plots.plot_frf(r.frf.freq_hz, r.frf.H, r.frf.coherence, r.frf.outputs, unit,
                                 title=f"{r.label} ({r.run.excitation})"),
                  f"{r.label}: FRF magnitude, phase and coherence (input {inputs}, "
-                 f"pose {_pose_text(r.run.pose)})"), *_identification_figures(r, unit)]
+                 f"pose {pose_text(r.run.pose)})"), *_identification_figures(r, unit)]
 
 
 def _run_sections(runs: Sequence[RunSummary]) -> list[dict]:
@@ -269,7 +223,7 @@ def _run_sections(runs: Sequence[RunSummary]) -> list[dict]:
         figs = _run_figures(r)
         drawn = sum(1 for f in figs if f["png"])
         sections.append({"id": f"run-{k + 1}", "label": r.label, "figures": figs,
-                         "summary": f"{r.run.excitation}, {_pose_text(r.run.pose) or 'no pose'}; "
+                         "summary": f"{r.run.excitation}, {pose_text(r.run.pose) or 'no pose'}; "
                                     f"{drawn} figure{'s' if drawn != 1 else ''}"})
     return sections
 
@@ -306,17 +260,6 @@ def versions() -> list[tuple[str, str]]:
             out.append((name, version(name)))
         except PackageNotFoundError:
             continue
-    return out
-
-
-def _contents(sections: Sequence[tuple[str, str, bool]], run_sections: Sequence[dict]) -> list[dict]:
-    """Contents entries (anchor, title, children) of the sections shown; runs nested under theirs."""
-    out = []
-    for anchor, title, shown in sections:
-        if not shown:
-            continue
-        children = ([{"id": s["id"], "title": s["label"]} for s in run_sections] if anchor == "runs" else [])
-        out.append({"id": anchor, "title": title, "children": children})
     return out
 
 
@@ -367,7 +310,7 @@ def _measured_rows(measured: ModalTable) -> list[dict]:
     rows = []
     for _, r in pd.concat([measured.rows(c) for c in ordered_configs(measured)]).iterrows():
         zeta = r.get("damping_ratio")
-        rows.append({"config": r["config"], "pose": _pose_text(measured.pose(r["config"])),
+        rows.append({"config": r["config"], "pose": pose_text(measured.pose(r["config"])),
                      "mode": int(r["mode"]),
                      "freq": f"{r['freq_hz']:.2f}",
                      "zeta": f"{100 * zeta:.2f}" if zeta is not None and zeta == zeta else ""})
@@ -406,49 +349,47 @@ def write_report(out_path: str | Path, *, runs: Sequence[RunSummary] = (),
     summaries = _run_order(runs)
     comparison_html = "" if comparison is None else html_fragment(
         comparison, caption="Table 1. Measured and predicted natural frequencies")
-    step("plotting modes")
-    figures_modes = _mode_figures(measured, repeats, predictions, shapes or {})
     animations = _animations(measured, predictions, shapes or {}, geometry)
     step("plotting runs")
     run_sections = _run_sections(summaries)
-    figures_diag = [] if diagnosis is None else [
-        _fig(plots.plot_gap(diagnosis), "Relative frequency error per mode of the nominal model and with "
-                                        "the diagnosed effect; held-out RMS error")]
+    meta, quality, channel_sets = _run_rows(summaries)
     given = ReportInputs(tuple(summaries), comparison, measured, tuple(repeats), tuple(predictions), shapes,
                          diagnosis, rig_name)
-    added = [{"id": f"section-{name}", "title": section.title,
-              "figures": [_fig(fig, caption) for fig, caption in section.figures(given)]}
-             for name, section in SECTIONS.items()]   # the registered sections (reports.sections)
-    added = [a for a in added if a["figures"]]
-    _number([*figures_modes, *animations, *(f for s in run_sections for f in s["figures"]), *figures_diag,
-             *(f for a in added for f in a["figures"])])
-    meta, quality, channel_sets = _run_rows(summaries)
+    blocks = {"comparison": (bool(comparison_html), []), "diagnosis": (diagnosis is not None, []),
+              "animations": (bool(animations), animations), "identified": (measured is not None, []),
+              "runs": (bool(meta), [f for s in run_sections for f in s["figures"]])}
+    sections = []   # every registered section (reports.sections) the report shows, in registration order
+    for name, section in SECTIONS.items():
+        if section.block:
+            shown, figures = blocks[section.block]
+        else:
+            step(f"plotting {section.title.lower()}")
+            figures = [_fig(fig, caption) for fig, caption in section.figures(given)]
+            shown = bool(figures)
+        if shown:
+            sections.append({"id": section.anchor or f"section-{name}", "title": section.title,
+                             "block": section.block, "figures": figures})
+    _number([f for s in sections for f in s["figures"]])
     if inputs is None:
         inputs = [s.run.path for s in summaries]
         inputs += [t.source for t in ([measured] if measured is not None else []) + list(repeats)]
         inputs += [t.source for _, t in predictions]
     named = list(dict.fromkeys(relative_name(p, out.parent) for p in inputs))
-    contents = _contents([("comparison", "Measured and predicted modes", bool(comparison_html)),
-                          ("diagnosis", "Sim-to-real gap diagnosis", diagnosis is not None),
-                          ("modes", "Modes across poses", bool(figures_modes)),
-                          ("animations", "Animated mode shapes", bool(animations)),
-                          ("identified", "Identified modes", measured is not None),
-                          ("runs", "Stored runs", bool(meta)),
-                          ("gap", "Gap before and after the diagnosed effect", bool(figures_diag)),
-                          *((a["id"], a["title"], True) for a in added)],
-                         run_sections)
+    contents = [{"id": s["id"], "title": s["title"],
+                 "children": [{"id": r["id"], "title": r["label"]} for r in run_sections]
+                 if s["block"] == "runs" else []} for s in sections]
     env = jinja2.Environment(loader=jinja2.PackageLoader("flexmodal.reports", "templates"),
                              autoescape=jinja2.select_autoescape(["html"]), undefined=jinja2.StrictUndefined)
     html = env.get_template("report.html").render(
         title=title, generated=datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC"), versions=versions(),
         rig_name=rig_name, inputs=named, comparison_html=comparison_html, contents=contents,
-        tables_before=1 if comparison_html else 0,
+        tables_before=1 if comparison_html else 0, sections=sections,
         diagnosis=_diagnosis_view(diagnosis) if diagnosis is not None else None,
-        figures_modes=figures_modes, animations=animations, animation_script=animate.SCRIPT,
+        animation_script=animate.SCRIPT,
         measured_rows=_measured_rows(measured) if measured is not None else [],
         measured_source=relative_name(measured.source, out.parent) if measured is not None else "",
         runs=meta, quality=quality, channel_sets=channel_sets, low_coherence=LOW_COHERENCE,
-        run_sections=run_sections, figures_diagnosis=figures_diag, added_sections=added)
+        run_sections=run_sections)
     out.parent.mkdir(parents=True, exist_ok=True)
     return write_text(out, html)
 

@@ -1,7 +1,8 @@
-"""Report sections added to the validation report: a registry of :class:`Section` entries, each drawing
-its figures from what the report is written from (:class:`ReportInputs`).  A new section is one
-``register_section(name, Section(title, figures))`` call; reports.html renders every registered section
-after the built-in ones, numbered and listed in the contents like them.
+"""The sections of the validation report: a registry of :class:`Section` entries, each drawing its
+figures from what the report is written from (:class:`ReportInputs`).  The built-in ones are entries too
+(reports/figure_sections.py draws ``modes`` and ``gap``; the tables are blocks of the template).  A new
+section is one ``register_section(name, Section(title, figures))`` call; reports.html renders every
+registered section in registration order, numbered and listed in the contents.
 """
 
 from __future__ import annotations
@@ -33,13 +34,27 @@ class ReportInputs:
 @dataclass(frozen=True)
 class Section:
     """A report section: its ``title`` and ``figures(inputs)``, the (matplotlib Figure, caption) pairs it
-    shows (none: the section is left out of that report)."""
+    shows (a None figure: the caption alone, as a note; none at all: the section is left out of that
+    report); ``anchor`` its id in the page (default ``section-<name>``).  The built-in sections that are
+    tables rather than figures name the ``block`` of the template that renders them (reports/templates/
+    report.html) and have no ``figures``."""
 
     title: str
-    figures: Callable[[ReportInputs], Sequence[tuple[Any, str]]]
+    figures: Callable[[ReportInputs], Sequence[tuple[Any, str]]] | None = None
+    anchor: str = ""
+    block: str = ""
 
 
-SECTIONS: Registry[Section] = Registry("report section", ReportError)
+# the built-in sections in the order of the page; those added with register_section follow them
+SECTIONS: Registry[Section] = Registry("report section", ReportError, {
+    "comparison": Section("Measured and predicted modes", anchor="comparison", block="comparison"),
+    "diagnosis": Section("Sim-to-real gap diagnosis", anchor="diagnosis", block="diagnosis"),
+    "modes": "flexmodal.reports.figure_sections:MODES",
+    "animations": Section("Animated mode shapes", anchor="animations", block="animations"),
+    "identified": Section("Identified modes", anchor="identified", block="identified"),
+    "runs": Section("Stored runs", anchor="runs", block="runs"),
+    "gap": "flexmodal.reports.figure_sections:GAP",
+})
 
 
 def register_section(name: str, section: Section) -> Section:
@@ -53,5 +68,5 @@ def unregister_section(name: str) -> None:
 
 
 def registered_sections() -> tuple[str, ...]:
-    """Names of the added report sections, in registration order."""
+    """Names of the report sections, in registration order (the built-in ones first)."""
     return SECTIONS.names()

@@ -15,10 +15,9 @@ import time
 import numpy as np
 import pytest
 
-from flexmodal.daq.devices import DeviceLost
+from flexmodal.daq.devices import Device, DeviceLost
 from flexmodal.daq.serial_driver import SerialConfig, SerialDriver
 from flexmodal.daq.serial_frames import encode_frames
-from flexmodal.daq.session import Device
 from flexmodal.fixtures.sim_common import PtyLink
 
 SOURCES = ("a", "b")

@@ -3,7 +3,8 @@ exempted by its name): each folder of the package imports only the folders liste
 at run time (imports under ``if TYPE_CHECKING`` are types only).  ``modal`` and ``models`` are siblings:
 neither imports the other, both write the modal-table contract (``contract``).  The root modules stand
 with a folder: ``api.py`` and the root ``__init__.py`` (which re-exports the API and wires the built-in
-simulator launcher) are the API; ``app.py`` and ``__main__.py`` are the shell with ``cli/``.  Also:
+simulator launcher) are the API; ``app.py`` and ``__main__.py`` are the shell with ``cli/``, which imports
+only ``flexmodal.api`` and the kit's argparse types, error family and registry shape (SHELL_KIT).  Also:
 reports renders and computes nothing; docs stand alone (no reference to a contract file that is not in
 the repository, every docs path named in --help exists)."""
 
@@ -31,9 +32,12 @@ ALLOWED = {
     "reports": _BELOW_COMPARE | {"compare"},
     "fixtures": _BELOW_COMPARE | {"compare", "reports"},
     "api": _BELOW_COMPARE | {"compare", "reports", "fixtures"},
-    "cli": _BELOW_COMPARE | {"compare", "reports", "fixtures", "api", "app"},
+    "cli": {"api", "app"},   # the one shell: parse argv, call flexmodal.api, print
 }
 ALLOWED["app"] = ALLOWED["cli"] | {"cli"}
+# what the shell may take from the kit beside the API: argparse types, the error family it turns into one
+# line, and the registry shape of its command registry (no I/O: every output is written by the API)
+SHELL_KIT = {"flexmodal.checked_io.options", "flexmodal.checked_io.errors", "flexmodal.checked_io.registry"}
 ROOT = {"api.py": "api", "__init__.py": "api", "app.py": "app", "__main__.py": "app"}
 # what reports/ may import from below it: data types and small display helpers, no solver
 REPORT_IMPORTS = {"flexmodal.compare.tables", "flexmodal.contract.table", "flexmodal.contract.mac",
@@ -72,10 +76,11 @@ def _runtime_imports(path: Path) -> list[str]:
             continue
         if isinstance(node, ast.Import):
             found += [a.name for a in node.names]
-        elif isinstance(node, ast.ImportFrom) and node.module:
-            found += [node.module] if node.level == 0 else []
-            if node.module == "flexmodal":
-                found += [f"flexmodal.{a.name}" for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            folder = REPO.joinpath(*node.module.split(".")[1:])   # ``from package import module``: the module
+            subs = [f"{node.module}.{a.name}" for a in node.names
+                    if node.module == "flexmodal" or (folder / f"{a.name}.py").is_file()]
+            found += subs or [node.module]
     return [m for m in found if m.startswith("flexmodal.")]
 
 
@@ -83,7 +88,9 @@ def _upward(path: Path, rel: Path | None = None) -> list[str]:
     """Imports of ``path`` (standing at ``rel`` in the repository) that its folder may not make."""
     rel = rel or path.relative_to(REPO)
     mine = _layer(rel)
-    return [m for m in _runtime_imports(path) if _target(m) != mine and _target(m) not in ALLOWED[mine]]
+    kit = SHELL_KIT if mine in ("cli", "app") else set()
+    return [m for m in _runtime_imports(path)
+            if _target(m) != mine and _target(m) not in ALLOWED[mine] and m not in kit]
 
 
 @pytest.mark.parametrize("rel", [str(p.relative_to(REPO)) for p in _sources()])
@@ -101,6 +108,9 @@ def test_the_walk_sees_every_folder_and_catches_a_forbidden_import(tmp_path):
     probe.write_text("from flexmodal.modal.identify import identify\n")
     assert _upward(probe, Path("models/probe.py")) == ["flexmodal.modal.identify"]   # siblings
     assert _upward(probe, Path("compare/probe.py")) == []
+    probe.write_text("def f():\n    from flexmodal.checked_io.output import output_file\n"
+                     "    from flexmodal.checked_io import options\n    from flexmodal.api import identify\n")
+    assert _upward(probe, Path("cli/probe.py")) == ["flexmodal.checked_io.output"]   # the shell: API only
 
 
 def test_reports_renders_and_solves_nothing():
@@ -159,3 +169,41 @@ def test_every_package_error_is_one_of_the_family():
     assert set(found) - {"FlexmodalError"} == {"DaqError", "ModalError", "ModelError", "CompareError",
                                                "ReportError", "FixtureError", "ContractError"}
     assert all(issubclass(cls, FlexmodalError) for cls in found.values())
+
+
+def _module_name(path: Path) -> str:
+    rel = path.relative_to(REPO).with_suffix("")
+    return ".".join(("flexmodal", *rel.parts)).removesuffix(".__init__")
+
+
+def _module_level_imports(path: Path) -> set[str]:
+    """flexmodal modules imported at module level, typing-only ones included (an ``if`` at top level)."""
+    found = set()
+    for node in ast.parse(path.read_text(encoding="utf-8")).body:
+        for n in ast.walk(node) if isinstance(node, ast.If | ast.Import | ast.ImportFrom) else ():
+            if isinstance(n, ast.Import):
+                found |= {a.name for a in n.names}
+            elif isinstance(n, ast.ImportFrom) and n.module and n.level == 0:
+                found.add(n.module)
+    return {m for m in found if m.startswith("flexmodal.")}
+
+
+def test_no_import_cycle_even_for_types():
+    """No module reaches itself through module-level imports (typing-only ones count: such a cycle is
+    a record living in the wrong module, as daq.session.Device did for daq.devices)."""
+    graph = {_module_name(p): _module_level_imports(p) for p in _sources()}
+    cycles, state = [], {}
+
+    def visit(module: str, path: list[str]) -> None:
+        state[module] = "open"
+        for nxt in sorted(graph.get(module, ())):
+            if state.get(nxt) == "open":
+                cycles.append(path[path.index(nxt):] + [nxt])
+            elif nxt not in state:
+                visit(nxt, [*path, nxt])
+        state[module] = "done"
+
+    for module in sorted(graph):
+        if module not in state:
+            visit(module, [module])
+    assert cycles == []

@@ -126,6 +126,36 @@ def test_toy_report_section_in_the_report_and_its_contents(toy, tmp_path):
     assert f'href="#section-{toy.NAME}"' in html and "one bar per row of the modal table" in html
 
 
+BUILT_IN_SECTIONS = ("comparison", "diagnosis", "modes", "animations", "identified", "runs", "gap")
+
+
+def test_the_built_in_report_sections_are_entries_of_the_same_registry(tmp_path):
+    """The report's own sections are registry entries like the toy's: in the page's order, and one left
+    out of the registry is left out of the page (figures renumbered)."""
+    import flexmodal as fm
+    from flexmodal.reports.sections import SECTIONS, register_section, registered_sections, unregister_section
+
+    assert registered_sections()[:7] == BUILT_IN_SECTIONS
+    measured = REPO / "examples" / "measured" / "seed003_table3_f1f2.csv"
+    rig = REPO / "examples" / "rigs" / "seed003_two_link.toml"
+    diagnosis = fm.diagnose(rig, measured, effects="joint_stiffness", holdout="theta30,theta90,theta150")
+    html = fm.report(tmp_path / "all.html", measured=measured, diagnosis=diagnosis).read_text()
+    assert html.index('<h2 id="diagnosis">') < html.index('<h2 id="modes">') < html.index('<h2 id="gap">')
+    assert 'href="#modes"' in html and "Figure 2." in html
+    before = {name: SECTIONS[name] for name in registered_sections()}
+    unregister_section("modes")
+    try:
+        html = fm.report(tmp_path / "less.html", measured=measured, diagnosis=diagnosis).read_text()
+    finally:   # the registry as it was, in its order
+        for name in registered_sections():
+            unregister_section(name)
+        for name, section in before.items():
+            register_section(name, section)
+    assert 'id="modes"' not in html and 'href="#modes"' not in html
+    assert '<h2 id="gap">' in html and "Figure 1." in html and "Figure 2." not in html
+    assert registered_sections()[:7] == BUILT_IN_SECTIONS
+
+
 @pytest.mark.parametrize("toy", ["toy_command"], indirect=True)
 def test_toy_command_in_help_and_run(toy, capsys):
     with pytest.raises(SystemExit):

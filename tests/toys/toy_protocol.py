@@ -7,9 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from flexmodal.daq.devices import Block, Driver
+from flexmodal.daq.devices import Block, Device, Driver
 from flexmodal.daq.protocols import register_protocol
-from flexmodal.daq.session import Device
 
 NAME = "toy"
 
