@@ -4,14 +4,18 @@ A product promise such as "exits within 1 s of SIGINT" is about what the program
 waits on its children), not about how much CPU other users of a shared machine leave it.  Linux counts,
 for every thread, the time it was runnable but kept off a CPU (``run_delay``, the second field of
 ``/proc/PID/task/TID/schedstat``; 0 for every thread on an idle machine).  :class:`CpuWait` follows a
-process, its threads and its descendants (and the thread that observes it) from a background thread and
-gives, for any window, how long at least one of them was kept waiting; a bound is then checked on
+process, its threads and its descendants (and the threads of the test that observes it) from a
+background thread and gives, for any window, how long at least one of them was kept waiting; a bound
+is then checked on
 
     wall seconds of the window - seconds the tree waited for a CPU within it
 
 which equals the wall time on a quiet machine and does not grow with the load.  The subtraction is capped
 per polling step at the step's length (several threads waiting at once count once); a thread that ends
-between two polls takes its last waiting time with it, which only makes the check stricter.
+between two polls takes its last waiting time with it, which only makes the check stricter (the polling
+thread runs with a real-time priority where allowed, so that a step stays 20 ms under any load: a
+child that waited seconds for the CPU to handle its SIGTERM and then exited would otherwise take those
+seconds with it).
 """
 
 from __future__ import annotations
@@ -50,9 +54,9 @@ def _run_delay_ns(task: Path) -> int | None:
 
 
 class CpuWait:
-    """Follow the process trees of ``pids`` and the calling thread; ``waited(t0, t1)`` is the number of
-    seconds between two ``time.monotonic()`` instants during which one of them was runnable but not
-    running.
+    """Follow the process trees of ``pids`` and the threads of this process; ``waited(t0, t1)`` is the
+    number of seconds between two ``time.monotonic()`` instants during which one of them was runnable
+    but not running.
 
     Use as a context manager (polling every ``step_s`` seconds from a daemon thread), or call
     :meth:`sample` in a loop of one's own; call :meth:`sample` once more right after the event that
@@ -62,12 +66,12 @@ class CpuWait:
     def __init__(self, *pids: int, step_s: float = 0.02) -> None:
         self.pids = pids
         self.step_s = step_s
-        self.observer = Path(f"/proc/{os.getpid()}/task/{threading.get_native_id()}")
         self.last: dict[str, int] = {}
         self.times = [time.monotonic()]
         self.total = [0.0]  # cumulative seconds waited at self.times
         self.lock = threading.Lock()
         self.stop = threading.Event()
+        self.poller = ""
         self.sample()
         self.thread = threading.Thread(target=self._poll, daemon=True)
 
@@ -80,6 +84,11 @@ class CpuWait:
         self.thread.join(timeout=5)
 
     def _poll(self) -> None:
+        self.poller = f"/proc/{os.getpid()}/task/{threading.get_native_id()}"  # not itself a waiter
+        try:  # sample on time however loaded the machine is (a tiny job every step); else best effort
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))
+        except (PermissionError, OSError):
+            pass
         while not self.stop.wait(self.step_s):
             self.sample()
 
@@ -87,11 +96,12 @@ class CpuWait:
         with self.lock:
             now = time.monotonic()
             grown, first = 0, not self.last
-            for task in [self.observer, *(t for pid in self.pids for t in _tree(pid))]:
+            tasks = {str(t): t for t in [*_tasks(os.getpid()), *(t for pid in self.pids for t in _tree(pid))]}
+            tasks.pop(self.poller, None)
+            for key, task in tasks.items():
                 ns = _run_delay_ns(task)
                 if ns is None:
                     continue
-                key = str(task)
                 grown += ns - self.last.get(key, ns if first else 0)  # a new task: all since it began
                 self.last[key] = ns
             step = now - self.times[-1]

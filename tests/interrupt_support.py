@@ -62,13 +62,16 @@ def interrupt(args: list[str], cwd: Path, ready: Callable[[int], bool], ready_wi
                 assert time.monotonic() - t0 < ready_within_s, f"not ready within {ready_within_s} s"
                 time.sleep(0.01)
             assert proc.poll() is None, "ended before the signal"
+            cpu_before = cpu_s(proc.pid)
             sent = time.monotonic()
             proc.send_signal(signal.SIGINT)
-            exited = exit_seen(proc.pid, 30.0)
+            exited = exit_seen(proc.pid, 120.0)
             waits.sample()  # the zombie's counters, still readable (not reaped yet)
+            cpu_after = cpu_s(proc.pid)
         _, err = proc.communicate(timeout=30)
         seconds = waits.unloaded(sent, exited)
-        print(f"exit {exited - sent:.3f} s wall after SIGINT, {seconds:.3f} s of it not waiting for a CPU")
+        print(f"exit {exited - sent:.3f} s wall after SIGINT, {seconds:.3f} s of it not waiting for a CPU, "
+              f"{cpu_after - cpu_before:.2f} s CPU")
         return proc.returncode, seconds, err
     finally:
         if proc.poll() is None:
@@ -78,11 +81,10 @@ def interrupt(args: list[str], cwd: Path, ready: Callable[[int], bool], ready_wi
 
 def exit_seen(pid: int, within_s: float) -> float:
     """``time.monotonic()`` when child ``pid`` was seen to have exited, leaving it unreaped (its /proc
-    entry stays readable); after ``within_s`` seconds the current time."""
+    entry stays readable); fails if it is still running after ``within_s`` seconds (a hang guard)."""
     deadline = time.monotonic() + within_s
-    while time.monotonic() < deadline:
-        if os.waitid(os.P_PID, pid, os.WEXITED | os.WNOHANG | os.WNOWAIT) is not None:
-            break
+    while os.waitid(os.P_PID, pid, os.WEXITED | os.WNOHANG | os.WNOWAIT) is None:
+        assert time.monotonic() < deadline, f"pid {pid} still running {within_s} s later"
         time.sleep(0.005)
     return time.monotonic()
 

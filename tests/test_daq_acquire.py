@@ -20,6 +20,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from cpu_wait import CpuWait
 
 from flexmodal.daq.store import list_runs, read_run
 from flexmodal.fixtures.sim_common import read_fault_log
@@ -268,23 +269,26 @@ def test_sigkill_of_acquire_keeps_all_but_last_second(tmp_path):
     seen: list[tuple[float, int]] = []  # (time, samples visible to a SWMR reader)
     deadline = time.monotonic() + 60
     try:
-        while time.monotonic() < deadline and (not seen or seen[-1][1] < 5 * 2048):
-            time.sleep(0.1)
-            assert proc.poll() is None
-            try:
-                with h5py.File(out, "r", libver="latest", swmr=True) as f:  # read while it grows
-                    seen.append((time.monotonic(), next(iter(f["runs"].values()))["samples"].shape[0]))
-            except (OSError, KeyError, StopIteration):
-                continue
-        t_kill = time.monotonic()
-        proc.send_signal(signal.SIGKILL)
+        with CpuWait(proc.pid) as waits:
+            while time.monotonic() < deadline and (not seen or seen[-1][1] < 5 * 2048):
+                time.sleep(0.1)
+                assert proc.poll() is None
+                try:
+                    with h5py.File(out, "r", libver="latest", swmr=True) as f:  # read while it grows
+                        seen.append((time.monotonic(), next(iter(f["runs"].values()))["samples"].shape[0]))
+                except (OSError, KeyError, StopIteration):
+                    continue
+            t_kill = time.monotonic()
+            proc.send_signal(signal.SIGKILL)
     finally:
         proc.kill()
         proc.wait()
     (t0, n0), (t1, n1) = next(x for x in seen if x[1] > 0), seen[-1]
     assert n1 >= 5 * 2048
     rate = (n1 - n0) / (t1 - t0)  # how fast samples arrived (2048/s unless the machine is starved)
-    in_hand = n1 + rate * (t_kill - t1) + 0.5 * rate  # + what was not flushed yet when last seen
+    # + what was not flushed yet when last seen; the time acquire (or this test) waited for a CPU between
+    # the last look and the kill not counted (tests/cpu_wait.py)
+    in_hand = n1 + rate * waits.unloaded(t1, t_kill) + 0.5 * rate
     run, first = _run(out)
     n = run.samples.shape[0]
     assert n >= in_hand - 2048  # all but at most the last second

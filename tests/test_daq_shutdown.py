@@ -30,9 +30,20 @@ from interrupt_support import exit_seen
 REPO = Path(__file__).resolve().parents[1]
 SESSIONS = REPO / "examples" / "sessions"
 RATES = {"serial": 2048.0, "can": 512.0, "modbus": 200.0}
+# Waits for a process to start, store or end: generous, as on a loaded machine a niced acquire needed
+# 20 s to store its first CAN sample (26 Nov, load 20 and two busy loops); the bounds that are promises
+# are checked on their own clock (tests/cpu_wait.py)
+START_S = 240.0
+pytestmark = pytest.mark.timeout(1200)
 
 
-def session_file(tmp_path: Path, protocol: str, extra: str = "", sim: str = "") -> Path:
+# A device counts as lost after reconnect_timeout_s (10 s by default) without a sample, on the wall
+# clock; a simulator starved of CPU that long on a loaded machine would end a session that is meant to
+# meet a signal, so those sessions wait 120 s (the lost-device cases set their own timeout).
+PATIENT = "reconnect_timeout_s = 120.0\n"
+
+
+def session_file(tmp_path: Path, protocol: str, extra: str = PATIENT, sim: str = "") -> Path:
     """The example session of ``protocol`` with absolute paths; ``extra`` top-level keys, ``sim`` lines
     added to its [simulator] block."""
     text = (SESSIONS / f"{protocol}-sim.toml").read_text()
@@ -94,7 +105,7 @@ def plain_run(out: Path) -> tuple[np.ndarray, list[tuple[str, int, int, str]]]:
             "print(json.dumps(ev))\n")
     npy = out.with_suffix(".npy")
     done = subprocess.run([sys.executable, "-c", code, str(out), str(npy)], capture_output=True, text=True,
-                          timeout=60, cwd=out.parent)
+                          timeout=START_S, cwd=out.parent)
     assert done.returncode == 0, done.stderr
     return np.load(npy), [tuple(e) for e in json.loads(done.stdout)]
 
@@ -108,15 +119,15 @@ def test_sigterm_closes_the_run_cleanly(tmp_path, protocol):
     proc = start_acquire(session_file(tmp_path, protocol), out, 60)
     try:
         with CpuWait(proc.pid) as waits:
-            assert wait_for(lambda: stored(out) > 0, 60), "no samples within 60 s"
+            assert wait_for(lambda: stored(out) > 0, START_S), f"no samples within {START_S} s"
             t_first = time.monotonic()
             time.sleep(random.uniform(1.0, 3.0))
             sim = children(proc.pid)
             t_term = time.monotonic()
             proc.send_signal(signal.SIGTERM)
-            t_exit = exit_seen(proc.pid, 30.0)
+            t_exit = exit_seen(proc.pid, START_S)
             waits.sample()  # the zombie's counters (not reaped yet)
-        stdout, stderr = proc.communicate(timeout=30)
+        stdout, stderr = proc.communicate(timeout=START_S)
     finally:
         proc.kill()
     elapsed, took = waits.unloaded(t_first, t_term), waits.unloaded(t_term, t_exit)
@@ -139,9 +150,9 @@ def test_sighup_and_sigint_stop_the_same_way(tmp_path):
         out = tmp_path / f"run-{sig.name}.h5"
         proc = start_acquire(session_file(tmp_path, "serial"), out, 60)
         try:
-            assert wait_for(lambda o=out: stored(o) > 2048, 60)
+            assert wait_for(lambda o=out: stored(o) > 2048, START_S)
             proc.send_signal(sig)
-            stdout, stderr = proc.communicate(timeout=30)
+            stdout, stderr = proc.communicate(timeout=START_S)
         finally:
             proc.kill()
         assert proc.returncode == 128 + sig, stderr
@@ -152,25 +163,26 @@ def test_sighup_and_sigint_stop_the_same_way(tmp_path):
 @pytest.mark.parametrize("protocol,device", [("serial", "adc"), ("can", "can0"), ("modbus", "plc")])
 def test_killed_simulator_is_a_lost_device_and_ends_the_session(tmp_path, protocol, device):
     out = tmp_path / "run.h5"
-    config = session_file(tmp_path, protocol, "reconnect_timeout_s = 2.0\n")
+    config = session_file(tmp_path, protocol, "reconnect_timeout_s = 5.0\n")  # 2 s: a starved CAN simulator
+    # was lost before it had stored its first second (26 Nov, load 20 and two busy loops)
     proc = start_acquire(config, out, 60)
     try:
-        assert wait_for(lambda: stored(out) > RATES[protocol], 60)
+        assert wait_for(lambda: stored(out) > RATES[protocol], START_S)
         with CpuWait(proc.pid) as waits:
             for pid in children(proc.pid):
                 os.kill(pid, signal.SIGKILL)
             t_kill = time.monotonic()
-            t_exit = exit_seen(proc.pid, 60.0)
+            t_exit = exit_seen(proc.pid, START_S)
             waits.sample()
-        stdout, stderr = proc.communicate(timeout=60)
+        stdout, stderr = proc.communicate(timeout=START_S)
     finally:
         proc.kill()
     took = waits.unloaded(t_kill, t_exit)  # not counting time spent waiting for a CPU (tests/cpu_wait.py)
     assert proc.returncode == 2
     assert stderr.count("\n") == 1 and f"device {device!r} lost" in stderr
     print(f"{protocol}: session ended {took:.2f} s ({t_exit - t_kill:.2f} s wall) after the simulator was "
-          "killed (timeout 2 s)")
-    assert took <= 2.0 + 10.0  # the timeout, plus generous room
+          "killed (timeout 5 s)")
+    assert took <= 5.0 + 7.0  # the timeout, plus generous room
     samples, events = plain_run(out)
     kinds = [e[0] for e in events]
     assert "device_lost" in kinds and kinds[-1] == "stopped"
@@ -183,15 +195,15 @@ def test_recover_refuses_a_file_a_live_acquire_is_writing(tmp_path):
     out = tmp_path / "run.h5"
     proc = start_acquire(session_file(tmp_path, "serial"), out, 600)
     try:
-        assert wait_for(lambda: stored(out) > 2048, 60)
+        assert wait_for(lambda: stored(out) > 2048, START_S)
         second = subprocess.run([sys.executable, "-m", "flexmodal", "--quiet", "acquire", "--recover",
                                  "--config", str(session_file(tmp_path, "serial")), "--out", str(out),
                                  "--duration", "1", "--run-id", "second"], cwd=REPO, capture_output=True,
-                                text=True, timeout=120)
+                                text=True, timeout=START_S)
         assert proc.poll() is None, "the live acquire ended before the second command was refused"
         before = stored(out)
         proc.send_signal(signal.SIGTERM)
-        stdout, stderr = proc.communicate(timeout=60)
+        stdout, stderr = proc.communicate(timeout=START_S)
     finally:
         proc.kill()
     assert second.returncode == 2 and second.stderr.count("\n") == 1, second.stderr
@@ -228,7 +240,7 @@ def _run_first_index(out: Path) -> int:
 def test_disk_nearly_full_at_start_is_refused_before_anything_is_written(tmp_path):
     out = tmp_path / "run.h5"
     proc = start_acquire(session_file(tmp_path, "serial"), out, 5, preexec_fn=_file_size_limit(4_000_000))
-    _, stderr = proc.communicate(timeout=60)
+    _, stderr = proc.communicate(timeout=START_S)
     assert proc.returncode == 2 and stderr.count("\n") == 1
     assert re.search(r"only 4\.0 MB free for it; the run needs 0\.\d MB \+ 8 MB reserve", stderr)
     assert not out.exists() and not out.with_name("run.h5.lock").exists()
@@ -243,7 +255,7 @@ def test_disk_full_mid_run_stops_cleanly_with_the_run_intact(tmp_path):
                              "--out", str(out)], cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True, preexec_fn=_file_size_limit(12_000_000))
     try:
-        stdout, stderr = proc.communicate(timeout=120)
+        stdout, stderr = proc.communicate(timeout=START_S)
     finally:
         proc.kill()
     assert proc.returncode == 2 and stderr.count("\n") == 1 and "disk full" in stderr, stderr
@@ -269,7 +281,7 @@ def test_write_failure_at_the_final_flush_leaves_no_zeros(tmp_path):
             "from flexmodal.app import main; sys.exit(main(sys.argv[1:]))\n")
     done = subprocess.run([sys.executable, "-c", code, "--quiet", "acquire", "--config", str(config), "--out",
                            str(out), "--duration", repr(duration)], cwd=REPO, capture_output=True, text=True,
-                          timeout=120, preexec_fn=_file_size_limit(1_200_000))
+                          timeout=START_S, preexec_fn=_file_size_limit(1_200_000))
     assert done.returncode == 2 and done.stderr.count("\n") == 1 and "writing failed" in done.stderr
     samples, _ = plain_run(out)
     good = ~np.isnan(samples).any(axis=1)
@@ -321,15 +333,15 @@ def test_one_lost_device_never_holds_back_the_other(tmp_path):
     polls: list[tuple[float, int]] = []
     try:
         with CpuWait(proc.pid, left.pid, right.pid) as waits:
-            assert wait_for(lambda: stored(out) > 0, 60)
+            assert wait_for(lambda: stored(out) > 0, START_S)
             t_start = time.monotonic()
             while proc.poll() is None and time.monotonic() - t_start < 120:
                 polls.append((time.monotonic(), stored(out)))
-                if right.poll() is None and waits.unloaded(t_start, time.monotonic()) > 2.0:
+                if right.poll() is None and time.monotonic() - t_start > 2.0:
                     right.kill()  # the right device vanishes for good
                     t_kill = time.monotonic()
                 time.sleep(0.05)
-            stdout, stderr = proc.communicate(timeout=30)
+            stdout, stderr = proc.communicate(timeout=START_S)
     finally:
         for p in (proc, left, right):
             p.kill()
@@ -375,12 +387,12 @@ def test_closing_the_terminal_stops_cleanly(tmp_path):
                             preexec_fn=own_terminal, pass_fds=(slave,), text=True)
     os.close(slave)
     try:
-        end = time.monotonic() + 60
+        end = time.monotonic() + START_S
         while stored(out) < 2048 and time.monotonic() < end:
             if select.select([master], [], [], 0.05)[0]:
                 os.read(master, 65536)  # keep the terminal drained while it runs
         os.close(master)  # the terminal goes away
-        stdout, _ = proc.communicate(timeout=30)
+        stdout, _ = proc.communicate(timeout=START_S)
     finally:
         proc.kill()
     assert proc.returncode == 128 + signal.SIGHUP
