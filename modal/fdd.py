@@ -18,17 +18,19 @@ window's leakage widens the bell, so damping is biased high when the bell holds 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.fft
 import scipy.signal
+from threadpoolctl import threadpool_limits
 
 from flexmodal.contract.mac import mac_pairs, to_real, unit_max
 from flexmodal.modal.damping import log_decrement
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.identify import Modes
 from flexmodal.modal.indicators import mpc, mpd
+from flexmodal.modal.oma_uncertainty import MAX_DECAY_FRACTION, jackknife_std
 from flexmodal.modal.spectra import default_nfft, welch_spectra
 
 # A mode's correlation function decays exponentially: R² of the log-decrement line >= 0.97 for the
@@ -67,10 +69,13 @@ def cross_spectra(y: np.ndarray, sample_rate_hz: float, references: Sequence[int
 
 def fdd(y: np.ndarray, sample_rate_hz: float, *, references: Sequence[int] | None = None,
         nfft: int | None = None, fmin: float | None = None, fmax: float | None = None,
-        prominence_db: float = 6.0, mac_min: float = 0.8) -> FddResult:
+        prominence_db: float = 6.0, mac_min: float = 0.8, uncertainty_blocks: int = 0) -> FddResult:
     """FDD of an output-only record ``y`` [n_samples, n_channels]: singular values of the cross-spectral
     matrix with ``references`` (default all channels) and the peaks of the first between ``fmin`` and
-    ``fmax`` Hz (see module docstring).  ``nfft`` defaults to the power of two giving >= 8 segments."""
+    ``fmax`` Hz (see module docstring).  ``nfft`` defaults to the power of two giving >= 8 segments.
+    ``uncertainty_blocks``: each mode's ``freq_std_hz``/``damping_std`` by the delete-one-block
+    jackknife over that many contiguous blocks of the record (modal/oma_uncertainty.py; 0: none, as
+    ``identify`` runs it: about four times FDD's cost)."""
     y = np.asarray(y, float)
     if y.ndim != 2 or np.isinf(y).any():
         raise ModalError(f"FDD: record of shape {y.shape} is not a finite [n_samples, n_channels] array "
@@ -107,17 +112,69 @@ def fdd(y: np.ndarray, sample_rate_hz: float, *, references: Sequence[int] | Non
     complex_shapes = unit_max(U[lines, :, 0].T)
     modes = Modes(np.array(fn), np.array(zeta), to_real(complex_shapes), complex_shapes, "fdd", False,
                   tuple(warnings), mpc=mpc(complex_shapes), mpd=mpd(complex_shapes))
+    if uncertainty_blocks:   # freq_std_hz / damping_std (issue 26)
+        with threadpool_limits(1, "blas"):        # small batched SVDs: threads only spin on them
+            std = _jackknife(y, sample_rate_hz, refs, nfft, lines, mac_min, uncertainty_blocks)
+        # a mode decaying over more than MAX_DECAY_FRACTION of a block: the blocks are not independent
+        block_s = y.shape[0] / _n_blocks(y.shape[0], nfft, uncertainty_blocks) / sample_rate_hz
+        std[1.0 / (modes.damping_ratio * 2 * np.pi * modes.freq_hz) > MAX_DECAY_FRACTION * block_s] = np.nan
+        modes = replace(modes, freq_std_hz=std[:, 0], damping_std=std[:, 1])
     return FddResult(f, sv.T, U[:, :, 0].T, modes, G)
 
 
-def _efdd(freq_hz: np.ndarray, s1: np.ndarray, u1: np.ndarray, peak: int, sample_rate_hz: float,
-          mac_min: float) -> tuple[float, float]:
-    """EFDD damping ratio and undamped natural frequency [Hz] of the peak at line ``peak`` of the first
-    singular value ``s1`` [n_freq] with first singular vectors ``u1`` [n_freq, n_channels]."""
+def _n_blocks(n_samples: int, nfft: int, n_blocks: int) -> int:
+    """Blocks of at least two half-overlapping segments, at most ``n_blocks`` (and at least 1)."""
+    return max(1, min(n_blocks, int(n_samples // (1.5 * nfft))))
+
+
+def _jackknife(y: np.ndarray, sample_rate_hz: float, refs: list[int], nfft: int, lines: list[int],
+               mac_min: float, n_blocks: int) -> np.ndarray:
+    """Standard deviations [n_modes, 2] of (f_n [Hz], zeta) of the EFDD modes at ``lines``: the
+    delete-one-block jackknife over ``n_blocks`` contiguous blocks (fewer when a block would hold
+    fewer than two segments; NaN below 4 blocks or where a block's removal loses the mode), each
+    mode's bell kept at its lines in the whole record's spectrum (the jackknife needs a smooth
+    statistic; the bell's edges are a threshold decision)."""
+    n_b = _n_blocks(y.shape[0], nfft, n_blocks)
+    nan = np.full((len(lines), 2), np.nan)
+    if n_b < 4:
+        return nan
+    length = y.shape[0] // n_b
+    try:
+        G = np.stack([cross_spectra(y[j * length:(j + 1) * length], sample_rate_hz, refs, nfft)[1]
+                      for j in range(n_b)])                   # a loop over blocks
+    except ModalError:                                        # a block that is all gaps
+        return nan
+    f = np.fft.rfftfreq(nfft, 1.0 / sample_rate_hz)
+    total = G.sum(axis=0)
+    U, sv, _ = np.linalg.svd(total / n_b, full_matrices=False)
+    bells = [_bell(sv[:, 0], U[:, :, 0], k, mac_min) for k in lines]
+    est = np.full((n_b, len(lines), 2), np.nan)
+    used = np.unique(np.concatenate([np.arange(lo, hi) for lo, hi in bells]))
+    s1 = np.zeros(f.size)
+    for j in range(n_b):                                      # a loop over blocks left out
+        s1[used] = np.linalg.svd((total[used] - G[j, used]) / (n_b - 1), compute_uv=False)[:, 0]
+        for m, k in enumerate(lines):                         # and over modes
+            try:
+                z, f_n = _efdd(f, s1, U[:, :, 0], k, sample_rate_hz, mac_min, bells[m])
+            except ModalError:
+                continue
+            est[j, m] = f_n, z
+    return jackknife_std(est)
+
+
+def _bell(s1: np.ndarray, u1: np.ndarray, peak: int, mac_min: float) -> tuple[int, int]:
+    """Lines [lo, hi) around ``peak`` whose first singular vector has MAC >= ``mac_min`` with the peak's."""
     similar = mac_pairs(u1.T, np.broadcast_to(u1[peak], u1.shape).T) >= mac_min
     edges = np.flatnonzero(~similar)
-    lo = edges[edges < peak].max(initial=-1) + 1
-    hi = edges[edges > peak].min(initial=s1.size)
+    return int(edges[edges < peak].max(initial=-1) + 1), int(edges[edges > peak].min(initial=s1.size))
+
+
+def _efdd(freq_hz: np.ndarray, s1: np.ndarray, u1: np.ndarray, peak: int, sample_rate_hz: float,
+          mac_min: float, bell: tuple[int, int] | None = None) -> tuple[float, float]:
+    """EFDD damping ratio and undamped natural frequency [Hz] of the peak at line ``peak`` of the first
+    singular value ``s1`` [n_freq] with first singular vectors ``u1`` [n_freq, n_channels] (over the
+    lines ``bell`` when given, else :func:`_bell`)."""
+    lo, hi = bell or _bell(s1, u1, peak, mac_min)
     if hi - lo < MIN_BELL_LINES:
         raise ModalError(f"its singular vector stays similar over {hi - lo} lines only (< {MIN_BELL_LINES}): "
                          "a noise peak, not a mode")

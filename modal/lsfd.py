@@ -53,6 +53,19 @@ def _basis(freq_hz: np.ndarray, poles: np.ndarray, quantity: str, residuals: boo
     return np.hstack(cols) * iw ** QUANTITIES[quantity]
 
 
+def synthesis_of(freq_hz: np.ndarray, poles: np.ndarray, residues: np.ndarray, quantity: str = "accelerance"
+                 ) -> np.ndarray:
+    """[n_out, n_in, n_freq] the FRFs of modes with ``poles`` [n_modes] (upper half) and ``residues``
+    [n_out, n_in, n_modes] (receptance form, as :class:`LsfdResult`), without residual terms, in
+    ``quantity``."""
+    m, (n_out, n_in) = len(poles), np.shape(residues)[:2]
+    if m == 0:
+        return np.zeros((n_out, n_in, np.size(freq_hz)), complex)
+    A = _basis(np.asarray(freq_hz, float), np.asarray(poles, complex), quantity, False)   # [nf, 2m]
+    R = np.asarray(residues).reshape(-1, m)
+    return (A @ np.concatenate([R.real, R.imag], axis=1).T).T.reshape(n_out, n_in, -1)
+
+
 def lsfd(freq_hz: np.ndarray, H: np.ndarray, poles: np.ndarray, *, quantity: str = "accelerance",
          residuals: bool = True) -> LsfdResult:
     """Residues of ``H`` [n_out, n_in, n_freq] for continuous-time ``poles`` [n_modes] (upper half)."""
@@ -87,3 +100,49 @@ def lsfd(freq_hz: np.ndarray, H: np.ndarray, poles: np.ndarray, *, quantity: str
     lower = x[2 * m].reshape(n_out, n_in) if residuals else np.zeros((n_out, n_in))
     upper = x[2 * m + 1].reshape(n_out, n_in) if residuals else np.zeros((n_out, n_in))
     return LsfdResult(res, lower, upper, synth, need)
+
+
+def refine_pole(freq_hz: np.ndarray, H: np.ndarray, pole: complex, *, quantity: str = "accelerance",
+                half_widths: float = 3.0, min_lines: int = 7) -> complex:
+    """The one pole (rad/s, upper half plane) that best fits all FRFs ``H`` [n_out, n_in, n_freq] near
+    ``pole`` in the least-squares sense, starting from ``pole``: residues per FRF and constant and
+    1/w^2 residuals (the LSFD model above) projected out (variable projection, Golub & Pereyra 1973),
+    on the lines within ``half_widths`` half-power bandwidths of the start (at least ``min_lines``).
+    For one resonance that a pole pair straddles (a split mode): the pair's weighted average is biased
+    towards the broader pole's damping, the single-pole fit is not.  Returns ``pole`` unchanged when
+    the fit leaves the start's half-power band or has no damping.
+
+    Examples
+    --------
+    >>> f = np.arange(90.0, 110.0, 0.25)
+    >>> lam = 2 * np.pi * 100 * complex(-0.002, np.sqrt(1 - 0.002 ** 2))
+    >>> iw = 2j * np.pi * f
+    >>> H = (1 / (iw - lam) + 1 / (iw - lam.conjugate()))[None, None, :] * iw ** 2
+    >>> p = refine_pole(f, H, complex(-2 * np.pi * 100 * 0.003, 2 * np.pi * 100.1))
+    >>> round(abs(p) / (2 * np.pi), 6), round(-p.real / abs(p), 6)
+    (100.0, 0.002)
+    """
+    import scipy.optimize
+
+    f = np.asarray(freq_hz, float)
+    wn, zeta = abs(pole), -pole.real / abs(pole)
+    fn = wn / (2 * np.pi)
+    step = float(np.median(np.diff(f)))
+    near = np.abs(f - fn) <= max(half_widths * 2 * zeta * fn, 0.5 * min_lines * step)
+    if near.sum() < min_lines or np.any(f[near] <= 0):
+        return pole
+    rhs = H[..., near].reshape(-1, near.sum()).T                                    # [nf, n_frf]
+    rhs_r = np.vstack([rhs.real, rhs.imag])
+
+    def misfit(x: np.ndarray) -> np.ndarray:
+        lam = complex(-x[1] * x[0], x[0] * np.sqrt(max(1 - x[1] ** 2, 0.0)))
+        A = _basis(f[near], np.array([lam]), quantity, True)
+        A_r = np.vstack([A.real, A.imag])
+        return (rhs_r - A_r @ np.linalg.lstsq(A_r, rhs_r, rcond=None)[0]).ravel()
+
+    sol = scipy.optimize.least_squares(misfit, [wn, zeta], x_scale=[max(zeta, 1e-6) * wn, max(zeta, 1e-6)],
+                                       method="lm")
+    w_new, z_new = sol.x
+    if not (sol.success and 0 < z_new < 1 and abs(w_new - wn) <= zeta * wn):
+        return pole
+    return complex(-z_new * w_new, w_new * np.sqrt(1 - z_new ** 2))

@@ -67,8 +67,8 @@ def by_reciprocity(result: FrfResult) -> FrfResult:
 
 def excitation_of(result: FrfResult) -> str | None:
     """How FRFs were made, for advice on resolution: ``impact`` (hit records, force/exponential
-    windows), ``sweep`` (each sweep's whole record), ``random`` (Welch-averaged: random or sweep runs),
-    None (stored FRFs, e.g. UFF, or FRFs given as arrays: api.frf_from_arrays)."""
+    windows), ``sweep`` (each sweep's whole record), ``random`` (Welch-averaged: random runs, and
+    sweep runs given an nfft), None (stored FRFs, e.g. UFF, or FRFs given as arrays: api.frf_from_arrays)."""
     if result.estimator in ("stored", "given"):
         return None
     if result.provenance.get("excitation") == "sweep":

@@ -21,7 +21,7 @@ frequency, ``dz`` in damping and MAC >= ``mac_min``, as in the input-output path
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.fft
@@ -34,6 +34,7 @@ from flexmodal.modal.errors import ModalError
 from flexmodal.modal.identify import Modes
 from flexmodal.modal.indicators import mpc, mpd
 from flexmodal.modal.lscf import Stabilisation, _flags, pole_clusters
+from flexmodal.modal.oma_uncertainty import MAX_DECAY_FRACTION, MAX_MEMBERS, jackknife_std
 
 MPC_MIN = 0.7       # poles below this modal phase collinearity are noise (real modes have MPC ~ 1)
 MPD_MAX_DEG = 30.0  # poles whose entries scatter more than this from one phase line are noise
@@ -116,7 +117,7 @@ def ssi_cov(y: np.ndarray, sample_rate_hz: float, *, references: Sequence[int] |
             min_order: int = 2, order_step: int = 2, block_rows: int | None = None, df: float = 0.01,
             dz: float = DZ, mac_min: float = 0.98, mpc_min: float = MPC_MIN,
             mpd_max_deg: float = MPD_MAX_DEG, min_fraction: float = MIN_FRACTION,
-            lowest_hz: float | None = None) -> SsiResult:
+            lowest_hz: float | None = None, uncertainty_blocks: int = 0) -> SsiResult:
     """SSI-cov of an output-only record ``y`` [n_samples, n_channels] sampled at ``sample_rate_hz``.
 
     ``references``: channel indices whose covariances with every channel fill the Hankel matrix
@@ -127,6 +128,9 @@ def ssi_cov(y: np.ndarray, sample_rate_hz: float, *, references: Sequence[int] |
     validated by damping (0 < zeta < 20 %), MPC >= ``mpc_min`` and MPD <= ``mpd_max_deg`` before
     the stability check; the modes are chosen by
     :func:`_select` (chains of poles stable at ``min_fraction`` of the orders).
+    ``uncertainty_blocks``: the record is cut into that many blocks whose covariances' scatter gives
+    each mode's ``freq_std_hz``/``damping_std`` (modal/oma_uncertainty.py; 0: not estimated; ``identify``
+    uses ``N_BLOCKS``).
     Returns the stabilisation diagram and the modes (unscaled shapes, unit largest entry).
     """
     y = np.asarray(y, float)
@@ -166,8 +170,62 @@ def ssi_cov(y: np.ndarray, sample_rate_hz: float, *, references: Sequence[int] |
         found = real.poles(orders, fs, band, mpc_min, mpd_max_deg)
         stab = _flags(orders, found, df, dz, mac_min)   # the input-output path's stability flags
         all_shapes = np.hstack([np.zeros((n_ch, 0), complex), *[sh for _, sh in found]])
-        modes = _select(stab, all_shapes, min_fraction, real, fs)
+        modes, uppers = _select(stab, all_shapes, min_fraction, real, fs)
+        if uncertainty_blocks:      # freq_std_hz / damping_std from the blocks' scatter (issue 26)
+            modes = _with_std(modes, y, refs, s, uncertainty_blocks, max_order,
+                              [(stab.order[u], stab.pole[u]) for u in uppers], fs)
     return SsiResult(stab, all_shapes, mpc(all_shapes), mpd(all_shapes), modes, sv, fs, refs)
+
+
+def _with_std(modes: Modes, y: np.ndarray, refs: tuple[int, ...], s: int, n_blocks: int, max_order: int,
+              members: list[tuple[np.ndarray, np.ndarray]], fs: float) -> Modes:
+    """``modes`` with the standard deviations of their frequencies and damping ratios: the delete-one-
+    block jackknife (modal/oma_uncertainty.py) over ``n_blocks`` contiguous blocks of ``y`` (fewer when
+    a block would be shorter than 40 s samples), each replicate re-identifying, from the Hankel matrix
+    of the other blocks, the pole nearest each of at most ``MAX_MEMBERS`` of the mode's stable poles
+    (``members``: their orders and poles) at the same orders, and averaging them over the orders the
+    mode's medians are taken over (frequency: the upper half; damping: all; the mean, as the
+    jackknife overestimates a median's variance, Efron 1982 §3.4).  NaN below 4 blocks, and for a
+    mode whose decay time ``1 / (zeta omega_n)`` exceeds ``MAX_DECAY_FRACTION`` of a block (the blocks
+    are then not independent samples of it)."""
+    n_b = min(n_blocks, y.shape[0] // (40 * s))
+    nan = np.full(modes.freq_hz.size, np.nan)
+    if n_b < 4:
+        return replace(modes, freq_std_hz=nan, damping_std=nan.copy())
+    n_ch = y.shape[1]
+    lag = np.arange(s)[:, None] + np.arange(s)[None, :] + 1
+    length = y.shape[0] // n_b
+    try:
+        H = np.stack([covariances(y[j * length:(j + 1) * length], refs, 2 * s)[lag].transpose(0, 2, 1, 3)
+                      .reshape(s * n_ch, s * len(refs)) for j in range(n_b)])     # a loop over blocks
+    except ModalError:                                   # a block that is all gaps
+        return replace(modes, freq_std_hz=nan, damping_std=nan.copy())
+    picks = []
+    for orders, _ in members:                            # evenly spread members: all, and the upper half
+        upper = np.flatnonzero(orders >= np.median(orders))
+        spread = [np.unique(np.linspace(0, k.size - 1, min(MAX_MEMBERS, k.size)).round().astype(int))
+                  for k in (np.arange(orders.size), upper)]
+        picks.append((spread[0], upper[spread[1]]))
+    est = np.full((n_b, len(members), 2), np.nan)
+    total = H.sum(axis=0)
+    for j in range(n_b):                                 # a loop over blocks left out
+        U, sv, Vt = scipy.linalg.svd((total - H[j]) / (n_b - 1), full_matrices=False, check_finite=False)
+        real = _Realisations(U, sv, Vt, n_ch, len(refs), max_order)
+        cache: dict[int, np.ndarray] = {}
+        for m, ((orders, poles), (every, upper)) in enumerate(zip(members, picks, strict=True)):
+            lam = np.empty(orders.size, complex)
+            for k in np.union1d(every, upper):           # a loop over a few of the mode's orders
+                n = int(orders[k])
+                if n not in cache:
+                    mu = scipy.linalg.eigvals(real.X(n), check_finite=False).astype(complex)
+                    cache[n] = np.log(mu) * fs
+                lam[k] = cache[n][np.argmin(np.abs(cache[n] - poles[k]))]
+            est[j, m] = (np.mean(np.abs(lam[upper])) / (2 * np.pi),
+                         np.mean(-lam[every].real / np.abs(lam[every])))
+    std = jackknife_std(est)
+    tau_s = 1.0 / (modes.damping_ratio * 2 * np.pi * modes.freq_hz)
+    std[tau_s > MAX_DECAY_FRACTION * length / fs] = np.nan
+    return replace(modes, freq_std_hz=std[:, 0], damping_std=std[:, 1])
 
 
 class _Realisations:
@@ -217,8 +275,9 @@ class _Realisations:
 
 
 def _select(stab: Stabilisation, shapes: np.ndarray, min_fraction: float, real: _Realisations,
-            fs: float) -> Modes:
-    """The modes of the stabilisation diagram: the input-output path's chains of poles
+            fs: float) -> tuple[Modes, list[np.ndarray]]:
+    """The modes of the stabilisation diagram, and the stabilisation indices of each mode's stable
+    poles (whose medians are the mode's frequency and damping): the input-output path's chains of poles
     (:func:`~flexmodal.modal.lscf.pole_clusters`) stable at ``min_fraction`` of all the diagram's
     orders.  (pLSCF's selection counts the orders from a chain's first, then rejects noise modes by
     the FRF synthesis; output-only data have no FRFs to synthesise, and SSI's noise poles appear at
@@ -229,14 +288,16 @@ def _select(stab: Stabilisation, shapes: np.ndarray, min_fraction: float, real: 
     clusters = clusters.subset(clusters.n_stable >= min_fraction * np.unique(stab.order).size)
     if clusters.freq_hz.size == 0:
         raise ModalError("SSI: no stable mode in the band (try a higher --max-order, or check the record)")
-    picks = []
+    picks, uppers = [], []
     for f0, members in zip(clusters.freq_hz, clusters.members, strict=True):   # a loop over modes
         s = members[stab.stable[members]]
         upper = s[stab.order[s] >= np.median(stab.order[s])]
         picks.append(upper[np.argmin(np.abs(stab.freq_hz[upper] - f0))])
+        uppers.append(s)
     share = np.array([real.contribution(int(stab.order[k]), stab.pole[k], fs) for k in picks])
     weak = share < MIN_CONTRIBUTION * share.max()
     clusters, picks = clusters.subset(~weak), np.asarray(picks)[~weak]
+    uppers = [u for u, w in zip(uppers, weak, strict=True) if not w]
     complex_shapes = unit_max(shapes[:, picks])
     m, d = mpc(complex_shapes), mpd(complex_shapes)
     warnings = tuple(f"mode at {f:.4g} Hz: MPC {a:.2f}, MPD {b:.0f} deg (a complex shape)"
@@ -244,4 +305,4 @@ def _select(stab: Stabilisation, shapes: np.ndarray, min_fraction: float, real: 
     selected = np.zeros(stab.freq_hz.size, bool)
     selected[np.concatenate(clusters.members)] = True
     return Modes(clusters.freq_hz, clusters.damping_ratio, to_real(complex_shapes), complex_shapes, "ssi",
-                 False, warnings, mpc=m, mpd=d, stabilisation=stab, selected=selected)
+                 False, warnings, mpc=m, mpd=d, stabilisation=stab, selected=selected), uppers

@@ -68,9 +68,12 @@ def sweep_starts(forces: np.ndarray) -> np.ndarray | None:
     n = x.shape[0] // blocks
     seg = x[:n * blocks].reshape(blocks, n, x.shape[1])
     seg = seg - seg.mean(axis=1, keepdims=True)   # each block's own offset (a half-quiet block's is large)
+    seg = seg * np.hanning(n)[None, :, None]
+    # energy under the window: a block the sweep only enters or leaves at its edge (where the window
+    # is ~0) has a peak that says nothing and is not driven
     energy = np.sum(seg ** 2, axis=(1, 2))
     driven = np.flatnonzero(energy >= ACTIVE * energy.max())
-    spec = np.abs(np.fft.rfft(seg[driven] * np.hanning(n)[None, :, None], axis=1)).sum(axis=2)
+    spec = np.abs(np.fft.rfft(seg[driven], axis=1)).sum(axis=2)
     track = np.argmax(spec[:, 1:], axis=1) + 1
     runs = _runs(track)
     if runs is None:

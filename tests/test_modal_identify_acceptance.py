@@ -128,7 +128,7 @@ def test_a_spurious_pole_the_frfs_do_not_need_is_dropped_with_a_warning():
                          [[1.0, 0.5]]), 0.01, rng)
     fn, zeta = np.array([30.0, 50.0, 70.0]), np.array([0.01, 0.022, 0.02])
     cand = PoleClusters(fn, zeta, _pole(fn, zeta), np.full(3, 10), tuple(np.array([k]) for k in range(3)))
-    kept, fit, warnings = _validate(f, H, cand, "accelerance", 0, Thresholds())
+    kept, fit, warnings, _ = _validate(f, H, cand, "accelerance", 0, Thresholds())
     assert np.allclose(kept.freq_hz, [30.0, 70.0])
     assert len(warnings) == 1 and "50 Hz" in warnings[0] and "do not need it" in warnings[0]
 

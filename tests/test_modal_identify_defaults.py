@@ -118,9 +118,9 @@ def test_a_mode_standing_clear_of_the_noise_in_the_cmif_is_never_dropped():
     strict = Thresholds(need_min=1e12, mpc_min=0.999999)
     peaks = f[clear_peaks(f, H)]
     assert np.allclose(peaks, fn, atol=0.1)
-    kept, _, warnings = _validate(f, H, cand, "accelerance", 0, strict, peaks)
+    kept, _, warnings, _ = _validate(f, H, cand, "accelerance", 0, strict, peaks)
     assert np.allclose(kept.freq_hz, fn) and not warnings
-    kept, _, warnings = _validate(f, H, cand, "accelerance", 0, strict)
+    kept, _, warnings, _ = _validate(f, H, cand, "accelerance", 0, strict)
     assert kept.freq_hz.size == 0 and all("F = " in w and "< 1e+12" in w for w in warnings)
 
 
@@ -135,7 +135,8 @@ def test_a_pole_the_frfs_show_no_resonance_for_is_dropped_with_the_reason():
     fn, zeta = np.array([60.0, 120.0, 150.0]), np.array([1e-3, 5e-3, 1e-3])
     cand = PoleClusters(fn, zeta, _pole(fn, zeta), np.full(3, 10), tuple(np.array([k]) for k in range(3)))
     visible = visible_peaks(f, H)
-    kept, _, warnings = _validate(f, H, cand, "accelerance", 0, Thresholds(), f[clear_peaks(f, H)], visible)
+    peaks = f[clear_peaks(f, H)]
+    kept, _, warnings, _ = _validate(f, H, cand, "accelerance", 0, Thresholds(), peaks, visible)
     assert np.allclose(kept.freq_hz, [60.0, 150.0])
     assert warnings == ["dropped the pole at 120 Hz (damping 0.5 %): no FRF or CMIF peak of 3 dB within "
                         "1.5 Hz and no close mode: the FRFs show no resonance there"]

@@ -87,11 +87,18 @@ def test_monte_carlo_coverage_of_the_frequency_and_damping_intervals() -> None:
     assert np.mean(c["freq_plscf"]) < np.mean(c["freq"]) - 0.1
 
 
+def _shares(line: str, key: str) -> list[float]:
+    """The percentages after ``key`` in one line of the coverage block, as fractions."""
+    shares = line.split(f"{key} ")[1].split(" (")[0].split("; ")[0]
+    return [float(x.rstrip("%")) / 100 for x in shares.split(", ")]
+
+
 @pytest.mark.slow
-@pytest.mark.timeout(1800)
+@pytest.mark.timeout(3000)
 def test_docs_quote_the_monte_carlo_coverage_the_script_measures():
-    """docs/diagnosis.md's coverage block is what benchmarks/diagnosis_doc.py measures now (400 records
-    per setting), and the frequency intervals' coverage is within 92-98 % on average per setting."""
+    """docs/diagnosis.md's coverage block is what benchmarks/diagnosis_doc.py measures now (EMA: 400
+    records per setting; SSI and FDD: 200), and no EMA or SSI interval covers less than 92 % (the
+    target's floor; where they cover more than 98 % docs/diagnosis.md says so and why)."""
     import importlib.util
 
     from conftest import REPO
@@ -102,6 +109,6 @@ def test_docs_quote_the_monte_carlo_coverage_the_script_measures():
     block = doc.coverage_block()
     assert doc.doc_block("coverage") == block
     for line in block.splitlines()[1:-1]:
-        freq = line.split("frequency ")[1].split(" (")[0]
-        values = [float(x.rstrip("%")) / 100 for x in freq.split(", ")]
-        assert 0.92 <= sum(values) / len(values) <= 0.98, line
+        if line.startswith(("EMA", "SSI")):
+            for value in _shares(line, "frequency") + _shares(line, "damping"):
+                assert value >= 0.92, line

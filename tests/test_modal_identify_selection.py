@@ -1,0 +1,139 @@
+"""Selection of identified modes (issue 23, the extras on the real-data corpus): a pole pair that
+splits one resonance of a multi-reference test is one mode (residues not of rank one), the merged
+pole is the single pole that fits the resonance (not the pair's average), and a pole only an order
+above the default cap brings, at no clear CMIF peak, is left out of the modes but kept in the
+synthesis.  Each against a closed form: exact modal FRFs (fixtures.modal_sim) of known poles."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from flexmodal.fixtures.modal_sim import modal_frf
+from flexmodal.modal.identify import Thresholds, _late, _split, _validate, identify, rank_one_misfit
+from flexmodal.modal.lscf import PoleClusters, Stabilisation, _pole
+from flexmodal.modal.lsfd import lsfd, refine_pole, synthesis_of
+
+
+def _clusters(fn, zeta, members=None) -> PoleClusters:
+    fn, zeta = np.asarray(fn, float), np.asarray(zeta, float)
+    members = members or tuple(np.array([k]) for k in range(fn.size))
+    return PoleClusters(fn, zeta, _pole(fn, zeta), np.full(fn.size, 10), members)
+
+
+def test_rank_one_misfit_is_zero_for_a_mode_and_one_for_two_shapes_in_two_columns():
+    psi, L = np.array([1.0, -0.4, 0.7]), np.array([0.3, 1.1])
+    A = np.stack([np.outer(psi, L) * (1 + 0.2j), np.stack([psi, psi[::-1]], axis=1)], axis=-1)
+    s = np.linalg.svd(A[..., 1], compute_uv=False)
+    assert np.allclose(rank_one_misfit(A), [0.0, s[1] / s[0]], atol=1e-12)
+
+
+def test_synthesis_of_the_lsfd_residues_is_the_lsfd_synthesis_without_residuals():
+    f = np.arange(1.0, 300.0)
+    H = modal_frf(f, [50.0, 120.0], [0.01, 0.02], [[1.0, 0.5], [0.3, -1.0]], [[1.0, 0.5]])
+    poles = _pole(np.array([50.0, 120.0]), np.array([0.01, 0.02]))
+    fit = lsfd(f, H, poles, residuals=False)
+    assert np.abs(synthesis_of(f, poles, fit.residues) - H).max() < 1e-12 * np.abs(H).max()
+
+
+def test_refine_pole_finds_the_one_pole_of_a_resonance_from_a_start_in_its_band():
+    f = np.arange(40.0, 60.0, 0.1)
+    H = modal_frf(f, [50.0], [0.004], [[1.0], [0.6]], [[1.0]])
+    pole = refine_pole(f, H, complex(_pole(np.array([50.1]), np.array([0.006]))[0]))
+    assert abs(abs(pole) / (2 * np.pi) / 50.0 - 1) < 1e-9
+    assert abs(-pole.real / abs(pole) / 0.004 - 1) < 1e-7
+
+
+def test_a_pole_pair_splitting_one_resonance_of_two_references_is_merged_into_its_pole():
+    """Two references measured in two runs (beam_ring_mimo_frf: one sine sweep per input), between
+    which the resonance at 22.6 Hz (0.2 %) moved by 0.03 % and changed its response pattern: no pair
+    of modes (rank-one residues) fits it, and the two candidates straddling it have residue matrices
+    far from rank one (as on the real data: 0.82 and 0.44).  They are one mode; the merged pole is the
+    single pole that fits both columns best, within 0.02 % of 22.6 Hz and 5 % of the damping."""
+    f = np.arange(15.0, 35.0, 0.01)
+    run_1 = modal_frf(f, [22.597, 28.0], [0.002, 0.004], [[1.0, 0.8], [0.3, -0.9]], [[1.0, 0.8]])
+    run_2 = modal_frf(f, [22.603, 28.0], [0.002, 0.004], [[0.4, 0.8], [1.0, -0.9]], [[1.0, 0.4]])
+    H = np.concatenate([run_1, run_2], axis=1)
+    cand = _clusters([22.596, 22.604, 28.0], [0.0016, 0.0018, 0.004])
+    residues = lsfd(f, H, cand.pole).modal_constants(cand.pole)
+    misfit = rank_one_misfit(residues)
+    assert misfit[:2].min() >= 0.3 and misfit[2] < 1e-3
+    # the rank test alone finds the pair (the MAC test, here of column 0 only, switched off)
+    assert _split(cand, residues[:, 0], split_mac=2.0) is None
+    k, why = _split(cand, residues[:, 0], split_mac=2.0, misfit=misfit)
+    assert k == 0 and why.startswith("residues not of rank one")
+    kept, _, warnings, _ = _validate(f, H, cand, "accelerance", 0, Thresholds(need_min=0))
+    assert kept.freq_hz.size == 2 and len(warnings) == 1 and warnings[0].startswith("merged"), warnings
+    assert abs(kept.freq_hz[0] / 22.6 - 1) < 2e-4 and abs(kept.damping_ratio[0] / 0.002 - 1) < 0.05
+
+
+def test_a_pole_first_stable_above_the_default_cap_is_left_out_unless_at_a_clear_peak():
+    """Candidates whose first stable order is above the default cap (200) are reported only where a
+    clear CMIF peak asks for them; with the user's --max-order (no default cap) every one is."""
+    f = np.arange(1.0, 200.0, 0.5)
+    order = np.array([10, 20, 30, 250, 260, 300, 310])
+    freq = np.array([50.0, 50.0, 50.0, 120.0, 120.0, 160.0, 160.0])
+    ones = np.ones(order.size, bool)
+    stab = Stabilisation(order, freq, np.full(order.size, 0.01), _pole(freq, np.full(order.size, 0.01)),
+                         ones, ones, ones)
+    cand = _clusters([50.0, 120.0, 160.0], [0.01] * 3, (np.arange(3), np.array([3, 4]), np.array([5, 6])))
+    report, notes = _late(f, stab, cand, 200, np.array([160.0]))
+    assert report.tolist() == [True, False, True]
+    assert notes == ["left out the pole at 120 Hz (damping 1 %): first stable at order 250, above the "
+                     "default cap 200, at no clear CMIF peak (kept in the synthesis as a background pole)"]
+    assert _late(f, stab, cand, None, np.array([160.0]))[0].all()
+
+
+def test_a_broad_pole_whose_band_covers_a_mode_is_a_background_pole_not_merged_into_it():
+    """The real-data single-hit record: a broad pole at 766 Hz and the mode at 810 Hz
+    (0.14 %) pass the split test (bands overlapping, one output) but the mode's band does not reach
+    the broad pole: merging them gave 0.41 % damping.  The broad pole stays in the fit as background
+    (no mode, never dropped) and the mode keeps its own pole."""
+    f = np.arange(20.0, 80.0, 0.05)
+    H = modal_frf(f, [50.0], [0.002], [[1.0]], [[1.0]])
+    cand = _clusters([46.0, 50.0], [0.1, 0.002])
+    kept, _, warnings, background = _validate(f, H, cand, "accelerance", 0, Thresholds(need_min=0))
+    assert np.allclose(kept.freq_hz, [46.0, 50.0]) and background.tolist() == [True, False]
+    assert kept.damping_ratio[1] == 0.002
+    assert warnings == ["kept the pole at 46 Hz (damping 10 %) in the synthesis as a background pole, no "
+                        "mode: its half-power band covers the mode at 50 Hz, with the same shape (MAC 1.00), "
+                        "whose band does not reach it"]
+
+
+def test_synthesis_of_no_mode_is_zero():
+    f = np.arange(1.0, 10.0)
+    assert synthesis_of(f, np.zeros(0, complex), np.zeros((2, 1, 0), complex)).shape == (2, 1, f.size)
+    assert not synthesis_of(f, np.zeros(0, complex), np.zeros((2, 1, 0), complex)).any()
+
+
+@pytest.mark.parametrize("lines", [1.0, 1.5, 2.0, 3.0])
+def test_damping_at_one_to_three_lines_per_half_power_band_is_unbiased_like_sdypy_ema(lines):
+    """Issue 23: damping unbiased at 1-3 lines per half-power band.  Exact FRFs (four modes, three
+    outputs, 1e-3 noise, 1 Hz lines) with ``lines`` lines in each half-power band: identify's damping
+    within 1 % of the truth, as sdypy-EMA's LSCF on the same FRFs (the median of its poles nearest
+    each mode over its orders 42-80).  The bias seen on measured records at such resolution lives in
+    the FRF estimate (leakage of a truncated or windowed record), not in the pole estimator."""
+    ema = pytest.importorskip("sdypy.EMA")
+    rng = np.random.default_rng(0)
+    f = np.arange(1.0, 2001.0)
+    fn = np.array([310.3, 640.7, 1050.2, 1480.9])
+    zeta = lines / (2 * fn)
+    phi = np.array([[1.0, 0.8, -0.6, 0.5], [0.5, -0.9, 0.7, 0.9], [0.3, 0.4, 0.9, -0.7]])
+    H = modal_frf(f, fn, zeta, phi, phi[:1])
+    H = H + 1e-3 * np.abs(H).mean() * (rng.standard_normal(H.shape) + 1j * rng.standard_normal(H.shape))
+    modes = identify(f, H)
+    k = np.argmin(np.abs(modes.freq_hz[:, None] - fn[None, :]), axis=0)
+    assert np.all(np.abs(modes.damping_ratio[k] / zeta - 1) < 0.01), modes.damping_ratio[k] / zeta
+    model = ema.Model(frf=H[:, 0], freq=f, lower=f[0], upper=f[-1], pol_order_high=40, frf_form="accelerance")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model.get_poles(show_progress=False)
+    theirs = []
+    for x in fn:   # a loop over modes
+        near = [(fp[np.argmin(abs(fp - x))], xi[np.argmin(abs(fp - x))])
+                for fp, xi in zip(map(np.asarray, model.pole_freq[20:]), map(np.asarray, model.pole_xi[20:]),
+                                  strict=True) if fp.size]
+        theirs.append(np.median([z for fr, z in near if abs(fr / x - 1) < 2e-3]))
+    assert np.all(np.abs(np.array(theirs) / zeta - 1) < 0.01), np.array(theirs) / zeta
