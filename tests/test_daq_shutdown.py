@@ -167,7 +167,8 @@ def test_killed_simulator_is_a_lost_device_and_ends_the_session(tmp_path, protoc
     # was lost before it had stored its first second (26 Nov, load 20 and two busy loops)
     proc = start_acquire(config, out, 60)
     try:
-        assert wait_for(lambda: stored(out) > RATES[protocol], START_S)
+        assert wait_for(lambda: stored(out) > RATES[protocol] or proc.poll() is not None, START_S)
+        assert proc.poll() is None, f"ended before its simulator was killed: {proc.communicate()[1]}"
         with CpuWait(proc.pid) as waits:
             for pid in children(proc.pid):
                 os.kill(pid, signal.SIGKILL)
