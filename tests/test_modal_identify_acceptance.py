@@ -4,12 +4,10 @@ picks; and the validation tools (MPC, MPD, FRAC, the LSFD need test) against clo
 
 from __future__ import annotations
 
-import os
 import time
 
 import numpy as np
 import pytest
-from cpu_wait import CpuWait
 
 from flexmodal.fixtures.modal_sim import modal_frf
 from flexmodal.modal.errors import ModalError
@@ -43,17 +41,15 @@ def _dense(seed: int):
 @pytest.mark.parametrize("seed", [1, 2])
 def test_dense_siso_fifteen_modes_with_two_percent_noise(seed):
     f, H, fn, zeta = _dense(seed)
-    with CpuWait(os.getpid()) as waits:  # the time spent waiting for a CPU (load) is not counted
-        t0 = time.monotonic()
-        modes = identify(f, H)
-        t1 = time.monotonic()
-    elapsed = waits.unloaded(t0, t1)
+    t0 = time.process_time()   # CPU: the wall time of a shared machine at load 20 was 7.6 s for 0.4 s of CPU
+    modes = identify(f, H)
+    elapsed = time.process_time() - t0
     k, err = _match(modes.freq_hz, fn)
     found = err < 2e-3
     assert found.sum() >= 14, modes.freq_hz
     assert np.sum(np.abs(modes.damping_ratio[k[found]] / zeta[found] - 1) < 0.2) >= 12
     assert modes.freq_hz.size - np.unique(k[found]).size <= 1
-    assert elapsed < 6.0, f"{t1 - t0:.2f} s wall"   # issue: <= 2 s, met unloaded; a loose bound here
+    assert elapsed < 2.0   # issue 12: <= 2 s (one BLAS thread: CPU time is the time on an idle machine)
     assert "model order" in modes.order_note
 
 
