@@ -284,6 +284,13 @@ def diagram_declaring(shape: tuple[int, ...]) -> Callable[[Path], None]:
     return make
 
 
+def _half_the_memory() -> int:
+    """A size [bytes] twice what a reader bounded to a quarter of the available memory accepts."""
+    from flexmodal.checked_io.text import available_memory_bytes
+
+    return available_memory_bytes() // 2
+
+
 def user_npz(path: Path) -> None:
     with open(path, "wb") as f:
         np.savez(f, my_data=np.arange(5.0))
@@ -738,6 +745,13 @@ ROWS: list[Row] = [
         {"modes.csv": "config,mode,freq_hz,damping_ratio,damping_std\nA,1,10,0.01,inf\n"}),
     row("modes-freq-std-negative-diagnose", DIAGNOSE, ("modes.csv", "freq_std_hz", "negative"),
         {"modes.csv": MODES_STD_NEGATIVE}),
+    # -- session 3: report --geometry (a UFF test geometry) -------------------------------------------
+    row("geometry-fifo", "report --measured {d}/modes.csv --geometry {d}/g.unv --out {d}/r.html",
+        ("g.unv", "FIFO"), {"g.unv": fifo}),
+    row("geometry-dev-zero", "report --measured {d}/modes.csv --geometry {d}/g.unv --out {d}/r.html",
+        ("g.unv", "device"), {"g.unv": lambda p: p.symlink_to("/dev/zero")}),
+    row("geometry-beyond-memory", "report --measured {d}/modes.csv --geometry {d}/g.unv --out {d}/r.html",
+        ("g.unv", "too large"), {"g.unv": lambda p: sparse("    -1\n    15\n", _half_the_memory())(p)}),
     # -- controls: the unmodified base files work ---------------------------------------------------
     row("control-predict", PREDICT, (), code=0),
     row("control-compare", COMPARE, (), code=0),
@@ -827,12 +841,15 @@ class Outcome:
 
 
 def _snapshot(folder: Path) -> dict[str, str]:
-    """Every entry under ``folder``: a regular file by its SHA-256, a link by its target, else its type."""
+    """Every entry under ``folder``: a regular file by its SHA-256 (above 64 MiB by its size, mtime and
+    inode), a link by its target, else its type."""
     out = {}
     for p in sorted(folder.rglob("*")):
         st = p.lstat()
         if stat.S_ISLNK(st.st_mode):
             out[str(p.relative_to(folder))] = "link:" + os.readlink(p)
+        elif stat.S_ISREG(st.st_mode) and st.st_size > 64 << 20:   # a sparse giant: not read whole
+            out[str(p.relative_to(folder))] = f"{st.st_size}:{st.st_mtime_ns}:{st.st_ino}"
         elif stat.S_ISREG(st.st_mode):
             out[str(p.relative_to(folder))] = hashlib.sha256(p.read_bytes()).hexdigest()
         else:
