@@ -459,7 +459,7 @@ class Identification:
         ['modes.csv', 'modes.diagram.npz', 'modes.synthesis.csv', 'modes.uff']
         """
         from flexmodal.checked_io.output import output_file, signals_deferred
-        from flexmodal.modal.diagrams import StoredDiagram, diagram_path, write_diagrams
+        from flexmodal.modal.diagrams import StoredDiagram, check_replaceable, diagram_path, write_diagrams
         from flexmodal.modal.errors import ModalError
         from flexmodal.modal.identify import synthesis_path, write_synthesis_csv
 
@@ -470,6 +470,7 @@ class Identification:
         if diagrams:
             output_file(diagram_path(out), ModalError, "stabilisation diagrams (next to --out)",
                         inputs=(out, uff))
+            check_replaceable(diagram_path(out))
         if uff is not None:
             output_file(uff, ModalError, "UFF file (--uff)", inputs=(out,))
         modes_by_config = {c: (m, self.outputs[c]) for c, m in self.modes.items()}
@@ -630,13 +631,14 @@ def _identification_outputs(out: PathLike, uff: PathLike | None, source: object)
     output_file(out, ModalError, "modal table (--out)", inputs=inputs)
     if uff is not None:
         output_file(uff, ModalError, "UFF file (--uff)", inputs=(*inputs, out))
-    from flexmodal.modal.diagrams import diagram_path
+    from flexmodal.modal.diagrams import check_replaceable, diagram_path
     from flexmodal.modal.identify import synthesis_path
 
     output_file(synthesis_path(out), ModalError, "FRF synthesis table (next to --out)",
                 inputs=(*inputs, out, uff))
     output_file(diagram_path(out), ModalError, "stabilisation diagrams (next to --out)",
                 inputs=(*inputs, out, uff))
+    check_replaceable(diagram_path(out))   # a file of the user's own there is not replaced
 
 
 def track(source: PathLike, *, pose_from: Mapping[str, str] | None = None, run_id: str | None = None,
@@ -1114,14 +1116,14 @@ def format_diagnosis(result: Diagnosis) -> str:
     ...                      "examples/measured/seed003_table3_f1f2.csv", effects="joint_stiffness",
     ...                      holdout="theta30,theta90,theta150")
     >>> print(fm.format_diagnosis(result).splitlines()[0])   # doctest: +ELLIPSIS
-    verdict: joint_stiffness at ...; held-out RMS ...% -> ...%; explained: ...
+    verdict: joint_stiffness at ...; held-out RMS ...% -> ...%
     """
-    from flexmodal.compare.diagnosis import scatter_line
+    from flexmodal.compare.verdict_text import scatter_line, verdict_words
 
     v = result.verdict
     lines = [f"verdict: {v.effect} at {v.location or '-'}; held-out RMS "
-             f"{v.heldout_rms_rel_error_before:.2%} -> {v.heldout_rms_rel_error_after:.2%}; "
-             f"explained: {str(v.explained).lower()} ({v.grade})", scatter_line(result)]
+             f"{v.heldout_rms_rel_error_before:.2%} -> {v.heldout_rms_rel_error_after:.2%}"]
+    lines += [x for x in (verdict_words(result), scatter_line(result)) if x]
     lines += [f"  {name} = {v.params[name]:.4g}  (95 % interval {lo:.4g} .. {hi:.4g})"
               for name, (lo, hi) in (v.param_intervals or {}).items()]
     if v.residual_feature or v.flags:

@@ -22,6 +22,11 @@ REPO = Path(__file__).resolve().parents[1]
 DOC = REPO / "docs" / "diagnosis.md"
 BLIND_CASES = 36
 BLIND_SEEDS = (106, 107, 108, 109, 110)
+FRESH_SEEDS = (211, 212, 213, 214, 215)
+"""Draws run once, after the last change to the method, to show that it generalises beyond the draws
+whose misses were analysed (``BLIND_SEEDS``)."""
+SPARSE_CASES = 60
+SPARSE_SEED = 5
 
 from flexmodal.compare.diagnosis import diagnose  # noqa: E402
 from flexmodal.contract.table import ModalTable  # noqa: E402
@@ -75,7 +80,8 @@ def seed003_block(data: Path = REPO / "tests" / "data") -> str:
 
 
 def blind_block(seeds: tuple[int, ...] = BLIND_SEEDS, cases: int = BLIND_CASES,
-                results: dict | None = None) -> str:
+                results: dict | None = None, note: str = "none of them used while the method was developed"
+                ) -> str:
     """The acceptance measurement: ``cases`` blind cases of each of the draws ``seeds`` (one draw of
     fixtures/blind.py's generator each: new rigs, poses, magnitudes, scatter), each draw's summary and
     misses, then the mean and worst over draws, as a fenced block (no timing); ``results`` {seed:
@@ -90,23 +96,20 @@ def blind_block(seeds: tuple[int, ...] = BLIND_SEEDS, cases: int = BLIND_CASES,
         parts.append(f"draw seed {seed}:\n" + "\n".join("  " + x for x in lines))
     body = "\n".join(parts + [format_draws(draws)])
     return (f"`fixtures/blind.py`, {cases} cases in each of {len(seeds)} draws (seeds "
-            f"{', '.join(map(str, seeds))}; none of them used while the method was developed):\n\n"
+            f"{', '.join(map(str, seeds))}; {note}):\n\n"
             f"```\n{body}\n```")
 
 
-def advice_block(results: dict) -> str:
-    """Next-measurement advice on the acceptance draws: every ambiguous verdict measured once more at
-    its advised pose and at two random untested poses (fixtures/blind.py ``advice_trials``), per draw
-    and pooled, as a fenced block; ``results`` {seed: run_blind's results}."""
-    from flexmodal.fixtures.blind import advice_trials, format_advice
+def sparse_block(results: list | None = None, n: int = SPARSE_CASES, seed: int = SPARSE_SEED) -> str:
+    """Next-measurement advice where it is needed: ``n`` cases of one library effect measured at three
+    poses only (fixtures/blind.py ``sparse_case``), every ambiguous verdict measured once more at its
+    advised pose and at two random untested poses, as a fenced block; ``results`` run_sparse's."""
+    from flexmodal.fixtures.blind import advice_trials, format_advice, run_sparse
 
-    lines, pooled = [], []
-    for seed, res in results.items():
-        trials = advice_trials(res, seed=seed)
-        pooled += trials
-        lines.append(f"draw seed {seed}: {format_advice(trials)}")
-    lines.append(f"pooled: {format_advice(pooled)}")
-    return "```\n" + "\n".join(lines) + "\n```"
+    results = run_sparse(n, seed) if results is None else results
+    amb = sum(bool(r.verdict.ambiguous) for r in results)
+    return (f"```\n{n} cases (seed {seed}), 3 poses x 2 modes: {amb} ambiguous verdicts\n"
+            f"{format_advice(advice_trials(results, seed=seed))}\n```")
 
 
 def coverage_block() -> str:
@@ -142,6 +145,8 @@ def main() -> int:
         blocks["coverage"] = coverage_block()
     if args.blind:
         blocks["blind"] = blind_block()
+        blocks["fresh"] = blind_block(FRESH_SEEDS, note="run once, after the last change to the method")
+        blocks["sparse"] = sparse_block()
     for name, block in blocks.items():
         if args.write:
             write_block(name, block)

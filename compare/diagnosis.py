@@ -20,11 +20,15 @@
    held-out error is lower.  The scatter comes from the data when it can (compare/gap.py
    ``estimate_scatter``), else from the caller.
 4. Verdict: the best candidate pruned of components that do not improve the held-out error beyond
-   noise or sit at their lower bound, passed over when a parameter runs out of range; ``none`` when the
+   the nested margin (noise, or what absorbing the model-form error can gain, ``_nested_margin``) or
+   sit at their lower bound, passed over when a parameter runs out of range; ``none`` when the
    nominal model itself (no parameters) scores at least as well.  ``explained`` is false when the held-out
    RMS is above ``EXPLAINED_FACTOR`` times the scatter or the held-out residuals are structured;
    parameters at bounds and parameters the data cannot identify are flagged; candidates equal within
-   noise are listed as alternatives with the measurement that would separate them.
+   noise, and candidates with one component more within the nested margin, are listed as
+   alternatives with the measurement that would separate them (a ``none`` verdict lists the
+   candidates held out better than the nominal model).  Parameter intervals include a model-form
+   term (the held-out error taken as systematic per mode).
 """
 
 from __future__ import annotations
@@ -67,6 +71,7 @@ from flexmodal.compare.result import (
     Verdict,
     Where,
 )
+from flexmodal.compare.verdict_text import EXPLAINED_FACTOR, gap_words
 from flexmodal.contract.mac import mac_pairs
 from flexmodal.contract.table import ModalTable
 from flexmodal.models.effects import REGISTRY, get_effect
@@ -83,8 +88,9 @@ UNIDENTIFIED_STD = 1.0
 HELDOUT_INFLATION = 1.5
 STRUCTURE_QUANTILE = 0.999
 MAX_ALTERNATIVES = 3
+MAX_SUPERSETS = 2
+"""Alternatives: up to 3 candidates within noise, and up to 2 with one component more (``_nested_margin``)."""
 NONE_FACTOR = 2.0
-EXPLAINED_FACTOR = 3.0
 PENALTY = 0.15
 PAIR_POOL = 8
 PARTNERS = 3
@@ -106,7 +112,9 @@ MAX_RIVALS = 6
 """An ambiguous verdict's next measurement is chosen against its rivals: the candidates (not supersets)
 within 3x the noise margin of its held-out error, at most 6 (the alternatives are those within 1x)."""
 INTERVAL_METHOD = ("linearised (Gauss-Newton) covariance at the ranking scatter, widened to the "
-                   "jackknife over the cross-validation refits where larger; Student t quantile")
+                   "jackknife over the cross-validation refits where larger, plus a model-form term: the "
+                   "held-out RMS error taken as systematic per mode (fully correlated over poses); "
+                   "Student t quantile")
 RANKING_LENGTH = 25
 
 
@@ -176,6 +184,7 @@ class _Context:
         keys = [tuple(sorted(p.items())) for p in meas.poses]
         self.pose_share = len(set(keys)) / max(len(keys), 1)   # repeats add no model-form information
         self.trial: tuple[tuple[str, ...], _Context] | None = None   # _trial_context's cache
+        self.model_form = 0.0            # model-form level of nested comparisons (``_nested_margin``)
 
     def family(self, handles: Sequence[str]):
         idx = [self.index[h] for h in handles]
@@ -482,9 +491,15 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
 
     ranking: list[dict] = []
     n_candidates = None
-    if baseline["rms_rel_error"] > NONE_FACTOR * sigma:
-        singles = single_candidates(rig, names, {v: [p[v] for p in meas.poses] for v in rig.pose_variables})
-        screened = [_screen(ctx, c, scatter) for c in singles]
+    small = baseline["rms_rel_error"] <= NONE_FACTOR * sigma
+    singles = single_candidates(rig, names, {v: [p[v] for p in meas.poses] for v in rig.pose_variables})
+    screened = [_screen(ctx, c, scatter) for c in singles] if singles else []
+    if small and screened:         # the verdict is ``none``; the best singles say what might be there
+        for e in sorted(screened, key=lambda e: e["_lower"])[:MAX_ALTERNATIVES]:
+            _cross_validate(ctx, e, scatter)
+        ranking = sorted((e for e in screened if "score" in e), key=lambda e: e["score"])
+        n_candidates = CandidateCount(fitted=len(screened), cross_validated=len(ranking))
+    elif screened:
         fitted_singles = list(screened)
         pool = sorted(screened, key=lambda e: e["_lower"])[:PAIR_POOL]
         for e in pool:
@@ -506,6 +521,7 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
             _cross_validate_promising(ctx, screened, scatter)
         _cross_validate_promising(ctx, screened, scatter)     # once more at the final shape floor
         scatter, floor = _scoring_scatter(noise, [e for e in screened if "score" in e])
+        ctx.model_form = _model_form(noise, [e for e in screened if "score" in e])
         _cross_validate_promising(ctx, screened, scatter)     # rescored and extended at that scatter
         ranking = [e for e in screened if "score" in e]
         _refinement_guard(ranking)
@@ -522,8 +538,9 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
     verdict = _verdict(ctx, best, ranking, baseline, before, nominal, scatter, sigma, notes)
     if verdict["effect"] != "none":
         _confirm_region(where, rig, verdict["effect"], verdict["location"])
-    else:
+    else:                  # the candidates of a ``none`` verdict are alternatives, not its model
         where = {**where, "modes": [], "configs": [], "region": ""}
+        best = None
     return Diagnosis(
         baseline=Baseline(**baseline), where=Where(**where),
         ranking=tuple(CandidateScore(**_public(e)) for e in ranking[:RANKING_LENGTH]),
@@ -600,22 +617,6 @@ def _param_values(cand: Candidate, params: Mapping) -> list[float]:
     return [float(params[n]) for n in names]
 
 
-def scatter_line(result: Diagnosis) -> str:
-    """One line: the scatter the ranking used and where it came from (measurement + model-form floor)."""
-    src = result.scatter_source
-    if src is None or result.scatter is None:
-        return ""
-    meas = src.measurement if src.measurement is not None else result.scatter
-    floor = src.model_form_floor or 0.0
-    def pct(x: float) -> str:
-        return f"{100 * x:.2g} %"
-
-    own = f"{pct(meas)} from {src.source}"
-    return (f"scatter: {pct(result.scatter)} = measurement ({own}; {src.detail}) + model-form floor "
-            f"{pct(floor)} (held-out error of the best candidate beyond the measurement); what remains is "
-            f"judged against {pct(meas)}")
-
-
 def _per_config(rig: Rig, meas: Measured, best: dict | None) -> dict[str, dict[str, float]]:
     """Pose-dependent parameters of the candidate ``best`` per configuration, {name: {config: value}}
     (its registry entry's ``per_config``; empty when it has none)."""
@@ -654,17 +655,26 @@ def _annotate(ctx: _Context, entry: dict, scatter: float) -> None:
     at_lo, at_hi = theta <= lo + tol, theta >= hi - tol
     _, df, _, _ = evaluate(entry["_fam"], design(cand, ctx.target), theta[None], ctx.target)
     jac = (df[0] / ctx.meas.freq_hz[..., None]).reshape(-1, cand.n_params)
-    _, sv, vt = np.linalg.svd(jac, full_matrices=False)
-    with np.errstate(over="ignore", divide="ignore"):
-        std = scatter * np.sqrt(np.sum((vt.T / np.maximum(sv, 1e-300)) ** 2, axis=1))
+    u, sv, vt = np.linalg.svd(jac, full_matrices=False)
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        gain = (vt.T / np.maximum(sv, 1e-300)) @ u.T                   # [J, C*n]: d theta / d residual
+        std = scatter * np.sqrt(np.sum(gain**2, axis=1))
+        # model form: what the candidate leaves held out may be systematic, the same for a mode at every
+        # pose (as an error of the model's form is), and then it does not average out over configurations
+        per_mode = gain.reshape(cand.n_params, *ctx.meas.freq_hz.shape).sum(axis=1)   # [J, n]
+        systematic = np.sqrt(np.sum(per_mode**2, axis=1))
     # jackknife over the cross-validation folds (each refitted without one pose or group), Efron 1982
     folds = entry.get("_theta_folds")
     if folds is not None and len(folds) >= 3:
         k = len(folds)
         jack = np.sqrt((k - 1) / k * np.sum((folds - folds.mean(axis=0)) ** 2, axis=0))
         std = np.fmax(std, jack)
+    held = entry.get("_heldout_freq_hz")
+    form = rms((held / ctx.meas.freq_hz - 1.0)[np.isfinite(held)]) if held is not None else 0.0
+    with np.errstate(over="ignore", invalid="ignore"):
+        std_interval = np.hypot(std, form * systematic)
     dof = max(jac.shape[0] * ctx.pose_share - cand.n_params, 1.0)
-    half = float(stdtrit(dof, 0.975)) * std
+    half = float(stdtrit(dof, 0.975)) * std_interval
     lo_i, hi_i = theta - half, theta + half
     entry["_param_sd"] = std
     entry["_param_intervals"] = {
@@ -709,6 +719,32 @@ def _noise(best: dict, scatter: float, pose_share: float = 1.0) -> float:
     return 2 * math.sqrt(2) * max(best["_heldout_eq"], scatter) / math.sqrt(2 * n)
 
 
+def _model_form(noise, ranked: Sequence[dict]) -> float:
+    """The model-form level against which one component more or less is judged (``_nested_margin``).
+
+    With a measured scatter (repeats or ``freq_std_hz``) it is the model-form floor, the lowest held-out
+    frequency RMS beyond the measurement (``_scoring_scatter``).  With only the fallback the data do not
+    say how much of the lowest held-out error is noise and how much is model form, so all of it may be
+    model form: the lowest held-out frequency RMS itself."""
+    if not ranked:
+        return 0.0
+    h = min(e["heldout_rms_rel_error"] for e in ranked)
+    if noise.source.startswith("--scatter"):
+        return h
+    return math.sqrt(max(h * h - noise.value**2, 0.0))
+
+
+def _nested_margin(ctx: _Context, best: dict, scatter: float) -> float:
+    """How much the held-out (frequency-equivalent) RMS may change when one component is added to or
+    removed from ``best`` and the data still cannot say whether that component is there: the noise
+    margin (``_noise``), or the change that absorbing a model-form error of the level ``ctx.model_form``
+    can make, ``sqrt(h^2 + m^2) - h`` (an extra component removes at most that error's energy from
+    the held-out residuals; the model form is there for every candidate, so such a gain is not
+    evidence for the component)."""
+    h = best["_heldout_eq"]
+    return max(_noise(best, scatter, ctx.pose_share), math.hypot(h, ctx.model_form) - h)
+
+
 def _sub_candidate(ctx: _Context, entry: dict, drop: int, pool: list[dict], scatter: float) -> dict | None:
     """The candidate without component ``drop`` (found among the fitted ones or fitted now), validated."""
     comps = components(entry["_cand"])
@@ -743,7 +779,7 @@ def _choose(ctx: _Context, ranking: list[dict], pool: list[dict], scatter: float
             for i in range(len(best["_cand"].effects)):
                 sub = _sub_candidate(ctx, best, i, pool, scatter)
                 worse = sub["_heldout_eq"] - best["_heldout_eq"]
-                margin = _noise(best, scatter, ctx.pose_share)
+                margin = _nested_margin(ctx, best, scatter)
                 if i in best["_idle"] or worse <= margin:
                     dropped = best["_cand"].effects[i]
                     notes.append(
@@ -751,8 +787,9 @@ def _choose(ctx: _Context, ranking: list[dict], pool: list[dict], scatter: float
                         f"bound (absent)" if i in best["_idle"] else
                         f"{best['effect']} at {best['location']} pruned to {sub['effect']} at "
                         f"{sub['location']}: without {dropped} the held-out error rises by "
-                        f"{worse:.2%}, within the noise margin {margin:.2%} of "
-                        f"{max(best['_n_eq'] * ctx.pose_share, 1):.0f} held-out degrees of freedom")
+                        f"{worse:.2%}, within the margin {margin:.2%} (noise of "
+                        f"{max(best['_n_eq'] * ctx.pose_share, 1):.0f} held-out degrees of freedom, or "
+                        f"the model-form level {ctx.model_form:.2%})")
                     best, pruned = sub, True
                     break
         if not best["_out_of_range"] and not best["_idle"]:
@@ -809,19 +846,20 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
             "explained": bool(before <= EXPLAINED_FACTOR * sigma), "alternatives": [],
             "gap_removed": 0.0, "remaining_over_scatter": before / sigma}
     if baseline["rms_rel_error"] <= NONE_FACTOR * sigma:
-        return {**none, "grade": "explained", "summary": (
+        return _none_with_alternatives(ctx, {**none, "grade": "explained", "summary": (
             f"baseline RMS gap {baseline['rms_rel_error']:.2%} is within {NONE_FACTOR:g}x the measurement "
-            f"scatter ({sigma:.2%}): no unmodelled effect is needed")}
+            f"scatter ({sigma:.2%}): no unmodelled effect is needed")}, ranking, nominal, scatter)
     if not ranking or best is None:
         return {**none, "grade": "not explained", "flags": list(notes), "summary": (
             f"baseline RMS gap {baseline['rms_rel_error']:.2%} but no candidate effect applies to this rig "
             "within its parameter range: the gap is unexplained")}
     if best["score"] >= _score(nominal, 0, scatter):
-        return {**none, "grade": "not explained" if before > EXPLAINED_FACTOR * sigma else "explained",
-                "summary": (f"no candidate beats the nominal model on held-out configurations once its "
-                            f"extra parameters are penalised against the scatter {scatter:.2%} (baseline "
-                            f"held-out RMS {before:.2%}, best {best['effect']} "
-                            f"{best['heldout_rms_rel_error']:.2%})")}
+        return _none_with_alternatives(ctx, {
+            **none, "grade": "not explained" if before > EXPLAINED_FACTOR * sigma else "explained",
+            "summary": (f"no candidate beats the nominal model on held-out configurations once its "
+                        f"extra parameters are penalised against the scatter {scatter:.2%} (baseline "
+                        f"held-out RMS {before:.2%}, best {best['effect']} "
+                        f"{best['heldout_rms_rel_error']:.2%})")}, ranking, nominal, scatter)
     after = best["heldout_rms_rel_error"]
     resid = best["_heldout_freq_hz"] / meas.freq_hz - 1.0
     structured = _structured(resid, sigma)
@@ -854,6 +892,13 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
             and not mine <= set(zip(e["_cand"].effects, e["_cand"].locations, strict=True))
             and e["_heldout_eq"] - best["_heldout_eq"] <= _noise(best, scatter, ctx.pose_share)
             ][:MAX_ALTERNATIVES]
+    # a candidate with one component more that fits better held out, but by less than the nested margin:
+    # the data cannot say whether that component is there too
+    alts += sorted((e for e in ranking if e is not best and not e["_out_of_range"] and not e["_idle"]
+                    and len(e["_cand"].effects) == len(best["_cand"].effects) + 1
+                    and mine < set(zip(e["_cand"].effects, e["_cand"].locations, strict=True))
+                    and 0 < best["_heldout_eq"] - e["_heldout_eq"] <= _nested_margin(ctx, best, scatter)),
+                   key=lambda e: e["_heldout_eq"])[:MAX_SUPERSETS]
     verdict["alternatives"] = [
         {"effect": e["effect"], "location": e["location"], "params": e["params"],
          "heldout_rms_rel_error": e["heldout_rms_rel_error"], **_separating_measurement(ctx, best, e)}
@@ -863,16 +908,13 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
               and not mine <= set(zip(e["_cand"].effects, e["_cand"].locations, strict=True))
               and e["_heldout_eq"] - best["_heldout_eq"]
               <= RIVAL_MARGIN * _noise(best, scatter, ctx.pose_share)][:MAX_RIVALS]
+    rivals += [e for e in alts if e not in rivals]
     verdict["next_measurements"] = _next_measurements(ctx, best, rivals, scatter) if alts else []
-    text = (f"{best['effect']} at {best['location']} brings the held-out RMS gap from {before:.2%} to "
-            f"{after:.2%} ({removed:.0%} of the gap removed; {grade}); what remains is "
-            f"{after / sigma:.1f}x the measurement scatter {sigma:.2%}")
+    text = f"{best['effect']} at {best['location']}, {gap_words(before, after, sigma, grade, feature)}"
     if not explained:
         worst_txt = ", ".join(f"mode {r['mode']} at {r['config']} ({r['heldout_rel_error']:+.1%})"
                               for r in remaining)
         text += f"; largest held-out errors: {worst_txt}"
-        if feature:
-            text += f"; outside the library points: {feature}"
     if flags:
         text += "; flagged: " + "; ".join(flags)
     if rank > 1 and notes:
@@ -892,6 +934,26 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
                      f"{nxt['information_nats']:.1f} nats)")
     verdict["summary"] = text
     return verdict
+
+
+def _none_with_alternatives(ctx: _Context, verdict: dict, ranking: list[dict], nominal: float,
+                            scatter: float) -> dict:
+    """A ``none`` verdict with the candidates that fit better held out than the nominal model by more
+    than the noise margin (at most ``MAX_ALTERNATIVES``, best score first) as alternatives: nothing
+    is needed, but the data cannot exclude them (``ambiguous``)."""
+    if not ranking:
+        return verdict
+    margin = _noise({"_heldout_eq": nominal, "_n_eq": ranking[0]["_n_eq"]}, scatter, ctx.pose_share)
+    alts = sorted((e for e in ranking if not e["_out_of_range"] and not e["_idle"]
+                   and e["_heldout_eq"] < nominal - margin), key=lambda e: e["score"])[:MAX_ALTERNATIVES]
+    if not alts:
+        return verdict
+    names = ", ".join(f"{e['effect']} at {e['location']} ({e['heldout_rms_rel_error']:.2%})" for e in alts)
+    return {**verdict, "ambiguous": True,
+            "alternatives": [{"effect": e["effect"], "location": e["location"], "params": e["params"],
+                              "heldout_rms_rel_error": e["heldout_rms_rel_error"]} for e in alts],
+            "summary": f"{verdict['summary']}; but the data cannot exclude, held out better than the nominal "
+                       f"model ({verdict['heldout_rms_rel_error_before']:.2%}): {names}"}
 
 
 def _residual_feature(ctx: _Context, best: dict, resid: np.ndarray, sigma: float) -> tuple[str, list[str]]:

@@ -36,7 +36,9 @@ MAX_GRID_SEEDED = 27
 PAIRING_LOG_WIDTH = 0.25
 OBSERVABLE = 1e-6
 MAX_ITER = 100
-FTOL = 1e-6
+FTOL = 1e-4
+"""A fit stops when a step lowers its sum of squares by less than 0.01 % (its RMS by 0.005 %, far below
+any noise margin; 1e-6 cost 20 % more time for held-out errors equal to four digits)."""
 XTOL = 1e-5
 MAX_DAMPING = 1e10
 N_STARTS = 3

@@ -418,7 +418,8 @@ class Diagnosis(_Record):
         v = self.verdict
         named = f"{v.effect} at {v.location}" if v.location else v.effect
         return (f"{named}; held-out RMS error {100 * v.heldout_rms_rel_error_before:.3g} % -> "
-                f"{100 * v.heldout_rms_rel_error_after:.3g} %; explained: {'yes' if v.explained else 'no'}")
+                f"{100 * v.heldout_rms_rel_error_after:.3g} %; "
+                + (v.grade or ("explained" if v.explained else "not explained")))
 
     def __repr__(self) -> str:
         return (f"Diagnosis({self._verdict_line()}; baseline RMS {100 * self.baseline.rms_rel_error:.3g} %, "

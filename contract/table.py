@@ -24,6 +24,7 @@ from flexmodal.contract.errors import ContractError
 REQUIRED = ("config", "mode", "freq_hz")
 POSE_PREFIX = "pose."
 SHAPE_PREFIX = "shape."
+STD_COLUMNS = ("freq_std_hz", "damping_std")   # uncertainty of identification: >= 0, empty when unknown
 
 
 def _parse_complex(value: object) -> complex:
@@ -63,8 +64,9 @@ def _numbers(column: pd.Series, name: str, source: str) -> pd.Series:
     bad = given & (values.isna() | np.isinf(values))
     if bad.any():
         row = int(np.flatnonzero(bad.to_numpy())[0])
-        raise ContractError(f"{source}: row {row + 2}: column {name!r} is not a finite number "
-                            f"({column.iloc[row]!r})")
+        value = column.iloc[row]
+        shown = repr(value) if isinstance(value, str) else value
+        raise ContractError(f"{source}: row {row + 2}: column {name!r} is not a finite number ({shown})")
     return values
 
 
@@ -101,8 +103,13 @@ class ModalTable:
         if dup.any():
             r = df[dup].iloc[0]
             raise ContractError(f"{source}: config {r['config']!r} lists mode {int(r['mode'])} twice")
-        for col in [c for c in df.columns if c == "damping_ratio" or c.startswith(POSE_PREFIX)]:
+        numeric = ("damping_ratio", *STD_COLUMNS)
+        for col in [c for c in df.columns if c in numeric or c.startswith(POSE_PREFIX)]:
             df[col] = _numbers(df[col], col, source)
+        for col in [c for c in STD_COLUMNS if c in df.columns and (df[c] < 0).any()]:
+            row = int(np.flatnonzero((df[col] < 0).to_numpy())[0])
+            raise ContractError(f"{source}: row {row + 2}: {col} = {df[col].iloc[row]:g} is negative (a "
+                                "standard deviation)")
         if "damping_ratio" in df.columns and (df["damping_ratio"] >= 1).any():
             row = int(np.flatnonzero((df["damping_ratio"] >= 1).to_numpy())[0])
             value = df["damping_ratio"].iloc[row]

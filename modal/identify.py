@@ -42,6 +42,7 @@ TOP_ORDERS = 0.75   # a mode's frequency: median over its upper quarter of stabl
 VISIBLE_DB = 3.0   # a peak this prominent in some FRF or CMIF curve is a resonance the data show
 BROAD = 3.0   # a pole of this many times a close mode's half-power bandwidth, covering it, is background
 MIN_LINES_PER_BANDWIDTH = 8   # below this the Hann-window leakage bias on damping exceeds a few %
+PICKED = "; poles picked from the stored diagram"   # the note of a pick from modal.diagrams
 
 
 @dataclass(frozen=True)
@@ -390,7 +391,7 @@ def _lscf(f: np.ndarray, H: np.ndarray, *, quantity: str, reference: int, max_or
                 (clusters, fit, warnings + late, report))
 
     if poles_hz and stored is not None:   # run the stabilisation once, pick many times (modal.diagrams)
-        stab, note = stored.stabilisation, f"{stored.order_note}; poles picked from the stored diagram"
+        stab, note = stored.stabilisation, (stored.order_note.removesuffix(PICKED) + PICKED)
     else:
         stab, note, found = adaptive_stabilisation(f, H, max_order=max_order, evaluate=evaluate,
                                                    floor=peaks_hz.size)

@@ -6,7 +6,8 @@ A run is output-only when its ``excitation`` attribute is ``operational`` or it 
 channel; it then defaults to ``ssi``, otherwise to ``lscf`` (FRF-based).  Outputs are the
 acceleration channels (else every channel that is neither a force nor an encoder), as for FRFs.
 References are all outputs unless named.  Without ``fmin``, SSI's Hankel matrix is sized for half the
-lowest FDD peak (a quick look costing a fraction of the SSI), so low modes are not missed.  Rows of
+lowest FDD mode (a quick look costing a fraction of the SSI), so low modes are not missed; when FDD
+validates no mode, for the lowest peak of its spectrum (:func:`lowest_spectral_peak`).  Rows of
 NaN (samples lost in acquisition, recorded as gap events) are left out of the covariances (SSI) and
 of the spectral segments (FDD).  Shapes are unscaled (unit largest entry): with no force measured
 there is no modal mass.  :func:`output_only_results` runs both methods on one record for display
@@ -19,6 +20,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
+import scipy.signal
 
 from flexmodal.modal.compute import check_samples
 from flexmodal.modal.errors import ModalError
@@ -30,6 +32,8 @@ from flexmodal.modal.spectra import default_nfft
 from flexmodal.modal.ssi import SsiResult, ssi_cov
 
 FROM_FDD = object()         # SSI sized for fmin, else half the lowest FDD peak (identify_output_only)
+FDD_PROMINENCE_DB = 6.0     # a spectral peak stands this far out of the first singular value (FDD's)
+DC_LINES = 4                # ... above the Hann main lobe (+-2 lines) of the record's mean and drift
 SPECTRUM_MARGIN = 1.1       # ... up to 10 % above the highest pole drawn
 
 
@@ -71,7 +75,7 @@ def identify_output_only(samples: np.ndarray, sample_rate_hz: float, names: Sequ
     method's result (with ``.modes``) and the output channel names.  ``references`` name output
     channels (default all); ``max_order`` is SSI's highest model order (default 100); ``lowest_hz``
     the lowest frequency SSI's Hankel matrix is sized for (None: none; default :data:`FROM_FDD`:
-    ``fmin``, else half the lowest FDD peak)."""
+    ``fmin``, else half the lowest FDD mode, else the lowest spectral peak)."""
     if method not in METHODS or not output_only(method):
         raise ModalError(f"method {method!r} is not output-only "
                          f"({', '.join(m for m in METHODS if output_only(m))})")
@@ -138,11 +142,39 @@ def run_fdd(inp: ResponseInputs) -> FddResult:
 
 def _lowest_peak(y: np.ndarray, sample_rate_hz: float, refs: Sequence[int] | None, fmax: float | None
                  ) -> float | None:
-    """Half the frequency of the lowest FDD mode [Hz], or None when FDD finds none."""
+    """Half the frequency of the lowest FDD mode [Hz]; when FDD validates no peak, the lowest peak of
+    the first singular value (:func:`lowest_spectral_peak`); None when there is no peak at all."""
     try:
         return 0.5 * float(fdd(y, sample_rate_hz, references=refs, fmax=fmax).modes.freq_hz.min())
     except ModalError:
+        return lowest_spectral_peak(y, sample_rate_hz, refs, fmax)
+
+
+def lowest_spectral_peak(y: np.ndarray, sample_rate_hz: float, refs: Sequence[int] | None,
+                         fmax: float | None) -> float | None:
+    """Frequency [Hz] of the lowest peak standing ``FDD_PROMINENCE_DB`` out of the first singular value
+    of the outputs' cross-spectral matrix (FDD's spectrum, up to ``fmax``), validated or not, or None;
+peaks below line ``DC_LINES`` are the leakage of the mean and of drift (a measurement system's record
+peaked at its first line, 0.1 Hz), not modes.
+
+    The lowest frequency of interest when FDD validates no mode (operating machines: harmonics and
+    non-white loads break its single-degree-of-freedom bell test, as on an operating wind turbine whose
+    tower mode sits beside the rotor's 1P).  SSI's time lags are then sized by the rule of Rainieri &
+    Fabbrocino (*Operational Modal Analysis of Civil Engineering Structures*, 2014, §4.5.2), block rows
+    ``i >= f_s / (2 f_0)`` for the lowest frequency of interest ``f_0``: without it the Hankel matrix,
+    sized for the model order only, spans less than one period of a slow mode (Peeters & De Roeck 1999).
+    """
+    y = np.asarray(y, float)
+    refs = list(range(y.shape[1])) if refs is None else list(refs)
+    try:
+        f, G = cross_spectra(y, sample_rate_hz, refs, default_nfft(y.shape[0]))
+    except ModalError:
         return None
+    level = 10 * np.log10(np.linalg.svd(G, compute_uv=False)[:, 0] + 1e-300)
+    band = (f > 0) & (f <= (fmax if fmax is not None else f[-1]))
+    peaks, _ = scipy.signal.find_peaks(np.where(band, level, level[band].min()), prominence=FDD_PROMINENCE_DB)
+    peaks = peaks[band[peaks] & (peaks >= DC_LINES)]
+    return float(f[peaks[0]]) if peaks.size else None
 
 
 def output_only_results(samples: np.ndarray, sample_rate_hz: float, names: Sequence[str],
@@ -167,8 +199,8 @@ def output_only_results(samples: np.ndarray, sample_rate_hz: float, names: Seque
         return result
 
     found = {"fdd": run("fdd", None)}
-    lowest = fmin or (0.5 * float(found["fdd"].modes.freq_hz.min())     # what _lowest_peak would find
-                      if isinstance(found["fdd"], FddResult) else None)
+    lowest = fmin or (0.5 * float(found["fdd"].modes.freq_hz.min())     # what _lowest_peak finds
+                      if isinstance(found["fdd"], FddResult) else FROM_FDD)
     found["ssi"] = run("ssi", lowest)
     fdd_res, ssi_res = found["fdd"], found["ssi"]
     if not isinstance(ssi_res, SsiResult):

@@ -35,6 +35,7 @@ from flexmodal.checked_io.text import read_text
 from flexmodal.compare.errors import CompareError
 from flexmodal.compare.result import Diagnosis, Predictions
 from flexmodal.compare.tables import Comparison, html_fragment, natural_key, ordered_configs
+from flexmodal.compare.verdict_text import scatter_line, verdict_words
 from flexmodal.contract.table import ModalTable
 from flexmodal.reports import animate, plots
 from flexmodal.reports.errors import ReportError
@@ -281,13 +282,15 @@ def _diagnosis_view(d: Diagnosis) -> dict:
         "heldout": " / ".join(_pct(x) for x in (verdict.heldout_rms_rel_error_before,
                                                  verdict.heldout_rms_rel_error_after)),
         "explained": verdict.explained,
-        "explained_text": "yes" if verdict.explained else "no: the best candidate leaves a gap above "
-                                                          "the measurement scatter",
+        "grade_class": "ok" if verdict.explained or verdict.grade == "largely explained" else "warn",
+        "explained_text": verdict_words(d) or ("yes" if verdict.explained else
+                                               "no: the gap stays above the measurement scatter"),
         "ranking": [{"effect": r.effect, "location": r.location,
                      "params": ", ".join(f"{k} = {v:.4g}" for k, v in r.params.items() if v is not None),
                      "fit": _pct(r.fit_rms_rel_error), "heldout": _pct(r.heldout_rms_rel_error),
                      "n_params": r.n_params} for r in d.ranking[:8]],
-        "holdout": d.holdout.scheme if d.holdout is not None else "", "scatter": _pct(d.scatter),
+        "holdout": d.holdout.scheme if d.holdout is not None else "",
+        "scatter": scatter_line(d).removeprefix("scatter: "),
         "frequencies": _diagnosis_frequencies(d.predictions) if d.predictions is not None else [],
     }
 

@@ -16,7 +16,14 @@ import pytest
 
 from flexmodal.compare.diagnosis import diagnose
 from flexmodal.contract.table import ModalTable
-from flexmodal.fixtures.blind import format_summary, format_table, run_blind, summarise
+from flexmodal.fixtures.blind import (
+    advice_trials,
+    format_summary,
+    format_table,
+    run_blind,
+    run_sparse,
+    summarise,
+)
 
 
 def _strict(text: str) -> dict:
@@ -29,8 +36,8 @@ def _check(results) -> dict:
     print(format_summary(s))
     for r in results:
         _strict(r.verdict.to_json())
-        if r.verdict.effect == "none":
-            assert r.verdict.alternatives == ()
+        if r.verdict.effect == "none":          # alternatives only on a verdict flagged ambiguous
+            assert bool(r.verdict.alternatives) == bool(r.verdict.ambiguous)
     return s
 
 
@@ -65,11 +72,12 @@ def test_shapes_separate_look_alikes_that_frequencies_leave_ambiguous(first_eigh
 
 
 @pytest.mark.slow
-@pytest.mark.timeout(10800)         # 5 draws x 36 cases + advice trials: ~25 min quiet, hours under load
-def test_five_draws_and_the_advice_the_docs_quote():
+@pytest.mark.timeout(21600)         # 10 draws x 36 cases + 60 sparse arms with trials: ~1 h quiet
+def test_the_draws_and_the_advice_the_docs_quote():
     """The acceptance measurement (benchmarks/diagnosis_doc.py: 36 cases in each of five draws the
-    method was not developed on) and the next-measurement trials on its ambiguous verdicts are exactly
-    what docs/diagnosis.md quotes; on every draw ``none`` is right at least twice in three."""
+    method was not developed on, and five further draws run once after its last change) and the
+    next-measurement trials on 60 sparsely measured arms are exactly what docs/diagnosis.md quotes; on
+    every draw ``none`` is right at least twice in three."""
     from conftest import REPO
 
     spec = importlib.util.spec_from_file_location("diagnosis_doc", REPO / "benchmarks" / "diagnosis_doc.py")
@@ -77,8 +85,24 @@ def test_five_draws_and_the_advice_the_docs_quote():
     spec.loader.exec_module(doc)
     results = {seed: run_blind(doc.BLIND_CASES, seed=seed) for seed in doc.BLIND_SEEDS}
     assert doc.doc_block("blind") == doc.blind_block(results=results)
-    assert doc.doc_block("advice") == doc.advice_block(results)
     assert all(summarise(r)["none_accuracy"] >= 2 / 3 for r in results.values())
+    fresh = {seed: run_blind(doc.BLIND_CASES, seed=seed) for seed in doc.FRESH_SEEDS}
+    assert doc.doc_block("fresh") == doc.blind_block(doc.FRESH_SEEDS, results=fresh,
+                                                     note="run once, after the last change to the method")
+    assert doc.doc_block("sparse") == doc.sparse_block()
+
+
+@pytest.mark.timeout(1800)          # ~40 s CPU: six truth arms, six diagnoses and six trial diagnoses
+def test_advised_pose_resolves_at_least_as_often_as_a_random_untested_pose():
+    """Issue 26: six arms with one library effect measured at three poses only (fixtures/blind.py
+    ``sparse_case``); each ambiguous verdict is measured once more on its real arm at the advised pose
+    and at two random untested poses: the advised pose resolves (right and no longer ambiguous) at least
+    one, and at least as often as a random one.  The issue asks for twice as often: on the 60 arms of
+    docs/diagnosis.md's ``sparse`` block (slow test above) it is 1.5x (29 % against 19 %), not met."""
+    trials = advice_trials(run_sparse(6, seed=1), seed=1)
+    advised = sum(t.advised_resolved for t in trials) / len(trials)
+    random = sum(sum(t.random_resolved) for t in trials) / sum(len(t.random_resolved) for t in trials)
+    assert len(trials) >= 2 and advised > 0 and advised >= random
 
 
 def test_benchmark_script_times_the_six_pose_case_and_finds_its_effect(capsys, monkeypatch):

@@ -29,7 +29,8 @@ import pytest
 from conftest import REPO
 
 pytestmark = pytest.mark.timeout(1800)  # all rows run in the first row's set-up (a module fixture)
-ROW_TIMEOUT_S = 30.0  # a hang guard: the machine is shared, rows take 2-8 s under load
+ROW_TIMEOUT_S = 120.0  # a hang guard: rows take 2-8 s at load 11; a niced process at load 20 needs
+# 10-20 s just to import acquire's libraries (26 Nov), so 30 s could call a slow row a hang
 THREADS = 2
 RIG = (REPO / "examples" / "rigs" / "seed003_two_link.toml").read_text(encoding="utf-8")
 MODES = (REPO / "examples" / "measured" / "seed003_table3_f1f2.csv").read_text(encoding="utf-8")
@@ -244,6 +245,57 @@ def duplicate_channel(g: h5py.Group) -> None:
     g["channels"][...] = table
 
 
+def stored_diagram(change: Callable[[dict], None] | None = None) -> Callable[[Path], None]:
+    """A stabilisation-diagram store (modal/diagrams.py) of 3 poles under a key no input has, then
+    ``change`` applied to its arrays."""
+    def make(path: Path) -> None:
+        from flexmodal.modal.diagrams import FORMAT
+
+        arrays = {"format": np.array(FORMAT), "d0.key": np.array("0" * 64), "d0.config": np.array("r1"),
+                  "d0.order_note": np.array("model order 4"), "d0.order": np.array([2, 4, 4]),
+                  "d0.freq_hz": np.array([30.0, 30.1, 54.0]), "d0.damping_ratio": np.full(3, 0.02),
+                  "d0.pole": np.array([-3.8 + 188.5j, -3.8 + 189.1j, -6.8 + 339.3j]),
+                  "d0.stable_freq": np.ones(3, bool), "d0.stable_damping": np.ones(3, bool),
+                  "d0.stable_shape": np.ones(3, bool), "d0.previous": np.array([-1, 0, -1])}
+        if change is not None:
+            change(arrays)
+        with open(path, "wb") as f:
+            np.savez_compressed(f, **arrays)
+    return make
+
+
+def diagram_declaring(shape: tuple[int, ...]) -> Callable[[Path], None]:
+    """A diagram store whose freq_hz entry declares ``shape`` in its header and holds 64 bytes."""
+    def make(path: Path) -> None:
+        import io
+        import zipfile
+
+        stored_diagram()(path)
+        with np.load(path) as npz:
+            arrays = {k: npz[k] for k in npz.files}
+        header = io.BytesIO()
+        np.lib.format.write_array_header_1_0(header, {"descr": "<f8", "fortran_order": False, "shape": shape})
+        with zipfile.ZipFile(path, "w") as zf:
+            for k, a in arrays.items():
+                member = io.BytesIO()
+                np.save(member, a)
+                declared = header.getvalue() + bytes(64)
+                zf.writestr(k + ".npy", declared if k == "d0.freq_hz" else member.getvalue())
+    return make
+
+
+def _half_the_memory() -> int:
+    """A size [bytes] twice what a reader bounded to a quarter of the available memory accepts."""
+    from flexmodal.checked_io.text import available_memory_bytes
+
+    return available_memory_bytes() // 2
+
+
+def user_npz(path: Path) -> None:
+    with open(path, "wb") as f:
+        np.savez(f, my_data=np.arange(5.0))
+
+
 DEEP_TOML = "deep = " + "[" * 100_000 + "]" * 100_000 + "\n"
 DEEP_INLINE = "deep = " + "{a = " * 100_000 + "1" + "}" * 100_000 + "\n"
 LONG_INT = "big = " + "9" * 5001 + "\n"
@@ -290,6 +342,10 @@ COMPARE = "compare {d}/modes.csv {d}/modes.csv"
 ACQUIRE = "acquire --config {d}/session.toml --out {d}/out.h5 --duration 1"
 REPORT = "report {d}/run.h5 --out {d}/report.html"
 IDENTIFY = "identify {d}/run.h5 --out {d}/modes-out.csv"
+DIAGRAM = "modes-out.diagram.npz"   # the stabilisation diagrams IDENTIFY stores beside its --out
+FROM_DIAGRAM = IDENTIFY + " --poles 30 --from-diagram"
+MODES_STD_NEGATIVE = "\n".join([MODES.splitlines()[0] + ",freq_std_hz"] + [
+    line + (",-0.5" if i == 0 else ",0.1") for i, line in enumerate(MODES.splitlines()[1:])]) + "\n"
 
 ROWS: list[Row] = [
     # -- text files that are not UTF-8, binary files as TOML/CSV/JSON -----------------------------
@@ -646,6 +702,56 @@ ROWS: list[Row] = [
     row("demo-report-is-rig", "demo --rig {d}/demo/report.html --out {d}/demo", ("report.html", "input"),
         {"demo/report.html": RIG}),
     row("report-pdf-is-out", "report --measured {d}/modes.csv --out {d}/r.pdf --pdf", ("r.pdf", "output")),
+    # -- session 3: the stabilisation diagram stored beside --out (MODES.diagram.npz) -----------------
+    row("diagram-user-npz", IDENTIFY, (DIAGRAM, "not a stabilisation diagram"),
+        {DIAGRAM: user_npz}),
+    row("diagram-user-text", IDENTIFY + " --poles 30", (DIAGRAM, "not a stabilisation diagram"),
+        {DIAGRAM: "my notes\n"}),
+    row("diagram-fifo", FROM_DIAGRAM, (DIAGRAM, "FIFO"),
+        {DIAGRAM: fifo}),
+    row("diagram-link-to-run", IDENTIFY, (DIAGRAM, "input", "run.h5"),
+        {DIAGRAM: link_to("run.h5")}),
+    row("diagram-hdf5", IDENTIFY, (DIAGRAM, "HDF5"), {DIAGRAM: h5_file}),
+    row("diagram-dev-zero", FROM_DIAGRAM, (DIAGRAM, "/dev/zero"),
+        {DIAGRAM: lambda p: p.symlink_to("/dev/zero")}),
+    row("diagram-directory", IDENTIFY, (DIAGRAM, "directory"),
+        {"modes-out.diagram.npz/keep.txt": "x"}),
+    row("diagram-missing", FROM_DIAGRAM, (DIAGRAM, "no stored")),
+    row("diagram-without-poles", IDENTIFY + " --from-diagram", ("--poles",)),
+    row("diagram-other-input", FROM_DIAGRAM, (DIAGRAM, "matches"),
+        {DIAGRAM: stored_diagram()}),
+    row("diagram-freq-nan", FROM_DIAGRAM, (DIAGRAM, "freq_hz", "nan"),
+        {DIAGRAM: stored_diagram(lambda a: a["d0.freq_hz"].__setitem__(1, np.nan))}),
+    row("diagram-damping-inf", FROM_DIAGRAM, (DIAGRAM, "damping"),
+        {DIAGRAM: stored_diagram(lambda a: a["d0.damping_ratio"].__setitem__(0, np.inf))}),
+    row("diagram-previous-out-of-range", FROM_DIAGRAM,
+        (DIAGRAM, "previous"),
+        {DIAGRAM: stored_diagram(lambda a: a["d0.previous"].__setitem__(2, 10**6))}),
+    row("diagram-wrong-kind", FROM_DIAGRAM, (DIAGRAM, "order"),
+        {DIAGRAM: stored_diagram(lambda a: a.__setitem__("d0.order", np.array(list("abc"))))}),
+    row("diagram-declares-73-TiB", FROM_DIAGRAM, (DIAGRAM, "declares"),
+        {DIAGRAM: diagram_declaring((10**13,))}),
+    row("diagram-unpacks-huge", FROM_DIAGRAM, (DIAGRAM, "unpack"),
+        {DIAGRAM: stored_diagram(lambda a: a.__setitem__("junk", np.zeros(40_000_000)))}),
+    row("diagram-pickled", FROM_DIAGRAM, (DIAGRAM, "pickled"),
+        {DIAGRAM: stored_diagram(lambda a: a.__setitem__("d0.config", np.array([{}], object)))}),
+    # -- session 3: uncertainty columns of a modal table ----------------------------------------------
+    row("modes-freq-std-text", COMPARE, ("modes.csv", "freq_std_hz", "'wide'"),
+        {"modes.csv": "config,mode,freq_hz,freq_std_hz\nA,1,10,wide\n"}),
+    row("modes-freq-std-negative", COMPARE, ("modes.csv", "freq_std_hz = -0.1", "negative"),
+        {"modes.csv": "config,mode,freq_hz,freq_std_hz\nA,1,10,-0.1\n"}),
+    row("modes-damping-std-inf-report", "report --measured {d}/modes.csv --out {d}/r.html",
+        ("modes.csv", "damping_std", "inf"),
+        {"modes.csv": "config,mode,freq_hz,damping_ratio,damping_std\nA,1,10,0.01,inf\n"}),
+    row("modes-freq-std-negative-diagnose", DIAGNOSE, ("modes.csv", "freq_std_hz", "negative"),
+        {"modes.csv": MODES_STD_NEGATIVE}),
+    # -- session 3: report --geometry (a UFF test geometry) -------------------------------------------
+    row("geometry-fifo", "report --measured {d}/modes.csv --geometry {d}/g.unv --out {d}/r.html",
+        ("g.unv", "FIFO"), {"g.unv": fifo}),
+    row("geometry-dev-zero", "report --measured {d}/modes.csv --geometry {d}/g.unv --out {d}/r.html",
+        ("g.unv", "device"), {"g.unv": lambda p: p.symlink_to("/dev/zero")}),
+    row("geometry-beyond-memory", "report --measured {d}/modes.csv --geometry {d}/g.unv --out {d}/r.html",
+        ("g.unv", "too large"), {"g.unv": lambda p: sparse("    -1\n    15\n", _half_the_memory())(p)}),
     # -- controls: the unmodified base files work ---------------------------------------------------
     row("control-predict", PREDICT, (), code=0),
     row("control-compare", COMPARE, (), code=0),
@@ -735,12 +841,15 @@ class Outcome:
 
 
 def _snapshot(folder: Path) -> dict[str, str]:
-    """Every entry under ``folder``: a regular file by its SHA-256, a link by its target, else its type."""
+    """Every entry under ``folder``: a regular file by its SHA-256 (above 64 MiB by its size, mtime and
+    inode), a link by its target, else its type."""
     out = {}
     for p in sorted(folder.rglob("*")):
         st = p.lstat()
         if stat.S_ISLNK(st.st_mode):
             out[str(p.relative_to(folder))] = "link:" + os.readlink(p)
+        elif stat.S_ISREG(st.st_mode) and st.st_size > 64 << 20:   # a sparse giant: not read whole
+            out[str(p.relative_to(folder))] = f"{st.st_size}:{st.st_mtime_ns}:{st.st_ino}"
         elif stat.S_ISREG(st.st_mode):
             out[str(p.relative_to(folder))] = hashlib.sha256(p.read_bytes()).hexdigest()
         else:

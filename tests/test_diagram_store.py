@@ -5,6 +5,9 @@ of the same FRFs and options instead of running the stabilisation again."""
 from __future__ import annotations
 
 import dataclasses
+import io
+import re
+import zipfile
 
 import numpy as np
 import pytest
@@ -13,7 +16,7 @@ import flexmodal as fm
 import flexmodal.modal.identify as identify_module
 from flexmodal.app import main
 from flexmodal.fixtures.examples import impact_run
-from flexmodal.modal.diagrams import KINDS, diagram_path, read_diagrams, write_diagrams
+from flexmodal.modal.diagrams import KINDS, MAX_BYTES, diagram_path, read_diagrams, write_diagrams
 from flexmodal.modal.lscf import Stabilisation
 
 
@@ -104,9 +107,11 @@ def test_a_diagram_of_other_options_is_not_used(identified, tmp_path, capsys):
 
 
 def test_a_damaged_diagram_file_is_named_when_asked_for_and_replaced_otherwise(identified, tmp_path, capsys):
-    run, _, auto = identified
+    run, folder, auto = identified
     out = tmp_path / "m.csv"
-    diagram_path(out).write_bytes(b"PK\x03\x04 not a zip")
+    stored = bytearray(diagram_path(folder / "m.csv").read_bytes())
+    stored[len(stored) // 2:len(stored) // 2 + 64] = bytes(64)   # a member's bytes lost: its CRC fails
+    diagram_path(out).write_bytes(bytes(stored))
     argv = ["identify", str(run), "--fmax", "400", "--poles", _wanted(auto), "--out", str(out)]
     assert main([*argv, "--from-diagram"]) == 2
     err = capsys.readouterr().err.strip()
@@ -121,3 +126,50 @@ def test_from_diagram_needs_poles_and_an_output(identified, capsys):
     assert "--poles" in capsys.readouterr().err
     with pytest.raises(fm.ModalError, match="needs out"):
         fm.identify(run, poles_hz=[33.0], from_diagram=True)
+
+
+@pytest.mark.parametrize("foreign", [b"my notes\n", b"PK\x03\x04 not a zip", "npz"])
+def test_a_file_of_the_users_own_where_the_diagram_goes_is_never_replaced(identified, tmp_path, capsys,
+                                                                           foreign):
+    run, _, _ = identified
+    out = tmp_path / "m.csv"
+    if foreign == "npz":
+        np.savez(diagram_path(out), my_data=np.arange(5.0))
+    else:
+        diagram_path(out).write_bytes(foreign)
+    before = diagram_path(out).read_bytes()
+    assert main(["identify", str(run), "--fmax", "400", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "m.diagram.npz: exists and is not a stabilisation diagram" in err
+    assert diagram_path(out).read_bytes() == before and not out.exists()
+
+
+@pytest.mark.parametrize(("name", "value", "words"), [
+    ("freq_hz", np.nan, "freq_hz[0] = nan"), ("damping_ratio", np.inf, "damping_ratio[0] = inf"),
+    ("previous", 10**6, "previous[0] = 1000000"), ("order", -3, "order[0] = -3")])
+def test_impossible_stored_values_are_named(identified, tmp_path, name, value, words):
+    _, folder, _ = identified
+    with np.load(diagram_path(folder / "m.csv")) as npz:
+        arrays = {k: npz[k] for k in npz.files}
+    arrays[f"d0.{name}"][0] = value
+    np.savez(tmp_path / "d.npz", **arrays)
+    with pytest.raises(fm.ModalError, match=re.escape(f"diagram 1: {words} is impossible")):
+        read_diagrams(tmp_path / "d.npz")
+
+
+def test_sizes_are_checked_before_reading(identified, tmp_path):
+    _, folder, _ = identified
+    with np.load(diagram_path(folder / "m.csv")) as npz:
+        arrays = {k: npz[k] for k in npz.files}
+    header = io.BytesIO()
+    np.lib.format.write_array_header_1_0(header, {"descr": "<f8", "fortran_order": False, "shape": (10**13,)})
+    with zipfile.ZipFile(tmp_path / "huge.npz", "w") as zf:   # declares 73 TiB, holds 64 bytes
+        for k, a in arrays.items():
+            member = io.BytesIO()
+            np.save(member, a)
+            zf.writestr(k + ".npy", header.getvalue() + bytes(64) if k == "d0.freq_hz" else member.getvalue())
+    with pytest.raises(fm.ModalError, match="declares shape"):
+        read_diagrams(tmp_path / "huge.npz")
+    np.savez_compressed(tmp_path / "bomb.npz", **arrays, junk=np.zeros(MAX_BYTES // 8 + 1))   # 1 MB on disk
+    with pytest.raises(fm.ModalError, match="unpack to"):
+        read_diagrams(tmp_path / "bomb.npz")

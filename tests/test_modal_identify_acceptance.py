@@ -41,15 +41,15 @@ def _dense(seed: int):
 @pytest.mark.parametrize("seed", [1, 2])
 def test_dense_siso_fifteen_modes_with_two_percent_noise(seed):
     f, H, fn, zeta = _dense(seed)
-    t0 = time.perf_counter()
+    t0 = time.process_time()   # CPU: the wall time of a shared machine at load 20 was 7.6 s for 0.4 s of CPU
     modes = identify(f, H)
-    elapsed = time.perf_counter() - t0
+    elapsed = time.process_time() - t0
     k, err = _match(modes.freq_hz, fn)
     found = err < 2e-3
     assert found.sum() >= 14, modes.freq_hz
     assert np.sum(np.abs(modes.damping_ratio[k[found]] / zeta[found] - 1) < 0.2) >= 12
     assert modes.freq_hz.size - np.unique(k[found]).size <= 1
-    assert elapsed < 6.0   # issue: <= 2 s, met unloaded; a loose bound here, the machine is shared
+    assert elapsed < 2.0   # issue 12: <= 2 s (one BLAS thread: CPU time is the time on an idle machine)
     assert "model order" in modes.order_note
 
 

@@ -127,3 +127,20 @@ def test_fdd_of_white_noise_finds_no_mode():
     y = np.random.default_rng(0).standard_normal((4096, 2))
     with pytest.raises(ModalError, match="a noise peak, not a mode"):
         fdd(y, 256.0)
+
+
+def test_lowest_spectral_peak_is_the_lowest_line_above_the_drift():
+    """The lowest frequency SSI is sized for when FDD validates no mode: a sinusoid on line 40 of FDD's
+    spectrum, under a random-walk drift whose leakage peaks at line 1 (a measured record's did), is the
+    lowest peak, exactly on its line."""
+    from flexmodal.modal.oma import lowest_spectral_peak
+    from flexmodal.modal.spectra import default_nfft
+
+    fs, n = 10.0, 2**15
+    f0 = 40 * fs / default_nfft(n)
+    t = np.arange(n) / fs
+    rng = np.random.default_rng(0)
+    y = np.column_stack([np.sin(2 * np.pi * f0 * t), 0.5 * np.sin(2 * np.pi * f0 * t + 1)])
+    y += 0.01 * rng.standard_normal((n, 2)) + 0.05 * np.cumsum(rng.standard_normal((n, 1)), axis=0)
+    assert lowest_spectral_peak(y, fs, None, None) == pytest.approx(f0, rel=1e-12)
+    assert lowest_spectral_peak(y, fs, [0], 0.5 * f0) is None          # nothing below fmax
