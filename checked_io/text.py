@@ -82,6 +82,17 @@ def regular_file(path: str | Path, error: ErrorType, what: str = "file") -> Path
     return p
 
 
+def fits_in_memory(path: str | Path, error: ErrorType, what: str = "file", factor: int = 4) -> Path:
+    """``path`` (a regular file, :func:`regular_file`) when ``factor`` times its size fits in the
+    available memory (a parser that holds the text and its arrays at once); else ``error`` naming it."""
+    p = regular_file(path, error, what)
+    size, room = p.stat().st_size, available_memory_bytes()
+    if size > room // factor:
+        raise error(f"{p}: {size / 2**30:.1f} GiB is too large to read with the {room / 2**30:.1f} GiB "
+                    "of memory available")
+    return p
+
+
 def read_bytes(path: str | Path, error: ErrorType, what: str = "file",
                limit_bytes: int = MAX_TEXT_BYTES) -> bytes:
     """The bytes of an existing regular file of at most ``limit_bytes``; ``error`` names the file when

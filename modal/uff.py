@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from flexmodal.checked_io.output import atomic_path
-from flexmodal.checked_io.text import available_memory_bytes, regular_file
+from flexmodal.checked_io.text import fits_in_memory
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult
 from flexmodal.modal.valid_uff import check_functions, drop_line_padding
@@ -75,11 +75,7 @@ def read_uff(path: str | Path) -> UffFrfs | UffRecord:
     """FRFs (type 4) or a time record (type 1) from the dataset-58 sets of a UFF file."""
     import pyuff
 
-    p = regular_file(path, ModalError, "UFF file")
-    size, room = p.stat().st_size, available_memory_bytes()
-    if size > room // 4:   # pyuff holds the text and its arrays at once
-        raise ModalError(f"{p}: {size / 2**30:.1f} GiB is too large to read with the {room / 2**30:.1f} GiB "
-                         "of memory available")
+    p = fits_in_memory(path, ModalError, "UFF file")   # pyuff holds the text and its arrays at once
     try:
         sets = pyuff.UFF(str(p)).read_sets()
     except Exception as exc:  # pyuff raises bare Exceptions on malformed files

@@ -106,9 +106,9 @@ def read_uff_geometry(path: str | Path) -> Geometry:
     (18 or 2420).  ReportError naming the file when it holds no nodes or a line names a missing node."""
     import pyuff
 
-    p = Path(path)
-    if not p.is_file():
-        raise ReportError(f"{p}: geometry file not found")
+    from flexmodal.checked_io.text import fits_in_memory
+
+    p = fits_in_memory(path, ReportError, "geometry file")   # no FIFO, device or file beyond memory
     try:
         sets = pyuff.UFF(str(p)).read_sets()
     except Exception as exc:  # pyuff raises bare Exceptions and parse errors of every kind

@@ -29,7 +29,8 @@ import pytest
 from conftest import REPO
 
 pytestmark = pytest.mark.timeout(1800)  # all rows run in the first row's set-up (a module fixture)
-ROW_TIMEOUT_S = 30.0  # a hang guard: the machine is shared, rows take 2-8 s under load
+ROW_TIMEOUT_S = 120.0  # a hang guard: rows take 2-8 s at load 11; a niced process at load 20 needs
+# 10-20 s just to import acquire's libraries (26 Nov), so 30 s could call a slow row a hang
 THREADS = 2
 RIG = (REPO / "examples" / "rigs" / "seed003_two_link.toml").read_text(encoding="utf-8")
 MODES = (REPO / "examples" / "measured" / "seed003_table3_f1f2.csv").read_text(encoding="utf-8")
@@ -281,6 +282,13 @@ def diagram_declaring(shape: tuple[int, ...]) -> Callable[[Path], None]:
                 declared = header.getvalue() + bytes(64)
                 zf.writestr(k + ".npy", declared if k == "d0.freq_hz" else member.getvalue())
     return make
+
+
+def _half_the_memory() -> int:
+    """A size [bytes] twice what a reader bounded to a quarter of the available memory accepts."""
+    from flexmodal.checked_io.text import available_memory_bytes
+
+    return available_memory_bytes() // 2
 
 
 def user_npz(path: Path) -> None:
@@ -737,6 +745,13 @@ ROWS: list[Row] = [
         {"modes.csv": "config,mode,freq_hz,damping_ratio,damping_std\nA,1,10,0.01,inf\n"}),
     row("modes-freq-std-negative-diagnose", DIAGNOSE, ("modes.csv", "freq_std_hz", "negative"),
         {"modes.csv": MODES_STD_NEGATIVE}),
+    # -- session 3: report --geometry (a UFF test geometry) -------------------------------------------
+    row("geometry-fifo", "report --measured {d}/modes.csv --geometry {d}/g.unv --out {d}/r.html",
+        ("g.unv", "FIFO"), {"g.unv": fifo}),
+    row("geometry-dev-zero", "report --measured {d}/modes.csv --geometry {d}/g.unv --out {d}/r.html",
+        ("g.unv", "device"), {"g.unv": lambda p: p.symlink_to("/dev/zero")}),
+    row("geometry-beyond-memory", "report --measured {d}/modes.csv --geometry {d}/g.unv --out {d}/r.html",
+        ("g.unv", "too large"), {"g.unv": lambda p: sparse("    -1\n    15\n", _half_the_memory())(p)}),
     # -- controls: the unmodified base files work ---------------------------------------------------
     row("control-predict", PREDICT, (), code=0),
     row("control-compare", COMPARE, (), code=0),
@@ -826,12 +841,15 @@ class Outcome:
 
 
 def _snapshot(folder: Path) -> dict[str, str]:
-    """Every entry under ``folder``: a regular file by its SHA-256, a link by its target, else its type."""
+    """Every entry under ``folder``: a regular file by its SHA-256 (above 64 MiB by its size, mtime and
+    inode), a link by its target, else its type."""
     out = {}
     for p in sorted(folder.rglob("*")):
         st = p.lstat()
         if stat.S_ISLNK(st.st_mode):
             out[str(p.relative_to(folder))] = "link:" + os.readlink(p)
+        elif stat.S_ISREG(st.st_mode) and st.st_size > 64 << 20:   # a sparse giant: not read whole
+            out[str(p.relative_to(folder))] = f"{st.st_size}:{st.st_mtime_ns}:{st.st_ino}"
         elif stat.S_ISREG(st.st_mode):
             out[str(p.relative_to(folder))] = hashlib.sha256(p.read_bytes()).hexdigest()
         else:
