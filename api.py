@@ -687,6 +687,11 @@ def track(source: PathLike, *, pose_from: Mapping[str, str] | None = None, run_i
     modal analysis", Mechanical Systems and Signal Processing 13 (1999) 855-878.
     """
     _check_band(fmin, fmax)
+    if not 0 < bin_deg < float("inf") or not all(0 < o < float("inf") for o in orders):
+        from flexmodal.modal.errors import ModalError
+
+        raise ModalError(f"track: bin_deg {bin_deg!r} and orders {tuple(orders)!r} must be positive and "
+                         "finite")
     if out is not None:
         from flexmodal.checked_io.output import output_file
         from flexmodal.modal.errors import ModalError
