@@ -776,6 +776,9 @@ ROWS: list[Row] = [
         ("--orders", "finite"), {"enc.h5": encoder_run}),
     row("track-harmonics-is-input", "identify {d}/enc.h5 --track --out {d}/enc.csv",
         ("enc.harmonics.csv", "input"), {"enc.h5": encoder_run, "enc.harmonics.csv": link_to("enc.h5")}),
+    # -- session 3: sweep runs (modal/sweep.py: one segment per sweep) --------------------------------
+    row("sweep-constant-force", "frf {d}/run.h5 --workers 0", ("run.h5", "'F'", "constant")),
+    row("sweep-nan-force", IDENTIFY, ("run.h5", "'F'", "nan")),
     # -- controls: the unmodified base files work ---------------------------------------------------
     row("control-predict", PREDICT, (), code=0),
     row("control-compare", COMPARE, (), code=0),
@@ -827,6 +830,10 @@ RUN_FILES = {
     "frf-outputs-not-list": with_frf(lambda g: g["frf"].attrs.__setitem__("outputs", '{"a": 1}')),
     "frf-H-external": with_frf(lambda g: external_link("H")(g["frf"])),
     "frf-no-H": with_frf(lambda g: g["frf"].__delitem__("H")),
+    "sweep-constant-force": mutate_run(lambda g: (g.attrs.__setitem__("excitation", "sweep"),
+                                                  g["samples"].__setitem__((slice(None), 0), 1.0))),
+    "sweep-nan-force": mutate_run(lambda g: (g.attrs.__setitem__("excitation", "sweep"),
+                                             g["samples"].__setitem__((slice(None), 0), np.nan))),
 }
 
 
