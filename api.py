@@ -1545,12 +1545,13 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     from flexmodal.checked_io.output import output_file
     from flexmodal.reports.errors import ReportError
 
-    sources = [*runs, measured, *repeats, *predictions, diagnosis, rig]
-    output_file(out, ReportError, "report (--out)", inputs=_paths(sources))
+    sources = _paths([*runs, measured, *repeats, *predictions, diagnosis, rig, geometry])
+    output_file(out, ReportError, "report (--out)", inputs=sources)
     if pdf:
         from flexmodal.reports.pdf import find_chromium
 
-        output_file(Path(out).with_suffix(".pdf"), ReportError, "PDF report (beside --out)", inputs=(out,))
+        output_file(Path(out).with_suffix(".pdf"), ReportError, "PDF report (beside --out)",
+                    inputs=(*sources, out))
         if find_chromium() is None:
             raise ReportError("report --pdf: no Chromium found (install chromium, or leave out --pdf)")
     if not (runs or measured is not None or predictions or diagnosis is not None):

@@ -767,6 +767,10 @@ ROWS: list[Row] = [
         ("g.unv", "device"), {"g.unv": lambda p: p.symlink_to("/dev/zero")}),
     row("geometry-beyond-memory", "report --measured {d}/modes.csv --geometry {d}/g.unv --out {d}/r.html",
         ("g.unv", "too large"), {"g.unv": lambda p: sparse("    -1\n    15\n", _half_the_memory())(p)}),
+    row("report-pdf-beside-is-input", "report --measured {d}/modes.csv --out {d}/r.html --pdf",
+        ("r.pdf", "input"), {"r.pdf": link_to("modes.csv")}),
+    row("report-out-is-geometry", "report --measured {d}/modes.csv --geometry {d}/g.unv --out {d}/g.unv",
+        ("g.unv", "input"), {"g.unv": (REPO / "tests/data/uff/massif_geometry.uff").read_bytes()}),
     # -- session 3: identify --track options -------------------------------------------------------
     row("track-window-one-sample", "identify {d}/enc.h5 --track --out {d}/map.csv --window 0.001 --hop 0.001",
         ("tracking window", "1 samples"), {"enc.h5": encoder_run}),
