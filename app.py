@@ -13,6 +13,7 @@ import argparse
 import os
 import signal
 import sys
+import threading
 from collections.abc import Sequence
 
 from flexmodal import __version__
@@ -61,6 +62,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         # (a child that dask's LocalCluster starts, launched with our -W options) would then print a
         # multi-line warning about the semaphores it cleans up after us, below our one line
         sys.warnoptions.append("ignore::UserWarning:multiprocessing.resource_tracker")
+        sys.unraisablehook = _interrupt_again
     try:
         args = build_parser().parse_args(argv)
         return int(args.func(args) or 0)
@@ -98,6 +100,17 @@ def _from_interrupt(exc: BaseException) -> bool:
         seen.add(id(exc))
         exc = exc.__cause__ or exc.__context__
     return False
+
+
+def _interrupt_again(unraisable) -> None:
+    """``sys.unraisablehook`` of the command: a Ctrl-C that lands in a garbage-collector or weakref
+    callback is reported and dropped by Python ("Exception ignored in: ..."), and the command would run
+    on to its end; deliver it again from a helper thread instead (it retries if it lands in one again),
+    so that the command stops.  Any other unraisable exception is reported as Python does."""
+    if unraisable.exc_type is not None and issubclass(unraisable.exc_type, KeyboardInterrupt):
+        threading.Timer(0.01, os.kill, (os.getpid(), signal.SIGINT)).start()
+        return
+    sys.__unraisablehook__(unraisable)
 
 
 def _leave_interrupted() -> None:

@@ -22,11 +22,12 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -44,7 +45,9 @@ TIMEOUT_S = 900
 class Score:
     """One entry's result.  ``found``: reference modes matched within ``tol_pct``; ``extras``:
     identified modes in the band matched to no reference mode; ``damping_ok``: matched modes whose
-    damping ratio lies in the reference's range; ``message``: the first line of stderr on failure."""
+    damping ratio lies in the reference's range; ``message``: the first line of stderr on failure;
+    ``time_s`` the process's wall time, ``cpu_s`` its CPU time (user + system; wall time on a shared
+    machine mostly measures the load)."""
 
     entry: str
     kind: str
@@ -56,6 +59,7 @@ class Score:
     exit_code: int
     time_s: float
     message: str = ""
+    cpu_s: float = 0.0
 
 
 def entries() -> list[str]:
@@ -119,7 +123,7 @@ def run_entry(name: str, *, timeout_s: float = TIMEOUT_S) -> Score:
         # on every machine
         cmd = [sys.executable, "-m", "flexmodal", "identify", str(path.relative_to(ROOT)), "--out", str(out),
                "--quiet"]
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), resource.getrusage(resource.RUSAGE_CHILDREN)
         try:
             proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s, cwd=ROOT,
                                   env={**os.environ, "PYTHONWARNINGS": "ignore"})
@@ -127,10 +131,13 @@ def run_entry(name: str, *, timeout_s: float = TIMEOUT_S) -> Score:
         except subprocess.TimeoutExpired:
             code, err = -9, f"timed out after {timeout_s:g} s"
         elapsed = time.perf_counter() - t0
+        c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpu = (c1.ru_utime - c0.ru_utime) + (c1.ru_stime - c0.ru_stime)
         table = pd.read_csv(out) if code == 0 and out.is_file() else None
     lines = [ln for ln in err.strip().splitlines() if ln.strip()]
     message = "" if code == 0 else (lines[-1] if lines else "")
-    return score_table(name, source["kind_short"], reference, table, code, round(elapsed, 2), message)
+    score = score_table(name, source["kind_short"], reference, table, code, round(elapsed, 2), message)
+    return replace(score, cpu_s=round(cpu, 2))
 
 
 def accepted(s: Score) -> bool:
@@ -206,6 +213,8 @@ def main(argv: list[str] | None = None) -> int:
     for name in names:   # a loop over corpus entries
         print(f"realdata: {name} ...", file=sys.stderr, flush=True)
         scores.append(run_entry(name))
+        print(f"realdata: {name}: {scores[-1].time_s:.1f} s wall, {scores[-1].cpu_s:.1f} s CPU",
+              file=sys.stderr, flush=True)
     print(markdown(scores))
     if args.json:
         args.json.write_text(json.dumps([asdict(s) for s in scores], indent=2) + "\n")

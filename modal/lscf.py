@@ -380,11 +380,12 @@ def select_stable(stab: Stabilisation, *, min_fraction: float = 0.5, min_orders:
 
 def _batch(lo: int, hi: int, n_in: int) -> list[int]:
     """Orders lo..hi of the adaptive diagram: every order up to 64 / n_in, then every second up to
-    128 / n_in, every fourth up to 160 / n_in, every eighth up to 320 / n_in, then every sixteenth, so
-    the cost of the high orders (an eigenvalue problem of size order x n_in each, cubic in it) stays
-    bounded: about 5 % apart in order above 320 poles, as between 160 and 320."""
+    128 / n_in, every fourth up to 160 / n_in, every eighth up to 320 / n_in, every sixteenth up to
+    640 / n_in, then every thirty-second, so the cost of the high orders (an eigenvalue problem of size
+    order x n_in each, cubic in it) stays bounded: 2.5-5 % apart in order above 160 poles."""
     o = np.arange(lo, hi + 1)
-    step = np.select([o * n_in <= 64, o * n_in <= 128, o * n_in <= 160, o * n_in <= 320], [1, 2, 4, 8], 16)
+    step = np.select([o * n_in <= 64, o * n_in <= 128, o * n_in <= 160, o * n_in <= 320, o * n_in <= 640],
+                     [1, 2, 4, 8, 16], 32)
     return [int(k) for k in o[(o % step == 0) | (o == hi)]]
 
 

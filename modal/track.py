@@ -42,7 +42,7 @@ from flexmodal.contract.mac import mac
 from flexmodal.contract.table import POSE_PREFIX, SHAPE_PREFIX, ModalTable
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.harmonics import find_orders, is_order, sinusoid_kurtosis
-from flexmodal.modal.ssi import ssi_cov
+from flexmodal.modal.ssi import default_block_rows, ssi_cov
 
 MIN_WINDOW_SAMPLES = 64    # a tracking window shorter than this holds no covariance to fit
 MAX_REFS = 4               # SSI reference channels per window (the ones with the largest RMS)
@@ -55,6 +55,8 @@ REFINE_PERIODS = 150.0    # the refinement's window holds this many periods (at 
 REFINE_BAND = 0.4         # the refinement looks within +-40 % of the track's frequency ...
 REFINE_ORDER = 30         # ... with SSI model orders up to this, and block rows spanning lags of
 REFINE_LAG_PERIODS = 4.0  # this many periods (as many as the window holds, 40 samples per row)
+ZETA_FLOOR = 0.002        # the damping ratio the refinement's window is sized for is at least this
+DAMPING_PER_SPAN = 8.0    # long-span damping estimates per span (linear in time between them)
 KURTOSIS_SINE = 2.0        # band-passed kurtosis below this: a sinusoid (1.5) rather than a mode (3)
 
 
@@ -78,6 +80,8 @@ class TrackOptions:
     order_tol: float = 0.02
     kurtosis_max: float = KURTOSIS_SINE
     refine: int = 2               # passes of the warped-time refinement (0: none)
+    damping_rel_std: float = 0.12  # the refinement's window is long enough for this relative standard
+    #                                deviation of the damping ratio (closed-form bound, damping_bound)
 
 
 @dataclass(frozen=True)
@@ -110,21 +114,23 @@ class Harmonic:
 
 @dataclass(frozen=True)
 class Track:
-    """One mode followed along the record: window indices, frequencies, damping ratios, shapes."""
+    """One mode followed along the record: window indices, frequencies, damping ratios, shapes, the
+    band-passed kurtosis and, once refined, the seconds of record behind each estimate ``span_s``."""
 
     windows: np.ndarray
     freq_hz: np.ndarray
     damping_ratio: np.ndarray
     shapes: np.ndarray   # [n_out, n_windows]
     kurtosis: np.ndarray
+    span_s: np.ndarray = field(default_factory=lambda: np.zeros(0))   # seconds of record per estimate
 
 
 @dataclass(frozen=True)
 class TrackResult:
     """What tracking found: the window length and hop [s], the analysed ``windows``, the number
-    ``skipped`` for their pose spread, the mode ``tracks`` (numbered by median frequency), the
-    ``harmonics`` (every harmonic pole) and their ``orders`` per joint, the modal ``table`` (the map)
-    and the output channel names."""
+    ``skipped`` for their pose spread (``gapped``: for lost samples), the mode ``tracks`` (numbered by
+    median frequency), the ``harmonics`` (every harmonic pole) and their ``orders`` per joint, the
+    modal ``table`` (the map) and the output channel names."""
 
     window_s: float
     hop_s: float
@@ -136,20 +142,22 @@ class TrackResult:
     table: ModalTable
     outputs: tuple[str, ...]
     warnings: tuple[str, ...] = field(default=())
+    gapped: int = 0      # windows skipped because they hold lost samples
 
 
 def window_plan(n_samples: int, sample_rate_hz: float, pose: np.ndarray, lowest_hz: float,
-                options: TrackOptions) -> tuple[int, int]:
+                options: TrackOptions, min_samples: int = 0) -> tuple[int, int]:
     """Window length and hop in samples (module docstring) for a record whose pose channels are
-    ``pose`` [n, n_vars] (degrees) and slowest mode ``lowest_hz``."""
+    ``pose`` [n, n_vars] (degrees) and slowest mode ``lowest_hz``; a default window holds at least
+    ``min_samples``."""
     fs = sample_rate_hz
-    win = options.window_s or options.periods / lowest_hz
+    win = options.window_s or max(options.periods / lowest_hz, min_samples / fs)
     if options.hop_s:
         hop = options.hop_s
     else:
         step = max(int(fs * 0.1), 1)
         rate = np.abs(np.diff(pose[::step], axis=0)).max(axis=1) * fs / step if pose.shape[1] else np.zeros(1)
-        fast = float(np.percentile(rate, 90)) if rate.size else 0.0
+        fast = float(np.nanpercentile(rate, 90)) if np.isfinite(rate).any() else 0.0
         hop = 0.25 * options.bin_deg / fast if fast > 0 else 0.5 * win
         hop = float(np.clip(hop, win / 8, win / 2))
     n_win, n_hop = int(round(win * fs)), max(1, int(round(hop * fs)))
@@ -196,13 +204,21 @@ def _merge_doublets(f: np.ndarray, z: np.ndarray, sh: np.ndarray, options: Track
 
 def identify_windows(y: np.ndarray, pose: np.ndarray, pose_names: Sequence[str], sample_rate_hz: float,
                      options: TrackOptions, lowest_hz: float) -> tuple[list[WindowPoles], int, int, int]:
-    """SSI-cov in every window of the outputs ``y`` [n, n_out] whose pose spread is small enough;
-    returns the windows, the number skipped, the window length and hop (samples)."""
+    """SSI-cov in every window of the outputs ``y`` [n, n_out] whose pose spread is small enough and
+    which holds no lost sample (a NaN row of ``y`` or ``pose``: a gap of the acquisition); returns the
+    windows, the numbers skipped for their spread and for a gap, the window length and hop (samples)."""
     fs = sample_rate_hz
-    n_win, n_hop = window_plan(y.shape[0], fs, pose, lowest_hz, options)
     refs = _references(y)
-    out, skipped = [], 0
+    q = max(1, int(fs // (4 * options.fmax))) if options.fmax else 1   # SSI's decimation (docs/oma.md)
+    rows = max(default_block_rows(options.max_order, len(refs), fs / q, lowest_hz),
+               -(-options.max_order // y.shape[1]) + 1)
+    n_win, n_hop = window_plan(y.shape[0], fs, pose, lowest_hz, options, 40 * rows * q)   # SSI's minimum
+    lost = np.concatenate([[0], np.cumsum(~np.isfinite(np.hstack([y, pose])).all(axis=1))])
+    out, skipped, gapped = [], 0, 0
     for a in range(0, y.shape[0] - n_win + 1, n_hop):   # a loop over windows
+        if lost[a + n_win] > lost[a]:
+            gapped += 1
+            continue
         p = pose[a:a + n_win]
         spread = p.std(axis=0)
         if np.any(spread > options.max_spread_deg):
@@ -223,7 +239,7 @@ def identify_windows(y: np.ndarray, pose: np.ndarray, pose_names: Sequence[str],
                                dict(zip(pose_names, spread.tolist(), strict=True)),
                                dict(zip(pose_names, _slope(p, fs).tolist(), strict=True)),
                                f, z, sh, kurt, np.zeros(f.size)))
-    return out, skipped, n_win, n_hop
+    return out, skipped, gapped, n_win, n_hop
 
 
 def mark_harmonics(windows: list[WindowPoles], y: np.ndarray, pose: np.ndarray, sample_rate_hz: float,
@@ -259,17 +275,22 @@ def mark_harmonics(windows: list[WindowPoles], y: np.ndarray, pose: np.ndarray, 
 
 
 def follow(windows: Sequence[WindowPoles], options: TrackOptions) -> list[Track]:
-    """Follow the non-harmonic poles from window to window (module docstring)."""
+    """Follow the non-harmonic poles from window to window (module docstring).  Over a stretch of skipped
+    windows (a gap, a spread) the frequency gate widens in proportion to the time elapsed beyond
+    ``max_gap + 1`` hops (the longest a track waits for a match when no window is skipped)."""
     open_: list[dict] = []
     done: list[dict] = []
+    hop = float(np.median(np.diff([w.t_s for w in windows]))) if len(windows) > 1 else 1.0
     for k, w in enumerate(windows):   # a loop over windows
         idx = np.flatnonzero(w.harmonic == 0)
         f, sh = w.freq_hz[idx], w.shapes[:, idx]
         if open_ and idx.size:
-            pred = np.array([_predict(t, k) for t in open_])
+            reach = (options.max_gap + 1) * hop   # the longest wait for a match when no window is skipped
+            pred = np.array([_predict(t, w.t_s, reach) for t in open_])
+            widen = np.array([max(1.0, (w.t_s - t["t"][-1]) / reach) for t in open_])
             last = np.column_stack([t["shapes"][-1] for t in open_])
             mac_ = mac(last, sh)
-            df = np.abs(f[None, :] - pred[:, None]) / (options.gate_rel * pred[:, None])
+            df = np.abs(f[None, :] - pred[:, None]) / (options.gate_rel * (pred * widen)[:, None])
             dm = (1 - mac_) / (1 - options.mac_min)
             cost = df + dm
             bad = (df > 1) | (dm > 1)
@@ -282,6 +303,7 @@ def follow(windows: Sequence[WindowPoles], options: TrackOptions) -> list[Track]
             t = open_[r]
             j = idx[c]
             t["windows"].append(k)
+            t["t"].append(w.t_s)
             t["freq"].append(w.freq_hz[j])
             t["zeta"].append(w.damping_ratio[j])
             t["shapes"].append(w.shapes[:, j])
@@ -295,20 +317,22 @@ def follow(windows: Sequence[WindowPoles], options: TrackOptions) -> list[Track]
         for c in range(idx.size):
             if c not in used:
                 j = idx[c]
-                open_.append({"windows": [k], "freq": [w.freq_hz[j]], "zeta": [w.damping_ratio[j]],
-                              "shapes": [w.shapes[:, j]], "kurt": [w.kurtosis[j]]})
+                open_.append({"windows": [k], "t": [w.t_s], "freq": [w.freq_hz[j]],
+                              "zeta": [w.damping_ratio[j]], "shapes": [w.shapes[:, j]],
+                              "kurt": [w.kurtosis[j]]})
     done += open_
     tracks = [Track(np.array(t["windows"]), np.array(t["freq"]), np.array(t["zeta"]),
                     np.column_stack(t["shapes"]), np.array(t["kurt"]))
               for t in sorted(done, key=lambda t: t["windows"][0])]
-    tracks = _stitch(tracks, options)
+    tracks = _stitch(tracks, options, np.array([w.t_s for w in windows]))
     return sorted([t for t in tracks if t.windows.size >= options.min_windows],
                   key=lambda t: float(np.median(t.freq_hz)))
 
 
-def _stitch(tracks: list[Track], options: TrackOptions) -> list[Track]:
+def _stitch(tracks: list[Track], options: TrackOptions, times: np.ndarray) -> list[Track]:
     """Join a track to an earlier one that ended at most ``STITCH_GAP`` windows before it began when the
-    earlier one's last estimates, extrapolated linearly over the gap, and the later one's first agree
+    earlier one's last estimates, extrapolated linearly in time over the gap (``times``: the windows'
+    centres, so windows skipped between count), and the later one's first agree
     within the gates (frequency, widened in proportion to the gap beyond ``max_gap``, and MAC): one mode
     whose poles were missed for a while, or set aside as a harmonic where one crossed it."""
     out: list[Track] = []
@@ -319,8 +343,8 @@ def _stitch(tracks: list[Track], options: TrackOptions) -> list[Track]:
                 continue
             gap = int(t.windows[0] - u.windows[-1])
             n = min(5, u.freq_hz.size)
-            slope = np.polyfit(u.windows[-n:], u.freq_hz[-n:], 1)[0] if n >= 2 else 0.0
-            pred = u.freq_hz[-1] + slope * gap
+            slope = np.polyfit(times[u.windows[-n:]], u.freq_hz[-n:], 1)[0] if n >= 2 else 0.0
+            pred = u.freq_hz[-1] + slope * (times[t.windows[0]] - times[u.windows[-1]])
             df = abs(t.freq_hz[0] - pred) / (options.gate_rel * max(1.0, gap / options.max_gap) * pred)
             dm = (1 - float(mac(u.shapes[:, -1:], t.shapes[:, :1])[0, 0])) / (1 - options.mac_min)
             if df <= 1 and dm <= 1 and df + dm < best_cost:
@@ -335,17 +359,23 @@ def _stitch(tracks: list[Track], options: TrackOptions) -> list[Track]:
     return out
 
 
-def _predict(track: dict, k: int) -> float:
-    """The track's frequency extrapolated to window ``k`` from its last two estimates."""
-    f, w = track["freq"], track["windows"]
+def _predict(track: dict, t_s: float, reach_s: float) -> float:
+    """The track's frequency extrapolated to time ``t_s`` from its last two estimates, or, beyond
+    ``reach_s`` after its last one (windows skipped between), along the least-squares line in time
+    through its last five (a two-point slope carried that far amplifies their scatter)."""
+    f, t = track["freq"], track["t"]
     if len(f) < 2:
         return float(f[-1])
-    slope = (f[-1] - f[-2]) / (w[-1] - w[-2])
-    return float(f[-1] + slope * (k - w[-1]))
+    if t_s - t[-1] > reach_s:
+        slope = np.polyfit(t[-5:], f[-5:], 1)[0]
+    else:
+        slope = (f[-1] - f[-2]) / (t[-1] - t[-2])
+    return float(f[-1] + slope * (t_s - t[-1]))
 
 
 def refine(y: np.ndarray, sample_rate_hz: float, windows: Sequence[WindowPoles], tracks: Sequence[Track],
-           n_win: int, orders: Mapping[str, tuple[float, ...]], options: TrackOptions) -> list[Track]:
+           n_win: int, orders: Mapping[str, tuple[float, ...]], options: TrackOptions,
+           damping: bool = True) -> list[Track]:
     """Second pass: each mode re-identified at every window centre of its span, over the first pass's
     window or ``REFINE_PERIODS`` periods if longer (warping keeps the drift out), in its own warped time
     (:func:`flexmodal.modal.warp.warp` along the track's frequencies, median-smoothed over
@@ -353,11 +383,15 @@ def refine(y: np.ndarray, sample_rate_hz: float, windows: Sequence[WindowPoles],
     REFINE_BAND)``, by SSI-cov in ``f_c (1 +- REFINE_BAND)`` with block rows over ``REFINE_LAG_PERIODS``;
     the selected mode nearest ``f_c`` within the gates (frequency and MAC with the track's nearest
     first-pass shape) replaces the first pass's estimate, and fills the windows the first pass
-    missed.  A pole on a harmonic order (within ``order_tol``) is left out.  Tracks keep their order."""
+    missed.  A pole on a harmonic order (within ``order_tol``) is left out.  With ``damping``, the damping
+    ratio then comes from the same identification over the longer span that holds its relative standard
+    deviation to ``options.damping_rel_std`` (:func:`damping_span_s` at the track's median damping ratio;
+    the drift is warped out, so a long span adds no bandwidth), the frequency and shape staying those of
+    the shorter one; ``span_s`` records the seconds behind each damping ratio.  Spans a few windows apart
+    share most of their data, so the long-span damping ratio is identified every ``1 / DAMPING_PER_SPAN``
+    of its span and taken linear in time between.  Tracks keep their order."""
     import scipy.ndimage
     import scipy.signal
-
-    from flexmodal.modal.warp import warp
 
     fs = sample_rate_hz
     centres = np.array([w.t_s for w in windows])
@@ -367,39 +401,137 @@ def refine(y: np.ndarray, sample_rate_hz: float, windows: Sequence[WindowPoles],
         f_s = scipy.ndimage.median_filter(tr.freq_hz, min(SMOOTH_WINDOWS, tr.freq_hz.size), mode="nearest")
         if f_s.size > SMOOTH_SPAN:
             f_s = scipy.signal.savgol_filter(f_s, SMOOTH_SPAN, 2)
-        keep: list[tuple[int, float, float, np.ndarray]] = []
+        keep: list[tuple[int, float, float, np.ndarray, float]] = []
+        zeta = max(ZETA_FLOOR, float(np.median(tr.damping_ratio)))
+        long: dict[int, tuple[float, float]] = {}   # window -> damping ratio over the long span, span [s]
         for k in range(int(tr.windows[0]), int(tr.windows[-1]) + 1):   # a loop over windows
-            mid = int(round(centres[k] * fs))
             f_c = float(np.interp(centres[k], centres[tr.windows], f_s))
-            n = min(y.shape[0], max(n_win, int(REFINE_PERIODS / f_c * fs)))
-            a = int(np.clip(mid - n // 2, 0, y.shape[0] - n))
-            g = np.interp(np.arange(a, a + n) / fs, centres[tr.windows], f_s)
-            q = max(1, int(fs // (4 * (1 + REFINE_BAND) * f_c)))   # decimated to >= 4 x the band's top
-            seg = warp(y[a:a + n], fs, g, mid - a)
-            seg = scipy.signal.resample_poly(seg, 1, q, axis=0) if q > 1 else seg
-            rows = min(seg.shape[0] // 40, max(-(-REFINE_ORDER // len(refs)) + 2,
-                                               int(np.ceil(REFINE_LAG_PERIODS * fs / q / f_c))))
-            try:
-                m = ssi_cov(seg, fs / q, references=refs, fmin=(1 - REFINE_BAND) * f_c,
-                            fmax=(1 + REFINE_BAND) * f_c, max_order=REFINE_ORDER, block_rows=rows).modes
-            except ModalError:
-                continue
             shape = tr.shapes[:, int(np.argmin(np.abs(tr.windows - k)))]   # the nearest first-pass shape
-            near = np.abs(m.freq_hz / f_c - 1) / options.gate_rel + (1 - mac(shape[:, None], m.shapes)[0]) / (
-                1 - options.mac_min)
-            j = int(np.argmin(near))
-            on_order = any(is_order(m.freq_hz[j:j + 1], abs(windows[k].rate_deg_per_s[v]) / 360.0, o,
-                                    options.order_tol)[0] for v, o in orders.items())
-            if near[j] <= 1 and not on_order:
-                keep.append((k, float(m.freq_hz[j]), float(m.damping_ratio[j]), m.shapes[:, j]))
+            rates = {v: abs(windows[k].rate_deg_per_s[v]) / 360.0 for v in orders}
+            n = min(y.shape[0], max(n_win, int(REFINE_PERIODS / f_c * fs)))
+            pole = _warped_pole(y, fs, centres, k, tr, f_s, n, refs, shape, rates, orders, options)
+            if pole is None:
+                continue
+            f, z, sh = pole
+            keep.append((k, f, z, sh, n / fs))
+            n_z = min(y.shape[0], int(damping_span_s(f_c, zeta, options.damping_rel_std) * fs))
+            step = n_z / fs / DAMPING_PER_SPAN   # long-span estimates this far apart [s] (module docstring)
+            last = max(long, default=None)
+            if damping and n_z > n and (last is None or centres[k] - centres[last] >= step):
+                pole_z = _warped_pole(y, fs, centres, k, tr, f_s, n_z, refs, sh, rates, orders, options)
+                if pole_z is not None:
+                    long[k] = (pole_z[1], n_z / fs)
         if len(keep) < options.min_windows:
             out.append(tr)
             continue
-        idx = np.array([k for k, _, _, _ in keep])
+        if long:   # the long-span damping ratios, linear in time between the windows they were found at
+            at = np.array(sorted(long))
+            z_long = np.interp(centres[[k[0] for k in keep]], centres[at], [long[a][0] for a in at])
+            span = np.interp(centres[[k[0] for k in keep]], centres[at], [long[a][1] for a in at])
+            keep = [(k, f, float(z), sh, float(t)) for (k, f, _, sh, _), z, t in zip(keep, z_long, span,
+                                                                                       strict=True)]
+        idx = np.array([k[0] for k in keep])
         kurt = np.interp(idx, tr.windows, tr.kurtosis)
-        out.append(Track(idx, np.array([f for _, f, _, _ in keep]), np.array([z for _, _, z, _ in keep]),
-                         np.column_stack([sh for _, _, _, sh in keep]), kurt))
+        out.append(Track(idx, np.array([k[1] for k in keep]), np.array([k[2] for k in keep]),
+                         np.column_stack([k[3] for k in keep]), kurt, np.array([k[4] for k in keep])))
     return out
+
+
+def drop_duplicates(tracks: Sequence[Track], options: TrackOptions) -> list[Track]:
+    """Tracks without the ones that follow another, longer track's mode: a track at least half of whose
+    windows hold the other's estimate within half the frequency gate and with MAC >= ``mac_min`` (a
+    first-pass track that followed a harmonic across a mode, re-identified onto that mode) is dropped."""
+    kept: list[Track] = []
+    for t in sorted(tracks, key=lambda t: -t.windows.size):   # a loop over tracks, longest first
+        same = 0
+        for u in kept:
+            common, i, j = np.intersect1d(t.windows, u.windows, return_indices=True)
+            if common.size:
+                close = np.abs(t.freq_hz[i] / u.freq_hz[j] - 1) < 0.5 * options.gate_rel
+                alike = np.diag(mac(t.shapes[:, i], u.shapes[:, j])) >= options.mac_min
+                same = max(same, int(np.sum(close & alike)))
+        if same < 0.5 * t.windows.size:
+            kept.append(t)
+    return sorted(kept, key=lambda t: float(np.median(t.freq_hz)))
+
+
+def _warped_pole(y: np.ndarray, fs: float, centres: np.ndarray, k: int, tr: Track, f_s: np.ndarray, n: int,
+                 refs: list[int], shape: np.ndarray, rates: Mapping[str, float],
+                 orders: Mapping[str, tuple[float, ...]], options: TrackOptions
+                 ) -> tuple[float, float, np.ndarray] | None:
+    """The mode of track ``tr`` at window ``k`` from ``n`` samples around its centre in the track's warped
+    time (:func:`refine`): frequency, damping ratio and shape of the selected SSI mode nearest the
+    smoothed track ``f_s`` within the gates (frequency, MAC with ``shape``), or None (none there, or one on
+    a harmonic order of the joint speeds ``rates`` [rev/s])."""
+    mid = int(round(centres[k] * fs))
+    f_c = float(np.interp(centres[k], centres[tr.windows], f_s))
+    a = int(np.clip(mid - n // 2, 0, y.shape[0] - n))
+    g = np.interp(np.arange(a, a + n) / fs, centres[tr.windows], f_s)
+    q = max(1, int(fs // (4 * (1 + REFINE_BAND) * f_c)))   # decimated to >= 4 x the band's top
+    seg = _warped(y[a:a + n], fs, g, mid - a, q)
+    rows = min(seg.shape[0] // 40, max(-(-REFINE_ORDER // len(refs)) + 2,
+                                       int(np.ceil(REFINE_LAG_PERIODS * fs / q / f_c))))
+    try:
+        m = ssi_cov(seg, fs / q, references=refs, fmin=(1 - REFINE_BAND) * f_c, fmax=(1 + REFINE_BAND) * f_c,
+                    max_order=REFINE_ORDER, block_rows=rows).modes
+    except ModalError:
+        return None
+    near = np.abs(m.freq_hz / f_c - 1) / options.gate_rel + (1 - mac(shape[:, None], m.shapes)[0]) / (
+        1 - options.mac_min)
+    j = int(np.argmin(near))
+    on_order = any(is_order(m.freq_hz[j:j + 1], rates[v], o, options.order_tol)[0] for v, o in orders.items())
+    if near[j] > 1 or on_order:
+        return None
+    return float(m.freq_hz[j]), float(m.damping_ratio[j]), m.shapes[:, j]
+
+
+def _warped(y: np.ndarray, sample_rate_hz: float, freq_hz: np.ndarray, centre: int, q: int) -> np.ndarray:
+    """``y`` warped along ``freq_hz`` (:func:`flexmodal.modal.warp.warp`) and decimated by ``q``; the rows
+    that lost samples (NaN: a gap) reach, with the spline's and the decimation filter's support around
+    them, are NaN in the result (SSI leaves NaN rows out of its covariances)."""
+    import scipy.ndimage
+    import scipy.signal
+
+    from flexmodal.modal.warp import warp
+
+    lost = ~np.isfinite(y).all(axis=1)
+    x = warp(np.where(lost[:, None], 0.0, y), sample_rate_hz, freq_hz, centre)
+    x = scipy.signal.resample_poly(x, 1, q, axis=0) if q > 1 else x
+    if lost.any():
+        reach = np.abs(warp(lost[:, None].astype(float), sample_rate_hz, freq_hz, centre)[:, 0]) > 1e-3
+        reach = scipy.ndimage.binary_dilation(reach, iterations=10 * q + 4)   # resample_poly: 10 q taps
+        x[reach[::q][:x.shape[0]]] = np.nan
+    return x
+
+
+def damping_bound(freq_hz: np.ndarray, damping_ratio: np.ndarray, span_s: np.ndarray) -> np.ndarray:
+    """Relative standard deviation of a damping ratio estimated from ``span_s`` seconds of a mode's
+    response to broadband excitation: ``1 / sqrt(2 pi zeta f T)``.
+
+    The large-sample variance of the AR(2) coefficient ``a2 = -r^2`` is ``(1 - a2^2) / N`` (Box, Jenkins &
+    Reinsel, *Time Series Analysis*, 4th ed., 2008, §7.2.2), with ``r = exp(-zeta w dt)`` and ``N = T /
+    dt`` that is ``var(zeta w) = zeta w / T`` (Gersch 1974, J. Sound Vib. 34(1) 63-79, finds the same
+    order for the Cramer-Rao bound of structural damping): no estimator does much better from ``T``
+    seconds, whatever the method — the decay time ``1 / (zeta w)`` has to be seen about ``1 / std^2``
+    times.  SSI on a few channels with noise and neighbouring modes comes out above it.
+
+    Examples
+    --------
+    >>> round(float(damping_bound(np.array(40.0), np.array(0.01), np.array(10.0))), 3)   # 25 decays
+    0.2
+    """
+    return 1.0 / np.sqrt(2 * np.pi * np.asarray(damping_ratio) * np.asarray(freq_hz) * np.asarray(span_s))
+
+
+def damping_span_s(freq_hz: float, damping_ratio: float, rel_std: float) -> float:
+    """Seconds of record for which :func:`damping_bound` equals ``rel_std``.
+
+    Examples
+    --------
+    >>> round(damping_span_s(40.0, 0.01, 0.2), 2)
+    9.95
+    """
+    return 1.0 / (rel_std**2 * 2 * np.pi * damping_ratio * freq_hz)
 
 
 def modal_map(windows: Sequence[WindowPoles], tracks: Sequence[Track], outputs: Sequence[str],
@@ -427,11 +559,15 @@ def modal_map(windows: Sequence[WindowPoles], tracks: Sequence[Track], outputs: 
             mean_shape = mean_shape / np.max(np.abs(mean_shape))
             pose = {POSE_PREFIX + v: float(np.mean([windows[t.windows[i]].pose[v] for i in sel]))
                     for v in names}
+            z_std = float(z.std(ddof=1) / np.sqrt(n)) if n > 1 else np.nan
+            span = {}
+            if t.span_s.size:   # refined: the closed-form bound of the data behind the estimates
+                z_std = max(np.nan_to_num(z_std), float(np.mean(z * damping_bound(f, z, t.span_s[sel]))))
+                span = {"damping_span_s": float(t.span_s[sel].mean())}
             rows.append({"config": config, "mode": m + 1, "freq_hz": float(f.mean()),
                          "damping_ratio": float(z.mean()), "source": source,
                          "freq_std_hz": float(f.std(ddof=1) / np.sqrt(n)) if n > 1 else np.nan,
-                         "damping_std": float(z.std(ddof=1) / np.sqrt(n)) if n > 1 else np.nan,
-                         "n_windows": n, **pose,
+                         "damping_std": z_std, "n_windows": n, **span, **pose,
                          **{SHAPE_PREFIX + o: float(v) for o, v in zip(outputs, mean_shape, strict=True)}})
     if not rows:
         raise ModalError("tracking: no mode was followed over enough windows to map")
@@ -445,7 +581,7 @@ def _lowest_mode_hz(y: np.ndarray, sample_rate_hz: float, options: TrackOptions)
     n = min(y.shape[0], int(LOOK_S * sample_rate_hz))
     found = []
     for a in np.unique(np.linspace(0, y.shape[0] - n, LOOK_STRETCHES).astype(int)):   # a loop over stretches
-        try:
+        try:   # SSI leaves lost samples (NaN rows) out of its covariances, up to half of the stretch
             modes = ssi_cov(y[a:a + n], sample_rate_hz, references=_references(y), fmax=options.fmax,
                             max_order=options.max_order).modes
         except ModalError:
@@ -474,31 +610,33 @@ def track_modes(samples: np.ndarray, sample_rate_hz: float, names: Sequence[str]
         raise ModalError(f"{where}: no response channel to track")
     y = samples[:, outputs]
     pose = samples[:, [list(names).index(c) for c in pose_from.values()]]
-    if not np.isfinite(y).all() or not np.isfinite(pose).all():
-        raise ModalError(f"{where}: the record holds NaN or infinite samples (gaps); tracking needs a "
-                         "record without gaps")
+    if np.isinf(y).any() or np.isinf(pose).any():
+        raise ModalError(f"{where}: the record holds infinite samples")
     lowest = options.fmin or _lowest_mode_hz(y, sample_rate_hz, options)
     if lowest is None:
         raise ModalError(f"{where}: no mode found to size the windows; give --fmin or a window length")
-    windows, skipped, n_win, n_hop = identify_windows(y, pose, list(pose_from), sample_rate_hz, options,
-                                                      lowest)
+    windows, skipped, gapped, n_win, n_hop = identify_windows(y, pose, list(pose_from), sample_rate_hz,
+                                                              options, lowest)
     if not windows:
-        raise ModalError(f"{where}: every window's pose spread exceeds {options.max_spread_deg:g} deg "
-                         f"({skipped} skipped); use a shorter window or a larger spread")
+        raise ModalError(f"{where}: no window to analyse: {skipped} with a pose spread above "
+                         f"{options.max_spread_deg:g} deg, {gapped} holding lost samples; use a shorter "
+                         "window or a larger spread")
     windows, harmonics, orders = mark_harmonics(windows, y, pose, sample_rate_hz, n_win, options)
     tracks = follow(windows, options)
     sines = [t for t in tracks if np.median(t.kurtosis) < options.kurtosis_max]
     tracks = [t for t in tracks if np.median(t.kurtosis) >= options.kurtosis_max]
     harmonics += [Harmonic(windows[k].t_s, float(f), "", 0.0) for t in sines
                   for k, f in zip(t.windows, t.freq_hz, strict=True)]
-    for _ in range(options.refine):   # each pass warps along the previous pass's frequencies
-        tracks = refine(y, sample_rate_hz, windows, tracks, n_win, orders, options)
+    for p in range(options.refine):   # each pass warps along the previous pass's frequencies
+        tracks = refine(y, sample_rate_hz, windows, tracks, n_win, orders, options, p == options.refine - 1)
+        tracks = drop_duplicates(tracks, options)
     out_names = tuple(names[j] for j in outputs)
     table = modal_map(windows, tracks, out_names, options.bin_deg)
     warnings = ((f"{skipped} window(s) skipped: pose spread above {options.max_spread_deg:g} deg",)
-                if skipped else ())
+                if skipped else ()) + ((f"{gapped} window(s) skipped: they hold lost samples (gaps)",)
+                                       if gapped else ())
     return TrackResult(n_win / sample_rate_hz, n_hop / sample_rate_hz, tuple(windows), skipped, tuple(tracks),
-                       tuple(harmonics), orders, table, out_names, warnings)
+                       tuple(harmonics), orders, table, out_names, warnings, gapped)
 
 
 def default_pose_from(names: Sequence[str], kinds: Sequence[str], pose: Mapping[str, float],

@@ -59,7 +59,7 @@ class Browser:
         return json.loads(msg)
 
     def send(self, method: str, params: dict | None = None, session: str | None = None,
-             timeout_s: float = 30.0) -> dict:
+             timeout_s: float = 120.0) -> dict:
         self._id += 1
         cmd = {"id": self._id, "method": method, "params": params or {}}
         if session:
@@ -74,7 +74,7 @@ class Browser:
                 return msg["result"]
             self.events.append(msg)
 
-    def wait_event(self, method: str, timeout_s: float = 30.0) -> dict:
+    def wait_event(self, method: str, timeout_s: float = 120.0) -> dict:
         deadline = time.monotonic() + timeout_s
         for ev in self.events:
             if ev.get("method") == method:
@@ -87,11 +87,11 @@ class Browser:
 
     def close(self) -> None:
         try:
-            self.send("Browser.close", timeout_s=10)
+            self.send("Browser.close", timeout_s=30)
         except (RuntimeError, TimeoutError, OSError):
             pass
         try:
-            self.proc.wait(timeout=10)
+            self.proc.wait(timeout=30)
         except subprocess.TimeoutExpired:
             self.proc.kill()
             self.proc.wait()

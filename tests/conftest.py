@@ -45,11 +45,15 @@ def demo_run(tmp_path_factory):
     """One run of ``flexmodal demo --out DIR`` for the whole session (it takes 20-60 s: tests/test_demo.py
     and tests/test_report_handover.py share it and only read its outputs): through the CLI's ``main``
     in this process, with every figure the reports embed kept (``reports.plots.figure_png`` observed).
-    Returns (DIR, elapsed seconds, stdout, [figures]); the console script itself runs the demo in
-    tests/test_cli_interrupt.py and tests/test_foundation_cli.py."""
+    Returns (DIR, elapsed seconds not counting the time spent waiting for a CPU (tests/cpu_wait.py),
+    stdout, [figures]); the console script itself runs the demo in tests/test_cli_interrupt.py and
+    tests/test_foundation_cli.py."""
     import contextlib
     import io
+    import os
     import time
+
+    from cpu_wait import CpuWait
 
     from flexmodal.app import main
     from flexmodal.reports import plots
@@ -63,10 +67,12 @@ def demo_run(tmp_path_factory):
         return original(fig, dpi)
 
     stdout = io.StringIO()
-    start = time.perf_counter()
-    with pytest.MonkeyPatch.context() as mp, contextlib.redirect_stdout(stdout):
+    with CpuWait(os.getpid(), step_s=0.1) as waits, pytest.MonkeyPatch.context() as mp, \
+            contextlib.redirect_stdout(stdout):
+        start = time.monotonic()
         mp.setattr(plots, "figure_png", keep)
         code = main(["demo", "--out", str(out)])
-    elapsed = time.perf_counter() - start
+        end = time.monotonic()
+    elapsed = waits.unloaded(start, end)  # the time spent waiting for a CPU (load) not counted
     assert code == 0
     return out, elapsed, stdout.getvalue(), figures

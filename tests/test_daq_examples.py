@@ -108,7 +108,7 @@ def test_modbus_rtu_example(tmp_path):
         summary = acquire(load_session(config), tmp_path / "run.h5", duration_s=2.0, quiet=True)
     finally:
         sim.terminate()
-        sim.wait(10)
+        sim.wait(60)
     run = read_run(tmp_path / "run.h5", summary.run_id)
     counter = run.samples[:, 0]
     np.testing.assert_array_equal(counter, np.arange(200))  # every poll got the next sample

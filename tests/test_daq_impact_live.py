@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from cpu_wait import CpuWait
 
 from flexmodal.daq.hits import HitMonitor, double_hit
 
@@ -52,30 +53,34 @@ def test_live_view_shows_rejections_with_reasons_within_a_second(tmp_path):
     text = text.replace('rig = "../rigs/', f'rig = "{REPO}/examples/rigs/')
     text = text.replace("[simulator]\n", "[simulator]\ndouble_hit_at_s = 2.1\noverload_at_s = 4.1\n")
     text = text.replace('location = "tip"', 'location = "tip"\nfull_scale = 199.9')  # F clips at 200 N
+    # The simulated record (8 s) has hits at 0.1, 2.1, 4.1 and 6.1 s; the run starts o seconds into it
+    # (0-0.5 s, more under load); 7.5 s hold the double hit, the overload and a whole accepted window
+    # (1 s) for any o below 2 s (6.5 s held none for 0.07 < o < 0.57 s: seen at o = 0.42 under load).
     config = tmp_path / "impact.toml"
-    config.write_text(text)
+    config.write_text("reconnect_timeout_s = 120.0\n" + text)  # a starved simulator is not a lost device
     master, slave = pty.openpty()
     fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 60, 200, 0, 0))
     env = {**os.environ, "COLUMNS": "200", "LINES": "60", "TERM": "xterm-256color"}
     proc = subprocess.Popen([sys.executable, "-m", "flexmodal", "acquire", "--config", str(config), "--out",
-                             str(tmp_path / "run.h5"), "--duration", "6.5"], cwd=REPO,
+                             str(tmp_path / "run.h5"), "--duration", "7.5"], cwd=REPO,
                             stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=slave, env=env)
     os.close(slave)
     screen, arrived = b"", []  # bytes of the terminal, and (end offset, time) of each read
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline:
-        ready, _, _ = select.select([master], [], [], 0.5)
-        if ready:
-            try:
-                chunk = os.read(master, 65536)
-            except OSError:
+    deadline = time.monotonic() + 300  # the start alone can take a minute on a loaded machine
+    with CpuWait(proc.pid) as waits:
+        while time.monotonic() < deadline:
+            ready, _, _ = select.select([master], [], [], 0.5)
+            if ready:
+                try:
+                    chunk = os.read(master, 65536)
+                except OSError:
+                    break
+                if not chunk:
+                    break
+                screen += chunk
+                arrived.append((len(screen), time.monotonic()))
+            elif proc.poll() is not None:
                 break
-            if not chunk:
-                break
-            screen += chunk
-            arrived.append((len(screen), time.monotonic()))
-        elif proc.poll() is not None:
-            break
     proc.communicate(timeout=30)
     os.close(master)
     assert proc.returncode == 0
@@ -95,8 +100,12 @@ def test_live_view_shows_rejections_with_reasons_within_a_second(tmp_path):
     for reason in ("double hit", "overload"):
         hit_s, t_shown = first_seen[reason]
         t_hit = next(t for t, s_ in stored if s_ >= hit_s)  # the hit's samples reached the file
-        print(f"{reason}: shown {t_shown - t_hit:.2f} s after the hit's samples were stored")
-        assert t_shown - t_hit <= 1.0, f"{reason} shown {t_shown - t_hit:.2f} s after the hit"
+        # within a second, not counting the time acquire's processes (or this test) were runnable but
+        # waiting for a CPU (tests/cpu_wait.py): the wall time on a quiet machine, whatever the load
+        shown_s = waits.unloaded(t_hit, t_shown)
+        print(f"{reason}: shown {shown_s:.2f} s ({t_shown - t_hit:.2f} s wall) after the hit's samples "
+              "were stored")
+        assert shown_s <= 1.0, f"{reason} shown {shown_s:.2f} s ({t_shown - t_hit:.2f} s wall) after the hit"
     frames = [f for _, f in frames]
     last = frames[-1]
     assert "|H1| a1" in last and "coh" in last and "ACCEPTED" in last

@@ -97,7 +97,7 @@ def _shares(line: str, key: str) -> list[float]:
 @pytest.mark.timeout(3000)
 def test_docs_quote_the_monte_carlo_coverage_the_script_measures():
     """docs/diagnosis.md's coverage block is what benchmarks/diagnosis_doc.py measures now (EMA: 400
-    records per setting; SSI and FDD: 200), and no EMA or SSI interval covers less than 92 % (the
+    records per setting; SSI and FDD: 150), and no EMA or SSI interval covers less than 92 % (the
     target's floor; where they cover more than 98 % docs/diagnosis.md says so and why)."""
     import importlib.util
 

@@ -131,3 +131,25 @@ def test_session_example_records_the_moving_arm_over_serial(tmp_path):
     expected = MOVING_SPAN_DEG * 0.5 * (1 - np.cos(2 * np.pi * t / MOVING_PERIOD_S))
     np.testing.assert_allclose(enc, expected, atol=360 / 4096)         # one count
     assert run.pose["theta_deg"] == pytest.approx(enc.mean())           # pose_from: the encoder's mean
+
+
+def test_tool_arm_modes_veer_along_the_elbow_sweep():
+    """fixtures/rigs/tool_arm.toml (the veering case of docs/oma.md): along the elbow sweep the truth
+    model's modes near 75-115 Hz stay >= 14 Hz apart while their shapes exchange — the lower mode at 0
+    deg is the upper one at 150 deg — and the path's modes, followed by MAC from pose to pose, are the
+    frequency-sorted ones (a veering, not a crossing)."""
+    from flexmodal.fixtures.moving_arm import TOOL_RIG, path_modes
+
+    rig = load_rig(TOOL_RIG)
+    inputs = [(j.name, "rotation") for j in rig.joints] + [("link1@0.05", "transverse")]
+    modes = path_modes(rig, ELBOW_SWEEP, inputs, 460.0, grid=31)
+    f = modes.freq_hz
+    np.testing.assert_array_equal(np.argsort(f, axis=1), np.tile(np.arange(f.shape[1]), (f.shape[0], 1)))
+    pair = [k for k in range(f.shape[1]) if 70 < f[0, k] < 120]
+    assert len(pair) == 2 and np.min(f[:, pair[1]] - f[:, pair[0]]) > 14.0
+    lo0, lo1, hi1 = modes.shapes[0][:, pair[0]], modes.shapes[-1][:, pair[0]], modes.shapes[-1][:, pair[1]]
+
+    def mac(a, b):
+        return (a @ b) ** 2 / ((a @ a) * (b @ b))
+
+    assert mac(lo0, hi1) > 0.95 and mac(lo0, lo1) < 0.5

@@ -1,6 +1,6 @@
 """Output-only identification uncertainty (modal/oma_uncertainty.py, the sigma of modal/ssi.py and
 modal/fdd.py): the jackknife against its closed form, sigma on and off, the decay-time guard, and a
-small Monte-Carlo coverage (the 200-record figures are in docs/diagnosis.md, re-run under -m slow)."""
+small Monte-Carlo coverage (the 150-record figures are in docs/diagnosis.md, re-run under -m slow)."""
 
 from __future__ import annotations
 
@@ -61,7 +61,7 @@ def test_monte_carlo_coverage_of_the_ssi_intervals() -> None:
     """24 output-only records (120 s, damping 2 %): the SSI intervals of both modes cover the true
     frequency and damping in 80-100 % of runs (binomial sd ~4.5 % at 24 runs), and the normalised
     errors' sd is between 0.35 and 1.3 (1 when the sigma is right; the SSI sigma is conservative, about
-    0.5-0.7 in the 200-record figures of docs/diagnosis.md, never overconfident by more than 30 %)."""
+    0.5-0.7 in the 150-record figures of docs/diagnosis.md, never overconfident by more than 30 %)."""
     c = oma_coverage(24, seed=9, zeta=0.02, seconds=120.0, method="ssi")
     assert min(c["found"]) >= 0.9
     for value in c["freq"] + c["damping"]:

@@ -217,7 +217,7 @@ def page(demo_figures, chromium, tmp_path_factory):
         for _ in range(3):
             browser.events.clear()
             browser.send("Page.navigate", {"url": report.resolve().as_uri()}, session)
-            browser.wait_event("Page.loadEventFired", timeout_s=60)
+            browser.wait_event("Page.loadEventFired", timeout_s=120)
             loads.append(_evaluate(browser, session, "performance.getEntriesByType('navigation')[0]"
                                                      ".loadEventEnd / 1000"))
         events = list(browser.events)

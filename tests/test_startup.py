@@ -55,9 +55,15 @@ def test_streamed_frf_uses_the_public_scipy_fft_and_not_scipy_signal(tmp_path):
 def test_every_help_answers_within_its_budget_wall_clock():
     """`flexmodal --help` and each `flexmodal CMD --help` as a user runs them (a new process each): the
     budget is 0.3 s wall on a quiet machine (0.15-0.25 s measured under a load of 11 on 2 cores); the
-    bound here is the best of three runs under 1.5 s, a margin that holds on the shared machine while
-    still catching a heavy import (importing numpy, scipy.signal and pandas took 6 s there)."""
+    bound here is the best of three runs under 1.5 s, a margin that still catches a heavy import
+    (importing numpy, scipy.signal and pandas took 6 s there), counted without the time the process
+    (or this test) was runnable but waiting for a CPU (tests/cpu_wait.py): the wall time on a quiet
+    machine, whatever the load."""
+    import os
     import time
+
+    from cpu_wait import CpuWait
+    from interrupt_support import exit_seen
 
     from flexmodal.app import build_parser
 
@@ -65,10 +71,14 @@ def test_every_help_answers_within_its_budget_wall_clock():
     sub = parser._subparsers._group_actions[0].choices
     commands = [[]] + [[name] for name in sub if name != "sim"] + [["sim", "serve"]]
     for command in commands:
-        best = float("inf")
+        best, wall = float("inf"), float("inf")
         for _ in range(3):
-            start = time.perf_counter()
-            subprocess.run([sys.executable, "-m", "flexmodal", *command, "--help"], capture_output=True,
-                           check=True, timeout=60)
-            best = min(best, time.perf_counter() - start)
-        assert best < 1.5, (command, best)
+            with CpuWait(os.getpid()) as waits:  # this process and its children
+                start = time.monotonic()
+                proc = subprocess.Popen([sys.executable, "-m", "flexmodal", *command, "--help"],
+                                        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                end = exit_seen(proc.pid, 60.0)
+                waits.sample()
+            assert proc.wait(timeout=60) == 0, command
+            best, wall = min(best, waits.unloaded(start, end)), min(wall, end - start)
+        assert best < 1.5, (command, best, wall)

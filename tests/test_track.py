@@ -16,8 +16,8 @@ from flexmodal.modal.harmonics import find_orders, is_order, sinusoid_kurtosis
 from flexmodal.modal.track import TrackOptions, track_modes
 from flexmodal.models.rig import load_rig
 
-# a 90 s sweep tracked (~25 s CPU, shared by the module) and the CLI on HDF5 and UFF: minutes under load
-pytestmark = pytest.mark.timeout(900)
+# a 90 s sweep tracked (~1 min CPU, shared by the module) and the CLI on HDF5 and UFF: minutes under load
+pytestmark = pytest.mark.timeout(1800)
 
 MOTOR_ORDERS = (36.0, 80.0, 260.0)   # per motor revolution, gear ratio 100
 FMAX_HZ = 400.0
@@ -82,13 +82,44 @@ def test_modal_map_is_a_modal_table_of_pose_bins(sweep, tmp_path):
     assert table.sensors == ["a1", "a2", "a3", "a4", "a5"]
 
 
-def test_damping_of_the_high_mode_where_the_window_holds_many_periods(sweep):
+def test_damping_within_30_percent_in_windows_holding_50_periods(sweep):
+    """Each mode's damping ratio (re-identified over the span that holds its closed-form relative
+    standard deviation to 12 %) within 30 % of the truth model's frozen-pose damping in >= 80 % of the
+    windows, and the map's damping_std at least that bound."""
+    from flexmodal.modal.track import damping_bound
+
     rig, rec, res = sweep
-    tr = res.tracks[2]                                                 # ~350 Hz: 800 periods per window
-    theta = np.array([res.windows[i].pose["theta_deg"] for i in tr.windows])
-    zeta = np.array([_truth_at(rig, th)[1][2] for th in theta[::10]])
-    err = np.abs(tr.damping_ratio[::10] / zeta - 1)
-    assert np.median(err) < 0.3
+    grid = np.arange(0.0, 150.1, 5.0)
+    zeta = np.array([_truth_at(rig, th)[1] for th in grid])           # [poses, 3]
+    for k, tr in enumerate(res.tracks):
+        theta = np.array([res.windows[i].pose["theta_deg"] for i in tr.windows])
+        err = np.abs(tr.damping_ratio / np.interp(theta, grid, zeta[:, k]) - 1)
+        assert np.mean(err < 0.3) >= 0.8 and np.median(err) < 0.2, (k, np.mean(err < 0.3))
+        bound = damping_bound(tr.freq_hz, tr.damping_ratio, tr.span_s)   # span sized for the median zeta
+        assert np.all(tr.span_s >= res.window_s - 1e-9) and np.all(bound < 0.2)
+    rows = res.table.frame
+    assert np.all(rows["damping_std"] >= 0.09 * rows["damping_ratio"]) and np.all(rows["damping_span_s"] > 0)
+
+
+def test_damping_bound_against_repeated_still_records():
+    """The closed-form bound 1 / sqrt(2 pi zeta f T) against the scatter of the least-squares AR(2)
+    damping (the estimator the bound is derived for) over 60 simulated 10 s records of a still mode
+    (40 Hz, 1 %): within 25 % of each other (the scatter of a standard deviation from 60 draws is ~9 %)."""
+    from scipy import signal
+
+    from flexmodal.modal.track import damping_bound
+
+    fs, f0, zeta, dur = 256.0, 40.0, 0.01, 10.0
+    pole = np.exp(2 * np.pi * f0 * (-zeta + 1j * np.sqrt(1 - zeta**2)) / fs)
+    a = np.real(np.poly([pole, np.conj(pole)]))
+    y = signal.lfilter([1.0], a, np.random.default_rng(12).standard_normal((60, int(dur * fs) + 2000)),
+                       axis=1)[:, 2000:]
+    x = np.stack([y[:, 1:-1], y[:, :-2]], axis=2)                     # [record, sample, lag]
+    coef = np.linalg.solve(np.einsum("rki,rkj->rij", x, x), np.einsum("rki,rk->ri", x, y[:, 2:])[:, :, None])
+    lam = np.log([np.roots([1.0, -c1, -c2])[0] for c1, c2 in coef[:, :, 0]]) * fs
+    rel = np.std(-lam.real / np.abs(lam) / zeta - 1)
+    bound = float(damping_bound(np.array(f0), np.array(zeta), np.array(dur)))
+    assert 0.8 * bound < rel < 1.25 * bound, (rel, bound)
 
 
 def test_no_harmonic_no_order():
@@ -141,12 +172,16 @@ def test_identify_track_cli_on_hdf5_and_uff(tmp_path, sweep, capsys):
     rig, rec, _ = sweep
     n = int(30 * rec.sample_rate_hz)                                   # 0 -> 112 deg
     run = tmp_path / "moving.h5"
+    gap = rec.samples[:n].copy()
+    gap[int(12 * rec.sample_rate_hz):int(12.4 * rec.sample_rate_hz)] = np.nan   # 0.4 s lost in acquisition
     with RunWriter(run, "m1", sample_rate_hz=rec.sample_rate_hz, channels=rec.channels,
                    excitation="operational", pose={"theta_deg": 0.0}) as w:
-        w.append(rec.samples[:n])
+        w.append(gap)
     out = tmp_path / "map.csv"
     fast = ["--fmax", "400", "--window", "2", "--hop", "0.5"]
+    capsys.readouterr()
     assert main(["--quiet", "identify", str(run), "--track", "--out", str(out), *fast]) == 0
+    assert "4 window(s) skipped: they hold lost samples" in capsys.readouterr().err   # at 10.5 .. 12 s
     table = ModalTable.read_csv(out)
     assert sorted(set(table.frame["mode"])) == [1, 2, 3]
     harm = (tmp_path / "map.harmonics.csv").read_text().splitlines()
@@ -168,7 +203,7 @@ def test_identify_track_cli_on_hdf5_and_uff(tmp_path, sweep, capsys):
     def mean_freq(t):
         return t.frame.set_index(["config", "mode"]).loc[common, "freq_hz"].groupby(level=1).mean()
 
-    np.testing.assert_allclose(mean_freq(t2), mean_freq(table), rtol=0.01)
+    np.testing.assert_allclose(mean_freq(t2), mean_freq(table), rtol=0.01)   # the gapped run's map agrees
     capsys.readouterr()
     assert main(["identify", str(uff), "--track", "--out", str(out2)]) == 2   # no encoder named
     assert "--pose-from" in capsys.readouterr().err
