@@ -687,6 +687,11 @@ def track(source: PathLike, *, pose_from: Mapping[str, str] | None = None, run_i
     modal analysis", Mechanical Systems and Signal Processing 13 (1999) 855-878.
     """
     _check_band(fmin, fmax)
+    if not 0 < bin_deg < float("inf") or not all(0 < o < float("inf") for o in orders):
+        from flexmodal.modal.errors import ModalError
+
+        raise ModalError(f"track: bin_deg {bin_deg!r} and orders {tuple(orders)!r} must be positive and "
+                         "finite")
     if out is not None:
         from flexmodal.checked_io.output import output_file
         from flexmodal.modal.errors import ModalError
@@ -1540,12 +1545,13 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     from flexmodal.checked_io.output import output_file
     from flexmodal.reports.errors import ReportError
 
-    sources = [*runs, measured, *repeats, *predictions, diagnosis, rig]
-    output_file(out, ReportError, "report (--out)", inputs=_paths(sources))
+    sources = _paths([*runs, measured, *repeats, *predictions, diagnosis, rig, geometry])
+    output_file(out, ReportError, "report (--out)", inputs=sources)
     if pdf:
         from flexmodal.reports.pdf import find_chromium
 
-        output_file(Path(out).with_suffix(".pdf"), ReportError, "PDF report (beside --out)", inputs=(out,))
+        output_file(Path(out).with_suffix(".pdf"), ReportError, "PDF report (beside --out)",
+                    inputs=(*sources, out))
         if find_chromium() is None:
             raise ReportError("report --pdf: no Chromium found (install chromium, or leave out --pdf)")
     if not (runs or measured is not None or predictions or diagnosis is not None):

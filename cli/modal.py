@@ -83,7 +83,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="window length, s (default: 80 periods of the slowest mode)")
     t.add_argument("--hop", type=opt.seconds, default=None, metavar="S",
                    help="window step, s (default: a quarter pose bin at the 90th percentile pose rate)")
-    t.add_argument("--bin", type=opt.real(0.0), default=5.0, metavar="DEG", help="pose bin width (default 5)")
+    t.add_argument("--bin", type=opt.real(0.0, lo_open=True), default=5.0, metavar="DEG",
+                   help="pose bin width (default 5)")
     t.add_argument("--max-spread", type=opt.real(0.0), default=5.0, metavar="DEG",
                    help="skip windows whose pose standard deviation exceeds DEG (default 5)")
     t.add_argument("--orders", default=None, metavar="O1,O2,...",
@@ -131,8 +132,8 @@ def _track(args: argparse.Namespace) -> int:
         orders = [float(v) for v in args.orders.split(",") if v.strip()] if args.orders else []
     except ValueError:
         raise ModalError(f"--orders {args.orders!r}: give orders per revolution, comma-separated") from None
-    if any(not o > 0 for o in orders):
-        raise ModalError(f"--orders {args.orders!r}: orders must be positive")
+    if any(not 0 < o < float("inf") for o in orders):
+        raise ModalError(f"--orders {args.orders!r}: orders must be positive and finite")
     result = track(args.input, pose_from=pose_from, run_id=args.run, fmin=args.fmin, fmax=args.fmax,
                    window_s=args.window, hop_s=args.hop, bin_deg=args.bin, max_spread_deg=args.max_spread,
                    orders=orders, max_order=args.max_order or 40, out=args.out)

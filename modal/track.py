@@ -44,6 +44,7 @@ from flexmodal.modal.errors import ModalError
 from flexmodal.modal.harmonics import find_orders, is_order, sinusoid_kurtosis
 from flexmodal.modal.ssi import default_block_rows, ssi_cov
 
+MIN_WINDOW_SAMPLES = 64    # a tracking window shorter than this holds no covariance to fit
 MAX_REFS = 4               # SSI reference channels per window (the ones with the largest RMS)
 LOOK_S = 4.0              # the slowest mode is looked for in stretches this long ...
 LOOK_STRETCHES = 6        # ... this many, spread over the record
@@ -163,6 +164,9 @@ def window_plan(n_samples: int, sample_rate_hz: float, pose: np.ndarray, lowest_
     if n_win > n_samples:
         raise ModalError(f"tracking window of {win:.3g} s is longer than the record "
                          f"({n_samples / fs:.3g} s); give a shorter window")
+    if n_win < MIN_WINDOW_SAMPLES:
+        raise ModalError(f"tracking window of {win:.3g} s holds {n_win} samples at {fs:g} Hz; give at least "
+                         f"{MIN_WINDOW_SAMPLES / fs:.3g} s ({MIN_WINDOW_SAMPLES} samples)")
     return n_win, n_hop
 
 

@@ -291,6 +291,22 @@ def _half_the_memory() -> int:
     return available_memory_bytes() // 2
 
 
+def encoder_run(path: Path) -> None:
+    """A small operational run: two responses and an elbow encoder turning 0 -> 80 deg, 1024 Hz, 8 s."""
+    from flexmodal.daq.store import Channel, RunWriter
+
+    channels = [Channel("a1", "acceleration", "m/s^2", location="tip", direction="transverse"),
+                Channel("a2", "acceleration", "m/s^2", location="mid", direction="transverse"),
+                Channel("enc", "encoder", "deg", location="elbow", direction="rotation")]
+    rng = np.random.default_rng(2)
+    mode = np.exp(-np.arange(200) / 40.0) * np.sin(np.arange(200) / 3.0)   # one mode near 54 Hz
+    a = [np.convolve(rng.standard_normal(8192), mode)[:8192] for _ in range(2)]
+    samples = np.column_stack([*a, np.linspace(0.0, 80.0, 8192)])
+    with RunWriter(path, "r1", sample_rate_hz=1024.0, channels=channels, excitation="operational",
+                   pose={"theta_deg": 0.0}) as writer:
+        writer.append(samples)
+
+
 def user_npz(path: Path) -> None:
     with open(path, "wb") as f:
         np.savez(f, my_data=np.arange(5.0))
@@ -752,6 +768,22 @@ ROWS: list[Row] = [
         ("g.unv", "device"), {"g.unv": lambda p: p.symlink_to("/dev/zero")}),
     row("geometry-beyond-memory", "report --measured {d}/modes.csv --geometry {d}/g.unv --out {d}/r.html",
         ("g.unv", "too large"), {"g.unv": lambda p: sparse("    -1\n    15\n", _half_the_memory())(p)}),
+    row("report-pdf-beside-is-input", "report --measured {d}/modes.csv --out {d}/r.html --pdf",
+        ("r.pdf", "input"), {"r.pdf": link_to("modes.csv")}),
+    row("report-out-is-geometry", "report --measured {d}/modes.csv --geometry {d}/g.unv --out {d}/g.unv",
+        ("g.unv", "input"), {"g.unv": (REPO / "tests/data/uff/massif_geometry.uff").read_bytes()}),
+    # -- session 3: identify --track options -------------------------------------------------------
+    row("track-window-one-sample", "identify {d}/enc.h5 --track --out {d}/map.csv --window 0.001 --hop 0.001",
+        ("tracking window", "1 samples"), {"enc.h5": encoder_run}),
+    row("track-bin-zero", "identify {d}/enc.h5 --track --out {d}/map.csv --bin 0", ("--bin", "'0'"),
+        {"enc.h5": encoder_run}),
+    row("track-orders-inf", "identify {d}/enc.h5 --track --out {d}/map.csv --orders 3,1e309",
+        ("--orders", "finite"), {"enc.h5": encoder_run}),
+    row("track-harmonics-is-input", "identify {d}/enc.h5 --track --out {d}/enc.csv",
+        ("enc.harmonics.csv", "input"), {"enc.h5": encoder_run, "enc.harmonics.csv": link_to("enc.h5")}),
+    # -- session 3: sweep runs (modal/sweep.py: one segment per sweep) --------------------------------
+    row("sweep-constant-force", "frf {d}/run.h5 --workers 0", ("run.h5", "'F'", "constant")),
+    row("sweep-nan-force", IDENTIFY, ("run.h5", "'F'", "nan")),
     # -- controls: the unmodified base files work ---------------------------------------------------
     row("control-predict", PREDICT, (), code=0),
     row("control-compare", COMPARE, (), code=0),
@@ -803,6 +835,10 @@ RUN_FILES = {
     "frf-outputs-not-list": with_frf(lambda g: g["frf"].attrs.__setitem__("outputs", '{"a": 1}')),
     "frf-H-external": with_frf(lambda g: external_link("H")(g["frf"])),
     "frf-no-H": with_frf(lambda g: g["frf"].__delitem__("H")),
+    "sweep-constant-force": mutate_run(lambda g: (g.attrs.__setitem__("excitation", "sweep"),
+                                                  g["samples"].__setitem__((slice(None), 0), 1.0))),
+    "sweep-nan-force": mutate_run(lambda g: (g.attrs.__setitem__("excitation", "sweep"),
+                                             g["samples"].__setitem__((slice(None), 0), np.nan))),
 }
 
 

@@ -404,6 +404,61 @@ def _frf_run_bytes() -> bytes:
 FRF_RUN_BYTES = _frf_run_bytes()
 
 
+# -- stored stabilisation diagrams (modal/diagrams.py, MODES.diagram.npz) ------------------------------
+def _diagram_arrays() -> dict:
+    from flexmodal.modal.diagrams import FORMAT
+
+    return {"format": np.array(FORMAT), "d0.key": np.array("0" * 64), "d0.config": np.array("c"),
+            "d0.order_note": np.array("order 4"), "d0.order": np.array([2, 4, 4]),
+            "d0.freq_hz": np.array([30.0, 30.1, 54.0]), "d0.damping_ratio": np.full(3, 0.02),
+            "d0.pole": np.array([-3.8 + 188.5j, -3.8 + 189.1j, -6.8 + 339.3j]),
+            "d0.stable_freq": np.ones(3, bool), "d0.stable_damping": np.ones(3, bool),
+            "d0.stable_shape": np.ones(3, bool), "d0.previous": np.array([-1, 0, -1])}
+
+
+def _diagram_bytes(arrays: dict, compressed: bool = False) -> bytes:
+    import io
+
+    buf = io.BytesIO()
+    (np.savez_compressed if compressed else np.savez)(buf, **arrays)
+    return buf.getvalue()
+
+
+DIAGRAM_BYTES = _diagram_bytes(_diagram_arrays())
+
+
+@prop(st.lists(st.tuples(st.integers(0, len(DIAGRAM_BYTES) - 1), st.integers(0, 255)), min_size=1,
+               max_size=8), st.integers(0, len(DIAGRAM_BYTES)))
+def prop_diagram_bytes(flips: list, keep: int) -> None:
+    """A stored diagram with bytes overwritten and cut short: read whole or one ModalError."""
+    from flexmodal.modal.diagrams import read_diagrams
+
+    data = bytearray(DIAGRAM_BYTES)
+    for at, value in flips:
+        data[at] = value
+    _with_file(bytes(data[:max(keep, 1)]), "m.diagram.npz", lambda p: _loads_or(ModalError, read_diagrams, p))
+
+
+@prop(st.sampled_from(["order", "freq_hz", "damping_ratio", "pole", "previous", "key", "stable_freq"]),
+      st.sampled_from([np.nan, np.inf, -np.inf, -1, 0, 10**18, 1e308, "text"]), st.booleans())
+def prop_diagram_values_extreme(name: str, value, whole: bool) -> None:
+    """One entry of a stored diagram set to an extreme value (one element, or the whole entry as a
+    0-d array): read whole or one ModalError."""
+    from flexmodal.modal.diagrams import read_diagrams
+
+    arrays = _diagram_arrays()
+    if whole or isinstance(value, str) or arrays[f"d0.{name}"].ndim == 0:
+        arrays[f"d0.{name}"] = np.array(value)
+    else:
+        entry = arrays[f"d0.{name}"]
+        try:
+            entry[0] = value
+        except (OverflowError, ValueError):   # a value the entry's dtype cannot hold: the whole entry then
+            arrays[f"d0.{name}"] = np.array(value)
+    _with_file(_diagram_bytes(arrays, compressed=whole), "m.diagram.npz",
+               lambda p: _loads_or(ModalError, read_diagrams, p))
+
+
 # -- known answers: the unmutated inputs load ---------------------------------------------------------
 def test_unmutated_inputs_load(tmp_path: Path) -> None:
     assert parse_session(SESSION_DOC, SESSION_FILE).sample_rate_hz == 2048.0
@@ -416,13 +471,19 @@ def test_unmutated_inputs_load(tmp_path: Path) -> None:
     assert frfs.H.shape == (2, 1, 41) and abs(frfs.H[1, 0, 0] - 2.0) < 1e-9
     (tmp_path / "run.h5").write_bytes(RUN_BYTES)
     assert read_run(tmp_path / "run.h5", "r1").samples.shape == (1024, 2)
+    (tmp_path / "m.diagram.npz").write_bytes(DIAGRAM_BYTES)
+    from flexmodal.modal.diagrams import read_diagrams
+
+    stored = read_diagrams(tmp_path / "m.diagram.npz")["0" * 64]
+    assert stored.stabilisation.freq_hz.tolist() == [30.0, 30.1, 54.0]
 
 
 DEFAULT = {prop_session_doc: 150, prop_session_text: 80, prop_rig_doc: 150, prop_rig_text: 80,
            prop_modal_csv: 100, prop_poses_csv: 100, prop_uff: 60, prop_run_file: 80,
            prop_session_extreme: 12, prop_rig_extreme: 12, prop_modal_csv_extreme: 6,
            prop_poses_csv_extreme: 6, prop_diagnosis_json_extreme: 12, prop_run_attribute_extreme: 12,
-           prop_frf_attribute_extreme: 12, prop_uff_header_extreme: 8}
+           prop_frf_attribute_extreme: 12, prop_uff_header_extreme: 8, prop_diagram_bytes: 60,
+           prop_diagram_values_extreme: 30}
 
 
 @pytest.mark.parametrize("fn", list(DEFAULT), ids=[p.__name__ for p in DEFAULT])
