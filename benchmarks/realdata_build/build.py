@@ -23,6 +23,7 @@ from common import (  # noqa: E402
     blob,
     check_uff,
     classify,
+    classify_candidates,
     ema_reference,
     entry_dir,
     h1,
@@ -241,13 +242,7 @@ def build_lvm_impact_two_hits() -> None:
         m["stable_share"] = min(a["stable_share"], b["stable_share"])
         m["estimator"] = "sdypy-EMA LSCF on H1, rectangular and exponential window (damping corrected)"
         merged.append(m)
-    strong = set(rule["well_determined_hz"])
-    for m, c in zip(merged, approx, strict=True):   # a late cluster alone confirms nothing
-        m["well_determined"] = round(c, 4) in strong
-    sure, unsure, rejected = classify(merged)
-    rule["candidates_hz"] = [round(x, 4) for x in approx]
-    rule["rejected_hz"] = [round(x, 4) for x in rejected]
-    rule["stable_share"] = {f"{m['freq_hz']:.4f}": m["stable_share"] for m in merged}
+    sure, unsure = classify_candidates(merged, approx, rule)
     write_json(d / "reference.json", reference_json(
         sure, band_hz=(5, 100), uncertain_hz=unsure, extra={"candidates": rule},
         source="sdypy-EMA 0.31 LSCF on H1 of the two hits, 5-100 Hz, rectangular and exponential window",
