@@ -458,13 +458,14 @@ class Identification:
         >>> sorted(p.name for p in folder.iterdir() if p.suffix != ".h5")
         ['modes.csv', 'modes.diagram.npz', 'modes.synthesis.csv', 'modes.uff']
         """
-        from flexmodal.checked_io.output import output_file, signals_deferred
+        from flexmodal.checked_io.output import output_file, sidecar_file, signals_deferred
         from flexmodal.modal.diagrams import StoredDiagram, check_replaceable, diagram_path, write_diagrams
         from flexmodal.modal.errors import ModalError
-        from flexmodal.modal.identify import synthesis_path, write_synthesis_csv
+        from flexmodal.modal.identify import SYNTHESIS_HEADER, synthesis_path, write_synthesis_csv
 
         output_file(out, ModalError, "modal table (--out)")
         output_file(synthesis_path(out), ModalError, "FRF synthesis table (next to --out)", inputs=(out, uff))
+        sidecar_file(synthesis_path(out), ModalError, "FRF synthesis table", SYNTHESIS_HEADER)
         diagrams = [StoredDiagram(m.diagram_key, c, m.stabilisation, m.order_note)
                     for c, m in self.modes.items() if m.stabilisation is not None and m.diagram_key]
         if diagrams:
@@ -624,7 +625,7 @@ def _stored_diagrams(out: PathLike, required: bool):
 def _identification_outputs(out: PathLike, uff: PathLike | None, source: object) -> None:
     """Check the files identification writes (the modal table, its synthesis table, the UFF file)
     before any work: none of them an input, each replaceable (ModalError naming it)."""
-    from flexmodal.checked_io.output import output_file
+    from flexmodal.checked_io.output import output_file, sidecar_file
     from flexmodal.modal.errors import ModalError
 
     inputs = _paths([source])
@@ -632,10 +633,11 @@ def _identification_outputs(out: PathLike, uff: PathLike | None, source: object)
     if uff is not None:
         output_file(uff, ModalError, "UFF file (--uff)", inputs=(*inputs, out))
     from flexmodal.modal.diagrams import check_replaceable, diagram_path
-    from flexmodal.modal.identify import synthesis_path
+    from flexmodal.modal.identify import SYNTHESIS_HEADER, synthesis_path
 
     output_file(synthesis_path(out), ModalError, "FRF synthesis table (next to --out)",
                 inputs=(*inputs, out, uff))
+    sidecar_file(synthesis_path(out), ModalError, "FRF synthesis table", SYNTHESIS_HEADER)
     output_file(diagram_path(out), ModalError, "stabilisation diagrams (next to --out)",
                 inputs=(*inputs, out, uff))
     check_replaceable(diagram_path(out))   # a file of the user's own there is not replaced
@@ -693,11 +695,12 @@ def track(source: PathLike, *, pose_from: Mapping[str, str] | None = None, run_i
         raise ModalError(f"track: bin_deg {bin_deg!r} and orders {tuple(orders)!r} must be positive and "
                          "finite")
     if out is not None:
-        from flexmodal.checked_io.output import output_file
+        from flexmodal.checked_io.output import output_file, sidecar_file
         from flexmodal.modal.errors import ModalError
 
         output_file(out, ModalError, "modal table (--out)", inputs=(source,))
         output_file(_harmonics_path(out), ModalError, "harmonics table", inputs=(source, out))
+        sidecar_file(_harmonics_path(out), ModalError, "harmonics table", b"t_s,freq_hz,joint,order")
     from flexmodal.modal.track import TrackOptions, track_input
 
     options = TrackOptions(window_s=window_s, hop_s=hop_s, fmin=fmin, fmax=fmax, max_order=max_order,

@@ -136,6 +136,23 @@ def output_dir(path: str | Path, error: ErrorType, what: str = "output directory
     return p
 
 
+def sidecar_file(path: str | Path, error: ErrorType, what: str, signature: bytes) -> None:
+    """A file a command writes beside its named output (``MODES.synthesis.csv`` beside ``MODES.csv``)
+    replaces only a file that starts with ``signature``, one flexmodal wrote there: a file of the
+    user's own is never replaced (``error`` naming it).  Check :func:`output_file` first."""
+    p = Path(path)
+    if not p.is_file():
+        return
+    try:
+        with open(p, "rb") as f:
+            head = f.read(len(signature))
+    except OSError as exc:
+        raise error(f"{p}: cannot read it to check it is a {what} ({exc.strerror or exc})") from None
+    if head != signature:
+        raise error(f"{p}: exists and is not a {what} flexmodal wrote; refusing to replace it (move it, or "
+                    "choose another --out)")
+
+
 def hdf5_output(path: str | Path, error: ErrorType, what: str = "HDF5 output file") -> Path:
     """A writable HDF5 target: new, or an existing HDF5 file (runs are appended, nothing else is lost)."""
     p = _writable(path, error, what, ())

@@ -42,6 +42,7 @@ TOP_ORDERS = 0.75   # a mode's frequency: median over its upper quarter of stabl
 VISIBLE_DB = 3.0   # a peak this prominent in some FRF or CMIF curve is a resonance the data show
 BROAD = 3.0   # a pole of this many times a close mode's half-power bandwidth, covering it, is background
 MIN_LINES_PER_BANDWIDTH = 8   # below this the Hann-window leakage bias on damping exceeds a few %
+SYNTHESIS_HEADER = b"config,output,input,synthesis_corr"   # the first line of MODES.synthesis.csv
 PICKED = "; poles picked from the stored diagram"   # the note of a pick from modal.diagrams
 
 

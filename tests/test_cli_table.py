@@ -772,6 +772,11 @@ ROWS: list[Row] = [
         ("r.pdf", "input"), {"r.pdf": link_to("modes.csv")}),
     row("report-out-is-geometry", "report --measured {d}/modes.csv --geometry {d}/g.unv --out {d}/g.unv",
         ("g.unv", "input"), {"g.unv": (REPO / "tests/data/uff/massif_geometry.uff").read_bytes()}),
+    row("synthesis-user-file", IDENTIFY, ("modes-out.synthesis.csv", "not a FRF synthesis table"),
+        {"modes-out.synthesis.csv": "my,own,table\n1,2,3\n"}),
+    row("harmonics-user-file", "identify {d}/enc.h5 --track --out {d}/enc.csv",
+        ("enc.harmonics.csv", "not a harmonics table"),
+        {"enc.h5": encoder_run, "enc.harmonics.csv": "mine\n"}),
     # -- session 3: identify --track options -------------------------------------------------------
     row("track-window-one-sample", "identify {d}/enc.h5 --track --out {d}/map.csv --window 0.001 --hop 0.001",
         ("tracking window", "1 samples"), {"enc.h5": encoder_run}),

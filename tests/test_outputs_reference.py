@@ -4,19 +4,17 @@ in tests/data/outputs_reference.json: strings exactly, numbers to 1e-9 relative 
 the last bits a BLAS build may move); FRF groups by their shape, attributes and two checksums of each
 array (the sum of magnitudes and a position-weighted sum).
 
-Compared (deterministic): the demo's ``fe.csv``, ``modes.csv`` without theta30, the FRF groups of every
-run of ``runs.h5`` but theta30-impact; the tour's ``predict`` table, ``compare`` text and the whole
+Compared: the demo's ``fe.csv``, ``modes.csv``, the FRF groups of every run of ``runs.h5`` and the whole
+``diagnosis.json``; the tour's ``predict`` table, ``compare`` text and the whole
 ``diagnosis.json`` of ``diagnose --holdout theta30,theta90,theta150`` on seed 003's Table 3 (README),
 and seed 003's straight arm predicted by the other models (assumed modes, lumped mass, Blevins).
 Slow (``-m slow``): ``frf`` again and ``identify`` of the demo's runs by lscf (with ``--uff``), peak and
 output-only SSI.
 
-Not deterministic, and named: the demo's ``theta30-impact`` run is acquired through the serial stack
-from a simulator on a pty, and where the acquisition starts in the simulator's stream depends on
-start-up timing (its ``first_index`` and trigger rows differ from run to run).  Its FRF group, the
-theta30 modes of ``modes.csv`` (identified from it) and every number of the demo's ``diagnosis.json``
-(fitted to all configurations) differ with it; of those only the run's FRF layout (datasets, shapes but
-the line count, attributes) and diagnosis.json's keys, verdict effect and location are compared.
+The demo's ``theta30-impact`` run is acquired through the serial stack from a simulator on a pty; the
+simulator starts its record when the acquisition has opened the port (fixtures.sim_common.PtyLink.
+await_reader), so the run holds the same samples (``first_index`` 32) whatever the start-up took, and
+it is compared like every other run.
 
 After an intended change of outputs, record again (and say so in the commit message):
 ``python tests/test_outputs_reference.py record``.
@@ -36,7 +34,6 @@ import pytest
 
 REFERENCE = Path(__file__).parent / "data" / "outputs_reference.json"
 REPO = Path(__file__).resolve().parents[1]
-SERIAL_RUN, SERIAL_CONFIG = "theta30-impact", "theta30"   # fixtures/demo.py SERIAL_RUN and its configuration
 MEASURED = REPO / "examples" / "measured" / "seed003_table3_f1f2.csv"
 SEED_RIG = REPO / "examples" / "rigs" / "seed003_two_link.toml"
 DEMO_RIG = REPO / "examples" / "rigs" / "demo_arm.toml"
@@ -53,19 +50,17 @@ def _cli(folder: Path, *argv: str) -> str:
     return out.getvalue().replace(str(folder), "OUT").replace(str(REPO), "REPO")
 
 
-def _table(path: Path, skip_config: str = "") -> dict:
-    """A CSV as {column: values}, the rows of ``skip_config`` left out."""
+def _table(path: Path) -> dict:
+    """A CSV as {column: values}."""
     import pandas as pd
 
     frame = pd.read_csv(path)
-    if skip_config:
-        frame = frame[frame["config"] != skip_config]
     return {c: frame[c].tolist() for c in frame.columns}
 
 
 def _frf_groups(path: Path) -> dict:
     """Per run: each dataset of its FRF group as (shape, sum |x|, sum |x| * position) and the group's
-    attributes (but provenance, which names files and versions); the serial run by layout only."""
+    attributes (but provenance, which names files and versions)."""
     import h5py
     import numpy as np
 
@@ -79,19 +74,16 @@ def _frf_groups(path: Path) -> dict:
             for name in sorted(group):
                 x = np.abs(np.asarray(group[name][()])).ravel()
                 weight = np.linspace(1.0, 2.0, x.size)
-                entry[name] = ([int(n) for n in group[name].shape[:-1]] if run_id == SERIAL_RUN else
-                               [list(group[name].shape), float(x.sum()), float((x * weight).sum())])
+                entry[name] = [list(group[name].shape), float(x.sum()), float((x * weight).sum())]
             found[run_id] = entry
     return found
 
 
 def demo_snapshot(demo: Path) -> dict:
     """The deterministic outputs of ``flexmodal demo --out DEMO`` (see the module docstring)."""
-    diagnosis = json.loads((demo / "diagnosis.json").read_text())
-    return {"fe.csv": _table(demo / "fe.csv"), "modes.csv": _table(demo / "modes.csv", SERIAL_CONFIG),
+    return {"fe.csv": _table(demo / "fe.csv"), "modes.csv": _table(demo / "modes.csv"),
             "runs.h5 frf": _frf_groups(demo / "runs.h5"),
-            "diagnosis.json": {"keys": sorted(diagnosis),
-                               "verdict": [diagnosis["verdict"]["effect"], diagnosis["verdict"]["location"]]}}
+            "diagnosis.json": json.loads((demo / "diagnosis.json").read_text())}
 
 
 def tour_snapshot(folder: Path) -> dict:
@@ -119,7 +111,7 @@ def identify_snapshot(demo: Path, folder: Path) -> dict:
     found = {"runs.h5 frf again": _frf_groups(folder / "runs.h5")}
     for name, argv in (("lscf", ["--uff", "lscf.uff"]), ("peak", ["--method", "peak"])):
         _cli(folder, "identify", "runs.h5", "--out", f"{name}.csv", "--fmax", "450", *argv)
-        found[name] = _table(folder / f"{name}.csv", SERIAL_RUN)
+        found[name] = _table(folder / f"{name}.csv")
     _cli(folder, "identify", str(demo / "operational.h5"), "--out", "oma.csv", "--fmin", "20",
          "--fmax", "450")
     found["oma"] = _table(folder / "oma.csv")
