@@ -22,7 +22,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import (  # noqa: E402
     blob,
     check_uff,
-    classify,
     classify_candidates,
     ema_reference,
     entry_dir,
@@ -588,9 +587,7 @@ def _pyoma_setup(name: str, m: int, floor_note: str, kind_short: str) -> None:
         y, 64.0, lower=0.5, upper=25, nperseg=2048, poles=_stored_poles(pf, pz),
         pole_source="pyOMA's stored SSI-cov poles (orders 30-199, damping 0-5 %)")
     modes = _pyoma_poles_reference(pf, pz, approx)
-    sure, unsure, rejected = classify(modes)
-    rule.update(candidates_hz=[round(x, 4) for x in approx], rejected_hz=[round(x, 4) for x in rejected],
-                stable_share={f"{x['freq_hz']:.4f}": x["stable_share"] for x in modes})
+    sure, unsure = classify_candidates(modes, approx, rule)
     write_json(d / "reference.json", reference_json(
         sure, band_hz=(0.5, 25), uncertain_hz=unsure, extra={"candidates": rule},
         source="pyOMA's own SSI-cov poles of this measurement (modal_data.npz in the pyOMA repository), "
@@ -657,9 +654,7 @@ def build_pyuff_mps_oma() -> None:
         pole_source="pyOMA2 SSI-cov's stable poles (block rows 40, orders to 60)",
         exclude=mains_harmonics(50.0, 320.0))
     modes = oma_reference(y.T, fs, approx)
-    sure, unsure, rejected = classify(modes)
-    rule.update(candidates_hz=[round(x, 4) for x in approx], rejected_hz=[round(x, 4) for x in rejected],
-                stable_share={f"{x['freq_hz']:.4f}": x["stable_share"] for x in modes})
+    sure, unsure = classify_candidates(modes, approx, rule)
     write_json(d / "reference.json", reference_json(
         sure, band_hz=(5, 320), uncertain_hz=unsure, extra={"candidates": rule},
         source="pyOMA2 SSI-cov on the four decimated records (block rows 30, 40, 50; orders to 60)",
@@ -722,9 +717,7 @@ def build_owi_wind_turbine_oma() -> None:
         exclude=[(h, f"rotor harmonic {round(h / one_p)}P", round(h / one_p) * 0.5 * fs / 2048)
                  for h in harmonics])
     modes = oma_reference(y.T, fs, approx, block_rows=(30, 40, 50), ordmax=80)
-    sure, unsure, rejected = classify(modes)
-    rule.update(candidates_hz=[round(x, 4) for x in approx], rejected_hz=[round(x, 4) for x in rejected],
-                stable_share={f"{x['freq_hz']:.4f}": x["stable_share"] for x in modes})
+    sure, unsure = classify_candidates(modes, approx, rule)
     write_json(d / "reference.json", reference_json(
         sure, band_hz=(0.2, 5.0), extra={"candidates": rule},
         uncertain_hz=sorted([*unsure, *harmonics, *(x["candidate_hz"] for x in rule["excluded"])]),

@@ -516,13 +516,14 @@ def rule_reference(freq_hz: np.ndarray, frf: np.ndarray, *, lower: float, upper:
 
 def classify_candidates(modes: list[dict], cands: Sequence[float],
                         rule: dict) -> tuple[list[dict], list[float]]:
-    """Mark each mode estimated from ``cands`` (one per candidate) well determined when the rule found
-    its candidate so, sort them by :func:`classify`, and record the candidates, the rejected ones and
-    the stable shares in ``rule`` (changed in place).  Returns the confirmed modes and the uncertain
-    frequencies."""
-    strong = set(rule["well_determined_hz"])
-    for m, c in zip(modes, cands, strict=True):   # a late cluster alone confirms nothing
-        m["well_determined"] = round(c, 4) in strong
+    """Sort the modes estimated from ``cands`` (one per candidate) by :func:`classify` and record the
+    candidates, the rejected ones and the stable shares in ``rule`` (changed in place); where the rule
+    names ``well_determined_hz`` (:func:`rule_candidates`), each mode is first marked well determined
+    when its candidate is one.  Returns the confirmed modes and the uncertain frequencies."""
+    if "well_determined_hz" in rule:
+        strong = set(rule["well_determined_hz"])
+        for m, c in zip(modes, cands, strict=True):   # a late cluster alone confirms nothing
+            m["well_determined"] = round(c, 4) in strong
     sure, unsure, rejected = classify(modes)
     rule["candidates_hz"] = [round(x, 4) for x in cands]
     rule["rejected_hz"] = [round(x, 4) for x in rejected]
