@@ -21,6 +21,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from common import (  # noqa: E402
     blob,
+    blob_copy,
     check_uff,
     classify_candidates,
     ema_reference,
@@ -194,12 +195,8 @@ def build_lvm_impact_two_hits() -> None:
     name = "lvm_impact_two_hits"
     repo, commit = LVM
     d = entry_dir(name)
-    tmp = d / "_src.lvm"
-    tmp.write_bytes(blob(repo, commit, "data/long_single_header_multi_ch.lvm"))
-    try:
+    with blob_copy(repo, commit, "data/long_single_header_multi_ch.lvm", d / "_src.lvm") as tmp:
         seg = lvm_read.read(str(tmp), read_from_pickle=False, dump_file=False)[0]
-    finally:
-        tmp.unlink()
     fs = 1.0 / seg["Delta_X"][0]
     hits = seg["data"].reshape(2, 8192, 3)
     force, acc = hits[:, :, 0], hits[:, :, 1:].transpose(0, 2, 1)
@@ -637,12 +634,8 @@ def build_pyuff_mps_oma() -> None:
     name = "pyuff_mps_oma"
     repo, commit = PYUFF
     d = entry_dir(name)
-    tmp = d / "_src.uff"
-    tmp.write_bytes(blob(repo, commit, "data/MPSTD#Set001_2024_10_08_10_27_07.uff"))
-    try:
+    with blob_copy(repo, commit, "data/MPSTD#Set001_2024_10_08_10_27_07.uff", d / "_src.uff") as tmp:
         sets = pyuff.UFF(str(tmp)).read_sets()
-    finally:
-        tmp.unlink()
     fs = 1.0 / sets[0]["abscissa_inc"] / 4
     y = decimate(np.array([s["data"] for s in sets]), 4, ftype="fir", axis=1, zero_phase=True)
     write_time_uff(d / "mps_set1.uff", fs, [
@@ -690,15 +683,11 @@ def build_owi_wind_turbine_oma() -> None:
     name = "owi_wind_turbine_oma"
     repo, commit = OWI
     d = entry_dir(name)
-    tmp = d / "_src.tdms"
-    tmp.write_bytes(blob(repo, commit, "tests/static/good/good_tdms_1.tdms"))
-    try:
+    with blob_copy(repo, commit, "tests/static/good/good_tdms_1.tdms", d / "_src.tdms") as tmp:
         group = nptdms.TdmsFile.read(str(tmp))["acceleration"]
         names = [c.name for c in group.channels()]
         raw = np.array([c[:].astype(float) for c in group.channels()]) * 9.80665   # g -> m/s^2
         fs = 1.0 / group.channels()[0].properties["wf_increment"]
-    finally:
-        tmp.unlink()
     y = decimate(raw - raw.mean(axis=1, keepdims=True), 2, ftype="fir", axis=1, zero_phase=True)
     fs /= 2
     levels = sorted({int(n.split("_")[2].removeprefix("LAT")) for n in names})

@@ -44,6 +44,16 @@ def blob_to_file(repo: str, commit: str, path: str, dest: Path) -> Path:
     return dest
 
 
+@contextlib.contextmanager
+def blob_copy(repo: str, commit: str, path: str, dest: Path) -> Iterator[Path]:
+    """``path`` at ``commit`` in ``repo`` copied to ``dest`` for a reader that wants a file name, and
+    removed again on leaving."""
+    try:
+        yield blob_to_file(repo, commit, path, dest)
+    finally:
+        dest.unlink(missing_ok=True)
+
+
 def entry_dir(name: str) -> Path:
     d = CORPUS / name
     d.mkdir(parents=True, exist_ok=True)
