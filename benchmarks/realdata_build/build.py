@@ -28,9 +28,8 @@ from common import (  # noqa: E402
     entry_dir,
     h1,
     mains_harmonics,
-    oma_reference,
     oma_rule_candidates,
-    pyoma2_stable_poles,
+    oma_rule_reference,
     reference_json,
     reference_mode,
     rule_candidates,
@@ -642,12 +641,8 @@ def build_pyuff_mps_oma() -> None:
         {"node": s["rsp_node"], "dir": s["rsp_dir"], "kind": "acceleration", "records": [y[k]],
          "id1": s["id1"]} for k, s in enumerate(sets)], id3=sets[0]["id3"])
     check_uff(d / "mps_set1.uff", list(y))
-    approx, rule = oma_rule_candidates(
-        y.T, fs, lower=5, upper=320, nperseg=4096, poles=pyoma2_stable_poles(y.T, fs, br=40, ordmax=60),
-        pole_source="pyOMA2 SSI-cov's stable poles (block rows 40, orders to 60)",
-        exclude=mains_harmonics(50.0, 320.0))
-    modes = oma_reference(y.T, fs, approx)
-    sure, unsure = classify_candidates(modes, approx, rule)
+    sure, unsure, rule = oma_rule_reference(y.T, fs, lower=5, upper=320, nperseg=4096, ordmax=60,
+                                            exclude=mains_harmonics(50.0, 320.0))
     write_json(d / "reference.json", reference_json(
         sure, band_hz=(5, 320), uncertain_hz=unsure, extra={"candidates": rule},
         source="pyOMA2 SSI-cov on the four decimated records (block rows 30, 40, 50; orders to 60)",
@@ -699,14 +694,11 @@ def build_owi_wind_turbine_oma() -> None:
     check_uff(d / uff, list(y))
     one_p = 0.2675   # the rotor speed: the first peak of the singular-value spectrum, 0.2675 Hz
     harmonics = [k * one_p for k in (1, 3, 6, 9, 12, 15, 18)]   # those below 5 Hz
-    approx, rule = oma_rule_candidates(
-        y.T, fs, lower=0.2, upper=5.0, nperseg=2048, poles=pyoma2_stable_poles(y.T, fs, br=40, ordmax=80),
-        pole_source="pyOMA2 SSI-cov's stable poles (block rows 40, orders to 80)",
+    sure, unsure, rule = oma_rule_reference(
+        y.T, fs, lower=0.2, upper=5.0, nperseg=2048, ordmax=80,
         # kP known to k x half a line of the 2048-sample spectrum (the rotor speed read to half a line)
         exclude=[(h, f"rotor harmonic {round(h / one_p)}P", round(h / one_p) * 0.5 * fs / 2048)
                  for h in harmonics])
-    modes = oma_reference(y.T, fs, approx, block_rows=(30, 40, 50), ordmax=80)
-    sure, unsure = classify_candidates(modes, approx, rule)
     write_json(d / "reference.json", reference_json(
         sure, band_hz=(0.2, 5.0), extra={"candidates": rule},
         uncertain_hz=sorted([*unsure, *harmonics, *(x["candidate_hz"] for x in rule["excluded"])]),

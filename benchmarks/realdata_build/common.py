@@ -558,6 +558,22 @@ def order_clusters(freq_hz: np.ndarray, order_idx: np.ndarray, n_orders: int, *,
     return out
 
 
+def oma_rule_reference(y: np.ndarray, fs_hz: float, *, lower: float, upper: float, nperseg: int, ordmax: int,
+                       exclude: Sequence[tuple] = ()) -> tuple[list[dict], list[float], dict]:
+    """Reference of output-only records y [n_samples, n_channels] by the one rule: candidates from
+    :func:`oma_rule_candidates` (pyOMA2 SSI-cov's stable poles, block rows 40, orders to ``ordmax``),
+    each estimated by :func:`oma_reference` (block rows 30, 40, 50) and sorted by
+    :func:`classify_candidates`.  Returns the confirmed modes, the uncertain frequencies and the JSON
+    record of the rule, as :func:`rule_reference` does for FRFs."""
+    approx, rule = oma_rule_candidates(
+        y, fs_hz, lower=lower, upper=upper, nperseg=nperseg,
+        poles=pyoma2_stable_poles(y, fs_hz, br=40, ordmax=ordmax),
+        pole_source=f"pyOMA2 SSI-cov's stable poles (block rows 40, orders to {ordmax})", exclude=exclude)
+    modes = oma_reference(y, fs_hz, approx, block_rows=(30, 40, 50), ordmax=ordmax)
+    sure, unsure = classify_candidates(modes, approx, rule)
+    return sure, unsure, rule
+
+
 def oma_rule_candidates(y: np.ndarray, fs_hz: float, *, lower: float, upper: float, nperseg: int,
                         poles: tuple[np.ndarray, np.ndarray, int], pole_source: str,
                         exclude: Sequence[tuple[float, str]] = ()) -> tuple[list[float], dict]:
