@@ -360,24 +360,26 @@ def prop_diagnosis_json_extreme(text: str) -> None:
 
 @prop(st.sampled_from(["pose", "start_time", "excitation"]), extreme_value("json"))
 def prop_run_attribute_extreme(name: str, text: str) -> None:
-    with tempfile.TemporaryDirectory() as d:
-        path = Path(d) / "run.h5"
-        path.write_bytes(RUN_BYTES)
+    _attribute_loads_or(RUN_BYTES, "runs/r1", name, text, DaqError, lambda p: read_run(p, "r1"))
+
+
+def _attribute_loads_or(run_bytes: bytes, group: str, name: str, text: str, error: type[Exception],
+                        load) -> None:
+    """A copy of the run file ``run_bytes`` with attribute ``name`` of ``group`` set to ``text``:
+    ``load`` reads it or raises ``error``."""
+    def check(path: Path) -> None:
         with h5py.File(path, "r+") as f:
-            f["runs/r1"].attrs[name] = text
-        _loads_or(DaqError, lambda p: read_run(p, "r1"), path)
+            f[group].attrs[name] = text
+        _loads_or(error, load, path)
+
+    _with_file(run_bytes, "run.h5", check)
 
 
 @prop(st.sampled_from(["provenance", "outputs", "inputs", "nfft", "estimator"]), extreme_value("json"))
 def prop_frf_attribute_extreme(name: str, text: str) -> None:
     from flexmodal.modal.runs_io import read_frf
 
-    with tempfile.TemporaryDirectory() as d:
-        path = Path(d) / "run.h5"
-        path.write_bytes(FRF_RUN_BYTES)
-        with h5py.File(path, "r+") as f:
-            f["runs/r1/frf"].attrs[name] = text
-        _loads_or(ModalError, lambda p: read_frf(p, "r1"), path)
+    _attribute_loads_or(FRF_RUN_BYTES, "runs/r1/frf", name, text, ModalError, lambda p: read_frf(p, "r1"))
 
 
 @prop(st.sampled_from(["num_pts", "abscissa_inc"]), st.sampled_from(["999999999999", "0", "-5", "1e308"]))

@@ -181,13 +181,20 @@ def test_two_frfs_for_one_pair_and_garbage_are_refused(tmp_path, capsys):
     assert code == 2 and len(err) == 1, err
 
 
-def test_frfs_with_any_node_and_direction_numbering_are_identified(tmp_path, capsys):
-    """Scalar (0), rotational (5) and negative directions, large node numbers, a -z reference."""
+def _three_modes() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Frequencies [Hz] (0-400 Hz, 0.25 Hz lines), natural frequencies [Hz] and the FRFs (modal_frf)
+    [3 responses, 1 reference (the third point), n_freq] of three modes, the 0 Hz line zeroed."""
     f = np.arange(0.0, 400.0, 0.25)
     fn, zeta = np.array([60.0, 150.0, 310.0]), np.array([0.01, 0.01, 0.02])
     phi = np.array([[1.0, 0.5, -0.4], [0.3, -0.9, 0.8], [-0.7, 0.6, 0.5]])
     H = modal_frf(f, fn, zeta, phi, phi[[2]])
     H[..., 0] = 0
+    return f, fn, H
+
+
+def test_frfs_with_any_node_and_direction_numbering_are_identified(tmp_path, capsys):
+    """Scalar (0), rotational (5) and negative directions, large node numbers, a -z reference."""
+    f, fn, H = _three_modes()
     nodes = [(1001, 0), (1002, 5), (7, -3)]
     sets = [_frf_set(f, H[k, 0], n, d, 7, -3) for k, (n, d) in enumerate(nodes)]
     table = _identified(tmp_path / "numbering.uff", sets, tmp_path, capsys)
@@ -280,11 +287,7 @@ def test_tri_axial_sensors_with_direction_code_0_in_a_multi_hit_impact_export(tm
 
 
 def test_frfs_of_tri_axial_sensors_with_direction_code_0_are_identified(tmp_path, capsys):
-    f = np.arange(0.0, 400.0, 0.25)
-    fn, zeta = np.array([60.0, 150.0, 310.0]), np.array([0.01, 0.01, 0.02])
-    phi = np.array([[1.0, 0.5, -0.4], [0.3, -0.9, 0.8], [-0.7, 0.6, 0.5]])
-    H = modal_frf(f, fn, zeta, phi, phi[[2]])
-    H[..., 0] = 0
+    f, fn, H = _three_modes()
     sets = [_frf_set(f, H[k, 0], 4, 0, 7, -3) for k in range(3)]
     table = _identified(tmp_path / "triax.uff", sets, tmp_path, capsys)
     assert np.allclose(table.freq_hz("triax"), fn, rtol=1e-5)

@@ -21,8 +21,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from common import (  # noqa: E402
     blob,
+    blob_copy,
     check_uff,
-    classify,
+    classify_candidates,
     ema_reference,
     entry_dir,
     h1,
@@ -194,12 +195,8 @@ def build_lvm_impact_two_hits() -> None:
     name = "lvm_impact_two_hits"
     repo, commit = LVM
     d = entry_dir(name)
-    tmp = d / "_src.lvm"
-    tmp.write_bytes(blob(repo, commit, "data/long_single_header_multi_ch.lvm"))
-    try:
+    with blob_copy(repo, commit, "data/long_single_header_multi_ch.lvm", d / "_src.lvm") as tmp:
         seg = lvm_read.read(str(tmp), read_from_pickle=False, dump_file=False)[0]
-    finally:
-        tmp.unlink()
     fs = 1.0 / seg["Delta_X"][0]
     hits = seg["data"].reshape(2, 8192, 3)
     force, acc = hits[:, :, 0], hits[:, :, 1:].transpose(0, 2, 1)
@@ -241,13 +238,7 @@ def build_lvm_impact_two_hits() -> None:
         m["stable_share"] = min(a["stable_share"], b["stable_share"])
         m["estimator"] = "sdypy-EMA LSCF on H1, rectangular and exponential window (damping corrected)"
         merged.append(m)
-    strong = set(rule["well_determined_hz"])
-    for m, c in zip(merged, approx, strict=True):   # a late cluster alone confirms nothing
-        m["well_determined"] = round(c, 4) in strong
-    sure, unsure, rejected = classify(merged)
-    rule["candidates_hz"] = [round(x, 4) for x in approx]
-    rule["rejected_hz"] = [round(x, 4) for x in rejected]
-    rule["stable_share"] = {f"{m['freq_hz']:.4f}": m["stable_share"] for m in merged}
+    sure, unsure = classify_candidates(merged, approx, rule)
     write_json(d / "reference.json", reference_json(
         sure, band_hz=(5, 100), uncertain_hz=unsure, extra={"candidates": rule},
         source="sdypy-EMA 0.31 LSCF on H1 of the two hits, 5-100 Hz, rectangular and exponential window",
@@ -593,9 +584,7 @@ def _pyoma_setup(name: str, m: int, floor_note: str, kind_short: str) -> None:
         y, 64.0, lower=0.5, upper=25, nperseg=2048, poles=_stored_poles(pf, pz),
         pole_source="pyOMA's stored SSI-cov poles (orders 30-199, damping 0-5 %)")
     modes = _pyoma_poles_reference(pf, pz, approx)
-    sure, unsure, rejected = classify(modes)
-    rule.update(candidates_hz=[round(x, 4) for x in approx], rejected_hz=[round(x, 4) for x in rejected],
-                stable_share={f"{x['freq_hz']:.4f}": x["stable_share"] for x in modes})
+    sure, unsure = classify_candidates(modes, approx, rule)
     write_json(d / "reference.json", reference_json(
         sure, band_hz=(0.5, 25), uncertain_hz=unsure, extra={"candidates": rule},
         source="pyOMA's own SSI-cov poles of this measurement (modal_data.npz in the pyOMA repository), "
@@ -645,12 +634,8 @@ def build_pyuff_mps_oma() -> None:
     name = "pyuff_mps_oma"
     repo, commit = PYUFF
     d = entry_dir(name)
-    tmp = d / "_src.uff"
-    tmp.write_bytes(blob(repo, commit, "data/MPSTD#Set001_2024_10_08_10_27_07.uff"))
-    try:
+    with blob_copy(repo, commit, "data/MPSTD#Set001_2024_10_08_10_27_07.uff", d / "_src.uff") as tmp:
         sets = pyuff.UFF(str(tmp)).read_sets()
-    finally:
-        tmp.unlink()
     fs = 1.0 / sets[0]["abscissa_inc"] / 4
     y = decimate(np.array([s["data"] for s in sets]), 4, ftype="fir", axis=1, zero_phase=True)
     write_time_uff(d / "mps_set1.uff", fs, [
@@ -662,9 +647,7 @@ def build_pyuff_mps_oma() -> None:
         pole_source="pyOMA2 SSI-cov's stable poles (block rows 40, orders to 60)",
         exclude=mains_harmonics(50.0, 320.0))
     modes = oma_reference(y.T, fs, approx)
-    sure, unsure, rejected = classify(modes)
-    rule.update(candidates_hz=[round(x, 4) for x in approx], rejected_hz=[round(x, 4) for x in rejected],
-                stable_share={f"{x['freq_hz']:.4f}": x["stable_share"] for x in modes})
+    sure, unsure = classify_candidates(modes, approx, rule)
     write_json(d / "reference.json", reference_json(
         sure, band_hz=(5, 320), uncertain_hz=unsure, extra={"candidates": rule},
         source="pyOMA2 SSI-cov on the four decimated records (block rows 30, 40, 50; orders to 60)",
@@ -700,15 +683,11 @@ def build_owi_wind_turbine_oma() -> None:
     name = "owi_wind_turbine_oma"
     repo, commit = OWI
     d = entry_dir(name)
-    tmp = d / "_src.tdms"
-    tmp.write_bytes(blob(repo, commit, "tests/static/good/good_tdms_1.tdms"))
-    try:
+    with blob_copy(repo, commit, "tests/static/good/good_tdms_1.tdms", d / "_src.tdms") as tmp:
         group = nptdms.TdmsFile.read(str(tmp))["acceleration"]
         names = [c.name for c in group.channels()]
         raw = np.array([c[:].astype(float) for c in group.channels()]) * 9.80665   # g -> m/s^2
         fs = 1.0 / group.channels()[0].properties["wf_increment"]
-    finally:
-        tmp.unlink()
     y = decimate(raw - raw.mean(axis=1, keepdims=True), 2, ftype="fir", axis=1, zero_phase=True)
     fs /= 2
     levels = sorted({int(n.split("_")[2].removeprefix("LAT")) for n in names})
@@ -727,9 +706,7 @@ def build_owi_wind_turbine_oma() -> None:
         exclude=[(h, f"rotor harmonic {round(h / one_p)}P", round(h / one_p) * 0.5 * fs / 2048)
                  for h in harmonics])
     modes = oma_reference(y.T, fs, approx, block_rows=(30, 40, 50), ordmax=80)
-    sure, unsure, rejected = classify(modes)
-    rule.update(candidates_hz=[round(x, 4) for x in approx], rejected_hz=[round(x, 4) for x in rejected],
-                stable_share={f"{x['freq_hz']:.4f}": x["stable_share"] for x in modes})
+    sure, unsure = classify_candidates(modes, approx, rule)
     write_json(d / "reference.json", reference_json(
         sure, band_hz=(0.2, 5.0), extra={"candidates": rule},
         uncertain_hz=sorted([*unsure, *harmonics, *(x["candidate_hz"] for x in rule["excluded"])]),

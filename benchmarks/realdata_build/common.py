@@ -9,11 +9,14 @@ puts them).  Each build script pins the commit it read.
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
+import logging
 import os
 import subprocess
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -39,6 +42,16 @@ def blob_to_file(repo: str, commit: str, path: str, dest: Path) -> Path:
     dest.parent.mkdir(parents=True, exist_ok=True)
     dest.write_bytes(blob(repo, commit, path))
     return dest
+
+
+@contextlib.contextmanager
+def blob_copy(repo: str, commit: str, path: str, dest: Path) -> Iterator[Path]:
+    """``path`` at ``commit`` in ``repo`` copied to ``dest`` for a reader that wants a file name, and
+    removed again on leaving."""
+    try:
+        yield blob_to_file(repo, commit, path, dest)
+    finally:
+        dest.unlink(missing_ok=True)
 
 
 def entry_dir(name: str) -> Path:
@@ -303,6 +316,32 @@ def h1(force: np.ndarray, resp: np.ndarray, fs_hz: float) -> tuple[np.ndarray, n
     return np.fft.rfftfreq(force.shape[-1], 1 / fs_hz), H
 
 
+@contextlib.contextmanager
+def _quiet_pyoma2() -> Iterator[None]:
+    """pyOMA2's loggers at WARNING, and its stderr output and warnings swallowed, while inside."""
+    import pyoma2.algorithms.ssi  # noqa: F401  (its loggers exist once it is imported)
+    import pyoma2.setup.single  # noqa: F401
+
+    for name in [n for n in logging.root.manager.loggerDict if n.startswith("pyoma2")]:
+        logging.getLogger(name).setLevel(logging.WARNING)
+    with contextlib.redirect_stderr(io.StringIO()), warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        yield
+
+
+def _ssicov(y: np.ndarray, fs_hz: float, *, br: int, ordmax: int) -> tuple[object, object]:
+    """One pyOMA2 SSI-cov run (``br`` block rows, orders to ``ordmax`` in steps of 2) on y
+    [n_samples, n_channels]; returns its setup (for ``mpe``) and algorithm (with ``result``)."""
+    from pyoma2.algorithms.ssi import SSI
+    from pyoma2.setup.single import SingleSetup
+
+    setup = SingleSetup(np.asarray(y, float), fs=fs_hz)
+    alg = SSI(name="ssicov", method="cov", br=int(br), ordmax=ordmax, step=2)
+    setup.add_algorithms(alg)
+    setup.run_by_name("ssicov")
+    return setup, alg
+
+
 def oma_reference(y: np.ndarray, fs_hz: float, approx_hz: Sequence[float], *,
                   block_rows: Sequence[int] = (30, 40, 50), ordmax: int = 60) -> list[dict]:
     """Reference modes of output-only records y [n_samples, n_channels] with pyOMA2's SSI-cov: one run
@@ -313,27 +352,12 @@ def oma_reference(y: np.ndarray, fs_hz: float, approx_hz: Sequence[float], *,
     ``stable_share``: the share of the upper half of the model orders of every run holding a stable
     pole (label 1, damping 0-20 %) within 0.5 % of the value, as :func:`ema_reference` counts it (what
     tells an uncertain candidate from a rejected one)."""
-    import contextlib
-    import io
-    import logging
-
-    import pyoma2.algorithms.ssi  # noqa: F401
-    import pyoma2.setup.single  # noqa: F401
-    from pyoma2.algorithms.ssi import SSI
-    from pyoma2.setup.single import SingleSetup
-
-    for name in [n for n in logging.root.manager.loggerDict if n.startswith("pyoma2")]:
-        logging.getLogger(name).setLevel(logging.WARNING)
     F = np.full((len(block_rows), len(approx_hz)), np.nan)
     Z = np.full_like(F, np.nan)
     stable = []   # per run: the stable poles of the upper half of its orders [order column, pole]
     for r, br in enumerate(block_rows):   # a loop over reference runs
-        setup = SingleSetup(np.asarray(y, float), fs=fs_hz)
-        alg = SSI(name="ssicov", method="cov", br=int(br), ordmax=ordmax, step=2)
-        setup.add_algorithms(alg)
-        with contextlib.redirect_stderr(io.StringIO()), warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            setup.run_by_name("ssicov")
+        with _quiet_pyoma2():
+            setup, alg = _ssicov(y, fs_hz, br=br, ordmax=ordmax)
             Fp, Xp, Lp = (np.asarray(a, float) for a in (alg.result.Fn_poles, alg.result.Xi_poles,
                                                          alg.result.Lab))
             upper = Fp[:, Fp.shape[1] // 2:]
@@ -496,14 +520,25 @@ def rule_reference(freq_hz: np.ndarray, frf: np.ndarray, *, lower: float, upper:
     cands, rule = rule_candidates(freq_hz, h, lower=lower, upper=upper, frf_form=frf_form,
                                   cluster_order=max(orders), exclude=exclude)
     modes = ema_reference(freq_hz, h, cands, lower=lower, upper=upper, orders=orders, frf_form=frf_form)
-    strong = set(rule["well_determined_hz"])
-    for m, c in zip(modes, cands, strict=True):   # a late cluster alone confirms nothing
-        m["well_determined"] = round(c, 4) in strong
+    sure, unsure = classify_candidates(modes, cands, rule)
+    return sure, unsure, rule
+
+
+def classify_candidates(modes: list[dict], cands: Sequence[float],
+                        rule: dict) -> tuple[list[dict], list[float]]:
+    """Sort the modes estimated from ``cands`` (one per candidate) by :func:`classify` and record the
+    candidates, the rejected ones and the stable shares in ``rule`` (changed in place); where the rule
+    names ``well_determined_hz`` (:func:`rule_candidates`), each mode is first marked well determined
+    when its candidate is one.  Returns the confirmed modes and the uncertain frequencies."""
+    if "well_determined_hz" in rule:
+        strong = set(rule["well_determined_hz"])
+        for m, c in zip(modes, cands, strict=True):   # a late cluster alone confirms nothing
+            m["well_determined"] = round(c, 4) in strong
     sure, unsure, rejected = classify(modes)
     rule["candidates_hz"] = [round(x, 4) for x in cands]
     rule["rejected_hz"] = [round(x, 4) for x in rejected]
     rule["stable_share"] = {f"{m['freq_hz']:.4f}": m["stable_share"] for m in modes}
-    return sure, unsure, rule
+    return sure, unsure
 
 
 def order_clusters(freq_hz: np.ndarray, order_idx: np.ndarray, n_orders: int, *, min_share: float = 0.5,
@@ -553,21 +588,8 @@ def pyoma2_stable_poles(y: np.ndarray, fs_hz: float, *, br: int, ordmax: int) ->
                                                                                         int]:
     """pyOMA2 SSI-cov's stable poles (label 1, damping 0-20 %) of y [n_samples, n_channels]: their
     frequencies, order indices and the number of orders."""
-    import contextlib
-    import io
-    import logging
-
-    from pyoma2.algorithms.ssi import SSI
-    from pyoma2.setup.single import SingleSetup
-
-    for name in [n for n in logging.root.manager.loggerDict if n.startswith("pyoma2")]:
-        logging.getLogger(name).setLevel(logging.WARNING)
-    setup = SingleSetup(np.asarray(y, float), fs=fs_hz)
-    alg = SSI(name="ssicov", method="cov", br=int(br), ordmax=ordmax, step=2)
-    setup.add_algorithms(alg)
-    with contextlib.redirect_stderr(io.StringIO()), warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        setup.run_by_name("ssicov")
+    with _quiet_pyoma2():
+        _, alg = _ssicov(y, fs_hz, br=br, ordmax=ordmax)
     F, X, L = (np.asarray(a, float) for a in (alg.result.Fn_poles, alg.result.Xi_poles, alg.result.Lab))
     ok = (L == 1) & (X > 0) & (X < 0.2) & np.isfinite(F)
     return F[ok], np.nonzero(ok)[1], F.shape[1]
