@@ -5,8 +5,9 @@ stored rows [hit - pretrigger, hit + HIT_LOOK_S): rejected as an *overload* when
 response reaches its ``full_scale``, a *double hit* when the force, after falling below
 ``DOUBLE_LOW`` x its peak, rises again above ``DOUBLE_HIGH`` x the peak (the hammer bounced), *too weak*
 when the force peak is below ``min_peak``; once ``window`` samples after the hit are in, a hit not
-rejected is *cut short* when the next hit or missing samples (NaN) fall inside its window, else
-*accepted* and added to the H1 estimate at the response channel (Ewins, Modal Testing, 2000, sec. 3.7):
+rejected is *cut short* when the next hit or missing samples (NaN) fall inside its window (at once
+when its pretrigger would begin before the run's first row), else *accepted* and added to the H1
+estimate at the response channel (Ewins, Modal Testing, 2000, sec. 3.7):
 H1 = sum(conj(F) X) / sum(|F|^2), coherence = |sum(conj(F) X)|^2 / (sum|F|^2 sum|X|^2), rectangular
 windows of ``window`` samples starting ``pretrigger`` samples before the hit.
 """
@@ -51,6 +52,7 @@ class HitMonitor:
         self.look = int(round(HIT_LOOK_S * fs))
         self.rows = np.zeros((0, 2))  # stored rows of force and response, from row self.row0
         self.row0 = 0
+        self.first_row: int | None = None  # the first row stored (the run's start)
         self.pending: list[int] = []  # hits not judged yet (rows)
         self.early: dict[int, Hit] = {}  # hits passed the pulse checks, waiting for their window
         self.hits: list[Hit] = []
@@ -61,6 +63,8 @@ class HitMonitor:
 
     def add(self, rows: np.ndarray, row0: int, triggers: list[int]) -> list[Hit]:
         """Take stored rows ``row0 ..`` (all channels) and the hits in them; returns the hits judged now."""
+        if self.first_row is None:
+            self.first_row = row0
         if not self.rows.size:
             self.row0 = row0
         self.rows = np.vstack([self.rows, rows[:, [self.force, self.response]]])
@@ -78,6 +82,8 @@ class HitMonitor:
         return self.rows[a:a + n] if a >= 0 and a + n <= self.rows.shape[0] else None
 
     def _judge(self, t: int) -> Hit | None:
+        if t - self.pre < self.first_row:  # its pretrigger is before the run: never a whole window
+            return self._done(t, Hit(t, float("nan"), "rejected", "cut short"))
         if t not in self.early:
             seg = self._segment(t, self.pre + self.look)
             if seg is None:

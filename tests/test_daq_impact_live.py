@@ -48,6 +48,17 @@ def test_screening_rules_on_known_pulses():
     assert not double_hit(np.r_[0, 1.0, 0.5, 0.15, 0.05, 0.0], 1)  # a smooth decay is one hit
 
 
+def test_a_hit_inside_the_pretrigger_of_the_run_start_is_judged_at_once():
+    # the run began 4 samples before a hit (pretrigger 10): no whole window can ever hold it; it was
+    # left pending until the run ended (and kept every stored row in memory till then)
+    m = HitMonitor(0, 1, 1000.0, 500, 10, 5.0, (100.0, np.inf))
+    rows = np.zeros((100, 2))
+    rows[4:7, 0] = 50.0
+    judged = m.add(rows, 0, [4])
+    assert [(h.row, h.verdict, h.reason) for h in judged] == [(4, "rejected", "cut short")]
+    assert m.pending == [] and m.rows.shape[0] <= 10 + 500
+
+
 def test_live_view_shows_rejections_with_reasons_within_a_second(tmp_path):
     text = (REPO / "examples" / "sessions" / "serial-sim.toml").read_text()
     text = text.replace('rig = "../rigs/', f'rig = "{REPO}/examples/rigs/')
