@@ -518,7 +518,7 @@ def damping_bound(freq_hz: np.ndarray, damping_ratio: np.ndarray, span_s: np.nda
     Examples
     --------
     >>> round(float(damping_bound(np.array(40.0), np.array(0.01), np.array(10.0))), 3)   # 25 decays
-    0.2
+    0.199
     """
     return 1.0 / np.sqrt(2 * np.pi * np.asarray(damping_ratio) * np.asarray(freq_hz) * np.asarray(span_s))
 
