@@ -1,5 +1,5 @@
 """Helpers of the acquisition tests: run a stand-in device in a thread while `acquire` records it, and
-stream a stand-in serial device's records over a pty from the moment the reader is there."""
+stream a stand-in serial device's records over a pty to a reader however late it comes."""
 
 from __future__ import annotations
 
@@ -29,21 +29,18 @@ def record_with(device, session, out: Path, seconds: float) -> Run:
     return read_run(out, summary.run_id)
 
 
-def stream_when_read(link: PtyLink, records: Callable[[int, int], bytes], rate_hz: float,
-                     stop: threading.Event, n: int | None = None) -> None:
+def stream_paced(link: PtyLink, records: Callable[[int, int], bytes], rate_hz: float,
+                 stop: threading.Event, n: int | None = None) -> None:
     """A stand-in serial device on ``link``: ``records(k0, k1)`` are the bytes of its records k0 .. k1-1,
     sent paced at ``rate_hz`` (``n`` records, or until ``stop``).
 
-    The stream starts once the reader has opened the port (record 0 is written first and the stream goes
-    on when it left the read buffer: pyserial flushes the input when it opens a port;
-    ``PtyLink.await_reader``), so the run holds the same stream however long the acquisition's start
-    took on a loaded machine; a device that streamed from its own start filled the pty and gave up
-    ("nobody is reading") when the acquisition opened the port 2 s late.  A reader that falls behind
-    (starved of CPU together with this process) is waited for, never dropped; runs end with ``stop``.
+    A reader that is not there yet, or falls behind (starved of CPU with this process on a loaded
+    machine), is waited for as long as it takes, never given up on: the records that do not fit in the
+    pty wait, and the opening reader flushes what the pty holds (pyserial) and takes the rest.  (A device
+    that gave up after 1 s, ``PtyLink.write``, died "nobody is reading" when the acquisition opened the
+    port 2 s late, and the run failed "no samples within 15 s".)
     """
-    if not link.await_reader(records(0, 1), stop, lambda: None):
-        return
-    t0, sent = time.monotonic() - 1.0 / rate_hz, 1
+    t0, sent = time.monotonic(), 0
     while (n is None or sent < n) and not stop.is_set():
         due = int((time.monotonic() - t0) * rate_hz)
         due = due if n is None else min(n, due)

@@ -8,7 +8,7 @@ import threading
 
 import numpy as np
 import pandas as pd
-from stand_in import record_with, stream_when_read
+from stand_in import record_with, stream_paced
 
 from flexmodal.app import main
 from flexmodal.daq.serial_frames import encode_csv
@@ -28,7 +28,7 @@ def _encoder(k: np.ndarray) -> np.ndarray:
 def _device(link: PtyLink, stop: threading.Event) -> None:
     """The stand-in MCU: CSV lines of the simulated impact test plus the encoder, paced in real time."""
     src = sim_source(None, "impact", RATE)
-    stream_when_read(link, lambda a, b: encode_csv(a, np.column_stack([src.block(a, b - a),
+    stream_paced(link, lambda a, b: encode_csv(a, np.column_stack([src.block(a, b - a),
                                                                        _encoder(np.arange(a, b))])),
                      RATE, stop)
 

@@ -8,7 +8,7 @@ import json
 
 import numpy as np
 import pytest
-from stand_in import record_with, stream_when_read
+from stand_in import record_with, stream_paced
 
 from flexmodal.daq.serial_frames import (
     CsvDecoder,
@@ -143,9 +143,8 @@ def test_declared_framing_end_to_end_over_a_pty(tmp_path, framing):
     config.write_text(SESSION.format(rate=rate, port=link.path, sources=", ".join(f'"{c}"' for c in names),
                                      framing=declared, channels=channels))
     try:
-        run = record_with(lambda stop: stream_when_read(link, lambda a, b: b"".join(records[a:b]), rate, stop,
-                                                          len(records)), load_session(config),
-                          tmp_path / "run.h5", n / rate)
+        device = lambda stop: stream_paced(link, lambda a, b: b"".join(records[a:b]), rate, stop, n + 2000)
+        run = record_with(device, load_session(config), tmp_path / "run.h5", n / rate)
     finally:
         link.remove()
     first = int(next(iter(json.loads(run.attrs["first_index"]).values())))
