@@ -13,7 +13,7 @@ from pathlib import Path
 
 import can
 import numpy as np
-from stand_in import record_with
+from stand_in import record_with, stream_paced
 
 from flexmodal.daq.acquire import acquire
 from flexmodal.daq.serial_frames import FrameSpec, encode_custom
@@ -51,12 +51,7 @@ def test_mcu_custom_frames_example(tmp_path):
     frames = encode_custom(spec, 0, counts)
 
     def device(stop: threading.Event) -> None:
-        t0, sent = time.monotonic(), 0
-        while sent < 6000 and not stop.is_set():
-            due = min(6000, int((time.monotonic() - t0) * 1000))
-            link.write(frames[sent * spec.length:due * spec.length])
-            sent = due
-            time.sleep(0.01)
+        stream_paced(link, lambda a, b: frames[a * spec.length:b * spec.length], 1000.0, stop, 6000)
 
     try:
         run = record_with(device, session, tmp_path / "run.h5", 2.0)

@@ -121,7 +121,7 @@ def test_sigterm_closes_the_run_cleanly(tmp_path, protocol):
         with CpuWait(proc.pid) as waits:
             assert wait_for(lambda: stored(out) > 0, START_S), f"no samples within {START_S} s"
             t_first = time.monotonic()
-            time.sleep(random.uniform(1.0, 3.0))
+            time.sleep(random.Random(protocol).uniform(1.0, 3.0))  # a fixed moment per protocol
             sim = children(proc.pid)
             t_term = time.monotonic()
             proc.send_signal(signal.SIGTERM)
