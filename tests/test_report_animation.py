@@ -236,7 +236,8 @@ def test_uff_geometry_reader_turns_any_broken_file_into_one_error(tmp_path):
     good = UFF.read_text().split("    58")[0]              # the geometry part: datasets 18, 15, 82
     path = tmp_path / "fuzz.uff"
 
-    @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+    @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
+                                                                 HealthCheck.too_slow])
     @given(cut=st.integers(0, len(good)), at=st.integers(0, len(good)),
            junk=st.text(alphabet="0123456789-+.eE xyz\n", max_size=12))
     def check(cut, at, junk):
