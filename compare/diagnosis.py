@@ -551,6 +551,38 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
         predictions=_predictions(meas, base_f, best))
 
 
+def heldout_error(rig: Rig, measured: ModalTable, effect: str, location: str, scatter: float,
+                  holdout: str | Sequence[str] = "auto") -> tuple[float, float]:
+    """The held-out error of one named candidate (``effect`` at ``location``, names joined by ``+`` as in
+    a verdict) fitted and cross-validated as the diagnosis does (its folds, its starts), and the noise
+    margin within which another candidate's held-out error equals it (``_noise``) at ``scatter``.
+
+    Returns ``(held-out frequency-equivalent RMS, noise margin)`` (fractions).  With measured shapes the
+    error counts them as the ranking does (``_equivalent``; their noise floor is this candidate's own
+    in-sample shape misfit).  The blind check uses it on noise-free data to tell a case an ideal fit can
+    decide from one it cannot.  Raises CompareError for a name the rig has no candidate for.
+
+    Examples
+    --------
+    >>> from flexmodal.fixtures.blind import make_case
+    >>> import numpy as np
+    >>> case = make_case(np.random.default_rng(1), "single", "two_link")
+    >>> h, margin = heldout_error(case.rig, case.table, case.effect, case.location, case.scatter)
+    >>> 0 <= h < 0.05 and margin > 0
+    True
+    """
+    with threadpool_limits(limits=1, user_api="blas"):
+        meas = prepare(rig, measured)
+        cand = _rebuild(rig, meas, effect, location)
+        if cand is None:
+            raise CompareError(f"{effect} at {location}: no such candidate for rig {rig.name!r}")
+        train, _ = folds_for(meas.configs, holdout, meas.poses)
+        ctx = _Context(rig, meas, train)
+        entry = _screen(ctx, cand, scatter)
+        _cross_validate(ctx, entry, scatter)
+        return entry["_heldout_eq"], _noise(entry, scatter, ctx.pose_share)
+
+
 def prediction_band(rig: Rig, measured: ModalTable, result: Diagnosis, poses: Sequence[dict[str, float]],
                     pose_var: str | None = None):
     """The verdict's model at ``poses`` (full pose dicts) with 95 % prediction intervals, as a

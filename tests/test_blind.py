@@ -46,7 +46,7 @@ def first_eight():
     return run_blind(8, seed=0)
 
 
-@pytest.mark.timeout(900)           # ~60 s on a quiet machine (case generation included), more under load
+@pytest.mark.timeout(1800)          # ~60 s on a quiet machine (case generation included), more under load
 def test_first_eight_blind_cases_are_all_right(first_eight):
     s = _check(first_eight)
     assert s["n_library"] == 6 and s["n_none"] == 1 and s["n_outside"] == 1

@@ -48,7 +48,6 @@ def _check(out: Path, code: int, seconds: float, err: str) -> None:
     assert not left, f"half-written outputs left behind: {left}"
 
 
-@pytest.mark.timeout(400)
 def test_ctrl_c_while_storing_runs(tmp_path: Path) -> None:
     out = tmp_path / "demo"
     _check(out, *_interrupt_demo(out, "runs.h5", 0.0))
