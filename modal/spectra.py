@@ -21,6 +21,7 @@ auto-spectra as one reduction; block sums are accumulated in double precision, i
 from __future__ import annotations
 
 import collections
+import contextlib
 import os
 import queue
 import threading
@@ -417,16 +418,18 @@ def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
         return j * block * step, (j * block + min(block, n_seg - j * block) - 1) * step + nfft
 
     j = 0              # segment blocks submitted (those not in ``pending`` are added)
+    reads = contextlib.closing(_row_blocks(samples, read_rows, span(0)[1] - 1, dtype))
     try:   # each read holds the rows of one block before it: every segment block lies whole in one
-        for r0, rows in _row_blocks(samples, read_rows, span(0)[1] - 1, dtype):
-            earlier = j
-            end = r0 + rows.shape[0]
-            while j < n_blocks and span(j)[1] <= end:
-                first, last = span(j)
-                submit(j, rows[first - r0:last - r0])
-                j += 1
-            while j - len(pending) < earlier:   # the earlier reads' blocks added: asking for the
-                add(pending.popleft().result())  # next read lets the reader reuse the one before this
+        with reads as blocks:       # closed on any way out: the reader thread has ended
+            for r0, rows in blocks:
+                earlier = j
+                end = r0 + rows.shape[0]
+                while j < n_blocks and span(j)[1] <= end:
+                    first, last = span(j)
+                    submit(j, rows[first - r0:last - r0])
+                    j += 1
+                while j - len(pending) < earlier:   # the earlier reads' blocks added: asking for the
+                    add(pending.popleft().result())  # next read lets the reader reuse the one before
         while pending:
             add(pending.popleft().result())
     finally:

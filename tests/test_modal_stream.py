@@ -83,8 +83,8 @@ def test_streamed_from_hdf5_equals_in_memory(tmp_path, monkeypatch, workers):
 def test_array_likes_that_are_not_row_major_stream_through_the_reused_buffers(monkeypatch, workers):
     """A column-major float64 array, an int16 array and a read-only array-like (sliced, not an
     ndarray) go through the reader's reused buffers in reads that cut segment blocks: the same
-    spectra as their row-major float64 copy in memory; a read that fails midway raises its error in
-    the caller and ends the reader thread (no hang, no thread left)."""
+    spectra as their row-major float64 copy in memory; a read or a block's transform that fails
+    midway raises its error in the caller, and the reader thread has ended by then (no hang)."""
     import threading
 
     x = np.round(_record(60_000).astype(float) * 100)      # exact in int16 too
@@ -107,9 +107,20 @@ def test_array_likes_that_are_not_row_major_stream_through_the_reused_buffers(mo
         streamed = welch_spectra(source, FS, [0], range(1, 7), 512, workers=workers)
         for name in ("g_xf", "g_ff", "g_xx"):
             assert np.array_equal(getattr(streamed, name), getattr(whole, name)), (type(source), name)
-    with pytest.raises(OSError, match="damaged chunk"):
+    with pytest.raises(OSError, match="damaged chunk") as failed:   # holds the engine's frames
         welch_spectra(Sliced(fail_at=27_000), FS, [0], range(1, 7), 512, workers=workers)
-    assert not [t for t in threading.enumerate() if t.name == "flexmodal-read"]
+    assert failed.tb is not None and not [t for t in threading.enumerate() if t.name == "flexmodal-read"]
+    real = modal_spectra._Plan.sums
+
+    def failing(plan, work, rows, first, b):   # a block's transform fails with reads still to come
+        if first >= 30:
+            raise RuntimeError("block failed")
+        return real(plan, work, rows, first, b)
+
+    monkeypatch.setattr(modal_spectra._Plan, "sums", failing)
+    with pytest.raises(RuntimeError, match="block failed") as failed:
+        welch_spectra(Sliced(), FS, [0], range(1, 7), 512, workers=workers)
+    assert failed.tb is not None and not [t for t in threading.enumerate() if t.name == "flexmodal-read"]
 
 
 def test_memory_stays_a_few_blocks_whatever_the_record_length(tmp_path, monkeypatch):
