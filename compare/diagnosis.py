@@ -581,6 +581,9 @@ def heldout_errors(rig: Rig, measured: ModalTable, names: Sequence[tuple[str, st
         ctx = _Context(rig, meas, train)
         entries = []
         for effect, location in names:
+            if effect == "none":
+                entries.append(_nominal_entry(ctx))
+                continue
             cand = _rebuild(rig, meas, effect, location)
             if cand is None:
                 raise CompareError(f"{effect} at {location}: no such candidate for rig {rig.name!r}")
@@ -588,8 +591,22 @@ def heldout_errors(rig: Rig, measured: ModalTable, names: Sequence[tuple[str, st
         if shape_noise is not None and ctx.shape_dof > 0:
             ctx.shape_floor = shape_noise * ctx.shape_dof
         for entry in entries:
-            _cross_validate(ctx, entry, scatter)
+            if "_cand" in entry:
+                _cross_validate(ctx, entry, scatter)
+            _rescore(ctx, entry, scatter)
         return [e["_heldout_eq"] for e in entries], _noise(entries[0], scatter, ctx.pose_share)
+
+
+def _nominal_entry(ctx: _Context) -> dict:
+    """The nominal model (no effect, nothing fitted) as a scored entry: its errors on the held-out
+    configurations are its held-out errors."""
+    f, _, mac, _ = evaluate(ctx.family([]), np.zeros((len(ctx.meas.configs), 0, 0)), np.zeros((1, 0)),
+                            ctx.target)
+    err = f[0] / ctx.meas.freq_hz - 1.0
+    held = ~ctx.train[1:].all(axis=0)
+    mac = None if mac is None else mac[0]
+    return {"n_params": 0, "_fit_err": err.ravel(), "_fit_shape": _shape_misfit(mac),
+            "_held_err": err[held].ravel(), "_held_shape": _shape_misfit(None if mac is None else mac[held])}
 
 
 def prediction_band(rig: Rig, measured: ModalTable, result: Diagnosis, poses: Sequence[dict[str, float]],
