@@ -18,6 +18,7 @@ flexmodal.fixtures) and stopped at the end.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import os
@@ -188,8 +189,10 @@ class Display:
             return
         try:
             self._update(n_samples, rate_hz, dropped, events, lost)
-        except OSError:  # the terminal went away (SIGHUP): go on without a display
-            self.live = None
+        except OSError:  # the terminal went away (SIGHUP): go on without a display, and give stdout and
+            live, self.live = self.live, None  # stderr back (rich's Live redirects them while it runs:
+            with contextlib.suppress(OSError):  # the summary line printed after a SIGHUP that came
+                live.stop()  # during a refresh went to the dead terminal, exit 1 instead of 129)
 
     def _update(self, n_samples: int, rate_hz: float, dropped: int, events: Counter, lost) -> None:
         from rich.table import Table
