@@ -18,7 +18,6 @@ flexmodal.fixtures) and stopped at the end.
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import json
 import os
@@ -174,8 +173,10 @@ class Display:
             from rich.console import Console
             from rich.live import Live
 
-            # refreshed by update() only: no background thread writing to a terminal that may go away
-            self.live = Live(console=Console(stderr=True), auto_refresh=False, transient=False)
+            # refreshed by update() only: no background thread writing to a terminal that may go away;
+            # stdout is the command's result (the run line) and is never routed into the display
+            self.live = Live(console=Console(stderr=True), auto_refresh=False, transient=False,
+                             redirect_stdout=False)
             self.live.start()
 
     def rows(self, rows: np.ndarray) -> None:
@@ -189,10 +190,8 @@ class Display:
             return
         try:
             self._update(n_samples, rate_hz, dropped, events, lost)
-        except OSError:  # the terminal went away (SIGHUP): go on without a display, and give stdout and
-            live, self.live = self.live, None  # stderr back (rich's Live redirects them while it runs:
-            with contextlib.suppress(OSError):  # the summary line printed after a SIGHUP that came
-                live.stop()  # during a refresh went to the dead terminal, exit 1 instead of 129)
+        except OSError:  # the terminal went away (SIGHUP): go on without a display
+            self.close()
 
     def _update(self, n_samples: int, rate_hz: float, dropped: int, events: Counter, lost) -> None:
         from rich.table import Table
@@ -242,11 +241,14 @@ class Display:
         return lines
 
     def close(self) -> None:
-        if self.live is not None:
+        """End the live view, once; a terminal that went away is fine (rich's stop gives sys.stderr
+        back before it writes its last frame, so later messages never go through the dead display)."""
+        live, self.live = self.live, None
+        if live is not None:
             try:
-                self.live.stop()
-                if self._last and not self.live.console.is_terminal:  # rich ends a terminal's last frame
-                    self.live.console.line()                          # only: a message below starts afresh
+                live.stop()
+                if self._last and not live.console.is_terminal:  # rich ends a terminal's last frame only:
+                    live.console.line()                          # a message below starts afresh
             except OSError:
                 pass
 

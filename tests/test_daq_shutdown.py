@@ -421,37 +421,3 @@ def test_closing_the_terminal_stops_cleanly(tmp_path):
     assert not np.isnan(samples).any()
 
 
-
-def test_a_terminal_gone_during_a_refresh_gives_stdout_back(monkeypatch):
-    """The terminal goes away while the live view refreshes (the order test_closing_the_terminal meets
-    under load: the refresh fails before SIGHUP is handled): the run goes on without a display, and the
-    summary line printed after it reaches stdout.  rich's Live redirects stdout to the terminal while it
-    runs; it was left so, the summary raised EIO and acquire exited 1 instead of 129 (stress run 6)."""
-    import errno
-    import io
-    from collections import Counter
-
-    from flexmodal.daq.acquire import Display
-
-    class GoneTerminal(io.StringIO):
-        gone = False
-
-        def isatty(self) -> bool:
-            return True
-
-        def write(self, text: str) -> int:
-            if self.gone:
-                raise OSError(errno.EIO, "Input/output error")
-            return super().write(text)
-
-    terminal, stdout = GoneTerminal(), io.StringIO()
-    monkeypatch.setattr(sys, "stderr", terminal)
-    monkeypatch.setattr(sys, "stdout", stdout)
-    display = Display(("F",), ("N",), quiet=False)
-    display.update(2048, 2048.0, 0, Counter(), force=True)
-    assert "acquiring" in terminal.getvalue()
-    terminal.gone = True
-    display.update(4096, 2048.0, 0, Counter(), force=True)
-    display.close()
-    print("run.h5 summary")
-    assert stdout.getvalue() == "run.h5 summary\n" and display.live is None
