@@ -149,6 +149,7 @@ def write_block(name: str, block: str) -> None:
 
 BLOCKS = {"seed003": seed003_block, "coverage": coverage_block, "blind": blind_block,
           "fresh": lambda: blind_block(FRESH_SEEDS, note=FRESH_NOTE), "ideal": ideal_block,
+          "ideal_fresh": lambda: ideal_block(seeds=FRESH_SEEDS),
           "sparse": sparse_block}
 
 

@@ -89,6 +89,7 @@ def test_the_draws_and_the_advice_the_docs_quote():
     fresh = {seed: run_blind(doc.BLIND_CASES, seed=seed) for seed in doc.FRESH_SEEDS}
     assert doc.doc_block("fresh") == doc.blind_block(doc.FRESH_SEEDS, results=fresh, note=doc.FRESH_NOTE)
     assert doc.doc_block("ideal") == doc.ideal_block(results)
+    assert doc.doc_block("ideal_fresh") == doc.ideal_block(fresh, seeds=doc.FRESH_SEEDS)
     assert doc.doc_block("sparse") == doc.sparse_block()
 
 
