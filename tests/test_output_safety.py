@@ -160,7 +160,7 @@ def test_frf_on_a_full_disk_exits_2_and_leaves_the_run_byte_identical(tmp_path: 
         digest = _digest(run)
         if mounted:
             done = subprocess.run([_flexmodal(), "frf", str(run), "--workers", "0"], capture_output=True,
-                                  text=True, timeout=120, stdin=subprocess.DEVNULL)
+                                  text=True, timeout=600, stdin=subprocess.DEVNULL)
             assert done.returncode == 2, done.stderr
             lines = done.stderr.strip().splitlines()
             assert len(lines) == 1 and "Traceback" not in done.stderr
@@ -212,7 +212,7 @@ def test_cli_refuses_to_destroy_an_input(tmp_path: Path, command: str) -> None:
     os.mkfifo(tmp_path / "fifo")
     before = {p.name: _digest(p) for p in tmp_path.iterdir() if p.is_file()}
     done = subprocess.run([_flexmodal(), *command.replace("{d}", str(tmp_path)).split()], capture_output=True,
-                          text=True, timeout=120, stdin=subprocess.DEVNULL)
+                          text=True, timeout=600, stdin=subprocess.DEVNULL)
     assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
     assert "Traceback" not in done.stderr
     assert {p.name: _digest(p) for p in tmp_path.iterdir() if p.is_file()} == before

@@ -119,7 +119,7 @@ assert matplotlib.get_backend() == backend
 assert matplotlib.rcParams["text.parse_math"] is True
 print("ok")
 """
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600,
                          cwd=REPO.parent)
     assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr
 
