@@ -31,7 +31,7 @@ def _interrupt_demo(out: Path, when_exists: str, after_s: float) -> tuple[int, f
             seen.append(time.monotonic())
         return bool(seen) and time.monotonic() - seen[0] >= after_s
 
-    return interrupt(["demo", "--out", str(out)], out.parent, ready, ready_within_s=240.0)
+    return interrupt(["demo", "--out", str(out)], out.parent, ready, ready_within_s=600.0)  # a hang guard
 
 
 def _check(out: Path, code: int, seconds: float, err: str) -> None:
@@ -126,5 +126,5 @@ def test_ctrl_c_that_lands_in_a_weakref_callback_still_stops_the_command():
     import sys
 
     done = subprocess.run([sys.executable, "-c", LOST_IN_A_CALLBACK], capture_output=True, text=True,
-                          timeout=120)
+                          timeout=600)
     assert (done.returncode, done.stderr, done.stdout) == (130, "flexmodal: interrupted\n", "")

@@ -120,7 +120,7 @@ def test_api_acquire_starts_an_example_sessions_simulator_with_no_extra_import(t
             f"s = fm.acquire({str(EXAMPLES / 'serial-sim.toml')!r}, {str(tmp_path / 'run.h5')!r}, "
             "duration_s=0.5)\n"
             "print(s.run_id)\n")
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-2000:]
     run = read_run(tmp_path / "run.h5", proc.stdout.strip())
     assert run.samples.shape[0] >= 1024 and run.samples.shape[1] == 7

@@ -419,4 +419,3 @@ def test_closing_the_terminal_stops_cleanly(tmp_path):
     samples, events = plain_run(out)
     assert samples.shape[0] >= 2048 and events[-1][0] == "stopped" and "SIGHUP" in events[-1][3]
     assert not np.isnan(samples).any()
-
