@@ -25,6 +25,11 @@ REQUIRED = ("config", "mode", "freq_hz")
 POSE_PREFIX = "pose."
 SHAPE_PREFIX = "shape."
 STD_COLUMNS = ("freq_std_hz", "damping_std")   # uncertainty of identification: >= 0, empty when unknown
+MAX_MODE = 1e6           # mode numbers are whole, 1..1e6
+MAX_FREQ_HZ = 1e9        # no structural mode is above 1 GHz; (2 pi f)^2 of 1e308 Hz overflows
+MAX_POSE = 1e12          # no pose value is larger (the diagnosis takes powers of pose spans)
+MAX_MAGNITUDE = 1e150    # shapes, uncertainties: their squares must stay finite
+TINIEST = np.finfo(float).tiny   # 2.2e-308: a nonzero value below it (subnormal) is read as 0
 
 
 def _parse_complex(value: object) -> complex:
@@ -56,10 +61,12 @@ def _fits_float(value: object) -> bool:
     return True
 
 
-def _numbers(column: pd.Series, name: str, source: str) -> pd.Series:
-    """``column`` as finite floats (empty cells stay NaN: not given); text or an infinity raises
-    ContractError naming the row (header = row 1) and the value."""
+def _numbers(column: pd.Series, name: str, source: str, limit: float = MAX_MAGNITUDE) -> pd.Series:
+    """``column`` as finite floats (empty cells stay NaN: not given; -0 and subnormal numbers are 0);
+    text, an infinity or a magnitude above ``limit`` raises ContractError naming the row (header =
+    row 1) and the value."""
     values = _floats(column)
+    values = values.where(~(values.abs() < TINIEST), 0.0)
     given = column.notna() & (column.astype(str).str.strip() != "")
     bad = given & (values.isna() | np.isinf(values))
     if bad.any():
@@ -67,6 +74,11 @@ def _numbers(column: pd.Series, name: str, source: str) -> pd.Series:
         value = column.iloc[row]
         shown = repr(value) if isinstance(value, str) else value
         raise ContractError(f"{source}: row {row + 2}: column {name!r} is not a finite number ({shown})")
+    odd = values.abs() > limit
+    if odd.any():
+        row = int(np.flatnonzero(odd.to_numpy())[0])
+        raise ContractError(f"{source}: row {row + 2}: {name} = {values.iloc[row]:g} is above {limit:g} in "
+                            "magnitude")
     return values
 
 
@@ -91,12 +103,19 @@ class ModalTable:
             bad = values.isna() | ~np.isfinite(values)
             if bad.any():
                 row = int(np.flatnonzero(bad.to_numpy())[0])
+                shown = df[col].iloc[row]
                 raise ContractError(f"{source}: row {row + 2}: column {col!r} is not a number "
-                                    f"({df[col].iloc[row]!r})")
+                                    f"({shown if isinstance(shown, str) else float(shown)!r})")
             df[col] = values
-        df["mode"] = df["mode"].astype(int)
+        df["freq_hz"] = _numbers(df["freq_hz"], "freq_hz", source, MAX_FREQ_HZ)
         if (df["mode"] < 1).any():
-            raise ContractError(f"{source}: column 'mode' must be 1-based (found {int(df['mode'].min())})")
+            raise ContractError(f"{source}: column 'mode' must be 1-based (found {df['mode'].min():g})")
+        odd = (df["mode"] != np.round(df["mode"])) | (df["mode"] > MAX_MODE)
+        if odd.any():
+            row = int(np.flatnonzero(odd.to_numpy())[0])
+            raise ContractError(f"{source}: row {row + 2}: mode = {df['mode'].iloc[row]:g} is not a whole "
+                                f"number from 1 to {MAX_MODE:g}")
+        df["mode"] = df["mode"].astype(int)
         if (df["freq_hz"] < 0).any():
             raise ContractError(f"{source}: column 'freq_hz' has a negative frequency")
         dup = df.duplicated(["config", "mode"])
@@ -105,11 +124,16 @@ class ModalTable:
             raise ContractError(f"{source}: config {r['config']!r} lists mode {int(r['mode'])} twice")
         numeric = ("damping_ratio", *STD_COLUMNS)
         for col in [c for c in df.columns if c in numeric or c.startswith(POSE_PREFIX)]:
-            df[col] = _numbers(df[col], col, source)
+            limit = MAX_POSE if col.startswith(POSE_PREFIX) else MAX_MAGNITUDE
+            df[col] = _numbers(df[col], col, source, limit)
         for col in [c for c in STD_COLUMNS if c in df.columns and (df[c] < 0).any()]:
             row = int(np.flatnonzero((df[col] < 0).to_numpy())[0])
             raise ContractError(f"{source}: row {row + 2}: {col} = {df[col].iloc[row]:g} is negative (a "
                                 "standard deviation)")
+        if "damping_ratio" in df.columns and (df["damping_ratio"] <= -1).any():
+            row = int(np.flatnonzero((df["damping_ratio"] <= -1).to_numpy())[0])
+            raise ContractError(f"{source}: row {row + 2}: damping_ratio = {df['damping_ratio'].iloc[row]:g} "
+                                "is not above -1 (a fraction; negative: a growing mode)")
         if "damping_ratio" in df.columns and (df["damping_ratio"] >= 1).any():
             row = int(np.flatnonzero((df["damping_ratio"] >= 1).to_numpy())[0])
             value = df["damping_ratio"].iloc[row]
@@ -124,6 +148,13 @@ class ModalTable:
             if np.isinf(values).any():
                 row = int(np.flatnonzero(np.isinf(values))[0])
                 raise ContractError(f"{source}: row {row + 2}: column {col!r} holds an infinite value")
+            if (np.abs(values) > MAX_MAGNITUDE).any():
+                row = int(np.flatnonzero(np.abs(values) > MAX_MAGNITUDE)[0])
+                shown = values[row].real if values[row].imag == 0 else values[row]
+                raise ContractError(f"{source}: row {row + 2}: column {col!r} holds {shown:g}, above "
+                                    f"{MAX_MAGNITUDE:g} in magnitude")
+            values = np.where(np.abs(values.real) < TINIEST, 0.0, values.real) + 1j * np.where(
+                np.abs(values.imag) < TINIEST, 0.0, values.imag)   # subnormal parts are 0
             df[col] = values.real if np.all(values.imag == 0) else values
         df = df.sort_values(["config", "mode"], kind="stable").reset_index(drop=True)
         return cls(df, source)

@@ -154,7 +154,25 @@ def check_run_group(g: h5py.Group, where: str) -> None:
         raise DaqError(f"{where}: 'samples' has {s.shape[1]} columns but {channels.shape[0]} channels")
     for d in (channels, events, s):
         check_filters(d, where)
+    _check_stored(s, where)
     _check_names(channels, where)
+
+
+def _check_stored(s: h5py.Dataset, where: str) -> None:
+    """Raise DaqError when 'samples' declares rows it never stored beyond the last two chunks (a
+    writer ends at most one chunk past what it wrote, rows HDF5 gives back as NaN): a file that
+    declares 10^11 rows in 6 kB would otherwise be streamed as days of NaN."""
+    if s.size == 0:
+        return
+    if s.chunks is None:
+        stored, expected, spare = int(s.id.get_storage_size() > 0), 1, 0
+    else:
+        across = -(-s.shape[1] // s.chunks[1])
+        stored, expected = s.id.get_num_chunks(), -(-s.shape[0] // s.chunks[0]) * across
+        spare = 2 * across
+    if stored < expected - spare:
+        raise DaqError(f"{where}: 'samples' declares {s.shape[0]} rows but stores "
+                       f"{stored} of its {expected} chunks (rows never written)")
 
 
 def _check_names(channels: h5py.Dataset, where: str) -> None:

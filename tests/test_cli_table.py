@@ -313,6 +313,16 @@ def user_npz(path: Path) -> None:
         np.savez(f, my_data=np.arange(5.0))
 
 
+def never_written(path: Path) -> None:
+    """A run whose samples dataset declares 10^11 rows (1.5 TB) and stores none (6 kB on disk)."""
+    write_run(path)
+    with h5py.File(path, "r+") as f:
+        g = f["runs/r1"]
+        attrs = dict(g["samples"].attrs)
+        del g["samples"]
+        g.create_dataset("samples", shape=(10**11, 2), dtype="f8", chunks=(4096, 2)).attrs.update(attrs)
+
+
 DEEP_TOML = "deep = " + "[" * 100_000 + "]" * 100_000 + "\n"
 DEEP_INLINE = "deep = " + "{a = " * 100_000 + "1" + "}" * 100_000 + "\n"
 LONG_INT = "big = " + "9" * 5001 + "\n"
@@ -843,6 +853,27 @@ ROWS: list[Row] = [
     row("report-oma-fmax-subnormal", "report {d}/run.h5 --out {d}/r.html --oma-fmax 5e-324",
         ("--oma-fmax", "5e-324", "subnormal")),
     row("report-fmax-negative-zero", "report {d}/run.h5 --out {d}/r.html --fmax -0", ("--fmax", "'-0'")),
+    # -- issue 24: numbers at the ends of the doubles in a modal table ---------------------------------
+    row("modes-freq-1e308-compare", COMPARE, ("modes.csv", "freq_hz", "1e+308", "1e+09"),
+        {"modes.csv": MODES.replace("theta0,1,25.5,", "theta0,1,1e308,", 1)}),
+    row("modes-freq-1e308-report", "report --measured {d}/modes.csv --out {d}/r.html",
+        ("modes.csv", "freq_hz", "1e+308"),
+        {"modes.csv": MODES.replace("theta0,1,25.5,", "theta0,1,1e308,", 1)}),
+    row("modes-freq-subnormal-diagnose", DIAGNOSE + " --quiet", ("modes.csv", "> 0 Hz"),   # read as 0 Hz
+        {"modes.csv": MODES.replace("theta0,1,25.5,", "theta0,1,5e-324,", 1)}),
+    row("modes-pose-1e308-diagnose", DIAGNOSE, ("modes.csv", "pose.theta_deg", "1e+308"),
+        {"modes.csv": MODES.replace("theta0,1,25.5,experiment,0", "theta0,1,25.5,experiment,1e308", 1)}),
+    row("modes-mode-huge", COMPARE, ("modes.csv", "mode", "1e+30", "whole number"),
+        {"modes.csv": MODES.replace("theta0,1,25.5,", "theta0,1000000000000000000000000000000,25.5,", 1)}),
+    row("modes-mode-fraction", COMPARE, ("modes.csv", "mode = 1.5", "whole number"),
+        {"modes.csv": MODES.replace("theta0,1,25.5,", "theta0,1.5,25.5,", 1)}),
+    row("modes-damping-minus-5", COMPARE, ("modes.csv", "damping_ratio = -5", "-1"),
+        {"modes.csv": "config,mode,freq_hz,damping_ratio\nA,1,10,-5\n"}),
+    row("modes-shape-1e300", COMPARE, ("modes.csv", "shape.a1", "1e+300"),
+        {"modes.csv": "config,mode,freq_hz,shape.a1\nA,1,10,1e300\n"}),
+    row("run-samples-never-written-frf", "frf {d}/run.h5 --workers 0",
+        ("run.h5", "declares", "never written")),
+    row("run-samples-never-written-identify", IDENTIFY, ("run.h5", "declares", "never written")),
     # -- controls: the unmodified base files work ---------------------------------------------------
     row("control-predict", PREDICT, (), code=0),
     row("control-compare", COMPARE, (), code=0),
@@ -896,6 +927,7 @@ RUN_FILES = {
     "frf-no-H": with_frf(lambda g: g["frf"].__delitem__("H")),
     "sweep-constant-force": mutate_run(lambda g: (g.attrs.__setitem__("excitation", "sweep"),
                                                   g["samples"].__setitem__((slice(None), 0), 1.0))),
+    "run-samples-never-written-frf": never_written, "run-samples-never-written-identify": never_written,
     "sweep-nan-force": mutate_run(lambda g: (g.attrs.__setitem__("excitation", "sweep"),
                                              g["samples"].__setitem__((slice(None), 0), np.nan))),
 }
