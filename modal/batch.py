@@ -227,7 +227,11 @@ def _start_worker(pids) -> None:
     process of the command; the caller ends its workers), end with the fork server
     (:func:`_end_with_parent`), tell the caller its process id through the queue ``pids`` (so a Ctrl-C
     can end it at once, with the public ``os.kill``) and keep BLAS to one thread (the pool's processes
-    already use every CPU it was given; a BLAS pool of its own in each would only oversubscribe them)."""
+    already use every CPU it was given; a BLAS pool of its own in each would only oversubscribe them).
+    With the environment variable ``FLEXMODAL_STOP_AT=worker-start`` a worker stops itself (SIGSTOP)
+    first, so that a test can send Ctrl-C while a worker has not yet ignored it."""
+    if os.environ.get("FLEXMODAL_STOP_AT") == "worker-start":
+        os.kill(os.getpid(), signal.SIGSTOP)
     leave_ctrl_c_to_parent()
     _end_with_parent()
     pids.put(os.getpid())

@@ -17,6 +17,7 @@ ignores it (checked_io/children.py).
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -118,7 +119,7 @@ def _pool_stage(pid: int, members: list[Member]) -> int:
 
 
 POOL_STAGES = {1: "before the pool (runs listed)", 3: "fork server starting", 4: "fork server importing",
-               5: "worker starting", 7: "workers computing"}
+               7: "workers computing"}   # 5 (a worker before its initializer) lasts ~1 ms: see below
 
 
 def _eigen_stage(pid: int, members: list[Member]) -> int:
@@ -232,6 +233,54 @@ def test_ctrl_c_during_the_pool_start(runs, tmp_path, target):
             written = list(f["runs"]) if "runs" in f else []
         for rid in written:
             assert read_frf(out, rid).H.shape[:2] == (2, 1)
+
+
+def _a_worker_stopped(members: list[Member]) -> bool:
+    server = [m.pid for m in members if "forkserver" in m.cmdline]
+    return any(m.ppid in server and m.state == "T" for m in members)
+
+
+@pytest.mark.timeout(900)
+def test_ctrl_c_while_a_worker_starts(runs, tmp_path):
+    """Stage 5, a worker forked but not yet ignoring SIGINT, lasts about a millisecond (steps went past
+    it 1 time in 3): with FLEXMODAL_STOP_AT=worker-start each worker stops itself at the start of its
+    initializer (modal/batch.py); the signal goes to the group once one has."""
+    proc = subprocess.Popen([EXE, "--quiet", "frf", str(runs), "--workers", "2", "--out", "frf.h5"],
+                            cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            stdin=subprocess.DEVNULL, text=True, start_new_session=True,
+                            env={**os.environ, "FLEXMODAL_STOP_AT": "worker-start"})
+    group = Group(proc.pid)
+    try:
+        deadline = time.monotonic() + 600.0
+        while not _a_worker_stopped(group.members()):
+            assert proc.poll() is None and time.monotonic() < deadline, "no worker stopped itself"
+            time.sleep(0.01)
+        members = group.stop()
+        assert _pool_stage(proc.pid, members) == 5, members
+        os.killpg(proc.pid, signal.SIGINT)
+        deadline = time.monotonic() + 300.0
+        while True:   # a worker forked after the signal stops itself too: continue it (it then ends)
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(proc.pid, signal.SIGCONT)
+            try:
+                _, err = proc.communicate(timeout=1.0)
+                break
+            except subprocess.TimeoutExpired:
+                assert time.monotonic() < deadline, "the command's processes did not end"
+        left = [m for m in group.members() if m.state not in "ZX"]
+        deadline = time.monotonic() + 60.0
+        while left and time.monotonic() < deadline:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(proc.pid, signal.SIGCONT)
+            time.sleep(0.05)
+            left = [m for m in group.members() if m.state not in "ZX"]
+        _check(Interrupted(proc.returncode, err, members, left))
+    finally:
+        if [m for m in group.members() if m.state not in "ZX"]:
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+        proc.stderr.close()
+    assert not (tmp_path / "frf.h5").exists()
 
 
 @pytest.mark.timeout(900)
