@@ -17,6 +17,7 @@ import numpy as np
 import scipy.fft
 import scipy.ndimage
 import scipy.signal
+from threadpoolctl import threadpool_limits
 
 MIN_POLES = 5            # orders are looked for in at least this many windows ...
 MIN_SPEED_SHARE = 0.2    # ... where the joint turns faster than this share of its fastest
@@ -181,6 +182,14 @@ def remove_orders(y: np.ndarray, sample_rate_hz: float, angle_deg: np.ndarray,
     if starts[-1] + block < n:
         starts.append(n - block)
     tau = np.linspace(-1.0, 1.0, block)
+    with threadpool_limits(1, "blas"):   # small least-squares fits: more threads only spin on them
+        _remove_blocks(out, y, angle_deg, orders, starts, block, hop, tau)
+    return out
+
+
+def _remove_blocks(out: np.ndarray, y: np.ndarray, angle_deg: np.ndarray, orders: Sequence[Sequence[float]],
+                   starts: list[int], block: int, hop: int, tau: np.ndarray) -> None:
+    """:func:`remove_orders`' fits, block by block, written into ``out``."""
     for k, a in enumerate(starts):   # a loop over blocks
         seg, ang = y[a:a + block], angle_deg[a:a + block]
         good = np.isfinite(seg).all(axis=1) & np.isfinite(ang).all(axis=1)
@@ -204,5 +213,4 @@ def remove_orders(y: np.ndarray, sample_rate_hz: float, angle_deg: np.ndarray,
             hi = block
         fit = X[lo:hi] @ beta
         out[a + lo:a + hi] = seg[lo:hi] - fit
-    return out
 

@@ -415,9 +415,10 @@ def refine(y: np.ndarray, sample_rate_hz: float, windows: Sequence[WindowPoles],
     (:func:`flexmodal.modal.warp.warp` along the track's frequencies, median-smoothed over
     ``SMOOTH_WINDOWS`` and interpolated in time), decimated to at least four times ``f_c (1 +
     REFINE_BAND)``, by SSI-cov in ``f_c (1 +- REFINE_BAND)`` with block rows over ``REFINE_LAG_PERIODS``;
-    the selected mode nearest ``f_c`` within the gates (frequency and MAC with the track's nearest
-    first-pass shape) replaces the first pass's estimate, and fills the windows the first pass
-    missed.  A pole on a harmonic order (within ``order_tol``) is left out.  With ``damping``, the damping
+    the selected mode nearest ``f_c`` within the gates (frequency, and MAC with the track's nearest
+    first-pass shape and with its shape ``MAC_LAG_S`` away: at a crossing the nearest may be a mixed
+    one) replaces the first pass's estimate, and fills the windows the first pass missed.  A pole on a
+    harmonic order (within ``order_tol``) is left out.  With ``damping``, the damping
     ratio then comes from the same identification over the longer span that holds its relative standard
     deviation to ``options.damping_rel_std`` (:func:`damping_span_s` at the track's median damping ratio;
     the drift is warped out, so a long span adds no bandwidth), the frequency and shape staying those of
@@ -440,7 +441,11 @@ def refine(y: np.ndarray, sample_rate_hz: float, windows: Sequence[WindowPoles],
         long: dict[int, tuple[float, float]] = {}   # window -> damping ratio over the long span, span [s]
         for k in range(int(tr.windows[0]), int(tr.windows[-1]) + 1):   # a loop over windows
             f_c = float(np.interp(centres[k], centres[tr.windows], f_s))
-            shape = tr.shapes[:, int(np.argmin(np.abs(tr.windows - k)))]   # the nearest first-pass shape
+            at = centres[tr.windows]   # the nearest first-pass shape and the one MAC_LAG_S before (after)
+            near_k = int(np.argmin(np.abs(tr.windows - k)))
+            lag_k = int(np.argmin(np.abs(at - (centres[k] - MAC_LAG_S))))
+            lag_k = int(np.argmin(np.abs(at - (centres[k] + MAC_LAG_S)))) if lag_k == near_k else lag_k
+            shape = tr.shapes[:, [near_k, lag_k]]
             rates = {v: abs(windows[k].rate_deg_per_s[v]) / 360.0 for v in orders}
             n = min(y.shape[0], max(n_win, int(REFINE_PERIODS / f_c * fs)))
             pole = _warped_pole(y, fs, centres, k, tr, f_s, n, refs, shape, rates, orders, options)
@@ -452,7 +457,8 @@ def refine(y: np.ndarray, sample_rate_hz: float, windows: Sequence[WindowPoles],
             step = n_z / fs / DAMPING_PER_SPAN   # long-span estimates this far apart [s] (module docstring)
             last = max(long, default=None)
             if damping and n_z > n and (last is None or centres[k] - centres[last] >= step):
-                pole_z = _warped_pole(y, fs, centres, k, tr, f_s, n_z, refs, sh, rates, orders, options)
+                pole_z = _warped_pole(y, fs, centres, k, tr, f_s, n_z, refs, sh[:, None], rates, orders,
+                                      options)
                 if pole_z is not None:
                     long[k] = (pole_z[1], n_z / fs)
         if len(keep) < options.min_windows:
@@ -510,8 +516,9 @@ def _warped_pole(y: np.ndarray, fs: float, centres: np.ndarray, k: int, tr: Trac
                  ) -> tuple[float, float, np.ndarray] | None:
     """The mode of track ``tr`` at window ``k`` from ``n`` samples around its centre in the track's warped
     time (:func:`refine`): frequency, damping ratio and shape of the selected SSI mode nearest the
-    smoothed track ``f_s`` within the gates (frequency, MAC with ``shape``), or None (none there, or one on
-    a harmonic order of the joint speeds ``rates`` [rev/s])."""
+    smoothed track ``f_s`` within the gates (frequency, and the smallest MAC with the columns of
+    ``shape`` [n_out, r]), or None (none there, or one on a harmonic order of the joint speeds ``rates``
+    [rev/s])."""
     mid = int(round(centres[k] * fs))
     f_c = float(np.interp(centres[k], centres[tr.windows], f_s))
     a = int(np.clip(mid - n // 2, 0, y.shape[0] - n))
@@ -525,7 +532,7 @@ def _warped_pole(y: np.ndarray, fs: float, centres: np.ndarray, k: int, tr: Trac
                     max_order=REFINE_ORDER, block_rows=rows).modes
     except ModalError:
         return None
-    near = np.abs(m.freq_hz / f_c - 1) / options.gate_rel + (1 - mac(shape[:, None], m.shapes)[0]) / (
+    near = np.abs(m.freq_hz / f_c - 1) / options.gate_rel + (1 - mac(shape, m.shapes).min(axis=0)) / (
         1 - options.mac_min)
     j = int(np.argmin(near))
     on_order = any(is_order(m.freq_hz[j:j + 1], rates[v], o, options.order_tol)[0] for v, o in orders.items())
