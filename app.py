@@ -67,26 +67,35 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = build_parser().parse_args(argv)
         return int(args.func(args) or 0)
     except UsageError as exc:
-        print(exc, file=sys.stderr)
+        _say(str(exc))
         return 2
     except FlexmodalError as exc:  # one line even when a quoted library message had several
-        print(f"flexmodal: error: {' '.join(str(exc).split())}", file=sys.stderr)
+        _say(f"flexmodal: error: {' '.join(str(exc).split())}")
         signum = getattr(exc, "signum", 0)  # stopped by a signal before any work (daq.acquire.Stopped)
         return 128 + signum if signum else 2
     except OSError as exc:  # missing or unreadable files, a full disk, an I/O error: named, one line
         where = f"{exc.filename}: " if exc.filename is not None else ""
-        print(f"flexmodal: error: {where}{' '.join(str(exc.strerror or exc).split())}", file=sys.stderr)
+        _say(f"flexmodal: error: {where}{' '.join(str(exc.strerror or exc).split())}")
         return 2
     except (KeyboardInterrupt, Exception) as exc:
         if not _from_interrupt(exc):  # a bug: the traceback, exit 1
             raise
         if argv is None:  # the command itself: outputs are closed or removed by now, so skip the
             _leave_interrupted()  # interpreter's tear-down (seconds of garbage collection after a demo)
-        print("flexmodal: interrupted", file=sys.stderr)
+        _say("flexmodal: interrupted")
         return 130
     finally:
         if argv is None:  # done: a Ctrl-C during the interpreter's tear-down still ends it the same way
             signal.signal(signal.SIGINT, lambda _signum, _frame: _leave_interrupted())
+
+
+def _say(message: str) -> None:
+    """``message`` as one line on stderr; a stderr that is gone (its terminal closed, its pipe's reader
+    ended) is no second error: the exit code still tells the outcome."""
+    try:
+        print(message, file=sys.stderr, flush=True)
+    except OSError:
+        pass
 
 
 def _from_interrupt(exc: BaseException) -> bool:
@@ -115,9 +124,12 @@ def _interrupt_again(unraisable) -> None:
 
 def _leave_interrupted() -> None:
     """Say so on stderr, end the child processes and end this one at once with exit code 130."""
-    print("flexmodal: interrupted", file=sys.stderr)
-    sys.stdout.flush()
-    sys.stderr.flush()
+    _say("flexmodal: interrupted")
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except OSError:  # a closed terminal or pipe: nothing more can reach it
+            pass
     _close_hdf5_files()
     _end_children()
     os._exit(130)

@@ -25,6 +25,7 @@ BLIND_SEEDS = (106, 107, 108, 109, 110)
 FRESH_SEEDS = (211, 212, 213, 214, 215)
 """Draws run once, after the last change to the method, to show that it generalises beyond the draws
 whose misses were analysed (``BLIND_SEEDS``)."""
+FRESH_NOTE = "run once, after the last change to the method"
 SPARSE_CASES = 60
 SPARSE_SEED = 5
 
@@ -100,6 +101,18 @@ def blind_block(seeds: tuple[int, ...] = BLIND_SEEDS, cases: int = BLIND_CASES,
             f"```\n{body}\n```")
 
 
+def ideal_block(results: dict | None = None, seeds: tuple[int, ...] = BLIND_SEEDS,
+                cases: int = BLIND_CASES) -> str:
+    """The blind count with issue 26's ideal-fit rule (fixtures/blind.py ``with_ideal_fit``): a wrong
+    top-1 flagged ambiguous with the truth among its alternatives is right only where an ideal fit
+    cannot decide; per draw of ``seeds`` and every case checked, as a fenced block; ``results`` {seed:
+    run_blind's results} when already computed."""
+    from flexmodal.fixtures.blind import format_ideal_fit, run_blind, with_ideal_fit
+
+    results = results or {seed: run_blind(cases, seed=seed) for seed in seeds}
+    return f"```\n{format_ideal_fit({s: with_ideal_fit(results[s]) for s in seeds})}\n```"
+
+
 def sparse_block(results: list | None = None, n: int = SPARSE_CASES, seed: int = SPARSE_SEED) -> str:
     """Next-measurement advice where it is needed: ``n`` cases of one library effect measured at three
     poses only (fixtures/blind.py ``sparse_case``), every ambiguous verdict measured once more at its
@@ -134,19 +147,27 @@ def write_block(name: str, block: str) -> None:
     DOC.write_text(f"{head}{begin}\n{block}\n{end}{tail}")
 
 
+BLOCKS = {"seed003": seed003_block, "coverage": coverage_block, "blind": blind_block,
+          "fresh": lambda: blind_block(FRESH_SEEDS, note=FRESH_NOTE), "ideal": ideal_block,
+          "ideal_fresh": lambda: ideal_block(seeds=FRESH_SEEDS),
+          "sparse": sparse_block}
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--write", action="store_true", help="replace the blocks in docs/diagnosis.md")
     ap.add_argument("--blind", action="store_true", help="also the 5-draw blind measurement (long)")
     ap.add_argument("--coverage", action="store_true", help="also the identification's Monte-Carlo coverage")
+    ap.add_argument("--only", choices=sorted(BLOCKS), help="this block alone (e.g. one per process)")
     args = ap.parse_args()
-    blocks = {"seed003": seed003_block()}
-    if args.coverage:
-        blocks["coverage"] = coverage_block()
-    if args.blind:
-        blocks["blind"] = blind_block()
-        blocks["fresh"] = blind_block(FRESH_SEEDS, note="run once, after the last change to the method")
-        blocks["sparse"] = sparse_block()
+    if args.only:
+        blocks = {args.only: BLOCKS[args.only]()}
+    else:
+        blocks = {"seed003": seed003_block()}
+        if args.coverage:
+            blocks["coverage"] = coverage_block()
+        if args.blind:
+            blocks.update((name, BLOCKS[name]()) for name in ("blind", "fresh", "sparse"))
     for name, block in blocks.items():
         if args.write:
             write_block(name, block)

@@ -13,7 +13,10 @@
    goes (interpreter, imports, estimate, the rest) and the bound the start-up puts on any ratio.
 4. KERNEL: Welch H1 + H2 + coherence of that record in memory: CPU on one thread against its bare
    FFTs' CPU on one thread (the passes besides the FFT), wall with 2 threads against 1 thread, on the
-   machine as it is and with the other core busy.
+   machine as it is and with the other core busy; beside them the least any numpy/scipy estimate
+   does (FFTs straight from the record plus the two reductions H1, H2 and coherence need) against
+   the same bare FFTs, and the CPU of the estimate's Python glue (the part holding the GIL, which
+   bounds what a second thread can gain).
 
 Each round runs the reference first, then flexmodal, on the same data in this process; prints the
 median wall and CPU times over ``--repeat`` rounds, their ratios and the differences of the results.
@@ -322,6 +325,9 @@ def bench_kernel(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: i
 
     estimate(1)                                 # warm: buffers, FFT plans
     load = os.getloadavg()[0]
+    least = np.array([[_fft_floor(n_fft, nfft, 1, workers=1, clock=time.process_time),
+                       _least_pipeline(samples, nfft)] for _ in range(repeat)])
+    glue = _glue_cpu(samples.shape[1], samples.shape[0], nfft, repeat)
     quiet = rounds()
     with _other_core_busy():
         busy = rounds()
@@ -334,12 +340,79 @@ def bench_kernel(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: i
           f"<= 1.4); the passes besides the FFTs {np.median(c1 - cf):.3f} s")
     print("     where the CPU of 1 thread goes (cProfile, thread time, own time of each part): "
           + _kernel_parts(lambda: estimate(1)))
+    ratio = least[:, 1] / least[:, 0]
+    print(f"     the least any numpy/scipy estimate does (FFTs straight from a strided view of the record, "
+          f"no copy, window, mean removal or check, then the auto-spectra and the cross-spectra against "
+          f"the reference, one call each per block; the best of blocks of {LEAST_BLOCKS} segments): "
+          f"CPU {_spread(least[:, 1])} against its bare FFTs' {_spread(least[:, 0])}: "
+          f"{np.median(ratio):.2f}x ({ratio.min():.2f}-{ratio.max():.2f}) (load average now "
+          f"{os.getloadavg()[0]:.1f})")
+    share = glue / np.median(c1)
+    extra = np.median(quiet[2][:, 1]) / np.median(c1)
+    print(f"     the Python glue (holds the GIL): the same blocks of segments of 16 samples (every call on "
+          f"tiny arrays) {glue:.4f} s of CPU, {100 * share:.1f} % of 1 thread's CPU; with the 2 threads' "
+          f"CPU {extra:.2f}x 1 thread's, two idle cores bound 2 / 1 at {extra * (1 - share) / 2 + share:.2f} "
+          f"(glue serial, the rest halved)")
     for name, t in (("as it is", quiet), ("other core busy", busy)):
         ratio = t[2][:, 0] / t[1][:, 0]
         print(f"     wall, {name}: 1 thread {_spread(t[1][:, 0])}, 2 threads {_spread(t[2][:, 0])}: 2 / 1 = "
               f"{np.median(ratio):.2f} ({ratio.min():.2f}-{ratio.max():.2f}) (target <= 0.6); CPU 2 threads "
               f"{np.median(t[2][:, 1]):.3f} s (medians of {repeat}; load average now "
               f"{os.getloadavg()[0]:.1f})")
+
+
+LEAST_BLOCKS = (4, 16)
+
+
+def _least_pipeline(samples: np.ndarray, nfft: int) -> float:
+    """CPU (s, this thread) of the least a numpy/scipy Welch H1 + H2 + coherence of ``samples`` (first
+    column the reference, half-overlapping segments of ``nfft``) does, the best over blocks of
+    LEAST_BLOCKS segments: per block, one ``scipy.fft.rfft`` straight from a strided view of the
+    record (no copy, window, mean removal or check), then the two reductions the estimators need,
+    the auto-spectra (one ``einsum``) and the cross-spectra against the reference (conjugate, one
+    batched ``matmul``)."""
+    n, n_ch = samples.shape
+    step = nfft // 2
+    n_seg = (n - nfft) // step + 1
+    isz = samples.itemsize
+    best = np.inf
+    for b in LEAST_BLOCKS:
+        t0 = time.thread_time()
+        for first in range(0, n_seg, b):
+            count = min(b, n_seg - first)
+            rows = samples[first * step:]
+            view = np.ndarray((count, nfft, n_ch), samples.dtype, rows,
+                              strides=(step * n_ch * isz, n_ch * isz, isz))
+            spec = scipy.fft.rfft(view, axis=1, workers=1)
+            flat = spec.view(spec.real.dtype).reshape(count, -1)
+            np.einsum("sk,sk->k", flat, flat)
+            np.matmul(spec.transpose(1, 2, 0), spec[:, :, :1].conj().transpose(1, 0, 2))
+        best = min(best, time.thread_time() - t0)
+    return best
+
+
+def _glue_cpu(n_ch: int, n_samples: int, nfft: int, repeat: int) -> float:
+    """Median CPU (s, this thread) of the Welch estimate's Python glue for a record of ``n_samples`` x
+    ``n_ch`` float32 and ``nfft``: the estimate (H1 + H2 + coherence, one thread) of the same number
+    of blocks of the same number of segments, each of 16 samples, so every numpy call is on tiny
+    arrays (below the size at which numpy lets the GIL go): the interpreter and call overhead, all
+    of it holding the GIL."""
+    from unittest import mock
+
+    from flexmodal.modal import spectra
+
+    step = nfft // 2
+    n_seg = (n_samples - nfft) // step + 1
+    block = max(1, min(n_seg, spectra._BLOCK_BYTES // (n_ch * nfft * 4)))
+    tiny = np.random.default_rng(3).standard_normal(((n_seg - 1) * 8 + 16, n_ch)).astype(np.float32)
+    times = []
+    with mock.patch.object(spectra, "_BLOCK_BYTES", block * n_ch * 16 * 4):
+        for _ in range(repeat):
+            t0 = time.thread_time()
+            s = welch_spectra(tiny, 5000.0, [0], list(range(1, n_ch)), 16, workers=1)
+            h1(s), h2(s), coherence(s)
+            times.append(time.thread_time() - t0)
+    return float(np.median(times))
 
 
 KERNEL_PARTS = {   # function (file name ending, function name) -> the part of the estimate it is

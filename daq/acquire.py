@@ -173,8 +173,10 @@ class Display:
             from rich.console import Console
             from rich.live import Live
 
-            # refreshed by update() only: no background thread writing to a terminal that may go away
-            self.live = Live(console=Console(stderr=True), auto_refresh=False, transient=False)
+            # refreshed by update() only: no background thread writing to a terminal that may go away;
+            # stdout is the command's result (the run line) and is never routed into the display
+            self.live = Live(console=Console(stderr=True), auto_refresh=False, transient=False,
+                             redirect_stdout=False)
             self.live.start()
 
     def rows(self, rows: np.ndarray) -> None:
@@ -189,7 +191,7 @@ class Display:
         try:
             self._update(n_samples, rate_hz, dropped, events, lost)
         except OSError:  # the terminal went away (SIGHUP): go on without a display
-            self.live = None
+            self.close()
 
     def _update(self, n_samples: int, rate_hz: float, dropped: int, events: Counter, lost) -> None:
         from rich.table import Table
@@ -239,11 +241,14 @@ class Display:
         return lines
 
     def close(self) -> None:
-        if self.live is not None:
+        """End the live view, once; a terminal that went away is fine (rich's stop gives sys.stderr
+        back before it writes its last frame, so later messages never go through the dead display)."""
+        live, self.live = self.live, None
+        if live is not None:
             try:
-                self.live.stop()
-                if self._last and not self.live.console.is_terminal:  # rich ends a terminal's last frame
-                    self.live.console.line()                          # only: a message below starts afresh
+                live.stop()
+                if self._last and not live.console.is_terminal:  # rich ends a terminal's last frame only:
+                    live.console.line()                          # a message below starts afresh
             except OSError:
                 pass
 

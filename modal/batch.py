@@ -14,6 +14,7 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
+from flexmodal.checked_io.children import ctrl_c_blocked, leave_ctrl_c_to_parent
 from flexmodal.checked_io.text import one_line
 from flexmodal.daq.store import expand_runs
 from flexmodal.modal.compute import compute_frf
@@ -222,10 +223,12 @@ def _end_with_parent() -> None:
 
 
 def _start_worker(pids) -> None:
-    """Initializer of a pool worker: end with the fork server (:func:`_end_with_parent`), tell the
-    caller its process id through the queue ``pids`` (so a Ctrl-C can end it at once, with the public
-    ``os.kill``) and keep BLAS to one thread (the pool's processes already use every CPU it was
-    given; a BLAS pool of its own in each would only oversubscribe them)."""
+    """Initializer of a pool worker: leave Ctrl-C to the caller (a terminal's Ctrl-C reaches every
+    process of the command; the caller ends its workers), end with the fork server
+    (:func:`_end_with_parent`), tell the caller its process id through the queue ``pids`` (so a Ctrl-C
+    can end it at once, with the public ``os.kill``) and keep BLAS to one thread (the pool's processes
+    already use every CPU it was given; a BLAS pool of its own in each would only oversubscribe them)."""
+    leave_ctrl_c_to_parent()
     _end_with_parent()
     pids.put(os.getpid())
     from threadpoolctl import threadpool_limits
@@ -239,15 +242,24 @@ class _Pool:
     its process id at start; :meth:`close` with ``kill`` ends them at once (SIGTERM), without the
     private process table of the executor.  ``background`` starts the processes in a thread of this
     process (the fork server's imports take 0.3-1 s) and completes :attr:`ready` once they run, so the
-    caller keeps computing meanwhile."""
+    caller keeps computing meanwhile.
+
+    The fork server is started (when none runs yet) with SIGINT blocked (:func:`ctrl_c_blocked`):
+    it and every worker it forks start deaf to a terminal's Ctrl-C, through the interpreter's start,
+    the fork server's imports and the worker's start, until the worker ignores it
+    (:func:`_start_worker`); the caller alone answers it."""
 
     def __init__(self, workers: int, options: dict, background: bool = False) -> None:
         import multiprocessing
         import threading
         from concurrent.futures import Future, ProcessPoolExecutor
+        from multiprocessing import forkserver, resource_tracker
 
         context = multiprocessing.get_context("forkserver")
         context.set_forkserver_preload([__name__])
+        resource_tracker.ensure_running()   # first: it starts deaf to SIGINT itself, then unblocks SIGINT
+        with ctrl_c_blocked():              # fork and exec of the fork server: milliseconds
+            forkserver.ensure_running()
         self.workers = workers
         self.options = {**options, "workers": 1}
         self.pids = context.SimpleQueue()

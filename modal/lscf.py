@@ -3,15 +3,29 @@ stabilisation diagram and automatic selection of stable poles (Guillaume et al. 
 Peeters et al. 2004, Shock Vib. 11).
 
 Right matrix-fraction model ``H_o(z) = N_o(z) D(z)^-1`` with ``z = exp(i w dt)``, ``dt = 1/(2 f_max)``
-and real matrix coefficients.  The reduced normal equations ``M = sum_o (T_o - S_o^T R^-1 S_o)`` are
-Toeplitz in the lag ``k - j``; all lag sums are formed once for the highest order by matrix products
-over the frequency lines, and every order's ``M`` follows from one Cholesky factorisation of the
-highest order's ``R`` (the orders are nested), so each order costs one small solve and one
-eigenvalue problem.  With the
-highest denominator coefficient fixed to the identity, the poles are the eigenvalues of the block
-companion matrix; a pole's shape estimate is the numerator at the pole times the denominator's right
-null vector.  A pole is stable when a pole of the previous order lies within ``df`` in frequency,
-``dz`` in damping and (two or more outputs) MAC >= ``mac_min`` in shape.
+and real matrix coefficients.
+
+Or (``common``, FRFs of two or more references) one scalar denominator common to every FRF, in the
+basis ``z = exp(-i w dt)`` (sdypy-EMA's LSCF, from OpenModal): a physical pole ``s`` is then the root
+``z = exp(-s dt)``, and the roots that only fit noise come out at negative damping and are discarded.
+In the ``exp(+i w dt)`` basis they are stable poles of 1.5-3 % damping that fill beam_ring_mimo_frf over
+68-95 Hz at every order above 40 and hide its modes of 6.1 % and 4.4 % at 73.6 and 84.8 Hz, which the
+common-denominator fit finds at every order; the poly-reference fit, in either basis, put them
+0.3-0.7 % off (73.1, 85.1 Hz).  A common denominator cannot tell apart two modes closer than their
+bandwidths (it has one pole for both; the poly-reference fit separates them by their participation):
+:mod:`modal.identify` runs both and keeps the one that explains more.  One reference keeps the
+``exp(+i w dt)`` basis for now: the selection rules were tuned on it, and in the other basis the
+single-reference real-data entries lose modes and gain extras (benchmarks/realdata.py: 106/121 found
+and 13 extras against 107/121 and 3).
+
+The reduced normal equations ``M = sum_o (T_o - S_o^T R^-1 S_o)`` are Toeplitz in the lag ``k - j``; all
+lag sums are formed once for the highest order by matrix products over the frequency lines, and every
+order's ``M`` follows from one Cholesky factorisation of the highest order's ``R`` (the orders are
+nested), so each order costs one small solve and one eigenvalue problem. With the highest denominator
+coefficient fixed to the identity, the poles are the eigenvalues of the block companion matrix; a pole's
+shape estimate is the numerator at the pole times the denominator's right null vector. A pole is stable
+when a pole of the previous order lies within ``df`` in frequency, ``dz`` in damping and (two or more
+outputs) MAC >= ``mac_min`` in shape.
 
 The highest order adapts to the data (:func:`adaptive_stabilisation`: raised until the modes found
 stop growing), and poles are grouped into chains that follow one physical pole over the orders
@@ -74,18 +88,19 @@ def one_blas_thread():
     return _blas_pools().limit(limits=1, user_api="blas")
 
 
-def _lag_sums(freq_hz: np.ndarray, H: np.ndarray, p_max: int, dt: float):
+def _lag_sums(freq_hz: np.ndarray, H: np.ndarray, p_max: int, dt: float, basis: float = 1.0):
     """Real parts of the sums over lines of 1, H and H^H H (summed over outputs) times z^d for lags
     d = -p_max..p_max (index p_max + d), the only parts the real-coefficient normal equations use.
 
     ``Re sum g z^(+-d) = sum Re(g) cos(d theta) -+ sum Im(g) sin(d theta)``: two real matrix products
     [rows x lines] @ [lines x (p_max + 1)] for every row at once, on any frequency grid (z^d by
-    repeated multiplication: complex exp, cos and sin of [lines x lags] cost more than the products)."""
+    repeated multiplication: complex exp, cos and sin of [lines x lags] cost more than the products);
+    ``basis`` -1 takes ``z = exp(-i w dt)`` instead."""
     f = np.asarray(freq_hz, float)
     n_out, n_in, nf = H.shape
     g = np.einsum("oaf,obf->abf", H.conj(), H)                      # [a, b, f]
     rows = np.concatenate([np.ones((1, nf)), H.reshape(-1, nf), g.reshape(-1, nf)])
-    theta = 2 * np.pi * f * dt
+    theta = basis * 2 * np.pi * f * dt
     z = np.cos(theta) + 1j * np.sin(theta)
     zd = np.empty((p_max + 1, nf), complex)                           # z^d [d, f]
     zd[0] = 1.0
@@ -154,11 +169,11 @@ class _NormalEquations:
         return -(powers @ beta).reshape(powers.shape[0], n_out, alpha.shape[1])  # r may be 0
 
 
-def _poles_of_order(index: int, p: int, eqs: _NormalEquations, dt: float, fmin: float, fmax: float
-                    ) -> tuple[np.ndarray, np.ndarray]:
+def _poles_of_order(index: int, p: int, eqs: _NormalEquations, dt: float, fmin: float, fmax: float,
+                    basis: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """Physical continuous-time poles [n] (upper half plane, stable, in [fmin, fmax], ascending) of
     model order ``p`` and their shape estimates [n_out, n]: ``N_o(lambda) v``, the numerator at the
-    pole times the right null vector of the denominator."""
+    pole times the right null vector of the denominator.  ``basis`` -1: the roots are ``exp(-s dt)``."""
     n_in = eqs.n_in
     M = eqs.reduced(index, p)
     k = p * n_in
@@ -178,7 +193,7 @@ def _poles_of_order(index: int, p: int, eqs: _NormalEquations, dt: float, fmin: 
         comp[-n_in:, :] = -alpha[:k].reshape(p, n_in, n_in).transpose(1, 0, 2).reshape(n_in, k)
         lam, vec = np.linalg.eig(comp)
     with np.errstate(divide="ignore", invalid="ignore"):
-        poles = np.log(lam) / dt
+        poles = basis * np.log(lam) / dt
     f = np.abs(poles) / (2 * np.pi)
     idx = np.flatnonzero(np.isfinite(poles) & (poles.imag > 0) & (poles.real < 0) & (f >= fmin) & (f <= fmax))
     idx = idx[np.argsort(f[idx])]
@@ -193,21 +208,26 @@ class PoleEstimator:
     """pLSCF poles of FRFs ``H`` [n_out, n_in, n_freq] at any model orders up to ``p_cap``: the lag sums
     are formed once for ``p_cap``; each call to :meth:`poles` factorises the normal equations of its
     highest order only.  The order-p model does not depend on the highest order (the normal equations
-    are nested), so orders may be requested in successive batches with identical results."""
+    are nested), so orders may be requested in successive batches with identical results.
+    ``common``: one scalar denominator over all n_out x n_in FRFs, basis ``exp(-i w dt)`` (module
+    docstring); the shape estimates are then [n_out n_in, n]."""
 
-    def __init__(self, freq_hz: np.ndarray, H: np.ndarray, p_cap: int) -> None:
+    def __init__(self, freq_hz: np.ndarray, H: np.ndarray, p_cap: int, common: bool = False) -> None:
         f = np.asarray(freq_hz, float)
         if H.ndim != 3 or H.shape[-1] != f.size:
             raise ModalError(f"pLSCF: FRFs of shape {H.shape} do not match {f.size} frequency lines")
         if f.size < 2 * p_cap + 2:
             raise ModalError(f"pLSCF: {f.size} lines are too few for model order {p_cap}")
+        self.basis = -1.0 if common else 1.0
+        if common:
+            H = H.reshape(-1, 1, f.size)
         self.freq_hz, self.p_cap, self.n_in = f, int(p_cap), H.shape[1]
         self.dt = 1.0 / (2 * f.max())
         scale = np.sqrt(np.vdot(H, H).real / H.size)                 # RMS of the FRFs
         if not scale > 0:
             raise ModalError(f"pLSCF: the FRFs are zero between {f.min():g} and {f.max():g} Hz")
         with one_blas_thread():
-            self._sums = _lag_sums(f, H / scale, self.p_cap, self.dt)
+            self._sums = _lag_sums(f, H / scale, self.p_cap, self.dt, self.basis)
 
     def poles(self, orders: list[int]) -> list[tuple[np.ndarray, np.ndarray]]:
         """(poles [n] rad/s, shape estimates [n_out, n]) of each order in ascending ``orders``."""
@@ -220,7 +240,7 @@ class PoleEstimator:
         with one_blas_thread():
             eqs = _NormalEquations(orders, r, s, t)
             band = (self.freq_hz.min(), self.freq_hz.max())
-            return [_poles_of_order(i, p, eqs, self.dt, *band) for i, p in enumerate(orders)]
+            return [_poles_of_order(i, p, eqs, self.dt, *band, self.basis) for i, p in enumerate(orders)]
 
 
 def _nearest_previous(order: np.ndarray, freq_hz: np.ndarray) -> np.ndarray:
@@ -410,7 +430,7 @@ def _order_note(counts: list[tuple[int, int, int]], best: int, why: str, floor: 
 def adaptive_stabilisation(freq_hz: np.ndarray, H: np.ndarray, *, max_order: int | None = None,
                            evaluate: Callable[[Stabilisation], tuple[int, int, T]] | None = None,
                            first_order: int = 24, growth: float = 1.5, patience: int = 2, floor: int = 0,
-                           **criteria) -> tuple[Stabilisation, str, T | None]:
+                           common: bool = False, **criteria) -> tuple[Stabilisation, str, T | None]:
     """Stabilisation diagram whose highest order is raised (by ``growth``, from ``first_order`` poles
     per reference) until the number of modes ``evaluate(diagram)`` finds has not grown for ``patience``
     steps, once at least one mode is found and the modes have explained all ``floor`` clear CMIF
@@ -422,9 +442,10 @@ def adaptive_stabilisation(freq_hz: np.ndarray, H: np.ndarray, *, max_order: int
     that explains more clear peaks.  Returns the diagram of the highest order whose modes explain the
     most clear peaks (above the default cap: only if they explain more than below it), a sentence
     saying which order was used and why (true to the counts), and ``evaluate``'s result at that
-    order."""
+    order.  ``common``: one scalar denominator (:class:`PoleEstimator`), whose poles count as those of
+    one reference."""
     f = np.asarray(freq_hz, float)
-    n_in = H.shape[1]
+    n_in = 1 if common else H.shape[1]
     line_cap = (f.size - 2) // 2
     base, far = (max_order, max_order) if max_order is not None else default_caps(n_in, floor, first_order)
     cap = min(line_cap, far)
@@ -433,7 +454,7 @@ def adaptive_stabilisation(freq_hz: np.ndarray, H: np.ndarray, *, max_order: int
     if evaluate is None:
         def evaluate(stab: Stabilisation) -> tuple[int, int, None]:
             return stable_clusters(stab).freq_hz.size, 0, None
-    estimator = PoleEstimator(f, H, cap)
+    estimator = PoleEstimator(f, H, cap, common)
     top = min(cap, max(4, -(-first_order // n_in)))
     orders = _batch(2, top, n_in)
     found = estimator.poles(orders)

@@ -21,6 +21,7 @@ auto-spectra as one reduction; block sums are accumulated in double precision, i
 from __future__ import annotations
 
 import collections
+import contextlib
 import os
 import queue
 import threading
@@ -261,42 +262,72 @@ class _Plan:
         return g.astype(complex), auto.astype(float), mean_sum, used
 
 
-def _row_blocks(samples, rows_per_block: int, dtype) -> Iterator[tuple[int, np.ndarray]]:
+def _read_rows(samples, first: int, dest: np.ndarray) -> None:
+    """Rows ``first`` .. ``first + len(dest) - 1`` of ``samples`` into ``dest`` (a row-major view of a
+    reused buffer): an HDF5 dataset (h5py) reads straight into it, converting to its dtype; any
+    other array-like is sliced and copied."""
+    if hasattr(samples, "read_direct"):
+        samples.read_direct(dest, np.s_[first:first + dest.shape[0]])
+    else:
+        dest[...] = samples[first:first + dest.shape[0]]
+
+
+_BUFFERS = 3      # reused read buffers: one being filled, one being transformed, one still in use
+
+
+def _row_blocks(samples, rows_per_read: int, keep: int, dtype) -> Iterator[tuple[int, np.ndarray]]:
     """(first row, rows [n, n_columns] as a row-major ``dtype`` array) blocks of ``samples``: an
-    in-memory array that is one already as one block (no copy, no thread: no segment block straddles
-    two reads), else blocks read (an on-disk dataset, h5py) or converted one block ahead in a
-    background thread, so reading overlaps the FFTs; at most three blocks are held at a time."""
+    in-memory array that is one already as one block (no copy, no thread); else ``rows_per_read``
+    rows at a time read (an on-disk dataset, h5py) or converted one block ahead in a background
+    thread, so reading overlaps the FFTs, into _BUFFERS buffers allocated once (no fresh memory,
+    hence no page faults, per read).  Each block also holds the ``keep`` rows before its read
+    (copied from the previous block), so any ``keep + 1`` consecutive rows lie whole in the first
+    block that reaches their end.  A block's rows stay valid until the block after the next one is
+    asked for."""
     if isinstance(samples, np.ndarray) and samples.dtype == dtype and samples.flags.c_contiguous:
         yield 0, samples
         return
-    n = samples.shape[0]
-    ready: queue.Queue = queue.Queue(maxsize=1)
+    n, n_cols = samples.shape
+    buffers = [np.empty((min(n, keep + rows_per_read), n_cols), dtype) for _ in range(_BUFFERS)]
+    free: queue.SimpleQueue = queue.SimpleQueue()
+    for k in range(_BUFFERS):
+        free.put(k)
+    ready: queue.SimpleQueue = queue.SimpleQueue()
     stop = threading.Event()
 
     def read() -> None:
         try:
-            for r in range(0, n, rows_per_block):
+            prev, prev_start = 0, 0
+            for r in range(0, n, rows_per_read):
+                k = free.get()
                 if stop.is_set():
                     return
-                ready.put((r, np.ascontiguousarray(samples[r:r + rows_per_block], dtype)))
+                start = max(0, r - keep)
+                buf = buffers[k]
+                buf[:r - start] = buffers[prev][start - prev_start:r - prev_start]
+                count = min(rows_per_read, n - r)
+                _read_rows(samples, r, buf[r - start:r - start + count])
+                ready.put((start, buf[:r - start + count], k))
+                prev, prev_start = k, start
             ready.put(None)
         except BaseException as exc:  # handed to the consumer, raised there
             ready.put(exc)
 
     reader = threading.Thread(target=read, name="flexmodal-read", daemon=True)
     reader.start()
+    held: collections.deque = collections.deque()
     try:
         while (item := ready.get()) is not None:
             if isinstance(item, BaseException):
                 raise item
-            yield item
+            start, rows, k = item
+            held.append(k)
+            if len(held) > 2:               # the block before the previous one: free for the reader
+                free.put(held.popleft())
+            yield start, rows
     finally:
         stop.set()
-        while reader.is_alive():
-            try:
-                ready.get(timeout=0.05)
-            except queue.Empty:
-                pass
+        free.put(0)                         # wakes a reader waiting for a buffer: it sees stop
         reader.join()
 
 
@@ -386,23 +417,19 @@ def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
     def span(j: int) -> tuple[int, int]:    # rows of segment block j
         return j * block * step, (j * block + min(block, n_seg - j * block) - 1) * step + nfft
 
-    j, tail_start, tail = 0, 0, None      # tail: rows tail_start .. of the blocks not yet complete
-    try:
-        for r0, rows in _row_blocks(samples, read_rows, dtype):
-            end = r0 + rows.shape[0]
-            while j < n_blocks and span(j)[1] <= end:
-                first, last = span(j)
-                if first >= r0:
+    j = 0              # segment blocks submitted (those not in ``pending`` are added)
+    reads = contextlib.closing(_row_blocks(samples, read_rows, span(0)[1] - 1, dtype))
+    try:   # each read holds the rows of one block before it: every segment block lies whole in one
+        with reads as blocks:       # closed on any way out: the reader thread has ended
+            for r0, rows in blocks:
+                earlier = j
+                end = r0 + rows.shape[0]
+                while j < n_blocks and span(j)[1] <= end:
+                    first, last = span(j)
                     submit(j, rows[first - r0:last - r0])
-                else:                       # the block straddles two reads: its rows alone joined
-                    submit(j, np.concatenate([tail[first - tail_start:], rows[:last - r0]]))
-                j += 1
-            if j < n_blocks:
-                first = span(j)[0]
-                if first >= r0:
-                    tail_start, tail = first, rows[first - r0:]
-                else:   # a read block shorter than the segment block still open: keep both
-                    tail, tail_start = np.concatenate([tail[first - tail_start:], rows]), first
+                    j += 1
+                while j - len(pending) < earlier:   # the earlier reads' blocks added: asking for the
+                    add(pending.popleft().result())  # next read lets the reader reuse the one before
         while pending:
             add(pending.popleft().result())
     finally:

@@ -12,11 +12,11 @@ give the same numbers.  Smaller systems (under 0.1 s each) are solved in this pr
 from __future__ import annotations
 
 import pickle
-import signal
 import subprocess
 import sys
 from typing import BinaryIO
 
+from flexmodal.checked_io.children import ctrl_c_blocked, leave_ctrl_c_to_parent
 from flexmodal.models import frame
 from flexmodal.models.frame import FrameModes, FrameSystem
 
@@ -34,9 +34,10 @@ class FrameSolver:
     def __call__(self, system: FrameSystem, n_modes: int) -> FrameModes:
         if system.n_dof < self.offload_dof:
             return frame.solve_modes(system, n_modes)
-        if self.proc is None:
-            self.proc = subprocess.Popen([sys.executable, "-m", "flexmodal.models.eigen_worker"],
-                                         stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+        if self.proc is None:   # started deaf to a terminal's Ctrl-C (its imports included): ours to answer
+            with ctrl_c_blocked():
+                self.proc = subprocess.Popen([sys.executable, "-m", "flexmodal.models.eigen_worker"],
+                                             stdin=subprocess.PIPE, stdout=subprocess.PIPE)
         pickle.dump((system, n_modes), self.proc.stdin, protocol=pickle.HIGHEST_PROTOCOL)
         self.proc.stdin.flush()
         try:
@@ -81,5 +82,5 @@ def serve(source: BinaryIO, sink: BinaryIO) -> None:
 
 
 if __name__ == "__main__":
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # a terminal's Ctrl-C is the parent's to handle
+    leave_ctrl_c_to_parent()  # a terminal's Ctrl-C is the parent's to handle
     serve(sys.stdin.buffer, sys.stdout.buffer)

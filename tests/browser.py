@@ -26,7 +26,8 @@ CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic
 
 
 class Browser:
-    """Minimal DevTools client: ``send`` a command, collect events until a reply or a deadline."""
+    """Minimal DevTools client: ``send`` a command, collect events until a reply or a deadline (hang
+    guards: a niced Chromium's start alone can take a minute on a loaded machine)."""
 
     def __init__(self, exe: str, profile: Path) -> None:
         to_chrome_r, self._to_chrome = os.pipe()
@@ -59,7 +60,7 @@ class Browser:
         return json.loads(msg)
 
     def send(self, method: str, params: dict | None = None, session: str | None = None,
-             timeout_s: float = 120.0) -> dict:
+             timeout_s: float = 300.0) -> dict:
         self._id += 1
         cmd = {"id": self._id, "method": method, "params": params or {}}
         if session:
@@ -74,16 +75,25 @@ class Browser:
                 return msg["result"]
             self.events.append(msg)
 
-    def wait_event(self, method: str, timeout_s: float = 120.0) -> dict:
+    def navigate(self, session: str, url: str, timeout_s: float = 300.0) -> None:
+        """Load ``url`` in the tab of ``session``; return once that document's load event has ended and
+        its ``Page.loadEventFired`` came.  Checked on the new document itself (its URL, a mark the old
+        one carries, its navigation entry), not on "a load event in the list": one of an earlier
+        document (the tab's about:blank, a previous load of the same URL) can come late on a loaded
+        machine."""
+        self.send("Runtime.evaluate", {"expression": "window.__flexmodalOld = true"}, session)
+        seen = len(self.events)
+        self.send("Page.navigate", {"url": url}, session)
+        done = (f"document.URL === {json.dumps(url)} && !window.__flexmodalOld && "
+                "performance.getEntriesByType('navigation')[0]?.loadEventEnd > 0")
         deadline = time.monotonic() + timeout_s
-        for ev in self.events:
-            if ev.get("method") == method:
-                return ev
-        while True:
-            msg = self._read(deadline)
-            self.events.append(msg)
-            if msg.get("method") == method:
-                return msg
+        while not (self.send("Runtime.evaluate", {"returnByValue": True, "expression": done}, session)
+                   ["result"].get("value") and any(e.get("method") == "Page.loadEventFired"
+                                                   and e.get("sessionId") == session
+                                                   for e in self.events[seen:])):
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"{url} did not load within {timeout_s} s")
+            time.sleep(0.02)
 
     def close(self) -> None:
         try:
@@ -150,8 +160,7 @@ def open_page(browser: Browser, page: Path) -> str:
         browser.send(f"{domain}.enable", {}, session)
     browser.send("Emulation.setDeviceMetricsOverride",
                  {"width": 1280, "height": 900, "deviceScaleFactor": 1, "mobile": False}, session)
-    browser.send("Page.navigate", {"url": page.resolve().as_uri()}, session)
-    browser.wait_event("Page.loadEventFired")
+    browser.navigate(session, page.resolve().as_uri())
     return session
 
 

@@ -5,6 +5,15 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from hypothesis import HealthCheck, settings
+
+# One Hypothesis profile for every run, the same as the "ci" profile Hypothesis loads by itself where CI
+# is set: fixed examples (a failure found on one machine is found on every machine), no per-example
+# deadline and no too-slow health check (both on the wall clock: a loaded machine fails them), no
+# example database (a clean clone has none).  @settings of a test override only what they name.
+settings.register_profile("flexmodal", derandomize=True, deadline=None, database=None,
+                          suppress_health_check=[HealthCheck.too_slow])
+settings.load_profile("flexmodal")
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO / "tests" / "data"

@@ -31,7 +31,7 @@ def _interrupt_demo(out: Path, when_exists: str, after_s: float) -> tuple[int, f
             seen.append(time.monotonic())
         return bool(seen) and time.monotonic() - seen[0] >= after_s
 
-    return interrupt(["demo", "--out", str(out)], out.parent, ready, ready_within_s=240.0)
+    return interrupt(["demo", "--out", str(out)], out.parent, ready, ready_within_s=600.0)  # a hang guard
 
 
 def _check(out: Path, code: int, seconds: float, err: str) -> None:
@@ -48,7 +48,6 @@ def _check(out: Path, code: int, seconds: float, err: str) -> None:
     assert not left, f"half-written outputs left behind: {left}"
 
 
-@pytest.mark.timeout(400)
 def test_ctrl_c_while_storing_runs(tmp_path: Path) -> None:
     out = tmp_path / "demo"
     _check(out, *_interrupt_demo(out, "runs.h5", 0.0))
@@ -127,5 +126,5 @@ def test_ctrl_c_that_lands_in_a_weakref_callback_still_stops_the_command():
     import sys
 
     done = subprocess.run([sys.executable, "-c", LOST_IN_A_CALLBACK], capture_output=True, text=True,
-                          timeout=120)
+                          timeout=600)
     assert (done.returncode, done.stderr, done.stdout) == (130, "flexmodal: interrupted\n", "")

@@ -28,9 +28,10 @@ import numpy as np
 import pytest
 from conftest import REPO
 
-pytestmark = pytest.mark.timeout(1800)  # all rows run in the first row's set-up (a module fixture)
-ROW_TIMEOUT_S = 120.0  # a hang guard: rows take 2-8 s at load 11; a niced process at load 20 needs
-# 10-20 s just to import acquire's libraries (26 Nov), so 30 s could call a slow row a hang
+pytestmark = pytest.mark.timeout(3600)  # all rows run in the first row's set-up (a module fixture)
+ROW_TIMEOUT_S = 300.0  # a hang guard: rows take 2-8 s at load 11; a niced process at load 20 needs
+# 10-20 s just to import acquire's libraries (26 Nov), so 30 s could call a slow row a hang (and 120 s
+# one that starts a simulator at load 40)
 THREADS = 2
 RIG = (REPO / "examples" / "rigs" / "seed003_two_link.toml").read_text(encoding="utf-8")
 MODES = (REPO / "examples" / "measured" / "seed003_table3_f1f2.csv").read_text(encoding="utf-8")

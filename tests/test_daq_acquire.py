@@ -21,6 +21,7 @@ import h5py
 import numpy as np
 import pytest
 from cpu_wait import CpuWait
+from polled import assert_polled
 
 from flexmodal.daq.store import list_runs, read_run
 from flexmodal.fixtures.sim_common import read_fault_log
@@ -109,24 +110,11 @@ def test_serial_csv_lines(tmp_path):
 
 def test_modbus_polled_samples_equal_emitted(tmp_path):
     """Every polled sample sits at its index (the device's sample counter register, stored as a
-    channel); on a quiet machine every poll gets the next sample.  A poller starved of CPU on a loaded
-    machine misses samples the device has moved past (seen at load 28): then exactly the rows missed
-    are NaN and reported as gap events, and the rest is clean."""
+    channel); polls missed by a starved poller are reported gaps (tests/polled.py)."""
     _, run, _ = _acquired(_session(tmp_path, "modbus"))
     n = int(DURATION_S * 200)
-    counter = run.samples[:, 0]
-    good = np.isfinite(counter)
     src, steps = _reference("modbus", 200.0)
-    if good.all():
-        _assert_clean(run, np.column_stack([np.arange(n), src.physical(0, n)]), np.r_[1.0, steps], n)
-        return
-    gaps = [e for e in run.events if e.kind == "gap"]
-    missed = np.concatenate([np.arange(e.sample_index, e.sample_index + e.count) for e in gaps])
-    np.testing.assert_array_equal(np.flatnonzero(~good), missed)
-    assert run.samples.shape[0] == n and np.isnan(run.samples[~good]).all()
-    np.testing.assert_array_equal(counter[good], np.flatnonzero(good))
-    assert (np.abs(run.samples[good, 1:] - src.physical(0, n)[good]) / steps).max() <= 1.0
-    assert not [e for e in run.events if e.kind in ("corrupt", "reconnect")]
+    assert_polled(run, n, src.physical(0, n), steps)
 
 
 @pytest.mark.slow
@@ -147,10 +135,8 @@ def test_modbus_rtu_over_a_pty_pair(tmp_path):
     text = config.read_text().replace('transport = "tcp"', 'transport = "rtu"\nbaud = 115200')
     config.write_text(text.replace('host = "127.0.0.1"\n', ""))
     _, run, _ = _acquired(config, 3.0)
-    counter = run.samples[:, 0]
-    np.testing.assert_array_equal(counter, np.arange(600))
     src, steps = _reference("modbus", 200.0)
-    assert (np.abs(run.samples[:, 1:] - src.physical(0, 600)) / steps).max() <= 1.0
+    assert_polled(run, 600, src.physical(0, 600), steps)  # polls missed under load: reported gaps
 
 
 def test_can_on_the_virtual_bus_in_one_process(tmp_path):
@@ -280,7 +266,7 @@ def test_sigkill_of_acquire_keeps_all_but_last_second(tmp_path):
                              "--out", str(out), "--duration", "60"], cwd=REPO, stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL)
     seen: list[tuple[float, int]] = []  # (time, samples visible to a SWMR reader)
-    deadline = time.monotonic() + 60
+    deadline = time.monotonic() + 300  # a hang guard: a niced acquire's start alone took 20 s at load 20
     try:
         with CpuWait(proc.pid) as waits:
             while time.monotonic() < deadline and (not seen or seen[-1][1] < 5 * 2048):

@@ -34,9 +34,8 @@ def _values(k: np.ndarray) -> np.ndarray:
 def _device(channel: str, stop: threading.Event) -> None:
     bus = can.Bus(interface="virtual", channel=channel, preserve_timestamps=True)
     listeners = can.interfaces.virtual.channels[channel]
-    deadline = time.monotonic() + 30
-    while len(listeners) < 2 and time.monotonic() < deadline:  # wait for the acquisition's bus
-        time.sleep(0.01)
+    while len(listeners) < 2 and not stop.is_set():  # the acquisition's bus, however late it comes (a
+        time.sleep(0.01)  # frame sent before it exists is lost: the dropped one would not be in the run)
     t0, k = time.time(), 0
     while not stop.is_set() and k < 20 * RATE:
         due = int((time.time() - t0) * RATE)

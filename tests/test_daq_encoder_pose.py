@@ -5,11 +5,10 @@ from __future__ import annotations
 
 import json
 import threading
-import time
 
 import numpy as np
 import pandas as pd
-from stand_in import record_with
+from stand_in import record_with, stream_paced
 
 from flexmodal.app import main
 from flexmodal.daq.serial_frames import encode_csv
@@ -29,14 +28,9 @@ def _encoder(k: np.ndarray) -> np.ndarray:
 def _device(link: PtyLink, stop: threading.Event) -> None:
     """The stand-in MCU: CSV lines of the simulated impact test plus the encoder, paced in real time."""
     src = sim_source(None, "impact", RATE)
-    t0, k = time.monotonic(), 0
-    while not stop.is_set():
-        due = int((time.monotonic() - t0) * RATE)
-        if due > k:
-            i = np.arange(k, due)
-            link.write(encode_csv(k, np.column_stack([src.block(k, due - k), _encoder(i)])))
-            k = due
-        time.sleep(0.01)
+    stream_paced(link, lambda a, b: encode_csv(a, np.column_stack([src.block(a, b - a),
+                                                                       _encoder(np.arange(a, b))])),
+                     RATE, stop)
 
 
 def test_pose_from_encoder_mean_and_spread_reach_identify(tmp_path):

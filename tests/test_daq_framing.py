@@ -5,12 +5,10 @@ stream that was sent, through the decoders and end to end over a pty into the HD
 from __future__ import annotations
 
 import json
-import threading
-import time
 
 import numpy as np
 import pytest
-from stand_in import record_with
+from stand_in import record_with, stream_paced
 
 from flexmodal.daq.serial_frames import (
     CsvDecoder,
@@ -122,17 +120,6 @@ checksum = "crc16"
 """
 
 
-def _stream(link: PtyLink, records: list[bytes], rate: float, stop: threading.Event) -> None:
-    """A device: sends ``records`` (one per sample) paced at ``rate`` per second."""
-    t0, sent = time.monotonic(), 0
-    while sent < len(records) and not stop.is_set():
-        due = min(len(records), int((time.monotonic() - t0) * rate))
-        if due > sent:
-            link.write(b"".join(records[sent:due]))
-            sent = due
-        time.sleep(0.005)
-
-
 @pytest.mark.parametrize("framing", ["custom", "csv"])
 def test_declared_framing_end_to_end_over_a_pty(tmp_path, framing):
     rate, n = 1000.0, 3000
@@ -156,8 +143,8 @@ def test_declared_framing_end_to_end_over_a_pty(tmp_path, framing):
     config.write_text(SESSION.format(rate=rate, port=link.path, sources=", ".join(f'"{c}"' for c in names),
                                      framing=declared, channels=channels))
     try:
-        run = record_with(lambda stop: _stream(link, records, rate, stop), load_session(config),
-                          tmp_path / "run.h5", n / rate)
+        device = lambda stop: stream_paced(link, lambda a, b: b"".join(records[a:b]), rate, stop, n + 2000)
+        run = record_with(device, load_session(config), tmp_path / "run.h5", n / rate)
     finally:
         link.remove()
     first = int(next(iter(json.loads(run.attrs["first_index"]).values())))

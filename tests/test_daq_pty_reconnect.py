@@ -27,7 +27,7 @@ def _driver(path) -> SerialDriver:
     return SerialDriver(Device("adc", "serial", SerialConfig(str(path), SOURCES)), 1000.0)
 
 
-def _read_all(driver: SerialDriver, n_samples: int, timeout_s: float = 5.0) -> np.ndarray:
+def _read_all(driver: SerialDriver, n_samples: int, timeout_s: float = 60.0) -> np.ndarray:
     got, end = [], time.monotonic() + timeout_s
     while sum(b.values.shape[0] for b in got) < n_samples and time.monotonic() < end:
         got.extend(driver.read())

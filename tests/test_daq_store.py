@@ -173,9 +173,9 @@ def test_sigkill_leaves_all_but_last_second(tmp_path):
             reported.append((int(n), float(t)))
 
     def wait_until(condition, what: str) -> None:
-        deadline = time.monotonic() + 60
+        deadline = time.monotonic() + 300  # a hang guard: the child's start alone takes a minute at load 40
         while not condition():
-            assert time.monotonic() < deadline, f"no {what} within 60 s"
+            assert time.monotonic() < deadline, f"no {what} within 300 s"
             assert child.poll() is None
             time.sleep(0.05)
 

@@ -25,7 +25,7 @@ rho_kg_m3 = 7850
 
 def run_cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
     return subprocess.run([sys.executable, str(REPO / "app.py"), *args], capture_output=True, text=True,
-                          cwd=cwd, timeout=120)
+                          cwd=cwd, timeout=600)
 
 
 @pytest.mark.parametrize(

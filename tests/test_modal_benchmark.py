@@ -32,6 +32,8 @@ def test_benchmark_script_runs_and_reports_ratios_and_differences(capsys, tmp_pa
     assert "so none is more than" in out and "KERNEL Welch H1 + H2 + coherence" in out
     assert "(target <= 1.4)" in out and out.count("(target <= 0.6)") == 2
     assert "where the CPU of 1 thread goes" in out and "FFTs " in out and "cross-spectra product " in out
+    assert "the least any numpy/scipy estimate does" in out and "the Python glue (holds the GIL)" in out
+    assert "two idle cores bound 2 / 1 at " in out
     assert "(target <= 2: process <=" in out and "in CPU (steadier on a shared machine)" in out
     assert list(tmp_path.iterdir()) == []
 

@@ -50,32 +50,77 @@ def _stored(path: Path, samples: np.ndarray, events=()) -> Path:
 @pytest.mark.parametrize("workers", [None, 2])
 def test_streamed_from_hdf5_equals_in_memory(tmp_path, monkeypatch, workers):
     """Read blocks of one 1 MB chunk (their edges cut segments), segment blocks of 20, 1 or 2 FFT
-    threads: the same spectra as from the whole array in memory with one thread, and every block
-    read starts on a chunk boundary."""
+    threads: the same spectra as from the whole array in memory with one thread, and every read
+    starts on a chunk boundary, is whole chunks (but the last) and reads each row once."""
     samples = _record(200_000)
     path = _stored(tmp_path / "run.h5", samples)
     monkeypatch.setattr(modal_spectra, "_BLOCK_BYTES", 20 * 7 * 1024 * 4)
     whole = welch_spectra(samples, FS, [0], range(1, 7), 1024)
     monkeypatch.setattr(modal_spectra, "_READ_BYTES", 100_000)
     starts = []
-    real = modal_spectra._row_blocks
+    real = modal_spectra._read_rows
 
-    def spy(source, rows, *args):
-        for r, block in real(source, rows, *args):
-            starts.append((r, block.shape[0]))
-            yield r, block
+    def spy(source, first, dest):
+        starts.append((first, dest.shape[0]))
+        real(source, first, dest)
 
-    monkeypatch.setattr(modal_spectra, "_row_blocks", spy)
+    monkeypatch.setattr(modal_spectra, "_read_rows", spy)
     with h5py.File(path, "r") as f:
         ds = f["runs/r/samples"]
         streamed = welch_spectra(ds, FS, [0], range(1, 7), 1024, workers=workers)
         chunk = ds.chunks[0]
     assert len(starts) == -(-200_000 // chunk) and all(r % chunk == 0 for r, _ in starts)
     assert all(n % chunk == 0 for _, n in starts[:-1])
+    assert [r for r, _ in starts] == list(np.cumsum([0] + [n for _, n in starts[:-1]]))
+    assert sum(n for _, n in starts) == 200_000
     assert streamed.n_averages == whole.n_averages == (200_000 - 1024) // 512 + 1
     for name in ("g_xf", "g_ff", "g_xx"):
         assert np.array_equal(getattr(streamed, name), getattr(whole, name)), name
     assert np.array_equal(h1(streamed), h1(whole))   # same segment blocks, same sums: identical
+
+
+@pytest.mark.parametrize("workers", [None, 2])
+def test_array_likes_that_are_not_row_major_stream_through_the_reused_buffers(monkeypatch, workers):
+    """A column-major float64 array, an int16 array and a read-only array-like (sliced, not an
+    ndarray) go through the reader's reused buffers in reads that cut segment blocks: the same
+    spectra as their row-major float64 copy in memory; a read or a block's transform that fails
+    midway raises its error in the caller, and the reader thread has ended by then (no hang)."""
+    import threading
+
+    x = np.round(_record(60_000).astype(float) * 100)      # exact in int16 too
+    monkeypatch.setattr(modal_spectra, "_BLOCK_BYTES", 6 * 7 * 512 * 8)
+    monkeypatch.setattr(modal_spectra, "_READ_BYTES", 9_000 * 7 * 8)     # 9000 rows a read
+    whole = welch_spectra(np.ascontiguousarray(x), FS, [0], range(1, 7), 512)
+
+    class Sliced:
+        shape, dtype = x.shape, x.dtype
+
+        def __init__(self, fail_at: int | None = None) -> None:
+            self.fail_at = fail_at
+
+        def __getitem__(self, rows: slice) -> np.ndarray:
+            if self.fail_at is not None and rows.start >= self.fail_at:
+                raise OSError("damaged chunk")
+            return x[rows]
+
+    for source in (np.asfortranarray(x), x.astype(np.int16), Sliced()):
+        streamed = welch_spectra(source, FS, [0], range(1, 7), 512, workers=workers)
+        for name in ("g_xf", "g_ff", "g_xx"):
+            assert np.array_equal(getattr(streamed, name), getattr(whole, name)), (type(source), name)
+    with pytest.raises(OSError, match="damaged chunk") as failed:   # holds the engine's frames
+        welch_spectra(Sliced(fail_at=27_000), FS, [0], range(1, 7), 512, workers=workers)
+    assert failed.tb is not None and not [t for t in threading.enumerate() if t.name == "flexmodal-read"]
+    real = modal_spectra._Plan.sums
+
+    def failing(plan, work, rows, first, b):   # a block's transform fails with reads still to come
+        if first >= 30:
+            raise RuntimeError("block failed")
+        return real(plan, work, rows, first, b)
+
+    monkeypatch.setattr(modal_spectra._Plan, "sums", failing)
+    with pytest.raises(RuntimeError, match="block failed") as failed:
+        welch_spectra(Sliced(), FS, [0], range(1, 7), 512, workers=workers)
+    assert failed.tb is not None and not [t for t in threading.enumerate() if t.name == "flexmodal-read"]
 
 
 def test_memory_stays_a_few_blocks_whatever_the_record_length(tmp_path, monkeypatch):

@@ -30,7 +30,11 @@ def executed(tmp_path_factory):
 
     nb = nbformat.read(NOTEBOOK, as_version=4)
     where = tmp_path_factory.mktemp("notebook")
-    ExecutePreprocessor(timeout=900, kernel_name="python3").preprocess(nb, {"metadata": {"path": str(where)}})
+    # nbclient's other waits are wall-clock too: 60 s for the kernel to start, and only 4 s after a cell's
+    # reply for its outputs, after which the outputs still on their way are dropped with a warning (a
+    # figure missing under load); here generous, and a late output is an error, never a silent loss
+    ExecutePreprocessor(timeout=900, startup_timeout=600, iopub_timeout=600, raise_on_iopub_timeout=True,
+                        kernel_name="python3").preprocess(nb, {"metadata": {"path": str(where)}})
     return nb
 
 

@@ -12,8 +12,10 @@ from __future__ import annotations
 import errno
 import hashlib
 import os
+import select
 import subprocess
 import sys
+import time
 from collections import namedtuple
 from pathlib import Path
 
@@ -158,7 +160,7 @@ def test_frf_on_a_full_disk_exits_2_and_leaves_the_run_byte_identical(tmp_path: 
         digest = _digest(run)
         if mounted:
             done = subprocess.run([_flexmodal(), "frf", str(run), "--workers", "0"], capture_output=True,
-                                  text=True, timeout=120, stdin=subprocess.DEVNULL)
+                                  text=True, timeout=600, stdin=subprocess.DEVNULL)
             assert done.returncode == 2, done.stderr
             lines = done.stderr.strip().splitlines()
             assert len(lines) == 1 and "Traceback" not in done.stderr
@@ -210,7 +212,7 @@ def test_cli_refuses_to_destroy_an_input(tmp_path: Path, command: str) -> None:
     os.mkfifo(tmp_path / "fifo")
     before = {p.name: _digest(p) for p in tmp_path.iterdir() if p.is_file()}
     done = subprocess.run([_flexmodal(), *command.replace("{d}", str(tmp_path)).split()], capture_output=True,
-                          text=True, timeout=120, stdin=subprocess.DEVNULL)
+                          text=True, timeout=600, stdin=subprocess.DEVNULL)
     assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
     assert "Traceback" not in done.stderr
     assert {p.name: _digest(p) for p in tmp_path.iterdir() if p.is_file()} == before
@@ -245,6 +247,46 @@ def test_the_live_display_ends_its_last_frame_with_a_newline(capsys) -> None:
     display.close()
     err = capsys.readouterr().err
     assert "acquiring" in err and err.endswith("\n") and not err.endswith("\n\n")
+
+
+def test_acquire_whose_terminal_closes_keeps_the_run_and_its_result_line(tmp_path: Path) -> None:
+    """stderr is a terminal (a pty, not the controlling one: no SIGHUP) that closes while the run goes
+    on, so the live view's next frames, the last one at the end included, meet EIO.  The view ends, the
+    run is recorded whole, the result line reaches stdout and the exit code is 0 - not the 1 of a
+    traceback (the line went through rich's stdout proxy into the dead terminal: `acquire` died after a
+    SIGHUP 1 run in 8)."""
+    from test_daq_shutdown import START_S, plain_run, session_file, stored
+
+    out = tmp_path / "run.h5"
+    master, slave = os.openpty()
+    proc = subprocess.Popen([sys.executable, "-m", "flexmodal", "acquire", "--config",
+                             str(session_file(tmp_path, "serial")), "--out", str(out), "--duration", "4"],
+                            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=slave, text=True)
+    os.close(slave)
+    try:
+        end = time.monotonic() + START_S
+        while stored(out) < 2048 and time.monotonic() < end:
+            if select.select([master], [], [], 0.05)[0]:
+                os.read(master, 65536)  # a live terminal while the first second is recorded
+        os.close(master)  # then it goes away; the last frame is drawn after 4 s of samples
+        stdout, _ = proc.communicate(timeout=START_S)
+    finally:
+        proc.kill()
+    assert proc.returncode == 0 and stdout.startswith(f"{out}\t") and "8192 samples" in stdout, stdout
+    assert plain_run(out)[0].shape[0] == 8192
+
+
+def test_an_error_with_stderr_gone_still_exits_2(tmp_path: Path) -> None:
+    """The one-line message cannot be written (stderr is a closed terminal): the exit code still says
+    bad input, 2, not the 1 of the traceback that writing the message again raised."""
+    master, slave = os.openpty()
+    os.close(master)
+    try:
+        done = subprocess.run([sys.executable, "-m", "flexmodal", "identify", str(tmp_path / "none.h5")],
+                              stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=slave, timeout=300)
+    finally:
+        os.close(slave)
+    assert done.returncode == 2 and done.stdout == b""
 
 
 @pytest.mark.parametrize("command", [

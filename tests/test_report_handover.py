@@ -119,7 +119,7 @@ assert matplotlib.get_backend() == backend
 assert matplotlib.rcParams["text.parse_math"] is True
 print("ok")
 """
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600,
                          cwd=REPO.parent)
     assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr
 
@@ -137,7 +137,7 @@ def test_stabilisation_diagrams_select_the_modes_of_the_table_of_the_same_run(de
     report_figures = figures[len(figures) - len(captions):]          # diagnosis.html's figure came first
     checked = 0
     for fig, caption in zip(report_figures, captions, strict=True):
-        m = re.match(r"(?:Figure \d+\. )?runs\.h5::(\w+)-impact: pLSCF stabilisation diagram"
+        m = re.match(r"(?:Figure \d+\. )?runs\.h5::(\w+-impact): pLSCF stabilisation diagram"
                      r".*selected modes at ([\d., ]+) Hz", caption)
         if not m:
             continue
@@ -149,7 +149,7 @@ def test_stabilisation_diagrams_select_the_modes_of_the_table_of_the_same_run(de
         assert np.all(nearest < 0.02)                          # every cross sits on a mode of the table
         assert {int(np.argmin(np.abs(expected - v))) for v in x} == set(range(expected.size))
         checked += 1
-    assert checked == len(table.configs)
+    assert checked == len([c for c in table.configs if c.endswith("-impact")])
 
 
 # -- the page in Chromium ---------------------------------------------------------------------------
@@ -200,11 +200,13 @@ def _evaluate(browser, session, js):
 @pytest.fixture(scope="module")
 def page(demo_figures, chromium, tmp_path_factory):
     """The demo report in Chromium at 1280 px: what the page holds, a screenshot of the top and of the
-    contents, the load times of three loads [s], every DevTools event; then the same page in print
-    media at the A4 text width."""
+    contents, the times of three loads [s] (tests/cpu_wait.py clock), every DevTools event; then the
+    same page in print media at the A4 text width."""
     import base64
+    import time
 
     from browser import Browser
+    from cpu_wait import CpuWait
 
     report, _ = demo_figures
     tmp = tmp_path_factory.mktemp("chromium")
@@ -214,12 +216,13 @@ def page(demo_figures, chromium, tmp_path_factory):
         browser.send("Emulation.setDeviceMetricsOverride",
                      {"width": 1280, "height": 900, "deviceScaleFactor": 1, "mobile": False}, session)
         loads = []
-        for _ in range(3):
-            browser.events.clear()
-            browser.send("Page.navigate", {"url": report.resolve().as_uri()}, session)
-            browser.wait_event("Page.loadEventFired", timeout_s=120)
-            loads.append(_evaluate(browser, session, "performance.getEntriesByType('navigation')[0]"
-                                                     ".loadEventEnd / 1000"))
+        for _ in range(3):  # a load's seconds not counting the time Chromium's processes (or this test)
+            browser.events.clear()  # were runnable but waiting for a CPU (tests/cpu_wait.py): the
+            with CpuWait(browser.proc.pid) as waits:  # wall time on a quiet machine, whatever the load
+                start = time.monotonic()
+                browser.navigate(session, report.resolve().as_uri())
+                end = time.monotonic()
+            loads.append(waits.unloaded(start, end))
         events = list(browser.events)
         info = _evaluate(browser, session, PAGE_JS)
         shots = {}
@@ -253,7 +256,7 @@ def test_report_has_contents_whose_links_land_and_numbered_figures_and_tables(pa
     for name in ("top", "contents"):
         pixels = mpimg.imread(page["shots"][name])
         assert pixels.std() > 0.05, name                                # text on it, not a blank box
-    assert info["height"] < 9000                                        # was ~30 000 px with every run open
+    assert info["height"] < 10000      # was ~30 000 px with every run open (the diagnosis of 10 runs: ~9100)
 
 
 def test_report_names_inputs_relative_to_it_and_the_versions(page, demo_figures):

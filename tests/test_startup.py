@@ -15,8 +15,8 @@ HEAVY = ("numpy", "scipy", "h5py", "pandas", "matplotlib", "distributed", "dask"
 
 def _modules_after(code: str) -> set[str]:
     probe = code + "\nimport json, sys\nprint(json.dumps(sorted(sys.modules)))\n"
-    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120,
-                          check=True)
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=600,
+                          check=True)  # a hang guard (a fresh interpreter's imports take a minute at load 40)
     return set(json.loads(done.stdout.strip().splitlines()[-1]))
 
 
@@ -77,8 +77,8 @@ def test_every_help_answers_within_its_budget_wall_clock():
                 start = time.monotonic()
                 proc = subprocess.Popen([sys.executable, "-m", "flexmodal", *command, "--help"],
                                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-                end = exit_seen(proc.pid, 60.0)
+                end = exit_seen(proc.pid, 300.0)  # a hang guard
                 waits.sample()
-            assert proc.wait(timeout=60) == 0, command
+            assert proc.wait(timeout=300) == 0, command
             best, wall = min(best, waits.unloaded(start, end)), min(wall, end - start)
         assert best < 1.5, (command, best, wall)

@@ -39,7 +39,7 @@ def test_every_tracking_figure_of_docs_oma_is_reproduced(part):
     assert not missing, missing
 
 
-@pytest.mark.timeout(900)
+@pytest.mark.timeout(1800)
 def test_benchmark_accuracy_rows_on_a_short_sweep():
     """The benchmark's accuracy measurement on a 40 s sweep 0 -> 60 -> 0 deg with the three harmonic
     orders, modes below 200 Hz: its rows name every tracked mode against the truth model, no harmonic

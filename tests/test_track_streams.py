@@ -25,7 +25,7 @@ from flexmodal.fixtures.sim_can import sim_dbc
 from flexmodal.fixtures.sim_source import MOVING_ORDERS, MOVING_PERIOD_S, MOVING_SPAN_DEG
 from flexmodal.models.rig import load_rig
 
-pytestmark = pytest.mark.timeout(900)   # 20-30 s of streaming each, simulator start-up and tracking
+pytestmark = pytest.mark.timeout(1800)  # 20-30 s of streaming each, simulator start-up and tracking
 
 REPO = Path(__file__).resolve().parents[1]
 GEAR_RATIO = 100.0
