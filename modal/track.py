@@ -637,17 +637,20 @@ def _lowest_mode_hz(y: np.ndarray, sample_rate_hz: float, options: TrackOptions)
     stretch can hold ``LOOK_PERIODS`` periods of (``lowest_hz`` of
     :func:`flexmodal.modal.ssi.default_block_rows`): sized for the model order alone they span a few
     milliseconds, and a weak mode whose period is longer (the wrist arm's 18-25 Hz first mode beside
-    its 67-83 Hz second) is not found."""
+    its 67-83 Hz second) is not found.  A stretch where those lags find nothing (lost samples leave too
+    few lag products) is looked at again with the model order's lags."""
     n = min(y.shape[0], int(LOOK_S * sample_rate_hz))
     found = []
     for a in np.unique(np.linspace(0, y.shape[0] - n, LOOK_STRETCHES).astype(int)):   # a loop over stretches
-        try:   # SSI leaves lost samples (NaN rows) out of its covariances, up to half of the stretch
-            modes = ssi_cov(y[a:a + n], sample_rate_hz, references=_references(y), fmax=options.fmax,
-                            max_order=options.max_order,
-                            lowest_hz=LOOK_PERIODS * sample_rate_hz / n).modes
-        except ModalError:
-            continue
-        found.append(float(modes.freq_hz.min()))
+        for low in (LOOK_PERIODS * sample_rate_hz / n, None):   # long lags, else (gaps) the order's
+            try:   # SSI leaves lost samples (NaN rows) out of its covariances, up to half of the stretch
+                modes = ssi_cov(y[a:a + n], sample_rate_hz, references=_references(y), fmax=options.fmax,
+                                max_order=options.max_order, lowest_hz=low).modes
+            except ModalError:
+                continue
+            if modes.freq_hz.size:
+                found.append(float(modes.freq_hz.min()))
+                break
     return float(np.median(found)) if found else None
 
 
