@@ -2,14 +2,17 @@
 
 ``float("inf")``, ``float("nan")`` and out-of-range integers pass argparse's plain ``type=float`` /
 ``type=int``; these callables reject them with an :class:`argparse.ArgumentTypeError`, which the CLI
-prints as one line naming the option and the value (exit 2).  Imports only the standard library, so
-registering the commands stays cheap.
+prints as one line naming the option and the value (exit 2).  A subnormal number (``5e-324``: nonzero
+but below the smallest normal double, 2.2e-308) is refused too: no quantity of flexmodal is that small,
+and it turns into 0 or infinity at the first product or quotient (a bin count, a chi-square).  ``-0``
+is 0.  Imports only the standard library, so registering the commands stays cheap.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import sys
 from collections.abc import Callable
 
 
@@ -33,6 +36,10 @@ def real(lo: float | None = None, hi: float | None = None, *, lo_open: bool = Fa
             value = float(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
+        value += 0.0   # -0 is 0
+        if value and abs(value) < sys.float_info.min:
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}, a subnormal number "
+                                             f"(nonzero, below {sys.float_info.min:.3g})")
         bad = (not math.isfinite(value)
                or (lo is not None and (value < lo or (lo_open and value == lo)))
                or (hi is not None and (value > hi or (hi_open and value == hi))))
@@ -64,7 +71,7 @@ def integer(lo: int | None = None, hi: int | None = None, *, name: str = "whole 
 
 
 # The option kinds the commands share.
-seconds = real(0.0, lo_open=True, name="duration in seconds")
+seconds = real(0.0, 1e9, lo_open=True, name="duration in seconds")   # 1e9 s: 31.7 years
 hertz = real(0.0, name="frequency in Hz")
 rate_hz = real(0.0, 1e7, lo_open=True, name="sample rate in Hz")
 fraction = real(0.0, 1.0, name="fraction")

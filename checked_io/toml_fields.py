@@ -13,6 +13,7 @@ use it.
 from __future__ import annotations
 
 import math
+import sys
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -106,8 +107,9 @@ class Fields:
     def get(self, key: str, kind: type | tuple[type, ...], default: Any = ..., *,
             check: Callable[[Any], Any] | None = None, why: str = "") -> Any:
         """The value of ``key``, of type ``kind`` (an int is taken for a float; a bool is never a
-        number; a float must be finite; ``object`` takes any value), passing ``check`` (else ``why``
-        says the rule it breaks); ``default`` when absent (required when no default is given)."""
+        number; a float must be finite and not subnormal, and -0.0 is 0.0; ``object`` takes any value),
+        passing ``check`` (else ``why`` says the rule it breaks); ``default`` when absent (required when
+        no default is given)."""
         if key not in self.doc:
             if default is ...:
                 raise self._bad("missing", key, None)
@@ -122,6 +124,11 @@ class Fields:
             raise self._bad("wrong_type", key, raw, kind=name)
         if isinstance(value, float) and not math.isfinite(value):
             raise self._bad("not_finite", key, raw, why=why)
+        if isinstance(value, float) and value and abs(value) < sys.float_info.min:
+            raise self._bad("broken_rule", key, raw,
+                            why=f"must not be subnormal (nonzero, below {sys.float_info.min:.3g})")
+        if isinstance(value, float):
+            value += 0.0   # -0.0 is 0
         lo, hi = self.ranges.get(key, (None, None)) if isinstance(value, int) else (None, None)
         if lo is not None and not lo <= value <= hi:
             raise self._bad("broken_rule", key, raw, why=f"is out of range {lo}..{hi}")

@@ -24,7 +24,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--holdout", default="auto",
                    help="'auto' (leave one configuration out; 5-fold above 10 configurations) or a "
                         "comma-separated list of configurations to hold out")
-    p.add_argument("--scatter", type=opt.real(0.0, 1.0, lo_open=True, hi_open=True, name="fraction"),
+    p.add_argument("--scatter", type=opt.real(1e-6, 1.0, hi_open=True, name="fraction"),
                    default=None,
                    help="fallback relative measurement scatter of the frequencies (fraction; default 0.005 = "
                         "0.5 %%), used only when the table has no repeated configurations and no "

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from flexmodal.checked_io import options as opt
 from flexmodal.cli.commands import command
 
 
@@ -24,13 +25,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--geometry", metavar="GEOMETRY.uff",
                    help="test geometry (UFF datasets 15/2411, 82, 18/2420) to animate the measured modes on")
     p.add_argument("--title", default="flexmodal validation report", help="report title")
-    p.add_argument("--fmin", metavar="HZ", type=float,
+    p.add_argument("--fmin", metavar="HZ", type=opt.positive_hz,
                    help="runs with FRFs: identify above this frequency (as identify --fmin)")
-    p.add_argument("--fmax", metavar="HZ", type=float,
+    p.add_argument("--fmax", metavar="HZ", type=opt.positive_hz,
                    help="runs with FRFs: identify below this frequency (as identify --fmax)")
-    p.add_argument("--oma-fmin", metavar="HZ", type=float,
+    p.add_argument("--oma-fmin", metavar="HZ", type=opt.positive_hz,
                    help="output-only runs: identify (SSI, FDD) above this frequency (as identify --fmin)")
-    p.add_argument("--oma-fmax", metavar="HZ", type=float,
+    p.add_argument("--oma-fmax", metavar="HZ", type=opt.positive_hz,
                    help="output-only runs: identify (SSI, FDD) below this frequency (as identify --fmax)")
     p.add_argument("--out", metavar="REPORT.html", required=True, help="the HTML file to write")
     p.add_argument("--pdf", action="store_true",

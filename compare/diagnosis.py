@@ -46,6 +46,7 @@ from flexmodal.compare.candidates import Candidate, combine, components, parse_e
 from flexmodal.compare.errors import CompareError
 from flexmodal.compare.fit import Target, design, evaluate, fit_candidate, paired_modes
 from flexmodal.compare.gap import (
+    MIN_SCATTER_REL,
     Measured,
     carriers,
     comac,
@@ -465,8 +466,8 @@ def diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str] = "all
 def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], holdout: str | Sequence[str],
               fallback: float | None) -> Diagnosis:
     fallback = DEFAULT_SCATTER if fallback is None else fallback
-    if not 0 < fallback < 1:
-        raise CompareError(f"--scatter must be a fraction in (0, 1) (got {fallback})")
+    if not MIN_SCATTER_REL <= fallback < 1:
+        raise CompareError(f"--scatter must be a fraction in [{MIN_SCATTER_REL:g}, 1) (got {fallback:g})")
     names = parse_effects(effects) if isinstance(effects, str) else parse_effects(",".join(effects))
     meas = prepare(rig, measured)
     noise = estimate_scatter(measured, meas, fallback)

@@ -149,8 +149,13 @@ class Scatter:
     detail: str
 
 
+MIN_SCATTER_REL = 1e-6
+"""No relative frequency scatter below 1 ppm is taken (far below any modal test's repeatability; a
+smaller one, or a subnormal ``freq_std_hz``, squares to 0 in the chi-square of the diagnosis)."""
+
+
 def estimate_scatter(table: ModalTable, meas: Measured, fallback: float) -> Scatter:
-    """Scatter from the data when it carries any, else ``fallback``.
+    """Scatter from the data when it carries any, else ``fallback``; at least ``MIN_SCATTER_REL``.
 
     In order: (1) configurations measured more than once at the same pose: the pooled standard deviation
     of ``ln f`` within each group of repeats, per mode, ``sqrt(sum (ln f - mean)^2 / (N - G))`` (needs at
@@ -168,12 +173,12 @@ def estimate_scatter(table: ModalTable, meas: Measured, fallback: float) -> Scat
         dof = sum((len(g) - 1) * meas.freq_hz.shape[1] for g in reps)
         if dof >= 2:
             value = float(np.sqrt(np.sum(dev**2) / dof))
-            return Scatter(max(value, 1e-6), "repeated configurations",
+            return Scatter(max(value, MIN_SCATTER_REL), "repeated configurations",
                            f"{len(reps)} pose(s) measured more than once, {dof} degrees of freedom")
     if "freq_std_hz" in table.frame.columns:
         rel = (table.frame["freq_std_hz"] / table.frame["freq_hz"]).to_numpy(float)
         rel = rel[np.isfinite(rel) & (rel > 0)]
         if rel.size:
-            return Scatter(float(np.sqrt(np.mean(rel**2))), "freq_std_hz column",
+            return Scatter(max(float(np.sqrt(np.mean(rel**2))), MIN_SCATTER_REL), "freq_std_hz column",
                            f"RMS of freq_std_hz / freq_hz over {rel.size} rows")
     return Scatter(fallback, "--scatter (fallback)", "the data carry no repeats and no freq_std_hz column")

@@ -13,10 +13,10 @@ In the ``exp(+i w dt)`` basis they are stable poles of 1.5-3 % damping that fill
 common-denominator fit finds at every order; the poly-reference fit, in either basis, put them
 0.3-0.7 % off (73.1, 85.1 Hz).  A common denominator cannot tell apart two modes closer than their
 bandwidths (it has one pole for both; the poly-reference fit separates them by their participation):
-:mod:`modal.identify` runs both and keeps the one that explains more.  One reference keeps the
-``exp(+i w dt)`` basis for now: the selection rules were tuned on it, and in the other basis the
-single-reference real-data entries lose modes and gain extras (benchmarks/realdata.py: 106/121 found
-and 13 extras against 107/121 and 3).
+:mod:`modal.identify` runs both and keeps the one that explains more.  With one reference it
+keeps the ``exp(+i w dt)`` basis, on which the selection rules were tuned, unless the other explains
+more and loses nothing (:mod:`modal.identify`; the ``common`` estimator of one reference is the
+exp(-i w dt) fit of its FRFs).
 
 The reduced normal equations ``M = sum_o (T_o - S_o^T R^-1 S_o)`` are Toeplitz in the lag ``k - j``; all
 lag sums are formed once for the highest order by matrix products over the frequency lines, and every

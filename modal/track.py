@@ -17,7 +17,7 @@ the amplitude statistics of a sinusoid (kurtosis near 1.5, where a mode's random
 harmonic: it is reported with its order, never as a mode, and never joins a mode's track.  The orders
 are found first and taken out of the record before identification
 (:func:`flexmodal.modal.harmonics.remove_orders`: each harmonic's phase is its order times the encoder
-angle), so a harmonic dwelling on a mode does not pull the mode's estimate.
+angle), so a harmonic dwelling on a mode pulls the mode's estimate much less.
 
 Tracking.  Modes are followed window by window by a Hungarian assignment between the open tracks and
 the window's poles with the cost ``|f - f_pred| / (gate_rel f) + (1 - MAC) / (1 - mac_min)`` (the
@@ -51,6 +51,7 @@ from flexmodal.modal.harmonics import find_orders, is_order, remove_orders, sinu
 from flexmodal.modal.ssi import default_block_rows, ssi_cov
 
 MIN_WINDOW_SAMPLES = 64    # a tracking window shorter than this holds no covariance to fit
+MIN_HOP_FRACTION = 1 / 64  # windows stepping by less overlap by > 98 %: no new data, only more work
 MAX_REFS = 4               # SSI reference channels per window (the ones with the largest RMS)
 LOOK_S = 4.0              # the slowest mode is looked for in stretches this long ...
 LOOK_STRETCHES = 6        # ... this many, spread over the record, by SSI whose time lags reach half a
@@ -172,14 +173,18 @@ def window_plan(n_samples: int, sample_rate_hz: float, pose: np.ndarray, lowest_
         fast = float(np.nanpercentile(rate, 90)) if np.isfinite(rate).any() else 0.0
         hop = 0.25 * options.bin_deg / fast if fast > 0 else 0.5 * win
         hop = float(np.clip(hop, win / 8, win / 2))
-    n_win, n_hop = int(round(win * fs)), max(1, int(round(hop * fs)))
-    if n_win > n_samples:
+    if win * fs >= n_samples + 0.5:   # rounded below; compared first: 1e308 s has no sample count
         raise ModalError(f"tracking window of {win:.3g} s is longer than the record "
                          f"({n_samples / fs:.3g} s); give a shorter window")
+    n_win = int(round(win * fs))
     if n_win < MIN_WINDOW_SAMPLES:
         raise ModalError(f"tracking window of {win:.3g} s holds {n_win} samples at {fs:g} Hz; give at least "
                          f"{MIN_WINDOW_SAMPLES / fs:.3g} s ({MIN_WINDOW_SAMPLES} samples)")
-    return n_win, n_hop
+    if hop < MIN_HOP_FRACTION * win:   # also at least one sample, as the window holds 64 or more
+        raise ModalError(f"tracking hop (--hop) of {hop:.3g} s is shorter than 1/{1 / MIN_HOP_FRACTION:g} of "
+                         f"the {win:.3g} s window: windows overlapping by more than 98 % add work, no data; "
+                         f"give at least {MIN_HOP_FRACTION * win:.3g} s")
+    return n_win, max(1, int(round(min(hop * fs, n_samples))))   # a hop past the end: one window
 
 
 def _references(y: np.ndarray) -> list[int]:
@@ -598,11 +603,19 @@ def modal_map(windows: Sequence[WindowPoles], tracks: Sequence[Track], outputs: 
     bins: dict[tuple[int, ...], list[tuple[int, int]]] = {}
     for m, t in enumerate(tracks):
         for i, k in enumerate(t.windows):
-            key = tuple(int(np.floor(windows[k].pose[v] / bin_deg + 0.5)) for v in names)
-            bins.setdefault(key, []).append((m, i))
+            index = [windows[k].pose[v] / bin_deg + 0.5 for v in names]
+            if not np.isfinite(index).all():
+                raise ModalError(f"pose bin (--bin) of {bin_deg:g} deg is too narrow to count poses up to "
+                                 f"{max(abs(windows[k].pose[v]) for v in names):g} deg")
+            bins.setdefault(tuple(int(np.floor(x)) for x in index), []).append((m, i))
+    names_of = {key: ",".join(f"{v}={b * bin_deg:g}" for v, b in zip(names, key, strict=True))
+                for key in bins}
+    if len(set(names_of.values())) < len(names_of):
+        raise ModalError(f"pose bin (--bin) of {bin_deg:g} deg is too narrow: bins of the modal map would "
+                         "share their names (6 significant digits); give a wider bin")
     for key in sorted(bins):
         members = bins[key]
-        config = ",".join(f"{v}={b * bin_deg:g}" for v, b in zip(names, key, strict=True))
+        config = names_of[key]
         for m in sorted({m for m, _ in members}):
             t = tracks[m]
             sel = np.array([i for mm, i in members if mm == m])

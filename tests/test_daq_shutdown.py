@@ -120,7 +120,9 @@ def test_sigterm_closes_the_run_cleanly(tmp_path, protocol):
     proc = start_acquire(session_file(tmp_path, protocol), out, 60)
     try:
         with CpuWait(proc.pid) as waits:
-            assert wait_for(lambda: stored(out) > 0, START_S), f"no samples within {START_S} s"
+            assert wait_for(lambda: stored(out) > 0 or proc.poll() is not None, START_S), \
+                f"no samples within {START_S} s"
+            assert proc.poll() is None, f"ended before the signal: {proc.communicate()[1][-2000:]}"
             t_first = time.monotonic()
             time.sleep(random.Random(protocol).uniform(1.0, 3.0))  # a fixed moment per protocol
             sim = children(proc.pid)
@@ -180,7 +182,7 @@ def test_killed_simulator_is_a_lost_device_and_ends_the_session(tmp_path, protoc
     finally:
         proc.kill()
     took = waits.unloaded(t_kill, t_exit)  # not counting time spent waiting for a CPU (tests/cpu_wait.py)
-    assert proc.returncode == 2
+    assert proc.returncode == 2, stderr[-3000:]
     assert stderr.count("\n") == 1 and f"device {device!r} lost" in stderr
     print(f"{protocol}: session ended {took:.2f} s ({t_exit - t_kill:.2f} s wall) after the simulator was "
           "killed (timeout 5 s)")

@@ -137,3 +137,52 @@ def test_damping_at_one_to_three_lines_per_half_power_band_is_unbiased_like_sdyp
                                   strict=True) if fp.size]
         theirs.append(np.median([z for fr, z in near if abs(fr / x - 1) < 2e-3]))
     assert np.all(np.abs(np.array(theirs) / zeta - 1) < 0.01), np.array(theirs) / zeta
+
+
+def test_a_broad_pole_with_no_peak_of_its_own_is_not_hidden_by_a_light_mode_beside_it():
+    """_unseen: a 2 % pole 6 Hz from a visible 0.1 % mode at 100 Hz lies within two of its own
+    half-power bandwidths (2 x 4.24 Hz) of that mode, but the mode is 21 times narrower: its peak hides
+    no broad resonance, so the broad pole counts as unseen.  Two poles of like widths, neither visible,
+    still exempt each other (a close pair may hide each other's peaks)."""
+    from flexmodal.modal.identify import _unseen
+
+    f = np.arange(50.0, 150.0, 0.1)
+    broad = _clusters([100.0, 106.0], [0.001, 0.02])
+    assert _unseen(f, broad, np.array([100.0])).tolist() == [False, True]
+    pair = _clusters([100.0, 100.3], [0.001, 0.0012])
+    assert _unseen(f, pair, np.zeros(0)).tolist() == [False, False]
+    lone = _clusters([100.0, 120.0], [0.001, 0.001])
+    assert _unseen(f, lone, np.array([100.0])).tolist() == [False, True]
+
+
+def _found(fn, zeta, synthesis):
+    """A search result (diagram, note, (clusters, fit, warnings, report)) of modes ``fn``."""
+    from types import SimpleNamespace
+
+    clusters = _clusters(fn, zeta)
+    return None, "note", (clusters, SimpleNamespace(synthesis=synthesis), [], np.ones(len(fn), bool))
+
+
+def test_one_reference_takes_the_other_basis_only_for_more_peaks_none_lost_and_a_fit_no_worse():
+    """_one_reference_basis: exp(-i w dt) (``search(True)``) replaces exp(+i w dt) only when it explains
+    every clear CMIF peak the other explains and more, and its synthesis correlates with the FRFs no
+    worse (modal.indicators.frac: 1 for an exact synthesis)."""
+    from flexmodal.modal.identify import _one_reference_basis
+
+    f = np.arange(1.0, 300.0)
+    H = modal_frf(f, [50.0, 120.0, 200.0], [0.01] * 3, [[1.0, 0.5, 0.8]], [[1.0, 1.0, 1.0]])
+    peaks = np.array([50.0, 120.0, 200.0])
+    exact, off = H, H + 0.3 * np.abs(H).max()
+
+    def choose(plus, minus):
+        def search(common):
+            return minus if common else plus
+        return _one_reference_basis(f, H, peaks, search)[2][0].freq_hz.tolist()
+
+    two, three = _found([50.0, 120.0], [0.01] * 2, exact), _found([50.0, 120.0, 200.0], [0.01] * 3, exact)
+    assert choose(two, three) == [50.0, 120.0, 200.0]                                 # one more peak
+    assert choose(three, two) == [50.0, 120.0, 200.0]                                 # one fewer
+    assert choose(two, _found([50.0, 120.0], [0.01] * 2, exact)) == [50.0, 120.0]     # a tie keeps +
+    lost = _found([50.0, 200.0, 260.0], [0.01] * 3, exact)
+    assert choose(_found([120.0], [0.01], exact), lost) == [120.0]                  # 120 Hz lost
+    assert choose(two, _found([50.0, 120.0, 200.0], [0.01] * 3, off)) == [50.0, 120.0]   # worse fit
