@@ -7,6 +7,8 @@
    tens of %), the share of its window estimates with damping within 30 % of the truth where the
    window holds >= 50 periods (median error), and the same two shares over the modal map's pose bins;
    the harmonic orders found against those simulated, and how many tracks follow a harmonic.
+   The same for the two-joint path (the wrist arm), the veering case (the tool arm) and true crossings
+   (two arms on one rigid bench sweeping opposite ways: which branch, and which arm, each track follows).
 2. Diagnosis: the demo arm with a hidden compliant elbow, `diagnose` on the tracked map of one sweep and
    on a frozen-pose campaign of operational records: verdict, fitted stiffness, held-out error.
 3. Speed (``--speed [MINUTES]``): a 10-minute (or MINUTES) 16-channel record of the same sweep (16
@@ -14,7 +16,8 @@
    against real time (the wall time on the shared 2-core machine depends on the other users).
 
 Prints markdown table rows; tests/test_track_docs.py checks that every row of parts 1-2 stands in
-docs/oma.md.  Usage: ``python benchmarks/track.py [--speed [MINUTES]]``.
+docs/oma.md (one slow test per table: about 30-70 s of CPU each, so tens of minutes at a load of 10+).
+Usage: ``python benchmarks/track.py [--speed [MINUTES]]``.
 """
 
 from __future__ import annotations
@@ -94,7 +97,7 @@ def _accuracy(rig_path, path: Trajectory, fmax_hz: float, seed: int, label: str,
         map_f = np.abs(rows_k["freq_hz"].to_numpy() / np.interp(s_bins, s_grid, f_grid[:, r]) - 1)
         map_z = np.abs(rows_k["damping_ratio"].to_numpy() / np.interp(s_bins, s_grid, z_grid[:, r]) - 1)
         covered = np.sum(err < 0.01) / len(res.windows)
-        rows.append(f"| mode {k + 1} ({f_true.min():.0f}-{f_true.max():.0f} Hz) | {covered:.0%} "
+        rows.append(f"| mode {k + 1} ({f_grid[:, r].min():.0f}-{f_grid[:, r].max():.0f} Hz) | {covered:.0%} "
                     f"| {err.max():.1%} | {np.mean(zerr < 0.3):.0%} ({np.median(zerr):.0%}; "
                     f"{np.mean(zerr < 2 * bound):.0%} within 2 sigma; {np.median(tr.span_s):.1f} s) "
                     f"| {np.mean(map_f < 0.01):.0%} of {len(rows_k)} "
@@ -116,9 +119,9 @@ def _accuracy(rig_path, path: Trajectory, fmax_hz: float, seed: int, label: str,
 
 
 def two_joint_rows() -> list[str]:
-    """The two-joint path: the wrist arm (the demo arm with a wrist) along WRIST_PATH, modes below 450 Hz
-    (windows of 80 periods at ``fmin`` = 20 Hz, near its slowest mode, 18-25 Hz)."""
-    return accuracy_rows(WRIST_RIG, WRIST_PATH, 450.0, seed=11, fmin=20.0,
+    """The two-joint path: the wrist arm (the demo arm with a wrist) along WRIST_PATH, modes below 450 Hz,
+    the windows sized by tracking itself (80 periods of the slowest mode it finds, 18-25 Hz)."""
+    return accuracy_rows(WRIST_RIG, WRIST_PATH, 450.0, seed=11,
                          label="elbow 0-120-0 deg with wrist 0-(-90)-0 deg in 120 s")
 
 
@@ -139,6 +142,51 @@ def veering_rows() -> list[str]:
         first, last = tr.shapes[:, np.argmin(theta)], tr.shapes[:, np.argmax(theta)]
         ends.append(f"mode {k + 1}: {float(mac(first[:, None], last[:, None])[0, 0]):.2f}")
     rows.append(f"| MAC of a veering track's shapes at 0 and 150 deg | {'; '.join(ends)} | | | | |")
+    return rows
+
+
+def crossing_rows(seed: int = 17) -> list[str]:
+    """True crossings: two demo arms on one rigid bench (fixtures.moving_arm.simulate_two_arms), the first's
+    elbow sweeping 0 -> 150 -> 0 deg while the second's sweeps 150 -> 0 -> 150 deg in 90 s, no harmonics;
+    nothing couples them, so each of the three modes of one arm crosses the same mode of the other where
+    the poses meet (75 deg, at 22.5 and 67.5 s).  Per track: the branch it follows (arm and mode, the truth
+    model's frozen-pose modes of each arm at the window's pose of that arm), the share of all windows
+    within 1 % of that branch, the largest error, the share of its windows whose shape lies mostly on
+    that arm's sensors (a swap would put it on the other's), and the crossings it runs through."""
+    from flexmodal.fixtures.moving_arm import CROSSING, SECOND, simulate_two_arms
+
+    rig = load_rig(DEMO_RIG)
+    bench = simulate_two_arms(rig, ELBOW_SWEEP, CROSSING, sample_rate_hz=1024.0, seed=seed)
+    names, kinds = [c.name for c in bench.channels], [c.kind for c in bench.channels]
+    res = track_modes(bench.samples, bench.sample_rate_hz, names, kinds, bench.pose_from,
+                      TrackOptions(fmax=FMAX_HZ))
+    arm_b = np.array([n.startswith(SECOND) for n in res.outputs])
+    truth = {}   # (arm, theta) -> frozen-pose frequencies, solved once per window pose
+    rows = [f"| crossing: two demo arms on a rigid bench, elbows 0-150-0 and 150-0-150 deg in 90 s, no "
+            f"harmonics | {len(res.windows)} windows of {res.window_s:.2f} s every {res.hop_s:.2f} s, "
+            f"{res.skipped} skipped | {len(res.tracks)} modes tracked | | |"]
+    for k, tr in enumerate(res.tracks):
+        f_true = []
+        for i in tr.windows:   # a loop over the track's windows: both arms' truth at their poses
+            pose = res.windows[i].pose
+            row = []
+            for arm, var in (("A", "theta_deg"), ("B", SECOND + "theta_deg")):
+                key = (arm, round(pose[var], 1))
+                if key not in truth:
+                    truth[key] = frozen_truth(rig, {"theta_deg": key[1]}, FMAX_HZ)[0][:3]
+                row.append(truth[key])
+            f_true.append(np.concatenate(row))
+        err = np.abs(tr.freq_hz[:, None] / np.array(f_true) - 1)   # [windows, 6 branches]
+        branch = int(np.argmin(np.median(err, axis=0)))
+        arm = "AB"[branch // 3]
+        on_arm = np.sum(tr.shapes[arm_b] ** 2, axis=0) / np.sum(tr.shapes ** 2, axis=0)
+        on_arm = on_arm if arm == "B" else 1 - on_arm
+        t = np.array([res.windows[i].t_s for i in tr.windows])
+        crossed = sum(int(t.min() < c - res.window_s and t.max() > c + res.window_s) for c in (22.5, 67.5))
+        f_b = np.array(f_true)[:, branch]
+        rows.append(f"| mode {k + 1}: arm {arm} mode {branch % 3 + 1} ({f_b.min():.0f}-{f_b.max():.0f} Hz) "
+                    f"| {np.sum(err[:, branch] < 0.01) / len(res.windows):.0%} | {err[:, branch].max():.1%} "
+                    f"| {np.mean(on_arm > 0.5):.0%} on arm {arm}'s sensors | {crossed} of 2 crossings |")
     return rows
 
 
@@ -206,6 +254,7 @@ if __name__ == "__main__":
     print("\n".join(accuracy_rows()))
     print("\n".join(two_joint_rows()))
     print("\n".join(veering_rows()))
+    print("\n".join(crossing_rows()))
     print("\n".join(diagnosis_rows()))
     if "--speed" in sys.argv[1:]:   # --speed [minutes], default 10
         rest = sys.argv[sys.argv.index("--speed") + 1:]

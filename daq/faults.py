@@ -29,6 +29,8 @@ class Faults:
         None, "impact test: the hit nearest S s into the record bounces back (a double hit)")
     overload_at_s: float | None = _fault(None, "impact test: the hit nearest S s into the record overloads "
                                                "the ADC")
+    overrun_after_s: float = _fault(1.0, "serial/slcan: what the reader leaves unread this long, s, is "
+                                         "dropped (the device's buffer overruns)", lo_open=True)
 
     @property
     def on_link(self) -> bool:

@@ -14,12 +14,18 @@ selection) on each window, with at most ``MAX_REFS`` reference channels.
 Harmonics (:mod:`flexmodal.modal.harmonics`).  A pole whose frequency is an order of a joint's speed
 (``f = order x |rate| / 360``, orders given or found from the data) or whose band-passed signal has
 the amplitude statistics of a sinusoid (kurtosis near 1.5, where a mode's random response has 3) is a
-harmonic: it is reported with its order, never as a mode, and never joins a mode's track.
+harmonic: it is reported with its order, never as a mode, and never joins a mode's track.  The orders
+are found first and taken out of the record before identification
+(:func:`flexmodal.modal.harmonics.remove_orders`: each harmonic's phase is its order times the encoder
+angle), so a harmonic dwelling on a mode pulls the mode's estimate much less.
 
 Tracking.  Modes are followed window by window by a Hungarian assignment between the open tracks and
 the window's poles with the cost ``|f - f_pred| / (gate_rel f) + (1 - MAC) / (1 - mac_min)`` (the
 predicted frequency extrapolates the track's last two estimates, so modes whose frequencies cross are
-told apart by their shapes and slopes); a pair outside either gate is no match.  A track with no match
+told apart by their shapes and slopes; MAC is the smaller of the MACs with the track's last shape and
+with its shape ``MAC_LAG_S`` earlier, so a pole whose shape turns gradually from one mode's to
+another's, two crossing modes merged, is not followed across); a pair outside either gate is no
+match.  A track with no match
 for more than ``max_gap`` windows is ended (a mode that disappears ends, it is not swapped for another);
 a pole with no track starts one.  Tracks shorter than ``min_windows`` are dropped; the rest are numbered
 by their median frequency.
@@ -41,19 +47,25 @@ from scipy.optimize import linear_sum_assignment
 from flexmodal.contract.mac import mac
 from flexmodal.contract.table import POSE_PREFIX, SHAPE_PREFIX, ModalTable
 from flexmodal.modal.errors import ModalError
-from flexmodal.modal.harmonics import find_orders, is_order, sinusoid_kurtosis
+from flexmodal.modal.harmonics import find_orders, is_order, remove_orders, sinusoid_kurtosis
 from flexmodal.modal.ssi import default_block_rows, ssi_cov
 
 MIN_WINDOW_SAMPLES = 64    # a tracking window shorter than this holds no covariance to fit
 MIN_HOP_FRACTION = 1 / 64  # windows stepping by less overlap by > 98 %: no new data, only more work
 MAX_REFS = 4               # SSI reference channels per window (the ones with the largest RMS)
 LOOK_S = 4.0              # the slowest mode is looked for in stretches this long ...
-LOOK_STRETCHES = 6        # ... this many, spread over the record
+LOOK_STRETCHES = 6        # ... this many, spread over the record, by SSI whose time lags reach half a
+LOOK_PERIODS = 40.0       # period of a mode holding this many periods in a stretch (10 Hz in 4 s)
 STITCH_GAP = 40           # windows: a later track may continue an earlier one after this many
+STITCH_FIRST = 5          # ... when its prediction agrees with one of the later one's first this many
+MAC_LAG_S = 3.0           # a pole joins a track only if its shape matches the track's last one and the
+#                           one this many seconds before (two crossing modes merged into one pole whose
+#                           shape turns from one to the other are not followed from one to the other)
 SMOOTH_WINDOWS = 5        # the refinement's frequency track: a running median over this many estimates,
 SMOOTH_SPAN = 15          # then a quadratic Savitzky-Golay fit over this many
 REFINE_PERIODS = 150.0    # the refinement's window holds this many periods (at least the first pass's)
 REFINE_BAND = 0.4         # the refinement looks within +-40 % of the track's frequency ...
+REFINE_RATE = 4.0         # ... decimated to this many times the band's top,
 REFINE_ORDER = 30         # ... with SSI model orders up to this, and block rows spanning lags of
 REFINE_LAG_PERIODS = 4.0  # this many periods (as many as the window holds, 40 samples per row)
 ZETA_FLOOR = 0.002        # the damping ratio the refinement's window is sized for is at least this
@@ -207,11 +219,12 @@ def _merge_doublets(f: np.ndarray, z: np.ndarray, sh: np.ndarray, options: Track
             shapes / np.abs(shapes).max(axis=0))
 
 
-def identify_windows(y: np.ndarray, pose: np.ndarray, pose_names: Sequence[str], sample_rate_hz: float,
-                     options: TrackOptions, lowest_hz: float) -> tuple[list[WindowPoles], int, int, int]:
-    """SSI-cov in every window of the outputs ``y`` [n, n_out] whose pose spread is small enough and
-    which holds no lost sample (a NaN row of ``y`` or ``pose``: a gap of the acquisition); returns the
-    windows, the numbers skipped for their spread and for a gap, the window length and hop (samples)."""
+def window_starts(y: np.ndarray, pose: np.ndarray, sample_rate_hz: float, options: TrackOptions,
+                  lowest_hz: float) -> tuple[list[int], int, int, int, int, list[int]]:
+    """The windows of the outputs ``y`` [n, n_out] to identify: their first samples (those whose pose
+    spread is small enough and which hold no lost sample, a NaN row of ``y`` or ``pose``: a gap of the
+    acquisition), the numbers skipped for their spread and for a gap, the window length and hop
+    (samples) and the SSI reference channels."""
     fs = sample_rate_hz
     refs = _references(y)
     q = max(1, int(fs // (4 * options.fmax))) if options.fmax else 1   # SSI's decimation (docs/oma.md)
@@ -219,16 +232,25 @@ def identify_windows(y: np.ndarray, pose: np.ndarray, pose_names: Sequence[str],
                -(-options.max_order // y.shape[1]) + 1)
     n_win, n_hop = window_plan(y.shape[0], fs, pose, lowest_hz, options, 40 * rows * q)   # SSI's minimum
     lost = np.concatenate([[0], np.cumsum(~np.isfinite(np.hstack([y, pose])).all(axis=1))])
-    out, skipped, gapped = [], 0, 0
+    starts, skipped, gapped = [], 0, 0
     for a in range(0, y.shape[0] - n_win + 1, n_hop):   # a loop over windows
         if lost[a + n_win] > lost[a]:
             gapped += 1
-            continue
-        p = pose[a:a + n_win]
-        spread = p.std(axis=0)
-        if np.any(spread > options.max_spread_deg):
+        elif np.any(pose[a:a + n_win].std(axis=0) > options.max_spread_deg):
             skipped += 1
-            continue
+        else:
+            starts.append(a)
+    return starts, skipped, gapped, n_win, n_hop, refs
+
+
+def identify_windows(y: np.ndarray, pose: np.ndarray, pose_names: Sequence[str], sample_rate_hz: float,
+                     options: TrackOptions, lowest_hz: float, starts: Sequence[int], n_win: int,
+                     refs: list[int]) -> list[WindowPoles]:
+    """SSI-cov in the windows of ``n_win`` samples from ``starts`` (:func:`window_starts`)."""
+    fs = sample_rate_hz
+    out = []
+    for a in starts:   # a loop over windows
+        p = pose[a:a + n_win]
         seg = y[a:a + n_win]
         try:
             res = ssi_cov(seg, fs, references=refs, fmin=options.fmin, fmax=options.fmax,
@@ -241,27 +263,33 @@ def identify_windows(y: np.ndarray, pose: np.ndarray, pose_names: Sequence[str],
         kurt = sinusoid_kurtosis(seg, fs, f, z, n_win / fs, sh)
         out.append(WindowPoles((a + n_win / 2) / fs,
                                dict(zip(pose_names, p.mean(axis=0).tolist(), strict=True)),
-                               dict(zip(pose_names, spread.tolist(), strict=True)),
+                               dict(zip(pose_names, p.std(axis=0).tolist(), strict=True)),
                                dict(zip(pose_names, _slope(p, fs).tolist(), strict=True)),
                                f, z, sh, kurt, np.zeros(f.size)))
-    return out, skipped, gapped, n_win, n_hop
+    return out
 
 
-def mark_harmonics(windows: list[WindowPoles], y: np.ndarray, pose: np.ndarray, sample_rate_hz: float,
-                   n_win: int, options: TrackOptions
-                   ) -> tuple[list[WindowPoles], list[Harmonic], dict[str, tuple[float, ...]]]:
-    """Flag each window's harmonic poles (module docstring) and list them; the orders per joint."""
+def joint_orders(y: np.ndarray, pose: np.ndarray, pose_names: Sequence[str], sample_rate_hz: float,
+                 starts: Sequence[int], n_win: int, options: TrackOptions) -> dict[str, tuple[float, ...]]:
+    """The harmonic orders of each pose variable's joint (per revolution): ``options.orders`` when
+    given, else found in the windows from ``starts`` (:func:`flexmodal.modal.harmonics.find_orders`)."""
     orders: dict[str, tuple[float, ...]] = {}
-    joints = list(windows[0].rate_deg_per_s) if windows else []
     band = (options.fmin or 0.0, options.fmax or sample_rate_hz / 2)
-    for j, v in enumerate(joints):   # a loop over pose variables
+    for j, v in enumerate(pose_names):   # a loop over pose variables
         if options.orders:
             orders[v] = tuple(options.orders)
             continue
-        starts = [int(round(w.t_s * sample_rate_hz)) - n_win // 2 for w in windows]
         pieces = [(y[a:a + n_win], pose[a:a + n_win, j]) for a in starts]
-        speed = np.array([abs(w.rate_deg_per_s[v]) / 360.0 for w in windows])
-        orders[v] = find_orders(pieces, sample_rate_hz, speed, band, options.order_tol)
+        speed = np.array([abs(float(_slope(pose[a:a + n_win, j:j + 1], sample_rate_hz)[0])) / 360.0
+                          for a in starts])
+        orders[v] = find_orders(pieces, sample_rate_hz, speed, band, options.order_tol) if starts else ()
+    return orders
+
+
+def mark_harmonics(windows: list[WindowPoles], orders: Mapping[str, tuple[float, ...]], options: TrackOptions
+                   ) -> tuple[list[WindowPoles], list[Harmonic]]:
+    """Flag each window's poles on a harmonic ``orders`` of a joint's speed (module docstring) and list
+    them."""
     marked, found = [], []
     for w in windows:   # a loop over windows
         harm = np.zeros(w.freq_hz.size)
@@ -276,7 +304,7 @@ def mark_harmonics(windows: list[WindowPoles], y: np.ndarray, pose: np.ndarray, 
             found.append(Harmonic(w.t_s, float(w.freq_hz[i]), joint[i], float(harm[i])))
         marked.append(WindowPoles(w.t_s, w.pose, w.spread, w.rate_deg_per_s, w.freq_hz, w.damping_ratio,
                                   w.shapes, w.kurtosis, harm))
-    return marked, found, orders
+    return marked, found
 
 
 def follow(windows: Sequence[WindowPoles], options: TrackOptions) -> list[Track]:
@@ -294,7 +322,9 @@ def follow(windows: Sequence[WindowPoles], options: TrackOptions) -> list[Track]
             pred = np.array([_predict(t, w.t_s, reach) for t in open_])
             widen = np.array([max(1.0, (w.t_s - t["t"][-1]) / reach) for t in open_])
             last = np.column_stack([t["shapes"][-1] for t in open_])
-            mac_ = mac(last, sh)
+            lag = np.column_stack([t["shapes"][int(np.searchsorted(t["t"], t["t"][-1] - MAC_LAG_S))]
+                                   for t in open_])
+            mac_ = np.minimum(mac(last, sh), mac(lag, sh))
             df = np.abs(f[None, :] - pred[:, None]) / (options.gate_rel * (pred * widen)[:, None])
             dm = (1 - mac_) / (1 - options.mac_min)
             cost = df + dm
@@ -337,23 +367,27 @@ def follow(windows: Sequence[WindowPoles], options: TrackOptions) -> list[Track]
 def _stitch(tracks: list[Track], options: TrackOptions, times: np.ndarray) -> list[Track]:
     """Join a track to an earlier one that ended at most ``STITCH_GAP`` windows before it began when the
     earlier one's last estimates, extrapolated linearly in time over the gap (``times``: the windows'
-    centres, so windows skipped between count), and the later one's first agree
+    centres, so windows skipped between count), and one of the later one's first ``STITCH_FIRST`` agree
     within the gates (frequency, widened in proportion to the gap beyond ``max_gap``, and MAC): one mode
-    whose poles were missed for a while, or set aside as a harmonic where one crossed it."""
+    whose poles were missed for a while, or set aside as a harmonic where one crossed it, or merged with
+    a crossing mode (the later track's first poles then have mixed shapes)."""
     out: list[Track] = []
     for t in tracks:   # a loop over tracks, in order of their first window
         best, best_cost = -1, 1.0
         for i, u in enumerate(out):
             if u.windows[-1] >= t.windows[0] or t.windows[0] - u.windows[-1] > STITCH_GAP:
                 continue
-            gap = int(t.windows[0] - u.windows[-1])
             n = min(5, u.freq_hz.size)
             slope = np.polyfit(times[u.windows[-n:]], u.freq_hz[-n:], 1)[0] if n >= 2 else 0.0
-            pred = u.freq_hz[-1] + slope * (times[t.windows[0]] - times[u.windows[-1]])
-            df = abs(t.freq_hz[0] - pred) / (options.gate_rel * max(1.0, gap / options.max_gap) * pred)
-            dm = (1 - float(mac(u.shapes[:, -1:], t.shapes[:, :1])[0, 0])) / (1 - options.mac_min)
-            if df <= 1 and dm <= 1 and df + dm < best_cost:
-                best, best_cost = i, df + dm
+            first = slice(0, min(STITCH_FIRST, t.windows.size))   # any of the later track's first few
+            gap = t.windows[first] - u.windows[-1]
+            pred = u.freq_hz[-1] + slope * (times[t.windows[first]] - times[u.windows[-1]])
+            df = np.abs(t.freq_hz[first] - pred) / (options.gate_rel * np.maximum(1.0, gap / options.max_gap)
+                                                   * pred)
+            dm = (1 - mac(u.shapes[:, -1:], t.shapes[:, first])[0]) / (1 - options.mac_min)
+            cost = np.where((df <= 1) & (dm <= 1), df + dm, np.inf)
+            if cost.min() < best_cost:
+                best, best_cost = i, float(cost.min())
         if best < 0:
             out.append(t)
             continue
@@ -386,9 +420,10 @@ def refine(y: np.ndarray, sample_rate_hz: float, windows: Sequence[WindowPoles],
     (:func:`flexmodal.modal.warp.warp` along the track's frequencies, median-smoothed over
     ``SMOOTH_WINDOWS`` and interpolated in time), decimated to at least four times ``f_c (1 +
     REFINE_BAND)``, by SSI-cov in ``f_c (1 +- REFINE_BAND)`` with block rows over ``REFINE_LAG_PERIODS``;
-    the selected mode nearest ``f_c`` within the gates (frequency and MAC with the track's nearest
-    first-pass shape) replaces the first pass's estimate, and fills the windows the first pass
-    missed.  A pole on a harmonic order (within ``order_tol``) is left out.  With ``damping``, the damping
+    the selected mode nearest ``f_c`` within the gates (frequency, and MAC with the track's nearest
+    first-pass shape and with its shape ``MAC_LAG_S`` away: at a crossing the nearest may be a mixed
+    one) replaces the first pass's estimate, and fills the windows the first pass missed.  A pole on a
+    harmonic order (within ``order_tol``) is left out.  With ``damping``, the damping
     ratio then comes from the same identification over the longer span that holds its relative standard
     deviation to ``options.damping_rel_std`` (:func:`damping_span_s` at the track's median damping ratio;
     the drift is warped out, so a long span adds no bandwidth), the frequency and shape staying those of
@@ -411,7 +446,11 @@ def refine(y: np.ndarray, sample_rate_hz: float, windows: Sequence[WindowPoles],
         long: dict[int, tuple[float, float]] = {}   # window -> damping ratio over the long span, span [s]
         for k in range(int(tr.windows[0]), int(tr.windows[-1]) + 1):   # a loop over windows
             f_c = float(np.interp(centres[k], centres[tr.windows], f_s))
-            shape = tr.shapes[:, int(np.argmin(np.abs(tr.windows - k)))]   # the nearest first-pass shape
+            at = centres[tr.windows]   # the nearest first-pass shape and the one MAC_LAG_S before (after)
+            near_k = int(np.argmin(np.abs(tr.windows - k)))
+            lag_k = int(np.argmin(np.abs(at - (centres[k] - MAC_LAG_S))))
+            lag_k = int(np.argmin(np.abs(at - (centres[k] + MAC_LAG_S)))) if lag_k == near_k else lag_k
+            shape = tr.shapes[:, [near_k, lag_k]]
             rates = {v: abs(windows[k].rate_deg_per_s[v]) / 360.0 for v in orders}
             n = min(y.shape[0], max(n_win, int(REFINE_PERIODS / f_c * fs)))
             pole = _warped_pole(y, fs, centres, k, tr, f_s, n, refs, shape, rates, orders, options)
@@ -423,7 +462,8 @@ def refine(y: np.ndarray, sample_rate_hz: float, windows: Sequence[WindowPoles],
             step = n_z / fs / DAMPING_PER_SPAN   # long-span estimates this far apart [s] (module docstring)
             last = max(long, default=None)
             if damping and n_z > n and (last is None or centres[k] - centres[last] >= step):
-                pole_z = _warped_pole(y, fs, centres, k, tr, f_s, n_z, refs, sh, rates, orders, options)
+                pole_z = _warped_pole(y, fs, centres, k, tr, f_s, n_z, refs, sh[:, None], rates, orders,
+                                      options)
                 if pole_z is not None:
                     long[k] = (pole_z[1], n_z / fs)
         if len(keep) < options.min_windows:
@@ -445,18 +485,33 @@ def refine(y: np.ndarray, sample_rate_hz: float, windows: Sequence[WindowPoles],
 def drop_duplicates(tracks: Sequence[Track], options: TrackOptions) -> list[Track]:
     """Tracks without the ones that follow another, longer track's mode: a track at least half of whose
     windows hold the other's estimate within half the frequency gate and with MAC >= ``mac_min`` (a
-    first-pass track that followed a harmonic across a mode, re-identified onto that mode) is dropped."""
+    first-pass track that followed a harmonic across a mode, re-identified onto that mode) is dropped;
+    a track that overlaps another only at an end and agrees with it (so) over at least half of the
+    windows they share is joined to it (one mode whose first-pass track broke where it drifted fast,
+    its pieces re-identified onto the same mode), the longer track's estimates kept where both have one."""
     kept: list[Track] = []
     for t in sorted(tracks, key=lambda t: -t.windows.size):   # a loop over tracks, longest first
-        same = 0
-        for u in kept:
+        same, join = 0, -1
+        for m, u in enumerate(kept):
             common, i, j = np.intersect1d(t.windows, u.windows, return_indices=True)
             if common.size:
                 close = np.abs(t.freq_hz[i] / u.freq_hz[j] - 1) < 0.5 * options.gate_rel
                 alike = np.diag(mac(t.shapes[:, i], u.shapes[:, j])) >= options.mac_min
-                same = max(same, int(np.sum(close & alike)))
-        if same < 0.5 * t.windows.size:
+                agree = int(np.sum(close & alike))
+                same = max(same, agree)
+                if join < 0 and agree >= 0.5 * common.size and t.span_s.size > 0 and u.span_s.size > 0:
+                    join = m
+        if same >= 0.5 * t.windows.size:
+            continue
+        if join < 0:
             kept.append(t)
+            continue
+        u = kept[join]
+        own = ~np.isin(t.windows, u.windows)
+        order = np.argsort(np.concatenate([u.windows, t.windows[own]]), kind="stable")
+        kept[join] = Track(*(np.concatenate([a, b[..., own]], axis=-1)[..., order] for a, b in (
+            (u.windows, t.windows), (u.freq_hz, t.freq_hz), (u.damping_ratio, t.damping_ratio),
+            (u.shapes, t.shapes), (u.kurtosis, t.kurtosis), (u.span_s, t.span_s))))
     return sorted(kept, key=lambda t: float(np.median(t.freq_hz)))
 
 
@@ -466,13 +521,14 @@ def _warped_pole(y: np.ndarray, fs: float, centres: np.ndarray, k: int, tr: Trac
                  ) -> tuple[float, float, np.ndarray] | None:
     """The mode of track ``tr`` at window ``k`` from ``n`` samples around its centre in the track's warped
     time (:func:`refine`): frequency, damping ratio and shape of the selected SSI mode nearest the
-    smoothed track ``f_s`` within the gates (frequency, MAC with ``shape``), or None (none there, or one on
-    a harmonic order of the joint speeds ``rates`` [rev/s])."""
+    smoothed track ``f_s`` within the gates (frequency, and the smallest MAC with the columns of
+    ``shape`` [n_out, r]), or None (none there, or one on a harmonic order of the joint speeds ``rates``
+    [rev/s])."""
     mid = int(round(centres[k] * fs))
     f_c = float(np.interp(centres[k], centres[tr.windows], f_s))
     a = int(np.clip(mid - n // 2, 0, y.shape[0] - n))
     g = np.interp(np.arange(a, a + n) / fs, centres[tr.windows], f_s)
-    q = max(1, int(fs // (4 * (1 + REFINE_BAND) * f_c)))   # decimated to >= 4 x the band's top
+    q = max(1, int(fs // (REFINE_RATE * (1 + REFINE_BAND) * f_c)))   # decimated (REFINE_RATE)
     seg = _warped(y[a:a + n], fs, g, mid - a, q)
     rows = min(seg.shape[0] // 40, max(-(-REFINE_ORDER // len(refs)) + 2,
                                        int(np.ceil(REFINE_LAG_PERIODS * fs / q / f_c))))
@@ -481,7 +537,7 @@ def _warped_pole(y: np.ndarray, fs: float, centres: np.ndarray, k: int, tr: Trac
                     max_order=REFINE_ORDER, block_rows=rows).modes
     except ModalError:
         return None
-    near = np.abs(m.freq_hz / f_c - 1) / options.gate_rel + (1 - mac(shape[:, None], m.shapes)[0]) / (
+    near = np.abs(m.freq_hz / f_c - 1) / options.gate_rel + (1 - mac(shape, m.shapes).min(axis=0)) / (
         1 - options.mac_min)
     j = int(np.argmin(near))
     on_order = any(is_order(m.freq_hz[j:j + 1], rates[v], o, options.order_tol)[0] for v, o in orders.items())
@@ -590,16 +646,24 @@ def modal_map(windows: Sequence[WindowPoles], tracks: Sequence[Track], outputs: 
 def _lowest_mode_hz(y: np.ndarray, sample_rate_hz: float, options: TrackOptions) -> float | None:
     """The median over ``LOOK_STRETCHES`` stretches of ``LOOK_S`` seconds spread over the record of the
     lowest SSI mode of each (a mode whose frequency moves is sharp over a short stretch, smeared over
-    the whole record), or None when SSI finds none."""
+    the whole record), or None when SSI finds none.  SSI's time lags are sized for the lowest mode a
+    stretch can hold ``LOOK_PERIODS`` periods of (``lowest_hz`` of
+    :func:`flexmodal.modal.ssi.default_block_rows`): sized for the model order alone they span a few
+    milliseconds, and a weak mode whose period is longer (the wrist arm's 18-25 Hz first mode beside
+    its 67-83 Hz second) is not found.  A stretch where those lags find nothing (lost samples leave too
+    few lag products) is looked at again with the model order's lags."""
     n = min(y.shape[0], int(LOOK_S * sample_rate_hz))
     found = []
     for a in np.unique(np.linspace(0, y.shape[0] - n, LOOK_STRETCHES).astype(int)):   # a loop over stretches
-        try:   # SSI leaves lost samples (NaN rows) out of its covariances, up to half of the stretch
-            modes = ssi_cov(y[a:a + n], sample_rate_hz, references=_references(y), fmax=options.fmax,
-                            max_order=options.max_order).modes
-        except ModalError:
-            continue
-        found.append(float(modes.freq_hz.min()))
+        for low in (LOOK_PERIODS * sample_rate_hz / n, None):   # long lags, else (gaps) the order's
+            try:   # SSI leaves lost samples (NaN rows) out of its covariances, up to half of the stretch
+                modes = ssi_cov(y[a:a + n], sample_rate_hz, references=_references(y), fmax=options.fmax,
+                                max_order=options.max_order, lowest_hz=low).modes
+            except ModalError:
+                continue
+            if modes.freq_hz.size:
+                found.append(float(modes.freq_hz.min()))
+                break
     return float(np.median(found)) if found else None
 
 
@@ -628,13 +692,16 @@ def track_modes(samples: np.ndarray, sample_rate_hz: float, names: Sequence[str]
     lowest = options.fmin or _lowest_mode_hz(y, sample_rate_hz, options)
     if lowest is None:
         raise ModalError(f"{where}: no mode found to size the windows; give --fmin or a window length")
-    windows, skipped, gapped, n_win, n_hop = identify_windows(y, pose, list(pose_from), sample_rate_hz,
-                                                              options, lowest)
-    if not windows:
+    names_pose = list(pose_from)
+    starts, skipped, gapped, n_win, n_hop, refs = window_starts(y, pose, sample_rate_hz, options, lowest)
+    if not starts:
         raise ModalError(f"{where}: no window to analyse: {skipped} with a pose spread above "
                          f"{options.max_spread_deg:g} deg, {gapped} holding lost samples; use a shorter "
                          "window or a larger spread")
-    windows, harmonics, orders = mark_harmonics(windows, y, pose, sample_rate_hz, n_win, options)
+    orders = joint_orders(y, pose, names_pose, sample_rate_hz, starts, n_win, options)
+    y = remove_orders(y, sample_rate_hz, pose, [orders[v] for v in names_pose])
+    windows = identify_windows(y, pose, names_pose, sample_rate_hz, options, lowest, starts, n_win, refs)
+    windows, harmonics = mark_harmonics(windows, orders, options)
     tracks = follow(windows, options)
     sines = [t for t in tracks if np.median(t.kurtosis) < options.kurtosis_max]
     tracks = [t for t in tracks if np.median(t.kurtosis) >= options.kurtosis_max]

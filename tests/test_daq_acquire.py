@@ -40,9 +40,9 @@ def _session(tmp_path: Path, protocol: str, sim: dict | None = None, rate: float
     text = (SESSIONS / f"{protocol}-sim.toml").read_text()
     text = text.replace('rig = "../rigs/', f'rig = "{REPO}/examples/rigs/')
     text = text.replace('dbc = "../../fixtures/', f'dbc = "{REPO}/fixtures/')
-    if sim:
-        extra = "".join(f"{k} = {json.dumps(v)}\n" for k, v in sim.items())
-        text = text.replace('test = "impact"\n', f'test = "impact"\n{extra}', 1)
+    sim = {"overrun_after_s": 600.0, **(sim or {})}  # a starved reader loses nothing (test_daq_shutdown)
+    extra = "".join(f"{k} = {json.dumps(v)}\n" for k, v in sim.items())
+    text = text.replace('test = "impact"\n', f'test = "impact"\n{extra}', 1)
     if rate:
         text = re.sub(r"sample_rate_hz = [0-9.]+", f"sample_rate_hz = {rate}", text, count=1)
     path = tmp_path / f"{protocol}.toml"

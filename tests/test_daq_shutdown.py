@@ -42,9 +42,12 @@ pytestmark = pytest.mark.timeout(1200)
 # clock; a simulator starved of CPU that long on a loaded machine would end a session that is meant to
 # meet a signal, so those sessions wait 120 s (the lost-device cases set their own timeout).
 PATIENT = "reconnect_timeout_s = 120.0\n"
+# and a serial/slcan simulator drops what its reader leaves unread for overrun_after_s (1 s by default): a
+# reader starved that long lost samples (forced: acquire frozen 2.5 s, a 32-row gap); these runs must not
+PATIENT_SIM = "overrun_after_s = 600.0\n"
 
 
-def session_file(tmp_path: Path, protocol: str, extra: str = PATIENT, sim: str = "") -> Path:
+def session_file(tmp_path: Path, protocol: str, extra: str = PATIENT, sim: str = PATIENT_SIM) -> Path:
     """The example session of ``protocol`` with absolute paths; ``extra`` top-level keys, ``sim`` lines
     added to its [simulator] block."""
     text = (SESSIONS / f"{protocol}-sim.toml").read_text()
