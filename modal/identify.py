@@ -44,6 +44,12 @@ BROAD = 3.0   # a pole of this many times a close mode's half-power bandwidth, c
 MIN_LINES_PER_BANDWIDTH = 8   # below this the Hann-window leakage bias on damping exceeds a few %
 SYNTHESIS_HEADER = b"config,output,input,synthesis_corr"   # the first line of MODES.synthesis.csv
 PICKED = "; poles picked from the stored diagram"   # the note of a pick from modal.diagrams
+ZOOM_LINES = 16      # lines per misfit window (windows overlap by half)
+ZOOM_MISFIT = 3.0    # a window misfit this many times the band's median misfit...
+ZOOM_ZETA = 0.01     # ...and fitted with one pole starting at this damping ratio at its largest residual
+ZOOM_ABOVE_NOISE = 2.0  # ...standing this many times above the FRFs' own noise there
+ZOOM_COHERENCE = 0.9  # ...where the FRFs' mean coherence is at least this (when it is known)
+SUSPENSION = 0.2     # below this share of the lowest mode a resonance is taken as the suspension's
 
 
 @dataclass(frozen=True)
@@ -364,7 +370,8 @@ def _validate(f: np.ndarray, H: np.ndarray, clusters: PoleClusters, quantity: st
         if not fails.any():
             return clusters, fit, warnings, background
         r = int(np.flatnonzero(fails)[np.argmin(fit.need[fails])])
-        if fit.need[r] < limits.need_min and int(clusters.members[r][0]) not in refined:
+        if fit.need[r] < limits.need_min and clusters.members[r].size \
+                and int(clusters.members[r][0]) not in refined:
             # a resonance the pole misses (e.g. five times too much damping at one line per half-power
             # band) fits it badly and is not needed for that: test it again at its own local pole
             refined.add(int(clusters.members[r][0]))
@@ -384,7 +391,8 @@ def _validate(f: np.ndarray, H: np.ndarray, clusters: PoleClusters, quantity: st
 
 
 def _lscf(f: np.ndarray, H: np.ndarray, *, quantity: str, reference: int, max_order: int | None,
-          poles_hz: Sequence[float] | None, limits: Thresholds, stored: StoredDiagram | None = None) -> dict:
+          poles_hz: Sequence[float] | None, limits: Thresholds, stored: StoredDiagram | None = None,
+          coherence: np.ndarray | None = None) -> dict:
     peaks_hz = f[clear_peaks(f, H)] if not poles_hz else np.zeros(0)   # picked poles: no floor
     visible_hz = visible_peaks(f, H, prominence_db=VISIBLE_DB)
 
@@ -419,6 +427,10 @@ def _lscf(f: np.ndarray, H: np.ndarray, *, quantity: str, reference: int, max_or
         report = np.ones(clusters.freq_hz.size, bool)
     else:
         clusters, fit, warnings, report = found
+        if max_order is None:
+            clusters, fit, warnings, report = _zoom(f, H, clusters, fit, warnings, report, quantity=quantity,
+                                                    reference=reference, limits=limits, peaks_hz=peaks_hz,
+                                                    visible_hz=visible_hz, coherence=coherence)
     if not report.any():
         raise ModalError(f"identify: no stable poles between {f.min():g} and {f.max():g} Hz ({note})")
     constants = fit.modal_constants(clusters.pole)[:, reference][:, report]
@@ -435,6 +447,111 @@ def _lscf(f: np.ndarray, H: np.ndarray, *, quantity: str, reference: int, max_or
             "mpc": mpc(constants), "mpd": mpd(constants), "synthesis_corr": local, "need": need,
             "frf_synthesis_corr": frac(H, fit.synthesis), "band_freq_hz": f, "synthesis": fit.synthesis,
             "stabilisation": stab, "selected": selected, "order_note": note, "warnings": warnings}
+
+
+def misfit_spans(f: np.ndarray, H: np.ndarray, synthesis: np.ndarray, coherence: np.ndarray | None = None
+                 ) -> list[tuple[float, float]]:
+    """(lo, hi) [Hz] of the runs of windows of ZOOM_LINES lines (half overlapping) where ``synthesis``
+    misfits the FRFs ``H`` [n_out, n_in, n_freq] on lines ``f`` [Hz]: relative misfit
+    ||H - synthesis|| / ||H|| at least ZOOM_MISFIT times the band's median, at a response level
+    ||H|| at least the band's median (a weak stretch between modes, or noise at a band edge, is no
+    missed mode).  Where a mode the whole-band fit missed may lie (docs/modal.md).
+
+    Examples
+    --------
+    >>> f = np.arange(1.0, 400.0)
+    >>> mode = lambda fn: 1 / (fn ** 2 - f ** 2 + 2j * 0.01 * fn * f)
+    >>> H = (mode(100.0) + mode(300.0) + 0.3 * mode(200.0))[None, None, :] * f ** 2
+    >>> without_200 = (mode(100.0) + mode(300.0))[None, None, :] * f ** 2
+    >>> misfit_spans(f, H, without_200)
+    [(185.0, 224.0)]
+    """
+    n = f.size
+    if n < 4 * ZOOM_LINES:
+        return []
+    starts = np.arange(0, n - ZOOM_LINES + 1, ZOOM_LINES // 2)
+    idx = starts[:, None] + np.arange(ZOOM_LINES)
+    h2 = np.sum(np.abs(H.reshape(-1, n)) ** 2, axis=0)
+    e2 = np.sum(np.abs((H - synthesis).reshape(-1, n)) ** 2, axis=0)
+    level = np.sqrt(h2[idx].sum(axis=1))
+    err = np.sqrt(e2[idx].sum(axis=1)) / np.maximum(level, np.finfo(float).tiny)
+    flagged = (err >= ZOOM_MISFIT * np.median(err)) & (level >= np.median(level))
+    if coherence is not None:   # noise, e.g. where an impact's force spectrum has a zero
+        flagged &= np.mean(np.reshape(coherence, (-1, n)), axis=0)[idx].mean(axis=1) >= ZOOM_COHERENCE
+    spans: list[list[int]] = []
+    for s in starts[flagged]:   # a loop over flagged windows (a few)
+        if spans and s <= spans[-1][1] + 1:
+            spans[-1][1] = s + ZOOM_LINES - 1
+        else:
+            spans.append([int(s), int(s + ZOOM_LINES - 1)])
+    return [(float(f[a]), float(f[b])) for a, b in spans]
+
+
+def _above_noise(H: np.ndarray, synthesis: np.ndarray, lines: np.ndarray) -> bool:
+    """True when the misfit of ``synthesis`` on ``lines`` stands ZOOM_ABOVE_NOISE times above the
+    FRFs' own noise there, estimated from their second differences (white noise of variance s^2
+    gives 6 s^2; the smooth curve of modes a few lines wide adds little): a misfit no larger is
+    noise, e.g. where an impact's force spectrum has a zero, not a missed mode."""
+    run = lines[2:][lines[2:] - lines[:-2] == 2]   # lines whose two predecessors are lines too
+    if run.size == 0:
+        return False
+    d2 = H[..., run] - 2 * H[..., run - 1] + H[..., run - 2]
+    noise_rms = np.linalg.norm(d2) / np.sqrt(6 * run.size)
+    misfit_rms = np.linalg.norm((H - synthesis)[..., lines]) / np.sqrt(lines.size)
+    return bool(misfit_rms >= ZOOM_ABOVE_NOISE * noise_rms)
+
+
+def _zoom(f: np.ndarray, H: np.ndarray, clusters: PoleClusters, fit: LsfdResult, warnings: list[str],
+          report: np.ndarray, *, quantity: str, reference: int, limits: Thresholds, peaks_hz: np.ndarray,
+          visible_hz: np.ndarray, coherence: np.ndarray | None
+          ) -> tuple[PoleClusters, LsfdResult, list[str], np.ndarray]:
+    """Modes the whole-band fit missed where its synthesis misfits the FRFs (:func:`misfit_spans`).
+    In each such span above SUSPENSION times the lowest mode (below, rigid-body motion on the
+    suspension: Ewins 2000 §3.3) whose misfit away from the modes (three half-power bandwidths, their
+    own leakage) stands above the FRFs' noise (:func:`_above_noise`), one pole is fitted to the
+    residual (:func:`modal.lsfd.refine_pole`, started at ZOOM_ZETA at its largest residual there);
+    it joins the candidates when it stays in the span and away from the modes, and all are validated
+    again on the whole band (:func:`_validate`).  The arguments and the result are those of the
+    whole-band selection (clusters, fit, warnings, [n] True for the modes to report), returned as
+    they were unless a new mode passes."""
+    spans = misfit_spans(f, H, fit.synthesis, coherence)
+    if not spans:
+        return clusters, fit, warnings, report
+    new: list[complex] = []
+    rest = H - synthesis_of(f, clusters.pole, fit.residues, quantity)
+    size = np.sqrt(np.sum(np.abs(rest.reshape(-1, f.size)) ** 2, axis=0))
+    reach = _reach(f, clusters)
+    lowest = clusters.freq_hz[report].min() if report.any() else 0.0
+    taken = _near(f, clusters.freq_hz, clusters.damping_ratio).any(axis=0)   # the modes' own leakage
+    for lo, hi in spans:   # a loop over misfit spans (a few)
+        if hi < SUSPENSION * lowest:   # rigid-body or suspension modes, Ewins 2000 §3.3
+            continue
+        inside = np.flatnonzero((f >= lo) & (f <= hi) & ~taken)
+        if inside.size < 3 or not _above_noise(H, fit.synthesis, inside):
+            continue
+        k = inside[np.argmax(size[inside])]
+        wn = 2 * np.pi * f[k]
+        start = complex(-ZOOM_ZETA * wn, wn * np.sqrt(1 - ZOOM_ZETA ** 2))
+        pole = refine_pole(f, rest, start, quantity=quantity)
+        fn = abs(pole) / (2 * np.pi)
+        if pole != start and lo <= fn <= hi and not np.any(np.abs(clusters.freq_hz - fn) <= 6 * reach):
+            new.append(pole)
+    if not new:
+        return clusters, fit, warnings, report
+    poles = np.r_[clusters.pole, new]
+    late = {int(m[0]) for m, r in zip(clusters.members, report, strict=True) if not r and m.size}
+    joined = PoleClusters(np.abs(poles) / (2 * np.pi), -poles.real / np.abs(poles), poles,
+                          np.r_[clusters.n_stable, np.zeros(len(new), int)],
+                          clusters.members + tuple(np.zeros(0, int) for _ in new))   # no diagram poles
+    joined = joined.subset(np.argsort(joined.freq_hz, kind="stable"))
+    c2, fit2, w2, background = _validate(f, H, joined, quantity, reference, limits, peaks_hz, visible_hz)
+    added = [f"{x:.5g}" for x, m in zip(c2.freq_hz, c2.members, strict=True) if not m.size]
+    if not added:   # the whole-band result stands as it was
+        return clusters, fit, warnings, report
+    report2 = ~background & np.array([not (m.size and int(m[0]) in late) for m in c2.members], bool)
+    note = (f"found {len(added)} mode(s) at {', '.join(added)} Hz by fitting one pole where the whole-band "
+            "synthesis misfits the FRFs")
+    return c2, fit2, warnings + [w for w in w2 if w not in warnings] + [note], report2
 
 
 def _common_or_poly(f: np.ndarray, peaks_hz: np.ndarray, search) -> tuple:
@@ -557,7 +674,7 @@ def lscf_poles(inp: FrfInputs) -> Poles:
     with one_blas_thread():
         extra = _lscf(inp.freq_hz, inp.H, quantity=inp.quantity, reference=inp.reference,
                       max_order=inp.max_order, poles_hz=inp.poles_hz, limits=inp.thresholds,
-                      stored=inp.stored)
+                      stored=inp.stored, coherence=inp.coherence)
     fn, zeta, constants = extra.pop("fn"), extra.pop("zeta"), extra.pop("constants")
     warnings = extra.pop("warnings")
     return Poles(fn, zeta, constants, tuple(warnings), True, extra)
