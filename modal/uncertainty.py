@@ -40,9 +40,23 @@ welch=None) -> ModalUncertainty``
    the identified poles give their weighted least-squares (maximum-likelihood under 1.) estimates;
    the covariance is the inverse of the Fisher information ``J_p^T (I - P) J_p`` of the poles' real
    and imaginary parts with the residues projected out (``P`` the projection onto their columns;
-   Pintelon, Guillaume & Schoukens 2007); with ``welch`` it is multiplied by the fit's chi^2 per
-   degree of freedom where that exceeds 1 (the Birge ratio: noise larger than the coherence says, e.g.
-   a coherence estimate biased high by few averages, or a band the local model does not fit).
+   Pintelon, Guillaume & Schoukens 2007).
+   With ``welch`` and one input, the errors are not the white noise step 1 takes them for: part of
+   the coherence loss is the window's leakage (the response to input outside the segment, cut by
+   the window), an error the same at every output up to the mode's shape and correlated with a phase
+   across neighbouring lines and overlapping segments, which the residues largely absorb.  Its
+   covariance and pseudo-covariance across lines and outputs follow exactly from the fitted poles and
+   residues (modal/welch_leakage.py); the rest of the coherence loss is output noise (white, lines
+   correlated by ``|W2[j]|^2``); with finite averages the residual power has ``n_d - 1`` degrees of
+   freedom and ``E[1/sum|X|^2] = 1/((n_d - 1) G_xx)``.  The poles' covariance is then the sandwich
+   ``I^-1 J_p^T W C W^T J_p I^-1`` (W the fit's whitening, C that covariance), times
+   ``(n_d - 1)/(n_d - 3)`` for weights from a coherence of n_d averages rather than the true
+   variances (Schoukens, Pintelon, Vandersteen & Guillaume 1997, Automatica 33:1073) and times the
+   fit's residual sum of squares over the one C predicts where that exceeds 1 (the Birge ratio:
+   noise larger than the coherence says, or a band the local model does not fit).  Beyond
+   ``LEAKAGE_BUDGET`` or with several inputs the inverse information alone, times chi^2 per degree of
+   freedom where that exceeds 1 (the leakage counted as white noise: conservative at a few lines per
+   half-power band).
 3. ``f_n = |lambda| / 2 pi`` and ``zeta = -Re(lambda) / |lambda|``: their standard deviations by the
    delta method.
 
@@ -88,6 +102,9 @@ MIN_LINES = 7
 MAX_CORRELATED_LINES = 8
 LINE_CORRELATION_FLOOR = 1e-4
 GAUSS_NEWTON_STEPS = 8
+LEAKAGE_BUDGET = 4e6
+"""Largest max(outputs, 2 x modes) x band lines x nfft for which the leakage error's covariance is
+computed (16 bytes each, a few such arrays); beyond it the lines' errors are the coherence's white noise."""
 COHERENCE_MAX = 1.0 - 1e-6
 
 
@@ -129,6 +146,8 @@ class WelchNoise:
     lag: np.ndarray
     overlap_factor: float
     line_correlation: np.ndarray
+    window: np.ndarray
+    step: int
 
 
 def welch_noise(spec: str, nfft: int, overlap: float = 0.5) -> WelchNoise:
@@ -148,7 +167,7 @@ def welch_noise(spec: str, nfft: int, overlap: float = 0.5) -> WelchNoise:
     factor = 1.0 + 2.0 * float(np.sum(lag[step::step] ** 2))
     w2 = np.abs(np.fft.fft(w**2)[:MAX_CORRELATED_LINES + 1] / np.sum(w**2)) ** 2
     keep = np.flatnonzero(w2 >= LINE_CORRELATION_FLOOR)
-    return WelchNoise(lag, factor, w2[: keep[-1] + 1])
+    return WelchNoise(lag, factor, w2[: keep[-1] + 1], w, step)
 
 
 def _basis(w: np.ndarray, lam: np.ndarray, lag: np.ndarray | None, df_hz: float
@@ -186,13 +205,15 @@ def _band_cholesky(lines: np.ndarray, line_correlation: np.ndarray) -> np.ndarra
 
 
 def _information(w: np.ndarray, h: np.ndarray, s: np.ndarray, lam: np.ndarray,
-                 noise: WelchNoise | None = None, df_hz: float = 0.0, chol: np.ndarray | None = None
-                 ) -> tuple[np.ndarray, np.ndarray, float]:
+                 noise: WelchNoise | None = None, df_hz: float = 0.0, chol: np.ndarray | None = None,
+                 parts: list | None = None) -> tuple[np.ndarray, np.ndarray, float]:
     """Fisher information [2M, 2M] of (Re, Im) of the poles ``lam`` [M] with the residues and residual
     terms projected out, the Gauss-Newton step [2M] towards the weighted least-squares poles and the
     residual variance factor (chi^2 / degrees of freedom)
     (``h`` [K, m] FRF columns in receptance at ``w`` [K] rad/s, ``s`` [K, m] their standard deviations;
-    ``noise``, ``df_hz`` as :func:`_basis`; ``chol`` the lines' correlation, :func:`_band_cholesky`)."""
+    ``noise``, ``df_hz`` as :func:`_basis`; ``chol`` the lines' correlation, :func:`_band_cholesky`;
+    ``parts``, if given, receives each column's projected Jacobian [2K, 2M], coefficients [2M + 2] and
+    orthonormal basis [2K, 2M + 4] of the residue columns)."""
     a, b, da, db = _basis(w, lam, None if noise is None else noise.lag, df_hz)
     phi = np.concatenate([a, b, np.ones((w.size, 1)), -1.0 / w[:, None] ** 2], axis=1)   # [K, 2M + 2]
     M, P = lam.size, phi.shape[1]
@@ -214,6 +235,8 @@ def _information(w: np.ndarray, h: np.ndarray, s: np.ndarray, lam: np.ndarray,
         J = _real(d)                                     # [2K, 2M]
         Q, _ = np.linalg.qr(A)
         Jp = J - Q @ (Q.T @ J)
+        if parts is not None:
+            parts.append((Jp, c, Q))
         info += Jp.T @ Jp
         grad += Jp.T @ (y - A @ coef)
         rss += float(np.sum((y - A @ coef) ** 2))
@@ -222,9 +245,9 @@ def _information(w: np.ndarray, h: np.ndarray, s: np.ndarray, lam: np.ndarray,
 
 
 def _refine(w: np.ndarray, h: np.ndarray, s: np.ndarray, lam: np.ndarray, noise: WelchNoise | None,
-            df_hz: float, chol: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, float]:
+            df_hz: float, chol: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, float, list]:
     """Gauss-Newton steps of variable projection from ``lam``: the weighted least-squares poles, their
-    information and residual variance factor there (arguments as :func:`_information`)."""
+    information, residual variance factor and columns' parts there (arguments as :func:`_information`)."""
     for _ in range(GAUSS_NEWTON_STEPS):
         info, grad, _ = _information(w, h, s, lam, noise, df_hz, chol)
         try:
@@ -234,8 +257,64 @@ def _refine(w: np.ndarray, h: np.ndarray, s: np.ndarray, lam: np.ndarray, noise:
         lam = lam + step[:lam.size] + 1j * step[lam.size:]
         if np.all(np.abs(step) < 1e-10 * np.abs(np.concatenate([lam, lam]))):
             break
-    info, _, factor = _information(w, h, s, lam, noise, df_hz, chol)
-    return lam, info, factor
+    parts: list = []
+    info, _, factor = _information(w, h, s, lam, noise, df_hz, chol, parts)
+    return lam, info, factor, parts
+
+
+def _error_moment(lam: np.ndarray, parts: list, lines: np.ndarray, s: np.ndarray, welch: WelchNoise,
+                  n_averages: int, df_hz: float, chol: np.ndarray | None
+                  ) -> tuple[np.ndarray, float] | None:
+    """``J_p^T W Cov W^T J_p`` [2M, 2M], the weighted least-squares poles' score covariance under the
+    H1 errors' actual covariance ``Cov`` (leakage of the modes ``lam`` [M] with the columns' fitted
+    residues in ``parts``, :func:`modal.welch_leakage.leakage_covariance`, plus output noise: what the
+    coherence loses beyond the leakage, white, lines correlated by ``welch.line_correlation``), W the
+    fit's whitening (``s`` [K, m] standard deviations, ``chol``); and the fit's expected residual sum
+    of squares under ``Cov`` without the residue terms' share (the Birge ratio's denominator, in place
+    of the degrees of freedom); None beyond ``LEAKAGE_BUDGET``."""
+    from flexmodal.modal.welch_leakage import leakage_covariance
+
+    M, K, m = lam.size, lines.size, s.shape[1]
+    if max(m, 2 * M) * K * welch.window.size > LEAKAGE_BUDGET:
+        return None
+    residues = np.array([np.concatenate([c[:M], c[M:2 * M]]) for _, c, _ in parts])   # [m, 2M]
+    cov, pseudo, share = leakage_covariance(np.concatenate([lam, np.conj(lam)]), residues, lines,
+                                            welch.window, df_hz, n_averages, welch.step)
+    # finite averages (Gaussian regression of n_d complex samples on one): the coherence's residual
+    # power has n_d - 1 degrees of freedom, and E[1 / sum |X|^2] = 1 / ((n_d - 1) G_xx)
+    n_d = n_averages / welch.overlap_factor
+    if n_d <= 4.0:
+        return None
+    small = n_d / (n_d - 1.0)
+    cov, pseudo = cov * small, pseudo * small
+    noise = np.sqrt(np.clip(2.0 * s.T**2 * n_d * small - share, 0.0, None) / (n_d - 1.0))   # [m, K]
+    p = welch.line_correlation.size - 1
+    gap = np.abs(lines[:, None] - lines[None, :])
+    rho = np.where(gap <= p, welch.line_correlation[np.minimum(gap, p)], 0.0)
+    for j in range(m):                                  # a loop over FRF columns (few)
+        cov[j, :, j, :] += noise[j][:, None] * noise[j][None, :] * rho
+    cov, pseudo = cov.reshape(m * K, m * K), pseudo.reshape(m * K, m * K)
+    # the real errors [Re dH; Im dH] of every column, their covariance, whitened as the fit is
+    real = np.block([[np.real(cov + pseudo), np.imag(pseudo - cov)],
+                     [np.imag(cov + pseudo), np.real(cov - pseudo)]]) / 2.0
+    rows = (np.arange(2)[:, None, None] * m * K + np.arange(m)[None, :, None] * K
+            + np.arange(K)[None, None, :])                       # [re/im, column, line] -> row of real
+    order = rows.transpose(1, 0, 2).reshape(-1)                  # column by column, Re then Im
+    scale = np.tile(s.T, (1, 2)).reshape(-1)
+    white = real[np.ix_(order, order)] / np.outer(scale, scale)
+    if chol is not None:                                # L^-1 (.) L^-T on each column's Re and Im halves
+        band = (chol.shape[0] - 1, 0)
+        x = scipy.linalg.solve_banded(band, chol, white.reshape(2 * m, K, -1).transpose(1, 0, 2)
+                                      .reshape(K, -1))
+        x = x.reshape(K, 2 * m, 2 * m, K).transpose(3, 2, 1, 0).reshape(K, -1)
+        x = scipy.linalg.solve_banded(band, chol, x)
+        white = x.reshape(K, 2 * m, 2 * m, K).transpose(2, 3, 1, 0).reshape(2 * m * K, 2 * m * K)
+    jp = np.concatenate([Jp for Jp, _, _ in parts], axis=0)     # [2 K m, 2M]
+    expected = 0.0
+    for j, (_, _, Q) in enumerate(parts):               # a loop over FRF columns (few)
+        block = white[2 * K * j:2 * K * (j + 1), 2 * K * j:2 * K * (j + 1)]
+        expected += float(np.trace(block) - np.trace(Q.T @ block @ Q))
+    return jp.T @ white @ jp, expected
 
 
 def modal_uncertainty(freq_hz: np.ndarray, H: np.ndarray, coherence: np.ndarray, n_averages: int,
@@ -287,11 +366,24 @@ def modal_uncertainty(freq_hz: np.ndarray, H: np.ndarray, coherence: np.ndarray,
     # one BLAS thread: the matrices are a few columns wide (threads only spin on them; under load a
     # 1200 x 12 QR took 0.6 s with the default threads, 0.1 ms with one)
     with threadpool_limits(1, "blas"):
-        lam, info, birge = _refine(w, h, s, lam, welch, df, chol)
-    try:
-        cov = np.linalg.inv(info) * (1.0 if welch is None else max(1.0, birge))
-    except np.linalg.LinAlgError:
-        return ModalUncertainty(nan, nan.copy(), nan.copy(), nan.copy())
+        lam, info, birge, parts = _refine(w, h, s, lam, welch, df, chol)
+        try:
+            inv = np.linalg.inv(info)
+        except np.linalg.LinAlgError:
+            return ModalUncertainty(nan, nan.copy(), nan.copy(), nan.copy())
+        moment = None if welch is None or H.shape[1] != 1 else \
+            _error_moment(lam, parts, lines, s, welch, n_averages, df, chol)
+    if moment is None:
+        cov = inv * (1.0 if welch is None else max(1.0, birge))
+    else:           # the sandwich; the Birge ratio against the residual the error model expects
+        middle, expected = moment
+        cov = inv @ middle @ inv
+        dof = 2 * w.size * h.shape[1] - sum(q.shape[1] for _, _, q in parts) - 2 * lam.size
+        expected -= float(np.trace(inv @ middle))
+        n_d = n_averages / welch.overlap_factor
+        # weights from the coherence of n_d averages, not the true variances: the estimate's covariance
+        # is (n_d - 1) / (n_d - 3) times larger (Schoukens, Pintelon, Vandersteen & Guillaume 1997)
+        cov = cov * max(1.0, birge * dof / expected if expected > 0 else 1.0) * (n_d - 1.0) / (n_d - 3.0)
     lam = lam + decay_rate_per_s                          # the exponential window's decay removed
     p, q = lam.real, lam.imag
     wn = np.abs(lam)

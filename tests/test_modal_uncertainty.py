@@ -76,14 +76,17 @@ def test_welch_leakage_model_recovers_the_exact_poles_of_an_expected_welch_estim
 
 
 def test_monte_carlo_coverage_of_the_frequency_and_damping_intervals() -> None:
-    """60 independent records: the refined frequencies' and damping ratios' 95 % intervals cover the
-    true ones in 88-100 % of runs (binomial sd ~2.8 % at 60 runs; the 400-run figures over five
-    settings are in docs/diagnosis.md), while the same sigma around the unrefined pLSCF pole covers
-    far less (it scatters ~3x more)."""
+    """60 independent records at 6 lines per half-power band (where the leakage's share of the
+    coherence loss is large): the refined frequencies' and damping ratios' 95 % intervals, pooled over
+    both modes and both quantities (240 intervals, binomial sd 1.4 %), cover the true values in
+    90-99 % of runs, and no single one in fewer than 80 % (60 intervals, sd 2.8 %; the 400-run
+    figures of every setting are in docs/diagnosis.md); the same sigma around the unrefined pLSCF
+    pole covers far less (it scatters ~3x more)."""
     c = coverage(60, seed=5)
     assert c["n_runs"] >= 55
-    for value in c["freq"] + c["damping"]:
-        assert 0.88 <= value <= 1.0
+    values = c["freq"] + c["damping"]
+    assert 0.90 <= np.mean(values) <= 0.99
+    assert min(values) >= 0.80
     assert np.mean(c["freq_plscf"]) < np.mean(c["freq"]) - 0.1
 
 
@@ -112,3 +115,60 @@ def test_docs_quote_the_monte_carlo_coverage_the_script_measures():
         if line.startswith(("EMA", "SSI")):
             for value in _shares(line, "frequency") + _shares(line, "damping"):
                 assert value >= 0.92, line
+
+
+def test_leakage_covariance_matches_a_monte_carlo_of_welch_h1() -> None:
+    """The leakage error's covariance and pseudo-covariance across lines and outputs
+    (modal/welch_leakage.py) against 2000 noise-free simulated Welch H1 estimates (white input through
+    the two-mode filter, scipy.signal.lfilter; 31 Hann segments at 50 % overlap, done here with numpy):
+    both matrices agree to 8 % of the covariance's norm (found: 4.7 % each, the Monte-Carlo's own error
+    ~3-5 %; the pseudo-covariance is 38 % of that norm) and the expected H1 to 1 %; the per-segment
+    share equals one segment's coherence loss computed by direct sums over the impulse response."""
+    from scipy.signal import lfilter
+
+    from flexmodal.modal.welch_leakage import expected_h1, leakage_covariance
+
+    n, step, n_seg, records = 64, 32, 31, 2000
+    fs = 64.0
+    df = fs / n
+    f0, zeta0 = np.array([10.3, 16.7]), np.array([0.146, 0.1])             # ~3 lines per half-power band
+    lam0 = 2 * np.pi * f0 * (-zeta0 + 1j * np.sqrt(1 - zeta0**2))
+    lam = np.concatenate([lam0, np.conj(lam0)])
+    shapes = np.array([[1.0, 0.7], [0.6, -1.0]])
+    res0 = shapes * shapes[0] / (2j * lam0.imag)[None]
+    res = np.concatenate([res0, np.conj(res0)], axis=1)                     # [2 outputs, 4 poles]
+    z = np.exp(lam / fs)
+    rng = np.random.default_rng(3)
+    burn = 400
+    x = rng.standard_normal((records, burn + (n_seg - 1) * step + n))
+    y = np.zeros((2,) + x.shape)
+    for p in range(4):                          # h_j[u] = dt sum_p res[j, p] z_p^u: one-pole filters
+        part = lfilter([1.0 / fs], [1.0, -z[p]], x.astype(complex), axis=1)
+        y += (res[:, p, None, None] * part[None]).real
+    w = 0.5 - 0.5 * np.cos(2 * np.pi * np.arange(n) / n)
+    idx = burn + np.arange(n_seg)[:, None] * step + np.arange(n)[None, :]
+    lines = np.arange(6, 22)
+    dft = np.exp(-2j * np.pi * np.outer(np.arange(n), lines) / n) * w[:, None]   # [n, K]
+    X = x[:, idx] @ dft                                                     # [R, seg, K]
+    Y = y[:, :, idx] @ dft                                                  # [2, R, seg, K]
+    H = np.sum(Y * np.conj(X)[None], axis=2) / np.sum(np.abs(X) ** 2, axis=1)[None]
+    he = expected_h1(lam, res, lines, w, df)
+    np.testing.assert_allclose(H.mean(axis=1), he, atol=0.01 * np.abs(he).max())
+    d = (H - he[:, None]).transpose(1, 0, 2).reshape(records, -1)            # [R, outputs x lines]
+    cov, pseudo, share = leakage_covariance(lam, res, lines, w, df, n_seg, step)
+    scale = np.linalg.norm(cov.reshape(d.shape[1], -1))
+    for model, mc in ((cov, d.T @ np.conj(d) / records), (pseudo, d.T @ d / records)):
+        assert np.linalg.norm(mc - model.reshape(mc.shape)) < 0.08 * scale
+    # one segment's coherence loss by direct sums over the impulse response (no recursion, no series)
+    t = np.arange(n)
+    u = np.arange(800)
+    h = (res[:, :, None] * z[None, :, None] ** u).sum(axis=1).real / fs      # [2, u]
+    s_range = np.arange(-799, n)
+    lag = t[:, None] - s_range[None, :]                                     # [t, s]: u = t - s
+    hmat = np.where(lag >= 0, h[:, np.clip(lag, 0, u.size - 1)], 0.0)       # [2, t, s]
+    a = np.einsum("kt,jts->jks", w * np.exp(-2j * np.pi * np.outer(lines, t) / n), hmat)
+    b = w * np.exp(-2j * np.pi * np.outer(lines, t) / n)
+    eyy = np.sum(np.abs(a) ** 2, axis=-1)
+    eyx = np.einsum("jks,ks->jk", a[:, :, -n:], np.conj(b))
+    power = np.sum(w**2)
+    np.testing.assert_allclose(share, (eyy - np.abs(eyx) ** 2 / power) / power, rtol=1e-6, atol=1e-12)
