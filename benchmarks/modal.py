@@ -369,7 +369,7 @@ def bench_kernel(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: i
     estimate(1)                                 # warm: buffers, FFT plans
     load = os.getloadavg()[0]
     least = np.array([[_fft_floor(n_fft, nfft, 1, workers=1, clock=time.process_time),
-                       _least_pipeline(samples, nfft)] for _ in range(repeat)])
+                       *_least_pipeline(samples, nfft)] for _ in range(repeat)])
     glue = _glue_cpu(samples.shape[1], samples.shape[0], nfft, repeat)
     quiet = rounds()
     busy = {}
@@ -385,13 +385,18 @@ def bench_kernel(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: i
           f"<= 1.4); the passes besides the FFTs {np.median(c1 - cf):.3f} s")
     print("     where the CPU of 1 thread goes (cProfile, thread time, own time of each part): "
           + _kernel_parts(lambda: estimate(1)))
+    def unit(cpu: np.ndarray) -> str:      # median CPU over the bare FFTs' CPU of the same round
+        return f"{np.median(cpu / least[:, 0]):.2f}x"
+
     ratio = least[:, 1] / least[:, 0]
     print(f"     the least any numpy/scipy estimate does (FFTs straight from a strided view of the record, "
           f"no copy, window, mean removal or check, then the auto-spectra and the cross-spectra against "
           f"the reference, one call each per block; the best of blocks of {LEAST_BLOCKS} segments): "
           f"CPU {_spread(least[:, 1])} against its bare FFTs' {_spread(least[:, 0])}: "
           f"{np.median(ratio):.2f}x ({ratio.min():.2f}-{ratio.max():.2f}) (load average now "
-          f"{os.getloadavg()[0]:.1f})")
+          f"{os.getloadavg()[0]:.1f}); of which, in units of the bare FFTs: the FFTs from the record "
+          f"{unit(least[:, 2])}, the auto-spectra {unit(least[:, 3])}, the cross-spectra "
+          f"{unit(least[:, 4])}, the loop {unit(least[:, 1] - least[:, 2:].sum(axis=1))}")
     share = glue / np.median(c1)
     extra = np.median(quiet[2][:, 1]) / np.median(c1)
     print(f"     the Python glue (holds the GIL): the same blocks of segments of 16 samples (every call on "
@@ -422,30 +427,38 @@ def bench_kernel(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: i
 LEAST_BLOCKS = (4, 16)
 
 
-def _least_pipeline(samples: np.ndarray, nfft: int) -> float:
+def _least_pipeline(samples: np.ndarray, nfft: int) -> tuple[float, float, float, float]:
     """CPU (s, this thread) of the least a numpy/scipy Welch H1 + H2 + coherence of ``samples`` (first
     column the reference, half-overlapping segments of ``nfft``) does, the best over blocks of
     LEAST_BLOCKS segments: per block, one ``scipy.fft.rfft`` straight from a strided view of the
     record (no copy, window, mean removal or check), then the two reductions the estimators need,
     the auto-spectra (one ``einsum``) and the cross-spectra against the reference (conjugate, one
-    batched ``matmul``)."""
+    batched ``matmul``).  Returns (all of it, the FFTs, the auto-spectra, the cross-spectra) of the
+    best block size, each part timed around its own calls."""
     n, n_ch = samples.shape
     step = nfft // 2
     n_seg = (n - nfft) // step + 1
     isz = samples.itemsize
-    best = np.inf
+    best = (np.inf,) * 4
     for b in LEAST_BLOCKS:
+        parts = np.zeros(3)
         t0 = time.thread_time()
         for first in range(0, n_seg, b):
             count = min(b, n_seg - first)
             rows = samples[first * step:]
             view = np.ndarray((count, nfft, n_ch), samples.dtype, rows,
                               strides=(step * n_ch * isz, n_ch * isz, isz))
+            t1 = time.thread_time()
             spec = scipy.fft.rfft(view, axis=1, workers=1)
+            t2 = time.thread_time()
             flat = spec.view(spec.real.dtype).reshape(count, -1)
             np.einsum("sk,sk->k", flat, flat)
+            t3 = time.thread_time()
             np.matmul(spec.transpose(1, 2, 0), spec[:, :, :1].conj().transpose(1, 0, 2))
-        best = min(best, time.thread_time() - t0)
+            parts += (t2 - t1, t3 - t2, time.thread_time() - t3)
+        total = time.thread_time() - t0
+        if total < best[0]:
+            best = (total, *parts)
     return best
 
 

@@ -35,6 +35,7 @@ def test_benchmark_script_runs_and_reports_ratios_and_differences(capsys, tmp_pa
     assert "fair scheduling gives 2 threads at most 1.33 CPUs" in out
     assert "where the CPU of 1 thread goes" in out and "FFTs " in out and "cross-spectra product " in out
     assert "the least any numpy/scipy estimate does" in out and "the Python glue (holds the GIL)" in out
+    assert "the FFTs from the record " in out and ", the cross-spectra " in out
     assert "two idle cores bound 2 / 1 at " in out
     assert "(target <= 2: process <=" in out and "in CPU (steadier on a shared machine)" in out
     assert list(tmp_path.iterdir()) == []
