@@ -35,6 +35,7 @@ import functools
 import io
 import os
 import resource
+import select
 import shutil
 import subprocess
 import sys
@@ -322,20 +323,23 @@ def _cpu_of(pid: int) -> float:
 @contextlib.contextmanager
 def _other_core_busy(how: str = "its own session (another user's job)"):
     """A process spinning on one CPU while the block runs, started as SPINNERS[``how``] says; yields
-    its pid."""
+    its pid once it is set up and spinning (it says so on its stdout; at most 60 s)."""
     own, pinned, nice = SPINNERS[how]
-    code = "import os\n"
+    code = "import os, sys\n"
     if pinned:
         code += f"os.sched_setaffinity(0, {{{max(os.sched_getaffinity(0))}}})\n"
     if nice:
         code += f"os.nice({nice})\n"
-    spin = subprocess.Popen([sys.executable, "-c", code + "while True: pass"], start_new_session=own)
+    code += "sys.stdout.write('.')\nsys.stdout.flush()\nwhile True: pass"
+    spin = subprocess.Popen([sys.executable, "-c", code], start_new_session=own, stdout=subprocess.PIPE)
     try:
-        time.sleep(0.2)
+        if not select.select([spin.stdout], [], [], 60)[0] or spin.stdout.read(1) != b".":
+            raise RuntimeError("the spinning process did not start")
         yield spin.pid
     finally:
         spin.kill()
         spin.wait(timeout=10)
+        spin.stdout.close()
 
 
 def bench_kernel(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: int) -> None:
