@@ -35,6 +35,7 @@ import functools
 import io
 import os
 import resource
+import select
 import shutil
 import subprocess
 import sys
@@ -322,20 +323,23 @@ def _cpu_of(pid: int) -> float:
 @contextlib.contextmanager
 def _other_core_busy(how: str = "its own session (another user's job)"):
     """A process spinning on one CPU while the block runs, started as SPINNERS[``how``] says; yields
-    its pid."""
+    its pid once it is set up and spinning (it says so on its stdout; at most 60 s)."""
     own, pinned, nice = SPINNERS[how]
-    code = "import os\n"
+    code = "import os, sys\n"
     if pinned:
         code += f"os.sched_setaffinity(0, {{{max(os.sched_getaffinity(0))}}})\n"
     if nice:
         code += f"os.nice({nice})\n"
-    spin = subprocess.Popen([sys.executable, "-c", code + "while True: pass"], start_new_session=own)
+    code += "sys.stdout.write('.')\nsys.stdout.flush()\nwhile True: pass"
+    spin = subprocess.Popen([sys.executable, "-c", code], start_new_session=own, stdout=subprocess.PIPE)
     try:
-        time.sleep(0.2)
+        if not select.select([spin.stdout], [], [], 60)[0] or spin.stdout.read(1) != b".":
+            raise RuntimeError("the spinning process did not start")
         yield spin.pid
     finally:
         spin.kill()
         spin.wait(timeout=10)
+        spin.stdout.close()
 
 
 def bench_kernel(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: int) -> None:
@@ -415,13 +419,18 @@ def bench_kernel(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: i
         got = [np.median(t[k][:, 1] / t[k][:, 0]) for k in (1, 2)]
         spin = [np.median(t[k][:, 2] / t[k][:, 0]) for k in (1, 2)]
         bound = extra / _fair_share(how)
+        # the split between ours and the spinner measured here, carried to 2 CPUs with nobody else:
+        # n threads holding a fraction q of the CPU the two processes got would get min(n, 2 q) CPUs
+        idle = [t[k][:, 1] / np.minimum(k, 2 * t[k][:, 1] / (t[k][:, 1] + t[k][:, 2])) for k in (1, 2)]
         print(f"     wall, other core busy (a spinning process in {how}): 1 thread {_spread(t[1][:, 0])}, "
               f"2 threads {_spread(t[2][:, 0])}: 2 / 1 = {np.median(ratio):.2f} ({ratio.min():.2f}-"
               f"{ratio.max():.2f}) (target <= 0.6); CPUs got: 1 thread {got[0]:.2f}, 2 threads {got[1]:.2f} "
               f"({got[1] / got[0]:.2f}x), the spinner {spin[0]:.2f} and {spin[1]:.2f}; on 2 otherwise idle "
               f"CPUs fair scheduling gives 2 threads at most {_fair_share(how):.2f} CPUs here, 1 thread 1: "
-              f"2 / 1 >= {bound:.2f} (the 2 threads' CPU {extra:.2f}x 1 thread's / {_fair_share(how):.2f}) "
-              f"(load average now {os.getloadavg()[0]:.1f})")
+              f"2 / 1 >= {bound:.2f} (the 2 threads' CPU {extra:.2f}x 1 thread's / {_fair_share(how):.2f}); "
+              f"at the split between ours and the spinner measured here (ours / both), on 2 CPUs with "
+              f"nobody else: 2 / 1 = {np.median(idle[1] / idle[0]):.2f} (load average now "
+              f"{os.getloadavg()[0]:.1f})")
 
 
 LEAST_BLOCKS = (4, 16)
