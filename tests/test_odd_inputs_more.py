@@ -67,6 +67,17 @@ def test_modal_table_without_rows_or_with_two_poses_in_one_config(tmp_path: Path
     _one_line(capsys, main(["compare", str(tmp_path / "modes.csv"), str(tmp_path / "pred.csv")]), *words)
 
 
+def test_modal_map_keeps_its_per_mode_mean_poses(tmp_path: Path, capsys) -> None:
+    """A modal map (identify --track) names a pose bin per config; each of its rows carries the mean
+    pose of that mode's windows, so one bin holds several pose values and is read as it is."""
+    rows = ("config,mode,freq_hz,n_windows,pose.theta_deg\n"
+            "theta_deg=30,1,25.5,4,29.1\ntheta_deg=30,2,92.2,3,31.2\n")
+    (tmp_path / "map.csv").write_text(rows, encoding="utf-8")
+    (tmp_path / "pred.csv").write_text(PRED, encoding="utf-8")
+    assert main(["compare", str(tmp_path / "map.csv"), str(tmp_path / "pred.csv")]) == 0
+    assert "theta_deg=30" in capsys.readouterr().out
+
+
 def test_poses_listing_a_config_twice(tmp_path: Path, capsys) -> None:
     """Two poses for one config: the last one silently won; the same pose twice (a modal table given
     as POSES.csv, as the README does) stays fine."""
