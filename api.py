@@ -508,7 +508,9 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
         + LSFD), ``peak`` (CMIF peaks, half-power damping), output-only ``ssi`` (SSI-cov) or ``fdd``.
         Default: the data decide, ``lscf`` where a force channel exists, else ``ssi``.
     fmin, fmax : float, optional
-        Band edges [Hz] (default: the first line above 0 Hz, Nyquist); ``fmin`` < ``fmax``.
+        Band edges [Hz] (default: the first line above 0 Hz; Nyquist, or the last line before a top
+        stretch where the FRFs' coherence stays below 0.9: modal.identify.coherent_top); ``fmin`` <
+        ``fmax``.  ``Modes.band_note`` says which band was fitted and why.
     max_order : int, optional
         Cap of the pLSCF model order (default: it adapts to the data); ssi: highest model order.
     run_id : str, optional

@@ -1,0 +1,124 @@
+"""Odd inputs beyond the classes of tests/test_cli_table.py (an adversarial pass of 26 Nov): each a
+failure once seen (a traceback, exit 1, or a silent answer), now one line naming the file, field or
+value and exit code 2.  In-process calls of the CLI entry point (the point is the message), a few
+milliseconds each but the one run file."""
+
+from __future__ import annotations
+
+import errno
+import io
+import os
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from conftest import REPO
+
+from flexmodal.app import main
+from flexmodal.compare.candidates import parse_effects
+
+RIG = (REPO / "examples" / "rigs" / "seed003_two_link.toml").read_text(encoding="utf-8")
+MODES = (REPO / "examples" / "measured" / "seed003_table3_f1f2.csv").read_text(encoding="utf-8")
+PRED = "config,mode,freq_hz,source\ntheta0,1,25.3,fe\ntheta30,1,26.1,fe\n"
+
+
+class _FullDisk(io.StringIO):
+    """A stream on a full disk, as /dev/full is (every write fails)."""
+
+    def write(self, text: str) -> int:
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+
+def _one_line(capsys, code: int, *words: str) -> str:
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and err[0].startswith("flexmodal"), (code, err)
+    assert all(w in err[0] for w in words), err[0]
+    return err[0]
+
+
+def test_run_whose_sample_rate_is_finite_but_absurd_is_refused(tmp_path: Path, capsys) -> None:
+    """sample_rate_hz = 1e300 passed the finite > 0 check and overflowed in the FRF fit (exit 1)."""
+    from flexmodal.daq.store import Channel, RunWriter
+
+    path = tmp_path / "run.h5"
+    chans = [Channel("F", "force", "N"), Channel("a1", "acceleration", "m/s^2")]
+    with RunWriter(path, "r1", sample_rate_hz=1024.0, channels=chans, excitation="random",
+                   pose={"theta_deg": 0.0}) as w:
+        w.append(np.random.default_rng(0).standard_normal((256, 2)))
+    for rate in (1e300, 5e-324):
+        with h5py.File(path, "r+") as f:
+            f["runs/r1"].attrs["sample_rate_hz"] = rate
+        _one_line(capsys, main(["frf", str(path)]), "run.h5", "sample_rate_hz", "<= 1e+09 Hz")
+    with pytest.raises(Exception, match="sample_rate_hz must be > 0 and <= 1e"):
+        RunWriter(tmp_path / "new.h5", "r1", sample_rate_hz=1e12, channels=chans, excitation="random",
+                  pose={})
+
+
+@pytest.mark.parametrize(("table", "words"), [
+    ("config,mode,freq_hz\n", ("modes.csv", "header but no rows")),   # was a zip() traceback
+    ("config,mode,freq_hz,pose.theta_deg\ntheta0,1,25.5,0\ntheta0,2,92.2,60\n",   # was: first row wins
+     ("modes.csv", "'theta0'", "pose.theta_deg", "0 and 60")),
+])
+def test_modal_table_without_rows_or_with_two_poses_in_one_config(tmp_path: Path, capsys, table: str,
+                                                                   words: tuple[str, ...]) -> None:
+    (tmp_path / "modes.csv").write_text(table, encoding="utf-8")
+    (tmp_path / "pred.csv").write_text(PRED, encoding="utf-8")
+    _one_line(capsys, main(["compare", str(tmp_path / "modes.csv"), str(tmp_path / "pred.csv")]), *words)
+
+
+def test_poses_listing_a_config_twice(tmp_path: Path, capsys) -> None:
+    """Two poses for one config: the last one silently won; the same pose twice (a modal table given
+    as POSES.csv, as the README does) stays fine."""
+    (tmp_path / "rig.toml").write_text(RIG, encoding="utf-8")
+    args = ["predict", str(tmp_path / "rig.toml"), "--model", "fe", "--poses", str(tmp_path / "poses.csv"),
+            "--out", str(tmp_path / "pred.csv"), "--modes", "1"]
+    (tmp_path / "poses.csv").write_text("config,pose.theta_deg\ntheta0,0\ntheta0,60\n", encoding="utf-8")
+    _one_line(capsys, main(args), "poses.csv", "'theta0'", "0 and 60")
+    assert not (tmp_path / "pred.csv").exists()
+    (tmp_path / "poses.csv").write_text("config,pose.theta_deg\ntheta0,0\ntheta0,0\n", encoding="utf-8")
+    assert main(args) == 0 and (tmp_path / "pred.csv").read_text(encoding="utf-8").count("theta0") == 1
+
+
+@pytest.mark.parametrize(("old", "new", "words"), [
+    ('kind = "rigid"', 'kind = "rigid"\nstiffnes = 3', ("joint[0].stiffnes", "unknown key")),
+    ("[[sensor]]", "[[sensors]]", ("sensors", "unknown key", "sensor")),
+    ('name = "a1"', 'name = "a1"\nmass_g = 2', ("sensor[0].mass_g", "unknown key", "mass_kg")),
+    ("rho_kg_m3 = 2700", "rho_kg_m3 = 2700\nE_GPa = 75", ("material.aluminium.E_GPa", "unknown key")),
+    ('{ shape = "square_tube", outer_m = 0.040, wall_m = 0.0011 }',
+     '{ shape = "solid_rect", width_m = 0.04, height_m = 0.04, wall_m = 0.001 }',
+     ("link[0].section.wall_m", "solid_rect")),
+])
+def test_rig_key_misspelt_is_named_not_dropped(tmp_path: Path, capsys, old: str, new: str,
+                                               words: tuple[str, ...]) -> None:
+    """A misspelt optional key (a sensor's mass, a mass's inertia) was ignored: the model was built
+    without it and exit 0."""
+    (tmp_path / "rig.toml").write_text(RIG.replace(old, new, 1), encoding="utf-8")
+    (tmp_path / "poses.csv").write_text("config,pose.theta_deg\nt,0\n", encoding="utf-8")
+    code = main(["predict", str(tmp_path / "rig.toml"), "--model", "fe", "--poses",
+                 str(tmp_path / "poses.csv"), "--out", str(tmp_path / "pred.csv")])
+    _one_line(capsys, code, "rig.toml", *words)
+
+
+def test_effect_named_twice_counts_once() -> None:
+    """`diagnose --effects joint_stiffness,joint_stiffness` ended in a numpy traceback (exit 1)."""
+    assert parse_effects("joint_stiffness, joint_stiffness,tip_mass") == ("joint_stiffness", "tip_mass")
+
+
+def test_stdout_closed_full_or_current_folder_gone(tmp_path: Path, capsys, monkeypatch) -> None:
+    """`flexmodal compare ... >&-` was an AttributeError traceback; `> /dev/full` and a deleted
+    current folder gave a line naming nothing ("No space left on device")."""
+    (tmp_path / "modes.csv").write_text(MODES, encoding="utf-8")
+    (tmp_path / "pred.csv").write_text(PRED, encoding="utf-8")
+    args = ["compare", str(tmp_path / "modes.csv"), str(tmp_path / "pred.csv")]
+    with monkeypatch.context() as m:
+        m.setattr("sys.stdout", None)
+        _one_line(capsys, main(args), "standard output is closed")
+    with monkeypatch.context() as m:
+        m.setattr("sys.stdout", _FullDisk())
+        _one_line(capsys, main(args), "standard output: No space left on device")
+    gone = tmp_path / "gone"
+    gone.mkdir()
+    monkeypatch.chdir(gone)
+    gone.rmdir()
+    _one_line(capsys, main([*args, "--out", "t.md"]), "current folder no longer exists")
