@@ -133,3 +133,20 @@ def test_stdout_closed_full_or_current_folder_gone(tmp_path: Path, capsys, monke
     monkeypatch.chdir(gone)
     gone.rmdir()
     _one_line(capsys, main([*args, "--out", "t.md"]), "current folder no longer exists")
+
+
+@pytest.mark.parametrize(("pose", "words"), [
+    ("thta_deg=60", ("'thta_deg'", "theta_deg")),   # the rig stayed at its default 30 deg, exit 0
+    ("theta_deg=10,theta_deg=20", ("theta_deg is given twice",)),   # the last one won
+])
+def test_simulator_pose_names_the_rig_does_not_have(capsys, pose: str, words: tuple[str, ...]) -> None:
+    code = main(["sim", "serve", "--protocol", "serial", "--pose", pose, "--duration", "0.5", "--quiet"])
+    _one_line(capsys, code, "pose", *words)
+
+
+def test_simulator_rate_beyond_memory_is_refused_before_allocating(capsys, monkeypatch) -> None:
+    """`sim serve --rate 1e7` computed 8 s of the rig at 10 MHz in memory (some 30 GB): the machine
+    swapped.  Here the machine is made to have 2 GB so that 1 MHz (about 3 GB) is refused."""
+    monkeypatch.setattr("flexmodal.checked_io.text.available_memory_bytes", lambda: 2_000_000_000)
+    code = main(["sim", "serve", "--protocol", "serial", "--rate", "1e6", "--duration", "0.5", "--quiet"])
+    _one_line(capsys, code, "sample rate 1e+06 Hz", "GB", "lower rate")
