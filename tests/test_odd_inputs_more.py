@@ -150,3 +150,24 @@ def test_simulator_rate_beyond_memory_is_refused_before_allocating(capsys, monke
     monkeypatch.setattr("flexmodal.checked_io.text.available_memory_bytes", lambda: 2_000_000_000)
     code = main(["sim", "serve", "--protocol", "serial", "--rate", "1e6", "--duration", "0.5", "--quiet"])
     _one_line(capsys, code, "sample rate 1e+06 Hz", "GB", "lower rate")
+
+
+def test_python_api_names_wrong_arguments(tmp_path: Path) -> None:
+    """The Python API's wrong arguments end in the error family or a TypeError saying what was
+    expected, not in an AttributeError, KeyError, ValueError or numpy ufunc error from deep inside."""
+    import flexmodal as fm
+
+    (tmp_path / "modes.csv").write_text(MODES, encoding="utf-8")
+    rig, modes = REPO / "examples" / "rigs" / "seed003_two_link.toml", tmp_path / "modes.csv"
+    with pytest.raises(fm.ModelError, match="config 't': pose theta_deg = 'x' is not a finite number"):
+        fm.predict(rig, {"t": {"theta_deg": "x"}}, "fe")            # was ValueError from float()
+    with pytest.raises(TypeError, match="expected a modal table or the path of its CSV file, got list"):
+        fm.compare_modes(modes, [modes])                            # was AttributeError: .source
+    with pytest.raises(fm.ReportError, match="no configuration 'nope'"):
+        fm.plot_mode_shapes(rig, modes, "nope")                     # was KeyError
+    with pytest.raises(fm.ModalError, match="--fmin '10': not a frequency"):
+        fm.identify(modes, fmin="10")                               # was a numpy ufunc error
+    with pytest.raises(TypeError, match="source must be an HDF5 or UFF path or an FrfResult, got bytes"):
+        fm.identify(b"run.h5")                                      # was AttributeError: .H
+    with pytest.raises(fm.FixtureError, match="n_cases = 0"):
+        fm.selftest(0)                                              # was a summary of nan %
