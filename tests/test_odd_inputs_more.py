@@ -171,3 +171,22 @@ def test_python_api_names_wrong_arguments(tmp_path: Path) -> None:
         fm.identify(b"run.h5")                                      # was AttributeError: .H
     with pytest.raises(fm.FixtureError, match="n_cases = 0"):
         fm.selftest(0)                                              # was a summary of nan %
+
+
+@pytest.mark.parametrize(("units", "normalised"), [(("N", "m/s^2"), True), (("N", "m/s²"), True),
+                                                   (("N", "g"), False), (("kN", "m/s^2"), False)])
+def test_mass_normalisation_only_in_si_units(tmp_path: Path, units: tuple[str, str],
+                                             normalised: bool) -> None:
+    """A run stored in g (or kN) had its shapes mass-normalised as if in m/s^2 per N: off by sqrt(9.81)
+    with exit 0.  The driving point is now used only in SI units; otherwise shapes are unit-maximum."""
+    from flexmodal.daq.store import Channel, RunWriter, read_run
+    from flexmodal.modal.compute import compute_frf
+    from flexmodal.modal.sources import _driving_point
+
+    chans = [Channel("F", "force", units[0], location="tip", direction="y"),
+             Channel("a1", "acceleration", units[1], location="tip", direction="y")]
+    with RunWriter(tmp_path / "run.h5", "r1", sample_rate_hz=1024.0, channels=chans, excitation="random",
+                   pose={}) as w:
+        w.append(np.random.default_rng(0).standard_normal((1024, 2)))
+    run = read_run(tmp_path / "run.h5", "r1")
+    assert (_driving_point(run, compute_frf(run, nfft=256)) == 0) is normalised
