@@ -231,3 +231,20 @@ def test_config_names_with_markup_characters_stay_in_their_cell(tmp_path: Path, 
     assert r"r\$1\_\{a\}|b &" in capsys.readouterr().out
     assert main([*args, "md"]) == 0
     assert r"| r$1_{a}\|b |" in capsys.readouterr().out
+
+
+def test_a_terminal_that_cannot_show_greek_letters(tmp_path: Path) -> None:
+    """stdout in ASCII (a C or Latin-1 locale, PYTHONIOENCODING=ascii): the comparison's `Δf` header
+    ended in a UnicodeEncodeError traceback, exit 1, after the work was done.  A process of its own:
+    the point is the stream the process is started with."""
+    import subprocess
+    import sys
+
+    (tmp_path / "modes.csv").write_text(MODES, encoding="utf-8")
+    (tmp_path / "pred.csv").write_text(PRED, encoding="utf-8")
+    env = {**os.environ, "PYTHONIOENCODING": "ascii"}
+    env.pop("PYTHONUTF8", None)
+    command = [sys.executable, "-m", "flexmodal", "compare", "modes.csv", "pred.csv"]
+    done = subprocess.run(command, cwd=tmp_path, env=env, capture_output=True, timeout=300)
+    assert done.returncode == 0 and b"Traceback" not in done.stderr, done.stderr.decode()
+    assert b"\\u0394f" in done.stdout
