@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from scipy.ndimage import uniform_filter1d
 
 from flexmodal.checked_io.output import atomic_path
 from flexmodal.contract.mac import mac, mass_normalised, to_real, unit_max
@@ -50,6 +51,9 @@ ZOOM_ZETA = 0.01     # ...and fitted with one pole starting at this damping rati
 ZOOM_ABOVE_NOISE = 2.0  # ...standing this many times above the FRFs' own noise there
 ZOOM_COHERENCE = 0.9  # ...where the FRFs' mean coherence is at least this (when it is known)
 SUSPENSION = 0.2     # below this share of the lowest mode a resonance is taken as the suspension's
+EDGE_COHERENCE = 0.9  # the default band ends below a top stretch where the FRFs' coherence stays under this
+EDGE_SMOOTH = 0.005   # ...averaged over outputs and over about this share of the band's lines (>= 5)
+EDGE_SHARE = 0.25     # ...unless that stretch holds more than this share of the band (no band edge then)
 BASIS_MISFIT = 1.25  # one reference: the second basis's misfit share may be this many times the first's
 
 
@@ -66,7 +70,7 @@ class Modes:
     ``frf_synthesis_corr`` [n_out, n_in] the FRAC of each FRF over the band, ``synthesis`` [n_out,
     n_in, n_band] the synthesised FRFs on ``band_freq_hz``, ``stabilisation`` the diagram with
     ``selected`` [n_poles] marking the poles of the chosen modes, ``order_note`` which model order
-    was used and why."""
+    was used and why, ``band_note`` which band was fitted and why."""
 
     freq_hz: np.ndarray
     damping_ratio: np.ndarray
@@ -89,6 +93,7 @@ class Modes:
     freq_std_hz: np.ndarray | None = None      # 1-sigma [Hz], modal/uncertainty.py (None: not estimated)
     damping_std: np.ndarray | None = None      # 1-sigma [-]
     diagram_key: str = ""   # modal.diagrams.inputs_key of the FRFs and options behind ``stabilisation``
+    band_note: str = ""     # which band [Hz] was fitted and why (identify's band_note)
 
 
 @dataclass(frozen=True)
@@ -115,6 +120,61 @@ def _band(freq_hz: np.ndarray, fmin: float | None, fmax: float | None) -> np.nda
     if band.sum() < 8:
         raise ModalError(f"identify: only {int(band.sum())} frequency lines between {lo:g} and {hi:g} Hz")
     return band
+
+
+def coherent_top(freq_hz: np.ndarray, coherence: np.ndarray | None) -> float | None:
+    """The upper band edge [Hz] below the FRFs' poorly measured top, or None when they have none.
+
+    The top of a record's band is where its anti-aliasing (or decimation) filter rolls off and where a
+    sweep or an impact stops exciting: there the coherence ``coherence`` [n_out, n_freq] (on the lines
+    ``freq_hz`` [Hz]), averaged over the outputs and over EDGE_SMOOTH of the lines, falls below
+    EDGE_COHERENCE and stays there to the highest line.  The edge is the highest line at which the
+    smoothed coherence is still EDGE_COHERENCE or more; None when the top line is well measured, or when
+    the poorly measured stretch holds more than EDGE_SHARE of the lines (a noisy record, not a band
+    edge).  A coherence of one everywhere (one average) says nothing and gives None.  Dips at
+    antiresonances within the band do not end it.  Why analysers show only fs/2.56 of a record:
+    J. S. Bendat, A. G. Piersol, "Random Data", 4th ed., Wiley 2010, §10.3.3 (anti-aliasing filters),
+    §9.2.3 (coherence and the random error of FRF estimates).
+
+    Examples
+    --------
+    Coherence 0.99 up to 110 Hz, falling linearly to 0.4 at 125 Hz (a filter's roll-off): it is 0.9
+    at 110 + 15 * 0.09 / 0.59 = 112.29 Hz, and the last line below that is 112.25 Hz:
+
+    >>> f = np.linspace(0.0, 125.0, 1001)
+    >>> coh = np.where(f < 110.0, 0.99, 0.99 - 0.59 * (f - 110.0) / 15.0)[None, :]
+    >>> coherent_top(f, coh)
+    112.25
+    >>> coherent_top(f, np.ones((1, f.size))) is None
+    True
+    """
+    if coherence is None:
+        return None
+    f = np.asarray(freq_hz, float)
+    c = np.nan_to_num(np.mean(np.reshape(coherence, (-1, f.size)), axis=0), nan=0.0)
+    width = 2 * max(2, int(EDGE_SMOOTH * f.size / 2)) + 1   # odd: centred on each line
+    smooth = uniform_filter1d(c, width, mode="nearest")
+    good = np.flatnonzero(smooth >= EDGE_COHERENCE)
+    if good.size == 0 or good[-1] == f.size - 1 or f.size - 1 - good[-1] > EDGE_SHARE * f.size:
+        return None
+    return float(f[good[-1]])
+
+
+def band_note(f: np.ndarray, fmin: float | None, fmax: float | None, top_hz: float,
+              edge_hz: float | None) -> str:
+    """The line saying which band [Hz] was fitted (lines ``f``) and why: the options given, every
+    line of the FRFs, or an upper edge at ``edge_hz`` below a poorly measured top up to ``top_hz``
+    (:func:`coherent_top`)."""
+    lower = "--fmin" if fmin is not None else "the first line above 0 Hz"
+    if fmax is not None:
+        upper = "--fmax"
+    elif edge_hz is not None:
+        upper = (f"the last line before the FRFs' coherence stays below {EDGE_COHERENCE:g} up to "
+                 f"{top_hz:g} Hz (an anti-aliasing filter's roll-off or the end of the excitation: --fmax "
+                 "to fit those lines)")
+    else:
+        upper = "the highest line"
+    return f"band {f.min():.5g}-{f.max():.5g} Hz: from {lower} to {upper}"
 
 
 def _shapes(constants: np.ndarray, driving_point: int | None) -> tuple[np.ndarray, bool]:
@@ -789,6 +849,12 @@ def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: 
     if decay_rate_per_s < 0 or not np.isfinite(decay_rate_per_s):
         raise ModalError(f"identify: exponential window decay {decay_rate_per_s:g} 1/s must be >= 0")
     band = _band(freq_hz, fmin, fmax)
+    edge = coherent_top(np.asarray(freq_hz, float)[band], coherence[:, band]) \
+        if fmax is None and coherence is not None else None
+    if edge is not None and np.count_nonzero(band & (np.asarray(freq_hz, float) <= edge)) >= 8:
+        band &= np.asarray(freq_hz, float) <= edge
+    else:
+        edge = None
     f, Hb = np.asarray(freq_hz, float)[band], H[..., band]
     warnings: list[str] = [nyquist_note(fmax, float(np.max(freq_hz)))] if fmax is not None \
         and fmax > np.max(freq_hz) else []
@@ -816,7 +882,8 @@ def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: 
     per_mode = {k: extra[k][order] for k in ("mpc", "mpd", "synthesis_corr", "need") if k in extra}
     return Modes(fn[order], zeta[order], shapes[:, np.argsort(fn[keep])], constants[:, order], method, massn,
                  tuple(warnings), **per_mode, **{k: v for k, v in extra.items() if k not in per_mode},
-                 details=details, diagram_key=key)
+                 details=details, diagram_key=key,
+                 band_note=band_note(f, fmin, fmax, float(np.max(freq_hz)), edge))
 
 
 def modes_table(modes: Modes, outputs: Sequence[str], *, config: str = "run",
