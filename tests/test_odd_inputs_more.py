@@ -190,3 +190,44 @@ def test_mass_normalisation_only_in_si_units(tmp_path: Path, units: tuple[str, s
         w.append(np.random.default_rng(0).standard_normal((1024, 2)))
     run = read_run(tmp_path / "run.h5", "r1")
     assert (_driving_point(run, compute_frf(run, nfft=256)) == 0) is normalised
+
+
+def test_frf_out_into_another_files_run_of_the_same_id(tmp_path: Path, capsys) -> None:
+    """`frf a.h5 --out b.h5` where b.h5 holds its own run r1: a's FRFs replaced b's and sat beside
+    samples they were not computed from, exit 0.  A file holding only FRFs (an earlier --out) stays a
+    valid target."""
+    from flexmodal.daq.store import Channel, RunWriter
+
+    chans = [Channel("F", "force", "N"), Channel("a1", "acceleration", "m/s^2")]
+    for name, rate in (("a.h5", 1024.0), ("b.h5", 512.0)):
+        with RunWriter(tmp_path / name, "r1", sample_rate_hz=rate, channels=chans, excitation="random",
+                       pose={}) as w:
+            w.append(np.random.default_rng(0).standard_normal((1024, 2)))
+    before = (tmp_path / "b.h5").read_bytes()
+    _one_line(capsys, main(["frf", str(tmp_path / "a.h5"), "--out", str(tmp_path / "b.h5"), "--quiet"]),
+              "b.h5", "'r1'", "another run with its own samples")
+    assert (tmp_path / "b.h5").read_bytes() == before
+    for _ in range(2):
+        assert main(["frf", str(tmp_path / "a.h5"), "--out", str(tmp_path / "f.h5"), "--quiet"]) == 0
+
+
+def test_compare_names_a_config_predicted_at_another_pose(tmp_path: Path, capsys) -> None:
+    """Measured theta0 at 0 deg, predicted theta0 at 60 deg: the modes of two poses were paired under
+    one name and their gap reported as the model's error, exit 0."""
+    (tmp_path / "modes.csv").write_text(MODES, encoding="utf-8")
+    pred = "config,mode,freq_hz,pose.theta_deg\ntheta0,1,25.3,60\n"
+    (tmp_path / "pred.csv").write_text(pred, encoding="utf-8")
+    _one_line(capsys, main(["compare", str(tmp_path / "modes.csv"), str(tmp_path / "pred.csv")]),
+              "'theta0'", "pose.theta_deg = 0", "predicted at 60")
+
+
+def test_config_names_with_markup_characters_stay_in_their_cell(tmp_path: Path, capsys) -> None:
+    """A `$` or `{` in a configuration name broke the LaTeX table, a `|` the Markdown one."""
+    for name, f in (("m.csv", 30), ("p.csv", 31)):   # two configurations: the config column is shown
+        text = f'config,mode,freq_hz\n"r$1_{{a}}|b",1,{f}\nt2,1,{f}\n'
+        (tmp_path / name).write_text(text, encoding="utf-8")
+    args = ["compare", str(tmp_path / "m.csv"), str(tmp_path / "p.csv"), "--format"]
+    assert main([*args, "tex"]) == 0
+    assert r"r\$1\_\{a\}|b &" in capsys.readouterr().out
+    assert main([*args, "md"]) == 0
+    assert r"| r$1_{a}\|b |" in capsys.readouterr().out
