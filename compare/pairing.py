@@ -91,12 +91,32 @@ def partner_config(measured: ModalTable, predicted: ModalTable, config: str,
     non-empty pose (values equal within 1e-9), else None.  ``poses``: ``PoseIndex(predicted)``, built
     once when many configurations are matched."""
     if predicted.has_config(config):
+        _same_pose(measured, predicted, config)
         return config
     pose = measured.pose(config)
     if not pose:
         return None
     same = (poses or PoseIndex(predicted)).find(pose)
     return same[0] if len(same) == 1 else None
+
+
+def _same_pose(measured: ModalTable, predicted: ModalTable, config: str) -> None:
+    """CompareError when ``config`` is predicted at another pose than it was measured at: a pose
+    variable both tables give whose predicted values leave the measured ones' range (one value in a
+    modal table; the windows' means of a modal map's pose bin).  Modes of two poses would otherwise be
+    paired under one name, and their differences reported as the model's error."""
+    from flexmodal.compare.errors import CompareError
+
+    for col in [c for c in measured.pose_columns if c in predicted.pose_columns]:
+        m = measured.column(config, col).astype(float)
+        p = predicted.column(config, col).astype(float)
+        m, p = m[np.isfinite(m)], p[np.isfinite(p)]
+        if m.size and p.size:
+            tol = 1e-6 * max(1.0, float(np.abs(m).max()))   # poses written with 9 digits compare equal
+            if p.min() < m.min() - tol or p.max() > m.max() + tol:
+                raise CompareError(f"config {config!r}: measured at {col} = {m[0]:g} ({measured.source}) but "
+                                   f"predicted at {p[0]:g} ({predicted.source}): a configuration is one pose "
+                                   "(predict at the measured poses: predict --poses MEASURED.csv)")
 
 
 class PoseIndex:

@@ -67,6 +67,17 @@ def test_modal_table_without_rows_or_with_two_poses_in_one_config(tmp_path: Path
     _one_line(capsys, main(["compare", str(tmp_path / "modes.csv"), str(tmp_path / "pred.csv")]), *words)
 
 
+def test_modal_map_keeps_its_per_mode_mean_poses(tmp_path: Path, capsys) -> None:
+    """A modal map (identify --track) names a pose bin per config; each of its rows carries the mean
+    pose of that mode's windows, so one bin holds several pose values and is read as it is."""
+    rows = ("config,mode,freq_hz,n_windows,pose.theta_deg\n"
+            "theta_deg=30,1,25.5,4,29.1\ntheta_deg=30,2,92.2,3,31.2\n")
+    (tmp_path / "map.csv").write_text(rows, encoding="utf-8")
+    (tmp_path / "pred.csv").write_text(PRED, encoding="utf-8")
+    assert main(["compare", str(tmp_path / "map.csv"), str(tmp_path / "pred.csv")]) == 0
+    assert "theta_deg=30" in capsys.readouterr().out
+
+
 def test_poses_listing_a_config_twice(tmp_path: Path, capsys) -> None:
     """Two poses for one config: the last one silently won; the same pose twice (a modal table given
     as POSES.csv, as the README does) stays fine."""
@@ -122,3 +133,101 @@ def test_stdout_closed_full_or_current_folder_gone(tmp_path: Path, capsys, monke
     monkeypatch.chdir(gone)
     gone.rmdir()
     _one_line(capsys, main([*args, "--out", "t.md"]), "current folder no longer exists")
+
+
+@pytest.mark.parametrize(("pose", "words"), [
+    ("thta_deg=60", ("'thta_deg'", "theta_deg")),   # the rig stayed at its default 30 deg, exit 0
+    ("theta_deg=10,theta_deg=20", ("theta_deg is given twice",)),   # the last one won
+])
+def test_simulator_pose_names_the_rig_does_not_have(capsys, pose: str, words: tuple[str, ...]) -> None:
+    code = main(["sim", "serve", "--protocol", "serial", "--pose", pose, "--duration", "0.5", "--quiet"])
+    _one_line(capsys, code, "pose", *words)
+
+
+def test_simulator_rate_beyond_memory_is_refused_before_allocating(capsys, monkeypatch) -> None:
+    """`sim serve --rate 1e7` computed 8 s of the rig at 10 MHz in memory (some 30 GB): the machine
+    swapped.  Here the machine is made to have 2 GB so that 1 MHz (about 3 GB) is refused."""
+    monkeypatch.setattr("flexmodal.checked_io.text.available_memory_bytes", lambda: 2_000_000_000)
+    code = main(["sim", "serve", "--protocol", "serial", "--rate", "1e6", "--duration", "0.5", "--quiet"])
+    _one_line(capsys, code, "sample rate 1e+06 Hz", "GB", "lower rate")
+
+
+def test_python_api_names_wrong_arguments(tmp_path: Path) -> None:
+    """The Python API's wrong arguments end in the error family or a TypeError saying what was
+    expected, not in an AttributeError, KeyError, ValueError or numpy ufunc error from deep inside."""
+    import flexmodal as fm
+
+    (tmp_path / "modes.csv").write_text(MODES, encoding="utf-8")
+    rig, modes = REPO / "examples" / "rigs" / "seed003_two_link.toml", tmp_path / "modes.csv"
+    with pytest.raises(fm.ModelError, match="config 't': pose theta_deg = 'x' is not a finite number"):
+        fm.predict(rig, {"t": {"theta_deg": "x"}}, "fe")            # was ValueError from float()
+    with pytest.raises(TypeError, match="expected a modal table or the path of its CSV file, got list"):
+        fm.compare_modes(modes, [modes])                            # was AttributeError: .source
+    with pytest.raises(fm.ReportError, match="no configuration 'nope'"):
+        fm.plot_mode_shapes(rig, modes, "nope")                     # was KeyError
+    with pytest.raises(fm.ModalError, match="--fmin '10': not a frequency"):
+        fm.identify(modes, fmin="10")                               # was a numpy ufunc error
+    with pytest.raises(TypeError, match="source must be an HDF5 or UFF path or an FrfResult, got bytes"):
+        fm.identify(b"run.h5")                                      # was AttributeError: .H
+    with pytest.raises(fm.FixtureError, match="n_cases = 0"):
+        fm.selftest(0)                                              # was a summary of nan %
+
+
+@pytest.mark.parametrize(("units", "normalised"), [(("N", "m/s^2"), True), (("N", "m/s²"), True),
+                                                   (("N", "g"), False), (("kN", "m/s^2"), False)])
+def test_mass_normalisation_only_in_si_units(tmp_path: Path, units: tuple[str, str],
+                                             normalised: bool) -> None:
+    """A run stored in g (or kN) had its shapes mass-normalised as if in m/s^2 per N: off by sqrt(9.81)
+    with exit 0.  The driving point is now used only in SI units; otherwise shapes are unit-maximum."""
+    from flexmodal.daq.store import Channel, RunWriter, read_run
+    from flexmodal.modal.compute import compute_frf
+    from flexmodal.modal.sources import _driving_point
+
+    chans = [Channel("F", "force", units[0], location="tip", direction="y"),
+             Channel("a1", "acceleration", units[1], location="tip", direction="y")]
+    with RunWriter(tmp_path / "run.h5", "r1", sample_rate_hz=1024.0, channels=chans, excitation="random",
+                   pose={}) as w:
+        w.append(np.random.default_rng(0).standard_normal((1024, 2)))
+    run = read_run(tmp_path / "run.h5", "r1")
+    assert (_driving_point(run, compute_frf(run, nfft=256)) == 0) is normalised
+
+
+def test_frf_out_into_another_files_run_of_the_same_id(tmp_path: Path, capsys) -> None:
+    """`frf a.h5 --out b.h5` where b.h5 holds its own run r1: a's FRFs replaced b's and sat beside
+    samples they were not computed from, exit 0.  A file holding only FRFs (an earlier --out) stays a
+    valid target."""
+    from flexmodal.daq.store import Channel, RunWriter
+
+    chans = [Channel("F", "force", "N"), Channel("a1", "acceleration", "m/s^2")]
+    for name, rate in (("a.h5", 1024.0), ("b.h5", 512.0)):
+        with RunWriter(tmp_path / name, "r1", sample_rate_hz=rate, channels=chans, excitation="random",
+                       pose={}) as w:
+            w.append(np.random.default_rng(0).standard_normal((1024, 2)))
+    before = (tmp_path / "b.h5").read_bytes()
+    _one_line(capsys, main(["frf", str(tmp_path / "a.h5"), "--out", str(tmp_path / "b.h5"), "--quiet"]),
+              "b.h5", "'r1'", "another run with its own samples")
+    assert (tmp_path / "b.h5").read_bytes() == before
+    for _ in range(2):
+        assert main(["frf", str(tmp_path / "a.h5"), "--out", str(tmp_path / "f.h5"), "--quiet"]) == 0
+
+
+def test_compare_names_a_config_predicted_at_another_pose(tmp_path: Path, capsys) -> None:
+    """Measured theta0 at 0 deg, predicted theta0 at 60 deg: the modes of two poses were paired under
+    one name and their gap reported as the model's error, exit 0."""
+    (tmp_path / "modes.csv").write_text(MODES, encoding="utf-8")
+    pred = "config,mode,freq_hz,pose.theta_deg\ntheta0,1,25.3,60\n"
+    (tmp_path / "pred.csv").write_text(pred, encoding="utf-8")
+    _one_line(capsys, main(["compare", str(tmp_path / "modes.csv"), str(tmp_path / "pred.csv")]),
+              "'theta0'", "pose.theta_deg = 0", "predicted at 60")
+
+
+def test_config_names_with_markup_characters_stay_in_their_cell(tmp_path: Path, capsys) -> None:
+    """A `$` or `{` in a configuration name broke the LaTeX table, a `|` the Markdown one."""
+    for name, f in (("m.csv", 30), ("p.csv", 31)):   # two configurations: the config column is shown
+        text = f'config,mode,freq_hz\n"r$1_{{a}}|b",1,{f}\nt2,1,{f}\n'
+        (tmp_path / name).write_text(text, encoding="utf-8")
+    args = ["compare", str(tmp_path / "m.csv"), str(tmp_path / "p.csv"), "--format"]
+    assert main([*args, "tex"]) == 0
+    assert r"r\$1\_\{a\}|b &" in capsys.readouterr().out
+    assert main([*args, "md"]) == 0
+    assert r"| r$1_{a}\|b |" in capsys.readouterr().out
