@@ -1001,12 +1001,10 @@ def _cold(exe: str, args: list[str], d: Path) -> tuple[int | None, str]:
 
 
 def _warm(clis: Queue, args: list[str], d: Path) -> tuple[int | None, str]:
-    """The same, started warm by a free server of ``clis``; its output files are beside the row's folder."""
+    """The same, started warm (tests/warm_cli.py) by a free server of ``clis``."""
     cli = clis.get()
     try:
-        stdout, stderr = d.with_name(d.name + ".stdout"), d.with_name(d.name + ".stderr")
-        code, _ = cli.run(args, d, stdout, stderr, timeout_s=ROW_TIMEOUT_S)
-        return code, stderr.read_text(errors="replace")
+        return cli.run(args, d, timeout_s=ROW_TIMEOUT_S)
     finally:
         clis.put(cli)
 
