@@ -273,3 +273,17 @@ def test_run_of_integer_counts_identifies(tmp_path: Path) -> None:
     assert main(["identify", str(tmp_path / "run.h5"), "--out", str(tmp_path / "m.csv"), "--quiet"]) == 0
     table = ModalTable.read_csv(tmp_path / "m.csv").frame
     assert len(table) and np.isfinite(table[["freq_hz", "freq_std_hz", "damping_std"]].to_numpy()).all()
+
+
+def test_session_whose_simulator_rig_is_wrong_is_one_line(tmp_path: Path, capsys) -> None:
+    """A session's simulator with a rig the simulator refuses printed the child's error line and then
+    the session's own "simulator ... did not start" (two lines, the second without the reason)."""
+    (tmp_path / "rig.toml").write_text(RIG.replace('kind = "rigid"', 'kind = "rigid"\nstifness = 1'),
+                                       encoding="utf-8")
+    session = (REPO / "examples" / "sessions" / "serial-sim.toml").read_text(encoding="utf-8")
+    session = session.replace('"../rigs/demo_arm.toml"', '"rig.toml"')
+    (tmp_path / "s.toml").write_text(session, encoding="utf-8")
+    code = main(["acquire", "--config", str(tmp_path / "s.toml"), "--out", str(tmp_path / "r.h5"),
+                 "--duration", "1", "--quiet"])
+    _one_line(capsys, code, "s.toml: simulator", "joint[0].stifness", "unknown key")
+    assert not (tmp_path / "r.h5").exists()
