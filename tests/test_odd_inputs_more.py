@@ -302,3 +302,14 @@ def test_demo_into_a_folder_of_ones_own_results(tmp_path: Path, capsys) -> None:
 
     (tmp_path / DEMO_MARK).write_text("", encoding="utf-8")
     claim_folder(tmp_path)   # marked: the demo may replace its outputs there
+
+
+def test_shapes_at_sensors_named_apart_are_said_not_silently_skipped(tmp_path: Path, capsys) -> None:
+    """Both tables with shapes, sensors `a1, a2` against `A1, A2`: paired by frequency order without a
+    word, as if no shapes had been given."""
+    (tmp_path / "m.csv").write_text("config,mode,freq_hz,shape.a1,shape.a2\nt,1,10,1,0.5\nt,2,30,0.5,-1\n",
+                                    encoding="utf-8")
+    (tmp_path / "p.csv").write_text("config,mode,freq_hz,shape.A1,shape.A2\nt,1,11,1,0.5\nt,2,29,0.5,-1\n",
+                                    encoding="utf-8")
+    assert main(["compare", str(tmp_path / "m.csv"), str(tmp_path / "p.csv")]) == 0
+    assert "paired by frequency order, not by MAC" in capsys.readouterr().out
