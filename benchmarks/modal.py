@@ -35,6 +35,7 @@ import functools
 import io
 import os
 import resource
+import select
 import shutil
 import subprocess
 import sys
@@ -286,16 +287,59 @@ def bench_process(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: 
           f"({cpu['frf --help']:.3f} s CPU)")
 
 
-@contextlib.contextmanager
-def _other_core_busy():
-    """A process spinning on one CPU (in its own session, as another user's job) while the block runs."""
-    spin = subprocess.Popen([sys.executable, "-c", "while True: pass"], start_new_session=True)
+SPINNERS = {   # how the other core is kept busy -> (own session, pinned to one CPU, nice)
+    "its own session (another user's job)": (True, False, 0),
+    "our session": (False, False, 0),
+    "our session, pinned to one CPU (taskset)": (False, True, 0),
+    "our session, nice 19": (False, False, 19),
+}
+
+
+def _fair_share(how: str) -> float:
+    """CPUs the estimate's 2 threads can get beside the spinner ``how`` on 2 otherwise idle CPUs under
+    Linux's fair scheduler (1 thread gets 1 in every case): in its own session (autogroup: the 2 CPUs
+    split equally between the two sessions) 1; in ours (3 equal threads on 2 CPUs) 4/3; in ours pinned
+    to one CPU (one of ours shares that CPU with it) 3/2; at nice 19 (weight 15 against 1024 each)
+    2 * 2048 / 2063."""
+    own, pinned, nice = SPINNERS[how]
+    if own:
+        return 1.0
+    if pinned:
+        return 1.5
+    weight = 1024 / 1.25 ** nice       # the kernel's nice-to-weight table: 1.25x per nice level
+    return min(2.0, 2 * 2048 / (2048 + weight))
+
+
+def _cpu_of(pid: int) -> float:
+    """CPU time (s, user + system) of process ``pid`` so far (Linux /proc; nan elsewhere)."""
     try:
-        time.sleep(0.2)
-        yield
+        with open(f"/proc/{pid}/stat") as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError):
+        return float("nan")
+
+
+@contextlib.contextmanager
+def _other_core_busy(how: str = "its own session (another user's job)"):
+    """A process spinning on one CPU while the block runs, started as SPINNERS[``how``] says; yields
+    its pid once it is set up and spinning (it says so on its stdout; at most 60 s)."""
+    own, pinned, nice = SPINNERS[how]
+    code = "import os, sys\n"
+    if pinned:
+        code += f"os.sched_setaffinity(0, {{{max(os.sched_getaffinity(0))}}})\n"
+    if nice:
+        code += f"os.nice({nice})\n"
+    code += "sys.stdout.write('.')\nsys.stdout.flush()\nwhile True: pass"
+    spin = subprocess.Popen([sys.executable, "-c", code], start_new_session=own, stdout=subprocess.PIPE)
+    try:
+        if not select.select([spin.stdout], [], [], 60)[0] or spin.stdout.read(1) != b".":
+            raise RuntimeError("the spinning process did not start")
+        yield spin.pid
     finally:
         spin.kill()
         spin.wait(timeout=10)
+        spin.stdout.close()
 
 
 def bench_kernel(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: int) -> None:
@@ -311,26 +355,31 @@ def bench_kernel(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: i
         s = welch_spectra(samples, fs, [0], list(range(1, n_resp + 1)), nfft, workers=threads)
         return h1(s), h2(s), coherence(s)
 
-    def rounds() -> dict:
-        """Per round: the bare FFTs' CPU on one thread (the reference, first), then the estimate on
-        1 and 2 threads (wall, CPU)."""
+    def rounds(spinner: int | None = None) -> dict:
+        """Per round: the bare FFTs' CPU on one thread (the reference, first; not beside a spinner),
+        then the estimate on 1 and 2 threads (wall, CPU, and the CPU the ``spinner`` process got)."""
         times: dict = {"fft": [], 1: [], 2: []}
         for _ in range(repeat):
-            times["fft"].append(_fft_floor(n_fft, nfft, 1, workers=1, clock=time.process_time))
+            if spinner is None:
+                times["fft"].append(_fft_floor(n_fft, nfft, 1, workers=1, clock=time.process_time))
             for threads in (1, 2):
                 t0, c0 = time.perf_counter(), time.process_time()
+                s0 = np.nan if spinner is None else _cpu_of(spinner)
                 estimate(threads)
-                times[threads].append((time.perf_counter() - t0, time.process_time() - c0))
+                s1 = np.nan if spinner is None else _cpu_of(spinner)
+                times[threads].append((time.perf_counter() - t0, time.process_time() - c0, s1 - s0))
         return {k: np.array(v) for k, v in times.items()}
 
     estimate(1)                                 # warm: buffers, FFT plans
     load = os.getloadavg()[0]
     least = np.array([[_fft_floor(n_fft, nfft, 1, workers=1, clock=time.process_time),
-                       _least_pipeline(samples, nfft)] for _ in range(repeat)])
+                       *_least_pipeline(samples, nfft)] for _ in range(repeat)])
     glue = _glue_cpu(samples.shape[1], samples.shape[0], nfft, repeat)
     quiet = rounds()
-    with _other_core_busy():
-        busy = rounds()
+    busy = {}
+    for how in SPINNERS:
+        with _other_core_busy(how) as pid:
+            busy[how] = rounds(pid)
     c1, cf = quiet[1][:, 1], quiet["fft"]
     ratio = c1 / cf
     print(f"KERNEL Welch H1 + H2 + coherence, {n_resp} + 1 channels, {duration_s:g} s at {fs:g} Hz, nfft "
@@ -340,54 +389,85 @@ def bench_kernel(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: i
           f"<= 1.4); the passes besides the FFTs {np.median(c1 - cf):.3f} s")
     print("     where the CPU of 1 thread goes (cProfile, thread time, own time of each part): "
           + _kernel_parts(lambda: estimate(1)))
+    def unit(cpu: np.ndarray) -> str:      # median CPU over the bare FFTs' CPU of the same round
+        return f"{np.median(cpu / least[:, 0]):.2f}x"
+
     ratio = least[:, 1] / least[:, 0]
     print(f"     the least any numpy/scipy estimate does (FFTs straight from a strided view of the record, "
           f"no copy, window, mean removal or check, then the auto-spectra and the cross-spectra against "
           f"the reference, one call each per block; the best of blocks of {LEAST_BLOCKS} segments): "
           f"CPU {_spread(least[:, 1])} against its bare FFTs' {_spread(least[:, 0])}: "
           f"{np.median(ratio):.2f}x ({ratio.min():.2f}-{ratio.max():.2f}) (load average now "
-          f"{os.getloadavg()[0]:.1f})")
+          f"{os.getloadavg()[0]:.1f}); of which, in units of the bare FFTs: the FFTs from the record "
+          f"{unit(least[:, 2])}, the auto-spectra {unit(least[:, 3])}, the cross-spectra "
+          f"{unit(least[:, 4])}, the loop {unit(least[:, 1] - least[:, 2:].sum(axis=1))}")
     share = glue / np.median(c1)
     extra = np.median(quiet[2][:, 1]) / np.median(c1)
     print(f"     the Python glue (holds the GIL): the same blocks of segments of 16 samples (every call on "
           f"tiny arrays) {glue:.4f} s of CPU, {100 * share:.1f} % of 1 thread's CPU; with the 2 threads' "
           f"CPU {extra:.2f}x 1 thread's, two idle cores bound 2 / 1 at {extra * (1 - share) / 2 + share:.2f} "
           f"(glue serial, the rest halved)")
-    for name, t in (("as it is", quiet), ("other core busy", busy)):
+    t = quiet
+    ratio = t[2][:, 0] / t[1][:, 0]
+    print(f"     wall, as it is: 1 thread {_spread(t[1][:, 0])}, 2 threads {_spread(t[2][:, 0])}: 2 / 1 = "
+          f"{np.median(ratio):.2f} ({ratio.min():.2f}-{ratio.max():.2f}) (target <= 0.6); CPU 2 threads "
+          f"{np.median(t[2][:, 1]):.3f} s; CPUs got: 1 thread {np.median(t[1][:, 1] / t[1][:, 0]):.2f}, "
+          f"2 threads {np.median(t[2][:, 1] / t[2][:, 0]):.2f} (medians of {repeat}; load average now "
+          f"{os.getloadavg()[0]:.1f})")
+    for how, t in busy.items():
         ratio = t[2][:, 0] / t[1][:, 0]
-        print(f"     wall, {name}: 1 thread {_spread(t[1][:, 0])}, 2 threads {_spread(t[2][:, 0])}: 2 / 1 = "
-              f"{np.median(ratio):.2f} ({ratio.min():.2f}-{ratio.max():.2f}) (target <= 0.6); CPU 2 threads "
-              f"{np.median(t[2][:, 1]):.3f} s (medians of {repeat}; load average now "
+        got = [np.median(t[k][:, 1] / t[k][:, 0]) for k in (1, 2)]
+        spin = [np.median(t[k][:, 2] / t[k][:, 0]) for k in (1, 2)]
+        bound = extra / _fair_share(how)
+        # the split between ours and the spinner measured here, carried to 2 CPUs with nobody else:
+        # n threads holding a fraction q of the CPU the two processes got would get min(n, 2 q) CPUs
+        idle = [t[k][:, 1] / np.minimum(k, 2 * t[k][:, 1] / (t[k][:, 1] + t[k][:, 2])) for k in (1, 2)]
+        print(f"     wall, other core busy (a spinning process in {how}): 1 thread {_spread(t[1][:, 0])}, "
+              f"2 threads {_spread(t[2][:, 0])}: 2 / 1 = {np.median(ratio):.2f} ({ratio.min():.2f}-"
+              f"{ratio.max():.2f}) (target <= 0.6); CPUs got: 1 thread {got[0]:.2f}, 2 threads {got[1]:.2f} "
+              f"({got[1] / got[0]:.2f}x), the spinner {spin[0]:.2f} and {spin[1]:.2f}; on 2 otherwise idle "
+              f"CPUs fair scheduling gives 2 threads at most {_fair_share(how):.2f} CPUs here, 1 thread 1: "
+              f"2 / 1 >= {bound:.2f} (the 2 threads' CPU {extra:.2f}x 1 thread's / {_fair_share(how):.2f}); "
+              f"at the split between ours and the spinner measured here (ours / both), on 2 CPUs with "
+              f"nobody else: 2 / 1 = {np.median(idle[1] / idle[0]):.2f} (load average now "
               f"{os.getloadavg()[0]:.1f})")
 
 
 LEAST_BLOCKS = (4, 16)
 
 
-def _least_pipeline(samples: np.ndarray, nfft: int) -> float:
+def _least_pipeline(samples: np.ndarray, nfft: int) -> tuple[float, float, float, float]:
     """CPU (s, this thread) of the least a numpy/scipy Welch H1 + H2 + coherence of ``samples`` (first
     column the reference, half-overlapping segments of ``nfft``) does, the best over blocks of
     LEAST_BLOCKS segments: per block, one ``scipy.fft.rfft`` straight from a strided view of the
     record (no copy, window, mean removal or check), then the two reductions the estimators need,
     the auto-spectra (one ``einsum``) and the cross-spectra against the reference (conjugate, one
-    batched ``matmul``)."""
+    batched ``matmul``).  Returns (all of it, the FFTs, the auto-spectra, the cross-spectra) of the
+    best block size, each part timed around its own calls."""
     n, n_ch = samples.shape
     step = nfft // 2
     n_seg = (n - nfft) // step + 1
     isz = samples.itemsize
-    best = np.inf
+    best = (np.inf,) * 4
     for b in LEAST_BLOCKS:
+        parts = np.zeros(3)
         t0 = time.thread_time()
         for first in range(0, n_seg, b):
             count = min(b, n_seg - first)
             rows = samples[first * step:]
             view = np.ndarray((count, nfft, n_ch), samples.dtype, rows,
                               strides=(step * n_ch * isz, n_ch * isz, isz))
+            t1 = time.thread_time()
             spec = scipy.fft.rfft(view, axis=1, workers=1)
+            t2 = time.thread_time()
             flat = spec.view(spec.real.dtype).reshape(count, -1)
             np.einsum("sk,sk->k", flat, flat)
+            t3 = time.thread_time()
             np.matmul(spec.transpose(1, 2, 0), spec[:, :, :1].conj().transpose(1, 0, 2))
-        best = min(best, time.thread_time() - t0)
+            parts += (t2 - t1, t3 - t2, time.thread_time() - t3)
+        total = time.thread_time() - t0
+        if total < best[0]:
+            best = (total, *parts)
     return best
 
 

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from scipy.ndimage import uniform_filter1d
 
 from flexmodal.checked_io.output import atomic_path
 from flexmodal.contract.mac import mac, mass_normalised, to_real, unit_max
@@ -50,6 +51,10 @@ ZOOM_ZETA = 0.01     # ...and fitted with one pole starting at this damping rati
 ZOOM_ABOVE_NOISE = 2.0  # ...standing this many times above the FRFs' own noise there
 ZOOM_COHERENCE = 0.9  # ...where the FRFs' mean coherence is at least this (when it is known)
 SUSPENSION = 0.2     # below this share of the lowest mode a resonance is taken as the suspension's
+EDGE_COHERENCE = 0.9  # the default band ends below a top stretch where the FRFs' coherence stays under this
+EDGE_SMOOTH = 0.005   # ...averaged over outputs and over about this share of the band's lines (>= 5)
+EDGE_SHARE = 0.25     # ...unless that stretch holds more than this share of the band (no band edge then)
+BASIS_MISFIT = 1.25  # one reference: the second basis's misfit share may be this many times the first's
 
 
 @dataclass(frozen=True)
@@ -65,7 +70,7 @@ class Modes:
     ``frf_synthesis_corr`` [n_out, n_in] the FRAC of each FRF over the band, ``synthesis`` [n_out,
     n_in, n_band] the synthesised FRFs on ``band_freq_hz``, ``stabilisation`` the diagram with
     ``selected`` [n_poles] marking the poles of the chosen modes, ``order_note`` which model order
-    was used and why."""
+    was used and why, ``band_note`` which band was fitted and why."""
 
     freq_hz: np.ndarray
     damping_ratio: np.ndarray
@@ -88,6 +93,7 @@ class Modes:
     freq_std_hz: np.ndarray | None = None      # 1-sigma [Hz], modal/uncertainty.py (None: not estimated)
     damping_std: np.ndarray | None = None      # 1-sigma [-]
     diagram_key: str = ""   # modal.diagrams.inputs_key of the FRFs and options behind ``stabilisation``
+    band_note: str = ""     # which band [Hz] was fitted and why (identify's band_note)
 
 
 @dataclass(frozen=True)
@@ -114,6 +120,61 @@ def _band(freq_hz: np.ndarray, fmin: float | None, fmax: float | None) -> np.nda
     if band.sum() < 8:
         raise ModalError(f"identify: only {int(band.sum())} frequency lines between {lo:g} and {hi:g} Hz")
     return band
+
+
+def coherent_top(freq_hz: np.ndarray, coherence: np.ndarray | None) -> float | None:
+    """The upper band edge [Hz] below the FRFs' poorly measured top, or None when they have none.
+
+    The top of a record's band is where its anti-aliasing (or decimation) filter rolls off and where a
+    sweep or an impact stops exciting: there the coherence ``coherence`` [n_out, n_freq] (on the lines
+    ``freq_hz`` [Hz]), averaged over the outputs and over EDGE_SMOOTH of the lines, falls below
+    EDGE_COHERENCE and stays there to the highest line.  The edge is the highest line at which the
+    smoothed coherence is still EDGE_COHERENCE or more; None when the top line is well measured, or when
+    the poorly measured stretch holds more than EDGE_SHARE of the lines (a noisy record, not a band
+    edge).  A coherence of one everywhere (one average) says nothing and gives None.  Dips at
+    antiresonances within the band do not end it.  Why analysers show only fs/2.56 of a record:
+    J. S. Bendat, A. G. Piersol, "Random Data", 4th ed., Wiley 2010, §10.3.3 (anti-aliasing filters),
+    §9.2.3 (coherence and the random error of FRF estimates).
+
+    Examples
+    --------
+    Coherence 0.99 up to 110 Hz, falling linearly to 0.4 at 125 Hz (a filter's roll-off): it is 0.9
+    at 110 + 15 * 0.09 / 0.59 = 112.29 Hz, and the last line below that is 112.25 Hz:
+
+    >>> f = np.linspace(0.0, 125.0, 1001)
+    >>> coh = np.where(f < 110.0, 0.99, 0.99 - 0.59 * (f - 110.0) / 15.0)[None, :]
+    >>> coherent_top(f, coh)
+    112.25
+    >>> coherent_top(f, np.ones((1, f.size))) is None
+    True
+    """
+    if coherence is None:
+        return None
+    f = np.asarray(freq_hz, float)
+    c = np.nan_to_num(np.mean(np.reshape(coherence, (-1, f.size)), axis=0), nan=0.0)
+    width = 2 * max(2, int(EDGE_SMOOTH * f.size / 2)) + 1   # odd: centred on each line
+    smooth = uniform_filter1d(c, width, mode="nearest")
+    good = np.flatnonzero(smooth >= EDGE_COHERENCE)
+    if good.size == 0 or good[-1] == f.size - 1 or f.size - 1 - good[-1] > EDGE_SHARE * f.size:
+        return None
+    return float(f[good[-1]])
+
+
+def band_note(f: np.ndarray, fmin: float | None, fmax: float | None, top_hz: float,
+              edge_hz: float | None) -> str:
+    """The line saying which band [Hz] was fitted (lines ``f``) and why: the options given, every
+    line of the FRFs, or an upper edge at ``edge_hz`` below a poorly measured top up to ``top_hz``
+    (:func:`coherent_top`)."""
+    lower = "--fmin" if fmin is not None else "the first line above 0 Hz"
+    if fmax is not None:
+        upper = "--fmax"
+    elif edge_hz is not None:
+        upper = (f"the last line before the FRFs' coherence stays below {EDGE_COHERENCE:g} up to "
+                 f"{top_hz:g} Hz (an anti-aliasing filter's roll-off or the end of the excitation: --fmax "
+                 "to fit those lines)")
+    else:
+        upper = "the highest line"
+    return f"band {f.min():.5g}-{f.max():.5g} Hz: from {lower} to {upper}"
 
 
 def _shapes(constants: np.ndarray, driving_point: int | None) -> tuple[np.ndarray, bool]:
@@ -178,10 +239,11 @@ def rank_one_misfit(residues: np.ndarray) -> np.ndarray:
 
 def _split(clusters: PoleClusters, constants: np.ndarray, split_mac: float = 0.9,
            misfit: np.ndarray | None = None, split_misfit: float = 0.3,
-           background: np.ndarray | None = None) -> tuple[int, str] | None:
+           background: np.ndarray | None = None, apart: np.ndarray | None = None) -> tuple[int, str] | None:
     """The neighbouring pair (index of the lower one, why) that is one mode the model split in two:
     their half-power bands [f(1 - zeta), f(1 + zeta)] overlap and they have the same shape (MAC >=
-    ``split_mac``; with one output any such pair), or (several references) the residue matrix of
+    ``split_mac``; with one output any such pair not marked ``apart`` [n_modes - 1], two resonances
+    the FRF shows: :func:`_resolved`), or (several references) the residue matrix of
     either is not of rank one (:func:`rank_one_misfit` ``misfit`` >= ``split_misfit``: neither pole
     alone is a mode).  An FRF whose resonance is not a single pole, e.g.
     biased by leakage at a few lines per bandwidth (Welch-averaged random tests: a split pair about
@@ -196,6 +258,8 @@ def _split(clusters: PoleClusters, constants: np.ndarray, split_mac: float = 0.9
         if constants.shape[0] > 1 else np.ones(fn.size - 1)
     worst = np.maximum(misfit[:-1], misfit[1:]) if misfit is not None else np.zeros(fn.size - 1)
     pairs = (gap < 1) & ((macs >= split_mac) | (worst >= split_misfit))
+    if apart is not None:
+        pairs &= ~apart
     if background is not None:
         pairs &= ~background[:-1] & ~background[1:]
     pairs = np.flatnonzero(pairs)
@@ -245,6 +309,32 @@ def _merge(clusters: PoleClusters, k: int, constants: np.ndarray, f: np.ndarray,
                                  members=clusters.members[:k] + (np.concatenate(clusters.members[k:k + 2]),)
                                  + clusters.members[k + 1:])
     return _with_pole(joined, k, pole).subset(np.arange(clusters.freq_hz.size) != k + 1)
+
+
+def _pair_key(clusters: PoleClusters, k: int) -> tuple:
+    """The identity of the neighbouring modes k and k + 1 (their first member poles) across drops and
+    merges of other modes."""
+    return tuple(tuple(clusters.members[j][:1].tolist()) or (float(clusters.freq_hz[j]),) for j in (k, k + 1))
+
+
+def _resolved(f: np.ndarray, H: np.ndarray, clusters: PoleClusters, k: int, constants: np.ndarray,
+              fit: LsfdResult, quantity: str) -> float:
+    """How many times the FRFs' own noise (:func:`_noise_rms`) the misfit is that the second pole of
+    the pair k, k + 1 removes over the pair's lines (:func:`_near`): the rms of the difference of the
+    squared misfits of the best single pole there (:func:`_merge`'s pole refined by
+    :func:`_local_pole`) and of the pair, both in the LSFD of all modes.  With one output the MAC
+    cannot tell a split resonance from two modes; the FRF can: a pair that explains what one pole
+    leaves well above the noise is two resonances (ufffiles_analyser_frf: 461.8 and 470.8 Hz, 28-58
+    times; the split 175.2/177.7 Hz, 1.5-1.7 times; docs/modal.md)."""
+    pair = [k, k + 1]
+    lines = np.flatnonzero(_near(f, clusters.freq_hz[pair], clusters.damping_ratio[pair]).any(axis=0))
+    one = _merge(clusters, k, constants, f, H, fit, quantity)
+    single = _local_pole(f, H, clusters, fit, quantity, pair, complex(one.pole[k]))
+    fit_one = lsfd(f, H, _with_pole(one, k, single).pole, quantity=quantity)
+    removed = (np.sum(np.abs(H - fit_one.synthesis)[..., lines] ** 2)
+               - np.sum(np.abs(H - fit.synthesis)[..., lines] ** 2))
+    noise = _noise_rms(H, lines)
+    return float(np.sqrt(max(removed, 0.0) / lines.size) / noise) if noise > 0 else np.inf
 
 
 def _protected(f: np.ndarray, clusters: PoleClusters, peaks_hz: np.ndarray) -> np.ndarray:
@@ -332,7 +422,7 @@ def _validate(f: np.ndarray, H: np.ndarray, clusters: PoleClusters, quantity: st
     (``peaks_hz``, :func:`_protected`) is never dropped.  A mode failing the F test is refitted once at
     its local pole (:func:`_local_pole`) before it is dropped.  Returns the clusters, their fit, the
     warnings and [n_modes] True for the background poles."""
-    warnings, refined = [], set()
+    warnings, refined, apart = [], set(), set()
     background = np.zeros(clusters.freq_hz.size, bool)
     while True:   # a loop over merged, refined or dropped modes (a few)
         fit = _fit(f, H, clusters, quantity)
@@ -340,8 +430,9 @@ def _validate(f: np.ndarray, H: np.ndarray, clusters: PoleClusters, quantity: st
             return clusters, fit, warnings, background
         residues = fit.modal_constants(clusters.pole)
         constants = residues[:, reference]
+        keys = [_pair_key(clusters, k) for k in range(clusters.freq_hz.size - 1)]
         split = _split(clusters, constants, misfit=rank_one_misfit(residues) if H.shape[1] > 1 else None,
-                       background=background)
+                       background=background, apart=np.array([key in apart for key in keys], bool))
         if split is not None:
             k, why = split
             half = clusters.damping_ratio[[k, k + 1]] * clusters.freq_hz[[k, k + 1]]
@@ -354,6 +445,15 @@ def _validate(f: np.ndarray, H: np.ndarray, clusters: PoleClusters, quantity: st
                                 f"background pole, no mode: its half-power band covers the mode at "
                                 f"{clusters.freq_hz[narrow]:.5g} Hz, {why}, whose band does not reach it")
                 continue
+            if constants.shape[0] == 1:
+                times = _resolved(f, H, clusters, k, constants, fit, quantity)
+                if times >= ZOOM_ABOVE_NOISE:
+                    apart.add(keys[k])
+                    fa, fb = clusters.freq_hz[[k, k + 1]]
+                    warnings.append(f"kept the poles at {fa:.5g} and {fb:.5g} Hz as two modes (half-power "
+                                    "bands overlapping, one output): one pole leaves a misfit the second "
+                                    f"explains, {times:.3g} times the FRFs' noise there")
+                    continue
             clusters, (fa, fb) = (_merge(clusters, k, constants, f, H, fit, quantity),
                                   clusters.freq_hz[[k, k + 1]])
             background = np.delete(background, k + 1)
@@ -492,13 +592,22 @@ def _above_noise(H: np.ndarray, synthesis: np.ndarray, lines: np.ndarray) -> boo
     FRFs' own noise there, estimated from their second differences (white noise of variance s^2
     gives 6 s^2; the smooth curve of modes a few lines wide adds little): a misfit no larger is
     noise, e.g. where an impact's force spectrum has a zero, not a missed mode."""
-    run = lines[2:][lines[2:] - lines[:-2] == 2]   # lines whose two predecessors are lines too
-    if run.size == 0:
+    noise_rms = _noise_rms(H, lines)
+    if np.isnan(noise_rms):
         return False
-    d2 = H[..., run] - 2 * H[..., run - 1] + H[..., run - 2]
-    noise_rms = np.linalg.norm(d2) / np.sqrt(6 * run.size)
     misfit_rms = np.linalg.norm((H - synthesis)[..., lines]) / np.sqrt(lines.size)
     return bool(misfit_rms >= ZOOM_ABOVE_NOISE * noise_rms)
+
+
+def _noise_rms(H: np.ndarray, lines: np.ndarray) -> float:
+    """The rms noise of the FRFs ``H`` on ``lines`` (ascending indices) from their second differences
+    (white noise of variance s^2 gives 6 s^2; the smooth curve of modes a few lines wide adds
+    little); NaN when no line has its two predecessors among ``lines``."""
+    run = lines[2:][lines[2:] - lines[:-2] == 2]   # lines whose two predecessors are lines too
+    if run.size == 0:
+        return float("nan")
+    d2 = H[..., run] - 2 * H[..., run - 1] + H[..., run - 2]
+    return float(np.linalg.norm(d2) / np.sqrt(6 * run.size))
 
 
 def _zoom(f: np.ndarray, H: np.ndarray, clusters: PoleClusters, fit: LsfdResult, warnings: list[str],
@@ -584,13 +693,17 @@ def _one_reference_basis(f: np.ndarray, H: np.ndarray, peaks_hz: np.ndarray, sea
     """One reference: the modes of the pLSCF in the basis ``z = exp(+i w dt)`` (``search(False)``),
     unless the basis ``z = exp(-i w dt)`` (``search(True)``, :mod:`modal.lscf`), where noise poles
     come out at negative damping, explains every clear CMIF peak ``peaks_hz`` the first explains and
-    more, and its synthesis fits the FRFs no worse (mean FRF correlation, :func:`modal.indicators.frac`).
+    more, and its synthesis fits the FRFs about as well: its misfit share (1 - mean FRF correlation,
+    :func:`modal.indicators.frac`) at most BASIS_MISFIT times the first's.
     The selection rules were tuned on the first basis; the second finds modes its noise poles hide
     (pyfrf_impact_frf: 1518.2 Hz, one line in its half-power band) but does not replace it blindly:
     on beam_ring_chirp it explains two more clear peaks, both in the charge amplifier's roll-off above
     100 Hz, and fits the FRFs worse (correlation 0.975 against 0.984), the 7.4 % mode 0.7 % off; on
     pyfrf_impact_single_hit it loses the clear peak at 4128 Hz (its pole is stable at fewer than half
-    the orders) and fits worse (0.50 against 0.93).  The order note says which basis was used."""
+    the orders) and fits worse (0.50 against 0.93).  A misfit share a few % apart is no evidence
+    either way (pyfrf_impact_frf: 0.0682 in exp(-i w dt) against 0.0689, pyfrf_impact_5hits 0.069
+    against 0.066): there the peaks decide; chirp's 1.6 times and the single hit's 7 times do not pass.
+    The order note says which basis was used."""
     def explained(result) -> tuple[np.ndarray, float]:
         if result[2] is None:
             return np.zeros(peaks_hz.size, bool), -np.inf
@@ -601,7 +714,7 @@ def _one_reference_basis(f: np.ndarray, H: np.ndarray, peaks_hz: np.ndarray, sea
     (a, a_corr), (b, b_corr) = explained(plus), explained(minus)
     counts = (f"basis exp(+i w dt) explaining {int(a.sum())} clear CMIF peaks (FRF correlation "
               f"{a_corr:.3f}), exp(-i w dt) {int(b.sum())} ({b_corr:.3f})")
-    if b.sum() > a.sum() and not np.any(a & ~b) and b_corr >= a_corr:
+    if b.sum() > a.sum() and not np.any(a & ~b) and 1 - b_corr <= BASIS_MISFIT * (1 - a_corr):
         return minus[0], f"{minus[1]}; {counts}: exp(-i w dt) used", minus[2]
     return plus[0], f"{plus[1]}; {counts}: exp(+i w dt) used", plus[2]
 
@@ -736,6 +849,12 @@ def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: 
     if decay_rate_per_s < 0 or not np.isfinite(decay_rate_per_s):
         raise ModalError(f"identify: exponential window decay {decay_rate_per_s:g} 1/s must be >= 0")
     band = _band(freq_hz, fmin, fmax)
+    edge = coherent_top(np.asarray(freq_hz, float)[band], coherence[:, band]) \
+        if fmax is None and coherence is not None else None
+    if edge is not None and np.count_nonzero(band & (np.asarray(freq_hz, float) <= edge)) >= 8:
+        band &= np.asarray(freq_hz, float) <= edge
+    else:
+        edge = None
     f, Hb = np.asarray(freq_hz, float)[band], H[..., band]
     warnings: list[str] = [nyquist_note(fmax, float(np.max(freq_hz)))] if fmax is not None \
         and fmax > np.max(freq_hz) else []
@@ -763,7 +882,8 @@ def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: 
     per_mode = {k: extra[k][order] for k in ("mpc", "mpd", "synthesis_corr", "need") if k in extra}
     return Modes(fn[order], zeta[order], shapes[:, np.argsort(fn[keep])], constants[:, order], method, massn,
                  tuple(warnings), **per_mode, **{k: v for k, v in extra.items() if k not in per_mode},
-                 details=details, diagram_key=key)
+                 details=details, diagram_key=key,
+                 band_note=band_note(f, fmin, fmax, float(np.max(freq_hz)), edge))
 
 
 def modes_table(modes: Modes, outputs: Sequence[str], *, config: str = "run",

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.signal
 
 from flexmodal.contract.mac import mac
 from flexmodal.fixtures.shear_frame import shear_frame_modes, shear_frame_record
@@ -101,8 +102,6 @@ def test_fdd_finds_the_shear_frame_modes(frame):
 
 
 def test_cross_spectra_match_scipy_csd():
-    import scipy.signal
-
     rng = np.random.default_rng(5)
     y = rng.standard_normal((4096, 3))
     f, G = cross_spectra(y, 100.0, [1], 256)   # G_jk = E[Y_j Y_k*]: scipy.signal.csd(y_k, y_j)
@@ -144,3 +143,90 @@ def test_lowest_spectral_peak_is_the_lowest_line_above_the_drift():
     y += 0.01 * rng.standard_normal((n, 2)) + 0.05 * np.cumsum(rng.standard_normal((n, 1)), axis=0)
     assert lowest_spectral_peak(y, fs, None, None) == pytest.approx(f0, rel=1e-12)
     assert lowest_spectral_peak(y, fs, [0], 0.5 * f0) is None          # nothing below fmax
+
+
+def _free_decay_damping(x: np.ndarray, fs: float, fn: float, half_band_hz: float) -> float:
+    """Damping ratio of the mode near ``fn`` [Hz] from the free decay that follows a sine sweep's
+    passage through it: the log of the Hilbert envelope of the band-passed record (4th-order
+    Butterworth, zero phase), fitted by a line from where it has fallen to half its maximum down to
+    5 % of it (logarithmic decrement: slope = -zeta 2 pi fn)."""
+    sos = scipy.signal.butter(4, [fn - half_band_hz, fn + half_band_hz], btype="band", fs=fs, output="sos")
+    env = np.abs(scipy.signal.hilbert(scipy.signal.sosfiltfilt(sos, x)))
+    top = int(np.argmax(env))
+    start = top + int(np.argmax(env[top:] < 0.5 * env[top]))
+    stop = start + int(np.argmax(env[start:] < 0.05 * env[top]))
+    t = np.arange(start, stop) / fs
+    return -np.polyfit(t, np.log(env[start:stop]), 1)[0] / (2 * np.pi * fn)
+
+
+def test_ssi_damping_on_a_measured_sweep_record_matches_its_free_decay(data_dir):
+    """Real data (tests/data/realdata/beam_ring_output_only: two accelerations of a very flexible
+    beam-ring, two 120 s exponential sweeps laid end to end, 250 Hz): the default output-only SSI's
+    damping of the lightly damped 11.23 Hz mode against an independent estimate, the logarithmic
+    decrement of the free decay each sweep leaves behind it in each channel.  The estimator itself is
+    checked first on the same sweep through a single-degree-of-freedom system of known damping
+    (bilinear, prewarped): 0.12 % reads 0.118 %, and 0.086 % (the entry reference's value) 0.085 %.
+    On the record the four decays give 0.134-0.139 % and SSI 0.130 % (pyOMA2's SSI-cov on the same
+    outputs, block rows 45-120, measured once: 0.109-0.150 %); the entry's reference (sdypy-EMA LSCF
+    on the drive-voltage FRFs) gives 0.086 % [0.051, 0.109 %]."""
+    from flexmodal.modal.oma import identify_output_only
+    from flexmodal.modal.uff import read_uff
+
+    fs, fn = 250.0, 11.23
+    t = np.arange(30000) / fs
+    rate = np.log(1200.0) / t[-1]                                   # 0.1 -> 120 Hz in 120 s
+    sweep = np.sin(2 * np.pi * 0.1 * np.expm1(rate * t) / rate)
+    wd = 2 * fs * np.tan(np.pi * fn / fs)                            # prewarped: the pole maps to fn
+    for zeta in (0.0012, 0.00086):                                   # a loop over two known dampings
+        b, a, _ = scipy.signal.cont2discrete(([wd**2], [1, 2 * zeta * wd, wd**2]), 1 / fs, method="bilinear")
+        assert _free_decay_damping(scipy.signal.lfilter(b.ravel(), a, sweep), fs, fn, 3.0) == pytest.approx(
+            zeta, rel=0.03)
+
+    rec = read_uff(data_dir / "realdata" / "beam_ring_output_only" / "beam_ring_outputs.uff")
+    assert rec.sample_rate_hz == fs
+    half = rec.samples.shape[0] // 2                                 # the two sweeps
+    decays = np.array([_free_decay_damping(rec.samples[k * half:(k + 1) * half, c].astype(float), fs, fn, 3.0)
+                       for k in range(2) for c in range(2)])
+    assert np.ptp(decays) < 0.05 * decays.mean(), decays
+    result, _ = identify_output_only(rec.samples, rec.sample_rate_hz, rec.names, rec.kinds)
+    k = int(np.argmin(np.abs(result.modes.freq_hz - fn)))
+    assert result.modes.freq_hz[k] == pytest.approx(11.23, rel=0.001)
+    assert result.modes.damping_ratio[k] == pytest.approx(decays.mean(), rel=0.1), decays
+
+
+@pytest.mark.slow   # ~2 s CPU of pyOMA2; the default run checks agreement with it in test_oma_benchmark.py
+def test_ssi_finds_the_two_close_tower_modes_pyoma2s_stable_poles_hold(data_dir):
+    """Real data (tests/data/realdata/owi_wind_turbine_oma: eight accelerations of an operating offshore
+    wind turbine, 10 min at 15 Hz): the default output-only SSI's two modes near 0.37 Hz, 0.3725 Hz /
+    3.8 % and 0.3738 Hz / 1.5 % (the tower's two first bending modes?), against pyOMA2's SSI-cov on
+    the same record (block rows 40, orders to 80, as the entry's reference ran it): its stable poles
+    there fall into the same two chains, 28 poles at 0.3728 Hz / 3.78 % and 31 at 0.3739 Hz / 1.55 %
+    (medians), none damped between 2 and 3.4 %.  The entry's reference lists one mode (0.375 Hz,
+    1.24 %): pyOMA2's pick (``mpe``, ``order_in="find_min"``) takes the lowest order holding exactly
+    one stable pole within 0.05 Hz of the candidate, so the board counts the 3.8 % mode as an extra."""
+    from pyoma2.algorithms.ssi import SSI
+    from pyoma2.setup.single import SingleSetup
+
+    from flexmodal.modal.oma import identify_output_only
+    from flexmodal.modal.uff import read_uff
+
+    rec = read_uff(data_dir / "realdata" / "owi_wind_turbine_oma" / "wind_turbine_20200409_2200.uff")
+    result, _ = identify_output_only(rec.samples, rec.sample_rate_hz, rec.names, rec.kinds)
+    near = (result.modes.freq_hz > 0.36) & (result.modes.freq_hz < 0.39)
+    fn, zeta = result.modes.freq_hz[near], result.modes.damping_ratio[near]
+    assert fn.size == 2, result.modes.freq_hz
+
+    setup = SingleSetup(rec.samples.astype(float), fs=rec.sample_rate_hz)
+    alg = SSI(name="ssicov", method="cov", br=40, ordmax=80, step=2)
+    setup.add_algorithms(alg)
+    setup.run_by_name("ssicov")
+    F, X, L = (np.asarray(a, float) for a in (alg.result.Fn_poles, alg.result.Xi_poles, alg.result.Lab))
+    ok = (L == 1) & (X > 0) & (X < 0.2) & (F > 0.36) & (F < 0.39)
+    f, x = F[ok], X[ok]
+    assert not np.any((x > 0.02) & (x < 0.034)), np.sort(x)           # two groups by damping
+    for group in (x >= 0.034, x <= 0.02):                                # heavier damped first
+        assert group.sum() >= 0.5 * F.shape[1]                            # each in half of the orders
+        k = int(np.argmin(np.abs(fn - np.median(f[group]))))
+        assert fn[k] == pytest.approx(np.median(f[group]), rel=0.002)
+        assert zeta[k] == pytest.approx(np.median(x[group]), rel=0.1)
+    assert zeta.max() > 2 * zeta.min()                                   # the two are told apart
