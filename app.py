@@ -10,6 +10,7 @@ code 2 (docs/formats.md).
 from __future__ import annotations
 
 import argparse
+import codecs
 import os
 import signal
 import sys
@@ -64,6 +65,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         # multi-line warning about the semaphores it cleans up after us, below our one line
         sys.warnoptions.append("ignore::UserWarning:multiprocessing.resource_tracker")
         sys.unraisablehook = _interrupt_again
+    if argv is None:  # the command's own streams, maybe in ASCII or Latin-1 (LANG, PYTHONIOENCODING):
+        _escape_what_cannot_be_shown()  # Δ, ζ, µ shown as \u0394 ..., not a UnicodeEncodeError
     if sys.stdout is None:  # started with stdout closed (`>&-`): the result would have nowhere to go
         _say("flexmodal: error: standard output is closed: the command's result is printed there (redirect "
              "it, e.g. > result.txt, or to /dev/null)")
@@ -91,6 +94,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     finally:
         if argv is None:  # done: a Ctrl-C during the interpreter's tear-down still ends it the same way
             signal.signal(signal.SIGINT, lambda _signum, _frame: _leave_interrupted())
+
+
+def _escape_what_cannot_be_shown() -> None:
+    """Let stdout and stderr write a character their encoding lacks as a backslash escape (``Δ`` in an
+    ASCII or Latin-1 stream: ``\u0394``) instead of raising UnicodeEncodeError after the work is done."""
+    for stream in (sys.stdout, sys.stderr):
+        if stream is not None and hasattr(stream, "reconfigure"):
+            try:
+                if codecs.lookup(stream.encoding).name != "utf-8":
+                    stream.reconfigure(errors="backslashreplace")
+            except (LookupError, TypeError, ValueError, OSError):  # a stream of its own kind: left as it is
+                continue
 
 
 def _where(exc: OSError) -> str:

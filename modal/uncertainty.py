@@ -251,17 +251,29 @@ def _refine(w: np.ndarray, h: np.ndarray, s: np.ndarray, lam: np.ndarray, noise:
             df_hz: float, chol: np.ndarray | None, runs: np.ndarray | None = None
             ) -> tuple[np.ndarray, np.ndarray, float]:
     """Gauss-Newton steps of variable projection from ``lam``: the weighted least-squares poles, their
-    information and residual variance factor there (arguments as :func:`_information`)."""
+    information and residual variance factor there (arguments as :func:`_information`).  A step that
+    raises the residual variance factor, or leaves the numbers finite no more, is not taken: on
+    coarsely quantised records (integer ADC counts) the steps diverged, the poles ran to 1e25 and the
+    next evaluation raised ValueError."""
+    info, grad, factor = _information(w, h, s, lam, noise, df_hz, chol, runs)
     for _ in range(GAUSS_NEWTON_STEPS):
-        info, grad, _ = _information(w, h, s, lam, noise, df_hz, chol, runs)
         try:
             step = np.linalg.solve(info, grad)
         except np.linalg.LinAlgError:
             break
-        lam = lam + step[:lam.size] + 1j * step[lam.size:]
+        trial = lam + step[:lam.size] + 1j * step[lam.size:]
+        if not np.all(np.isfinite(trial)):
+            break
+        with np.errstate(over="ignore", invalid="ignore"):
+            try:
+                at_trial = _information(w, h, s, trial, noise, df_hz, chol, runs)
+            except ValueError:   # non-finite numbers met by a solver that checks them
+                break
+        if not (np.isfinite(at_trial[2]) and at_trial[2] <= factor * (1 + 1e-9)):
+            break
+        lam, (info, grad, factor) = trial, at_trial
         if np.all(np.abs(step) < 1e-10 * np.abs(np.concatenate([lam, lam]))):
             break
-    info, _, factor = _information(w, h, s, lam, noise, df_hz, chol, runs)
     return lam, info, factor
 
 

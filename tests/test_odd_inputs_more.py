@@ -231,3 +231,85 @@ def test_config_names_with_markup_characters_stay_in_their_cell(tmp_path: Path, 
     assert r"r\$1\_\{a\}|b &" in capsys.readouterr().out
     assert main([*args, "md"]) == 0
     assert r"| r$1_{a}\|b |" in capsys.readouterr().out
+
+
+def test_a_terminal_that_cannot_show_greek_letters(tmp_path: Path) -> None:
+    """stdout in ASCII (a C or Latin-1 locale, PYTHONIOENCODING=ascii): the comparison's `Δf` header
+    ended in a UnicodeEncodeError traceback, exit 1, after the work was done.  A process of its own:
+    the point is the stream the process is started with."""
+    import subprocess
+    import sys
+
+    (tmp_path / "modes.csv").write_text(MODES, encoding="utf-8")
+    (tmp_path / "pred.csv").write_text(PRED, encoding="utf-8")
+    env = {**os.environ, "PYTHONIOENCODING": "ascii"}
+    env.pop("PYTHONUTF8", None)
+    command = [sys.executable, "-m", "flexmodal", "compare", "modes.csv", "pred.csv"]
+    done = subprocess.run(command, cwd=tmp_path, env=env, capture_output=True, timeout=300)
+    assert done.returncode == 0 and b"Traceback" not in done.stderr, done.stderr.decode()
+    assert b"\\u0394f" in done.stdout
+
+
+def test_run_of_integer_counts_identifies(tmp_path: Path) -> None:
+    """Samples stored as int32 (coarse counts of -3..3): the uncertainty's Gauss-Newton refinement
+    diverged (poles to 1e25) and ended in a ValueError traceback, exit 1.  A step that raises the
+    residual is not taken now; the modes and their standard deviations come out finite."""
+    from flexmodal.contract.table import ModalTable
+    from flexmodal.daq.store import Channel, RunWriter
+
+    rng = np.random.default_rng(1)
+    force = rng.standard_normal(8192)
+    response = np.convolve(force, np.exp(-np.arange(200) / 40.0) * np.sin(np.arange(200) / 3.0))[:8192]
+    chans = [Channel("F", "force", "N", location="tip", direction="y"),
+             Channel("a1", "acceleration", "m/s^2", location="tip", direction="y")]
+    with RunWriter(tmp_path / "run.h5", "r1", sample_rate_hz=1024.0, channels=chans, excitation="random",
+                   pose={}) as w:
+        w.append(np.column_stack([force, response]))
+    with h5py.File(tmp_path / "run.h5", "r+") as f:
+        g = f["runs/r1"]
+        counts = g["samples"][...].astype(np.int32)
+        del g["samples"]
+        g.create_dataset("samples", data=counts, chunks=(1024, 2), maxshape=(None, 2))
+    assert main(["identify", str(tmp_path / "run.h5"), "--out", str(tmp_path / "m.csv"), "--quiet"]) == 0
+    table = ModalTable.read_csv(tmp_path / "m.csv").frame
+    assert len(table) and np.isfinite(table[["freq_hz", "freq_std_hz", "damping_std"]].to_numpy()).all()
+
+
+def test_session_whose_simulator_rig_is_wrong_is_one_line(tmp_path: Path, capsys) -> None:
+    """A session's simulator with a rig the simulator refuses printed the child's error line and then
+    the session's own "simulator ... did not start" (two lines, the second without the reason)."""
+    (tmp_path / "rig.toml").write_text(RIG.replace('kind = "rigid"', 'kind = "rigid"\nstifness = 1'),
+                                       encoding="utf-8")
+    session = (REPO / "examples" / "sessions" / "serial-sim.toml").read_text(encoding="utf-8")
+    session = session.replace('"../rigs/demo_arm.toml"', '"rig.toml"')
+    (tmp_path / "s.toml").write_text(session, encoding="utf-8")
+    code = main(["acquire", "--config", str(tmp_path / "s.toml"), "--out", str(tmp_path / "r.h5"),
+                 "--duration", "1", "--quiet"])
+    _one_line(capsys, code, "s.toml: simulator", "joint[0].stifness", "unknown key")
+    assert not (tmp_path / "r.h5").exists()
+
+
+def test_demo_into_a_folder_of_ones_own_results(tmp_path: Path, capsys) -> None:
+    """`flexmodal demo --out .` in a folder holding one's own runs.h5 and modes.csv replaced both with
+    simulated ones, exit 0 (an interrupted demo would have removed them).  Refused now, untouched; a
+    folder the demo wrote before is its own to rewrite."""
+    (tmp_path / "modes.csv").write_text(MODES, encoding="utf-8")
+    _one_line(capsys, main(["demo", "--out", str(tmp_path), "--quiet"]), "modes.csv",
+              "not written by flexmodal demo")
+    assert (tmp_path / "modes.csv").read_text(encoding="utf-8") == MODES
+    assert not (tmp_path / "report.html").exists()
+    from flexmodal.fixtures.demo import DEMO_MARK, claim_folder
+
+    (tmp_path / DEMO_MARK).write_text("", encoding="utf-8")
+    claim_folder(tmp_path)   # marked: the demo may replace its outputs there
+
+
+def test_shapes_at_sensors_named_apart_are_said_not_silently_skipped(tmp_path: Path, capsys) -> None:
+    """Both tables with shapes, sensors `a1, a2` against `A1, A2`: paired by frequency order without a
+    word, as if no shapes had been given."""
+    (tmp_path / "m.csv").write_text("config,mode,freq_hz,shape.a1,shape.a2\nt,1,10,1,0.5\nt,2,30,0.5,-1\n",
+                                    encoding="utf-8")
+    (tmp_path / "p.csv").write_text("config,mode,freq_hz,shape.A1,shape.A2\nt,1,11,1,0.5\nt,2,29,0.5,-1\n",
+                                    encoding="utf-8")
+    assert main(["compare", str(tmp_path / "m.csv"), str(tmp_path / "p.csv")]) == 0
+    assert "paired by frequency order, not by MAC" in capsys.readouterr().out
