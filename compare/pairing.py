@@ -65,6 +65,9 @@ class Pairing:
     pairs: tuple[Pair, ...]
     unpaired_measured: tuple[ModeRef, ...]  # measured modes the source has no partner for
     unpaired_predicted: tuple[ModeRef, ...]  # predicted modes matching no measured one (spurious/extra)
+    # configurations where both tables give shapes but at fewer than two common sensors (names that
+    # differ, ``A1`` against ``a1``): paired by frequency order instead of MAC, and the notes say so
+    shapes_apart: tuple[str, ...] = ()
 
     def pair_of(self, config: str, measured_mode: int) -> Pair | None:
         return self._by_measured.get((config, measured_mode))
@@ -185,6 +188,7 @@ def pair_modes(measured: ModalTable, predicted: ModalTable, source: str = "predi
     lone_pred: list[ModeRef] = []
     used_configs: set[str] = set()
     poses = PoseIndex(predicted)
+    apart: list[str] = []
     for config in measured.configs:
         meas = _refs(measured, config)
         pconfig = partner_config(measured, predicted, config, poses)
@@ -199,6 +203,8 @@ def pair_modes(measured: ModalTable, predicted: ModalTable, source: str = "predi
             found = _pair_by_mac(meas, pred, macs, min_mac, freq_weight)
         else:
             found = _pair_by_frequency(meas, pred)
+            if measured.sensors and predicted.sensors:
+                apart.append(config)
         pairs += found
         used_m = {p.measured.mode for p in found}
         used_p = {p.predicted.mode for p in found}
@@ -209,4 +215,4 @@ def pair_modes(measured: ModalTable, predicted: ModalTable, source: str = "predi
             lone_pred += _refs(predicted, config)
     position = {c: i for i, c in enumerate(measured.configs)}
     pairs.sort(key=lambda p: (position[p.measured.config], p.measured.mode))
-    return Pairing(source, tuple(pairs), tuple(lone_meas), tuple(lone_pred))
+    return Pairing(source, tuple(pairs), tuple(lone_meas), tuple(lone_pred), tuple(apart))

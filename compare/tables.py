@@ -119,10 +119,14 @@ class Comparison:
         return html_fragment(self)
 
     def notes(self) -> list[str]:
-        """One line per unpaired mode, naming source, configuration, mode and frequency [Hz]."""
+        """One line per unpaired mode, naming source, configuration, mode and frequency [Hz], and one per
+        configuration whose shapes could not be compared (no two sensors in common)."""
         out = []
         for config in self.configs:
             for k, p in enumerate(self.pairings):
+                if config in p.shapes_apart:
+                    out.append(f"{p.source}: {config}: both tables give mode shapes, but at fewer than two "
+                               "sensors of the same name: paired by frequency order, not by MAC")
                 lone_meas, lone_pred, _ = self._of(k, config)
                 out += [f"{p.source}: no predicted mode pairs with measured mode {r.mode} of "
                         f"{r.config} ({r.freq_hz:.2f} Hz)" for r in lone_meas]

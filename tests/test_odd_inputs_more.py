@@ -287,3 +287,29 @@ def test_session_whose_simulator_rig_is_wrong_is_one_line(tmp_path: Path, capsys
                  "--duration", "1", "--quiet"])
     _one_line(capsys, code, "s.toml: simulator", "joint[0].stifness", "unknown key")
     assert not (tmp_path / "r.h5").exists()
+
+
+def test_demo_into_a_folder_of_ones_own_results(tmp_path: Path, capsys) -> None:
+    """`flexmodal demo --out .` in a folder holding one's own runs.h5 and modes.csv replaced both with
+    simulated ones, exit 0 (an interrupted demo would have removed them).  Refused now, untouched; a
+    folder the demo wrote before is its own to rewrite."""
+    (tmp_path / "modes.csv").write_text(MODES, encoding="utf-8")
+    _one_line(capsys, main(["demo", "--out", str(tmp_path), "--quiet"]), "modes.csv",
+              "not written by flexmodal demo")
+    assert (tmp_path / "modes.csv").read_text(encoding="utf-8") == MODES
+    assert not (tmp_path / "report.html").exists()
+    from flexmodal.fixtures.demo import DEMO_MARK, claim_folder
+
+    (tmp_path / DEMO_MARK).write_text("", encoding="utf-8")
+    claim_folder(tmp_path)   # marked: the demo may replace its outputs there
+
+
+def test_shapes_at_sensors_named_apart_are_said_not_silently_skipped(tmp_path: Path, capsys) -> None:
+    """Both tables with shapes, sensors `a1, a2` against `A1, A2`: paired by frequency order without a
+    word, as if no shapes had been given."""
+    (tmp_path / "m.csv").write_text("config,mode,freq_hz,shape.a1,shape.a2\nt,1,10,1,0.5\nt,2,30,0.5,-1\n",
+                                    encoding="utf-8")
+    (tmp_path / "p.csv").write_text("config,mode,freq_hz,shape.A1,shape.A2\nt,1,11,1,0.5\nt,2,29,0.5,-1\n",
+                                    encoding="utf-8")
+    assert main(["compare", str(tmp_path / "m.csv"), str(tmp_path / "p.csv")]) == 0
+    assert "paired by frequency order, not by MAC" in capsys.readouterr().out
