@@ -328,3 +328,18 @@ def test_references_that_the_method_does_not_use(tmp_path: Path, capsys) -> None
                  "--references", "a1"])
     _one_line(capsys, code, "run.h5", "--references", "ssi/fdd", "lscf")
     assert not (tmp_path / "m.csv").exists()
+
+
+@pytest.mark.parametrize("command", [
+    ["predict", "{d}/rig.toml", "--model", "fe", "--poses", "{d}/modes.csv"],
+    ["diagnose", "--rig", "{d}/rig.toml", "--measured", "{d}/modes.csv"],   # wrote into the current folder
+    ["demo"],                                                                 # so did the demo
+])
+def test_an_empty_out_path_is_refused(tmp_path: Path, capsys, monkeypatch, command: list[str]) -> None:
+    """`--out "$DIR"` with DIR unset: an empty path is not the current folder."""
+    (tmp_path / "rig.toml").write_text(RIG, encoding="utf-8")
+    (tmp_path / "modes.csv").write_text(MODES, encoding="utf-8")
+    monkeypatch.chdir(tmp_path)
+    code = main([a.format(d=tmp_path) for a in command] + ["--out", "", "--quiet"])
+    _one_line(capsys, code, "--out", "path is empty")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["modes.csv", "rig.toml"]
