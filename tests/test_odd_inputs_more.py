@@ -343,3 +343,20 @@ def test_an_empty_out_path_is_refused(tmp_path: Path, capsys, monkeypatch, comma
     code = main([a.format(d=tmp_path) for a in command] + ["--out", "", "--quiet"])
     _one_line(capsys, code, "--out", "path is empty")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["modes.csv", "rig.toml"]
+
+
+class _ReaderGone(io.StringIO):
+    """A pipe whose reader has ended (`flexmodal compare ... | head -1`)."""
+
+    def write(self, text: str) -> int:
+        raise BrokenPipeError(errno.EPIPE, os.strerror(errno.EPIPE))
+
+
+def test_a_pipe_whose_reader_ended_is_no_error(tmp_path: Path, capsys, monkeypatch) -> None:
+    """`flexmodal diagnose ... | head -1`: "flexmodal: error: Broken pipe", exit 2, once head had
+    read its line.  The reader took what it wanted: exit 0, nothing on stderr."""
+    (tmp_path / "modes.csv").write_text(MODES, encoding="utf-8")
+    (tmp_path / "pred.csv").write_text(PRED, encoding="utf-8")
+    monkeypatch.setattr("sys.stdout", _ReaderGone())
+    assert main(["compare", str(tmp_path / "modes.csv"), str(tmp_path / "pred.csv")]) == 0
+    assert capsys.readouterr().err == ""
