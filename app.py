@@ -82,7 +82,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         signum = getattr(exc, "signum", 0)  # stopped by a signal before any work (daq.acquire.Stopped)
         return 128 + signum if signum else 2
     except OSError as exc:  # missing or unreadable files, a full disk, an I/O error: named, one line
-        _say(f"flexmodal: error: {_where(exc)}{' '.join(str(exc.strerror or exc).split())}")
+        where = _where(exc)
+        if isinstance(exc, BrokenPipeError) and where == "standard output: ":
+            _stdout_gone()   # `flexmodal compare ... | head`: the reader took what it wanted
+            return 0
+        _say(f"flexmodal: error: {where}{' '.join(str(exc.strerror or exc).split())}")
         return 2
     except (KeyboardInterrupt, Exception) as exc:
         if not _from_interrupt(exc):  # a bug: the traceback, exit 1
@@ -106,6 +110,18 @@ def _escape_what_cannot_be_shown() -> None:
                     stream.reconfigure(errors="backslashreplace")
             except (LookupError, TypeError, ValueError, OSError):  # a stream of its own kind: left as it is
                 continue
+
+
+def _stdout_gone() -> None:
+    """Point stdout at /dev/null once its reader has gone (a closed pipe), so that the interpreter's
+    last flush of what is left in its buffer does not report a second BrokenPipeError at exit."""
+    try:
+        fd = sys.stdout.fileno()
+    except (AttributeError, OSError, ValueError):   # not a file of its own (a test's capture)
+        return
+    null = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(null, fd)
+    os.close(null)
 
 
 def _where(exc: OSError) -> str:

@@ -530,7 +530,7 @@ def _lscf(f: np.ndarray, H: np.ndarray, *, quantity: str, reference: int, max_or
         if max_order is None:
             clusters, fit, warnings, report = _zoom(f, H, clusters, fit, warnings, report, quantity=quantity,
                                                     reference=reference, limits=limits, peaks_hz=peaks_hz,
-                                                    visible_hz=visible_hz, coherence=coherence)
+                                                    visible_hz=visible_hz, coherence=coherence, stab=stab)
     if not report.any():
         raise ModalError(f"identify: no stable poles between {f.min():g} and {f.max():g} Hz ({note})")
     constants = fit.modal_constants(clusters.pole)[:, reference][:, report]
@@ -610,19 +610,38 @@ def _noise_rms(H: np.ndarray, lines: np.ndarray) -> float:
     return float(np.linalg.norm(d2) / np.sqrt(6 * run.size))
 
 
+def _refused_chain(stab: Stabilisation, clusters: PoleClusters, lo: float, hi: float, reach: np.ndarray
+                   ) -> list[complex]:
+    """[the pole] of the chain of the diagram ``stab`` in [lo, hi] Hz that is stable at the most orders,
+    at least min_orders 5, but was refused by :func:`modal.lscf.stable_clusters` (stable at fewer than
+    half the orders from its first), more than one half-power bandwidth (two ``reach``) from every
+    mode of ``clusters``; [] when there is none."""
+    chains = pole_clusters(stab, TOP_ORDERS)
+    kept = stable_clusters(stab, top=TOP_ORDERS).freq_hz
+    apart = np.abs(chains.freq_hz[:, None] - clusters.freq_hz[None, :]) > 2 * reach[None, :]
+    ok = (chains.freq_hz >= lo) & (chains.freq_hz <= hi) & (chains.n_stable >= 5) & apart.all(axis=1) \
+        & ~np.isin(chains.freq_hz, kept)
+    if not ok.any():
+        return []
+    return [complex(chains.pole[np.flatnonzero(ok)[np.argmax(chains.n_stable[ok])]])]
+
+
 def _zoom(f: np.ndarray, H: np.ndarray, clusters: PoleClusters, fit: LsfdResult, warnings: list[str],
           report: np.ndarray, *, quantity: str, reference: int, limits: Thresholds, peaks_hz: np.ndarray,
-          visible_hz: np.ndarray, coherence: np.ndarray | None
+          visible_hz: np.ndarray, coherence: np.ndarray | None, stab: Stabilisation | None = None
           ) -> tuple[PoleClusters, LsfdResult, list[str], np.ndarray]:
     """Modes the whole-band fit missed where its synthesis misfits the FRFs (:func:`misfit_spans`).
     In each such span above SUSPENSION times the lowest mode (below, rigid-body motion on the
     suspension: Ewins 2000 §3.3) whose misfit away from the modes (three half-power bandwidths, their
     own leakage) stands above the FRFs' noise (:func:`_above_noise`), one pole is fitted to the
     residual (:func:`modal.lsfd.refine_pole`, started at ZOOM_ZETA at its largest residual there);
-    it joins the candidates when it stays in the span and away from the modes, and all are validated
-    again on the whole band (:func:`_validate`).  The arguments and the result are those of the
-    whole-band selection (clusters, fit, warnings, [n] True for the modes to report), returned as
-    they were unless a new mode passes."""
+    it joins the candidates when it stays in the span and away from the modes.  A span wholly inside
+    the modes' leakage has no residual of its own to fit: where its misfit stands above the noise,
+    the candidate is the diagram's own chain there that :func:`modal.lscf.stable_clusters` refused
+    (:func:`_refused_chain`; ``stab`` the stabilisation diagram, None: none).  All are validated
+    again on the whole band (:func:`_validate`).
+    The arguments and the result are those of the whole-band selection (clusters, fit, warnings, [n]
+    True for the modes to report), returned as they were unless a new mode passes."""
     spans = misfit_spans(f, H, fit.synthesis, coherence)
     if not spans:
         return clusters, fit, warnings, report
@@ -636,7 +655,12 @@ def _zoom(f: np.ndarray, H: np.ndarray, clusters: PoleClusters, fit: LsfdResult,
         if hi < SUSPENSION * lowest:   # rigid-body or suspension modes, Ewins 2000 §3.3
             continue
         inside = np.flatnonzero((f >= lo) & (f <= hi) & ~taken)
-        if inside.size < 3 or not _above_noise(H, fit.synthesis, inside):
+        if inside.size < 3:   # the span lies in the modes' leakage: no residual of its own to fit
+            span = np.flatnonzero((f >= lo) & (f <= hi))
+            if stab is not None and span.size >= 3 and _above_noise(H, fit.synthesis, span):
+                new += _refused_chain(stab, clusters, lo, hi, reach)
+            continue
+        if not _above_noise(H, fit.synthesis, inside):
             continue
         k = inside[np.argmax(size[inside])]
         wn = 2 * np.pi * f[k]
@@ -658,8 +682,9 @@ def _zoom(f: np.ndarray, H: np.ndarray, clusters: PoleClusters, fit: LsfdResult,
     if not added:   # the whole-band result stands as it was
         return clusters, fit, warnings, report
     report2 = ~background & np.array([not (m.size and int(m[0]) in late) for m in c2.members], bool)
-    note = (f"found {len(added)} mode(s) at {', '.join(added)} Hz by fitting one pole where the whole-band "
-            "synthesis misfits the FRFs")
+    note = (f"found {len(added)} mode(s) at {', '.join(added)} Hz where the whole-band synthesis misfits the "
+            "FRFs (one pole fitted to the residual there, or in a mode's leakage the diagram's chain stable "
+            "at too few orders)")
     return c2, fit2, warnings + [w for w in w2 if w not in warnings] + [note], report2
 
 

@@ -1037,21 +1037,22 @@ COLD = {next(r.name for r in ROWS if r.args[0] == command) for command in {r.arg
 
 
 @pytest.fixture(scope="module")
-def outcomes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Outcome]:
+def outcomes(tmp_path_factory: pytest.TempPathFactory, warm_cli: WarmCli) -> dict[str, Outcome]:
     root = tmp_path_factory.mktemp("cli-table")
     exe = _console_script()
+    own = [WarmCli(exe) for _ in range(THREADS - 1)]   # and the session's (tests/conftest.py warm_cli)
     clis: Queue = Queue()
     try:
-        for _ in range(THREADS):
-            clis.put(WarmCli(exe))
+        for cli in [warm_cli, *own]:
+            clis.put(cli)
         with ThreadPoolExecutor(THREADS) as pool:
             futures = {r.name: pool.submit(_run, r, root, lambda args, d, cold=r.name in COLD:
                                            _cold(exe, args, d) if cold else _warm(clis, args, d))
                        for r in ROWS}
             return {name: f.result() for name, f in futures.items()}
     finally:
-        while not clis.empty():
-            clis.get().close()
+        for cli in own:
+            cli.close()
 
 
 def test_table_covers_every_command_and_class() -> None:

@@ -313,3 +313,50 @@ def test_shapes_at_sensors_named_apart_are_said_not_silently_skipped(tmp_path: P
                                     encoding="utf-8")
     assert main(["compare", str(tmp_path / "m.csv"), str(tmp_path / "p.csv")]) == 0
     assert "paired by frequency order, not by MAC" in capsys.readouterr().out
+
+
+def test_references_that_the_method_does_not_use(tmp_path: Path, capsys) -> None:
+    """`identify RUN.h5 --references a1` on a run with a force: pLSCF from FRFs ran and the option was
+    ignored, exit 0."""
+    from flexmodal.daq.store import Channel, RunWriter
+
+    chans = [Channel("F", "force", "N"), Channel("a1", "acceleration", "m/s^2")]
+    with RunWriter(tmp_path / "run.h5", "r1", sample_rate_hz=1024.0, channels=chans, excitation="random",
+                   pose={}) as w:
+        w.append(np.random.default_rng(0).standard_normal((1024, 2)))
+    code = main(["identify", str(tmp_path / "run.h5"), "--out", str(tmp_path / "m.csv"), "--method", "lscf",
+                 "--references", "a1"])
+    _one_line(capsys, code, "run.h5", "--references", "ssi/fdd", "lscf")
+    assert not (tmp_path / "m.csv").exists()
+
+
+@pytest.mark.parametrize("command", [
+    ["predict", "{d}/rig.toml", "--model", "fe", "--poses", "{d}/modes.csv"],
+    ["diagnose", "--rig", "{d}/rig.toml", "--measured", "{d}/modes.csv"],   # wrote into the current folder
+    ["demo"],                                                                 # so did the demo
+])
+def test_an_empty_out_path_is_refused(tmp_path: Path, capsys, monkeypatch, command: list[str]) -> None:
+    """`--out "$DIR"` with DIR unset: an empty path is not the current folder."""
+    (tmp_path / "rig.toml").write_text(RIG, encoding="utf-8")
+    (tmp_path / "modes.csv").write_text(MODES, encoding="utf-8")
+    monkeypatch.chdir(tmp_path)
+    code = main([a.format(d=tmp_path) for a in command] + ["--out", "", "--quiet"])
+    _one_line(capsys, code, "--out", "path is empty")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["modes.csv", "rig.toml"]
+
+
+class _ReaderGone(io.StringIO):
+    """A pipe whose reader has ended (`flexmodal compare ... | head -1`)."""
+
+    def write(self, text: str) -> int:
+        raise BrokenPipeError(errno.EPIPE, os.strerror(errno.EPIPE))
+
+
+def test_a_pipe_whose_reader_ended_is_no_error(tmp_path: Path, capsys, monkeypatch) -> None:
+    """`flexmodal diagnose ... | head -1`: "flexmodal: error: Broken pipe", exit 2, once head had
+    read its line.  The reader took what it wanted: exit 0, nothing on stderr."""
+    (tmp_path / "modes.csv").write_text(MODES, encoding="utf-8")
+    (tmp_path / "pred.csv").write_text(PRED, encoding="utf-8")
+    monkeypatch.setattr("sys.stdout", _ReaderGone())
+    assert main(["compare", str(tmp_path / "modes.csv"), str(tmp_path / "pred.csv")]) == 0
+    assert capsys.readouterr().err == ""

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import json
 import os
-import select
 import selectors
 import signal
 import subprocess
@@ -112,7 +111,6 @@ def _outcome(pid: int, out_r: int, err_r: int, timeout_s: float) -> tuple[int | 
     ``timeout_s`` the process is killed and its code is None."""
     deadline = time.monotonic() + timeout_s
     stderr = []
-    pidfd = os.pidfd_open(pid)
     with selectors.DefaultSelector() as pipes:
         pipes.register(out_r, selectors.EVENT_READ)
         pipes.register(err_r, selectors.EVENT_READ)
@@ -123,14 +121,16 @@ def _outcome(pid: int, out_r: int, err_r: int, timeout_s: float) -> tuple[int | 
                     pipes.unregister(key.fd)
                 elif key.fd == err_r:
                     stderr.append(data)
-        hung = bool(pipes.get_map()) or not select.select(
-            [pidfd], [], [], max(0.0, deadline - time.monotonic()))[0]
-    if hung:                    # as subprocess.run(timeout=...) does
-        os.kill(pid, signal.SIGKILL)
-    _, status = os.waitpid(pid, 0)
-    for fd in (pidfd, out_r, err_r):
-        os.close(fd)
-    return (None if hung else os.waitstatus_to_exitcode(status)), b"".join(stderr)
+    os.close(out_r)
+    os.close(err_r)
+    while time.monotonic() < deadline:     # the pipes closed: the process is ending (or has ended)
+        done, status = os.waitpid(pid, os.WNOHANG)
+        if done:
+            return os.waitstatus_to_exitcode(status), b"".join(stderr)
+        time.sleep(0.005)
+    os.kill(pid, signal.SIGKILL)           # a hang, ended as subprocess.run(timeout=...) does
+    os.waitpid(pid, 0)
+    return None, b"".join(stderr)
 
 
 def _become(request: dict, out_w: int, err_w: int) -> None:
