@@ -2,7 +2,8 @@
 
 1. Baseline: the nominal rig's FE modes (models/frame.py) against the measured ones, per mode and
    configuration.  When its RMS is within ``NONE_FACTOR`` times the measurement scatter the verdict is
-   ``none``.
+   ``none`` -- the scatter never taken above what the best single candidate leaves held out
+   (``_none_scatter``).
 2. ``where``: the modes and configurations that carry the gap, and the region of the arm whose handles'
    frequency sensitivities best explain the error pattern (R^2, compare/gap.py; among regions within
    ``REGION_TIE`` of the best, the verdict's), plus MAC/COMAC when shapes were measured.
@@ -19,8 +20,10 @@
    ``joint_stiffness_pose`` ranks above the constant ``joint_stiffness`` at the same joint only when its
    held-out error is lower.  The scatter comes from the data when it can (compare/gap.py
    ``estimate_scatter``), else from the caller.
-4. Verdict: the best candidate pruned of components that do not improve the held-out error beyond
-   the nested margin (noise, or what absorbing the model-form error can gain, ``_nested_margin``) or
+4. Verdict: the simplest candidate not worse held out than the best beyond the nested margin, pruned
+   of components that do not improve the held-out error beyond that margin (the noise of a paired
+   comparison on the same held-out residuals, or what absorbing the model-form error can gain,
+   ``_nested_margin``) or
    sit at their lower bound, passed over when a parameter runs out of range; ``none`` when the
    nominal model itself (no parameters) scores at least as well.  ``explained`` is false when the held-out
    RMS is above ``EXPLAINED_FACTOR`` times the scatter or the held-out residuals are structured;
