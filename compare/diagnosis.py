@@ -827,19 +827,24 @@ def _paired_noise(ctx: _Context, a: dict, b: dict, scatter: float) -> float:
     equal within noise, judged on the same held-out residuals: a paired comparison of their
     chi-square terms (``_chi2_terms``), as cross-validated models are compared (Dietterich 1998;
     Diebold & Mariano 1995).  The differences ``d`` of the terms sum to the difference of the two
-    chi-squares with standard error ``sqrt(N var(d) / pose_share)`` (repeats of a pose share its
-    model-form error), and twice that, on the RMS scale (``eq^2 = scatter^2 chi2 / dof``), is
-    ``2 scatter^2 SE / (dof (eq_a + eq_b))``.  Unlike two RMS estimates taken as independent
-    (``_noise``), it does not count as noise what both candidates leave alike.  On a few residuals
-    the variance of ``d`` is itself uncertain (one large residual of one candidate inflates it), so
-    the margin never exceeds ``_noise`` of the better of the two, the margin without pairing."""
+    chi-squares with standard error ``SE = sqrt(N var(d) / pose_share)`` (repeats of a pose share its
+    model-form error); the margin is the two-sided 95 % Student t quantile of ``N pose_share - 1``
+    degrees of freedom times that, on the RMS scale (``eq^2 = scatter^2 chi2 / dof``, so
+    ``eq_a - eq_b = scatter^2 sum(d) / (dof (eq_a + eq_b))`` exactly): ``t scatter^2 SE / (dof (eq_a +
+    eq_b))`` -- the paired t-test of the two candidates' held-out losses.  Unlike two RMS estimates
+    taken as independent (``_noise``), it does not count as noise what both candidates leave alike.
+    On a few residuals the variance of ``d`` is itself uncertain (one large residual of one candidate
+    inflates it), so the margin never exceeds ``_noise`` of the better of the two, the margin without
+    pairing."""
     unpaired = _noise(min(a, b, key=lambda e: e["_heldout_eq"]), scatter, ctx.pose_share)
     da, db = _chi2_terms(ctx, a, scatter), _chi2_terms(ctx, b, scatter)
     if da.size != db.size or da.size < 2 or a["_n_eq"] != b["_n_eq"]:
         return unpaired
     d = da - db
+    n = d.size * ctx.pose_share
     se = math.sqrt(d.size * float(np.var(d, ddof=1)) / ctx.pose_share)
-    return min(2 * scatter**2 * se / (a["_n_eq"] * max(a["_heldout_eq"] + b["_heldout_eq"], 1e-300)),
+    t = float(stdtrit(max(n - 1.0, 1.0), 0.975))
+    return min(t * scatter**2 * se / (a["_n_eq"] * max(a["_heldout_eq"] + b["_heldout_eq"], 1e-300)),
                unpaired)
 
 

@@ -8,6 +8,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from scipy.stats import t as student_t
 from scipy.stats import ttest_1samp
 
 from flexmodal.compare.diagnosis import _equivalent, _noise, _paired_noise, diagnose
@@ -26,8 +27,8 @@ def _entry(ctx, err: np.ndarray, scatter: float) -> dict:
 def test_paired_margin_is_the_paired_t_test_on_the_residuals(gain):
     """Two candidates leave the same held-out residuals but for a part one of them removes: the margin
     is crossed exactly when the one-sample t statistic of the per-residual chi-square differences
-    (scipy.stats.ttest_1samp) exceeds 2, and it is below the unpaired margin, which counts what both
-    leave alike as noise."""
+    (scipy.stats.ttest_1samp) exceeds its two-sided 95 % quantile, and it is below the unpaired margin,
+    which counts what both leave alike as noise."""
     rng = np.random.default_rng(4)
     ctx = SimpleNamespace(shape_dof=0, shape_floor=math.inf, pose_share=1.0)
     scatter = 0.005
@@ -36,11 +37,12 @@ def test_paired_margin_is_the_paired_t_test_on_the_residuals(gain):
     a = _entry(ctx, common + part, scatter)                # without the part
     b = _entry(ctx, common + (1 - gain) * part, scatter)   # removes a share of it
     t = ttest_1samp(((common + part) ** 2 - (common + (1 - gain) * part) ** 2) / scatter**2, 0.0).statistic
+    q = student_t.ppf(0.975, 59)
     margin = _paired_noise(ctx, a, b, scatter)
-    assert (a["_heldout_eq"] - b["_heldout_eq"] > margin) == (t > 2.0)
+    assert (a["_heldout_eq"] - b["_heldout_eq"] > margin) == (t > q)
     unpaired = _noise(b, scatter)
     if margin < unpaired:
-        assert a["_heldout_eq"] - b["_heldout_eq"] == pytest.approx(margin * t / 2.0, rel=1e-9)
+        assert a["_heldout_eq"] - b["_heldout_eq"] == pytest.approx(margin * t / q, rel=1e-9)
     assert margin <= unpaired
 
 
