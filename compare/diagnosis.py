@@ -1005,10 +1005,11 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
                  for c, m in worst]
     verdict["remaining"] = remaining
     mine = set(zip(best["_cand"].effects, best["_cand"].locations, strict=True))
-    alts = [e for e in ranking if e is not best and not e["_out_of_range"] and not e["_idle"]
-            and not mine <= set(zip(e["_cand"].effects, e["_cand"].locations, strict=True))
-            and e["_heldout_eq"] - best["_heldout_eq"] <= _noise(best, scatter, ctx.pose_share)
-            ][:MAX_ALTERNATIVES]
+    # candidates equal within noise, simplest first (as the one-standard-error rule orders them)
+    alts = sorted((e for e in ranking if e is not best and not e["_out_of_range"] and not e["_idle"]
+                   and not mine <= set(zip(e["_cand"].effects, e["_cand"].locations, strict=True))
+                   and e["_heldout_eq"] - best["_heldout_eq"] <= _noise(best, scatter, ctx.pose_share)),
+                  key=lambda e: (e["n_params"], e["score"]))[:MAX_ALTERNATIVES]
     # a candidate with one component more that fits better held out, but by less than the nested margin:
     # the data cannot say whether that component is there too
     alts += sorted((e for e in ranking if e is not best and not e["_out_of_range"] and not e["_idle"]
