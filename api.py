@@ -11,6 +11,9 @@ docs/python-api.md.  Units: frequencies Hz, damping ratios as fractions, poses i
 from __future__ import annotations
 
 import html
+import math
+import numbers
+import os
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -508,7 +511,9 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
         + LSFD), ``peak`` (CMIF peaks, half-power damping), output-only ``ssi`` (SSI-cov) or ``fdd``.
         Default: the data decide, ``lscf`` where a force channel exists, else ``ssi``.
     fmin, fmax : float, optional
-        Band edges [Hz] (default: the first line above 0 Hz, Nyquist); ``fmin`` < ``fmax``.
+        Band edges [Hz] (default: the first line above 0 Hz; Nyquist, or the last line before a top
+        stretch where the FRFs' coherence stays below 0.9: modal.identify.coherent_top); ``fmin`` <
+        ``fmax``.  ``Modes.band_note`` says which band was fitted and why.
     max_order : int, optional
         Cap of the pLSCF model order (default: it adapts to the data); ssi: highest model order.
     run_id : str, optional
@@ -587,11 +592,16 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
     options = {"method": method, "fmin": fmin, "fmax": fmax, "max_order": max_order, "poles_hz": poles_hz,
                "thresholds": thresholds, "decay_rate_per_s": decay_rate_per_s,
                "diagrams": _stored_diagrams(out, from_diagram) if poles_hz and out is not None else None}
-    if isinstance(source, str | Path):
+    if isinstance(source, str | os.PathLike):
         table, found = identify_input(source, run_id=run_id, references=references, **options)
         result = Identification(table, {c: m for c, (m, _) in found.items()},
                                 {c: tuple(o) for c, (_, o) in found.items()})
     else:
+        from flexmodal.modal.frf import FrfResult
+
+        if not isinstance(source, FrfResult):   # bytes, a list: said here, not as an AttributeError
+            raise TypeError(f"identify: source must be an HDF5 or UFF path or an FrfResult, got "
+                            f"{type(source).__name__}")
         source = by_reciprocity(source)   # a roving-hammer set: the hammer points are the shapes' points
         modes = identify_frf(source, **{**options, "method": method or "lscf"})
         table = modes_table(modes, source.outputs, config=config, pose=pose)
@@ -723,10 +733,13 @@ def _harmonics_path(out: PathLike) -> Path:
 
 
 def _check_band(fmin: float | None, fmax: float | None) -> None:
-    """ModalError when both band edges [Hz] are given and ``fmin`` is not below ``fmax``."""
+    """ModalError when a band edge [Hz] is not a finite number >= 0, or both are given and ``fmin`` is
+    not below ``fmax``."""
+    for name, edge in (("fmin", fmin), ("fmax", fmax)):
+        if edge is not None and (isinstance(edge, bool) or not isinstance(edge, numbers.Real)
+                                 or not math.isfinite(edge) or edge < 0):
+            raise ModalError(f"--{name} {edge!r}: not a frequency (a finite number of Hz >= 0)")
     if fmin is not None and fmax is not None and fmin >= fmax:
-        from flexmodal.modal.errors import ModalError
-
         raise ModalError(f"--fmin {fmin:g} Hz must lie below --fmax {fmax:g} Hz")
 
 
@@ -781,7 +794,20 @@ def read_poses(path: PathLike) -> dict[str, dict[str, float]]:
 
 
 def _table(table: ModalTable | PathLike) -> ModalTable:
-    return read_table(table) if isinstance(table, str | Path) else table
+    from flexmodal.contract.table import ModalTable
+
+    if isinstance(table, str | os.PathLike):
+        return read_table(table)
+    if not isinstance(table, ModalTable):   # a list of tables, None: said here, not as an AttributeError
+        raise TypeError(f"expected a modal table or the path of its CSV file, got {type(table).__name__}")
+    return table
+
+
+def _config_of(table: ModalTable, config: str, error: type[Exception]) -> str:
+    """``config`` when ``table`` has it, else ``error`` naming the table's configurations."""
+    if not table.has_config(config):
+        raise error(f"{table.source}: no configuration {config!r} (have {', '.join(table.configs)})")
+    return config
 
 
 # -- models ----------------------------------------------------------------------------------------
@@ -885,13 +911,28 @@ def predict(rig: Rig | PathLike, poses: Mapping[str, Mapping[str, float]] | Moda
             raise ModelError(f"{where}: no column 'pose.{missing[0]}' (rig {rig.source} needs the pose "
                              f"variable {missing[0]!r}; pose columns are named pose.<variable>)")
     elif not isinstance(poses, Mapping):
-        poses = {c: poses.pose(c) for c in poses.configs}
+        poses = {c: _table(poses).pose(c) for c in poses.configs}
+    else:   # the caller's own {config: {variable: value}}: numbers, as a poses file's are
+        poses = {config: _pose_numbers(config, pose) for config, pose in poses.items()}
     if not poses:
         raise ModelError("predict: no configurations")
     table = _predict(rig, poses, model, n_modes, source=source, progress=progress, **options)
     if out is not None:
         table.to_csv(out)
     return table
+
+
+def _pose_numbers(config: object, pose: object) -> dict[str, float]:
+    """A pose {variable: value} of finite numbers (degrees, kg), else ModelError naming the value."""
+    if not isinstance(pose, Mapping):
+        raise ModelError(f"predict: config {config!r}: the pose must be a mapping {{variable: value}}, got "
+                         f"{type(pose).__name__}")
+    out = {}
+    for name, value in pose.items():
+        if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
+            raise ModelError(f"predict: config {config!r}: pose {name} = {value!r} is not a finite number")
+        out[str(name)] = float(value)
+    return out
 
 
 # -- comparison and diagnosis ----------------------------------------------------------------------
@@ -1349,6 +1390,7 @@ def plot_mode_shapes(rig: Rig | PathLike, measured: ModalTable | PathLike, confi
     from flexmodal.reports import plots
 
     rig, measured = _rig(rig), _table(measured)
+    _config_of(measured, config, ReportError)
     sensors = [s.name for s in rig.sensors if s.name in measured.sensors]
     return plots.plot_mode_shapes(arm_modes(rig, measured.pose(config), sensors, n_fe_modes), measured,
                                   config, title=title)
@@ -1689,9 +1731,7 @@ def animate_mode(out: PathLike, measured: ModalTable | PathLike, config: str, mo
 
     target = output_file(out, ReportError, "GIF (out)")
     table = _table(measured)
-    if config not in table.configs:
-        raise ReportError(f"{table.source}: no configuration {config!r} (have {', '.join(table.configs)})")
-    n = len(table.freq_hz(config))
+    n = len(table.freq_hz(_config_of(table, config, ReportError)))
     if not 1 <= mode <= n:
         raise ReportError(f"{table.source}: {config} has modes 1..{n}, not {mode}")
     if (rig is None) == (geometry is None):
@@ -1846,7 +1886,10 @@ def selftest(n_cases: int, *, seed: int = 0, progress: Callable[[object], None] 
     """
     from flexmodal.fixtures.blind import format_summary, run_blind, summarise
 
-    results = run_blind(n_cases, seed=seed, progress=progress)
+    if isinstance(n_cases, bool) or not isinstance(n_cases, numbers.Integral) or n_cases < 1:
+        raise FixtureError(f"selftest: n_cases = {n_cases!r} is not a whole number >= 1 (accuracies of no "
+                           "case are not numbers)")
+    results = run_blind(int(n_cases), seed=seed, progress=progress)
     summary = summarise(results)
     return SelfCheck(tuple(results), summary, format_summary(summary))
 

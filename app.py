@@ -10,10 +10,12 @@ code 2 (docs/formats.md).
 from __future__ import annotations
 
 import argparse
+import codecs
 import os
 import signal
 import sys
 import threading
+import traceback
 from collections.abc import Sequence
 
 from flexmodal import __version__
@@ -63,6 +65,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         # multi-line warning about the semaphores it cleans up after us, below our one line
         sys.warnoptions.append("ignore::UserWarning:multiprocessing.resource_tracker")
         sys.unraisablehook = _interrupt_again
+    if argv is None:  # the command's own streams, maybe in ASCII or Latin-1 (LANG, PYTHONIOENCODING):
+        _escape_what_cannot_be_shown()  # Δ, ζ, µ shown as \u0394 ..., not a UnicodeEncodeError
+    if sys.stdout is None:  # started with stdout closed (`>&-`): the result would have nowhere to go
+        _say("flexmodal: error: standard output is closed: the command's result is printed there (redirect "
+             "it, e.g. > result.txt, or to /dev/null)")
+        return 2
     try:
         args = build_parser().parse_args(argv)
         return int(args.func(args) or 0)
@@ -74,7 +82,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         signum = getattr(exc, "signum", 0)  # stopped by a signal before any work (daq.acquire.Stopped)
         return 128 + signum if signum else 2
     except OSError as exc:  # missing or unreadable files, a full disk, an I/O error: named, one line
-        where = f"{exc.filename}: " if exc.filename is not None else ""
+        where = _where(exc)
+        if isinstance(exc, BrokenPipeError) and where == "standard output: ":
+            _stdout_gone()   # `flexmodal compare ... | head`: the reader took what it wanted
+            return 0
         _say(f"flexmodal: error: {where}{' '.join(str(exc.strerror or exc).split())}")
         return 2
     except (KeyboardInterrupt, Exception) as exc:
@@ -87,6 +98,47 @@ def main(argv: Sequence[str] | None = None) -> int:
     finally:
         if argv is None:  # done: a Ctrl-C during the interpreter's tear-down still ends it the same way
             signal.signal(signal.SIGINT, lambda _signum, _frame: _leave_interrupted())
+
+
+def _escape_what_cannot_be_shown() -> None:
+    """Let stdout and stderr write a character their encoding lacks as a backslash escape (``Δ`` in an
+    ASCII or Latin-1 stream: ``\u0394``) instead of raising UnicodeEncodeError after the work is done."""
+    for stream in (sys.stdout, sys.stderr):
+        if stream is not None and hasattr(stream, "reconfigure"):
+            try:
+                if codecs.lookup(stream.encoding).name != "utf-8":
+                    stream.reconfigure(errors="backslashreplace")
+            except (LookupError, TypeError, ValueError, OSError):  # a stream of its own kind: left as it is
+                continue
+
+
+def _stdout_gone() -> None:
+    """Point stdout at /dev/null once its reader has gone (a closed pipe), so that the interpreter's
+    last flush of what is left in its buffer does not report a second BrokenPipeError at exit."""
+    try:
+        fd = sys.stdout.fileno()
+    except (AttributeError, OSError, ValueError):   # not a file of its own (a test's capture)
+        return
+    null = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(null, fd)
+    os.close(null)
+
+
+def _where(exc: OSError) -> str:
+    """What an operating-system error is about, as the start of its line: the file it names; else the
+    current folder when that is gone (deleted under the command), else standard output when the error
+    came from a line writing the result there (a full disk, /dev/full); else nothing."""
+    if exc.filename is not None:
+        return f"{exc.filename}: "
+    try:
+        os.getcwd()
+    except FileNotFoundError:
+        return "the current folder no longer exists (deleted or moved; cd to one that exists): "
+    for frame in traceback.extract_tb(exc.__traceback__):
+        code = frame.line or ""
+        if "sys.stdout" in code or ("print(" in code and "file=" not in code):
+            return "standard output: "   # the handler's own write of its result failed there
+    return ""
 
 
 def _say(message: str) -> None:

@@ -52,11 +52,19 @@ def _same_file(a: os.stat_result, b: os.stat_result) -> bool:
     return (a.st_dev, a.st_ino) == (b.st_dev, b.st_ino)
 
 
+def _given(path: str | Path, error: ErrorType, what: str) -> Path:
+    """``path`` as a Path, unless it is an empty text (``--out ""``, a script's unset variable), which
+    Path would read as the current folder."""
+    if isinstance(path, str) and not path.strip():
+        raise error(f"the {what} path is empty ({path!r}; an unset variable in a script?)")
+    return Path(path)
+
+
 def _regular_target(path: str | Path, error: ErrorType, what: str,
                     inputs: Iterable[str | Path | None]) -> Path:
     """``path`` (through symlinks) is new or a regular file, under neither /dev nor /proc, and none of
     ``inputs`` (same device and inode, symlinks and hard links included; same resolved path if new)."""
-    p = Path(path)
+    p = _given(path, error, what)
     real = Path(os.path.realpath(p))
     if any(_under(q, SPECIAL_ROOTS) and not _under(q, WRITABLE_ROOTS)
            for q in (Path(os.path.abspath(p)), real)):
@@ -120,7 +128,7 @@ def output_dir(path: str | Path, error: ErrorType, what: str = "output directory
                files: Iterable[str] = (), inputs: Iterable[str | Path | None] = ()) -> Path:
     """``path`` as a folder that exists or can be created and takes new files (it is not created);
     the ``files`` the command writes into it are checked as :func:`output_file` checks a file."""
-    p = Path(path)
+    p = _given(path, error, what)
     if p.exists() and not p.is_dir():
         raise error(f"{p}: exists and is not a directory (the {what})")
     ancestor = p

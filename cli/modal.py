@@ -40,7 +40,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     q.add_argument("--fmin", type=opt.hertz, default=None,
                    help="lower band edge, Hz (default first line > 0)")
     q.add_argument("--fmax", type=opt.positive_hz, default=None,
-                   help="upper band edge, Hz (default Nyquist)")
+                   help="upper band edge, Hz (default Nyquist, or below a top stretch where the FRFs' "
+                        "coherence stays under 0.9; the band fitted is printed)")
     q.add_argument("--method", default=None, choices=METHODS,
                    help="; ".join(f"{name}: {METHODS[name].caption}" for name in METHODS)
                    + ". Output-only shapes are unscaled (unit largest entry)")
@@ -183,8 +184,9 @@ def _identify(args: argparse.Namespace) -> int:
     for config, modes in result.modes.items():   # a loop over configurations
         if quiet:
             continue
-        if modes.order_note:
-            print(f"flexmodal: {config}: {modes.order_note}", file=sys.stderr)
+        for note in (modes.band_note, modes.order_note):
+            if note:
+                print(f"flexmodal: {config}: {note}", file=sys.stderr)
         for warning in modes.warnings:
             print(f"flexmodal: warning: {config}: {warning}", file=sys.stderr)
         for line in modes.details if args.verbose else ():

@@ -71,12 +71,13 @@ def combine(*cands: Candidate) -> Candidate | None:
 
 
 def parse_effects(spec: str) -> tuple[str, ...]:
-    """``all`` (every registered effect) or a comma-separated list of effect names (models/effects.py)."""
+    """``all`` (every registered effect) or a comma-separated list of effect names (models/effects.py);
+    a name given twice counts once (each candidate is fitted once)."""
     from flexmodal.compare.errors import CompareError
 
     if spec.strip() == "all":
         return registered_effects()
-    names = tuple(s.strip() for s in spec.split(",") if s.strip())
+    names = tuple(dict.fromkeys(s.strip() for s in spec.split(",") if s.strip()))
     bad = [n for n in names if n not in REGISTRY]
     if bad or not names:
         raise CompareError(f"--effects: unknown effect {bad[0] if bad else spec!r} "

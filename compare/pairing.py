@@ -65,6 +65,9 @@ class Pairing:
     pairs: tuple[Pair, ...]
     unpaired_measured: tuple[ModeRef, ...]  # measured modes the source has no partner for
     unpaired_predicted: tuple[ModeRef, ...]  # predicted modes matching no measured one (spurious/extra)
+    # configurations where both tables give shapes but at fewer than two common sensors (names that
+    # differ, ``A1`` against ``a1``): paired by frequency order instead of MAC, and the notes say so
+    shapes_apart: tuple[str, ...] = ()
 
     def pair_of(self, config: str, measured_mode: int) -> Pair | None:
         return self._by_measured.get((config, measured_mode))
@@ -91,12 +94,32 @@ def partner_config(measured: ModalTable, predicted: ModalTable, config: str,
     non-empty pose (values equal within 1e-9), else None.  ``poses``: ``PoseIndex(predicted)``, built
     once when many configurations are matched."""
     if predicted.has_config(config):
+        _same_pose(measured, predicted, config)
         return config
     pose = measured.pose(config)
     if not pose:
         return None
     same = (poses or PoseIndex(predicted)).find(pose)
     return same[0] if len(same) == 1 else None
+
+
+def _same_pose(measured: ModalTable, predicted: ModalTable, config: str) -> None:
+    """CompareError when ``config`` is predicted at another pose than it was measured at: a pose
+    variable both tables give whose predicted values leave the measured ones' range (one value in a
+    modal table; the windows' means of a modal map's pose bin).  Modes of two poses would otherwise be
+    paired under one name, and their differences reported as the model's error."""
+    from flexmodal.compare.errors import CompareError
+
+    for col in [c for c in measured.pose_columns if c in predicted.pose_columns]:
+        m = measured.column(config, col).astype(float)
+        p = predicted.column(config, col).astype(float)
+        m, p = m[np.isfinite(m)], p[np.isfinite(p)]
+        if m.size and p.size:
+            tol = 1e-6 * max(1.0, float(np.abs(m).max()))   # poses written with 9 digits compare equal
+            if p.min() < m.min() - tol or p.max() > m.max() + tol:
+                raise CompareError(f"config {config!r}: measured at {col} = {m[0]:g} ({measured.source}) but "
+                                   f"predicted at {p[0]:g} ({predicted.source}): a configuration is one pose "
+                                   "(predict at the measured poses: predict --poses MEASURED.csv)")
 
 
 class PoseIndex:
@@ -165,6 +188,7 @@ def pair_modes(measured: ModalTable, predicted: ModalTable, source: str = "predi
     lone_pred: list[ModeRef] = []
     used_configs: set[str] = set()
     poses = PoseIndex(predicted)
+    apart: list[str] = []
     for config in measured.configs:
         meas = _refs(measured, config)
         pconfig = partner_config(measured, predicted, config, poses)
@@ -179,6 +203,8 @@ def pair_modes(measured: ModalTable, predicted: ModalTable, source: str = "predi
             found = _pair_by_mac(meas, pred, macs, min_mac, freq_weight)
         else:
             found = _pair_by_frequency(meas, pred)
+            if measured.sensors and predicted.sensors:
+                apart.append(config)
         pairs += found
         used_m = {p.measured.mode for p in found}
         used_p = {p.predicted.mode for p in found}
@@ -189,4 +215,4 @@ def pair_modes(measured: ModalTable, predicted: ModalTable, source: str = "predi
             lone_pred += _refs(predicted, config)
     position = {c: i for i, c in enumerate(measured.configs)}
     pairs.sort(key=lambda p: (position[p.measured.config], p.measured.mode))
-    return Pairing(source, tuple(pairs), tuple(lone_meas), tuple(lone_pred))
+    return Pairing(source, tuple(pairs), tuple(lone_meas), tuple(lone_pred), tuple(apart))

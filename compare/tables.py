@@ -119,10 +119,14 @@ class Comparison:
         return html_fragment(self)
 
     def notes(self) -> list[str]:
-        """One line per unpaired mode, naming source, configuration, mode and frequency [Hz]."""
+        """One line per unpaired mode, naming source, configuration, mode and frequency [Hz], and one per
+        configuration whose shapes could not be compared (no two sensors in common)."""
         out = []
         for config in self.configs:
             for k, p in enumerate(self.pairings):
+                if config in p.shapes_apart:
+                    out.append(f"{p.source}: {config}: both tables give mode shapes, but at fewer than two "
+                               "sensors of the same name: paired by frequency order, not by MAC")
                 lone_meas, lone_pred, _ = self._of(k, config)
                 out += [f"{p.source}: no predicted mode pairs with measured mode {r.mode} of "
                         f"{r.config} ({r.freq_hz:.2f} Hz)" for r in lone_meas]
@@ -274,7 +278,7 @@ def _fmt(quantity: str, value: object, full: bool = False) -> str:
 def _header(col: _Col, fmt: str) -> str:
     """Header text, already safe for ``fmt`` (LaTeX-escaped for tex)."""
     labels = _LABELS[fmt]
-    esc = _tex_escape if fmt == "tex" else str
+    esc = _escape(fmt)
     if col.quantity in ("config", "source", "quantity"):
         return col.quantity
     if col.quantity == "cell":
@@ -289,7 +293,7 @@ def _header(col: _Col, fmt: str) -> str:
 def _cells(cols: list[_Col], rows: list[list[object]], fmt: str) -> list[list[str]]:
     """Body text, already safe for ``fmt`` (LaTeX-escaped for tex)."""
     labels = _LABELS[fmt]
-    esc = _tex_escape if fmt == "tex" else str
+    esc = _escape(fmt)
     return [[labels[str(v)] if c.quantity == "quantity" else esc(_fmt(c.quantity, v, full=fmt == "csv"))
              for c, v in zip(cols, row, strict=True)] for row in rows]
 
@@ -298,16 +302,44 @@ def _cells(cols: list[_Col], rows: list[list[object]], fmt: str) -> list[list[st
 # renderers
 
 
+_TEX = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "_": r"\_", "#": r"\#", "$": r"\$", "{": r"\{",
+        "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}", "ζ": r"$\zeta$", "Δ": r"$\Delta$",
+        "\n": " ", "\r": " "}
+_TEX_SPECIAL = re.compile("|".join(re.escape(k) for k in _TEX))
+
+
 def _tex_escape(text: str) -> str:
-    for a, b in (("\\", r"\textbackslash{}"), ("&", r"\&"), ("%", r"\%"), ("_", r"\_"), ("#", r"\#"),
-                 ("ζ", r"$\zeta$"), ("Δ", r"$\Delta$")):
-        text = text.replace(a, b)
-    return text
+    r"""``text`` safe in LaTeX: each special character replaced in one pass (so the braces of
+    ``\textbackslash{}`` are not escaped again); a line break is a space (it would end the row).
+
+    Examples
+    --------
+    >>> print(_tex_escape("x_1 & $5 {a}~^ 50% #2 \\ Δf"))
+    x\_1 \& \$5 \{a\}\textasciitilde{}\textasciicircum{} 50\% \#2 \textbackslash{} $\Delta$f
+    """
+    return _TEX_SPECIAL.sub(lambda m: _TEX[m.group(0)], text)
+
+
+def _md_escape(text: str) -> str:
+    r"""``text`` safe in a Markdown table cell: ``|`` escaped, a line break a space.
+
+    Examples
+    --------
+    >>> print(_md_escape("a|b\nc"))
+    a\|b c
+    """
+    return text.replace("|", r"\|").replace("\r\n", " ").replace("\n", " ").replace("\r", " ")
+
+
+def _escape(fmt: str):
+    """The escape of cell and header text for ``fmt`` (md's labels serve html and the DataFrame too, so
+    Markdown escapes as it renders, and html as it renders)."""
+    return _tex_escape if fmt == "tex" else str
 
 
 def _render_md(head: list[str], body: list[list[str]], notes: list[str]) -> str:
     align = ["---" if i == 0 else "---:" for i in range(len(head))]
-    lines = ["| " + " | ".join(r) + " |" for r in [head, align, *body]]
+    lines = ["| " + " | ".join(map(_md_escape, r)) + " |" for r in [head, align, *body]]
     if notes:
         lines += [""] + [f"- {n}" for n in notes]
     return "\n".join(lines) + "\n"

@@ -25,6 +25,7 @@ REQUIRED = ("config", "mode", "freq_hz")
 POSE_PREFIX = "pose."
 SHAPE_PREFIX = "shape."
 STD_COLUMNS = ("freq_std_hz", "damping_std")   # uncertainty of identification: >= 0, empty when unknown
+MAP_COLUMN = "n_windows"   # windows behind a row of a modal map (identify --track): its mark
 MAX_MODE = 1e6           # mode numbers are whole, 1..1e6
 MAX_FREQ_HZ = 1e9        # no structural mode is above 1 GHz; (2 pi f)^2 of 1e308 Hz overflows
 MAX_POSE = 1e12          # no pose value is larger (the diagnosis takes powers of pose spans)
@@ -126,6 +127,8 @@ class ModalTable:
         for col in [c for c in df.columns if c in numeric or c.startswith(POSE_PREFIX)]:
             limit = MAX_POSE if col.startswith(POSE_PREFIX) else MAX_MAGNITUDE
             df[col] = _numbers(df[col], col, source, limit)
+        if MAP_COLUMN not in df.columns:   # a modal map's pose is each row's mean within its pose bin
+            _one_pose_per_config(df, source)
         for col in [c for c in STD_COLUMNS if c in df.columns and (df[c] < 0).any()]:
             row = int(np.flatnonzero((df[col] < 0).to_numpy())[0])
             raise ContractError(f"{source}: row {row + 2}: {col} = {df[col].iloc[row]:g} is negative (a "
@@ -166,6 +169,8 @@ class ModalTable:
     @classmethod
     def read_csv(cls, path: str | Path) -> ModalTable:
         df = read_table(path, ContractError, required=REQUIRED, text_columns=("config",), what="modal table")
+        if df.empty:
+            raise ContractError(f"{path}: the modal table has a header but no rows (no mode to read)")
         return cls.from_frame(df, str(path))
 
     def to_csv(self, path: str | Path) -> None:
@@ -183,6 +188,8 @@ class ModalTable:
     def _rows_of(self) -> dict[str, np.ndarray]:
         """Row positions of every configuration, configurations in order of first appearance."""
         codes, names = pd.factorize(self.frame["config"], sort=False)
+        if not len(names):  # a table without rows (np.split would still hand out one empty part)
+            return {}
         order = np.argsort(codes, kind="stable")
         bounds = np.cumsum(np.bincount(codes, minlength=len(names)))[:-1]
         return {str(n): rows for n, rows in zip(names, np.split(order, bounds), strict=True)}
@@ -271,6 +278,21 @@ def display_html(summary: str, frame: pd.DataFrame, max_rows: int = 30) -> str:
     return f"<p>{summary}</p>" + frame.to_html(index=False, max_rows=max_rows, escape=True, border=0)
 
 
+def _one_pose_per_config(df: pd.DataFrame, source: str) -> None:
+    """Raise ContractError when two rows of one configuration give one pose variable different values
+    (the pose of a configuration is one pose; otherwise whichever row came first would silently win).
+    Not applied to a modal map (its :data:`MAP_COLUMN`): there a configuration is a pose bin and each
+    row carries the mean pose of the windows behind that mode (docs/oma.md)."""
+    for col in [c for c in df.columns if c.startswith(POSE_PREFIX)]:
+        values = df.groupby("config", sort=False)[col]
+        split = values.nunique(dropna=True) > 1
+        if split.any():
+            config = split.index[int(np.argmax(split.to_numpy()))]
+            seen = df.loc[df["config"] == config, col].dropna().unique()[:2]
+            raise ContractError(f"{source}: config {config!r} has two values of {col} ({seen[0]:g} and "
+                                f"{seen[1]:g}): a configuration is one pose (give each pose its own config)")
+
+
 def poses_from_csv(path: str | Path) -> dict[str, dict[str, float]]:
     """Read POSES.csv (docs/formats.md without mode/freq_hz): {config: {pose variable: value}}."""
     p = Path(path)
@@ -286,4 +308,6 @@ def poses_from_csv(path: str | Path) -> dict[str, dict[str, float]]:
                 raise ContractError(f"{p}: config {row['config']!r}: {c} {what} ({row[c]!r})")
             pose[c[len(POSE_PREFIX):]] = float(value)
         out[str(row["config"])] = pose
+    if MAP_COLUMN not in df.columns:
+        _one_pose_per_config(df.assign(**{c: pd.to_numeric(df[c]) for c in cols}), str(p))
     return out

@@ -9,6 +9,7 @@ naming the file, run and item, instead of whatever numpy, json or h5py would rai
 from __future__ import annotations
 
 import math
+import sys
 from pathlib import Path
 
 import h5py
@@ -24,6 +25,7 @@ EVENT_KINDS = ("trigger", "gap", "overload", "corrupt", "reconnect", "note", "de
 EXCITATIONS = ("impact", "random", "sweep", "free-decay", "operational")
 CHANNEL_FIELDS = ("name", "kind", "unit", "sensitivity", "sensitivity_unit", "location", "direction")
 EVENT_DETAIL_BYTES = 200
+MAX_SAMPLE_RATE_HZ = 1e9  # 1 GHz; a finite rate far above it (1e300) overflows the spectra's arithmetic
 
 
 def utf8(n_bytes: int) -> np.dtype:
@@ -47,6 +49,18 @@ def _text(value: object) -> str | None:
     return value if isinstance(value, str) else None
 
 
+def sample_rate_ok(rate_hz: float) -> bool:
+    """Whether ``rate_hz`` is a usable sample rate: finite, above the subnormal numbers (whose inverse
+    overflows) and at most :data:`MAX_SAMPLE_RATE_HZ`.
+
+    Examples
+    --------
+    >>> sample_rate_ok(1024.0), sample_rate_ok(0.0), sample_rate_ok(5e-324), sample_rate_ok(1e300)
+    (True, False, False, False)
+    """
+    return math.isfinite(rate_hz) and sys.float_info.min <= rate_hz <= MAX_SAMPLE_RATE_HZ
+
+
 def _check_attrs(g: h5py.Group, where: str) -> None:
     a = g.attrs
     for key in ("sample_rate_hz", "start_time", "excitation", "pose"):
@@ -54,8 +68,9 @@ def _check_attrs(g: h5py.Group, where: str) -> None:
             raise DaqError(f"{where}: missing attribute {key!r}")
     rate = a["sample_rate_hz"]
     if np.ndim(rate) != 0 or not isinstance(rate, (int, float, np.integer, np.floating)) \
-            or isinstance(rate, bool | np.bool_) or not math.isfinite(float(rate)) or float(rate) <= 0:
-        raise DaqError(f"{where}: attribute sample_rate_hz = {rate!r} is not a sample rate > 0 Hz")
+            or isinstance(rate, bool | np.bool_) or not sample_rate_ok(float(rate)):
+        raise DaqError(f"{where}: attribute sample_rate_hz = {rate!r} is not a sample rate > 0 Hz and "
+                       f"<= {MAX_SAMPLE_RATE_HZ:g} Hz")
     if _text(a["start_time"]) is None:
         raise DaqError(f"{where}: attribute start_time = {a['start_time']!r} is not a text")
     excitation = _text(a["excitation"])

@@ -35,9 +35,11 @@ from flexmodal.daq.run_schema import (
     EVENT_DTYPE,
     EVENT_KINDS,
     EXCITATIONS,
+    MAX_SAMPLE_RATE_HZ,
     check_run_group,
     check_run_id,
     member,
+    sample_rate_ok,
     utf8,
 )
 
@@ -178,8 +180,9 @@ class RunWriter:
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
             raise DaqError(f"{where}: duplicate channel name {dup[0]!r}")
-        if not np.isfinite(sample_rate_hz) or sample_rate_hz <= 0:
-            raise DaqError(f"{where}: sample_rate_hz must be > 0, got {sample_rate_hz}")
+        if not sample_rate_ok(float(sample_rate_hz)):
+            raise DaqError(f"{where}: sample_rate_hz must be > 0 and <= {MAX_SAMPLE_RATE_HZ:g} Hz, got "
+                           f"{sample_rate_hz}")
         if excitation not in EXCITATIONS:
             raise DaqError(f"{where}: excitation {excitation!r} is not one of {', '.join(EXCITATIONS)}")
         if not isinstance(pose, dict):

@@ -380,6 +380,8 @@ def frf_batch(paths: Sequence[str | Path], options: dict, *, workers: int | None
     jobs = expand_runs(paths)
     if out is not None and len({r for _, r in jobs}) != len(jobs):
         raise ModalError(f"--out {out}: two input runs share a run id, they cannot go into one file")
+    if out is not None:
+        _check_out_runs(out, jobs)
     written = []
     with _progress(len(jobs), quiet) as advance:
 
@@ -393,6 +395,26 @@ def frf_batch(paths: Sequence[str | Path], options: dict, *, workers: int | None
                   out=None if out is None else str(out))
     order = {(str(out) if out is not None else p, r): k for k, (p, r) in enumerate(jobs)}
     return sorted(written, key=order.__getitem__)
+
+
+def _check_out_runs(out: str | Path, jobs: Sequence[tuple[str, str]]) -> None:
+    """ModalError when ``out`` already holds, under the id of an input run, another run with its own
+    samples: the FRFs of ``FILE:r1`` would be stored as that run's (replacing its own), beside samples
+    they were not computed from.  A run group holding only FRFs (an earlier ``--out``) is replaced;
+    ``out`` being the input file itself is writing back."""
+    from flexmodal.daq.h5file import open_read
+
+    if not Path(out).is_file():
+        return
+    foreign = [(p, r) for p, r in jobs if not os.path.samefile(p, out)]
+    if not foreign:
+        return
+    with open_read(out) as f:
+        for path, rid in foreign:
+            if f"runs/{rid}/samples" in f:
+                raise ModalError(f"--out {out}: run {rid!r} there is another run with its own samples; the "
+                                 f"FRFs of {path}:{rid} would replace its own and sit beside data they were "
+                                 "not computed from (choose another --out)")
 
 
 @contextmanager

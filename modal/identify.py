@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from scipy.ndimage import uniform_filter1d
 
 from flexmodal.checked_io.output import atomic_path
 from flexmodal.contract.mac import mac, mass_normalised, to_real, unit_max
@@ -50,6 +51,10 @@ ZOOM_ZETA = 0.01     # ...and fitted with one pole starting at this damping rati
 ZOOM_ABOVE_NOISE = 2.0  # ...standing this many times above the FRFs' own noise there
 ZOOM_COHERENCE = 0.9  # ...where the FRFs' mean coherence is at least this (when it is known)
 SUSPENSION = 0.2     # below this share of the lowest mode a resonance is taken as the suspension's
+EDGE_COHERENCE = 0.9  # the default band ends below a top stretch where the FRFs' coherence stays under this
+EDGE_SMOOTH = 0.005   # ...averaged over outputs and over about this share of the band's lines (>= 5)
+EDGE_SHARE = 0.25     # ...unless that stretch holds more than this share of the band (no band edge then)
+BASIS_MISFIT = 1.25  # one reference: the second basis's misfit share may be this many times the first's
 
 
 @dataclass(frozen=True)
@@ -65,7 +70,7 @@ class Modes:
     ``frf_synthesis_corr`` [n_out, n_in] the FRAC of each FRF over the band, ``synthesis`` [n_out,
     n_in, n_band] the synthesised FRFs on ``band_freq_hz``, ``stabilisation`` the diagram with
     ``selected`` [n_poles] marking the poles of the chosen modes, ``order_note`` which model order
-    was used and why."""
+    was used and why, ``band_note`` which band was fitted and why."""
 
     freq_hz: np.ndarray
     damping_ratio: np.ndarray
@@ -88,6 +93,7 @@ class Modes:
     freq_std_hz: np.ndarray | None = None      # 1-sigma [Hz], modal/uncertainty.py (None: not estimated)
     damping_std: np.ndarray | None = None      # 1-sigma [-]
     diagram_key: str = ""   # modal.diagrams.inputs_key of the FRFs and options behind ``stabilisation``
+    band_note: str = ""     # which band [Hz] was fitted and why (identify's band_note)
 
 
 @dataclass(frozen=True)
@@ -114,6 +120,61 @@ def _band(freq_hz: np.ndarray, fmin: float | None, fmax: float | None) -> np.nda
     if band.sum() < 8:
         raise ModalError(f"identify: only {int(band.sum())} frequency lines between {lo:g} and {hi:g} Hz")
     return band
+
+
+def coherent_top(freq_hz: np.ndarray, coherence: np.ndarray | None) -> float | None:
+    """The upper band edge [Hz] below the FRFs' poorly measured top, or None when they have none.
+
+    The top of a record's band is where its anti-aliasing (or decimation) filter rolls off and where a
+    sweep or an impact stops exciting: there the coherence ``coherence`` [n_out, n_freq] (on the lines
+    ``freq_hz`` [Hz]), averaged over the outputs and over EDGE_SMOOTH of the lines, falls below
+    EDGE_COHERENCE and stays there to the highest line.  The edge is the highest line at which the
+    smoothed coherence is still EDGE_COHERENCE or more; None when the top line is well measured, or when
+    the poorly measured stretch holds more than EDGE_SHARE of the lines (a noisy record, not a band
+    edge).  A coherence of one everywhere (one average) says nothing and gives None.  Dips at
+    antiresonances within the band do not end it.  Why analysers show only fs/2.56 of a record:
+    J. S. Bendat, A. G. Piersol, "Random Data", 4th ed., Wiley 2010, §10.3.3 (anti-aliasing filters),
+    §9.2.3 (coherence and the random error of FRF estimates).
+
+    Examples
+    --------
+    Coherence 0.99 up to 110 Hz, falling linearly to 0.4 at 125 Hz (a filter's roll-off): it is 0.9
+    at 110 + 15 * 0.09 / 0.59 = 112.29 Hz, and the last line below that is 112.25 Hz:
+
+    >>> f = np.linspace(0.0, 125.0, 1001)
+    >>> coh = np.where(f < 110.0, 0.99, 0.99 - 0.59 * (f - 110.0) / 15.0)[None, :]
+    >>> coherent_top(f, coh)
+    112.25
+    >>> coherent_top(f, np.ones((1, f.size))) is None
+    True
+    """
+    if coherence is None:
+        return None
+    f = np.asarray(freq_hz, float)
+    c = np.nan_to_num(np.mean(np.reshape(coherence, (-1, f.size)), axis=0), nan=0.0)
+    width = 2 * max(2, int(EDGE_SMOOTH * f.size / 2)) + 1   # odd: centred on each line
+    smooth = uniform_filter1d(c, width, mode="nearest")
+    good = np.flatnonzero(smooth >= EDGE_COHERENCE)
+    if good.size == 0 or good[-1] == f.size - 1 or f.size - 1 - good[-1] > EDGE_SHARE * f.size:
+        return None
+    return float(f[good[-1]])
+
+
+def band_note(f: np.ndarray, fmin: float | None, fmax: float | None, top_hz: float,
+              edge_hz: float | None) -> str:
+    """The line saying which band [Hz] was fitted (lines ``f``) and why: the options given, every
+    line of the FRFs, or an upper edge at ``edge_hz`` below a poorly measured top up to ``top_hz``
+    (:func:`coherent_top`)."""
+    lower = "--fmin" if fmin is not None else "the first line above 0 Hz"
+    if fmax is not None:
+        upper = "--fmax"
+    elif edge_hz is not None:
+        upper = (f"the last line before the FRFs' coherence stays below {EDGE_COHERENCE:g} up to "
+                 f"{top_hz:g} Hz (an anti-aliasing filter's roll-off or the end of the excitation: --fmax "
+                 "to fit those lines)")
+    else:
+        upper = "the highest line"
+    return f"band {f.min():.5g}-{f.max():.5g} Hz: from {lower} to {upper}"
 
 
 def _shapes(constants: np.ndarray, driving_point: int | None) -> tuple[np.ndarray, bool]:
@@ -469,7 +530,7 @@ def _lscf(f: np.ndarray, H: np.ndarray, *, quantity: str, reference: int, max_or
         if max_order is None:
             clusters, fit, warnings, report = _zoom(f, H, clusters, fit, warnings, report, quantity=quantity,
                                                     reference=reference, limits=limits, peaks_hz=peaks_hz,
-                                                    visible_hz=visible_hz, coherence=coherence)
+                                                    visible_hz=visible_hz, coherence=coherence, stab=stab)
     if not report.any():
         raise ModalError(f"identify: no stable poles between {f.min():g} and {f.max():g} Hz ({note})")
     constants = fit.modal_constants(clusters.pole)[:, reference][:, report]
@@ -549,19 +610,38 @@ def _noise_rms(H: np.ndarray, lines: np.ndarray) -> float:
     return float(np.linalg.norm(d2) / np.sqrt(6 * run.size))
 
 
+def _refused_chain(stab: Stabilisation, clusters: PoleClusters, lo: float, hi: float, reach: np.ndarray
+                   ) -> list[complex]:
+    """[the pole] of the chain of the diagram ``stab`` in [lo, hi] Hz that is stable at the most orders,
+    at least min_orders 5, but was refused by :func:`modal.lscf.stable_clusters` (stable at fewer than
+    half the orders from its first), more than one half-power bandwidth (two ``reach``) from every
+    mode of ``clusters``; [] when there is none."""
+    chains = pole_clusters(stab, TOP_ORDERS)
+    kept = stable_clusters(stab, top=TOP_ORDERS).freq_hz
+    apart = np.abs(chains.freq_hz[:, None] - clusters.freq_hz[None, :]) > 2 * reach[None, :]
+    ok = (chains.freq_hz >= lo) & (chains.freq_hz <= hi) & (chains.n_stable >= 5) & apart.all(axis=1) \
+        & ~np.isin(chains.freq_hz, kept)
+    if not ok.any():
+        return []
+    return [complex(chains.pole[np.flatnonzero(ok)[np.argmax(chains.n_stable[ok])]])]
+
+
 def _zoom(f: np.ndarray, H: np.ndarray, clusters: PoleClusters, fit: LsfdResult, warnings: list[str],
           report: np.ndarray, *, quantity: str, reference: int, limits: Thresholds, peaks_hz: np.ndarray,
-          visible_hz: np.ndarray, coherence: np.ndarray | None
+          visible_hz: np.ndarray, coherence: np.ndarray | None, stab: Stabilisation | None = None
           ) -> tuple[PoleClusters, LsfdResult, list[str], np.ndarray]:
     """Modes the whole-band fit missed where its synthesis misfits the FRFs (:func:`misfit_spans`).
     In each such span above SUSPENSION times the lowest mode (below, rigid-body motion on the
     suspension: Ewins 2000 §3.3) whose misfit away from the modes (three half-power bandwidths, their
     own leakage) stands above the FRFs' noise (:func:`_above_noise`), one pole is fitted to the
     residual (:func:`modal.lsfd.refine_pole`, started at ZOOM_ZETA at its largest residual there);
-    it joins the candidates when it stays in the span and away from the modes, and all are validated
-    again on the whole band (:func:`_validate`).  The arguments and the result are those of the
-    whole-band selection (clusters, fit, warnings, [n] True for the modes to report), returned as
-    they were unless a new mode passes."""
+    it joins the candidates when it stays in the span and away from the modes.  A span wholly inside
+    the modes' leakage has no residual of its own to fit: where its misfit stands above the noise,
+    the candidate is the diagram's own chain there that :func:`modal.lscf.stable_clusters` refused
+    (:func:`_refused_chain`; ``stab`` the stabilisation diagram, None: none).  All are validated
+    again on the whole band (:func:`_validate`).
+    The arguments and the result are those of the whole-band selection (clusters, fit, warnings, [n]
+    True for the modes to report), returned as they were unless a new mode passes."""
     spans = misfit_spans(f, H, fit.synthesis, coherence)
     if not spans:
         return clusters, fit, warnings, report
@@ -575,7 +655,12 @@ def _zoom(f: np.ndarray, H: np.ndarray, clusters: PoleClusters, fit: LsfdResult,
         if hi < SUSPENSION * lowest:   # rigid-body or suspension modes, Ewins 2000 §3.3
             continue
         inside = np.flatnonzero((f >= lo) & (f <= hi) & ~taken)
-        if inside.size < 3 or not _above_noise(H, fit.synthesis, inside):
+        if inside.size < 3:   # the span lies in the modes' leakage: no residual of its own to fit
+            span = np.flatnonzero((f >= lo) & (f <= hi))
+            if stab is not None and span.size >= 3 and _above_noise(H, fit.synthesis, span):
+                new += _refused_chain(stab, clusters, lo, hi, reach)
+            continue
+        if not _above_noise(H, fit.synthesis, inside):
             continue
         k = inside[np.argmax(size[inside])]
         wn = 2 * np.pi * f[k]
@@ -597,8 +682,9 @@ def _zoom(f: np.ndarray, H: np.ndarray, clusters: PoleClusters, fit: LsfdResult,
     if not added:   # the whole-band result stands as it was
         return clusters, fit, warnings, report
     report2 = ~background & np.array([not (m.size and int(m[0]) in late) for m in c2.members], bool)
-    note = (f"found {len(added)} mode(s) at {', '.join(added)} Hz by fitting one pole where the whole-band "
-            "synthesis misfits the FRFs")
+    note = (f"found {len(added)} mode(s) at {', '.join(added)} Hz where the whole-band synthesis misfits the "
+            "FRFs (one pole fitted to the residual there, or in a mode's leakage the diagram's chain stable "
+            "at too few orders)")
     return c2, fit2, warnings + [w for w in w2 if w not in warnings] + [note], report2
 
 
@@ -632,13 +718,17 @@ def _one_reference_basis(f: np.ndarray, H: np.ndarray, peaks_hz: np.ndarray, sea
     """One reference: the modes of the pLSCF in the basis ``z = exp(+i w dt)`` (``search(False)``),
     unless the basis ``z = exp(-i w dt)`` (``search(True)``, :mod:`modal.lscf`), where noise poles
     come out at negative damping, explains every clear CMIF peak ``peaks_hz`` the first explains and
-    more, and its synthesis fits the FRFs no worse (mean FRF correlation, :func:`modal.indicators.frac`).
+    more, and its synthesis fits the FRFs about as well: its misfit share (1 - mean FRF correlation,
+    :func:`modal.indicators.frac`) at most BASIS_MISFIT times the first's.
     The selection rules were tuned on the first basis; the second finds modes its noise poles hide
     (pyfrf_impact_frf: 1518.2 Hz, one line in its half-power band) but does not replace it blindly:
     on beam_ring_chirp it explains two more clear peaks, both in the charge amplifier's roll-off above
     100 Hz, and fits the FRFs worse (correlation 0.975 against 0.984), the 7.4 % mode 0.7 % off; on
     pyfrf_impact_single_hit it loses the clear peak at 4128 Hz (its pole is stable at fewer than half
-    the orders) and fits worse (0.50 against 0.93).  The order note says which basis was used."""
+    the orders) and fits worse (0.50 against 0.93).  A misfit share a few % apart is no evidence
+    either way (pyfrf_impact_frf: 0.0682 in exp(-i w dt) against 0.0689, pyfrf_impact_5hits 0.069
+    against 0.066): there the peaks decide; chirp's 1.6 times and the single hit's 7 times do not pass.
+    The order note says which basis was used."""
     def explained(result) -> tuple[np.ndarray, float]:
         if result[2] is None:
             return np.zeros(peaks_hz.size, bool), -np.inf
@@ -649,7 +739,7 @@ def _one_reference_basis(f: np.ndarray, H: np.ndarray, peaks_hz: np.ndarray, sea
     (a, a_corr), (b, b_corr) = explained(plus), explained(minus)
     counts = (f"basis exp(+i w dt) explaining {int(a.sum())} clear CMIF peaks (FRF correlation "
               f"{a_corr:.3f}), exp(-i w dt) {int(b.sum())} ({b_corr:.3f})")
-    if b.sum() > a.sum() and not np.any(a & ~b) and b_corr >= a_corr:
+    if b.sum() > a.sum() and not np.any(a & ~b) and 1 - b_corr <= BASIS_MISFIT * (1 - a_corr):
         return minus[0], f"{minus[1]}; {counts}: exp(-i w dt) used", minus[2]
     return plus[0], f"{plus[1]}; {counts}: exp(+i w dt) used", plus[2]
 
@@ -784,6 +874,12 @@ def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: 
     if decay_rate_per_s < 0 or not np.isfinite(decay_rate_per_s):
         raise ModalError(f"identify: exponential window decay {decay_rate_per_s:g} 1/s must be >= 0")
     band = _band(freq_hz, fmin, fmax)
+    edge = coherent_top(np.asarray(freq_hz, float)[band], coherence[:, band]) \
+        if fmax is None and coherence is not None else None
+    if edge is not None and np.count_nonzero(band & (np.asarray(freq_hz, float) <= edge)) >= 8:
+        band &= np.asarray(freq_hz, float) <= edge
+    else:
+        edge = None
     f, Hb = np.asarray(freq_hz, float)[band], H[..., band]
     warnings: list[str] = [nyquist_note(fmax, float(np.max(freq_hz)))] if fmax is not None \
         and fmax > np.max(freq_hz) else []
@@ -811,7 +907,8 @@ def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: 
     per_mode = {k: extra[k][order] for k in ("mpc", "mpd", "synthesis_corr", "need") if k in extra}
     return Modes(fn[order], zeta[order], shapes[:, np.argsort(fn[keep])], constants[:, order], method, massn,
                  tuple(warnings), **per_mode, **{k: v for k, v in extra.items() if k not in per_mode},
-                 details=details, diagram_key=key)
+                 details=details, diagram_key=key,
+                 band_note=band_note(f, fmin, fmax, float(np.max(freq_hz)), edge))
 
 
 def modes_table(modes: Modes, outputs: Sequence[str], *, config: str = "run",

@@ -23,15 +23,20 @@ from flexmodal.modal.sweep import sweep_plan
 
 
 def _driving_point(run, result: FrfResult) -> int | None:
-    """Output row measured where (location and direction) the first force acts, if any."""
+    """Output row measured where (location and direction) the first force acts, if any, and only when
+    the force is stored in N and that response in m/s^2: mass normalisation takes the accelerance as
+    (m/s^2)/N, so a run stored in g or kN would get shapes off by sqrt(9.81) or sqrt(1000) in silence
+    (they are scaled to unit maximum instead, as without a driving point)."""
+    from flexmodal.daq.session import unit_factor
+
     by_name = {c.name: c for c in run.channels}
     force = by_name.get(result.inputs[0]) if result.inputs else None
-    if force is None or not force.location:
+    if force is None or not force.location or unit_factor(force.unit, "N") != 1.0:
         return None
     for j, name in enumerate(result.outputs):
         c = by_name.get(name)
         if c is not None and c.location == force.location and c.direction == force.direction:
-            return j
+            return j if unit_factor(c.unit, "m/s^2") == 1.0 else None
     return None
 
 
@@ -112,9 +117,13 @@ def identify_input(path: str | Path, *, method: str | None = None, fmin: float |
     found: dict[str, tuple[Modes, tuple[str, ...]]] = {}
     tables = []
     if h5py.is_hdf5(p):
+        chosen_of = []
         for run in hdf5_runs(p, run_id):
             names, kinds = [c.name for c in run.channels], [c.kind for c in run.channels]
             chosen = method or default_method(kinds, run.excitation)
+            chosen_of.append(chosen)
+            if len(chosen_of) == 1 and not output_only(chosen) and method is not None:
+                _references_used(p, references, chosen_of)   # one method for all: say so before any work
             if output_only(chosen):
                 res, outputs = identify_output_only(run.samples, run.sample_rate_hz, names, kinds,
                                                     method=chosen, where=f"{p}:{run.run_id}", **oma)
@@ -128,11 +137,13 @@ def identify_input(path: str | Path, *, method: str | None = None, fmin: float |
                 outputs = result.outputs
             found[run.run_id] = (modes, outputs)
             tables.append(modes_table(modes, outputs, config=run.run_id, pose=run.pose).frame)
+        _references_used(p, references, chosen_of)
     else:
         from flexmodal.modal.uff import UffFrfs, read_uff
 
         data = read_uff(p)
         chosen = method or ("lscf" if isinstance(data, UffFrfs) else default_method(data.kinds))
+        _references_used(p, references, [chosen if not isinstance(data, UffFrfs) else "lscf"])
         if not isinstance(data, UffFrfs) and output_only(chosen):
             res, outputs = identify_output_only(data.samples, data.sample_rate_hz, data.names, data.kinds,
                                                 method=chosen, where=str(p), **oma)
@@ -150,6 +161,16 @@ def identify_input(path: str | Path, *, method: str | None = None, fmin: float |
         found[p.stem] = (modes, result.outputs)
         tables.append(modes_table(modes, result.outputs, config=p.stem).frame)
     return ModalTable.from_frame(pd.concat(tables, ignore_index=True), str(p)), found
+
+
+def _references_used(p: Path, references: Sequence[str] | None, methods: Sequence[str]) -> None:
+    """ModalError when ``references`` are given but no run of ``p`` is identified output-only (their
+    method's): FRF methods take the force channels as references, and the option was ignored in
+    silence."""
+    if references and methods and not any(output_only(m) for m in methods):
+        raise ModalError(f"{p}: --references name the reference outputs of ssi/fdd, but the input is "
+                         f"identified with {methods[0]} from FRFs (whose references are the force channels); "
+                         "use --method ssi or fdd, or leave --references out")
 
 
 def _uff_record_frfs(p: Path, data) -> FrfResult:

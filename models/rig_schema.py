@@ -4,8 +4,10 @@
 containers and the fields whose wrong type would otherwise escape as a Python exception or pass
 silently: the array-of-tables keys must hold tables, ``base`` must be a table, pose-variable names must
 be strings and fixed angles finite numbers, cross-section sizes and material constants must lie in a
-range where the section formulas stay finite (``(1e300)**4`` overflows), and element counts must stay
-small enough for the dense eigenproblem (``elements = 2000000000`` would never finish).
+range where the section formulas stay finite (``(1e300)**4`` overflows), element counts must stay
+small enough for the dense eigenproblem (``elements = 2000000000`` would never finish), and every key
+must be one its table has (:data:`KEYS`, :data:`SECTION_KEYS`): a misspelt optional key would
+otherwise be left out of the model in silence.
 """
 
 from __future__ import annotations
@@ -21,6 +23,22 @@ MAX_ELEMENTS = 500  # per link or member
 MAX_SIZE_M = 1e3  # a cross-section dimension, m
 MAX_E_PA = 1e13  # Young's modulus (diamond: 1.2e12 Pa)
 MAX_RHO_KG_M3 = 1e5  # density (osmium: 2.3e4 kg/m^3)
+KEYS = {  # the keys each table may hold (docs/formats.md, Rig TOML): any other is a typo, refused
+    "top level": {"name", "material", "base", *TABLE_ARRAYS},
+    "material": {"E_Pa", "rho_kg_m3", "nu"},
+    "link": {"name", "length_m", "material", "section", "elements", "segments", "stiffness_scale",
+             "mass_scale"},
+    "segments": {"from", "to", "section", "material"},
+    "base": {"support", "k_Nm_per_rad", "angle", "angle_deg"},
+    "joint": {"name", "parent", "child", "angle", "angle_deg", "kind", "k_Nm_per_rad"},
+    "member": {"name", "from", "to", "section", "material", "ends", "elements", "end_k_Nm_per_rad"},
+    "mass": {"at", "mass_kg", "inertia_kgm2", "name"},
+    "spring": {"at", "k_N_per_m", "direction", "name"},
+    "sensor": {"name", "at", "direction", "mass_kg"},
+}
+SECTION_KEYS = {"square_tube": {"outer_m", "wall_m"}, "rect_tube": {"width_m", "height_m", "wall_m"},
+                "round_tube": {"outer_m", "wall_m"}, "solid_rect": {"width_m", "height_m"},
+                "custom": {"EA_N", "EI_Nm2", "mass_per_m_kg", "rotary_inertia_per_m_kgm", "depth_m"}}
 
 
 def _fail(source: str, path: str, what: str) -> ModelError:
@@ -38,9 +56,25 @@ def _tables(doc: Mapping[str, Any], key: str, source: str) -> list[Mapping[str, 
     return value
 
 
+def _known(t: Mapping[str, Any], kind: str, path: str, source: str) -> None:
+    """Refuse the first key (alphabetically) of table ``t`` that a ``kind`` table does not have: a
+    misspelt optional key (``inertia_kg_m2``, ``[[sensors]]``) would otherwise be dropped in silence and
+    the model built without it."""
+    extra = sorted(set(t) - KEYS[kind])
+    if extra:
+        where = f"{path}.{extra[0]}" if path else extra[0]
+        raise _fail(source, where, f"unknown key (a {kind} table has {', '.join(sorted(KEYS[kind]))})")
+
+
 def _section(spec: Any, path: str, source: str) -> None:
     if not isinstance(spec, Mapping):
         return  # parse_rig names a missing or non-table section
+    shape = spec.get("shape")
+    allowed = SECTION_KEYS.get(shape) if isinstance(shape, str) else None  # other shapes: parse_rig
+    extra = sorted(set(spec) - {"shape"} - allowed) if allowed is not None else []
+    if extra:
+        raise _fail(source, f"{path}.{extra[0]}", f"unknown key for shape {spec['shape']!r} (it has "
+                                                  f"{', '.join(sorted(allowed))})")
     for key, value in spec.items():
         if key.endswith("_m") and _number(value) and abs(value) > MAX_SIZE_M:
             raise _fail(source, f"{path}.{key}", f"{value!r} m is out of range (at most {MAX_SIZE_M:g} m)")
@@ -73,20 +107,29 @@ def check_document(doc: Any, source: str) -> None:
     for name, m in materials.items():
         if not isinstance(m, Mapping):
             raise _fail(source, f"material.{name}", "must be a table with E_Pa and rho_kg_m3")
+        _known(m, "material", f"material.{name}", source)
         for key, top in (("E_Pa", MAX_E_PA), ("rho_kg_m3", MAX_RHO_KG_M3)):
             if _number(m.get(key)) and m[key] > top:
                 raise _fail(source, f"material.{name}.{key}", f"{m[key]!r} is out of range (at most {top:g})")
     base = doc.get("base", {})
     if not isinstance(base, Mapping):
         raise _fail(source, "base", f"must be a [base] table (got {base!r:.60})")
+    _known(base, "base", "base", source)
     _pose_variable(base, "base", source)
     tables = {key: _tables(doc, key, source) for key in TABLE_ARRAYS}
+    _known(doc, "top level", "", source)
+    for key, ts in tables.items():
+        for i, t in enumerate(ts):
+            _known(t, key, f"{key}[{i}]", source)
+            if isinstance(t.get("material"), Mapping):
+                _known(t["material"], "material", f"{key}[{i}].material", source)
     for i, t in enumerate(tables["link"]):
         path = f"link[{i}]"
         _elements(t, path, source)
         _section(t.get("section"), f"{path}.section", source)
         segments = _tables(t, "segments", f"{source}: {path}")
         for j, seg in enumerate(segments):
+            _known(seg, "segments", f"{path}.segments[{j}]", source)
             _section(seg.get("section"), f"{path}.segments[{j}].section", source)
     for i, t in enumerate(tables["member"]):
         _elements(t, f"member[{i}]", source)

@@ -50,6 +50,22 @@ def chromium() -> str:
 
 
 @pytest.fixture(scope="session")
+def warm_cli():
+    """The installed ``flexmodal`` console script, each call a process of its own started warm (forked
+    from a server that has imported numpy, scipy, pandas, h5py and matplotlib: tests/warm_cli.py), for
+    tests of what a command does with its input (exit code, stderr, files) rather than of its start-up.
+    ``warm_cli.run(args, cwd, timeout_s)`` -> (exit code or None if killed as hung, stderr)."""
+    import sys
+
+    from warm_cli import WarmCli
+
+    exe = Path(sys.executable).with_name("flexmodal")
+    assert exe.exists(), "the flexmodal console script is not installed (pip install -e .)"
+    with WarmCli(str(exe)) as cli:
+        yield cli
+
+
+@pytest.fixture(scope="session")
 def demo_run(tmp_path_factory):
     """One run of ``flexmodal demo --out DIR`` for the whole session (it takes 20-60 s: tests/test_demo.py
     and tests/test_report_handover.py share it and only read its outputs): through the CLI's ``main``

@@ -39,10 +39,6 @@ def _digest(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def _flexmodal() -> str:
-    return str(Path(sys.executable).with_name("flexmodal"))
-
-
 def test_an_input_is_never_an_output(tmp_path: Path) -> None:
     src = tmp_path / "modes.csv"
     src.write_text("config,mode,freq_hz\nA,1,10\n")
@@ -146,7 +142,8 @@ def _tmpfs(folder: Path, size: str) -> bool:
     return done.returncode == 0
 
 
-def test_frf_on_a_full_disk_exits_2_and_leaves_the_run_byte_identical(tmp_path: Path, monkeypatch) -> None:
+def test_frf_on_a_full_disk_exits_2_and_leaves_the_run_byte_identical(tmp_path: Path, monkeypatch,
+                                                                      warm_cli) -> None:
     """A tmpfs with room for the run but not its FRFs (or, where mounting is refused, the same lack of
     room reported by an injected ``shutil.disk_usage``): one line naming the file, exit 2."""
     src = tmp_path / "src.h5"
@@ -159,11 +156,10 @@ def test_frf_on_a_full_disk_exits_2_and_leaves_the_run_byte_identical(tmp_path: 
         run.write_bytes(src.read_bytes())
         digest = _digest(run)
         if mounted:
-            done = subprocess.run([_flexmodal(), "frf", str(run), "--workers", "0"], capture_output=True,
-                                  text=True, timeout=600, stdin=subprocess.DEVNULL)
-            assert done.returncode == 2, done.stderr
-            lines = done.stderr.strip().splitlines()
-            assert len(lines) == 1 and "Traceback" not in done.stderr
+            code, stderr = warm_cli.run(["frf", str(run), "--workers", "0"], Path.cwd(), timeout_s=600)
+            assert code == 2, stderr
+            lines = stderr.strip().splitlines()
+            assert len(lines) == 1 and "Traceback" not in stderr
             message = lines[0]
         else:
             usage = namedtuple("usage", "total used free")
@@ -200,7 +196,7 @@ def test_a_stale_partial_group_is_cleared_by_the_next_write(tmp_path: Path) -> N
     "report {d}/run.h5 --out {d}/run.h5",
     "identify {d}/run.h5 --out {d}/m.csv --uff {d}/m.csv",
 ])
-def test_cli_refuses_to_destroy_an_input(tmp_path: Path, command: str) -> None:
+def test_cli_refuses_to_destroy_an_input(tmp_path: Path, command: str, warm_cli) -> None:
     from conftest import REPO
 
     write_run(tmp_path / "run.h5")
@@ -211,10 +207,9 @@ def test_cli_refuses_to_destroy_an_input(tmp_path: Path, command: str) -> None:
     (tmp_path / "link.csv").symlink_to(tmp_path / "poses.csv")
     os.mkfifo(tmp_path / "fifo")
     before = {p.name: _digest(p) for p in tmp_path.iterdir() if p.is_file()}
-    done = subprocess.run([_flexmodal(), *command.replace("{d}", str(tmp_path)).split()], capture_output=True,
-                          text=True, timeout=600, stdin=subprocess.DEVNULL)
-    assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
-    assert "Traceback" not in done.stderr
+    code, stderr = warm_cli.run(command.replace("{d}", str(tmp_path)).split(), Path.cwd(), timeout_s=600)
+    assert code == 2 and len(stderr.strip().splitlines()) == 1, stderr
+    assert "Traceback" not in stderr
     assert {p.name: _digest(p) for p in tmp_path.iterdir() if p.is_file()} == before
     assert (tmp_path / "fifo").is_fifo() and (tmp_path / "link.csv").is_symlink()
 
@@ -296,7 +291,7 @@ def test_an_error_with_stderr_gone_still_exits_2(tmp_path: Path) -> None:
     "report --measured {d}/modes.csv --out {m}/report.html",
 ])
 def test_every_writer_on_a_full_disk_exits_2_with_one_line(tmp_path: Path, command: str, monkeypatch,
-                                                           capsys) -> None:
+                                                           capsys, warm_cli) -> None:
     """A full tmpfs (or, where mounting is refused, an injected ENOSPC at the final rename): exit 2, one
     line naming the output, nothing left on the device."""
     from conftest import REPO
@@ -314,9 +309,7 @@ def test_every_writer_on_a_full_disk_exits_2_with_one_line(tmp_path: Path, comma
             with open(disk / "fill", "wb", buffering=0) as fh, pytest.raises(OSError):   # fill it up
                 while True:
                     fh.write(b"\0" * 4096)
-            done = subprocess.run([_flexmodal(), *args], capture_output=True, text=True, timeout=300,
-                                  stdin=subprocess.DEVNULL)
-            code, err = done.returncode, done.stderr
+            code, err = warm_cli.run(args, Path.cwd(), timeout_s=300)
             left = sorted(p.name for p in disk.iterdir())
         finally:
             subprocess.run(["umount", str(disk)], capture_output=True, timeout=30, check=False)
