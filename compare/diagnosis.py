@@ -2,7 +2,8 @@
 
 1. Baseline: the nominal rig's FE modes (models/frame.py) against the measured ones, per mode and
    configuration.  When its RMS is within ``NONE_FACTOR`` times the measurement scatter the verdict is
-   ``none``.
+   ``none`` -- the scatter never taken above what the best single candidate leaves held out
+   (``_none_scatter``).
 2. ``where``: the modes and configurations that carry the gap, and the region of the arm whose handles'
    frequency sensitivities best explain the error pattern (R^2, compare/gap.py; among regions within
    ``REGION_TIE`` of the best, the verdict's), plus MAC/COMAC when shapes were measured.
@@ -19,8 +20,10 @@
    ``joint_stiffness_pose`` ranks above the constant ``joint_stiffness`` at the same joint only when its
    held-out error is lower.  The scatter comes from the data when it can (compare/gap.py
    ``estimate_scatter``), else from the caller.
-4. Verdict: the best candidate pruned of components that do not improve the held-out error beyond
-   the nested margin (noise, or what absorbing the model-form error can gain, ``_nested_margin``) or
+4. Verdict: the simplest candidate not worse held out than the best beyond the nested margin, pruned
+   of components that do not improve the held-out error beyond that margin (the noise of a paired
+   comparison on the same held-out residuals, or what absorbing the model-form error can gain,
+   ``_nested_margin``) or
    sit at their lower bound, passed over when a parameter runs out of range; ``none`` when the
    nominal model itself (no parameters) scores at least as well.  ``explained`` is false when the held-out
    RMS is above ``EXPLAINED_FACTOR`` times the scatter or the held-out residuals are structured;
@@ -297,6 +300,18 @@ def _cross_validate(ctx: _Context, entry: dict, scatter: float) -> None:
     _rescore(ctx, entry, scatter)
 
 
+def _none_scatter(sigma: float, ranked: Sequence[dict]) -> float:
+    """The scatter against which the nominal model's gap is judged (``NONE_FACTOR``): the
+    measurement's ``sigma``, but never more than the lowest held-out frequency RMS of the
+    cross-validated candidates ``ranked``.  A candidate that predicts configurations it did not see to
+    ``h`` shows that the noise is at most about ``h``, while ``sigma`` from a few repeats (a chi-square
+    of 4-6 degrees of freedom) or the fallback can be well above the true scatter and would then
+    declare a weak effect ``none``.  Without an effect the best candidate's held-out error is the
+    scatter itself (within 1.4x in the blind draws), so a gap within twice the scatter stays
+    ``none``."""
+    return min([sigma] + [e["heldout_rms_rel_error"] for e in ranked])
+
+
 def _scoring_scatter(noise, ranked: Sequence[dict]) -> tuple[float, float]:
     """The scatter that ranks candidates, and its model-form floor: ``sqrt(sigma^2 + floor^2)``.
 
@@ -495,16 +510,21 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
     small = baseline["rms_rel_error"] <= NONE_FACTOR * sigma
     singles = single_candidates(rig, names, {v: [p[v] for p in meas.poses] for v in rig.pose_variables})
     screened = [_screen(ctx, c, scatter) for c in singles] if singles else []
-    if small and screened:         # the verdict is ``none``; the best singles say what might be there
+    none_sigma = sigma
+    if small and screened:         # the best singles say what might be there, and how low the noise is
         for e in sorted(screened, key=lambda e: e["_lower"])[:MAX_ALTERNATIVES]:
             _cross_validate(ctx, e, scatter)
+        none_sigma = _none_scatter(sigma, [e for e in screened if "score" in e])
+        small = baseline["rms_rel_error"] <= NONE_FACTOR * none_sigma
+    if small and screened:         # the verdict is ``none``
         ranking = sorted((e for e in screened if "score" in e), key=lambda e: e["score"])
         n_candidates = CandidateCount(fitted=len(screened), cross_validated=len(ranking))
     elif screened:
         fitted_singles = list(screened)
         pool = sorted(screened, key=lambda e: e["_lower"])[:PAIR_POOL]
         for e in pool:
-            _cross_validate(ctx, e, scatter)
+            if "score" not in e:
+                _cross_validate(ctx, e, scatter)
         pairs = []
         for n, a in enumerate(pool):
             for b in pool[n + 1:]:
@@ -536,7 +556,7 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
         ranking.append(best)
         _order(ctx, ranking, scatter)
     nominal = _equivalent(ctx, base_err[held_mask].ravel(), base_shape, scatter)[0]
-    verdict = _verdict(ctx, best, ranking, baseline, before, nominal, scatter, sigma, notes)
+    verdict = _verdict(ctx, best, ranking, baseline, before, nominal, scatter, sigma, none_sigma, notes)
     if verdict["effect"] != "none":
         _confirm_region(where, rig, verdict["effect"], verdict["location"])
     else:                  # the candidates of a ``none`` verdict are alternatives, not its model
@@ -751,17 +771,17 @@ def _annotate(ctx: _Context, entry: dict, scatter: float) -> None:
 
 
 def _order(ctx: _Context, ranking: list[dict], scatter: float) -> None:
-    """Sort ``ranking`` in place: the candidates whose held-out error is within noise of the best score's
-    (``_noise``) first, simplest first (fewest parameters, then score) -- the one-standard-error rule of
-    cross-validated model choice (Breiman et al. 1984, §3.4.3) -- then the others by score."""
+    """Sort ``ranking`` in place: the candidates whose held-out error is not worse than the lowest one
+    beyond the margin of a paired comparison on the same held-out residuals (``_nested_margin``) first,
+    simplest first (fewest parameters, then score) -- the one-standard-error rule of cross-validated
+    model choice (Breiman et al. 1984, §3.4.3) -- then the others by score."""
     if not ranking:
         return
     usable = [e for e in ranking if not e.get("_out_of_range") and not e.get("_idle")]
-    lead = min(usable or ranking, key=lambda e: e["score"])
-    limit = lead["_heldout_eq"] + _noise(lead, scatter, ctx.pose_share)
+    lead = min(usable or ranking, key=lambda e: e["_heldout_eq"])
 
     def key(e: dict) -> tuple:
-        near = e["_heldout_eq"] <= limit
+        near = e["_heldout_eq"] - lead["_heldout_eq"] <= _nested_margin(ctx, lead, e, scatter)
         return (0, e["n_params"], e["score"]) if near else (1, 0, e["score"])
 
     ranking.sort(key=key)
@@ -793,15 +813,51 @@ def _model_form(noise, ranked: Sequence[dict]) -> float:
     return math.sqrt(max(h * h - noise.value**2, 0.0))
 
 
-def _nested_margin(ctx: _Context, best: dict, scatter: float) -> float:
-    """How much the held-out (frequency-equivalent) RMS may change when one component is added to or
-    removed from ``best`` and the data still cannot say whether that component is there: the noise
-    margin (``_noise``), or the change that absorbing a model-form error of the level ``ctx.model_form``
-    can make, ``sqrt(h^2 + m^2) - h`` (an extra component removes at most that error's energy from
-    the held-out residuals; the model form is there for every candidate, so such a gain is not
-    evidence for the component)."""
+def _chi2_terms(ctx: _Context, entry: dict, scatter: float) -> np.ndarray:
+    """The terms of ``entry``'s held-out chi-square (``_equivalent``), one per held-out residual:
+    ``(e / scatter)^2`` per frequency, ``(1 - MAC) / floor`` per mode shape."""
+    terms = [np.square(entry["_held_err"]) / scatter**2]
+    if ctx.shape_dof > 0 and entry["_held_shape"].size and math.isfinite(ctx.shape_floor):
+        terms.append(entry["_held_shape"] / max(ctx.shape_floor / ctx.shape_dof, SHAPE_SCATTER_MIN**2))
+    return np.concatenate(terms)
+
+
+def _paired_noise(ctx: _Context, a: dict, b: dict, scatter: float) -> float:
+    """Margin by which the held-out (frequency-equivalent) RMS of ``a`` and ``b`` may differ and still be
+    equal within noise, judged on the same held-out residuals: a paired comparison of their
+    chi-square terms (``_chi2_terms``), as cross-validated models are compared (Dietterich 1998;
+    Diebold & Mariano 1995).  The differences ``d`` of the terms sum to the difference of the two
+    chi-squares with standard error ``SE = sqrt(N var(d) / pose_share)`` (repeats of a pose share its
+    model-form error); the margin is the two-sided 95 % Student t quantile of ``N pose_share - 1``
+    degrees of freedom times that, on the RMS scale (``eq^2 = scatter^2 chi2 / dof``, so
+    ``eq_a - eq_b = scatter^2 sum(d) / (dof (eq_a + eq_b))`` exactly): ``t scatter^2 SE / (dof (eq_a +
+    eq_b))`` -- the paired t-test of the two candidates' held-out losses.  Unlike two RMS estimates
+    taken as independent (``_noise``), it does not count as noise what both candidates leave alike.
+    On a few residuals the variance of ``d`` is itself uncertain (one large residual of one candidate
+    inflates it), so the margin never exceeds ``_noise`` of the better of the two, the margin without
+    pairing."""
+    unpaired = _noise(min(a, b, key=lambda e: e["_heldout_eq"]), scatter, ctx.pose_share)
+    da, db = _chi2_terms(ctx, a, scatter), _chi2_terms(ctx, b, scatter)
+    if da.size != db.size or da.size < 2 or a["_n_eq"] != b["_n_eq"]:
+        return unpaired
+    d = da - db
+    n = d.size * ctx.pose_share
+    se = math.sqrt(d.size * float(np.var(d, ddof=1)) / ctx.pose_share)
+    t = float(stdtrit(max(n - 1.0, 1.0), 0.975))
+    return min(t * scatter**2 * se / (a["_n_eq"] * max(a["_heldout_eq"] + b["_heldout_eq"], 1e-300)),
+               unpaired)
+
+
+def _nested_margin(ctx: _Context, best: dict, other: dict, scatter: float) -> float:
+    """How much the held-out (frequency-equivalent) RMS of ``other`` may differ from ``best``'s (e.g.
+    ``best`` with one component added or removed) and the data still cannot say which is right: the
+    noise margin of a paired comparison (``_paired_noise``), or the change that absorbing a
+    model-form error of the level ``ctx.model_form`` can make, ``sqrt(h^2 + m^2) - h`` with ``h``
+    ``best``'s held-out RMS (an extra component removes at most that error's energy from the held-out
+    residuals; the model form is there for every candidate, so such a gain is not evidence for the
+    component)."""
     h = best["_heldout_eq"]
-    return max(_noise(best, scatter, ctx.pose_share), math.hypot(h, ctx.model_form) - h)
+    return max(_paired_noise(ctx, best, other, scatter), math.hypot(h, ctx.model_form) - h)
 
 
 def _sub_candidate(ctx: _Context, entry: dict, drop: int, pool: list[dict], scatter: float) -> dict | None:
@@ -838,7 +894,7 @@ def _choose(ctx: _Context, ranking: list[dict], pool: list[dict], scatter: float
             for i in range(len(best["_cand"].effects)):
                 sub = _sub_candidate(ctx, best, i, pool, scatter)
                 worse = sub["_heldout_eq"] - best["_heldout_eq"]
-                margin = _nested_margin(ctx, best, scatter)
+                margin = _nested_margin(ctx, best, sub, scatter)
                 if i in best["_idle"] or worse <= margin:
                     dropped = best["_cand"].effects[i]
                     notes.append(
@@ -846,7 +902,7 @@ def _choose(ctx: _Context, ranking: list[dict], pool: list[dict], scatter: float
                         f"bound (absent)" if i in best["_idle"] else
                         f"{best['effect']} at {best['location']} pruned to {sub['effect']} at "
                         f"{sub['location']}: without {dropped} the held-out error rises by "
-                        f"{worse:.2%}, within the margin {margin:.2%} (noise of "
+                        f"{worse:.2%}, within the margin {margin:.2%} (noise of a paired comparison on "
                         f"{max(best['_n_eq'] * ctx.pose_share, 1):.0f} held-out degrees of freedom, or "
                         f"the model-form level {ctx.model_form:.2%})")
                     best, pruned = sub, True
@@ -894,20 +950,22 @@ def _paired_shapes(ctx: _Context, fam) -> np.ndarray:
 
 
 def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: dict, before: float,
-             nominal: float, scatter: float, sigma: float, notes: Sequence[str] = ()) -> dict:
+             nominal: float, scatter: float, sigma: float, none_sigma: float, notes: Sequence[str] = ()
+             ) -> dict:
     """The verdict block; ``before`` is the nominal model's held-out frequency RMS, ``nominal`` its
     frequency-equivalent held-out RMS with shapes (``_equivalent``); ``scatter`` ranks candidates (the
-    measurement's ``sigma`` plus the model-form floor), ``sigma`` judges what remains; ``notes`` say
-    why the verdict is not the top of the ranking (``_choose``)."""
+    measurement's ``sigma`` plus the model-form floor), ``sigma`` judges what remains, ``none_sigma``
+    (``_none_scatter``) whether the nominal model's gap needs an effect at all; ``notes`` say why the
+    verdict is not the top of the ranking (``_choose``)."""
     meas = ctx.meas
     none = {"effect": "none", "location": "", "heldout_rms_rel_error_before": before,
             "heldout_rms_rel_error_after": before,
             "explained": bool(before <= EXPLAINED_FACTOR * sigma), "alternatives": [],
             "gap_removed": 0.0, "remaining_over_scatter": before / sigma}
-    if baseline["rms_rel_error"] <= NONE_FACTOR * sigma:
+    if baseline["rms_rel_error"] <= NONE_FACTOR * none_sigma:
         return _none_with_alternatives(ctx, {**none, "grade": "explained", "summary": (
             f"baseline RMS gap {baseline['rms_rel_error']:.2%} is within {NONE_FACTOR:g}x the measurement "
-            f"scatter ({sigma:.2%}): no unmodelled effect is needed")}, ranking, nominal, scatter)
+            f"scatter ({none_sigma:.2%}): no unmodelled effect is needed")}, ranking, nominal, scatter)
     if not ranking or best is None:
         return {**none, "grade": "not explained", "flags": list(notes), "summary": (
             f"baseline RMS gap {baseline['rms_rel_error']:.2%} but no candidate effect applies to this rig "
@@ -947,16 +1005,17 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
                  for c, m in worst]
     verdict["remaining"] = remaining
     mine = set(zip(best["_cand"].effects, best["_cand"].locations, strict=True))
-    alts = [e for e in ranking if e is not best and not e["_out_of_range"] and not e["_idle"]
-            and not mine <= set(zip(e["_cand"].effects, e["_cand"].locations, strict=True))
-            and e["_heldout_eq"] - best["_heldout_eq"] <= _noise(best, scatter, ctx.pose_share)
-            ][:MAX_ALTERNATIVES]
+    # candidates equal within noise, simplest first (as the one-standard-error rule orders them)
+    alts = sorted((e for e in ranking if e is not best and not e["_out_of_range"] and not e["_idle"]
+                   and not mine <= set(zip(e["_cand"].effects, e["_cand"].locations, strict=True))
+                   and e["_heldout_eq"] - best["_heldout_eq"] <= _noise(best, scatter, ctx.pose_share)),
+                  key=lambda e: (e["n_params"], e["score"]))[:MAX_ALTERNATIVES]
     # a candidate with one component more that fits better held out, but by less than the nested margin:
     # the data cannot say whether that component is there too
     alts += sorted((e for e in ranking if e is not best and not e["_out_of_range"] and not e["_idle"]
                     and len(e["_cand"].effects) == len(best["_cand"].effects) + 1
                     and mine < set(zip(e["_cand"].effects, e["_cand"].locations, strict=True))
-                    and 0 < best["_heldout_eq"] - e["_heldout_eq"] <= _nested_margin(ctx, best, scatter)),
+                    and 0 < best["_heldout_eq"] - e["_heldout_eq"] <= _nested_margin(ctx, best, e, scatter)),
                    key=lambda e: e["_heldout_eq"])[:MAX_SUPERSETS]
     verdict["alternatives"] = [
         {"effect": e["effect"], "location": e["location"], "params": e["params"],
