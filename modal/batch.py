@@ -88,16 +88,15 @@ class _Deliver:
 
 
 def _cpu_ticks() -> tuple[int, int] | None:
-    """(all, available) clock ticks of the machine's CPUs so far, from the first line of /proc/stat
-    (None where there is none): available is idle, waiting for I/O, or running niced processes (a
-    process of nice 10 gets about a tenth of a CPU beside one of nice 0, so it leaves its CPU to this
-    one)."""
+    """(all, idle) clock ticks of the machine's CPUs so far, from the first line of /proc/stat (None
+    where there is none); idle counts waiting for I/O too.  A niced process counts as busy: with
+    the kernel's autogroups (one scheduling group per session) it competes at its group's weight."""
     try:
         with open("/proc/stat") as f:
             user, nice, system, idle, iowait, *rest = (int(v) for v in f.readline().split()[1:9])
     except (OSError, ValueError):
         return None
-    return user + nice + system + idle + iowait + sum(rest), nice + idle + iowait
+    return user + nice + system + idle + iowait + sum(rest), idle + iowait
 
 
 def _idle_cpus_between(before: tuple[int, int] | None, after: tuple[int, int] | None) -> float:

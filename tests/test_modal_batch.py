@@ -86,8 +86,7 @@ def test_cost_rule_forks_helpers_only_where_idle_cpus_make_them_pay(monkeypatch)
 
 
 def test_idle_cpus_are_the_available_ticks_between_two_samples(monkeypatch):
-    """/proc/stat's ticks: idle, I/O wait and niced time are available; under a tick per CPU is unknown
-    (0: serial)."""
+    """/proc/stat's ticks: idle and I/O wait are available; under a tick per CPU is unknown (0: serial)."""
     monkeypatch.setattr(batch.os, "cpu_count", lambda: 2)
     assert batch._idle_cpus_between((1000, 300), (1100, 350)) == 1.0
     assert batch._idle_cpus_between((1000, 300), (1001, 301)) == 0.0
