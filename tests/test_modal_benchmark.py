@@ -59,6 +59,7 @@ def test_batch_benchmark_reports_every_case_against_serial(capsys, tmp_path):
     assert "--workers 0 / this = 1.00x" in out
     assert "--workers 2 (pool)" in out and "default (by cost)" in out and "POOL start-up" in out
     assert "COST one run of 1 s" in out and "caller's CPU per task" in out
-    assert "pool start (fork server" in out
+    assert "pool start (fork server" in out and "a helper's fork" in out and "runs with one helper" in out
+    assert "ACCEPTANCE default against serial on 1 CPU: 4 runs" in out
     assert out.count("CPUs busy") == 4 and "CPUs busy pool workers not counted" in out
     assert list(tmp_path.iterdir()) == []
