@@ -28,7 +28,8 @@ from flexmodal.modal.spectra import usable_cpus
 AUTO_WORKERS = 2        # CPUs the automatic choice uses at most (this process and its helpers)
 FORK_S = 0.01           # wall s a helper costs this process: its fork and the pages it copies after it
 HELPER_SHARE = 0.85     # a helper's run rate over this process's (it writes every result, and the two
-                        # processes' memory-bound passes slow each other): benchmarks/batch.py COST
+                        # processes' memory-bound passes slow each other: 2 / 1.085 from the 6-11 % of
+                        # CPU two FFT threads lose; benchmarks/batch.py COST measures it, if idle)
 GAIN_FORKS = 3.0        # fork helpers only when they are predicted to save this many times FORK_S
 
 def frf_job(path: str, run_id: str, options: dict) -> FrfResult:
