@@ -244,43 +244,53 @@ class _Helpers:
     died is computed here."""
 
     def __init__(self, n: int, jobs, first: int, options: dict) -> None:
-        from multiprocessing.connection import Pipe
-
         self.jobs, self.options, self.first, self.next = jobs, options, first, first
         self.lock = threading.Lock()
         self.replies: queue.SimpleQueue = queue.SimpleQueue()
         self.helpers: list[tuple[int, object, object]] = []    # (pid, jobs to it, results from it)
         parent = os.getpid()
         self.cpus = _one_cpu_each(n + 1)
-        for i in range(n):
-            inbox, to_helper = Pipe(duplex=False)
-            from_helper, outbox = Pipe(duplex=False)
-            with ctrl_c_blocked():          # the helper starts deaf to Ctrl-C
-                try:
-                    pid = os.fork()
-                except OSError:             # no process left to this user: fewer helpers
-                    for conn in (inbox, outbox, to_helper, from_helper):
-                        conn.close()
+        try:
+            for i in range(n):
+                if not self._fork(i, parent):
                     break
-                if pid == 0:                # the helper: it never returns into the caller's frames
-                    code = 1
-                    try:
-                        leave_ctrl_c_to_parent()
-                        _end_with_parent(parent)
-                        if self.cpus:
-                            os.sched_setaffinity(0, {self.cpus[i + 1]})
-                        for conn in (to_helper, from_helper, *(c for h in self.helpers for c in h[1:])):
-                            conn.close()
-                        _serve(jobs, options, inbox, outbox)
-                        code = 0
-                    finally:
-                        os._exit(code)
-            inbox.close()
-            outbox.close()
-            self.helpers.append((pid, to_helper, from_helper))
+        except BaseException:   # Ctrl-C (delivered once SIGINT is unblocked): end those forked
+            self.close(kill=True)
+            raise
         for _, to_helper, from_helper in self.helpers:
             threading.Thread(target=self._relay, args=(to_helper, from_helper), name="flexmodal-helper",
                              daemon=True).start()
+
+    def _fork(self, i: int, parent: int) -> bool:
+        """Fork helper ``i`` (False: the system has no process left for it)."""
+        from multiprocessing.connection import Pipe
+
+        inbox, to_helper = Pipe(duplex=False)
+        from_helper, outbox = Pipe(duplex=False)
+        with ctrl_c_blocked():          # the helper starts deaf to Ctrl-C
+            try:
+                pid = os.fork()
+            except OSError:
+                for conn in (inbox, outbox, to_helper, from_helper):
+                    conn.close()
+                return False
+            if pid == 0:                # the helper: it never returns into the caller's frames
+                code = 1
+                try:
+                    leave_ctrl_c_to_parent()
+                    _end_with_parent(parent)
+                    if self.cpus:
+                        os.sched_setaffinity(0, {self.cpus[i + 1]})
+                    for conn in (to_helper, from_helper, *(c for h in self.helpers for c in h[1:])):
+                        conn.close()
+                    _serve(self.jobs, self.options, inbox, outbox)
+                    code = 0
+                finally:
+                    os._exit(code)
+            self.helpers.append((pid, to_helper, from_helper))   # before a Ctrl-C can come
+        inbox.close()
+        outbox.close()
+        return True
 
     def take(self) -> int | None:
         """The next job not yet taken (None: none left)."""
