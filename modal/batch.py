@@ -28,7 +28,8 @@ from flexmodal.modal.spectra import usable_cpus
 AUTO_WORKERS = 2        # CPUs the automatic choice uses at most (this process and its helpers)
 FORK_S = 0.01           # wall s a helper costs this process: its fork and the pages it copies after it
 HELPER_SHARE = 0.85     # a helper's run rate over this process's (it writes every result, and the two
-                        # processes' memory-bound passes slow each other): benchmarks/batch.py COST
+                        # processes' memory-bound passes slow each other: 2 / 1.085 from the 6-11 % of
+                        # CPU two FFT threads lose; benchmarks/batch.py COST measures it, if idle)
 GAIN_FORKS = 3.0        # fork helpers only when they are predicted to save this many times FORK_S
 
 def frf_job(path: str, run_id: str, options: dict) -> FrfResult:
@@ -215,6 +216,19 @@ def _forkable() -> bool:
     return hasattr(os, "fork") and threading.active_count() == 1
 
 
+def _one_cpu_each(processes: int) -> list[int] | None:
+    """The CPUs to pin this process and its helpers to, one each, when they are all the CPUs it may
+    use (else None: the kernel places them).  A process pinned to one CPU keeps its run's reader
+    thread on the CPU of its FFTs; unpinned, that thread takes the other CPU in turns, and the same
+    runs took 5-8 % more CPU in all (measured with `frf` on 100 runs of 60 s, under load 10: serial
+    unpinned against pinned, and with a helper, pinned against not), time the other process then
+    waits for."""
+    if not hasattr(os, "sched_setaffinity"):
+        return None
+    cpus = sorted(os.sched_getaffinity(0))
+    return cpus if len(cpus) == processes else None
+
+
 class _Helpers:
     """``n`` processes forked from this one that share the jobs from ``first`` on with it: each takes
     the next job not yet taken (so the runs are shared by speed, and this process, which also writes
@@ -222,46 +236,61 @@ class _Helpers:
 
     A thread per helper here receives its results and hands it its next job as soon as one arrives
     (the helper waits only for the hand-over); results are written in run order by the caller, a
-    failure raised when its run's turn comes (as serially: every earlier run is written first).  A
-    helper starts with SIGINT blocked, ignores it, and asks the kernel to end it with this process;
-    Ctrl-C or a failure here ends the helpers (SIGTERM) before this process goes on, and a job
-    whose helper died is computed here."""
+    failure raised when its run's turn comes (as serially: every earlier run is written first).  When
+    the processes are as many as the CPUs this one may use, each is pinned to one of them while they
+    share the runs (:func:`_one_cpu_each`; this process's CPU mask is restored after).  A helper
+    starts with SIGINT blocked, ignores it, and asks the kernel to end it with this process; Ctrl-C
+    or a failure here ends the helpers (SIGTERM) before this process goes on, and a job whose helper
+    died is computed here."""
 
     def __init__(self, n: int, jobs, first: int, options: dict) -> None:
-        from multiprocessing.connection import Pipe
-
         self.jobs, self.options, self.first, self.next = jobs, options, first, first
         self.lock = threading.Lock()
         self.replies: queue.SimpleQueue = queue.SimpleQueue()
         self.helpers: list[tuple[int, object, object]] = []    # (pid, jobs to it, results from it)
         parent = os.getpid()
-        for _ in range(n):
-            inbox, to_helper = Pipe(duplex=False)
-            from_helper, outbox = Pipe(duplex=False)
-            with ctrl_c_blocked():          # the helper starts deaf to Ctrl-C
-                try:
-                    pid = os.fork()
-                except OSError:             # no process left to this user: fewer helpers
-                    for conn in (inbox, outbox, to_helper, from_helper):
-                        conn.close()
+        self.cpus = _one_cpu_each(n + 1)
+        try:
+            for i in range(n):
+                if not self._fork(i, parent):
                     break
-                if pid == 0:                # the helper: it never returns into the caller's frames
-                    code = 1
-                    try:
-                        leave_ctrl_c_to_parent()
-                        _end_with_parent(parent)
-                        for conn in (to_helper, from_helper, *(c for h in self.helpers for c in h[1:])):
-                            conn.close()
-                        _serve(jobs, options, inbox, outbox)
-                        code = 0
-                    finally:
-                        os._exit(code)
-            inbox.close()
-            outbox.close()
-            self.helpers.append((pid, to_helper, from_helper))
+        except BaseException:   # Ctrl-C (delivered once SIGINT is unblocked): end those forked
+            self.close(kill=True)
+            raise
         for _, to_helper, from_helper in self.helpers:
             threading.Thread(target=self._relay, args=(to_helper, from_helper), name="flexmodal-helper",
                              daemon=True).start()
+
+    def _fork(self, i: int, parent: int) -> bool:
+        """Fork helper ``i`` (False: the system has no process left for it)."""
+        from multiprocessing.connection import Pipe
+
+        inbox, to_helper = Pipe(duplex=False)
+        from_helper, outbox = Pipe(duplex=False)
+        with ctrl_c_blocked():          # the helper starts deaf to Ctrl-C
+            try:
+                pid = os.fork()
+            except OSError:
+                for conn in (inbox, outbox, to_helper, from_helper):
+                    conn.close()
+                return False
+            if pid == 0:                # the helper: it never returns into the caller's frames
+                code = 1
+                try:
+                    leave_ctrl_c_to_parent()
+                    _end_with_parent(parent)
+                    if self.cpus:
+                        os.sched_setaffinity(0, {self.cpus[i + 1]})
+                    for conn in (to_helper, from_helper, *(c for h in self.helpers for c in h[1:])):
+                        conn.close()
+                    _serve(self.jobs, self.options, inbox, outbox)
+                    code = 0
+                finally:
+                    os._exit(code)
+            self.helpers.append((pid, to_helper, from_helper))   # before a Ctrl-C can come
+        inbox.close()
+        outbox.close()
+        return True
 
     def take(self) -> int | None:
         """The next job not yet taken (None: none left)."""
@@ -297,7 +326,10 @@ class _Helpers:
         held: dict[int, tuple] = {}
         delivered = self.first
         ended = False
+        mask = os.sched_getaffinity(0) if self.cpus else None
         try:
+            if self.cpus:
+                os.sched_setaffinity(0, {self.cpus[0]})
             while delivered < len(self.jobs):
                 k = self.take()
                 if k is not None:
@@ -313,6 +345,8 @@ class _Helpers:
                     delivered += 1
             ended = True
         finally:
+            if mask:
+                os.sched_setaffinity(0, mask)
             self.close(kill=not ended)
 
     def _here(self, k: int) -> tuple:

@@ -213,7 +213,9 @@ def test_automatic_choice_forks_a_helper_with_the_same_results_in_order(tmp_path
     log = tmp_path / "pids.txt"
     _spy_processes(monkeypatch, log)
     written = []
+    mask = os.sched_getaffinity(0)
     auto = batch.run_batch(jobs, {"nfft": 256}, on_done=lambda p, r, res: written.append((p, r)))
+    assert os.sched_getaffinity(0) == mask      # pinned while sharing the runs (2 CPUs), then restored
     pids = [int(line.split()[0]) for line in log.read_text().splitlines()]
     assert len(pids) == len(jobs) and pids[0] == os.getpid() and len(set(pids)) == 2
     assert written == [(p, r) for p, r in jobs]
