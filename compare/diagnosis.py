@@ -23,7 +23,8 @@
 4. Verdict: the simplest candidate not worse held out than the best beyond the nested margin, pruned
    of components that do not improve the held-out error beyond that margin (the noise of a paired
    comparison on the same held-out residuals, or what absorbing the model-form error can gain,
-   ``_nested_margin``) or
+   ``_nested_margin``, that error never taken below the frame's known beam-theory error,
+   ``_beam_theory_form``) or
    sit at their lower bound, passed over when a parameter runs out of range; ``none`` when the
    nominal model itself (no parameters) scores at least as well.  ``explained`` is false when the held-out
    RMS is above ``EXPLAINED_FACTOR`` times the scatter or the held-out residuals are structured;
