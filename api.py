@@ -1499,6 +1499,7 @@ def _tracked_map_figures(inputs) -> list[tuple[Figure, str]]:
     import numpy as np
 
     from flexmodal.compare.modal_map import PredictionBand, modal_map
+    from flexmodal.reports.html import pose_unit
     from flexmodal.reports.modal_map_plot import plot_modal_map
 
     meas = inputs.measured
@@ -1514,7 +1515,7 @@ def _tracked_map_figures(inputs) -> list[tuple[Figure, str]]:
             f = np.array([pred.freq_hz(c)[:n] for c in configs])
             band = PredictionBand(np.array([meas.pose(c)[var] for c in configs]), f, f, f, label=name)
             named = f", {name}'s frequencies at the same poses as lines"
-    fig = plot_modal_map(modal_map(meas), band, pose_label=var,
+    fig = plot_modal_map(modal_map(meas), band, pose_label=f"{var} [{pose_unit(var)}]",
                          title="modes tracked while the arm moved (mean ± 95 % interval per pose bin)")
     return [(fig, f"Natural frequency against {var} of the modes tracked while the arm moved (identify "
                   f"--track: one point per pose bin, bars ± 1.96 standard errors of its windows){named}")]
