@@ -390,6 +390,10 @@ def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: 
     helpers of ``workers`` None are forked from this process and have them.  A program running
     threads of its own gets no helpers (a lock held by one of them at a fork would stay held).
 
+    References
+    ----------
+    J. S. Bendat and A. G. Piersol, *Random Data*, 4th ed., Wiley, 2010, ch. 9 (H1, H2).
+
     Examples
     --------
     >>> import tempfile
@@ -1001,6 +1005,11 @@ def compare_modes(measured: ModalTable | PathLike,
     compare.tables.Comparison
         Printed by :func:`format_comparison`.
 
+    References
+    ----------
+    R. J. Allemang and D. L. Brown, "A correlation coefficient for modal vector analysis", Proc. 1st
+    International Modal Analysis Conference (IMAC), Orlando, 1982, 110-116 (MAC).
+
     Examples
     --------
     >>> import flexmodal as fm
@@ -1406,6 +1415,11 @@ def plot_mode_shapes(rig: Rig | PathLike, measured: ModalTable | PathLike, confi
     -------
     matplotlib.figure.Figure
 
+    References
+    ----------
+    R. J. Allemang and D. L. Brown, "A correlation coefficient for modal vector analysis", Proc. 1st
+    International Modal Analysis Conference (IMAC), Orlando, 1982, 110-116 (MAC).
+
     Examples
     --------
     >>> import flexmodal as fm
@@ -1740,6 +1754,11 @@ def animate_mode(out: PathLike, measured: ModalTable | PathLike, config: str, mo
     -------
     Path
         ``out``.
+
+    References
+    ----------
+    R. J. Allemang and D. L. Brown, "A correlation coefficient for modal vector analysis", Proc. 1st
+    International Modal Analysis Conference (IMAC), Orlando, 1982, 110-116 (MAC).
 
     Examples
     --------
