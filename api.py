@@ -390,6 +390,10 @@ def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: 
     helpers of ``workers`` None are forked from this process and have them.  A program running
     threads of its own gets no helpers (a lock held by one of them at a fork would stay held).
 
+    References
+    ----------
+    J. S. Bendat and A. G. Piersol, *Random Data*, 4th ed., Wiley, 2010, ch. 9 (H1, H2).
+
     Examples
     --------
     >>> import tempfile
@@ -404,6 +408,11 @@ def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: 
     """
     from flexmodal.modal.batch import frf_batch
 
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, numbers.Integral)
+                                or workers < 0):
+        raise TypeError(f"workers must be None or a whole number >= 0 (got {workers!r})")
+    if workers:
+        _check_workers(int(workers))
     if out is not None:
         from flexmodal.checked_io.output import hdf5_output
         from flexmodal.modal.errors import ModalError
@@ -492,6 +501,26 @@ class Identification:
             modes, outputs = next(iter(modes_by_config.values()))
             write_modes(uff, modes.freq_hz, modes.damping_ratio, modes.shapes, outputs)
         return Path(out)
+
+
+WORKER_BYTES = 250 << 20   # memory of one pool worker: its interpreter, numpy/scipy/h5py and a run's blocks
+WORKERS_PER_CPU = 4        # processes beyond this per usable CPU only wait for one (the FFTs are CPU-bound)
+
+
+def _check_workers(workers: int) -> None:
+    """ModalError when ``workers`` pool processes exceed what this machine can run: more than
+    :data:`WORKERS_PER_CPU` per usable CPU, or more than the available memory holds at
+    :data:`WORKER_BYTES` each (256 workers on 2 CPUs started 256 interpreters, 20+ GB)."""
+    from flexmodal.checked_io.text import available_memory_bytes
+    from flexmodal.modal.errors import ModalError
+    from flexmodal.modal.spectra import usable_cpus
+
+    cpus, room = usable_cpus(), available_memory_bytes()
+    most = max(1, min(WORKERS_PER_CPU * cpus, room // WORKER_BYTES))
+    if workers > most:
+        raise ModalError(f"--workers {workers}: more worker processes than this machine can run "
+                         f"(at most {most}: {cpus} usable CPUs, {room / 2**30:.1f} GiB of memory available, "
+                         f"about {WORKER_BYTES >> 20} MiB per worker)")
 
 
 def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: float | None = None,
@@ -976,6 +1005,11 @@ def compare_modes(measured: ModalTable | PathLike,
     compare.tables.Comparison
         Printed by :func:`format_comparison`.
 
+    References
+    ----------
+    R. J. Allemang and D. L. Brown, "A correlation coefficient for modal vector analysis", Proc. 1st
+    International Modal Analysis Conference (IMAC), Orlando, 1982, 110-116 (MAC).
+
     Examples
     --------
     >>> import flexmodal as fm
@@ -1381,6 +1415,11 @@ def plot_mode_shapes(rig: Rig | PathLike, measured: ModalTable | PathLike, confi
     -------
     matplotlib.figure.Figure
 
+    References
+    ----------
+    R. J. Allemang and D. L. Brown, "A correlation coefficient for modal vector analysis", Proc. 1st
+    International Modal Analysis Conference (IMAC), Orlando, 1982, 110-116 (MAC).
+
     Examples
     --------
     >>> import flexmodal as fm
@@ -1716,6 +1755,11 @@ def animate_mode(out: PathLike, measured: ModalTable | PathLike, config: str, mo
     -------
     Path
         ``out``.
+
+    References
+    ----------
+    R. J. Allemang and D. L. Brown, "A correlation coefficient for modal vector analysis", Proc. 1st
+    International Modal Analysis Conference (IMAC), Orlando, 1982, 110-116 (MAC).
 
     Examples
     --------
