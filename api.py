@@ -439,6 +439,10 @@ class Identification:
         """``config: message`` for every warning met on the way."""
         return [f"{c}: {w}" for c, m in self.modes.items() for w in m.warnings]
 
+    def warning_summary(self) -> list[str]:
+        """One line per kind of warning, not one per configuration (:func:`_summarise_warnings`)."""
+        return _summarise_warnings([(c, w) for c, m in self.modes.items() for w in m.warnings])
+
     def to_frame(self):
         """The modal table as a pandas DataFrame (:meth:`ModalTable.to_frame`)."""
         return self.table.to_frame()
@@ -446,12 +450,14 @@ class Identification:
     def __repr__(self) -> str:
         n = len(self.warnings)
         return (f"Identification({len(self.modes)} configurations, {len(self.table.frame)} modes, "
-                f"{n} warning{'s' if n != 1 else ''}; .table, .modes[config], .warnings)")
+                f"{n} warning{'s' if n != 1 else ''}; .table, .modes[config], .warnings, "
+                f".warning_summary())")
 
     def _repr_html_(self) -> str:
-        warned = "".join(f"<li>{html.escape(w)}</li>" for w in self.warnings[:10])
-        more = f"<li>... {len(self.warnings) - 10} more</li>" if len(self.warnings) > 10 else ""
-        return self.table._repr_html_() + (f"<p>Warnings:</p><ul>{warned}{more}</ul>" if warned else "")
+        warned = "".join(f"<li>{html.escape(w)}</li>" for w in self.warning_summary())
+        return self.table._repr_html_() + (f"<p>Warnings (one line per kind; every one in "
+                                           f"<code>.warnings</code>):</p><ul>{warned}</ul>" if warned else "")
+
 
     def write(self, out: PathLike, *, uff: PathLike | None = None) -> Path:
         """Write the modal table CSV ``out`` (docs/formats.md) and, beside it, ``MODES.synthesis.csv``
@@ -501,6 +507,40 @@ class Identification:
             modes, outputs = next(iter(modes_by_config.values()))
             write_modes(uff, modes.freq_hz, modes.damping_ratio, modes.shapes, outputs)
         return Path(out)
+
+
+def _summarise_warnings(found: Sequence[tuple[str, str]], named: int = 4) -> list[str]:
+    """One line per kind of warning among ``(where, message)`` pairs, in order of first appearance.
+
+    Two messages are of one kind when they differ only in their numbers (frequencies, counts); the line
+    quotes the first and names where it was met (up to ``named`` places, then how many more), so ten
+    runs with the same advice give one line instead of ten.
+
+    Examples
+    --------
+    >>> for line in _summarise_warnings([("run1", "2 of 3 modes (28.9, 100 Hz) have 1.7 lines"),
+    ...                                 ("run2", "2 of 3 modes (37.5, 72.1 Hz) have 1.8 lines"),
+    ...                                 ("run2", "merged the poles at 29.01 and 29.04 Hz")]):
+    ...     print(line)
+    2 configurations (run1, run2), e.g. run1: 2 of 3 modes (28.9, 100 Hz) have 1.7 lines
+    run2: merged the poles at 29.01 and 29.04 Hz
+    """
+    import re
+
+    kinds: dict[str, list[tuple[str, str]]] = {}
+    for where, message in found:
+        kinds.setdefault(re.sub(r"\d+(?:\.\d+)?(?:e[-+]?\d+)?", "#", message), []).append((where, message))
+    lines = []
+    for same in kinds.values():
+        places = list(dict.fromkeys(where for where, _ in same))
+        first_where, first = same[0]
+        if len(places) == 1:
+            lines.append(f"{first_where}: {first}" + (f" ({len(same)} times)" if len(same) > 1 else ""))
+            continue
+        more = f" and {len(places) - named} more" if len(places) > named else ""
+        listed = ", ".join(places[:named]) + more
+        lines.append(f"{len(places)} configurations ({listed}), e.g. {first_where}: {first}")
+    return lines
 
 
 WORKER_BYTES = 250 << 20   # memory of one pool worker: its interpreter, numpy/scipy/h5py and a run's blocks
