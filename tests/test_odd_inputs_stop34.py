@@ -242,3 +242,15 @@ def test_simulator_pty_link_in_a_missing_folder_names_the_link(tmp_path: Path) -
 
     with pytest.raises(FixtureError, match="nodir/tty: cannot create the pty link there"):
         PtyLink(tmp_path / "nodir" / "tty")
+
+
+def test_python_api_names_an_argument_of_the_wrong_kind(tmp_path: Path) -> None:
+    """None or a list where a result or table belongs was an AttributeError deep inside."""
+    import flexmodal as fm
+
+    rig = REPO / "examples" / "rigs" / "seed003_two_link.toml"
+    for call in (lambda: fm.plot_frf(None), lambda: fm.plot_stabilisation("run.h5"),
+                 lambda: fm.plot_gap(None), lambda: fm.predict(rig, [("theta0", 0)], model="fe"),
+                 lambda: fm.compute_frfs([], workers=True)):
+        with pytest.raises(TypeError, match="expected|workers must be"):
+            call()
