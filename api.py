@@ -390,6 +390,10 @@ def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: 
     helpers of ``workers`` None are forked from this process and have them.  A program running
     threads of its own gets no helpers (a lock held by one of them at a fork would stay held).
 
+    References
+    ----------
+    J. S. Bendat and A. G. Piersol, *Random Data*, 4th ed., Wiley, 2010, ch. 9 (H1, H2).
+
     Examples
     --------
     >>> import tempfile
@@ -1002,6 +1006,11 @@ def compare_modes(measured: ModalTable | PathLike,
     compare.tables.Comparison
         Printed by :func:`format_comparison`.
 
+    References
+    ----------
+    R. J. Allemang and D. L. Brown, "A correlation coefficient for modal vector analysis", Proc. 1st
+    International Modal Analysis Conference (IMAC), Orlando, 1982, 110-116 (MAC).
+
     Examples
     --------
     >>> import flexmodal as fm
@@ -1419,6 +1428,11 @@ def plot_mode_shapes(rig: Rig | PathLike, measured: ModalTable | PathLike, confi
     -------
     matplotlib.figure.Figure
 
+    References
+    ----------
+    R. J. Allemang and D. L. Brown, "A correlation coefficient for modal vector analysis", Proc. 1st
+    International Modal Analysis Conference (IMAC), Orlando, 1982, 110-116 (MAC).
+
     Examples
     --------
     >>> import flexmodal as fm
@@ -1540,6 +1554,7 @@ def _tracked_map_figures(inputs) -> list[tuple[Figure, str]]:
     import numpy as np
 
     from flexmodal.compare.modal_map import PredictionBand, modal_map
+    from flexmodal.reports.html import pose_unit
     from flexmodal.reports.modal_map_plot import plot_modal_map
 
     meas = inputs.measured
@@ -1555,7 +1570,7 @@ def _tracked_map_figures(inputs) -> list[tuple[Figure, str]]:
             f = np.array([pred.freq_hz(c)[:n] for c in configs])
             band = PredictionBand(np.array([meas.pose(c)[var] for c in configs]), f, f, f, label=name)
             named = f", {name}'s frequencies at the same poses as lines"
-    fig = plot_modal_map(modal_map(meas), band, pose_label=var,
+    fig = plot_modal_map(modal_map(meas), band, pose_label=f"{var} [{pose_unit(var)}]",
                          title="modes tracked while the arm moved (mean ± 95 % interval per pose bin)")
     return [(fig, f"Natural frequency against {var} of the modes tracked while the arm moved (identify "
                   f"--track: one point per pose bin, bars ± 1.96 standard errors of its windows){named}")]
@@ -1756,6 +1771,11 @@ def animate_mode(out: PathLike, measured: ModalTable | PathLike, config: str, mo
     -------
     Path
         ``out``.
+
+    References
+    ----------
+    R. J. Allemang and D. L. Brown, "A correlation coefficient for modal vector analysis", Proc. 1st
+    International Modal Analysis Conference (IMAC), Orlando, 1982, 110-116 (MAC).
 
     Examples
     --------

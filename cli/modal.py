@@ -7,10 +7,10 @@ import sys
 
 from flexmodal.api import ESTIMATORS, METHODS
 from flexmodal.checked_io import options as opt
-from flexmodal.cli.commands import command
+from flexmodal.cli.commands import Subcommands, command
 
 
-def register(sub: argparse._SubParsersAction) -> None:
+def register(sub: Subcommands) -> None:
     """Add this package's sub-commands to the flexmodal parser."""
     p = command(sub, "frf", _frf)
     p.add_argument("runs", nargs="+", metavar="RUN.h5", help="HDF5 run files (docs/hdf5-format.md)")
