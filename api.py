@@ -983,7 +983,8 @@ def predict(rig: Rig | PathLike, poses: Mapping[str, Mapping[str, float]] | Moda
             raise ModelError(f"{where}: no column 'pose.{missing[0]}' (rig {rig.source} needs the pose "
                              f"variable {missing[0]!r}; pose columns are named pose.<variable>)")
     elif not isinstance(poses, Mapping):
-        poses = {c: _table(poses).pose(c) for c in poses.configs}
+        table = _table(poses)   # a list or None: a TypeError naming it, not an AttributeError
+        poses = {c: table.pose(c) for c in table.configs}
     else:   # the caller's own {config: {variable: value}}: numbers, as a poses file's are
         poses = {config: _pose_numbers(config, pose) for config, pose in poses.items()}
     if not poses:
@@ -1356,6 +1357,16 @@ def read_diagnosis(path: PathLike) -> Diagnosis:
 
 # -- figures ---------------------------------------------------------------------------------------
 
+def _frf_result(frf: object) -> FrfResult:
+    """``frf`` when it is an FRF result; else a TypeError naming what it is (None, a path: not an
+    AttributeError deep in the plotting)."""
+    from flexmodal.modal.frf import FrfResult
+
+    if not isinstance(frf, FrfResult):
+        raise TypeError(f"expected an FRF result (compute_frf, frf_from_arrays), got {type(frf).__name__}")
+    return frf
+
+
 def plot_frf(frf: FrfResult, title: str = "") -> Figure:
     """Magnitude, phase [deg] and coherence [-] of the FRFs of one run (first reference).
 
@@ -1382,6 +1393,7 @@ def plot_frf(frf: FrfResult, title: str = "") -> Figure:
     """
     from flexmodal.reports import plots
 
+    frf = _frf_result(frf)
     return plots.plot_frf(frf.freq_hz, frf.H, frf.coherence, frf.outputs,
                           plots.frf_unit(frf.quantity), title=title)
 
@@ -1426,6 +1438,7 @@ def plot_stabilisation(frf: FrfResult, modes: Modes | None = None, *, fmin: floa
     from flexmodal.modal.sources import identify_frf
     from flexmodal.reports import plots
 
+    frf = _frf_result(frf)
     if modes is None:
         modes = identify_frf(frf, fmin=fmin, fmax=fmax, max_order=max_order)
     return plots.plot_identification_diagram(frf, modes, plots.frf_unit(frf.quantity), title=title)
@@ -1565,6 +1578,9 @@ def _diagnosis(diagnosis: Diagnosis | Mapping | PathLike) -> Diagnosis:
             return Diagnosis.from_dict(dict(diagnosis))
         except CompareError as exc:
             raise ReportError(str(exc)) from None
+    if not isinstance(diagnosis, Diagnosis):
+        raise TypeError(f"expected a diagnosis (diagnose, read_diagnosis), its dict or the path of "
+                        f"diagnosis.json, got {type(diagnosis).__name__}")
     return diagnosis
 
 
