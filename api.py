@@ -253,7 +253,8 @@ def compute_frf(run: Run | PathLike, *, estimator: str = "H1", nfft: int | None 
     Returns
     -------
     modal.frf.FrfResult
-        ``H`` [n_out, n_in, n_freq], ``coherence`` [n_out, n_freq], ``freq_hz`` [Hz], ``outputs``.
+        ``H`` [n_out, n_in, n_freq] in the response unit per force unit (e.g. (m/s²)/N), ``coherence``
+        [n_out, n_freq] [-], ``freq_hz`` [Hz], ``outputs``.
 
     References
     ----------
@@ -312,6 +313,8 @@ def frf_from_arrays(freq_hz, H, *, coherence=None, quantity: str = "accelerance"
     Returns
     -------
     FrfResult
+        ``H`` [n_out, n_in, n_freq] complex in ``quantity`` per input unit, ``coherence``
+        [n_out, n_freq] [-] (None when not given), ``freq_hz`` [Hz], ``outputs``, ``inputs``.
 
     Examples
     --------
