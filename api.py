@@ -732,6 +732,18 @@ def track(source: PathLike, *, pose_from: Mapping[str, str] | None = None, run_i
     ----------
     B. Peeters, G. De Roeck, "Reference-based stochastic subspace identification for output-only
     modal analysis", Mechanical Systems and Signal Processing 13 (1999) 855-878.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> import flexmodal as fm
+    >>> from flexmodal.fixtures.examples import moving_run
+    >>> path = moving_run(tempfile.mkdtemp())   # 8 s of the demo arm's elbow sweep from 0 deg
+    >>> result = fm.track(path, fmax=400.0, window_s=2.0, hop_s=1.0)
+    >>> sorted(set(result.table.frame["mode"])), result.warnings
+    ([1, 2, 3], ())
+    >>> round(float(result.table.freq_hz("theta_deg=0")[0]))     # first bending mode at 0 deg [Hz]
+    32
     """
     _check_band(fmin, fmax)
     if not 0 < bin_deg < float("inf") or not all(0 < o < float("inf") for o in orders):
