@@ -253,7 +253,8 @@ def compute_frf(run: Run | PathLike, *, estimator: str = "H1", nfft: int | None 
     Returns
     -------
     modal.frf.FrfResult
-        ``H`` [n_out, n_in, n_freq], ``coherence`` [n_out, n_freq], ``freq_hz`` [Hz], ``outputs``.
+        ``H`` [n_out, n_in, n_freq] in the response unit per force unit (e.g. (m/s²)/N), ``coherence``
+        [n_out, n_freq] [-], ``freq_hz`` [Hz], ``outputs``.
 
     References
     ----------
@@ -312,6 +313,8 @@ def frf_from_arrays(freq_hz, H, *, coherence=None, quantity: str = "accelerance"
     Returns
     -------
     FrfResult
+        ``H`` [n_out, n_in, n_freq] complex in ``quantity`` per input unit, ``coherence``
+        [n_out, n_freq] [-] (None when not given), ``freq_hz`` [Hz], ``outputs``, ``inputs``.
 
     Examples
     --------
@@ -439,6 +442,10 @@ class Identification:
         """``config: message`` for every warning met on the way."""
         return [f"{c}: {w}" for c, m in self.modes.items() for w in m.warnings]
 
+    def warning_summary(self) -> list[str]:
+        """One line per kind of warning, not one per configuration (:func:`_summarise_warnings`)."""
+        return _summarise_warnings([(c, w) for c, m in self.modes.items() for w in m.warnings])
+
     def to_frame(self):
         """The modal table as a pandas DataFrame (:meth:`ModalTable.to_frame`)."""
         return self.table.to_frame()
@@ -446,12 +453,14 @@ class Identification:
     def __repr__(self) -> str:
         n = len(self.warnings)
         return (f"Identification({len(self.modes)} configurations, {len(self.table.frame)} modes, "
-                f"{n} warning{'s' if n != 1 else ''}; .table, .modes[config], .warnings)")
+                f"{n} warning{'s' if n != 1 else ''}; .table, .modes[config], .warnings, "
+                f".warning_summary())")
 
     def _repr_html_(self) -> str:
-        warned = "".join(f"<li>{html.escape(w)}</li>" for w in self.warnings[:10])
-        more = f"<li>... {len(self.warnings) - 10} more</li>" if len(self.warnings) > 10 else ""
-        return self.table._repr_html_() + (f"<p>Warnings:</p><ul>{warned}{more}</ul>" if warned else "")
+        warned = "".join(f"<li>{html.escape(w)}</li>" for w in self.warning_summary())
+        return self.table._repr_html_() + (f"<p>Warnings (one line per kind; every one in "
+                                           f"<code>.warnings</code>):</p><ul>{warned}</ul>" if warned else "")
+
 
     def write(self, out: PathLike, *, uff: PathLike | None = None) -> Path:
         """Write the modal table CSV ``out`` (docs/formats.md) and, beside it, ``MODES.synthesis.csv``
@@ -501,6 +510,40 @@ class Identification:
             modes, outputs = next(iter(modes_by_config.values()))
             write_modes(uff, modes.freq_hz, modes.damping_ratio, modes.shapes, outputs)
         return Path(out)
+
+
+def _summarise_warnings(found: Sequence[tuple[str, str]], named: int = 4) -> list[str]:
+    """One line per kind of warning among ``(where, message)`` pairs, in order of first appearance.
+
+    Two messages are of one kind when they differ only in their numbers (frequencies, counts); the line
+    quotes the first and names where it was met (up to ``named`` places, then how many more), so ten
+    runs with the same advice give one line instead of ten.
+
+    Examples
+    --------
+    >>> for line in _summarise_warnings([("run1", "2 of 3 modes (28.9, 100 Hz) have 1.7 lines"),
+    ...                                 ("run2", "2 of 3 modes (37.5, 72.1 Hz) have 1.8 lines"),
+    ...                                 ("run2", "merged the poles at 29.01 and 29.04 Hz")]):
+    ...     print(line)
+    2 configurations (run1, run2), e.g. run1: 2 of 3 modes (28.9, 100 Hz) have 1.7 lines
+    run2: merged the poles at 29.01 and 29.04 Hz
+    """
+    import re
+
+    kinds: dict[str, list[tuple[str, str]]] = {}
+    for where, message in found:
+        kinds.setdefault(re.sub(r"\d+(?:\.\d+)?(?:e[-+]?\d+)?", "#", message), []).append((where, message))
+    lines = []
+    for same in kinds.values():
+        places = list(dict.fromkeys(where for where, _ in same))
+        first_where, first = same[0]
+        if len(places) == 1:
+            lines.append(f"{first_where}: {first}" + (f" ({len(same)} times)" if len(same) > 1 else ""))
+            continue
+        more = f" and {len(places) - named} more" if len(places) > named else ""
+        listed = ", ".join(places[:named]) + more
+        lines.append(f"{len(places)} configurations ({listed}), e.g. {first_where}: {first}")
+    return lines
 
 
 WORKER_BYTES = 250 << 20   # memory of one pool worker: its interpreter, numpy/scipy/h5py and a run's blocks
@@ -729,6 +772,18 @@ def track(source: PathLike, *, pose_from: Mapping[str, str] | None = None, run_i
     ----------
     B. Peeters, G. De Roeck, "Reference-based stochastic subspace identification for output-only
     modal analysis", Mechanical Systems and Signal Processing 13 (1999) 855-878.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> import flexmodal as fm
+    >>> from flexmodal.fixtures.examples import moving_run
+    >>> path = moving_run(tempfile.mkdtemp())   # 8 s of the demo arm's elbow sweep from 0 deg
+    >>> result = fm.track(path, fmax=400.0, window_s=2.0, hop_s=1.0)
+    >>> sorted(set(result.table.frame["mode"])), result.warnings
+    ([1, 2, 3], ())
+    >>> round(float(result.table.freq_hz("theta_deg=0")[0]))     # first bending mode at 0 deg [Hz]
+    32
     """
     _check_band(fmin, fmax)
     if not 0 < bin_deg < float("inf") or not all(0 < o < float("inf") for o in orders):
