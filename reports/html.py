@@ -57,7 +57,7 @@ def pose_unit(var: str) -> str:
 
 def pose_text(pose: Mapping[str, object]) -> str:
     """A pose as ``theta_deg = 30 deg, payload_kg = 0.5 kg``."""
-    return ", ".join(f"{k} = {v:g} {pose_unit(k)}" if isinstance(v, numbers.Real) else f"{k} = {v}"
+    return ", ".join(f"{k} = {v:.4g} {pose_unit(k)}" if isinstance(v, numbers.Real) else f"{k} = {v}"
                      for k, v in pose.items())
 
 
