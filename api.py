@@ -365,8 +365,9 @@ def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: 
         As :func:`compute_frf`.
     workers : int or None
         0 (the default) computes the runs here one after the other; None chooses as the ``frf``
-        command does (here, or a pool of local processes once the measured cost predicts that it
-        pays for its start-up, see ``modal.batch.run_batch``); N forces a pool of N processes.
+        command does (here, with a helper process forked from this one once the measured cost of
+        the runs done predicts that it pays and a CPU is idle, see ``modal.batch.run_batch``); N
+        forces a pool of N processes.
     scheduler : str, optional
         Send the runs to the dask.distributed scheduler at this address (the extra
         ``flexmodal[cluster]``).
@@ -383,9 +384,11 @@ def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: 
     Notes
     -----
     Pool workers start from a fork server that imports the calling script again as ``__mp_main__`` (as
-    ``multiprocessing`` does), so a script passing ``workers`` None or N keeps its own work under
+    ``multiprocessing`` does), so a script passing ``workers`` N keeps its own work under
     ``if __name__ == "__main__":``.  Estimators registered in this process
-    (``modal.registry.register_estimator``) reach worker processes only if they register them too.
+    (``modal.registry.register_estimator``) reach pool workers only if they register them too; the
+    helpers of ``workers`` None are forked from this process and have them.  A program running
+    threads of its own gets no helpers (a lock held by one of them at a fork would stay held).
 
     Examples
     --------

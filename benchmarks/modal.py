@@ -10,12 +10,14 @@
 3. The whole process: ``flexmodal frf`` (nfft 4096, H1 + coherence) on that record stored as a run
    (float32, the run store's layout), against pyFRF in this process on the same samples as float64
    and against the floor of h5py reading the samples plus the bare FFTs; where the process's time
-   goes (interpreter, imports, estimate, the rest) and the bound the start-up puts on any ratio.
+   goes (interpreter, imports, estimate, the rest; the imports split into numpy + h5py, scipy.fft and
+   flexmodal's own modules) and the bound the start-up puts on any ratio.
 4. KERNEL: Welch H1 + H2 + coherence of that record in memory: CPU on one thread against its bare
    FFTs' CPU on one thread (the passes besides the FFT), wall with 2 threads against 1 thread, on the
    machine as it is and with the other core busy; beside them the least any numpy/scipy estimate
    does (FFTs straight from the record plus the two reductions H1, H2 and coherence need) against
-   the same bare FFTs, and the CPU of the estimate's Python glue (the part holding the GIL, which
+   the same bare FFTs, where the estimate's CPU goes (each numpy / scipy.fft call of the engine timed),
+   and the CPU of the estimate's Python glue (the part holding the GIL, which
    bounds what a second thread can gain).
 
 Each round runs the reference first, then flexmodal, on the same data in this process; prints the
@@ -207,6 +209,7 @@ def bench_process(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: 
     cached, uncached = _child_env(cache), _child_env(None)
     floors = {"python -c pass": [sys.executable, "-c", "pass"],
               "import numpy, h5py": [sys.executable, "-c", "import numpy, h5py"],
+              "import numpy, h5py, scipy.fft": [sys.executable, "-c", "import numpy, h5py, scipy.fft"],
               "imports of `frf`": [sys.executable, "-c", "import flexmodal.app, flexmodal.api, "
                                    "flexmodal.modal.batch, flexmodal.checked_io.output"],
               "frf --help": [sys.executable, "-m", "flexmodal", "frf", "--help"]}
@@ -280,6 +283,14 @@ def bench_process(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: 
             ("`python -c pass`", "python -c pass"), ("`import numpy, h5py`", "import numpy, h5py"),
             ("all imports of `frf`", "imports of `frf`"), ("streamed estimate in-process", "estimate")))
         + f"; the rest (parser, checks, writing) {rest[0]:.3f} s ({rest[1]:.3f})")
+    steps = [[med(key, i) for i in (0, 1)] for key in (
+        "python -c pass", "import numpy, h5py", "import numpy, h5py, scipy.fft", "imports of `frf`")]
+    added = [(steps[k][0] - steps[k - 1][0], steps[k][1] - steps[k - 1][1]) for k in (1, 2, 3)]
+    print("     the imports of `frf`, wall (CPU): " + ", ".join(
+        f"{name} {t:.3f} s ({c:.3f})" for name, (t, c) in zip(
+            ("the interpreter", "numpy + h5py", "scipy.fft on top of them (its own imports: scipy.special, "
+             "scipy's array-API layer)", "flexmodal's own modules (the most lazier imports could save)"),
+            [tuple(steps[0])] + added, strict=True)))
     print(f"     bounds: any process that starts Python and imports numpy + h5py, reads and transforms "
           f"takes >= {start + floor:.3f} s, so none is more than {t_theirs / (start + floor):.1f}x faster "
           f"than pyFRF here; that start alone is {start / (t_theirs / 10):.2f}x pyFRF's time / 10")
@@ -387,8 +398,9 @@ def bench_kernel(duration_s: float, fs: float, n_resp: int, nfft: int, repeat: i
           f"{_spread(c1)}, its {n_fft} bare FFTs' CPU on 1 thread {_spread(cf)} (the reference, first in "
           f"each round): {np.median(ratio):.2f}x ({ratio.min():.2f}-{ratio.max():.2f}, per round) (target "
           f"<= 1.4); the passes besides the FFTs {np.median(c1 - cf):.3f} s")
-    print("     where the CPU of 1 thread goes (cProfile, thread time, own time of each part): "
-          + _kernel_parts(lambda: estimate(1)))
+    print("     where the CPU of 1 thread goes (thread time of each numpy / scipy.fft call of the engine, "
+          f"medians of {repeat} calls; in brackets in units of the bare FFTs' median): "
+          + _kernel_parts(lambda: estimate(1), float(np.median(cf)), repeat))
     def unit(cpu: np.ndarray) -> str:      # median CPU over the bare FFTs' CPU of the same round
         return f"{np.median(cpu / least[:, 0]):.2f}x"
 
@@ -495,34 +507,64 @@ def _glue_cpu(n_ch: int, n_samples: int, nfft: int, repeat: int) -> float:
     return float(np.median(times))
 
 
-KERNEL_PARTS = {   # function (file name ending, function name) -> the part of the estimate it is
-    ("", "<built-in method scipy.fft._pocketfft.pypocketfft.r2c>"): "FFTs",
-    ("spectra.py", "_products"): "cross-spectra product",
-    ("", "<built-in method numpy._core._multiarray_umath.c_einsum>"): "auto-spectra",
-    ("", "<method 'conj' of 'numpy.ndarray' objects>"): "conjugate of the reference",
-    ("spectra.py", "sums"): "shift, window, mean removal (the block's passes)",
-    ("", "<method 'reduce' of 'numpy.ufunc' objects>"): "segment sums",
+KERNEL_PARTS = {   # numpy / scipy.fft function as modal.spectra calls it -> the part of the estimate it is
+    "fft.rfft": "FFTs",
+    "subtract": "offset shift (the record's first read)",
+    "add.reduce": "segment sums",
+    "multiply": "window",
+    "matmul": "cross-spectra product",
+    "einsum": "auto-spectra",
 }
 
 
-def _kernel_parts(fn) -> str:
-    """Own CPU time (thread time of the calling thread) of the parts of one call of ``fn`` (the Welch
-    estimate on one thread), from cProfile: the FFTs, each numpy pass, and the rest (Python, small
-    operations)."""
-    import cProfile
-    import pstats
+class _Timed:
+    """A stand-in for a module (numpy, scipy, scipy.fft) as ``modal.spectra`` sees it: every attribute
+    is the module's own, except the KERNEL_PARTS functions, which add the thread CPU of each call to
+    ``cpu`` under their part's name."""
 
-    profile = cProfile.Profile(timer=time.thread_time)
-    profile.runcall(fn)
-    stats = pstats.Stats(profile).stats
-    total = sum(v[2] for v in stats.values())
-    parts: dict[str, float] = {}
-    for (file, _, name), v in stats.items():
-        for (end, fname), part in KERNEL_PARTS.items():
-            if name == fname and file.endswith(end):
-                parts[part] = parts.get(part, 0.0) + v[2]
-    rest = total - sum(parts.values())
-    return "; ".join(f"{k} {v:.3f} s" for k, v in parts.items()) + f"; the rest {rest:.3f} s (of {total:.3f})"
+    def __init__(self, module, cpu: dict, prefix: str = "") -> None:
+        self._module, self._cpu, self._prefix = module, cpu, prefix
+
+    def __getattr__(self, name: str):
+        attr = getattr(self._module, name)
+        key = self._prefix + name
+        if key in KERNEL_PARTS:
+            def timed(*args, **kwargs):
+                t0 = time.thread_time()
+                try:
+                    return attr(*args, **kwargs)
+                finally:
+                    self._cpu[KERNEL_PARTS[key]] += time.thread_time() - t0
+            return timed
+        if any(part.startswith(key + ".") for part in KERNEL_PARTS):     # np.add -> np.add.reduce
+            return _Timed(attr, self._cpu, key + ".")
+        return attr
+
+
+def _kernel_parts(fn, unit: float, repeat: int) -> str:
+    """Median thread CPU, over ``repeat`` calls of ``fn`` (the Welch estimate on one thread), of its
+    parts: the calls of modal.spectra to the numpy and scipy.fft functions of KERNEL_PARTS timed one by
+    one (its module attributes ``np`` and ``scipy`` stood in for by _Timed while ``fn`` runs; the tiny
+    matmul of the segment sums counts with the cross-spectra), the rest (Python, the small operations
+    on a block's few lines and means, the reference's conjugate, H1 / H2 / coherence) what is left of
+    the call's thread CPU; each also in units of ``unit`` (s: the bare FFTs' CPU)."""
+    from unittest import mock
+
+    from flexmodal.modal import spectra
+
+    rounds = []
+    for _ in range(repeat):
+        cpu = dict.fromkeys(KERNEL_PARTS.values(), 0.0)
+        with mock.patch.object(spectra, "np", _Timed(np, cpu)), \
+                mock.patch.object(spectra, "scipy", _Timed(scipy, cpu)):
+            t0 = time.thread_time()
+            fn()
+            total = time.thread_time() - t0
+        rounds.append([*cpu.values(), total - sum(cpu.values()), total])
+    *values, total = np.median(np.array(rounds), axis=0)
+    parts = dict(zip([*KERNEL_PARTS.values(), "the rest"], values, strict=True))
+    return "; ".join(f"{k} {v:.3f} s ({v / unit:.2f})" for k, v in parts.items()) + (
+        f" (of {total:.3f} s, {total / unit:.2f})")
 
 
 def _read(path: str) -> np.ndarray:

@@ -100,9 +100,10 @@ def _frf(args: argparse.Namespace) -> int:
     record) and segments holding NaN rows or touching gap/corrupt events are skipped; sweep runs are
     read whole and cut into one rectangular segment per sweep (Welch, as random runs, when they hold
     lost data or --nfft/--window is given). Runs are computed
-    here, one after the other, unless the measured cost predicts that a pool of 2 local processes pays
-    for its start-up; --workers N forces N processes (0: always here), --scheduler uses an existing dask
-    cluster. Prints one 'FILE:RUN_ID' line per run written.
+    here, one after the other, and shared with a helper process forked from this one once the measured
+    cost of the runs done predicts that it pays and a CPU is idle; --workers N forces a pool of N
+    processes (0: always here), --scheduler uses an existing dask cluster. Prints one 'FILE:RUN_ID'
+    line per run written.
     """
     from flexmodal.api import compute_frfs
 

@@ -1,15 +1,17 @@
-"""Batch FRFs of many stored runs: serially, on a pool of local worker processes, or on an existing
-dask.distributed scheduler, chosen by measured cost when not asked for.  Workers stream a run from
-its (shared) path and return its FRFs; the calling process writes every result back, each file only
-once no worker reads it any more (HDF5 locks a file being written), so files are never written
-concurrently and the results are the same whichever path computed them."""
+"""Batch FRFs of many stored runs: serially, with helper processes forked from this one, on a pool of
+local worker processes, or on an existing dask.distributed scheduler, chosen by measured cost when
+not asked for.  Helpers and workers read a run from its (shared) path and return its FRFs; the
+calling process writes every result back, each file only once no unfinished job reads it any more
+(HDF5 locks a file being written), so files are never written concurrently and the results are the
+same whichever path computed them."""
 
 from __future__ import annotations
 
 import os
+import queue
 import signal
 import sys
-import time
+import threading
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
@@ -23,12 +25,12 @@ from flexmodal.modal.frf import FrfResult
 from flexmodal.modal.runs_io import write_frf
 from flexmodal.modal.spectra import usable_cpus
 
-POOL_START_S = 0.4      # CPU s a pool's start takes from the lanes: its fork server's imports
-AUTO_WORKERS = 2        # CPUs the automatic choice's pool and lane use at most
-MIN_SPEEDUP = 1.2       # go parallel only when the predicted speed-up is at least this,
-PAYS_FACTOR = 1.0       # the predicted saving at least the CPU a start-up takes,
-MIN_PARALLEL_RUNS = 4   # and at least this many runs remain
-
+AUTO_WORKERS = 2        # CPUs the automatic choice uses at most (this process and its helpers)
+FORK_S = 0.01           # wall s a helper costs this process: its fork and the pages it copies after it
+HELPER_SHARE = 0.85     # a helper's run rate over this process's (it writes every result, and the two
+                        # processes' memory-bound passes slow each other: 2 / 1.085 from the 6-11 % of
+                        # CPU two FFT threads lose; benchmarks/batch.py COST measures it, if idle)
+GAIN_FORKS = 3.0        # fork helpers only when they are predicted to save this many times FORK_S
 
 def frf_job(path: str, run_id: str, options: dict) -> FrfResult:
     """Stream one run from its file and compute its FRFs (the unit of work sent to a worker)."""
@@ -86,26 +88,44 @@ class _Deliver:
                 self.on_done(*self.jobs[j], r)
 
 
-def _serial_pays(elapsed_s: float, cpu_s: float, bytes_done: int, bytes_left: int, runs_left: int) -> bool:
-    """True while computing the rest here is predicted no worse than with a pool joining in (one lane
-    here and a process per other CPU, at most AUTO_WORKERS CPUs in all).
+def _cpu_ticks() -> tuple[int, int] | None:
+    """(all, idle) clock ticks of the machine's CPUs so far, from the first line of /proc/stat (None
+    where there is none); idle counts waiting for I/O too.  A niced process counts as busy: with
+    the kernel's autogroups (one scheduling group per session) it competes at its group's weight."""
+    try:
+        with open("/proc/stat") as f:
+            user, nice, system, idle, iowait, *rest = (int(v) for v in f.readline().split()[1:9])
+    except (OSError, ValueError):
+        return None
+    return user + nice + system + idle + iowait + sum(rest), idle + iowait
 
-    From the runs done so far (``elapsed_s`` wall, ``cpu_s`` CPU of this process, every thread):
-    the rest takes ``elapsed_s / bytes_done * bytes_left`` here; this process keeps ``cpu_s /
-    elapsed_s`` CPUs busy (its run lanes and FFT threads: less than its lanes, as the Python and
-    HDF5 parts of a run hold the GIL), the other processes of the machine take the 1-minute load
-    average less that, and a pool's speed-up is the CPUs it could use (each process keeps one busy)
-    over those this process already uses.  Parallel only for a speed-up of MIN_SPEEDUP or more
-    saving PAYS_FACTOR start-ups (the pool starts in the background, so its start costs the CPU it
-    takes from the lanes, not waiting)."""
-    cpus = usable_cpus()
-    if runs_left < MIN_PARALLEL_RUNS or cpus < 2 or bytes_done == 0 or elapsed_s <= 0:
-        return True
+
+def _idle_cpus_between(before: tuple[int, int] | None, after: tuple[int, int] | None) -> float:
+    """CPUs the machine left available between two :func:`_cpu_ticks` samples, this process's own
+    excluded (it kept one busy); 0 when unknown or less than a tick per CPU passed (in doubt, serial)."""
+    cpus = os.cpu_count() or 1
+    if before is None or after is None or after[0] - before[0] < cpus:
+        return 0.0
+    return cpus * (after[1] - before[1]) / (after[0] - before[0])
+
+
+def _helpers_pay(elapsed_s: float, bytes_done: int, bytes_left: int, runs_left: int, idle: float) -> int:
+    """Helper processes to fork for the rest of a batch (0: compute it here alone).
+
+    From the runs done here so far (``elapsed_s`` wall, computing and writing, one FFT thread): the
+    rest takes ``elapsed_s / bytes_done * bytes_left`` here.  With ``n`` helpers (one per CPU left
+    ``idle`` while this process computed, at most AUTO_WORKERS CPUs in all) it takes that over
+    ``1 + n * HELPER_SHARE`` (the measured rate of a helper against this process's, which also writes
+    every result), and never less than one run of the rest; each helper costs FORK_S.  Helpers only
+    when they save GAIN_FORKS times their forks: in doubt, serial."""
+    if runs_left < 2 or bytes_done <= 0:
+        return 0
+    n = min(AUTO_WORKERS, usable_cpus(), 1 + int(idle + 0.5)) - 1
+    if n < 1:
+        return 0
     rest = elapsed_s / bytes_done * bytes_left
-    busy = max(1.0, cpu_s / elapsed_s)
-    free = min(cpus, max(1.0, cpus - (os.getloadavg()[0] - busy)))
-    speedup = min(AUTO_WORKERS, free) / busy
-    return speedup < MIN_SPEEDUP or rest * (1 - 1 / speedup) < PAYS_FACTOR * POOL_START_S
+    gain = rest - max(rest / (1 + n * HELPER_SHARE), rest / runs_left) - n * FORK_S
+    return n if gain >= GAIN_FORKS * n * FORK_S else 0
 
 
 def run_batch(jobs: Sequence[tuple[str, str]], options: dict, *, workers: int | None = None,
@@ -113,8 +133,8 @@ def run_batch(jobs: Sequence[tuple[str, str]], options: dict, *, workers: int | 
               on_done: Callable[[str, str, FrfResult], None] | None = None) -> list[FrfResult]:
     """FRFs of every (file, run_id) job in order.  ``workers`` 0 computes here (:func:`_here`: as many
     runs at once as idle CPUs), > 0 on a pool of that many local processes, None (automatic) here,
-    with a pool joining in once the measured cost of the runs done predicts a gain from it
-    (:func:`_serial_pays`); ``scheduler`` sends every job to an existing dask cluster.
+    with helper processes forked from this one once the measured cost of the runs done predicts a
+    gain from them (:func:`_auto`); ``scheduler`` sends every job to an existing dask cluster.
     ``on_done(file, run_id, result)`` gets each result once no unfinished job reads the file it
     will be written to (``out`` if given, else its own file): that is when the caller may write it."""
     results: list[FrfResult | None] = [None] * len(jobs)
@@ -128,78 +148,252 @@ def run_batch(jobs: Sequence[tuple[str, str]], options: dict, *, workers: int | 
         _on_cluster(jobs, options, scheduler, done)
     elif workers:
         _in_pool(jobs, options, int(workers), done)
+    elif workers is None:
+        _auto(jobs, options, done)
     else:
-        _here(jobs, options, done, run_bytes(jobs) if workers is None else None)
+        _here(jobs, options, done)
     return results
 
 
-def _here(jobs, options: dict, done: Callable[[int, FrfResult], None], sizes: list[int] | None) -> None:
-    """Every job, ``done(k, result)`` for each in order, computed in this process and, when the
-    automatic choice says so, by a pool of processes joining in.
-
-    The CPUs other processes leave idle (:func:`idle_cpus`) are shared out as lanes: as many runs
-    at once as there are CPUs and runs left (threads: the reading and the FFTs release the GIL), the
-    rest as FFT threads of each run, so one long run and many short ones both keep the idle CPUs
-    busy.  With ``sizes`` (bytes of every run: the automatic choice), as soon as :func:`_serial_pays`
-    says a pool would pay for the rest, a :class:`_Pool` of one process per idle CPU but one (at most
-    AUTO_WORKERS CPUs in all) starts in the background while the lanes go on; once it runs, this
-    process keeps one lane and the pool takes every other job (two in flight per process), so its
-    start-up costs no waiting."""
+def _here(jobs, options: dict, done: Callable[[int, FrfResult], None]) -> None:
+    """Every job, ``done(k, result)`` for each in order, computed in this process: the CPUs other
+    processes leave idle (:func:`idle_cpus`) are shared out as lanes, as many runs at once as there
+    are CPUs and runs left (threads: the reading and the FFTs release the GIL), the rest as FFT
+    threads of each run, so one long run and many short ones both keep the idle CPUs busy."""
     from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 
     cpus = idle_cpus()
     lanes = max(1, min(cpus, len(jobs)))
     threads = {"workers": max(1, cpus // lanes), **options}
-    t0, c0 = time.perf_counter(), time.process_time()
-    executor = ThreadPoolExecutor(lanes, thread_name_prefix="flexmodal-run") if lanes > 1 else None
-    pool: _Pool | None = None
-    running: dict = {}               # future -> job (lanes and pool alike)
-    in_pool: set = set()             # those futures the pool computes
+    if lanes == 1:
+        for k, job in enumerate(jobs):
+            done(k, frf_job(*job, threads))
+        return
+    executor = ThreadPoolExecutor(lanes, thread_name_prefix="flexmodal-run")
+    running: dict = {}               # future -> job
     held: dict[int, FrfResult] = {}  # results waiting for those of earlier jobs
-    submitted = delivered = bytes_done = 0
-    interrupted = False
+    submitted = delivered = 0
     try:
         while delivered < len(jobs):
-            if pool is None and sizes and executor and bytes_done and not _serial_pays(
-                    time.perf_counter() - t0, time.process_time() - c0, bytes_done, sum(sizes[submitted:]),
-                    len(jobs) - submitted):
-                pool = _Pool(max(1, min(AUTO_WORKERS, cpus) - 1), options, background=True)
-            joined = pool is not None and pool.ready.done() and pool.ready.exception() is None
-            while submitted < len(jobs):
-                if joined and len(in_pool) < 2 * pool.workers:
-                    fut = pool.submit(jobs[submitted])
-                    in_pool.add(fut)
-                elif len(running) - len(in_pool) < (1 if joined else lanes):
-                    fut = executor.submit(frf_job, *jobs[submitted], threads) if executor else None
-                else:
-                    break
-                running[fut] = submitted
+            while submitted < len(jobs) and len(running) < lanes:
+                running[executor.submit(frf_job, *jobs[submitted], threads)] = submitted
                 submitted += 1
-            if executor is None:     # one lane: computed right here
-                k = running.pop(None)
-                held[k] = frf_job(*jobs[k], threads)
-            else:
-                waits = set(running) | ({pool.ready} if pool is not None and not pool.ready.done() else set())
-                finished, _ = wait(waits, return_when=FIRST_COMPLETED)
-                for fut in finished & running.keys():
-                    k = running.pop(fut)
-                    if fut in in_pool:
-                        in_pool.discard(fut)
-                        if fut.exception() is not None:
-                            raise _failed(jobs[k], fut.exception())
-                    held[k] = fut.result()
-                    bytes_done += sizes[k] if sizes is not None else 0
+            finished, _ = wait(running, return_when=FIRST_COMPLETED)
+            for fut in finished:
+                held[running.pop(fut)] = fut.result()
             while delivered in held:
                 done(delivered, held.pop(delivered))
                 delivered += 1
-    except KeyboardInterrupt:
-        interrupted = True
-        raise
-    finally:   # a pool that never joined in (the lanes were done first) is not waited for
-        if pool is not None:
-            pool.close(kill=interrupted or not pool.ready.done())
-        if executor is not None:
-            executor.shutdown(wait=not running, cancel_futures=True)
+    finally:   # Ctrl-C or a failure: the runs still running are not waited for
+        executor.shutdown(wait=not running, cancel_futures=True)
+
+
+def _auto(jobs, options: dict, done: Callable[[int, FrfResult], None]) -> None:
+    """Every job, ``done(k, result)`` for each in order: computed here one after the other (a lone run
+    with the idle CPUs as FFT threads, else one), and, once :func:`_helpers_pay` says so from the runs
+    done and the CPUs left idle meanwhile, shared with :class:`_Helpers` forked from this process.
+    Helpers are forked between two runs, when this process runs no other thread (the run's reader
+    thread has ended; a process with threads of its own stays serial: a thread's lock held at the
+    fork would stay held in the helper): they start at once, with everything imported."""
+    import time
+
+    one = {**options, "workers": idle_cpus() if len(jobs) == 1 else 1}
+    sizes = run_bytes(jobs) if len(jobs) > 1 else []
+    t0, ticks = time.perf_counter(), _cpu_ticks()
+    for k, job in enumerate(jobs):
+        done(k, frf_job(*job, one))
+        if k + 1 < len(jobs) and _forkable():
+            n = _helpers_pay(time.perf_counter() - t0, sum(sizes[:k + 1]), sum(sizes[k + 1:]),
+                             len(jobs) - k - 1, _idle_cpus_between(ticks, _cpu_ticks()))
+            if n:
+                _Helpers(n, jobs, k + 1, one).share(done)
+                return
+
+
+def _forkable() -> bool:
+    """Whether helpers may be forked now: the platform has fork and this process runs no other thread
+    (a lock another thread holds at the fork stays held in the helper)."""
+    return hasattr(os, "fork") and threading.active_count() == 1
+
+
+def _one_cpu_each(processes: int) -> list[int] | None:
+    """The CPUs to pin this process and its helpers to, one each, when they are all the CPUs it may
+    use (else None: the kernel places them).  A process pinned to one CPU keeps its run's reader
+    thread on the CPU of its FFTs; unpinned, that thread takes the other CPU in turns, and the same
+    runs took 5-8 % more CPU in all (measured with `frf` on 100 runs of 60 s, under load 10: serial
+    unpinned against pinned, and with a helper, pinned against not), time the other process then
+    waits for."""
+    if not hasattr(os, "sched_setaffinity"):
+        return None
+    cpus = sorted(os.sched_getaffinity(0))
+    return cpus if len(cpus) == processes else None
+
+
+class _Helpers:
+    """``n`` processes forked from this one that share the jobs from ``first`` on with it: each takes
+    the next job not yet taken (so the runs are shared by speed, and this process, which also writes
+    every result, takes fewer), reads it from its file and sends its FRFs back through a pipe.
+
+    A thread per helper here receives its results and hands it its next job as soon as one arrives
+    (the helper waits only for the hand-over); results are written in run order by the caller, a
+    failure raised when its run's turn comes (as serially: every earlier run is written first).  When
+    the processes are as many as the CPUs this one may use, each is pinned to one of them while they
+    share the runs (:func:`_one_cpu_each`; this process's CPU mask is restored after).  A helper
+    starts with SIGINT blocked, ignores it, and asks the kernel to end it with this process; Ctrl-C
+    or a failure here ends the helpers (SIGTERM) before this process goes on, and a job whose helper
+    died is computed here."""
+
+    def __init__(self, n: int, jobs, first: int, options: dict) -> None:
+        self.jobs, self.options, self.first, self.next = jobs, options, first, first
+        self.lock = threading.Lock()
+        self.replies: queue.SimpleQueue = queue.SimpleQueue()
+        self.helpers: list[tuple[int, object, object]] = []    # (pid, jobs to it, results from it)
+        parent = os.getpid()
+        self.cpus = _one_cpu_each(n + 1)
+        try:
+            for i in range(n):
+                if not self._fork(i, parent):
+                    break
+        except BaseException:   # Ctrl-C (delivered once SIGINT is unblocked): end those forked
+            self.close(kill=True)
+            raise
+        for _, to_helper, from_helper in self.helpers:
+            threading.Thread(target=self._relay, args=(to_helper, from_helper), name="flexmodal-helper",
+                             daemon=True).start()
+
+    def _fork(self, i: int, parent: int) -> bool:
+        """Fork helper ``i`` (False: the system has no process left for it)."""
+        from multiprocessing.connection import Pipe
+
+        inbox, to_helper = Pipe(duplex=False)
+        from_helper, outbox = Pipe(duplex=False)
+        with ctrl_c_blocked():          # the helper starts deaf to Ctrl-C
+            try:
+                pid = os.fork()
+            except OSError:
+                for conn in (inbox, outbox, to_helper, from_helper):
+                    conn.close()
+                return False
+            if pid == 0:                # the helper: it never returns into the caller's frames
+                code = 1
+                try:
+                    leave_ctrl_c_to_parent()
+                    _end_with_parent(parent)
+                    if self.cpus:
+                        os.sched_setaffinity(0, {self.cpus[i + 1]})
+                    for conn in (to_helper, from_helper, *(c for h in self.helpers for c in h[1:])):
+                        conn.close()
+                    _serve(self.jobs, self.options, inbox, outbox)
+                    code = 0
+                finally:
+                    os._exit(code)
+            self.helpers.append((pid, to_helper, from_helper))   # before a Ctrl-C can come
+        inbox.close()
+        outbox.close()
+        return True
+
+    def take(self) -> int | None:
+        """The next job not yet taken (None: none left)."""
+        with self.lock:
+            if self.next >= len(self.jobs):
+                return None
+            self.next += 1
+            return self.next - 1
+
+    def _relay(self, to_helper, from_helper) -> None:
+        """Hand one helper its jobs and queue its replies (k, result, error); a helper that ended
+        with a job queues (k, None, None): computed here."""
+        k = self.take()
+        try:
+            while k is not None:
+                try:
+                    to_helper.send(k)
+                    reply = from_helper.recv()
+                except (EOFError, OSError):
+                    self.replies.put((k, None, None))
+                    return
+                except Exception as exc:  # noqa: BLE001 - a reply that cannot be unpickled here
+                    reply = (k, None, _failed(self.jobs[k], exc))
+                k = self.take()
+                self.replies.put(reply)
+        finally:
+            to_helper.close()   # the helper ends on end of file
+            from_helper.close()
+
+    def share(self, done: Callable[[int, FrfResult], None]) -> None:
+        """Compute here the jobs the helpers leave, ``done(k, result)`` for every job from the first
+        in order; the helpers are ended (on Ctrl-C or a failure) or waited for on the way out."""
+        held: dict[int, tuple] = {}
+        delivered = self.first
+        ended = False
+        mask = os.sched_getaffinity(0) if self.cpus else None
+        try:
+            if self.cpus:
+                os.sched_setaffinity(0, {self.cpus[0]})
+            while delivered < len(self.jobs):
+                k = self.take()
+                if k is not None:
+                    held[k] = self._here(k)
+                while (reply := self._reply(block=k is None and delivered not in held)) is not None:
+                    held[reply[0]] = reply[1:] if reply[1] is not None or reply[2] is not None \
+                        else self._here(reply[0])
+                while delivered in held:
+                    result, error = held.pop(delivered)
+                    if error is not None:
+                        raise error
+                    done(delivered, result)
+                    delivered += 1
+            ended = True
+        finally:
+            if mask:
+                os.sched_setaffinity(0, mask)
+            self.close(kill=not ended)
+
+    def _here(self, k: int) -> tuple:
+        try:
+            return frf_job(*self.jobs[k], self.options), None
+        except Exception as exc:  # noqa: BLE001 - raised in run order, as serially
+            return None, exc
+
+    def _reply(self, block: bool) -> tuple | None:
+        try:
+            return self.replies.get(block=block)
+        except queue.Empty:
+            return None
+
+    def close(self, kill: bool) -> None:
+        """Wait for the helpers to end (they do once no job is left); with ``kill``, end them now."""
+        for pid, _, _ in self.helpers:
+            if kill:
+                try:
+                    os.kill(pid, signal.SIGTERM)
+                except ProcessLookupError:
+                    pass
+        for pid, _, _ in self.helpers:
+            try:
+                os.waitpid(pid, 0)
+            except ChildProcessError:   # reaped already (SIGCHLD ignored by the calling program)
+                pass
+
+
+def _serve(jobs, options: dict, inbox, outbox) -> None:
+    """A helper's loop: compute each job whose index comes through ``inbox`` and send (k, result,
+    error) through ``outbox``, until end of file."""
+    while True:
+        try:
+            k = inbox.recv()
+        except EOFError:
+            return
+        try:
+            reply = (k, frf_job(*jobs[k], options), None)
+        except Exception as exc:  # noqa: BLE001 - sent, raised by the caller in run order
+            reply = (k, None, exc)
+        try:
+            outbox.send(reply)
+        except OSError:          # the caller is gone
+            return
+        except Exception as exc:  # noqa: BLE001 - a failure that cannot be pickled: its message
+            outbox.send((k, None, _failed(jobs[k], exc if reply[2] is None else reply[2])))
 
 
 def _failed(job: tuple[str, str], exc: BaseException) -> ModalError:
@@ -207,11 +401,12 @@ def _failed(job: tuple[str, str], exc: BaseException) -> ModalError:
     return exc if isinstance(exc, ModalError) else ModalError(f"{job[0]}:{job[1]}: {exc}")
 
 
-def _end_with_parent() -> None:
-    """On Linux, have the kernel send this worker SIGTERM when its parent (the fork server) ends, so
-    that a worker started while Ctrl-C ends the command cannot outlive it; leave at once if the parent
-    is already gone (the worker then belongs to init)."""
-    parent = os.getppid()
+def _end_with_parent(parent: int | None = None) -> None:
+    """On Linux, have the kernel send this worker SIGTERM when its parent (the fork server, or the
+    process ``parent`` that forked this helper) ends, so that a worker started while Ctrl-C ends the
+    command cannot outlive it; leave at once if the parent is already gone (the worker then belongs
+    to init)."""
+    parent = os.getppid() if parent is None else parent
     try:
         import ctypes
 
@@ -244,19 +439,16 @@ class _Pool:
     """``workers`` local processes for :func:`frf_job`, from a fork server that has imported only this
     module (no threads or open files of the caller are inherited), one FFT thread each.  Each reports
     its process id at start; :meth:`close` with ``kill`` ends them at once (SIGTERM), without the
-    private process table of the executor.  ``background`` starts the processes in a thread of this
-    process (the fork server's imports take 0.3-1 s) and completes :attr:`ready` once they run, so the
-    caller keeps computing meanwhile.
+    private process table of the executor.
 
     The fork server is started (when none runs yet) with SIGINT blocked (:func:`ctrl_c_blocked`):
     it and every worker it forks start deaf to a terminal's Ctrl-C, through the interpreter's start,
     the fork server's imports and the worker's start, until the worker ignores it
     (:func:`_start_worker`); the caller alone answers it."""
 
-    def __init__(self, workers: int, options: dict, background: bool = False) -> None:
+    def __init__(self, workers: int, options: dict) -> None:
         import multiprocessing
-        import threading
-        from concurrent.futures import Future, ProcessPoolExecutor
+        from concurrent.futures import ProcessPoolExecutor
         from multiprocessing import forkserver, resource_tracker
 
         context = multiprocessing.get_context("forkserver")
@@ -269,24 +461,6 @@ class _Pool:
         self.pids = context.SimpleQueue()
         self.executor = ProcessPoolExecutor(workers, mp_context=context, initializer=_start_worker,
                                             initargs=(self.pids,))
-        self.ready: Future = Future()
-        self._lock = threading.Lock()
-        self._abandoned = False
-        if background:   # not a daemon: the interpreter's exit waits for it to end what it started
-            threading.Thread(target=self._start, name="flexmodal-pool-start").start()
-        else:
-            self.ready.set_result(True)
-
-    def _start(self) -> None:
-        try:   # one trivial task per process: each is spawned (and has started) when its task returns
-            for fut in [self.executor.submit(os.getpid) for _ in range(self.workers)]:
-                fut.result()
-            self.ready.set_result(True)
-        except BaseException as exc:  # noqa: BLE001 - a pool that cannot start: handed to the caller
-            self.ready.set_exception(exc)
-        with self._lock:
-            if self._abandoned:     # closed while starting: ended here, once the executor is free
-                self._end(kill=True)
 
     def submit(self, job: tuple[str, str]):
         """Future of the FRFs of one (file, run_id) job (absolute path: the fork server keeps its own
@@ -294,28 +468,13 @@ class _Pool:
         return self.executor.submit(frf_job, str(Path(job[0]).resolve()), job[1], self.options)
 
     def close(self, kill: bool) -> None:
-        """Shut the pool down; with ``kill`` (Ctrl-C, or a pool no longer needed) end its processes
-        now, not after their jobs.  A pool still starting in the background is never waited for (the
-        executor is busy spawning): the processes started so far are ended now, the others by the
-        starting thread once spawned (the interpreter's exit waits for that thread: a process spawned
-        after this one's exit had removed the executor's semaphores would print a traceback)."""
-        with self._lock:
-            if not self.ready.done():
-                self._abandoned = True
-                self._kill()
-                return
-        self._end(kill)
-
-    def _kill(self) -> None:
-        while not self.pids.empty():
-            try:
-                os.kill(self.pids.get(), signal.SIGTERM)
-            except ProcessLookupError:   # ended already
-                pass
-
-    def _end(self, kill: bool) -> None:
+        """Shut the pool down; with ``kill`` (Ctrl-C) end its processes now, not after their jobs."""
         if kill:
-            self._kill()
+            while not self.pids.empty():
+                try:
+                    os.kill(self.pids.get(), signal.SIGTERM)
+                except ProcessLookupError:   # ended already
+                    pass
         self.executor.shutdown(wait=not kill, cancel_futures=True)
 
 
@@ -419,13 +578,15 @@ def _check_out_runs(out: str | Path, jobs: Sequence[tuple[str, str]]) -> None:
 
 @contextmanager
 def _progress(total: int, quiet: bool) -> Iterator[Callable[[], None]]:
-    """A transient progress bar on stderr (rich, imported only when shown); yields its advance."""
+    """A transient progress bar on stderr (rich, imported only when shown); yields its advance.  It is
+    redrawn at each run written, not by a thread of its own, so that helper processes can be forked
+    while it shows (:func:`_auto`)."""
     if quiet:
         yield lambda: None
         return
     from rich.console import Console
     from rich.progress import Progress
 
-    with Progress(transient=True, console=Console(file=sys.stderr)) as bar:
+    with Progress(transient=True, console=Console(file=sys.stderr), auto_refresh=False) as bar:
         task = bar.add_task("FRFs", total=total)
-        yield lambda: bar.advance(task)
+        yield lambda: bar.update(task, advance=1, refresh=True)

@@ -21,6 +21,7 @@ import contextlib
 import os
 import signal
 import subprocess
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -144,11 +145,12 @@ class Interrupted:
 
 
 def _interrupt_at(args: list[str], cwd: Path, stage: Stage, target: int, step_s: float,
-                  whole_group: bool = True) -> Interrupted | None:
-    """Run ``flexmodal --quiet ARGS`` in a process group of its own, in steps of ``step_s``, until
-    ``stage`` reaches ``target``; then SIGINT (to the whole group, as a terminal's Ctrl-C, or to the
-    command only) and let it go on.  None when a step went past ``target`` (try a finer step)."""
-    proc = subprocess.Popen([EXE, "--quiet", *args], cwd=cwd, stdout=subprocess.DEVNULL,
+                  whole_group: bool = True, command: tuple[str, ...] = (EXE,)) -> Interrupted | None:
+    """Run ``flexmodal --quiet ARGS`` (or ``command --quiet ARGS``) in a process group of its own, in
+    steps of ``step_s``, until ``stage`` reaches ``target``; then SIGINT (to the whole group, as a
+    terminal's Ctrl-C, or to the command only) and let it go on.  None when a step went past
+    ``target`` (try a finer step)."""
+    proc = subprocess.Popen([*command, "--quiet", *args], cwd=cwd, stdout=subprocess.DEVNULL,
                             stderr=subprocess.PIPE, stdin=subprocess.DEVNULL, text=True,
                             start_new_session=True)
     group = Group(proc.pid)
@@ -180,10 +182,10 @@ def _interrupt_at(args: list[str], cwd: Path, stage: Stage, target: int, step_s:
         proc.stderr.close()
 
 
-def _interrupt(args: list[str], cwd: Path, stage: Stage, target: int, whole_group: bool = True
-               ) -> Interrupted:
+def _interrupt(args: list[str], cwd: Path, stage: Stage, target: int, whole_group: bool = True,
+               command: tuple[str, ...] = (EXE,)) -> Interrupted:
     for step_s in (0.002, 0.001, 0.0005, 0.0002, 0.0001):
-        done = _interrupt_at(args, cwd, stage, target, step_s, whole_group)
+        done = _interrupt_at(args, cwd, stage, target, step_s, whole_group, command)
         if done is not None:
             return done
     raise AssertionError(f"every step went past stage {target}, the finest {step_s} s")
@@ -290,6 +292,38 @@ def test_ctrl_c_to_the_command_only_while_the_fork_server_imports(runs, tmp_path
                       whole_group=False)
     _check(done)
     assert not (tmp_path / "frf.h5").exists()
+
+
+def _helper_stage(pid: int, members: list[Member]) -> int:
+    """How far the automatic choice's helper has come (0-2): none yet, forked, computing (0.05 s of CPU:
+    it ignores SIGINT long before)."""
+    helpers = [m for m in members if m.ppid == pid]
+    return 0 if not helpers else 2 if helpers[0].cpu_s >= 0.05 else 1
+
+
+# `flexmodal` whose automatic choice sees an idle CPU whatever the machine's load (so it forks a helper)
+IDLE_CPU = (sys.executable, "-c", "import sys; from flexmodal.modal import batch; "
+            "batch._idle_cpus_between = lambda before, after: 1.0; "
+            "from flexmodal.app import main; sys.exit(main(sys.argv[1:]))")
+
+
+@pytest.mark.timeout(900)
+def test_ctrl_c_while_the_automatic_choices_helper_computes(runs, tmp_path):
+    """The default `frf` with a helper forked from it (started with SIGINT blocked, then ignoring it):
+    a terminal's Ctrl-C is answered by the command alone, the helper is ended and waited for, and the
+    runs written before are whole."""
+    out = tmp_path / "frf.h5"
+    done = _interrupt(["frf", str(runs), "--out", str(out)], tmp_path, _helper_stage, 2, command=IDLE_CPU)
+    _check(done)
+    pids = {m.pid for m in done.seen}
+    assert [m.ignores_sigint for m in done.seen if m.ppid in pids] == [True]   # the one helper
+    if out.exists():
+        from flexmodal.modal.runs_io import read_frf
+
+        with h5py.File(out, "r") as f:
+            written = list(f["runs"]) if "runs" in f else []
+        for rid in written:
+            assert read_frf(out, rid).H.shape[:2] == (2, 1)
 
 
 @pytest.mark.timeout(900)

@@ -4,6 +4,7 @@ workers started with the `dask` CLI on 127.0.0.1 give FRFs identical to the seri
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import time
@@ -59,33 +60,39 @@ def test_default_frf_on_the_demo_runs_file_writes_every_run_serially(tmp_path, c
             assert frf.provenance["segments_skipped"] == 0 and frf.n_averages >= 8
 
 
-def test_cost_rule_goes_parallel_only_when_free_cpus_make_it_pay(monkeypatch):
-    """1 s of wall for the first GB; the pool's predicted speed-up is the CPUs it can use (CPUs
-    less the other processes' load) over the CPUs the serial path already keeps busy."""
-    monkeypatch.setattr(batch, "usable_cpus", lambda: 4)
-    monkeypatch.setattr(batch.os, "getloadavg", lambda: (1.0, 1.0, 1.0))    # only this process
-    gb = 1 << 30
-    # one busy CPU, 2 workers: speed-up 2, 100 s left saves 50 s > 3 start-ups: parallel
-    assert batch._serial_pays(1.0, 1.0, gb, 100 * gb, 100) is False
-    # 0.5 s left saves 0.25 s < the CPU a start-up of the pool takes (0.4 s): serial
-    assert batch._serial_pays(1.0, 1.0, gb, gb // 2, 10) is True
-    assert batch._serial_pays(1.0, 1.0, gb, 100 * gb, 3) is True           # too few runs left
-    # the serial path already keeps 2 CPUs busy (its FFT threads): a 2-process pool gains nothing
-    monkeypatch.setattr(batch.os, "getloadavg", lambda: (2.0, 2.0, 2.0))
-    assert batch._serial_pays(1.0, 2.0, gb, 100 * gb, 100) is True
-    # benchmarks/batch.py's runs of 60 s (21 MB, 0.035 s of CPU each) on 2 idle CPUs, the first two
-    # done by two lanes here keeping 1.4 CPUs busy (the GIL): processes would gain 1.43x; with 98
-    # runs left that saves 0.74 s > 0.4 s, parallel; with 6 left 0.05 s, serial
+def test_cost_rule_forks_helpers_only_where_idle_cpus_make_them_pay(monkeypatch):
+    """The rest of a batch predicted from the runs done here (wall per byte); a helper per CPU left
+    idle (at most AUTO_WORKERS CPUs in all) runs at HELPER_SHARE of this process's rate and costs
+    FORK_S; helpers only for a gain of GAIN_FORKS forks."""
     monkeypatch.setattr(batch, "usable_cpus", lambda: 2)
-    monkeypatch.setattr(batch.os, "getloadavg", lambda: (1.4, 1.4, 1.4))
-    run = 21 * 10 ** 6
-    assert batch._serial_pays(0.05, 0.07, 2 * run, 98 * run, 98) is False
-    assert batch._serial_pays(0.05, 0.07, 2 * run, 6 * run, 6) is True
-    # a loaded machine (load 10 on 2 CPUs, as measured here): no free CPU, serial
-    monkeypatch.setattr(batch.os, "getloadavg", lambda: (10.0, 10.0, 10.0))
-    assert batch._serial_pays(1.0, 0.3, gb, 100 * gb, 100) is True
+    run = 21 * 10 ** 6             # benchmarks/batch.py's runs of 60 s: 21 MB, 0.035 s each here
+    # 8 runs, one done, 7 left (0.245 s): a helper saves 0.245 (1 - 1 / 1.85) - 0.01 = 0.10 s > 0.03 s
+    assert batch._helpers_pay(0.035, run, 7 * run, 7, idle=1.0) == 1
+    # 3 runs left save 0.105 - 0.057 - 0.01 = 0.038 s; 2 left 0.070 - 0.038 - 0.01 = 0.022 s < 3 forks;
+    # 1 left: nothing to share
+    assert batch._helpers_pay(0.035, run, 3 * run, 3, idle=1.0) == 1
+    assert batch._helpers_pay(0.035, run, 2 * run, 2, idle=1.0) == 0
+    assert batch._helpers_pay(0.035, run, run, 1, idle=1.0) == 0
+    # tiny runs (the demo's: 3 ms each): 9 left save 0.012 s < 3 forks
+    assert batch._helpers_pay(0.003, run, 9 * run, 9, idle=1.0) == 0
+    # no CPU left idle while this process computed (the other one busy, or unknown): serial
+    assert batch._helpers_pay(0.035, run, 99 * run, 99, idle=0.4) == 0
+    assert batch._helpers_pay(0.035, run, 99 * run, 99, idle=0.0) == 0
+    # more idle CPUs than AUTO_WORKERS allows: one helper; one usable CPU: none
+    monkeypatch.setattr(batch, "usable_cpus", lambda: 8)
+    assert batch._helpers_pay(0.035, run, 99 * run, 99, idle=7.0) == batch.AUTO_WORKERS - 1
     monkeypatch.setattr(batch, "usable_cpus", lambda: 1)
-    assert batch._serial_pays(1.0, 1.0, gb, 100 * gb, 100) is True         # one CPU: never
+    assert batch._helpers_pay(0.035, run, 99 * run, 99, idle=1.0) == 0
+
+
+def test_idle_cpus_are_the_available_ticks_between_two_samples(monkeypatch):
+    """/proc/stat's ticks: idle and I/O wait are available; under a tick per CPU is unknown (0: serial)."""
+    monkeypatch.setattr(batch.os, "cpu_count", lambda: 2)
+    assert batch._idle_cpus_between((1000, 300), (1100, 350)) == 1.0
+    assert batch._idle_cpus_between((1000, 300), (1001, 301)) == 0.0
+    assert batch._idle_cpus_between(None, (1100, 350)) == 0.0
+    total, available = batch._cpu_ticks()
+    assert total >= available >= 0
 
 
 def test_serial_fft_threads_are_the_cpus_other_processes_leave_idle(monkeypatch):
@@ -162,41 +169,89 @@ def test_serial_path_runs_as_many_runs_at_once_as_idle_cpus_with_the_same_result
     assert [w for _, w in seen] == [2]
 
 
-def test_automatic_choice_has_a_pool_join_the_lanes_with_the_same_results(tmp_path, monkeypatch):
-    """Automatic choice, 2 idle CPUs, the cost rule saying a pool pays: the pool starts in the
-    background while this process computes, then takes jobs beside one lane here; every result is
-    delivered in order and equals the serial one bit for bit.  (The lanes here wait for the pool to
-    run before their first job, so the pool surely takes part, however slowly it starts.)"""
-    files = [str(_runs_file(tmp_path / f"f{j}.h5", ["r0", "r1", "r2"], n=4096)) for j in range(2)]
+def _spy_processes(monkeypatch, log: Path) -> None:
+    """Have every run computed append the id of the process computing it to ``log`` (helpers are forked
+    from this process, so they compute through the same patched function).  This process computes its
+    first run, then waits for a helper to have started one (so one surely takes part, however slowly
+    it starts)."""
+    real, here = batch.compute_frf, os.getpid()
+
+    def compute(run, **options):
+        with log.open("a") as f:
+            f.write(f"{os.getpid()} {run.run_id}\n")
+        deadline = time.monotonic() + 600      # a hang guard: a forked process starts at once
+        while os.getpid() == here and len(log.read_text().splitlines()) > 1 and \
+                {line.split()[0] for line in log.read_text().splitlines()} == {str(here)}:
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        return real(run, **options)
+
+    monkeypatch.setattr(batch, "compute_frf", compute)
+
+
+def _helpers_ended(log: Path) -> bool:
+    """Whether every process but this one that computed a run (a helper) has ended and been waited for."""
+    helpers = {int(line.split()[0]) for line in log.read_text().splitlines()} - {os.getpid()}
+    for pid in helpers:
+        try:
+            os.waitpid(pid, os.WNOHANG)
+            return False
+        except ChildProcessError:     # waited for already
+            pass
+    return bool(helpers)
+
+
+def test_automatic_choice_forks_a_helper_with_the_same_results_in_order(tmp_path, monkeypatch):
+    """Automatic choice, the cost rule saying a helper pays: after the first run here, a process forked
+    from this one takes runs too; every result is delivered in run order and equals the serial one bit
+    for bit; the helper has ended when the batch returns."""
+    files = [str(_runs_file(tmp_path / f"f{j}.h5", ["r0", "r1", "r2"], n=4096)) for j in range(3)]
     jobs = expand_runs(files)
     serial = batch.run_batch(jobs, {"nfft": 256}, workers=0)
-    pools, here = [], []
-    real_pool, real_compute = batch._Pool, batch.compute_frf
-
-    def pool(*args, **kwargs):
-        pools.append(real_pool(*args, **kwargs))
-        return pools[-1]
-
-    def compute(run, **options):             # the lanes of this process only (workers import their own)
-        here.append(run.run_id)
-        if len(here) > 1:                     # the first job measures the cost; the others wait for the pool
-            deadline = time.monotonic() + 600  # hang guards: a pool's process starts in minutes at load 40
-            while not pools:                  # made once the first job is done
-                assert time.monotonic() < deadline
-                time.sleep(0.01)
-            assert pools[0].ready.result(timeout=600)
-        return real_compute(run, **options)
-
-    monkeypatch.setattr(batch, "idle_cpus", lambda: 2)
-    monkeypatch.setattr(batch, "_serial_pays", lambda *args: False)
-    monkeypatch.setattr(batch, "_Pool", pool)
-    monkeypatch.setattr(batch, "compute_frf", compute)
+    monkeypatch.setattr(batch, "_helpers_pay", lambda *args: 1)
+    monkeypatch.setattr(batch, "_forkable", lambda: True)      # whatever threads earlier tests left
+    log = tmp_path / "pids.txt"
+    _spy_processes(monkeypatch, log)
     written = []
+    mask = os.sched_getaffinity(0)
     auto = batch.run_batch(jobs, {"nfft": 256}, on_done=lambda p, r, res: written.append((p, r)))
-    assert len(pools) == 1 and pools[0].workers == 1 and len(here) < len(jobs)   # the rest in the pool
+    assert os.sched_getaffinity(0) == mask      # pinned while sharing the runs (2 CPUs), then restored
+    pids = [int(line.split()[0]) for line in log.read_text().splitlines()]
+    assert len(pids) == len(jobs) and pids[0] == os.getpid() and len(set(pids)) == 2
     assert written == [(p, r) for p, r in jobs]
     for a, b in zip(serial, auto, strict=True):
         assert np.array_equal(a.H, b.H) and np.array_equal(a.coherence, b.coherence)
+        assert a.provenance == b.provenance
+    assert _helpers_ended(log)
+
+
+def test_a_helper_failure_is_raised_in_run_order_and_ctrl_c_ends_the_helper(tmp_path, monkeypatch):
+    """A run that fails (here: shorter than one segment) raises its own error once every run before it
+    has been delivered (into ``out``: at once), whichever process computed it; a KeyboardInterrupt in
+    the caller (raised from its callback) ends the helper before it propagates."""
+    path = tmp_path / "f.h5"
+    _runs_file(path, ["r0", "r1", "r2", "r3"], n=4096)
+    _runs_file(path, ["r4"], n=1024)
+    _runs_file(path, ["r5", "r6"], n=4096)
+    jobs = expand_runs([path])
+    monkeypatch.setattr(batch, "_helpers_pay", lambda *args: 1)
+    monkeypatch.setattr(batch, "_forkable", lambda: True)      # whatever threads earlier tests left
+    _spy_processes(monkeypatch, tmp_path / "pids.txt")
+    got = []
+    with pytest.raises(ModalError, match=r"r4.*record of 1024 samples is shorter than one segment"):
+        batch.run_batch(jobs, {"nfft": 2048}, on_done=lambda p, r, res: got.append(r),
+                        out=str(tmp_path / "out.h5"))
+    assert got == ["r0", "r1", "r2", "r3"] and _helpers_ended(tmp_path / "pids.txt")
+    _spy_processes(monkeypatch, tmp_path / "pids2.txt")
+
+    def interrupt(p, r, res):             # the third run delivered: the helper has been forked
+        got.append(r)
+        if len(got) > 6:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        batch.run_batch(jobs[:4] * 3, {"nfft": 256}, on_done=interrupt, out=str(tmp_path / "out.h5"))
+    assert _helpers_ended(tmp_path / "pids2.txt")
 
 
 def _start(args: list[str], log: Path) -> subprocess.Popen:

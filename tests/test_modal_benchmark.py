@@ -34,6 +34,8 @@ def test_benchmark_script_runs_and_reports_ratios_and_differences(capsys, tmp_pa
     assert "a spinning process in our session, nice 19" in out
     assert "fair scheduling gives 2 threads at most 1.33 CPUs" in out and "on 2 CPUs with nobody else" in out
     assert "where the CPU of 1 thread goes" in out and "FFTs " in out and "cross-spectra product " in out
+    assert "offset shift (the record's first read) " in out and "the rest " in out
+    assert "scipy.fft on top of them" in out and "flexmodal's own modules" in out
     assert "the least any numpy/scipy estimate does" in out and "the Python glue (holds the GIL)" in out
     assert "the FFTs from the record " in out and ", the cross-spectra " in out
     assert "two idle cores bound 2 / 1 at " in out
@@ -59,6 +61,7 @@ def test_batch_benchmark_reports_every_case_against_serial(capsys, tmp_path):
     assert "--workers 0 / this = 1.00x" in out
     assert "--workers 2 (pool)" in out and "default (by cost)" in out and "POOL start-up" in out
     assert "COST one run of 1 s" in out and "caller's CPU per task" in out
-    assert "pool start (fork server" in out
+    assert "pool start (fork server" in out and "a helper's fork" in out and "runs with one helper" in out
+    assert "ACCEPTANCE default against serial on 1 CPU: 4 runs" in out
     assert out.count("CPUs busy") == 4 and "CPUs busy pool workers not counted" in out
     assert list(tmp_path.iterdir()) == []
