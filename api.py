@@ -404,6 +404,11 @@ def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: 
     """
     from flexmodal.modal.batch import frf_batch
 
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, numbers.Integral)
+                                or workers < 0):
+        raise TypeError(f"workers must be None or a whole number >= 0 (got {workers!r})")
+    if workers:
+        _check_workers(int(workers))
     if out is not None:
         from flexmodal.checked_io.output import hdf5_output
         from flexmodal.modal.errors import ModalError
@@ -492,6 +497,26 @@ class Identification:
             modes, outputs = next(iter(modes_by_config.values()))
             write_modes(uff, modes.freq_hz, modes.damping_ratio, modes.shapes, outputs)
         return Path(out)
+
+
+WORKER_BYTES = 250 << 20   # memory of one pool worker: its interpreter, numpy/scipy/h5py and a run's blocks
+WORKERS_PER_CPU = 4        # processes beyond this per usable CPU only wait for one (the FFTs are CPU-bound)
+
+
+def _check_workers(workers: int) -> None:
+    """ModalError when ``workers`` pool processes exceed what this machine can run: more than
+    :data:`WORKERS_PER_CPU` per usable CPU, or more than the available memory holds at
+    :data:`WORKER_BYTES` each (256 workers on 2 CPUs started 256 interpreters, 20+ GB)."""
+    from flexmodal.checked_io.text import available_memory_bytes
+    from flexmodal.modal.errors import ModalError
+    from flexmodal.modal.spectra import usable_cpus
+
+    cpus, room = usable_cpus(), available_memory_bytes()
+    most = max(1, min(WORKERS_PER_CPU * cpus, room // WORKER_BYTES))
+    if workers > most:
+        raise ModalError(f"--workers {workers}: more worker processes than this machine can run "
+                         f"(at most {most}: {cpus} usable CPUs, {room / 2**30:.1f} GiB of memory available, "
+                         f"about {WORKER_BYTES >> 20} MiB per worker)")
 
 
 def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: float | None = None,
