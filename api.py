@@ -390,6 +390,10 @@ def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: 
     helpers of ``workers`` None are forked from this process and have them.  A program running
     threads of its own gets no helpers (a lock held by one of them at a fork would stay held).
 
+    References
+    ----------
+    J. S. Bendat and A. G. Piersol, *Random Data*, 4th ed., Wiley, 2010, ch. 9 (H1, H2).
+
     Examples
     --------
     >>> import tempfile
@@ -435,6 +439,10 @@ class Identification:
         """``config: message`` for every warning met on the way."""
         return [f"{c}: {w}" for c, m in self.modes.items() for w in m.warnings]
 
+    def warning_summary(self) -> list[str]:
+        """One line per kind of warning, not one per configuration (:func:`_summarise_warnings`)."""
+        return _summarise_warnings([(c, w) for c, m in self.modes.items() for w in m.warnings])
+
     def to_frame(self):
         """The modal table as a pandas DataFrame (:meth:`ModalTable.to_frame`)."""
         return self.table.to_frame()
@@ -442,12 +450,14 @@ class Identification:
     def __repr__(self) -> str:
         n = len(self.warnings)
         return (f"Identification({len(self.modes)} configurations, {len(self.table.frame)} modes, "
-                f"{n} warning{'s' if n != 1 else ''}; .table, .modes[config], .warnings)")
+                f"{n} warning{'s' if n != 1 else ''}; .table, .modes[config], .warnings, "
+                f".warning_summary())")
 
     def _repr_html_(self) -> str:
-        warned = "".join(f"<li>{html.escape(w)}</li>" for w in self.warnings[:10])
-        more = f"<li>... {len(self.warnings) - 10} more</li>" if len(self.warnings) > 10 else ""
-        return self.table._repr_html_() + (f"<p>Warnings:</p><ul>{warned}{more}</ul>" if warned else "")
+        warned = "".join(f"<li>{html.escape(w)}</li>" for w in self.warning_summary())
+        return self.table._repr_html_() + (f"<p>Warnings (one line per kind; every one in "
+                                           f"<code>.warnings</code>):</p><ul>{warned}</ul>" if warned else "")
+
 
     def write(self, out: PathLike, *, uff: PathLike | None = None) -> Path:
         """Write the modal table CSV ``out`` (docs/formats.md) and, beside it, ``MODES.synthesis.csv``
@@ -497,6 +507,40 @@ class Identification:
             modes, outputs = next(iter(modes_by_config.values()))
             write_modes(uff, modes.freq_hz, modes.damping_ratio, modes.shapes, outputs)
         return Path(out)
+
+
+def _summarise_warnings(found: Sequence[tuple[str, str]], named: int = 4) -> list[str]:
+    """One line per kind of warning among ``(where, message)`` pairs, in order of first appearance.
+
+    Two messages are of one kind when they differ only in their numbers (frequencies, counts); the line
+    quotes the first and names where it was met (up to ``named`` places, then how many more), so ten
+    runs with the same advice give one line instead of ten.
+
+    Examples
+    --------
+    >>> for line in _summarise_warnings([("run1", "2 of 3 modes (28.9, 100 Hz) have 1.7 lines"),
+    ...                                 ("run2", "2 of 3 modes (37.5, 72.1 Hz) have 1.8 lines"),
+    ...                                 ("run2", "merged the poles at 29.01 and 29.04 Hz")]):
+    ...     print(line)
+    2 configurations (run1, run2), e.g. run1: 2 of 3 modes (28.9, 100 Hz) have 1.7 lines
+    run2: merged the poles at 29.01 and 29.04 Hz
+    """
+    import re
+
+    kinds: dict[str, list[tuple[str, str]]] = {}
+    for where, message in found:
+        kinds.setdefault(re.sub(r"\d+(?:\.\d+)?(?:e[-+]?\d+)?", "#", message), []).append((where, message))
+    lines = []
+    for same in kinds.values():
+        places = list(dict.fromkeys(where for where, _ in same))
+        first_where, first = same[0]
+        if len(places) == 1:
+            lines.append(f"{first_where}: {first}" + (f" ({len(same)} times)" if len(same) > 1 else ""))
+            continue
+        more = f" and {len(places) - named} more" if len(places) > named else ""
+        listed = ", ".join(places[:named]) + more
+        lines.append(f"{len(places)} configurations ({listed}), e.g. {first_where}: {first}")
+    return lines
 
 
 WORKER_BYTES = 250 << 20   # memory of one pool worker: its interpreter, numpy/scipy/h5py and a run's blocks
@@ -939,7 +983,8 @@ def predict(rig: Rig | PathLike, poses: Mapping[str, Mapping[str, float]] | Moda
             raise ModelError(f"{where}: no column 'pose.{missing[0]}' (rig {rig.source} needs the pose "
                              f"variable {missing[0]!r}; pose columns are named pose.<variable>)")
     elif not isinstance(poses, Mapping):
-        poses = {c: _table(poses).pose(c) for c in poses.configs}
+        table = _table(poses)   # a list or None: a TypeError naming it, not an AttributeError
+        poses = {c: table.pose(c) for c in table.configs}
     else:   # the caller's own {config: {variable: value}}: numbers, as a poses file's are
         poses = {config: _pose_numbers(config, pose) for config, pose in poses.items()}
     if not poses:
@@ -1000,6 +1045,11 @@ def compare_modes(measured: ModalTable | PathLike,
     -------
     compare.tables.Comparison
         Printed by :func:`format_comparison`.
+
+    References
+    ----------
+    R. J. Allemang and D. L. Brown, "A correlation coefficient for modal vector analysis", Proc. 1st
+    International Modal Analysis Conference (IMAC), Orlando, 1982, 110-116 (MAC).
 
     Examples
     --------
@@ -1307,6 +1357,16 @@ def read_diagnosis(path: PathLike) -> Diagnosis:
 
 # -- figures ---------------------------------------------------------------------------------------
 
+def _frf_result(frf: object) -> FrfResult:
+    """``frf`` when it is an FRF result; else a TypeError naming what it is (None, a path: not an
+    AttributeError deep in the plotting)."""
+    from flexmodal.modal.frf import FrfResult
+
+    if not isinstance(frf, FrfResult):
+        raise TypeError(f"expected an FRF result (compute_frf, frf_from_arrays), got {type(frf).__name__}")
+    return frf
+
+
 def plot_frf(frf: FrfResult, title: str = "") -> Figure:
     """Magnitude, phase [deg] and coherence [-] of the FRFs of one run (first reference).
 
@@ -1333,6 +1393,7 @@ def plot_frf(frf: FrfResult, title: str = "") -> Figure:
     """
     from flexmodal.reports import plots
 
+    frf = _frf_result(frf)
     return plots.plot_frf(frf.freq_hz, frf.H, frf.coherence, frf.outputs,
                           plots.frf_unit(frf.quantity), title=title)
 
@@ -1377,6 +1438,7 @@ def plot_stabilisation(frf: FrfResult, modes: Modes | None = None, *, fmin: floa
     from flexmodal.modal.sources import identify_frf
     from flexmodal.reports import plots
 
+    frf = _frf_result(frf)
     if modes is None:
         modes = identify_frf(frf, fmin=fmin, fmax=fmax, max_order=max_order)
     return plots.plot_identification_diagram(frf, modes, plots.frf_unit(frf.quantity), title=title)
@@ -1405,6 +1467,11 @@ def plot_mode_shapes(rig: Rig | PathLike, measured: ModalTable | PathLike, confi
     Returns
     -------
     matplotlib.figure.Figure
+
+    References
+    ----------
+    R. J. Allemang and D. L. Brown, "A correlation coefficient for modal vector analysis", Proc. 1st
+    International Modal Analysis Conference (IMAC), Orlando, 1982, 110-116 (MAC).
 
     Examples
     --------
@@ -1511,6 +1578,9 @@ def _diagnosis(diagnosis: Diagnosis | Mapping | PathLike) -> Diagnosis:
             return Diagnosis.from_dict(dict(diagnosis))
         except CompareError as exc:
             raise ReportError(str(exc)) from None
+    if not isinstance(diagnosis, Diagnosis):
+        raise TypeError(f"expected a diagnosis (diagnose, read_diagnosis), its dict or the path of "
+                        f"diagnosis.json, got {type(diagnosis).__name__}")
     return diagnosis
 
 
@@ -1524,6 +1594,7 @@ def _tracked_map_figures(inputs) -> list[tuple[Figure, str]]:
     import numpy as np
 
     from flexmodal.compare.modal_map import PredictionBand, modal_map
+    from flexmodal.reports.html import pose_unit
     from flexmodal.reports.modal_map_plot import plot_modal_map
 
     meas = inputs.measured
@@ -1539,7 +1610,7 @@ def _tracked_map_figures(inputs) -> list[tuple[Figure, str]]:
             f = np.array([pred.freq_hz(c)[:n] for c in configs])
             band = PredictionBand(np.array([meas.pose(c)[var] for c in configs]), f, f, f, label=name)
             named = f", {name}'s frequencies at the same poses as lines"
-    fig = plot_modal_map(modal_map(meas), band, pose_label=var,
+    fig = plot_modal_map(modal_map(meas), band, pose_label=f"{var} [{pose_unit(var)}]",
                          title="modes tracked while the arm moved (mean ± 95 % interval per pose bin)")
     return [(fig, f"Natural frequency against {var} of the modes tracked while the arm moved (identify "
                   f"--track: one point per pose bin, bars ± 1.96 standard errors of its windows){named}")]
@@ -1740,6 +1811,11 @@ def animate_mode(out: PathLike, measured: ModalTable | PathLike, config: str, mo
     -------
     Path
         ``out``.
+
+    References
+    ----------
+    R. J. Allemang and D. L. Brown, "A correlation coefficient for modal vector analysis", Proc. 1st
+    International Modal Analysis Conference (IMAC), Orlando, 1982, 110-116 (MAC).
 
     Examples
     --------

@@ -47,9 +47,11 @@ def build_parser() -> argparse.ArgumentParser:
     for add in COMMANDS.values():   # the command registry (cli.commands.COMMANDS), in its order
         add(sub)
     for command in sub.choices.values():  # `flexmodal CMD --quiet` works as well as `flexmodal --quiet CMD`
-        if "--quiet" not in command._option_string_actions:
+        try:
             command.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
                                  help="silence progress output on stderr")
+        except argparse.ArgumentError:  # the command has a --quiet of its own (sim serve)
+            pass
     return parser
 
 

@@ -27,7 +27,7 @@ import numpy as np
 from flexmodal.checked_io.output import signals_deferred
 from flexmodal.checked_io.text import available_memory_bytes, regular_file
 from flexmodal.daq.errors import DaqError
-from flexmodal.daq.h5file import open_read
+from flexmodal.daq.h5file import LOCKED, locked, open_read
 from flexmodal.daq.run_schema import (
     CHANNEL_FIELDS,
     CHANNEL_KINDS,
@@ -196,6 +196,8 @@ class RunWriter:
         except OSError as exc:
             if not self.path.parent.is_dir():
                 raise DaqError(f"{self.path}: directory {self.path.parent} does not exist") from exc
+            if locked(exc):
+                raise DaqError(f"{self.path}: {LOCKED}") from None
             if "already open for write" in str(exc):
                 raise DaqError(f"{self.path}: file is open by another writer or was not closed cleanly "
                                "(readable as it is; if no writer is running, `flexmodal acquire --recover` "

@@ -73,6 +73,10 @@ def _open_append(path: str | Path) -> h5py.File:
     try:
         return h5py.File(path, "a", libver="latest")
     except OSError as exc:
+        from flexmodal.daq.h5file import LOCKED, locked
+
+        if locked(exc):
+            raise ModalError(f"{path}: cannot write the FRFs: {LOCKED}") from None
         raise ModalError(f"{path}: cannot open for writing FRFs ({one_line(exc)})") from None
 
 

@@ -242,3 +242,32 @@ def test_simulator_pty_link_in_a_missing_folder_names_the_link(tmp_path: Path) -
 
     with pytest.raises(FixtureError, match="nodir/tty: cannot create the pty link there"):
         PtyLink(tmp_path / "nodir" / "tty")
+
+
+def test_python_api_names_an_argument_of_the_wrong_kind(tmp_path: Path) -> None:
+    """None or a list where a result or table belongs was an AttributeError deep inside."""
+    import flexmodal as fm
+
+    rig = REPO / "examples" / "rigs" / "seed003_two_link.toml"
+    for call in (lambda: fm.plot_frf(None), lambda: fm.plot_stabilisation("run.h5"),
+                 lambda: fm.plot_gap(None), lambda: fm.predict(rig, [("theta0", 0)], model="fe"),
+                 lambda: fm.compute_frfs([], workers=True)):
+        with pytest.raises(TypeError, match="expected|workers must be"):
+            call()
+
+
+def test_a_run_file_another_program_holds_open(tmp_path: Path, capsys) -> None:
+    """A file another process has open for writing (HDF5's file lock) was called 'not a readable HDF5
+    file': it is in use, not damaged."""
+    path = _run(tmp_path / "run.h5")
+    code = (f"import h5py, sys\nf = h5py.File({str(path)!r}, 'a')\nprint('open', flush=True)\n"
+            "sys.stdin.read()\n")
+    holder = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                              text=True)
+    try:
+        assert holder.stdout.readline().strip() == "open"
+        _one_line(capsys, main(["identify", str(path), "--out", str(tmp_path / "m.csv")]), "run.h5",
+                  "in use by another process")
+        _one_line(capsys, main(["frf", str(path)]), "run.h5", "in use by another process")
+    finally:
+        holder.communicate("", timeout=600)

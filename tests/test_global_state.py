@@ -1,0 +1,46 @@
+"""Library code leaves the process's global state as it found it: signal handlers and third-party log
+levels a call sets for its own duration come back when it returns (api.serve_simulator may run inside a
+Python session or a notebook; a Modbus session's driver runs inside the caller's process)."""
+
+from __future__ import annotations
+
+import io
+import logging
+import signal
+import socket
+
+import pytest
+
+import flexmodal as fm
+from flexmodal.daq.devices import Device, DeviceLost
+from flexmodal.daq.modbus_driver import ModbusConfig, ModbusDriver, Register
+
+
+def _state() -> tuple:
+    return (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM),
+            logging.getLogger("pymodbus").level)
+
+
+def test_serve_simulator_restores_signal_handlers_and_the_pymodbus_log_level():
+    before = _state()
+    endpoint = io.StringIO()
+    fm.serve_simulator("serial", duration=0.25, stdout=endpoint, quiet=True)
+    assert endpoint.getvalue().strip()  # it served (the endpoint: the pty's link)
+    assert _state() == before
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # Ctrl-C still interrupts
+
+
+def test_modbus_driver_restores_the_pymodbus_log_level_when_closed():
+    with socket.socket() as s:  # a loopback port nobody listens on: the connection is refused
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    logger = logging.getLogger("pymodbus")
+    before = logging.WARNING
+    logger.setLevel(before)
+    config = ModbusConfig("tcp", (Register("x", 0),), host="127.0.0.1", tcp_port=port, port=str(port))
+    driver = ModbusDriver(Device("m", "modbus", config), 100.0)
+    with pytest.raises(DeviceLost):
+        driver.open()
+    assert logger.level == logging.CRITICAL  # quiet while the driver is in use
+    driver.close()
+    assert logger.level == before
