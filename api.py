@@ -253,7 +253,8 @@ def compute_frf(run: Run | PathLike, *, estimator: str = "H1", nfft: int | None 
     Returns
     -------
     modal.frf.FrfResult
-        ``H`` [n_out, n_in, n_freq], ``coherence`` [n_out, n_freq], ``freq_hz`` [Hz], ``outputs``.
+        ``H`` [n_out, n_in, n_freq] in the response unit per force unit (e.g. (m/s²)/N), ``coherence``
+        [n_out, n_freq] [-], ``freq_hz`` [Hz], ``outputs``.
 
     References
     ----------
@@ -312,6 +313,8 @@ def frf_from_arrays(freq_hz, H, *, coherence=None, quantity: str = "accelerance"
     Returns
     -------
     FrfResult
+        ``H`` [n_out, n_in, n_freq] complex in ``quantity`` per input unit, ``coherence``
+        [n_out, n_freq] [-] (None when not given), ``freq_hz`` [Hz], ``outputs``, ``inputs``.
 
     Examples
     --------
@@ -769,6 +772,18 @@ def track(source: PathLike, *, pose_from: Mapping[str, str] | None = None, run_i
     ----------
     B. Peeters, G. De Roeck, "Reference-based stochastic subspace identification for output-only
     modal analysis", Mechanical Systems and Signal Processing 13 (1999) 855-878.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> import flexmodal as fm
+    >>> from flexmodal.fixtures.examples import moving_run
+    >>> path = moving_run(tempfile.mkdtemp())   # 8 s of the demo arm's elbow sweep from 0 deg
+    >>> result = fm.track(path, fmax=400.0, window_s=2.0, hop_s=1.0)
+    >>> sorted(set(result.table.frame["mode"])), result.warnings
+    ([1, 2, 3], ())
+    >>> round(float(result.table.freq_hz("theta_deg=0")[0]))     # first bending mode at 0 deg [Hz]
+    32
     """
     _check_band(fmin, fmax)
     if not 0 < bin_deg < float("inf") or not all(0 < o < float("inf") for o in orders):

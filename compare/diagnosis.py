@@ -1210,16 +1210,6 @@ def _fit_shapes(ctx: _Context, entry: dict) -> np.ndarray:
     return paired_modes(entry["_fam"], h, ctx.target)[2][0]
 
 
-def _component_params(cand: Candidate, theta: np.ndarray) -> list[tuple[str, str, dict[str, float]]]:
-    """(effect, location, {param name: SI value}) of each component of a fitted candidate."""
-    out = []
-    for e, loc, ps in components(cand):
-        vals = {p.name: float(math.exp(theta[cand.params.index(p)])) if p.power == 0
-                else float(theta[cand.params.index(p)]) for p in ps}
-        out.append((e, loc, vals))
-    return out
-
-
 def trial_poses(rig: Rig, poses: Sequence[dict[str, float]]) -> dict[str, dict[str, float]]:
     """Candidate poses for a next measurement after measuring ``poses``: each pose variable moved over
     ``TRIAL_POINTS`` points of its measured range (the others at the first pose's values),

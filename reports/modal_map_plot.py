@@ -5,7 +5,8 @@
     branch, points at the measured poses with 95 % error bars (1.96 x ``freq_std_hz``; none where the
     uncertainty is unknown), the points of a branch joined; order swaps (``mmap.events``, veering or
     crossing) marked by a grey vertical line.  ``band`` an optional compare.modal_map.PredictionBand:
-    the model's frequencies as lines and their 95 % interval as a shaded band.  ``pose_label`` the
+    the model's frequencies as lines and their 95 % interval as a shaded band (none, and no legend entry,
+    when its bounds equal the frequencies).  ``pose_label`` the
     x-axis label with its unit (e.g. ``"theta_deg [deg]"``).
 
 The function only draws what it is given (the tracking and the band are computed in compare/); it
@@ -43,9 +44,11 @@ def plot_modal_map(mmap: ModalMap, band: PredictionBand | None = None, pose_labe
     fig = Figure(figsize=(8, 4.5), layout="constrained")
     ax = fig.subplots()
     if band is not None:
+        spread = bool(np.any(band.upper_hz > band.lower_hz))   # a bare prediction has no interval to show
         for m in range(band.freq_hz.shape[1]):
-            ax.fill_between(band.pose, band.lower_hz[:, m], band.upper_hz[:, m], color="0.75", alpha=0.5,
-                            lw=0, label=f"{band.label}: 95 % prediction interval" if m == 0 else None)
+            if spread:
+                ax.fill_between(band.pose, band.lower_hz[:, m], band.upper_hz[:, m], color="0.75", alpha=0.5,
+                                lw=0, label=f"{band.label}: 95 % prediction interval" if m == 0 else None)
             ax.plot(band.pose, band.freq_hz[:, m], "-", color="0.35", lw=1.0,
                     label=band.label if m == 0 else None)
     for b in range(mmap.n_branches):

@@ -41,7 +41,7 @@ def test_docstring_examples_run(name, monkeypatch):
 
 
 # public functions without a run Examples section, each with where it is run end to end instead
-NO_EXAMPLES = {"track": "tests/test_track.py (the modal map of a 90 s simulated moving-arm record)"}
+NO_EXAMPLES: dict[str, str] = {}
 
 
 def test_every_public_api_function_has_a_numpydoc_docstring():

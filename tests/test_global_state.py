@@ -8,6 +8,7 @@ import io
 import logging
 import signal
 import socket
+import threading
 
 import pytest
 
@@ -27,7 +28,22 @@ def test_serve_simulator_restores_signal_handlers_and_the_pymodbus_log_level():
     fm.serve_simulator("serial", duration=0.25, stdout=endpoint, quiet=True)
     assert endpoint.getvalue().strip()  # it served (the endpoint: the pty's link)
     assert _state() == before
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # Ctrl-C still interrupts
+
+
+def test_serve_simulator_runs_in_a_thread_other_than_the_main_one():
+    """Python sets signal handlers only in the main thread: elsewhere the duration ends the serving."""
+    endpoint, failed = io.StringIO(), []
+
+    def run() -> None:
+        try:
+            fm.serve_simulator("serial", duration=0.25, stdout=endpoint, quiet=True)
+        except Exception as exc:  # noqa: BLE001 - reported below
+            failed.append(exc)
+
+    thread = threading.Thread(target=run)
+    thread.start()
+    thread.join(120)
+    assert not thread.is_alive() and failed == [] and endpoint.getvalue().strip()
 
 
 def test_modbus_driver_restores_the_pymodbus_log_level_when_closed():

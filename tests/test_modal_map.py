@@ -106,6 +106,9 @@ def test_figure_draws_points_bars_and_band() -> None:
     labels = [t.get_text() for t in fig.legends[0].get_texts()]   # below the axes, off the points
     assert "fitted model: 95 % prediction interval" in labels and "branch 1" in labels
     assert problems(fig) == []                                    # tests/figure_lint.py
+    bare = modal_map_plot.plot_modal_map(m, mm.PredictionBand(grid, f, f, f, "fe"), pose_label="q [-]")
+    names = [t.get_text() for t in bare.legends[0].get_texts()]
+    assert "fe" in names and not any("prediction interval" in n for n in names)   # no band to show
     buf = io.BytesIO()
     fig.savefig(buf, format="png")
     assert buf.getvalue()[:4] == b"\x89PNG"
