@@ -253,7 +253,8 @@ def compute_frf(run: Run | PathLike, *, estimator: str = "H1", nfft: int | None 
     Returns
     -------
     modal.frf.FrfResult
-        ``H`` [n_out, n_in, n_freq], ``coherence`` [n_out, n_freq], ``freq_hz`` [Hz], ``outputs``.
+        ``H`` [n_out, n_in, n_freq] in the response unit per force unit (e.g. (m/s²)/N), ``coherence``
+        [n_out, n_freq] [-], ``freq_hz`` [Hz], ``outputs``.
 
     References
     ----------
@@ -312,6 +313,8 @@ def frf_from_arrays(freq_hz, H, *, coherence=None, quantity: str = "accelerance"
     Returns
     -------
     FrfResult
+        ``H`` [n_out, n_in, n_freq] complex in ``quantity`` per input unit, ``coherence``
+        [n_out, n_freq] [-] (None when not given), ``freq_hz`` [Hz], ``outputs``, ``inputs``.
 
     Examples
     --------
@@ -390,6 +393,10 @@ def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: 
     helpers of ``workers`` None are forked from this process and have them.  A program running
     threads of its own gets no helpers (a lock held by one of them at a fork would stay held).
 
+    References
+    ----------
+    J. S. Bendat and A. G. Piersol, *Random Data*, 4th ed., Wiley, 2010, ch. 9 (H1, H2).
+
     Examples
     --------
     >>> import tempfile
@@ -404,6 +411,11 @@ def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: 
     """
     from flexmodal.modal.batch import frf_batch
 
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, numbers.Integral)
+                                or workers < 0):
+        raise TypeError(f"workers must be None or a whole number >= 0 (got {workers!r})")
+    if workers:
+        _check_workers(int(workers))
     if out is not None:
         from flexmodal.checked_io.output import hdf5_output
         from flexmodal.modal.errors import ModalError
@@ -430,6 +442,10 @@ class Identification:
         """``config: message`` for every warning met on the way."""
         return [f"{c}: {w}" for c, m in self.modes.items() for w in m.warnings]
 
+    def warning_summary(self) -> list[str]:
+        """One line per kind of warning, not one per configuration (:func:`_summarise_warnings`)."""
+        return _summarise_warnings([(c, w) for c, m in self.modes.items() for w in m.warnings])
+
     def to_frame(self):
         """The modal table as a pandas DataFrame (:meth:`ModalTable.to_frame`)."""
         return self.table.to_frame()
@@ -437,12 +453,14 @@ class Identification:
     def __repr__(self) -> str:
         n = len(self.warnings)
         return (f"Identification({len(self.modes)} configurations, {len(self.table.frame)} modes, "
-                f"{n} warning{'s' if n != 1 else ''}; .table, .modes[config], .warnings)")
+                f"{n} warning{'s' if n != 1 else ''}; .table, .modes[config], .warnings, "
+                f".warning_summary())")
 
     def _repr_html_(self) -> str:
-        warned = "".join(f"<li>{html.escape(w)}</li>" for w in self.warnings[:10])
-        more = f"<li>... {len(self.warnings) - 10} more</li>" if len(self.warnings) > 10 else ""
-        return self.table._repr_html_() + (f"<p>Warnings:</p><ul>{warned}{more}</ul>" if warned else "")
+        warned = "".join(f"<li>{html.escape(w)}</li>" for w in self.warning_summary())
+        return self.table._repr_html_() + (f"<p>Warnings (one line per kind; every one in "
+                                           f"<code>.warnings</code>):</p><ul>{warned}</ul>" if warned else "")
+
 
     def write(self, out: PathLike, *, uff: PathLike | None = None) -> Path:
         """Write the modal table CSV ``out`` (docs/formats.md) and, beside it, ``MODES.synthesis.csv``
@@ -492,6 +510,60 @@ class Identification:
             modes, outputs = next(iter(modes_by_config.values()))
             write_modes(uff, modes.freq_hz, modes.damping_ratio, modes.shapes, outputs)
         return Path(out)
+
+
+def _summarise_warnings(found: Sequence[tuple[str, str]], named: int = 4) -> list[str]:
+    """One line per kind of warning among ``(where, message)`` pairs, in order of first appearance.
+
+    Two messages are of one kind when they differ only in their numbers (frequencies, counts); the line
+    quotes the first and names where it was met (up to ``named`` places, then how many more), so ten
+    runs with the same advice give one line instead of ten.
+
+    Examples
+    --------
+    >>> for line in _summarise_warnings([("run1", "2 of 3 modes (28.9, 100 Hz) have 1.7 lines"),
+    ...                                 ("run2", "2 of 3 modes (37.5, 72.1 Hz) have 1.8 lines"),
+    ...                                 ("run2", "merged the poles at 29.01 and 29.04 Hz")]):
+    ...     print(line)
+    2 configurations (run1, run2), e.g. run1: 2 of 3 modes (28.9, 100 Hz) have 1.7 lines
+    run2: merged the poles at 29.01 and 29.04 Hz
+    """
+    import re
+
+    kinds: dict[str, list[tuple[str, str]]] = {}
+    for where, message in found:
+        kinds.setdefault(re.sub(r"\d+(?:\.\d+)?(?:e[-+]?\d+)?", "#", message), []).append((where, message))
+    lines = []
+    for same in kinds.values():
+        places = list(dict.fromkeys(where for where, _ in same))
+        first_where, first = same[0]
+        if len(places) == 1:
+            lines.append(f"{first_where}: {first}" + (f" ({len(same)} times)" if len(same) > 1 else ""))
+            continue
+        more = f" and {len(places) - named} more" if len(places) > named else ""
+        listed = ", ".join(places[:named]) + more
+        lines.append(f"{len(places)} configurations ({listed}), e.g. {first_where}: {first}")
+    return lines
+
+
+WORKER_BYTES = 250 << 20   # memory of one pool worker: its interpreter, numpy/scipy/h5py and a run's blocks
+WORKERS_PER_CPU = 4        # processes beyond this per usable CPU only wait for one (the FFTs are CPU-bound)
+
+
+def _check_workers(workers: int) -> None:
+    """ModalError when ``workers`` pool processes exceed what this machine can run: more than
+    :data:`WORKERS_PER_CPU` per usable CPU, or more than the available memory holds at
+    :data:`WORKER_BYTES` each (256 workers on 2 CPUs started 256 interpreters, 20+ GB)."""
+    from flexmodal.checked_io.text import available_memory_bytes
+    from flexmodal.modal.errors import ModalError
+    from flexmodal.modal.spectra import usable_cpus
+
+    cpus, room = usable_cpus(), available_memory_bytes()
+    most = max(1, min(WORKERS_PER_CPU * cpus, room // WORKER_BYTES))
+    if workers > most:
+        raise ModalError(f"--workers {workers}: more worker processes than this machine can run "
+                         f"(at most {most}: {cpus} usable CPUs, {room / 2**30:.1f} GiB of memory available, "
+                         f"about {WORKER_BYTES >> 20} MiB per worker)")
 
 
 def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: float | None = None,
@@ -700,6 +772,18 @@ def track(source: PathLike, *, pose_from: Mapping[str, str] | None = None, run_i
     ----------
     B. Peeters, G. De Roeck, "Reference-based stochastic subspace identification for output-only
     modal analysis", Mechanical Systems and Signal Processing 13 (1999) 855-878.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> import flexmodal as fm
+    >>> from flexmodal.fixtures.examples import moving_run
+    >>> path = moving_run(tempfile.mkdtemp())   # 8 s of the demo arm's elbow sweep from 0 deg
+    >>> result = fm.track(path, fmax=400.0, window_s=2.0, hop_s=1.0)
+    >>> sorted(set(result.table.frame["mode"])), result.warnings
+    ([1, 2, 3], ())
+    >>> round(float(result.table.freq_hz("theta_deg=0")[0]))     # first bending mode at 0 deg [Hz]
+    32
     """
     _check_band(fmin, fmax)
     if not 0 < bin_deg < float("inf") or not all(0 < o < float("inf") for o in orders):
@@ -914,7 +998,8 @@ def predict(rig: Rig | PathLike, poses: Mapping[str, Mapping[str, float]] | Moda
             raise ModelError(f"{where}: no column 'pose.{missing[0]}' (rig {rig.source} needs the pose "
                              f"variable {missing[0]!r}; pose columns are named pose.<variable>)")
     elif not isinstance(poses, Mapping):
-        poses = {c: _table(poses).pose(c) for c in poses.configs}
+        table = _table(poses)   # a list or None: a TypeError naming it, not an AttributeError
+        poses = {c: table.pose(c) for c in table.configs}
     else:   # the caller's own {config: {variable: value}}: numbers, as a poses file's are
         poses = {config: _pose_numbers(config, pose) for config, pose in poses.items()}
     if not poses:
@@ -975,6 +1060,11 @@ def compare_modes(measured: ModalTable | PathLike,
     -------
     compare.tables.Comparison
         Printed by :func:`format_comparison`.
+
+    References
+    ----------
+    R. J. Allemang and D. L. Brown, "A correlation coefficient for modal vector analysis", Proc. 1st
+    International Modal Analysis Conference (IMAC), Orlando, 1982, 110-116 (MAC).
 
     Examples
     --------
@@ -1282,6 +1372,16 @@ def read_diagnosis(path: PathLike) -> Diagnosis:
 
 # -- figures ---------------------------------------------------------------------------------------
 
+def _frf_result(frf: object) -> FrfResult:
+    """``frf`` when it is an FRF result; else a TypeError naming what it is (None, a path: not an
+    AttributeError deep in the plotting)."""
+    from flexmodal.modal.frf import FrfResult
+
+    if not isinstance(frf, FrfResult):
+        raise TypeError(f"expected an FRF result (compute_frf, frf_from_arrays), got {type(frf).__name__}")
+    return frf
+
+
 def plot_frf(frf: FrfResult, title: str = "") -> Figure:
     """Magnitude, phase [deg] and coherence [-] of the FRFs of one run (first reference).
 
@@ -1308,6 +1408,7 @@ def plot_frf(frf: FrfResult, title: str = "") -> Figure:
     """
     from flexmodal.reports import plots
 
+    frf = _frf_result(frf)
     return plots.plot_frf(frf.freq_hz, frf.H, frf.coherence, frf.outputs,
                           plots.frf_unit(frf.quantity), title=title)
 
@@ -1352,6 +1453,7 @@ def plot_stabilisation(frf: FrfResult, modes: Modes | None = None, *, fmin: floa
     from flexmodal.modal.sources import identify_frf
     from flexmodal.reports import plots
 
+    frf = _frf_result(frf)
     if modes is None:
         modes = identify_frf(frf, fmin=fmin, fmax=fmax, max_order=max_order)
     return plots.plot_identification_diagram(frf, modes, plots.frf_unit(frf.quantity), title=title)
@@ -1380,6 +1482,11 @@ def plot_mode_shapes(rig: Rig | PathLike, measured: ModalTable | PathLike, confi
     Returns
     -------
     matplotlib.figure.Figure
+
+    References
+    ----------
+    R. J. Allemang and D. L. Brown, "A correlation coefficient for modal vector analysis", Proc. 1st
+    International Modal Analysis Conference (IMAC), Orlando, 1982, 110-116 (MAC).
 
     Examples
     --------
@@ -1486,6 +1593,9 @@ def _diagnosis(diagnosis: Diagnosis | Mapping | PathLike) -> Diagnosis:
             return Diagnosis.from_dict(dict(diagnosis))
         except CompareError as exc:
             raise ReportError(str(exc)) from None
+    if not isinstance(diagnosis, Diagnosis):
+        raise TypeError(f"expected a diagnosis (diagnose, read_diagnosis), its dict or the path of "
+                        f"diagnosis.json, got {type(diagnosis).__name__}")
     return diagnosis
 
 
@@ -1499,6 +1609,7 @@ def _tracked_map_figures(inputs) -> list[tuple[Figure, str]]:
     import numpy as np
 
     from flexmodal.compare.modal_map import PredictionBand, modal_map
+    from flexmodal.reports.html import pose_unit
     from flexmodal.reports.modal_map_plot import plot_modal_map
 
     meas = inputs.measured
@@ -1514,7 +1625,7 @@ def _tracked_map_figures(inputs) -> list[tuple[Figure, str]]:
             f = np.array([pred.freq_hz(c)[:n] for c in configs])
             band = PredictionBand(np.array([meas.pose(c)[var] for c in configs]), f, f, f, label=name)
             named = f", {name}'s frequencies at the same poses as lines"
-    fig = plot_modal_map(modal_map(meas), band, pose_label=var,
+    fig = plot_modal_map(modal_map(meas), band, pose_label=f"{var} [{pose_unit(var)}]",
                          title="modes tracked while the arm moved (mean ± 95 % interval per pose bin)")
     return [(fig, f"Natural frequency against {var} of the modes tracked while the arm moved (identify "
                   f"--track: one point per pose bin, bars ± 1.96 standard errors of its windows){named}")]
@@ -1715,6 +1826,11 @@ def animate_mode(out: PathLike, measured: ModalTable | PathLike, config: str, mo
     -------
     Path
         ``out``.
+
+    References
+    ----------
+    R. J. Allemang and D. L. Brown, "A correlation coefficient for modal vector analysis", Proc. 1st
+    International Modal Analysis Conference (IMAC), Orlando, 1982, 110-116 (MAC).
 
     Examples
     --------

@@ -47,9 +47,11 @@ def build_parser() -> argparse.ArgumentParser:
     for add in COMMANDS.values():   # the command registry (cli.commands.COMMANDS), in its order
         add(sub)
     for command in sub.choices.values():  # `flexmodal CMD --quiet` works as well as `flexmodal --quiet CMD`
-        if "--quiet" not in command._option_string_actions:
+        try:
             command.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
                                  help="silence progress output on stderr")
+        except argparse.ArgumentError:  # the command has a --quiet of its own (sim serve)
+            pass
     return parser
 
 
@@ -73,6 +75,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     try:
         args = build_parser().parse_args(argv)
+        _check_environment()
         return int(args.func(args) or 0)
     except UsageError as exc:
         _say(str(exc))
@@ -98,6 +101,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     finally:
         if argv is None:  # done: a Ctrl-C during the interpreter's tear-down still ends it the same way
             signal.signal(signal.SIGINT, lambda _signum, _frame: _leave_interrupted())
+
+
+def _check_environment() -> None:
+    """UsageError naming an environment variable a library refuses on import, before any work: an
+    MPLBACKEND matplotlib does not know made every command that draws end in a ValueError traceback."""
+    backend = os.environ.get("MPLBACKEND")
+    if backend:
+        try:
+            import matplotlib  # noqa: F401 - its import validates MPLBACKEND
+        except ValueError:
+            raise UsageError(f"flexmodal: error: environment variable MPLBACKEND={backend!r} is not a "
+                             "matplotlib backend (unset it, or set MPLBACKEND=Agg)") from None
 
 
 def _escape_what_cannot_be_shown() -> None:

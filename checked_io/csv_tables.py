@@ -16,13 +16,13 @@ from pathlib import Path
 
 import pandas as pd
 
-from flexmodal.checked_io.text import ErrorType, one_line, read_text
+from flexmodal.checked_io.text import FLOAT_MAX_BITS, ErrorType, one_line, read_text
 
 
 def read_table(path: str | Path, error: ErrorType, *, required: Sequence[str] = (),
                text_columns: Sequence[str] = (), what: str = "CSV table") -> pd.DataFrame:
     """Read a comma-separated table; ``required`` columns must exist and have no empty cell,
-    ``text_columns`` are kept as strings (e.g. ``config``)."""
+    ``text_columns`` are kept as strings (e.g. ``config``) without white space around them."""
     text = read_text(path, error, what)
     try:
         rows = [(n, r) for n, r in _numbered_rows(text) if any(cell.strip() for cell in r)]
@@ -52,6 +52,9 @@ def read_table(path: str | Path, error: ErrorType, *, required: Sequence[str] = 
     except (pd.errors.ParserError, ValueError) as exc:
         raise error(f"{path}: not a readable CSV ({one_line(exc)})") from None
     frame.columns = [str(c).strip() for c in frame.columns]
+    for col in [c for c in text_columns if c in frame.columns]:   # "theta0 " is "theta0"
+        frame[col] = frame[col].str.strip()
+    _refuse_huge_integers(frame, path, rows, error)
     for col in required:
         empty = frame[col].isna().to_numpy() | (frame[col].astype(str).str.strip() == "").to_numpy()
         if empty.any():
@@ -59,6 +62,19 @@ def read_table(path: str | Path, error: ErrorType, *, required: Sequence[str] = 
             where = f"line {rows[1 + i][0]}" if 1 + i < len(rows) else f"data row {i + 1}"
             raise error(f"{path}: {where}: empty {col!r} cell")
     return frame
+
+
+def _refuse_huge_integers(frame: pd.DataFrame, path: str | Path, rows: list, error: ErrorType) -> None:
+    """``error`` naming the line and column of a whole number too large for a float (pandas keeps one
+    of more than about 308 digits as a Python int, which every later float conversion fails on)."""
+    for name in frame.columns[(frame.dtypes == "object").to_numpy()]:   # a loop over text columns
+        huge = frame[name].map(lambda v: isinstance(v, int) and abs(v).bit_length() > FLOAT_MAX_BITS)
+        if huge.any():
+            i = int(huge.to_numpy().argmax())
+            digits = len(str(abs(frame[name].iloc[i])))
+            where = f"line {rows[1 + i][0]}" if 1 + i < len(rows) else f"data row {i + 1}"
+            raise error(f"{path}: {where}: column {name!r}: a whole number of {digits} digits is too large "
+                        "for a number (at most about 1.8e308)")
 
 
 def _separator_hint(header: Sequence[str]) -> str:

@@ -57,6 +57,9 @@ def _given(path: str | Path, error: ErrorType, what: str) -> Path:
     Path would read as the current folder."""
     if isinstance(path, str) and not path.strip():
         raise error(f"the {what} path is empty ({path!r}; an unset variable in a script?)")
+    if str(path) == "-":
+        raise error(f"the {what} path is '-': it would be a file named '-', not standard output (name a "
+                    "file; ./- if that is the name meant)")
     return Path(path)
 
 
@@ -65,14 +68,18 @@ def _regular_target(path: str | Path, error: ErrorType, what: str,
     """``path`` (through symlinks) is new or a regular file, under neither /dev nor /proc, and none of
     ``inputs`` (same device and inode, symlinks and hard links included; same resolved path if new)."""
     p = _given(path, error, what)
+    if str(path).endswith(os.sep):
+        raise error(f"{path}: ends with '{os.sep}', the path of a folder, not of the {what} (name a file)")
     real = Path(os.path.realpath(p))
     if any(_under(q, SPECIAL_ROOTS) and not _under(q, WRITABLE_ROOTS)
            for q in (Path(os.path.abspath(p)), real)):
         raise error(f"{p}: is a device or process file ({real}), not a regular file for the {what}")
     try:
         st: os.stat_result | None = os.stat(p)
-    except OSError:
+    except FileNotFoundError:   # new (or a dangling symlink: its target is created)
         st = None
+    except OSError as exc:   # a symlink loop, a path through a file, a name too long
+        raise error(f"{p}: cannot be the {what} ({exc.strerror or one_line(exc)})") from None
     if st is not None and stat.S_ISDIR(st.st_mode):
         raise error(f"{p}: is a directory, expected a path for the {what}")
     if st is not None and not stat.S_ISREG(st.st_mode):

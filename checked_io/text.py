@@ -21,6 +21,7 @@ ErrorType = Callable[[str], Exception]
 MAX_MESSAGE_CHARS = 300  # a library message quoted in an error line is cut to this length
 MAX_TEXT_BYTES = 256 << 20  # a config, table or JSON file larger than this is refused unread
 MAX_NESTING = 100  # tables/arrays/objects nested deeper than this in TOML or JSON are refused
+FLOAT_MAX_BITS = 1024  # an integer of more bits exceeds the largest float (sys.float_info.max)
 
 
 def one_line(text: object) -> str:
@@ -133,21 +134,45 @@ def read_text(path: str | Path, error: ErrorType, what: str = "text file") -> st
     return decode_text(read_bytes(path, error, what), path, error, what)
 
 
-def _depth(doc: object) -> int:
-    """Nesting depth of a parsed document (lists and dicts; iterative, so any depth is measured)."""
-    deepest, stack = 0, [(doc, 1)]
+def _depth(doc: object) -> tuple[int, int | None]:
+    """Nesting depth of a parsed document (lists and dicts; iterative, so any depth is measured) and
+    its first integer too large for a float (beyond about 1.8e308), or None."""
+    deepest, huge, stack = 0, None, [(doc, 1)]
     while stack:
         node, level = stack.pop()
         if isinstance(node, dict | list):
             deepest = max(deepest, level)
             stack.extend((child, level + 1) for child in (node.values() if isinstance(node, dict) else node))
-    return deepest
+        elif isinstance(node, int) and not isinstance(node, bool) and huge is None \
+                and abs(node).bit_length() > FLOAT_MAX_BITS:
+            huge = node
+    return deepest, huge
 
 
 def _parsed(doc: object, where: str | Path, error: ErrorType, what: str) -> object:
-    if _depth(doc) > MAX_NESTING:
+    deepest, huge = _depth(doc)
+    if deepest > MAX_NESTING:
         raise error(f"{where}: nested more than {MAX_NESTING} levels deep, not a {what}")
+    if huge is not None:
+        digits = str(abs(huge))  # at most sys.get_int_max_str_digits() digits: the parser made it
+        raise error(f"{where}: the integer {'-' if huge < 0 else ''}{digits[:12]}... ({len(digits)} digits) "
+                    "is too large for a number (at most about 1.8e308)")
     return doc
+
+
+class _DuplicateKey(ValueError):
+    """A JSON object names a key twice (raised by :func:`_unique_keys`, reported by :func:`loads_json`)."""
+
+
+def _unique_keys(items: list[tuple[str, object]]) -> dict:
+    """A JSON ``object_pairs_hook`` refusing an object that names a key twice (json keeps the last
+    silently; TOML and the CSV headers refuse it too)."""
+    out: dict = {}
+    for key, value in items:
+        if key in out:
+            raise _DuplicateKey(key)
+        out[key] = value
+    return out
 
 
 def read_toml(path: str | Path, error: ErrorType, what: str = "TOML file") -> dict:
@@ -169,11 +194,14 @@ def loads_json(text: str | bytes, where: str | Path, error: ErrorType, what: str
     """Parse JSON text read from ``where``; a syntax error, nesting deeper than :data:`MAX_NESTING`,
     or an integer longer than Python converts raise ``error`` naming ``where``."""
     try:
-        doc = json.loads(text)
+        doc = json.loads(text, object_pairs_hook=_unique_keys)
     except json.JSONDecodeError as exc:
         raise error(f"{where}: not valid JSON ({exc.msg} at line {exc.lineno}, column {exc.colno})") from None
     except RecursionError:
         raise error(f"{where}: nested too deeply, not a {what}") from None
+    except _DuplicateKey as exc:
+        raise error(f"{where}: key {one_line(exc.args[0])[:60]!r} appears twice in one object, not a "
+                    f"valid {what}") from None
     except (ValueError, TypeError) as exc:
         raise error(f"{where}: not a valid {what} ({one_line(exc)})") from None
     return _parsed(doc, where, error, what)

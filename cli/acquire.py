@@ -7,10 +7,10 @@ import os
 import sys
 
 from flexmodal.checked_io import options as opt
-from flexmodal.cli.commands import command
+from flexmodal.cli.commands import Subcommands, command
 
 
-def register(sub: argparse._SubParsersAction) -> None:
+def register(sub: Subcommands) -> None:
     """Add this package's sub-commands to the flexmodal parser."""
     p = command(sub, "acquire", _acquire)
     p.add_argument("--config", required=True, metavar="SESSION.toml", help="session config file")

@@ -12,12 +12,21 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Callable
+from typing import Any, Protocol
 
 from flexmodal.checked_io.errors import FlexmodalError
 from flexmodal.checked_io.registry import Registry
 
+
+class Subcommands(Protocol):
+    """What ``ArgumentParser.add_subparsers()`` returns, as an entry's ``add`` uses it (argparse names
+    that class only privately)."""
+
+    def add_parser(self, name: str, **kwargs: Any) -> argparse.ArgumentParser: ...
+
+
 Handler = Callable[[argparse.Namespace], int]
-Adder = Callable[[argparse._SubParsersAction], None]
+Adder = Callable[[Subcommands], None]
 
 COMMANDS: Registry[Adder] = Registry("command", FlexmodalError, {
     "demo-sim": "flexmodal.cli.simulate:register", "acquire": "flexmodal.cli.acquire:register",
@@ -43,7 +52,7 @@ def registered_commands() -> tuple[str, ...]:
     return COMMANDS.names()
 
 
-def command(sub: argparse._SubParsersAction, name: str, run: Handler) -> argparse.ArgumentParser:
+def command(sub: Subcommands, name: str, run: Handler) -> argparse.ArgumentParser:
     """Add the sub-command ``name`` to ``sub``, described by ``run``'s docstring and dispatched to
     ``run`` (``args.func``); returns its parser for the options."""
     summary, _, body = (run.__doc__ or "").strip().partition("\n")

@@ -7,9 +7,10 @@ import sys
 from pathlib import Path
 
 from flexmodal.checked_io import options as opt
+from flexmodal.cli.commands import Subcommands
 
 
-def register(sub: argparse._SubParsersAction) -> None:
+def register(sub: Subcommands) -> None:
     """Add ``diagnose`` to the flexmodal parser."""
     p = sub.add_parser(
         "diagnose", help="sim-to-real gap diagnosis: where, which unmodelled effect, held-out improvement",

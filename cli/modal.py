@@ -7,10 +7,10 @@ import sys
 
 from flexmodal.api import ESTIMATORS, METHODS
 from flexmodal.checked_io import options as opt
-from flexmodal.cli.commands import command
+from flexmodal.cli.commands import Subcommands, command
 
 
-def register(sub: argparse._SubParsersAction) -> None:
+def register(sub: Subcommands) -> None:
     """Add this package's sub-commands to the flexmodal parser."""
     p = command(sub, "frf", _frf)
     p.add_argument("runs", nargs="+", metavar="RUN.h5", help="HDF5 run files (docs/hdf5-format.md)")
@@ -181,16 +181,30 @@ def _identify(args: argparse.Namespace) -> int:
                       max_order=args.max_order, run_id=args.run, poles_hz=poles, thresholds=limits,
                       decay_rate_per_s=args.exp_window_decay, references=refs, out=args.out, uff=args.uff,
                       from_diagram=args.from_diagram)
-    quiet = getattr(args, "quiet", False)
-    for config, modes in result.modes.items():   # a loop over configurations
-        if quiet:
-            continue
+    if not getattr(args, "quiet", False):
+        _tell_identified(result, args.verbose)
+    print(args.out)
+    return 0
+
+
+def _tell_identified(result, verbose: bool) -> None:
+    """On stderr: for one configuration (or with --verbose) its band, model order and warnings; for
+    several, one line per kind of warning and a count, not the same advice once per run."""
+    each = verbose or len(result.modes) == 1
+    for config, modes in result.modes.items() if each else ():   # a loop over configurations
         for note in (modes.band_note, modes.order_note):
             if note:
                 print(f"flexmodal: {config}: {note}", file=sys.stderr)
         for warning in modes.warnings:
             print(f"flexmodal: warning: {config}: {warning}", file=sys.stderr)
-        for line in modes.details if args.verbose else ():
+        for line in modes.details if verbose else ():
             print(f"flexmodal: {config}: {line}", file=sys.stderr)
-    print(args.out)
-    return 0
+    if each:
+        return
+    summary = result.warning_summary()
+    for line in summary:
+        print(f"flexmodal: warning: {line}", file=sys.stderr)
+    n, kinds = len(result.warnings), len(summary)
+    print(f"flexmodal: {len(result.table.frame)} modes in {len(result.modes)} configurations, "
+          f"{n} warning{'s' * (n != 1)} of {kinds} kind{'s' * (kinds != 1)} "
+          "(--verbose: each configuration's band, model order and warnings)", file=sys.stderr)

@@ -7,10 +7,10 @@ import sys
 
 from flexmodal.api import MAX_ELEMENTS, MODELS
 from flexmodal.checked_io import options as opt
-from flexmodal.cli.commands import command
+from flexmodal.cli.commands import Subcommands, command
 
 
-def register(sub: argparse._SubParsersAction) -> None:
+def register(sub: Subcommands) -> None:
     """Add this package's sub-commands to the flexmodal parser."""
     p = command(sub, "predict", _predict)
     p.add_argument("rig", metavar="RIG.toml", help="rig description (docs/formats.md)")

@@ -6,10 +6,10 @@ import argparse
 import sys
 
 from flexmodal.checked_io import options as opt
-from flexmodal.cli.commands import command
+from flexmodal.cli.commands import Subcommands, command
 
 
-def register(sub: argparse._SubParsersAction) -> None:
+def register(sub: Subcommands) -> None:
     """Add this package's sub-commands to the flexmodal parser."""
     p = command(sub, "report", _run)
     p.add_argument("runs", metavar="RUN.h5", nargs="*",

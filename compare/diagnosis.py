@@ -23,7 +23,8 @@
 4. Verdict: the simplest candidate not worse held out than the best beyond the nested margin, pruned
    of components that do not improve the held-out error beyond that margin (the noise of a paired
    comparison on the same held-out residuals, or what absorbing the model-form error can gain,
-   ``_nested_margin``) or
+   ``_nested_margin``, that error never taken below the frame's known beam-theory error,
+   ``_beam_theory_form``) or
    sit at their lower bound, passed over when a parameter runs out of range; ``none`` when the
    nominal model itself (no parameters) scores at least as well.  ``explained`` is false when the held-out
    RMS is above ``EXPLAINED_FACTOR`` times the scatter or the held-out residuals are structured;
@@ -1207,16 +1208,6 @@ def _fit_shapes(ctx: _Context, entry: dict) -> np.ndarray:
     cand = entry["_cand"]
     h = evaluate(entry["_fam"], design(cand, ctx.target), entry["_theta0"][None], ctx.target)[3]
     return paired_modes(entry["_fam"], h, ctx.target)[2][0]
-
-
-def _component_params(cand: Candidate, theta: np.ndarray) -> list[tuple[str, str, dict[str, float]]]:
-    """(effect, location, {param name: SI value}) of each component of a fitted candidate."""
-    out = []
-    for e, loc, ps in components(cand):
-        vals = {p.name: float(math.exp(theta[cand.params.index(p)])) if p.power == 0
-                else float(theta[cand.params.index(p)]) for p in ps}
-        out.append((e, loc, vals))
-    return out
 
 
 def trial_poses(rig: Rig, poses: Sequence[dict[str, float]]) -> dict[str, dict[str, float]]:

@@ -45,6 +45,8 @@ def _parse_complex(value: object) -> complex:
 def _floats(column: pd.Series) -> pd.Series:
     """``column`` as floats, NaN where a value is none: text, or a whole number too large for a float
     (thousands of digits, which pandas cannot convert at once)."""
+    if column.dtype == bool or column.map(lambda v: isinstance(v, bool | np.bool_)).any():
+        column = column.map(lambda v: None if isinstance(v, bool | np.bool_) else v)   # True is not 1
     try:
         return pd.to_numeric(column, errors="coerce").astype(float)
     except OverflowError:
@@ -99,14 +101,19 @@ class ModalTable:
             if col not in df.columns:
                 raise ContractError(f"{source}: missing required column {col!r}")
         df["config"] = df["config"].astype(str)
+        unnamed = [c for c in df.columns if str(c) in (POSE_PREFIX, SHAPE_PREFIX)]
+        if unnamed:
+            raise ContractError(f"{source}: column {unnamed[0]!r} names no "
+                                f"{'pose variable' if unnamed[0] == POSE_PREFIX else 'sensor'} after the dot")
         for col in ("mode", "freq_hz"):
             values = _floats(df[col])
             bad = values.isna() | ~np.isfinite(values)
             if bad.any():
                 row = int(np.flatnonzero(bad.to_numpy())[0])
                 shown = df[col].iloc[row]
-                raise ContractError(f"{source}: row {row + 2}: column {col!r} is not a number "
-                                    f"({shown if isinstance(shown, str) else float(shown)!r})")
+                if not isinstance(shown, str):
+                    shown = bool(shown) if isinstance(shown, bool | np.bool_) else float(shown)
+                raise ContractError(f"{source}: row {row + 2}: column {col!r} is not a number ({shown!r})")
             df[col] = values
         df["freq_hz"] = _numbers(df["freq_hz"], "freq_hz", source, MAX_FREQ_HZ)
         if (df["mode"] < 1).any():

@@ -224,9 +224,11 @@ class Display:
         """The last hits with their verdicts, then |H1| (dB) and coherence at the chosen response."""
         m = self.monitor
         lines = [text(f"hits: {len(m.hits)}, accepted {m.accepted}", style="bold")]
+        unit = self.units[m.force] if m.force < len(self.units) else ""
         for h in m.hits[-6:]:
             ok = h.verdict == "accepted"
-            lines.append(text(f"  hit at {h.row / self.fs:8.3f} s  peak {h.peak:8.4g}  "
+            peak = f"{h.peak:8.4g} {unit}" if np.isfinite(h.peak) else f"{'-':>8} {' ' * len(unit)}"
+            lines.append(text(f"  hit at {h.row / self.fs:8.3f} s  peak {peak}  "
                               f"{'ACCEPTED' if ok else 'REJECTED: ' + h.reason}",
                               style="green" if ok else "bold red"))
         if m.accepted:

@@ -130,15 +130,24 @@ class CanDriver(Driver):
             raise DeviceLost(self._lost)
         msgs = []
         try:
-            msg = self._bus.recv(timeout=0.05)
+            msg = self._recv(0.05)
             while msg is not None and len(msgs) < MAX_FRAMES_PER_READ:
                 msgs.append(msg)
-                msg = self._bus.recv(timeout=0)
+                msg = self._recv(0)
         except (can.CanError, serial.SerialException, OSError) as exc:
             self._lost = f"CAN {self.config.channel}: {exc}"
             if not msgs:  # otherwise hand over what arrived; the next read reports the loss
                 raise DeviceLost(self._lost) from exc
         return msgs
+
+    def _recv(self, timeout: float):
+        """The next frame, or None.  A garbled line ends this read instead of the session: python-can's
+        slcan parser raises ValueError on one (non-hex data, as when an adapter that overran drops part of
+        a line); the frame is lost and its scan shows the part as missing (counted as corrupt)."""
+        try:
+            return self._bus.recv(timeout=timeout)
+        except ValueError:
+            return None
 
     def _unwrap(self, m: int, code: np.ndarray, ts: np.ndarray) -> np.ndarray:
         """Sample index of each frame of message ``m`` from its counter codes and timestamps."""

@@ -121,10 +121,23 @@ def open_read(path: str | Path) -> h5py.File:
     return _h5_open(p, swmr=live)
 
 
+LOCKED = ("in use by another process (HDF5 file lock: a program has it open, for writing, or for reading "
+          "while this one would write); try again once it is closed")
+
+
+def locked(exc: BaseException) -> bool:
+    """Whether an h5py open failed because another process holds the file's lock (HDF5 file locking:
+    ``flock`` on the file, EAGAIN), not because the file is damaged: the message then says
+    :data:`LOCKED` instead of "not readable"."""
+    return "unable to lock file" in str(exc)
+
+
 def _h5_open(path: Path, *, swmr: bool) -> h5py.File:
     try:
         return h5py.File(path, "r", libver="latest", swmr=swmr)
     except OSError as exc:
+        if locked(exc):
+            raise DaqError(f"{path}: {LOCKED}") from None
         text = " ".join(str(exc).split())
         if "truncated file" in text:
             raise DaqError(f"{path}: truncated HDF5 file ({text.partition('(')[2].rstrip(')')})") from None

@@ -155,11 +155,15 @@ class ModbusDriver(Driver):
         self._slot = 0
         self._lost: str | None = None
         self._bad: list[int] = []  # slots answered with an exception, not yet reported
+        self._pymodbus_level: int | None = None  # pymodbus's log level before open, put back by close
 
     def open(self) -> None:
         from pymodbus.client import ModbusSerialClient, ModbusTcpClient
 
-        logging.getLogger("pymodbus").setLevel(logging.CRITICAL)  # failures become events, not log noise
+        if self._pymodbus_level is None:  # failures become events, not log noise, while open
+            logger = logging.getLogger("pymodbus")
+            self._pymodbus_level = logger.level
+            logger.setLevel(logging.CRITICAL)
         d = self.config
         if d.transport == "tcp":
             client = ModbusTcpClient(d.host, port=d.tcp_port, timeout=ANSWER_TIMEOUT_S, retries=0)
@@ -180,6 +184,9 @@ class ModbusDriver(Driver):
         if self._client is not None:
             self._client.close()
             self._client = None
+        if self._pymodbus_level is not None:
+            logging.getLogger("pymodbus").setLevel(self._pymodbus_level)
+            self._pymodbus_level = None
 
     def _poll(self) -> list[int] | None:
         """One poll of every span: the words, or None for an exception response."""

@@ -9,13 +9,14 @@ naming the file, run and item, instead of whatever numpy, json or h5py would rai
 from __future__ import annotations
 
 import math
+import os
 import sys
 from pathlib import Path
 
 import h5py
 import numpy as np
 
-from flexmodal.checked_io.text import loads_json, one_line
+from flexmodal.checked_io.text import available_memory_bytes, loads_json, one_line
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.h5file import open_read
 
@@ -78,10 +79,7 @@ def _check_attrs(g: h5py.Group, where: str) -> None:
         raise DaqError(f"{where}: attribute excitation = {a['excitation']!r} is not one of "
                        f"{', '.join(EXCITATIONS)}")
     pose_text = _text(a["pose"])
-    try:
-        pose = loads_json(pose_text, where, DaqError) if pose_text is not None else None
-    except DaqError:
-        pose = None
+    pose = loads_json(pose_text, f"{where}: attribute pose", DaqError) if pose_text is not None else None
     if not isinstance(pose, dict):
         raise DaqError(f"{where}: attribute pose = {_short(a['pose'])!r} is not a JSON object string")
     for name, value in pose.items():
@@ -168,26 +166,68 @@ def check_run_group(g: h5py.Group, where: str) -> None:
     if s.shape[1] != channels.shape[0] or s.shape[1] == 0:
         raise DaqError(f"{where}: 'samples' has {s.shape[1]} columns but {channels.shape[0]} channels")
     for d in (channels, events, s):
-        check_filters(d, where)
-    _check_stored(s, where)
+        check_dataset(d, where, whole=d is not s)
     _check_names(channels, where)
 
 
-def _check_stored(s: h5py.Dataset, where: str) -> None:
-    """Raise DaqError when 'samples' declares rows it never stored beyond the last two chunks (a
-    writer ends at most one chunk past what it wrote, rows HDF5 gives back as NaN): a file that
-    declares 10^11 rows in 6 kB would otherwise be streamed as days of NaN."""
-    if s.size == 0:
+def check_dataset(d: h5py.Dataset, where: str, error: type[Exception] = DaqError, *,
+                  whole: bool = True) -> None:
+    """Raise ``error`` unless dataset ``d`` can be read as stored in this file: its filters are
+    installed (:func:`check_filters`), it is not a virtual dataset (it maps other files, which are not
+    followed, like external links), its external raw-data files (if any) hold all its bytes, it stores
+    what it declares (:func:`_check_stored`) and, when read ``whole``, it fits in memory."""
+    name = d.name.rsplit("/", 1)[-1] if d.name else "dataset"
+    check_filters(d, where, error)
+    if d.is_virtual:
+        raise error(f"{where}: {name!r} is a virtual dataset mapping other files (not followed; store the "
+                    "data in the file, e.g. h5repack)")
+    _check_external(d, name, where, error)
+    _check_stored(d, name, where, error)
+    if whole:
+        need, room = d.size * d.dtype.itemsize, available_memory_bytes()
+        if need > room // 2:
+            raise error(f"{where}: {name!r} declares {d.shape} values ({need / 2**30:.1f} GiB), more than "
+                        f"the {room / 2**30:.1f} GiB of memory available")
+
+
+def _check_external(d: h5py.Dataset, name: str, where: str, error: type[Exception]) -> None:
+    """Raise ``error`` when the external raw-data files of ``d`` (HDF5 external storage) are missing or
+    shorter than the data they should hold (HDF5 would read the missing bytes as zeros)."""
+    plist = d.id.get_create_plist()
+    count = plist.get_external_count()
+    if not count:
         return
-    if s.chunks is None:
-        stored, expected, spare = int(s.id.get_storage_size() > 0), 1, 0
+    held = 0
+    for i in range(count):
+        file, offset, size = plist.get_external(i)
+        raw = Path(os.fsdecode(file))  # HDF5 reads a relative name from the current folder
+        try:
+            length = raw.stat().st_size
+        except OSError as exc:
+            raise error(f"{where}: {name!r} is stored in the external file {raw}, which cannot be read "
+                        f"({exc.strerror or exc})") from None
+        held += max(0, min(size, length - offset))
+    need = d.size * d.dtype.itemsize
+    if held < need:
+        raise error(f"{where}: {name!r} needs {need} bytes from its external files but they hold {held}")
+
+
+def _check_stored(d: h5py.Dataset, name: str, where: str, error: type[Exception]) -> None:
+    """Raise ``error`` when ``d`` declares data it never stored beyond the last two chunk slabs along
+    its longest chunked axis (a writer that grows a dataset ends at most one chunk past what it wrote;
+    HDF5 gives the rest back as fill values): a file that declares 10^11 rows in 6 kB would otherwise be
+    streamed as days of fill values, or allocated whole."""
+    if d.size == 0:
+        return
+    if d.chunks is None:
+        stored, expected, spare = int(d.id.get_storage_size() > 0), 1, 0
     else:
-        across = -(-s.shape[1] // s.chunks[1])
-        stored, expected = s.id.get_num_chunks(), -(-s.shape[0] // s.chunks[0]) * across
-        spare = 2 * across
+        per_axis = [-(-n // c) for n, c in zip(d.shape, d.chunks, strict=True)]
+        stored, expected = d.id.get_num_chunks(), math.prod(per_axis)
+        spare = 2 * (expected // max(per_axis))
     if stored < expected - spare:
-        raise DaqError(f"{where}: 'samples' declares {s.shape[0]} rows but stores "
-                       f"{stored} of its {expected} chunks (rows never written)")
+        raise error(f"{where}: {name!r} declares shape {d.shape} but stores {stored} of its {expected} "
+                    "chunks (data never written)")
 
 
 def _check_names(channels: h5py.Dataset, where: str) -> None:

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-SYNC = b"\xa5\x5a"
+SYNC = b"\xa5\x5a"  # the sync word, first two bytes of every frame
 HEADER_BYTES = 10
 CRC_BYTES = 2
 FORMATS = {1: np.dtype("<i2"), 2: np.dtype("<i4"), 3: np.dtype("<f4")}
@@ -54,7 +54,7 @@ def encode_frames(first_seq: int, samples: np.ndarray, scans_per_frame: int, fmt
     n_frames = n // scans_per_frame
     payload = samples.astype(dtype).reshape(n_frames, scans_per_frame * n_ch).view(np.uint8)
     header = np.zeros(n_frames, HEADER_DTYPE)
-    header["sync"] = 0x5AA5
+    header["sync"] = int.from_bytes(SYNC, "little")
     header["seq"] = (first_seq + scans_per_frame * np.arange(n_frames)) % SEQ_MODULUS
     header["n_ch"], header["fmt"], header["n_scans"] = n_ch, FORMAT_CODES[fmt], scans_per_frame
     body = np.concatenate([header.view(np.uint8).reshape(n_frames, HEADER_BYTES), payload], axis=1)
@@ -83,7 +83,7 @@ class BinaryDecoder:
         arr = np.frombuffer(buf, np.uint8)
         if arr.size == 0:
             return []
-        starts = np.flatnonzero((arr[:-1] == 0xA5) & (arr[1:] == 0x5A))
+        starts = np.flatnonzero((arr[:-1] == SYNC[0]) & (arr[1:] == SYNC[1]))
         whole_header = starts + HEADER_BYTES <= arr.size
         s = starts[whole_header]
         head = np.ascontiguousarray(arr[s[:, None] + np.arange(HEADER_BYTES)]).view(HEADER_DTYPE)[:, 0]
@@ -105,7 +105,7 @@ class BinaryDecoder:
         last_end = int(g_end[-1]) if gi.size else 0
         pending = np.concatenate([starts[~whole_header], s[ok & ~complete]])
         pending = pending[pending >= last_end]
-        cut = int(pending.min()) if pending.size else arr.size - int(arr[-1] == 0xA5)
+        cut = int(pending.min()) if pending.size else arr.size - int(arr[-1] == SYNC[0])
         cut = max(cut, last_end)
         self._buf = buf[cut:]
         if not gi.size:

@@ -36,6 +36,7 @@ MIN_HIT_SAMPLES = 16  # samples of an impact window after its pretrigger samples
 G_M_PER_S2 = 9.80665
 NUMBER = r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?"
 EFFECT_PATTERN = rf"\w+@[\w.@-]+:\w+={NUMBER}(,\w+={NUMBER})*"
+MIN_GAIN, MAX_GAIN = 1e-15, 1e15  # physical units per device unit (an ADC count, a mV, ...)
 # factor converting one unit of the first name to the second (sensitivity denominator -> channel unit)
 UNIT_FACTORS = {
     ("g", "m/s^2"): G_M_PER_S2, ("m/s^2", "g"): 1 / G_M_PER_S2, ("kN", "N"): 1e3, ("N", "kN"): 1e-3,
@@ -217,10 +218,19 @@ def _channel(doc: dict, where: str, devices: dict[str, Device]) -> ChannelMap:
     known = PROTOCOLS.entry(dev.protocol).known_sources(dev)
     if known is not None and source not in known:
         raise DaqError(f"{where}: source {source!r} is not one of device {device!r}'s {', '.join(known)}")
+    scale = t.get("scale", float, 1.0, check=bool, why="must be finite and non-zero (0 records zeros)")
+    offset = t.get("offset", float, 0.0)
+    gain = scale / sensitivity * factor
+    if not MIN_GAIN <= abs(gain) <= MAX_GAIN or abs(offset / sensitivity * factor) > MAX_GAIN:
+        raise DaqError(f"{where}: scale = {scale:g}, offset = {offset:g} and sensitivity = {sensitivity:g} "
+                       "give "
+                       f"{gain:g} {unit} per device unit (offset {offset / sensitivity * factor:g}): out of "
+                       f"range ({MIN_GAIN:g} to {MAX_GAIN:g} in magnitude; the values would underflow or "
+                       "overflow)")
     return ChannelMap(
         Channel(name, kind, unit, sensitivity, sens_unit, t.get("location", str, ""),
                 t.get("direction", str, "")),
-        device, source, scale=t.get("scale", float, 1.0), offset=t.get("offset", float, 0.0), factor=factor,
+        device, source, scale=scale, offset=offset, factor=factor,
         full_scale=t.number("full_scale", math.inf, lo=0, lo_open=True))
 
 

@@ -27,7 +27,7 @@ import numpy as np
 from flexmodal.checked_io.output import signals_deferred
 from flexmodal.checked_io.text import available_memory_bytes, regular_file
 from flexmodal.daq.errors import DaqError
-from flexmodal.daq.h5file import open_read
+from flexmodal.daq.h5file import LOCKED, locked, open_read
 from flexmodal.daq.run_schema import (
     CHANNEL_FIELDS,
     CHANNEL_KINDS,
@@ -196,6 +196,8 @@ class RunWriter:
         except OSError as exc:
             if not self.path.parent.is_dir():
                 raise DaqError(f"{self.path}: directory {self.path.parent} does not exist") from exc
+            if locked(exc):
+                raise DaqError(f"{self.path}: {LOCKED}") from None
             if "already open for write" in str(exc):
                 raise DaqError(f"{self.path}: file is open by another writer or was not closed cleanly "
                                "(readable as it is; if no writer is running, `flexmodal acquire --recover` "
@@ -279,12 +281,24 @@ class RunWriter:
 
 
 def list_runs(path: str | Path) -> list[str]:
-    """Run ids stored in ``path`` (sorted)."""
+    """Run ids stored in ``path`` (sorted).  A run group reached under several names (an HDF5 hard or
+    soft link to another run) is listed once, under its first name: it is one run, not two."""
     with open_read(path) as f:
         runs = member(f, "runs", str(path))
         if runs is not None and not isinstance(runs, h5py.Group):
             raise DaqError(f"{path}: '/runs' is not a group of runs")
-        return sorted(runs.keys()) if runs is not None else []
+        ids, seen = [], set()
+        for name in sorted(runs.keys()) if runs is not None else []:
+            try:
+                obj = runs[name] if not isinstance(runs.get(name, getlink=True), h5py.ExternalLink) else None
+            except (KeyError, RuntimeError, OSError, ValueError):  # a broken link: reading it names it
+                obj = None
+            if obj is not None and obj.id in seen:
+                continue
+            if obj is not None:
+                seen.add(obj.id)
+            ids.append(name)
+        return ids
 
 
 def _text(value) -> str:

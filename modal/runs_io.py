@@ -73,6 +73,10 @@ def _open_append(path: str | Path) -> h5py.File:
     try:
         return h5py.File(path, "a", libver="latest")
     except OSError as exc:
+        from flexmodal.daq.h5file import LOCKED, locked
+
+        if locked(exc):
+            raise ModalError(f"{path}: cannot write the FRFs: {LOCKED}") from None
         raise ModalError(f"{path}: cannot open for writing FRFs ({one_line(exc)})") from None
 
 
@@ -97,7 +101,7 @@ def read_frf(path: str | Path, run_id: str) -> FrfResult | None:
     the run group is (``daq.run_schema``): its type, links and filters, every dataset's rank, length
     and type, every attribute's type and range; ModalError names the file, run and item."""
     from flexmodal.daq.h5file import open_read  # fails at once on a truncated file (SWMR would wait)
-    from flexmodal.daq.run_schema import check_filters, member
+    from flexmodal.daq.run_schema import check_dataset, member
 
     where = f"{path}: run {run_id!r}: frf group"
     with open_read(path) as f:
@@ -114,7 +118,7 @@ def read_frf(path: str | Path, run_id: str) -> FrfResult | None:
             d = member(g, name, where, ModalError)
             if not isinstance(d, h5py.Dataset):
                 raise ModalError(f"{where}: lacks the dataset {name!r}")
-            check_filters(d, where, ModalError)
+            check_dataset(d, where, ModalError)
             data[name] = d
         freq_hz, H, coherence = _checked_arrays(data, where)
         a = _Attrs(g.attrs, where)

@@ -23,6 +23,7 @@ import numpy as np
 
 from flexmodal.checked_io.output import atomic_path
 from flexmodal.checked_io.text import fits_in_memory
+from flexmodal.checked_io.uff_blocks import check_blocks
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult
 from flexmodal.modal.valid_uff import check_functions, drop_line_padding
@@ -77,10 +78,17 @@ def read_uff(path: str | Path) -> UffFrfs | UffRecord:
 
     p = fits_in_memory(path, ModalError, "UFF file")   # pyuff holds the text and its arrays at once
     try:
+        numbers = check_blocks(p, p.read_bytes(), ModalError)
         sets = pyuff.UFF(str(p)).read_sets()
+    except ModalError:
+        raise
     except Exception as exc:  # pyuff raises bare Exceptions on malformed files
         raise ModalError(f"{p}: not a readable UFF file ({exc})") from None
     sets = [sets] if isinstance(sets, dict) else list(sets)
+    read = sum(s.get("type") == 58 for s in sets)
+    if read != numbers.count(58):
+        raise ModalError(f"{p}: {numbers.count(58) - read} of its {numbers.count(58)} dataset-58 records "
+                         "could not be read (a damaged header line?)")
     if not sets:
         raise ModalError(f"{p}: no dataset found (not a UFF file, or one pyuff cannot read)")
     types = sorted({int(s.get("type", -1)) for s in sets})

@@ -68,3 +68,4 @@ def check_functions(path: str | Path, funcs: Sequence[dict]) -> None:
             raise ModalError(f"{where}: abscissa or data hold NaN or infinite values")
         if not (np.diff(x) > 0).all():
             raise ModalError(f"{where}: the abscissa does not increase")
+

@@ -18,6 +18,7 @@ from typing import BinaryIO
 
 from flexmodal.checked_io.children import ctrl_c_blocked, leave_ctrl_c_to_parent
 from flexmodal.models import frame
+from flexmodal.models.errors import ModelError
 from flexmodal.models.frame import FrameModes, FrameSystem
 
 OFFLOAD_DOF = 1200  # eigh of 1200 DOF: about 0.2 s at one BLAS thread; 2400 DOF: 1.4 s (measured)
@@ -38,12 +39,13 @@ class FrameSolver:
             with ctrl_c_blocked():
                 self.proc = subprocess.Popen([sys.executable, "-m", "flexmodal.models.eigen_worker"],
                                              stdin=subprocess.PIPE, stdout=subprocess.PIPE)
-        pickle.dump((system, n_modes), self.proc.stdin, protocol=pickle.HIGHEST_PROTOCOL)
-        self.proc.stdin.flush()
         try:
+            pickle.dump((system, n_modes), self.proc.stdin, protocol=pickle.HIGHEST_PROTOCOL)
+            self.proc.stdin.flush()
             ok, value = pickle.load(self.proc.stdout)
-        except EOFError:
-            raise RuntimeError(f"eigen worker ended with exit code {self.proc.wait()}") from None
+        except (EOFError, BrokenPipeError):  # the worker was killed (out of memory, a signal)
+            raise ModelError(f"frame of {system.n_dof} DOF: the eigen-solve worker process ended with exit "
+                             f"code {self.proc.wait()} before answering") from None
         if not ok:
             raise value
         return value

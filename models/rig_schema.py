@@ -36,6 +36,13 @@ KEYS = {  # the keys each table may hold (docs/formats.md, Rig TOML): any other 
     "spring": {"at", "k_N_per_m", "direction", "name"},
     "sensor": {"name", "at", "direction", "mass_kg"},
 }
+MAX_BY_UNIT = (  # largest magnitude of a field by the unit its name ends with (longest suffix first):
+    ("_Nm_per_rad", 1e12),   # a joint, base or member-end spring (a rigid joint is kind = "rigid")
+    ("_N_per_m", 1e12),      # a grounded spring
+    ("_kgm2", 1e6), ("_kgm", 1e6), ("_kg", 1e6),   # masses, inertias, mass per metre (1000 t)
+    ("_Nm2", 1e12), ("_N", 1e15),                  # custom section EI and EA
+    ("_scale", 1e6),                               # link stiffness and mass scales
+)  # beyond these the mass and stiffness matrices overflow or lose every digit of the arm itself
 SECTION_KEYS = {"square_tube": {"outer_m", "wall_m"}, "rect_tube": {"width_m", "height_m", "wall_m"},
                 "round_tube": {"outer_m", "wall_m"}, "solid_rect": {"width_m", "height_m"},
                 "custom": {"EA_N", "EI_Nm2", "mass_per_m_kg", "rotary_inertia_per_m_kgm", "depth_m"}}
@@ -78,6 +85,23 @@ def _section(spec: Any, path: str, source: str) -> None:
     for key, value in spec.items():
         if key.endswith("_m") and _number(value) and abs(value) > MAX_SIZE_M:
             raise _fail(source, f"{path}.{key}", f"{value!r} m is out of range (at most {MAX_SIZE_M:g} m)")
+
+
+def _magnitudes(node: Any, path: str, source: str) -> None:
+    """Refuse the first number whose magnitude exceeds the bound of its unit (:data:`MAX_BY_UNIT`),
+    anywhere in the document (iterative walk over tables and arrays)."""
+    stack = [(node, path)]
+    while stack:
+        value, where = stack.pop()
+        if isinstance(value, Mapping):
+            stack += [(v, f"{where}.{k}" if where else str(k)) for k, v in value.items()]
+        elif isinstance(value, list):
+            stack += [(v, f"{where}[{i}]") for i, v in enumerate(value)]
+        elif _number(value):
+            key = where.rsplit(".", 1)[-1]
+            top = next((top for unit, top in MAX_BY_UNIT if key.endswith(unit)), None)
+            if top is not None and abs(value) > top:
+                raise _fail(source, where, f"{value!r} is out of range (at most {top:g} in magnitude)")
 
 
 def _elements(t: Mapping[str, Any], path: str, source: str) -> None:
@@ -136,3 +160,4 @@ def check_document(doc: Any, source: str) -> None:
         _section(t.get("section"), f"member[{i}].section", source)
     for i, t in enumerate(tables["joint"]):
         _pose_variable(t, f"joint[{i}]", source)
+    _magnitudes({k: v for k, v in doc.items() if k != "material"}, "", source)

@@ -107,10 +107,14 @@ def read_uff_geometry(path: str | Path) -> Geometry:
     import pyuff
 
     from flexmodal.checked_io.text import fits_in_memory
+    from flexmodal.checked_io.uff_blocks import check_blocks
 
     p = fits_in_memory(path, ReportError, "geometry file")   # no FIFO, device or file beyond memory
     try:
+        check_blocks(p, p.read_bytes(), ReportError)
         sets = pyuff.UFF(str(p)).read_sets()
+    except ReportError:
+        raise
     except Exception as exc:  # pyuff raises bare Exceptions and parse errors of every kind
         raise ReportError(f"{p}: not a readable Universal File ({exc})") from None
     sets = [sets] if isinstance(sets, dict) else sets

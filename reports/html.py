@@ -57,7 +57,7 @@ def pose_unit(var: str) -> str:
 
 def pose_text(pose: Mapping[str, object]) -> str:
     """A pose as ``theta_deg = 30 deg, payload_kg = 0.5 kg``."""
-    return ", ".join(f"{k} = {v:g} {pose_unit(k)}" if isinstance(v, numbers.Real) else f"{k} = {v}"
+    return ", ".join(f"{k} = {v:.4g} {pose_unit(k)}" if isinstance(v, numbers.Real) else f"{k} = {v}"
                      for k, v in pose.items())
 
 
@@ -181,10 +181,11 @@ def _identification_figures(r: RunSummary, unit: str) -> list[dict]:
         return [{"png": None, "caption": f"{r.label}: {exc}"}]
     f = modes.band_freq_hz
     listed = ", ".join(f"{x:.4g}" for x in modes.freq_hz)
-    figs = [_fig(diagram, f"{r.label}: pLSCF stabilisation diagram ({modes.order_note}; filled: stable "
-                          f"in frequency, damping and shape; crosses: poles of the {modes.freq_hz.size} "
-                          f"selected modes at {listed} Hz) over the complex mode indicator function, "
-                          f"identification band {f.min():.4g}-{f.max():.4g} Hz shaded"),
+    order = f" Model order {modes.order_note.removeprefix('model order ')}." if modes.order_note else ""
+    figs = [_fig(diagram, f"{r.label}: pLSCF stabilisation diagram over the complex mode indicator "
+                          f"function (filled: stable in frequency, damping and shape; crosses: poles of "
+                          f"the {modes.freq_hz.size} selected modes at {listed} Hz; identification band "
+                          f"{f.min():.4g}-{f.max():.4g} Hz shaded).{order}"),
             _fig(plots.plot_identification_synthesis(r.frf, modes, unit, title=f"{r.label}: synthesis"),
                  f"{r.label}: measured FRFs and the FRFs synthesised from the identified modes and "
                  "residuals (LSFD), with the FRAC of each pair")]

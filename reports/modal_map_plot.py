@@ -1,15 +1,17 @@
 """The modal map figure f(q): tracked modes across a pose variable with error bars and a prediction band.
 
-``plot_modal_map(mmap, band=None, pose_label="pose", title="") -> matplotlib.figure.Figure``
+``plot_modal_map(mmap, band=None, pose_label="pose [-]", title="") -> matplotlib.figure.Figure``
     ``mmap`` a compare.modal_map.ModalMap (``track_modes``/``modal_map``): one colour per tracked
     branch, points at the measured poses with 95 % error bars (1.96 x ``freq_std_hz``; none where the
     uncertainty is unknown), the points of a branch joined; order swaps (``mmap.events``, veering or
     crossing) marked by a grey vertical line.  ``band`` an optional compare.modal_map.PredictionBand:
-    the model's frequencies as lines and their 95 % interval as a shaded band.  ``pose_label`` the
+    the model's frequencies as lines and their 95 % interval as a shaded band (none, and no legend entry,
+    when its bounds equal the frequencies).  ``pose_label`` the
     x-axis label with its unit (e.g. ``"theta_deg [deg]"``).
 
 The function only draws what it is given (the tracking and the band are computed in compare/); it
-uses ``matplotlib.figure.Figure`` without pyplot and changes no global state.
+uses ``matplotlib.figure.Figure`` without pyplot and changes no global state.  The legend sits below
+the axes, never over the points.
 
 Examples
 --------
@@ -36,15 +38,17 @@ Z95 = 1.959963984540054
 """Two-sided 95 % normal quantile: the error bars are +-Z95 standard deviations."""
 
 
-def plot_modal_map(mmap: ModalMap, band: PredictionBand | None = None, pose_label: str = "pose",
+def plot_modal_map(mmap: ModalMap, band: PredictionBand | None = None, pose_label: str = "pose [-]",
                    title: str = "") -> Figure:
     """Natural frequency [Hz] of each tracked branch against the pose (module docstring)."""
-    fig = Figure(figsize=(8, 4.5))
+    fig = Figure(figsize=(8, 4.5), layout="constrained")
     ax = fig.subplots()
     if band is not None:
+        spread = bool(np.any(band.upper_hz > band.lower_hz))   # a bare prediction has no interval to show
         for m in range(band.freq_hz.shape[1]):
-            ax.fill_between(band.pose, band.lower_hz[:, m], band.upper_hz[:, m], color="0.75", alpha=0.5,
-                            lw=0, label=f"{band.label}: 95 % prediction interval" if m == 0 else None)
+            if spread:
+                ax.fill_between(band.pose, band.lower_hz[:, m], band.upper_hz[:, m], color="0.75", alpha=0.5,
+                                lw=0, label=f"{band.label}: 95 % prediction interval" if m == 0 else None)
             ax.plot(band.pose, band.freq_hz[:, m], "-", color="0.35", lw=1.0,
                     label=band.label if m == 0 else None)
     for b in range(mmap.n_branches):
@@ -58,7 +62,6 @@ def plot_modal_map(mmap: ModalMap, band: PredictionBand | None = None, pose_labe
     ax.set_xlabel(pose_label)
     ax.set_ylabel("natural frequency [Hz]")
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7, ncol=2)
+    fig.legend(*ax.get_legend_handles_labels(), loc="outside lower center", fontsize=7, ncol=4)
     ax.set_title(title or "modal map (measured: mean ± 95 % interval)")
-    fig.subplots_adjust(left=0.1, right=0.97, bottom=0.12, top=0.92)
     return fig

@@ -96,22 +96,24 @@ def tick_text(value: float) -> str:
 
 
 class LogTicks(Formatter):
-    """Labels of a log axis in plain text (:func:`tick_text`): 1, 2 and 5 of each decade over up to
-    two and a half decades, decades only over more."""
+    """Labels of a log axis in plain text (:func:`tick_text`): 1, 2, 3 and 5 of each decade over up
+    to two decades (so that 30 and 300 Hz are read off a 25-400 Hz axis), 1, 2 and 5 over up to four,
+    decades only over more."""
 
     def __call__(self, x: float, pos: int | None = None) -> str:
         lo, hi = sorted(self.axis.get_view_interval())
-        if lo > 0 and hi / lo > 10 ** 2.5:
-            exp = math.floor(math.log10(x) + 1e-9)
-            if abs(x / 10.0 ** exp - 1.0) > 1e-6:
-                return ""
+        mantissa = x / 10.0 ** math.floor(math.log10(x) + 1e-9) if x > 0 else 0.0
+        span = math.log10(hi / lo) if lo > 0 else math.inf
+        shown = (1.0, 2.0, 3.0, 5.0) if span <= 2.0 else (1.0, 2.0, 5.0) if span <= 4.0 else (1.0,)
+        if not any(abs(mantissa - m) < 1e-6 * m for m in shown):
+            return ""
         return tick_text(x)
 
 
 def log_axis(axis: Axis) -> None:
-    """Make a log-scaled ``axis`` readable without mathtext: ticks at 1, 2 and 5 per decade labelled
+    """Make a log-scaled ``axis`` readable without mathtext: ticks at 1, 2, 3 and 5 per decade labelled
     by :class:`LogTicks`, minor ticks unlabelled."""
-    axis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0), numticks=30))
+    axis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 3.0, 5.0), numticks=40))
     axis.set_major_formatter(LogTicks())
     axis.set_minor_formatter(NullFormatter())
 
@@ -206,7 +208,8 @@ def plot_stabilisation(freq_hz: np.ndarray, H: np.ndarray, poles, unit: str = "(
     for k, sv in enumerate(cmif(H)):
         mif_ax.semilogy(freq_hz, sv, color=_COLOURS[0], lw=1.0 if k == 0 else 0.6,
                         alpha=1.0 if k == 0 else 0.5,
-                        label=f"{spectrum_name} (singular values)" if k == 0 else None)
+                        label=(spectrum_name if "singular values" in spectrum_name
+                               else f"{spectrum_name} (singular values)") if k == 0 else None)
     mif_ax.set_ylabel(f"{spectrum_name} [{text(unit)}]", color=_COLOURS[0])
     log_axis(mif_ax.yaxis)
     ax.set_xlim(float(np.min(freq_hz)), float(np.max(freq_hz)))

@@ -877,8 +877,8 @@ ROWS: list[Row] = [
     row("modes-shape-1e300", COMPARE, ("modes.csv", "shape.a1", "1e+300"),
         {"modes.csv": "config,mode,freq_hz,shape.a1\nA,1,10,1e300\n"}),
     row("run-samples-never-written-frf", "frf {d}/run.h5 --workers 0",
-        ("run.h5", "declares", "never written")),
-    row("run-samples-never-written-identify", IDENTIFY, ("run.h5", "declares", "never written")),
+        ("run.h5", "declares shape", "never written")),
+    row("run-samples-never-written-identify", IDENTIFY, ("run.h5", "declares shape", "never written")),
     # -- controls: the unmodified base files work ---------------------------------------------------
     row("control-predict", PREDICT, (), code=0),
     row("control-compare", COMPARE, (), code=0),

@@ -108,6 +108,7 @@ def test_live_view_shows_rejections_with_reasons_within_a_second(tmp_path):
         for hit_s, reason in re.findall(r"hit at\s+([\d.]+) s .*?REJECTED: ([a-z ]+)", frame):
             first_seen.setdefault(reason, (float(hit_s), t))
     assert {"double hit", "overload"} <= set(first_seen), first_seen
+    assert any(re.search(r"hit at +[\d.]+ s  peak +[\d.]+ N  ", f) for _, f in frames)   # the force's unit
     for reason in ("double hit", "overload"):
         hit_s, t_shown = first_seen[reason]
         t_hit = next(t for t, s_ in stored if s_ >= hit_s)  # the hit's samples reached the file

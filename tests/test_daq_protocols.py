@@ -163,3 +163,31 @@ def test_two_devices_share_one_timeline_by_first_timestamps():
     assert np.isnan(rows[:10, 1]).all()
     np.testing.assert_array_equal(rows[10:, 1] / 2, -np.arange(40.0))
     np.testing.assert_array_equal(rows[:, 0] / 2, np.arange(50.0))
+
+
+def test_a_garbled_slcan_line_is_dropped_and_the_frames_around_it_are_read():
+    """python-can's slcan parser raises ValueError on non-hex data (an overrun adapter drops part of a
+    line); the driver reads the frames before and after it over a real pty instead of ending the session."""
+    import os
+    import pty
+    import time
+
+    from flexmodal.daq.can_driver import CanConfig, CanDriver
+    from flexmodal.daq.devices import Device
+
+    master, slave = pty.openpty()
+    driver = CanDriver(Device("can0", "can", CanConfig("slcan", os.ttyname(slave), str(DEMO_DBC),
+                                                       messages=("FlexScan",))), 512.0)
+    driver.open()
+    try:
+        os.write(master, b"t1018" + b"01" * 8 + b"\rt1018ZZ" + b"02" * 7 + b"\rt1018" + b"03" * 8 + b"\r")
+        frames, waited = [], 0.0
+        while len(frames) < 2 and waited < 30.0:   # bounded; each read waits up to 0.05 s
+            frames += driver._receive()
+            waited += 0.05
+            time.sleep(0.01)
+        assert [bytes(f.data) for f in frames] == [b"\x01" * 8, b"\x03" * 8]
+    finally:
+        driver.close()
+        os.close(master)
+        os.close(slave)

@@ -10,7 +10,7 @@ import importlib
 import pytest
 from conftest import REPO
 
-PACKAGES = ("checked_io", "daq", "modal", "models", "compare", "reports", "fixtures")
+PACKAGES = tuple(sorted(init.parent.name for init in REPO.glob("*/__init__.py")))  # every sub-package
 
 
 def _modules_with_examples() -> list[str]:
@@ -26,6 +26,8 @@ def _modules_with_examples() -> list[str]:
 
 
 def test_the_walk_finds_the_documented_modules():
+    assert {"checked_io", "contract", "cli", "daq", "modal", "models", "compare", "reports",
+            "fixtures"} <= set(PACKAGES)
     assert {"flexmodal.checked_io.registry", "flexmodal.api"} <= set(_modules_with_examples())
 
 
@@ -39,7 +41,7 @@ def test_docstring_examples_run(name, monkeypatch):
 
 
 # public functions without a run Examples section, each with where it is run end to end instead
-NO_EXAMPLES = {"track": "tests/test_track.py (the modal map of a 90 s simulated moving-arm record)"}
+NO_EXAMPLES: dict[str, str] = {}
 
 
 def test_every_public_api_function_has_a_numpydoc_docstring():
@@ -59,3 +61,23 @@ def test_every_public_api_function_has_a_numpydoc_docstring():
         if lacks:
             missing[name] = lacks
     assert missing == {}
+
+
+def test_every_public_api_example_is_one_the_doctest_run_collects():
+    """The Examples of each function of flexmodal.api (those defined there, or in a module the walk
+    runs) are doctests that ``doctest.testmod`` of their module finds, not text it skips."""
+    import inspect
+
+    from flexmodal import api
+
+    walked = set(_modules_with_examples())
+    uncollected = []
+    for name in api.__all__:
+        func = getattr(api, name)
+        if not inspect.isfunction(func) or name in NO_EXAMPLES:
+            continue
+        module = importlib.import_module(func.__module__)
+        found = {t.name.rsplit(".", 1)[-1]: len(t.examples) for t in doctest.DocTestFinder().find(module)}
+        if func.__module__ not in walked or not found.get(func.__name__):
+            uncollected.append(name)
+    assert uncollected == []

@@ -116,6 +116,19 @@ def test_the_worker_process_solves_exactly_like_this_process(rigs_dir):
         assert np.array_equal(a.sensor_shapes, b.sensor_shapes)
 
 
+def test_a_killed_worker_is_a_model_error_naming_its_exit_code(rigs_dir):
+    """A worker gone before answering (the out-of-memory killer, a kill) is one line of the error family
+    with its exit code, not a RuntimeError or BrokenPipeError traceback."""
+    rig = load_rig(rigs_dir / "demo_arm.toml")
+    system = next(iter(assemble_many(rig, [{"theta_deg": 40.0}], 10, False)))
+    with FrameSolver(offload_dof=0) as solve:
+        solve(system, 4)
+        solve.proc.kill()
+        solve.proc.wait()
+        with pytest.raises(ModelError, match=rf"frame of {system.n_dof} DOF: .* code -9 before answering"):
+            solve(system, 4)
+
+
 def test_small_frames_stay_in_this_process(rigs_dir):
     rig = load_rig(rigs_dir / "demo_arm.toml")
     system = next(iter(assemble_many(rig, [{"theta_deg": 40.0}], 10, False)))

@@ -42,6 +42,7 @@ ROOT = {"api.py": "api", "__init__.py": "api", "app.py": "app", "__main__.py": "
 # what reports/ may import from below it: data types and small display helpers, no solver
 REPORT_IMPORTS = {"flexmodal.compare.tables", "flexmodal.contract.table", "flexmodal.contract.mac",
                   "flexmodal.modal.peaks", "flexmodal.checked_io.text", "flexmodal.checked_io.output",
+                  "flexmodal.checked_io.uff_blocks",   # a geometry file read as whole UFF datasets
                   "flexmodal.compare.result", "flexmodal.compare.errors",
                   "flexmodal.compare.verdict_text",  # the verdict in words: text from a record, no solving
                   "flexmodal.checked_io.errors", "flexmodal.checked_io.registry"}   # the diagnosis records

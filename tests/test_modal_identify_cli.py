@@ -101,3 +101,23 @@ def test_frfs_exported_by_flexmodal_carry_their_exponential_window_into_identify
     assert read_uff(uff).decay_rate_per_s == pytest.approx(res.decay_rate_per_s, rel=1e-8)
     assert main(["identify", str(uff), "--out", str(out), "--fmin", "5", "--fmax", "100"]) == 0
     assert np.allclose(ModalTable.read_csv(out).frame["damping_ratio"], ZETA, rtol=0.02)
+
+
+def test_several_runs_give_one_warning_line_per_kind_and_verbose_gives_each_run(tmp_path, capsys):
+    from flexmodal.fixtures.examples import impact_run
+
+    for theta in (30.0, 90.0, 120.0):
+        runs = impact_run(tmp_path, theta)
+    out = tmp_path / "modes.csv"
+    assert main(["identify", str(runs), "--out", str(out), "--fmax", "400"]) == 0
+    err = capsys.readouterr().err.splitlines()
+    assert len(ModalTable.read_csv(out).configs) == 3
+    assert not [line for line in err[:-1] if "model order" in line or ": band " in line]   # --verbose
+    warned = [line for line in err if line.startswith("flexmodal: warning: ")]
+    kinds = {line.split(": e.g. ")[-1].split(": ", 1)[-1].split("(")[0] for line in warned}
+    assert len(kinds) == len(warned)                                    # no kind twice
+    assert err[-1].startswith("flexmodal: ") and " modes in 3 configurations, " in err[-1]
+    assert main(["identify", str(runs), "--out", str(out), "--fmax", "400", "--verbose"]) == 0
+    err = capsys.readouterr().err
+    assert all(f"flexmodal: theta{t}: band " in err and f"flexmodal: theta{t}: model order" in err
+               for t in (30, 90, 120))

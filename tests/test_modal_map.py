@@ -7,6 +7,7 @@ import io
 
 import numpy as np
 import pytest
+from figure_lint import problems
 from scipy.linalg import eigh
 
 from flexmodal.compare import modal_map as mm
@@ -102,8 +103,12 @@ def test_figure_draws_points_bars_and_band() -> None:
     fig = modal_map_plot.plot_modal_map(m, band, pose_label="q [-]")
     ax = fig.axes[0]
     assert len(ax.collections) >= 2 + 2                 # two bands + error-bar collections
-    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    labels = [t.get_text() for t in fig.legends[0].get_texts()]   # below the axes, off the points
     assert "fitted model: 95 % prediction interval" in labels and "branch 1" in labels
+    assert problems(fig) == []                                    # tests/figure_lint.py
+    bare = modal_map_plot.plot_modal_map(m, mm.PredictionBand(grid, f, f, f, "fe"), pose_label="q [-]")
+    names = [t.get_text() for t in bare.legends[0].get_texts()]
+    assert "fe" in names and not any("prediction interval" in n for n in names)   # no band to show
     buf = io.BytesIO()
     fig.savefig(buf, format="png")
     assert buf.getvalue()[:4] == b"\x89PNG"

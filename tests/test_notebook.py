@@ -129,7 +129,7 @@ def test_reprs_are_short_and_frames_carry_the_numbers(tmp_path):
     f, H, _ = _two_mode_frf()
     ident = fm.identify(fm.frf_from_arrays(f, H, outputs=["tip", "mid"]), fmin=5.0, fmax=90.0)
     assert re.fullmatch(r"Identification\(1 configurations, 2 modes, \d+ warnings?; \.table, "
-                        r"\.modes\[config\], \.warnings\)", repr(ident)), repr(ident)
+                        r"\.modes\[config\], \.warnings, \.warning_summary\(\)\)", repr(ident)), repr(ident)
     assert len(repr(ident.table)) < 200 and "2 modes, 23-61 Hz" in repr(ident.table)
     pd.testing.assert_frame_equal(ident.to_frame(), ident.table.frame)
     predicted = fm.read_table(_shifted(ident.table, tmp_path))

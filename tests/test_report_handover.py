@@ -184,6 +184,13 @@ PRINT_JS = """(() => {
 })()"""
 
 
+NARROW_PX = 400
+NARROW_JS = """(() => ({width: document.documentElement.clientWidth,
+  page: document.documentElement.scrollWidth,
+  scrolling: [...document.querySelectorAll('table')]
+    .filter(t => t.scrollWidth > t.clientWidth + 1).length}))()"""
+
+
 def _session(browser):
     target = browser.send("Target.createTarget", {"url": "about:blank"})["targetId"]
     session = browser.send("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
@@ -232,6 +239,9 @@ def page(demo_figures, chromium, tmp_path_factory):
                                                            "clip": {**clip, "scale": 1}}, session)
             shots[name] = tmp / f"{name}.png"
             shots[name].write_bytes(base64.b64decode(shot["data"]))
+        browser.send("Emulation.setDeviceMetricsOverride",   # a phone held upright
+                     {"width": NARROW_PX, "height": 900, "deviceScaleFactor": 1, "mobile": False}, session)
+        narrow = _evaluate(browser, session, NARROW_JS)
         browser.send("Emulation.setEmulatedMedia", {"media": "print"}, session)
         browser.send("Emulation.setScrollbarsHidden", {"hidden": True}, session)
         browser.send("Emulation.setDeviceMetricsOverride",
@@ -240,7 +250,8 @@ def page(demo_figures, chromium, tmp_path_factory):
         printed = _evaluate(browser, session, PRINT_JS)
     finally:
         browser.close()
-    return {"info": info, "shots": shots, "loads": loads, "events": events, "print": printed}
+    return {"info": info, "shots": shots, "loads": loads, "events": events, "print": printed,
+            "narrow": narrow}
 
 
 def test_report_has_contents_whose_links_land_and_numbered_figures_and_tables(page, demo_figures):
@@ -295,6 +306,14 @@ def test_printed_report_has_no_table_wider_than_the_page(page):
     # header rows repeat on every printed page, no row is split across two
     assert printed["heads"] and set(printed["heads"]) == {"table-header-group"}
     assert set(printed["rows"]) == {"avoid"}
+
+
+def test_on_a_narrow_screen_the_page_does_not_scroll_sideways(page):
+    # at 400 px the wide tables (candidates, frequencies) scroll in their own box; the text, figures
+    # and animations fit the width, so nothing is cut off at the right edge of a phone
+    narrow = page["narrow"]
+    assert NARROW_PX - 20 <= narrow["width"] <= NARROW_PX and narrow["page"] <= narrow["width"], narrow
+    assert narrow["scrolling"] >= 1
 
 
 def test_report_pdf_prints_every_page(demo_figures, tmp_path):

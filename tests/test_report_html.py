@@ -123,9 +123,10 @@ def test_report_shows_the_identification_of_each_run(report):
     html = report.read_text()
     for run in RUN_IDS:
         label = f"runs.h5::{run}"
-        assert re.search(re.escape(label) + r": pLSCF stabilisation diagram \(model order \d+: .*"
-                         r"crosses: poles of the \d+ selected modes at .* Hz\) .*identification band .* Hz "
-                         "shaded", html)
+        # what the figure shows first, then how the model order was chosen
+        assert re.search(re.escape(label) + r": pLSCF stabilisation diagram over the complex mode "
+                         r"indicator function \(.*crosses: poles of the \d+ selected modes at .* Hz; "
+                         r"identification band .* Hz shaded\)\. Model order \d+: ", html)
         assert f"{label}: measured FRFs and the FRFs synthesised from the identified modes" in html
         assert f"{label}: AutoMAC of the identified shapes" in html
     assert "theta0: MAC of the measured shapes against fe&#39;s at the" in html

@@ -7,6 +7,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from figure_lint import problems
+from matplotlib.figure import Figure
+from matplotlib.ticker import NullFormatter
 
 from flexmodal.compare.result import Baseline, Diagnosis, Predictions, Verdict, Where
 from flexmodal.contract.table import ModalTable
@@ -21,12 +24,14 @@ def has_unit(label: str) -> bool:
 
 
 def assert_units(fig):
-    """Every visible axes has y and x labels with units (x: or shares its x axis with one that has)."""
+    """Every visible axes has y and x labels with units (x: or shares its x axis with one that has),
+    and the figure passes tests/figure_lint.py (plain ticks, on the canvas, readable log axes)."""
     for ax in fig.axes:
         if ax.get_visible():
             assert has_unit(ax.get_ylabel()), ax.get_ylabel()
             xlabels = [a.get_xlabel() for a in ax.get_shared_x_axes().get_siblings(ax)]
             assert any(has_unit(x) for x in xlabels), xlabels
+    assert problems(fig) == []
 
 
 def table(rows, source="t"):
@@ -64,6 +69,33 @@ def test_freq_vs_pose_uses_a_stored_standard_deviation(data_dir):
     assert half == sorted(rep["sd_hz"].round(6))
 
 
+
+
+def test_a_log_frequency_axis_of_about_one_decade_is_labelled_near_both_ends():
+    # the demo's modes span 29-390 Hz: labels at 50, 100, 200 alone left modes 1 and 3 unreadable
+    rows = [{"config": f"q{q}", "mode": m, "freq_hz": f * (1 + 0.001 * q), "pose.theta_deg": q}
+            for q in (0, 60, 120) for m, f in ((1, 29.0), (2, 100.0), (3, 390.0))]
+    fig = plots.plot_freq_vs_pose([table(rows)], [], "theta_deg")
+    assert_units(fig)
+    fig.canvas.draw()
+    labels = [t.get_text() for t in fig.axes[0].yaxis.get_ticklabels() if t.get_text()]
+    assert {"30", "50", "100", "200", "300"} <= set(labels)
+
+
+def test_figure_lint_names_an_axis_without_a_unit_and_a_sparsely_labelled_log_axis():
+    fig = Figure()
+    ax = fig.subplots()
+    ax.semilogy([0.0, 1.0], [20.0, 1000.0])
+    ax.set_yticks([100.0], ["100"])
+    ax.yaxis.set_minor_formatter(NullFormatter())
+    ax.set_xlabel("time")
+    ax.set_ylabel("frequency [Hz]")
+    found = problems(fig)
+    assert len(found) == 2
+    assert "x axis label 'time' names no [unit]" in found[0] and "labelled only at" in found[1]
+    ax.set_xlabel("time [s]")
+    plots.log_axis(ax.yaxis)
+    assert problems(fig) == []
 
 
 def test_payload_trends_plot_the_frame_model_and_fall_with_payload():

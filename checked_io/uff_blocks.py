@@ -1,0 +1,75 @@
+"""Universal File Format text: whole datasets between delimiter lines, checked before pyuff parses them.
+
+A UFF file is a sequence of datasets, each opened and closed by a line ``    -1`` (columns 1-6), the
+line after the opening one naming the dataset type (e.g. ``    58`` or ``    58b``).  pyuff pairs the
+delimiters it finds and skips what it cannot pair or parse: a file cut short loses its last dataset,
+a dataset whose number line is damaged is dropped, text between datasets is ignored, all silently.
+:func:`check_blocks` finds the delimiters as pyuff does and names the file and line of each of these.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from flexmodal.checked_io.text import ErrorType
+
+BOM = b"\xef\xbb\xbf"   # a UTF-8 byte-order mark some editors put first (pyuff reads past it)
+DELIMITER = b"    -1"   # the line that opens and closes every dataset (columns 1-6)
+
+
+def _delimiters(data: bytes) -> list[int]:
+    """Offsets of the dataset delimiters, found as pyuff finds them (``    -1`` followed by an end of
+    line, the end of the file, or blanks up to column 80), so the blocks named here are its blocks."""
+    found, i, end = [], data.find(DELIMITER), len(data)
+    while i >= 0:   # a loop over delimiters (two per dataset), not over values
+        after = i + len(DELIMITER)
+        if after == end or data[after] in (10, 13) or data[after:i + 80] == b" " * (80 - len(DELIMITER)):
+            found.append(i)
+        i = data.find(DELIMITER, i + 1)
+    return found
+
+
+def check_blocks(path: str | Path, data: bytes, error: ErrorType) -> list[int]:
+    """The dataset numbers of a UFF file's datasets, in order, after checking that its text is whole
+    datasets: every dataset opened by a ``-1`` delimiter line is closed by one (a file cut short
+    loses its last dataset silently in pyuff), the line after the opening delimiter is a dataset
+    number (else pyuff skips the dataset), and nothing but blank lines lies between datasets.
+    ``error`` (the caller's error type) names the file and line.
+
+    Examples
+    --------
+    >>> check_blocks("a.uff", b"    -1\\n    58\\n1\\n    -1\\n", ValueError)
+    [58]
+    >>> check_blocks("a.uff", b"    -1\\n    58\\n1\\n", ValueError)
+    Traceback (most recent call last):
+    ...
+    ValueError: a.uff: line 1: the dataset opened here has no closing -1 delimiter line (file cut short?)
+    """
+    def line(offset: int) -> int:
+        return data.count(b"\n", 0, offset) + 1
+
+    def outside(a: int, b: int) -> None:
+        text = data[a:b].removeprefix(BOM) if a == 0 else data[a:b]
+        if text.strip():
+            at = b - len(text.lstrip())
+            raise error(f"{path}: line {line(at)}: text outside any dataset ({text.strip()[:40]!r}; each "
+                        "dataset lies between two -1 delimiter lines)")
+
+    tags = _delimiters(data)
+    if len(tags) % 2:
+        raise error(f"{path}: line {line(tags[-1])}: the dataset opened here has no closing -1 delimiter "
+                    "line (file cut short?)")
+    numbers, previous_end = [], 0
+    for start, stop in zip(tags[::2], tags[1::2], strict=True):   # a loop over datasets
+        outside(previous_end, start)
+        head = data[start:min(stop, start + 200)].splitlines()   # bytes: LF, CR or CR LF only
+        number = head[1][:6].lstrip(b" ") if len(head) > 1 else b""
+        if not number.isdigit():
+            shown = number.decode("latin-1")
+            raise error(f"{path}: line {line(start) + 1}: {shown!r} is not a dataset number (the line after "
+                        "an opening -1 delimiter names the dataset type, e.g. 58)")
+        numbers.append(int(number))
+        nl = data.find(b"\n", stop)
+        previous_end = len(data) if nl < 0 else nl + 1
+    outside(previous_end, len(data))
+    return numbers
