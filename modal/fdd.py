@@ -30,7 +30,7 @@ from flexmodal.modal.damping import log_decrement
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.identify import Modes
 from flexmodal.modal.indicators import mpc, mpd
-from flexmodal.modal.oma_uncertainty import MAX_DECAY_FRACTION, jackknife_std
+from flexmodal.modal.oma_uncertainty import MAX_DECAY_FRACTION, N_BOOTSTRAP, bootstrap_weights
 from flexmodal.modal.spectra import default_nfft, welch_spectra
 
 # A mode's correlation function decays exponentially: R² of the log-decrement line >= 0.97 for the
@@ -73,9 +73,9 @@ def fdd(y: np.ndarray, sample_rate_hz: float, *, references: Sequence[int] | Non
     """FDD of an output-only record ``y`` [n_samples, n_channels]: singular values of the cross-spectral
     matrix with ``references`` (default all channels) and the peaks of the first between ``fmin`` and
     ``fmax`` Hz (see module docstring).  ``nfft`` defaults to the power of two giving >= 8 segments.
-    ``uncertainty_blocks``: each mode's ``freq_std_hz``/``damping_std`` by the delete-one-block
-    jackknife over that many contiguous blocks of the record (modal/oma_uncertainty.py; 0: none, as
-    ``identify`` runs it: about four times FDD's cost)."""
+    ``uncertainty_blocks``: each mode's ``freq_std_hz``/``damping_std`` by the bootstrap over at most
+    that many contiguous runs of the Welch segments (:func:`_bootstrap`, modal/oma_uncertainty.py; 0:
+    none, as ``identify`` runs it)."""
     y = np.asarray(y, float)
     if y.ndim != 2 or np.isinf(y).any():
         raise ModalError(f"FDD: record of shape {y.shape} is not a finite [n_samples, n_channels] array "
@@ -114,52 +114,56 @@ def fdd(y: np.ndarray, sample_rate_hz: float, *, references: Sequence[int] | Non
                   tuple(warnings), mpc=mpc(complex_shapes), mpd=mpd(complex_shapes))
     if uncertainty_blocks:   # freq_std_hz / damping_std (issue 26)
         with threadpool_limits(1, "blas"):        # small batched SVDs: threads only spin on them
-            std = _jackknife(y, sample_rate_hz, refs, nfft, lines, mac_min, uncertainty_blocks)
-        # a mode decaying over more than MAX_DECAY_FRACTION of a block: the blocks are not independent
-        block_s = y.shape[0] / _n_blocks(y.shape[0], nfft, uncertainty_blocks) / sample_rate_hz
-        std[1.0 / (modes.damping_ratio * 2 * np.pi * modes.freq_hz) > MAX_DECAY_FRACTION * block_s] = np.nan
+            std, unit_s = _bootstrap(y, sample_rate_hz, refs, nfft, lines, mac_min, uncertainty_blocks)
+        # a mode decaying over more than MAX_DECAY_FRACTION of a unit: the units are not independent
+        std[1.0 / (modes.damping_ratio * 2 * np.pi * modes.freq_hz) > MAX_DECAY_FRACTION * unit_s] = np.nan
         modes = replace(modes, freq_std_hz=std[:, 0], damping_std=std[:, 1])
     return FddResult(f, sv.T, U[:, :, 0].T, modes, G)
 
 
-def _n_blocks(n_samples: int, nfft: int, n_blocks: int) -> int:
-    """Blocks of at least two half-overlapping segments, at most ``n_blocks`` (and at least 1)."""
-    return max(1, min(n_blocks, int(n_samples // (1.5 * nfft))))
+def _bootstrap(y: np.ndarray, sample_rate_hz: float, refs: list[int], nfft: int, lines: list[int],
+               mac_min: float, n_units: int) -> tuple[np.ndarray, float]:
+    """Standard deviations [n_modes, 2] of (f_n [Hz], zeta) of the EFDD modes at ``lines`` and the
+    length [s] of the shortest unit's own share of the record (a segment step per segment).
 
-
-def _jackknife(y: np.ndarray, sample_rate_hz: float, refs: list[int], nfft: int, lines: list[int],
-               mac_min: float, n_blocks: int) -> np.ndarray:
-    """Standard deviations [n_modes, 2] of (f_n [Hz], zeta) of the EFDD modes at ``lines``: the
-    delete-one-block jackknife over ``n_blocks`` contiguous blocks (fewer when a block would hold
-    fewer than two segments; NaN below 4 blocks or where a block's removal loses the mode), each
-    mode's bell kept at its lines in the whole record's spectrum (the jackknife needs a smooth
-    statistic; the bell's edges are a threshold decision)."""
-    n_b = _n_blocks(y.shape[0], nfft, n_blocks)
+    The Welch segments (Hann, half-overlapping, as :func:`cross_spectra`) are split into at most
+    ``n_units`` contiguous runs whose spectra, weighted by their segment counts (segments touching a
+    gap left out), average to the record's; each of ``N_BOOTSTRAP`` replicates re-weights the runs by
+    multinomial counts (modal/oma_uncertainty.py) and repeats EFDD at each mode's peak line with the
+    replicate's own bell (:func:`_bell`: its edges are part of the estimate's scatter); the sigma is
+    the replicates' standard deviation times ``sqrt(n / (n - 1))`` (the bootstrap's plug-in variance
+    of a mean of n units).  A replicate whose EFDD fails its checks is left out; NaN below 4 units,
+    and for a mode whose EFDD fails in more than a quarter of the replicates."""
+    step = nfft - int(round(0.5 * nfft))
+    n_seg = (y.shape[0] - nfft) // step + 1
+    runs = np.array_split(np.arange(n_seg), min(n_units, n_seg))
     nan = np.full((len(lines), 2), np.nan)
-    if n_b < 4:
-        return nan
-    length = y.shape[0] // n_b
-    try:
-        G = np.stack([cross_spectra(y[j * length:(j + 1) * length], sample_rate_hz, refs, nfft)[1]
-                      for j in range(n_b)])                   # a loop over blocks
-    except ModalError:                                        # a block that is all gaps
-        return nan
+    spectra, counts = [], []
+    for run in runs:                                          # a loop over units (runs of segments)
+        unit = welch_spectra(y[run[0] * step:run[-1] * step + nfft], sample_rate_hz, refs, range(y.shape[1]),
+                             nfft, min_segments=0)          # as cross_spectra, with its segment count
+        if unit.n_averages:                                   # (segments touching a gap are left out)
+            spectra.append(np.moveaxis(unit.g_xf, -1, 0))
+            counts.append(unit.n_averages)
+    unit_s = min(r.size for r in runs) * step / sample_rate_hz
+    if len(counts) < 4:
+        return nan, unit_s
+    G, c = np.stack(spectra), np.asarray(counts, float)
     f = np.fft.rfftfreq(nfft, 1.0 / sample_rate_hz)
-    total = G.sum(axis=0)
-    U, sv, _ = np.linalg.svd(total / n_b, full_matrices=False)
-    bells = [_bell(sv[:, 0], U[:, :, 0], k, mac_min) for k in lines]
-    est = np.full((n_b, len(lines), 2), np.nan)
-    used = np.unique(np.concatenate([np.arange(lo, hi) for lo, hi in bells]))
-    s1 = np.zeros(f.size)
-    for j in range(n_b):                                      # a loop over blocks left out
-        s1[used] = np.linalg.svd((total[used] - G[j, used]) / (n_b - 1), compute_uv=False)[:, 0]
+    est = np.full((N_BOOTSTRAP, len(lines), 2), np.nan)
+    for b, w in enumerate(bootstrap_weights(len(c), N_BOOTSTRAP)):   # a loop over replicates
+        wc = w * c
+        U, sv, _ = np.linalg.svd(np.tensordot(wc, G, 1) / wc.sum(), full_matrices=False)
         for m, k in enumerate(lines):                         # and over modes
             try:
-                z, f_n = _efdd(f, s1, U[:, :, 0], k, sample_rate_hz, mac_min, bells[m])
+                z, f_n = _efdd(f, sv[:, 0], U[:, :, 0], k, sample_rate_hz, mac_min)
             except ModalError:
                 continue
-            est[j, m] = f_n, z
-    return jackknife_std(est)
+            est[b, m] = f_n, z
+    ok = np.isfinite(est[..., 0])
+    std = np.array([np.std(est[ok[:, m], m], axis=0, ddof=1) if ok[:, m].mean() >= 0.75 else [np.nan] * 2
+                    for m in range(len(lines))])
+    return std * np.sqrt(len(c) / (len(c) - 1.0)), unit_s
 
 
 def _bell(s1: np.ndarray, u1: np.ndarray, peak: int, mac_min: float) -> tuple[int, int]:

@@ -319,11 +319,28 @@ def _summary(stab: Stabilisation, members: np.ndarray, stable: np.ndarray, top: 
     poles (at a few lines per half-power band the upper orders split a leakage-broadened peak into a
     pole pair whose damping is biased high)."""
     s = members[stable[members]]
-    o = stab.order[s]
-    ranked = np.sort(o)
-    top = s[o >= ranked[int(np.ceil(top * (ranked.size - 1)))]]   # the quantile, without its overhead
-    f, z = np.median(stab.freq_hz[top]), np.median(stab.damping_ratio[s])
-    return f, z, np.unique(o).size, members
+    f, z = chain_medians(stab.order[s], stab.freq_hz[s], stab.damping_ratio[s], top)
+    return f, z, np.unique(stab.order[s]).size, members
+
+
+def chain_medians(order: np.ndarray, freq_hz: np.ndarray, damping_ratio: np.ndarray, top: float = 0.5
+                  ) -> tuple[float, float]:
+    """A mode's natural frequency [Hz] and damping ratio from its stable poles (their model ``order``,
+    ``freq_hz``, ``damping_ratio``): the median frequency over the poles at orders at or above the
+    quantile ``top`` of them, the median damping over all (:func:`_summary`; modal/ssi.py repeats it
+    on each bootstrap replicate of the same poles).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> f, z = chain_medians(np.array([2, 4, 6, 8]), np.array([9.0, 10.0, 10.2, 10.1]),
+    ...                      np.array([0.01, 0.02, 0.03, 0.04]))
+    >>> round(float(f), 6), round(float(z), 6)
+    (10.15, 0.025)
+    """
+    ranked = np.sort(order)
+    upper = order >= ranked[int(np.ceil(top * (ranked.size - 1)))]   # the quantile, without its overhead
+    return np.median(freq_hz[upper]), np.median(damping_ratio)
 
 
 def _merge_fragments(rows: list[tuple], stab: Stabilisation, stable: np.ndarray, top: float,

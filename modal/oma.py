@@ -135,7 +135,7 @@ def run_ssi(inp: ResponseInputs) -> SsiResult:
 
 def run_fdd(inp: ResponseInputs) -> FddResult:
     """Frequency domain decomposition (the ``fdd`` method), without its sigma (``fdd(...,
-    uncertainty_blocks=N_BLOCKS)`` gives it at about four times FDD's cost, and one more Welch
+    uncertainty_blocks=N_BLOCKS)`` gives it at about eight times FDD's cost, and one more Welch
     spectrum per block where output_only_results computes one in all)."""
     return fdd(inp.samples, inp.sample_rate_hz, references=inp.references, fmin=inp.fmin, fmax=inp.fmax)
 

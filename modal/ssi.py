@@ -33,8 +33,8 @@ from flexmodal.contract.mac import to_real, unit_max
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.identify import Modes
 from flexmodal.modal.indicators import mpc, mpd
-from flexmodal.modal.lscf import Stabilisation, _flags, pole_clusters
-from flexmodal.modal.oma_uncertainty import MAX_DECAY_FRACTION, MAX_MEMBERS, jackknife_std
+from flexmodal.modal.lscf import Stabilisation, _flags, chain_medians, pole_clusters
+from flexmodal.modal.oma_uncertainty import MAX_DECAY_FRACTION, N_BOOTSTRAP, bootstrap_weights
 
 MPC_MIN = 0.7       # poles below this modal phase collinearity are noise (real modes have MPC ~ 1)
 MPD_MAX_DEG = 30.0  # poles whose entries scatter more than this from one phase line are noise
@@ -181,15 +181,15 @@ def ssi_cov(y: np.ndarray, sample_rate_hz: float, *, references: Sequence[int] |
 
 def _with_std(modes: Modes, y: np.ndarray, refs: tuple[int, ...], s: int, n_blocks: int, max_order: int,
               members: list[tuple[np.ndarray, np.ndarray]], fs: float) -> Modes:
-    """``modes`` with the standard deviations of their frequencies and damping ratios: the delete-one-
-    block jackknife (modal/oma_uncertainty.py) over ``n_blocks`` contiguous blocks of ``y`` (fewer when
-    a block would be shorter than 40 s samples), each replicate re-identifying, from the Hankel matrix
-    of the other blocks, the pole nearest each of at most ``MAX_MEMBERS`` of the mode's stable poles
-    (``members``: their orders and poles) at the same orders, and averaging them over the orders the
-    mode's medians are taken over (frequency: the upper half; damping: all; the mean, as the
-    jackknife overestimates a median's variance, Efron 1982 §3.4).  NaN below 4 blocks, and for a
-    mode whose decay time ``1 / (zeta omega_n)`` exceeds ``MAX_DECAY_FRACTION`` of a block (the blocks
-    are then not independent samples of it)."""
+    """``modes`` with the standard deviations of their frequencies and damping ratios: the bootstrap
+    over ``n_blocks`` contiguous blocks of ``y`` (modal/oma_uncertainty.py; fewer blocks when one would
+    be shorter than 40 s samples), each of ``N_BOOTSTRAP`` replicates re-identifying, from the Hankel
+    matrix of the re-weighted blocks, the pole nearest each of the mode's stable poles (``members``:
+    their orders and poles) at the same order, and taking the same medians over them as the estimate
+    (:func:`_medians`); their standard deviation times ``sqrt(n_b / (n_b - 1))`` (the bootstrap
+    variance of a mean of n_b blocks is the plug-in one, (n_b - 1) / n_b of the unbiased).  NaN below
+    4 blocks, and for a mode whose decay time ``1 / (zeta omega_n)`` exceeds ``MAX_DECAY_FRACTION`` of
+    a block (the blocks are then not independent samples of it)."""
     n_b = min(n_blocks, y.shape[0] // (40 * s))
     nan = np.full(modes.freq_hz.size, np.nan)
     if n_b < 4:
@@ -202,32 +202,35 @@ def _with_std(modes: Modes, y: np.ndarray, refs: tuple[int, ...], s: int, n_bloc
                       .reshape(s * n_ch, s * len(refs)) for j in range(n_b)])     # a loop over blocks
     except ModalError:                                   # a block that is all gaps
         return replace(modes, freq_std_hz=nan, damping_std=nan.copy())
-    picks = []
-    for orders, _ in members:                            # evenly spread members: all, and the upper half
-        upper = np.flatnonzero(orders >= np.median(orders))
-        spread = [np.unique(np.linspace(0, k.size - 1, min(MAX_MEMBERS, k.size)).round().astype(int))
-                  for k in (np.arange(orders.size), upper)]
-        picks.append((spread[0], upper[spread[1]]))
-    est = np.full((n_b, len(members), 2), np.nan)
-    total = H.sum(axis=0)
-    for j in range(n_b):                                 # a loop over blocks left out
-        U, sv, Vt = scipy.linalg.svd((total - H[j]) / (n_b - 1), full_matrices=False, check_finite=False)
-        real = _Realisations(U, sv, Vt, n_ch, len(refs), max_order)
-        cache: dict[int, np.ndarray] = {}
-        for m, ((orders, poles), (every, upper)) in enumerate(zip(members, picks, strict=True)):
-            lam = np.empty(orders.size, complex)
-            for k in np.union1d(every, upper):           # a loop over a few of the mode's orders
-                n = int(orders[k])
-                if n not in cache:
-                    mu = scipy.linalg.eigvals(real.X(n), check_finite=False).astype(complex)
-                    cache[n] = np.log(mu) * fs
-                lam[k] = cache[n][np.argmin(np.abs(cache[n] - poles[k]))]
-            est[j, m] = (np.mean(np.abs(lam[upper])) / (2 * np.pi),
-                         np.mean(-lam[every].real / np.abs(lam[every])))
-    std = jackknife_std(est)
+    est = np.array([_medians(np.tensordot(w, H, 1) / n_b, n_ch, len(refs), max_order, members, fs)
+                    for w in bootstrap_weights(n_b, N_BOOTSTRAP)])               # a loop over replicates
+    # the bootstrap's plug-in variance of a mean of n_b blocks is (n_b - 1) / n_b of the unbiased one
+    std = np.std(est, axis=0, ddof=1) * np.sqrt(n_b / (n_b - 1.0))
     tau_s = 1.0 / (modes.damping_ratio * 2 * np.pi * modes.freq_hz)
     std[tau_s > MAX_DECAY_FRACTION * length / fs] = np.nan
     return replace(modes, freq_std_hz=std[:, 0], damping_std=std[:, 1])
+
+
+def _medians(H: np.ndarray, n_ch: int, n_refs: int, max_order: int,
+             members: list[tuple[np.ndarray, np.ndarray]], fs: float) -> np.ndarray:
+    """[n_modes, 2] natural frequency [Hz] and damping ratio of each mode from the block Hankel matrix
+    ``H``: at each order of the mode's stable poles (``members``: orders, poles [rad/s]) the pole of
+    ``H``'s realisation nearest the member, and over them the medians of the estimate
+    (:func:`flexmodal.modal.lscf.chain_medians`); for the record's own ``H`` that is the estimate."""
+    U, sv, Vt = scipy.linalg.svd(H, full_matrices=False, check_finite=False)
+    real = _Realisations(U, sv, Vt, n_ch, n_refs, max_order)
+    poles: dict[int, np.ndarray] = {}
+    out = np.empty((len(members), 2))
+    for m, (orders, member_poles) in enumerate(members):     # a loop over modes
+        lam = np.empty(orders.size, complex)
+        for k, n in enumerate(orders.tolist()):              # and over their orders (each order's poles once)
+            if n not in poles:
+                mu = scipy.linalg.eigvals(real.X(n), check_finite=False).astype(complex)
+                poles[n] = np.log(mu) * fs
+            lam[k] = poles[n][np.argmin(np.abs(poles[n] - member_poles[k]))]
+        wn = np.abs(lam)
+        out[m] = chain_medians(orders, wn / (2 * np.pi), -lam.real / wn)
+    return out
 
 
 class _Realisations:

@@ -271,3 +271,13 @@ def test_a_run_file_another_program_holds_open(tmp_path: Path, capsys) -> None:
         _one_line(capsys, main(["frf", str(path)]), "run.h5", "in use by another process")
     finally:
         holder.communicate("", timeout=600)
+
+
+def test_a_session_simulator_that_cannot_start_is_one_line(tmp_path: Path, capsys) -> None:
+    """The simulator child printed its own error line above the session's: two lines."""
+    text = SESSION.replace('"../rigs/demo_arm.toml"', f'"{REPO}/examples/rigs/demo_arm.toml"')
+    effect = 'test = "impact"\neffects = ["nope@elbow:k=1"]'
+    (tmp_path / "s.toml").write_text(text.replace('test = "impact"', effect))
+    code = main(["acquire", "--config", str(tmp_path / "s.toml"), "--out", str(tmp_path / "r.h5"),
+                 "--duration", "1"])
+    _one_line(capsys, code, "s.toml", "did not start: unknown effect 'nope'")
