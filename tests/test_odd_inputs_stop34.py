@@ -281,3 +281,15 @@ def test_a_session_simulator_that_cannot_start_is_one_line(tmp_path: Path, capsy
     code = main(["acquire", "--config", str(tmp_path / "s.toml"), "--out", str(tmp_path / "r.h5"),
                  "--duration", "1"])
     _one_line(capsys, code, "s.toml", "did not start: unknown effect 'nope'")
+
+
+def test_names_spelt_with_combining_accents_are_the_same_names(tmp_path: Path, capsys) -> None:
+    """'théta0' written decomposed (NFD: e + U+0301) in one table and composed (NFC) in the other were
+    two configs that never paired."""
+    import unicodedata
+
+    (tmp_path / "m.csv").write_text(f"config,mode,freq_hz\n{unicodedata.normalize('NFD', 'théta0')},1,25.5\n")
+    (tmp_path / "p.csv").write_text(f"config,mode,freq_hz\n{unicodedata.normalize('NFC', 'théta0')},1,25.0\n")
+    assert main(["compare", str(tmp_path / "m.csv"), str(tmp_path / "p.csv"), "--format", "csv"]) == 0
+    out = capsys.readouterr().out
+    assert "pairs with no" not in out and out.count("\n") == 2, out
