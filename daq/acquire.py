@@ -374,6 +374,7 @@ class _Recorder:
         self.lost: set[str] = set()
         self.error = ""
         self.t_first: float | None = None  # monotonic time of the first block
+        self.t_begin = time.monotonic()  # when the readers started (reset by run)
         self.lag_base = np.inf  # smallest delay of the rows behind real time seen so far (start-up latency)
         self.overrun = False
         self.disk_stopped = False
@@ -412,17 +413,25 @@ class _Recorder:
     # -- health of devices, writer and disk ----------------------------------------------------------
     def silent(self, now: float) -> set[str]:
         """Devices that delivered nothing for STALL_S (once any device delivered); newly lost ones are
-        recorded, and end the session unless it continues without them."""
+        recorded, and end the session unless it continues without them.
+
+        A device's lost-device clock starts at its own first block: one still starting up (a simulator
+        importing on a cold, loaded machine) is not lost while others deliver; it has NO_DATA_TIMEOUT_S
+        from the session's start to deliver, and is lost then."""
         if self.t_first is None:
             return set()
         quiet_s = {d: now - (s.last_block_s or self.t_first) for d, s in self.stats.items()}
         for d, q in quiet_s.items():
-            if q > self.session.reconnect_timeout_s and d not in self.lost:
+            started = self.stats[d].last_block_s is not None
+            if d not in self.lost and (q > self.session.reconnect_timeout_s if started
+                                       else now - self.t_begin > NO_DATA_TIMEOUT_S):
                 self.lost.add(d)
                 self.note(d, f"lost: no samples for {q:.1f} s", "device_lost")
                 if not self.session.continue_on_device_loss or self.lost == set(self.drivers):
                     self.error = (f"{self.session.source}: device {d!r} lost (no samples for "
-                                  f"{self.session.reconnect_timeout_s:g} s); the run holds everything before")
+                                  f"{self.session.reconnect_timeout_s:g} s); the run holds everything before"
+                                  if started else f"{self.session.source}: no samples from device {d!r} "
+                                  f"within {NO_DATA_TIMEOUT_S:g} s of the start; the run holds the others'")
         return {d for d, q in quiet_s.items() if q > STALL_S}
 
     def check_overrun(self, now: float) -> None:
@@ -557,7 +566,7 @@ class _Recorder:
         threads = [threading.Thread(target=run_reader, name=f"reader-{name}", daemon=True,
                                     args=(drv, self.queue, self.stop, self.stats[name], wait_s))
                    for name, drv in self.drivers.items()]
-        t_begin = next_disk = time.monotonic()
+        self.t_begin = next_disk = time.monotonic()
         for th in threads:
             th.start()
         try:
@@ -571,7 +580,7 @@ class _Recorder:
                     next_disk = now + DISK_CHECK_S
                     if self.disk_full():
                         break
-                if self.timeline.released == 0 and now - t_begin > NO_DATA_TIMEOUT_S:
+                if self.timeline.released == 0 and now - self.t_begin > NO_DATA_TIMEOUT_S:
                     none = [d for d, s in self.stats.items() if s.samples == 0] or list(self.drivers)
                     raise DaqError(f"{self.session.source}: no samples from device "
                                    f"{', '.join(map(repr, none))} within {NO_DATA_TIMEOUT_S:g} s")

@@ -15,6 +15,8 @@ socketcan and pcan give) and the parts of one scan sent within half a period of 
 
 from __future__ import annotations
 
+import math
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,7 +26,7 @@ from flexmodal.daq.devices import PERMANENT_ERRNOS, Block, Device, DeviceLost, D
 from flexmodal.daq.errors import DaqError
 
 COUNTER_SIGNAL = "Seq"
-MAX_FRAMES_PER_READ = 20000
+READ_SPAN_S = 0.1  # one read hands over at most this much of the stream (frames at the session's rate)
 
 
 @dataclass(frozen=True)
@@ -92,6 +94,10 @@ class CanDriver(Driver):
             mux_ids = sorted({i for mm, s in self.signals if mm == m for i in (s.mux_ids or ())})
             for g in (mux_ids if lay.mux is not None else [0]):
                 self.parts[(m, g)] = len(self.parts)
+        # A read hands over what arrived, READ_SPAN_S of the stream at most: a reader that drains the port
+        # no faster than the device fills it (a loaded machine) still delivers blocks at once, instead of
+        # going silent, for the lost-device clock, for as long as the backlog lasts.
+        self.frames_per_read = max(len(self.parts), math.ceil(READ_SPAN_S * sample_rate_hz * len(self.parts)))
         self._bus = None
         self._last: dict[int, tuple[int, int, float]] = {}  # per message: (index, counter code, timestamp)
         self._part_last: dict[int, tuple[int, float]] = {}  # without counter, per part: (index, timestamp)
@@ -129,10 +135,14 @@ class CanDriver(Driver):
         if self._lost:
             raise DeviceLost(self._lost)
         msgs = []
+        limit = self.frames_per_read
+        end = time.monotonic() + READ_SPAN_S
         try:
             msg = self._recv(0.05)
-            while msg is not None and len(msgs) < MAX_FRAMES_PER_READ:
+            while msg is not None:
                 msgs.append(msg)
+                if len(msgs) >= limit or time.monotonic() > end:
+                    break
                 msg = self._recv(0)
         except (can.CanError, serial.SerialException, OSError) as exc:
             self._lost = f"CAN {self.config.channel}: {exc}"
