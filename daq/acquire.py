@@ -181,7 +181,8 @@ class Display:
 
     def rows(self, rows: np.ndarray) -> None:
         if rows.size:
-            self.level = np.sqrt(np.nanmean(rows**2, axis=0))
+            n = np.isfinite(rows).sum(axis=0)  # a silent device's all-NaN columns: level NaN, no warning
+            self.level = np.sqrt(np.nansum(rows**2, axis=0) / np.where(n, n, np.nan))
             self.peak = np.maximum(self.peak, np.nanmax(np.abs(rows), axis=0, initial=0))
 
     def update(self, n_samples: int, rate_hz: float, dropped: int, events: Counter,
@@ -422,7 +423,7 @@ class _Recorder:
             return set()
         quiet_s = {d: now - (s.last_block_s or self.t_first) for d, s in self.stats.items()}
         for d, q in quiet_s.items():
-            started = self.stats[d].last_block_s is not None
+            started = self.stats[d].blocks > 0
             if d not in self.lost and (q > self.session.reconnect_timeout_s if started
                                        else now - self.t_begin > NO_DATA_TIMEOUT_S):
                 self.lost.add(d)

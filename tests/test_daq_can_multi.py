@@ -73,3 +73,56 @@ def test_two_messages_without_counter_lossless_and_a_dropped_frame_detected(tmp_
     np.testing.assert_array_equal(run.samples, expected)
     lost = [(e.kind, e.sample_index, e.count) for e in run.events]
     assert lost == [("corrupt", row, 1)]  # one part of one scan missing
+
+
+def _stream_one(channel: str, arbitration_id: int, delay_s: float, stop: threading.Event) -> None:
+    """A stand-in device sending one message per scan on ``channel``, from ``delay_s`` after the
+    acquisition's bus has joined (a device still starting up, as a cold simulator on a loaded machine)."""
+    bus = can.Bus(interface="virtual", channel=channel, preserve_timestamps=True)
+    listeners = can.interfaces.virtual.channels[channel]
+    while len(listeners) < 2 and not stop.is_set():
+        time.sleep(0.01)
+    stop.wait(delay_s)
+    t0, k = time.time(), 0
+    while not stop.is_set() and k < 20 * RATE:
+        due = int((time.time() - t0) * RATE)
+        for s in range(k, due):
+            v = _values(np.array([s]))[0]
+            bus.send(can.Message(arbitration_id=arbitration_id, data=v[:4].tobytes(), timestamp=t0 + s / RATE,
+                                 is_extended_id=False))
+        k = max(k, due)
+        time.sleep(0.005)
+    bus.shutdown()
+
+
+def test_a_device_starting_later_than_the_lost_device_timeout_is_not_lost(tmp_path):
+    """The lost-device clock of a device starts at its own first block: one that starts 1 s after the
+    other (3 x reconnect_timeout_s) is recorded from then on, neither device is lost and the session
+    completes.  (Before, the clock of a device that had not delivered yet ran from the other's first
+    block.)  Being later than the delay never fails the test: no wall-clock bound."""
+    _dbc(tmp_path / "two.dbc")
+    devices, channels = "", ""
+    for tag in "ab":
+        devices += (f'[[device]]\nname = "{tag}"\nprotocol = "can"\ninterface = "virtual"\n'
+                    f'channel = "flexmodal-late-{tag}"\ndbc = "two.dbc"\nmessages = ["Scan{tag.upper()}"]\n'
+                    'counter = ""\n')
+        channels += "".join(f'[[channel]]\nname = "{tag}{i}"\nkind = "voltage"\nunit = "count"\n'
+                            f'device = "{tag}"\n' for i in range(4))
+    config = tmp_path / "late.toml"
+    config.write_text(f"sample_rate_hz = {RATE}\nreconnect_timeout_s = 0.3\n{devices}{channels}")
+
+    def both(stop):
+        late = threading.Thread(target=_stream_one, args=("flexmodal-late-b", 0x201, 1.0, stop), daemon=True)
+        late.start()
+        _stream_one("flexmodal-late-a", 0x200, 0.0, stop)
+        late.join(5)
+
+    run = record_with(both, load_session(config), tmp_path / "run.h5", 3.0)
+    assert [e for e in run.events if e.kind in ("device_lost", "stopped")] == []
+    assert run.samples.shape == (int(3.0 * RATE), 8)
+    assert np.isfinite(run.samples[:, :4]).all()  # the device streaming from the start: every sample
+    late = run.samples[:, 4:]
+    started = int(np.argmax(np.isfinite(late[:, 0])))
+    assert np.isfinite(late[:, 0]).any() and np.isfinite(late[started:]).all()
+    k = late[started:, 0].astype(int)  # a0 of the late device counts its scans: none lost or repeated
+    np.testing.assert_array_equal(np.diff(k), 1)
