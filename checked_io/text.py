@@ -13,6 +13,7 @@ import json
 import os
 import stat
 import tomllib
+import unicodedata
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -115,18 +116,33 @@ def read_bytes(path: str | Path, error: ErrorType, what: str = "file",
 
 
 def decode_text(data: bytes, where: str | Path, error: ErrorType, what: str = "text file") -> str:
-    """Decode UTF-8 (an optional byte-order mark is dropped); a NUL byte or an invalid UTF-8 sequence
-    raises ``error`` naming the line and the byte."""
+    """Decode UTF-8 (an optional byte-order mark is dropped) into Unicode normal form C (composed
+    characters: names that look alike are alike); a NUL byte or an invalid UTF-8 sequence raises
+    ``error`` naming the line and the byte."""
     nul = data.find(b"\x00")
     if nul >= 0:
         line = data.count(b"\n", 0, nul) + 1
         raise error(f"{where}: line {line}: binary data (NUL byte at offset {nul}), not a {what}")
     try:
-        return data.decode("utf-8-sig")
+        text = data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         line = data.count(b"\n", 0, exc.start) + 1
         raise error(f"{where}: line {line}: byte 0x{data[exc.start]:02x} at offset {exc.start} is not "
                     f"UTF-8 (save the {what} as UTF-8)") from None
+    return nfc(text)
+
+
+def nfc(text: str) -> str:
+    """``text`` in Unicode normal form C: one spelling per name ('é' typed as e + a combining accent,
+    as macOS file tools write it, and as one character look alike and would name two configs, sensors
+    or pose variables).
+
+    Examples
+    --------
+    >>> nfc("the\u0301ta0") == "th\u00e9ta0"
+    True
+    """
+    return text if text.isascii() else unicodedata.normalize("NFC", text)
 
 
 def read_text(path: str | Path, error: ErrorType, what: str = "text file") -> str:

@@ -52,8 +52,9 @@ def check_blocks(path: str | Path, data: bytes, error: ErrorType) -> list[int]:
         text = data[a:b].removeprefix(BOM) if a == 0 else data[a:b]
         if text.strip():
             at = b - len(text.lstrip())
-            raise error(f"{path}: line {line(at)}: text outside any dataset ({text.strip()[:40]!r}; each "
-                        "dataset lies between two -1 delimiter lines)")
+            shown = text.strip()[:40].decode("latin-1")
+            raise error(f"{path}: line {line(at)}: text outside any dataset ({shown!r}; each dataset lies "
+                        "between two -1 delimiter lines)")
 
     tags = _delimiters(data)
     if len(tags) % 2:

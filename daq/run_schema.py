@@ -16,7 +16,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from flexmodal.checked_io.text import available_memory_bytes, loads_json, one_line
+from flexmodal.checked_io.text import available_memory_bytes, loads_json, nfc, one_line
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.h5file import open_read
 
@@ -44,10 +44,10 @@ NUMERIC_FIELDS = {"sensitivity": "f", "sample_index": "i", "count": "i"}
 def _text(value: object) -> str | None:
     if isinstance(value, bytes):
         try:
-            return value.decode()
+            return nfc(value.decode())
         except UnicodeDecodeError:
             return None
-    return value if isinstance(value, str) else None
+    return nfc(value) if isinstance(value, str) else None
 
 
 def sample_rate_ok(rate_hz: float) -> bool:
@@ -214,9 +214,10 @@ def _check_external(d: h5py.Dataset, name: str, where: str, error: type[Exceptio
 
 def _check_stored(d: h5py.Dataset, name: str, where: str, error: type[Exception]) -> None:
     """Raise ``error`` when ``d`` declares data it never stored beyond the last two chunk slabs along
-    its longest chunked axis (a writer that grows a dataset ends at most one chunk past what it wrote;
-    HDF5 gives the rest back as fill values): a file that declares 10^11 rows in 6 kB would otherwise be
-    streamed as days of fill values, or allocated whole."""
+    the axis it grows on (the first when resizable there, else its longest in chunks): a writer that
+    grows a dataset ends at most one chunk past what it wrote, and HDF5 gives the rest back as fill
+    values, so a file that declares 10^11 rows in 6 kB would otherwise be streamed as days of fill
+    values, or allocated whole."""
     if d.size == 0:
         return
     if d.chunks is None:
@@ -224,7 +225,8 @@ def _check_stored(d: h5py.Dataset, name: str, where: str, error: type[Exception]
     else:
         per_axis = [-(-n // c) for n, c in zip(d.shape, d.chunks, strict=True)]
         stored, expected = d.id.get_num_chunks(), math.prod(per_axis)
-        spare = 2 * (expected // max(per_axis))
+        growing = 0 if d.maxshape and d.maxshape[0] is None else per_axis.index(max(per_axis))
+        spare = 2 * (expected // per_axis[growing])   # two slabs of chunks along the axis it grows on
     if stored < expected - spare:
         raise error(f"{where}: {name!r} declares shape {d.shape} but stores {stored} of its {expected} "
                     "chunks (data never written)")

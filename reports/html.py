@@ -270,6 +270,19 @@ def _pct(value: float | None) -> str:
     return f"{100 * value:.3g}" if value is not None else ""
 
 
+def _verdict_params(verdict) -> str:
+    """The verdict's fitted parameters with their 95 % intervals, as ``flexmodal diagnose`` prints them:
+    ``k_Nm_per_rad = 6616 (95 % interval 5359 .. 8168)``; empty for ``none``."""
+    intervals = verdict.param_intervals or {}
+
+    def interval(name: str) -> str:
+        lo, hi = (tuple(intervals.get(name) or ()) + (None, None))[:2]
+        return f" (95 % interval {lo:.4g} .. {hi:.4g})" if lo is not None and hi is not None else ""
+
+    fitted = (verdict.params or {}).items()
+    return "; ".join(f"{k} = {v:.4g}{interval(k)}" for k, v in fitted if v is not None)
+
+
 def _diagnosis_view(d: Diagnosis) -> dict:
     """The template's diagnosis section: the typed result as display text."""
     where, verdict = d.where, d.verdict
@@ -279,6 +292,7 @@ def _diagnosis_view(d: Diagnosis) -> dict:
                  f"{', '.join(sorted(where.configs, key=natural_key)) or '-'}"
                  + (f"; region {where.region}" if where.region else ""),
         "verdict": f"{verdict.effect} at {verdict.location}" if verdict.location else verdict.effect,
+        "params": _verdict_params(verdict),
         "summary": verdict.summary or "",
         "heldout": " / ".join(_pct(x) for x in (verdict.heldout_rms_rel_error_before,
                                                  verdict.heldout_rms_rel_error_after)),

@@ -71,7 +71,7 @@ def demo_run(tmp_path_factory):
     and tests/test_report_handover.py share it and only read its outputs): through the CLI's ``main``
     in this process, with every figure the reports embed kept (``reports.plots.figure_png`` observed).
     Returns (DIR, elapsed seconds not counting the time spent waiting for a CPU (tests/cpu_wait.py),
-    stdout, [figures]); the console script itself runs the demo in tests/test_cli_interrupt.py and
+    stdout, [figures], stderr); the console script itself runs the demo in tests/test_cli_interrupt.py and
     tests/test_foundation_cli.py."""
     import contextlib
     import io
@@ -91,13 +91,13 @@ def demo_run(tmp_path_factory):
         figures.append(fig)
         return original(fig, dpi)
 
-    stdout = io.StringIO()
+    stdout, stderr = io.StringIO(), io.StringIO()
     with CpuWait(os.getpid(), step_s=0.1) as waits, pytest.MonkeyPatch.context() as mp, \
-            contextlib.redirect_stdout(stdout):
+            contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
         start = time.monotonic()
         mp.setattr(plots, "figure_png", keep)
         code = main(["demo", "--out", str(out)])
         end = time.monotonic()
     elapsed = waits.unloaded(start, end)  # the time spent waiting for a CPU (load) not counted
-    assert code == 0
-    return out, elapsed, stdout.getvalue(), figures
+    assert code == 0, stderr.getvalue()
+    return out, elapsed, stdout.getvalue(), figures, stderr.getvalue()

@@ -24,7 +24,7 @@ EXCITATIONS = {"impact", "random", "sweep", "free-decay", "operational"}
 @pytest.fixture(scope="module")
 def demo_dir(demo_run) -> tuple[Path, float, str]:
     """(folder, seconds, stdout) of the session's demo (tests/conftest.py ``demo_run``)."""
-    out, elapsed, stdout, _ = demo_run
+    out, elapsed, stdout, *_ = demo_run
     return out, elapsed, stdout
 
 
@@ -190,3 +190,11 @@ def test_demo_and_the_cli_chain_on_the_same_runs_give_the_same_verdict(demo_dir:
     assert graded, stdout
     assert "explained: False" not in stdout and "x the measurement scatter 0.00%" not in stdout
     assert "model-form floor" in stdout
+
+
+def test_the_demo_tells_a_log_each_step(demo_run):
+    """stderr is not a terminal here (as in CI or a log file): one line per step instead of the bar."""
+    stderr = demo_run[4]
+    steps = re.findall(r"^demo: step (\d)/5: [a-zA-Z +]+(?: \(at \d+ s\))?$", stderr, re.MULTILINE)
+    assert steps == ["1", "2", "3", "4", "5"], stderr
+

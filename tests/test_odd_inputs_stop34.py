@@ -281,3 +281,35 @@ def test_a_session_simulator_that_cannot_start_is_one_line(tmp_path: Path, capsy
     code = main(["acquire", "--config", str(tmp_path / "s.toml"), "--out", str(tmp_path / "r.h5"),
                  "--duration", "1"])
     _one_line(capsys, code, "s.toml", "did not start: unknown effect 'nope'")
+
+
+def test_names_spelt_with_combining_accents_are_the_same_names(tmp_path: Path, capsys) -> None:
+    """'théta0' written decomposed (NFD: e + U+0301) in one table and composed (NFC) in the other were
+    two configs that never paired."""
+    import unicodedata
+
+    (tmp_path / "m.csv").write_text(f"config,mode,freq_hz\n{unicodedata.normalize('NFD', 'théta0')},1,25.5\n")
+    (tmp_path / "p.csv").write_text(f"config,mode,freq_hz\n{unicodedata.normalize('NFC', 'théta0')},1,25.0\n")
+    assert main(["compare", str(tmp_path / "m.csv"), str(tmp_path / "p.csv"), "--format", "csv"]) == 0
+    out = capsys.readouterr().out
+    assert "pairs with no" not in out and out.count("\n") == 2, out
+
+
+def test_channel_names_are_read_composed_and_alike_names_are_one_name(tmp_path: Path, capsys) -> None:
+    import unicodedata
+
+    from flexmodal.daq.store import read_run
+
+    path = _run(tmp_path / "run.h5")
+    for names, ok in (((unicodedata.normalize("NFD", "é1"),), True),
+                      ((unicodedata.normalize("NFD", "é1"), "é1"), False)):
+        with h5py.File(path, "r+") as f:
+            ch = f["runs/r1/channels"][...]
+            for i, name in enumerate(names):
+                ch["name"][-1 - i] = name.encode()
+            del f["runs/r1/channels"]
+            f["runs/r1/channels"] = ch
+        if ok:
+            assert read_run(path, "r1").channels[-1].name == "é1"
+        else:
+            _one_line(capsys, main(["frf", str(path)]), "channel name 'é1' appears twice")

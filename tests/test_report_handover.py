@@ -29,7 +29,7 @@ REPO = Path(__file__).resolve().parents[1]
 def demo_figures(demo_run):
     """(report path, [(caption-less figure, kind)]) of the session's demo (tests/conftest.py
     ``demo_run``: run in this process with every embedded figure kept)."""
-    out, _, _, figures = demo_run
+    out, _, _, figures, _ = demo_run
     return out / "report.html", figures
 
 
