@@ -129,8 +129,19 @@ def decode_text(data: bytes, where: str | Path, error: ErrorType, what: str = "t
         line = data.count(b"\n", 0, exc.start) + 1
         raise error(f"{where}: line {line}: byte 0x{data[exc.start]:02x} at offset {exc.start} is not "
                     f"UTF-8 (save the {what} as UTF-8)") from None
-    # one spelling per name: 'é' typed as e + combining accent (NFD, as macOS file tools write it) and as
-    # one character (NFC) look alike and would name two configs, sensors or pose variables
+    return nfc(text)
+
+
+def nfc(text: str) -> str:
+    """``text`` in Unicode normal form C: one spelling per name ('é' typed as e + a combining accent,
+    as macOS file tools write it, and as one character look alike and would name two configs, sensors
+    or pose variables).
+
+    Examples
+    --------
+    >>> nfc("the\u0301ta0") == "th\u00e9ta0"
+    True
+    """
     return text if text.isascii() else unicodedata.normalize("NFC", text)
 
 

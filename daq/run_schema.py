@@ -16,7 +16,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from flexmodal.checked_io.text import available_memory_bytes, loads_json, one_line
+from flexmodal.checked_io.text import available_memory_bytes, loads_json, nfc, one_line
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.h5file import open_read
 
@@ -44,10 +44,10 @@ NUMERIC_FIELDS = {"sensitivity": "f", "sample_index": "i", "count": "i"}
 def _text(value: object) -> str | None:
     if isinstance(value, bytes):
         try:
-            return value.decode()
+            return nfc(value.decode())
         except UnicodeDecodeError:
             return None
-    return value if isinstance(value, str) else None
+    return nfc(value) if isinstance(value, str) else None
 
 
 def sample_rate_ok(rate_hz: float) -> bool:

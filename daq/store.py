@@ -25,7 +25,7 @@ import h5py
 import numpy as np
 
 from flexmodal.checked_io.output import signals_deferred
-from flexmodal.checked_io.text import available_memory_bytes, regular_file
+from flexmodal.checked_io.text import available_memory_bytes, nfc, regular_file
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.h5file import LOCKED, locked, open_read
 from flexmodal.daq.run_schema import (
@@ -302,7 +302,9 @@ def list_runs(path: str | Path) -> list[str]:
 
 
 def _text(value) -> str:
-    return value.decode() if isinstance(value, bytes) else str(value)
+    """A stored text as str, in Unicode normal form C (as daq.run_schema checks names and
+    checked_io.text reads tables: a sensor name spelt decomposed is the rig's and the table's name)."""
+    return nfc(value.decode() if isinstance(value, bytes) else str(value))
 
 
 @contextmanager

@@ -109,7 +109,8 @@ def _idle_cpus_between(before: tuple[int, int] | None, after: tuple[int, int] | 
     return cpus * (after[1] - before[1]) / (after[0] - before[0])
 
 
-def _helpers_pay(elapsed_s: float, bytes_done: int, bytes_left: int, runs_left: int, idle: float) -> int:
+def _helpers_pay(elapsed_s: float, bytes_done: int, bytes_left: int, runs_left: int, idle: float,
+                 usable: int | None = None) -> int:
     """Helper processes to fork for the rest of a batch (0: compute it here alone).
 
     From the runs done here so far (``elapsed_s`` wall, computing and writing, one FFT thread): the
@@ -117,10 +118,11 @@ def _helpers_pay(elapsed_s: float, bytes_done: int, bytes_left: int, runs_left: 
     ``idle`` while this process computed, at most AUTO_WORKERS CPUs in all) it takes that over
     ``1 + n * HELPER_SHARE`` (the measured rate of a helper against this process's, which also writes
     every result), and never less than one run of the rest; each helper costs FORK_S.  Helpers only
-    when they save GAIN_FORKS times their forks: in doubt, serial."""
+    when they save GAIN_FORKS times their forks: in doubt, serial.  ``usable``: the CPUs this process
+    may use (default: its affinity now)."""
     if runs_left < 2 or bytes_done <= 0:
         return 0
-    n = min(AUTO_WORKERS, usable_cpus(), 1 + int(idle + 0.5)) - 1
+    n = min(AUTO_WORKERS, usable_cpus() if usable is None else usable, 1 + int(idle + 0.5)) - 1
     if n < 1:
         return 0
     rest = elapsed_s / bytes_done * bytes_left
@@ -195,7 +197,9 @@ def _auto(jobs, options: dict, done: Callable[[int, FrfResult], None]) -> None:
     done and the CPUs left idle meanwhile, shared with :class:`_Helpers` forked from this process.
     Helpers are forked between two runs, when this process runs no other thread (the run's reader
     thread has ended; a process with threads of its own stays serial: a thread's lock held at the
-    fork would stay held in the helper): they start at once, with everything imported.  The caller
+    fork would stay held in the helper): they start at once, with everything imported.  With one
+    FFT thread this process is pinned to the CPU it runs on meanwhile, a helper to the next
+    (:func:`_this_cpu_first`; the mask is restored after).  The caller
     (:func:`run_batch`) keeps BLAS to one thread meanwhile, helpers inherit it: after each call an
     OpenBLAS thread spins on another CPU for a while, the helper's (8 runs of 60 s here: 0.28 s of
     CPU with one BLAS thread, 0.30-0.39 s with two, and 0.1 s more at numpy's import)."""
@@ -203,15 +207,23 @@ def _auto(jobs, options: dict, done: Callable[[int, FrfResult], None]) -> None:
 
     one = {**options, "workers": idle_cpus() if len(jobs) == 1 else 1}
     sizes = run_bytes(jobs) if len(jobs) > 1 else []
+    mask, cpus = _this_cpu_first() if one["workers"] == 1 else (None, None)
     t0, ticks = time.perf_counter(), _cpu_ticks()
-    for k, job in enumerate(jobs):
-        done(k, frf_job(*job, one))
-        if k + 1 < len(jobs) and _forkable():
-            n = _helpers_pay(time.perf_counter() - t0, sum(sizes[:k + 1]), sum(sizes[k + 1:]),
-                             len(jobs) - k - 1, _idle_cpus_between(ticks, _cpu_ticks()))
-            if n:
-                _Helpers(n, jobs, k + 1, one).share(done)
-                return
+    try:
+        if cpus:
+            os.sched_setaffinity(0, cpus[:1])
+        for k, job in enumerate(jobs):
+            done(k, frf_job(*job, one))
+            if k + 1 < len(jobs) and _forkable():
+                n = _helpers_pay(time.perf_counter() - t0, sum(sizes[:k + 1]), sum(sizes[k + 1:]),
+                                 len(jobs) - k - 1, _idle_cpus_between(ticks, _cpu_ticks()),
+                                 len(cpus) if cpus else None)
+                if n:
+                    _Helpers(n, jobs, k + 1, one, cpus if cpus and len(cpus) == n + 1 else None).share(done)
+                    return
+    finally:
+        if cpus:
+            os.sched_setaffinity(0, mask)
 
 
 def _forkable() -> bool:
@@ -220,17 +232,23 @@ def _forkable() -> bool:
     return hasattr(os, "fork") and threading.active_count() == 1
 
 
-def _one_cpu_each(processes: int) -> list[int] | None:
-    """The CPUs to pin this process and its helpers to, one each, when they are all the CPUs it may
-    use (else None: the kernel places them).  A process pinned to one CPU keeps its run's reader
-    thread on the CPU of its FFTs; unpinned, that thread takes the other CPU in turns, and the same
-    runs took 5-8 % more CPU in all (measured with `frf` on 100 runs of 60 s, under load 10: serial
-    unpinned against pinned, and with a helper, pinned against not), time the other process then
-    waits for."""
-    if not hasattr(os, "sched_setaffinity"):
-        return None
-    cpus = sorted(os.sched_getaffinity(0))
-    return cpus if len(cpus) == processes else None
+def _this_cpu_first() -> tuple[set[int] | None, list[int] | None]:
+    """(this thread's CPU mask, its CPUs with the one it runs on first), or (None, None) where Linux's
+    /proc and affinity calls are missing or only one CPU is usable.  :func:`_auto` pins itself to that
+    CPU while it computes and a helper to the next: a run's reader thread then stays on the CPU of
+    its FFTs. Unpinned, that thread takes another CPU in turns: the same runs took 5-8 % more CPU in
+    all (`frf`, 100 runs of 60 s with a helper, load 10), and with the kernel's autogroups a session
+    whose threads sit on two CPUs has its weight split between them, so beside other sessions' work
+    the serial path ran at 0.79-0.88x the pinned one (benchmarks/batch.py, load 3-5)."""
+    try:
+        mask = os.sched_getaffinity(0)
+        with open("/proc/thread-self/stat") as f:
+            here = int(f.read().rsplit(")", 1)[1].split()[36])
+    except (AttributeError, OSError, ValueError, IndexError):
+        return None, None
+    if len(mask) < 2 or here not in mask:
+        return None, None
+    return mask, [here, *sorted(mask - {here})]
 
 
 class _Helpers:
@@ -240,20 +258,20 @@ class _Helpers:
 
     A thread per helper here receives its results and hands it its next job as soon as one arrives
     (the helper waits only for the hand-over); results are written in run order by the caller, a
-    failure raised when its run's turn comes (as serially: every earlier run is written first).  When
-    the processes are as many as the CPUs this one may use, each is pinned to one of them while they
-    share the runs (:func:`_one_cpu_each`; this process's CPU mask is restored after).  A helper
+    failure raised when its run's turn comes (as serially: every earlier run is written first).  With
+    ``cpus`` (this process's CPU, where it is pinned already, then one per helper) each helper is
+    pinned to its own (:func:`_this_cpu_first`).  A helper
     starts with SIGINT blocked, ignores it, and asks the kernel to end it with this process; Ctrl-C
     or a failure here ends the helpers (SIGTERM) before this process goes on, and a job whose helper
     died is computed here."""
 
-    def __init__(self, n: int, jobs, first: int, options: dict) -> None:
+    def __init__(self, n: int, jobs, first: int, options: dict, cpus: list[int] | None = None) -> None:
         self.jobs, self.options, self.first, self.next = jobs, options, first, first
         self.lock = threading.Lock()
         self.replies: queue.SimpleQueue = queue.SimpleQueue()
         self.helpers: list[tuple[int, object, object]] = []    # (pid, jobs to it, results from it)
         parent = os.getpid()
-        self.cpus = _one_cpu_each(n + 1)
+        self.cpus = cpus                # this process's CPU, then one per helper (None: unpinned)
         try:
             for i in range(n):
                 if not self._fork(i, parent):
@@ -330,10 +348,7 @@ class _Helpers:
         held: dict[int, tuple] = {}
         delivered = self.first
         ended = False
-        mask = os.sched_getaffinity(0) if self.cpus else None
         try:
-            if self.cpus:
-                os.sched_setaffinity(0, {self.cpus[0]})
             while delivered < len(self.jobs):
                 k = self.take()
                 if k is not None:
@@ -349,8 +364,6 @@ class _Helpers:
                     delivered += 1
             ended = True
         finally:
-            if mask:
-                os.sched_setaffinity(0, mask)
             self.close(kill=not ended)
 
     def _here(self, k: int) -> tuple:

@@ -295,7 +295,7 @@ def test_write_failure_at_the_final_flush_leaves_no_zeros(tmp_path):
     chunk_rows = (1 << 20) // (4 * 7)  # one samples chunk of the 7-channel run (daq.store.CHUNK_BYTES)
     duration = (chunk_rows + 100) / rate  # chunk 1 fits under the limit, the tail written at close not
     code = ("import sys; import flexmodal.daq.acquire as a; a.DISK_RESERVE_BYTES = 0\n"
-            "from flexmodal.app import main; sys.exit(main(sys.argv[1:]))\n")
+            "from flexmodal.app import main; sys.exit(main())\n")
     done = subprocess.run([sys.executable, "-c", code, "--quiet", "acquire", "--config", str(config), "--out",
                            str(out), "--duration", repr(duration)], cwd=REPO, capture_output=True, text=True,
                           timeout=START_S, preexec_fn=_file_size_limit(1_200_000))

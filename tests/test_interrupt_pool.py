@@ -200,8 +200,8 @@ def _check(done: Interrupted) -> None:
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory) -> Path:
     """32 random-test runs of 300 s at 1024 Hz (force + two responses): 4 records, each stored under 8
-    run names (HDF5 hard links).  A worker needs a few hundredths of a second of CPU per run, so the
-    workers are still computing once each has used 0.1 s."""
+    run groups (whose datasets are HDF5 hard links).  A worker needs a few hundredths of a second of
+    CPU per run, so the workers are still computing once each has used 0.1 s."""
     import numpy as np
 
     path = tmp_path_factory.mktemp("pool-runs") / "runs.h5"
@@ -215,9 +215,12 @@ def runs(tmp_path_factory) -> Path:
         with RunWriter(path, f"r{k}", sample_rate_hz=1024.0, channels=channels, excitation="random",
                        pose={"theta_deg": 10.0 * k}) as writer:
             writer.append(np.column_stack([force, *response]))
-    with h5py.File(path, "a") as f:
-        for k in range(4, 32):
-            f[f"runs/r{k}"] = f[f"runs/r{k % 4}"]
+    with h5py.File(path, "a") as f:   # run groups of their own (a hard-linked group is one run, listed
+        for k in range(4, 32):        # once), whose members are hard links to a record's: no copies
+            record, run = f[f"runs/r{k % 4}"], f.create_group(f"runs/r{k}")
+            for name in record:
+                run[name] = record[name]
+            run.attrs.update(record.attrs)
     return path
 
 
@@ -301,10 +304,11 @@ def _helper_stage(pid: int, members: list[Member]) -> int:
     return 0 if not helpers else 2 if helpers[0].cpu_s >= 0.05 else 1
 
 
-# `flexmodal` whose automatic choice sees an idle CPU whatever the machine's load (so it forks a helper)
+# `flexmodal` whose automatic choice sees an idle CPU whatever the machine's load (so it forks a helper),
+# run as the command is (main() with no argv: its Ctrl-C handling, e.g. the unraisable hook, in place)
 IDLE_CPU = (sys.executable, "-c", "import sys; from flexmodal.modal import batch; "
             "batch._idle_cpus_between = lambda before, after: 1.0; "
-            "from flexmodal.app import main; sys.exit(main(sys.argv[1:]))")
+            "from flexmodal.app import main; sys.exit(main())")
 
 
 @pytest.mark.timeout(900)

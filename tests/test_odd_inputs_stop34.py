@@ -293,3 +293,23 @@ def test_names_spelt_with_combining_accents_are_the_same_names(tmp_path: Path, c
     assert main(["compare", str(tmp_path / "m.csv"), str(tmp_path / "p.csv"), "--format", "csv"]) == 0
     out = capsys.readouterr().out
     assert "pairs with no" not in out and out.count("\n") == 2, out
+
+
+def test_channel_names_are_read_composed_and_alike_names_are_one_name(tmp_path: Path, capsys) -> None:
+    import unicodedata
+
+    from flexmodal.daq.store import read_run
+
+    path = _run(tmp_path / "run.h5")
+    for names, ok in (((unicodedata.normalize("NFD", "é1"),), True),
+                      ((unicodedata.normalize("NFD", "é1"), "é1"), False)):
+        with h5py.File(path, "r+") as f:
+            ch = f["runs/r1/channels"][...]
+            for i, name in enumerate(names):
+                ch["name"][-1 - i] = name.encode()
+            del f["runs/r1/channels"]
+            f["runs/r1/channels"] = ch
+        if ok:
+            assert read_run(path, "r1").channels[-1].name == "é1"
+        else:
+            _one_line(capsys, main(["frf", str(path)]), "channel name 'é1' appears twice")
