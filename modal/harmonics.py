@@ -97,7 +97,8 @@ def find_orders(windows: Sequence[tuple[np.ndarray, np.ndarray]], sample_rate_hz
     orders are the peaks of the smaller of the slowest and fastest thirds' :func:`order_spectrum` standing
     ``ORDER_PROMINENCE`` times above their surroundings (a harmonic stands at its order at every speed; a
     mode's apparent order ``f / v`` differs between the thirds), between ``band_hz`` [Hz] at the fastest
-    speed and at the slowest.  The order grid is log-spaced in steps of ``tol / 4``."""
+    speed and at the slowest; an order that only one third reaches (NaN in the other) is never one.  The
+    order grid is log-spaced in steps of ``tol / 4``."""
     v = np.asarray(speed_rev_per_s, float)
     keep = np.flatnonzero(v > MIN_SPEED_SHARE * v.max(initial=0.0))
     if keep.size < MIN_POLES:
@@ -106,7 +107,7 @@ def find_orders(windows: Sequence[tuple[np.ndarray, np.ndarray]], sample_rate_hz
     orders = np.exp(np.arange(np.log(lo), np.log(hi), tol / 4))
     third, two_thirds = np.percentile(v[keep], [100 / 3, 200 / 3])
     slow, fast = keep[v[keep] <= third], keep[v[keep] >= two_thirds]
-    spec = np.fmin(order_spectrum([windows[k] for k in slow], sample_rate_hz, orders),
+    spec = np.minimum(order_spectrum([windows[k] for k in slow], sample_rate_hz, orders),
                    order_spectrum([windows[k] for k in fast], sample_rate_hz, orders))
     good = np.isfinite(spec)
     level = np.log10(np.where(good, spec, 1.0))

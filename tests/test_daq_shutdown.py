@@ -295,7 +295,7 @@ def test_write_failure_at_the_final_flush_leaves_no_zeros(tmp_path):
     chunk_rows = (1 << 20) // (4 * 7)  # one samples chunk of the 7-channel run (daq.store.CHUNK_BYTES)
     duration = (chunk_rows + 100) / rate  # chunk 1 fits under the limit, the tail written at close not
     code = ("import sys; import flexmodal.daq.acquire as a; a.DISK_RESERVE_BYTES = 0\n"
-            "from flexmodal.app import main; sys.exit(main(sys.argv[1:]))\n")
+            "from flexmodal.app import main; sys.exit(main())\n")
     done = subprocess.run([sys.executable, "-c", code, "--quiet", "acquire", "--config", str(config), "--out",
                            str(out), "--duration", repr(duration)], cwd=REPO, capture_output=True, text=True,
                           timeout=START_S, preexec_fn=_file_size_limit(1_200_000))
@@ -350,6 +350,7 @@ def test_one_lost_device_never_holds_back_the_other(tmp_path):
     fs, duration = 2048.0, 14.0  # the right device is killed 2 s in and declared lost about 5 s later
     proc = start_acquire(config, out, duration)
     polls: list[tuple[float, int]] = []
+    held = 0
     try:
         with CpuWait(proc.pid, left.pid, right.pid) as waits:
             assert wait_for(lambda: stored(out) > 0, START_S)
@@ -357,7 +358,11 @@ def test_one_lost_device_never_holds_back_the_other(tmp_path):
             while proc.poll() is None and time.monotonic() - t_start < 120:
                 polls.append((time.monotonic(), stored(out)))
                 if right.poll() is None and time.monotonic() - t_start > 2.0:
-                    right.kill()  # the right device vanishes for good
+                    # the right device vanishes for good: its pty is held open here, so the kernel cannot
+                    # give its number to a pty another process opens meanwhile (a simulator of a test run
+                    # beside this one), which the acquire's reconnect would then read as this device
+                    held = held or os.open(right_port, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+                    right.kill()
                     t_kill = time.monotonic()
                 time.sleep(0.05)
             stdout, stderr = proc.communicate(timeout=START_S)
@@ -365,6 +370,8 @@ def test_one_lost_device_never_holds_back_the_other(tmp_path):
         for p in (proc, left, right):
             p.kill()
             p.wait()
+        if held:
+            os.close(held)
     assert proc.returncode == 0, stderr
     t = np.array([p[0] for p in polls])
     n = np.array([p[1] for p in polls], float)

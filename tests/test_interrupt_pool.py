@@ -304,10 +304,11 @@ def _helper_stage(pid: int, members: list[Member]) -> int:
     return 0 if not helpers else 2 if helpers[0].cpu_s >= 0.05 else 1
 
 
-# `flexmodal` whose automatic choice sees an idle CPU whatever the machine's load (so it forks a helper)
+# `flexmodal` whose automatic choice sees an idle CPU whatever the machine's load (so it forks a helper),
+# run as the command is (main() with no argv: its Ctrl-C handling, e.g. the unraisable hook, in place)
 IDLE_CPU = (sys.executable, "-c", "import sys; from flexmodal.modal import batch; "
             "batch._idle_cpus_between = lambda before, after: 1.0; "
-            "from flexmodal.app import main; sys.exit(main(sys.argv[1:]))")
+            "from flexmodal.app import main; sys.exit(main())")
 
 
 @pytest.mark.timeout(900)

@@ -162,6 +162,13 @@ def test_harmonic_helpers_against_closed_forms():
         speeds.append(v)
     found = find_orders(pieces, fs, np.array(speeds), (5.0, 400.0), 0.02)
     assert len(found) == 1 and found[0] == pytest.approx(120.0, rel=0.01)
+    # a fixed 300 Hz line (a machine line or a mode, not following the speed) beside it: its apparent
+    # orders at the slow speeds (300 .. 1500) lie beyond Nyquist at the fast ones, where no third can
+    # confirm them; they are not orders (with a NaN-ignoring minimum they gave 10 false orders)
+    t = np.arange(n) / fs
+    lined = [(y + 3 * np.sin(2 * np.pi * 300.0 * t)[:, None], ang) for y, ang in pieces]
+    found = find_orders(lined, fs, np.array(speeds), (5.0, 500.0), 0.02)
+    assert len(found) == 1 and found[0] == pytest.approx(120.0, rel=0.01)
 
 
 def test_identify_track_cli_on_hdf5_and_uff(tmp_path, sweep, capsys):
