@@ -350,6 +350,7 @@ def test_one_lost_device_never_holds_back_the_other(tmp_path):
     fs, duration = 2048.0, 14.0  # the right device is killed 2 s in and declared lost about 5 s later
     proc = start_acquire(config, out, duration)
     polls: list[tuple[float, int]] = []
+    held = 0
     try:
         with CpuWait(proc.pid, left.pid, right.pid) as waits:
             assert wait_for(lambda: stored(out) > 0, START_S)
@@ -357,7 +358,11 @@ def test_one_lost_device_never_holds_back_the_other(tmp_path):
             while proc.poll() is None and time.monotonic() - t_start < 120:
                 polls.append((time.monotonic(), stored(out)))
                 if right.poll() is None and time.monotonic() - t_start > 2.0:
-                    right.kill()  # the right device vanishes for good
+                    # the right device vanishes for good: its pty is held open here, so the kernel cannot
+                    # give its number to a pty another process opens meanwhile (a simulator of a test run
+                    # beside this one), which the acquire's reconnect would then read as this device
+                    held = held or os.open(right_port, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+                    right.kill()
                     t_kill = time.monotonic()
                 time.sleep(0.05)
             stdout, stderr = proc.communicate(timeout=START_S)
@@ -365,6 +370,8 @@ def test_one_lost_device_never_holds_back_the_other(tmp_path):
         for p in (proc, left, right):
             p.kill()
             p.wait()
+        if held:
+            os.close(held)
     assert proc.returncode == 0, stderr
     t = np.array([p[0] for p in polls])
     n = np.array([p[1] for p in polls], float)
