@@ -37,12 +37,14 @@ KEYS = {  # the keys each table may hold (docs/formats.md, Rig TOML): any other 
     "sensor": {"name", "at", "direction", "mass_kg"},
 }
 MAX_BY_UNIT = (  # largest magnitude of a field by the unit its name ends with (longest suffix first):
-    ("_Nm_per_rad", 1e12),   # a joint, base or member-end spring (a rigid joint is kind = "rigid")
-    ("_N_per_m", 1e12),      # a grounded spring
+    ("_Nm_per_rad", 1e20),   # a joint, base or member-end spring (a rigid joint is kind = "rigid")
+    ("_N_per_m", 1e20),      # a grounded spring
     ("_kgm2", 1e6), ("_kgm", 1e6), ("_kg", 1e6),   # masses, inertias, mass per metre (1000 t)
-    ("_Nm2", 1e12), ("_N", 1e15),                  # custom section EI and EA
+    ("_Nm2", 1e20), ("_N", 1e22),                  # custom section EI and EA
     ("_scale", 1e6),                               # link stiffness and mass scales
-)  # beyond these the mass and stiffness matrices overflow or lose every digit of the arm itself
+)  # a stiff spring or section standing in for a clamp or a pin is a modelling idiom: the frame keeps a
+# spring's compliance clean up to 1e20 (tests/test_models_frame.py), the known-answer tests clamp with
+# 1e13-1e15; at 1e308 the matrices overflow. Masses beyond 1000 t are typos
 SECTION_KEYS = {"square_tube": {"outer_m", "wall_m"}, "rect_tube": {"width_m", "height_m", "wall_m"},
                 "round_tube": {"outer_m", "wall_m"}, "solid_rect": {"width_m", "height_m"},
                 "custom": {"EA_N", "EI_Nm2", "mass_per_m_kg", "rotary_inertia_per_m_kgm", "depth_m"}}
