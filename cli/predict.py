@@ -47,7 +47,8 @@ def _predict(args: argparse.Namespace) -> int:
     options = {"elements_per_link": args.elements, "lumped_mass": args.lumped_mass_matrix,
                "masses_per_link": args.masses_per_link, "coordinates": args.coordinates,
                "source": args.source, "out": args.out}
-    n_poses = 0 if getattr(args, "quiet", False) else len(read_poses(args.poses))
+    # a bar on a terminal only (on a log or a pipe rich leaves an empty line)
+    n_poses = 0 if getattr(args, "quiet", False) or not sys.stderr.isatty() else len(read_poses(args.poses))
     if n_poses < 50:  # the poses by path: an error names the file
         predict(args.rig, args.poses, args.model, args.modes, **options)
     else:

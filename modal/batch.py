@@ -597,8 +597,9 @@ def _check_out_runs(out: str | Path, jobs: Sequence[tuple[str, str]]) -> None:
 def _progress(total: int, quiet: bool) -> Iterator[Callable[[], None]]:
     """A transient progress bar on stderr (rich, imported only when shown); yields its advance.  It is
     redrawn at each run written, not by a thread of its own, so that helper processes can be forked
-    while it shows (:func:`_auto`)."""
-    if quiet:
+    while it shows (:func:`_auto`).  Shown on a terminal only: on a log or a pipe rich leaves an empty
+    line, which put a blank line above an error's one line."""
+    if quiet or not sys.stderr.isatty():
         yield lambda: None
         return
     from rich.console import Console
