@@ -23,8 +23,9 @@ Examples
 --------
 >>> from flexmodal.models.rig import load_rig
 >>> rig = load_rig("examples/rigs/seed003_two_link.toml")
->>> list(trial_poses(rig, [{"theta_deg": 0.0}, {"theta_deg": 60.0}, {"theta_deg": 120.0}]))[:4]
-['theta_deg=0', 'theta_deg=10', 'theta_deg=20', 'theta_deg=30']
+>>> labels = list(trial_poses(rig, [{"theta_deg": 0.0}, {"theta_deg": 60.0}, {"theta_deg": 120.0}]))
+>>> len(labels), labels[:3], labels[-1]          # 10 deg steps, widened by 60 deg each way
+(25, ['theta_deg=-60', 'theta_deg=-50', 'theta_deg=-40'], 'theta_deg=180')
 """
 
 from __future__ import annotations
