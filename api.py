@@ -27,7 +27,7 @@ from flexmodal.daq.errors import DaqError
 from flexmodal.daq.faults import Faults, fault_flag
 from flexmodal.fixtures.errors import FixtureError
 from flexmodal.fixtures.simulators import SIMULATORS
-from flexmodal.modal.errors import ModalError, RunsFailed
+from flexmodal.modal.errors import ModalError
 from flexmodal.modal.registry import ESTIMATORS, METHODS
 from flexmodal.models.errors import ModelError
 from flexmodal.models.registry import MODELS
@@ -45,6 +45,7 @@ if TYPE_CHECKING:
     from flexmodal.daq.store import Run
     from flexmodal.modal.frf import FrfResult
     from flexmodal.modal.identify import Modes, Thresholds
+    from flexmodal.modal.skipped import RunsFailed
     from flexmodal.models.rig import Rig
 
 __all__ = [
@@ -61,7 +62,7 @@ __all__ = [
 
 def __getattr__(name: str):
     """Types exported here, loaded on first use (``fm.FrfResult``, ``fm.Thresholds``,
-    ``fm.WriteFailed``) so importing the API stays cheap."""
+    ``fm.WriteFailed``, ``fm.RunsFailed``) so importing the API stays cheap."""
     if name == "FrfResult":
         from flexmodal.modal.frf import FrfResult
 
@@ -70,6 +71,10 @@ def __getattr__(name: str):
         from flexmodal.modal.identify import Thresholds
 
         return Thresholds
+    if name == "RunsFailed":
+        from flexmodal.modal.skipped import RunsFailed
+
+        return RunsFailed
     if name == "WriteFailed":
         from flexmodal.daq.acquire import WriteFailed
 
@@ -699,6 +704,8 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
     if out is not None:
         result.write(out, uff=uff)
     if failed:
+        from flexmodal.modal.skipped import RunsFailed
+
         raise RunsFailed(list(result.modes), failed, result=result)
     return result
 

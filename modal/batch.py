@@ -20,9 +20,10 @@ from flexmodal.checked_io.progress import progress_bar
 from flexmodal.checked_io.text import one_line
 from flexmodal.daq.store import expand_runs
 from flexmodal.modal.compute import compute_frf
-from flexmodal.modal.errors import ModalError, RunsFailed
+from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult
 from flexmodal.modal.runs_io import write_frf
+from flexmodal.modal.skipped import RunsFailed
 from flexmodal.modal.spectra import usable_cpus
 
 AUTO_WORKERS = 2        # CPUs the automatic choice uses at most (this process and its helpers)

@@ -14,8 +14,9 @@ from flexmodal.app import main
 from flexmodal.checked_io.progress import progress_bar
 from flexmodal.daq.store import Channel, RunWriter
 from flexmodal.fixtures.modal_sim import modal_response
-from flexmodal.modal.errors import ModalError, RunsFailed
+from flexmodal.modal.errors import ModalError
 from flexmodal.modal.runs_io import read_frf
+from flexmodal.modal.skipped import RunsFailed
 
 FS = 256.0
 FN, ZETA = np.array([12.0, 31.0, 55.0]), np.array([0.02, 0.01, 0.01])
