@@ -1284,11 +1284,12 @@ def format_diagnosis(result: Diagnosis) -> str:
     >>> print(fm.format_diagnosis(result).splitlines()[0])   # doctest: +ELLIPSIS
     verdict: joint_stiffness at ...; held-out RMS ...% -> ...%
     """
+    from flexmodal.checked_io.percent import percent
     from flexmodal.compare.verdict_text import scatter_line, verdict_words
 
     v = result.verdict
     lines = [f"verdict: {v.effect} at {v.location or '-'}; held-out RMS "
-             f"{v.heldout_rms_rel_error_before:.2%} -> {v.heldout_rms_rel_error_after:.2%}"]
+             f"{percent(v.heldout_rms_rel_error_before)} -> {percent(v.heldout_rms_rel_error_after)}"]
     lines += [x for x in (verdict_words(result), scatter_line(result)) if x]
     lines += [f"  {name} = {v.params[name]:.4g}  (95 % interval {lo:.4g} .. {hi:.4g})"
               for name, (lo, hi) in (v.param_intervals or {}).items()]
