@@ -77,6 +77,7 @@ from flexmodal.compare.result import (
     Verdict,
     Where,
 )
+from flexmodal.compare.sensor_flag import sensor_flag
 from flexmodal.compare.verdict_text import EXPLAINED_FACTOR, gap_words
 from flexmodal.contract.mac import mac_pairs
 from flexmodal.contract.table import ModalTable
@@ -109,11 +110,6 @@ MIN_CROSS_VALIDATED = 6
 REGION_TIE = 0.8
 FEATURE_Z = 3.3
 """A residual feature beyond 3.3 standard errors (two-sided 0.1 %) points outside the library."""
-COMAC_DROP = 0.05
-SENSOR_FACTOR = 10.0
-COMAC_NOISE = 1e-3
-"""One sensor whose 1 - COMAC is at least 0.05 and 10x the other sensors' median (never taken below
-0.1 %, the shape noise) flags the verdict."""
 Z95 = 1.959963984540054
 RIVAL_MARGIN = 3.0
 MAX_RIVALS = 6
@@ -1016,20 +1012,20 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
             "explained": bool(before <= EXPLAINED_FACTOR * sigma), "alternatives": [],
             "gap_removed": 0.0, "remaining_over_scatter": before / sigma}
     if baseline["rms_rel_error"] <= NONE_FACTOR * none_sigma:
-        return _none_with_alternatives(ctx, {**none, "grade": "explained", "summary": (
+        return _flag_none(ctx, _none_with_alternatives(ctx, {**none, "grade": "explained", "summary": (
             f"baseline RMS gap {baseline['rms_rel_error']:.2%} is within {NONE_FACTOR:g}x the measurement "
-            f"scatter ({none_sigma:.2%}): no unmodelled effect is needed")}, ranking, nominal, scatter)
+            f"scatter ({none_sigma:.2%}): no unmodelled effect is needed")}, ranking, nominal, scatter))
     if not ranking or best is None:
-        return {**none, "grade": "not explained", "flags": list(notes), "summary": (
+        return _flag_none(ctx, {**none, "grade": "not explained", "flags": list(notes), "summary": (
             f"baseline RMS gap {baseline['rms_rel_error']:.2%} but no candidate effect applies to this rig "
-            "within its parameter range: the gap is unexplained")}
+            "within its parameter range: the gap is unexplained")})
     if best["score"] >= _score(nominal, 0, scatter):
-        return _none_with_alternatives(ctx, {
+        return _flag_none(ctx, _none_with_alternatives(ctx, {
             **none, "grade": "not explained" if before > EXPLAINED_FACTOR * sigma else "explained",
             "summary": (f"no candidate beats the nominal model on held-out configurations once its "
                         f"extra parameters are penalised against the scatter {scatter:.2%} (baseline "
                         f"held-out RMS {before:.2%}, best {best['effect']} "
-                        f"{best['heldout_rms_rel_error']:.2%})")}, ranking, nominal, scatter)
+                        f"{best['heldout_rms_rel_error']:.2%})")}, ranking, nominal, scatter))
     after = best["heldout_rms_rel_error"]
     resid = best["_heldout_freq_hz"] / meas.freq_hz - 1.0
     structured = _structured(resid, sigma)
@@ -1127,6 +1123,19 @@ def _none_with_alternatives(ctx: _Context, verdict: dict, ranking: list[dict], n
                        f"model ({verdict['heldout_rms_rel_error_before']:.2%}): {names}"}
 
 
+def _flag_none(ctx: _Context, verdict: dict) -> dict:
+    """A ``none`` verdict whose measured shapes disagree with the nominal model at one sensor
+    (``_shape_flags``): flagged, and then not explained (the frequencies need no effect, the shapes are
+    not what the rig says)."""
+    sensor, flags = _shape_flags(ctx, _paired_shapes(ctx, ctx.family([]))) if ctx.meas.shapes is not None \
+        else ("", [])
+    if not flags:
+        return verdict
+    return {**verdict, "explained": False, "grade": "not explained", "residual_feature": f"sensor {sensor}",
+            "flags": [*(verdict.get("flags") or []), *flags],
+            "summary": f"{verdict['summary']}; flagged: {'; '.join(flags)}"}
+
+
 def _residual_feature(ctx: _Context, best: dict, resid: np.ndarray, sigma: float) -> tuple[str, list[str]]:
     """What in the held-out residuals [C, n] of the verdict points outside the library, and flags.
 
@@ -1134,10 +1143,9 @@ def _residual_feature(ctx: _Context, best: dict, resid: np.ndarray, sigma: float
     residual has one sign at every pose (its mean over configurations), a pose trend of one mode (the
     least-squares slope of its residual on one pose variable, >= 3 distinct values), one configuration
     (its mean over modes).  The largest beyond ``FEATURE_Z`` is reported.  With measured shapes (three
-    sensors or more), a sensor whose ``1 - COMAC`` against the verdict's fitted model (Lieven & Ewins
-    1988) is at least ``COMAC_DROP`` and ``SENSOR_FACTOR`` times the other sensors' median is a flag:
-    a sensor mounted elsewhere or on another direction than the rig says, or a local effect no library
-    entry has."""
+    sensors or more), a sensor whose shapes disagree with the verdict's fitted model beyond the shape
+    noise of the other sensors (``_shape_flags``) is a flag: a sensor mounted elsewhere or on another
+    direction than the rig says, or a local effect no library entry has."""
     meas = ctx.meas
     sd = HELDOUT_INFLATION * sigma
     C, n = resid.shape
@@ -1162,22 +1170,18 @@ def _residual_feature(ctx: _Context, best: dict, resid: np.ndarray, sigma: float
                                                          "every mode)"))
     z, text = max(found, key=lambda t: t[0]) if found else (0.0, "")
     feature = text if z > FEATURE_Z else ""
-    flags: list[str] = []
-    if meas.shapes is not None and len(meas.sensors) >= 3:
-        full = [c for c in range(C) if not np.isnan(meas.shapes[c]).any()]
-        if full:
-            model = _fit_shapes(ctx, best)[full]
-            values = comac(meas.shapes[full], model)
-            drop = 1.0 - values
-            worst = int(np.argmax(drop))
-            others = np.delete(drop, worst)
-            if drop[worst] >= COMAC_DROP and drop[worst] >= SENSOR_FACTOR * max(float(np.median(others)),
-                                                                                 COMAC_NOISE):
-                flags.append(f"the measured shapes disagree at sensor {meas.sensors[worst]} (COMAC "
-                             f"{values[worst]:.2f}, the other sensors {1 - others.max():.2f}-"
-                             f"{1 - others.min():.2f})")
-                feature = feature or f"sensor {meas.sensors[worst]}"
-    return feature, flags
+    sensor, flags = _shape_flags(ctx, _fit_shapes(ctx, best))
+    return feature or (f"sensor {sensor}" if sensor else ""), flags
+
+
+def _shape_flags(ctx: _Context, model: np.ndarray) -> tuple[str, list[str]]:
+    """The sensor whose measured shapes disagree with ``model`` [C, s, n] beyond the shape noise of the
+    others (``compare.sensor_flag``), and its flag; empty without shapes at three sensors or more."""
+    meas = ctx.meas
+    if meas.shapes is None or len(meas.sensors) < 3:
+        return "", []
+    sensor, text = sensor_flag(meas.shapes, model, meas.sensors)
+    return sensor, [text] if text else []
 
 
 def _heldout_intervals(ctx: _Context, entry: dict, scatter: float) -> tuple[int, int]:
