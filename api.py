@@ -1300,9 +1300,7 @@ def format_diagnosis(result: Diagnosis) -> str:
         lines.append(f"not the top of the ranking ({v.ranked}): {v.why_not_top}")
     if v.next_measurements:
         lines.append("next measurement: " + "; ".join(
-            f"{x.pose} (mode {x.mode}, {x.information_nats:.1f} nats"
-            + (f", decides with chance {x.decide_chance:.0%})" if x.decide_chance is not None else ")")
-            for x in v.next_measurements))
+            f"{x.pose} (mode {x.mode}, {x.information_nats:.1f} nats)" for x in v.next_measurements))
     return "\n".join(lines)
 
 

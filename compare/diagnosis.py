@@ -1098,7 +1098,7 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
         if verdict["next_measurements"]:
             nxt = verdict["next_measurements"][0]
             text += (f"; next measurement most likely to decide: {nxt['pose']} (mode {nxt['mode']}, "
-                     f"{nxt['information_nats']:.1f} nats, chance {nxt['decide_chance']:.0%})")
+                     f"{nxt['information_nats']:.1f} nats)")
     verdict["summary"] = text
     return verdict
 
