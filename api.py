@@ -143,6 +143,8 @@ def read_run(path: PathLike, run_id: str | None = None) -> Run:
     """
     from flexmodal.daq.errors import DaqError
     from flexmodal.daq.store import read_run as _read
+    if run_id is not None and not isinstance(run_id, str):
+        raise TypeError(f"read_run: run_id must be a run id (str) or None, got {run_id!r}")
 
     if run_id is None:
         ids = list_runs(path)
@@ -330,9 +332,12 @@ def frf_from_arrays(freq_hz, H, *, coherence=None, quantity: str = "accelerance"
     import numpy as np
 
     from flexmodal.modal.errors import ModalError
-    from flexmodal.modal.frf import QUANTITIES, FrfResult
+    from flexmodal.modal.frf import QUANTITIES, FrfResult, check_coherence
 
     f = np.asarray(freq_hz, float)
+    if not np.iscomplexobj(H):
+        raise ModalError(f"frf_from_arrays: H of type {np.asarray(H).dtype} holds no phase: FRFs are complex "
+                         "(H = X / F)")
     h = np.asarray(H, complex)
     h = h[None, None, :] if h.ndim == 1 else h[:, None, :] if h.ndim == 2 else h
     if f.ndim != 1 or f.size < 2 or not np.all(np.isfinite(f)) or f[0] < 0 or np.any(np.diff(f) <= 0):
@@ -346,6 +351,8 @@ def frf_from_arrays(freq_hz, H, *, coherence=None, quantity: str = "accelerance"
     if coh is not None and coh.shape != (h.shape[0], f.size):
         raise ModalError(f"frf_from_arrays: coherence {coh.shape} must be [n_out, n_freq] = "
                          f"{(h.shape[0], f.size)}")
+    if coh is not None:
+        check_coherence(coh, "frf_from_arrays")
     outs = tuple(outputs) or tuple(f"out {k + 1}" for k in range(h.shape[0]))
     ins = tuple(inputs) or tuple(f"in {k + 1}" for k in range(h.shape[1]))
     if len(outs) != h.shape[0] or len(ins) != h.shape[1]:

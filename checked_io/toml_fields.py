@@ -18,7 +18,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from flexmodal.checked_io.text import ErrorType
+from flexmodal.checked_io.text import ErrorType, name_fault
 
 
 @dataclass(frozen=True)
@@ -134,6 +134,16 @@ class Fields:
             raise self._bad("broken_rule", key, raw, why=f"is out of range {lo}..{hi}")
         if check is not None and not check(value):
             raise self._bad("broken_rule", key, raw, why=why)
+        return value
+
+    def name(self, key: str, default: Any = ...) -> str:
+        """A name (of a device, channel, run, ...): text with a visible character and no control
+        character (:func:`flexmodal.checked_io.text.name_fault`); ``default`` (which may be ``""``)
+        when absent."""
+        value = self.get(key, str, default)
+        fault = name_fault(value) if key in self.doc else None
+        if fault:
+            raise self._bad("broken_rule", key, value, why=fault)
         return value
 
     def number(self, key: str, default: Any = ..., *, lo: float | None = None, hi: float | None = None,

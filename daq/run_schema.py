@@ -16,7 +16,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from flexmodal.checked_io.text import available_memory_bytes, loads_json, nfc, one_line
+from flexmodal.checked_io.text import available_memory_bytes, loads_json, name_fault, nfc, one_line
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.h5file import open_read
 
@@ -94,6 +94,9 @@ def check_run_id(run_id: str, where: str) -> str:
     if not run_id or run_id in (".", "..") or "/" in run_id or "\x00" in run_id or len(run_id) > 255:
         raise DaqError(f"{where} {_short(run_id)!r} cannot name a run (non-empty, not '.' or '..', no '/', "
                        "at most 255 characters)")
+    fault = name_fault(run_id)
+    if fault:
+        raise DaqError(f"{where} {run_id!r} cannot name a run: it {fault}")
     return run_id
 
 
@@ -155,6 +158,7 @@ def check_run_group(g: h5py.Group, where: str) -> None:
     """Raise DaqError unless ``g`` has the attributes and datasets of a run (``where`` names it)."""
     if not isinstance(g, h5py.Group):
         raise DaqError(f"{where}: is not a group")
+    check_run_id(g.name.rsplit("/", 1)[-1], f"{where}: run id") if g.name else None
     _check_attrs(g, where)
     channels = _table(g, "channels", where)
     events = _table(g, "events", where)
@@ -237,6 +241,9 @@ def _check_names(channels: h5py.Dataset, where: str) -> None:
     names = [_text(n) for n in channels["name"]]
     seen: set[str | None] = set()
     for n in names:
+        fault = name_fault(n) if n is not None else "is not UTF-8 text"
+        if fault:
+            raise DaqError(f"{where}: channel name {n!r} {fault}")
         if n in seen:
             raise DaqError(f"{where}: channel name {n!r} appears twice (each channel needs its own name)")
         seen.add(n)
