@@ -18,6 +18,7 @@ from flexmodal.daq.store import Channel, RunWriter, expand_runs
 from flexmodal.fixtures.modal_sim import modal_response
 from flexmodal.modal import batch
 from flexmodal.modal.errors import ModalError
+from flexmodal.modal.frf import FrfResult
 from flexmodal.modal.runs_io import read_frf
 
 FS = 256.0
@@ -252,6 +253,12 @@ def test_a_helper_failure_is_raised_in_run_order_and_ctrl_c_ends_the_helper(tmp_
     with pytest.raises(KeyboardInterrupt):
         batch.run_batch(jobs[:4] * 3, {"nfft": 256}, on_done=interrupt, out=str(tmp_path / "out.h5"))
     assert _helpers_ended(tmp_path / "pids2.txt")
+    _spy_processes(monkeypatch, tmp_path / "pids3.txt")
+    got.clear()                           # keep_going (`frf`): the bad run is delivered as its error
+    results = batch.run_batch(jobs, {"nfft": 2048}, on_done=lambda p, r, res: got.append((r, type(res))),
+                              out=str(tmp_path / "out.h5"), keep_going=True)
+    assert got == [(f"r{k}", ModalError if k == 4 else FrfResult) for k in range(7)]
+    assert [type(r) for r in results] == [t for _, t in got] and _helpers_ended(tmp_path / "pids3.txt")
 
 
 def _start(args: list[str], log: Path) -> subprocess.Popen:
