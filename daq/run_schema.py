@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 import os
 import sys
+from datetime import datetime
 from pathlib import Path
 
 import h5py
@@ -72,8 +73,12 @@ def _check_attrs(g: h5py.Group, where: str) -> None:
             or isinstance(rate, bool | np.bool_) or not sample_rate_ok(float(rate)):
         raise DaqError(f"{where}: attribute sample_rate_hz = {rate!r} is not a sample rate > 0 Hz and "
                        f"<= {MAX_SAMPLE_RATE_HZ:g} Hz")
-    if _text(a["start_time"]) is None:
-        raise DaqError(f"{where}: attribute start_time = {a['start_time']!r} is not a text")
+    start = _text(a["start_time"])
+    try:
+        datetime.fromisoformat(start or "")
+    except ValueError:
+        raise DaqError(f"{where}: attribute start_time = {_short(a['start_time'])!r} is not an ISO 8601 "
+                       "date and time (e.g. 2026-11-26T21:00:00+00:00)") from None
     excitation = _text(a["excitation"])
     if excitation not in EXCITATIONS:
         raise DaqError(f"{where}: attribute excitation = {a['excitation']!r} is not one of "

@@ -439,9 +439,8 @@ def read_run(path: str | Path, run_id: str) -> Run:
 
 
 def expand_runs(runs: Sequence[str | Path | tuple[str | Path, str]]) -> list[tuple[Path, str]]:
-    """(file, run id) for every entry: a file means all its runs; ``FILE::RUN`` or (file, run) one run.
-    A run named twice (the same file by another path or link, or a file and one of its runs) is
-    refused: it would be computed and written twice."""
+    """(file, run id) for every entry: a file means all its runs; ``FILE::RUN`` or (file, run) one run;
+    a run named twice is refused (:func:`runs_named_once`)."""
     out: list[tuple[Path, str]] = []
     for entry in runs:
         if isinstance(entry, tuple):
@@ -463,8 +462,14 @@ def expand_runs(runs: Sequence[str | Path | tuple[str | Path, str]]) -> list[tup
         if not ids:
             raise DaqError(f"{path}: holds no runs (expected groups under /runs)")
         out += [(path, r) for r in ids]
+    return runs_named_once(out)
+
+
+def runs_named_once(jobs: list[tuple[Path, str]]) -> list[tuple[Path, str]]:
+    """``jobs`` (file, run id), or DaqError when one run is in it twice (the same file by another path
+    or a hard link): it would be computed and written twice."""
     seen: dict[tuple[int, int, str], Path] = {}
-    for path, run_id in out:
+    for path, run_id in jobs:
         try:
             st = path.stat()
         except OSError:
@@ -473,4 +478,4 @@ def expand_runs(runs: Sequence[str | Path | tuple[str | Path, str]]) -> list[tup
         if first is not path:
             also = "" if str(first) == str(path) else f" (also as {first})"
             raise DaqError(f"{path}:{run_id}: this run is named twice{also}; name each run once")
-    return out
+    return jobs

@@ -245,3 +245,37 @@ def test_uff_frfs_of_an_ordinate_type_no_frf_has(tmp_path: Path, capsys) -> None
     pyuff.UFF(str(tmp_path / "in.uff")).write_sets(records, mode="overwrite")
     code = main(["identify", str(tmp_path / "in.uff"), "--out", str(tmp_path / "m.csv")])
     _one_line(capsys, code, "in.uff", "FRF 2+z", "ordinate data type 99")
+
+
+# -- a silent device's late samples (were written seconds after their time, as a "restart") ------------
+TWO_DEVICES = "sample_rate_hz = 100.0\n" + "".join(
+    f'[[device]]\nname = "{d}"\nprotocol = "serial"\nport = "loop://"\nsources = ["ch0"]\n'
+    f'[[channel]]\nname = "{d}_x"\nkind = "{k}"\nunit = "N"\ndevice = "{d}"\nsource = "ch0"\n'
+    for d, k in (("left", "force"), ("right", "force")))
+
+
+def test_late_samples_of_a_silent_device_are_dropped_not_placed_now(tmp_path: Path) -> None:
+    from flexmodal.daq.devices import Block
+    from flexmodal.daq.session import load_session
+    from flexmodal.daq.timeline import Timeline
+
+    (tmp_path / "s.toml").write_text(TWO_DEVICES)
+    tl = Timeline(load_session(tmp_path / "s.toml"), {"left": ("ch0",), "right": ("ch0",)})
+
+    def block(device: str, first: int, n: int) -> Block:
+        return Block(device, first, np.full((n, 1), 1.0 if device == "right" else 2.0), first / 100.0, 0)
+
+    tl.add(block("left", 0, 100))
+    tl.add(block("right", 0, 100))
+    tl.add(block("left", 100, 300))
+    tl.pad("right", 400)                      # right silent: its rows 100..399 released as NaN
+    tl.take()
+    gap = tl.add(block("right", 100, 50))     # its buffered samples arrive late, in two blocks
+    assert [(e.kind, e.sample_index, e.count) for e in gap] == [("gap", 100, 300)]
+    assert tl.add(block("right", 150, 50)) == [] and tl.tracks["right"].rows == 400   # dropped, no "restart"
+    tl.add(block("right", 400, 100))         # and it goes on where it is due
+    tl.add(block("left", 400, 100))
+    rows = tl.take()
+    assert np.isfinite(rows).all() and rows.shape == (100, 2)
+    restart = tl.add(block("right", 0, 10))   # a counter that starts again is a restart, as before
+    assert [e.kind for e in restart] == ["note"] and tl.tracks["right"].rows == 510
