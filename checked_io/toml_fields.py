@@ -171,6 +171,10 @@ class Fields:
     def numbers(self, key: str) -> dict[str, float]:
         """A table of finite numbers, e.g. a pose (variable name -> value); empty when absent."""
         values = self.table(key, {})
+        for name in values.doc:   # names of pose variables: printed in one-line messages and columns
+            fault = name_fault(name)
+            if fault:
+                raise values._bad("broken_rule", name, name, why=f"names a variable that {fault}")
         return {name: values.number(name) for name in values.doc}
 
     def reject_unknown(self, known: set[str]) -> None:

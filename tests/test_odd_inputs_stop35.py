@@ -89,6 +89,9 @@ def test_run_files_whose_names_break_lines(tmp_path: Path, capsys, change, words
     ("s.toml", SESSION.replace('name = "a1"', 'name = "  "'),
      ["acquire", "--config", "{d}/s.toml", "--out", "{d}/r.h5", "--duration", "1"],
      ("s.toml", "channel", "blank")),
+    ("s.toml", SESSION.replace("pose = { theta_deg = 30.0 }", 'pose = { "a\\tb" = 30.0 }'),
+     ["acquire", "--config", "{d}/s.toml", "--out", "{d}/r.h5", "--duration", "1"],
+     ("s.toml", "pose", "control character")),
     ("s.toml", SESSION, ["acquire", "--config", "{d}/s.toml", "--out", "{d}/r.h5", "--run-id", "a\nb"],
      ("--run-id", "control character")),
 ])
