@@ -92,6 +92,7 @@ def read_uff(path: str | Path) -> UffFrfs | UffRecord:
     if not sets:
         raise ModalError(f"{p}: no dataset found (not a UFF file, or one pyuff cannot read)")
     types = sorted({int(s.get("type", -1)) for s in sets})
+    _check_units(p, [s for s in sets if s.get("type") == 164])
     funcs = drop_line_padding([s for s in sets if s.get("type") == 58])
     if not funcs:
         raise ModalError(f"{p}: no dataset 58 (found dataset types {types}; only 58 is read)")
@@ -154,6 +155,20 @@ def _frfs(p: Path, funcs: list[dict]) -> UffFrfs:
     found = {float(m.group(1)) for s in funcs for k in ("id2", "id3", "id4", "id5")
              if (m := _DECAY.search(str(s.get(k) or "")))}
     return UffFrfs(x, H, tuple(outs), tuple(ins), quantity, found.pop() if len(found) == 1 else 0.0)
+
+
+def _check_units(p: Path, units: list[dict]) -> None:
+    """Refuse a units dataset (164) whose length or force factor is not 1: the data are then in other
+    units than SI (mm, lbf), which were read as metres and newtons without a word (a factor of 0 or
+    NaN is no unit at all)."""
+    for u in units:
+        factors = {k: u.get(k) for k in ("length", "force")}
+        bad = {k: v for k, v in factors.items() if not isinstance(v, int | float) or not v == 1.0}
+        if bad:
+            k, v = next(iter(bad.items()))
+            raise ModalError(f"{p}: dataset 164 gives units {str(u.get('units_description', '')).strip()!r} "
+                             f"with {k} factor {v!r}: flexmodal reads SI data only (metre and newton, factor "
+                             "1); convert the file to SI")
 
 
 def _quantity(p: Path, funcs: list[dict], names: list[str]) -> str:

@@ -282,3 +282,20 @@ def test_late_samples_of_a_silent_device_are_dropped_not_placed_now(tmp_path: Pa
     assert np.isfinite(rows).all() and rows.shape == (100, 2)
     restart = tl.add(block("right", 0, 10))   # a counter that starts again is a restart, as before
     assert [e.kind for e in restart] == ["note"] and tl.tracks["right"].rows == 510
+
+
+@pytest.mark.parametrize("length", [0.001, 0.0])
+def test_uff_data_in_other_units_than_si(tmp_path: Path, capsys, length: float) -> None:
+    import pyuff
+
+    f = np.arange(257) * 0.5
+    w, wn = 2 * np.pi * f, 2 * np.pi * 40.0
+    records = [dict(type=164, units_code=2, units_description="mm", temp_mode=2, length=length, force=1.0,
+                    temp=1.0, temp_offset=273.15)]
+    records += [dict(type=58, func_type=4, rsp_node=r + 1, rsp_dir=3, ref_node=100, ref_dir=3, x=f,
+                     data=-w**2 / (wn**2 - w**2 + 0.04j * wn * w) * (r + 1), id1=f"FRF {r}",
+                     rsp_ent_name="NONE", ref_ent_name="NONE", abscissa_spacing=1, abscissa_spec_data_type=18,
+                     ordinate_spec_data_type=12, orddenom_spec_data_type=13) for r in range(2)]
+    pyuff.UFF(str(tmp_path / "in.uff")).write_sets(records, mode="overwrite")
+    code = main(["identify", str(tmp_path / "in.uff"), "--out", str(tmp_path / "m.csv")])
+    _one_line(capsys, code, "in.uff", "dataset 164", f"length factor {length!r}")   # was read as metres
