@@ -299,3 +299,12 @@ def test_uff_data_in_other_units_than_si(tmp_path: Path, capsys, length: float) 
     pyuff.UFF(str(tmp_path / "in.uff")).write_sets(records, mode="overwrite")
     code = main(["identify", str(tmp_path / "in.uff"), "--out", str(tmp_path / "m.csv")])
     _one_line(capsys, code, "in.uff", "dataset 164", f"length factor {length!r}")   # was read as metres
+
+
+def test_api_file_arguments_of_another_kind_are_named() -> None:
+    for call, words in [(lambda: fm.load_rig(b"rig.toml"), "load_rig: path"),
+                        (lambda: fm.list_runs(3), "list_runs: path"),
+                        (lambda: fm.read_table(None), "read_table: path"),
+                        (lambda: fm.report_pdf(["r.html"]), "report_pdf: html")]:
+        with pytest.raises(TypeError, match=f"{words} must be a file path"):
+            call()
