@@ -49,7 +49,7 @@ from flexmodal.daq.run_schema import (
 
 CHUNK_BYTES = 1 << 20  # target size of one samples chunk
 CHUNK_CACHE_BYTES = 16 << 20  # room for partly filled chunks, so appends never re-read from disk
-WRITE_RESERVE_BYTES = 1 << 20  # a write leaving less room than this fails before HDF5 sees a full disk
+WRITE_RESERVE_BYTES = 64 << 10  # room kept for HDF5 metadata: a new chunk leaving less is not written
 
 
 @dataclass(frozen=True)
@@ -187,16 +187,19 @@ class RunWriter:
         self._chunk_rows = rows
         self._disk_rows = 0  # rows stored as whole chunks (a multiple of the chunk length)
         self._failed = False  # a write failed (full disk, I/O error): the file is only closed now
+        self._tail_stored = False  # the partly filled chunk already has its room on disk (a flush)
 
     def _room(self, n_bytes: int) -> None:
         """OSError (ENOSPC) naming the file when writing ``n_bytes`` would leave less than
         :data:`WRITE_RESERVE_BYTES` on its disk: a write HDF5 itself finds failing leaves its caches
         dirty, the file cannot be closed cleanly and the interpreter crashed at exit."""
-        room = disk_room(self.path)
-        if room < n_bytes + WRITE_RESERVE_BYTES:
-            need = n_bytes + WRITE_RESERVE_BYTES
-            raise OSError(errno.ENOSPC, f"No space left on device ({max(room, 0) / 1e6:.2f} MB left, "
-                                        f"{need / 1e6:.2f} MB needed)", str(self.path))
+        room, need = disk_room(self.path), n_bytes + WRITE_RESERVE_BYTES
+        if room < need:
+            st = os.statvfs(self.path.parent)
+            full = st.f_bavail * st.f_frsize < need   # else the file size limit (ulimit -f) is what binds
+            reason = "No space left on device" if full else "File too large (the file size limit, ulimit -f)"
+            left = f"{max(room, 0) / 1e6:.2f} MB left, {need / 1e6:.2f} MB needed"
+            raise OSError(errno.ENOSPC if full else errno.EFBIG, f"{reason}: {left}", str(self.path))
 
     @contextmanager
     def _writing(self) -> Iterator[None]:
@@ -288,9 +291,9 @@ class RunWriter:
                     end = self._disk_rows + self._chunk_rows
                     if self._samples.shape[0] < end:
                         self._samples.resize(end, axis=0)
-                    self._room(self._tail.nbytes)
+                    self._room(0 if self._tail_stored else self._tail.nbytes)
                     self._samples.id.write_direct_chunk((self._disk_rows, 0), self._tail)
-                    self._disk_rows, self._tail_rows = end, 0
+                    self._disk_rows, self._tail_rows, self._tail_stored = end, 0, False
             self.n_samples += n
             self._maybe_flush()
 
@@ -321,11 +324,12 @@ class RunWriter:
     def flush(self) -> None:
         """Make everything appended so far visible to readers and durable against a crash."""
         with self._writing():
-            self._room(self._tail.nbytes)
+            self._room(0 if self._tail_stored or not self._tail_rows else self._tail.nbytes)
             if self._samples.shape[0] < self.n_samples:
                 self._samples.resize(self.n_samples, axis=0)
             if self._tail_rows:
                 self._samples[self._disk_rows:self.n_samples] = self._tail[:self._tail_rows]
+                self._tail_stored = True
             self._samples.flush()
             self._events.flush()
             self._file.flush()
