@@ -75,7 +75,7 @@ seconds = real(0.0, 1e9, lo_open=True, name="duration in seconds")   # 1e9 s: 31
 hertz = real(0.0, name="frequency in Hz")
 rate_hz = real(0.0, 1e7, lo_open=True, name="sample rate in Hz")
 fraction = real(0.0, 1.0, name="fraction")
-overlap = real(0.0, 1.0, hi_open=True, name="overlap fraction")
+overlap = real(0.0, 63 / 64, name="overlap fraction")  # modal.spectra.MIN_STEP_FRACTION: steps >= nfft/64
 tcp_port = integer(0, 65535, name="TCP port")
 workers = integer(0, 256, name="number of worker processes")
 seed = integer(0, 2**32 - 1, name="seed")

@@ -23,11 +23,11 @@ import json
 import os
 import queue
 import re
-import resource
 import signal
 import threading
 import time
 from collections import Counter
+from contextlib import ExitStack
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from flexmodal.checked_io.output import signals_deferred
+from flexmodal.checked_io.signals import signal_handlers
 from flexmodal.daq.devices import Block, ReaderStats, run_reader, with_endpoint
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.hits import HitMonitor, sparkline
@@ -42,7 +43,7 @@ from flexmodal.daq.hooks import simulator_launcher
 from flexmodal.daq.lock import WriterLock
 from flexmodal.daq.protocols import make_driver
 from flexmodal.daq.session import Session
-from flexmodal.daq.store import Event, RunWriter, list_runs
+from flexmodal.daq.store import Event, RunWriter, disk_room, list_runs
 from flexmodal.daq.timeline import Timeline
 
 QUEUE_BLOCKS = 4096
@@ -127,31 +128,18 @@ class StopSignals:
     def __init__(self) -> None:
         self.event = threading.Event()
         self.signum = 0
-        self._old: dict = {}
+        self._handlers = ExitStack()
 
     def _handle(self, signum, _frame) -> None:
         self.signum = self.signum or signum
         self.event.set()
 
     def __enter__(self) -> StopSignals:
-        if threading.current_thread() is threading.main_thread():
-            self._old = {s: signal.signal(s, self._handle) for s in STOP_SIGNALS}
+        self._handlers.enter_context(signal_handlers(self._handle, STOP_SIGNALS))
         return self
 
     def __exit__(self, *exc) -> None:
-        for s, old in self._old.items():
-            signal.signal(s, old)
-
-
-def disk_room(path: Path) -> int:
-    """Bytes ``path`` can still grow by: free space of its file system (for unprivileged users),
-    capped by the process's file size limit (RLIMIT_FSIZE)."""
-    st = os.statvfs(path.parent)
-    room = st.f_bavail * st.f_frsize
-    limit = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
-    if limit != resource.RLIM_INFINITY:
-        room = min(room, limit - (path.stat().st_size if path.exists() else 0))
-    return int(room)
+        self._handlers.close()
 
 
 class Display:

@@ -18,7 +18,7 @@ from flexmodal.checked_io.children import ctrl_c_blocked, leave_ctrl_c_to_parent
 from flexmodal.checked_io.errors import FlexmodalError
 from flexmodal.checked_io.progress import progress_bar
 from flexmodal.checked_io.text import one_line
-from flexmodal.daq.store import expand_runs
+from flexmodal.daq.store import expand_runs, runs_named_once
 from flexmodal.modal.compute import compute_frf
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult
@@ -54,12 +54,21 @@ def _attempt(path: str, run_id: str, options: dict) -> FrfResult | FlexmodalErro
 
 
 def idle_cpus() -> int:
-    """CPUs the other processes leave idle (the CPUs this process may use less the 1-minute load
-    average, rounded; at least 1): the FFT threads of the serial path.  On a busy machine a second
-    thread only adds contention (measured under load 6 on 2 CPUs: 8 runs of 60 s took 1.13 s with 2
-    threads, 0.82 s with 1)."""
-    cpus = usable_cpus()
-    return max(1, min(cpus, cpus - round(os.getloadavg()[0])))
+    """CPUs this process may use that the others leave idle: its own, plus the CPUs the machine left
+    idle since the last look (:func:`_idle_cpus_between` of /proc/stat samples: the one idle-CPU
+    estimator here), rounded, at most the CPUs it may use: the FFT threads and lanes of the serial path.
+    The first look is this module's import, so for a command the interval is the process's own
+    start (a fraction of a second: the machine now, not the 1-minute load average, which also counts
+    this process once it has run a while); a look less than a tick per CPU after the last one reuses
+    that one's interval.  On a busy machine a second thread only adds contention (measured under
+    load 6 on 2 CPUs: 8 runs of 60 s took 1.13 s with 2 threads, 0.82 s with 1)."""
+    now = _cpu_ticks()
+    before = _LOOK[0]
+    if before is not None and now is not None and now[0] - before[0] >= (os.cpu_count() or 1):
+        _LOOK[:] = [now, before]      # long enough: the next look starts here
+    else:
+        before = _LOOK[1]             # too short (or unknown): measure from the look before
+    return max(1, min(usable_cpus(), 1 + round(_idle_cpus_between(before, now))))
 
 
 def run_bytes(jobs: Sequence[tuple[str, str]]) -> list[int]:
@@ -117,6 +126,9 @@ def _idle_cpus_between(before: tuple[int, int] | None, after: tuple[int, int] | 
     if before is None or after is None or after[0] - before[0] < cpus:
         return 0.0
     return cpus * (after[1] - before[1]) / (after[0] - before[0])
+
+
+_LOOK: list = [_cpu_ticks(), None]   # idle_cpus' last sample and the one before (first: at import)
 
 
 def _helpers_pay(elapsed_s: float, bytes_done: int, bytes_left: int, runs_left: int, idle: float,
@@ -572,6 +584,7 @@ def frf_batch(paths: Sequence[str | Path], options: dict, *, workers: int | None
             jobs += expand_runs([entry])
         except FlexmodalError as exc:      # a file missing, unreadable or holding no runs
             failed.append((-1, str(entry), exc))
+    runs_named_once(jobs)
     if out is not None and len({r for _, r in jobs}) != len(jobs):
         raise ModalError(f"--out {out}: two input runs share a run id, they cannot go into one file")
     if out is not None:

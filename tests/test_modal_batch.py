@@ -97,10 +97,19 @@ def test_idle_cpus_are_the_available_ticks_between_two_samples(monkeypatch):
 
 
 def test_serial_fft_threads_are_the_cpus_other_processes_leave_idle(monkeypatch):
+    """This process's CPU plus those the machine left idle since the last look (/proc/stat ticks, the
+    one estimator): on 2 CPUs, the other one idle -> 2 threads, a third busy -> 1, all busy -> 1; a look
+    under a tick per CPU after the last measures from the look before."""
     monkeypatch.setattr(batch, "usable_cpus", lambda: 2)
-    for load, threads in ((0.2, 2), (0.7, 1), (6.0, 1)):
-        monkeypatch.setattr(batch.os, "getloadavg", lambda load=load: (load, load, load))
+    monkeypatch.setattr(batch.os, "cpu_count", lambda: 2)
+    monkeypatch.setattr(batch, "_LOOK", [(1000, 0), None])
+    # (total, available) ticks at each look: +100 ticks, of which idle 50 (1 CPU), 20, 0, then 1 tick later
+    for sample, threads in (((1100, 50), 2), ((1200, 70), 1), ((1300, 70), 1), ((1301, 71), 1)):
+        monkeypatch.setattr(batch, "_cpu_ticks", lambda sample=sample: sample)
         assert batch.idle_cpus() == threads
+    assert batch._LOOK == [(1300, 70), (1200, 70)]
+    monkeypatch.setattr(batch, "_cpu_ticks", lambda: (1310, 120))     # 10 ticks after the last look
+    assert batch.idle_cpus() == 2                  # measured from (1200, 70): 50 of 110 idle -> 0.9 CPU
 
 
 def test_results_wait_until_no_job_reads_their_file():
