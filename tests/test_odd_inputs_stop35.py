@@ -309,3 +309,10 @@ def test_api_file_arguments_of_another_kind_are_named() -> None:
                         (lambda: fm.report_pdf(["r.html"]), "report_pdf: html")]:
         with pytest.raises(TypeError, match=f"{words} must be a file path"):
             call()
+
+
+@pytest.mark.parametrize("refs", ["", "a1,,a2", " , "])
+def test_an_empty_name_list_is_not_all_names(tmp_path: Path, capsys, refs: str) -> None:
+    code = main(["identify", str(_run(tmp_path / "run.h5")), "--out", str(tmp_path / "m.csv"),
+                 "--method", "ssi", "--references", refs])   # "" was taken as every output
+    _one_line(capsys, code, "--references", "no empty name")
