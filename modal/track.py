@@ -307,22 +307,6 @@ def mark_harmonics(windows: list[WindowPoles], orders: Mapping[str, tuple[float,
     return marked, found
 
 
-def supported_orders(orders: Mapping[str, tuple[float, ...]], harmonics: Sequence[Harmonic]
-                     ) -> dict[str, tuple[float, ...]]:
-    """The found ``orders`` of each joint that a harmonic family stands on: at least one window's pole
-    flagged at that order (:func:`mark_harmonics`).  The order spectrum can peak where no harmonic is
-    (the demo arm's 30 s sweep: a broad hump at order 327.4, 4.6 Hz at the fastest third's nearly
-    constant speed, under the poles' band), and such a peak is no order: it is not reported.
-
-    Examples
-    --------
-    >>> supported_orders({"theta_deg": (327.4, 3600.0)}, [Harmonic(1.0, 30.0, "theta_deg", 3600.0)])
-    {'theta_deg': (3600.0,)}
-    """
-    return {v: tuple(o for o in ords if any(h.joint == v and h.order == o for h in harmonics))
-            for v, ords in orders.items()}
-
-
 def follow(windows: Sequence[WindowPoles], options: TrackOptions) -> list[Track]:
     """Follow the non-harmonic poles from window to window (module docstring).  Over a stretch of skipped
     windows (a gap, a spread) the frequency gate widens in proportion to the time elapsed beyond
@@ -718,7 +702,6 @@ def track_modes(samples: np.ndarray, sample_rate_hz: float, names: Sequence[str]
     y = remove_orders(y, sample_rate_hz, pose, [orders[v] for v in names_pose])
     windows = identify_windows(y, pose, names_pose, sample_rate_hz, options, lowest, starts, n_win, refs)
     windows, harmonics = mark_harmonics(windows, orders, options)
-    orders = orders if options.orders else supported_orders(orders, harmonics)
     tracks = follow(windows, options)
     sines = [t for t in tracks if np.median(t.kurtosis) < options.kurtosis_max]
     tracks = [t for t in tracks if np.median(t.kurtosis) >= options.kurtosis_max]

@@ -131,12 +131,12 @@ def test_no_harmonic_no_order():
     assert res.orders["theta_deg"] == () and not res.harmonics and len(res.tracks) == 3
 
 
-def test_an_order_no_harmonic_pole_stands_on_is_not_reported():
-    """The demo arm's 30 s sweep with no harmonics (fixtures.examples.moving_run's record): its order
-    spectrum peaks at 327.4 per revolution (a broad hump near 4.6 Hz at the fastest third's nearly
-    constant speed, below every mode), which find_orders took for an order; no window holds a pole
-    there, so it is no harmonic family and is not reported (it was: 'orders per revolution 327.418'
-    beside '0 harmonic poles')."""
+def test_an_order_that_does_not_peak_in_every_speed_third_is_not_an_order():
+    """The demo arm's 30 s sweep with no harmonics (fixtures.examples.moving_run's record): the smaller
+    of the slowest and fastest thirds' order spectra peaked at 327.4 per revolution (the fastest
+    third's hump near 4.6 Hz, at an almost constant speed, on the slowest third's rising flank), which
+    find_orders took for an order ('orders per revolution 327.418' beside '0 harmonic poles'); a
+    harmonic peaks at its order in each third's own spectrum, and here the slowest third does not."""
     rig = load_rig(DEMO_RIG)
     rec = simulate_moving(rig, ELBOW_SWEEP, duration_s=30.0, sample_rate_hz=1024.0, seed=3, grid=13)
     names, kinds = [c.name for c in rec.channels], [c.kind for c in rec.channels]
