@@ -94,7 +94,8 @@ def test_run_files_whose_names_break_lines(tmp_path: Path, capsys, change, words
      ("s.toml", "pose", "control character")),
     ("s.toml", SESSION, ["acquire", "--config", "{d}/s.toml", "--out", "{d}/r.h5", "--run-id", "a\nb"],
      ("--run-id", "control character")),
-])
+], ids=["config-newline", "shape-tab", "poses-escape", "rig-name-newline", "session-channel-blank",
+        "session-pose-tab", "run-id-newline"])
 def test_text_files_and_options_whose_names_break_lines(tmp_path: Path, capsys, file, text, argv,
                                                          words) -> None:
     (tmp_path / "rig.toml").write_text(RIG)
