@@ -45,13 +45,14 @@ if TYPE_CHECKING:
     from flexmodal.daq.store import Run
     from flexmodal.modal.frf import FrfResult
     from flexmodal.modal.identify import Modes, Thresholds
+    from flexmodal.modal.skipped import RunsFailed
     from flexmodal.models.rig import Rig
 
 __all__ = [
     "CompareError", "DaqError", "ESTIMATORS", "Faults", "FixtureError", "FlexmodalError", "FrfResult",
     "Identification", "MAX_ELEMENTS", "METHODS", "MODELS", "ModalError", "ModelError", "ReportError",
-    "SIMULATORS", "SelfCheck", "Thresholds", "WriteFailed", "acquire", "animate_mode", "compare_modes",
-    "compute_frf", "compute_frfs", "demo", "diagnose", "fault_flag", "format_comparison",
+    "RunsFailed", "SIMULATORS", "SelfCheck", "Thresholds", "WriteFailed", "acquire", "animate_mode",
+    "compare_modes", "compute_frf", "compute_frfs", "demo", "diagnose", "fault_flag", "format_comparison",
     "format_diagnosis", "frf_from_arrays", "identify", "list_runs", "load_rig", "plot_comparison",
     "plot_frf", "plot_gap", "plot_mode_shapes", "plot_stabilisation", "predict", "read_diagnosis",
     "read_poses", "read_run", "read_table", "report", "report_pdf", "selftest", "serve_simulator", "track",
@@ -61,7 +62,7 @@ __all__ = [
 
 def __getattr__(name: str):
     """Types exported here, loaded on first use (``fm.FrfResult``, ``fm.Thresholds``,
-    ``fm.WriteFailed``) so importing the API stays cheap."""
+    ``fm.WriteFailed``, ``fm.RunsFailed``) so importing the API stays cheap."""
     if name == "FrfResult":
         from flexmodal.modal.frf import FrfResult
 
@@ -70,6 +71,10 @@ def __getattr__(name: str):
         from flexmodal.modal.identify import Thresholds
 
         return Thresholds
+    if name == "RunsFailed":
+        from flexmodal.modal.skipped import RunsFailed
+
+        return RunsFailed
     if name == "WriteFailed":
         from flexmodal.daq.acquire import WriteFailed
 
@@ -384,6 +389,13 @@ def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: 
     list of (str, str)
         The (file written, run id) pairs, in input order.
 
+    Raises
+    ------
+    RunsFailed
+        Some runs (or files) were bad: every good run was computed and written first; ``.written``
+        holds their (file, run id) pairs, ``.failed`` each bad run's name and error (one bad run and
+        nothing else: its own ModalError or DaqError).
+
     Notes
     -----
     Pool workers start from a fork server that imports the calling script again as ``__mp_main__`` (as
@@ -572,7 +584,7 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
              poles_hz: Sequence[float] | None = None, thresholds: Thresholds | None = None,
              decay_rate_per_s: float | None = None, references: Sequence[str] | None = None,
              out: PathLike | None = None, uff: PathLike | None = None,
-             from_diagram: bool = False) -> Identification:
+             from_diagram: bool = False, quiet: bool = True) -> Identification:
     """Natural frequencies, damping ratios and mode shapes (docs/modal.md, docs/oma.md).
 
     Parameters
@@ -618,6 +630,8 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
         With ``poles_hz``: pick only from the stored diagram beside ``out`` (ModalError when it is
         missing or was computed from other FRFs or options) instead of falling back to a new
         stabilisation.
+    quiet : bool
+        No progress bar on stderr (an HDF5 file of several runs, on a terminal).
 
     Returns
     -------
@@ -630,6 +644,10 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
     ------
     ModalError
         Bad input or output (one line naming the file, option or value).
+    RunsFailed
+        Some runs of an HDF5 file were bad: the good ones were identified (and written to ``out``)
+        first; ``.result`` is their Identification, ``.failed`` each bad run's name and error (every
+        run bad: the first one's own error).
 
     References
     ----------
@@ -667,8 +685,10 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
     options = {"method": method, "fmin": fmin, "fmax": fmax, "max_order": max_order, "poles_hz": poles_hz,
                "thresholds": thresholds, "decay_rate_per_s": decay_rate_per_s,
                "diagrams": _stored_diagrams(out, from_diagram) if poles_hz and out is not None else None}
+    failed: list = []
     if isinstance(source, str | os.PathLike):
-        table, found = identify_input(source, run_id=run_id, references=references, **options)
+        table, found = identify_input(source, run_id=run_id, references=references, failed=failed,
+                                      quiet=quiet, **options)
         result = Identification(table, {c: m for c, (m, _) in found.items()},
                                 {c: tuple(o) for c, (_, o) in found.items()})
     else:
@@ -683,6 +703,10 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
         result = Identification(table, {config: modes}, {config: tuple(source.outputs)})
     if out is not None:
         result.write(out, uff=uff)
+    if failed:
+        from flexmodal.modal.skipped import RunsFailed
+
+        raise RunsFailed(list(result.modes), failed, result=result)
     return result
 
 
@@ -1260,11 +1284,12 @@ def format_diagnosis(result: Diagnosis) -> str:
     >>> print(fm.format_diagnosis(result).splitlines()[0])   # doctest: +ELLIPSIS
     verdict: joint_stiffness at ...; held-out RMS ...% -> ...%
     """
+    from flexmodal.checked_io.percent import percent
     from flexmodal.compare.verdict_text import scatter_line, verdict_words
 
     v = result.verdict
     lines = [f"verdict: {v.effect} at {v.location or '-'}; held-out RMS "
-             f"{v.heldout_rms_rel_error_before:.2%} -> {v.heldout_rms_rel_error_after:.2%}"]
+             f"{percent(v.heldout_rms_rel_error_before)} -> {percent(v.heldout_rms_rel_error_after)}"]
     lines += [x for x in (verdict_words(result), scatter_line(result)) if x]
     lines += [f"  {name} = {v.params[name]:.4g}  (95 % interval {lo:.4g} .. {hi:.4g})"
               for name, (lo, hi) in (v.param_intervals or {}).items()]

@@ -23,11 +23,11 @@ import secrets
 import signal
 import stat
 import tempfile
-import threading
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from flexmodal.checked_io.signals import signal_handlers
 from flexmodal.checked_io.text import ErrorType, file_kind, one_line
 
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
@@ -228,15 +228,10 @@ def signals_deferred() -> Iterator[None]:
     """Hold SIGINT and SIGTERM while the block runs (main thread only; elsewhere a no-op) and deliver
     the first one to the previous handler when it ends: for in-place updates that must not stop
     half-way (a group written into an existing HDF5 file).  Keep such blocks short (milliseconds)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
     held: list[int] = []
-    previous = {s: signal.signal(s, lambda signum, _frame: held.append(signum)) for s in DEFERRED_SIGNALS}
     try:
-        yield
+        with signal_handlers(lambda signum, _frame: held.append(signum), DEFERRED_SIGNALS):
+            yield
     finally:
-        for s, handler in previous.items():
-            signal.signal(s, handler)
         if held:
             signal.raise_signal(held[0])

@@ -103,16 +103,32 @@ def _frf(args: argparse.Namespace) -> int:
     here, one after the other, and shared with a helper process forked from this one once the measured
     cost of the runs done predicts that it pays and a CPU is idle; --workers N forces a pool of N
     processes (0: always here), --scheduler uses an existing dask cluster. Prints one 'FILE:RUN_ID'
-    line per run written.
+    line per run written. A bad run (or file) does not stop the others: every good run is written,
+    then each bad one is named on stderr with why, followed by one summary line, and the exit code is 2.
     """
-    from flexmodal.api import compute_frfs
+    from flexmodal.api import RunsFailed, compute_frfs
 
-    written = compute_frfs(args.runs, estimator=args.estimator, nfft=args.nfft, window=args.window,
-                           overlap=args.overlap, averaging=args.averaging, workers=args.workers,
-                           scheduler=args.scheduler, out=args.out, quiet=getattr(args, "quiet", False))
+    try:
+        written = compute_frfs(args.runs, estimator=args.estimator, nfft=args.nfft, window=args.window,
+                               overlap=args.overlap, averaging=args.averaging, workers=args.workers,
+                               scheduler=args.scheduler, out=args.out, quiet=getattr(args, "quiet", False))
+    except RunsFailed as exc:
+        _print_runs(exc.written)
+        _tell_failed(exc)
+        return 2
+    _print_runs(written)
+    return 0
+
+
+def _print_runs(written) -> None:
     for path, rid in written:
         print(f"{path}:{rid}")
-    return 0
+
+
+def _tell_failed(exc) -> None:
+    """Each bad run of a RunsFailed and why, then one summary line, on stderr."""
+    for line in exc.lines():
+        print(f"flexmodal: error: {line}", file=sys.stderr)
 
 
 def _pairs(text: str, what: str) -> dict[str, str]:
@@ -159,9 +175,12 @@ def _identify(args: argparse.Namespace) -> int:
     (docs/formats.md) with the validation columns mpc, mpd [deg] and synthesis_corr, and the FRAC of each
     measured and synthesised FRF to MODES.synthesis.csv. Each run of an HDF5 file is one configuration
     (config = run id). Runs with excitation=operational or without a force channel, and UFF time
-    histories without a force, are identified output-only (SSI-cov by default; docs/oma.md).
+    histories without a force, are identified output-only (SSI-cov by default; docs/oma.md). A bad run
+    does not stop the others: the good runs' modes are written, each bad run is named on stderr with
+    why, then one summary line, and the exit code is 2. A progress bar shows on a terminal (--quiet:
+    none).
     """
-    from flexmodal.api import ModalError, Thresholds, identify
+    from flexmodal.api import ModalError, RunsFailed, Thresholds, identify
 
     if args.track:
         return _track(args)
@@ -177,13 +196,21 @@ def _identify(args: argparse.Namespace) -> int:
     limits = Thresholds(**{k: v for k, v in (("need_min", args.need_min), ("mpc_min", args.mpc_min))
                            if v is not None})
     refs = args.references.split(",") if args.references else None
-    result = identify(args.input, method=args.method, fmin=args.fmin, fmax=args.fmax,
-                      max_order=args.max_order, run_id=args.run, poles_hz=poles, thresholds=limits,
-                      decay_rate_per_s=args.exp_window_decay, references=refs, out=args.out, uff=args.uff,
-                      from_diagram=args.from_diagram)
-    if not getattr(args, "quiet", False):
+    quiet = getattr(args, "quiet", False)
+    try:
+        result, failed = identify(args.input, method=args.method, fmin=args.fmin, fmax=args.fmax,
+                                  max_order=args.max_order, run_id=args.run, poles_hz=poles,
+                                  thresholds=limits, decay_rate_per_s=args.exp_window_decay,
+                                  references=refs, out=args.out, uff=args.uff,
+                                  from_diagram=args.from_diagram, quiet=quiet), None
+    except RunsFailed as exc:
+        result, failed = exc.result, exc
+    if not quiet:
         _tell_identified(result, args.verbose)
     print(args.out)
+    if failed is not None:
+        _tell_failed(failed)
+        return 2
     return 0
 
 

@@ -49,7 +49,7 @@ from threadpoolctl import threadpool_limits
 
 from flexmodal.compare.candidates import Candidate, combine, components, parse_effects, single_candidates
 from flexmodal.compare.errors import CompareError
-from flexmodal.compare.fit import Target, design, evaluate, fit_candidate, paired_modes
+from flexmodal.compare.fit import Target, design, evaluate, fit_candidate, linear_cov, paired_modes
 from flexmodal.compare.gap import (
     MIN_SCATTER_REL,
     Measured,
@@ -62,7 +62,8 @@ from flexmodal.compare.gap import (
     region_scores,
     rms,
 )
-from flexmodal.compare.parametric import handles_for, lam_to_hz, pose_basis, reduce_family, solve_family
+from flexmodal.compare.next_measurement import next_measurements, separating_measurement
+from flexmodal.compare.parametric import handles_for, pose_basis, reduce_family
 from flexmodal.compare.result import (
     Alternative,
     Baseline,
@@ -77,6 +78,7 @@ from flexmodal.compare.result import (
     Verdict,
     Where,
 )
+from flexmodal.compare.sensor_flag import sensor_flag
 from flexmodal.compare.verdict_text import EXPLAINED_FACTOR, gap_words
 from flexmodal.contract.mac import mac_pairs
 from flexmodal.contract.table import ModalTable
@@ -109,14 +111,7 @@ MIN_CROSS_VALIDATED = 6
 REGION_TIE = 0.8
 FEATURE_Z = 3.3
 """A residual feature beyond 3.3 standard errors (two-sided 0.1 %) points outside the library."""
-COMAC_DROP = 0.05
-SENSOR_FACTOR = 10.0
-COMAC_NOISE = 1e-3
-"""One sensor whose 1 - COMAC is at least 0.05 and 10x the other sensors' median (never taken below
-0.1 %, the shape noise) flags the verdict."""
 Z95 = 1.959963984540054
-TRIAL_POINTS = 13
-MAX_ADVICE = 3
 RIVAL_MARGIN = 3.0
 MAX_RIVALS = 6
 """An ambiguous verdict's next measurement is chosen against its rivals: the candidates (not supersets)
@@ -195,13 +190,20 @@ class _Context:
         self.shape_floor = math.inf      # smallest in-sample mean (1 - MAC) of any model fitted so far
         keys = [tuple(sorted(p.items())) for p in meas.poses]
         self.pose_share = len(set(keys)) / max(len(keys), 1)   # repeats add no model-form information
-        self.trial: tuple[tuple[str, ...], _Context] | None = None   # _trial_context's cache
+        self.trial: tuple[tuple[str, ...], _Context] | None = None   # next_measurement's trial context
         self.model_form = 0.0            # model-form level of nested comparisons (``_nested_margin``)
         self.beam_form = _beam_theory_form(rig, meas.freq_hz)   # the frame's known beam-theory error
 
     def family(self, handles: Sequence[str]):
         idx = [self.index[h] for h in handles]
         return reduce_family(self.bases, idx, np.array([self.handles[i].nominal for i in idx]))
+
+    def at(self, poses: Sequence[dict[str, float]], n_modes: int) -> _Context:
+        """A context over other ``poses`` (reduced models of ``n_modes`` modes there; its measured
+        frequencies are placeholders, the first configuration's)."""
+        new = Measured(tuple(f"q{i}" for i in range(len(poses))), tuple(poses),
+                       np.repeat(self.meas.freq_hz[:1], len(poses), axis=0), None, ())
+        return _Context(self.rig, new, np.ones((1, len(poses)), bool), n_modes=n_modes)
 
 
 def _params(cand: Candidate, theta: np.ndarray) -> dict[str, float]:
@@ -698,9 +700,7 @@ def prediction_band(rig: Rig, measured: ModalTable, result: Diagnosis, poses: Se
     cand = _rebuild(rig, meas, v.effect, v.location) if entry is not None else None
     scatter = result.scatter or DEFAULT_SCATTER
     ctx = _Context(rig, meas, np.ones((1, len(meas.configs)), bool))
-    new = Measured(tuple(f"q{i}" for i in range(len(poses))), tuple(dict(p) for p in poses),
-                   np.repeat(meas.freq_hz[:1], len(poses), axis=0), None, ())
-    nctx = _Context(rig, new, np.ones((1, len(poses)), bool))
+    nctx = ctx.at(tuple(dict(p) for p in poses), meas.freq_hz.shape[1])
     if cand is None:
         f = evaluate(nctx.family([]), np.zeros((len(poses), 0, 0)), np.zeros((1, 0)), nctx.target)[0][0]
         var = np.full(f.shape, scatter**2)
@@ -709,7 +709,7 @@ def prediction_band(rig: Rig, measured: ModalTable, result: Diagnosis, poses: Se
                           for p, x in zip(cand.params, _param_values(cand, entry.params), strict=True)])
         D = design(cand, ctx.target)
         _, df, _, _ = evaluate(ctx.family(cand.handles), D, theta[None], ctx.target)
-        cov = _linear_cov(df[0] / meas.freq_hz[..., None], scatter)
+        cov = linear_cov(df[0] / meas.freq_hz[..., None], scatter)
         nfam = nctx.family(cand.handles)
         f, dfn, _, _ = evaluate(nfam, design(cand, nctx.target), theta[None], nctx.target)
         f = f[0]
@@ -894,7 +894,8 @@ def _beam_theory_form(rig: Rig, freq_hz: np.ndarray, nu: float = POISSON) -> flo
         lengths.append(link.length_m)
     if not lengths:
         return 0.0
-    return rms(2 * math.pi * np.asarray(freq_hz, float) * float(np.average(per_rad_s, weights=lengths)))
+    freq = np.asarray(freq_hz, float)
+    return rms(2 * math.pi * freq[np.isfinite(freq)] * float(np.average(per_rad_s, weights=lengths)))
 
 
 def _chi2_terms(ctx: _Context, entry: dict, scatter: float) -> np.ndarray:
@@ -1047,21 +1048,21 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
             "explained": bool(before <= EXPLAINED_FACTOR * sigma), "alternatives": [],
             "gap_removed": 0.0, "remaining_over_scatter": before / sigma}
     if baseline["rms_rel_error"] <= _none_level(none_sigma, ctx.beam_form):
-        return _none_with_alternatives(ctx, {**none, "grade": "explained", "summary": (
+        return _flag_none(ctx, _none_with_alternatives(ctx, {**none, "grade": "explained", "summary": (
             f"baseline RMS gap {baseline['rms_rel_error']:.2%} is within {NONE_FACTOR:g}x the measurement "
             f"scatter ({none_sigma:.2%}) on top of the beam theory's known error ({ctx.beam_form:.2%}): "
-            "no unmodelled effect is needed")}, ranking, nominal, scatter)
+            "no unmodelled effect is needed")}, ranking, nominal, scatter))
     if not ranking or best is None:
-        return {**none, "grade": "not explained", "flags": list(notes), "summary": (
+        return _flag_none(ctx, {**none, "grade": "not explained", "flags": list(notes), "summary": (
             f"baseline RMS gap {baseline['rms_rel_error']:.2%} but no candidate effect applies to this rig "
-            "within its parameter range: the gap is unexplained")}
+            "within its parameter range: the gap is unexplained")})
     if best["score"] >= _score(nominal, 0, scatter):
-        return _none_with_alternatives(ctx, {
+        return _flag_none(ctx, _none_with_alternatives(ctx, {
             **none, "grade": "not explained" if before > EXPLAINED_FACTOR * sigma else "explained",
             "summary": (f"no candidate beats the nominal model on held-out configurations once its "
                         f"extra parameters are penalised against the scatter {scatter:.2%} (baseline "
                         f"held-out RMS {before:.2%}, best {best['effect']} "
-                        f"{best['heldout_rms_rel_error']:.2%})")}, ranking, nominal, scatter)
+                        f"{best['heldout_rms_rel_error']:.2%})")}, ranking, nominal, scatter))
     after = best["heldout_rms_rel_error"]
     resid = best["_heldout_freq_hz"] / meas.freq_hz - 1.0
     structured = _structured(resid, sigma)
@@ -1104,7 +1105,7 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
                    key=lambda e: e["_heldout_eq"])[:MAX_SUPERSETS]
     verdict["alternatives"] = [
         {"effect": e["effect"], "location": e["location"], "params": e["params"],
-         "heldout_rms_rel_error": e["heldout_rms_rel_error"], **_separating_measurement(ctx, best, e)}
+         "heldout_rms_rel_error": e["heldout_rms_rel_error"], **separating_measurement(ctx, best, e)}
         for e in alts]
     verdict["ambiguous"] = bool(alts)
     rivals = [e for e in ranking if e is not best and not e["_out_of_range"] and not e["_idle"]
@@ -1112,7 +1113,7 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
               and e["_heldout_eq"] - best["_heldout_eq"]
               <= RIVAL_MARGIN * _noise(best, scatter, ctx.pose_share)][:MAX_RIVALS]
     rivals += [e for e in alts if e not in rivals]
-    verdict["next_measurements"] = _next_measurements(ctx, best, rivals, scatter) if alts else []
+    verdict["next_measurements"] = next_measurements(ctx, best, rivals, scatter) if alts else []
     text = f"{best['effect']} at {best['location']}, {gap_words(before, after, sigma, grade, feature)}"
     if not explained:
         worst_txt = ", ".join(f"mode {r['mode']} at {r['config']} ({r['heldout_rel_error']:+.1%})"
@@ -1159,6 +1160,19 @@ def _none_with_alternatives(ctx: _Context, verdict: dict, ranking: list[dict], n
                        f"model ({verdict['heldout_rms_rel_error_before']:.2%}): {names}"}
 
 
+def _flag_none(ctx: _Context, verdict: dict) -> dict:
+    """A ``none`` verdict whose measured shapes disagree with the nominal model at one sensor
+    (``_shape_flags``): flagged, and then not explained (the frequencies need no effect, the shapes are
+    not what the rig says)."""
+    sensor, flags = _shape_flags(ctx, _paired_shapes(ctx, ctx.family([]))) if ctx.meas.shapes is not None \
+        else ("", [])
+    if not flags:
+        return verdict
+    return {**verdict, "explained": False, "grade": "not explained", "residual_feature": f"sensor {sensor}",
+            "flags": [*(verdict.get("flags") or []), *flags],
+            "summary": f"{verdict['summary']}; flagged: {'; '.join(flags)}"}
+
+
 def _residual_feature(ctx: _Context, best: dict, resid: np.ndarray, sigma: float) -> tuple[str, list[str]]:
     """What in the held-out residuals [C, n] of the verdict points outside the library, and flags.
 
@@ -1166,10 +1180,9 @@ def _residual_feature(ctx: _Context, best: dict, resid: np.ndarray, sigma: float
     residual has one sign at every pose (its mean over configurations), a pose trend of one mode (the
     least-squares slope of its residual on one pose variable, >= 3 distinct values), one configuration
     (its mean over modes).  The largest beyond ``FEATURE_Z`` is reported.  With measured shapes (three
-    sensors or more), a sensor whose ``1 - COMAC`` against the verdict's fitted model (Lieven & Ewins
-    1988) is at least ``COMAC_DROP`` and ``SENSOR_FACTOR`` times the other sensors' median is a flag:
-    a sensor mounted elsewhere or on another direction than the rig says, or a local effect no library
-    entry has."""
+    sensors or more), a sensor whose shapes disagree with the verdict's fitted model beyond the shape
+    noise of the other sensors (``_shape_flags``) is a flag: a sensor mounted elsewhere or on another
+    direction than the rig says, or a local effect no library entry has."""
     meas = ctx.meas
     sd = HELDOUT_INFLATION * sigma
     C, n = resid.shape
@@ -1194,29 +1207,18 @@ def _residual_feature(ctx: _Context, best: dict, resid: np.ndarray, sigma: float
                                                          "every mode)"))
     z, text = max(found, key=lambda t: t[0]) if found else (0.0, "")
     feature = text if z > FEATURE_Z else ""
-    flags: list[str] = []
-    if meas.shapes is not None and len(meas.sensors) >= 3:
-        full = [c for c in range(C) if not np.isnan(meas.shapes[c]).any()]
-        if full:
-            model = _fit_shapes(ctx, best)[full]
-            values = comac(meas.shapes[full], model)
-            drop = 1.0 - values
-            worst = int(np.argmax(drop))
-            others = np.delete(drop, worst)
-            if drop[worst] >= COMAC_DROP and drop[worst] >= SENSOR_FACTOR * max(float(np.median(others)),
-                                                                                 COMAC_NOISE):
-                flags.append(f"the measured shapes disagree at sensor {meas.sensors[worst]} (COMAC "
-                             f"{values[worst]:.2f}, the other sensors {1 - others.max():.2f}-"
-                             f"{1 - others.min():.2f})")
-                feature = feature or f"sensor {meas.sensors[worst]}"
-    return feature, flags
+    sensor, flags = _shape_flags(ctx, _fit_shapes(ctx, best))
+    return feature or (f"sensor {sensor}" if sensor else ""), flags
 
 
-def _linear_cov(rel_jac: np.ndarray, scatter: float) -> np.ndarray:
-    """Gauss-Newton covariance ``scatter^2 (J^T J)^+`` of the parameters from relative-frequency
-    derivatives ``rel_jac`` [..., J] (Bates & Watts 1988 §2.3)."""
-    J = rel_jac.reshape(-1, rel_jac.shape[-1])
-    return scatter**2 * np.linalg.pinv(J.T @ J)
+def _shape_flags(ctx: _Context, model: np.ndarray) -> tuple[str, list[str]]:
+    """The sensor whose measured shapes disagree with ``model`` [C, s, n] beyond the shape noise of the
+    others (``compare.sensor_flag``), and its flag; empty without shapes at three sensors or more."""
+    meas = ctx.meas
+    if meas.shapes is None or len(meas.sensors) < 3:
+        return "", []
+    sensor, text = sensor_flag(meas.shapes, model, meas.sensors)
+    return sensor, [text] if text else []
 
 
 def _heldout_intervals(ctx: _Context, entry: dict, scatter: float) -> tuple[int, int]:
@@ -1230,7 +1232,7 @@ def _heldout_intervals(ctx: _Context, entry: dict, scatter: float) -> tuple[int,
     rel = df / ctx.meas.freq_hz[None, ..., None]
     inside = total = 0
     for k, tr in enumerate(train):
-        cov = _linear_cov(rel[k][tr], scatter)
+        cov = linear_cov(rel[k][tr], scatter)
         g = rel[k][~tr]                                                     # [h, n, J]
         var = np.einsum("hnj,jk,hnk->hn", g, cov, g) + scatter**2
         err = f[k][~tr] / ctx.meas.freq_hz[~tr] - 1.0
@@ -1244,112 +1246,6 @@ def _fit_shapes(ctx: _Context, entry: dict) -> np.ndarray:
     cand = entry["_cand"]
     h = evaluate(entry["_fam"], design(cand, ctx.target), entry["_theta0"][None], ctx.target)[3]
     return paired_modes(entry["_fam"], h, ctx.target)[2][0]
-
-
-def trial_poses(rig: Rig, poses: Sequence[dict[str, float]]) -> dict[str, dict[str, float]]:
-    """Candidate poses for a next measurement after measuring ``poses``: each pose variable moved over
-    ``TRIAL_POINTS`` points of its measured range (the others at the first pose's values),
-    {``<var>=<value>``: pose}; ``verdict.next_measurements`` and ``separate_at`` name them."""
-    trial: dict[str, dict[str, float]] = {}
-    for v in rig.pose_variables:
-        vals = np.array([p[v] for p in poses])
-        trial.update({f"{v}={x:g}": {**poses[0], v: float(x)}
-                      for x in np.linspace(vals.min(), vals.max(), TRIAL_POINTS)})
-    return trial
-
-
-def _trial_poses(ctx: _Context) -> dict[str, dict[str, float]]:
-    return trial_poses(ctx.rig, ctx.meas.poses)
-
-
-def _trial_context(ctx: _Context, trial: dict[str, dict[str, float]]) -> _Context:
-    """A context over the ``trial`` poses (reduced models there; frequencies are placeholders), cached."""
-    key = tuple(trial)
-    if ctx.trial is None or ctx.trial[0] != key:
-        poses = tuple(trial.values())
-        n = ctx.meas.freq_hz.shape[1]
-        new = Measured(key, poses, np.repeat(ctx.meas.freq_hz[:1], len(poses), axis=0), None, ())
-        ctx.trial = (key, _Context(ctx.rig, new, np.ones((1, len(poses)), bool), n_modes=n + 2))
-    return ctx.trial[1]
-
-
-def _trial_frequencies(ctx: _Context, entry: dict, trial: dict[str, dict[str, float]]) -> np.ndarray:
-    """Frequencies [P, n + 2] of ``entry``'s fitted candidate at the ``trial`` poses (its reduced model,
-    modes in ascending order); cached on the entry."""
-    if "_trial_f" not in entry:
-        nctx = _trial_context(ctx, trial)
-        cand = entry["_cand"]
-        fam = nctx.family(cand.handles)
-        h = np.exp(design(cand, nctx.target) @ entry["_theta0"])[None] if cand.n_params else \
-            np.ones((1, len(trial), 0))
-        lam, _, _ = solve_family(fam, h, ctx.meas.freq_hz.shape[1] + 2)
-        entry["_trial_f"] = lam_to_hz(lam[0])
-    return entry["_trial_f"]
-
-
-def _separating_measurement(ctx: _Context, a: dict, b: dict) -> dict:
-    """The pose (``_trial_poses``) and model mode (up to two beyond the measured ones) where the fitted
-    candidates ``a`` and ``b`` differ most (their reduced models, compare/parametric.py)."""
-    trial = _trial_poses(ctx)
-    if not trial:
-        return {}
-    diff = np.abs(_trial_frequencies(ctx, a, trial) / _trial_frequencies(ctx, b, trial) - 1.0)
-    if not np.isfinite(diff).any():
-        return {}
-    i, m = np.unravel_index(np.nanargmax(diff), diff.shape)
-    return {"separate_at": list(trial)[i], "separate_mode": int(m + 1),
-            "separate_rel_diff": float(diff[i, m])}
-
-
-def _predictive(ctx: _Context, entry: dict, nctx: _Context, scatter: float) -> tuple[np.ndarray, np.ndarray]:
-    """``entry``'s fitted candidate at the poses of ``nctx``: frequencies [P, n] and the variance of
-    their relative prediction [P, n] from its linearised parameter covariance (reduced model)."""
-    cand = entry["_cand"]
-    _, df, _, _ = evaluate(entry["_fam"], design(cand, ctx.target), entry["_theta0"][None], ctx.target)
-    cov = _linear_cov(df[0] / ctx.meas.freq_hz[..., None], scatter)
-    n = ctx.meas.freq_hz.shape[1]
-    h = np.exp(design(cand, nctx.target) @ entry["_theta0"])[None]
-    lam, dlam, _ = solve_family(nctx.family(cand.handles), h, n)
-    f = lam_to_hz(lam[0])
-    dl = dlam[0] * h[0][:, None, :]                                    # d lambda / d log h
-    g = (dl @ design(cand, nctx.target)) / (8 * math.pi**2 * np.maximum(f, 1e-12) ** 2)[..., None]
-    return f, np.einsum("cnj,jk,cnk->cn", g, cov, g)
-
-
-def _next_measurements(ctx: _Context, best: dict, alts: Sequence[dict], scatter: float) -> list[dict]:
-    """Untested poses ranked by the expected information a measurement there brings on the choice
-    between the verdict and its rivals ``alts``: the Box & Hill (1967) discrimination criterion, the
-    symmetric Kullback-Leibler divergence between the two candidates' predictive normals of each
-    measured mode's relative frequency, ``0.5 [(v_a - v_b)^2 / (v_a v_b) + d^2 (1/v_a + 1/v_b)]`` with
-    ``d`` their relative difference and ``v = scatter^2 + g^T C g`` (each candidate's linearised
-    prediction variance: where a candidate is loosely pinned down it can follow a new point, and a
-    measurement there decides little), summed over modes.  Poses are ranked by ``sum (1 - exp(-I))``
-    over the rivals (each rival's information saturating: a pose that tells the verdict from every
-    rival beats one that tells it from one rival by a mile); ``information_nats`` is the mean over the
-    rivals.  At most ``MAX_ADVICE`` poses, each with the mode that carries most of it."""
-    trial = _trial_poses(ctx)
-    if not trial or not alts:
-        return []
-    measured = {tuple(sorted(p.items())) for p in ctx.meas.poses}
-    keep = [i for i, p in enumerate(trial.values()) if tuple(sorted(p.items())) not in measured]
-    if not keep:
-        return []
-    labels = [list(trial)[i] for i in keep]
-    nctx = _trial_context(ctx, trial)
-    fa, va = (x[keep] for x in _predictive(ctx, best, nctx, scatter))
-    va = va + scatter**2
-    info = np.zeros(fa.shape)
-    value = np.zeros(len(labels))
-    for e in alts:
-        fb, vb = (x[keep] for x in _predictive(ctx, e, nctx, scatter))
-        vb = vb + scatter**2
-        d = fb / fa - 1.0
-        each = np.nan_to_num(0.5 * ((va - vb) ** 2 / (va * vb) + d**2 * (1 / va + 1 / vb)))
-        info += each / len(alts)
-        value += 1.0 - np.exp(-each.sum(axis=1))        # chance-like share of this rival ruled out
-    order = [i for i in np.argsort(-value, kind="stable") if value[i] > 0][:MAX_ADVICE]
-    return [{"pose": labels[i], "mode": int(np.argmax(info[i]) + 1), "information_nats": float(info[i].sum())}
-            for i in order]
 
 
 def _predictions(meas: Measured, base_f: np.ndarray, best: dict | None) -> Predictions:

@@ -125,6 +125,13 @@ def evaluate(fam: ReducedFamily, D: np.ndarray, theta: np.ndarray, target: Targe
     return f, df, mac, h
 
 
+def linear_cov(rel_jac: np.ndarray, scatter: float) -> np.ndarray:
+    """Gauss-Newton covariance ``scatter^2 (J^T J)^+`` of the parameters from relative-frequency
+    derivatives ``rel_jac`` [..., J] (Bates & Watts 1988 §2.3)."""
+    J = rel_jac.reshape(-1, rel_jac.shape[-1])
+    return scatter**2 * np.linalg.pinv(J.T @ J)
+
+
 def _grid(cand: Candidate, most: int = 81) -> np.ndarray:
     pts = np.array(list(itertools.product(*[p.grid for p in cand.params])), float)
     if len(pts) > most:

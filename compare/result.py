@@ -28,6 +28,7 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, fields
 from typing import Any, Self
 
+from flexmodal.checked_io.percent import percent
 from flexmodal.checked_io.text import loads_json
 from flexmodal.compare.errors import CompareError
 
@@ -417,12 +418,12 @@ class Diagnosis(_Record):
     def _verdict_line(self) -> str:
         v = self.verdict
         named = f"{v.effect} at {v.location}" if v.location else v.effect
-        return (f"{named}; held-out RMS error {100 * v.heldout_rms_rel_error_before:.3g} % -> "
-                f"{100 * v.heldout_rms_rel_error_after:.3g} %; "
+        return (f"{named}; held-out RMS error {percent(v.heldout_rms_rel_error_before)} -> "
+                f"{percent(v.heldout_rms_rel_error_after)}; "
                 + (v.grade or ("explained" if v.explained else "not explained")))
 
     def __repr__(self) -> str:
-        return (f"Diagnosis({self._verdict_line()}; baseline RMS {100 * self.baseline.rms_rel_error:.3g} %, "
+        return (f"Diagnosis({self._verdict_line()}; baseline RMS {percent(self.baseline.rms_rel_error)}, "
                 f"{len(self.ranking)} candidates ranked)")
 
     def _repr_html_(self) -> str:
@@ -434,7 +435,7 @@ class Diagnosis(_Record):
                                                         "heldout_rms_rel_error_pct": "held-out RMS error [%]",
                                                         "n_params": "parameters [count]"})
         return display_html(f"Diagnosis: <b>{html.escape(self._verdict_line())}</b>; baseline RMS error "
-                            f"{100 * self.baseline.rms_rel_error:.3g} % (candidates, best first; "
+                            f"{percent(self.baseline.rms_rel_error)} (candidates, best first; "
                             "<code>to_frame()</code> has all)", shown.round(4))
 
     def per_mode_after(self) -> Mapping[str, float | None] | None:

@@ -5,15 +5,11 @@ from __future__ import annotations
 
 import math
 
+from flexmodal.checked_io.percent import percent
 from flexmodal.compare.result import Diagnosis
 
 EXPLAINED_FACTOR = 3.0
 """A held-out RMS within 3x the measurement scatter (and unstructured, unflagged) is explained."""
-
-
-def _pct(x: float) -> str:
-    """A fraction as percent with three significant digits (0.000005 -> ``0.0005 %``)."""
-    return f"{100 * x:.3g} %"
 
 
 def gap_words(before: float, after: float, sigma: float, grade: str, feature: str = "") -> str:
@@ -34,17 +30,17 @@ def gap_words(before: float, after: float, sigma: float, grade: str, feature: st
     """
     removed = 1.0 - after / before if before > 0 else 0.0
     head = (f"{grade}: {100 * removed:.0f} % of the held-out gap removed "
-            f"(from {_pct(before)} to {_pct(after)})")
+            f"(from {percent(before)} to {percent(after)})")
     ratio = after / sigma if sigma > 0 else math.inf
     note = f"; it shows as {feature}" if feature else ""
     if ratio <= EXPLAINED_FACTOR:
         if grade == "explained":
-            return f"{head}; what remains is within the measurement scatter ({_pct(sigma)})"
-        return (f"{head}; what remains is near the measurement scatter ({_pct(sigma)}) but not random: "
+            return f"{head}; what remains is within the measurement scatter ({percent(sigma)})"
+        return (f"{head}; what remains is near the measurement scatter ({percent(sigma)}) but not random: "
                 f"it has structure{note}")
     times = "more than 100 times" if ratio > 100 else f"{ratio:.0f} times"
-    return (f"{head}; the remaining {_pct(after)} is {times} the measurement scatter ({_pct(sigma)}), so it "
-            f"is not noise: no effect in the library accounts for it{note}")
+    return (f"{head}; the remaining {percent(after)} is {times} the measurement scatter "
+            f"({percent(sigma)}), so it is not noise: no effect in the library accounts for it{note}")
 
 
 def verdict_words(result: Diagnosis) -> str:
@@ -65,7 +61,7 @@ def scatter_line(result: Diagnosis) -> str:
         return ""
     meas = src.measurement if src.measurement is not None else result.scatter
     floor = src.model_form_floor or 0.0
-    own = f"{_pct(meas)} from {src.source}"
-    return (f"scatter: {_pct(result.scatter)} = measurement ({own}; {src.detail}) + model-form floor "
-            f"{_pct(floor)} (held-out error of the best candidate beyond the measurement); what remains is "
-            f"judged against {_pct(meas)}")
+    own = f"{percent(meas)} from {src.source}"
+    return (f"scatter: {percent(result.scatter)} = measurement ({own}; {src.detail}) + model-form floor "
+            f"{percent(floor)} (held-out error of the best candidate beyond the measurement); what remains "
+            f"is judged against {percent(meas)}")

@@ -28,6 +28,7 @@ import signal
 import threading
 import time
 from collections import Counter
+from contextlib import ExitStack
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -35,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from flexmodal.checked_io.output import signals_deferred
+from flexmodal.checked_io.signals import signal_handlers
 from flexmodal.daq.devices import Block, ReaderStats, run_reader, with_endpoint
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.hits import HitMonitor, sparkline
@@ -127,20 +129,18 @@ class StopSignals:
     def __init__(self) -> None:
         self.event = threading.Event()
         self.signum = 0
-        self._old: dict = {}
+        self._handlers = ExitStack()
 
     def _handle(self, signum, _frame) -> None:
         self.signum = self.signum or signum
         self.event.set()
 
     def __enter__(self) -> StopSignals:
-        if threading.current_thread() is threading.main_thread():
-            self._old = {s: signal.signal(s, self._handle) for s in STOP_SIGNALS}
+        self._handlers.enter_context(signal_handlers(self._handle, STOP_SIGNALS))
         return self
 
     def __exit__(self, *exc) -> None:
-        for s, old in self._old.items():
-            signal.signal(s, old)
+        self._handlers.close()
 
 
 def disk_room(path: Path) -> int:

@@ -10,19 +10,20 @@ from __future__ import annotations
 import os
 import queue
 import signal
-import sys
 import threading
-from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from flexmodal.checked_io.children import ctrl_c_blocked, leave_ctrl_c_to_parent
+from flexmodal.checked_io.errors import FlexmodalError
+from flexmodal.checked_io.progress import progress_bar
 from flexmodal.checked_io.text import one_line
 from flexmodal.daq.store import expand_runs
 from flexmodal.modal.compute import compute_frf
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult
 from flexmodal.modal.runs_io import write_frf
+from flexmodal.modal.skipped import RunsFailed
 from flexmodal.modal.spectra import usable_cpus
 
 AUTO_WORKERS = 2        # CPUs the automatic choice uses at most (this process and its helpers)
@@ -43,13 +44,31 @@ def frf_job(path: str, run_id: str, options: dict) -> FrfResult:
             raise ModalError(f"{path}: run {run_id!r}: cannot read the samples ({one_line(exc)})") from None
 
 
+def _attempt(path: str, run_id: str, options: dict) -> FrfResult | FlexmodalError:
+    """:func:`frf_job`, a bad run's error (bad input) returned instead of raised: it is delivered in its
+    turn like a result (:func:`run_batch`).  Any other exception is a bug and propagates."""
+    try:
+        return frf_job(path, run_id, options)
+    except FlexmodalError as exc:
+        return exc
+
+
 def idle_cpus() -> int:
-    """CPUs the other processes leave idle (the CPUs this process may use less the 1-minute load
-    average, rounded; at least 1): the FFT threads of the serial path.  On a busy machine a second
-    thread only adds contention (measured under load 6 on 2 CPUs: 8 runs of 60 s took 1.13 s with 2
-    threads, 0.82 s with 1)."""
-    cpus = usable_cpus()
-    return max(1, min(cpus, cpus - round(os.getloadavg()[0])))
+    """CPUs this process may use that the others leave idle: its own, plus the CPUs the machine left
+    idle since the last look (:func:`_idle_cpus_between` of /proc/stat samples: the one idle-CPU
+    estimator here), rounded, at most the CPUs it may use: the FFT threads and lanes of the serial path.
+    The first look is this module's import, so for a command the interval is the process's own
+    start (a fraction of a second: the machine now, not the 1-minute load average, which also counts
+    this process once it has run a while); a look less than a tick per CPU after the last one reuses
+    that one's interval.  On a busy machine a second thread only adds contention (measured under
+    load 6 on 2 CPUs: 8 runs of 60 s took 1.13 s with 2 threads, 0.82 s with 1)."""
+    now = _cpu_ticks()
+    before = _LOOK[0]
+    if before is not None and now is not None and now[0] - before[0] >= (os.cpu_count() or 1):
+        _LOOK[:] = [now, before]      # long enough: the next look starts here
+    else:
+        before = _LOOK[1]             # too short (or unknown): measure from the look before
+    return max(1, min(usable_cpus(), 1 + round(_idle_cpus_between(before, now))))
 
 
 def run_bytes(jobs: Sequence[tuple[str, str]]) -> list[int]:
@@ -109,6 +128,9 @@ def _idle_cpus_between(before: tuple[int, int] | None, after: tuple[int, int] | 
     return cpus * (after[1] - before[1]) / (after[0] - before[0])
 
 
+_LOOK: list = [_cpu_ticks(), None]   # idle_cpus' last sample and the one before (first: at import)
+
+
 def _helpers_pay(elapsed_s: float, bytes_done: int, bytes_left: int, runs_left: int, idle: float,
                  usable: int | None = None) -> int:
     """Helper processes to fork for the rest of a batch (0: compute it here alone).
@@ -132,17 +154,22 @@ def _helpers_pay(elapsed_s: float, bytes_done: int, bytes_left: int, runs_left: 
 
 def run_batch(jobs: Sequence[tuple[str, str]], options: dict, *, workers: int | None = None,
               scheduler: str | None = None, out: str | None = None,
-              on_done: Callable[[str, str, FrfResult], None] | None = None) -> list[FrfResult]:
+              on_done: Callable[[str, str, FrfResult], None] | None = None,
+              keep_going: bool = False) -> list[FrfResult]:
     """FRFs of every (file, run_id) job in order.  ``workers`` 0 computes here (:func:`_here`: as many
     runs at once as idle CPUs), > 0 on a pool of that many local processes, None (automatic) here,
     with helper processes forked from this one once the measured cost of the runs done predicts a
     gain from them (:func:`_auto`); ``scheduler`` sends every job to an existing dask cluster.
     ``on_done(file, run_id, result)`` gets each result once no unfinished job reads the file it
-    will be written to (``out`` if given, else its own file): that is when the caller may write it."""
+    will be written to (``out`` if given, else its own file): that is when the caller may write it.
+    A bad run (a FlexmodalError) raises its error in its turn, or with ``keep_going`` is delivered like
+    a result, its error in place of the FRFs, and the batch goes on."""
     results: list[FrfResult | None] = [None] * len(jobs)
     deliver = _Deliver(jobs, on_done, lambda p: p if out is None else str(out))
 
-    def done(k: int, result: FrfResult) -> None:
+    def done(k: int, result: FrfResult | FlexmodalError) -> None:
+        if isinstance(result, FlexmodalError) and not keep_going:
+            raise result
         results[k] = result
         deliver(k, result)
 
@@ -170,7 +197,7 @@ def _here(jobs, options: dict, done: Callable[[int, FrfResult], None]) -> None:
     threads = {"workers": max(1, cpus // lanes), **options}
     if lanes == 1:
         for k, job in enumerate(jobs):
-            done(k, frf_job(*job, threads))
+            done(k, _attempt(*job, threads))
         return
     executor = ThreadPoolExecutor(lanes, thread_name_prefix="flexmodal-run")
     running: dict = {}               # future -> job
@@ -179,7 +206,7 @@ def _here(jobs, options: dict, done: Callable[[int, FrfResult], None]) -> None:
     try:
         while delivered < len(jobs):
             while submitted < len(jobs) and len(running) < lanes:
-                running[executor.submit(frf_job, *jobs[submitted], threads)] = submitted
+                running[executor.submit(_attempt, *jobs[submitted], threads)] = submitted
                 submitted += 1
             finished, _ = wait(running, return_when=FIRST_COMPLETED)
             for fut in finished:
@@ -213,7 +240,7 @@ def _auto(jobs, options: dict, done: Callable[[int, FrfResult], None]) -> None:
         if cpus:
             os.sched_setaffinity(0, cpus[:1])
         for k, job in enumerate(jobs):
-            done(k, frf_job(*job, one))
+            done(k, _attempt(*job, one))
             if k + 1 < len(jobs) and _forkable():
                 n = _helpers_pay(time.perf_counter() - t0, sum(sizes[:k + 1]), sum(sizes[k + 1:]),
                                  len(jobs) - k - 1, _idle_cpus_between(ticks, _cpu_ticks()),
@@ -368,7 +395,7 @@ class _Helpers:
 
     def _here(self, k: int) -> tuple:
         try:
-            return frf_job(*self.jobs[k], self.options), None
+            return _attempt(*self.jobs[k], self.options), None
         except Exception as exc:  # noqa: BLE001 - raised in run order, as serially
             return None, exc
 
@@ -402,7 +429,7 @@ def _serve(jobs, options: dict, inbox, outbox) -> None:
         except EOFError:
             return
         try:
-            reply = (k, frf_job(*jobs[k], options), None)
+            reply = (k, _attempt(*jobs[k], options), None)
         except Exception as exc:  # noqa: BLE001 - sent, raised by the caller in run order
             reply = (k, None, exc)
         try:
@@ -508,9 +535,7 @@ def _in_pool(jobs, options: dict, workers: int, done: Callable[[int, FrfResult],
             finished, _ = wait(futures, return_when=FIRST_COMPLETED)
             for fut in finished:
                 k = futures.pop(fut)
-                if fut.exception() is not None:
-                    raise _failed(jobs[k], fut.exception())
-                done(k, fut.result())
+                done(k, fut.result() if fut.exception() is None else _failed(jobs[k], fut.exception()))
     except KeyboardInterrupt:  # Ctrl-C: leave now, not after the running jobs; the workers are the fork
         interrupted = True     # server's children, so the CLI's ending of its own would miss them
         raise
@@ -537,9 +562,7 @@ def _on_cluster(jobs, options: dict, scheduler: str, done: Callable[[int, FrfRes
                    for k in range(len(jobs))}   # absolute paths: workers run elsewhere
         for fut in as_completed(list(futures)):
             k = futures[fut]
-            if fut.status == "error":
-                raise _failed(jobs[k], fut.exception())
-            done(k, fut.result())
+            done(k, _failed(jobs[k], fut.exception()) if fut.status == "error" else fut.result())
     except KeyboardInterrupt:  # Ctrl-C: leave now (the CLI ends the cluster's processes with its own)
         interrupted = True
         raise
@@ -552,25 +575,40 @@ def frf_batch(paths: Sequence[str | Path], options: dict, *, workers: int | None
               scheduler: str | None = None, out: str | Path | None = None, quiet: bool = False
               ) -> list[tuple[str, str]]:
     """Compute and write back the FRFs of all runs in ``paths`` (into ``out`` instead if given);
-    returns the (file written, run_id) pairs.  Progress goes to stderr unless ``quiet``."""
-    jobs = expand_runs(paths)
+    returns the (file written, run_id) pairs.  Progress goes to stderr unless ``quiet``.  A bad run
+    (or a file that holds none) does not stop the others: every good run is written, then
+    :class:`~flexmodal.modal.errors.RunsFailed` names each bad one (one bad run alone: its own error)."""
+    jobs, failed = [], []
+    for entry in paths:
+        try:
+            jobs += expand_runs([entry])
+        except FlexmodalError as exc:      # a file missing, unreadable or holding no runs
+            failed.append((-1, str(entry), exc))
     if out is not None and len({r for _, r in jobs}) != len(jobs):
         raise ModalError(f"--out {out}: two input runs share a run id, they cannot go into one file")
     if out is not None:
         _check_out_runs(out, jobs)
     written = []
-    with _progress(len(jobs), quiet) as advance:
+    with progress_bar(len(jobs), "FRFs", quiet) as advance:
 
-        def done(path: str, rid: str, result: FrfResult) -> None:
-            target = str(out) if out is not None else path
-            write_frf(target, rid, result)
-            written.append((target, rid))
+        def done(path: str, rid: str, result: FrfResult | FlexmodalError) -> None:
+            if isinstance(result, FlexmodalError):
+                failed.append((order[(str(path), rid)], f"{path}:{rid}", result))
+            else:
+                target = str(out) if out is not None else path
+                write_frf(target, rid, result)
+                written.append((order[(str(path), rid)], target, rid))
             advance()
 
+        order = {(str(p), r): k for k, (p, r) in enumerate(jobs)}
         run_batch(jobs, options, workers=workers, scheduler=scheduler, on_done=done,
-                  out=None if out is None else str(out))
-    order = {(str(out) if out is not None else p, r): k for k, (p, r) in enumerate(jobs)}
-    return sorted(written, key=order.__getitem__)
+                  out=None if out is None else str(out), keep_going=True)
+    done_runs = [(target, rid) for _, target, rid in sorted(written)]
+    if len(failed) == 1 and not done_runs:
+        raise failed[0][2]
+    if failed:
+        raise RunsFailed(done_runs, [(name, exc) for _, name, exc in sorted(failed, key=lambda f: f[0])])
+    return done_runs
 
 
 def _check_out_runs(out: str | Path, jobs: Sequence[tuple[str, str]]) -> None:
@@ -591,20 +629,3 @@ def _check_out_runs(out: str | Path, jobs: Sequence[tuple[str, str]]) -> None:
                 raise ModalError(f"--out {out}: run {rid!r} there is another run with its own samples; the "
                                  f"FRFs of {path}:{rid} would replace its own and sit beside data they were "
                                  "not computed from (choose another --out)")
-
-
-@contextmanager
-def _progress(total: int, quiet: bool) -> Iterator[Callable[[], None]]:
-    """A transient progress bar on stderr (rich, imported only when shown); yields its advance.  It is
-    redrawn at each run written, not by a thread of its own, so that helper processes can be forked
-    while it shows (:func:`_auto`).  Shown on a terminal only: on a log or a pipe rich leaves an empty
-    line, which put a blank line above an error's one line."""
-    if quiet or not sys.stderr.isatty():
-        yield lambda: None
-        return
-    from rich.console import Console
-    from rich.progress import Progress
-
-    with Progress(transient=True, console=Console(file=sys.stderr), auto_refresh=False) as bar:
-        task = bar.add_task("FRFs", total=total)
-        yield lambda: bar.update(task, advance=1, refresh=True)

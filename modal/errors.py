@@ -5,3 +5,5 @@ from flexmodal.checked_io.errors import FlexmodalError
 
 class ModalError(FlexmodalError):
     """Bad input for `modal`: the message names the file, field or value and what is wrong."""
+
+

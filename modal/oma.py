@@ -134,10 +134,11 @@ def run_ssi(inp: ResponseInputs) -> SsiResult:
 
 
 def run_fdd(inp: ResponseInputs) -> FddResult:
-    """Frequency domain decomposition (the ``fdd`` method), without its sigma (``fdd(...,
-    uncertainty_blocks=N_BLOCKS)`` gives it at about eight times FDD's cost, and one more Welch
-    spectrum per block where output_only_results computes one in all)."""
-    return fdd(inp.samples, inp.sample_rate_hz, references=inp.references, fmin=inp.fmin, fmax=inp.fmax)
+    """Frequency domain decomposition (the ``fdd`` method) with its sigma (the bootstrap over runs of
+    Welch segments, modal/fdd.py: about eight times FDD's own CPU, 0.2 s against 0.025 s on a
+    two-channel 240 s record)."""
+    return fdd(inp.samples, inp.sample_rate_hz, references=inp.references, fmin=inp.fmin, fmax=inp.fmax,
+               uncertainty_blocks=N_BLOCKS)
 
 
 def _lowest_peak(y: np.ndarray, sample_rate_hz: float, refs: Sequence[int] | None, fmax: float | None

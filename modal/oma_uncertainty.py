@@ -16,7 +16,13 @@ largest singular value, where no first-order expansion holds; re-identification 
     (the bootstrap's plug-in variance of a mean of n_b blocks).  SSI (modal/ssi.py): the pole nearest
     each of the mode's stable poles at its order, and the same medians over them as the estimate
     (modal.lscf.chain_medians).  FDD (modal/fdd.py): the blocks are runs of whole Welch segments (one
-    segment each for records of up to ``N_BLOCKS`` segments), and EFDD is repeated on the same bell.
+    segment each for records of up to ``N_BLOCKS`` segments), and EFDD is repeated on the record's bell
+    without its detection checks; its sigma is scaled by ``interval_factor`` (below).
+
+``interval_factor(n_blocks, n_replicates) -> float``
+    Student's t_0.975 over 1.96 for the degrees of freedom of a bootstrap sigma (Welch-Satterthwaite
+    over the blocks' and the replicates' scatter), so that +-1.96 sigma is the 95 % interval.  SSI's
+    sigma does without it (docs/diagnosis.md: it is on average larger than its scatter).
 
 The delete-one-block jackknife (Efron & Stein 1981), used before, overestimated the SSI sigma 1.3-2x
 in Monte-Carlo: at model orders well above the system's the pole moves non-smoothly with the data
@@ -40,6 +46,7 @@ Examples
 from __future__ import annotations
 
 import numpy as np
+import scipy.stats
 
 MAX_DECAY_FRACTION = 0.5
 """A mode whose decay time 1 / (zeta omega_n) exceeds this fraction of a block gets no sigma."""
@@ -47,6 +54,27 @@ N_BLOCKS = 20
 """Blocks the record is cut into (Reynders et al. 2008 use 20-100; fewer when the record is short)."""
 N_BOOTSTRAP = 20
 """Bootstrap replicates of the SSI sigma (its relative Monte-Carlo error about 1 / sqrt(2 N_BOOTSTRAP))."""
+
+
+def interval_factor(n_blocks: int, n_replicates: int) -> float:
+    """Factor turning a bootstrap sigma over ``n_blocks`` blocks from ``n_replicates`` replicates into one
+    whose +-1.96 sigma interval is the 95 % interval: ``t_{0.975}(nu) / z_{0.975}`` (Student, 1908; the
+    coverage factor of an uncertainty of nu degrees of freedom, JCGM 100:2008 G.3-G.4).  The sigma's
+    square is the data's variance times two independent chi^2 / dof terms, the blocks' scatter
+    (``n_blocks - 1`` degrees of freedom) and the finite replicates' (``n_replicates - 1``), so its
+    relative variance is ``a + b + a b`` with ``a = 2 / (n_b - 1)``, ``b = 2 / (B - 1)``, and
+    ``nu = 2 / (a + b + a b)`` (Welch-Satterthwaite, JCGM 100:2008 G.4.1, with the product term).
+
+    Examples
+    --------
+    >>> round(interval_factor(11, 10**9) * 1.959964, 3)    # t_0.975 of 10 degrees of freedom: 2.228
+    2.228
+    >>> round(interval_factor(10**9, 10**9), 4), round(interval_factor(14, 20), 3)
+    (1.0, 1.198)
+    """
+    a, b = 2.0 / (n_blocks - 1), 2.0 / (n_replicates - 1)
+    nu = 2.0 / (a + b + a * b)
+    return float(scipy.stats.t.ppf(0.975, nu) / scipy.stats.norm.ppf(0.975))
 
 
 def bootstrap_weights(n_blocks: int, n_replicates: int, seed: int = 0) -> np.ndarray:

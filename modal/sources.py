@@ -10,6 +10,8 @@ import h5py
 import numpy as np
 import pandas as pd
 
+from flexmodal.checked_io.errors import FlexmodalError
+from flexmodal.checked_io.progress import progress_bar
 from flexmodal.checked_io.text import naming, regular_file
 from flexmodal.contract.table import ModalTable
 from flexmodal.modal.compute import compute_frf, frf_of_record
@@ -40,9 +42,9 @@ def _driving_point(run, result: FrfResult) -> int | None:
     return None
 
 
-def hdf5_runs(path: str | Path, run_id: str | None = None):
-    """Yield the runs of an HDF5 file (only ``run_id`` if given)."""
-    from flexmodal.daq.store import list_runs, read_run
+def hdf5_run_ids(path: str | Path, run_id: str | None = None) -> list[str]:
+    """The run ids of an HDF5 file (only ``run_id`` if given; ModalError when there is none)."""
+    from flexmodal.daq.store import list_runs
 
     ids = list_runs(path)
     if run_id is not None:
@@ -51,7 +53,14 @@ def hdf5_runs(path: str | Path, run_id: str | None = None):
         ids = [run_id]
     if not ids:
         raise ModalError(f"{path}: holds no runs under /runs")
-    for rid in ids:
+    return ids
+
+
+def hdf5_runs(path: str | Path, run_id: str | None = None):
+    """Yield the runs of an HDF5 file (only ``run_id`` if given)."""
+    from flexmodal.daq.store import read_run
+
+    for rid in hdf5_run_ids(path, run_id):
         yield read_run(path, rid)
 
 
@@ -103,40 +112,50 @@ def identify_frf(result: FrfResult, *, driving_point: int | None = None,
 
 def identify_input(path: str | Path, *, method: str | None = None, fmin: float | None = None,
                    fmax: float | None = None, max_order: int | None = None, run_id: str | None = None,
-                   references: Sequence[str] | None = None, **identify_options
-                   ) -> tuple[ModalTable, dict[str, tuple[Modes, tuple[str, ...]]]]:
+                   references: Sequence[str] | None = None, failed: list | None = None, quiet: bool = True,
+                   **identify_options) -> tuple[ModalTable, dict[str, tuple[Modes, tuple[str, ...]]]]:
     """The modal table of INPUT and, per configuration, the identified modes and output names.
 
     ``method`` None: output-only ``ssi`` for operational runs and records without a force channel,
     else ``lscf`` (modal.oma.default_method); ``references`` name the reference outputs of ssi/fdd.
     ``identify_options``: ``poles_hz``, ``thresholds``, ``decay_rate_per_s`` of
-    :func:`modal.identify.identify` (the last overriding the FRFs' own exponential window)."""
+    :func:`modal.identify.identify` (the last overriding the FRFs' own exponential window).
+    ``failed``: a list that gets (``FILE:RUN_ID``, error) for each bad run of an HDF5 file (bad input:
+    a FlexmodalError), which is then skipped, not raised (when every run is bad, the first error is
+    raised).  A progress bar of the runs on stderr unless ``quiet`` (checked_io.progress)."""
     p = regular_file(path, ModalError, "RUN.h5 or UFF input")
     options = {"fmin": fmin, "fmax": fmax, "max_order": max_order, **identify_options}
     oma = {"fmin": fmin, "fmax": fmax, "max_order": max_order, "references": references}
     found: dict[str, tuple[Modes, tuple[str, ...]]] = {}
     tables = []
     if h5py.is_hdf5(p):
-        chosen_of = []
-        for run in hdf5_runs(p, run_id):
-            names, kinds = [c.name for c in run.channels], [c.kind for c in run.channels]
-            chosen = method or default_method(kinds, run.excitation)
-            chosen_of.append(chosen)
-            if len(chosen_of) == 1 and not output_only(chosen) and method is not None:
-                _references_used(p, references, chosen_of)   # one method for all: say so before any work
-            if output_only(chosen):
-                res, outputs = identify_output_only(run.samples, run.sample_rate_hz, names, kinds,
-                                                    method=chosen, where=f"{p}:{run.run_id}", **oma)
-                modes = res.modes
-            else:
-                stored = read_frf(p, run.run_id) or compute_frf(run)
-                result = by_reciprocity(stored)
-                point = _driving_point(run, result) if result is stored else None
-                with naming(f"{p}:{run.run_id}", ModalError):
-                    modes = identify_frf(result, driving_point=point, method=chosen, **options)
-                outputs = result.outputs
-            found[run.run_id] = (modes, outputs)
-            tables.append(modes_table(modes, outputs, config=run.run_id, pose=run.pose).frame)
+        from flexmodal.daq.store import read_run
+
+        chosen_of, bad = [], []
+        ids = hdf5_run_ids(p, run_id)
+        with progress_bar(len(ids), "identify", quiet) as advance:
+            for rid in ids:
+                try:
+                    run = read_run(p, rid)
+                    chosen = method or default_method([c.kind for c in run.channels], run.excitation)
+                except FlexmodalError as exc:
+                    _skip(failed, bad, f"{p}:{rid}", exc, advance)
+                    continue
+                chosen_of.append(chosen)
+                if len(chosen_of) == 1 and not output_only(chosen) and method is not None:
+                    _references_used(p, references, chosen_of)   # one method for all: said before any work
+                try:
+                    modes, outputs = _identify_run(p, run, chosen, options, oma)
+                except FlexmodalError as exc:
+                    _skip(failed, bad, f"{p}:{rid}", exc, advance)
+                    continue
+                found[rid] = (modes, outputs)
+                tables.append(modes_table(modes, outputs, config=rid, pose=run.pose).frame)
+                advance()
+        if bad and not found:
+            raise bad[0][1]
+        if failed is not None:
+            failed += bad
         _references_used(p, references, chosen_of)
     else:
         from flexmodal.modal.uff import UffFrfs, read_uff
@@ -161,6 +180,30 @@ def identify_input(path: str | Path, *, method: str | None = None, fmin: float |
         found[p.stem] = (modes, result.outputs)
         tables.append(modes_table(modes, result.outputs, config=p.stem).frame)
     return ModalTable.from_frame(pd.concat(tables, ignore_index=True), str(p)), found
+
+
+def _skip(failed: list | None, bad: list, name: str, exc: FlexmodalError, advance) -> None:
+    """Note bad run ``name`` in ``bad`` and go on, or raise its error when the caller takes no
+    ``failed`` list."""
+    if failed is None:
+        raise exc
+    bad.append((name, exc))
+    advance()
+
+
+def _identify_run(p: Path, run, chosen: str, options: dict, oma: dict) -> tuple[Modes, tuple[str, ...]]:
+    """The modes of one run of ``p`` by method ``chosen`` and the outputs their shapes are given at."""
+    names, kinds = [c.name for c in run.channels], [c.kind for c in run.channels]
+    if output_only(chosen):
+        res, outputs = identify_output_only(run.samples, run.sample_rate_hz, names, kinds,
+                                            method=chosen, where=f"{p}:{run.run_id}", **oma)
+        return res.modes, outputs
+    stored = read_frf(p, run.run_id) or compute_frf(run)
+    result = by_reciprocity(stored)
+    point = _driving_point(run, result) if result is stored else None
+    with naming(f"{p}:{run.run_id}", ModalError):
+        modes = identify_frf(result, driving_point=point, method=chosen, **options)
+    return modes, result.outputs
 
 
 def _references_used(p: Path, references: Sequence[str] | None, methods: Sequence[str]) -> None:

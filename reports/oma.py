@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.transforms import offset_copy
 
 from flexmodal.reports.plots import _COLOURS, log_axis, plot_stabilisation, text
 
@@ -22,7 +23,9 @@ if TYPE_CHECKING:
 
 def plot_fdd(result: FddResult, unit: str = "(m/s²)²/Hz", title: str = "") -> Figure:
     """Singular values of the output cross-spectral matrix [unit] against frequency [Hz], largest first,
-    with the identified modes marked (Brincker et al. 2001)."""
+    with the identified modes marked (Brincker et al. 2001): a dashed line at each, its frequency
+    written above the plot (:func:`label_peaks`, clear of the peaks and of each other), the legend
+    beside it."""
     fig = Figure(figsize=(8, 3.8), layout="constrained")
     ax = fig.subplots()
     for k, sv in enumerate(result.singular_values):
@@ -30,16 +33,54 @@ def plot_fdd(result: FddResult, unit: str = "(m/s²)²/Hz", title: str = "") -> 
                     label=f"s{k + 1}")
     for f in result.modes.freq_hz:
         ax.axvline(f, color="0.4", lw=0.6, ls="--")
-        ax.annotate(f"{f:.4g} Hz", (f, 1.0), xycoords=("data", "axes fraction"), fontsize=7, rotation=90,
-                    va="top", ha="right")
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel(f"singular values of G_yy [{text(unit)}]")
     log_axis(ax.yaxis)
     ax.set_xlim(float(result.freq_hz[1]), float(result.freq_hz[-1]))
-    ax.legend(loc="upper right", fontsize=7, ncol=2)
+    height_pt = label_peaks(ax, result.modes.freq_hz, axes_width_in=0.78 * fig.get_figwidth())
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=7,
+              ncol=1 + len(result.singular_values) // 9)
     if title:
-        ax.set_title(text(title))
+        ax.set_title(text(title), pad=height_pt + 4.0)
     return fig
+
+
+def label_peaks(ax, freq_hz: np.ndarray, axes_width_in: float, fontsize: float = 7.0) -> float:
+    """Write each frequency [Hz] of ``freq_hz`` (``"52.55 Hz"``, upright) in a band above ``ax``, each
+    joined to its place on the top edge by a short leader, so no label covers a peak; labels closer
+    than their own width (at ``axes_width_in`` [in] of axes width) are moved apart as little as
+    possible, in order (least squares under the minimum spacing: an isotonic regression,
+    scipy.optimize.isotonic_regression).  Returns the band's height [pt] (a title goes above it).
+
+    Examples
+    --------
+    >>> from matplotlib.figure import Figure
+    >>> ax = Figure().subplots()
+    >>> _ = ax.set_xlim(0.0, 100.0)
+    >>> height = label_peaks(ax, np.array([50.0, 50.5, 90.0]), axes_width_in=5.0)
+    >>> [round(float(t.xyann[0]), 3) for t in ax.texts]   # the close pair pulled apart about 50.25 Hz
+    [0.489, 0.516, 0.9]
+    """
+    from scipy.optimize import isotonic_regression
+
+    freq_hz = np.sort(np.asarray(freq_hz, dtype=float))
+    if freq_hz.size == 0:
+        return 0.0
+    lo, hi = ax.get_xlim()
+    at = (freq_hz - lo) / (hi - lo)                       # places on the top edge, axes fraction
+    n = at.size
+    gap = min(1.4 * fontsize / 72.0 / axes_width_in, 1.0 / n)   # a rotated label's width, with air
+    steps = gap * np.arange(n)
+    x = np.clip(isotonic_regression(at - steps).x, 0.0, 1.0 - steps[-1]) + steps
+    lift_pt = 8.0                                         # the leader's height
+    above = offset_copy(ax.transAxes, fig=ax.figure, y=lift_pt, units="points")
+    labels = [f"{f:.4g} Hz" for f in freq_hz]
+    for label, a, b in zip(labels, at, x, strict=True):
+        ax.annotate(label, xy=(a, 1.0), xycoords="axes fraction", xytext=(b, 1.0), textcoords=above,
+                    fontsize=fontsize, rotation=90, ha="center", va="bottom", annotation_clip=False,
+                    arrowprops={"arrowstyle": "-", "color": "0.4", "lw": 0.6, "shrinkA": 0, "shrinkB": 1,
+                                "relpos": (0.5, 0.0)})
+    return lift_pt + 0.62 * fontsize * max(len(s) for s in labels)
 
 
 def plot_ssi_stabilisation(result: SsiResult, freq_hz: np.ndarray, spectrum: np.ndarray,

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import re
 
-from flexmodal.app import build_parser
+from cli_help import command_paths, help_text, subcommands
+
 from flexmodal.cli.commands import command
 
 
@@ -26,27 +28,30 @@ def test_help_and_description_come_from_the_handler_docstring() -> None:
     sub = parser.add_subparsers(dest="command")
     toy = command(sub, "toy", _toy)
     toy.add_argument("--n", type=int, default=1)
-    command(sub, "bare", _bare)
-    assert sub._choices_actions[0].help == "count the toys"
+    bare = command(sub, "bare", _bare)
+    listed = parser.format_help()
+    assert re.search(r"^    toy +count the toys$", listed, re.M) and re.search(r"^    bare$", listed, re.M)
     assert toy.description == "Count every toy in the box, twice."
     args = parser.parse_args(["toy", "--n", "3"])
     assert args.func is _toy and args.n == 3 and args.func(args) == 7
-    assert sub.choices["bare"].description is None and sub._choices_actions[1].help == ""
+    assert bare.description is None and parser.parse_args(["bare"]).func is _bare
+
+
+def _description(path: tuple[str, ...]) -> str:
+    """The paragraph between the usage and the argument lists of ``flexmodal PATH --help``."""
+    second = help_text(*path).split("\n\n")[1]
+    return "" if second.startswith(("positional arguments:", "options:")) else second
 
 
 def test_every_command_has_a_help_line_and_a_description() -> None:
-    stack, seen = [build_parser()], {}
-    while stack:
-        parser = stack.pop()
-        for action in parser._actions:
-            if isinstance(action, argparse._SubParsersAction):
-                helps = {a.dest: a.help for a in action._choices_actions}
-                for name, sub in action.choices.items():
-                    seen[name] = (helps[name], sub.description, sub._defaults.get("func"))
-                    stack.append(sub)
-    assert set(seen) >= {"demo", "sim", "serve", "acquire", "frf", "identify", "predict", "compare",
-                         "diagnose", "report"}
-    for name, (help_line, description, func) in seen.items():
-        assert help_line and "\n" not in help_line, name
-        if name != "sim":  # a group: its own help line only
-            assert description and "  " not in description and func is not None, name
+    """Read from the --help a user sees: `flexmodal --help` lists each command with a one-line help,
+    and each `flexmodal CMD --help` (nested ones included) starts with its description paragraph."""
+    paths = command_paths()
+    assert {p[-1] for p in paths} >= {"demo", "sim", "serve", "acquire", "frf", "identify", "predict",
+                                      "compare", "diagnose", "report"}
+    for path in paths:
+        help_line = subcommands(*path[:-1])[path[-1]]
+        assert help_line and "\n" not in help_line, path
+        if path != ("sim",):  # a group: its own help line only
+            description = _description(path)
+            assert description and "  " not in description and "\n" not in description, path

@@ -135,3 +135,29 @@ def test_small_frames_stay_in_this_process(rigs_dir):
     with FrameSolver() as solve:
         solve(system, 4)
     assert solve.proc is None
+
+
+def test_signal_handlers_are_put_back_after_an_error_and_left_alone_outside_the_main_thread():
+    """checked_io.signals.signal_handlers, which the deferral above, acquire's stop signals, the
+    simulators' stop watch and the demo's Ctrl-C use: the handlers found come back however the block
+    ends, and a thread other than the main one (where Python sets no handlers) changes nothing."""
+    import threading
+
+    from flexmodal.checked_io.signals import signal_handlers
+
+    before = signal.getsignal(signal.SIGUSR2)
+    got: list[int] = []
+    with pytest.raises(ZeroDivisionError), signal_handlers(lambda s, _f: got.append(s), [signal.SIGUSR2]):
+        signal.raise_signal(signal.SIGUSR2)
+        raise ZeroDivisionError
+    assert got == [signal.SIGUSR2] and signal.getsignal(signal.SIGUSR2) is before
+    seen = []
+
+    def elsewhere():
+        with signal_handlers(lambda s, _f: None, [signal.SIGUSR2]) as found:
+            seen.append((found, signal.getsignal(signal.SIGUSR2)))
+
+    thread = threading.Thread(target=elsewhere)
+    thread.start()
+    thread.join(60)
+    assert seen == [({}, before)]

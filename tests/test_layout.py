@@ -10,15 +10,13 @@ the repository, every docs path named in --help exists)."""
 
 from __future__ import annotations
 
-import argparse
 import ast
 import re
 from pathlib import Path
 
 import pytest
+from cli_help import command_paths, help_text
 from conftest import REPO
-
-from flexmodal.app import build_parser
 
 FOLDERS = ("checked_io", "contract", "daq", "modal", "models", "compare", "reports", "fixtures", "cli")
 _BELOW_COMPARE = {"checked_io", "contract", "daq", "modal", "models"}
@@ -123,13 +121,7 @@ def test_reports_renders_and_solves_nothing():
 
 def _help_texts() -> str:
     """--help of flexmodal and of every sub-command, nested ones included."""
-    texts, stack = [], [build_parser()]
-    while stack:
-        parser = stack.pop()
-        texts.append(parser.format_help())
-        stack += [sub for action in parser._actions if isinstance(action, argparse._SubParsersAction)
-                  for sub in action.choices.values()]
-    return "\n".join(texts)
+    return "\n".join(help_text(*path) for path in [(), *command_paths()])
 
 
 def test_docs_stand_alone():

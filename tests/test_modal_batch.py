@@ -18,6 +18,7 @@ from flexmodal.daq.store import Channel, RunWriter, expand_runs
 from flexmodal.fixtures.modal_sim import modal_response
 from flexmodal.modal import batch
 from flexmodal.modal.errors import ModalError
+from flexmodal.modal.frf import FrfResult
 from flexmodal.modal.runs_io import read_frf
 
 FS = 256.0
@@ -96,10 +97,19 @@ def test_idle_cpus_are_the_available_ticks_between_two_samples(monkeypatch):
 
 
 def test_serial_fft_threads_are_the_cpus_other_processes_leave_idle(monkeypatch):
+    """This process's CPU plus those the machine left idle since the last look (/proc/stat ticks, the
+    one estimator): on 2 CPUs, the other one idle -> 2 threads, a third busy -> 1, all busy -> 1; a look
+    under a tick per CPU after the last measures from the look before."""
     monkeypatch.setattr(batch, "usable_cpus", lambda: 2)
-    for load, threads in ((0.2, 2), (0.7, 1), (6.0, 1)):
-        monkeypatch.setattr(batch.os, "getloadavg", lambda load=load: (load, load, load))
+    monkeypatch.setattr(batch.os, "cpu_count", lambda: 2)
+    monkeypatch.setattr(batch, "_LOOK", [(1000, 0), None])
+    # (total, available) ticks at each look: +100 ticks, of which idle 50 (1 CPU), 20, 0, then 1 tick later
+    for sample, threads in (((1100, 50), 2), ((1200, 70), 1), ((1300, 70), 1), ((1301, 71), 1)):
+        monkeypatch.setattr(batch, "_cpu_ticks", lambda sample=sample: sample)
         assert batch.idle_cpus() == threads
+    assert batch._LOOK == [(1300, 70), (1200, 70)]
+    monkeypatch.setattr(batch, "_cpu_ticks", lambda: (1310, 120))     # 10 ticks after the last look
+    assert batch.idle_cpus() == 2                  # measured from (1200, 70): 50 of 110 idle -> 0.9 CPU
 
 
 def test_results_wait_until_no_job_reads_their_file():
@@ -252,6 +262,12 @@ def test_a_helper_failure_is_raised_in_run_order_and_ctrl_c_ends_the_helper(tmp_
     with pytest.raises(KeyboardInterrupt):
         batch.run_batch(jobs[:4] * 3, {"nfft": 256}, on_done=interrupt, out=str(tmp_path / "out.h5"))
     assert _helpers_ended(tmp_path / "pids2.txt")
+    _spy_processes(monkeypatch, tmp_path / "pids3.txt")
+    got.clear()                           # keep_going (`frf`): the bad run is delivered as its error
+    results = batch.run_batch(jobs, {"nfft": 2048}, on_done=lambda p, r, res: got.append((r, type(res))),
+                              out=str(tmp_path / "out.h5"), keep_going=True)
+    assert got == [(f"r{k}", ModalError if k == 4 else FrfResult) for k in range(7)]
+    assert [type(r) for r in results] == [t for _, t in got] and _helpers_ended(tmp_path / "pids3.txt")
 
 
 def _start(args: list[str], log: Path) -> subprocess.Popen:

@@ -57,7 +57,9 @@ def test_fdd_and_references_on_the_command_line(tmp_path, frame, capsys):
     run = _store(tmp_path / "op.h5", frame)
     out = tmp_path / "fdd.csv"
     assert main(["identify", str(run), "--out", str(out), "--method", "fdd", "--references", "s1,s5"]) == 0
-    assert np.max(np.abs(ModalTable.read_csv(out).freq_hz("op") / frame.freq_hz - 1)) < 0.002
+    table = ModalTable.read_csv(out)
+    assert np.max(np.abs(table.freq_hz("op") / frame.freq_hz - 1)) < 0.002
+    assert np.all(table.frame["freq_std_hz"] > 0) and np.all(table.frame["damping_std"] > 0)   # FDD's sigma
     capsys.readouterr()
     assert main(["identify", str(run), "--out", str(out), "--method", "ssi", "--references", "s9"]) == 2
     assert "reference channel(s) s9 are not among the outputs" in _error_line(capsys)

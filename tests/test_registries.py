@@ -4,11 +4,9 @@ the registry itself, so --help lists exactly what is registered, toys included."
 
 from __future__ import annotations
 
-import argparse
-
 import pytest
+from cli_help import choices, help_text
 
-from flexmodal.app import build_parser
 from flexmodal.daq import protocols
 from flexmodal.daq.devices import Driver
 from flexmodal.fixtures import simulators
@@ -29,34 +27,18 @@ FAMILIES = [
 ]
 
 
-def _option(path: tuple[str, ...], option: str) -> argparse.Action:
-    parser = build_parser()
-    for name in path:
-        sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-        parser = sub.choices[name]
-    return parser._option_string_actions[option]
-
-
-def _help(path: tuple[str, ...]) -> str:
-    parser = build_parser()
-    for name in path:
-        sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-        parser = sub.choices[name]
-    return parser.format_help()
-
-
 @pytest.mark.parametrize("family", FAMILIES, ids=[f[0] for f in FAMILIES])
 def test_help_choices_are_the_registry_toys_included(family):
     _, register, unregister, registered, path, option = family
-    assert tuple(_option(path, option).choices) == registered()
+    assert choices(path, option) == registered()
     register("toy-entry", modal_registry.Method("frf", print, "a toy") if family[0] == "method"
              else lambda *args: None)
     try:
-        assert registered()[-1] == "toy-entry" and "toy-entry" in _option(path, option).choices
-        assert "toy-entry" in _help(path)
+        assert registered()[-1] == "toy-entry" and choices(path, option) == registered()
+        assert "toy-entry" in help_text(*path)
     finally:
         unregister("toy-entry")
-    assert "toy-entry" not in registered() and "toy-entry" not in _option(path, option).choices
+    assert "toy-entry" not in registered() and "toy-entry" not in choices(path, option)
 
 
 def test_built_ins_resolve_to_what_their_family_needs():

@@ -145,18 +145,49 @@ def test_report_cli_passes_the_band_and_refuses_a_bad_one(tmp_path):
 
 def test_output_only_results_compute_one_welch_spectrum(frame, oma, monkeypatch):
     """FDD, the lowest peak that sizes SSI and the spectrum under SSI's diagram all come from one run of
-    the Welch engine (there were three: FDD twice and a display spectrum); the modes are unchanged."""
+    the Welch engine over the whole record (there were three: FDD twice and a display spectrum; FDD's
+    sigma adds its own over each run of segments, modal/fdd.py); the modes are unchanged."""
     from flexmodal.modal import fdd as fdd_module
 
     calls = []
     real = fdd_module.welch_spectra
 
     def counted(*args, **kwargs):
-        calls.append(args[4])
+        calls.append((args[0].shape[0], args[4]))
         return real(*args, **kwargs)
 
     monkeypatch.setattr(fdd_module, "welch_spectra", counted)
     again = output_only_results(frame.samples, 256.0, NAMES, KINDS, where="frame")
-    assert calls == [4096]
+    assert [c for c in calls if c[0] == frame.samples.shape[0]] == [(frame.samples.shape[0], 4096)]
     assert np.array_equal(again.fdd.modes.freq_hz, oma.fdd.modes.freq_hz)
     assert np.array_equal(again.ssi.modes.freq_hz, oma.ssi.modes.freq_hz)
+
+
+@pytest.mark.parametrize("peaks_hz", [None, [8.68, 23.2, 23.6, 36.0, 36.2, 36.4, 46.2, 52.5, 52.7, 127.5]],
+                         ids=["sparse", "dense"])
+def test_fdd_peak_labels_sit_above_the_plot_clear_of_each_other_the_title_and_legend(frame, peaks_hz):
+    """Each mode's label is written above the axes (never over a peak), labels do not overlap each
+    other however close the modes, the title sits above them and the legend beside the plot; and the
+    figure passes the figure lint (every text on the canvas, units on the axes)."""
+    import dataclasses
+
+    from figure_lint import problems
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.text import Text
+
+    res = fdd(frame.samples, 256.0)
+    if peaks_hz is not None:
+        res = dataclasses.replace(res, modes=dataclasses.replace(res.modes, freq_hz=np.array(peaks_hz)))
+    fig = plot_fdd(res, title="frame")
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    fig.draw(renderer)
+    ax = fig.axes[0]
+    frame_box = ax.get_window_extent(renderer)
+    boxes = sorted((Text.get_window_extent(t, renderer) for t in ax.texts), key=lambda b: b.x0)  # no leader
+    assert [t.get_text() for t in sorted(ax.texts, key=lambda t: t.xyann[0])] == \
+        [f"{f:.4g} Hz" for f in np.sort(res.modes.freq_hz)]
+    assert all(b.y0 >= frame_box.y1 for b in boxes)                          # above the plot
+    assert all(a.x1 <= b.x0 for a, b in zip(boxes, boxes[1:], strict=False))  # apart from each other
+    assert ax.title.get_window_extent(renderer).y0 >= max(b.y1 for b in boxes)
+    assert ax.get_legend().get_window_extent(renderer).x0 >= frame_box.x1
+    assert problems(fig) == []

@@ -1,0 +1,95 @@
+"""Issue 26: a shape that disagrees at one sensor flags the verdict, judged against the shape noise
+(compare/sensor_flag.py): known answers from constructed shapes and from the FE model as the truth."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from scipy.stats import f as fisher
+
+from flexmodal.compare.diagnosis import diagnose
+from flexmodal.compare.gap import comac
+from flexmodal.compare.sensor_flag import SENSOR_P, sensor_check
+from flexmodal.contract.table import ModalTable
+from flexmodal.models.frame import frame_modes
+from flexmodal.models.rig import load_rig
+
+POSES = (0.0, 30.0, 60.0, 90.0, 120.0, 150.0)
+SHAPES = np.array([[0.02, 0.5, 0.8, 1.0], [-0.03, 0.9, -0.4, -1.0], [0.01, -0.7, 1.0, 0.3]]).T   # [s, n]
+
+
+def _noisy(rng, C=6, noise=0.01):
+    true = np.repeat(SHAPES[None], C, axis=0)
+    return true, true + noise * np.abs(true).max(axis=1, keepdims=True) * rng.standard_normal(true.shape)
+
+
+def test_the_ratio_is_fisher_f_under_equal_noise():
+    """Equal independent noise at every sensor and the exact model: the worst sensor's ratio is the
+    largest of four F(18, 36) variates, so its Bonferroni p-value is at most uniform (P(p <= 0.05) <=
+    0.05; here 400 draws, a bound of 0.08 is 2.9 binomial standard errors) and nothing is flagged."""
+    rng = np.random.default_rng(1)
+    p = np.array([sensor_check(m, t).p_value for t, m in (_noisy(rng) for _ in range(400))])
+    assert np.mean(p <= 0.05) <= 0.08
+    assert not any(sensor_check(m, t).flagged for t, m in (_noisy(rng) for _ in range(200)))
+    # one draw by hand: the statistic is the leave-one-out mean square over the others' noise
+    t, m = _noisy(np.random.default_rng(2))
+    check = sensor_check(m, t)
+    assert 0 < check.p_value <= 1 and check.ratio < fisher.isf(SENSOR_P / 4, 18, 36)
+
+
+def test_a_sensor_near_a_node_is_not_flagged_a_moved_one_is():
+    """Sensor 0 sits near a node of every mode (2-3 % of the largest amplitude) under noise of 1 % of
+    the largest amplitude: its COMAC is poor (the rule it replaces, 1 - COMAC >= 0.05 and 10x the
+    others' median, flagged it) but its misfit is the noise: not flagged.  Sensor 2 read at another
+    point of the arm (its components replaced): flagged, and named."""
+    rng = np.random.default_rng(3)
+    true, meas = _noisy(rng)
+    values = comac(meas, true)
+    assert 1 - values[0] >= 0.05 and 1 - values[0] >= 10 * np.median(1 - values[1:])
+    assert not sensor_check(meas, true).flagged
+    moved = meas.copy()
+    moved[:, 2] = [0.4, 0.1, -0.6]
+    check = sensor_check(moved, true)
+    assert check.flagged and check.sensor == 2 and check.p_value < 1e-10
+
+
+def test_fewer_than_three_sensors_or_no_complete_configuration_is_no_check():
+    true, meas = _noisy(np.random.default_rng(4))
+    assert sensor_check(meas[:, :2], true[:, :2]) is None
+    meas[:, 1, 0] = np.nan
+    assert sensor_check(meas, true) is None
+
+
+@pytest.fixture(scope="module")
+def rig(rigs_dir):
+    return load_rig(rigs_dir / "seed003_two_link.toml")
+
+
+def _table(real, rng, n=3):
+    rec = []
+    for i, th in enumerate(POSES):
+        m = frame_modes(real, {"theta_deg": th}, n)
+        f = m.freq_hz * (1 + 0.002 * rng.standard_normal(n))
+        for k in range(n):
+            s = m.sensor_shapes[:, k]
+            s = s + 0.01 * np.abs(s).max() * rng.standard_normal(s.shape)
+            rec.append({"config": f"c{i}", "mode": k + 1, "freq_hz": f[k], "pose.theta_deg": th,
+                        **{f"shape.{name}": s[j] for j, name in enumerate(m.sensor_names)}})
+    return ModalTable.from_records(rec, "<test>")
+
+
+def test_a_moved_sensor_flags_a_none_verdict(rig):
+    """The nominal arm itself (no effect: the verdict is ``none``) measured with sensor a2 at the root of
+    link2 instead of where the rig says: the ``none`` verdict is flagged, names the sensor and is not
+    explained; with the sensor where the rig says, the same ``none`` is explained and unflagged."""
+    sensors = list(rig.sensors)
+    sensors[1] = replace(sensors[1], at=replace(sensors[1].at, fraction=0.0))
+    moved = replace(rig, sensors=tuple(sensors))
+    ok = diagnose(rig, _table(rig, np.random.default_rng(6)), effects="joint_stiffness")
+    bad = diagnose(rig, _table(moved, np.random.default_rng(6)), effects="joint_stiffness")
+    assert ok.verdict.effect == "none" and not ok.verdict.flags and ok.verdict.explained
+    assert bad.verdict.effect == "none" and not bad.verdict.explained
+    assert bad.verdict.flags and rig.sensors[1].name in bad.verdict.flags[0]
+    assert "flagged" in bad.verdict.summary
