@@ -113,11 +113,13 @@ def test_partners_are_the_singles_whose_full_fe_sensitivities_explain_the_lead_r
 def test_the_best_singles_are_paired_with_every_single_outside_the_pool(rig):
     """``_lead_pairs``: the ``LEADS`` best-scored singles of the pool, each with every single outside the
     pool it combines with (not with pool members, whose pairs are screened already, nor with itself)."""
+    angles = (0, 50, 100, 150)
+    ctx = _context(rig, _table(rig, angles, 2, shapes=False))
     singles = single_candidates(rig, ("joint_stiffness", "link_mass", "tip_mass", "link_stiffness",
-                                      "grounded_spring"), {"theta_deg": [0.0, 90.0]})
+                                      "grounded_spring"), {"theta_deg": list(angles)})
     entries = [{"_cand": c, "score": 0.01 * (k + 1)} for k, c in enumerate(singles)]
     pool = entries[3:9][::-1]
-    got = _lead_pairs(pool, entries)
+    got = _lead_pairs(ctx, pool, entries)
     leads = entries[3:3 + LEADS]
     rest = [e for e in entries if e not in pool]
     assert {id(a) for a, _ in got} == {id(e) for e in leads}
