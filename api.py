@@ -88,6 +88,14 @@ PathLike = str | Path
 
 # -- runs ------------------------------------------------------------------------------------------
 
+def _path_arg(value: object, where: str) -> None:
+    """TypeError naming ``where`` unless ``value`` is a file path (str or os.PathLike): bytes or a
+    number gave pathlib's or h5py's own TypeError, which names no argument."""
+    if not isinstance(value, str | os.PathLike):
+        raise TypeError(f"{where} must be a file path (str or Path), got {type(value).__name__} "
+                        f"{value!r:.60}")
+
+
 def list_runs(path: PathLike) -> list[str]:
     """Run ids stored in an HDF5 run file (docs/hdf5-format.md), sorted.
 
@@ -110,6 +118,7 @@ def list_runs(path: PathLike) -> list[str]:
     >>> fm.list_runs(path)
     ['theta30']
     """
+    _path_arg(path, "list_runs: path")
     from flexmodal.daq.store import list_runs as _list
 
     return _list(path)
@@ -146,8 +155,11 @@ def read_run(path: PathLike, run_id: str | None = None) -> Run:
     >>> run.samples.shape, [c.name for c in run.channels], run.pose
     ((4096, 6), ['F', 'a1', 'a2', 'a3', 'a4', 'a5'], {'theta_deg': 30.0})
     """
+    _path_arg(path, "read_run: path")
     from flexmodal.daq.errors import DaqError
     from flexmodal.daq.store import read_run as _read
+    if run_id is not None and not isinstance(run_id, str):
+        raise TypeError(f"read_run: run_id must be a run id (str) or None, got {run_id!r}")
 
     if run_id is None:
         ids = list_runs(path)
@@ -335,9 +347,12 @@ def frf_from_arrays(freq_hz, H, *, coherence=None, quantity: str = "accelerance"
     import numpy as np
 
     from flexmodal.modal.errors import ModalError
-    from flexmodal.modal.frf import QUANTITIES, FrfResult
+    from flexmodal.modal.frf import QUANTITIES, FrfResult, check_coherence
 
     f = np.asarray(freq_hz, float)
+    if not np.iscomplexobj(H):
+        raise ModalError(f"frf_from_arrays: H of type {np.asarray(H).dtype} holds no phase: FRFs are complex "
+                         "(H = X / F)")
     h = np.asarray(H, complex)
     h = h[None, None, :] if h.ndim == 1 else h[:, None, :] if h.ndim == 2 else h
     if f.ndim != 1 or f.size < 2 or not np.all(np.isfinite(f)) or f[0] < 0 or np.any(np.diff(f) <= 0):
@@ -351,6 +366,8 @@ def frf_from_arrays(freq_hz, H, *, coherence=None, quantity: str = "accelerance"
     if coh is not None and coh.shape != (h.shape[0], f.size):
         raise ModalError(f"frf_from_arrays: coherence {coh.shape} must be [n_out, n_freq] = "
                          f"{(h.shape[0], f.size)}")
+    if coh is not None:
+        check_coherence(coh, "frf_from_arrays")
     outs = tuple(outputs) or tuple(f"out {k + 1}" for k in range(h.shape[0]))
     ins = tuple(inputs) or tuple(f"in {k + 1}" for k in range(h.shape[1]))
     if len(outs) != h.shape[0] or len(ins) != h.shape[1]:
@@ -874,6 +891,7 @@ def read_table(path: PathLike) -> ModalTable:
     >>> table.configs[:3], len(table.frame)
     (['theta0', 'theta120', 'theta150'], 12)
     """
+    _path_arg(path, "read_table: path")
     from flexmodal.contract.table import ModalTable
 
     return ModalTable.read_csv(path)
@@ -899,6 +917,7 @@ def read_poses(path: PathLike) -> dict[str, dict[str, float]]:
     >>> fm.read_poses("examples/measured/seed003_table3_f1f2.csv")["theta30"]
     {'theta_deg': 30.0}
     """
+    _path_arg(path, "read_poses: path")
     from flexmodal.contract.table import poses_from_csv
 
     return poses_from_csv(path)
@@ -948,6 +967,7 @@ def load_rig(path: PathLike) -> Rig:
     >>> rig.name, rig.pose_variables, [s.name for s in rig.sensors]
     ('seed003-two-link', ('theta_deg',), ['a1', 'a2', 'a3'])
     """
+    _path_arg(path, "load_rig: path")
     from flexmodal.models.rig import load_rig as _load
 
     return _load(path)
@@ -1390,6 +1410,7 @@ def read_diagnosis(path: PathLike) -> Diagnosis:
     ...
     flexmodal.reports.errors.ReportError: ...
     """
+    _path_arg(path, "read_diagnosis: path")
     from flexmodal.reports.html import load_diagnosis
 
     return load_diagnosis(path)
@@ -1926,6 +1947,7 @@ def report_pdf(html: PathLike, pdf: PathLike | None = None) -> Path:
     >>> pdf.name, pdf.read_bytes()[:5]
     ('report.pdf', b'%PDF-')
     """
+    _path_arg(html, "report_pdf: html")
     from flexmodal.checked_io.output import output_file
     from flexmodal.reports.errors import ReportError
     from flexmodal.reports.pdf import print_pdf

@@ -27,6 +27,28 @@ class UsageError(Exception):
     """A command-line usage mistake (unknown option, bad option value)."""
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP met by the command (``acquire`` handles them itself while it records): raised
+    where Ctrl-C raises KeyboardInterrupt, so that an output being written is removed as after Ctrl-C,
+    and the command ends with one line and exit code 128 + N (it ended silently with 143 or 129)."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
+_MAIN_PID = os.getpid()
+
+
+def _terminate(signum: int, _frame) -> None:
+    if os.getpid() != _MAIN_PID:   # a helper forked from the command inherits this handler: it ends as
+        signal.signal(signum, signal.SIG_DFL)   # it would by default
+        os.kill(os.getpid(), signum)
+        return
+    raise Terminated(signum)
+
+
 class _Parser(argparse.ArgumentParser):
     """ArgumentParser whose errors are one line (no usage block) and exit 2."""
 
@@ -69,6 +91,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         sys.unraisablehook = _interrupt_again
     if argv is None:  # the command's own streams, maybe in ASCII or Latin-1 (LANG, PYTHONIOENCODING):
         _escape_what_cannot_be_shown()  # Δ, ζ, µ shown as \u0394 ..., not a UnicodeEncodeError
+        global _MAIN_PID
+        _MAIN_PID = os.getpid()
+        for s in STOP_SIGNALS:   # SIGTERM, SIGHUP: as Ctrl-C, with their own line (unless ignored: nohup)
+            if signal.getsignal(s) == signal.SIG_DFL:
+                signal.signal(s, _terminate)
     if sys.stdout is None:  # started with stdout closed (`>&-`): the result would have nowhere to go
         _say("flexmodal: error: standard output is closed: the command's result is printed there (redirect "
              "it, e.g. > result.txt, or to /dev/null)")
@@ -92,15 +119,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         _say(f"flexmodal: error: {where}{' '.join(str(exc.strerror or exc).split())}")
         return 2
     except (KeyboardInterrupt, Exception) as exc:
-        if not _from_interrupt(exc):  # a bug: the traceback, exit 1
+        signum = _from_interrupt(exc)
+        if not signum:  # a bug: the traceback, exit 1
             raise
         if argv is None:  # the command itself: outputs are closed or removed by now, so skip the
-            _leave_interrupted()  # interpreter's tear-down (seconds of garbage collection after a demo)
-        _say("flexmodal: interrupted")
-        return 130
+            _leave_interrupted(signum)  # interpreter's tear-down (seconds of garbage collection after a demo)
+        _say(_stopped_line(signum))
+        return 128 + signum
     finally:
         if argv is None:  # done: a Ctrl-C during the interpreter's tear-down still ends it the same way
-            signal.signal(signal.SIGINT, lambda _signum, _frame: _leave_interrupted())
+            for s in (signal.SIGINT, *STOP_SIGNALS):
+                if signal.getsignal(s) != signal.SIG_IGN:
+                    signal.signal(s, lambda signum, _frame: _leave_interrupted(signum))
 
 
 def _check_environment() -> None:
@@ -165,17 +195,22 @@ def _say(message: str) -> None:
         pass
 
 
-def _from_interrupt(exc: BaseException) -> bool:
-    """Whether ``exc`` is a Ctrl-C, or an error a library raised from one (a KeyboardInterrupt met
-    while a class body was set up during an import comes back as RuntimeError, "Error calling
-    __set_name__", caused by it)."""
+def _from_interrupt(exc: BaseException) -> int:
+    """The signal (SIGINT for Ctrl-C, or that of :class:`Terminated`) when ``exc`` is a stop, or an error
+    a library raised from one (a KeyboardInterrupt met while a class body was set up during an import
+    comes back as RuntimeError, "Error calling __set_name__", caused by it); else 0."""
     seen: set[int] = set()
     while exc is not None and id(exc) not in seen:
         if isinstance(exc, KeyboardInterrupt):
-            return True
+            return getattr(exc, "signum", signal.SIGINT)
         seen.add(id(exc))
         exc = exc.__cause__ or exc.__context__
-    return False
+    return 0
+
+
+def _stopped_line(signum: int) -> str:
+    return ("flexmodal: interrupted" if signum == signal.SIGINT else
+            f"flexmodal: stopped by {signal.Signals(signum).name}")
 
 
 def _interrupt_again(unraisable) -> None:
@@ -184,14 +219,16 @@ def _interrupt_again(unraisable) -> None:
     on to its end; deliver it again from a helper thread instead (it retries if it lands in one again),
     so that the command stops.  Any other unraisable exception is reported as Python does."""
     if unraisable.exc_type is not None and issubclass(unraisable.exc_type, KeyboardInterrupt):
-        threading.Timer(0.01, os.kill, (os.getpid(), signal.SIGINT)).start()
+        signum = getattr(unraisable.exc_value, "signum", signal.SIGINT)
+        threading.Timer(0.01, os.kill, (os.getpid(), signum)).start()
         return
     sys.__unraisablehook__(unraisable)
 
 
-def _leave_interrupted() -> None:
-    """Say so on stderr, end the child processes and end this one at once with exit code 130."""
-    _say("flexmodal: interrupted")
+def _leave_interrupted(signum: int = signal.SIGINT) -> None:
+    """Say so on stderr, end the child processes and end this one at once with exit code 128 +
+    ``signum`` (130 for Ctrl-C)."""
+    _say(_stopped_line(signum))
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()
@@ -199,7 +236,7 @@ def _leave_interrupted() -> None:
             pass
     _close_hdf5_files()
     _end_children()
-    os._exit(130)
+    os._exit(128 + signum)
 
 
 def _close_hdf5_files() -> None:

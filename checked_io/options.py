@@ -70,12 +70,22 @@ def integer(lo: int | None = None, hi: int | None = None, *, name: str = "whole 
     return parse
 
 
+def names(text: str) -> list[str]:
+    """A comma-separated list of one or more names (channels, configurations), blanks around each
+    stripped; an empty list or an empty item (``""``, ``a,,b``) is refused: it was taken as "all"
+    or as a name nothing has."""
+    items = [t.strip() for t in text.split(",")]
+    if not text.strip() or not all(items):
+        raise argparse.ArgumentTypeError(f"expected NAME[,NAME...] with no empty name, got {text!r}")
+    return items
+
+
 # The option kinds the commands share.
 seconds = real(0.0, 1e9, lo_open=True, name="duration in seconds")   # 1e9 s: 31.7 years
 hertz = real(0.0, name="frequency in Hz")
 rate_hz = real(0.0, 1e7, lo_open=True, name="sample rate in Hz")
 fraction = real(0.0, 1.0, name="fraction")
-overlap = real(0.0, 1.0, hi_open=True, name="overlap fraction")
+overlap = real(0.0, 63 / 64, name="overlap fraction")  # modal.spectra.MIN_STEP_FRACTION: steps >= nfft/64
 tcp_port = integer(0, 65535, name="TCP port")
 workers = integer(0, 256, name="number of worker processes")
 seed = integer(0, 2**32 - 1, name="seed")

@@ -145,6 +145,27 @@ def nfc(text: str) -> str:
     return text if text.isascii() else unicodedata.normalize("NFC", text)
 
 
+def name_fault(name: str) -> str | None:
+    """Why ``name`` cannot name a thing a user picks by name (a channel, run, configuration, sensor,
+    link, pose variable), or None when it can: it must hold a visible character, and no control
+    character or line break (a tab, newline or NUL would split the one-line messages, tables and
+    CSV rows it is printed in, and ``'   '`` looks like no name at all).
+
+    Examples
+    --------
+    >>> name_fault("a1"), name_fault("théta 0")
+    (None, None)
+    >>> name_fault("   "), name_fault("a\\nb")
+    ('is blank', "holds the control character '\\\\n'")
+    """
+    if not name.strip():
+        return "is blank"
+    for ch in name:
+        if unicodedata.category(ch) in ("Cc", "Zl", "Zp"):
+            return f"holds the control character {ch!r}"
+    return None
+
+
 def read_text(path: str | Path, error: ErrorType, what: str = "text file") -> str:
     """The UTF-8 text of ``path`` (see :func:`decode_text`)."""
     return decode_text(read_bytes(path, error, what), path, error, what)

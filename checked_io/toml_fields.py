@@ -18,7 +18,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from flexmodal.checked_io.text import ErrorType
+from flexmodal.checked_io.text import ErrorType, name_fault
 
 
 @dataclass(frozen=True)
@@ -136,6 +136,16 @@ class Fields:
             raise self._bad("broken_rule", key, raw, why=why)
         return value
 
+    def name(self, key: str, default: Any = ...) -> str:
+        """A name (of a device, channel, run, ...): text with a visible character and no control
+        character (:func:`flexmodal.checked_io.text.name_fault`); ``default`` (which may be ``""``)
+        when absent."""
+        value = self.get(key, str, default)
+        fault = name_fault(value) if key in self.doc else None
+        if fault:
+            raise self._bad("broken_rule", key, value, why=fault)
+        return value
+
     def number(self, key: str, default: Any = ..., *, lo: float | None = None, hi: float | None = None,
                lo_open: bool = False, hi_open: bool = False, unit: str = "", why: str = "") -> float:
         """A finite number in the range from ``lo`` to ``hi`` (open ends excluded); ``why`` replaces the
@@ -161,6 +171,10 @@ class Fields:
     def numbers(self, key: str) -> dict[str, float]:
         """A table of finite numbers, e.g. a pose (variable name -> value); empty when absent."""
         values = self.table(key, {})
+        for name in values.doc:   # names of pose variables: printed in one-line messages and columns
+            fault = name_fault(name)
+            if fault:
+                raise values._bad("broken_rule", name, name, why=f"names a variable that {fault}")
         return {name: values.number(name) for name in values.doc}
 
     def reject_unknown(self, known: set[str]) -> None:

@@ -1144,7 +1144,7 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
                      f"the first by {a0['separate_rel_diff']:.1%}")
         if verdict["next_measurements"]:
             nxt = verdict["next_measurements"][0]
-            text += (f"; most informative next measurement: {nxt['pose']} (mode {nxt['mode']}, "
+            text += (f"; next measurement most likely to decide: {nxt['pose']} (mode {nxt['mode']}, "
                      f"{nxt['information_nats']:.1f} nats)")
     verdict["summary"] = text
     return verdict

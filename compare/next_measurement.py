@@ -23,17 +23,20 @@ Examples
 --------
 >>> from flexmodal.models.rig import load_rig
 >>> rig = load_rig("examples/rigs/seed003_two_link.toml")
->>> list(trial_poses(rig, [{"theta_deg": 0.0}, {"theta_deg": 60.0}, {"theta_deg": 120.0}]))[:4]
-['theta_deg=0', 'theta_deg=10', 'theta_deg=20', 'theta_deg=30']
+>>> labels = list(trial_poses(rig, [{"theta_deg": 0.0}, {"theta_deg": 60.0}, {"theta_deg": 120.0}]))
+>>> len(labels), labels[:3], labels[-1]          # 10 deg steps, widened by 60 deg each way
+(25, ['theta_deg=-60', 'theta_deg=-50', 'theta_deg=-40'], 'theta_deg=180')
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 from typing import Protocol
 
 import numpy as np
+from scipy.special import ndtr
 
 from flexmodal.compare.fit import Target, design, evaluate, linear_cov
 from flexmodal.compare.gap import Measured
@@ -41,6 +44,9 @@ from flexmodal.compare.parametric import ReducedFamily, lam_to_hz, solve_family
 from flexmodal.models.rig import Rig
 
 TRIAL_POINTS = 13
+WIDEN = 0.5
+"""Candidate poses: 13 points over the measured range of each pose variable, and on at that step up to
+half the range beyond each end (``trial_poses``)."""
 MAX_ADVICE = 3
 
 
@@ -50,6 +56,7 @@ class FitContext(Protocol):
     rig: Rig
     meas: Measured
     target: Target
+    pose_share: float                                   # distinct poses / configurations
     trial: tuple[tuple[str, ...], FitContext] | None     # the trial context of ``_trial_context``
 
     def family(self, handles: Sequence[str]) -> ReducedFamily: ...
@@ -58,14 +65,29 @@ class FitContext(Protocol):
 
 
 def trial_poses(rig: Rig, poses: Sequence[dict[str, float]]) -> dict[str, dict[str, float]]:
-    """Candidate poses for a next measurement after measuring ``poses``: each pose variable moved over
-    ``TRIAL_POINTS`` points of its measured range (the others at the first pose's values),
-    {``<var>=<value>``: pose}; ``verdict.next_measurements`` and ``separate_at`` name them."""
+    """Candidate poses for a next measurement after measuring ``poses``, {label: pose}: each pose
+    variable moved alone (the others at the first pose's values) over ``TRIAL_POINTS`` points of its
+    measured range and on at the same step up to ``WIDEN`` of that range beyond each end (joint and
+    base angles [deg] within +-180, pose masses [kg] not below 0), labelled ``<var>=<value>``; with more
+    than one pose variable also every combination of each one's widened low end, middle and widened
+    high end, labelled ``<var>=<value>,<var>=<value>``.  ``verdict.next_measurements`` and
+    ``separate_at`` name them.  The rig does not say how far a joint can turn: an advised pose beyond
+    the measured range is worth checking against the arm's limits."""
+    angles = {rig.base.angle, *(j.angle for j in rig.joints)} - {None}
+    reach = round(WIDEN * (TRIAL_POINTS - 1))
     trial: dict[str, dict[str, float]] = {}
+    ends = []
     for v in rig.pose_variables:
         vals = np.array([p[v] for p in poses])
-        trial.update({f"{v}={x:g}": {**poses[0], v: float(x)}
-                      for x in np.linspace(vals.min(), vals.max(), TRIAL_POINTS)})
+        lo, hi = float(vals.min()), float(vals.max())
+        xs = lo + (hi - lo) / (TRIAL_POINTS - 1) * np.arange(-reach, TRIAL_POINTS + reach)
+        xs = xs[(np.abs(xs) <= 180.0 + 1e-9) if v in angles else (xs >= -1e-12)] if hi > lo else xs[:1]
+        trial.update({f"{v}={x:g}": {**poses[0], v: float(x)} for x in xs})
+        ends.append((v, (float(xs.min()), 0.5 * (lo + hi), float(xs.max()))))
+    if len(ends) > 1:
+        for combo in itertools.product(*(sorted(set(e)) for _, e in ends)):
+            pose = {**poses[0], **{v: x for (v, _), x in zip(ends, combo, strict=True)}}
+            trial.setdefault(",".join(f"{v}={x:g}" for (v, _), x in zip(ends, combo, strict=True)), pose)
     return trial
 
 
@@ -124,18 +146,59 @@ def _predictive(ctx: FitContext, entry: dict, nctx: FitContext, scatter: float
     return f, np.einsum("cnj,jk,cnk->cn", g, cov, g)
 
 
+def _resolve_chance(f: np.ndarray, v: np.ndarray, heldout: np.ndarray, dof: np.ndarray, pose_share: float,
+                    scatter: float) -> np.ndarray:
+    """The chance [P] that one measurement of the ``n`` modes at each pose decides among ``K`` fitted
+    candidates: their predictions ``f`` [K, P, n] Hz with predictive variances ``v`` [K, P, n] (relative,
+    scatter included), their held-out RMS errors ``heldout`` [K] (relative) over ``dof`` [K] degrees of
+    freedom.  Bayesian decision-theoretic design (the expected utility of a decisive outcome; Chaloner &
+    Verdinelli 1995, Statist. Sci. 10: 273-304; Box & Hill 1967 weigh the hypotheses alike): each
+    candidate ``i`` is the truth with the weight ``exp(-chi2_i / 2)`` of its held-out chi-square
+    ``dof_i pose_share heldout_i^2 / scatter^2`` (normalised); given ``i``, the new point adds
+    ``v_i`` to its mean squared held-out error and ``d_ij^2 + v_j`` to candidate ``j``'s
+    (``d_ij = f_j / f_i - 1`` per mode), and ``j`` is ruled out when its new held-out RMS exceeds
+    ``i``'s by more than the diagnosis' noise margin ``2 sqrt(2) max(h_i, scatter) / sqrt(2 N)`` with
+    ``N`` the distinct held-out degrees of freedom (compare/diagnosis.py ``_noise``), with probability
+    ``Phi((h_j - h_i - margin) / sd)`` (``sd`` the spread of that difference: the new residuals share
+    the measurement's noise ``e``, so ``e_j^2 - e_i^2 = d^2 - 2 d e`` varies with ``4 d^2 var(e)``).
+    The chance is ``sum_i w_i prod_(j != i) P(j ruled out | i)``: a pose must rule out every
+rival of the right candidate, not only one, for the verdict to stop being ambiguous."""
+    K, _, n = f.shape
+    chi2 = dof * pose_share * heldout**2 / scatter**2
+    w = np.exp(-(chi2 - chi2.min()) / 2)
+    w /= w.sum()
+    total = np.zeros(f.shape[1])
+    for i in range(K):
+        if w[i] < 1e-6:
+            continue
+        win2 = (dof[i] * heldout[i] ** 2 + v[i].sum(axis=1)) / (dof[i] + n)
+        win = np.sqrt(win2)
+        margin = 2 * math.sqrt(2) * np.maximum(win, scatter) / math.sqrt(2 * (dof[i] * pose_share + n))
+        decisive = np.ones(f.shape[1])
+        for j in range(K):
+            if j == i:
+                continue
+            d = f[j] / f[i] - 1.0
+            lose = np.sqrt((dof[j] * heldout[j] ** 2 + (d**2 + v[j]).sum(axis=1)) / (dof[j] + n))
+            var = (2 * d**2 * (v[i] + v[j])).sum(axis=1) / (dof[i] + n) ** 2     # e_j^2 - e_i^2 ~ d^2 - 2 d e
+            sd = np.maximum(np.sqrt(var) / np.maximum(win + lose, 1e-12), 1e-12)
+            decisive *= ndtr((lose - win - margin) / sd)
+        total += w[i] * decisive
+    return np.nan_to_num(total)
+
+
 def next_measurements(ctx: FitContext, best: dict, rivals: Sequence[dict], scatter: float) -> list[dict]:
-    """Untested poses ranked by the expected information a measurement there brings on the choice
-    between the verdict ``best`` and its ``rivals``: the Box & Hill (1967) discrimination criterion, the
-    symmetric Kullback-Leibler divergence between the two candidates' predictive normals of each
-    measured mode's relative frequency, ``0.5 [(v_a - v_b)^2 / (v_a v_b) + d^2 (1/v_a + 1/v_b)]`` with
-    ``d`` their relative difference and ``v = scatter^2 + g^T C g`` (each candidate's linearised
-    prediction variance: where a candidate is loosely pinned down it can follow a new point, and a
-    measurement there decides little), summed over modes.  Poses are ranked by ``sum (1 - exp(-I))``
-    over the rivals (each rival's information saturating: a pose that tells the verdict from every
-    rival beats one that tells it from one rival by a mile); ``information_nats`` is the mean over the
-    rivals.  At most ``MAX_ADVICE`` poses, each with the mode that carries most of it:
-    ``[{"pose", "mode", "information_nats"}]``."""
+    """Untested poses (``trial_poses``) ranked by the chance that one measurement there makes the verdict
+    unambiguous: that it rules out every rival of whichever of ``best`` and its ``rivals`` is right
+    (``_resolve_chance``), each candidate predicting the new point with its fitted reduced model and
+    the variance ``scatter^2 + g^T C g`` (its linearised prediction variance: where a candidate is
+    loosely pinned down it can follow a new point, and a measurement there decides little); ties
+    (e.g. no pose can decide) by the expected information.  ``information_nats`` is the Box & Hill
+    (1967) discrimination information, the symmetric Kullback-Leibler divergence between the verdict's
+    and a rival's predictive normals of each measured mode's relative frequency, ``0.5 [(v_a - v_b)^2
+    / (v_a v_b) + d^2 (1/v_a + 1/v_b)]`` with ``d`` their relative difference, summed over modes and
+    averaged over the rivals; ``mode`` the mode that carries most of it; ``decide_chance`` the chance
+    (0-1).  At most ``MAX_ADVICE`` poses: ``[{"pose", "mode", "information_nats", "decide_chance"}]``."""
     trial = trial_poses(ctx.rig, ctx.meas.poses)
     if not trial or not rivals:
         return []
@@ -145,17 +208,18 @@ def next_measurements(ctx: FitContext, best: dict, rivals: Sequence[dict], scatt
         return []
     labels = [list(trial)[i] for i in keep]
     nctx = _trial_context(ctx, trial)
-    fa, va = (x[keep] for x in _predictive(ctx, best, nctx, scatter))
-    va = va + scatter**2
-    info = np.zeros(fa.shape)
-    value = np.zeros(len(labels))
-    for e in rivals:
-        fb, vb = (x[keep] for x in _predictive(ctx, e, nctx, scatter))
-        vb = vb + scatter**2
-        d = fb / fa - 1.0
-        each = np.nan_to_num(0.5 * ((va - vb) ** 2 / (va * vb) + d**2 * (1 / va + 1 / vb)))
-        info += each / len(rivals)
-        value += 1.0 - np.exp(-each.sum(axis=1))        # chance-like share of this rival ruled out
-    order = [i for i in np.argsort(-value, kind="stable") if value[i] > 0][:MAX_ADVICE]
-    return [{"pose": labels[i], "mode": int(np.argmax(info[i]) + 1), "information_nats": float(info[i].sum())}
-            for i in order]
+    everyone = [best, *rivals]
+    pred = [_predictive(ctx, e, nctx, scatter) for e in everyone]
+    f = np.array([p[0][keep] for p in pred])
+    v = np.array([p[1][keep] for p in pred]) + scatter**2
+    info = np.zeros(f.shape[1:])
+    for k in range(1, len(everyone)):
+        d = f[k] / f[0] - 1.0
+        info += np.nan_to_num(0.5 * ((v[0] - v[k]) ** 2 / (v[0] * v[k]) + d**2 * (1 / v[0] + 1 / v[k])))
+    info /= len(rivals)
+    chance = _resolve_chance(f, v, np.array([e["_heldout_eq"] for e in everyone]),
+                             np.array([e["_n_eq"] for e in everyone], float), ctx.pose_share, scatter)
+    total = info.sum(axis=1)
+    order = [i for i in np.lexsort((-total, -np.round(chance, 3))) if total[i] > 0][:MAX_ADVICE]
+    return [{"pose": labels[i], "mode": int(np.argmax(info[i]) + 1), "information_nats": float(total[i]),
+             "decide_chance": float(chance[i])} for i in order]

@@ -268,13 +268,16 @@ class Alternative(_Record):
 
 @dataclass(**_RECORD)
 class NextMeasurement(_Record):
-    """An untested pose (``<pose var>=<value>``) worth measuring next, the model mode that carries most
-    of its value, and the expected information [nats] it brings on the choice between the verdict and
-    its alternatives (mean Kullback-Leibler divergence of their predictions)."""
+    """An untested pose (``<pose var>=<value>``, or ``<var>=<value>,<var>=<value>`` for several pose
+    variables at once) worth measuring next, the model mode that carries most of its value, the expected
+    information [nats] it brings on the choice between the verdict and its alternatives (mean
+    Kullback-Leibler divergence of their predictions), and ``decide_chance`` the chance (0-1) that
+    one measurement there leaves the verdict unambiguous (compare/next_measurement.py)."""
 
     pose: str
     mode: int
     information_nats: float
+    decide_chance: float | None = None
 
 
 @dataclass(**_RECORD)

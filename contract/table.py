@@ -19,6 +19,7 @@ import pandas as pd
 
 from flexmodal.checked_io.csv_tables import read_table
 from flexmodal.checked_io.output import atomic_path
+from flexmodal.checked_io.text import name_fault
 from flexmodal.contract.errors import ContractError
 
 REQUIRED = ("config", "mode", "freq_hz")
@@ -105,6 +106,7 @@ class ModalTable:
         if unnamed:
             raise ContractError(f"{source}: column {unnamed[0]!r} names no "
                                 f"{'pose variable' if unnamed[0] == POSE_PREFIX else 'sensor'} after the dot")
+        _check_names(df, source)
         for col in ("mode", "freq_hz"):
             values = _floats(df[col])
             bad = values.isna() | ~np.isfinite(values)
@@ -285,6 +287,19 @@ def display_html(summary: str, frame: pd.DataFrame, max_rows: int = 30) -> str:
     return f"<p>{summary}</p>" + frame.to_html(index=False, max_rows=max_rows, escape=True, border=0)
 
 
+def _check_names(df: pd.DataFrame, source: str) -> None:
+    """Raise ContractError for a configuration, sensor or pose variable whose name is blank or holds
+    a control character (checked_io.text.name_fault): 'theta\\n0' would break every one-line message
+    and table row it is printed in, and '   ' names nothing."""
+    prefixes = (POSE_PREFIX, SHAPE_PREFIX)
+    named = [(f"config {c!r}", c) for c in pd.unique(df["config"])]
+    named += [(f"column {c!r}", c.split(".", 1)[1]) for c in map(str, df.columns) if c.startswith(prefixes)]
+    for what, name in named:
+        fault = name_fault(name)
+        if fault:
+            raise ContractError(f"{source}: {what}: the name {fault}")
+
+
 def _one_pose_per_config(df: pd.DataFrame, source: str) -> None:
     """Raise ContractError when two rows of one configuration give one pose variable different values
     (the pose of a configuration is one pose; otherwise whichever row came first would silently win).
@@ -305,6 +320,7 @@ def poses_from_csv(path: str | Path) -> dict[str, dict[str, float]]:
     p = Path(path)
     df = read_table(p, ContractError, required=("config",), text_columns=("config",), what="poses table")
     cols = [c for c in df.columns if c.startswith(POSE_PREFIX)]
+    _check_names(df.assign(config=df["config"].astype(str)), str(p))
     out: dict[str, dict[str, float]] = {}
     for _, row in df.iterrows():
         pose = {}

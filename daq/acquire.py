@@ -23,7 +23,6 @@ import json
 import os
 import queue
 import re
-import resource
 import signal
 import threading
 import time
@@ -44,7 +43,7 @@ from flexmodal.daq.hooks import simulator_launcher
 from flexmodal.daq.lock import WriterLock
 from flexmodal.daq.protocols import make_driver
 from flexmodal.daq.session import Session
-from flexmodal.daq.store import Event, RunWriter, list_runs
+from flexmodal.daq.store import Event, RunWriter, disk_room, list_runs
 from flexmodal.daq.timeline import Timeline
 
 QUEUE_BLOCKS = 4096
@@ -141,17 +140,6 @@ class StopSignals:
 
     def __exit__(self, *exc) -> None:
         self._handlers.close()
-
-
-def disk_room(path: Path) -> int:
-    """Bytes ``path`` can still grow by: free space of its file system (for unprivileged users),
-    capped by the process's file size limit (RLIMIT_FSIZE)."""
-    st = os.statvfs(path.parent)
-    room = st.f_bavail * st.f_frsize
-    limit = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
-    if limit != resource.RLIM_INFINITY:
-        room = min(room, limit - (path.stat().st_size if path.exists() else 0))
-    return int(room)
 
 
 class Display:

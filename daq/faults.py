@@ -3,8 +3,10 @@ options from it without importing the run store)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any
+
+from flexmodal.daq.errors import DaqError
 
 
 def _fault(default: float | None, help: str, lo: float = 0.0, hi: float = 86400.0, *,
@@ -31,6 +33,18 @@ class Faults:
                                                "the ADC")
     overrun_after_s: float = _fault(1.0, "serial/slcan: what the reader leaves unread this long, s, is "
                                          "dropped (the device's buffer overruns)", lo_open=True)
+
+    def __post_init__(self) -> None:
+        """Refuse a fault outside its range (the Python API reaches here without the option types)."""
+        for f in fields(self):
+            value, r = getattr(self, f.name), f.metadata["range"]
+            if value is None and f.default is None:
+                continue
+            number = isinstance(value, int | float) and not isinstance(value, bool)
+            if not number or not ((value > r["lo"]) if r["lo_open"] else (value >= r["lo"])) or not (
+                    (value < r["hi"]) if r["hi_open"] else (value <= r["hi"])):
+                raise DaqError(f"fault {f.name} = {value!r} is not a number in {'(' if r['lo_open'] else '['}"
+                               f"{r['lo']:g}, {r['hi']:g}{')' if r['hi_open'] else ']'}")
 
     @property
     def on_link(self) -> bool:

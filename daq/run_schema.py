@@ -11,12 +11,13 @@ from __future__ import annotations
 import math
 import os
 import sys
+from datetime import datetime
 from pathlib import Path
 
 import h5py
 import numpy as np
 
-from flexmodal.checked_io.text import available_memory_bytes, loads_json, nfc, one_line
+from flexmodal.checked_io.text import available_memory_bytes, loads_json, name_fault, nfc, one_line
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.h5file import open_read
 
@@ -72,8 +73,12 @@ def _check_attrs(g: h5py.Group, where: str) -> None:
             or isinstance(rate, bool | np.bool_) or not sample_rate_ok(float(rate)):
         raise DaqError(f"{where}: attribute sample_rate_hz = {rate!r} is not a sample rate > 0 Hz and "
                        f"<= {MAX_SAMPLE_RATE_HZ:g} Hz")
-    if _text(a["start_time"]) is None:
-        raise DaqError(f"{where}: attribute start_time = {a['start_time']!r} is not a text")
+    start = _text(a["start_time"])
+    try:
+        datetime.fromisoformat(start or "")
+    except ValueError:
+        raise DaqError(f"{where}: attribute start_time = {_short(a['start_time'])!r} is not an ISO 8601 "
+                       "date and time (e.g. 2026-11-26T21:00:00+00:00)") from None
     excitation = _text(a["excitation"])
     if excitation not in EXCITATIONS:
         raise DaqError(f"{where}: attribute excitation = {a['excitation']!r} is not one of "
@@ -94,6 +99,9 @@ def check_run_id(run_id: str, where: str) -> str:
     if not run_id or run_id in (".", "..") or "/" in run_id or "\x00" in run_id or len(run_id) > 255:
         raise DaqError(f"{where} {_short(run_id)!r} cannot name a run (non-empty, not '.' or '..', no '/', "
                        "at most 255 characters)")
+    fault = name_fault(run_id)
+    if fault:
+        raise DaqError(f"{where} {run_id!r} cannot name a run: it {fault}")
     return run_id
 
 
@@ -155,6 +163,7 @@ def check_run_group(g: h5py.Group, where: str) -> None:
     """Raise DaqError unless ``g`` has the attributes and datasets of a run (``where`` names it)."""
     if not isinstance(g, h5py.Group):
         raise DaqError(f"{where}: is not a group")
+    check_run_id(g.name.rsplit("/", 1)[-1], f"{where}: run id") if g.name else None
     _check_attrs(g, where)
     channels = _table(g, "channels", where)
     events = _table(g, "events", where)
@@ -237,6 +246,9 @@ def _check_names(channels: h5py.Dataset, where: str) -> None:
     names = [_text(n) for n in channels["name"]]
     seen: set[str | None] = set()
     for n in names:
+        fault = name_fault(n) if n is not None else "is not UTF-8 text"
+        if fault:
+            raise DaqError(f"{where}: channel name {n!r} {fault}")
         if n in seen:
             raise DaqError(f"{where}: channel name {n!r} appears twice (each channel needs its own name)")
         seen.add(n)

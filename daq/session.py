@@ -26,7 +26,7 @@ from flexmodal.daq.devices import SIMULATOR_PORT, Device
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.faults import Faults
 from flexmodal.daq.protocols import PROTOCOLS, registered_protocols
-from flexmodal.daq.run_schema import CHANNEL_KINDS, EXCITATIONS
+from flexmodal.daq.run_schema import CHANNEL_KINDS, EXCITATIONS, check_run_id
 from flexmodal.daq.store import Channel
 
 # Whole-number fields whose range every protocol shares (a TCP port given as a number, the Modbus unit id).
@@ -175,7 +175,7 @@ def _resolve(base: Path, value: str) -> str:
 
 def _device(doc: dict, where: str, base: Path) -> Device:
     t = Table(doc, where, base)
-    name = t.get("name", str, check=bool, why="is empty")
+    name = t.name("name")
     t = DeviceTable(doc, f"{where.split(':')[0]}: device {name!r}", base)
     protocol = t.choice("protocol", registered_protocols())
     return PROTOCOLS.entry(protocol).parse_device(t, name)
@@ -183,7 +183,7 @@ def _device(doc: dict, where: str, base: Path) -> Device:
 
 def _channel(doc: dict, where: str, devices: dict[str, Device]) -> ChannelMap:
     t = Table(doc, where)
-    name = t.get("name", str, check=bool, why="is empty")
+    name = t.name("name")
     where = f"{where.split(':')[0]}: channel {name!r}"
     t = Table(doc, where)
     t.reject_unknown({"name", "kind", "unit", "sensitivity", "sensitivity_unit", "scale", "offset",
@@ -314,7 +314,7 @@ def parse_session(doc: dict, source: Path) -> Session:
         source=source, sample_rate_hz=rate, devices=tuple(devices.values()), channels=channels,
         excitation=t.choice("excitation", EXCITATIONS, "operational"),
         duration_s=t.number("duration_s", None, lo=0, lo_open=True),
-        run_id=t.get("run_id", str, "", check=lambda v: "/" not in v, why="must not contain '/'"),
+        run_id=t.name("run_id", "") and check_run_id(t.doc["run_id"], f"{where}: run_id"),
         notes=t.get("notes", str, ""), pose=pose, pose_from=dict(pose_from), trigger=trigger,
         simulator=sim,
         reconnect_timeout_s=t.number("reconnect_timeout_s", 10.0, lo=0, hi=3600, lo_open=True, unit="s"),

@@ -13,7 +13,11 @@ See docs/hdf5-format.md.
 
 from __future__ import annotations
 
+import errno
 import json
+import os
+import re
+import resource
 import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -25,7 +29,7 @@ import h5py
 import numpy as np
 
 from flexmodal.checked_io.output import signals_deferred
-from flexmodal.checked_io.text import available_memory_bytes, nfc, regular_file
+from flexmodal.checked_io.text import available_memory_bytes, nfc, one_line, regular_file
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.h5file import LOCKED, locked, open_read
 from flexmodal.daq.run_schema import (
@@ -45,6 +49,7 @@ from flexmodal.daq.run_schema import (
 
 CHUNK_BYTES = 1 << 20  # target size of one samples chunk
 CHUNK_CACHE_BYTES = 16 << 20  # room for partly filled chunks, so appends never re-read from disk
+WRITE_RESERVE_BYTES = 64 << 10  # room kept for HDF5 metadata: a new chunk leaving less is not written
 
 
 @dataclass(frozen=True)
@@ -114,6 +119,17 @@ def _channel_table(channels: tuple[Channel, ...]) -> np.ndarray:
 
 
 
+def disk_room(path: Path) -> int:
+    """Bytes ``path`` can still grow by: free space of its file system (for unprivileged users),
+    capped by the process's file size limit (RLIMIT_FSIZE)."""
+    st = os.statvfs(path.parent)
+    room = st.f_bavail * st.f_frsize
+    limit = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+    if limit != resource.RLIM_INFINITY:
+        room = min(room, limit - (path.stat().st_size if path.exists() else 0))
+    return int(room)
+
+
 def _truncateutf8(text: str, n_bytes: int) -> bytes:
     return text.encode()[:n_bytes].decode("utf-8", "ignore").encode()
 
@@ -170,6 +186,32 @@ class RunWriter:
         self._tail_rows = 0
         self._chunk_rows = rows
         self._disk_rows = 0  # rows stored as whole chunks (a multiple of the chunk length)
+        self._failed = False  # a write failed (full disk, I/O error): the file is only closed now
+        self._tail_stored = False  # the partly filled chunk already has its room on disk (a flush)
+
+    def _room(self, n_bytes: int) -> None:
+        """OSError (ENOSPC) naming the file when writing ``n_bytes`` would leave less than
+        :data:`WRITE_RESERVE_BYTES` on its disk: a write HDF5 itself finds failing leaves its caches
+        dirty, the file cannot be closed cleanly and the interpreter crashed at exit."""
+        room, need = disk_room(self.path), n_bytes + WRITE_RESERVE_BYTES
+        if room < need:
+            st = os.statvfs(self.path.parent)
+            full = st.f_bavail * st.f_frsize < need   # else the file size limit (ulimit -f) is what binds
+            reason = "No space left on device" if full else "File too large (the file size limit, ulimit -f)"
+            left = f"{max(room, 0) / 1e6:.2f} MB left, {need / 1e6:.2f} MB needed"
+            raise OSError(errno.ENOSPC if full else errno.EFBIG, f"{reason}: {left}", str(self.path))
+
+    @contextmanager
+    def _writing(self) -> Iterator[None]:
+        """Mark the writer failed when a write inside raises (its buffers no longer match the file)."""
+        if self._failed:
+            raise DaqError(f"{self.path}: run {self.run_id!r}: an earlier write failed; nothing more is "
+                           "written")
+        try:
+            yield
+        except BaseException:
+            self._failed = True
+            raise
 
     def _validate(self, sample_rate_hz: float, excitation: str, pose: dict) -> None:
         where = f"{self.path}: run {self.run_id!r}"
@@ -211,8 +253,22 @@ class RunWriter:
     def __enter__(self) -> RunWriter:
         return self
 
-    def __exit__(self, *exc) -> None:
-        self.close()
+    def __exit__(self, exc_type, exc, tb) -> None:
+        """Close; a write that failed inside the block or in the close (a full disk, an I/O error: h5py
+        raises OSError or RuntimeError) becomes one DaqError naming the file, and the file is closed."""
+        try:
+            self.close()
+        except (OSError, RuntimeError) as err:
+            if exc is None:
+                raise self._write_error(err) from None
+        if isinstance(exc, OSError | RuntimeError):
+            raise self._write_error(exc) from None
+
+    def _write_error(self, exc: BaseException) -> DaqError:
+        found = re.search(r"error message = '([^']*)'", str(exc))
+        reason = found.group(1) if found else (getattr(exc, "strerror", None) or one_line(exc))
+        return DaqError(f"{self.path}: run {self.run_id!r}: writing failed after {self.n_samples} samples "
+                        f"({reason}); what was flushed before is intact")
 
     def append(self, block: np.ndarray) -> None:
         """Append samples [n, n_channels] (physical units).
@@ -225,19 +281,21 @@ class RunWriter:
             raise DaqError(f"{self.path}: run {self.run_id!r}: block shape {block.shape} is not "
                            f"[n, {self.n_channels}]")
         i, n = 0, block.shape[0]
-        while i < n:  # one step per chunk (about 1 MiB)
-            k = min(self._chunk_rows - self._tail_rows, n - i)
-            self._tail[self._tail_rows:self._tail_rows + k] = block[i:i + k]
-            self._tail_rows += k
-            i += k
-            if self._tail_rows == self._chunk_rows:
-                end = self._disk_rows + self._chunk_rows
-                if self._samples.shape[0] < end:
-                    self._samples.resize(end, axis=0)
-                self._samples.id.write_direct_chunk((self._disk_rows, 0), self._tail)
-                self._disk_rows, self._tail_rows = end, 0
-        self.n_samples += n
-        self._maybe_flush()
+        with self._writing():
+            while i < n:  # one step per chunk (about 1 MiB)
+                k = min(self._chunk_rows - self._tail_rows, n - i)
+                self._tail[self._tail_rows:self._tail_rows + k] = block[i:i + k]
+                self._tail_rows += k
+                i += k
+                if self._tail_rows == self._chunk_rows:
+                    end = self._disk_rows + self._chunk_rows
+                    if self._samples.shape[0] < end:
+                        self._samples.resize(end, axis=0)
+                    self._room(0 if self._tail_stored else self._tail.nbytes)
+                    self._samples.id.write_direct_chunk((self._disk_rows, 0), self._tail)
+                    self._disk_rows, self._tail_rows, self._tail_stored = end, 0, False
+            self.n_samples += n
+            self._maybe_flush()
 
     def add_event(self, event: Event) -> None:
         """Record an event (written at once, flushed with the samples)."""
@@ -245,18 +303,19 @@ class RunWriter:
 
     def add_events(self, events) -> None:
         """Record several events in one resize."""
-        events = tuple(events)
-        if not events:
-            return
-        rec = np.zeros(len(events), dtype=EVENT_DTYPE)
-        rec["kind"] = [e.kind.encode() for e in events]
-        rec["sample_index"] = [e.sample_index for e in events]
-        rec["count"] = [e.count for e in events]
-        rec["detail"] = [_truncateutf8(e.detail, EVENT_DETAIL_BYTES) for e in events]
-        self._events.resize(self._n_events + len(events), axis=0)
-        self._events[self._n_events:] = rec
-        self._n_events += len(events)
-        self._maybe_flush()
+        with self._writing():
+            events = tuple(events)
+            if not events:
+                return
+            rec = np.zeros(len(events), dtype=EVENT_DTYPE)
+            rec["kind"] = [e.kind.encode() for e in events]
+            rec["sample_index"] = [e.sample_index for e in events]
+            rec["count"] = [e.count for e in events]
+            rec["detail"] = [_truncateutf8(e.detail, EVENT_DETAIL_BYTES) for e in events]
+            self._events.resize(self._n_events + len(events), axis=0)
+            self._events[self._n_events:] = rec
+            self._n_events += len(events)
+            self._maybe_flush()
 
     def _maybe_flush(self) -> None:
         if time.monotonic() - self._last_flush >= self.flush_interval_s:
@@ -264,20 +323,42 @@ class RunWriter:
 
     def flush(self) -> None:
         """Make everything appended so far visible to readers and durable against a crash."""
-        if self._samples.shape[0] < self.n_samples:
-            self._samples.resize(self.n_samples, axis=0)
-        if self._tail_rows:
-            self._samples[self._disk_rows:self.n_samples] = self._tail[:self._tail_rows]
-        self._samples.flush()
-        self._events.flush()
-        self._file.flush()
-        self._last_flush = time.monotonic()
+        with self._writing():
+            self._room(0 if self._tail_stored or not self._tail_rows else self._tail.nbytes)
+            if self._samples.shape[0] < self.n_samples:
+                self._samples.resize(self.n_samples, axis=0)
+            if self._tail_rows:
+                self._samples[self._disk_rows:self.n_samples] = self._tail[:self._tail_rows]
+                self._tail_stored = True
+            self._samples.flush()
+            self._events.flush()
+            self._file.flush()
+            self._last_flush = time.monotonic()
 
     def close(self) -> None:
         with signals_deferred():  # the last flush and the close complete, Ctrl-C or not
             if self._file.id.valid:
-                self.flush()
-                self._file.close()
+                try:
+                    if not self._failed:
+                        self.flush()
+                finally:
+                    self._close_file()
+
+    def _close_file(self) -> None:
+        """Close the file; after a failed write quietly (the failure is what is reported), with the
+        datasets closed first: left to the garbage collector, their ids crashed the interpreter."""
+        if not self._failed:
+            self._file.close()
+            return
+        for d in (self._samples, self._events):
+            try:
+                d.id.close()
+            except (OSError, RuntimeError, ValueError):
+                pass
+        try:
+            self._file.close()
+        except (OSError, RuntimeError, ValueError):
+            pass
 
 
 def list_runs(path: str | Path) -> list[str]:
@@ -362,10 +443,14 @@ def read_run(path: str | Path, run_id: str) -> Run:
 
 
 def expand_runs(runs: Sequence[str | Path | tuple[str | Path, str]]) -> list[tuple[Path, str]]:
-    """(file, run id) for every entry: a file means all its runs; ``FILE::RUN`` or (file, run) one run."""
+    """(file, run id) for every entry: a file means all its runs; ``FILE::RUN`` or (file, run) one run;
+    a run named twice is refused (:func:`runs_named_once`)."""
     out: list[tuple[Path, str]] = []
     for entry in runs:
         if isinstance(entry, tuple):
+            if len(entry) != 2 or not isinstance(entry[0], str | Path) or not isinstance(entry[1], str):
+                raise TypeError(f"a run entry must be a path, 'FILE::RUN_ID' or (path, run id), got "
+                                f"{entry!r}")
             out.append((Path(entry[0]), entry[1]))
             continue
         text = str(entry)
@@ -381,4 +466,20 @@ def expand_runs(runs: Sequence[str | Path | tuple[str | Path, str]]) -> list[tup
         if not ids:
             raise DaqError(f"{path}: holds no runs (expected groups under /runs)")
         out += [(path, r) for r in ids]
-    return out
+    return runs_named_once(out)
+
+
+def runs_named_once(jobs: list[tuple[Path, str]]) -> list[tuple[Path, str]]:
+    """``jobs`` (file, run id), or DaqError when one run is in it twice (the same file by another path
+    or a hard link): it would be computed and written twice."""
+    seen: dict[tuple[int, int, str], Path] = {}
+    for path, run_id in jobs:
+        try:
+            st = path.stat()
+        except OSError:
+            continue   # a missing file is named where it is opened
+        first = seen.setdefault((st.st_dev, st.st_ino, run_id), path)
+        if first is not path:
+            also = "" if str(first) == str(path) else f" (also as {first})"
+            raise DaqError(f"{path}:{run_id}: this run is named twice{also}; name each run once")
+    return jobs

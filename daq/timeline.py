@@ -9,7 +9,9 @@ deliver (a sequence gap, corrupt frames, a disconnect) are NaN in its columns an
 ``gap`` event (or ``corrupt`` when bad frames were dropped there) at the first missing row; rows are
 released to the writer when every device has reached them, except devices the writer declares silent:
 those are padded with NaN (:meth:`Timeline.pad`) and get one ``gap`` event covering the silence when they
-deliver again or the run ends; samples they deliver late, for rows already released, are dropped.
+deliver again or the run ends; samples they deliver late, for rows already released, are dropped (a
+block that continues the device's counter is late, never a restart: placed at the current row, a
+silent device's buffered samples were written seconds after their time).
 """
 
 from __future__ import annotations
@@ -40,6 +42,7 @@ class _Track:
     parts: deque = field(default_factory=deque)
     taken: int = 0  # rows of parts[0] already handed out
     silent_from: int | None = None  # first row padded because the device was silent
+    next_index: int | None = None  # the device counter's value its next block continues from
 
 
 class Timeline:
@@ -84,6 +87,8 @@ class Timeline:
             self.first_index[block.device] = block.first_index - start
         values = block.values[:, tr.src] * tr.gain + tr.bias
         row = block.first_index - tr.base
+        continues = block.first_index == tr.next_index   # late samples, not a restart of the device
+        tr.next_index = block.first_index + block.values.shape[0]
         resumed = tr.silent_from is not None and row >= tr.silent_from - self.fs
         if resumed:  # back after a silence (not restarted): one gap over it, late samples dropped
             end = max(row, tr.rows)
@@ -93,7 +98,7 @@ class Timeline:
                 tr.parts.append(np.full((row - tr.rows, tr.cols.size), np.nan))
                 tr.rows = row
             tr.silent_from = None
-        elif row > tr.rows + MAX_GAP_S * self.fs or row < tr.rows - self.fs:
+        elif not continues and (row > tr.rows + MAX_GAP_S * self.fs or row < tr.rows - self.fs):
             events.append(Event("note", tr.rows, 1, f"{block.device}: counter jumped from "
                                                       f"{tr.base + tr.rows} to {block.first_index}"))
             tr.base = block.first_index - tr.rows

@@ -18,7 +18,7 @@ from flexmodal.checked_io.children import ctrl_c_blocked, leave_ctrl_c_to_parent
 from flexmodal.checked_io.errors import FlexmodalError
 from flexmodal.checked_io.progress import progress_bar
 from flexmodal.checked_io.text import one_line
-from flexmodal.daq.store import expand_runs
+from flexmodal.daq.store import expand_runs, runs_named_once
 from flexmodal.modal.compute import compute_frf
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult
@@ -584,6 +584,7 @@ def frf_batch(paths: Sequence[str | Path], options: dict, *, workers: int | None
             jobs += expand_runs([entry])
         except FlexmodalError as exc:      # a file missing, unreadable or holding no runs
             failed.append((-1, str(entry), exc))
+    runs_named_once(jobs)
     if out is not None and len({r for _, r in jobs}) != len(jobs):
         raise ModalError(f"--out {out}: two input runs share a run id, they cannot go into one file")
     if out is not None:

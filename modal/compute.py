@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Sequence
 
 import numpy as np
@@ -115,6 +116,10 @@ def frf_of_record(samples, sample_rate_hz: float, names: Sequence[str], kinds: S
     """
     if not np.isfinite(sample_rate_hz) or sample_rate_hz <= 0:
         raise ModalError(f"{where}: sample rate {sample_rate_hz} Hz is not positive")
+    if nfft is not None and (isinstance(nfft, bool) or not isinstance(nfft, numbers.Integral)):
+        raise TypeError(f"nfft must be a whole number of samples, got {nfft!r}")   # 1024.5 was cut to 1024
+    if isinstance(overlap, bool) or not isinstance(overlap, numbers.Real):
+        raise TypeError(f"overlap must be a fraction, got {overlap!r}")
     if not hasattr(samples, "shape"):
         samples = np.asarray(samples)
     _check_shape(samples, names, where)

@@ -18,6 +18,25 @@ from flexmodal.modal.registry import ESTIMATORS
 from flexmodal.modal.spectra import Spectra
 
 QUANTITIES = {"receptance": 0, "mobility": 1, "accelerance": 2}
+COHERENCE_SLACK = 1e-6  # rounding above 1 that a computed coherence may carry
+
+
+def check_coherence(coherence: np.ndarray, where: str) -> None:
+    """Raise ModalError when a coherence holds a value outside [0, 1] or an infinity (NaN, a line
+    with no power, is allowed): FRFs of another tool whose coherence is 2 or -1 are not what the
+    file or arrays claim, and the band choice trusts them.
+
+    Examples
+    --------
+    >>> check_coherence(np.array([[0.0, 0.5, 1.0, np.nan]]), "x")
+    >>> check_coherence(np.array([[0.5, 2.0]]), "run.h5: run 'r1': frf group")
+    Traceback (most recent call last):
+    ...
+    flexmodal.modal.errors.ModalError: run.h5: run 'r1': frf group: 'coherence' holds 2, outside [0, 1]
+    """
+    bad = np.isinf(coherence) | (coherence < 0) | (coherence > 1 + COHERENCE_SLACK)
+    if bad.any():
+        raise ModalError(f"{where}: 'coherence' holds {coherence[bad].flat[0]:g}, outside [0, 1]")
 
 
 @dataclass(frozen=True)

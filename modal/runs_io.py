@@ -20,7 +20,7 @@ import numpy as np
 from flexmodal.checked_io.output import signals_deferred
 from flexmodal.checked_io.text import loads_json, one_line
 from flexmodal.modal.errors import ModalError
-from flexmodal.modal.frf import FrfResult
+from flexmodal.modal.frf import FrfResult, check_coherence
 
 FRF_GROUP = "frf"
 PARTIAL_PREFIX = ".frf-partial-"   # the group an FRF set is written into before it is renamed ``frf``
@@ -138,8 +138,8 @@ def _checked_arrays(data: dict[str, h5py.Dataset], where: str) -> tuple[np.ndarr
     if n < 1 or kinds["freq_hz"] not in "fiu":
         raise ModalError(f"{where}: 'freq_hz' must be a 1-D numeric dataset (shape {shapes['freq_hz']}, "
                          f"type {data['freq_hz'].dtype})")
-    if len(shapes["H"]) != 3 or shapes["H"][2] != n or kinds["H"] not in "cfiu" or 0 in shapes["H"]:
-        raise ModalError(f"{where}: 'H' must be [outputs, inputs, {n} lines] of numbers (shape "
+    if len(shapes["H"]) != 3 or shapes["H"][2] != n or kinds["H"] != "c" or 0 in shapes["H"]:
+        raise ModalError(f"{where}: 'H' must be [outputs, inputs, {n} lines] of complex numbers (shape "
                          f"{shapes['H']}, type {data['H'].dtype})")
     if shapes["coherence"] != (shapes["H"][0], n) or kinds["coherence"] not in "fiu":
         raise ModalError(f"{where}: 'coherence' must be [{shapes['H'][0]} outputs, {n} lines] of numbers "
@@ -151,6 +151,7 @@ def _checked_arrays(data: dict[str, h5py.Dataset], where: str) -> tuple[np.ndarr
         raise ModalError(f"{where}: cannot read ({one_line(exc)})") from None
     if not np.isfinite(freq_hz).all() or (n > 1 and not (np.diff(freq_hz) > 0).all()) or freq_hz[0] < 0:
         raise ModalError(f"{where}: 'freq_hz' must be finite, >= 0 and increasing")
+    check_coherence(coherence, where)
     return freq_hz, H, coherence
 
 

@@ -38,6 +38,7 @@ from flexmodal.modal.windows import window
 _BLOCK_BYTES = 4 << 20      # windowed segments per block (with its spectra, stays in the L3 cache)
 _READ_BYTES = 16 << 20      # samples read per block from a dataset on disk (rounded to whole chunks)
 DEFAULT_NFFT_MAX = 8192
+MIN_STEP_FRACTION = 1 / 64  # Welch segments closer than nfft/64 (overlap > 98.4 %) add no new data, only work
 
 
 def default_nfft(n_samples: int) -> int:
@@ -366,6 +367,10 @@ def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
     if not 0.0 <= overlap < 1.0:
         raise ModalError(f"overlap {overlap}: must be in [0, 1)")
     step = nfft - int(round(overlap * nfft))
+    if step < max(1.0, nfft * MIN_STEP_FRACTION):
+        raise ModalError(f"overlap {overlap:g} leaves segments of nfft {nfft} only {step} samples apart: at "
+                         f"most {1 - MIN_STEP_FRACTION:g} (a step of nfft/{round(1 / MIN_STEP_FRACTION)} or "
+                         "more; closer segments add no new data, only work)")
     n_in = len(inputs)
     chans = [int(c) for c in inputs] + [int(c) for c in outputs]
     lo, hi = min(chans), max(chans) + 1

@@ -92,6 +92,7 @@ def read_uff(path: str | Path) -> UffFrfs | UffRecord:
     if not sets:
         raise ModalError(f"{p}: no dataset found (not a UFF file, or one pyuff cannot read)")
     types = sorted({int(s.get("type", -1)) for s in sets})
+    _check_units(p, [s for s in sets if s.get("type") == 164])
     funcs = drop_line_padding([s for s in sets if s.get("type") == 58])
     if not funcs:
         raise ModalError(f"{p}: no dataset 58 (found dataset types {types}; only 58 is read)")
@@ -102,6 +103,8 @@ def read_uff(path: str | Path) -> UffFrfs | UffRecord:
             return _frfs(p, [s for s in funcs if int(s.get("func_type", 0)) == 4])
         if 1 in kinds:
             return _record(p, [s for s in funcs if int(s.get("func_type", 0)) == 1])
+    except ModalError:
+        raise
     except (KeyError, TypeError, ValueError) as exc:   # a field missing or of the wrong form
         raise ModalError(f"{p}: dataset 58 record not understood ({type(exc).__name__}: {exc})") from None
     raise ModalError(f"{p}: dataset 58 function types {kinds} are not supported: none is an FRF (4) or a "
@@ -148,10 +151,41 @@ def _frfs(p: Path, funcs: list[dict]) -> UffFrfs:
         j, i = np.argwhere(np.isnan(H[..., 0]))[0]
         raise ModalError(f"{p}: the FRF matrix is incomplete: no FRF for response {outs[j]} and reference "
                          f"{ins[i]}")
-    quantity = _QUANTITY.get(int(funcs[0].get("ordinate_spec_data_type", 12)), "accelerance")
+    quantity = _quantity(p, funcs, names)
     found = {float(m.group(1)) for s in funcs for k in ("id2", "id3", "id4", "id5")
              if (m := _DECAY.search(str(s.get(k) or "")))}
     return UffFrfs(x, H, tuple(outs), tuple(ins), quantity, found.pop() if len(found) == 1 else 0.0)
+
+
+def _check_units(p: Path, units: list[dict]) -> None:
+    """Refuse a units dataset (164) whose length or force factor is not 1: the data are then in other
+    units than SI (mm, lbf), which were read as metres and newtons without a word (a factor of 0 or
+    NaN is no unit at all)."""
+    for u in units:
+        factors = {k: u.get(k) for k in ("length", "force")}
+        bad = {k: v for k, v in factors.items() if not isinstance(v, int | float) or not v == 1.0}
+        if bad:
+            k, v = next(iter(bad.items()))
+            raise ModalError(f"{p}: dataset 164 gives units {str(u.get('units_description', '')).strip()!r} "
+                             f"with {k} factor {v!r}: flexmodal reads SI data only (metre and newton, factor "
+                             "1); convert the file to SI")
+
+
+def _quantity(p: Path, funcs: list[dict], names: list[str]) -> str:
+    """What the FRFs are, from their ordinate (numerator) data type: 8 receptance, 11 mobility,
+    12 accelerance; 0 (unknown) and 1 (general), which some writers use for any FRF, are read as
+    accelerance.  Any other code (a stress, a force, no code of the table at all) or FRFs of two
+    different quantities are refused: they were read as accelerance without a word."""
+    codes = []
+    for name, s in zip(names, funcs, strict=True):
+        code = s.get("ordinate_spec_data_type", 12)
+        if code not in (0, 1, *_QUANTITY):
+            raise ModalError(f"{p}: FRF {name}: ordinate data type {code!r} is not a response of an FRF "
+                             "(8 displacement, 11 velocity, 12 acceleration; 0 unknown)")
+        codes.append(_QUANTITY.get(int(code), "accelerance"))
+    if len(set(codes)) > 1:
+        raise ModalError(f"{p}: the FRFs mix {' and '.join(sorted(set(codes)))}; give them one quantity")
+    return codes[0]
 
 
 def _record_key(records: list[dict]) -> list:

@@ -16,6 +16,7 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
+from flexmodal.checked_io.text import name_fault
 from flexmodal.models.errors import ModelError
 
 TABLE_ARRAYS = ("link", "joint", "member", "mass", "spring", "sensor")
@@ -121,6 +122,27 @@ def _pose_variable(t: Mapping[str, Any], path: str, source: str) -> None:
                     f"must be a finite number of degrees (got {t['angle_deg']!r})")
 
 
+def _names(doc: Mapping[str, Any], tables: Mapping[str, list], source: str) -> None:
+    """Refuse a name (of the rig, a material, link, joint, member, mass, spring or sensor, or a joint's
+    pose variable) that is blank or holds a control character (checked_io.text.name_fault)."""
+    named = [("name", doc.get("name"))] + [(f"material.{k!r}", k) for k in doc.get("material", {})]
+    named += [(f"{key}[{i}].{field}", t.get(field)) for key, ts in tables.items() for i, t in enumerate(ts)
+              for field in ("name", "angle")]
+    named += [("base.angle", doc.get("base", {}).get("angle"))]
+    for path, value in named:
+        fault = name_fault(value) if isinstance(value, str) else None
+        if fault:
+            raise _fail(source, path, f"{value!r} {fault}")
+
+
+def _poisson(materials: Mapping[str, Any], source: str) -> None:
+    """``nu`` (optional) is Poisson's ratio of an isotropic material: a finite number in (-1, 0.5]."""
+    for name, m in materials.items():
+        if "nu" in m and not (_number(m["nu"]) and -1.0 < m["nu"] <= 0.5):
+            raise _fail(source, f"material.{name}.nu", f"must be Poisson's ratio, a number in (-1, 0.5] "
+                                                       f"(got {m['nu']!r:.60})")
+
+
 def check_document(doc: Any, source: str) -> None:
     """Raise ModelError naming the first field whose container or type is wrong (see module doc)."""
     if not isinstance(doc, Mapping):
@@ -163,3 +185,5 @@ def check_document(doc: Any, source: str) -> None:
     for i, t in enumerate(tables["joint"]):
         _pose_variable(t, f"joint[{i}]", source)
     _magnitudes({k: v for k, v in doc.items() if k != "material"}, "", source)
+    _poisson(materials, source)
+    _names(doc, tables, source)

@@ -57,6 +57,9 @@ def print_pdf(html_path: str | Path, pdf_path: str | Path, chromium: str | None 
         raise ReportError(f"report --pdf: no Chromium found (looked for {', '.join(CHROMIUM_NAMES)} on PATH "
                           f"and /usr/bin/chromium); the HTML report is {html_path}")
     html = read_text(Path(html_path), ReportError, "HTML report")
+    if not html.lstrip("\ufeff \t\r\n")[:15].lower().startswith(("<!doctype html", "<html")):
+        raise ReportError(f"{html_path}: not an HTML page (it does not start with <!DOCTYPE html> or "
+                          "<html>); nothing printed")
     target = Path(pdf_path)
     with tempfile.TemporaryDirectory(prefix="flexmodal-pdf-") as tmp, atomic_path(target) as part:
         page = Path(tmp) / "report.html"

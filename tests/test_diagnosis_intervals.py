@@ -107,8 +107,8 @@ def test_one_moved_sensor_flags_the_verdict(rig):
 
 def test_an_ambiguous_verdict_advises_untested_poses_ranked_by_information(rig):
     """One mode at three poses leaves a tip mass and a link1 stiffness + sensor mass pair equal within
-    noise: the advice names untested poses of the measured range, best first, with positive
-    information."""
+    noise: the advice names untested poses of the measured range widened by half of it (angles within
+    +-180 deg), best first by the chance to decide, with positive information."""
     real = apply_effect(rig, "tip_mass", "tip", {"mass_kg": 0.2, "inertia_kgm2": 1e-4})
     res = diagnose(rig, _table(real, (0.0, 60.0, 150.0), np.random.default_rng(0), n=1, noise=0.003))
     v = res.verdict
@@ -117,5 +117,7 @@ def test_an_ambiguous_verdict_advises_untested_poses_ranked_by_information(rig):
     assert all(x > 0 for x in info)
     for x in v.next_measurements:
         var, value = x.pose.split("=")
-        assert var == "theta_deg" and 0 < float(value) < 150 and float(value) != 60
-    assert "most informative next measurement" in v.summary
+        assert var == "theta_deg" and -75 <= float(value) <= 180 and float(value) not in (0, 60, 150)
+    chance = [round(x.decide_chance, 3) for x in v.next_measurements]
+    assert chance == sorted(chance, reverse=True) and all(0 <= c <= 1 for c in chance)
+    assert "next measurement most likely to decide" in v.summary
