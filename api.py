@@ -511,7 +511,7 @@ class Identification:
         >>> sorted(p.name for p in folder.iterdir() if p.suffix != ".h5")
         ['modes.csv', 'modes.diagram.npz', 'modes.synthesis.csv', 'modes.uff']
         """
-        from flexmodal.checked_io.output import output_file, sidecar_file, signals_deferred
+        from flexmodal.checked_io.output import atomic_group, output_file, sidecar_file, signals_deferred
         from flexmodal.modal.diagrams import StoredDiagram, check_replaceable, diagram_path, write_diagrams
         from flexmodal.modal.errors import ModalError
         from flexmodal.modal.identify import SYNTHESIS_HEADER, synthesis_path, write_synthesis_csv
@@ -528,16 +528,16 @@ class Identification:
         if uff is not None:
             output_file(uff, ModalError, "UFF file (--uff)", inputs=(out,))
         modes_by_config = {c: (m, self.outputs[c]) for c, m in self.modes.items()}
-        with signals_deferred():   # the modal table, its synthesis and diagrams: all written, or none
+        with signals_deferred(), atomic_group():   # the table, its synthesis, diagrams, UFF: all, or none
             self.table.to_csv(out)
             write_synthesis_csv(out, modes_by_config)
             if diagrams:
                 write_diagrams(diagram_path(out), diagrams)
-        if uff is not None:
-            from flexmodal.modal.uff import write_modes
+            if uff is not None:
+                from flexmodal.modal.uff import write_modes
 
-            modes, outputs = next(iter(modes_by_config.values()))
-            write_modes(uff, modes.freq_hz, modes.damping_ratio, modes.shapes, outputs)
+                modes, outputs = next(iter(modes_by_config.values()))
+                write_modes(uff, modes.freq_hz, modes.damping_ratio, modes.shapes, outputs)
         return Path(out)
 
 
@@ -1370,15 +1370,16 @@ def write_diagnosis(result: Diagnosis, out_dir: PathLike,
     >>> pj.name, ph.name, fm.read_diagnosis(pj).verdict.effect
     ('diagnosis.json', 'diagnosis.html', 'joint_stiffness')
     """
-    from flexmodal.checked_io.output import output_dir, write_text
+    from flexmodal.checked_io.output import atomic_group, output_dir, write_text
     from flexmodal.compare.errors import CompareError
     from flexmodal.reports.html import write_report
 
     out = output_dir(out_dir, CompareError, "diagnosis folder (--out)", files=DIAGNOSIS_FILES, inputs=inputs)
     out.mkdir(parents=True, exist_ok=True)
-    pj = write_text(out / DIAGNOSIS_FILES[0], result.to_json())
-    ph = write_report(out / DIAGNOSIS_FILES[1], diagnosis=result, title="Sim-to-real gap diagnosis",
-                      inputs=list(inputs))
+    with atomic_group():   # diagnosis.json and .html: both, or neither
+        pj = write_text(out / DIAGNOSIS_FILES[0], result.to_json())
+        ph = write_report(out / DIAGNOSIS_FILES[1], diagnosis=result, title="Sim-to-real gap diagnosis",
+                          inputs=list(inputs))
     return pj, ph
 
 

@@ -70,6 +70,16 @@ def integer(lo: int | None = None, hi: int | None = None, *, name: str = "whole 
     return parse
 
 
+def names(text: str) -> list[str]:
+    """A comma-separated list of one or more names (channels, configurations), blanks around each
+    stripped; an empty list or an empty item (``""``, ``a,,b``) is refused: it was taken as "all"
+    or as a name nothing has."""
+    items = [t.strip() for t in text.split(",")]
+    if not text.strip() or not all(items):
+        raise argparse.ArgumentTypeError(f"expected NAME[,NAME...] with no empty name, got {text!r}")
+    return items
+
+
 # The option kinds the commands share.
 seconds = real(0.0, 1e9, lo_open=True, name="duration in seconds")   # 1e9 s: 31.7 years
 hertz = real(0.0, name="frequency in Hz")

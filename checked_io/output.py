@@ -17,6 +17,7 @@ HDF5 file (FRFs written back into a run file) cannot be swapped whole; they run 
 
 from __future__ import annotations
 
+import contextvars
 import errno
 import os
 import secrets
@@ -202,7 +203,11 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
         raise write_failed(path, exc) from None
     try:
         yield tmp
-        os.replace(tmp, target)
+        group = _GROUP.get()
+        if group is None:
+            os.replace(tmp, target)
+        else:   # moved with the rest of its set when the group ends (atomic_group)
+            group.append((tmp, target))
     except OSError as exc:
         tmp.unlink(missing_ok=True)
         if exc.filename == str(path):
@@ -211,6 +216,30 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+
+
+_GROUP: contextvars.ContextVar[list[tuple[Path, Path]] | None] = contextvars.ContextVar("atomic_group",
+                                                                                        default=None)
+
+
+@contextmanager
+def atomic_group() -> Iterator[None]:
+    """Files written inside through :func:`atomic_path` are moved onto their targets together when
+    the block ends, and all removed when it raises: a set of outputs (a modal table and the synthesis,
+    diagrams and UFF beside it; diagnosis.json and .html) is complete or absent, never a table
+    without its sidecars because the disk filled up after it was written."""
+    pending: list[tuple[Path, Path]] = []
+    token = _GROUP.set(pending)
+    try:
+        yield
+    except BaseException:
+        for tmp, _ in pending:
+            tmp.unlink(missing_ok=True)
+        raise
+    finally:
+        _GROUP.reset(token)
+    for tmp, target in pending:
+        os.replace(tmp, target)
 
 
 def write_text(path: str | Path, text: str) -> Path:

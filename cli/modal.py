@@ -68,7 +68,7 @@ def register(sub: Subcommands) -> None:
                    help="decay rate, 1/s, of an exponential window the FRFs were measured with "
                         "(w(t) = exp(-RATE t)); its added damping is removed (default: the rate the "
                         "FRFs record, 0 for UFF files)")
-    q.add_argument("--references", default=None, metavar="NAME,...",
+    q.add_argument("--references", type=opt.names, default=None, metavar="NAME,...",
                    help="ssi/fdd: reference output channels (default all outputs)")
     q.add_argument("--run", default=None, metavar="RUN_ID", help="only this run of an HDF5 file")
     q.add_argument("--uff", default=None, metavar="MODES.uff", help="also write the modes as UFF dataset 55")
@@ -195,7 +195,7 @@ def _identify(args: argparse.Namespace) -> int:
             raise ModalError(f"--poles {args.poles!r}: give positive frequencies in Hz")
     limits = Thresholds(**{k: v for k, v in (("need_min", args.need_min), ("mpc_min", args.mpc_min))
                            if v is not None})
-    refs = args.references.split(",") if args.references else None
+    refs = args.references
     quiet = getattr(args, "quiet", False)
     try:
         result, failed = identify(args.input, method=args.method, fmin=args.fmin, fmax=args.fmax,

@@ -1,18 +1,19 @@
 """Sim-to-real gap diagnosis (docs/formats.md): where the gap lies, which effect explains it, judged held out.
 
 1. Baseline: the nominal rig's FE modes (models/frame.py) against the measured ones, per mode and
-   configuration.  When its RMS is within ``NONE_FACTOR`` times the measurement scatter the verdict is
-   ``none`` -- the scatter never taken above what the best single candidate leaves held out
-   (``_none_scatter``).
+   configuration.  When its RMS is within ``NONE_FACTOR`` times the measurement scatter, on top of the
+   error the frame's beam theory is known to make (``_none_level``), the verdict is ``none`` -- the
+   scatter never taken above what the best single candidate leaves held out (``_none_scatter``).
 2. ``where``: the modes and configurations that carry the gap, and the region of the arm whose handles'
    frequency sensitivities best explain the error pattern (R^2, compare/gap.py; among regions within
    ``REGION_TIE`` of the best, the verdict's), plus MAC/COMAC when shapes were measured.
 3. Ranking: every effect at every location (compare/candidates.py) fitted to all data; the
-   ``PAIR_POOL`` best singles and their pairs, the best single paired with its ``LEAD_PARTNERS`` score-test
-   partners (``_partners``), and, only when no pair explains the gap, each of the ``TRIPLE_PAIRS`` best
-   pairs extended by one more single of the pool.  Candidates are cross-validated, best in-sample score
-   first, while they can still win: every fold is refitted to convergence from starts chosen on its own
-   training data (compare/fit.py), so held-out errors are honest.  Score (lower is better):
+   ``PAIR_POOL`` best singles and their pairs, each of the ``LEADS`` best of them paired with every other
+   single (``_lead_pairs``), and, only when no pair explains the gap, each of the ``TRIPLE_PAIRS`` best
+   pairs extended by its ``PARTNERS`` score-test partners (``_partners``).  Candidates are
+   cross-validated, best in-sample score first, while they can still win: every fold is refitted to
+   convergence from starts chosen on its own training data (compare/fit.py), so held-out errors are
+   honest.  Score (lower is better):
    ``sqrt(h^2 + scatter^2) * (1 + PENALTY * n_params)``: a complexity penalty, with the scatter as a
    floor so that candidates within the noise are ordered by simplicity; ``h`` is the held-out frequency
    RMS, or with measured shapes the frequency-equivalent error of the held-out frequencies and shape
@@ -101,10 +102,13 @@ NONE_FACTOR = 2.0
 PENALTY = 0.15
 PAIR_POOL = 8
 PARTNERS = 3
+"""Score-test partners (``_partners``) of each of the best pairs when no pair explains (triples)."""
+LEADS = 3
+LEAD_POSES = 4
 LEAD_PARTNERS = 5
-"""Score-test partners (``_partners``) of each of the best pairs (``PARTNERS``) and of the best single
-(``LEAD_PARTNERS``): on draws 316-317 the second part of two hidden pairs was the fifth partner of the
-best single."""
+"""The best singles (held-out score) that are each paired with every single outside the pair pool,
+given at least ``LEAD_POSES`` distinct poses; with fewer, the best single with its ``LEAD_PARTNERS``
+score-test partners (``_lead_pairs``)."""
 TRIPLE_PAIRS = 3
 MIN_CROSS_VALIDATED = 6
 REGION_TIE = 0.8
@@ -191,6 +195,7 @@ class _Context:
         self.pose_share = len(set(keys)) / max(len(keys), 1)   # repeats add no model-form information
         self.trial: tuple[tuple[str, ...], _Context] | None = None   # next_measurement's trial context
         self.model_form = 0.0            # model-form level of nested comparisons (``_nested_margin``)
+        self.beam_form = _beam_theory_form(rig, meas.freq_hz)   # the frame's known beam-theory error
 
     def family(self, handles: Sequence[str]):
         idx = [self.index[h] for h in handles]
@@ -321,6 +326,23 @@ def _none_scatter(sigma: float, ranked: Sequence[dict]) -> float:
     return min([sigma] + [e["heldout_rms_rel_error"] for e in ranked])
 
 
+def _none_level(none_sigma: float, theory: float) -> float:
+    """The largest baseline RMS gap that needs no effect: ``NONE_FACTOR`` times the scatter
+    ``none_sigma`` (``_none_scatter``) on top of the error ``theory`` the model's beam theory is known
+    to make (``_beam_theory_form``), ``hypot(NONE_FACTOR * none_sigma, theory)``.  The noise gets the
+    two-sigma allowance; the beam theory's error is a deterministic level, counted once.  Without it
+    an arm whose Euler-Bernoulli error (0.54 % RMS, blind draw 316 #14, axial-sensor rig) is twice the
+    scatter (0.25 %) was given a link mass for a gap of 0.68 % it does not have; with it, no weak
+    effect of the used blind draws (gaps of 1-3 % beyond the model form) is declared ``none``.
+
+    Examples
+    --------
+    >>> round(_none_level(0.003, 0.0), 6), round(_none_level(0.003, 0.008), 6)
+    (0.006, 0.01)
+    """
+    return math.hypot(NONE_FACTOR * none_sigma, theory)
+
+
 def _scoring_scatter(noise, ranked: Sequence[dict]) -> tuple[float, float]:
     """The scatter that ranks candidates, and its model-form floor: ``sqrt(sigma^2 + floor^2)``.
 
@@ -406,6 +428,30 @@ def _partners(ctx: _Context, lead: dict, others: Sequence[dict], count: int = PA
         fit = cols[:, norm > 0] / norm[norm > 0] @ coef
         stats.append(float(fit @ fit) / total)
     return [others[i] for i in np.argsort(stats)[::-1][:count]]
+
+
+def _lead_pairs(ctx: _Context, pool: Sequence[dict], singles: Sequence[dict]) -> list[tuple[dict, dict]]:
+    """The pairs beyond the pool's: each of the ``LEADS`` best-scored singles of ``pool`` with every
+    single of ``singles`` outside the pool that combines with it; with fewer than ``LEAD_POSES``
+    distinct poses, the best single with its ``LEAD_PARTNERS`` score-test partners (``_partners``).
+
+    A hidden pair's second part often fits poorly alone (its in-sample score keeps it out of the pool)
+    and is not what the score test (``_partners``) picks either: that test sees the lead's frequency
+    residual only.  On the used blind draws (106-110, 211-215, 316-320, 421-425) 19 hidden pairs on
+    the axial-sensor rig were missed with the best single's five score-test partners; in the four
+    re-diagnosed with the pool kept the second part ranked 9th-18th of 18 singles in-sample and
+    5th-14th among the partners, and in three of them the truth's first part was the second best
+    single.  With every single paired with each of the best three, 10 of the 19 are right.  That costs
+    ~30 screening fits (one fit on all configurations, no cross-validation) where the five partners
+    cost 5: +12 % CPU on the default suite's blind cases.  With three poses every fold fits on two,
+    and the ~30 more pairs add look-alikes the held-out residuals cannot tell apart: on the sparse
+    advice arms (3 poses x 2 modes) verdicts turned ambiguous and the advised pose resolved none of
+    them, so such data keep the five partners."""
+    leads = sorted(pool, key=lambda e: e["score"])[:LEADS]
+    rest = [e for e in singles if e not in pool and len(e["_cand"].effects) == 1]
+    if len({tuple(sorted(p.items())) for p in ctx.meas.poses}) < LEAD_POSES:
+        return [(leads[0], b) for b in _partners(ctx, leads[0], rest, LEAD_PARTNERS)] if leads else []
+    return [(a, b) for a in leads for b in rest if combine(a["_cand"], b["_cand"]) is not None]
 
 
 def _triples(ctx: _Context, pairs: Sequence[dict], singles: Sequence[dict], scatter: float) -> list[dict]:
@@ -516,7 +562,7 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
 
     ranking: list[dict] = []
     n_candidates = None
-    small = baseline["rms_rel_error"] <= NONE_FACTOR * sigma
+    small = baseline["rms_rel_error"] <= _none_level(sigma, ctx.beam_form)
     singles = single_candidates(rig, names, {v: [p[v] for p in meas.poses] for v in rig.pose_variables})
     screened = [_screen(ctx, c, scatter) for c in singles] if singles else []
     none_sigma = sigma
@@ -524,7 +570,7 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
         for e in sorted(screened, key=lambda e: e["_lower"])[:MAX_ALTERNATIVES]:
             _cross_validate(ctx, e, scatter)
         none_sigma = _none_scatter(sigma, [e for e in screened if "score" in e])
-        small = baseline["rms_rel_error"] <= NONE_FACTOR * none_sigma
+        small = baseline["rms_rel_error"] <= _none_level(none_sigma, ctx.beam_form)
     if small and screened:         # the verdict is ``none``
         ranking = sorted((e for e in screened if "score" in e), key=lambda e: e["score"])
         n_candidates = CandidateCount(fitted=len(screened), cross_validated=len(ranking))
@@ -540,8 +586,7 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
                 cand = combine(a["_cand"], b["_cand"])
                 if cand is not None:
                     pairs.append(_screen(ctx, cand, scatter, (a, b)))
-        lead = min(pool, key=lambda e: e["score"], default=None)
-        for b in _partners(ctx, lead, [e for e in screened if e not in pool], LEAD_PARTNERS) if lead else ():
+        for lead, b in _lead_pairs(ctx, pool, screened):
             pairs.append(_screen(ctx, combine(lead["_cand"], b["_cand"]), scatter, (lead, b)))
         screened += pairs
         _cross_validate_promising(ctx, screened, scatter)
@@ -552,7 +597,7 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
         _cross_validate_promising(ctx, screened, scatter)     # once more at the final shape floor
         scatter, floor = _scoring_scatter(noise, [e for e in screened if "score" in e])
         ctx.model_form = _model_form(noise, [e for e in screened if "score" in e],
-                                      _beam_theory_form(rig, meas.freq_hz))
+                                      ctx.beam_form)
         _cross_validate_promising(ctx, screened, scatter)     # rescored and extended at that scatter
         ranking = [e for e in screened if "score" in e]
         _refinement_guard(ranking)
@@ -859,7 +904,8 @@ def _beam_theory_form(rig: Rig, freq_hz: np.ndarray, nu: float = POISSON) -> flo
         lengths.append(link.length_m)
     if not lengths:
         return 0.0
-    return rms(2 * math.pi * np.asarray(freq_hz, float) * float(np.average(per_rad_s, weights=lengths)))
+    freq = np.asarray(freq_hz, float)
+    return rms(2 * math.pi * freq[np.isfinite(freq)] * float(np.average(per_rad_s, weights=lengths)))
 
 
 def _chi2_terms(ctx: _Context, entry: dict, scatter: float) -> np.ndarray:
@@ -1011,10 +1057,11 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
             "heldout_rms_rel_error_after": before,
             "explained": bool(before <= EXPLAINED_FACTOR * sigma), "alternatives": [],
             "gap_removed": 0.0, "remaining_over_scatter": before / sigma}
-    if baseline["rms_rel_error"] <= NONE_FACTOR * none_sigma:
+    if baseline["rms_rel_error"] <= _none_level(none_sigma, ctx.beam_form):
         return _flag_none(ctx, _none_with_alternatives(ctx, {**none, "grade": "explained", "summary": (
             f"baseline RMS gap {baseline['rms_rel_error']:.2%} is within {NONE_FACTOR:g}x the measurement "
-            f"scatter ({none_sigma:.2%}): no unmodelled effect is needed")}, ranking, nominal, scatter))
+            f"scatter ({none_sigma:.2%}) on top of the beam theory's known error ({ctx.beam_form:.2%}): "
+            "no unmodelled effect is needed")}, ranking, nominal, scatter))
     if not ranking or best is None:
         return _flag_none(ctx, {**none, "grade": "not explained", "flags": list(notes), "summary": (
             f"baseline RMS gap {baseline['rms_rel_error']:.2%} but no candidate effect applies to this rig "

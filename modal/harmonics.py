@@ -107,12 +107,24 @@ def find_orders(windows: Sequence[tuple[np.ndarray, np.ndarray]], sample_rate_hz
     orders = np.exp(np.arange(np.log(lo), np.log(hi), tol / 4))
     third, two_thirds = np.percentile(v[keep], [100 / 3, 200 / 3])
     slow, fast = keep[v[keep] <= third], keep[v[keep] >= two_thirds]
-    spec = np.minimum(order_spectrum([windows[k] for k in slow], sample_rate_hz, orders),
-                   order_spectrum([windows[k] for k in fast], sample_rate_hz, orders))
+    s_slow = order_spectrum([windows[k] for k in slow], sample_rate_hz, orders)
+    s_fast = order_spectrum([windows[k] for k in fast], sample_rate_hz, orders)
+    spec = np.minimum(s_slow, s_fast)
     good = np.isfinite(spec)
     level = np.log10(np.where(good, spec, 1.0))
     peaks, _ = scipy.signal.find_peaks(level, prominence=np.log10(ORDER_PROMINENCE))
-    return tuple(float(orders[p]) for p in peaks if good[p])
+    return tuple(float(orders[p]) for p in peaks
+                 if good[p] and _peaks_near(s_slow, p) and _peaks_near(s_fast, p))
+
+
+def _peaks_near(spec: np.ndarray, p: int, lines: int = 4) -> bool:
+    """Whether ``spec`` has a local maximum within ``lines`` grid lines (``tol`` on the grid of
+    :func:`find_orders`) of line ``p``: a harmonic stands at its order in each speed third's own
+    spectrum.  The minimum of the two can peak where neither does (one third's hump on the other's
+    rising flank: the demo arm's 30 s sweep gave order 327.4 that way, with no harmonic in it)."""
+    lo, hi = max(p - lines, 0), min(p + lines + 1, spec.size)
+    j = lo + int(np.argmax(np.where(np.isfinite(spec[lo:hi]), spec[lo:hi], -np.inf)))
+    return lo < j < hi - 1 or j in (0, spec.size - 1)
 
 
 def sinusoid_kurtosis(y: np.ndarray, sample_rate_hz: float, freq_hz: np.ndarray, damping_ratio: np.ndarray,

@@ -151,17 +151,29 @@ class Rendered:
                 if e.get("method") == "Network.requestWillBeSent"]
 
 
-def open_page(browser: Browser, page: Path) -> str:
-    """Open ``page`` in a new 1280 x 900 tab of ``browser`` with the Runtime, Log, Page and Network
+def open_page(browser: Browser, page: Path, width: int = 1280) -> str:
+    """Open ``page`` in a new ``width`` x 900 tab of ``browser`` with the Runtime, Log, Page and Network
     events on; returns the tab's session id once the page has loaded."""
     target = browser.send("Target.createTarget", {"url": "about:blank"})["targetId"]
     session = browser.send("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
     for domain in ("Runtime", "Log", "Page", "Network"):
         browser.send(f"{domain}.enable", {}, session)
     browser.send("Emulation.setDeviceMetricsOverride",
-                 {"width": 1280, "height": 900, "deviceScaleFactor": 1, "mobile": False}, session)
+                 {"width": width, "height": 900, "deviceScaleFactor": 1, "mobile": False}, session)
     browser.navigate(session, page.resolve().as_uri())
     return session
+
+
+def page_width(exe: str, page: Path, profile: Path, width: int) -> int:
+    """The width [CSS px] ``page`` lays out to in a ``width`` px wide window (its scrollWidth): more than
+    ``width`` when something makes the whole page scroll sideways."""
+    browser = Browser(exe, profile)
+    try:
+        session = open_page(browser, page, width)
+        return int(browser.send("Runtime.evaluate", {"returnByValue": True, "expression":
+                                "document.documentElement.scrollWidth"}, session)["result"]["value"])
+    finally:
+        browser.close()
 
 
 def render(exe: str, page: Path, profile: Path) -> Rendered:

@@ -179,6 +179,15 @@ def soft_link_loop(path: Path) -> None:
         f["runs/r2"] = h5py.SoftLink("/runs/r1")
 
 
+def soft_link_self_loop(path: Path) -> None:
+    """One run whose link points at itself: one bad run, one line (a loop of two names is two bad runs,
+    each named on its line by frf, which goes on past a bad run: tests/test_bad_runs_batch)."""
+    write_run(path)
+    with h5py.File(path, "r+") as f:
+        del f["runs/r1"]
+        f["runs/r1"] = h5py.SoftLink("/runs/r1")
+
+
 def external_link(name: str) -> Callable[[h5py.Group], None]:
     def change(g: h5py.Group) -> None:
         del g[name]
@@ -909,7 +918,7 @@ RUN_FILES = {
     "run-pose-5001-digits": mutate_run(set_attr("pose", '{"theta_deg": ' + "9" * 5001 + "}")),
     "frf-provenance-deep": with_frf(lambda g: g["frf"].attrs.__setitem__("provenance",
                                                                           "[" * 100_000 + "]" * 100_000)),
-    "run-link-loop-identify": soft_link_loop, "run-link-loop-frf": soft_link_loop,
+    "run-link-loop-identify": soft_link_loop, "run-link-loop-frf": soft_link_self_loop,
     "run-link-loop-report": soft_link_loop,
     "run-external-link": lambda p: (write_run(p), _edit(p, lambda f: external_link("r1")(f["runs"]))),
     "samples-external-link": mutate_run(external_link("samples")),

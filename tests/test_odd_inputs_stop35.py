@@ -94,7 +94,8 @@ def test_run_files_whose_names_break_lines(tmp_path: Path, capsys, change, words
      ("s.toml", "pose", "control character")),
     ("s.toml", SESSION, ["acquire", "--config", "{d}/s.toml", "--out", "{d}/r.h5", "--run-id", "a\nb"],
      ("--run-id", "control character")),
-])
+], ids=["config-newline", "shape-tab", "poses-escape", "rig-name-newline", "session-channel-blank",
+        "session-pose-tab", "run-id-newline"])
 def test_text_files_and_options_whose_names_break_lines(tmp_path: Path, capsys, file, text, argv,
                                                          words) -> None:
     (tmp_path / "rig.toml").write_text(RIG)
@@ -309,3 +310,34 @@ def test_api_file_arguments_of_another_kind_are_named() -> None:
                         (lambda: fm.report_pdf(["r.html"]), "report_pdf: html")]:
         with pytest.raises(TypeError, match=f"{words} must be a file path"):
             call()
+
+
+@pytest.mark.parametrize("refs", ["", "a1,,a2", " , "])
+def test_an_empty_name_list_is_not_all_names(tmp_path: Path, capsys, refs: str) -> None:
+    code = main(["identify", str(_run(tmp_path / "run.h5")), "--out", str(tmp_path / "m.csv"),
+                 "--method", "ssi", "--references", refs])   # "" was taken as every output
+    _one_line(capsys, code, "--references", "no empty name")
+
+
+# -- a set of outputs is complete or absent (was: the modal table left without its sidecars) -----------
+def test_outputs_written_together_are_all_or_none(tmp_path: Path, monkeypatch) -> None:
+    import errno
+
+    import flexmodal.modal.uff as uff
+    import flexmodal.reports.html as report_html
+
+    def disk_full(path, *args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device (nothing was written)", str(path))
+
+    f = np.linspace(1.0, 100.0, 397)
+    s, w0 = 2j * np.pi * f, 2 * np.pi * 40.0
+    ident = fm.identify(fm.frf_from_arrays(f, s**2 / (s**2 + 0.08 * w0 * s + w0**2), outputs=["tip"]))
+    monkeypatch.setattr(uff, "write_modes", disk_full)
+    with pytest.raises(OSError, match="m.uff"):
+        ident.write(tmp_path / "m.csv", uff=tmp_path / "m.uff")
+    assert sorted(p.name for p in tmp_path.iterdir()) == []   # no table, synthesis or diagrams, no .part
+    result = fm.read_diagnosis(REPO / "tests" / "data" / "diagnosis" / "demo.json")
+    monkeypatch.setattr(report_html, "write_report", disk_full)
+    with pytest.raises(OSError, match="diagnosis.html"):
+        fm.write_diagnosis(result, tmp_path / "D")
+    assert list((tmp_path / "D").iterdir()) == []

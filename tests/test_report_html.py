@@ -17,7 +17,7 @@ import re
 
 import h5py
 import pytest
-from browser import assert_table_and_plot_visible, render
+from browser import assert_table_and_plot_visible, page_width, render
 from matplotlib import image as mpimg
 
 from flexmodal import api
@@ -198,6 +198,12 @@ def test_report_renders_in_headless_chromium_without_errors(report, tmp_path, ch
     page = render(chromium, report, tmp_path / "profile")
     assert_table_and_plot_visible(page)
     assert len(page.layout["tables"]) >= 5 and len(page.layout["images"]) == 17
+
+
+def test_no_table_makes_the_page_scroll_sideways_in_a_narrow_window(report, tmp_path, chromium):
+    """At 1000 px (narrower than the body's 1100 px) the data-quality table (13 columns) pushed the page
+    wider than the window; now a wide table scrolls in its own box."""
+    assert page_width(chromium, report, tmp_path / "profile", 1000) <= 1000
 
 
 def test_report_cli_pdf_prints_beside_the_html_and_a_bad_geometry_is_one_line(inputs, tmp_path, capsys):

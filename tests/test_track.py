@@ -131,6 +131,20 @@ def test_no_harmonic_no_order():
     assert res.orders["theta_deg"] == () and not res.harmonics and len(res.tracks) == 3
 
 
+def test_an_order_that_does_not_peak_in_every_speed_third_is_not_an_order():
+    """The demo arm's 30 s sweep with no harmonics (fixtures.examples.moving_run's record): the smaller
+    of the slowest and fastest thirds' order spectra peaked at 327.4 per revolution (the fastest
+    third's hump near 4.6 Hz, at an almost constant speed, on the slowest third's rising flank), which
+    find_orders took for an order ('orders per revolution 327.418' beside '0 harmonic poles'); a
+    harmonic peaks at its order in each third's own spectrum, and here the slowest third does not."""
+    rig = load_rig(DEMO_RIG)
+    rec = simulate_moving(rig, ELBOW_SWEEP, duration_s=30.0, sample_rate_hz=1024.0, seed=3, grid=13)
+    names, kinds = [c.name for c in rec.channels], [c.kind for c in rec.channels]
+    res = track_modes(rec.samples, rec.sample_rate_hz, names, kinds, {"theta_deg": "enc_elbow"},
+                      TrackOptions(fmax=FMAX_HZ, refine=0))
+    assert res.orders == {"theta_deg": ()} and not res.harmonics and len(res.tracks) == 3
+
+
 def test_windows_spreading_too_far_are_skipped_and_counted():
     rig = load_rig(DEMO_RIG)
     fast = type(ELBOW_SWEEP)({"theta_deg": 0.0}, {"theta_deg": 150.0}, 30.0)
