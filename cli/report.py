@@ -41,9 +41,10 @@ def register(sub: Subcommands) -> None:
 def _run(args: argparse.Namespace) -> int:
     """self-contained HTML validation report from runs, modes, predictions and a diagnosis
 
-    Write one HTML file (images embedded, no scripts, nothing fetched from a network): run metadata,
-    channels, data quality (events, rejected hits, coherence), FRF plots, measured vs predicted modes
-    (table and plots) and the gap diagnosis; with --pdf also REPORT.pdf, printed by headless Chromium.
+    Write one HTML file (images embedded, one inline script for the shape animation and printing,
+    nothing fetched from a network): run metadata, channels, data quality (events, rejected hits,
+    coherence), FRF plots, measured vs predicted modes (table and plots) and the gap diagnosis; with
+    --pdf also REPORT.pdf, printed by headless Chromium.
     """
     from flexmodal.api import report
 
