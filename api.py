@@ -226,8 +226,9 @@ def acquire(session: PathLike | Session, out: PathLike, *, duration_s: float | N
         from flexmodal.daq.run_schema import check_run_id
 
         check_run_id(run_id, "--run-id")
-    if duration_s is not None and duration_s <= 0:
-        raise DaqError(f"--duration {duration_s}: must be > 0 seconds")
+    if duration_s is not None and (isinstance(duration_s, bool) or not isinstance(duration_s, numbers.Real)
+                                   or not 0 < duration_s <= 1e9):  # NaN fails the comparison too
+        raise DaqError(f"--duration {duration_s!r}: must be a number of seconds > 0 and <= 1e9")
     if recover and Path(out).exists():
         from flexmodal.daq.h5file import recover as _recover
 
@@ -386,8 +387,17 @@ def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: 
     ----------
     runs : sequence of str, Path or (path, run id)
         A file means all its runs, ``FILE::RUN_ID`` or ``(file, id)`` one run.
-    estimator, nfft, window, overlap, averaging
-        As :func:`compute_frf`.
+    estimator : str
+        A registered FRF estimator (``H1``, ``H2``, ``Hv``), as :func:`compute_frf`.
+    nfft : int, optional
+        Segment length [samples] of random and sweep runs, as :func:`compute_frf`.
+    window : str, optional
+        Window of random runs, or ``force:W,exponential:E`` (fractions of the record) of impact runs,
+        as :func:`compute_frf`.
+    overlap : float
+        Segment overlap, a fraction in [0, 1).
+    averaging : {"linear", "exponential"}
+        Averaging of the impact hits.
     workers : int or None
         0 (the default) computes the runs here one after the other; None chooses as the ``frf``
         command does (here, with a helper process forked from this one once the measured cost of
@@ -459,8 +469,18 @@ def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: 
 
 @dataclass(frozen=True)
 class Identification:
-    """Identified modes: the modal ``table`` (docs/formats.md, modal table CSV) and, per configuration,
-    the ``modes`` (``modal.identify.Modes``) and the ``outputs`` their shapes are given at."""
+    """Identified modes: the modal table and, per configuration, the modes and their outputs.
+
+    Parameters
+    ----------
+    table : contract.table.ModalTable
+        The modal table (docs/formats.md, modal table CSV): ``freq_hz`` [Hz], damping ratio [-],
+        uncertainties, shapes at the outputs.
+    modes : mapping of str to modal.identify.Modes
+        Per configuration, the identification's full result (poles, residues, stabilisation, warnings).
+    outputs : mapping of str to tuple of str
+        Per configuration, the channels the shapes are given at.
+    """
 
     table: ModalTable
     modes: Mapping[str, Modes]
@@ -516,7 +536,7 @@ class Identification:
         from flexmodal.modal.errors import ModalError
         from flexmodal.modal.identify import SYNTHESIS_HEADER, synthesis_path, write_synthesis_csv
 
-        output_file(out, ModalError, "modal table (--out)")
+        output_file(out, ModalError, "modal table (--out)", inputs=())  # identify checked the run/UFF
         output_file(synthesis_path(out), ModalError, "FRF synthesis table (next to --out)", inputs=(out, uff))
         sidecar_file(synthesis_path(out), ModalError, "FRF synthesis table", SYNTHESIS_HEADER)
         diagrams = [StoredDiagram(m.diagram_key, c, m.stabilisation, m.order_note)
@@ -883,6 +903,7 @@ def read_table(path: PathLike) -> ModalTable:
     Returns
     -------
     contract.table.ModalTable
+        One row per (configuration, mode): ``freq_hz`` [Hz], damping ratio [-], poses and shapes.
 
     Examples
     --------
@@ -954,6 +975,7 @@ def load_rig(path: PathLike) -> Rig:
     Returns
     -------
     models.rig.Rig
+        The validated rig: links, joints, masses and sensors (SI units) and its pose variables.
 
     Raises
     ------
@@ -999,11 +1021,11 @@ def predict(rig: Rig | PathLike, poses: Mapping[str, Mapping[str, float]] | Moda
         Value of the ``source`` column (default: the model name).
     progress : callable, optional
         Called with each configuration once it is solved.
+    out : str or Path, optional
+        Also write the table as a modal table CSV here (checked before any work; never an input).
     **options
         Model options (docs/models.md): ``elements_per_link``, ``lumped_mass`` (fe);
         ``masses_per_link``, ``coordinates`` (lumped-mass).
-    out : str or Path, optional
-        Also write the table as a modal table CSV here (checked before any work; never an input).
 
     Returns
     -------
@@ -1172,8 +1194,12 @@ def write_comparison(comparison: Comparison, out: PathLike, fmt: str = "md", lay
         A :func:`compare_modes` result.
     out : str or Path
         The file to write.
-    fmt, layout, caption
-        As :func:`format_comparison`.
+    fmt : {"md", "csv", "tex", "html", "json"}
+        The text's format, as :func:`format_comparison`.
+    layout : {"modes", "sources"}
+        A row per mode or a row per source, as :func:`format_comparison`.
+    caption : str
+        Table caption (tex and html).
 
     Returns
     -------
@@ -1307,6 +1333,7 @@ def format_diagnosis(result: Diagnosis) -> str:
     from flexmodal.checked_io.percent import percent
     from flexmodal.compare.verdict_text import scatter_line, verdict_words
 
+    result = _diagnosis(result)
     v = result.verdict
     lines = [f"verdict: {v.effect} at {v.location or '-'}; held-out RMS "
              f"{percent(v.heldout_rms_rel_error_before)} -> {percent(v.heldout_rms_rel_error_after)}"]
@@ -1374,6 +1401,7 @@ def write_diagnosis(result: Diagnosis, out_dir: PathLike,
     from flexmodal.compare.errors import CompareError
     from flexmodal.reports.html import write_report
 
+    result = _diagnosis(result)
     out = output_dir(out_dir, CompareError, "diagnosis folder (--out)", files=DIAGNOSIS_FILES, inputs=inputs)
     out.mkdir(parents=True, exist_ok=True)
     with atomic_group():   # diagnosis.json and .html: both, or neither
@@ -1394,6 +1422,7 @@ def read_diagnosis(path: PathLike) -> Diagnosis:
     Returns
     -------
     compare.result.Diagnosis
+        The result as :func:`diagnose` returned it.
 
     Raises
     ------
@@ -1442,6 +1471,7 @@ def plot_frf(frf: FrfResult, title: str = "") -> Figure:
     Returns
     -------
     matplotlib.figure.Figure
+        Against frequency [Hz]: magnitude (the FRF's unit, log), phase [deg] and coherence [-].
 
     Examples
     --------
@@ -1481,6 +1511,7 @@ def plot_stabilisation(frf: FrfResult, modes: Modes | None = None, *, fmin: floa
     Returns
     -------
     matplotlib.figure.Figure
+        Stable (filled) and unstable (open) poles per model order over the CMIF, frequency in Hz.
 
     References
     ----------
@@ -1529,6 +1560,7 @@ def plot_mode_shapes(rig: Rig | PathLike, measured: ModalTable | PathLike, confi
     Returns
     -------
     matplotlib.figure.Figure
+        Each measured shape at the sensors drawn on the arm (m), with the FE mode of highest MAC.
 
     References
     ----------
@@ -1575,6 +1607,7 @@ def plot_comparison(measured: ModalTable | PathLike,
     Returns
     -------
     matplotlib.figure.Figure
+        Natural frequencies [Hz] against the pose variable: measured points, a line per model and mode.
 
     Examples
     --------
@@ -1611,6 +1644,8 @@ def plot_gap(diagnosis: Diagnosis | Mapping | PathLike, title: str = "") -> Figu
     Returns
     -------
     matplotlib.figure.Figure
+        Bars of the per-mode relative frequency error [%] before and after the diagnosed effect, and
+        the held-out RMS error [%].
 
     Examples
     --------
@@ -1895,7 +1930,10 @@ def animate_mode(out: PathLike, measured: ModalTable | PathLike, config: str, mo
     from flexmodal.reports import animate
     from flexmodal.reports.errors import ReportError
 
-    target = output_file(out, ReportError, "GIF (out)")
+    for name, value, lo, hi in (("mode", mode, 1, 10**6), ("frames", frames, 2, 1000), ("fps", fps, 1, 100)):
+        if not isinstance(value, numbers.Integral) or isinstance(value, bool) or not lo <= value <= hi:
+            raise ReportError(f"animate_mode: {name} = {value!r} is not a whole number in [{lo}, {hi}]")
+    target = output_file(out, ReportError, "GIF (out)", inputs=_paths([measured, rig, geometry]))
     table = _table(measured)
     n = len(table.freq_hz(_config_of(table, config, ReportError)))
     if not 1 <= mode <= n:
@@ -2011,8 +2049,18 @@ def demo(out_dir: PathLike = "flexmodal-demo", *, rig: PathLike | None = None, q
 
 @dataclass(frozen=True)
 class SelfCheck:
-    """The blind self-check of the diagnosis: the ``results`` per case (``fixtures.blind.BlindResult``),
-    the accuracy ``summary`` (fractions) and its printed ``text``."""
+    """The blind self-check of the diagnosis.
+
+    Parameters
+    ----------
+    results : tuple of fixtures.blind.BlindResult
+        One per simulated case: the case (the effect hidden), the verdict and its time [s].
+    summary : mapping
+        ``fixtures.blind.summarise``: accuracy fractions in [0, 1] (NaN where a category is absent,
+        e.g. ``accepted_accuracy``), counts, ``seconds_per_case`` [s] and the ``misses``.
+    text : str
+        The summary as ``flexmodal selftest`` prints it.
+    """
 
     results: tuple
     summary: Mapping[str, float]
