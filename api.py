@@ -226,8 +226,9 @@ def acquire(session: PathLike | Session, out: PathLike, *, duration_s: float | N
         from flexmodal.daq.run_schema import check_run_id
 
         check_run_id(run_id, "--run-id")
-    if duration_s is not None and duration_s <= 0:
-        raise DaqError(f"--duration {duration_s}: must be > 0 seconds")
+    if duration_s is not None and (isinstance(duration_s, bool) or not isinstance(duration_s, numbers.Real)
+                                   or not 0 < duration_s <= 1e9):  # NaN fails the comparison too
+        raise DaqError(f"--duration {duration_s!r}: must be a number of seconds > 0 and <= 1e9")
     if recover and Path(out).exists():
         from flexmodal.daq.h5file import recover as _recover
 
@@ -516,7 +517,7 @@ class Identification:
         from flexmodal.modal.errors import ModalError
         from flexmodal.modal.identify import SYNTHESIS_HEADER, synthesis_path, write_synthesis_csv
 
-        output_file(out, ModalError, "modal table (--out)")
+        output_file(out, ModalError, "modal table (--out)", inputs=())  # identify checked the run/UFF
         output_file(synthesis_path(out), ModalError, "FRF synthesis table (next to --out)", inputs=(out, uff))
         sidecar_file(synthesis_path(out), ModalError, "FRF synthesis table", SYNTHESIS_HEADER)
         diagrams = [StoredDiagram(m.diagram_key, c, m.stabilisation, m.order_note)
@@ -1307,6 +1308,7 @@ def format_diagnosis(result: Diagnosis) -> str:
     from flexmodal.checked_io.percent import percent
     from flexmodal.compare.verdict_text import scatter_line, verdict_words
 
+    result = _diagnosis(result)
     v = result.verdict
     lines = [f"verdict: {v.effect} at {v.location or '-'}; held-out RMS "
              f"{percent(v.heldout_rms_rel_error_before)} -> {percent(v.heldout_rms_rel_error_after)}"]
@@ -1374,6 +1376,7 @@ def write_diagnosis(result: Diagnosis, out_dir: PathLike,
     from flexmodal.compare.errors import CompareError
     from flexmodal.reports.html import write_report
 
+    result = _diagnosis(result)
     out = output_dir(out_dir, CompareError, "diagnosis folder (--out)", files=DIAGNOSIS_FILES, inputs=inputs)
     out.mkdir(parents=True, exist_ok=True)
     with atomic_group():   # diagnosis.json and .html: both, or neither
@@ -1895,7 +1898,10 @@ def animate_mode(out: PathLike, measured: ModalTable | PathLike, config: str, mo
     from flexmodal.reports import animate
     from flexmodal.reports.errors import ReportError
 
-    target = output_file(out, ReportError, "GIF (out)")
+    for name, value, lo, hi in (("mode", mode, 1, 10**6), ("frames", frames, 2, 1000), ("fps", fps, 1, 100)):
+        if not isinstance(value, numbers.Integral) or isinstance(value, bool) or not lo <= value <= hi:
+            raise ReportError(f"animate_mode: {name} = {value!r} is not a whole number in [{lo}, {hi}]")
+    target = output_file(out, ReportError, "GIF (out)", inputs=_paths([measured, rig, geometry]))
     table = _table(measured)
     n = len(table.freq_hz(_config_of(table, config, ReportError)))
     if not 1 <= mode <= n:

@@ -121,10 +121,11 @@ def _writable(path: str | Path, error: ErrorType, what: str, inputs: Iterable[st
 
 
 def output_file(path: str | Path, error: ErrorType, what: str = "output file", *,
-                inputs: Iterable[str | Path | None] = ()) -> Path:
+                inputs: Iterable[str | Path | None]) -> Path:
     """``path`` as a writable file that may be replaced whole: new or a regular file (a symlink is
     followed: its target is written), its folder exists and takes new files, it is none of the
-    command's ``inputs`` and not an HDF5 file (a run store is never replaced by a table)."""
+    command's ``inputs`` and not an HDF5 file (a run store is never replaced by a table).  ``inputs``
+    has no default: every writer names what it read (``()`` only where it read no file)."""
     p = _writable(path, error, what, inputs)
     if p.exists() and _is_hdf5(p):
         raise error(f"{p}: is an HDF5 file (a run store?); refusing to replace it with the {what}; "

@@ -135,7 +135,10 @@ def _pairs(text: str, what: str) -> dict[str, str]:
     """``VAR=CHANNEL,...`` -> {VAR: CHANNEL} (ModalError naming the option)."""
     from flexmodal.api import ModalError
 
-    pairs = [item.split("=") for item in text.split(",") if item.strip()]
+    try:
+        pairs = [item.split("=") for item in opt.names(text)]
+    except argparse.ArgumentTypeError:
+        pairs = []
     if not pairs or any(len(p) != 2 or not p[0].strip() or not p[1].strip() for p in pairs):
         raise ModalError(f"{what} {text!r}: expected VAR=CHANNEL[,VAR=CHANNEL...]")
     return {k.strip(): v.strip() for k, v in pairs}
@@ -147,8 +150,8 @@ def _track(args: argparse.Namespace) -> int:
 
     pose_from = _pairs(args.pose_from, "--pose-from") if args.pose_from else None
     try:
-        orders = [float(v) for v in args.orders.split(",") if v.strip()] if args.orders else []
-    except ValueError:
+        orders = [float(v) for v in opt.names(args.orders)] if args.orders else []
+    except (ValueError, argparse.ArgumentTypeError):
         raise ModalError(f"--orders {args.orders!r}: give orders per revolution, comma-separated") from None
     if any(not 0 < o < float("inf") for o in orders):
         raise ModalError(f"--orders {args.orders!r}: orders must be positive and finite")
@@ -187,7 +190,7 @@ def _identify(args: argparse.Namespace) -> int:
     poles = None
     if args.poles is not None:
         try:
-            poles = [opt.positive_hz(v) for v in args.poles.split(",") if v.strip()]
+            poles = [opt.positive_hz(v) for v in opt.names(args.poles)]  # "40,,130": refused
         except argparse.ArgumentTypeError:
             raise ModalError(f"--poles {args.poles!r}: give frequencies in Hz (finite, > 0) separated by "
                              "commas") from None

@@ -10,9 +10,11 @@ added masses).
 
 from __future__ import annotations
 
+from argparse import ArgumentTypeError
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
+from flexmodal.checked_io.options import names as comma_names
 from flexmodal.models.effects import REGISTRY, Param, get_effect, registered_effects
 from flexmodal.models.rig import Rig
 
@@ -77,7 +79,11 @@ def parse_effects(spec: str) -> tuple[str, ...]:
 
     if spec.strip() == "all":
         return registered_effects()
-    names = tuple(dict.fromkeys(s.strip() for s in spec.split(",") if s.strip()))
+    try:
+        names = tuple(dict.fromkeys(comma_names(spec)))
+    except ArgumentTypeError:   # "joint_stiffness," or "a,,b": an empty name was a slip, not "nothing"
+        raise CompareError(f"--effects {spec!r}: expected 'all' or EFFECT[,EFFECT...] with no empty "
+                           f"name (effects: {', '.join(REGISTRY)})") from None
     bad = [n for n in names if n not in REGISTRY]
     if bad or not names:
         raise CompareError(f"--effects: unknown effect {bad[0] if bad else spec!r} "

@@ -110,6 +110,8 @@ def _load(tp: Any, value: object, where: str) -> object:
         if value is None and type(None) in args:
             return None
         (inner,) = [a for a in args if a is not type(None)]
+        if inner is float and isinstance(value, float) and not math.isfinite(value):
+            return None              # NaN/Infinity (not strict JSON): an optional number left out
         return _load(inner, value, where)
     if isinstance(tp, type) and issubclass(tp, _Record):
         if not isinstance(value, dict):
@@ -123,9 +125,9 @@ def _load(tp: Any, value: object, where: str) -> object:
         if not isinstance(value, dict):
             raise CompareError(f"{where}: expected an object (got {_kind(value)})")
         return {k: _load(args[1], v, _key(where, k)) for k, v in value.items()}
-    if tp is float:                  # null: a number that was not finite (strict JSON has no NaN)
-        if value is None or (isinstance(value, int | float) and not isinstance(value, bool)):
-            return None if value is None else float(value)
+    if tp is float:                  # a required number: finite (optional ones may be null, above)
+        if isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value):
+            return float(value)
         raise CompareError(f"{where}: expected a number (got {_kind(value)} {value!r})")
     if tp is int and not (isinstance(value, int) and not isinstance(value, bool)):
         raise CompareError(f"{where}: expected an integer (got {_kind(value)} {value!r})")
@@ -179,7 +181,13 @@ class _Record:
                 values[f.name] = _load(hints[f.name], data[f.name], _key(where, f.name))
             elif f.default is not None:
                 raise CompareError(f"no {_key(where, f.name)!r}")
-        return cls(**values)
+        record = cls(**values)
+        record._check(where)
+        return record
+
+    def _check(self, where: str) -> None:
+        """Refuse values a document read back cannot hold (CompareError naming the key); by type only
+        unless a record says more."""
 
     @classmethod
     def from_json(cls, text: str) -> Self:
@@ -203,6 +211,19 @@ class Baseline(_Record):
     max_rel_error: float
     per_mode: Mapping[str, float]
     per_config: Mapping[str, float]
+
+    def _check(self, where: str) -> None:
+        """Errors are RMS or absolute fractions (>= 0); per_mode is keyed by mode numbers 1, 2, ..."""
+        errors = {"rms_rel_error": self.rms_rel_error, "max_rel_error": self.max_rel_error,
+                  **{f"per_mode.{k}": v for k, v in self.per_mode.items()},
+                  **{f"per_config.{k}": v for k, v in self.per_config.items()}}
+        for key, value in errors.items():
+            if value is not None and value < 0:
+                raise CompareError(f"{_key(where, key)}: {value!r} is negative (an error fraction is >= 0)")
+        for mode in self.per_mode:
+            if not (mode.isascii() and mode.isdigit() and int(mode) >= 1):
+                raise CompareError(f"{_key(where, 'per_mode')}: key {mode!r} is not a mode number "
+                                   "(1, 2, ...)")
 
 
 @dataclass(**_RECORD)

@@ -176,7 +176,23 @@ def check_run_group(g: h5py.Group, where: str) -> None:
         raise DaqError(f"{where}: 'samples' has {s.shape[1]} columns but {channels.shape[0]} channels")
     for d in (channels, events, s):
         check_dataset(d, where, whole=d is not s)
+    for table in (channels, events):
+        _check_texts(table, where)
     _check_names(channels, where)
+
+
+def _check_texts(table: h5py.Dataset, where: str) -> None:
+    """Every text field of a run's table is UTF-8 (the error names table, row, field and value; it was
+    "cannot read ('utf-8' codec ...)" naming none of them)."""
+    data = table[()]
+    for field in table.dtype.names or ():
+        if data.dtype[field].kind not in "SO" or not data.size:
+            continue
+        values, first = np.unique(data[field], return_index=True)
+        for value, row in zip(values, first, strict=True):
+            if isinstance(value, bytes | str) and _text(value) is None:
+                raise DaqError(f"{where}: {table.name.rsplit('/', 1)[-1]!r} row {row} field {field!r}: "
+                               f"{bytes(value)!r} is not UTF-8 text")
 
 
 def check_dataset(d: h5py.Dataset, where: str, error: type[Exception] = DaqError, *,

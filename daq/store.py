@@ -19,7 +19,7 @@ import os
 import re
 import resource
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
@@ -442,11 +442,20 @@ def read_run(path: str | Path, run_id: str) -> Run:
             raise DaqError(f"{path}: run {run_id!r}: cannot read the samples ({_reason(exc)})") from None
 
 
+def run_entries(runs: object) -> list:
+    """``runs`` as a list of run entries, or TypeError when it is one path (a string would be taken
+    letter by letter, each letter a file) or not a sequence at all."""
+    if isinstance(runs, str | bytes | os.PathLike) or not isinstance(runs, Iterable):
+        raise TypeError(f"runs must be a list of run entries (paths, 'FILE::RUN_ID' or (path, run id)), "
+                        f"got {type(runs).__name__} {runs!r}: for one run file write [{runs!r}]")
+    return list(runs)
+
+
 def expand_runs(runs: Sequence[str | Path | tuple[str | Path, str]]) -> list[tuple[Path, str]]:
     """(file, run id) for every entry: a file means all its runs; ``FILE::RUN`` or (file, run) one run;
     a run named twice is refused (:func:`runs_named_once`)."""
     out: list[tuple[Path, str]] = []
-    for entry in runs:
+    for entry in run_entries(runs):
         if isinstance(entry, tuple):
             if len(entry) != 2 or not isinstance(entry[0], str | Path) or not isinstance(entry[1], str):
                 raise TypeError(f"a run entry must be a path, 'FILE::RUN_ID' or (path, run id), got "

@@ -99,11 +99,19 @@ class Timeline:
                 tr.rows = row
             tr.silent_from = None
         elif not continues and (row > tr.rows + MAX_GAP_S * self.fs or row < tr.rows - self.fs):
-            events.append(Event("note", tr.rows, 1, f"{block.device}: counter jumped from "
-                                                      f"{tr.base + tr.rows} to {block.first_index}"))
+            # A restarted counter: the device was reset, or another device now answers on its port
+            # (a reused pty; nothing in the stream tells them apart).  Either way the record breaks
+            # here after an unknown time: one NaN row and a gap event over it, so that no spectrum
+            # segment spans the splice (a "note" alone left the two streams joined as one record).
+            events.extend(self.close_gaps(tr.rows, block.device))
+            events.append(Event("gap", tr.rows, 1, f"{block.device}: counter jumped from "
+                                                     f"{tr.base + tr.rows} to {block.first_index} (device "
+                                                     "restarted, or another device on its port): record "
+                                                     "discontinuous here"))
+            tr.parts.append(np.full((1, tr.cols.size), np.nan))
+            tr.rows += 1
             tr.base = block.first_index - tr.rows
             row = tr.rows
-            events.extend(self.close_gaps(tr.rows, block.device))
         if row < tr.rows:  # already have these samples (a repeated frame): keep the new ones only
             values, clipped = values[tr.rows - row:], None if clipped is None else clipped[tr.rows - row:]
             row = tr.rows

@@ -18,7 +18,7 @@ from flexmodal.checked_io.children import ctrl_c_blocked, leave_ctrl_c_to_parent
 from flexmodal.checked_io.errors import FlexmodalError
 from flexmodal.checked_io.progress import progress_bar
 from flexmodal.checked_io.text import one_line
-from flexmodal.daq.store import expand_runs, runs_named_once
+from flexmodal.daq.store import expand_runs, run_entries, runs_named_once
 from flexmodal.modal.compute import compute_frf
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult
@@ -579,7 +579,7 @@ def frf_batch(paths: Sequence[str | Path], options: dict, *, workers: int | None
     (or a file that holds none) does not stop the others: every good run is written, then
     :class:`~flexmodal.modal.errors.RunsFailed` names each bad one (one bad run alone: its own error)."""
     jobs, failed = [], []
-    for entry in paths:
+    for entry in run_entries(paths):
         try:
             jobs += expand_runs([entry])
         except FlexmodalError as exc:      # a file missing, unreadable or holding no runs

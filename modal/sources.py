@@ -160,6 +160,9 @@ def identify_input(path: str | Path, *, method: str | None = None, fmin: float |
     else:
         from flexmodal.modal.uff import UffFrfs, read_uff
 
+        packed = _compressed(p)
+        if packed is not None:  # a gzipped or damaged run store: not "line 1: text outside any dataset"
+            raise ModalError(f"{p}: neither an HDF5 file (no HDF5 signature) nor UFF text ({packed})")
         data = read_uff(p)
         chosen = method or ("lscf" if isinstance(data, UffFrfs) else default_method(data.kinds))
         _references_used(p, references, [chosen if not isinstance(data, UffFrfs) else "lscf"])
@@ -180,6 +183,18 @@ def identify_input(path: str | Path, *, method: str | None = None, fmin: float |
         found[p.stem] = (modes, result.outputs)
         tables.append(modes_table(modes, result.outputs, config=p.stem).frame)
     return ModalTable.from_frame(pd.concat(tables, ignore_index=True), str(p)), found
+
+
+def _compressed(path: Path) -> str | None:
+    """What ``path`` is when it is a compressed file (no UFF, not even binary dataset 58b, starts so),
+    else None."""
+    with open(path, "rb") as fh:
+        head = fh.read(8)
+    for magic, name in ((b"\x1f\x8b", "gzip"), (b"BZh", "bzip2"), (b"\xfd7zXZ", "xz"), (b"PK\x03\x04", "zip"),
+                        (b"(\xb5/\xfd", "zstd")):
+        if head.startswith(magic):
+            return f"{name}-compressed: unpack it first"
+    return None
 
 
 def _skip(failed: list | None, bad: list, name: str, exc: FlexmodalError, advance) -> None:

@@ -32,6 +32,7 @@ JOINT_KINDS = ("rigid", "pin", "spring")
 MEMBER_ENDS = ("pin-pin", "clamped-pin", "clamped-clamped")
 DIRECTIONS = ("transverse", "axial")
 SPRING_DIRECTIONS = ("transverse", "axial", "x", "y")
+MAX_GROUND_M = 1e3  # a member end on the ground lies within a kilometre of the base
 
 
 @dataclass(frozen=True)
@@ -284,8 +285,11 @@ def _parse_link(doc: Mapping[str, Any], t: Fields) -> Link:
     return Link(name, length, section, _elements(t), tuple(segments), **scales)
 
 
-def _parse_point(text: Any, rig_or_links: Any, path: str, source: str | None = None) -> Point:
-    """Parse a point reference against a Rig or a {link name: Link} mapping plus joints."""
+def _parse_point(text: Any, rig_or_links: Any, path: str, source: str | None = None, *,
+                 ground: bool = False) -> Point:
+    """Parse a point reference against a Rig or a {link name: Link} mapping plus joints; ``ground@x,y``
+    (finite metres) only where ``ground`` (a member's end: a mass, spring or sensor on the ground
+    is not part of the arm)."""
     source = source or getattr(rig_or_links, "source", "<rig>")
 
     def fail(what: str) -> ModelError:
@@ -306,12 +310,19 @@ def _parse_point(text: Any, rig_or_links: Any, path: str, source: str | None = N
     if not sep:
         raise fail(f"{text!r} is not '<link>@<fraction>', 'ground@x,y', 'tip' or a joint name")
     try:
-        if head == "ground":
-            x, y = (float(v) for v in tail.split(","))
-            return Point(None, 0.0, (x, y))
-        frac = float(tail)
+        xy = tuple(float(v) for v in tail.split(",")) if head == "ground" else None
+        frac = 0.0 if xy is not None else float(tail)
+        if xy is not None and len(xy) != 2:
+            raise ValueError(tail)
     except ValueError:
         raise fail(f"cannot read the position in {text!r}") from None
+    if xy is not None:
+        if not ground:
+            raise fail(f"{text!r} is a ground point: only a member's end may be there (use "
+                       "'<link>@<fraction>', 'tip' or a joint name)")
+        if not all(math.isfinite(v) and abs(v) <= MAX_GROUND_M for v in xy):
+            raise fail(f"{text!r}: ground coordinates must be finite and within {MAX_GROUND_M:g} m")
+        return Point(None, 0.0, xy)
     if head not in links:
         raise fail(f"{text!r} names no link (links: {', '.join(links)})")
     if not 0.0 <= frac <= 1.0:
@@ -359,10 +370,11 @@ def parse_rig(doc: Mapping[str, Any], source: str = "<rig>") -> Rig:
             raise top.fail("joint", f"link {lk.name!r} is joined to nothing (add a [[joint]] with child)")
     refs = ({lk.name: lk for lk in links}, {j.name: j for j in joints})
 
-    def point(t: Fields, key: str) -> Point:
-        return _parse_point(t.get(key, object), refs, t.field(key), source)
+    def point(t: Fields, key: str, ground: bool = False) -> Point:
+        return _parse_point(t.get(key, object), refs, t.field(key), source, ground=ground)
 
-    members = tuple(Member(_name(t), point(t, "from"), point(t, "to"), _section(t, _material(doc, t)),
+    members = tuple(Member(_name(t), point(t, "from", True), point(t, "to", True),
+                           _section(t, _material(doc, t)),
                            t.choice("ends", MEMBER_ENDS, "pin-pin"), _elements(t),
                            _positive(t, "end_k_Nm_per_rad", 0.0, allow_zero=True))
                     for t in _tables(doc, "member", source))

@@ -121,7 +121,7 @@ def test_one_run_files_need_no_run_id_and_errors_are_the_packages(tmp_path):
         api.read_run(tmp_path / "r1.h5")
     with pytest.raises(ModelError, match="no configurations"):
         api.predict(DEMO_RIG, {}, "fe")
-    with pytest.raises(DaqError, match="--duration -1.0: must be > 0 seconds"):
+    with pytest.raises(DaqError, match="--duration -1.0: must be a number of seconds > 0"):
         api.acquire(REPO / "examples" / "sessions" / "serial-sim.toml", tmp_path / "a.h5", duration_s=-1.0)
     assert not (tmp_path / "a.h5").exists()   # refused before any device or file is opened
     frf = api.compute_frf(tmp_path / "r2.h5", nfft=4096)

@@ -282,8 +282,9 @@ def test_late_samples_of_a_silent_device_are_dropped_not_placed_now(tmp_path: Pa
     tl.add(block("left", 400, 100))
     rows = tl.take()
     assert np.isfinite(rows).all() and rows.shape == (100, 2)
-    restart = tl.add(block("right", 0, 10))   # a counter that starts again is a restart, as before
-    assert [e.kind for e in restart] == ["note"] and tl.tracks["right"].rows == 510
+    restart = tl.add(block("right", 0, 10))   # a counter that starts again: a break (NaN row + gap)
+    assert [(e.kind, e.sample_index, e.count) for e in restart] == [("gap", 500, 1)]
+    assert tl.tracks["right"].rows == 511
 
 
 @pytest.mark.parametrize("length", [0.001, 0.0])

@@ -67,14 +67,14 @@ def test_special_files_and_run_stores_are_refused(tmp_path: Path) -> None:
         f["x"] = np.arange(3)
     text = tmp_path / "notes.txt"
     text.write_text("mine\n")
-    for call, message in [(lambda: output_file(fifo, Bad), "is a FIFO"),
+    for call, message in [(lambda: output_file(fifo, Bad, inputs=()), "is a FIFO"),
                           (lambda: hdf5_output(fifo, Bad), "is a FIFO"),
-                          (lambda: output_file("/dev/null", Bad), "device or process file"),
-                          (lambda: output_file("/dev/stdout", Bad), "device or process file"),
+                          (lambda: output_file("/dev/null", Bad, inputs=()), "device or process file"),
+                          (lambda: output_file("/dev/stdout", Bad, inputs=()), "device or process file"),
                           (lambda: hdf5_output("/dev/zero", Bad), "device or process file"),
-                          (lambda: output_file(run, Bad), "is an HDF5 file"),
+                          (lambda: output_file(run, Bad, inputs=()), "is an HDF5 file"),
                           (lambda: hdf5_output(text, Bad), "not an HDF5 file"),
-                          (lambda: output_file(tmp_path, Bad), "is a directory")]:
+                          (lambda: output_file(tmp_path, Bad, inputs=()), "is a directory")]:
         with pytest.raises(Bad, match=message):
             call()
     assert hdf5_output(run, Bad) == run and fifo.is_fifo()
@@ -86,11 +86,11 @@ def test_a_symlinked_output_keeps_its_link(tmp_path: Path) -> None:
     real.write_text("old\n")
     link = tmp_path / "table.csv"
     link.symlink_to(real)
-    write_text(output_file(link, Bad), "new\n")
+    write_text(output_file(link, Bad, inputs=()), "new\n")
     assert link.is_symlink() and os.readlink(link) == str(real) and real.read_text() == "new\n"
     dangling = tmp_path / "later.csv"
     dangling.symlink_to(tmp_path / "data" / "later.csv")
-    write_text(output_file(dangling, Bad), "x\n")
+    write_text(output_file(dangling, Bad, inputs=()), "x\n")
     assert dangling.is_symlink() and (tmp_path / "data" / "later.csv").read_text() == "x\n"
 
 

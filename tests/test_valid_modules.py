@@ -80,13 +80,14 @@ def test_option_types() -> None:
 
 
 def test_output_paths(tmp_path: Path) -> None:
-    assert output_file(tmp_path / "a.csv", Bad) == tmp_path / "a.csv"
+    assert output_file(tmp_path / "a.csv", Bad, inputs=()) == tmp_path / "a.csv"
     assert output_dir(tmp_path / "new" / "deeper", Bad) == tmp_path / "new" / "deeper"
     assert not (tmp_path / "new").exists()  # checked, not created
     (tmp_path / "f.txt").write_text("x")
-    for call, message in [(lambda: output_file(tmp_path / "no" / "a.csv", Bad), "does not exist"),
-                          (lambda: output_file(tmp_path, Bad), "is a directory"),
-                          (lambda: output_file("/proc/a.csv", Bad), "/proc/a.csv: is a device or process"),
+    for call, message in [(lambda: output_file(tmp_path / "no" / "a.csv", Bad, inputs=()), "does not exist"),
+                          (lambda: output_file(tmp_path, Bad, inputs=()), "is a directory"),
+                          (lambda: output_file("/proc/a.csv", Bad, inputs=()),
+                           "/proc/a.csv: is a device or process"),
                           (lambda: output_dir(tmp_path / "f.txt", Bad), "not a directory"),
                           (lambda: output_dir(tmp_path / "f.txt" / "sub", Bad), "not a directory"),
                           (lambda: hdf5_output(tmp_path / "f.txt", Bad), "not an HDF5 file")]:

@@ -1,0 +1,272 @@
+"""Odd inputs of a fifth adversarial pass (stop 36, 27 Nov, night): a mass or spring placed on the
+ground, NaN/Infinity/null in a diagnosis.json, an API GIF written over its own modal table, a path
+string where a list of runs belongs, comma lists with an empty item, bytes that are not UTF-8 in a
+run's tables, a gzipped run file, a device counter that starts again.  Each was a traceback, a lost
+input, a silent answer or a line naming the wrong thing; each class is now one line naming the file
+and item, exit code 2 (or the family error / TypeError from the Python API).  In-process, small
+files, a few seconds in all."""
+
+from __future__ import annotations
+
+import argparse
+import gzip
+import inspect
+import json
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from conftest import REPO
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import flexmodal.api as fm
+from flexmodal.app import main
+from flexmodal.checked_io import options as opt
+from flexmodal.checked_io.output import output_file
+from flexmodal.compare.errors import CompareError
+from flexmodal.compare.result import Diagnosis
+from flexmodal.daq import store
+from flexmodal.daq.devices import Block
+from flexmodal.daq.errors import DaqError
+from flexmodal.daq.store import Channel, Event, RunWriter
+from flexmodal.models.errors import ModelError
+from flexmodal.models.rig import _parse_point, load_rig
+from flexmodal.reports.errors import ReportError
+
+RIG = (REPO / "examples" / "rigs" / "seed003_two_link.toml").read_text(encoding="utf-8")
+MODES = REPO / "examples" / "measured" / "seed003_table3_f1f2.csv"
+DIAGNOSIS = (REPO / "tests" / "data" / "diagnosis" / "demo.json").read_text(encoding="utf-8")
+BAR = 'section = { shape = "solid_rect", width_m = 0.01, height_m = 0.01 }\nmaterial = "aluminium"'
+
+
+def _one_line(capsys, code: int, *words: str) -> str:
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and err[0].startswith("flexmodal"), (code, err)
+    assert all(w in err[0] for w in words), err[0]
+    return err[0]
+
+
+# -- rig points: ground@x,y only for a member's end, and finite ---------------------------------------
+@pytest.mark.parametrize(("extra", "words"), [
+    ('[[mass]]\nat = "ground@0,0"\nmass_kg = 1.0', ("mass[0].at", "ground point")),         # KeyError: None
+    ('[[spring]]\nat = "ground@0.2,0"\nk_N_per_m = 100.0', ("spring[0].at", "ground point")),
+    ('[[sensor]]\nname = "g"\nat = "ground@0,0"', ("sensor[3].at", "ground point")),
+    (f'[[member]]\nname = "p"\nfrom = "ground@inf,0"\nto = "link2@0.1"\n{BAR}',             # "0 modes"
+     ("member[0].from", "finite")),
+    (f'[[member]]\nname = "p"\nfrom = "ground@0.1,nan"\nto = "link2@0.1"\n{BAR}', ("member[0].from", "finite")),
+    (f'[[member]]\nname = "p"\nfrom = "ground@1"\nto = "link2@0.1"\n{BAR}', ("member[0].from", "position")),
+])
+def test_points_on_the_ground(tmp_path: Path, capsys, extra: str, words: tuple[str, ...]) -> None:
+    (tmp_path / "rig.toml").write_text(RIG + "\n" + extra + "\n", encoding="utf-8")
+    (tmp_path / "poses.csv").write_text("config,pose.theta_deg\nt0,0\n", encoding="utf-8")
+    code = main(["predict", str(tmp_path / "rig.toml"), "--model", "fe", "--poses", str(tmp_path / "poses.csv"),
+                 "--out", str(tmp_path / "p.csv")])
+    _one_line(capsys, code, "rig.toml", *words)
+
+
+@settings(max_examples=150, deadline=None, derandomize=True)
+@given(st.one_of(st.text(max_size=16), st.from_regex(r"(ground|link1|link2|elbow|tip)@[-0-9.,naife+]{0,10}",
+                                                     fullmatch=True)),
+       st.booleans())
+def test_point_parser_is_total(text: str, ground: bool) -> None:
+    """Any text is a point or a ModelError: never a KeyError or a point at an infinite place."""
+    links = load_rig_links()
+    try:
+        p = _parse_point(text, links, "at", "rig.toml", ground=ground)
+    except ModelError:
+        return
+    if p.link is None:
+        assert ground and all(np.isfinite(p.ground_xy_m))
+    else:
+        assert p.link in links[0] and 0.0 <= p.fraction <= 1.0
+
+
+def load_rig_links():
+    rig = _rig_cache.get("rig")
+    if rig is None:
+        import tempfile
+
+        path = Path(tempfile.mkdtemp()) / "rig.toml"
+        path.write_text(RIG, encoding="utf-8")
+        rig = _rig_cache.setdefault("rig", load_rig(path))
+    return {lk.name: lk for lk in rig.links}, {j.name: j for j in rig.joints}
+
+
+_rig_cache: dict = {}
+
+
+# -- diagnosis.json: numbers a strict document cannot hold ---------------------------------------------
+def _mutated(key_path: tuple[str, ...], raw: str) -> str:
+    doc = json.loads(DIAGNOSIS)
+    node = doc
+    for k in key_path[:-1]:
+        node = node[k]
+    node[key_path[-1]] = "@@"
+    return json.dumps(doc).replace('"@@"', raw)
+
+
+@pytest.mark.parametrize(("key_path", "raw", "words"), [
+    (("baseline", "rms_rel_error"), "NaN", "baseline.rms_rel_error: expected a number"),   # TypeError later
+    (("baseline", "rms_rel_error"), "Infinity", "baseline.rms_rel_error: expected a number"),
+    (("verdict", "heldout_rms_rel_error_before"), "null", "verdict.heldout_rms_rel_error_before"),
+    (("baseline", "max_rel_error"), "-5", "is negative"),                                 # silently drawn
+    (("baseline", "per_mode"), '{"one": 0.1}', "key 'one' is not a mode number"),
+])
+def test_a_diagnosis_document_with_impossible_numbers(tmp_path: Path, capsys, key_path, raw, words) -> None:
+    with pytest.raises(CompareError, match=words):
+        Diagnosis.from_json(_mutated(key_path, raw))
+    (tmp_path / "d.json").write_text(_mutated(key_path, raw), encoding="utf-8")
+    code = main(["report", "--measured", str(MODES), "--diagnosis", str(tmp_path / "d.json"),
+                 "--out", str(tmp_path / "r.html")])
+    _one_line(capsys, code, "d.json", words)
+    assert not (tmp_path / "r.html").exists()
+
+
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(st.one_of(st.none(), st.booleans(), st.floats(allow_nan=True, allow_infinity=True), st.integers(),
+                 st.text(max_size=5), st.lists(st.integers(), max_size=2)))
+def test_diagnosis_reader_is_total_on_a_number_field(value) -> None:
+    """Whatever stands for ``baseline.rms_rel_error``: a finite number >= 0 is read, all else is a
+    CompareError (never a None that a report compares later)."""
+    raw = json.dumps(value) if not isinstance(value, float) or np.isfinite(value) else \
+        ("NaN" if np.isnan(value) else ("Infinity" if value > 0 else "-Infinity"))
+    try:
+        d = Diagnosis.from_json(_mutated(("baseline", "rms_rel_error"), raw))
+    except CompareError:
+        return
+    assert isinstance(d.baseline.rms_rel_error, float) and 0 <= d.baseline.rms_rel_error < float("inf")
+
+
+def test_format_and_write_diagnosis_take_what_the_other_functions_take(tmp_path: Path) -> None:
+    with pytest.raises(TypeError, match="expected a diagnosis"):
+        fm.format_diagnosis(None)                      # AttributeError: 'NoneType' ... 'verdict'
+    with pytest.raises(TypeError, match="expected a diagnosis"):
+        fm.write_diagnosis(None, tmp_path / "D")
+    assert not (tmp_path / "D").exists()
+    assert fm.format_diagnosis(json.loads(DIAGNOSIS)).startswith("verdict: ")
+
+
+# -- API writers name their inputs; GIF arguments ------------------------------------------------------
+def test_every_output_file_call_names_its_inputs() -> None:
+    assert inspect.signature(output_file).parameters["inputs"].default is inspect.Parameter.empty
+
+
+@pytest.mark.parametrize(("kwargs", "words"), [
+    ({}, "is also an input"),                                          # the table was replaced by a GIF
+    ({"mode": True}, "mode = True"), ({"frames": 0}, "frames = 0"),    # IndexError
+    ({"fps": -5}, "fps = -5"),                                         # OverflowError
+])
+def test_animate_mode_never_writes_over_its_table(tmp_path: Path, kwargs, words) -> None:
+    table = tmp_path / "p.csv"
+    table.write_text("config,mode,freq_hz,pose.theta_deg,shape.a1,shape.a2,shape.a3\n"
+                     "t0,1,25.3,0,0.57,1.56,2.52\n", encoding="utf-8")
+    before = table.read_bytes()
+    out = table if not kwargs else tmp_path / "a.gif"
+    with pytest.raises(ReportError, match=words):
+        fm.animate_mode(out, table, "t0", **{"mode": 1, **kwargs}, rig=REPO / "examples/rigs/seed003_two_link.toml")
+    assert table.read_bytes() == before and not (tmp_path / "a.gif").exists()
+
+
+# -- a path string where a list of runs belongs --------------------------------------------------------
+@pytest.mark.parametrize("call", [
+    lambda p: fm.compute_frfs(str(p)),               # each letter was taken as a file: "r: not found"
+    lambda p: fm.compute_frfs(p),
+    lambda p: fm.report(p.parent / "r.html", runs=str(p)),
+    lambda p: store.expand_runs(str(p)),
+])
+def test_one_path_where_a_list_of_runs_belongs(tmp_path: Path, call) -> None:
+    with pytest.raises(TypeError, match="runs must be a list of run entries"):
+        call(tmp_path / "run.h5")
+
+
+# -- comma lists: an empty item is a slip, not "nothing" -----------------------------------------------
+@settings(max_examples=80, deadline=None, derandomize=True)
+@given(st.text(alphabet="ab ,", max_size=8))
+def test_comma_names_never_yield_an_empty_name(text: str) -> None:
+    try:
+        items = opt.names(text)
+    except argparse.ArgumentTypeError:
+        assert not text.strip() or any(not t.strip() for t in text.split(","))
+        return
+    assert items and all(items) and len(items) == text.count(",") + 1
+
+
+@pytest.mark.parametrize(("argv", "words"), [
+    (["diagnose", "--rig", "R", "--measured", "M", "--out", "D", "--effects", "joint_stiffness,"],
+     ("--effects", "no empty name")),                                  # ran with joint_stiffness alone
+    (["identify", "run.h5", "--out", "m.csv", "--poles", "40,,130"], ("--poles",)),   # ran with 40,130
+    (["sim", "serve", "--protocol", "serial", "--pose", "theta_deg=30,", "--duration", "1"], ("--pose",)),
+    (["sim", "serve", "--protocol", "serial", "--effect", "joint_stiffness@elbow:k_Nm_per_rad=9,",
+      "--duration", "1"], ("--effect",)),
+    (["identify", "run.h5", "--out", "m.csv", "--track", "--orders", "8,,16"], ("--orders",)),
+    (["identify", "run.h5", "--out", "m.csv", "--track", "--pose-from", "theta_deg=enc,"], ("--pose-from",)),
+])
+def test_comma_lists_with_an_empty_item(tmp_path: Path, capsys, monkeypatch, argv, words) -> None:
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "R").write_text(RIG, encoding="utf-8")
+    (tmp_path / "M").write_text(MODES.read_text(encoding="utf-8"), encoding="utf-8")
+    _run(tmp_path / "run.h5")
+    _one_line(capsys, main(argv), *words)
+    assert not (tmp_path / "D").exists() and not (tmp_path / "m.csv").exists()
+
+
+def test_api_duration_that_is_not_a_number(tmp_path: Path) -> None:
+    for bad in (float("nan"), float("inf"), "5"):
+        with pytest.raises(DaqError, match="must be a number of seconds"):   # "nan samples, more than..."
+            fm.acquire(REPO / "examples/sessions/serial-sim.toml", tmp_path / "r.h5", duration_s=bad)
+    assert not (tmp_path / "r.h5").exists()
+
+
+# -- run files: texts that are not UTF-8, a gzipped run file --------------------------------------------
+def _run(path: Path) -> Path:
+    chans = [Channel("F", "force", "N"), Channel("a1", "acceleration", "m/s^2")]
+    rng = np.random.default_rng(0)
+    with RunWriter(path, "r1", sample_rate_hz=1024.0, channels=chans, excitation="random",
+                   pose={"theta_deg": 0.0}) as w:
+        x = rng.standard_normal(2048)
+        w.append(np.column_stack([x, np.convolve(x, np.exp(-np.arange(50) / 9.0))[:2048]]))
+        w.add_event(Event("note", 5, 1, "fine"))
+    return path
+
+
+@pytest.mark.parametrize(("table", "field", "row"), [("channels", "unit", 1), ("channels", "location", 0),
+                                                     ("events", "detail", 0), ("events", "kind", 0)])
+def test_run_table_texts_that_are_not_utf8(tmp_path: Path, capsys, table: str, field: str, row: int) -> None:
+    run = _run(tmp_path / "run.h5")
+    with h5py.File(run, "r+") as f:
+        data = f[f"runs/r1/{table}"][...]
+        data[field][row] = b"m/s\xb2"
+        del f[f"runs/r1/{table}"]
+        f.create_dataset(f"runs/r1/{table}", data=data)
+    code = main(["frf", str(run), "--workers", "0"])   # was "cannot read ('utf-8' codec ...)"
+    _one_line(capsys, code, "run.h5", f"'{table}' row {row} field '{field}'", "not UTF-8")
+
+
+def test_a_gzipped_run_file_is_named_so(tmp_path: Path, capsys) -> None:
+    run = _run(tmp_path / "run.h5")
+    run.write_bytes(gzip.compress(run.read_bytes()))
+    code = main(["identify", str(run), "--out", str(tmp_path / "m.csv")])   # was "text outside any dataset"
+    _one_line(capsys, code, "run.h5", "gzip-compressed")
+
+
+# -- a device counter that starts again: the record breaks there ---------------------------------------
+def test_a_restarted_counter_breaks_the_record_with_a_nan_row() -> None:
+    """A foreign device on a reused pty (or a reset device) restarts the counter: one NaN row and a
+    ``gap`` event, so that no Welch segment spans the splice (a ``note`` alone joined the streams)."""
+    from types import SimpleNamespace
+
+    from flexmodal.daq.session import ChannelMap
+    from flexmodal.daq.timeline import Timeline
+    from flexmodal.modal.compute import SKIPPED_EVENTS
+
+    session = SimpleNamespace(sample_rate_hz=100.0, devices=(SimpleNamespace(name="adc"),),
+                              channels=(ChannelMap(Channel("v", "voltage", "V"), "adc", "s0"),))
+    tl = Timeline(session, {"adc": ("s0",)})
+    tl.add(Block("adc", 0, np.full((500, 1), 1.0), 0.0))
+    events = tl.add(Block("adc", 3, np.full((50, 1), 2.0), 9.0))   # another stream, counter from 3
+    rows = tl.take()
+    assert [(e.kind, e.sample_index, e.count) for e in events] == [("gap", 500, 1)]
+    assert events[0].kind in SKIPPED_EVENTS and "another device" in events[0].detail
+    assert rows.shape == (551, 1) and np.isnan(rows[500, 0]) and (rows[501:, 0] == 2.0).all()
