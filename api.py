@@ -387,8 +387,17 @@ def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: 
     ----------
     runs : sequence of str, Path or (path, run id)
         A file means all its runs, ``FILE::RUN_ID`` or ``(file, id)`` one run.
-    estimator, nfft, window, overlap, averaging
-        As :func:`compute_frf`.
+    estimator : str
+        A registered FRF estimator (``H1``, ``H2``, ``Hv``), as :func:`compute_frf`.
+    nfft : int, optional
+        Segment length [samples] of random and sweep runs, as :func:`compute_frf`.
+    window : str, optional
+        Window of random runs, or ``force:W,exponential:E`` (fractions of the record) of impact runs,
+        as :func:`compute_frf`.
+    overlap : float
+        Segment overlap, a fraction in [0, 1).
+    averaging : {"linear", "exponential"}
+        Averaging of the impact hits.
     workers : int or None
         0 (the default) computes the runs here one after the other; None chooses as the ``frf``
         command does (here, with a helper process forked from this one once the measured cost of
@@ -460,8 +469,18 @@ def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: 
 
 @dataclass(frozen=True)
 class Identification:
-    """Identified modes: the modal ``table`` (docs/formats.md, modal table CSV) and, per configuration,
-    the ``modes`` (``modal.identify.Modes``) and the ``outputs`` their shapes are given at."""
+    """Identified modes: the modal table and, per configuration, the modes and their outputs.
+
+    Parameters
+    ----------
+    table : contract.table.ModalTable
+        The modal table (docs/formats.md, modal table CSV): ``freq_hz`` [Hz], damping ratio [-],
+        uncertainties, shapes at the outputs.
+    modes : mapping of str to modal.identify.Modes
+        Per configuration, the identification's full result (poles, residues, stabilisation, warnings).
+    outputs : mapping of str to tuple of str
+        Per configuration, the channels the shapes are given at.
+    """
 
     table: ModalTable
     modes: Mapping[str, Modes]
@@ -884,6 +903,7 @@ def read_table(path: PathLike) -> ModalTable:
     Returns
     -------
     contract.table.ModalTable
+        One row per (configuration, mode): ``freq_hz`` [Hz], damping ratio [-], poses and shapes.
 
     Examples
     --------
@@ -955,6 +975,7 @@ def load_rig(path: PathLike) -> Rig:
     Returns
     -------
     models.rig.Rig
+        The validated rig: links, joints, masses and sensors (SI units) and its pose variables.
 
     Raises
     ------
@@ -1000,11 +1021,11 @@ def predict(rig: Rig | PathLike, poses: Mapping[str, Mapping[str, float]] | Moda
         Value of the ``source`` column (default: the model name).
     progress : callable, optional
         Called with each configuration once it is solved.
+    out : str or Path, optional
+        Also write the table as a modal table CSV here (checked before any work; never an input).
     **options
         Model options (docs/models.md): ``elements_per_link``, ``lumped_mass`` (fe);
         ``masses_per_link``, ``coordinates`` (lumped-mass).
-    out : str or Path, optional
-        Also write the table as a modal table CSV here (checked before any work; never an input).
 
     Returns
     -------
@@ -1173,8 +1194,12 @@ def write_comparison(comparison: Comparison, out: PathLike, fmt: str = "md", lay
         A :func:`compare_modes` result.
     out : str or Path
         The file to write.
-    fmt, layout, caption
-        As :func:`format_comparison`.
+    fmt : {"md", "csv", "tex", "html", "json"}
+        The text's format, as :func:`format_comparison`.
+    layout : {"modes", "sources"}
+        A row per mode or a row per source, as :func:`format_comparison`.
+    caption : str
+        Table caption (tex and html).
 
     Returns
     -------
@@ -1397,6 +1422,7 @@ def read_diagnosis(path: PathLike) -> Diagnosis:
     Returns
     -------
     compare.result.Diagnosis
+        The result as :func:`diagnose` returned it.
 
     Raises
     ------
@@ -1445,6 +1471,7 @@ def plot_frf(frf: FrfResult, title: str = "") -> Figure:
     Returns
     -------
     matplotlib.figure.Figure
+        Against frequency [Hz]: magnitude (the FRF's unit, log), phase [deg] and coherence [-].
 
     Examples
     --------
@@ -1484,6 +1511,7 @@ def plot_stabilisation(frf: FrfResult, modes: Modes | None = None, *, fmin: floa
     Returns
     -------
     matplotlib.figure.Figure
+        Stable (filled) and unstable (open) poles per model order over the CMIF, frequency in Hz.
 
     References
     ----------
@@ -1532,6 +1560,7 @@ def plot_mode_shapes(rig: Rig | PathLike, measured: ModalTable | PathLike, confi
     Returns
     -------
     matplotlib.figure.Figure
+        Each measured shape at the sensors drawn on the arm (m), with the FE mode of highest MAC.
 
     References
     ----------
@@ -1578,6 +1607,7 @@ def plot_comparison(measured: ModalTable | PathLike,
     Returns
     -------
     matplotlib.figure.Figure
+        Natural frequencies [Hz] against the pose variable: measured points, a line per model and mode.
 
     Examples
     --------
@@ -1614,6 +1644,8 @@ def plot_gap(diagnosis: Diagnosis | Mapping | PathLike, title: str = "") -> Figu
     Returns
     -------
     matplotlib.figure.Figure
+        Bars of the per-mode relative frequency error [%] before and after the diagnosed effect, and
+        the held-out RMS error [%].
 
     Examples
     --------
@@ -2017,8 +2049,18 @@ def demo(out_dir: PathLike = "flexmodal-demo", *, rig: PathLike | None = None, q
 
 @dataclass(frozen=True)
 class SelfCheck:
-    """The blind self-check of the diagnosis: the ``results`` per case (``fixtures.blind.BlindResult``),
-    the accuracy ``summary`` (fractions) and its printed ``text``."""
+    """The blind self-check of the diagnosis.
+
+    Parameters
+    ----------
+    results : tuple of fixtures.blind.BlindResult
+        One per simulated case: the case (the effect hidden), the verdict and its time [s].
+    summary : mapping
+        ``fixtures.blind.summarise``: accuracy fractions in [0, 1] (NaN where a category is absent,
+        e.g. ``accepted_accuracy``), counts, ``seconds_per_case`` [s] and the ``misses``.
+    text : str
+        The summary as ``flexmodal selftest`` prints it.
+    """
 
     results: tuple
     summary: Mapping[str, float]

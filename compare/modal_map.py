@@ -29,7 +29,8 @@ Functions (signatures are stable; ``track`` of issue 27 reuses them):
 ``ModalMap``: ``pose`` [Q] distinct pose values ascending, ``freq_hz``/``freq_std_hz`` [Q, B] per branch
 (NaN where the branch was not seen), ``mode_number`` [Q, B] the branch's rank by frequency at that pose
 (1-based, 0 where not seen), ``mac_link`` [Q, B] MAC with the branch's previous pose (NaN at its first
-or without shapes), ``n_repeats`` [Q], ``events`` the order swaps ``(q_index, branch_a, branch_b)``:
+pose, without shapes, or where either shape is all zero: its MAC is undefined, contract.mac; the link
+cost counts it as unlike), ``n_repeats`` [Q], ``events`` the order swaps ``(q_index, branch_a, branch_b)``:
 branches a and b exchange frequency order between ``pose[q_index - 1]`` and ``pose[q_index]`` (with
 shapes a veering or crossing resolved by the shape; without shapes a crossing extrapolated from the
 trend).  ``to_frame()`` is the long table (pose, branch, mode_number, freq_hz, freq_std_hz, mac_link).
@@ -60,6 +61,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from flexmodal.compare.errors import CompareError
+from flexmodal.contract.mac import mac
 from flexmodal.contract.table import ModalTable
 
 FREQ_LOG_WIDTH = 0.25
@@ -132,13 +134,6 @@ def _merge_repeats(freqs: list[np.ndarray], shapes: list[np.ndarray] | None, std
     return mean, acc / len(shapes), std
 
 
-def _mac(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    num = np.abs(np.conj(a).T @ b) ** 2
-    den = np.outer(np.sum(np.abs(a) ** 2, axis=0), np.sum(np.abs(b) ** 2, axis=0))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(den > 0, num / np.where(den > 0, den, 1.0), np.nan)
-
-
 def track_modes(pose: Sequence[float], freq_hz: Sequence[np.ndarray],
                 shapes: Sequence[np.ndarray] | None = None,
                 freq_std_hz: Sequence[np.ndarray] | None = None, max_cost: float = MAX_COST) -> ModalMap:
@@ -178,7 +173,7 @@ def track_modes(pose: Sequence[float], freq_hz: Sequence[np.ndarray],
                 pred = max(pred, 1e-3 * f1)
                 cost[r] = np.abs(np.log(f / pred)) / FREQ_LOG_WIDTH
                 if phi is not None and last_shape[b] is not None:
-                    cost[r] += np.nan_to_num(1.0 - _mac(last_shape[b][:, None], phi)[0], nan=1.0)
+                    cost[r] += np.nan_to_num(1.0 - mac(last_shape[b][:, None], phi)[0], nan=1.0)
             rows, cols = linear_sum_assignment(cost)
             assigned = {int(c): live[r] for r, c in zip(rows, cols, strict=True) if cost[r, c] <= max_cost}
         for k in range(len(f)):
@@ -189,7 +184,7 @@ def track_modes(pose: Sequence[float], freq_hz: Sequence[np.ndarray],
                 last_shape.append(None)
                 b = len(branches) - 1
             elif phi is not None and last_shape[b] is not None:
-                link = float(_mac(last_shape[b][:, None], phi[:, k:k + 1])[0, 0])
+                link = float(mac(last_shape[b][:, None], phi[:, k:k + 1])[0, 0])
             branches[b][q] = (float(f[k]), float(std[k]), link, int(rank[k]))
             if phi is not None:
                 last_shape[b] = phi[:, k]

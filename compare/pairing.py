@@ -163,7 +163,8 @@ def _pair_by_mac(meas: list[ModeRef], pred: list[ModeRef], macs: np.ndarray, min
     fp = np.array([r.freq_hz for r in pred])
     with np.errstate(divide="ignore", invalid="ignore"):
         spread = np.abs(np.log(np.maximum(fp[None, :], 1e-300) / np.maximum(fm[:, None], 1e-300)))
-    cost = 1.0 - macs + freq_weight * np.nan_to_num(spread, nan=1e3, posinf=1e3)
+    unlike = 1.0 - np.nan_to_num(macs, nan=0.0)    # a zero shape (MAC undefined) counts as unlike
+    cost = unlike + freq_weight * np.nan_to_num(spread, nan=1e3, posinf=1e3)
     rows, cols = linear_sum_assignment(cost)
     return [Pair(meas[i], pred[j], float(macs[i, j]), "mac")
             for i, j in zip(rows, cols, strict=True) if macs[i, j] >= min_mac]

@@ -7,23 +7,51 @@ import numpy as np
 
 
 def mac(phi_a: np.ndarray, phi_b: np.ndarray) -> np.ndarray:
-    """Modal assurance criterion [n_a, n_b] = |phi_a^H phi_b|^2 / ((phi_a^H phi_a)(phi_b^H phi_b))."""
+    """Modal assurance criterion [n_a, n_b] = |phi_a^H phi_b|^2 / ((phi_a^H phi_a)(phi_b^H phi_b)) [-]
+    of the columns of ``phi_a`` against those of ``phi_b`` (Allemang & Brown 1982), in [0, 1].
+
+    NaN where a column is all zero (or holds a NaN): a shape without motion at the points has no
+    direction, so its MAC with anything is undefined, not 0 (0 would say "a shape unlike the other").
+    A caller that ranks or gates by MAC says what undefined counts as: ``mac >= threshold`` is False
+    for NaN; ``np.nan_to_num(m, nan=0.0)`` counts it as unlike.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> phi = np.array([[1.0, 0.0, 0.0], [1.0, 1.0, 0.0]])
+    >>> mac(phi, phi).round(3)
+    array([[1. , 0.5, nan],
+           [0.5, 1. , nan],
+           [nan, nan, nan]])
+    """
     a = np.atleast_2d(np.asarray(phi_a))
     b = np.atleast_2d(np.asarray(phi_b))
     if a.shape[0] != b.shape[0]:
         a, b = a.T, b.T
     num = np.abs(a.conj().T @ b) ** 2
     den = np.outer(np.sum(np.abs(a) ** 2, axis=0), np.sum(np.abs(b) ** 2, axis=0))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.nan_to_num(num / den)
+    return _defined_ratio(num, den)
 
 
 def mac_pairs(phi_a: np.ndarray, phi_b: np.ndarray) -> np.ndarray:
-    """MAC of corresponding columns [n_modes] (the diagonal of ``mac`` without the rest)."""
+    """MAC of corresponding columns [n_modes] [-] (the diagonal of ``mac`` without the rest; NaN where
+    either column is all zero, as in ``mac``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> mac_pairs(np.array([[1.0, 1.0], [0.0, 0.0]]), np.array([[1.0, 0.0], [1.0, 0.0]]))
+    array([0.5, nan])
+    """
     num = np.abs(np.einsum("ir,ir->r", phi_a.conj(), phi_b)) ** 2
     den = np.einsum("ir,ir->r", phi_a.conj(), phi_a).real * np.einsum("ir,ir->r", phi_b.conj(), phi_b).real
+    return _defined_ratio(num, den)
+
+
+def _defined_ratio(num: np.ndarray, den: np.ndarray) -> np.ndarray:
+    """``num / den`` where ``den`` > 0, NaN elsewhere (a zero or NaN shape: MAC undefined)."""
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.nan_to_num(num / den)
+        return np.where(den > 0, num / np.where(den > 0, den, 1.0), np.nan)
 
 
 def automac(phi: np.ndarray) -> np.ndarray:

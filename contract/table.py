@@ -294,6 +294,8 @@ def _check_names(df: pd.DataFrame, source: str) -> None:
     prefixes = (POSE_PREFIX, SHAPE_PREFIX)
     named = [(f"config {c!r}", c) for c in pd.unique(df["config"])]
     named += [(f"column {c!r}", c.split(".", 1)[1]) for c in map(str, df.columns) if c.startswith(prefixes)]
+    if "source" in df.columns:   # a source is a column title of every comparison table
+        named += [(f"source {s!r}", s) for s in pd.unique(df["source"].dropna().astype(str))]
     for what, name in named:
         fault = name_fault(name)
         if fault:

@@ -278,6 +278,10 @@ def parse_session(doc: dict, source: Path) -> Session:
     uses_sim = any(SIMULATOR_PORT in vars(d.config).values() for d in devices.values())
     if uses_sim and sim is None:
         raise DaqError(f"{where}: a device uses port {SIMULATOR_PORT!r} but there is no [simulator]")
+    if sim is not None and not any(d.protocol == sim.protocol for d in devices.values()):
+        have = ", ".join(f"{d.name} ({d.protocol})" for d in devices.values())
+        raise DaqError(f"{where}: simulator: protocol = {sim.protocol!r} but no [[device]] speaks it "
+                       f"(devices: {have})")
     ch_docs = t.get("channel", list, check=bool, why="must list at least one [[channel]]")
     channels = tuple(_channel(c, f"{where}: channel {i + 1}", devices) for i, c in enumerate(ch_docs))
     names = [c.channel.name for c in channels]

@@ -324,7 +324,7 @@ def follow(windows: Sequence[WindowPoles], options: TrackOptions) -> list[Track]
             last = np.column_stack([t["shapes"][-1] for t in open_])
             lag = np.column_stack([t["shapes"][int(np.searchsorted(t["t"], t["t"][-1] - MAC_LAG_S))]
                                    for t in open_])
-            mac_ = np.minimum(mac(last, sh), mac(lag, sh))
+            mac_ = np.nan_to_num(np.minimum(mac(last, sh), mac(lag, sh)), nan=0.0)  # undefined: unlike
             df = np.abs(f[None, :] - pred[:, None]) / (options.gate_rel * (pred * widen)[:, None])
             dm = (1 - mac_) / (1 - options.mac_min)
             cost = df + dm
@@ -537,7 +537,8 @@ def _warped_pole(y: np.ndarray, fs: float, centres: np.ndarray, k: int, tr: Trac
                     max_order=REFINE_ORDER, block_rows=rows).modes
     except ModalError:
         return None
-    near = np.abs(m.freq_hz / f_c - 1) / options.gate_rel + (1 - mac(shape, m.shapes).min(axis=0)) / (
+    unlike = 1 - np.nan_to_num(mac(shape, m.shapes), nan=0.0).min(axis=0)   # undefined MAC: unlike
+    near = np.abs(m.freq_hz / f_c - 1) / options.gate_rel + unlike / (
         1 - options.mac_min)
     j = int(np.argmin(near))
     on_order = any(is_order(m.freq_hz[j:j + 1], rates[v], o, options.order_tol)[0] for v, o in orders.items())

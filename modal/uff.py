@@ -141,6 +141,9 @@ def _frfs(p: Path, funcs: list[dict]) -> UffFrfs:
     for o, s in zip(names, funcs, strict=True):
         if np.asarray(s["x"]).shape != x.shape or not np.allclose(s["x"], x):
             raise ModalError(f"{p}: FRF {o} has a different frequency axis")
+        if not np.iscomplexobj(s["data"]):   # a magnitude export: "no stable poles" said nothing of it
+            raise ModalError(f"{p}: FRF {o} holds real values (ordinate data type {s.get('ord_data_type')}), "
+                             "no phase: FRFs are complex (H = X / F); export them as complex (type 5 or 6)")
         i = channel_name(s["ref_node"], s["ref_dir"])
         outs += [o] if o not in outs else []
         ins += [i] if i not in ins else []

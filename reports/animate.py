@@ -122,7 +122,7 @@ def arm_pairs(arm, measured: ModalTable, config: str, n_predicted: int | None = 
     pairs: list[tuple[Shape | None, Shape | None]] = []
     used = set()
     for k in range(measured_shapes.shape[1]):
-        j = int(np.argmax(macs[k]))
+        j = int(np.argmax(np.nan_to_num(macs[k], nan=-1.0)))   # a zero shape: MAC undefined
         used.add(j)
         disp = np.vstack([np.zeros((1, 2)), (measured_shapes[:, k, None] * arm.sensor_dir)[along]])
         test = Shape(f"mode {k + 1}: {freqs[k]:.4g} Hz (MAC {macs[k, j]:.2f} with FE mode {j + 1})", test_xy,

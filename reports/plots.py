@@ -273,7 +273,8 @@ def plot_mac(phi_a: np.ndarray, phi_b: np.ndarray | None = None, labels_a: Seque
     ax = fig.subplots()
     im = ax.imshow(m, vmin=0, vmax=1, cmap="Greys", origin="upper")
     for (i, j), v in np.ndenumerate(m):
-        ax.text(j, i, f"{v:.2f}", ha="center", va="center", fontsize=7, color="w" if v > 0.5 else "k")
+        ax.text(j, i, f"{v:.2f}" if np.isfinite(v) else "–",   # "–": a zero shape, MAC undefined
+                ha="center", va="center", fontsize=7, color="w" if v > 0.5 else "k")
     ax.set_xticks(range(m.shape[1]), [text(t) for t in lb], rotation=45 if max(len(t) for t in lb) > 4 else 0,
                   fontsize=7, ha="right" if max(len(t) for t in lb) > 4 else "center")
     ax.set_yticks(range(m.shape[0]), [text(t) for t in la], fontsize=7)
@@ -427,7 +428,7 @@ def plot_mode_shapes(arm, measured: ModalTable, config: str, title: str = "") ->
     axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False)).ravel()
     for k, ax in enumerate(axes[:n]):
         meas = real_shapes[:, k]
-        j = int(np.argmax(macs[k]))
+        j = int(np.argmax(np.nan_to_num(macs[k], nan=-1.0)))   # a zero shape: MAC undefined
         model = arm.sensor_disp[:, j]
         alpha = float(model @ meas / (model @ model)) if model @ model > 0 else 0.0
         disp = [alpha * d[:, j] for d in arm.link_disp]

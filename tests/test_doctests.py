@@ -81,3 +81,42 @@ def test_every_public_api_example_is_one_the_doctest_run_collects():
         if func.__module__ not in walked or not found.get(func.__name__):
             uncollected.append(name)
     assert uncollected == []
+
+
+def _section(doc: str, title: str) -> list[str]:
+    """The lines of a numpydoc section (up to the next section's underlined title)."""
+    lines = doc.splitlines()
+    try:
+        start = lines.index(title) + 2
+    except ValueError:
+        return []
+    end = next((i for i in range(start, len(lines) - 1) if set(lines[i + 1]) == {"-"} and lines[i]),
+               len(lines))
+    return lines[start:end]
+
+
+def test_every_public_api_docstring_documents_its_signature_in_numpydoc_form():
+    """For each function and record class of flexmodal.api: its Parameters name every argument of
+    the signature in order, each ``name : type`` (no bare name lists), and each Returns entry has a
+    description line (numpydoc's PR01-PR04 and RT03 checks, without numpydoc)."""
+    import inspect
+
+    from flexmodal import api
+
+    wrong = {}
+    for name in api.__all__:
+        obj = getattr(api, name)
+        if not (inspect.isfunction(obj) or inspect.isclass(obj)) or obj.__module__ != "flexmodal.api":
+            continue
+        doc = inspect.getdoc(obj) or ""
+        params = [p for p in _section(doc, "Parameters") if p and not p.startswith(" ")]
+        documented = [n.strip() for p in params for n in p.split(" : ")[0].split(",")]
+        signature = [("*" if p.kind is p.VAR_POSITIONAL else "**" if p.kind is p.VAR_KEYWORD else "") + p.name
+                     for p in inspect.signature(obj).parameters.values() if p.name != "self"]
+        untyped = [p for p in params if " : " not in p and not p.startswith("*")]
+        returns = _section(doc, "Returns")
+        bare = [r for i, r in enumerate(returns) if r and not r.startswith(" ")
+                and not (i + 1 < len(returns) and returns[i + 1].startswith(" "))]
+        if documented != signature or untyped or bare:
+            wrong[name] = (documented, signature, untyped, bare)
+    assert wrong == {}

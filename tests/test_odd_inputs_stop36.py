@@ -55,14 +55,15 @@ def _one_line(capsys, code: int, *words: str) -> str:
     ('[[sensor]]\nname = "g"\nat = "ground@0,0"', ("sensor[3].at", "ground point")),
     (f'[[member]]\nname = "p"\nfrom = "ground@inf,0"\nto = "link2@0.1"\n{BAR}',             # "0 modes"
      ("member[0].from", "finite")),
-    (f'[[member]]\nname = "p"\nfrom = "ground@0.1,nan"\nto = "link2@0.1"\n{BAR}', ("member[0].from", "finite")),
+    (f'[[member]]\nname = "p"\nfrom = "ground@0.1,nan"\nto = "link2@0.1"\n{BAR}',
+     ("member[0].from", "finite")),
     (f'[[member]]\nname = "p"\nfrom = "ground@1"\nto = "link2@0.1"\n{BAR}', ("member[0].from", "position")),
 ])
 def test_points_on_the_ground(tmp_path: Path, capsys, extra: str, words: tuple[str, ...]) -> None:
     (tmp_path / "rig.toml").write_text(RIG + "\n" + extra + "\n", encoding="utf-8")
     (tmp_path / "poses.csv").write_text("config,pose.theta_deg\nt0,0\n", encoding="utf-8")
-    code = main(["predict", str(tmp_path / "rig.toml"), "--model", "fe", "--poses", str(tmp_path / "poses.csv"),
-                 "--out", str(tmp_path / "p.csv")])
+    code = main(["predict", str(tmp_path / "rig.toml"), "--model", "fe",
+                 "--poses", str(tmp_path / "poses.csv"), "--out", str(tmp_path / "p.csv")])
     _one_line(capsys, code, "rig.toml", *words)
 
 
@@ -165,7 +166,8 @@ def test_animate_mode_never_writes_over_its_table(tmp_path: Path, kwargs, words)
     before = table.read_bytes()
     out = table if not kwargs else tmp_path / "a.gif"
     with pytest.raises(ReportError, match=words):
-        fm.animate_mode(out, table, "t0", **{"mode": 1, **kwargs}, rig=REPO / "examples/rigs/seed003_two_link.toml")
+        fm.animate_mode(out, table, "t0", **{"mode": 1, **kwargs},
+                        rig=REPO / "examples/rigs/seed003_two_link.toml")
     assert table.read_bytes() == before and not (tmp_path / "a.gif").exists()
 
 
@@ -270,3 +272,44 @@ def test_a_restarted_counter_breaks_the_record_with_a_nan_row() -> None:
     assert [(e.kind, e.sample_index, e.count) for e in events] == [("gap", 500, 1)]
     assert events[0].kind in SKIPPED_EVENTS and "another device" in events[0].detail
     assert rows.shape == (551, 1) and np.isnan(rows[500, 0]) and (rows[501:, 0] == 2.0).all()
+
+
+# -- second batch: a session simulator no device speaks, a source name, a rig without sensors, real FRFs
+def test_a_session_simulator_of_a_protocol_no_device_speaks(tmp_path: Path) -> None:
+    from flexmodal.daq.session import load_session
+
+    text = (REPO / "examples" / "sessions" / "serial-sim.toml").read_text(encoding="utf-8")
+    text = text.replace('[simulator]\nprotocol = "serial"', '[simulator]\nprotocol = "can"')
+    (tmp_path / "s.toml").write_text(text.replace("../rigs/", str(REPO / "examples" / "rigs") + "/"),
+                                     encoding="utf-8")
+    with pytest.raises(DaqError, match=r"simulator: protocol = 'can' but no \[\[device\]\] speaks it"):
+        load_session(tmp_path / "s.toml")                    # was StopIteration inside acquire
+
+
+@pytest.mark.parametrize("source", ["fe\nx", "   ", "a\tb"])
+def test_a_source_name_that_breaks_lines(source: str) -> None:
+    with pytest.raises(Exception, match="source") as err:   # was written as a two-line CSV cell
+        fm.predict(REPO / "examples/rigs/seed003_two_link.toml", {"t0": {"theta_deg": 0.0}}, "fe", 2,
+                   source=source)
+    assert isinstance(err.value, fm.FlexmodalError)
+
+
+def test_a_simulated_rig_without_sensors(tmp_path: Path) -> None:
+    (tmp_path / "r.toml").write_text(RIG.split("[[sensor]]")[0], encoding="utf-8")
+    from flexmodal.fixtures.errors import FixtureError
+
+    with pytest.raises(FixtureError, match=r"r.toml: the rig has no \[\[sensor\]\]"):
+        fm.demo(tmp_path / "D", rig=tmp_path / "r.toml")    # was "no response channel" after 20 s
+
+
+def test_uff_frfs_of_real_values(tmp_path: Path, capsys) -> None:
+    import pyuff
+
+    f = np.arange(1, 129) * 0.5
+    recs = [dict(type=58, func_type=4, rsp_node=r + 1, rsp_dir=3, ref_node=9, ref_dir=3, data=1 / (40.25 - f),
+                 x=f, id1="FRF", rsp_ent_name="NONE", ref_ent_name="NONE", abscissa_spacing=1,
+                 abscissa_spec_data_type=18, ordinate_spec_data_type=12, orddenom_spec_data_type=13)
+            for r in range(2)]
+    pyuff.UFF(str(tmp_path / "u.uff")).write_sets(recs, mode="overwrite")
+    code = main(["identify", str(tmp_path / "u.uff"), "--out", str(tmp_path / "m.csv")])
+    _one_line(capsys, code, "u.uff", "real values")   # was "no stable poles between ..."
