@@ -42,7 +42,7 @@ NEXT_SEEDS = (526, 527, 528, 529, 530)
 NEXT_NOTE = "run once, after the last change to the method; never used to develop it"
 SPARSE_CASES = 60
 SPARSE_SEED = 5
-ADVICE_SEEDS = NEW_SEEDS + LATEST_SEEDS + NEXT_SEEDS
+ADVICE_SEEDS = LATEST_SEEDS + NEXT_SEEDS
 """The used blind draws on which the next-measurement advice is measured (``advice_block``)."""
 
 from flexmodal.compare.diagnosis import diagnose  # noqa: E402

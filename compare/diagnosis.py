@@ -1128,8 +1128,9 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
               and e["_heldout_eq"] - best["_heldout_eq"]
               <= RIVAL_MARGIN * _noise(best, scatter, ctx.pose_share)][:MAX_RIVALS]
     rivals += [e for e in alts if e not in rivals]
-    verdict["next_measurements"] = next_measurements(ctx, best, rivals, scatter) if alts else []
     nested_only = bool(alts) and all(adds_to(best, e) for e in alts)    # advice: no pose decides these
+    verdict["next_measurements"] = next_measurements(ctx, best, rivals, scatter) if alts and not nested_only \
+        else []
     text = f"{best['effect']} at {best['location']}, {gap_words(before, after, sigma, grade, feature)}"
     if not explained:
         worst_txt = ", ".join(f"mode {r['mode']} at {r['config']} ({r['heldout_rel_error']:+.1%})"

@@ -266,9 +266,10 @@ def no_pose_decides(best: dict, alts: Sequence[dict], paired: Sequence[float], m
     >>> alt = {"_cand": Candidate(("base_stiffness", "tip_mass"), ("base", "tip"), ()), "_heldout_eq": 0.0024,
     ...        "effect": "base_stiffness+tip_mass", "location": "base+tip"}
     >>> no_pose_decides(best, [alt], [0.002], 0.0008, 3)     # (0.2 / 0.12)^2 = 2.8: 3 x 1.8 more
-    'no pose is advised: the alternatives only add a component, which one more pose confirms or \
-excludes by its noise, wherever it is taken; base_stiffness+tip_mass at base+tip: gain 0.12% within the \
-paired noise 0.20%, about 6 more poses would confirm it if the gain held'
+    'no pose is advised: every alternative only adds a component, and on the blind trials one more pose \
+settled such a component no more often where the candidates differ most than elsewhere; \
+base_stiffness+tip_mass at base+tip: gain 0.12% within the paired noise 0.20%, about 6 more poses would \
+confirm it if the gain held'
     """
     parts = []
     for e, noise in zip(alts, paired, strict=True):
@@ -281,5 +282,6 @@ paired noise 0.20%, about 6 more poses would confirm it if the gain held'
             more = max(math.ceil(n_poses * ((noise / gain) ** 2 - 1) - 1e-9), 1)
             parts.append(f"{head} within the paired noise {noise:.2%}, about {more} more poses would "
                          "confirm it if the gain held")
-    return ("no pose is advised: the alternatives only add a component, which one more pose confirms or "
-            "excludes by its noise, wherever it is taken; " + "; ".join(parts))
+    return ("no pose is advised: every alternative only adds a component, and on the blind trials one more "
+            "pose settled such a component no more often where the candidates differ most than elsewhere; "
+            + "; ".join(parts))
