@@ -326,3 +326,11 @@ def test_an_error_line_quoting_binary_bytes_is_escaped(tmp_path: Path, capsys) -
                  "--duration", "1"])
     line = _one_line(capsys, code, "can-module.dbc", "not a readable DBC file")
     assert "\\x1b" in line and not any(c in line for c in "\x1b\x07\x9b")
+
+
+def test_a_predicted_table_of_two_models(tmp_path: Path, capsys) -> None:
+    """fe mode 1 and blevins mode 2 in one PRED.csv were paired as one model's modes 1 and 2."""
+    (tmp_path / "p.csv").write_text("config,mode,freq_hz,source\ntheta0,1,25.3,fe\ntheta0,2,158.4,blevins\n",
+                                    encoding="utf-8")
+    code = main(["compare", str(MODES), str(tmp_path / "p.csv")])
+    _one_line(capsys, code, "p.csv", "2 sources", "one model per file")
