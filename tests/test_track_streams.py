@@ -25,7 +25,7 @@ from flexmodal.fixtures.sim_can import sim_dbc
 from flexmodal.fixtures.sim_source import MOVING_ORDERS, MOVING_PERIOD_S, MOVING_SPAN_DEG
 from flexmodal.models.rig import load_rig
 
-pytestmark = pytest.mark.timeout(1800)  # 20-30 s of streaming each, simulator start-up and tracking
+pytestmark = pytest.mark.timeout(1800)  # 12-30 s of streaming each, simulator start-up and tracking
 
 REPO = Path(__file__).resolve().parents[1]
 GEAR_RATIO = 100.0
@@ -96,8 +96,11 @@ def test_moving_dbc_is_the_generators():
 
 
 def test_moving_arm_over_can_slcan_recorded_and_tracked(tmp_path):
-    """20 s over slcan at 512 Hz (elbow 0 -> 62 deg): the two modes below 230 Hz tracked."""
-    out, run = _recorded(tmp_path, "can-moving-sim.toml", 20.0)
+    """12 s over slcan at 512 Hz (elbow 0 -> 25 deg; harmonics of two orders cross the two modes): the
+    two modes below 230 Hz tracked.  (The claim holds as on the 20 s, 0 -> 62 deg it used: the source's
+    record written directly and tracked put every bin within 0.72 % of the truth on 20 s, 0.44 % on
+    12 s and 0.53 % on 10 s, both modes found; the stored run holds exactly duration x rate samples.)"""
+    out, run = _recorded(tmp_path, "can-moving-sim.toml", 12.0)
     assert run.excitation == "operational" and run.sample_rate_hz == 512.0
     _check_map(out, 200.0, 2)
 
