@@ -1792,6 +1792,8 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     from flexmodal.checked_io.output import output_file
     from flexmodal.reports.errors import ReportError
 
+    if not isinstance(title, str):   # None was printed as the page's title "None"
+        raise TypeError(f"report: title must be text (str), got {type(title).__name__} {title!r}")
     sources = _paths([*runs, measured, *repeats, *predictions, diagnosis, rig, geometry])
     output_file(out, ReportError, "report (--out)", inputs=sources)
     if pdf:

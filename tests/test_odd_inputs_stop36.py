@@ -334,3 +334,9 @@ def test_a_predicted_table_of_two_models(tmp_path: Path, capsys) -> None:
                                     encoding="utf-8")
     code = main(["compare", str(MODES), str(tmp_path / "p.csv")])
     _one_line(capsys, code, "p.csv", "2 sources", "one model per file")
+
+
+def test_a_report_title_that_is_not_text(tmp_path: Path) -> None:
+    with pytest.raises(TypeError, match="report: title must be text"):   # the page was titled "None"
+        fm.report(tmp_path / "r.html", measured=MODES, title=None)
+    assert not (tmp_path / "r.html").exists()
