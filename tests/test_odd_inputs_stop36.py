@@ -313,3 +313,24 @@ def test_uff_frfs_of_real_values(tmp_path: Path, capsys) -> None:
     pyuff.UFF(str(tmp_path / "u.uff")).write_sets(recs, mode="overwrite")
     code = main(["identify", str(tmp_path / "u.uff"), "--out", str(tmp_path / "m.csv")])
     _one_line(capsys, code, "u.uff", "real values")   # was "no stable poles between ..."
+
+
+def test_an_error_line_quoting_binary_bytes_is_escaped(tmp_path: Path, capsys) -> None:
+    """A DBC file of binary bytes: cantools quotes them; ESC would drive the terminal (one line, but
+    not plain text).  app._say escapes what is not printable, for every error line."""
+    session = (REPO / "examples" / "sessions" / "can-module.toml").read_text(encoding="utf-8")
+    (tmp_path / "s.toml").write_text(session.replace('interface = "socketcan"', 'interface = "virtual"'),
+                                     encoding="utf-8")
+    (tmp_path / "can-module.dbc").write_bytes(b"\x1b[2J\x07\x9b0m junk\n")
+    code = main(["acquire", "--config", str(tmp_path / "s.toml"), "--out", str(tmp_path / "r.h5"),
+                 "--duration", "1"])
+    line = _one_line(capsys, code, "can-module.dbc", "not a readable DBC file")
+    assert "\\x1b" in line and not any(c in line for c in "\x1b\x07\x9b")
+
+
+def test_a_predicted_table_of_two_models(tmp_path: Path, capsys) -> None:
+    """fe mode 1 and blevins mode 2 in one PRED.csv were paired as one model's modes 1 and 2."""
+    (tmp_path / "p.csv").write_text("config,mode,freq_hz,source\ntheta0,1,25.3,fe\ntheta0,2,158.4,blevins\n",
+                                    encoding="utf-8")
+    code = main(["compare", str(MODES), str(tmp_path / "p.csv")])
+    _one_line(capsys, code, "p.csv", "2 sources", "one model per file")
