@@ -1100,6 +1100,12 @@ def _named(tables: Iterable[ModalTable | PathLike | tuple[str, ModalTable]]) -> 
             out.append(t)
         else:
             table = _table(t)
+            sources = table.frame["source"].dropna().astype(str).unique() if "source" in table.frame else ()
+            if len(sources) > 1:   # one column per model: two models in one file were paired as one
+                from flexmodal.compare.errors import CompareError
+
+                raise CompareError(f"{table.source}: a predicted table of {len(sources)} sources "
+                                   f"({', '.join(map(repr, sources[:4]))}): give one model per file")
             out.append((table_name(table, Path(str(t)).stem if isinstance(t, str | Path)
                                    else Path(table.source).stem), table))
     return out
@@ -1786,6 +1792,8 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     from flexmodal.checked_io.output import output_file
     from flexmodal.reports.errors import ReportError
 
+    if not isinstance(title, str):   # None was printed as the page's title "None"
+        raise TypeError(f"report: title must be text (str), got {type(title).__name__} {title!r}")
     sources = _paths([*runs, measured, *repeats, *predictions, diagnosis, rig, geometry])
     output_file(out, ReportError, "report (--out)", inputs=sources)
     if pdf:

@@ -2,9 +2,12 @@
 
 Each row is one malformed input (a file, an option value or an output path) given to the ``flexmodal``
 console script in a process of its own with a time limit; rows run in a few threads at once.  The
-first row of each command and the control rows start the installed console script cold; the others
-start it warm (tests/warm_cli.py: a process forked from a server that has imported numpy, scipy, pandas,
-h5py and matplotlib, then running the script's own body), which saves 0.3-1 s of CPU per row.
+control rows start the installed console script cold; the others start it warm (tests/warm_cli.py: a
+process forked from a server that has imported numpy, scipy, pandas, h5py and matplotlib, then running
+the script's own body), which saves 0.3-1 s of CPU per row.  (The installed console script started cold
+runs every command in other default tests: frf, identify, report, predict and acquire in
+tests/test_interrupt_commands.py, demo in tests/test_cli_interrupt.py, ``sim serve`` as the child of every
+simulated acquire; diagnose started cold in tests/test_demo.py's chain.)
 A row passes when the command exits 2 within the limit, prints no traceback, prints exactly one line on
 stderr, and that line holds the row's expected words (the file, field or value and what is wrong).
 The control rows at the end use the same base files unmodified and must exit 0, so a row's exit 2
@@ -1040,9 +1043,8 @@ def _console_script() -> str:
     return found
 
 
-# started cold: the first row of each command and the controls (the others: warm, tests/warm_cli.py)
-COLD = {next(r.name for r in ROWS if r.args[0] == command) for command in {r.args[0] for r in ROWS}} | {
-    r.name for r in ROWS if r.name.startswith("control-")}
+# started cold: the controls (the others: warm, tests/warm_cli.py)
+COLD = {r.name for r in ROWS if r.name.startswith("control-")}
 
 
 @pytest.fixture(scope="module")
