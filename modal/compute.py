@@ -123,6 +123,8 @@ def frf_of_record(samples, sample_rate_hz: float, names: Sequence[str], kinds: S
     if not hasattr(samples, "shape"):
         samples = np.asarray(samples)
     _check_shape(samples, names, where)
+    if averaging not in ("linear", "exponential"):   # Welch took any other word as linear
+        raise ModalError(f"averaging {averaging!r}: use linear or exponential")
     inputs = [j for j, k in enumerate(kinds) if k == "force"]
     if not inputs:
         raise ModalError(f"{where}: no force channel to use as the FRF reference")
