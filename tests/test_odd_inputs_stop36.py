@@ -418,6 +418,7 @@ def test_given_accepts_what_the_option_accepts(value) -> None:
      "references must be a list"),
     (lambda d: fm.track(d / "run.h5", max_order=True), fm.ModalError, "max_order = True"),
     (lambda d: fm.compute_frf(d / "run.h5", averaging="median"), fm.ModalError, "averaging 'median'"),  # ran
+    (lambda d: fm.compute_frf(d / "run.h5", window="force:0.05"), fm.ModalError, "is for impact hits"),  # ran
     (lambda d: fm.predict(REPO / "examples/rigs/seed003_two_link.toml", {"t": {"theta_deg": 0.0}}, "fe", 2,
                           elements_per_link=0), fm.ModelError, "elements_per_link = 0"),           # ran
     (lambda d: fm.predict(REPO / "examples/rigs/seed003_two_link.toml", {"t": {"theta_deg": 0.0}}, "fe", 2,
