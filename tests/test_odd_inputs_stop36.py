@@ -391,3 +391,42 @@ def test_a_name_given_twice_where_the_last_one_won(tmp_path: Path, capsys, monke
     monkeypatch.chdir(tmp_path)
     _run(tmp_path / "run.h5")
     _one_line(capsys, main(argv), *words)
+
+
+# -- fourth batch: API numbers checked by the option kinds the command line uses ------------------------
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(st.one_of(st.none(), st.booleans(), st.text(max_size=4), st.integers(-10, 10**12),
+                 st.floats(allow_nan=True, allow_infinity=True)))
+def test_given_accepts_what_the_option_accepts(value) -> None:
+    """opt.given(value, kind) is kind(str(value)) for a real number, else one error naming the value."""
+    class Bad(Exception):
+        pass
+
+    try:
+        got = opt.given(value, opt.model_order, "max_order", Bad)
+    except Bad as exc:
+        assert "max_order" in str(exc) and repr(value) in str(exc)
+        return
+    assert not isinstance(value, bool) and got == opt.model_order(str(value))
+
+
+@pytest.mark.parametrize(("call", "error", "words"), [
+    (lambda d: fm.identify(d / "run.h5", poles_hz=[40, "a"]), fm.ModalError, "poles_hz = .a."),  # ValueError
+    (lambda d: fm.identify(d / "run.h5", poles_hz=[float("nan")]), fm.ModalError, "poles_hz = nan"),  # ran
+    (lambda d: fm.identify(d / "run.h5", max_order=1.5), fm.ModalError, "max_order = 1.5"),
+    (lambda d: fm.identify(d / "run.h5", method="ssi", references="a1"), TypeError,
+     "references must be a list"),
+    (lambda d: fm.track(d / "run.h5", max_order=True), fm.ModalError, "max_order = True"),
+    (lambda d: fm.compute_frf(d / "run.h5", averaging="median"), fm.ModalError, "averaging 'median'"),  # ran
+    (lambda d: fm.compute_frf(d / "run.h5", window="force:0.05"), fm.ModalError, "is for impact hits"),  # ran
+    (lambda d: fm.predict(REPO / "examples/rigs/seed003_two_link.toml", {"t": {"theta_deg": 0.0}}, "fe", 2,
+                          elements_per_link=0), fm.ModelError, "elements_per_link = 0"),           # ran
+    (lambda d: fm.predict(REPO / "examples/rigs/seed003_two_link.toml", {"t": {"theta_deg": 0.0}}, "fe", 2,
+                          banana=3), fm.ModelError, "unknown option 'banana'"),                     # ran
+    (lambda d: fm.selftest(1, seed=-1), fm.FixtureError, "seed = -1"),                            # ValueError
+    (lambda d: fm.serve_simulator("serial", rate=0), fm.FixtureError, "rate = 0"),   # ZeroDivisionError
+])
+def test_api_numbers_the_command_line_refuses(tmp_path: Path, call, error, words) -> None:
+    _run(tmp_path / "run.h5")
+    with pytest.raises(error, match=words):
+        call(tmp_path)
