@@ -709,6 +709,7 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
     from flexmodal.modal.errors import ModalError
 
     _check_band(fmin, fmax)
+    _check_identify_options(max_order, poles_hz, references)
     if out is not None:
         _identification_outputs(out, uff, source)
     elif uff is not None or from_diagram:
@@ -848,19 +849,18 @@ def track(source: PathLike, *, pose_from: Mapping[str, str] | None = None, run_i
     """
     _check_band(fmin, fmax)
     if not 0 < bin_deg < float("inf") or not all(0 < o < float("inf") for o in orders):
-        from flexmodal.modal.errors import ModalError
-
         raise ModalError(f"track: bin_deg {bin_deg!r} and orders {tuple(orders)!r} must be positive and "
                          "finite")
     if out is not None:
         from flexmodal.checked_io.output import output_file, sidecar_file
-        from flexmodal.modal.errors import ModalError
 
         output_file(out, ModalError, "modal table (--out)", inputs=(source,))
         output_file(_harmonics_path(out), ModalError, "harmonics table", inputs=(source, out))
         sidecar_file(_harmonics_path(out), ModalError, "harmonics table", b"t_s,freq_hz,joint,order")
+    from flexmodal.checked_io import options as opt
     from flexmodal.modal.track import TrackOptions, track_input
 
+    opt.given(max_order, opt.model_order, "track: max_order", ModalError)
     options = TrackOptions(window_s=window_s, hop_s=hop_s, fmin=fmin, fmax=fmax, max_order=max_order,
                            max_spread_deg=max_spread_deg, bin_deg=bin_deg, orders=tuple(orders))
     result = track_input(str(source), pose_from=pose_from, run_id=run_id, options=options)
@@ -878,6 +878,24 @@ def _harmonics_path(out: PathLike) -> Path:
     """``MODES.harmonics.csv`` beside the modal map ``MODES.csv``."""
     out = Path(out)
     return out.with_name(out.stem + ".harmonics.csv")
+
+
+def _check_identify_options(max_order: object, poles_hz: object, references: object) -> None:
+    """``max_order``, ``poles_hz`` and ``references`` as ``identify --max-order/--poles/--references``
+    take them (from the API: 1.5 said "lines are too few for a model", 'a' among the poles was a
+    ValueError, NaN ran, and a string of references was taken letter by letter)."""
+    from flexmodal.checked_io import options as opt
+
+    if max_order is not None:
+        opt.given(max_order, opt.model_order, "identify: max_order", ModalError)
+    if poles_hz is not None:
+        if isinstance(poles_hz, str | bytes) or not isinstance(poles_hz, Iterable):
+            raise TypeError(f"identify: poles_hz must be a list of frequencies [Hz], got {poles_hz!r}")
+        for f in poles_hz:
+            opt.given(f, opt.positive_hz, "identify: poles_hz", ModalError)
+    if isinstance(references, str | bytes):
+        raise TypeError(f"identify: references must be a list of channel names, got {references!r}: "
+                        f"for one channel write [{references!r}]")
 
 
 def _check_band(fmin: float | None, fmax: float | None) -> None:
@@ -1100,6 +1118,12 @@ def _named(tables: Iterable[ModalTable | PathLike | tuple[str, ModalTable]]) -> 
             out.append(t)
         else:
             table = _table(t)
+            sources = table.frame["source"].dropna().astype(str).unique() if "source" in table.frame else ()
+            if len(sources) > 1:   # one column per model: two models in one file were paired as one
+                from flexmodal.compare.errors import CompareError
+
+                raise CompareError(f"{table.source}: a predicted table of {len(sources)} sources "
+                                   f"({', '.join(map(repr, sources[:4]))}): give one model per file")
             out.append((table_name(table, Path(str(t)).stem if isinstance(t, str | Path)
                                    else Path(table.source).stem), table))
     return out
@@ -1786,6 +1810,8 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     from flexmodal.checked_io.output import output_file
     from flexmodal.reports.errors import ReportError
 
+    if not isinstance(title, str):   # None was printed as the page's title "None"
+        raise TypeError(f"report: title must be text (str), got {type(title).__name__} {title!r}")
     sources = _paths([*runs, measured, *repeats, *predictions, diagnosis, rig, geometry])
     output_file(out, ReportError, "report (--out)", inputs=sources)
     if pdf:
@@ -2104,6 +2130,9 @@ def selftest(n_cases: int, *, seed: int = 0, progress: Callable[[object], None] 
     if isinstance(n_cases, bool) or not isinstance(n_cases, numbers.Integral) or n_cases < 1:
         raise FixtureError(f"selftest: n_cases = {n_cases!r} is not a whole number >= 1 (accuracies of no "
                            "case are not numbers)")
+    from flexmodal.checked_io import options as opt
+
+    opt.given(seed, opt.seed, "selftest: seed", FixtureError)   # -1 was numpy's ValueError
     results = run_blind(int(n_cases), seed=seed, progress=progress)
     summary = summarise(results)
     return SelfCheck(tuple(results), summary, format_summary(summary))

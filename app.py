@@ -188,7 +188,9 @@ def _where(exc: OSError) -> str:
 
 def _say(message: str) -> None:
     """``message`` as one line on stderr; a stderr that is gone (its terminal closed, its pipe's reader
-    ended) is no second error: the exit code still tells the outcome."""
+    ended) is no second error: the exit code still tells the outcome.  Characters that are not printable
+    (control characters quoted from a binary file: ESC would drive the terminal) are written escaped."""
+    message = "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in message)
     try:
         print(message, file=sys.stderr, flush=True)
     except OSError:

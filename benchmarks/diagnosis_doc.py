@@ -4,7 +4,8 @@
     python benchmarks/diagnosis_doc.py --coverage --blind --write   # every block, into docs/diagnosis.md
 
 Blocks sit between ``<!-- NAME:begin -->`` and ``<!-- NAME:end -->`` (NAME = seed003, coverage,
-blind, fresh, new, latest, ideal, ideal_fresh, ideal_new, ideal_latest, sparse).
+blind, fresh, new, latest, next, s631, ideal, ideal_fresh, ideal_new, ideal_latest, ideal_next,
+ideal_s631, sparse, advice).
 The blind block is the acceptance measurement: 36 cases of each of five draws of
 fixtures/blind.py's generator (seeds ``BLIND_SEEDS``), their summaries and the mean and worst over
 draws (tests/test_blind.py re-runs it under ``-m slow``); the coverage block the Monte-Carlo coverage
@@ -47,6 +48,8 @@ FINAL_SEEDS = (631, 632, 633, 634, 635)
 FINAL_NOTE = "run once, after the last change to the method; never used to develop it"
 SPARSE_CASES = 60
 SPARSE_SEED = 5
+ADVICE_SEEDS = LATEST_SEEDS + NEXT_SEEDS
+"""The used blind draws on which the next-measurement advice is measured (``advice_block``)."""
 
 from flexmodal.compare.diagnosis import diagnose  # noqa: E402
 from flexmodal.contract.table import ModalTable  # noqa: E402
@@ -145,6 +148,20 @@ def sparse_block(results: list | None = None, n: int = SPARSE_CASES, seed: int =
             f"{format_advice(advice_trials(results, seed=seed))}\n```")
 
 
+def advice_block(results: dict | None = None, seeds: tuple[int, ...] = ADVICE_SEEDS,
+                 cases: int = BLIND_CASES) -> str:
+    """Next-measurement advice on the blind draws ``seeds`` (``cases`` each): every ambiguous library
+    verdict measured once more at its advised pose and at three random untested poses (fixtures/blind.py
+    ``advice_trials``), pooled over the draws, as a fenced block; ``results`` {seed: run_blind's
+    results} when already computed."""
+    from flexmodal.fixtures.blind import advice_trials, format_advice, run_blind
+
+    trials = [t for s in seeds
+              for t in advice_trials(results[s] if results else run_blind(cases, seed=s), seed=s)]
+    return (f"```\n{cases} cases in each of {len(seeds)} draws (seeds {', '.join(map(str, seeds))}): "
+            f"{len(trials)} ambiguous library verdicts\n{format_advice(trials)}\n```")
+
+
 def coverage_block() -> str:
     """Monte-Carlo coverage of the identification's 95 % intervals, EMA and output-only
     (fixtures/modal_coverage.py ``coverage_block``), as a fenced block."""
@@ -178,7 +195,7 @@ BLOCKS = {"seed003": seed003_block, "coverage": coverage_block, "blind": blind_b
           "ideal_next": lambda: ideal_block(seeds=NEXT_SEEDS),
           "s631": lambda: blind_block(FINAL_SEEDS, note=FINAL_NOTE),
           "ideal_s631": lambda: ideal_block(seeds=FINAL_SEEDS),
-          "sparse": sparse_block}
+          "sparse": sparse_block, "advice": advice_block}
 
 
 def main() -> int:
@@ -196,7 +213,8 @@ def main() -> int:
             blocks["coverage"] = coverage_block()
         if args.blind:
             blocks.update((name, BLOCKS[name]())
-                          for name in ("blind", "fresh", "new", "latest", "next", "s631", "sparse"))
+                          for name in ("blind", "fresh", "new", "latest", "next", "s631", "sparse",
+                                       "advice"))
     for name, block in blocks.items():
         if args.write:
             write_block(name, block)

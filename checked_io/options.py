@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import numbers
 import sys
 from collections.abc import Callable
 
@@ -78,6 +79,19 @@ def names(text: str) -> list[str]:
     if not text.strip() or not all(items):
         raise argparse.ArgumentTypeError(f"expected NAME[,NAME...] with no empty name, got {text!r}")
     return items
+
+
+def given(value: object, kind: Callable[[str], float], what: str, error: type[Exception]) -> float:
+    """``value`` passed from Python (the public API) checked by the option ``kind`` the command line
+    uses for it, so both paths accept the same numbers: a bool, a string or another object is not a
+    number, and NaN, infinity or a value out of range is refused as on the command line (``error``
+    names ``what`` and the value; the API had crashed inside, or run, on what the CLI refused)."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise error(f"{what} = {value!r} is not a number")
+    try:
+        return kind(str(value))
+    except argparse.ArgumentTypeError as exc:
+        raise error(f"{what} = {value!r}: {exc}") from None
 
 
 # The option kinds the commands share.

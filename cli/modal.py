@@ -141,7 +141,10 @@ def _pairs(text: str, what: str) -> dict[str, str]:
         pairs = []
     if not pairs or any(len(p) != 2 or not p[0].strip() or not p[1].strip() for p in pairs):
         raise ModalError(f"{what} {text!r}: expected VAR=CHANNEL[,VAR=CHANNEL...]")
-    return {k.strip(): v.strip() for k, v in pairs}
+    found = {k.strip(): v.strip() for k, v in pairs}
+    if len(found) < len(pairs):   # theta_deg=enc,theta_deg=a1: the last one won in silence
+        raise ModalError(f"{what} {text!r}: a variable is given twice")
+    return found
 
 
 def _track(args: argparse.Namespace) -> int:

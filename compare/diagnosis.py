@@ -65,7 +65,12 @@ from flexmodal.compare.gap import (
     region_scores,
     rms,
 )
-from flexmodal.compare.next_measurement import next_measurements, separating_measurement
+from flexmodal.compare.next_measurement import (
+    adds_to,
+    next_measurements,
+    no_pose_decides,
+    separating_measurement,
+)
 from flexmodal.compare.parametric import handles_for, pose_basis, reduce_family
 from flexmodal.compare.result import (
     Alternative,
@@ -1165,7 +1170,9 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
               and e["_heldout_eq"] - best["_heldout_eq"]
               <= RIVAL_MARGIN * _noise(best, scatter, ctx.pose_share)][:MAX_RIVALS]
     rivals += [e for e in alts if e not in rivals]
-    verdict["next_measurements"] = next_measurements(ctx, best, rivals, scatter) if alts else []
+    nested_only = bool(alts) and all(adds_to(best, e) for e in alts)    # advice: no pose decides these
+    verdict["next_measurements"] = next_measurements(ctx, best, rivals, scatter) if alts and not nested_only \
+        else []
     text = f"{best['effect']} at {best['location']}, {gap_words(before, after, sigma, grade, feature)}"
     if not explained:
         worst_txt = ", ".join(f"mode {r['mode']} at {r['config']} ({r['heldout_rel_error']:+.1%})"
@@ -1188,6 +1195,11 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
             nxt = verdict["next_measurements"][0]
             text += (f"; next measurement most likely to decide: {nxt['pose']} (mode {nxt['mode']}, "
                      f"{nxt['information_nats']:.1f} nats)")
+        elif nested_only:
+            text += "; " + no_pose_decides(
+                best, alts, [_paired_noise(ctx, best, e, scatter) for e in alts],
+                math.hypot(best["_heldout_eq"], ctx.model_form) - best["_heldout_eq"],
+                len({tuple(sorted(p.items())) for p in meas.poses}))
     verdict["summary"] = text
     return verdict
 

@@ -17,7 +17,10 @@ ranking: ``_cand``, ``_fam``, ``_theta0``):
 ``separating_measurement(ctx, a, b)``
     The pose and mode where two fitted candidates differ most (``separate_at`` of an alternative).
 ``next_measurements(ctx, best, rivals, scatter)``
-    Untested poses ranked by expected information against the verdict's rivals.
+    Untested poses ranked by the chance to decide against the verdict's rivals of another effect or
+    place (``adds_to``: a rival that is the verdict plus a component is not one a pose can decide).
+``no_pose_decides(best, alts, paired, model_form_margin, n_poses)``
+    Why no pose is advised when every alternative is the verdict plus one component.
 
 Examples
 --------
@@ -62,6 +65,17 @@ class FitContext(Protocol):
     def family(self, handles: Sequence[str]) -> ReducedFamily: ...
 
     def at(self, poses: Sequence[dict[str, float]], n_modes: int) -> FitContext: ...
+
+
+def _components(entry: dict) -> set[tuple[str, str]]:
+    cand = entry["_cand"]
+    return set(zip(cand.effects, cand.locations, strict=True))
+
+
+def adds_to(best: dict, other: dict) -> bool:
+    """Whether the fitted candidate ``other`` is ``best`` with components added (a nested alternative:
+    its held-out gain over ``best`` is judged against the diagnosis' nested margin)."""
+    return _components(best) < _components(other)
 
 
 def trial_poses(rig: Rig, poses: Sequence[dict[str, float]]) -> dict[str, dict[str, float]]:
@@ -189,7 +203,13 @@ rival of the right candidate, not only one, for the verdict to stop being ambigu
 
 def next_measurements(ctx: FitContext, best: dict, rivals: Sequence[dict], scatter: float) -> list[dict]:
     """Untested poses (``trial_poses``) ranked by the chance that one measurement there makes the verdict
-    unambiguous: that it rules out every rival of whichever of ``best`` and its ``rivals`` is right
+    unambiguous against its rivals of another effect or place.  A rival that is ``best`` plus a
+    component (``adds_to``) is left out: whether one more pose confirms or excludes such a component is
+    decided by that measurement's noise, not by where it is taken (on the used blind draws, verdicts
+    with only such alternatives resolved at the advised pose about as often as at a random one:
+    docs/diagnosis.md), so with no other rival nothing is advised (``no_pose_decides`` says why).
+    The ranking: the chance that one measurement rules out every rival of whichever of ``best`` and
+    its ``rivals`` is right
     (``_resolve_chance``), each candidate predicting the new point with its fitted reduced model and
     the variance ``scatter^2 + g^T C g`` (its linearised prediction variance: where a candidate is
     loosely pinned down it can follow a new point, and a measurement there decides little); ties
@@ -199,8 +219,11 @@ def next_measurements(ctx: FitContext, best: dict, rivals: Sequence[dict], scatt
     / (v_a v_b) + d^2 (1/v_a + 1/v_b)]`` with ``d`` their relative difference, summed over modes and
     averaged over the rivals; ``mode`` the mode that carries most of it; ``decide_chance`` the chance
     (0-1).  At most ``MAX_ADVICE`` poses: ``[{"pose", "mode", "information_nats", "decide_chance"}]``."""
+    rivals = [e for e in rivals if not adds_to(best, e)]
+    if not rivals:
+        return []
     trial = trial_poses(ctx.rig, ctx.meas.poses)
-    if not trial or not rivals:
+    if not trial:
         return []
     measured = {tuple(sorted(p.items())) for p in ctx.meas.poses}
     keep = [i for i, p in enumerate(trial.values()) if tuple(sorted(p.items())) not in measured]
@@ -223,3 +246,42 @@ def next_measurements(ctx: FitContext, best: dict, rivals: Sequence[dict], scatt
     order = [i for i in np.lexsort((-total, -np.round(chance, 3))) if total[i] > 0][:MAX_ADVICE]
     return [{"pose": labels[i], "mode": int(np.argmax(info[i]) + 1), "information_nats": float(total[i]),
              "decide_chance": float(chance[i])} for i in order]
+
+
+def no_pose_decides(best: dict, alts: Sequence[dict], paired: Sequence[float], model_form_margin: float,
+                    n_poses: int) -> str:
+    """Why no next pose is advised for a verdict ``best`` whose alternatives ``alts`` are all ``best``
+    plus one component (``adds_to``), within the nested margin (compare/diagnosis.py
+    ``_nested_margin``: the larger of the paired noise margin ``paired`` [fraction, one per
+    alternative] and ``model_form_margin`` [fraction], what absorbing the model-form error gives any
+    candidate).  Where the gain of the extra component is within the model-form margin, no number of
+    poses of the same kind decides it; where it is within the paired noise only, that margin shrinks as
+    ``1 / sqrt(poses)`` (its degrees of freedom count distinct poses), so if the gain held, about
+    ``n_poses ((paired / gain)^2 - 1)`` more poses would confirm the component.
+
+    Examples
+    --------
+    >>> from flexmodal.compare.candidates import Candidate
+    >>> best = {"_cand": Candidate(("tip_mass",), ("tip",), ()), "_heldout_eq": 0.0036}
+    >>> alt = {"_cand": Candidate(("base_stiffness", "tip_mass"), ("base", "tip"), ()), "_heldout_eq": 0.0024,
+    ...        "effect": "base_stiffness+tip_mass", "location": "base+tip"}
+    >>> no_pose_decides(best, [alt], [0.002], 0.0008, 3)     # (0.2 / 0.12)^2 = 2.8: 3 x 1.8 more
+    'no pose is advised: every alternative only adds a component, and on the blind trials one more pose \
+settled such a component no more often where the candidates differ most than elsewhere; \
+base_stiffness+tip_mass at base+tip: gain 0.12% within the paired noise 0.20%, about 6 more poses would \
+confirm it if the gain held'
+    """
+    parts = []
+    for e, noise in zip(alts, paired, strict=True):
+        gain = best["_heldout_eq"] - e["_heldout_eq"]
+        head = f"{e['effect']} at {e['location']}: gain {gain:.2%}"
+        if gain <= model_form_margin or gain <= 0:
+            parts.append(f"{head} within the model-form margin {model_form_margin:.2%}, which more poses "
+                         "of this kind do not shrink")
+        else:
+            more = max(math.ceil(n_poses * ((noise / gain) ** 2 - 1) - 1e-9), 1)
+            parts.append(f"{head} within the paired noise {noise:.2%}, about {more} more poses would "
+                         "confirm it if the gain held")
+    return ("no pose is advised: every alternative only adds a component, and on the blind trials one more "
+            "pose settled such a component no more often where the candidates differ most than elsewhere; "
+            + "; ".join(parts))

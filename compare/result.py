@@ -316,8 +316,9 @@ class Verdict(_Record):
     sensor); ``param_intervals`` a 95 % interval ``[low, high]`` per fitted parameter (SI) and
     ``interval_method`` how they were computed; ``heldout_in_prediction_interval`` ``[inside, all]``:
     the held-out frequencies inside their 95 % prediction interval from the fold that did not see
-    them; ``next_measurements`` the untested poses that would best separate the verdict from its
-    alternatives, by expected information (empty when it has none).  ``per_config``: pose-dependent parameters
+    them; ``next_measurements`` the untested poses most likely to decide between the verdict and its
+    rivals of another effect or place (empty when it has none; when every alternative only adds a
+    component, the summary says why no pose is advised).  ``per_config``: pose-dependent parameters
     per configuration, ``{name: {config: value}}``, written as the keys ``<name>_per_config``."""
 
     effect: str

@@ -12,10 +12,20 @@ from flexmodal.checked_io.text import naming
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult, coherence, estimate, estimator_name
 from flexmodal.modal.spectra import Spectra, default_nfft, spectra_of_segments, welch_spectra
-from flexmodal.modal.windows import added_decay_rate_per_s, impact_windows
+from flexmodal.modal.windows import added_decay_rate_per_s, impact_windows, parse_window
 
 MIN_SEGMENTS = 8
 SKIPPED_EVENTS = ("gap", "corrupt")
+
+
+def welch_window(spec: str, excitation: str, where: str) -> None:
+    """ModalError unless ``spec`` is one Welch window (rect, hann, flattop): a force or exponential
+    window over every segment of a random record kept its first 5 % or weighted it away (the FRFs were
+    computed from it without a word)."""
+    name, _ = parse_window(spec)
+    if "," in spec or name not in ("rect", "hann", "flattop"):
+        raise ModalError(f"{where}: window {spec!r} is for impact hits; a {excitation or 'random'} run is "
+                         "Welch-averaged with rect, hann or flattop")
 
 
 def check_samples(samples: np.ndarray, names: Sequence[str], where: str, allow_nan: bool = False) -> None:
@@ -123,6 +133,8 @@ def frf_of_record(samples, sample_rate_hz: float, names: Sequence[str], kinds: S
     if not hasattr(samples, "shape"):
         samples = np.asarray(samples)
     _check_shape(samples, names, where)
+    if averaging not in ("linear", "exponential"):   # Welch took any other word as linear
+        raise ModalError(f"averaging {averaging!r}: use linear or exponential")
     inputs = [j for j, k in enumerate(kinds) if k == "force"]
     if not inputs:
         raise ModalError(f"{where}: no force channel to use as the FRF reference")
@@ -164,6 +176,7 @@ def frf_of_record(samples, sample_rate_hz: float, names: Sequence[str], kinds: S
     else:
         used_nfft = default_nfft(samples.shape[0]) if nfft is None else int(nfft)
         used_window = window or "hann"
+        welch_window(used_window, excitation, where)
         try:
             spectra = welch_spectra(samples, sample_rate_hz, inputs, outputs, used_nfft, overlap=overlap,
                                     window_spec=used_window, workers=workers, skip=skip, min_segments=0)

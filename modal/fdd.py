@@ -96,6 +96,9 @@ def fdd(y: np.ndarray, sample_rate_hz: float, *, references: Sequence[int] | Non
     f, G = cross_spectra(y, sample_rate_hz, refs, nfft)
     U, sv, _ = np.linalg.svd(G, full_matrices=False)                                   # batched over lines
     band = (f >= (fmin if fmin is not None else f[1])) & (f <= (fmax if fmax is not None else f[-1]))
+    if not band.any():   # an fmin above Nyquist: the empty band's minimum was a numpy ValueError
+        raise ModalError(f"FDD: no frequency line between {fmin if fmin is not None else f[1]:g} and "
+                         f"{fmax if fmax is not None else f[-1]:g} Hz (lines 0..{f[-1]:g} Hz)")
     level = 10 * np.log10(sv[:, 0] + 1e-300)
     level = np.where(band, level, level[band].min() if band.any() else 0.0)
     peaks, _ = scipy.signal.find_peaks(level, prominence=prominence_db)

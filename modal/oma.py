@@ -93,6 +93,9 @@ def identify_output_only(samples: np.ndarray, sample_rate_hz: float, names: Sequ
             raise ModalError(f"{where}: reference channel(s) {', '.join(unknown)} are not among the "
                              f"outputs ({', '.join(out_names)})")
         refs = [out_names.index(r) for r in references]
+    if fmin is not None and fmin >= sample_rate_hz / 2:
+        raise ModalError(f"{where}: fmin {fmin:g} Hz is at or above the Nyquist frequency, "
+                         f"{sample_rate_hz / 2:g} Hz: no band left to identify in")
     y = samples[:, outputs].astype(float)
     try:
         result = METHODS.entry(method).runner()(

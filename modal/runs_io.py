@@ -74,7 +74,12 @@ def _open_append(path: str | Path) -> h5py.File:
         return h5py.File(path, "a", libver="latest")
     except OSError as exc:
         from flexmodal.daq.h5file import LOCKED, locked
+        from flexmodal.daq.lock import holder
 
+        pid = holder(path)
+        if pid is not None:   # HDF5's own words suggested h5clear, which would damage the live run
+            raise ModalError(f"{path}: being written by a running acquire (pid {pid or '?'}); compute its "
+                             "FRFs when it has finished") from None
         if locked(exc):
             raise ModalError(f"{path}: cannot write the FRFs: {LOCKED}") from None
         raise ModalError(f"{path}: cannot open for writing FRFs ({one_line(exc)})") from None

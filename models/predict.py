@@ -94,6 +94,29 @@ solve_lumped_mass = _one_by_one(_lumped)
 solve_blevins = _one_by_one(_blevins)
 
 
+BUILT_IN_MODELS = ("fe", "assumed-modes", "lumped-mass", "blevins")
+
+
+def _check_options(options: Mapping[str, object], builtin: bool) -> None:
+    """The model options as ``flexmodal predict`` takes them (an unknown name, elements 0 or a count that
+    is not whole ran in silence from the API): ModelError naming the option.  A plug-in model (not
+    ``builtin``) may read options of its own names."""
+    from flexmodal.checked_io import options as opt
+    from flexmodal.models.rig_schema import MAX_ELEMENTS
+
+    kinds = {"elements_per_link": opt.integer(1, MAX_ELEMENTS), "masses_per_link": opt.integer(1, 1000)}
+    for name, value in options.items():
+        if name in kinds:
+            if value is not None:
+                opt.given(value, kinds[name], f"predict: {name}", ModelError)
+        elif name == "coordinates":
+            if value not in ("planar", "transverse"):
+                raise ModelError(f"predict: coordinates = {value!r} is not planar or transverse")
+        elif name != "lumped_mass" and builtin:
+            raise ModelError(f"predict: unknown option {name!r} (options: elements_per_link, lumped_mass, "
+                             "masses_per_link, coordinates)")
+
+
 def predict(rig: Rig, poses: Mapping[str, Mapping[str, float]], model: str = "fe", n_modes: int = 4, *,
             source: str | None = None, progress: Callable[[str], None] | None = None,
             **options: object) -> ModalTable:
@@ -105,6 +128,7 @@ def predict(rig: Rig, poses: Mapping[str, Mapping[str, float]], model: str = "fe
     solve = MODELS.entry(model)
     if isinstance(n_modes, bool) or not isinstance(n_modes, int) or n_modes < 1:
         raise ModelError(f"number of modes must be a whole number >= 1 (got {n_modes!r})")
+    _check_options(options, builtin=solve in {MODELS.entry(m) for m in BUILT_IN_MODELS})
     records = []
     with threadpool_limits(limits=1, user_api="blas"):  # many small dense eigenproblems: threads contend
         results = list(solve(rig, list(poses.values()), n_modes, options))  # solve inside the limit

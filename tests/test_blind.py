@@ -18,6 +18,7 @@ from flexmodal.compare.diagnosis import diagnose
 from flexmodal.contract.table import ModalTable
 from flexmodal.fixtures.blind import (
     advice_trials,
+    format_advice,
     format_summary,
     format_table,
     run_blind,
@@ -72,12 +73,13 @@ def test_shapes_separate_look_alikes_that_frequencies_leave_ambiguous(first_eigh
 
 
 @pytest.mark.slow
-@pytest.mark.timeout(36000)         # 25 draws x 36 cases + 60 sparse arms with trials: ~2.5 h quiet
+@pytest.mark.timeout(36000)         # 25 draws x 36 cases + 60 sparse arms + ~700 advice trials: ~3 h quiet
 def test_the_draws_and_the_advice_the_docs_quote():
     """The acceptance measurement (benchmarks/diagnosis_doc.py: 36 cases in each of five draws the
     method was developed on earlier, fifteen further draws whose misses earlier changes analysed, five
     whose misses the last change analysed, and five draws run once after that change) and the
-    next-measurement trials on 60 sparsely measured arms are exactly what docs/diagnosis.md quotes; on
+    next-measurement trials on 60 sparsely measured arms and on the ambiguous verdicts of ten of
+    these draws are exactly what docs/diagnosis.md quotes; on
     every draw ``none`` is right at least twice in three."""
     from conftest import REPO
 
@@ -104,19 +106,29 @@ def test_the_draws_and_the_advice_the_docs_quote():
     assert doc.doc_block("s631") == doc.blind_block(doc.FINAL_SEEDS, results=final, note=doc.FINAL_NOTE)
     assert doc.doc_block("ideal_s631") == doc.ideal_block(final, seeds=doc.FINAL_SEEDS)
     assert doc.doc_block("sparse") == doc.sparse_block()
+    assert doc.doc_block("advice") == doc.advice_block({**latest, **nxt})
 
 
-@pytest.mark.timeout(1800)          # ~40 s CPU: six truth arms, six diagnoses and six trial diagnoses
-def test_advised_pose_resolves_at_least_as_often_as_a_random_untested_pose():
-    """Issue 26: six arms with one library effect measured at three poses only (fixtures/blind.py
-    ``sparse_case``); each ambiguous verdict is measured once more on its real arm at the advised pose
-    and at two random untested poses: the advised pose resolves (right and no longer ambiguous) at least
-    one, and at least as often as a random one.  The issue asks for twice as often: on the 60 arms of
-    docs/diagnosis.md's ``sparse`` block (slow test above) it is 1.5x (29 % against 19 %), not met."""
-    trials = advice_trials(run_sparse(6, seed=1), seed=1)
-    advised = sum(t.advised_resolved for t in trials) / len(trials)
-    random = sum(sum(t.random_resolved) for t in trials) / sum(len(t.random_resolved) for t in trials)
-    assert len(trials) >= 2 and advised > 0 and advised >= random
+@pytest.mark.timeout(1800)          # ~15 s CPU: two truth arms, two diagnoses and three trial diagnoses
+def test_no_pose_is_advised_where_the_alternatives_only_add_a_component():
+    """Issue 26 (next measurement): the second sparse arm (fixtures/blind.py ``sparse_case``, seed 1: a
+    sensor mass measured at three poses, two modes) is right but ambiguous with alternatives that only
+    add a component to it (base stiffness, link mass) within the nested margin.  Whether one more pose
+    confirms or excludes such a component is decided by its noise, not by where it is taken (on the
+    used blind draws and the 60 sparse arms of docs/diagnosis.md's ``advice`` and ``sparse`` blocks,
+    re-run by the slow test above, random poses resolve these as often as the old advice did), so no
+    pose is advised and the summary says why; the advice trials still measure such a verdict at three
+    random untested poses (reported apart from the advised ones).  That the advised pose resolves
+    where poses inside the measured range do not: tests/test_next_measurement.py."""
+    results = run_sparse(2, seed=1)
+    v = results[1].verdict
+    assert (v.effect, v.location) == (results[1].case.effect, results[1].case.location) and v.ambiguous
+    assert all(set(v.effect.split("+")) < set(a.effect.split("+")) for a in v.alternatives)
+    assert not v.next_measurements and "no pose is advised" in v.summary
+    (trial,) = advice_trials(results, seed=1)
+    assert trial.case is results[1].case and trial.advised is None and trial.advised_outcome is None
+    assert len(set(trial.random_poses)) == 3 and len(trial.random_outcomes) == 3
+    assert "no pose advised" in format_advice([trial])
 
 
 def test_benchmark_script_times_the_six_pose_case_and_finds_its_effect(capsys, monkeypatch):

@@ -6,8 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from flexmodal.compare.candidates import Candidate
 from flexmodal.compare.diagnosis import diagnose
-from flexmodal.compare.next_measurement import _resolve_chance, trial_poses
+from flexmodal.compare.next_measurement import _resolve_chance, adds_to, next_measurements, trial_poses
 from flexmodal.contract.table import ModalTable
 from flexmodal.fixtures.blind import random_rig
 from flexmodal.models.effects import apply_effect
@@ -56,13 +57,14 @@ def test_the_chance_to_decide_is_nil_for_equal_predictions_and_near_one_for_dist
     assert chance[0] < 1e-6 and chance[1] > 0.99
 
 
-@pytest.mark.timeout(600)            # four diagnoses of two effects over 3-4 poses: a few seconds
+@pytest.mark.timeout(600)            # seven diagnoses of two effects over 3-4 poses: a few seconds
 def test_the_advised_pose_separates_two_look_alikes_where_a_pose_in_the_measured_range_does_not(rig):
     """A link2 mass x1.4 measured (first mode only) at 60/75/90 deg looks like a tip mass there: the
     verdict is ambiguous.  The FE model of the two fitted candidates says where they differ: by under
     the noise inside the measured range, by several times it beyond 90 deg.  The advice names such a
-    pose; one more measurement there makes the verdict right and unambiguous, one at 82.5 deg (inside
-    the range) leaves it ambiguous."""
+    pose; one more measurement there makes the verdict right and unambiguous, one at any of four
+    untested poses inside the range leaves it ambiguous (of all 22 untested candidate poses, 12
+    resolve it: the ones outside the range)."""
     real = apply_effect(rig, "link_mass", "link2", {"scale": 1.4})
     v = diagnose(rig, _table(real, MEASURED, 0), effects=EFFECTS).verdict
     assert (v.effect, v.location) == ("link_mass", "link2") and v.ambiguous
@@ -83,6 +85,17 @@ def test_the_advised_pose_separates_two_look_alikes_where_a_pose_in_the_measured
     def after(theta: float):
         return diagnose(rig, _table(real, (*MEASURED, theta), 0), effects=EFFECTS).verdict
 
-    there, inside = after(advised), after(82.5)
+    there = after(advised)
     assert (there.effect, there.location) == ("link_mass", "link2") and not there.ambiguous
-    assert inside.ambiguous
+    assert all(after(theta).ambiguous for theta in (62.5, 70.0, 77.5, 85.0))     # inside the range
+
+
+def test_a_rival_that_only_adds_a_component_gets_no_advice():
+    """A tip mass with a base stiffness + tip mass alongside (nested: the extra component's gain is
+    judged by the nested margin, and one more pose decides it by its noise) is not a rival a pose is
+    advised against; a link mass is (another effect)."""
+    tip = {"_cand": Candidate(("tip_mass",), ("tip",), ())}
+    both = {"_cand": Candidate(("base_stiffness", "tip_mass"), ("base", "tip"), ())}
+    link = {"_cand": Candidate(("link_mass",), ("link2",), ())}
+    assert adds_to(tip, both) and not adds_to(both, tip) and not adds_to(tip, link) and not adds_to(tip, tip)
+    assert next_measurements(None, tip, [both], 0.005) == []          # decided before any pose is tried

@@ -313,3 +313,120 @@ def test_uff_frfs_of_real_values(tmp_path: Path, capsys) -> None:
     pyuff.UFF(str(tmp_path / "u.uff")).write_sets(recs, mode="overwrite")
     code = main(["identify", str(tmp_path / "u.uff"), "--out", str(tmp_path / "m.csv")])
     _one_line(capsys, code, "u.uff", "real values")   # was "no stable poles between ..."
+
+
+def test_an_error_line_quoting_binary_bytes_is_escaped(tmp_path: Path, capsys) -> None:
+    """A DBC file of binary bytes: cantools quotes them; ESC would drive the terminal (one line, but
+    not plain text).  app._say escapes what is not printable, for every error line."""
+    session = (REPO / "examples" / "sessions" / "can-module.toml").read_text(encoding="utf-8")
+    (tmp_path / "s.toml").write_text(session.replace('interface = "socketcan"', 'interface = "virtual"'),
+                                     encoding="utf-8")
+    (tmp_path / "can-module.dbc").write_bytes(b"\x1b[2J\x07\x9b0m junk\n")
+    code = main(["acquire", "--config", str(tmp_path / "s.toml"), "--out", str(tmp_path / "r.h5"),
+                 "--duration", "1"])
+    line = _one_line(capsys, code, "can-module.dbc", "not a readable DBC file")
+    assert "\\x1b" in line and not any(c in line for c in "\x1b\x07\x9b")
+
+
+def test_a_predicted_table_of_two_models(tmp_path: Path, capsys) -> None:
+    """fe mode 1 and blevins mode 2 in one PRED.csv were paired as one model's modes 1 and 2."""
+    (tmp_path / "p.csv").write_text("config,mode,freq_hz,source\ntheta0,1,25.3,fe\ntheta0,2,158.4,blevins\n",
+                                    encoding="utf-8")
+    code = main(["compare", str(MODES), str(tmp_path / "p.csv")])
+    _one_line(capsys, code, "p.csv", "2 sources", "one model per file")
+
+
+def test_a_report_title_that_is_not_text(tmp_path: Path) -> None:
+    with pytest.raises(TypeError, match="report: title must be text"):   # the page was titled "None"
+        fm.report(tmp_path / "r.html", measured=MODES, title=None)
+    assert not (tmp_path / "r.html").exists()
+
+
+# -- third batch: a live run file, an OMA band above Nyquist, a name given twice ------------------------
+def test_frf_write_back_into_a_run_being_acquired(tmp_path: Path, capsys) -> None:
+    """HDF5's own words suggested h5clear, which would damage the run being written."""
+    import subprocess
+    import sys
+
+    run = _run(tmp_path / "run.h5")
+    holder = subprocess.Popen([sys.executable, "-c", (
+        "import sys, time, h5py\nfrom flexmodal.daq.lock import WriterLock\n"
+        f"lock = WriterLock({str(run)!r})\nf = h5py.File({str(run)!r}, 'a', libver='latest')\n"
+        "f.swmr_mode = True\nprint('ready', flush=True)\ntime.sleep(60)\n")],
+        stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "ready"
+        code = main(["frf", str(run), "--workers", "0"])
+    finally:
+        holder.kill()
+        holder.wait()
+    line = _one_line(capsys, code, "run.h5", "being written by a running acquire", f"pid {holder.pid}")
+    assert "h5clear" not in line
+
+
+def test_an_output_only_band_above_nyquist() -> None:
+    from flexmodal.modal.errors import ModalError
+    from flexmodal.modal.fdd import fdd
+    from flexmodal.modal.oma import identify_output_only
+
+    y = np.random.default_rng(0).standard_normal((4096, 2))
+    with pytest.raises(ModalError, match="no frequency line between 100000 and 256 Hz"):  # ValueError before
+        fdd(y, 512.0, fmin=1e5)
+    with pytest.raises(ModalError, match="at or above the Nyquist frequency, 256 Hz"):
+        identify_output_only(y, 512.0, ("a1", "a2"), ("acceleration",) * 2, method="ssi", fmin=1e5,
+                             where="r")
+
+
+@pytest.mark.parametrize(("argv", "words"), [
+    (["identify", "run.h5", "--out", "m.csv", "--track", "--pose-from", "theta_deg=a1,theta_deg=F"],
+     ("--pose-from", "given twice")),
+    (["sim", "serve", "--protocol", "serial", "--duration", "1",
+      "--effect", "joint_stiffness@elbow:k_Nm_per_rad=5,k_Nm_per_rad=9"],
+     ("--effect", "parameter is given twice")),
+    (["sim", "serve", "--protocol", "serial", "--duration", "1",
+      "--effect", "joint_stiffness@elbow:k_Nm_per_rad=5", "--effect", "joint_stiffness@elbow:k_Nm_per_rad=9"],
+     ("--effect", "joint_stiffness@elbow is given twice")),
+])
+def test_a_name_given_twice_where_the_last_one_won(tmp_path: Path, capsys, monkeypatch, argv, words) -> None:
+    monkeypatch.chdir(tmp_path)
+    _run(tmp_path / "run.h5")
+    _one_line(capsys, main(argv), *words)
+
+
+# -- fourth batch: API numbers checked by the option kinds the command line uses ------------------------
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(st.one_of(st.none(), st.booleans(), st.text(max_size=4), st.integers(-10, 10**12),
+                 st.floats(allow_nan=True, allow_infinity=True)))
+def test_given_accepts_what_the_option_accepts(value) -> None:
+    """opt.given(value, kind) is kind(str(value)) for a real number, else one error naming the value."""
+    class Bad(Exception):
+        pass
+
+    try:
+        got = opt.given(value, opt.model_order, "max_order", Bad)
+    except Bad as exc:
+        assert "max_order" in str(exc) and repr(value) in str(exc)
+        return
+    assert not isinstance(value, bool) and got == opt.model_order(str(value))
+
+
+@pytest.mark.parametrize(("call", "error", "words"), [
+    (lambda d: fm.identify(d / "run.h5", poles_hz=[40, "a"]), fm.ModalError, "poles_hz = .a."),  # ValueError
+    (lambda d: fm.identify(d / "run.h5", poles_hz=[float("nan")]), fm.ModalError, "poles_hz = nan"),  # ran
+    (lambda d: fm.identify(d / "run.h5", max_order=1.5), fm.ModalError, "max_order = 1.5"),
+    (lambda d: fm.identify(d / "run.h5", method="ssi", references="a1"), TypeError,
+     "references must be a list"),
+    (lambda d: fm.track(d / "run.h5", max_order=True), fm.ModalError, "max_order = True"),
+    (lambda d: fm.compute_frf(d / "run.h5", averaging="median"), fm.ModalError, "averaging 'median'"),  # ran
+    (lambda d: fm.compute_frf(d / "run.h5", window="force:0.05"), fm.ModalError, "is for impact hits"),  # ran
+    (lambda d: fm.predict(REPO / "examples/rigs/seed003_two_link.toml", {"t": {"theta_deg": 0.0}}, "fe", 2,
+                          elements_per_link=0), fm.ModelError, "elements_per_link = 0"),           # ran
+    (lambda d: fm.predict(REPO / "examples/rigs/seed003_two_link.toml", {"t": {"theta_deg": 0.0}}, "fe", 2,
+                          banana=3), fm.ModelError, "unknown option 'banana'"),                     # ran
+    (lambda d: fm.selftest(1, seed=-1), fm.FixtureError, "seed = -1"),                            # ValueError
+    (lambda d: fm.serve_simulator("serial", rate=0), fm.FixtureError, "rate = 0"),   # ZeroDivisionError
+])
+def test_api_numbers_the_command_line_refuses(tmp_path: Path, call, error, words) -> None:
+    _run(tmp_path / "run.h5")
+    with pytest.raises(error, match=words):
+        call(tmp_path)
