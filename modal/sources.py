@@ -193,6 +193,8 @@ def _compressed(path: Path) -> str | None:
     for magic, name in ((b"\x1f\x8b", "gzip"), (b"BZh", "bzip2"), (b"\xfd7zXZ", "xz"), (b"PK\x03\x04", "zip"),
                         (b"(\xb5/\xfd", "zstd")):
         if head.startswith(magic):
+            if name == "zip" and path.suffix.lower() == ".npz":   # not "unpack it": identify's own sidecar
+                return "a NumPy .npz archive such as identify's stabilisation diagrams, not a record"
             return f"{name}-compressed: unpack it first"
     return None
 

@@ -76,7 +76,7 @@ def test_shapes_separate_look_alikes_that_frequencies_leave_ambiguous(first_eigh
 @pytest.mark.timeout(36000)         # 25 draws x 36 cases + 60 sparse arms + ~700 advice trials: ~3 h quiet
 def test_the_draws_and_the_advice_the_docs_quote():
     """The acceptance measurement (benchmarks/diagnosis_doc.py: 36 cases in each of five draws the
-    method was developed on earlier, ten further draws whose misses earlier changes analysed, five
+    method was developed on earlier, fifteen further draws whose misses earlier changes analysed, five
     whose misses the last change analysed, and five draws run once after that change) and the
     next-measurement trials on 60 sparsely measured arms and on the ambiguous verdicts of ten of
     these draws are exactly what docs/diagnosis.md quotes; on
@@ -102,6 +102,9 @@ def test_the_draws_and_the_advice_the_docs_quote():
     nxt = {seed: run_blind(doc.BLIND_CASES, seed=seed) for seed in doc.NEXT_SEEDS}
     assert doc.doc_block("next") == doc.blind_block(doc.NEXT_SEEDS, results=nxt, note=doc.NEXT_NOTE)
     assert doc.doc_block("ideal_next") == doc.ideal_block(nxt, seeds=doc.NEXT_SEEDS)
+    final = {seed: run_blind(doc.BLIND_CASES, seed=seed) for seed in doc.FINAL_SEEDS}
+    assert doc.doc_block("s631") == doc.blind_block(doc.FINAL_SEEDS, results=final, note=doc.FINAL_NOTE)
+    assert doc.doc_block("ideal_s631") == doc.ideal_block(final, seeds=doc.FINAL_SEEDS)
     assert doc.doc_block("sparse") == doc.sparse_block()
     assert doc.doc_block("advice") == doc.advice_block({**latest, **nxt})
 

@@ -111,22 +111,29 @@ def test_partners_are_the_singles_whose_full_fe_sensitivities_explain_the_lead_r
 
 
 def test_the_best_singles_are_paired_with_every_single_outside_the_pool(rig):
-    """``_lead_pairs``: the ``LEADS`` best-scored singles of the pool, each with every single outside the
-    pool it combines with (not with pool members, whose pairs are screened already, nor with itself)."""
+    """``_lead_pairs``: the ``LEADS`` best-scored singles of the pool and the best of each of its
+    ``LEADS`` best effects (here three grounded-spring points lead, so the best link stiffness and the
+    best tip mass join them), each with every single outside the pool it combines with (not with pool
+    members, whose pairs are screened already, nor with itself)."""
     angles = (0, 50, 100, 150)
     ctx = _context(rig, _table(rig, angles, 2, shapes=False))
     singles = single_candidates(rig, ("joint_stiffness", "link_mass", "tip_mass", "link_stiffness",
                                       "grounded_spring"), {"theta_deg": list(angles)})
-    entries = [{"_cand": c, "score": 0.01 * (k + 1)} for k, c in enumerate(singles)]
-    pool = entries[3:9][::-1]
+    springs = [c for c in singles if c.effect == "grounded_spring"][:3]
+    others = [c for c in singles if c.effect in ("link_stiffness", "tip_mass")][:3]
+    order = springs + others + [c for c in singles if c not in springs + others]
+    entries = [{"_cand": c, "effect": c.effect, "score": 0.01 * (k + 1)} for k, c in enumerate(order)]
+    pool = entries[:8][::-1]
     got = _lead_pairs(ctx, pool, entries)
-    leads = entries[3:3 + LEADS]
+    effects = list(dict.fromkeys(e["effect"] for e in entries[:8]))[:LEADS]
+    leads = entries[:LEADS] + [next(e for e in entries if e["effect"] == x) for x in effects[1:]]
+    assert [e["effect"] for e in leads[:LEADS]] == ["grounded_spring"] * LEADS and len(leads) == 5
     rest = [e for e in entries if e not in pool]
     assert {id(a) for a, _ in got} == {id(e) for e in leads}
     assert all(b in rest for _, b in got)
     same = sum(a["_cand"].effects == b["_cand"].effects and a["_cand"].location == b["_cand"].location
                for a in leads for b in rest)
-    assert len(got) == LEADS * len(rest) - same
+    assert len(got) == len(leads) * len(rest) - same
 
 
 def test_a_hidden_pair_is_found_when_its_first_part_is_not_the_best_single():

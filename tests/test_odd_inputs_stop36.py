@@ -246,11 +246,15 @@ def test_run_table_texts_that_are_not_utf8(tmp_path: Path, capsys, table: str, f
     _one_line(capsys, code, "run.h5", f"'{table}' row {row} field '{field}'", "not UTF-8")
 
 
-def test_a_gzipped_run_file_is_named_so(tmp_path: Path, capsys) -> None:
+@pytest.mark.parametrize(("name", "pack", "words"), [
+    ("run.h5", gzip.compress, "gzip-compressed"),
+    ("m.diagram.npz", lambda b: b"PK\x03\x04" + b, "NumPy .npz archive"),   # was "zip-compressed: unpack it"
+])
+def test_a_packed_input_is_named_so(tmp_path: Path, capsys, name: str, pack, words: str) -> None:
     run = _run(tmp_path / "run.h5")
-    run.write_bytes(gzip.compress(run.read_bytes()))
-    code = main(["identify", str(run), "--out", str(tmp_path / "m.csv")])   # was "text outside any dataset"
-    _one_line(capsys, code, "run.h5", "gzip-compressed")
+    (tmp_path / name).write_bytes(pack(run.read_bytes()))
+    code = main(["identify", str(tmp_path / name), "--out", str(tmp_path / "x.csv")])   # "text outside ..."
+    _one_line(capsys, code, name, words)
 
 
 # -- a device counter that starts again: the record breaks there ---------------------------------------
