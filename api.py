@@ -1355,7 +1355,7 @@ def format_diagnosis(result: Diagnosis) -> str:
     verdict: joint_stiffness at ...; held-out RMS ...% -> ...%
     """
     from flexmodal.checked_io.percent import percent
-    from flexmodal.compare.verdict_text import scatter_line, verdict_words
+    from flexmodal.compare.verdict_text import advice_words, alternatives_words, scatter_line, verdict_words
 
     result = _diagnosis(result)
     v = result.verdict
@@ -1369,9 +1369,10 @@ def format_diagnosis(result: Diagnosis) -> str:
                      + "".join(f"; flagged: {f}" for f in v.flags or ()))
     if v.ranked and v.ranked > 1:
         lines.append(f"not the top of the ranking ({v.ranked}): {v.why_not_top}")
-    if v.next_measurements:
-        lines.append("next measurement: " + "; ".join(
-            f"{x.pose} (mode {x.mode}, {x.information_nats:.1f} nats)" for x in v.next_measurements))
+    if v.ambiguous and v.alternatives:
+        lines.append(f"fits as well within noise: {alternatives_words(result)}")
+    if v.next_measurements or v.ambiguous:
+        lines.append(f"next measurement: {advice_words(result)}")
     return "\n".join(lines)
 
 

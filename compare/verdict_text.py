@@ -55,13 +55,66 @@ def verdict_words(result: Diagnosis) -> str:
 
 
 def scatter_line(result: Diagnosis) -> str:
-    """One line: the scatter the ranking used and where it came from (measurement + model-form floor)."""
+    """One line: the scatter the ranking used and where it came from: the measurement scatter and the
+    model-form floor added in quadrature (``scatter = sqrt(measurement^2 + floor^2)``)."""
     src = result.scatter_source
     if src is None or result.scatter is None:
         return ""
     meas = src.measurement if src.measurement is not None else result.scatter
     floor = src.model_form_floor or 0.0
-    own = f"{percent(meas)} from {src.source}"
-    return (f"scatter: {percent(result.scatter)} = measurement ({own}; {src.detail}) + model-form floor "
-            f"{percent(floor)} (held-out error of the best candidate beyond the measurement); what remains "
-            f"is judged against {percent(meas)}")
+    return (f"scatter: {percent(result.scatter)} = sqrt(m^2 + f^2) of the measurement scatter m = "
+            f"{percent(meas)} ({src.source}: {src.detail}) and the model-form floor f = {percent(floor)} "
+            f"(held-out error of the best candidate beyond the measurement); what remains is judged against "
+            f"m = {percent(meas)}")
+
+
+def alternatives_words(result: Diagnosis) -> str:
+    """The candidates that fit as well as the verdict within noise, each with its held-out RMS error
+    (``grounded_spring+joint_stiffness at link2@1+elbow (held-out 1.29 %)``); empty when none does."""
+    alts = result.verdict.alternatives or ()
+    return "; ".join(f"{a.effect} at {a.location} (held-out {percent(a.heldout_rms_rel_error)})"
+                     for a in alts)
+
+
+def remaining_words(result: Diagnosis) -> str:
+    """The largest held-out errors the verdict leaves, signed (``mode 1 at theta90 (-3.26 %)``)."""
+    return ", ".join(f"mode {r.mode} at {r.config} ({percent(r.heldout_rel_error, signed=True)})"
+                     for r in result.verdict.remaining or () if r.heldout_rel_error is not None)
+
+
+NO_POSE = "no pose is advised"
+"""How the verdict's summary starts its reason for advising no pose (compare/next_measurement.py)."""
+
+
+def advice_words(result: Diagnosis) -> str:
+    """What to measure next, in words: the advised untested poses (model mode, expected information,
+    chance that one measurement decides), or why no pose is advised; empty for a ``none`` verdict.
+
+    Examples
+    --------
+    >>> from flexmodal.compare.result import Diagnosis
+    >>> d = Diagnosis.from_dict({"baseline": {"rms_rel_error": 0.1, "max_rel_error": 0.2,
+    ...                  "per_mode": {"1": 0.1}, "per_config": {"a": 0.1}},
+    ...     "where": {"modes": [1], "configs": ["a"], "region": ""}, "ranking": [],
+    ...     "verdict": {"effect": "joint_stiffness", "location": "elbow", "explained": True,
+    ...                 "heldout_rms_rel_error_before": 0.1, "heldout_rms_rel_error_after": 0.01,
+    ...                 "ambiguous": False}})
+    >>> advice_words(d)
+    'none needed: no other candidate fits as well within noise'
+    """
+    v = result.verdict
+    if v.effect == "none":
+        return ""
+    if v.next_measurements:
+        def one(x) -> str:
+            chance = (f", {100 * x.decide_chance:.0f} % chance to decide"
+                      if x.decide_chance is not None else "")
+            return f"{x.pose} (model mode {x.mode}, {x.information_nats:.1f} nats expected{chance})"
+        return "; ".join(one(x) for x in v.next_measurements)
+    if not v.ambiguous:
+        return "none needed: no other candidate fits as well within noise"
+    summary = v.summary or ""
+    at = summary.find(NO_POSE)
+    if at >= 0:
+        return summary[at:]
+    return "none: no untested pose is predicted to separate the verdict from its alternatives"

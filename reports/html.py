@@ -35,7 +35,13 @@ from flexmodal.checked_io.text import read_text
 from flexmodal.compare.errors import CompareError
 from flexmodal.compare.result import Diagnosis, Predictions
 from flexmodal.compare.tables import Comparison, html_fragment, natural_key, ordered_configs
-from flexmodal.compare.verdict_text import scatter_line, verdict_words
+from flexmodal.compare.verdict_text import (
+    advice_words,
+    alternatives_words,
+    remaining_words,
+    scatter_line,
+    verdict_words,
+)
 from flexmodal.contract.table import ModalTable
 from flexmodal.reports import animate, plots
 from flexmodal.reports.errors import ReportError
@@ -158,7 +164,8 @@ def _run_rows(runs: Sequence[RunSummary]) -> tuple[list[dict], list[dict], list[
         if key not in sets:
             sets[key] = {"runs": [], "channels": [
                 {"name": c.name, "kind": c.kind, "unit": c.unit,
-                 "sensitivity": f"{c.sensitivity:g} {c.sensitivity_unit}".strip(), "location": c.location,
+                 "sensitivity": _sensitivity_text(c.sensitivity, c.sensitivity_unit, c.unit),
+                 "location": c.location,
                  "direction": c.direction, "peak": f"{p:.4g} {c.unit}"}
                 for c, p in zip(run.channels, r.peak_abs, strict=True)]}
             channel_sets.append(sets[key])
@@ -265,6 +272,20 @@ def versions() -> list[tuple[str, str]]:
     return out
 
 
+def _sensitivity_text(sensitivity: float, sensitivity_unit: str, unit: str) -> str:
+    """A channel's sensitivity with its unit; without a unit the samples were stored in ``unit``
+    itself (a simulated or already scaled channel), which a bare ``1`` would not say.
+
+    Examples
+    --------
+    >>> _sensitivity_text(100.0, "mV/g", "m/s^2"), _sensitivity_text(1.0, "", "N")
+    ('100 mV/g', '1 (stored in N)')
+    """
+    if sensitivity_unit:
+        return f"{sensitivity:g} {sensitivity_unit}"
+    return f"{sensitivity:g} (stored in {unit})" if unit else f"{sensitivity:g}"
+
+
 def _pct(value: float | None) -> str:
     """A fraction as percent with three significant digits (0.0002 -> 0.02); empty when missing."""
     return f"{100 * value:.3g}" if value is not None else ""
@@ -283,17 +304,28 @@ def _verdict_params(verdict) -> str:
     return "; ".join(f"{k} = {v:.4g}{interval(k)}" for k, v in fitted if v is not None)
 
 
+def _configs_words(d: Diagnosis) -> str:
+    """The configurations the gap lies in: ``all 10 configurations`` when it is every one diagnosed,
+    else their names."""
+    configs = sorted(d.where.configs, key=natural_key)
+    if d.configs and len(configs) > 1 and set(configs) == set(d.configs):
+        return f"all {len(configs)} configurations"
+    return f"configurations {', '.join(configs) or '-'}"
+
+
 def _diagnosis_view(d: Diagnosis) -> dict:
     """The template's diagnosis section: the typed result as display text."""
     where, verdict = d.where, d.verdict
     return {
         "baseline_rms": _pct(d.baseline.rms_rel_error), "baseline_max": _pct(d.baseline.max_rel_error),
-        "where": f"modes {', '.join(str(m) for m in where.modes) or '-'}; configurations "
-                 f"{', '.join(sorted(where.configs, key=natural_key)) or '-'}"
+        "where": f"modes {', '.join(str(m) for m in where.modes) or '-'}; {_configs_words(d)}"
                  + (f"; region {where.region}" if where.region else ""),
         "verdict": f"{verdict.effect} at {verdict.location}" if verdict.location else verdict.effect,
         "params": _verdict_params(verdict),
         "summary": verdict.summary or "",
+        "remaining": remaining_words(d) if not verdict.explained else "",
+        "alternatives": alternatives_words(d),
+        "advice": advice_words(d),
         "heldout": " / ".join(_pct(x) for x in (verdict.heldout_rms_rel_error_before,
                                                  verdict.heldout_rms_rel_error_after)),
         "explained": verdict.explained,
@@ -305,7 +337,7 @@ def _diagnosis_view(d: Diagnosis) -> dict:
                      "fit": _pct(r.fit_rms_rel_error), "heldout": _pct(r.heldout_rms_rel_error),
                      "n_params": r.n_params} for r in d.ranking[:8]],
         "holdout": d.holdout.scheme if d.holdout is not None else "",
-        "scatter": scatter_line(d).removeprefix("scatter: "),
+        "scatter": scatter_line(d).removeprefix("scatter: ").replace("sqrt(m^2 + f^2)", "√(m² + f²)"),
         "frequencies": _diagnosis_frequencies(d.predictions) if d.predictions is not None else [],
     }
 

@@ -14,6 +14,7 @@ import base64
 import io
 import json
 import re
+from pathlib import Path
 
 import h5py
 import pytest
@@ -219,3 +220,29 @@ def test_report_cli_pdf_prints_beside_the_html_and_a_bad_geometry_is_one_line(in
                  "--out", str(tmp_path / "g.html")]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "bad.uff" in err and "Traceback" not in err
+
+
+REFERENCE = Path(__file__).parent / "data" / "outputs_reference.json"
+
+
+@pytest.mark.parametrize("part", ["tour", "demo"])
+def test_the_verdict_table_spells_out_what_remains_the_rivals_and_the_advice(tmp_path, part):
+    """The diagnosis page of a recorded verdict (README tour: a pose advised; demo: none advised) shows
+    the largest held-out errors, the candidates as good within noise and the next measurement (or why
+    none) as rows of their own, and the scatter as the quadrature sum it is."""
+    recorded = json.loads(REFERENCE.read_text())[part]["diagnosis.json"]
+    (tmp_path / "recorded.json").write_text(json.dumps(recorded))
+    result = api.read_diagnosis(tmp_path / "recorded.json")
+    _, page = api.write_diagnosis(result, tmp_path / "out")
+    html = page.read_text()
+    v = result.verdict
+    row = re.search(r"<th>next measurement</th><td>(.*?)</td>", html).group(1)
+    if v.next_measurements:
+        assert row.startswith(f"{v.next_measurements[0].pose} (model mode {v.next_measurements[0].mode}, ")
+    else:
+        assert row.startswith("no pose is advised: ")
+    assert f"<th>fit as well within noise</th><td>{v.alternatives[0].effect} at " in html
+    assert "<th>largest held-out errors</th><td>mode " in html
+    assert "√(m² + f²) of the measurement scatter m = " in html
+    assert ("all 10 configurations" in html) == (part == "demo")
+    assert not re.search(r"\b(nan|None)\b|\{'", re.sub(r"<[^>]+>", " ", html))
