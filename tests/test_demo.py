@@ -87,6 +87,10 @@ def test_demo_diagnosis_finds_the_elbow_with_a_realistic_residual(demo_dir: tupl
     said = re.search(r"^fits as well within noise: (.*)$", stdout, re.MULTILINE)
     assert bool(said) == v["ambiguous"]                    # the demo prints the ambiguity it was told
     assert all(f"{a['effect']} at {a['location']}" in said.group(1) for a in v["alternatives"] if said)
+    advice = re.search(r"^next measurement: (.*)$", stdout, re.MULTILINE)   # advised poses, or why none
+    assert bool(advice) == bool(v["ambiguous"] or v["next_measurements"])
+    first = v["next_measurements"][0]["pose"] if v["next_measurements"] else "no pose is advised"
+    assert not advice or advice.group(1).startswith(first)
 
 
 def test_demo_records_come_from_the_truth_model(demo_dir: tuple[Path, float, str]) -> None:
