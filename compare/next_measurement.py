@@ -41,6 +41,7 @@ from typing import Protocol
 import numpy as np
 from scipy.special import ndtr
 
+from flexmodal.checked_io.percent import percent
 from flexmodal.compare.fit import Target, design, evaluate, linear_cov
 from flexmodal.compare.gap import Measured
 from flexmodal.compare.parametric import ReducedFamily, lam_to_hz, solve_family
@@ -268,19 +269,19 @@ def no_pose_decides(best: dict, alts: Sequence[dict], paired: Sequence[float], m
     >>> no_pose_decides(best, [alt], [0.002], 0.0008, 3)     # (0.2 / 0.12)^2 = 2.8: 3 x 1.8 more
     'no pose is advised: every alternative only adds a component, and on the blind trials one more pose \
 settled such a component no more often where the candidates differ most than elsewhere; \
-base_stiffness+tip_mass at base+tip: gain 0.12% within the paired noise 0.20%, about 6 more poses would \
+base_stiffness+tip_mass at base+tip: gain 0.12 % within the paired noise 0.2 %, about 6 more poses would \
 confirm it if the gain held'
     """
     parts = []
     for e, noise in zip(alts, paired, strict=True):
         gain = best["_heldout_eq"] - e["_heldout_eq"]
-        head = f"{e['effect']} at {e['location']}: gain {gain:.2%}"
+        head = f"{e['effect']} at {e['location']}: gain {percent(gain)}"
         if gain <= model_form_margin or gain <= 0:
-            parts.append(f"{head} within the model-form margin {model_form_margin:.2%}, which more poses "
-                         "of this kind do not shrink")
+            parts.append(f"{head} within the model-form margin {percent(model_form_margin)}, which more "
+                         "poses of this kind do not shrink")
         else:
             more = max(math.ceil(n_poses * ((noise / gain) ** 2 - 1) - 1e-9), 1)
-            parts.append(f"{head} within the paired noise {noise:.2%}, about {more} more poses would "
+            parts.append(f"{head} within the paired noise {percent(noise)}, about {more} more poses would "
                          "confirm it if the gain held")
     return ("no pose is advised: every alternative only adds a component, and on the blind trials one more "
             "pose settled such a component no more often where the candidates differ most than elsewhere; "
