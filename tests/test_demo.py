@@ -138,7 +138,7 @@ def test_demo_scatter_is_a_real_arms_repeatability(demo_dir: tuple[Path, float, 
     src = json.loads((out / "diagnosis.json").read_text())["scatter_source"]
     assert src["source"] == "repeated configurations"
     assert min(table4_cv_percent) / 2 <= 100 * src["measurement"] <= max(table4_cv_percent), src
-    line = r"^scatter: .* of the measurement scatter m = [\d.]+ % \(repeated configurations: "
+    line = r"^scatter: .*; measurement scatter m = [\d.]+ % \(repeated configurations: "
     assert re.search(line, stdout, re.MULTILINE), stdout
 
 
