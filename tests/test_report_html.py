@@ -264,3 +264,14 @@ def test_the_scatter_line_adds_in_quadrature_or_says_the_least_the_ranking_uses(
     floored = dataclasses.replace(result, scatter=0.01)
     assert scatter_line(floored).startswith("scatter: 1 %, the least the ranking uses (sqrt(m^2 + f^2) = "
                                             f"{100 * result.scatter:.3g} % is below it)")
+
+
+def test_a_file_in_the_reports_folder_is_named_relative_to_it_even_inside_the_package(tmp_path):
+    """The demo run inside a clone writes flexmodal-demo/ inside the package: its report named its own
+    runs.h5 'flexmodal:flexmodal-demo/runs.h5' as if shipped with flexmodal."""
+    from flexmodal.reports.html import relative_name
+
+    package = Path(api.__file__).resolve().parent
+    rig = package / "fixtures" / "rigs" / "demo_arm.toml"
+    assert relative_name(rig, package / "fixtures") == "rigs/demo_arm.toml"
+    assert relative_name(rig, tmp_path) == "flexmodal:fixtures/rigs/demo_arm.toml"
