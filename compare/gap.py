@@ -48,8 +48,10 @@ def prepare(rig: Rig, table: ModalTable, min_configs: int = 3) -> Measured:
         modes = sorted(table.rows(c)["mode"].tolist())
         if modes != list(range(1, n + 1)):
             lack = sorted(set(range(1, n + 1)) - set(modes))
+            fullest = next(k for k in configs if int(table.rows(k)["mode"].max()) == n)
             raise CompareError(f"{src}: config {c!r} is missing mode {lack[0] if lack else modes} "
-                               f"(every configuration needs modes 1..{n})")
+                               f"(every configuration needs modes 1..{n}, as {fullest!r} has: identify "
+                               "over a band every run resolves, --fmin/--fmax, or keep the common modes)")
         pose = table.pose(c)
         if sorted(pose) != need:
             lacking = sorted(set(need) - set(pose))[0]
