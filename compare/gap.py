@@ -176,7 +176,8 @@ def estimate_scatter(table: ModalTable, meas: Measured, fallback: float) -> Scat
         if dof >= 2:
             value = float(np.sqrt(np.sum(dev**2) / dof))
             return Scatter(max(value, MIN_SCATTER_REL), "repeated configurations",
-                           f"{len(reps)} pose(s) measured more than once, {dof} degrees of freedom")
+                           f"{len(reps)} pose{'s' if len(reps) > 1 else ''} measured more than once, "
+                           f"{dof} degrees of freedom")
     if "freq_std_hz" in table.frame.columns:
         rel = (table.frame["freq_std_hz"] / table.frame["freq_hz"]).to_numpy(float)
         rel = rel[np.isfinite(rel) & (rel > 0)]
