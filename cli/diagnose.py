@@ -23,8 +23,9 @@ def register(sub: Subcommands) -> None:
     p.add_argument("--out", help="output directory for diagnosis.json and diagnosis.html")
     p.add_argument("--effects", default="all", help="'all' or comma-separated effect names (default all)")
     p.add_argument("--holdout", default="auto",
-                   help="'auto' (leave one configuration out; 5-fold above 10 configurations) or a "
-                        "comma-separated list of configurations to hold out")
+                   help="'auto' (leave one pose out, the configurations measured at one pose held out "
+                        "together; 5-fold over poses above 10 poses) or a comma-separated list of "
+                        "configurations to hold out")
     p.add_argument("--scatter", type=opt.real(1e-6, 1.0, hi_open=True, name="fraction"),
                    default=None,
                    help="fallback relative measurement scatter of the frequencies (fraction; default 0.005 = "

@@ -50,6 +50,7 @@ import numpy as np
 from scipy.special import stdtrit
 from threadpoolctl import threadpool_limits
 
+from flexmodal.checked_io.percent import percent
 from flexmodal.compare.candidates import Candidate, combine, components, parse_effects, single_candidates
 from flexmodal.compare.errors import CompareError
 from flexmodal.compare.fit import Target, design, evaluate, fit_candidate, linear_cov, paired_modes
@@ -1040,9 +1041,9 @@ def _choose(ctx: _Context, ranking: list[dict], pool: list[dict], scatter: float
                         f"bound (absent)" if i in best["_idle"] else
                         f"{best['effect']} at {best['location']} pruned to {sub['effect']} at "
                         f"{sub['location']}: without {dropped} the held-out error rises by "
-                        f"{worse:.2%}, within the margin {margin:.2%} (noise of a paired comparison on "
-                        f"{max(best['_n_eq'] * ctx.pose_share, 1):.0f} held-out degrees of freedom, or "
-                        f"the model-form level {ctx.model_form:.2%})")
+                        f"{percent(worse)}, within the margin {percent(margin)} (noise of a paired "
+                        f"comparison on {max(best['_n_eq'] * ctx.pose_share, 1):.0f} held-out degrees of "
+                        f"freedom, or the model-form level {percent(ctx.model_form)})")
                     best, pruned = sub, True
                     break
         if not best["_out_of_range"] and not best["_idle"]:
@@ -1102,12 +1103,14 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
             "gap_removed": 0.0, "remaining_over_scatter": before / sigma}
     if baseline["rms_rel_error"] <= _none_level(none_sigma, ctx.beam_form):
         return _flag_none(ctx, _none_with_alternatives(ctx, {**none, "grade": "explained", "summary": (
-            f"baseline RMS gap {baseline['rms_rel_error']:.2%} is within {NONE_FACTOR:g}x the measurement "
-            f"scatter ({none_sigma:.2%}) on top of the beam theory's known error ({ctx.beam_form:.2%}): "
+            f"baseline RMS gap {percent(baseline['rms_rel_error'])} is within {NONE_FACTOR:g}x the "
+            f"measurement scatter ({percent(none_sigma)}) on top of the beam theory's known error "
+            f"({percent(ctx.beam_form)}): "
             "no unmodelled effect is needed")}, ranking, nominal, scatter))
     if not ranking or best is None:
         return _flag_none(ctx, {**none, "grade": "not explained", "flags": list(notes), "summary": (
-            f"baseline RMS gap {baseline['rms_rel_error']:.2%} but no candidate effect applies to this rig "
+            f"baseline RMS gap {percent(baseline['rms_rel_error'])} but no candidate effect applies to this "
+            "rig "
             "within its parameter range: the gap is unexplained")})
     nominal_entry = _nominal_entry(ctx)
     _rescore(ctx, nominal_entry, scatter)
@@ -1116,10 +1119,12 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
         return _flag_none(ctx, _none_with_alternatives(ctx, {
             **none, "grade": "not explained" if before > EXPLAINED_FACTOR * sigma else "explained",
             "summary": (f"no candidate beats the nominal model on held-out configurations beyond the "
-                        f"margin {_nested_margin(ctx, best, nominal_entry, scatter):.2%} of one component "
+                        f"margin {percent(_nested_margin(ctx, best, nominal_entry, scatter))} of one "
+                        "component "
                         f"more (noise of a paired comparison, or the model-form level "
-                        f"{ctx.model_form:.2%}; baseline held-out RMS {before:.2%}, best {best['effect']} "
-                        f"{best['heldout_rms_rel_error']:.2%})")}, ranking, nominal, scatter))
+                        f"{percent(ctx.model_form)}; baseline held-out RMS {percent(before)}, best "
+                        f"{best['effect']} "
+                        f"{percent(best['heldout_rms_rel_error'])})")}, ranking, nominal, scatter))
     after = best["heldout_rms_rel_error"]
     resid = best["_heldout_freq_hz"] / meas.freq_hz - 1.0
     structured = _structured(resid, sigma)
@@ -1175,8 +1180,9 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
         else []
     text = f"{best['effect']} at {best['location']}, {gap_words(before, after, sigma, grade, feature)}"
     if not explained:
-        worst_txt = ", ".join(f"mode {r['mode']} at {r['config']} ({r['heldout_rel_error']:+.1%})"
-                              for r in remaining)
+        worst_txt = ", ".join(
+            f"mode {r['mode']} at {r['config']} ({percent(r['heldout_rel_error'], signed=True)})"
+            for r in remaining)
         text += f"; largest held-out errors: {worst_txt}"
     if flags:
         text += "; flagged: " + "; ".join(flags)
@@ -1190,7 +1196,7 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
         text += f"; ambiguous: {names} fit(s) as well within noise"
         if a0.get("separate_at"):
             text += (f"; measuring {a0['separate_at']} (model mode {a0['separate_mode']}) would separate "
-                     f"the first by {a0['separate_rel_diff']:.1%}")
+                     f"the first by {percent(a0['separate_rel_diff'])}")
         if verdict["next_measurements"]:
             nxt = verdict["next_measurements"][0]
             text += (f"; next measurement most likely to decide: {nxt['pose']} (mode {nxt['mode']}, "
@@ -1216,12 +1222,13 @@ def _none_with_alternatives(ctx: _Context, verdict: dict, ranking: list[dict], n
                    and e["_heldout_eq"] < nominal - margin), key=lambda e: e["score"])[:MAX_ALTERNATIVES]
     if not alts:
         return verdict
-    names = ", ".join(f"{e['effect']} at {e['location']} ({e['heldout_rms_rel_error']:.2%})" for e in alts)
+    names = ", ".join(f"{e['effect']} at {e['location']} ({percent(e['heldout_rms_rel_error'])})"
+                      for e in alts)
     return {**verdict, "ambiguous": True,
             "alternatives": [{"effect": e["effect"], "location": e["location"], "params": e["params"],
                               "heldout_rms_rel_error": e["heldout_rms_rel_error"]} for e in alts],
             "summary": f"{verdict['summary']}; but the data cannot exclude, held out better than the nominal "
-                       f"model ({verdict['heldout_rms_rel_error_before']:.2%}): {names}"}
+                       f"model ({percent(verdict['heldout_rms_rel_error_before'])}): {names}"}
 
 
 def _flag_none(ctx: _Context, verdict: dict) -> dict:
@@ -1253,8 +1260,8 @@ def _residual_feature(ctx: _Context, best: dict, resid: np.ndarray, sigma: float
     found: list[tuple[float, str]] = []
     for m in range(n):
         r = resid[:, m]
-        found.append((abs(r.mean()) * math.sqrt(C) / sd, f"mode {m + 1} ({r.mean():+.2%} on average at every "
-                                                         "pose)"))
+        found.append((abs(r.mean()) * math.sqrt(C) / sd,
+                      f"mode {m + 1} ({percent(r.mean(), signed=True)} on average at every pose)"))
         for v in ctx.rig.pose_variables:
             q = np.array([p[v] for p in meas.poses])
             if len(np.unique(q)) < 3:
@@ -1262,13 +1269,14 @@ def _residual_feature(ctx: _Context, best: dict, resid: np.ndarray, sigma: float
             dq = q - q.mean()
             slope = float(dq @ r / (dq @ dq))
             z = abs(slope) * math.sqrt(dq @ dq) / sd
-            found.append((z, f"a trend of mode {m + 1} with {v} ({slope * np.ptp(q):+.2%} over "
+            found.append((z, f"a trend of mode {m + 1} with {v} ({percent(slope * np.ptp(q), signed=True)} "
+                             f"over "
                              f"{q.min():g}..{q.max():g})"))
     if n > 1:
         for c in range(C):
             mean = resid[c].mean()
-            found.append((abs(mean) * math.sqrt(n) / sd, f"configuration {meas.configs[c]} ({mean:+.2%} on "
-                                                         "every mode)"))
+            found.append((abs(mean) * math.sqrt(n) / sd,
+                          f"configuration {meas.configs[c]} ({percent(mean, signed=True)} on every mode)"))
     z, text = max(found, key=lambda t: t[0]) if found else (0.0, "")
     feature = text if z > FEATURE_Z else ""
     sensor, flags = _shape_flags(ctx, _fit_shapes(ctx, best))

@@ -48,8 +48,10 @@ def prepare(rig: Rig, table: ModalTable, min_configs: int = 3) -> Measured:
         modes = sorted(table.rows(c)["mode"].tolist())
         if modes != list(range(1, n + 1)):
             lack = sorted(set(range(1, n + 1)) - set(modes))
+            fullest = next(k for k in configs if int(table.rows(k)["mode"].max()) == n)
             raise CompareError(f"{src}: config {c!r} is missing mode {lack[0] if lack else modes} "
-                               f"(every configuration needs modes 1..{n})")
+                               f"(every configuration needs modes 1..{n}, as {fullest!r} has: identify "
+                               "over a band every run resolves, --fmin/--fmax, or keep the common modes)")
         pose = table.pose(c)
         if sorted(pose) != need:
             lacking = sorted(set(need) - set(pose))[0]
@@ -174,7 +176,8 @@ def estimate_scatter(table: ModalTable, meas: Measured, fallback: float) -> Scat
         if dof >= 2:
             value = float(np.sqrt(np.sum(dev**2) / dof))
             return Scatter(max(value, MIN_SCATTER_REL), "repeated configurations",
-                           f"{len(reps)} pose(s) measured more than once, {dof} degrees of freedom")
+                           f"{len(reps)} pose{'s' if len(reps) > 1 else ''} measured more than once, "
+                           f"{dof} degrees of freedom")
     if "freq_std_hz" in table.frame.columns:
         rel = (table.frame["freq_std_hz"] / table.frame["freq_hz"]).to_numpy(float)
         rel = rel[np.isfinite(rel) & (rel > 0)]

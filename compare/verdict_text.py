@@ -56,16 +56,21 @@ def verdict_words(result: Diagnosis) -> str:
 
 def scatter_line(result: Diagnosis) -> str:
     """One line: the scatter the ranking used and where it came from: the measurement scatter and the
-    model-form floor added in quadrature (``scatter = sqrt(measurement^2 + floor^2)``)."""
+    model-form floor added in quadrature (``scatter = sqrt(measurement^2 + floor^2)``), or the least
+    scatter the ranking uses (compare.diagnosis.MIN_SCATTER) when that sum is below it."""
     src = result.scatter_source
     if src is None or result.scatter is None:
         return ""
     meas = src.measurement if src.measurement is not None else result.scatter
     floor = src.model_form_floor or 0.0
-    return (f"scatter: {percent(result.scatter)} = sqrt(m^2 + f^2) of the measurement scatter m = "
-            f"{percent(meas)} ({src.source}: {src.detail}) and the model-form floor f = {percent(floor)} "
-            f"(held-out error of the best candidate beyond the measurement); what remains is judged against "
-            f"m = {percent(meas)}")
+    combined = math.hypot(meas, floor)
+    head = (f"scatter: {percent(result.scatter)} = sqrt(m^2 + f^2)"
+            if math.isclose(result.scatter, combined, rel_tol=1e-6) else
+            f"scatter: {percent(result.scatter)}, the least the ranking uses (sqrt(m^2 + f^2) = "
+            f"{percent(combined)} is below it)")
+    return (f"{head}; measurement scatter m = {percent(meas)} ({src.source}: {src.detail}), model-form "
+            f"floor f = {percent(floor)} (held-out error of the best candidate beyond the measurement); what "
+            f"remains is judged against m = {percent(meas)}")
 
 
 def alternatives_words(result: Diagnosis) -> str:

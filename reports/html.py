@@ -247,13 +247,13 @@ def _number(figures: Sequence[dict]) -> None:
 def relative_name(path: str | Path, report_dir: Path) -> str:
     """A file named relative to the report's folder (``runs.h5``, ``../data/modes.csv``), so the report
     holds no absolute local path; a file shipped inside flexmodal (the demo rig) as
-    ``flexmodal:fixtures/rigs/demo_arm.toml``; a name that is not a file path (an in-memory table) as
-    it is."""
+    ``flexmodal:fixtures/rigs/demo_arm.toml`` (unless it lies in the report's folder: the demo's own
+    outputs when it runs inside a clone); a name that is not a file path (an in-memory table) as it is."""
     p = Path(path)
     if not p.is_absolute() and not p.exists():
         return str(path)
     package = Path(__file__).resolve().parents[1]
-    if p.resolve().is_relative_to(package):
+    if p.resolve().is_relative_to(package) and not p.resolve().is_relative_to(report_dir.resolve()):
         return f"flexmodal:{p.resolve().relative_to(package).as_posix()}"
     try:
         return Path(os.path.relpath(p.resolve(), report_dir.resolve())).as_posix()

@@ -87,6 +87,10 @@ def test_demo_diagnosis_finds_the_elbow_with_a_realistic_residual(demo_dir: tupl
     said = re.search(r"^fits as well within noise: (.*)$", stdout, re.MULTILINE)
     assert bool(said) == v["ambiguous"]                    # the demo prints the ambiguity it was told
     assert all(f"{a['effect']} at {a['location']}" in said.group(1) for a in v["alternatives"] if said)
+    advice = re.search(r"^next measurement: (.*)$", stdout, re.MULTILINE)   # advised poses, or why none
+    assert bool(advice) == bool(v["ambiguous"] or v["next_measurements"])
+    first = v["next_measurements"][0]["pose"] if v["next_measurements"] else "no pose is advised"
+    assert not advice or advice.group(1).startswith(first)
 
 
 def test_demo_records_come_from_the_truth_model(demo_dir: tuple[Path, float, str]) -> None:
@@ -134,7 +138,7 @@ def test_demo_scatter_is_a_real_arms_repeatability(demo_dir: tuple[Path, float, 
     src = json.loads((out / "diagnosis.json").read_text())["scatter_source"]
     assert src["source"] == "repeated configurations"
     assert min(table4_cv_percent) / 2 <= 100 * src["measurement"] <= max(table4_cv_percent), src
-    line = r"^scatter: .* of the measurement scatter m = [\d.]+ % \(repeated configurations: "
+    line = r"^scatter: .*; measurement scatter m = [\d.]+ % \(repeated configurations: "
     assert re.search(line, stdout, re.MULTILINE), stdout
 
 

@@ -262,7 +262,8 @@ def test_report_has_contents_whose_links_land_and_numbered_figures_and_tables(pa
     n = len(info["caps"])
     assert info["caps"] == [f"Figure {k}." for k in range(1, n + 1)] and n == 47 + 2   # 2 animated poses
     assert [t.split(".")[0] for t in info["tabs"]] == [f"Table {k}" for k in range(1, len(info["tabs"]) + 1)]
-    assert info["details"] == 11 + 1 and info["open"] == 0   # one collapsed block per run, the verdict paragraph
+    # one collapsed block per run, and the verdict paragraph
+    assert info["details"] == 11 + 1 and info["open"] == 0
     assert info["figures_in_details"] == 10 * 4 + 2     # FRF, diagram, synthesis, AutoMAC; FDD and SSI
     for name in ("top", "contents"):
         pixels = mpimg.imread(page["shots"][name])

@@ -243,6 +243,35 @@ def test_the_verdict_table_spells_out_what_remains_the_rivals_and_the_advice(tmp
         assert row.startswith("no pose is advised: ")
     assert f"<th>fit as well within noise</th><td>{v.alternatives[0].effect} at " in html
     assert "<th>largest held-out errors</th><td>mode " in html
-    assert "√(m² + f²) of the measurement scatter m = " in html
+    assert "√(m² + f²); measurement scatter m = " in html
     assert ("all 10 configurations" in html) == (part == "demo")
     assert not re.search(r"\b(nan|None)\b|\{'", re.sub(r"<[^>]+>", " ", html))
+
+
+def test_the_scatter_line_adds_in_quadrature_or_says_the_least_the_ranking_uses(tmp_path):
+    """0.377 % and 0.668 % make 0.767 % (in quadrature, not a sum); when that is below the least scatter
+    the ranking uses, the line says so instead of an equation that does not hold."""
+    import dataclasses
+    import math
+
+    from flexmodal.compare.verdict_text import scatter_line
+
+    (tmp_path / "d.json").write_text(json.dumps(json.loads(REFERENCE.read_text())["demo"]["diagnosis.json"]))
+    result = api.read_diagnosis(tmp_path / "d.json")
+    src = result.scatter_source
+    assert math.isclose(result.scatter, math.hypot(src.measurement, src.model_form_floor), rel_tol=1e-9)
+    assert scatter_line(result).startswith(f"scatter: {100 * result.scatter:.3g} % = sqrt(m^2 + f^2); ")
+    floored = dataclasses.replace(result, scatter=0.01)
+    assert scatter_line(floored).startswith("scatter: 1 %, the least the ranking uses (sqrt(m^2 + f^2) = "
+                                            f"{100 * result.scatter:.3g} % is below it)")
+
+
+def test_a_file_in_the_reports_folder_is_named_relative_to_it_even_inside_the_package(tmp_path):
+    """The demo run inside a clone writes flexmodal-demo/ inside the package: its report named its own
+    runs.h5 'flexmodal:flexmodal-demo/runs.h5' as if shipped with flexmodal."""
+    from flexmodal.reports.html import relative_name
+
+    package = Path(api.__file__).resolve().parent
+    rig = package / "fixtures" / "rigs" / "demo_arm.toml"
+    assert relative_name(rig, package / "fixtures") == "rigs/demo_arm.toml"
+    assert relative_name(rig, tmp_path) == "flexmodal:fixtures/rigs/demo_arm.toml"
