@@ -1298,15 +1298,16 @@ def diagnose(rig: Rig | PathLike, measured: ModalTable | PathLike, *, effects: s
 
     Examples
     --------
-    Seed 003's two-link arm against its measured Table 3, the joint stiffness ranked:
+    Seed 003's two-link arm against its measured Table 3 (three poses fitted, three held out): the
+    paper's joint compliance is part of the verdict, and the held-out RMS gap falls below the 5 % issue
+    26 asks of this case:
 
     >>> import flexmodal as fm
     >>> result = fm.diagnose("examples/rigs/seed003_two_link.toml",
-    ...                      "examples/measured/seed003_table3_f1f2.csv", effects="joint_stiffness",
-    ...                      holdout="theta30,theta90,theta150")
-    >>> result.verdict.effect
-    'joint_stiffness'
-    >>> result.verdict.heldout_rms_rel_error_after < result.verdict.heldout_rms_rel_error_before
+    ...                      "examples/measured/seed003_table3_f1f2.csv", holdout="theta30,theta90,theta150")
+    >>> "joint_stiffness" in result.verdict.effect.split("+")
+    True
+    >>> result.verdict.heldout_rms_rel_error_after < 0.05 < result.verdict.heldout_rms_rel_error_before
     True
     """
     from flexmodal.compare.errors import CompareError
@@ -1349,10 +1350,9 @@ def format_diagnosis(result: Diagnosis) -> str:
     --------
     >>> import flexmodal as fm
     >>> result = fm.diagnose("examples/rigs/seed003_two_link.toml",
-    ...                      "examples/measured/seed003_table3_f1f2.csv", effects="joint_stiffness",
-    ...                      holdout="theta30,theta90,theta150")
+    ...                      "examples/measured/seed003_table3_f1f2.csv", holdout="theta30,theta90,theta150")
     >>> print(fm.format_diagnosis(result).splitlines()[0])   # doctest: +ELLIPSIS
-    verdict: joint_stiffness at ...; held-out RMS ...% -> ...%
+    verdict: ...joint_stiffness at ...; held-out RMS ...% -> ...%
     """
     from flexmodal.checked_io.percent import percent
     from flexmodal.compare.verdict_text import advice_words, alternatives_words, scatter_line, verdict_words
@@ -1416,11 +1416,10 @@ def write_diagnosis(result: Diagnosis, out_dir: PathLike,
     >>> import tempfile
     >>> import flexmodal as fm
     >>> result = fm.diagnose("examples/rigs/seed003_two_link.toml",
-    ...                      "examples/measured/seed003_table3_f1f2.csv", effects="joint_stiffness",
-    ...                      holdout="theta30,theta90,theta150")
+    ...                      "examples/measured/seed003_table3_f1f2.csv", holdout="theta30,theta90,theta150")
     >>> pj, ph = fm.write_diagnosis(result, tempfile.mkdtemp())
-    >>> pj.name, ph.name, fm.read_diagnosis(pj).verdict.effect
-    ('diagnosis.json', 'diagnosis.html', 'joint_stiffness')
+    >>> pj.name, ph.name, fm.read_diagnosis(pj).verdict.effect == result.verdict.effect
+    ('diagnosis.json', 'diagnosis.html', True)
     """
     from flexmodal.checked_io.output import atomic_group, output_dir, write_text
     from flexmodal.compare.errors import CompareError
@@ -1676,8 +1675,7 @@ def plot_gap(diagnosis: Diagnosis | Mapping | PathLike, title: str = "") -> Figu
     --------
     >>> import flexmodal as fm
     >>> result = fm.diagnose("examples/rigs/seed003_two_link.toml",
-    ...                      "examples/measured/seed003_table3_f1f2.csv", effects="joint_stiffness",
-    ...                      holdout="theta30,theta90,theta150")
+    ...                      "examples/measured/seed003_table3_f1f2.csv", holdout="theta30,theta90,theta150")
     >>> type(fm.plot_gap(result)).__name__
     'Figure'
     """
