@@ -20,6 +20,15 @@ DATA = REPO / "tests" / "data"
 RIGS = REPO / "examples" / "rigs"
 
 
+def one_line(capsys, code: int, *words: str) -> str:
+    """The one-line refusal a bad input must give: exit ``code`` 2, a single stderr line starting
+    ``flexmodal`` and holding every one of ``words``; returns that line."""
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and err[0].startswith("flexmodal"), (code, err)
+    assert all(w in err[0] for w in words), err[0]
+    return err[0]
+
+
 @pytest.fixture(scope="session")
 def data_dir() -> Path:
     """tests/data: the seed papers' tables (``seeds/``), a real impact record (``real/``) and others."""

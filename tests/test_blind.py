@@ -86,27 +86,20 @@ def test_the_draws_and_the_advice_the_docs_quote():
     spec = importlib.util.spec_from_file_location("diagnosis_doc", REPO / "benchmarks" / "diagnosis_doc.py")
     doc = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(doc)
-    results = {seed: run_blind(doc.BLIND_CASES, seed=seed) for seed in doc.BLIND_SEEDS}
-    assert doc.doc_block("blind") == doc.blind_block(results=results)
-    assert all(summarise(r)["none_accuracy"] >= 2 / 3 for r in results.values())
-    fresh = {seed: run_blind(doc.BLIND_CASES, seed=seed) for seed in doc.FRESH_SEEDS}
-    assert doc.doc_block("fresh") == doc.blind_block(doc.FRESH_SEEDS, results=fresh, note=doc.FRESH_NOTE)
-    assert doc.doc_block("ideal") == doc.ideal_block(results)
-    assert doc.doc_block("ideal_fresh") == doc.ideal_block(fresh, seeds=doc.FRESH_SEEDS)
-    new = {seed: run_blind(doc.BLIND_CASES, seed=seed) for seed in doc.NEW_SEEDS}
-    assert doc.doc_block("new") == doc.blind_block(doc.NEW_SEEDS, results=new, note=doc.NEW_NOTE)
-    assert doc.doc_block("ideal_new") == doc.ideal_block(new, seeds=doc.NEW_SEEDS)
-    latest = {seed: run_blind(doc.BLIND_CASES, seed=seed) for seed in doc.LATEST_SEEDS}
-    assert doc.doc_block("latest") == doc.blind_block(doc.LATEST_SEEDS, results=latest, note=doc.LATEST_NOTE)
-    assert doc.doc_block("ideal_latest") == doc.ideal_block(latest, seeds=doc.LATEST_SEEDS)
-    nxt = {seed: run_blind(doc.BLIND_CASES, seed=seed) for seed in doc.NEXT_SEEDS}
-    assert doc.doc_block("next") == doc.blind_block(doc.NEXT_SEEDS, results=nxt, note=doc.NEXT_NOTE)
-    assert doc.doc_block("ideal_next") == doc.ideal_block(nxt, seeds=doc.NEXT_SEEDS)
-    final = {seed: run_blind(doc.BLIND_CASES, seed=seed) for seed in doc.FINAL_SEEDS}
-    assert doc.doc_block("s631") == doc.blind_block(doc.FINAL_SEEDS, results=final, note=doc.FINAL_NOTE)
-    assert doc.doc_block("ideal_s631") == doc.ideal_block(final, seeds=doc.FINAL_SEEDS)
+    draws = {}   # block name: (its ideal-fit block, seeds, note) -> {seed: run_blind's results}
+    for name, ideal, seeds, note in (("blind", "ideal", doc.BLIND_SEEDS, None),
+                                     ("fresh", "ideal_fresh", doc.FRESH_SEEDS, doc.FRESH_NOTE),
+                                     ("new", "ideal_new", doc.NEW_SEEDS, doc.NEW_NOTE),
+                                     ("latest", "ideal_latest", doc.LATEST_SEEDS, doc.LATEST_NOTE),
+                                     ("next", "ideal_next", doc.NEXT_SEEDS, doc.NEXT_NOTE),
+                                     ("s631", "ideal_s631", doc.FINAL_SEEDS, doc.FINAL_NOTE)):
+        draws[name] = {seed: run_blind(doc.BLIND_CASES, seed=seed) for seed in seeds}
+        assert doc.doc_block(name) == doc.blind_block(seeds, results=draws[name],
+                                                      **({} if note is None else {"note": note}))
+        assert doc.doc_block(ideal) == doc.ideal_block(draws[name], seeds=seeds)
+    assert all(summarise(r)["none_accuracy"] >= 2 / 3 for r in draws["blind"].values())
     assert doc.doc_block("sparse") == doc.sparse_block()
-    assert doc.doc_block("advice") == doc.advice_block({**latest, **nxt})
+    assert doc.doc_block("advice") == doc.advice_block({**draws["latest"], **draws["next"]})
 
 
 @pytest.mark.timeout(1800)          # ~15 s CPU: two truth arms, two diagnoses and three trial diagnoses

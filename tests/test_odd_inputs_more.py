@@ -14,6 +14,7 @@ import h5py
 import numpy as np
 import pytest
 from conftest import REPO
+from conftest import one_line as _one_line
 
 from flexmodal.app import main
 from flexmodal.compare.candidates import parse_effects
@@ -28,13 +29,6 @@ class _FullDisk(io.StringIO):
 
     def write(self, text: str) -> int:
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-
-
-def _one_line(capsys, code: int, *words: str) -> str:
-    err = capsys.readouterr().err.strip().splitlines()
-    assert code == 2 and len(err) == 1 and err[0].startswith("flexmodal"), (code, err)
-    assert all(w in err[0] for w in words), err[0]
-    return err[0]
 
 
 def test_run_whose_sample_rate_is_finite_but_absurd_is_refused(tmp_path: Path, capsys) -> None:

@@ -16,6 +16,7 @@ import h5py
 import numpy as np
 import pytest
 from conftest import REPO
+from conftest import one_line as _one_line
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -27,13 +28,6 @@ from flexmodal.modal.errors import ModalError
 RIG = (REPO / "examples" / "rigs" / "seed003_two_link.toml").read_text(encoding="utf-8")
 SESSION = (REPO / "examples" / "sessions" / "serial-sim.toml").read_text(encoding="utf-8")
 BIG = "9" * 400   # a whole number beyond the largest float (about 1.8e308)
-
-
-def _one_line(capsys, code: int, *words: str) -> str:
-    err = capsys.readouterr().err.strip().splitlines()
-    assert code == 2 and len(err) == 1 and err[0].startswith("flexmodal"), (code, err)
-    assert all(w in err[0] for w in words), err[0]
-    return err[0]
 
 
 def _run(path: Path) -> Path:

@@ -18,6 +18,7 @@ import h5py
 import numpy as np
 import pytest
 from conftest import REPO
+from conftest import one_line as _one_line
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -39,13 +40,6 @@ RIG = (REPO / "examples" / "rigs" / "seed003_two_link.toml").read_text(encoding=
 MODES = REPO / "examples" / "measured" / "seed003_table3_f1f2.csv"
 DIAGNOSIS = (REPO / "tests" / "data" / "diagnosis" / "demo.json").read_text(encoding="utf-8")
 BAR = 'section = { shape = "solid_rect", width_m = 0.01, height_m = 0.01 }\nmaterial = "aluminium"'
-
-
-def _one_line(capsys, code: int, *words: str) -> str:
-    err = capsys.readouterr().err.strip().splitlines()
-    assert code == 2 and len(err) == 1 and err[0].startswith("flexmodal"), (code, err)
-    assert all(w in err[0] for w in words), err[0]
-    return err[0]
 
 
 # -- rig points: ground@x,y only for a member's end, and finite ---------------------------------------
