@@ -245,6 +245,9 @@ def test_the_verdict_table_spells_out_what_remains_the_rivals_and_the_advice(tmp
     assert "<th>largest held-out errors</th><td>mode " in html
     assert "√(m² + f²); measurement scatter m = " in html
     assert ("all 10 configurations" in html) == (part == "demo")
+    # both are 'largely explained' (what remains is 4 and 7 times the scatter, not noise): not green
+    assert v.grade == "largely explained" and \
+        '<th>how much of the gap is explained</th><td class="partial">largely explained: ' in html
     assert not re.search(r"\b(nan|None)\b|\{'", re.sub(r"<[^>]+>", " ", html))
 
 
@@ -275,3 +278,14 @@ def test_a_file_in_the_reports_folder_is_named_relative_to_it_even_inside_the_pa
     rig = package / "fixtures" / "rigs" / "demo_arm.toml"
     assert relative_name(rig, package / "fixtures") == "rigs/demo_arm.toml"
     assert relative_name(rig, tmp_path) == "flexmodal:fixtures/rigs/demo_arm.toml"
+
+
+def test_a_users_file_inside_a_clone_is_not_named_as_shipped_with_flexmodal():
+    """In a clone, diag/diagnosis.html named its inputs 'flexmodal:examples/rigs/demo_arm.toml,
+    flexmodal:modes.csv': the user's own modes.csv read as a file of flexmodal's."""
+    from flexmodal.reports.html import relative_name
+
+    package = Path(api.__file__).resolve().parent
+    assert relative_name(package / "examples" / "rigs" / "demo_arm.toml", package / "diag") == \
+        "../examples/rigs/demo_arm.toml"
+    assert relative_name(package / "README.md", package / "diag") == "../README.md"
