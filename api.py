@@ -350,6 +350,10 @@ def frf_from_arrays(freq_hz, H, *, coherence=None, quantity: str = "accelerance"
     from flexmodal.modal.errors import ModalError
     from flexmodal.modal.frf import QUANTITIES, FrfResult, check_coherence
 
+    for name, value in (("freq_hz", freq_hz), ("H", H)):
+        if value is None or isinstance(value, str | bytes | Mapping):
+            raise TypeError(f"frf_from_arrays: {name} must be an array of numbers, got "
+                            f"{type(value).__name__} {value!r:.60}")
     f = np.asarray(freq_hz, float)
     if not np.iscomplexobj(H):
         raise ModalError(f"frf_from_arrays: H of type {np.asarray(H).dtype} holds no phase: FRFs are complex "
@@ -848,6 +852,10 @@ def track(source: PathLike, *, pose_from: Mapping[str, str] | None = None, run_i
     32
     """
     _check_band(fmin, fmax)
+    if pose_from is not None and (not isinstance(pose_from, Mapping) or not all(
+            isinstance(k, str) and isinstance(v, str) for k, v in pose_from.items())):
+        raise TypeError(f"track: pose_from must map pose variables to encoder channel names, e.g. "
+                        f"{{'theta_deg': 'enc_elbow'}}, got {pose_from!r}")
     if not 0 < bin_deg < float("inf") or not all(0 < o < float("inf") for o in orders):
         raise ModalError(f"track: bin_deg {bin_deg!r} and orders {tuple(orders)!r} must be positive and "
                          "finite")
@@ -2190,7 +2198,7 @@ def serve_simulator(protocol: str, *, faults: Mapping[str, float | None] | None 
         from flexmodal.checked_io.output import output_file
 
         output_file(options["fault_log"], FixtureError, "fault log (--fault-log)",
-                    inputs=(options.get("rig"),))
+                    inputs=(options.get("rig"), options.get("link")))   # the pty link is an output too
     try:
         chosen = ServeOptions(protocol, faults=Faults(**(faults or {})), **options)
     except TypeError as exc:

@@ -178,7 +178,13 @@ def _device(doc: dict, where: str, base: Path) -> Device:
     name = t.name("name")
     t = DeviceTable(doc, f"{where.split(':')[0]}: device {name!r}", base)
     protocol = t.choice("protocol", registered_protocols())
-    return PROTOCOLS.entry(protocol).parse_device(t, name)
+    device = PROTOCOLS.entry(protocol).parse_device(t, name)
+    sources = PROTOCOLS.entry(protocol).known_sources(device) or ()
+    twice = [s for i, s in enumerate(sources) if s in sources[:i]]
+    if twice:   # a channel naming it would read one of the two values, which one unsaid
+        raise DaqError(f"{t.where}: source {twice[0]!r} is named twice among its sources "
+                       f"({', '.join(sources)})")
+    return device
 
 
 def _channel(doc: dict, where: str, devices: dict[str, Device]) -> ChannelMap:
