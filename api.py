@@ -1330,6 +1330,10 @@ def diagnose(rig: Rig | PathLike, measured: ModalTable | PathLike, *, effects: s
     from flexmodal.compare.diagnosis import diagnose as _diagnose
     from flexmodal.compare.diagnosis import folds_for
 
+    if not isinstance(effects, str) and not (isinstance(effects, Iterable)
+                                            and all(isinstance(e, str) for e in effects)):
+        raise TypeError(f"diagnose: effects must be 'all', a comma list or a list of effect names, got "
+                        f"{effects!r}")
     parse_effects(effects if isinstance(effects, str) else ",".join(effects))  # bad input fails now
     folds_for(table.configs, holdout)
     if progress is not None:
@@ -1564,6 +1568,7 @@ def plot_stabilisation(frf: FrfResult, modes: Modes | None = None, *, fmin: floa
     from flexmodal.reports import plots
 
     frf = _frf_result(frf)
+    _check_band(fmin, fmax)
     if modes is None:
         modes = identify_frf(frf, fmin=fmin, fmax=fmax, max_order=max_order)
     return plots.plot_identification_diagram(frf, modes, plots.frf_unit(frf.quantity), title=title)
@@ -1837,8 +1842,15 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
         raise ReportError(f"report: oma_fmin = {oma_fmin:g} Hz must be below oma_fmax = {oma_fmax:g} Hz")
     if fmin is not None and fmax is not None and fmin >= fmax:
         raise ReportError(f"report: fmin = {fmin:g} Hz must be below fmax = {fmax:g} Hz")
+    given = [n for n, v in (("fmin", fmin), ("fmax", fmax), ("oma_fmin", oma_fmin), ("oma_fmax", oma_fmax))
+             if v is not None]
     from flexmodal.daq.run_schema import check_run_file
-    from flexmodal.daq.store import expand_runs
+    from flexmodal.daq.store import expand_runs, run_entries
+
+    runs = run_entries(runs)
+    if given and not runs:   # the bands of the runs' identification: with no run, nothing used them
+        raise ReportError(f"report: {given[0]} sets the band of the runs' identification, and no run "
+                          "(RUN.h5) is given")
     from flexmodal.modal.runs_io import read_frf
 
     for path, run_id in expand_runs(runs):   # a stored FRF group that is not what flexmodal writes:

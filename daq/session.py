@@ -317,9 +317,18 @@ def parse_session(doc: dict, source: Path) -> Session:
                            f"{trigger.pretrigger_samples + MIN_HIT_SAMPLES}")
     pose = t.numbers("pose")
     pose_from = t.get("pose_from", dict, {})
+    kinds = {c.channel.name: c.channel.kind for c in channels}
     for k, v in pose_from.items():
         if v not in names:
             raise DaqError(f"{where}: pose_from.{k} = {v!r} is not a channel")
+        if kinds[v] != "encoder":   # its mean (say m/s^2) would be stored as the pose in degrees
+            raise DaqError(f"{where}: pose_from.{k} = {v!r} is a channel of kind {kinds[v]!r}; a pose is "
+                           "taken from an encoder channel (kind = \"encoder\", degrees)")
+        if k in pose:
+            raise DaqError(f"{where}: pose variable {k!r} is given in pose and in pose_from (one of them)")
+    if trigger is not None and trigger.response and kinds[trigger.response] == "force":
+        raise DaqError(f"{where}: trigger: response = {trigger.response!r} is a force channel; the live "
+                       "H1 of a hit is response / force (name an acceleration or strain channel)")
     return Session(
         source=source, sample_rate_hz=rate, devices=tuple(devices.values()), channels=channels,
         excitation=t.choice("excitation", EXCITATIONS, "operational"),

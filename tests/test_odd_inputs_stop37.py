@@ -66,8 +66,9 @@ def test_a_blank_configuration_cell_is_still_refused(tmp_path: Path, capsys) -> 
 
 # -- device sources: each named once, Modbus registers apart -------------------------------------------
 def _session(tmp_path: Path, name: str, old: str, new: str) -> Path:
-    rigs = str(REPO / "examples" / "rigs") + "/"
-    text = (SESSIONS / name).read_text(encoding="utf-8").replace("../rigs/", rigs)
+    text = (SESSIONS / name).read_text(encoding="utf-8")
+    text = text.replace("../../fixtures/", str(REPO / "fixtures") + "/")
+    text = text.replace("../rigs/", str(REPO / "examples" / "rigs") + "/")
     assert old in text
     (tmp_path / "s.toml").write_text(text.replace(old, new, 1), encoding="utf-8")
     return tmp_path / "s.toml"
@@ -172,3 +173,51 @@ def test_the_fault_log_is_not_the_pty_link(tmp_path: Path) -> None:
 def test_api_arguments_of_the_wrong_type(call, words: str) -> None:
     with pytest.raises(TypeError, match=words):
         call()
+
+
+# -- session roles: a pose from an encoder, a live H1 over a force -------------------------------------
+@pytest.mark.parametrize(("old", "new", "words"), [
+    ("notes =", 'pose_from = { theta_deg = "a1" }\nnotes =',
+     ("pose_from.theta_deg = 'a1'", "'acceleration'")),
+    ("pretrigger_samples = 64", 'pretrigger_samples = 64\nresponse = "F"', ("response = 'F'", "force")),
+])
+def test_session_channels_in_their_roles(tmp_path: Path, old: str, new: str, words) -> None:
+    with pytest.raises(DaqError) as err:   # was rc 0: the pose the mean of m/s^2; an H1 of F/F = 1
+        load_session(_session(tmp_path, "serial-sim.toml", old, new))
+    assert all(w in str(err.value) for w in words), err.value
+
+
+def test_a_pose_given_and_taken_from_an_encoder_is_refused(tmp_path: Path) -> None:
+    path = _session(tmp_path, "can-moving-sim.toml", "pose_from = {",
+                    "pose = { theta_deg = 3.0 }\npose_from = {")
+    with pytest.raises(DaqError, match="'theta_deg' is given in pose and in pose_from"):
+        load_session(path)
+
+
+def test_track_pose_variable_is_one_of_the_run(tmp_path: Path, capsys) -> None:
+    from flexmodal.fixtures.examples import moving_run  # a simulated moving-arm record
+
+    path = moving_run(tmp_path)
+    code = main(["identify", str(path), "--track", "--out", str(tmp_path / "m.csv"),
+                 "--pose-from", "payload_kg=enc_elbow"])   # was rc 0: a map over "payload_kg"
+    _one_line(capsys, code, "--pose-from payload_kg", "not a pose variable of the run", "theta_deg")
+
+
+# -- options that nothing uses, and API types ---------------------------------------------------------------
+def test_report_band_without_a_run_is_refused(tmp_path: Path, capsys) -> None:
+    code = main(["report", "--measured", str(REPO / "examples/measured/seed003_table3_f1f2.csv"),
+                 "--out", str(tmp_path / "r.html"), "--fmin", "10"])   # was rc 0, --fmin unused
+    _one_line(capsys, code, "fmin", "no run")
+    assert not (tmp_path / "r.html").exists()
+
+
+def test_diagnose_effects_of_the_wrong_type() -> None:
+    with pytest.raises(TypeError, match="effects must be"):   # was "can only join an iterable"
+        fm.diagnose(REPO / "examples/rigs/seed003_two_link.toml",
+                    REPO / "examples/measured/seed003_table3_f1f2.csv", effects=None)
+
+
+def test_plot_stabilisation_band_is_checked_first() -> None:
+    frf = fm.frf_from_arrays(np.linspace(0, 100, 201), np.exp(1j * np.linspace(0, 1, 201)))
+    with pytest.raises(ModalError, match="--fmin 200 Hz must lie below --fmax 100 Hz"):
+        fm.plot_stabilisation(frf, fmin=200, fmax=100)
