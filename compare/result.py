@@ -293,12 +293,15 @@ class NextMeasurement(_Record):
     variables at once) worth measuring next, the model mode that carries most of its value, the expected
     information [nats] it brings on the choice between the verdict and its alternatives (mean
     Kullback-Leibler divergence of their predictions), and ``decide_chance`` the chance (0-1) that
-    one measurement there leaves the verdict unambiguous (compare/next_measurement.py)."""
+    one measurement there leaves the verdict unambiguous (compare/next_measurement.py); ``beyond`` how
+    far the pose lies beyond the measured range (``theta_deg=180 is 60 beyond the measured 0..120``; None
+    inside it: the rig does not say whether the arm reaches it)."""
 
     pose: str
     mode: int
     information_nats: float
     decide_chance: float | None = None
+    beyond: str | None = None
 
 
 @dataclass(**_RECORD)
