@@ -47,6 +47,7 @@ from flexmodal.checked_io.percent import percent
 from flexmodal.compare.fit import Target, design, evaluate, linear_cov
 from flexmodal.compare.gap import Measured
 from flexmodal.compare.parametric import ReducedFamily, lam_to_hz, solve_family
+from flexmodal.compare.result import MIN_CHANCE
 from flexmodal.models.rig import Rig
 
 TRIAL_POINTS = 13
@@ -54,11 +55,6 @@ WIDEN = 0.5
 """Candidate poses: 13 points over the measured range of each pose variable, and on at that step up to
 half the range beyond each end (``trial_poses``)."""
 MAX_ADVICE = 3
-MIN_CHANCE = 0.05
-"""A pose is advised only when one measurement there has at least this chance to decide: on the used
-blind draws 421-425 and 526-530 (69 verdicts advised by the ranking alone), the advised pose resolved 3
-of 46 verdicts whose best chance was below it, no better than a random untested pose (9/138), and 7/23
-of the others (random 10/69)."""
 
 
 class FitContext(Protocol):

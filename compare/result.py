@@ -287,6 +287,13 @@ class Alternative(_Record):
     separate_rel_diff: float | None = None
 
 
+MIN_CHANCE = 0.05
+"""The least ``decide_chance`` of an advised pose (``NextMeasurement``, compare/next_measurement.py): on
+the used blind draws 421-425 and 526-530 (69 verdicts advised by the ranking alone), the advised pose
+resolved 3 of the 46 verdicts whose best chance was below it, no better than a random untested pose
+(9/138), and 7/23 of the others (random 10/69)."""
+
+
 @dataclass(**_RECORD)
 class NextMeasurement(_Record):
     """An untested pose (``<pose var>=<value>``, or ``<var>=<value>,<var>=<value>`` for several pose

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 
 from flexmodal.checked_io.percent import percent
-from flexmodal.compare.result import Diagnosis
+from flexmodal.compare.result import MIN_CHANCE, Diagnosis
 
 EXPLAINED_FACTOR = 3.0
 """A held-out RMS within 3x the measurement scatter (and unstructured, unflagged) is explained."""
@@ -98,7 +98,7 @@ def advice_words(result: Diagnosis) -> str:
 
     Examples
     --------
-    >>> from flexmodal.compare.result import Diagnosis
+    >>> from flexmodal.compare.result import MIN_CHANCE, Diagnosis
     >>> d = Diagnosis.from_dict({"baseline": {"rms_rel_error": 0.1, "max_rel_error": 0.2,
     ...                  "per_mode": {"1": 0.1}, "per_config": {"a": 0.1}},
     ...     "where": {"modes": [1], "configs": ["a"], "region": ""}, "ranking": [],
@@ -124,7 +124,5 @@ def advice_words(result: Diagnosis) -> str:
     at = summary.find(NO_POSE)
     if at >= 0:
         return summary[at:]
-    from flexmodal.compare.next_measurement import MIN_CHANCE  # numpy and scipy: only here
-
     return ("none: no untested pose is likely to decide between the verdict and its alternatives (each has "
             f"less than a {percent(MIN_CHANCE)} chance to)")
