@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 
 from flexmodal.checked_io.percent import percent
-from flexmodal.compare.result import Diagnosis
+from flexmodal.compare.result import MIN_CHANCE, Diagnosis
 
 EXPLAINED_FACTOR = 3.0
 """A held-out RMS within 3x the measurement scatter (and unstructured, unflagged) is explained."""
@@ -96,11 +96,12 @@ NO_POSE = "no pose is advised"
 
 def advice_words(result: Diagnosis) -> str:
     """What to measure next, in words: the advised untested poses (model mode, expected information,
-    chance that one measurement decides), or why no pose is advised; empty for a ``none`` verdict.
+    chance that one measurement decides, how far beyond the measured range), or why no pose is advised
+    (said once); empty for a ``none`` verdict.
 
     Examples
     --------
-    >>> from flexmodal.compare.result import Diagnosis
+    >>> from flexmodal.compare.result import MIN_CHANCE, Diagnosis
     >>> d = Diagnosis.from_dict({"baseline": {"rms_rel_error": 0.1, "max_rel_error": 0.2,
     ...                  "per_mode": {"1": 0.1}, "per_config": {"a": 0.1}},
     ...     "where": {"modes": [1], "configs": ["a"], "region": ""}, "ranking": [],
@@ -114,22 +115,17 @@ def advice_words(result: Diagnosis) -> str:
     if v.effect == "none":
         return ""
     if v.next_measurements:
-        chances = [x.decide_chance for x in v.next_measurements]
-        slim = all(c is not None and c < 0.005 for c in chances)   # each would print as "0 %"
-
         def one(x) -> str:
             chance = (f", {100 * x.decide_chance:.0f} % chance to decide"
-                      if x.decide_chance is not None and not slim else "")
-            return f"{x.pose} (model mode {x.mode}, {x.information_nats:.1f} nats expected{chance})"
-        advice = "; ".join(one(x) for x in v.next_measurements)
-        if slim:
-            advice += (": the most informative untested poses, but one measurement at any of them has "
-                       "under 0.5 % chance to leave the verdict unambiguous: expect to need several")
-        return advice
+                      if x.decide_chance is not None else "")
+            beyond = f"; {x.beyond}: check that the arm reaches it" if x.beyond else ""
+            return f"{x.pose} (model mode {x.mode}, {x.information_nats:.1f} nats expected{chance}{beyond})"
+        return "; ".join(one(x) for x in v.next_measurements)
     if not v.ambiguous:
         return "none needed: no other candidate fits as well within noise"
     summary = v.summary or ""
     at = summary.find(NO_POSE)
     if at >= 0:
         return summary[at:]
-    return "none: no untested pose is predicted to separate the verdict from its alternatives"
+    return ("none: no untested pose is likely to decide between the verdict and its alternatives (each has "
+            f"less than a {percent(MIN_CHANCE)} chance to)")
