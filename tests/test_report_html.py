@@ -268,6 +268,9 @@ def test_the_scatter_line_adds_in_quadrature_or_says_the_least_the_ranking_uses(
     floored = dataclasses.replace(result, scatter=0.01)
     assert scatter_line(floored).startswith("scatter: 1 %, the least the ranking uses (sqrt(m^2 + f^2) = "
                                             f"{100 * result.scatter:.3g} % is below it)")
+    from flexmodal.compare.diagnosis import MIN_SCATTER  # the key table states the floor it has
+    formats = (Path(api.__file__).parent / "docs" / "formats.md").read_text(encoding="utf-8")
+    assert f"max(√(measurement² + floor²), {MIN_SCATTER:g})" in formats
 
 
 def test_a_file_in_the_reports_folder_is_named_relative_to_it_even_inside_the_package(tmp_path):
