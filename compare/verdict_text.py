@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 
 from flexmodal.checked_io.percent import percent
-from flexmodal.compare.result import Diagnosis
+from flexmodal.compare.result import MIN_CHANCE, Diagnosis
 
 EXPLAINED_FACTOR = 3.0
 """A held-out RMS within 3x the measurement scatter (and unstructured, unflagged) is explained."""
@@ -93,11 +93,12 @@ NO_POSE = "no pose is advised"
 
 def advice_words(result: Diagnosis) -> str:
     """What to measure next, in words: the advised untested poses (model mode, expected information,
-    chance that one measurement decides), or why no pose is advised; empty for a ``none`` verdict.
+    chance that one measurement decides, how far beyond the measured range), or why no pose is advised
+    (said once); empty for a ``none`` verdict.
 
     Examples
     --------
-    >>> from flexmodal.compare.result import Diagnosis
+    >>> from flexmodal.compare.result import MIN_CHANCE, Diagnosis
     >>> d = Diagnosis.from_dict({"baseline": {"rms_rel_error": 0.1, "max_rel_error": 0.2,
     ...                  "per_mode": {"1": 0.1}, "per_config": {"a": 0.1}},
     ...     "where": {"modes": [1], "configs": ["a"], "region": ""}, "ranking": [],
@@ -114,7 +115,8 @@ def advice_words(result: Diagnosis) -> str:
         def one(x) -> str:
             chance = (f", {100 * x.decide_chance:.0f} % chance to decide"
                       if x.decide_chance is not None else "")
-            return f"{x.pose} (model mode {x.mode}, {x.information_nats:.1f} nats expected{chance})"
+            beyond = f"; {x.beyond}: check that the arm reaches it" if x.beyond else ""
+            return f"{x.pose} (model mode {x.mode}, {x.information_nats:.1f} nats expected{chance}{beyond})"
         return "; ".join(one(x) for x in v.next_measurements)
     if not v.ambiguous:
         return "none needed: no other candidate fits as well within noise"
@@ -122,4 +124,5 @@ def advice_words(result: Diagnosis) -> str:
     at = summary.find(NO_POSE)
     if at >= 0:
         return summary[at:]
-    return "none: no untested pose is predicted to separate the verdict from its alternatives"
+    return ("none: no untested pose is likely to decide between the verdict and its alternatives (each has "
+            f"less than a {percent(MIN_CHANCE)} chance to)")
