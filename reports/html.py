@@ -162,14 +162,16 @@ def _run_rows(runs: Sequence[RunSummary]) -> tuple[list[dict], list[dict], list[
             "coh_mean": f"{coh[0]:.3f}" if coh else "", "coh_low": f"{coh[1]:.1f}" if coh else ""})
         key = tuple(run.channels)
         if key not in sets:
-            sets[key] = {"runs": [], "channels": [
+            sets[key] = {"runs": [], "peaks": [], "channels": [
                 {"name": c.name, "kind": c.kind, "unit": c.unit,
                  "sensitivity": _sensitivity_text(c.sensitivity, c.sensitivity_unit, c.unit),
-                 "location": c.location,
-                 "direction": c.direction, "peak": f"{p:.4g} {c.unit}"}
-                for c, p in zip(run.channels, r.peak_abs, strict=True)]}
+                 "location": c.location, "direction": c.direction} for c in run.channels]}
             channel_sets.append(sets[key])
         sets[key]["runs"].append(label)
+        sets[key]["peaks"].append(r.peak_abs)
+    for cs in channel_sets:   # runs sharing their channels share one table: the largest peak (NaN-safe)
+        for c, *peaks in zip(cs["channels"], *cs.pop("peaks"), strict=True):
+            c["peak"] = f"{max((p for p in peaks if p == p), default=float('nan')):.4g} {c['unit']}"
     return meta, quality, channel_sets
 
 

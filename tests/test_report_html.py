@@ -143,6 +143,12 @@ def test_report_tables_carry_units_and_numbers(report, inputs):
     assert f"{first['freq_hz']:.2f}" in html
     assert "19 / 0.6" in html  # verdict 0.19 -> 0.006 as percent
     assert "modes 2; configurations theta0, theta60; region joint:elbow" in html
+    # the runs share their channels, so one table lists them all: its peak is the largest of the runs
+    # (it showed the first run's peaks under every run's name)
+    with h5py.File(inputs["runs"], "r") as f:
+        force = [float(abs(f[f"runs/{r}/samples"][:, 0]).max()) for r in RUN_IDS]
+    assert f"largest peak |x| of the {len(RUN_IDS)} runs [unit]" in html
+    assert '<td>F</td>' in html and f'<td class="num">{max(force):.4g} N</td>' in html
 
 
 def test_data_quality_counts_the_impact_hits_the_frf_processing_kept(report, inputs):
