@@ -26,7 +26,7 @@ from flexmodal.daq.devices import SIMULATOR_PORT, Device
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.faults import Faults
 from flexmodal.daq.protocols import PROTOCOLS, registered_protocols
-from flexmodal.daq.run_schema import CHANNEL_KINDS, EXCITATIONS, check_run_id
+from flexmodal.daq.run_schema import CHANNEL_KINDS, EXCITATIONS, check_run_id, kind_unit_fault
 from flexmodal.daq.store import Channel
 
 # Whole-number fields whose range every protocol shares (a TCP port given as a number, the Modbus unit id).
@@ -196,6 +196,8 @@ def _channel(doc: dict, where: str, devices: dict[str, Device]) -> ChannelMap:
                       "location", "direction", "device", "source", "full_scale", "counts_per_rev"})
     kind = t.choice("kind", CHANNEL_KINDS)
     unit = t.get("unit", str)
+    if kind_unit_fault(kind, unit):
+        raise DaqError(f"{where}: {kind_unit_fault(kind, unit)}")
     sensitivity = t.get("sensitivity", float, 1.0, check=bool, why="must be finite and non-zero")
     sens_unit = t.get("sensitivity_unit", str, "")
     if "counts_per_rev" in t.doc:  # an encoder's resolution: counts -> angle in `unit` (deg or rad)

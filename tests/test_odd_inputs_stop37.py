@@ -8,6 +8,7 @@ error / TypeError from the Python API).  In-process, small files, a few seconds 
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import h5py
@@ -221,3 +222,54 @@ def test_plot_stabilisation_band_is_checked_first() -> None:
     frf = fm.frf_from_arrays(np.linspace(0, 100, 201), np.exp(1j * np.linspace(0, 1, 201)))
     with pytest.raises(ModalError, match="--fmin 200 Hz must lie below --fmax 100 Hz"):
         fm.plot_stabilisation(frf, fmin=200, fmax=100)
+
+
+# -- a channel's unit is of its kind --------------------------------------------------------------------
+@pytest.mark.parametrize(("kind", "unit", "ok"), [
+    ("force", "m/s^2", False), ("force", "g", False), ("acceleration", "N", False),
+    ("acceleration", "kN", False), ("encoder", "N", False), ("strain", "deg", False),
+    ("voltage", "m/s2", False),
+    ("force", "N", True), ("force", "lbf", True), ("acceleration", "m/s²", True),
+    ("acceleration", "in/s^2", True),
+    ("voltage", "count", True), ("other", "N", True), ("strain", "με", True), ("encoder", "rad", True),
+])
+def test_channel_kind_and_unit_agree(kind: str, unit: str, ok: bool) -> None:
+    if ok:
+        assert Channel("c", kind, unit).unit == unit
+    else:
+        with pytest.raises(DaqError, match=re.escape(f"channel 'c': unit '{unit}' is a unit of")):
+            Channel("c", kind, unit)
+
+
+def test_a_force_stored_in_m_per_s2_is_refused_by_every_reader(tmp_path: Path, capsys) -> None:
+    path = _run_with_frf(tmp_path)
+    with h5py.File(path, "r+") as f:   # was: FRFs of two accelerations identified as accelerance, rc 0
+        ch = f["runs/r1/channels"][()]
+        ch[0]["unit"] = b"m/s^2"
+        f["runs/r1/channels"][...] = ch
+    _one_line(capsys, main(["identify", str(path), "--out", str(tmp_path / "m.csv")]),
+              "run.h5: run 'r1': channel 'F': unit 'm/s^2' is a unit of acceleration, not of force")
+    session = _session(tmp_path, "serial-sim.toml", 'unit = "N"\ndevice = "adc"\nsource = "ch0"',
+                       'unit = "g"\ndevice = "adc"\nsource = "ch0"')
+    with pytest.raises(DaqError, match="s.toml: channel 'F': unit 'g' is a unit of acceleration"):
+        load_session(session)
+
+
+# -- UFF: the abscissa of a function is of its type -----------------------------------------------------
+@pytest.mark.parametrize(("func_type", "axis", "words"), [
+    (4, 17, "function type 4 on an abscissa of time"),
+    (1, 18, "function type 1 on an abscissa of frequency"),
+])
+def test_uff_abscissa_of_the_function_type(tmp_path: Path, capsys, func_type: int, axis: int,
+                                           words: str) -> None:
+    import pyuff
+
+    x = np.arange(64) * 0.5
+    data = np.exp(1j * x) if func_type == 4 else np.sin(x)
+    records = [pyuff.prepare_58(func_type=func_type, rsp_node=n, rsp_dir=3, ref_node=9, ref_dir=3, x=x,
+                                data=data * n, abscissa_spec_data_type=axis, ordinate_spec_data_type=12,
+                                orddenom_spec_data_type=13, abscissa_spacing=1, id1=f"r{n}")
+               for n in (1, 2)]
+    pyuff.UFF(str(tmp_path / "u.uff")).write_sets(records, mode="overwrite")
+    _one_line(capsys, main(["identify", str(tmp_path / "u.uff"), "--out", str(tmp_path / "m.csv")]),
+              "u.uff: dataset 58 record 1", words)
