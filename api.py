@@ -350,6 +350,10 @@ def frf_from_arrays(freq_hz, H, *, coherence=None, quantity: str = "accelerance"
     from flexmodal.modal.errors import ModalError
     from flexmodal.modal.frf import QUANTITIES, FrfResult, check_coherence
 
+    for name, value in (("freq_hz", freq_hz), ("H", H)):
+        if value is None or isinstance(value, str | bytes | Mapping):
+            raise TypeError(f"frf_from_arrays: {name} must be an array of numbers, got "
+                            f"{type(value).__name__} {value!r:.60}")
     f = np.asarray(freq_hz, float)
     if not np.iscomplexobj(H):
         raise ModalError(f"frf_from_arrays: H of type {np.asarray(H).dtype} holds no phase: FRFs are complex "
@@ -848,6 +852,10 @@ def track(source: PathLike, *, pose_from: Mapping[str, str] | None = None, run_i
     32
     """
     _check_band(fmin, fmax)
+    if pose_from is not None and (not isinstance(pose_from, Mapping) or not all(
+            isinstance(k, str) and isinstance(v, str) for k, v in pose_from.items())):
+        raise TypeError(f"track: pose_from must map pose variables to encoder channel names, e.g. "
+                        f"{{'theta_deg': 'enc_elbow'}}, got {pose_from!r}")
     if not 0 < bin_deg < float("inf") or not all(0 < o < float("inf") for o in orders):
         raise ModalError(f"track: bin_deg {bin_deg!r} and orders {tuple(orders)!r} must be positive and "
                          "finite")
@@ -1322,6 +1330,10 @@ def diagnose(rig: Rig | PathLike, measured: ModalTable | PathLike, *, effects: s
     from flexmodal.compare.diagnosis import diagnose as _diagnose
     from flexmodal.compare.diagnosis import folds_for
 
+    if not isinstance(effects, str) and not (isinstance(effects, Iterable)
+                                            and all(isinstance(e, str) for e in effects)):
+        raise TypeError(f"diagnose: effects must be 'all', a comma list or a list of effect names, got "
+                        f"{effects!r}")
     parse_effects(effects if isinstance(effects, str) else ",".join(effects))  # bad input fails now
     folds_for(table.configs, holdout)
     if progress is not None:
@@ -1361,12 +1373,15 @@ def format_diagnosis(result: Diagnosis) -> str:
     v = result.verdict
     lines = [f"verdict: {v.effect} at {v.location or '-'}; held-out RMS "
              f"{percent(v.heldout_rms_rel_error_before)} -> {percent(v.heldout_rms_rel_error_after)}"]
-    lines += [x for x in (verdict_words(result), scatter_line(result)) if x]
+    words = verdict_words(result)
+    lines += [x for x in (words, scatter_line(result)) if x]
     lines += [f"  {name} = {v.params[name]:.4g}  (95 % interval {lo:.4g} .. {hi:.4g})"
               for name, (lo, hi) in (v.param_intervals or {}).items()]
-    if v.residual_feature or v.flags:
-        lines.append(f"remaining: {v.residual_feature or '-'}"
-                     + "".join(f"; flagged: {f}" for f in v.flags or ()))
+    said = bool(v.residual_feature) and f"it shows as {v.residual_feature}" in words   # not twice
+    remaining = [f"remaining: {v.residual_feature}"] if v.residual_feature and not said else []
+    remaining += [f"flagged: {f}" for f in v.flags or ()]
+    if remaining:
+        lines.append("; ".join(remaining))
     if v.ranked and v.ranked > 1:
         lines.append(f"not the top of the ranking ({v.ranked}): {v.why_not_top}")
     if v.ambiguous and v.alternatives:
@@ -1556,6 +1571,7 @@ def plot_stabilisation(frf: FrfResult, modes: Modes | None = None, *, fmin: floa
     from flexmodal.reports import plots
 
     frf = _frf_result(frf)
+    _check_band(fmin, fmax)
     if modes is None:
         modes = identify_frf(frf, fmin=fmin, fmax=fmax, max_order=max_order)
     return plots.plot_identification_diagram(frf, modes, plots.frf_unit(frf.quantity), title=title)
@@ -1656,7 +1672,7 @@ def plot_comparison(measured: ModalTable | PathLike,
 
 
 def plot_gap(diagnosis: Diagnosis | Mapping | PathLike, title: str = "") -> Figure:
-    """Per-mode relative frequency error [%] before and after the diagnosed effect.
+    """Per-mode RMS relative frequency error [%] before and after the diagnosed effect.
 
     Parameters
     ----------
@@ -1668,8 +1684,9 @@ def plot_gap(diagnosis: Diagnosis | Mapping | PathLike, title: str = "") -> Figu
     Returns
     -------
     matplotlib.figure.Figure
-        Bars of the per-mode relative frequency error [%] before and after the diagnosed effect, and
-        the held-out RMS error [%].
+        Bars of each mode's relative frequency error [%], RMS over the configurations, of the nominal
+        model and with the diagnosed effect (held out, or fitted to all configurations when the
+        diagnosis held none out: the legend says which), and the held-out RMS error [%] over all modes.
 
     Examples
     --------
@@ -1829,8 +1846,15 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
         raise ReportError(f"report: oma_fmin = {oma_fmin:g} Hz must be below oma_fmax = {oma_fmax:g} Hz")
     if fmin is not None and fmax is not None and fmin >= fmax:
         raise ReportError(f"report: fmin = {fmin:g} Hz must be below fmax = {fmax:g} Hz")
+    given = [n for n, v in (("fmin", fmin), ("fmax", fmax), ("oma_fmin", oma_fmin), ("oma_fmax", oma_fmax))
+             if v is not None]
     from flexmodal.daq.run_schema import check_run_file
-    from flexmodal.daq.store import expand_runs
+    from flexmodal.daq.store import expand_runs, run_entries
+
+    runs = run_entries(runs)
+    if given and not runs:   # the bands of the runs' identification: with no run, nothing used them
+        raise ReportError(f"report: {given[0]} sets the band of the runs' identification, and no run "
+                          "(RUN.h5) is given")
     from flexmodal.modal.runs_io import read_frf
 
     for path, run_id in expand_runs(runs):   # a stored FRF group that is not what flexmodal writes:
@@ -2190,7 +2214,7 @@ def serve_simulator(protocol: str, *, faults: Mapping[str, float | None] | None 
         from flexmodal.checked_io.output import output_file
 
         output_file(options["fault_log"], FixtureError, "fault log (--fault-log)",
-                    inputs=(options.get("rig"),))
+                    inputs=(options.get("rig"), options.get("link")))   # the pty link is an output too
     try:
         chosen = ServeOptions(protocol, faults=Faults(**(faults or {})), **options)
     except TypeError as exc:

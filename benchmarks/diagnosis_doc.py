@@ -5,7 +5,7 @@
 
 Blocks sit between ``<!-- NAME:begin -->`` and ``<!-- NAME:end -->`` (NAME = seed003, coverage,
 blind, fresh, new, latest, next, s631, ideal, ideal_fresh, ideal_new, ideal_latest, ideal_next,
-ideal_s631, sparse, advice).
+ideal_s631, sparse, advice, advice_s736).
 The blind block is the acceptance measurement: 36 cases of each of five draws of
 fixtures/blind.py's generator (seeds ``BLIND_SEEDS``), their summaries and the mean and worst over
 draws (tests/test_blind.py re-runs it under ``-m slow``); the coverage block the Monte-Carlo coverage
@@ -49,6 +49,9 @@ FINAL_NOTE = "run once, after the last change to the method; never used to devel
 SPARSE_CASES = 60
 SPARSE_SEED = 5
 ADVICE_SEEDS = LATEST_SEEDS + NEXT_SEEDS
+ADVICE_FINAL_SEEDS = (736, 737, 738, 739, 740)
+"""Draws used neither for the method nor for the advice: the advice (frozen, with the 5 % rule) measured
+once on their ambiguous verdicts (block ``advice_s736``)."""
 """The used blind draws on which the next-measurement advice is measured (``advice_block``)."""
 
 from flexmodal.compare.diagnosis import diagnose  # noqa: E402
@@ -195,7 +198,8 @@ BLOCKS = {"seed003": seed003_block, "coverage": coverage_block, "blind": blind_b
           "ideal_next": lambda: ideal_block(seeds=NEXT_SEEDS),
           "s631": lambda: blind_block(FINAL_SEEDS, note=FINAL_NOTE),
           "ideal_s631": lambda: ideal_block(seeds=FINAL_SEEDS),
-          "sparse": sparse_block, "advice": advice_block}
+          "sparse": sparse_block, "advice": advice_block,
+          "advice_s736": lambda: advice_block(seeds=ADVICE_FINAL_SEEDS)}
 
 
 def main() -> int:

@@ -18,6 +18,10 @@ import pandas as pd
 
 from flexmodal.checked_io.text import FLOAT_MAX_BITS, ErrorType, one_line, read_text
 
+#: the words pandas reads as a missing value by default (pandas.read_csv, ``na_values``)
+NA_WORDS = ("", "#N/A", "#N/A N/A", "#NA", "-1.#IND", "-1.#QNAN", "-NaN", "-nan", "1.#IND", "1.#QNAN",
+            "<NA>", "N/A", "NA", "NULL", "NaN", "None", "n/a", "nan", "null")
+
 
 def read_table(path: str | Path, error: ErrorType, *, required: Sequence[str] = (),
                text_columns: Sequence[str] = (), what: str = "CSV table") -> pd.DataFrame:
@@ -46,9 +50,13 @@ def read_table(path: str | Path, error: ErrorType, *, required: Sequence[str] = 
     missing = [c for c in required if c not in seen]
     if missing:
         raise error(f"{path}: missing required column {missing[0]!r} (columns: {', '.join(header)})")
+    # pandas reads 'NA', 'None', 'null', 'nan', ... as missing: right for numbers, wrong for a name
+    # (a configuration called NA became an "empty" cell); text columns keep every word as written
+    names = {*header, *(n.lstrip() for n in rows[0][1])}
+    missing_words = {c: NA_WORDS for c in names if c not in text_columns}
     try:
         frame = pd.read_csv(io.StringIO(text), dtype={c: str for c in text_columns if c in seen},
-                            skipinitialspace=True)
+                            skipinitialspace=True, keep_default_na=False, na_values=missing_words)
     except (pd.errors.ParserError, ValueError) as exc:
         raise error(f"{path}: not a readable CSV ({one_line(exc)})") from None
     frame.columns = [str(c).strip() for c in frame.columns]

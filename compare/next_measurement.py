@@ -15,10 +15,12 @@ ranking: ``_cand``, ``_fam``, ``_theta0``):
 ``trial_poses(rig, poses)``
     The candidate poses {label: pose} after measuring ``poses`` (labels ``<var>=<value>``).
 ``separating_measurement(ctx, a, b)``
-    The pose and mode where two fitted candidates differ most (``separate_at`` of an alternative).
+    The unmeasured pose and mode where two fitted candidates differ most (``separate_at`` of an
+    alternative that is not the verdict plus a component).
 ``next_measurements(ctx, best, rivals, scatter)``
     Untested poses ranked by the chance to decide against the verdict's rivals of another effect or
-    place (``adds_to``: a rival that is the verdict plus a component is not one a pose can decide).
+    place (``adds_to``: a rival that is the verdict plus a component is not one a pose can decide);
+    none below ``MIN_CHANCE``; a pose beyond the measured range says how far (``beyond``).
 ``no_pose_decides(best, alts, paired, model_form_margin, n_poses)``
     Why no pose is advised when every alternative is the verdict plus one component.
 
@@ -45,6 +47,7 @@ from flexmodal.checked_io.percent import percent
 from flexmodal.compare.fit import Target, design, evaluate, linear_cov
 from flexmodal.compare.gap import Measured
 from flexmodal.compare.parametric import ReducedFamily, lam_to_hz, solve_family
+from flexmodal.compare.result import MIN_CHANCE
 from flexmodal.models.rig import Rig
 
 TRIAL_POINTS = 13
@@ -129,19 +132,66 @@ def _trial_frequencies(ctx: FitContext, entry: dict, trial: dict[str, dict[str, 
     return entry["_trial_f"]
 
 
+def _same_pose(a: dict[str, float], b: dict[str, float], names: Sequence[str]) -> bool:
+    """Whether two poses agree in every pose variable ``names`` (to rounding: a candidate pose is
+    computed from the measured range)."""
+    return all(math.isclose(a[v], b[v], rel_tol=1e-9, abs_tol=1e-9) for v in names)
+
+
+def _measured_cells(ctx: FitContext, trial: dict[str, dict[str, float]], n_modes: int) -> np.ndarray:
+    """Which (trial pose, mode) cells [P, n_modes] the data already hold: a configuration at that pose
+    with a finite frequency of that mode (modes in ascending order, as the reduced models give them)."""
+    names = ctx.rig.pose_variables
+    freq = np.asarray(ctx.meas.freq_hz, float)
+    out = np.zeros((len(trial), n_modes), bool)
+    for i, pose in enumerate(trial.values()):
+        for c, seen in enumerate(ctx.meas.poses):
+            if _same_pose(pose, seen, names):
+                out[i, :freq.shape[1]] |= np.isfinite(freq[c, :n_modes])
+    return out
+
+
 def separating_measurement(ctx: FitContext, a: dict, b: dict) -> dict:
     """The pose (``trial_poses``) and model mode (up to two beyond the measured ones) where the fitted
-    candidates ``a`` and ``b`` differ most (their reduced models, compare/parametric.py):
-    ``{"separate_at", "separate_mode", "separate_rel_diff"}`` (empty when there is no such pose)."""
+    candidates ``a`` and ``b`` differ most (their reduced models, compare/parametric.py), among the
+    cells the data do not hold yet (a measured pose at a mode it was not measured in counts):
+    ``{"separate_at", "separate_mode", "separate_rel_diff"}``; empty when there is no such cell, and when
+    ``b`` only adds a component to ``a`` (``adds_to``: one more pose settles such a component by its
+    noise, not by where it is taken; ``next_measurements``, ``no_pose_decides``)."""
     trial = trial_poses(ctx.rig, ctx.meas.poses)
-    if not trial:
+    if not trial or adds_to(a, b):
         return {}
     diff = np.abs(_trial_frequencies(ctx, a, trial) / _trial_frequencies(ctx, b, trial) - 1.0)
+    diff[_measured_cells(ctx, trial, diff.shape[1])] = np.nan
     if not np.isfinite(diff).any():
         return {}
     i, m = np.unravel_index(np.nanargmax(diff), diff.shape)
     return {"separate_at": list(trial)[i], "separate_mode": int(m + 1),
             "separate_rel_diff": float(diff[i, m])}
+
+
+def beyond_measured(poses: Sequence[dict[str, float]], pose: dict[str, float], names: Sequence[str]
+                    ) -> str | None:
+    """How far ``pose`` lies beyond the measured ``poses`` in each pose variable ``names`` (units in the
+    names), or None inside the measured range: the rig does not say how far a joint turns or what
+    mass it carries, so such a pose is for the user to check against the arm.
+
+    Examples
+    --------
+    >>> seen = [{"theta_deg": 0.0}, {"theta_deg": 120.0}]
+    >>> beyond_measured(seen, {"theta_deg": 180.0}, ["theta_deg"])
+    'theta_deg=180 is 60 beyond the measured 0..120'
+    >>> beyond_measured(seen, {"theta_deg": 60.0}, ["theta_deg"]) is None
+    True
+    """
+    parts = []
+    for v in names:
+        vals = [p[v] for p in poses]
+        lo, hi = min(vals), max(vals)
+        out = max(lo - pose[v], pose[v] - hi)
+        if out > 1e-9 * max(1.0, abs(lo), abs(hi)):
+            parts.append(f"{v}={pose[v]:g} is {out:g} beyond the measured {lo:g}..{hi:g}")
+    return "; ".join(parts) or None
 
 
 def _predictive(ctx: FitContext, entry: dict, nctx: FitContext, scatter: float
@@ -219,15 +269,19 @@ def next_measurements(ctx: FitContext, best: dict, rivals: Sequence[dict], scatt
     and a rival's predictive normals of each measured mode's relative frequency, ``0.5 [(v_a - v_b)^2
     / (v_a v_b) + d^2 (1/v_a + 1/v_b)]`` with ``d`` their relative difference, summed over modes and
     averaged over the rivals; ``mode`` the mode that carries most of it; ``decide_chance`` the chance
-    (0-1).  At most ``MAX_ADVICE`` poses: ``[{"pose", "mode", "information_nats", "decide_chance"}]``."""
+    (0-1); ``beyond`` how far the pose lies beyond the measured range (``beyond_measured``, None
+    inside it).  At most ``MAX_ADVICE`` poses, none whose chance is below ``MIN_CHANCE`` (one more
+    measurement there decides about as often as anywhere else; with none left nothing is advised):
+    ``[{"pose", "mode", "information_nats", "decide_chance", "beyond"}]``."""
     rivals = [e for e in rivals if not adds_to(best, e)]
     if not rivals:
         return []
     trial = trial_poses(ctx.rig, ctx.meas.poses)
     if not trial:
         return []
-    measured = {tuple(sorted(p.items())) for p in ctx.meas.poses}
-    keep = [i for i, p in enumerate(trial.values()) if tuple(sorted(p.items())) not in measured]
+    names = ctx.rig.pose_variables
+    keep = [i for i, p in enumerate(trial.values())
+            if not any(_same_pose(p, q, names) for q in ctx.meas.poses)]
     if not keep:
         return []
     labels = [list(trial)[i] for i in keep]
@@ -244,9 +298,12 @@ def next_measurements(ctx: FitContext, best: dict, rivals: Sequence[dict], scatt
     chance = _resolve_chance(f, v, np.array([e["_heldout_eq"] for e in everyone]),
                              np.array([e["_n_eq"] for e in everyone], float), ctx.pose_share, scatter)
     total = info.sum(axis=1)
-    order = [i for i in np.lexsort((-total, -np.round(chance, 3))) if total[i] > 0][:MAX_ADVICE]
+    order = [i for i in np.lexsort((-total, -np.round(chance, 3)))
+             if total[i] > 0 and chance[i] >= MIN_CHANCE][:MAX_ADVICE]
+    poses = list(trial.values())
     return [{"pose": labels[i], "mode": int(np.argmax(info[i]) + 1), "information_nats": float(total[i]),
-             "decide_chance": float(chance[i])} for i in order]
+             "decide_chance": float(chance[i]),
+             "beyond": beyond_measured(ctx.meas.poses, poses[keep[i]], names)} for i in order]
 
 
 def no_pose_decides(best: dict, alts: Sequence[dict], paired: Sequence[float], model_form_margin: float,

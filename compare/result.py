@@ -287,18 +287,28 @@ class Alternative(_Record):
     separate_rel_diff: float | None = None
 
 
+MIN_CHANCE = 0.05
+"""The least ``decide_chance`` of an advised pose (``NextMeasurement``, compare/next_measurement.py): on
+the used blind draws 421-425 and 526-530 (69 verdicts advised by the ranking alone), the advised pose
+resolved 3 of the 46 verdicts whose best chance was below it, no better than a random untested pose
+(9/138), and 7/23 of the others (random 10/69)."""
+
+
 @dataclass(**_RECORD)
 class NextMeasurement(_Record):
     """An untested pose (``<pose var>=<value>``, or ``<var>=<value>,<var>=<value>`` for several pose
     variables at once) worth measuring next, the model mode that carries most of its value, the expected
     information [nats] it brings on the choice between the verdict and its alternatives (mean
     Kullback-Leibler divergence of their predictions), and ``decide_chance`` the chance (0-1) that
-    one measurement there leaves the verdict unambiguous (compare/next_measurement.py)."""
+    one measurement there leaves the verdict unambiguous (compare/next_measurement.py); ``beyond`` how
+    far the pose lies beyond the measured range (``theta_deg=180 is 60 beyond the measured 0..120``; None
+    inside it: the rig does not say whether the arm reaches it)."""
 
     pose: str
     mode: int
     information_nats: float
     decide_chance: float | None = None
+    beyond: str | None = None
 
 
 @dataclass(**_RECORD)

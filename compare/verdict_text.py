@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 
 from flexmodal.checked_io.percent import percent
-from flexmodal.compare.result import Diagnosis
+from flexmodal.compare.result import MIN_CHANCE, Diagnosis
 
 EXPLAINED_FACTOR = 3.0
 """A held-out RMS within 3x the measurement scatter (and unstructured, unflagged) is explained."""
@@ -25,8 +25,8 @@ def gap_words(before: float, after: float, sigma: float, grade: str, feature: st
     more than 100 times the measurement scatter (0.0005 %), so it is not noise: no effect in the library
     accounts for it; it shows as mode 1 rising with theta
     >>> print(textwrap.fill(gap_words(0.05, 0.004, 0.003, "explained"), 100))
-    explained: 92 % of the held-out gap removed (from 5 % to 0.4 %); what remains is within the
-    measurement scatter (0.3 %)
+    explained: 92 % of the held-out gap removed (from 5 % to 0.4 %); the remaining 0.4 % is 1.3 times
+    the measurement scatter (0.3 %), within the 3 times counted as noise
     """
     removed = 1.0 - after / before if before > 0 else 0.0
     head = (f"{grade}: {100 * removed:.0f} % of the held-out gap removed "
@@ -34,10 +34,13 @@ def gap_words(before: float, after: float, sigma: float, grade: str, feature: st
     ratio = after / sigma if sigma > 0 else math.inf
     note = f"; it shows as {feature}" if feature else ""
     if ratio <= EXPLAINED_FACTOR:
+        near = (f"the remaining {percent(after)} is below the measurement scatter ({percent(sigma)})"
+                if ratio <= 1 else
+                f"the remaining {percent(after)} is {ratio:.2g} times the measurement scatter "
+                f"({percent(sigma)}), within the {EXPLAINED_FACTOR:g} times counted as noise")
         if grade == "explained":
-            return f"{head}; what remains is within the measurement scatter ({percent(sigma)})"
-        return (f"{head}; what remains is near the measurement scatter ({percent(sigma)}) but not random: "
-                f"it has structure{note}")
+            return f"{head}; {near}"
+        return f"{head}; {near}, but not random: it has structure{note}"
     times = "more than 100 times" if ratio > 100 else f"{ratio:.0f} times"
     return (f"{head}; the remaining {percent(after)} is {times} the measurement scatter "
             f"({percent(sigma)}), so it is not noise: no effect in the library accounts for it{note}")
@@ -93,11 +96,12 @@ NO_POSE = "no pose is advised"
 
 def advice_words(result: Diagnosis) -> str:
     """What to measure next, in words: the advised untested poses (model mode, expected information,
-    chance that one measurement decides), or why no pose is advised; empty for a ``none`` verdict.
+    chance that one measurement decides, how far beyond the measured range), or why no pose is advised
+    (said once); empty for a ``none`` verdict.
 
     Examples
     --------
-    >>> from flexmodal.compare.result import Diagnosis
+    >>> from flexmodal.compare.result import MIN_CHANCE, Diagnosis
     >>> d = Diagnosis.from_dict({"baseline": {"rms_rel_error": 0.1, "max_rel_error": 0.2,
     ...                  "per_mode": {"1": 0.1}, "per_config": {"a": 0.1}},
     ...     "where": {"modes": [1], "configs": ["a"], "region": ""}, "ranking": [],
@@ -114,7 +118,8 @@ def advice_words(result: Diagnosis) -> str:
         def one(x) -> str:
             chance = (f", {100 * x.decide_chance:.0f} % chance to decide"
                       if x.decide_chance is not None else "")
-            return f"{x.pose} (model mode {x.mode}, {x.information_nats:.1f} nats expected{chance})"
+            beyond = f"; {x.beyond}: check that the arm reaches it" if x.beyond else ""
+            return f"{x.pose} (model mode {x.mode}, {x.information_nats:.1f} nats expected{chance}{beyond})"
         return "; ".join(one(x) for x in v.next_measurements)
     if not v.ambiguous:
         return "none needed: no other candidate fits as well within noise"
@@ -122,4 +127,5 @@ def advice_words(result: Diagnosis) -> str:
     at = summary.find(NO_POSE)
     if at >= 0:
         return summary[at:]
-    return "none: no untested pose is predicted to separate the verdict from its alternatives"
+    return ("none: no untested pose is likely to decide between the verdict and its alternatives (each has "
+            f"less than a {percent(MIN_CHANCE)} chance to)")

@@ -648,6 +648,31 @@ def _store_pose(out: Path, run_id: str, pose: dict, spread: dict) -> None:
         attrs["pose_spread"] = json.dumps(spread)
 
 
+def device_attrs(session: Session) -> dict[str, str]:
+    """Which device each channel came from, for the run's attributes (JSON texts): ``devices`` (name:
+    protocol), ``device_config`` (name: protocol and the scalar fields of its configuration - port, baud,
+    host, interface, DBC file ...) and ``channel_sources`` (channel: [device, source]), so a run says
+    where each column was read even after the session file has changed.
+
+    Examples
+    --------
+    >>> from flexmodal.daq.session import load_session
+    >>> attrs = device_attrs(load_session("examples/sessions/serial-sim.toml"))
+    >>> json.loads(attrs["channel_sources"])["F"], json.loads(attrs["device_config"])["adc"]["baud"]
+    (['adc', 'ch0'], 3000000)
+    """
+    def scalars(config: object) -> dict:
+        if not dataclasses.is_dataclass(config):
+            return {}
+        values = {f.name: getattr(config, f.name) for f in dataclasses.fields(config)}
+        return {k: v for k, v in values.items() if isinstance(v, str | int | float)}   # bool is an int
+
+    return {"devices": json.dumps({d.name: d.protocol for d in session.devices}),
+            "device_config": json.dumps({d.name: {"protocol": d.protocol, **scalars(d.config)}
+                                         for d in session.devices}),
+            "channel_sources": json.dumps({c.channel.name: [c.device, c.source] for c in session.channels})}
+
+
 def _open_writer(session: Session, out: Path, run_id: str, stamp: datetime, first_rows: np.ndarray,
                  names: tuple[str, ...], first_index: dict) -> RunWriter:
     """Create the run; a pose taken from encoder channels starts as their first sample (degrees) and
@@ -658,7 +683,7 @@ def _open_writer(session: Session, out: Path, run_id: str, stamp: datetime, firs
         if np.isfinite(x).any():
             pose[var] = float(x[np.isfinite(x)][0])
     attrs = {"session": str(session.source), "notes": session.notes, "first_index": json.dumps(first_index),
-             "devices": json.dumps({d.name: d.protocol for d in session.devices})}
+             **device_attrs(session)}
     if session.trigger is not None:
         attrs["trigger"] = json.dumps(dataclasses.asdict(session.trigger))
     return RunWriter(out, run_id, sample_rate_hz=session.sample_rate_hz,

@@ -63,12 +63,26 @@ def _spans(registers) -> list[tuple[str, int, int]]:
         regs = [r for r in registers if r.table == table]
         if regs:
             a = min(r.address for r in regs)
-            b = max(r.address + (1 if r.type in ("int16", "uint16") else 2) for r in regs)
+            b = max(r.address + _words(r) for r in regs)
             if b - a > MAX_REGISTERS_PER_READ:
                 raise DaqError(f"{table} registers span {b - a} addresses (one request reads at most "
                                f"{MAX_REGISTERS_PER_READ})")
             spans.append((table, a, b - a))
     return spans
+
+
+def _words(reg) -> int:
+    return 1 if reg.type in ("int16", "uint16") else 2
+
+
+def _refuse_overlaps(registers, where: str) -> None:
+    """DaqError when two registers of one table share an address word (a typo in an address: the value
+    of one would be decoded from part of the other's words, with no error at any poll)."""
+    for i, r in enumerate(registers):
+        for q in registers[:i]:
+            if r.table == q.table and r.address < q.address + _words(q) and q.address < r.address + _words(r):
+                raise DaqError(f"{where}: register {r.name!r} ({r.type} at {r.table} address {r.address}) "
+                               f"overlaps register {q.name!r} ({q.type} at address {q.address})")
 
 
 def _register(doc: dict, where: str):
@@ -128,6 +142,7 @@ class ModbusDriver(Driver):
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
             raise DaqError(f"{t.where}: duplicate register name {dup[0]!r}")
+        _refuse_overlaps(registers, t.where)
         unit = t.get("device_id", int, 1)
         if transport == "tcp":
             port = t.get("port", (int, str), 502)

@@ -22,6 +22,27 @@ from flexmodal.daq.errors import DaqError
 from flexmodal.daq.h5file import open_read
 
 CHANNEL_KINDS = ("acceleration", "force", "strain", "encoder", "voltage", "other")
+#: the units that say a channel's kind (normalised: "m/s2" and "m/s²" are "m/s^2", "μ" is "µ"); a unit of
+#: one kind given to a channel of another (a force in m/s^2, an acceleration in N) is refused, any unit
+#: not listed here is accepted for every kind (kind "other" takes every unit)
+KIND_UNITS = {
+    "force": ("N", "kN", "mN", "lbf"),
+    "acceleration": ("m/s^2", "mm/s^2", "g"),
+    "strain": ("µε", "ε", "ue", "με", "microstrain"),
+    "encoder": ("deg", "rad", "rev"),
+    "voltage": ("V", "mV", "µV"),
+}
+
+
+def kind_unit_fault(kind: str, unit: str) -> str:
+    """Words for a channel ``unit`` that belongs to another kind than ``kind``, or "" when it fits."""
+    u = unit.replace("m/s2", "m/s^2").replace("m/s²", "m/s^2").replace("μ", "µ").strip()
+    owner = next((k for k, units in KIND_UNITS.items() if u in units), None)
+    if owner is None or owner == kind or kind == "other" or kind not in KIND_UNITS:
+        return ""
+    return f"unit {unit!r} is a unit of {owner}, not of {kind} ({kind}: {', '.join(KIND_UNITS[kind])}, ...)"
+
+
 EVENT_KINDS = ("trigger", "gap", "overload", "corrupt", "reconnect", "note", "device_lost", "overrun",
                "stopped")
 EXCITATIONS = ("impact", "random", "sweep", "free-decay", "operational")

@@ -26,7 +26,7 @@ from flexmodal.daq.devices import SIMULATOR_PORT, Device
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.faults import Faults
 from flexmodal.daq.protocols import PROTOCOLS, registered_protocols
-from flexmodal.daq.run_schema import CHANNEL_KINDS, EXCITATIONS, check_run_id
+from flexmodal.daq.run_schema import CHANNEL_KINDS, EXCITATIONS, check_run_id, kind_unit_fault
 from flexmodal.daq.store import Channel
 
 # Whole-number fields whose range every protocol shares (a TCP port given as a number, the Modbus unit id).
@@ -178,7 +178,13 @@ def _device(doc: dict, where: str, base: Path) -> Device:
     name = t.name("name")
     t = DeviceTable(doc, f"{where.split(':')[0]}: device {name!r}", base)
     protocol = t.choice("protocol", registered_protocols())
-    return PROTOCOLS.entry(protocol).parse_device(t, name)
+    device = PROTOCOLS.entry(protocol).parse_device(t, name)
+    sources = PROTOCOLS.entry(protocol).known_sources(device) or ()
+    twice = [s for i, s in enumerate(sources) if s in sources[:i]]
+    if twice:   # a channel naming it would read one of the two values, which one unsaid
+        raise DaqError(f"{t.where}: source {twice[0]!r} is named twice among its sources "
+                       f"({', '.join(sources)})")
+    return device
 
 
 def _channel(doc: dict, where: str, devices: dict[str, Device]) -> ChannelMap:
@@ -190,6 +196,8 @@ def _channel(doc: dict, where: str, devices: dict[str, Device]) -> ChannelMap:
                       "location", "direction", "device", "source", "full_scale", "counts_per_rev"})
     kind = t.choice("kind", CHANNEL_KINDS)
     unit = t.get("unit", str)
+    if kind_unit_fault(kind, unit):
+        raise DaqError(f"{where}: {kind_unit_fault(kind, unit)}")
     sensitivity = t.get("sensitivity", float, 1.0, check=bool, why="must be finite and non-zero")
     sens_unit = t.get("sensitivity_unit", str, "")
     if "counts_per_rev" in t.doc:  # an encoder's resolution: counts -> angle in `unit` (deg or rad)
@@ -311,9 +319,18 @@ def parse_session(doc: dict, source: Path) -> Session:
                            f"{trigger.pretrigger_samples + MIN_HIT_SAMPLES}")
     pose = t.numbers("pose")
     pose_from = t.get("pose_from", dict, {})
+    kinds = {c.channel.name: c.channel.kind for c in channels}
     for k, v in pose_from.items():
         if v not in names:
             raise DaqError(f"{where}: pose_from.{k} = {v!r} is not a channel")
+        if kinds[v] != "encoder":   # its mean (say m/s^2) would be stored as the pose in degrees
+            raise DaqError(f"{where}: pose_from.{k} = {v!r} is a channel of kind {kinds[v]!r}; a pose is "
+                           "taken from an encoder channel (kind = \"encoder\", degrees)")
+        if k in pose:
+            raise DaqError(f"{where}: pose variable {k!r} is given in pose and in pose_from (one of them)")
+    if trigger is not None and trigger.response and kinds[trigger.response] == "force":
+        raise DaqError(f"{where}: trigger: response = {trigger.response!r} is a force channel; the live "
+                       "H1 of a hit is response / force (name an acceleration or strain channel)")
     return Session(
         source=source, sample_rate_hz=rate, devices=tuple(devices.values()), channels=channels,
         excitation=t.choice("excitation", EXCITATIONS, "operational"),

@@ -42,6 +42,7 @@ from flexmodal.daq.run_schema import (
     MAX_SAMPLE_RATE_HZ,
     check_run_group,
     check_run_id,
+    kind_unit_fault,
     member,
     sample_rate_ok,
     utf8,
@@ -70,6 +71,9 @@ class Channel:
         if self.kind not in CHANNEL_KINDS:
             raise DaqError(f"channel {self.name!r}: kind {self.kind!r} is not one of "
                            f"{', '.join(CHANNEL_KINDS)}")
+        fault = kind_unit_fault(self.kind, self.unit)
+        if fault:   # a force in m/s^2 made FRFs of two accelerations, stored and shown as accelerance
+            raise DaqError(f"channel {self.name!r}: {fault}")
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,7 @@ import h5py
 import numpy as np
 
 from flexmodal.checked_io.output import signals_deferred
-from flexmodal.checked_io.text import loads_json, one_line
+from flexmodal.checked_io.text import loads_json, nfc, one_line
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult, check_coherence
 
@@ -128,11 +128,30 @@ def read_frf(path: str | Path, run_id: str) -> FrfResult | None:
         freq_hz, H, coherence = _checked_arrays(data, where)
         a = _Attrs(g.attrs, where)
         outputs, inputs = a.names("outputs", H.shape[0]), a.names("inputs", H.shape[1])
+        _check_names_are_channels(run, outputs, inputs, where)
         return FrfResult(freq_hz, H, coherence, a.text("estimator"), a.text("window"),
                          a.integer("nfft", 1), a.integer("n_averages", 1),
                          a.number("sample_rate_hz", np.nan, positive=True),
                          a.text("quantity", "accelerance"), outputs, inputs,
                          a.number("decay_rate_per_s", 0.0), a.json("provenance", {}, dict))
+
+
+def _check_names_are_channels(run: h5py.Group, outputs: tuple[str, ...], inputs: tuple[str, ...],
+                              where: str) -> None:
+    """The FRFs' output and input names must be channels of their run, each named once per side (a
+    stored group naming another channel, or one twice, gave mode shapes at sensors the run lacks)."""
+    table = run.get("channels") if isinstance(run.get("channels", getlink=True), h5py.HardLink) else None
+    fields = getattr(getattr(table, "dtype", None), "names", None) or ()
+    if not isinstance(table, h5py.Dataset) or "name" not in fields or table.ndim != 1:
+        return   # the run's own check names what is wrong with its channel table
+    channels = {nfc(v.decode(errors="replace") if isinstance(v, bytes) else str(v)) for v in table["name"]}
+    for key, names in (("outputs", outputs), ("inputs", inputs)):
+        for i, name in enumerate(names):
+            if name in names[:i]:
+                raise ModalError(f"{where}: attribute {key} names {name!r} twice")
+            if nfc(name) not in channels:
+                raise ModalError(f"{where}: attribute {key} names {name!r}, not a channel of the run "
+                                 f"(channels: {', '.join(sorted(channels))})")
 
 
 def _checked_arrays(data: dict[str, h5py.Dataset], where: str) -> tuple[np.ndarray, ...]:

@@ -765,6 +765,10 @@ def track_input(path: str, *, pose_from: Mapping[str, str] | None = None, run_id
         where, pose = str(p), {}
     if pose_from is None:
         pose_from = default_pose_from(names, kinds, pose, where)
+    unknown = [v for v in pose_from if pose and v not in pose]
+    if unknown:   # the map's pose column would name a variable the run (and the rig's poses) lack
+        raise ModalError(f"{where}: --pose-from {unknown[0]}: not a pose variable of the run (its pose "
+                         f"variables: {', '.join(pose)})")
     kinds = ["encoder" if n in pose_from.values() else k for n, k in zip(names, kinds, strict=True)]
     return track_modes(samples, fs, names, kinds, pose_from, options, where)
 

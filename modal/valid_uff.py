@@ -46,6 +46,9 @@ def drop_line_padding(funcs: Sequence[dict]) -> list[dict]:
     return out
 
 
+AXIS_WORDS = {17: "time", 18: "frequency"}   # UFF specific data types of an abscissa
+
+
 def check_functions(path: str | Path, funcs: Sequence[dict]) -> None:
     """Raise ModalError unless every dataset-58 record has its fields, ``num_pts`` values on a finite,
     increasing abscissa, and finite data."""
@@ -68,4 +71,10 @@ def check_functions(path: str | Path, funcs: Sequence[dict]) -> None:
             raise ModalError(f"{where}: abscissa or data hold NaN or infinite values")
         if not (np.diff(x) > 0).all():
             raise ModalError(f"{where}: the abscissa does not increase")
+        axis = int(s.get("abscissa_spec_data_type", 0) or 0)
+        wrong = {1: 18, 4: 17}.get(int(s.get("func_type", 0) or 0))   # time history on Hz, FRF on s
+        if axis == wrong:
+            raise ModalError(f"{where}: function type {int(s['func_type'])} on an abscissa of "
+                             f"{AXIS_WORDS[axis]} (abscissa data type {axis}); its axis is "
+                             f"{AXIS_WORDS[35 - axis]} (data type {35 - axis})")
 

@@ -368,6 +368,7 @@ def parse_rig(doc: Mapping[str, Any], source: str = "<rig>") -> Rig:
     for lk in links[1:]:
         if lk.name not in joined:
             raise top.fail("joint", f"link {lk.name!r} is joined to nothing (add a [[joint]] with child)")
+    _check_places(top, links, joints, ())
     refs = ({lk.name: lk for lk in links}, {j.name: j for j in joints})
 
     def point(t: Fields, key: str, ground: bool = False) -> Point:
@@ -378,6 +379,7 @@ def parse_rig(doc: Mapping[str, Any], source: str = "<rig>") -> Rig:
                            t.choice("ends", MEMBER_ENDS, "pin-pin"), _elements(t),
                            _positive(t, "end_k_Nm_per_rad", 0.0, allow_zero=True))
                     for t in _tables(doc, "member", source))
+    _check_places(top, links, joints, members)
     masses = tuple(Mass(point(t, "at"),
                         t.get("mass_kg", str) if isinstance(t.doc.get("mass_kg"), str)
                         else _positive(t, "mass_kg", allow_zero=True),
@@ -393,6 +395,29 @@ def parse_rig(doc: Mapping[str, Any], source: str = "<rig>") -> Rig:
     if len(set(sensor_names)) != len(sensor_names):
         raise top.fail("sensor", f"duplicate sensor names in {sensor_names}")
     return Rig(name, links, tuple(joints), base, members, masses, springs, sensors, source)
+
+
+RESERVED_PLACES = ("tip", "base", "ground")   # the words a point or a diagnosis location means itself
+
+
+def _check_places(top: Fields, links, joints, members) -> None:
+    """Links, joints and members are places (a point ``<link>@<fraction>``, a joint name, a diagnosis
+    location): each name must say one place, so none is shared between them, none is a reserved word
+    and none holds ``@`` (a joint called ``tip`` was read as the free end; a joint and a link of one
+    name made a location of the diagnosis ambiguous)."""
+    seen: dict[str, str] = {}
+    for kind, items in (("link", links), ("joint", joints), ("member", members)):
+        for item in items:
+            if item.name in RESERVED_PLACES or "@" in item.name:
+                why = "is a reserved word of rig points" if "@" not in item.name else "holds '@'"
+                raise top.fail(kind, f"{kind} name {item.name!r} {why} (reserved: "
+                               f"{', '.join(RESERVED_PLACES)}; '@' separates a link from a fraction)")
+            if item.name in seen and seen[item.name] != kind:
+                raise top.fail(kind, f"{kind} {item.name!r} has the name of a {seen[item.name]}: links, "
+                               "joints and members name places, each name one place")
+            if item.name in seen:
+                raise top.fail(kind, f"duplicate {kind} name {item.name!r}")
+            seen[item.name] = kind
 
 
 def load_rig(path: str | Path) -> Rig:

@@ -21,6 +21,7 @@ from flexmodal.fixtures.blind import (
     format_advice,
     format_summary,
     format_table,
+    moved_fraction,
     run_blind,
     run_sparse,
     summarise,
@@ -70,6 +71,14 @@ def test_shapes_separate_look_alikes_that_frequencies_leave_ambiguous(first_eigh
     assert v.ambiguous
     assert (r.case.effect, r.case.location) in {(v.effect, v.location)} | {
         (a.effect, a.location) for a in v.alternatives}
+
+
+def test_a_moved_sensor_sits_half_a_link_away_wherever_the_rig_puts_it():
+    """Sensor fractions are drawn on a 0.01 grid; at 0.5 the sensor was once "moved" to 0.5 (draw 631
+    case 30: a moved-sensor case with no moved sensor)."""
+    for f in [k / 100 for k in range(101)]:
+        to = moved_fraction(f)
+        assert 0.0 < to <= 1.0 and abs(to - f) == pytest.approx(0.5)
 
 
 @pytest.mark.slow

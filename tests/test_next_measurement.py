@@ -1,14 +1,28 @@
 """Issue 26 item 5: the advised next measurement separates look-alike candidates where a pose inside the
-measured range does not -- a constructed two-candidate case whose answer the FE model itself gives."""
+measured range does not -- a constructed two-candidate case whose answer the FE model itself gives; the
+separating pose is one not measured yet, a pose with almost no chance to decide is not advised, and an
+advised pose beyond the measured range says so."""
 
 from __future__ import annotations
+
+from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
+import flexmodal.compare.next_measurement as nm
 from flexmodal.compare.candidates import Candidate
 from flexmodal.compare.diagnosis import diagnose
-from flexmodal.compare.next_measurement import _resolve_chance, adds_to, next_measurements, trial_poses
+from flexmodal.compare.next_measurement import (
+    MIN_CHANCE,
+    _resolve_chance,
+    adds_to,
+    next_measurements,
+    separating_measurement,
+    trial_poses,
+)
+from flexmodal.compare.verdict_text import advice_words
 from flexmodal.contract.table import ModalTable
 from flexmodal.fixtures.blind import random_rig
 from flexmodal.models.effects import apply_effect
@@ -66,7 +80,8 @@ def test_the_advised_pose_separates_two_look_alikes_where_a_pose_in_the_measured
     untested poses inside the range leaves it ambiguous (of all 22 untested candidate poses, 12
     resolve it: the ones outside the range)."""
     real = apply_effect(rig, "link_mass", "link2", {"scale": 1.4})
-    v = diagnose(rig, _table(real, MEASURED, 0), effects=EFFECTS).verdict
+    d = diagnose(rig, _table(real, MEASURED, 0), effects=EFFECTS)
+    v = d.verdict
     assert (v.effect, v.location) == ("link_mass", "link2") and v.ambiguous
     alt = v.alternatives[0]
     assert (alt.effect, alt.location) == ("tip_mass", "tip")
@@ -81,6 +96,9 @@ def test_the_advised_pose_separates_two_look_alikes_where_a_pose_in_the_measured
     assert advised > max(MEASURED) or advised < min(MEASURED)
     assert apart(advised) > 3 * NOISE and apart(82.5) < NOISE
     assert v.next_measurements[0].decide_chance > 0.5
+    out = advised - 90.0 if advised > 90.0 else 60.0 - advised       # the advice says how far out it is
+    assert v.next_measurements[0].beyond == f"theta_deg={advised:g} is {out:g} beyond the measured 60..90"
+    assert f"{v.next_measurements[0].beyond}: check that the arm reaches it" in advice_words(d)
 
     def after(theta: float):
         return diagnose(rig, _table(real, (*MEASURED, theta), 0), effects=EFFECTS).verdict
@@ -99,3 +117,58 @@ def test_a_rival_that_only_adds_a_component_gets_no_advice():
     link = {"_cand": Candidate(("link_mass",), ("link2",), ())}
     assert adds_to(tip, both) and not adds_to(both, tip) and not adds_to(tip, link) and not adds_to(tip, tip)
     assert next_measurements(None, tip, [both], 0.005) == []          # decided before any pose is tried
+
+
+def test_the_separating_pose_is_one_the_data_do_not_hold(rig):
+    """Two candidates that differ most at a measured pose and mode (75 deg, mode 1): the separating
+    measurement named is the largest difference among the cells not measured yet -- mode 2 at 75 deg
+    while only mode 1 was measured, 80 deg once mode 2 was measured there too, and mode 2 at 75 deg
+    again when that configuration's mode 2 is missing (NaN).  Measured poses are matched to the
+    candidate poses to rounding (a candidate pose is computed from the measured range).  A candidate
+    that only adds a component gets no separating pose (the demo's summary said "measuring
+    theta_deg=0 ... would separate" with theta0 measured, and then that no pose is advised)."""
+    trial = trial_poses(rig, [{"theta_deg": x} for x in MEASURED])
+    at = {k: i for i, k in enumerate(trial)}
+    f_a = np.full((len(trial), 3), 100.0)
+    diff = np.zeros_like(f_a)
+    diff[at["theta_deg=75"], 0], diff[at["theta_deg=75"], 1], diff[at["theta_deg=80"], 0] = 0.05, 0.04, 0.03
+    tip, link = Candidate(("tip_mass",), ("tip",), ()), Candidate(("link_mass",), ("link2",), ())
+    a, b = {"_trial_f": f_a, "_cand": tip}, {"_trial_f": f_a / (1 + diff), "_cand": link}    # f_a / f_b - 1
+
+    def ctx(freq_hz):
+        poses = tuple({"theta_deg": x * (1 + 1e-13)} for x in MEASURED)       # rounding of a CSV
+        return SimpleNamespace(rig=rig, meas=SimpleNamespace(poses=poses, freq_hz=np.array(freq_hz, float)))
+
+    one = separating_measurement(ctx([[9.0], [8.0], [7.0]]), a, b)
+    assert one == {"separate_at": "theta_deg=75", "separate_mode": 2,
+                   "separate_rel_diff": pytest.approx(0.04)}
+    two = separating_measurement(ctx([[9.0, 30.0], [8.0, 31.0], [7.0, 32.0]]), a, b)
+    assert two == {"separate_at": "theta_deg=80", "separate_mode": 1,
+                   "separate_rel_diff": pytest.approx(0.03)}
+    gap = separating_measurement(ctx([[9.0, 30.0], [8.0, np.nan], [7.0, 32.0]]), a, b)
+    assert (gap["separate_at"], gap["separate_mode"]) == ("theta_deg=75", 2)
+    nested = {**b, "_cand": Candidate(("link_mass", "tip_mass"), ("link2", "tip"), ())}
+    assert separating_measurement(ctx([[9.0], [8.0], [7.0]]), a, nested) == {}      # no pose decides that
+
+
+@pytest.mark.timeout(600)            # one diagnosis of the README tour: a few seconds
+def test_no_pose_is_advised_when_none_has_a_chance_to_decide(rig, monkeypatch):
+    """The README tour (seed 003, Table 3, held out theta30/90/150) is ambiguous between two grounded
+    spring + joint mass + joint stiffness candidates at link2 positions 1 and 0.75; every untested pose
+    has less than ``MIN_CHANCE`` to decide between them (the ranking's chances, recorded on the way),
+    so no pose is advised, and the words for the next measurement say once that none is likely to
+    decide instead of listing poses with a 0 % chance."""
+    seen = []
+
+    def spy(*args, **kw):
+        seen.append(_resolve_chance(*args, **kw))
+        return seen[-1]
+
+    monkeypatch.setattr(nm, "_resolve_chance", spy)
+    table = ModalTable.read_csv(Path(__file__).resolve().parents[1] / "examples" / "measured"
+                                / "seed003_table3_f1f2.csv")
+    d = diagnose(rig, table, holdout=("theta30", "theta90", "theta150"))
+    assert d.verdict.ambiguous and d.verdict.alternatives and not d.verdict.next_measurements
+    assert seen and max(float(c.max()) for c in seen) < MIN_CHANCE
+    assert advice_words(d) == ("none: no untested pose is likely to decide between the verdict and its "
+                               "alternatives (each has less than a 5 % chance to)")

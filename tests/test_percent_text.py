@@ -12,11 +12,6 @@ REPO = Path(__file__).resolve().parents[1]
 DATA = Path(__file__).parent / "data" / "diagnosis"
 # a fraction written by Python's own percent format (``{x:.2%}`` -> ``43.08%``, no space)
 PYTHON_PERCENT = re.compile(r":[+ ]?\d*(\.\d+)?%\}")
-# Not yet: compare/diagnosis.py writes its verdict notes with {x:.2%} (three engineers work there: their
-# change, not this one's); fixtures/blind.py's self-check tables (and fixtures/modal_coverage.py's
-# coverage lines) are quoted exactly by docs/diagnosis.md, re-checked only by a 2-hour slow test, so
-# they change together with a re-record of those blocks; benchmarks write their own docs tables
-NOT_YET = {"fixtures/blind.py", "fixtures/modal_coverage.py"}
 
 
 def test_percent_is_three_significant_digits_a_space_and_the_sign_when_asked():
@@ -37,7 +32,8 @@ def test_no_module_people_read_formats_a_percent_without_the_space():
     offenders = []
     for path in sorted(REPO.glob("*/**/*.py")) + sorted(REPO.glob("*.py")):
         rel = path.relative_to(REPO).as_posix()
-        if rel.split("/")[0] in {"tests", "benchmarks"} or rel in NOT_YET:
+        # benchmarks write their own docs tables
+        if rel.split("/")[0] in {"tests", "benchmarks"}:
             continue
         offenders += [f"{rel}:{n}" for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
                       if PYTHON_PERCENT.search(line)]
