@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 from scipy.ndimage import uniform_filter1d
 
+from flexmodal.checked_io.blas import one_blas_thread
 from flexmodal.checked_io.output import atomic_path
 from flexmodal.contract.mac import mac, mass_normalised, to_real, unit_max
 from flexmodal.contract.table import ModalTable
@@ -29,7 +30,6 @@ from flexmodal.modal.lscf import (
     Stabilisation,
     adaptive_stabilisation,
     default_caps,
-    one_blas_thread,
     pole_clusters,
     stable_clusters,
 )
