@@ -1373,12 +1373,15 @@ def format_diagnosis(result: Diagnosis) -> str:
     v = result.verdict
     lines = [f"verdict: {v.effect} at {v.location or '-'}; held-out RMS "
              f"{percent(v.heldout_rms_rel_error_before)} -> {percent(v.heldout_rms_rel_error_after)}"]
-    lines += [x for x in (verdict_words(result), scatter_line(result)) if x]
+    words = verdict_words(result)
+    lines += [x for x in (words, scatter_line(result)) if x]
     lines += [f"  {name} = {v.params[name]:.4g}  (95 % interval {lo:.4g} .. {hi:.4g})"
               for name, (lo, hi) in (v.param_intervals or {}).items()]
-    if v.residual_feature or v.flags:
-        lines.append(f"remaining: {v.residual_feature or '-'}"
-                     + "".join(f"; flagged: {f}" for f in v.flags or ()))
+    said = bool(v.residual_feature) and f"it shows as {v.residual_feature}" in words   # not twice
+    remaining = [f"remaining: {v.residual_feature}"] if v.residual_feature and not said else []
+    remaining += [f"flagged: {f}" for f in v.flags or ()]
+    if remaining:
+        lines.append("; ".join(remaining))
     if v.ranked and v.ranked > 1:
         lines.append(f"not the top of the ranking ({v.ranked}): {v.why_not_top}")
     if v.ambiguous and v.alternatives:
@@ -1669,7 +1672,7 @@ def plot_comparison(measured: ModalTable | PathLike,
 
 
 def plot_gap(diagnosis: Diagnosis | Mapping | PathLike, title: str = "") -> Figure:
-    """Per-mode relative frequency error [%] before and after the diagnosed effect.
+    """Per-mode RMS relative frequency error [%] before and after the diagnosed effect.
 
     Parameters
     ----------
@@ -1681,8 +1684,9 @@ def plot_gap(diagnosis: Diagnosis | Mapping | PathLike, title: str = "") -> Figu
     Returns
     -------
     matplotlib.figure.Figure
-        Bars of the per-mode relative frequency error [%] before and after the diagnosed effect, and
-        the held-out RMS error [%].
+        Bars of each mode's relative frequency error [%], RMS over the configurations, of the nominal
+        model and with the diagnosed effect (held out, or fitted to all configurations when the
+        diagnosis held none out: the legend says which), and the held-out RMS error [%] over all modes.
 
     Examples
     --------

@@ -25,8 +25,8 @@ def gap_words(before: float, after: float, sigma: float, grade: str, feature: st
     more than 100 times the measurement scatter (0.0005 %), so it is not noise: no effect in the library
     accounts for it; it shows as mode 1 rising with theta
     >>> print(textwrap.fill(gap_words(0.05, 0.004, 0.003, "explained"), 100))
-    explained: 92 % of the held-out gap removed (from 5 % to 0.4 %); what remains is within the
-    measurement scatter (0.3 %)
+    explained: 92 % of the held-out gap removed (from 5 % to 0.4 %); the remaining 0.4 % is 1.3 times
+    the measurement scatter (0.3 %), within the 3 times counted as noise
     """
     removed = 1.0 - after / before if before > 0 else 0.0
     head = (f"{grade}: {100 * removed:.0f} % of the held-out gap removed "
@@ -34,10 +34,13 @@ def gap_words(before: float, after: float, sigma: float, grade: str, feature: st
     ratio = after / sigma if sigma > 0 else math.inf
     note = f"; it shows as {feature}" if feature else ""
     if ratio <= EXPLAINED_FACTOR:
+        near = (f"the remaining {percent(after)} is below the measurement scatter ({percent(sigma)})"
+                if ratio <= 1 else
+                f"the remaining {percent(after)} is {ratio:.2g} times the measurement scatter "
+                f"({percent(sigma)}), within the {EXPLAINED_FACTOR:g} times counted as noise")
         if grade == "explained":
-            return f"{head}; what remains is within the measurement scatter ({percent(sigma)})"
-        return (f"{head}; what remains is near the measurement scatter ({percent(sigma)}) but not random: "
-                f"it has structure{note}")
+            return f"{head}; {near}"
+        return f"{head}; {near}, but not random: it has structure{note}"
     times = "more than 100 times" if ratio > 100 else f"{ratio:.0f} times"
     return (f"{head}; the remaining {percent(after)} is {times} the measurement scatter "
             f"({percent(sigma)}), so it is not noise: no effect in the library accounts for it{note}")

@@ -20,7 +20,28 @@ class Faults:
     """The faults a simulated device injects, defined once: the keys of a session's ``[simulator]``
     table (docs/acquisition.md), the options of ``flexmodal sim serve`` (``--`` + the field name
     without ``_s``, dashed: ``drop_at_s`` is ``--drop-at``) and what the simulators read.  Each field's
-    metadata holds its help and its range (times in seconds)."""
+    metadata holds its help and its range; a value outside it raises DaqError.
+
+    Parameters
+    ----------
+    corrupt_rate : float
+        Fraction [-] of frames corrupted, in [0, 1) (0.01 = 1 %).
+    drop_at_s : float or None
+        Time [s] into the stream at which a burst of frames is dropped (None: none).
+    drop_s : float
+        Length of the dropped burst [s].
+    disconnect_after_s : float or None
+        Time [s] after which the device disconnects (None: never).
+    disconnect_s : float
+        Length of the disconnect [s].
+    double_hit_at_s : float or None
+        Impact test: the hit nearest this time [s] into the record bounces back (a double hit).
+    overload_at_s : float or None
+        Impact test: the hit nearest this time [s] into the record overloads the ADC.
+    overrun_after_s : float
+        Serial and slcan: what the reader leaves unread this long [s] is dropped (the device's buffer
+        overruns).
+    """
 
     corrupt_rate: float = _fault(0.0, "fraction of frames corrupted (0.01 = 1 %%)", hi=1.0, hi_open=True)
     drop_at_s: float | None = _fault(None, "drop a burst of frames starting at S seconds")

@@ -23,8 +23,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.fft
 import scipy.signal
-from threadpoolctl import threadpool_limits
 
+from flexmodal.checked_io.blas import one_blas_thread
 from flexmodal.contract.mac import mac_pairs, to_real, unit_max
 from flexmodal.modal.damping import log_decrement
 from flexmodal.modal.errors import ModalError
@@ -122,7 +122,7 @@ def fdd(y: np.ndarray, sample_rate_hz: float, *, references: Sequence[int] | Non
     modes = Modes(np.array(fn), np.array(zeta), to_real(complex_shapes), complex_shapes, "fdd", False,
                   tuple(warnings), mpc=mpc(complex_shapes), mpd=mpd(complex_shapes))
     if uncertainty_blocks:   # freq_std_hz / damping_std (issue 26)
-        with threadpool_limits(1, "blas"):        # small batched SVDs: threads only spin on them
+        with one_blas_thread():        # small batched SVDs: threads only spin on them
             std, unit_s = _bootstrap(y, sample_rate_hz, refs, nfft, lines, mac_min, uncertainty_blocks,
                                      [_bell(sv[:, 0], U[:, :, 0], k, mac_min) for k in lines])
         # a mode decaying over more than MAX_DECAY_FRACTION of a unit: the units are not independent

@@ -41,9 +41,38 @@ def check_coherence(coherence: np.ndarray, where: str) -> None:
 
 @dataclass(frozen=True)
 class FrfResult:
-    """FRFs of one test: ``H`` [n_out, n_in, n_freq] complex (response unit per input unit),
-    ``coherence`` [n_out, n_freq] (ordinary, or multiple for several inputs), ``freq_hz`` [n_freq],
-    with the processing that produced them (the provenance written to ``/runs/<id>/frf``)."""
+    """FRFs of one test, with the processing that produced them (what ``/runs/<id>/frf`` stores,
+    docs/hdf5-format.md).
+
+    Parameters
+    ----------
+    freq_hz : ndarray [n_freq]
+        Frequency lines [Hz].
+    H : ndarray [n_out, n_in, n_freq]
+        Complex FRFs in ``quantity`` per input unit (accelerance: (m/s²)/N).
+    coherence : ndarray [n_out, n_freq]
+        Ordinary coherence [-] of each output (multiple coherence with several inputs).
+    estimator : str
+        The FRF estimator (``H1``, ``H2``, ``Hv``, or a registered one).
+    window : str
+        The window of each segment (``hann``; impact records ``force:0.05,exponential:1``).
+    nfft : int
+        Segment length [samples].
+    n_averages : int
+        Segments (or accepted hits) averaged [count].
+    sample_rate_hz : float
+        Sample rate of the records [Hz].
+    quantity : {"accelerance", "mobility", "receptance"}
+        What ``H`` is: (m/s²)/N, (m/s)/N or m/N.
+    outputs, inputs : tuple of str
+        Channel names of the rows and columns of ``H``.
+    decay_rate_per_s : float
+        Decay rate [1/s] an exponential window added (0: none); identification removes it from the
+        damping.
+    provenance : dict
+        Processing details (overlap, segments skipped, accepted and rejected hits, excitation), stored
+        as JSON with the FRFs.
+    """
 
     freq_hz: np.ndarray
     H: np.ndarray

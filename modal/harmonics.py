@@ -17,7 +17,8 @@ import numpy as np
 import scipy.fft
 import scipy.ndimage
 import scipy.signal
-from threadpoolctl import threadpool_limits
+
+from flexmodal.checked_io.blas import one_blas_thread
 
 MIN_POLES = 5            # orders are looked for in at least this many windows ...
 MIN_SPEED_SHARE = 0.2    # ... where the joint turns faster than this share of its fastest
@@ -195,7 +196,7 @@ def remove_orders(y: np.ndarray, sample_rate_hz: float, angle_deg: np.ndarray,
     if starts[-1] + block < n:
         starts.append(n - block)
     tau = np.linspace(-1.0, 1.0, block)
-    with threadpool_limits(1, "blas"):   # small least-squares fits: more threads only spin on them
+    with one_blas_thread():   # small least-squares fits: more threads only spin on them
         _remove_blocks(out, y, angle_deg, orders, starts, block, hop, tau)
     return out
 

@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 from scipy.ndimage import uniform_filter1d
 
+from flexmodal.checked_io.blas import one_blas_thread
 from flexmodal.checked_io.output import atomic_path
 from flexmodal.contract.mac import mac, mass_normalised, to_real, unit_max
 from flexmodal.contract.table import ModalTable
@@ -29,7 +30,6 @@ from flexmodal.modal.lscf import (
     Stabilisation,
     adaptive_stabilisation,
     default_caps,
-    one_blas_thread,
     pole_clusters,
     stable_clusters,
 )
@@ -98,9 +98,17 @@ class Modes:
 
 @dataclass(frozen=True)
 class Thresholds:
-    """Automatic selection limits: a mode whose F statistic in the synthesis is below ``need_min``
-    (the measured FRFs do not need it), or whose MPC is below ``mpc_min`` with two or more outputs
-    (a shape scattered in phase: a computational pole), is dropped."""
+    """Automatic selection limits: a mode is dropped when the measured FRFs do not need it, or when its
+    shape is scattered in phase (a computational pole).
+
+    Parameters
+    ----------
+    need_min : float
+        Least F statistic [-] of a mode in the synthesis (:mod:`modal.lsfd`): below it the FRFs fit
+        as well without the mode.
+    mpc_min : float
+        Least modal phase collinearity [-] (0-1) of a mode's shape, applied with two or more outputs.
+    """
 
     need_min: float = 10.0
     mpc_min: float = 0.5

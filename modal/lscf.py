@@ -36,15 +36,14 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from functools import cache
 from typing import TypeVar
 
 import numpy as np
 import scipy.linalg
 import scipy.sparse
 import scipy.sparse.csgraph
-from threadpoolctl import ThreadpoolController
 
+from flexmodal.checked_io.blas import one_blas_thread
 from flexmodal.contract.mac import mac_pairs
 from flexmodal.modal.errors import ModalError
 
@@ -71,21 +70,6 @@ class Stabilisation:
     @property
     def stable(self) -> np.ndarray:
         return self.stable_freq & self.stable_damping & self.stable_shape
-
-
-@cache
-def _blas_pools() -> ThreadpoolController:
-    """The BLAS thread pools, found once (a fresh ``threadpool_limits`` costs ~1 ms per call)."""
-    return ThreadpoolController()
-
-
-def one_blas_thread():
-    """Context in which BLAS uses one thread: pLSCF's and LSFD's matrices are at most a few hundred
-    wide, and threads spinning on a shared machine cost more than they give (LSFD 10x slower on a busy
-    host).  Hold it over a whole identification: each switch back to several threads and down again
-    costs more CPU than the small products it brackets (stabilisation of 30 FRFs x 2000 lines: 25 ms of
-    CPU switching per call, 9 ms held)."""
-    return _blas_pools().limit(limits=1, user_api="blas")
 
 
 def _lag_sums(freq_hz: np.ndarray, H: np.ndarray, p_max: int, dt: float, basis: float = 1.0):

@@ -6,13 +6,18 @@ from flexmodal.modal.errors import ModalError
 
 class RunsFailed(ModalError):
     """Some runs of a batch (``frf`` or ``identify`` over many runs) were bad and skipped; the good ones
-    were done and written.
+    were done and written.  The message is one line naming every bad run and why.
 
-    ``written``: what was done (``frf``: the (file, run id) pairs written; ``identify``: the
-    configurations identified); ``failed``: (``FILE:RUN_ID``, or ``FILE`` when the file itself is bad,
-    and the error that stopped it) for each bad run, in input order; ``result``: what the call returns
-    otherwise (``identify``: the Identification of the good runs), else None.  The message is one
-    line naming every bad run and why.
+    Attributes
+    ----------
+    written : list
+        What was done: ``frf``, the (file, run id) pairs written; ``identify``, the configurations
+        identified.
+    failed : list of (str, Exception)
+        For each bad run, in input order: ``FILE:RUN_ID`` (or ``FILE`` when the file itself is bad) and
+        the error that stopped it.
+    result : object or None
+        What the call returns otherwise (``identify``: the Identification of the good runs), else None.
 
     Examples
     --------

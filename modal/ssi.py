@@ -27,8 +27,8 @@ import numpy as np
 import scipy.fft
 import scipy.linalg
 import scipy.signal
-from threadpoolctl import threadpool_limits
 
+from flexmodal.checked_io.blas import one_blas_thread
 from flexmodal.contract.mac import to_real, unit_max
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.identify import Modes
@@ -166,7 +166,7 @@ def ssi_cov(y: np.ndarray, sample_rate_hz: float, *, references: Sequence[int] |
     orders = list(range(min_order, max_order + 1, order_step))
     band = (fmin if fmin is not None else 0.0, min(fmax if fmax is not None else np.inf, 0.5 * fs))
     # one BLAS thread: the matrices are at most a few hundred wide (threads only spin on them)
-    with threadpool_limits(1, "blas"):
+    with one_blas_thread():
         U, sv, Vt = scipy.linalg.svd(H, full_matrices=False, check_finite=False)
         real = _Realisations(U, sv, Vt, n_ch, len(refs), max_order)
         found = real.poles(orders, fs, band, mpc_min, mpd_max_deg)

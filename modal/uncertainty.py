@@ -92,8 +92,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.linalg
-from threadpoolctl import threadpool_limits
 
+from flexmodal.checked_io.blas import one_blas_thread
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import convert
 from flexmodal.modal.identify import MIN_LINES_PER_BANDWIDTH, Modes
@@ -406,7 +406,7 @@ def modal_uncertainty(freq_hz: np.ndarray, H: np.ndarray, coherence: np.ndarray,
     chol = None if welch is None else _band_cholesky(lines, welch.line_correlation)
     # one BLAS thread: the matrices are a few columns wide (threads only spin on them; under load a
     # 1200 x 12 QR took 0.6 s with the default threads, 0.1 ms with one)
-    with threadpool_limits(1, "blas"):
+    with one_blas_thread():
         lam, info, birge, parts = _refine(w, h, s, lam, welch, df, chol, _residual_runs(lines, fn, zeta, df))
         try:
             inv = np.linalg.inv(info)

@@ -16,8 +16,8 @@ from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
+from flexmodal.checked_io.blas import one_blas_thread
 from flexmodal.contract.mac import largest_positive
 from flexmodal.contract.table import POSE_PREFIX, SHAPE_PREFIX, ModalTable
 from flexmodal.models.errors import ModelError
@@ -130,7 +130,7 @@ def predict(rig: Rig, poses: Mapping[str, Mapping[str, float]], model: str = "fe
         raise ModelError(f"number of modes must be a whole number >= 1 (got {n_modes!r})")
     _check_options(options, builtin=solve in {MODELS.entry(m) for m in BUILT_IN_MODELS})
     records = []
-    with threadpool_limits(limits=1, user_api="blas"):  # many small dense eigenproblems: threads contend
+    with one_blas_thread():  # many small dense eigenproblems: threads contend
         results = list(solve(rig, list(poses.values()), n_modes, options))  # solve inside the limit
     for (config, pose), (freq, shapes) in zip(poses.items(), results, strict=True):
         for i, f in enumerate(freq):

@@ -30,8 +30,9 @@ def mode_figures(inputs: ReportInputs) -> Figures:
     if varying:
         var = varying[0]
         figs.append((plots.plot_freq_vs_pose(meas, list(predictions), var, pose_unit(var)),
-                     f"Natural frequency against {var}: a line per model and mode, experiment mean "
-                     f"± 1 standard deviation over {len(meas)} test(s)"))
+                     f"Natural frequency against {var}: a line per model and mode, "
+                     f"{plots.experiment_words(meas, var)}" if meas else
+                     f"Natural frequency against {var}: a line per model and mode"))
     if len(varying) >= 2:
         x = next((v for v in varying if "payload" in v), varying[1])
         group = next(v for v in varying if v != x)
@@ -45,7 +46,8 @@ def mode_figures(inputs: ReportInputs) -> Figures:
             continue
         figs.append((plots.plot_mode_shapes(arm, measured, config),
                      f"Measured mode shapes at {config} ({pose_text(measured.pose(config))}) on the "
-                     f"arm, with the frame FE model's best-matching mode (by MAC) as a curve"))
+                     f"arm, with the frame FE model's best-matching mode (by MAC) as a curve; both drawn "
+                     f"normal to each link, so at a bent joint the two links' curves need not meet"))
     return figs
 
 
@@ -72,8 +74,10 @@ def gap_figures(inputs: ReportInputs) -> Figures:
     """The relative frequency error per mode of the nominal model and with the diagnosed effect."""
     if inputs.diagnosis is None:
         return []
-    return [(plots.plot_gap(inputs.diagnosis), "Relative frequency error per mode of the nominal model and "
-                                               "with the diagnosed effect; held-out RMS error")]
+    return [(plots.plot_gap(inputs.diagnosis), "Left: each mode's relative frequency error, RMS over the "
+                                               "configurations, of the nominal model and with the diagnosed "
+                                               "effect (its legend says whether held out); "
+                                               "right: the held-out RMS error over all modes")]
 
 
 MODES = Section("Modes across poses", mode_figures, anchor="modes")

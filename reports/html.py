@@ -162,14 +162,16 @@ def _run_rows(runs: Sequence[RunSummary]) -> tuple[list[dict], list[dict], list[
             "coh_mean": f"{coh[0]:.3f}" if coh else "", "coh_low": f"{coh[1]:.1f}" if coh else ""})
         key = tuple(run.channels)
         if key not in sets:
-            sets[key] = {"runs": [], "channels": [
+            sets[key] = {"runs": [], "peaks": [], "channels": [
                 {"name": c.name, "kind": c.kind, "unit": c.unit,
                  "sensitivity": _sensitivity_text(c.sensitivity, c.sensitivity_unit, c.unit),
-                 "location": c.location,
-                 "direction": c.direction, "peak": f"{p:.4g} {c.unit}"}
-                for c, p in zip(run.channels, r.peak_abs, strict=True)]}
+                 "location": c.location, "direction": c.direction} for c in run.channels]}
             channel_sets.append(sets[key])
         sets[key]["runs"].append(label)
+        sets[key]["peaks"].append(r.peak_abs)
+    for cs in channel_sets:   # runs sharing their channels share one table: the largest peak (NaN-safe)
+        for c, *peaks in zip(cs["channels"], *cs.pop("peaks"), strict=True):
+            c["peak"] = f"{max((p for p in peaks if p == p), default=float('nan')):.4g} {c['unit']}"
     return meta, quality, channel_sets
 
 
@@ -246,15 +248,20 @@ def _number(figures: Sequence[dict]) -> None:
 
 def relative_name(path: str | Path, report_dir: Path) -> str:
     """A file named relative to the report's folder (``runs.h5``, ``../data/modes.csv``), so the report
-    holds no absolute local path; a file shipped inside flexmodal (the demo rig) as
-    ``flexmodal:fixtures/rigs/demo_arm.toml`` (unless it lies in the report's folder: the demo's own
-    outputs when it runs inside a clone); a name that is not a file path (an in-memory table) as it is."""
+    holds no absolute local path; a file flexmodal ships in one of its sub-packages (the demo rig) as
+    ``flexmodal:fixtures/rigs/demo_arm.toml`` (unless it lies in the report's folder); a name that is
+    not a file path (an in-memory table) as it is.  A user's own file inside a clone (``modes.csv`` at
+    its root, ``examples/rigs/demo_arm.toml``, the demo's ``flexmodal-demo/runs.h5``) is named relative
+    to the report, not as if flexmodal shipped it."""
     p = Path(path)
     if not p.is_absolute() and not p.exists():
         return str(path)
     package = Path(__file__).resolve().parents[1]
-    if p.resolve().is_relative_to(package) and not p.resolve().is_relative_to(report_dir.resolve()):
-        return f"flexmodal:{p.resolve().relative_to(package).as_posix()}"
+    resolved = p.resolve()
+    if resolved.is_relative_to(package) and not resolved.is_relative_to(report_dir.resolve()):
+        inside = resolved.relative_to(package)
+        if len(inside.parts) > 1 and (package / inside.parts[0] / "__init__.py").is_file():
+            return f"flexmodal:{inside.as_posix()}"
     try:
         return Path(os.path.relpath(p.resolve(), report_dir.resolve())).as_posix()
     except ValueError:  # another drive (Windows)
@@ -329,7 +336,9 @@ def _diagnosis_view(d: Diagnosis) -> dict:
         "heldout": " / ".join(_pct(x) for x in (verdict.heldout_rms_rel_error_before,
                                                  verdict.heldout_rms_rel_error_after)),
         "explained": verdict.explained,
-        "grade_class": "ok" if verdict.explained or verdict.grade == "largely explained" else "warn",
+        # green only when what remains is noise; amber when most of the gap is removed but not all
+        "grade_class": "ok" if verdict.explained else "partial" if verdict.grade == "largely explained"
+                       else "warn",
         "explained_text": verdict_words(d) or ("yes" if verdict.explained else
                                                "no: the gap stays above the measurement scatter"),
         "ranking": [{"effect": r.effect, "location": r.location,

@@ -77,17 +77,20 @@ def text(label: object) -> str:
     return str(label).replace("$", r"\$")
 
 
-def tick_text(value: float) -> str:
-    """A log-axis tick as plain text (no mathtext): 0.01..9999 as decimals, else ``10⁵`` or ``2×10⁻³``.
+def tick_text(value: float, powers: bool = False) -> str:
+    """A log-axis tick as plain text (no mathtext): 0.01..9999 as decimals, else (or with ``powers``,
+    for an axis whose other ticks need them) ``10⁵`` or ``2×10⁻³``.
 
     Examples
     --------
     >>> [tick_text(v) for v in (0.05, 200.0, 1e5, 2e-3)]
     ['0.05', '200', '10⁵', '2×10⁻³']
+    >>> [tick_text(v, powers=True) for v in (0.01, 1.0, 100.0)]
+    ['10⁻²', '10⁰', '10²']
     """
     if value <= 0 or not math.isfinite(value):
         return ""
-    if 0.01 <= value < 1e4:
+    if not powers and 0.01 <= value < 1e4:
         return f"{value:g}"
     exp = math.floor(math.log10(value) + 1e-9)
     mantissa = round(value / 10.0 ** exp, 6)
@@ -98,16 +101,28 @@ def tick_text(value: float) -> str:
 class LogTicks(Formatter):
     """Labels of a log axis in plain text (:func:`tick_text`): 1, 2, 3 and 5 of each decade over up
     to two decades (so that 30 and 300 Hz are read off a 25-400 Hz axis), 1, 2 and 5 over up to four,
-    decades only over more."""
+    decades only over more; all as decimals, or all as powers of ten when one label needs it (an axis
+    reading 10⁻³, 0.01, 0.1 mixes two notations)."""
 
-    def __call__(self, x: float, pos: int | None = None) -> str:
+    _ticks: tuple[float, ...] = ()
+
+    def set_locs(self, locs) -> None:
+        """Keep the tick values being labelled (the notation is chosen over all of them)."""
+        self._ticks = tuple(float(v) for v in locs)
+
+    def _labelled(self, x: float) -> bool:
         lo, hi = sorted(self.axis.get_view_interval())
         mantissa = x / 10.0 ** math.floor(math.log10(x) + 1e-9) if x > 0 else 0.0
         span = math.log10(hi / lo) if lo > 0 else math.inf
         shown = (1.0, 2.0, 3.0, 5.0) if span <= 2.0 else (1.0, 2.0, 5.0) if span <= 4.0 else (1.0,)
-        if not any(abs(mantissa - m) < 1e-6 * m for m in shown):
+        return any(abs(mantissa - m) < 1e-6 * m for m in shown)
+
+    def __call__(self, x: float, pos: int | None = None) -> str:
+        if not self._labelled(x):
             return ""
-        return tick_text(x)
+        lo, hi = sorted(self.axis.get_view_interval())
+        labelled = [v for v in (*self._ticks, x) if lo <= v <= hi and self._labelled(v)]
+        return tick_text(x, powers=any(not 0.01 <= v < 1e4 for v in labelled))
 
 
 def log_axis(axis: Axis) -> None:
@@ -338,6 +353,29 @@ def _experiment_stats(measured: Sequence[ModalTable], pose_var: str):
     return stats
 
 
+def experiment_words(measured: Sequence[ModalTable], pose_var: str) -> str:
+    """What the experiment points of :func:`plot_freq_vs_pose` are, for a caption: the mean ± 1 standard
+    deviation over how many tests at each value of ``pose_var`` (tables at the same pose, and
+    configurations at the same pose within a table, are repeats), or the ``freq_sd_hz`` a table gives.
+
+    Examples
+    --------
+    >>> from flexmodal.contract.table import ModalTable
+    >>> rows = [{"config": c, "mode": 1, "freq_hz": f, "pose.theta_deg": t}
+    ...         for c, f, t in [("a-impact", 10.0, 0), ("a-random", 10.2, 0), ("b", 12.0, 30)]]
+    >>> experiment_words([ModalTable.from_records(rows)], "theta_deg")
+    'experiment mean ± 1 standard deviation over the 1 to 2 tests at each pose'
+    """
+    stats = _experiment_stats(measured, pose_var)
+    lo, hi = int(stats["count"].min()), int(stats["count"].max())
+    stated = any("freq_sd_hz" in t.frame for t in measured)
+    if hi == 1:
+        return ("experiment mean ± 1 standard deviation as the table states it (freq_sd_hz)" if stated
+                else "experiment: one test at each pose (no error bar)")
+    n = f"{hi}" if lo == hi else f"{lo} to {hi}"
+    return f"experiment mean ± 1 standard deviation over the {n} tests at each pose"
+
+
 def plot_freq_vs_pose(measured: Sequence[ModalTable], predictions: Sequence[tuple[str, ModalTable]],
                       pose_var: str, unit: str = "deg", title: str = "") -> Figure:
     """Natural frequency [Hz] against ``pose.<pose_var>``: a line per model and mode, experiment points.
@@ -360,7 +398,7 @@ def plot_freq_vs_pose(measured: Sequence[ModalTable], predictions: Sequence[tupl
         stats = _experiment_stats(measured, pose_var)
         ax.errorbar(stats["x"].to_numpy(float), stats["mean"].to_numpy(float),
                     yerr=stats["std"].to_numpy(float), fmt="o", color="k", ms=4, capsize=3,
-                    label="experiment (mean ± 1 sd)")
+                    label="experiment (mean ± 1 sd)" if (stats["std"] > 0).any() else "experiment")
     ax.set_xlabel(f"{text(pose_var)} [{text(unit)}]")
     ax.set_ylabel("natural frequency [Hz]")
     ax.set_yscale("log")
@@ -466,7 +504,7 @@ def gap_per_mode(diagnosis: Diagnosis) -> tuple[list[str], np.ndarray, np.ndarra
 
 
 def plot_gap(diagnosis: Diagnosis, title: str = "") -> Figure:
-    """Bars of the per-mode relative frequency error [%] before and after the diagnosed effect, and the
+    """Bars of the per-mode RMS relative frequency error [%] before and after the diagnosed effect, and the
     held-out RMS error [%] before and after (docs/formats.md ``verdict``)."""
     modes, before, after = gap_per_mode(diagnosis)
     verdict = diagnosis.verdict
@@ -477,12 +515,15 @@ def plot_gap(diagnosis: Diagnosis, title: str = "") -> Figure:
     shift = w / 2 if after is not None else 0.0
     bars = [ax.bar(x - shift, 100 * before, w, color="0.6", label="nominal model")]
     if after is not None:
+        pred = diagnosis.predictions      # as Diagnosis.per_mode_after: held out, else the fit to all
+        held = pred.rms_rel_error_per_mode(pred.best_heldout_hz) if pred and pred.best_heldout_hz else {}
+        how = "held out" if any(v is not None for v in held.values()) else "fitted to all"
         bars.append(ax.bar(x + w / 2, 100 * after, w, color=_COLOURS[0],
-                           label=text(f"with {verdict.effect}")))
+                           label=text(f"with {verdict.effect} ({how})")))
     for container in bars:
         ax.bar_label(container, fmt="{:.3g} %", fontsize=7)
     ax.set_xticks(x, [f"mode {m}" for m in modes])
-    ax.set_ylabel("relative frequency error [%]")
+    ax.set_ylabel("RMS frequency error [%]")
     ax.legend(fontsize=7)
     ax.grid(True, axis="y", alpha=0.3)
     totals = [verdict.heldout_rms_rel_error_before, verdict.heldout_rms_rel_error_after]

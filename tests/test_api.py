@@ -43,6 +43,16 @@ def example(tmp_path_factory):
     return namespace
 
 
+def test_the_first_cell_runs_again_on_the_file_it_made(example, monkeypatch):
+    """A notebook is run more than once: the cell that stores the simulated runs raised "runs.h5: run
+    'theta0' already exists" on the second run; now it keeps the stored runs (and simulates nothing)."""
+    first = re.findall(r"```python\n(.*?)```", DOC.read_text(encoding="utf-8"), flags=re.S)[0]
+    monkeypatch.chdir(example["dir"])
+    before = api.list_runs("runs.h5")
+    exec(compile(first, str(DOC), "exec"), {"__name__": "__doc_example__"})
+    assert api.list_runs("runs.h5") == before == ["theta0", "theta120", "theta30", "theta60", "theta90"]
+
+
 def test_the_worked_example_finds_the_simulated_modes(example):
     """Known answer: the simulated arm's natural frequencies (with the hidden elbow spring)."""
     rig, measured = example["rig"], example["measured"]

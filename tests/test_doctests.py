@@ -63,6 +63,36 @@ def test_every_public_api_function_has_a_numpydoc_docstring():
     assert missing == {}
 
 
+def test_every_public_api_class_documents_each_field():
+    """Every class flexmodal.api exports documents each of its fields (a dataclass's) or constructor
+    arguments in a numpydoc Parameters or Attributes section (``name : type`` and a description):
+    Faults, FrfResult, RunsFailed and Thresholds had none."""
+    import dataclasses
+    import inspect
+
+    from flexmodal import api
+
+    undocumented = {}
+    for name in api.__all__:
+        cls = getattr(api, name)
+        if not inspect.isclass(cls):
+            continue
+        if dataclasses.is_dataclass(cls):
+            names = [f.name for f in dataclasses.fields(cls)]
+        else:
+            params = inspect.signature(cls.__init__).parameters.values()
+            names = [p.name for p in params if p.name != "self" and p.kind in (p.POSITIONAL_OR_KEYWORD,
+                                                                                p.KEYWORD_ONLY)]
+        doc = inspect.getdoc(cls) or ""
+        entries = {n.strip() for line in doc.splitlines() if " : " in line and not line.startswith(" ")
+                   for n in line.split(" : ")[0].split(",")}
+        sections = [s for s in ("Parameters", "Attributes") if f"\n{s}\n{'-' * len(s)}\n" in doc]
+        lacking = [n for n in names if n not in entries or not sections]
+        if lacking:
+            undocumented[name] = lacking
+    assert undocumented == {}
+
+
 def test_every_public_api_example_is_one_the_doctest_run_collects():
     """The Examples of each function of flexmodal.api (those defined there, or in a module the walk
     runs) are doctests that ``doctest.testmod`` of their module finds, not text it skips."""

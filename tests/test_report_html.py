@@ -143,6 +143,12 @@ def test_report_tables_carry_units_and_numbers(report, inputs):
     assert f"{first['freq_hz']:.2f}" in html
     assert "19 / 0.6" in html  # verdict 0.19 -> 0.006 as percent
     assert "modes 2; configurations theta0, theta60; region joint:elbow" in html
+    # the runs share their channels, so one table lists them all: its peak is the largest of the runs
+    # (it showed the first run's peaks under every run's name)
+    with h5py.File(inputs["runs"], "r") as f:
+        force = [float(abs(f[f"runs/{r}/samples"][:, 0]).max()) for r in RUN_IDS]
+    assert f"largest peak |x| of the {len(RUN_IDS)} runs [unit]" in html
+    assert '<td>F</td>' in html and f'<td class="num">{max(force):.4g} N</td>' in html
 
 
 def test_data_quality_counts_the_impact_hits_the_frf_processing_kept(report, inputs):
@@ -246,6 +252,9 @@ def test_the_verdict_table_spells_out_what_remains_the_rivals_and_the_advice(tmp
     assert "<th>largest held-out errors</th><td>mode " in html
     assert "√(m² + f²); measurement scatter m = " in html
     assert ("all 10 configurations" in html) == (part == "demo")
+    # both are 'largely explained' (what remains is 4 and 7 times the scatter, not noise): not green
+    assert v.grade == "largely explained" and \
+        '<th>how much of the gap is explained</th><td class="partial">largely explained: ' in html
     assert not re.search(r"\b(nan|None)\b|\{'", re.sub(r"<[^>]+>", " ", html))
 
 
@@ -265,6 +274,9 @@ def test_the_scatter_line_adds_in_quadrature_or_says_the_least_the_ranking_uses(
     floored = dataclasses.replace(result, scatter=0.01)
     assert scatter_line(floored).startswith("scatter: 1 %, the least the ranking uses (sqrt(m^2 + f^2) = "
                                             f"{100 * result.scatter:.3g} % is below it)")
+    from flexmodal.compare.diagnosis import MIN_SCATTER  # the key table states the floor it has
+    formats = (Path(api.__file__).parent / "docs" / "formats.md").read_text(encoding="utf-8")
+    assert f"max(√(measurement² + floor²), {MIN_SCATTER:g})" in formats
 
 
 def test_a_file_in_the_reports_folder_is_named_relative_to_it_even_inside_the_package(tmp_path):
@@ -276,3 +288,14 @@ def test_a_file_in_the_reports_folder_is_named_relative_to_it_even_inside_the_pa
     rig = package / "fixtures" / "rigs" / "demo_arm.toml"
     assert relative_name(rig, package / "fixtures") == "rigs/demo_arm.toml"
     assert relative_name(rig, tmp_path) == "flexmodal:fixtures/rigs/demo_arm.toml"
+
+
+def test_a_users_file_inside_a_clone_is_not_named_as_shipped_with_flexmodal():
+    """In a clone, diag/diagnosis.html named its inputs 'flexmodal:examples/rigs/demo_arm.toml,
+    flexmodal:modes.csv': the user's own modes.csv read as a file of flexmodal's."""
+    from flexmodal.reports.html import relative_name
+
+    package = Path(api.__file__).resolve().parent
+    assert relative_name(package / "examples" / "rigs" / "demo_arm.toml", package / "diag") == \
+        "../examples/rigs/demo_arm.toml"
+    assert relative_name(package / "README.md", package / "diag") == "../README.md"
