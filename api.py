@@ -1684,9 +1684,10 @@ def plot_gap(diagnosis: Diagnosis | Mapping | PathLike, title: str = "") -> Figu
     Returns
     -------
     matplotlib.figure.Figure
-        Bars of each mode's relative frequency error [%], RMS over the configurations, of the nominal
-        model and with the diagnosed effect (held out, or fitted to all configurations when the
-        diagnosis held none out: the legend says which), and the held-out RMS error [%] over all modes.
+        Bars of each mode's relative frequency error [%], RMS over configurations: of the nominal model
+        over all of them, with the diagnosed effect over those it is judged on (the held-out ones, or
+        all when the diagnosis held none out: the legend says which); and the held-out RMS error [%]
+        over all modes, before and after.
 
     Examples
     --------
