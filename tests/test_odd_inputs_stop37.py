@@ -301,3 +301,14 @@ def test_an_overload_reaching_far_past_the_end_is_one_interval(tmp_path: Path) -
         w.add_events([Event("trigger", 1000), Event("overload", 900, 10**12, "a1")])   # frf hung (a list)
     with pytest.raises(ModalError, match="hit at sample 1000: overload"):
         fm.compute_frf(path)
+
+
+def test_a_dbc_signal_of_factor_zero_is_refused(tmp_path: Path) -> None:
+    from flexmodal.daq.dbc import load_message
+
+    text = (REPO / "fixtures" / "flexmodal_sim.dbc").read_text(encoding="utf-8")
+    old = "SG_ a2 m0 : 48|16@1- (0.30517578125,0.0)"
+    assert old in text   # a factor 0 recorded a channel of zeros, rc 0
+    (tmp_path / "x.dbc").write_text(text.replace(old, "SG_ a2 m0 : 48|16@1- (0,0.0)"), encoding="utf-8")
+    with pytest.raises(DaqError, match=r"x\.dbc: DBC signal 'a2': factor 0 "):
+        load_message(str(tmp_path / "x.dbc"), "FlexScan")
