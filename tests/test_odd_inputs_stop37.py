@@ -273,3 +273,31 @@ def test_uff_abscissa_of_the_function_type(tmp_path: Path, capsys, func_type: in
     pyuff.UFF(str(tmp_path / "u.uff")).write_sets(records, mode="overwrite")
     _one_line(capsys, main(["identify", str(tmp_path / "u.uff"), "--out", str(tmp_path / "m.csv")]),
               "u.uff: dataset 58 record 1", words)
+
+
+# -- a stored FRF group is of its run's sampling; events reaching past the end ------------------------------
+@pytest.mark.parametrize(("change", "words"), [
+    (lambda g: g.attrs.__setitem__("sample_rate_hz", 4096.0), "sample_rate_hz = 4096 Hz is not its run's"),
+    (lambda g: (g.__delitem__("freq_hz"), g.create_dataset("freq_hz", data=np.linspace(0, 400, 129))),
+     "'freq_hz' reaches 400 Hz, above the Nyquist frequency 256 Hz"),
+])
+def test_frf_group_of_another_sampling_is_refused(tmp_path: Path, capsys, change, words: str) -> None:
+    path = _run_with_frf(tmp_path)
+    with h5py.File(path, "r+") as f:   # was rc 0: modes up to 875 Hz from a run sampled at 1024 Hz
+        change(f["runs/r1/frf"])
+    _one_line(capsys, main(["identify", str(path), "--out", str(tmp_path / "m.csv")]), "frf group", words)
+
+
+def test_an_overload_reaching_far_past_the_end_is_one_interval(tmp_path: Path) -> None:
+    from flexmodal.daq.store import Event
+
+    path = tmp_path / "hit.h5"
+    force = np.zeros(4096)
+    force[1000:1010] = np.hanning(10) * 50
+    resp = np.convolve(force, np.exp(-np.arange(400) / 60.0) * np.sin(np.arange(400) / 2.0))[:4096]
+    with RunWriter(path, "r1", sample_rate_hz=512.0, excitation="impact", pose={},
+                   channels=(Channel("F", "force", "N"), Channel("a1", "acceleration", "m/s^2"))) as w:
+        w.append(np.column_stack([force, resp]))
+        w.add_events([Event("trigger", 1000), Event("overload", 900, 10**12, "a1")])   # frf hung (a list)
+    with pytest.raises(ModalError, match="hit at sample 1000: overload"):
+        fm.compute_frf(path)
