@@ -714,6 +714,7 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
 
     _check_band(fmin, fmax)
     _check_identify_options(max_order, poles_hz, references)
+    poles_hz = None if poles_hz is None else list(poles_hz)   # a set or a generator: the methods index it
     if out is not None:
         _identification_outputs(out, uff, source)
     elif uff is not None or from_diagram:
@@ -1829,6 +1830,12 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
 
     if not isinstance(title, str):   # None was printed as the page's title "None"
         raise TypeError(f"report: title must be text (str), got {type(title).__name__} {title!r}")
+    from flexmodal.contract.table import ModalTable
+
+    for name, value in (("repeats", repeats), ("predictions", predictions)):
+        if isinstance(value, str | bytes | os.PathLike | ModalTable) or not isinstance(value, Iterable):
+            raise TypeError(f"report: {name} must be a list of modal tables or paths, got "
+                            f"{type(value).__name__} {value!r:.60}: for one table write [...]")
     sources = _paths([*runs, measured, *repeats, *predictions, diagnosis, rig, geometry])
     output_file(out, ReportError, "report (--out)", inputs=sources)
     if pdf:

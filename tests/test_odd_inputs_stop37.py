@@ -32,6 +32,7 @@ from flexmodal.models.errors import ModelError
 from flexmodal.models.rig import load_rig
 
 RIG = (REPO / "examples" / "rigs" / "seed003_two_link.toml").read_text(encoding="utf-8")
+MEASURED = REPO / "examples" / "measured" / "seed003_table3_f1f2.csv"
 SESSIONS = REPO / "examples" / "sessions"
 
 
@@ -312,3 +313,25 @@ def test_a_dbc_signal_of_factor_zero_is_refused(tmp_path: Path) -> None:
     (tmp_path / "x.dbc").write_text(text.replace(old, "SG_ a2 m0 : 48|16@1- (0,0.0)"), encoding="utf-8")
     with pytest.raises(DaqError, match=r"x\.dbc: DBC signal 'a2': factor 0 "):
         load_message(str(tmp_path / "x.dbc"), "FlexScan")
+
+
+@pytest.mark.parametrize(("call", "error", "words"), [
+    (lambda: fm.report("r.html", measured=MEASURED, repeats=str(MEASURED)), TypeError,
+     "repeats must be a list"),                                    # was "m: modal table not found"
+    (lambda: fm.report("r.html", measured=MEASURED, predictions=str(MEASURED)), TypeError,
+     "predictions must be a list"),
+])
+def test_api_one_table_where_a_list_belongs(call, error, words: str) -> None:
+    with pytest.raises(error, match=words):
+        call()
+
+
+def test_api_numpy_whole_numbers_and_sets_are_numbers() -> None:
+    rig = REPO / "examples" / "rigs" / "seed003_two_link.toml"
+    table = fm.predict(rig, {"t": {"theta_deg": 0.0}}, "fe", np.int64(2))   # was "not a whole number"
+    assert sorted(table.frame["mode"]) == [1, 2]
+    f = np.linspace(0.0, 100.0, 401)
+    s, w0 = 2j * np.pi * f, 2 * np.pi * 40.0                       # one mode at 40 Hz, 2 % damping
+    frf = fm.frf_from_arrays(f, s**2 / (s**2 + 2 * 0.02 * w0 * s + w0**2), outputs=["tip"])
+    modes = fm.identify(frf, poles_hz={40.0}).table                 # a set: float() of the set, TypeError
+    assert modes.frame["freq_hz"].tolist() == pytest.approx([40.0], rel=1e-3)
