@@ -335,3 +335,21 @@ def test_api_numpy_whole_numbers_and_sets_are_numbers() -> None:
     frf = fm.frf_from_arrays(f, s**2 / (s**2 + 2 * 0.02 * w0 * s + w0**2), outputs=["tip"])
     modes = fm.identify(frf, poles_hz={40.0}).table                 # a set: float() of the set, TypeError
     assert modes.frame["freq_hz"].tolist() == pytest.approx([40.0], rel=1e-3)
+
+
+@pytest.mark.parametrize(("where", "driving"), [(("tip", "y"), True), ((" Tip", "Y "), True),
+                                                (("tip", "x"), False), (("link1@1", "y"), False)])
+def test_the_driving_point_ignores_case(tmp_path: Path, where: tuple[str, str], driving: bool) -> None:
+    """A response at 'Tip'/'Y' under a force at 'tip'/'y' was no driving point: shapes scaled to unit
+    maximum, not mass-normalised, without a word."""
+    from flexmodal.daq.store import read_run
+    from flexmodal.modal.compute import compute_frf
+    from flexmodal.modal.sources import _driving_point
+
+    chans = [Channel("F", "force", "N", location="tip", direction="y"),
+             Channel("a1", "acceleration", "m/s^2", location=where[0], direction=where[1])]
+    with RunWriter(tmp_path / "run.h5", "r1", sample_rate_hz=1024.0, channels=chans, excitation="random",
+                   pose={}) as w:
+        w.append(np.random.default_rng(0).standard_normal((1024, 2)))
+    run = read_run(tmp_path / "run.h5", "r1")
+    assert (_driving_point(run, compute_frf(run, nfft=256)) == 0) is driving
