@@ -714,6 +714,7 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
 
     _check_band(fmin, fmax)
     _check_identify_options(max_order, poles_hz, references)
+    poles_hz = None if poles_hz is None else list(poles_hz)   # a set or a generator: the methods index it
     if out is not None:
         _identification_outputs(out, uff, source)
     elif uff is not None or from_diagram:
@@ -1684,9 +1685,10 @@ def plot_gap(diagnosis: Diagnosis | Mapping | PathLike, title: str = "") -> Figu
     Returns
     -------
     matplotlib.figure.Figure
-        Bars of each mode's relative frequency error [%], RMS over the configurations, of the nominal
-        model and with the diagnosed effect (held out, or fitted to all configurations when the
-        diagnosis held none out: the legend says which), and the held-out RMS error [%] over all modes.
+        Bars of each mode's relative frequency error [%], RMS over configurations: of the nominal model
+        over all of them, with the diagnosed effect over those it is judged on (the held-out ones, or
+        all when the diagnosis held none out: the legend says which); and the held-out RMS error [%]
+        over all modes, before and after.
 
     Examples
     --------
@@ -1828,6 +1830,12 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
 
     if not isinstance(title, str):   # None was printed as the page's title "None"
         raise TypeError(f"report: title must be text (str), got {type(title).__name__} {title!r}")
+    from flexmodal.contract.table import ModalTable
+
+    for name, value in (("repeats", repeats), ("predictions", predictions)):
+        if isinstance(value, str | bytes | os.PathLike | ModalTable) or not isinstance(value, Iterable):
+            raise TypeError(f"report: {name} must be a list of modal tables or paths, got "
+                            f"{type(value).__name__} {value!r:.60}: for one table write [...]")
     sources = _paths([*runs, measured, *repeats, *predictions, diagnosis, rig, geometry])
     output_file(out, ReportError, "report (--out)", inputs=sources)
     if pdf:

@@ -10,6 +10,7 @@ byte ``start // 8``, bit ``start % 8``) sits at position ``(7 - start // 8) * 8 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,6 +46,9 @@ def _layout(sig) -> SignalLayout:
         lsb = sig.start
     if lsb < 0 or lsb + sig.length > 64:
         raise DaqError(f"DBC signal {sig.name!r}: bits outside the 8 data bytes")
+    if not (math.isfinite(sig.scale) and sig.scale != 0 and math.isfinite(sig.offset)):
+        raise DaqError(f"DBC signal {sig.name!r}: factor {sig.scale!r} and offset {sig.offset!r} must be "
+                       "finite, the factor non-zero (a factor 0 decodes every value as the offset)")
     raw_min, raw_max = ((-(1 << (sig.length - 1)), (1 << (sig.length - 1)) - 1) if sig.is_signed
                         else (0, (1 << sig.length) - 1))
     return SignalLayout(sig.name, lsb, sig.length, big, sig.is_signed, float(sig.scale), float(sig.offset),
@@ -108,7 +112,10 @@ def load_messages(dbc_path: str, names: list[str] | tuple[str, ...] = ()) -> lis
         if len(found) != 1:
             raise DaqError(f"{dbc_path}: name the messages carrying the samples (messages = [...]); "
                            f"messages: {', '.join(known)}")
-    return [MessageLayout.from_cantools(m) for m in found]
+    try:
+        return [MessageLayout.from_cantools(m) for m in found]
+    except DaqError as exc:   # a signal's layout: name the file too
+        raise DaqError(f"{dbc_path}: {exc}") from None
 
 
 def load_message(dbc_path: str, message: str = "") -> MessageLayout:

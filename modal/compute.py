@@ -103,7 +103,7 @@ def _sweeps_of(samples, inputs: Sequence[int]) -> np.ndarray | None:
 def frf_of_record(samples, sample_rate_hz: float, names: Sequence[str], kinds: Sequence[str],
                   *, excitation: str = "random", estimator: str = "H1", nfft: int | None = None,
                   window: str | None = None, overlap: float = 0.5, where: str = "record",
-                  triggers: Sequence[int] | None = None, overload_samples: Sequence[int] = (),
+                  triggers: Sequence[int] | None = None, overloads: Sequence[tuple[int, int]] = (),
                   averaging: str = "linear", skip: Sequence[tuple[int, int]] = (),
                   pretrigger_s: float = 0.02, workers: int | None = None,
                   sweeps: Sequence[int] | None = None) -> FrfResult:
@@ -157,7 +157,7 @@ def frf_of_record(samples, sample_rate_hz: float, names: Sequence[str], kinds: S
         check_samples(samples, names, where, allow_nan=True)
         fw, ew = impact_windows(window)
         spectra, hits = impact_spectra(samples, sample_rate_hz, inputs[0], outputs, triggers=triggers,
-                                       force_window=fw, exp_window=ew, overload_samples=overload_samples,
+                                       force_window=fw, exp_window=ew, overloads=overloads,
                                        averaging=averaging, gaps=skip, pretrigger_s=pretrigger_s)
         record = 2 * (spectra.freq_hz.size - 1)
         decay = added_decay_rate_per_s(ew, record, sample_rate_hz)
@@ -197,11 +197,12 @@ def compute_frf(run, *, estimator: str = "H1", nfft: int | None = None, window: 
     ``daq.store.open_run``): uses its excitation, trigger, overload, gap and corrupt events."""
     skip = [(e.sample_index, e.count) for e in run.events if e.kind in SKIPPED_EVENTS]
     triggers = [e.sample_index for e in run.events if e.kind == "trigger"] or None
-    overloads = [e.sample_index + k for e in run.events if e.kind == "overload"
-                 for k in range(max(1, e.count))]
+    # (first sample, count) as stored: a count of 10^9 (or one past the run's end) was a Python list of
+    # that many sample indices (frf hung); the hits test the intervals
+    overloads = [(e.sample_index, e.count) for e in run.events if e.kind == "overload"]
     where = f"{run.path}:{run.run_id}"
     with naming(where, ModalError):  # messages from the spectra layer name the run too
         return frf_of_record(run.samples, run.sample_rate_hz, [c.name for c in run.channels],
                              [c.kind for c in run.channels], excitation=run.excitation, estimator=estimator,
                              nfft=nfft, window=window, overlap=overlap, where=where, triggers=triggers,
-                             overload_samples=overloads, averaging=averaging, skip=skip, workers=workers)
+                             overloads=overloads, averaging=averaging, skip=skip, workers=workers)

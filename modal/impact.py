@@ -115,16 +115,17 @@ def impact_spectra(samples: np.ndarray, sample_rate_hz: float, force_col: int, o
                    record_len: int | None = None, force_window: str = "force",
                    exp_window: str = "exponential:1", averaging: str = "linear", n_exp: int = 4,
                    double_hit_fraction: float = 0.1, min_frac: float = 0.9, min_gap_s: float = 1.0,
-                   overload_samples: Sequence[int] = (), gaps: Sequence[tuple[int, int]] = ()
+                   overloads: Sequence[tuple[int, int]] = (), gaps: Sequence[tuple[int, int]] = ()
                    ) -> tuple[Spectra, list[Hit]]:
     """Averaged spectra of the accepted hits and the list of hits with their verdicts.
 
     ``triggers`` default to :func:`find_triggers` on the force (hits at least ``min_gap_s`` apart, so a
     double hit stays in its record); ``record_len`` defaults to the shortest distance between
     consecutive record starts, shortened to the last hit's when that one holds at least
-    ``MIN_LAST_RECORD`` of it (else the last hit alone is rejected as truncated).  ``overload_samples`` are
-    sample indices flagged as overloaded by the acquisition; ``gaps`` (first sample, count) intervals
-    of lost or corrupt data.  A hit whose record overlaps a gap or holds NaN samples, and a last hit
+    ``MIN_LAST_RECORD`` of it (else the last hit alone is rejected as truncated).  ``overloads`` are
+    (first sample, count) intervals flagged as overloaded by the acquisition (a count of 0 is one
+    sample; an interval may run past the data's end), ``gaps`` (first sample, count) intervals of lost
+    or corrupt data.  A hit whose record overlaps a gap or holds NaN samples, and a last hit
     whose record the data end cuts short, are rejected one by one with the reason; the others are used.
     """
     n = samples.shape[0]
@@ -159,10 +160,11 @@ def impact_spectra(samples: np.ndarray, sample_rate_hz: float, force_col: int, o
         recs -= recs[:, :, :pre].mean(axis=-1, keepdims=True)
     w_exp = window(exp_window, record_len)
     w = np.vstack([window(force_window, record_len) * w_exp, np.repeat(w_exp[None], len(outputs), 0)])
-    overloads = np.asarray(overload_samples, int)
+    spans = np.asarray(overloads, np.int64).reshape(-1, 2)
+    first, end = spans[:, 0], spans[:, 0] + np.maximum(spans[:, 1], 1)
     for k in usable:  # a loop over hits (a few), not samples
         s = starts[k]
-        if np.any((overloads >= s) & (overloads < s + record_len)) or any(_clipped(c) for c in recs[k]):
+        if np.any((first < s + record_len) & (end > s)) or any(_clipped(c) for c in recs[k]):
             reasons[k] = "overload"
         elif _double_hit(recs[k, 0, pre:], double_hit_fraction):
             reasons[k] = "double hit"

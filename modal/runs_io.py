@@ -129,9 +129,10 @@ def read_frf(path: str | Path, run_id: str) -> FrfResult | None:
         a = _Attrs(g.attrs, where)
         outputs, inputs = a.names("outputs", H.shape[0]), a.names("inputs", H.shape[1])
         _check_names_are_channels(run, outputs, inputs, where)
+        rate = a.number("sample_rate_hz", np.nan, positive=True)
+        _check_rate(run, rate, freq_hz, where)
         return FrfResult(freq_hz, H, coherence, a.text("estimator"), a.text("window"),
-                         a.integer("nfft", 1), a.integer("n_averages", 1),
-                         a.number("sample_rate_hz", np.nan, positive=True),
+                         a.integer("nfft", 1), a.integer("n_averages", 1), rate,
                          a.text("quantity", "accelerance"), outputs, inputs,
                          a.number("decay_rate_per_s", 0.0), a.json("provenance", {}, dict))
 
@@ -152,6 +153,20 @@ def _check_names_are_channels(run: h5py.Group, outputs: tuple[str, ...], inputs:
             if nfc(name) not in channels:
                 raise ModalError(f"{where}: attribute {key} names {name!r}, not a channel of the run "
                                  f"(channels: {', '.join(sorted(channels))})")
+
+
+def _check_rate(run: h5py.Group, rate_hz: float, freq_hz: np.ndarray, where: str) -> None:
+    """The group's sample rate is its run's, and its lines end at or below that rate's Nyquist frequency
+    (a group from another run, or with its lines scaled, gave modes at frequencies the run cannot hold)."""
+    own = run.attrs.get("sample_rate_hz")
+    run_rate = float(own) if isinstance(own, float | int | np.floating | np.integer) else np.nan
+    if np.isfinite(rate_hz) and np.isfinite(run_rate) and not np.isclose(rate_hz, run_rate, rtol=1e-9):
+        raise ModalError(f"{where}: attribute sample_rate_hz = {rate_hz:g} Hz is not its run's "
+                         f"({run_rate:g} Hz)")
+    rate = rate_hz if np.isfinite(rate_hz) else run_rate
+    if np.isfinite(rate) and freq_hz[-1] > rate / 2 * (1 + 1e-9):
+        raise ModalError(f"{where}: 'freq_hz' reaches {freq_hz[-1]:g} Hz, above the Nyquist frequency "
+                         f"{rate / 2:g} Hz of the run's {rate:g} Hz sampling")
 
 
 def _checked_arrays(data: dict[str, h5py.Dataset], where: str) -> tuple[np.ndarray, ...]:

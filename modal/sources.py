@@ -25,19 +25,21 @@ from flexmodal.modal.sweep import sweep_plan
 
 
 def _driving_point(run, result: FrfResult) -> int | None:
-    """Output row measured where (location and direction) the first force acts, if any, and only when
-    the force is stored in N and that response in m/s^2: mass normalisation takes the accelerance as
-    (m/s^2)/N, so a run stored in g or kN would get shapes off by sqrt(9.81) or sqrt(1000) in silence
-    (they are scaled to unit maximum instead, as without a driving point)."""
+    """Output row measured where (location and direction, without case or surrounding spaces) the
+    first force acts, if any, and only when the force is stored in N and that response in m/s^2: mass
+    normalisation takes the accelerance as (m/s^2)/N, so a run stored in g or kN would get shapes off
+    by sqrt(9.81) or sqrt(1000) in silence (they are scaled to unit maximum instead, as without a
+    driving point)."""
     from flexmodal.daq.session import unit_factor
 
     by_name = {c.name: c for c in run.channels}
     force = by_name.get(result.inputs[0]) if result.inputs else None
     if force is None or not force.location or unit_factor(force.unit, "N") != 1.0:
         return None
+    place = lambda c: (c.location.strip().casefold(), c.direction.strip().casefold())   # 'Transverse'
     for j, name in enumerate(result.outputs):
         c = by_name.get(name)
-        if c is not None and c.location == force.location and c.direction == force.direction:
+        if c is not None and place(c) == place(force):
             return j if unit_factor(c.unit, "m/s^2") == 1.0 else None
     return None
 

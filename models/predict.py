@@ -12,6 +12,7 @@ fills a ``source`` column so it compares like any model here.
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 
@@ -126,8 +127,9 @@ def predict(rig: Rig, poses: Mapping[str, Mapping[str, float]], model: str = "fe
     (lumped-mass).  ``source`` defaults to the model name.  ``progress(config)`` is called after each pose.
     """
     solve = MODELS.entry(model)
-    if isinstance(n_modes, bool) or not isinstance(n_modes, int) or n_modes < 1:
+    if isinstance(n_modes, bool | np.bool_) or not isinstance(n_modes, numbers.Integral) or n_modes < 1:
         raise ModelError(f"number of modes must be a whole number >= 1 (got {n_modes!r})")
+    n_modes = int(n_modes)   # numpy's whole numbers too (np.int64(2) was refused as "not a whole number")
     _check_options(options, builtin=solve in {MODELS.entry(m) for m in BUILT_IN_MODELS})
     records = []
     with one_blas_thread():  # many small dense eigenproblems: threads contend

@@ -492,8 +492,9 @@ def plot_mode_shapes(arm, measured: ModalTable, config: str, title: str = "") ->
 
 
 def gap_per_mode(diagnosis: Diagnosis) -> tuple[list[str], np.ndarray, np.ndarray | None]:
-    """Modes, per-mode relative error [fraction] before (``baseline.per_mode``) and after the verdict's
-    effect (``Diagnosis.per_mode_after``; None without a best candidate), NaN where there is none."""
+    """Modes, per-mode relative error [fraction] before (``baseline.per_mode``, over every configuration)
+    and after the verdict's effect (``Diagnosis.per_mode_after``, over the held-out ones; None without a
+    best candidate), NaN where there is none."""
     before, after = diagnosis.baseline.per_mode, diagnosis.per_mode_after()
     modes = sorted(before, key=lambda m: (len(m), m))
 
@@ -524,7 +525,7 @@ def plot_gap(diagnosis: Diagnosis, title: str = "") -> Figure:
         ax.bar_label(container, fmt="{:.3g} %", fontsize=7)
     ax.set_xticks(x, [f"mode {m}" for m in modes])
     ax.set_ylabel("RMS frequency error [%]")
-    ax.legend(fontsize=7)
+    fig.legend(*ax.get_legend_handles_labels(), loc="outside lower center", fontsize=7, ncol=2)
     ax.grid(True, axis="y", alpha=0.3)
     totals = [verdict.heldout_rms_rel_error_before, verdict.heldout_rms_rel_error_after]
     if all(v is not None for v in totals):

@@ -73,7 +73,7 @@ def _hits(pulses: list[list[tuple[int, float]]], record: int = 1024, fs: float =
 
 def test_hits_are_rejected_for_double_hits_and_overloads_with_reasons():
     samples, fs = _hits([[(0, 1.0)], [(0, 1.0), (60, 0.5)], [(0, 1.0)], [(0, 1.0)]])
-    spectra, hits = impact_spectra(samples, fs, 0, [1], pretrigger_s=0.05, overload_samples=[3 * 1024 + 40])
+    spectra, hits = impact_spectra(samples, fs, 0, [1], pretrigger_s=0.05, overloads=[(3 * 1024 + 40, 1)])
     assert [h.reason for h in hits] == ["", "double hit", "", "overload"]
     assert spectra.n_averages == 2
 

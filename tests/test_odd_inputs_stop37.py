@@ -32,6 +32,7 @@ from flexmodal.models.errors import ModelError
 from flexmodal.models.rig import load_rig
 
 RIG = (REPO / "examples" / "rigs" / "seed003_two_link.toml").read_text(encoding="utf-8")
+MEASURED = REPO / "examples" / "measured" / "seed003_table3_f1f2.csv"
 SESSIONS = REPO / "examples" / "sessions"
 
 
@@ -273,3 +274,82 @@ def test_uff_abscissa_of_the_function_type(tmp_path: Path, capsys, func_type: in
     pyuff.UFF(str(tmp_path / "u.uff")).write_sets(records, mode="overwrite")
     _one_line(capsys, main(["identify", str(tmp_path / "u.uff"), "--out", str(tmp_path / "m.csv")]),
               "u.uff: dataset 58 record 1", words)
+
+
+# -- a stored FRF group is of its run's sampling; events reaching past the end ------------------------------
+@pytest.mark.parametrize(("change", "words"), [
+    (lambda g: g.attrs.__setitem__("sample_rate_hz", 4096.0), "sample_rate_hz = 4096 Hz is not its run's"),
+    (lambda g: (g.__delitem__("freq_hz"), g.create_dataset("freq_hz", data=np.linspace(0, 400, 129))),
+     "'freq_hz' reaches 400 Hz, above the Nyquist frequency 256 Hz"),
+])
+def test_frf_group_of_another_sampling_is_refused(tmp_path: Path, capsys, change, words: str) -> None:
+    path = _run_with_frf(tmp_path)
+    with h5py.File(path, "r+") as f:   # was rc 0: modes up to 875 Hz from a run sampled at 1024 Hz
+        change(f["runs/r1/frf"])
+    _one_line(capsys, main(["identify", str(path), "--out", str(tmp_path / "m.csv")]), "frf group", words)
+
+
+def test_an_overload_reaching_far_past_the_end_is_one_interval(tmp_path: Path) -> None:
+    from flexmodal.daq.store import Event
+
+    path = tmp_path / "hit.h5"
+    force = np.zeros(4096)
+    force[1000:1010] = np.hanning(10) * 50
+    resp = np.convolve(force, np.exp(-np.arange(400) / 60.0) * np.sin(np.arange(400) / 2.0))[:4096]
+    with RunWriter(path, "r1", sample_rate_hz=512.0, excitation="impact", pose={},
+                   channels=(Channel("F", "force", "N"), Channel("a1", "acceleration", "m/s^2"))) as w:
+        w.append(np.column_stack([force, resp]))
+        w.add_events([Event("trigger", 1000), Event("overload", 900, 10**12, "a1")])   # frf hung (a list)
+    with pytest.raises(ModalError, match="hit at sample 1000: overload"):
+        fm.compute_frf(path)
+
+
+def test_a_dbc_signal_of_factor_zero_is_refused(tmp_path: Path) -> None:
+    from flexmodal.daq.dbc import load_message
+
+    text = (REPO / "fixtures" / "flexmodal_sim.dbc").read_text(encoding="utf-8")
+    old = "SG_ a2 m0 : 48|16@1- (0.30517578125,0.0)"
+    assert old in text   # a factor 0 recorded a channel of zeros, rc 0
+    (tmp_path / "x.dbc").write_text(text.replace(old, "SG_ a2 m0 : 48|16@1- (0,0.0)"), encoding="utf-8")
+    with pytest.raises(DaqError, match=r"x\.dbc: DBC signal 'a2': factor 0 "):
+        load_message(str(tmp_path / "x.dbc"), "FlexScan")
+
+
+@pytest.mark.parametrize(("call", "error", "words"), [
+    (lambda: fm.report("r.html", measured=MEASURED, repeats=str(MEASURED)), TypeError,
+     "repeats must be a list"),                                    # was "m: modal table not found"
+    (lambda: fm.report("r.html", measured=MEASURED, predictions=str(MEASURED)), TypeError,
+     "predictions must be a list"),
+])
+def test_api_one_table_where_a_list_belongs(call, error, words: str) -> None:
+    with pytest.raises(error, match=words):
+        call()
+
+
+def test_api_numpy_whole_numbers_and_sets_are_numbers() -> None:
+    rig = REPO / "examples" / "rigs" / "seed003_two_link.toml"
+    table = fm.predict(rig, {"t": {"theta_deg": 0.0}}, "fe", np.int64(2))   # was "not a whole number"
+    assert sorted(table.frame["mode"]) == [1, 2]
+    f = np.linspace(0.0, 100.0, 401)
+    s, w0 = 2j * np.pi * f, 2 * np.pi * 40.0                       # one mode at 40 Hz, 2 % damping
+    frf = fm.frf_from_arrays(f, s**2 / (s**2 + 2 * 0.02 * w0 * s + w0**2), outputs=["tip"])
+    modes = fm.identify(frf, poles_hz={40.0}).table                 # a set: float() of the set, TypeError
+    assert modes.frame["freq_hz"].tolist() == pytest.approx([40.0], rel=1e-3)
+
+
+@pytest.mark.parametrize(("where", "driving"), [(("tip", "y"), True), ((" Tip", "Y "), True),
+                                                (("tip", "x"), False), (("link1@1", "y"), False)])
+def test_the_driving_point_ignores_case(tmp_path: Path, where: tuple[str, str], driving: bool) -> None:
+    """A response at 'Tip'/'Y' under a force at 'tip'/'y' was no driving point: shapes scaled to unit
+    maximum, not mass-normalised, without a word."""
+    from flexmodal.daq.store import read_run
+    from flexmodal.modal.compute import compute_frf
+    from flexmodal.modal.sources import _driving_point
+
+    chans = [Channel("F", "force", "N", location="tip", direction="y"),
+             Channel("a1", "acceleration", "m/s^2", location=where[0], direction=where[1])]
+    with RunWriter(tmp_path / "run.h5", "r1", sample_rate_hz=1024.0, channels=chans, excitation="random",
+                   pose={}) as w:
+        w.append(np.random.default_rng(0).standard_normal((1024, 2)))
+    run = read_run(tmp_path / "run.h5", "r1")
+    assert (_driving_point(run, compute_frf(run, nfft=256)) == 0) is driving
