@@ -196,11 +196,14 @@ class _Context:
         self.handles = handles_for(rig)
         self.index = {h.name: i for i, h in enumerate(self.handles)}
         n = meas.freq_hz.shape[1] if n_modes is None else n_modes
-        self.bases = [pose_basis(rig, self.handles, p, n) for p in meas.poses]
-        if meas.sensors:
+        exact = [tuple(sorted((k, float(v).hex()) for k, v in p.items())) for p in meas.poses]
+        distinct = dict(zip(exact, meas.poses, strict=True))
+        made = {k: pose_basis(rig, self.handles, p, n) for k, p in distinct.items()}
+        if meas.sensors:                   # one basis per distinct pose (a repeat is the same object)
             rows = [s.name for s in rig.sensors]
             keep = [rows.index(s) for s in meas.sensors]
-            self.bases = [replace(b, sensors=b.sensors[keep]) for b in self.bases]
+            made = {k: replace(b, sensors=b.sensors[keep]) for k, b in made.items()}
+        self.bases = [made[k] for k in exact]
         self.target = Target(meas.freq_hz, meas.shapes, joint_angles_rad(rig, meas.poses))
         self.shape_dof = len(meas.sensors) - 1 if meas.shapes is not None else 0
         self.shape_floor = math.inf      # smallest in-sample mean (1 - MAC) of any model fitted so far
