@@ -341,7 +341,8 @@ class _Recorder:
         self.session, self.out, self.run_id, self.stamp = session, out, run_id, stamp
         self.target, self.stopper = target, stopper
         self.drivers = {d.name: make_driver(d, session.sample_rate_hz) for d in session.devices}
-        self.timeline = Timeline(session, {k: v.sources for k, v in self.drivers.items()})
+        self.timeline = Timeline(session, {k: v.sources for k, v in self.drivers.items()},
+                                 {k: v.source_units for k, v in self.drivers.items()})
         self.queue: queue.Queue = queue.Queue(maxsize=QUEUE_BLOCKS)
         self.stop = threading.Event()
         self.stats = {name: ReaderStats() for name in self.drivers}
