@@ -91,8 +91,8 @@ def test_compare_refuses_a_config_of_other_pose_variables(tmp_path: Path, capsys
                                     encoding="utf-8")
     code = main(["compare", str(tmp_path / "m.csv"), str(tmp_path / "p.csv")])   # was paired, rc 0
     _one_line(capsys, code, "config 'c1'", "pose theta_deg (", "pose phi_deg (", "differ")
-    (tmp_path / "p.csv").write_text("config,mode,freq_hz,source,pose.theta_deg\nc1,1,25.0,fe,30\n",
-                                    encoding="utf-8")
+    (tmp_path / "p.csv").write_text("config,mode,freq_hz,source,pose.theta_deg,pose.payload_kg\n"
+                                    "c1,1,25.0,fe,30,0.5\n", encoding="utf-8")   # more fixed: compared
     assert main(["compare", str(tmp_path / "m.csv"), str(tmp_path / "p.csv")]) == 0
 
 
