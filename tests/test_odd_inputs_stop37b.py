@@ -48,6 +48,14 @@ def test_session_fault_after_the_duration_is_refused(tmp_path: Path, capsys) -> 
     assert not (tmp_path / "r.h5").exists()
 
 
+def test_sim_hit_fault_past_the_record_is_refused() -> None:
+    import flexmodal.api as fm
+    from flexmodal.fixtures.errors import FixtureError
+
+    with pytest.raises(FixtureError, match=r"double_hit_at_s \(--double-hit-at\) = 5000 s is past the end"):
+        fm.serve_simulator("serial", duration=0.2, faults={"double_hit_at_s": 5000.0}, quiet=True)   # numpy
+
+
 # -- a declared serial layout starts with its byte order --------------------------------------------------
 @pytest.mark.parametrize("layout", ["12h", "=12h", "!12h", "<", ""])
 def test_serial_layout_needs_its_byte_order(layout: str) -> None:
