@@ -102,24 +102,29 @@ def _pair(f_all: np.ndarray, shapes: np.ndarray, target: Target) -> tuple[np.nda
     return idx, mac
 
 
-def paired_modes(fam: ReducedFamily, h: np.ndarray, target: Target
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+def paired_modes(fam: ReducedFamily, h: np.ndarray, target: Target, gradients: bool = True
+                 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, np.ndarray | None]:
     """Model modes paired with the measured ones at handle values ``h`` [B, C, H]: frequencies [B, C, n],
-    d lambda / d h [B, C, n, H], sensor shapes [B, C, n_sensors, n] and MAC [B, C, n] (None w/o shapes)."""
+    d lambda / d h [B, C, n, H] (None when ``gradients`` is false), sensor shapes [B, C, n_sensors, n]
+    and MAC [B, C, n] (None w/o shapes)."""
     n = target.freq_hz.shape[1]
-    lam, dlam, shapes = solve_family(fam, h, n + EXTRA_PAIRING_MODES)
+    lam, dlam, shapes = solve_family(fam, h, n + EXTRA_PAIRING_MODES, gradients)
     f_all = lam_to_hz(lam)
     idx, mac_all = _pair(f_all, shapes, target)
     mac = None if mac_all is None else np.take_along_axis(mac_all, idx[..., None], -1)[..., 0]
-    return (np.take_along_axis(f_all, idx, -1), np.take_along_axis(dlam, idx[..., None], 2),
+    return (np.take_along_axis(f_all, idx, -1),
+            None if dlam is None else np.take_along_axis(dlam, idx[..., None], 2),
             np.take_along_axis(shapes, idx[:, :, None, :], -1), mac)
 
 
-def evaluate(fam: ReducedFamily, D: np.ndarray, theta: np.ndarray, target: Target
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
-    """Model at parameters ``theta`` [B, J]: paired freqs [B, C, n], d f/d theta [B, C, n, J], MAC, h."""
+def evaluate(fam: ReducedFamily, D: np.ndarray, theta: np.ndarray, target: Target, gradients: bool = True
+             ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None, np.ndarray]:
+    """Model at parameters ``theta`` [B, J]: paired freqs [B, C, n], d f/d theta [B, C, n, J] (None when
+    ``gradients`` is false: the frequencies alone cost about half), MAC, h."""
     h = np.exp(D @ theta.T).transpose(2, 0, 1) if D.size else np.ones((theta.shape[0],) + D.shape[:2])
-    f, dlam, _, mac = paired_modes(fam, h, target)
+    f, dlam, _, mac = paired_modes(fam, h, target, gradients)
+    if dlam is None:
+        return f, None, mac, h
     dl = dlam * h[:, :, None, :]                                          # d lambda / d log h
     df = (dl @ D[None]) / (8 * math.pi**2 * np.maximum(f, 1e-12))[..., None]
     return f, df, mac, h
@@ -167,7 +172,7 @@ def fit_candidate(fam: ReducedFamily, cand: Candidate, target: Target, train: np
         grid = np.vstack([starts, grid]) if starts.ndim == 2 else np.concatenate(
             [starts, np.repeat(grid[None], F, axis=0)], axis=1)
     pts = grid.reshape(-1, J)
-    f, _, _, _ = evaluate(fam, D, pts, target)
+    f, _, _, _ = evaluate(fam, D, pts, target, gradients=False)
     sq = np.sum(((f / fm) - 1.0) ** 2, axis=2)                           # [P, C]
     penalty = np.sum((reg * pts) ** 2, axis=1)                            # [P]
     if grid.ndim == 3:                                                    # per-fold starts [F, G, J]
@@ -183,7 +188,7 @@ def fit_candidate(fam: ReducedFamily, cand: Candidate, target: Target, train: np
     x, c = _solve(fam, D, target, np.repeat(train, k, axis=0), reg, lower, upper, x0, MAX_ITER)
     pick = np.argmin(c.reshape(F, k), axis=1)
     theta = x.reshape(F, k, J)[np.arange(F), pick]
-    f, _, mac, _ = evaluate(fam, D, theta, target)
+    f, _, mac, _ = evaluate(fam, D, theta, target, gradients=False)
     return FitResult(theta, f, mac, train)
 
 

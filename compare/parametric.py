@@ -154,42 +154,94 @@ class ReducedFamily:
 
 def reduce_family(bases: Sequence[PoseBasis], handle_idx: Sequence[int], nominal: np.ndarray
                   ) -> ReducedFamily:
-    """Restrict every pose basis to the nominal modes plus the columns of ``handle_idx``; orthonormalise."""
-    blocks = []
-    for b in bases:
-        cols = list(range(b.n_modes)) + [c for h in handle_idx for c in b.groups[h]]
-        M0 = b.M0[np.ix_(cols, cols)]
-        w, U = np.linalg.eigh(0.5 * (M0 + M0.T))
-        keep = w > 1e-10 * w.max()
-        T = U[:, keep] / np.sqrt(w[keep])
-        sel = np.ix_(list(handle_idx), cols, cols)
-        blocks.append((T.T @ b.K0[np.ix_(cols, cols)] @ T, np.eye(T.shape[1]), T.T @ b.Kh[sel] @ T,
-                       T.T @ b.Mh[sel] @ T, b.sensors[:, cols] @ T))
-    r = max(bl[0].shape[0] for bl in blocks)
-    n_h = len(handle_idx)
-    C = len(blocks)
-    K0, M0 = np.zeros((C, r, r)), np.zeros((C, r, r))
+    """Restrict every pose basis to the nominal modes plus the columns of ``handle_idx``; orthonormalise.
+
+    Configurations whose bases have the same size and the same columns for these handles (and a pose
+    basis object that repeats) are reduced together, one batched ``eigh`` and product per group: the
+    same per-matrix LAPACK and BLAS calls as one configuration at a time, so the same numbers bit for bit
+    (``benchmarks/diagnosis_speed.py``).
+    """
+    handle_idx = list(handle_idx)
+    n_h, C = len(handle_idx), len(bases)
+    groups: dict[tuple, list[int]] = {}
+    for c, b in enumerate(bases):
+        cols = tuple(range(b.n_modes)) + tuple(col for h in handle_idx for col in b.groups[h])
+        groups.setdefault((b.K0.shape[0], cols), []).append(c)
+    reduced = []                              # (configurations, k0, kh, mh, s) per group of equal size
+    for (_, cols), members in groups.items():
+        distinct = list({id(bases[c]): bases[c] for c in members}.values())
+        where = {id(b): i for i, b in enumerate(distinct)}
+        of = np.array([where[id(bases[c])] for c in members])
+        ix = np.array(cols)
+        sub, rows = ix[:, None], ix[None, :]
+        hix = np.array(handle_idx, int)[:, None, None]
+        M0 = np.stack([b.M0[sub, rows] for b in distinct])
+        K0 = np.stack([b.K0[sub, rows] for b in distinct])
+        Kh = np.stack([b.Kh[hix, sub[None], rows[None]] for b in distinct])
+        Mh = np.stack([b.Mh[hix, sub[None], rows[None]] for b in distinct])
+        S = np.stack([b.sensors[:, ix] for b in distinct])
+        w, U = np.linalg.eigh(0.5 * (M0 + np.swapaxes(M0, -1, -2)))
+        keep = w > 1e-10 * w.max(axis=1, keepdims=True)
+        patterns: dict[bytes, list[int]] = {}
+        for i, k in enumerate(keep):
+            patterns.setdefault(k.tobytes(), []).append(i)
+        back = np.full(len(distinct), -1)
+        for rows_of in patterns.values():
+            sel = np.array(rows_of)
+            k = keep[sel[0]]
+            T = U[sel][..., k] / np.sqrt(w[sel][:, k])[:, None, :]
+            Tt = np.swapaxes(T, -1, -2)
+            out = (Tt @ K0[sel] @ T, Tt[:, None] @ Kh[sel] @ T[:, None], Tt[:, None] @ Mh[sel] @ T[:, None],
+                   S[sel] @ T)
+            back[:] = -1
+            back[sel] = np.arange(len(sel))
+            mine = back[of] >= 0
+            reduced.append((np.array(members)[mine], *(a[back[of][mine]] for a in out)))
+    r = max(red[1].shape[-1] for red in reduced)
+    n_s = reduced[0][4].shape[1]
+    K0, M0 = np.zeros((C, r, r)), np.repeat(np.eye(r)[None], C, axis=0)
     Kh, Mh = np.zeros((C, n_h, r, r)), np.zeros((C, n_h, r, r))
-    S = np.zeros((C, blocks[0][4].shape[0], r))
-    for c, (k0, m0, kh, mh, s) in enumerate(blocks):
-        q = k0.shape[0]
-        big = 1e6 * float(np.max(np.abs(np.diag(k0))))
-        K0[c] = np.diag(np.full(r, big))
-        M0[c] = np.eye(r)
-        K0[c, :q, :q], M0[c, :q, :q], S[c, :, :q] = k0, m0, s
+    S = np.zeros((C, n_s, r))
+    diag = np.arange(r)
+    for cs, k0, kh, mh, s in reduced:
+        q = k0.shape[-1]
+        big = 1e6 * np.max(np.abs(np.diagonal(k0, axis1=1, axis2=2)), axis=1)
+        K0[cs[:, None], diag, diag] = big[:, None]
+        K0[cs, :q, :q], S[cs, :, :q] = k0, s
         if n_h:
-            Kh[c, :, :q, :q], Mh[c, :, :q, :q] = kh, mh
+            Kh[cs, :, :q, :q], Mh[cs, :, :q, :q] = kh, mh
     has_mass = bool(n_h and np.any(Mh != 0))
     return ReducedFamily(K0, M0, Kh, Mh, S, np.asarray(nominal, float), has_mass)
 
 
-def solve_family(fam: ReducedFamily, h: np.ndarray, n_modes: int
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+CHUNK_BYTES = 4 << 20
+"""Working-set size of one batch of ``solve_family`` (a few MB: the temporaries stay in cache and are
+re-used by the allocator instead of being mapped afresh, which cost as much system as user time)."""
+
+
+def solve_family(fam: ReducedFamily, h: np.ndarray, n_modes: int, gradients: bool = True
+                 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
     """Lowest modes of the family at handle values ``h`` [P, C, H].
 
-    Returns eigenvalues ``lam`` [P, C, n] (rad^2/s^2), their sensitivities ``dlam`` [P, C, n, H] and the
-    sensor shapes [P, C, n_sensors, n] (mass-normalised).
+    Returns eigenvalues ``lam`` [P, C, n] (rad^2/s^2), their sensitivities ``dlam`` [P, C, n, H] (None
+    when ``gradients`` is false) and the sensor shapes [P, C, n_sensors, n] (mass-normalised).  The
+    points are solved in slices of about ``CHUNK_BYTES``; every matrix is solved on its own, so the
+    slicing changes no number.
     """
+    P, C = h.shape[:2]
+    r = fam.K0.shape[-1]
+    per_point = 8 * C * r * max(2 * r, (fam.Kh.shape[1] + 1) * n_modes)
+    step = max(1, CHUNK_BYTES // per_point)
+    parts = [_solve_slice(fam, h[p:p + step], n_modes, gradients) for p in range(0, max(P, 1), step)]
+    if len(parts) == 1:
+        return parts[0]
+    lam, dlam, shapes = zip(*parts, strict=True)
+    return (np.concatenate(lam), np.concatenate(dlam) if gradients else None, np.concatenate(shapes))
+
+
+def _solve_slice(fam: ReducedFamily, h: np.ndarray, n_modes: int, gradients: bool
+                 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+    """``solve_family`` on one slice of points."""
     dh = h - fam.nominal
     A = fam.K0[None] + np.einsum("pch,chij->pcij", dh, fam.Kh)
     if fam.has_mass:
@@ -202,13 +254,14 @@ def solve_family(fam: ReducedFamily, h: np.ndarray, n_modes: int
         lam, Y = np.linalg.eigh(A)
         Z = Y[..., :n_modes]
     lam = lam[..., :n_modes]
+    shapes = fam.sensors[None] @ Z
+    if not gradients:
+        return lam, None, shapes
     Zh = Z[:, :, None]                                                    # [P, C, 1, r, n]
     dK = np.sum(Zh * (fam.Kh[None] @ Zh), axis=-2)                         # [P, C, H, n]
     if fam.has_mass:
         dK = dK - lam[:, :, None, :] * np.sum(Zh * (fam.Mh[None] @ Zh), axis=-2)
-    dK = np.swapaxes(dK, -1, -2)
-    shapes = fam.sensors[None] @ Z
-    return lam, dK, shapes
+    return lam, np.swapaxes(dK, -1, -2), shapes
 
 
 def lam_to_hz(lam: np.ndarray) -> np.ndarray:

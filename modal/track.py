@@ -44,6 +44,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from flexmodal.checked_io.plural import counted
 from flexmodal.contract.mac import mac
 from flexmodal.contract.table import POSE_PREFIX, SHAPE_PREFIX, ModalTable
 from flexmodal.modal.errors import ModalError
@@ -717,8 +718,9 @@ def track_modes(samples: np.ndarray, sample_rate_hz: float, names: Sequence[str]
         tracks = drop_duplicates(tracks, options)
     out_names = tuple(names[j] for j in outputs)
     table = modal_map(windows, tracks, out_names, options.bin_deg)
-    warnings = ((f"{skipped} window(s) skipped: pose spread above {options.max_spread_deg:g} deg",)
-                if skipped else ()) + ((f"{gapped} window(s) skipped: they hold lost samples (gaps)",)
+    hold = "it holds" if gapped == 1 else "they hold"
+    warnings = ((f"{counted(skipped, 'window')} skipped: pose spread above {options.max_spread_deg:g} deg",)
+                if skipped else ()) + ((f"{counted(gapped, 'window')} skipped: {hold} lost samples (gaps)",)
                                        if gapped else ())
     return TrackResult(n_win / sample_rate_hz, n_hop / sample_rate_hz, tuple(windows), skipped, tuple(tracks),
                        tuple(harmonics), orders, table, out_names, warnings, gapped)
@@ -732,7 +734,8 @@ def default_pose_from(names: Sequence[str], kinds: Sequence[str], pose: Mapping[
     variables = list(pose) or ["theta_deg"]
     if len(encoders) == 1 and len(variables) == 1:
         return {variables[0]: encoders[0]}
-    raise ModalError(f"{where}: {len(encoders)} encoder channel(s) for pose variable(s) "
+    what = "pose variable" if len(variables) == 1 else "pose variables"
+    raise ModalError(f"{where}: {counted(len(encoders), 'encoder channel')} for {what} "
                      f"{', '.join(variables)}: name them with --pose-from VAR=CHANNEL,...")
 
 
