@@ -44,7 +44,7 @@ def test_sim_fault_after_the_duration_is_refused(capsys, fault: list[str], words
 def test_session_fault_after_the_duration_is_refused(tmp_path: Path, capsys) -> None:
     session = _session(tmp_path, "serial-sim.toml", "[simulator]\n", "[simulator]\ndrop_at_s = 3.0\n")
     code = main(["acquire", "--config", str(session), "--out", str(tmp_path / "r.h5"), "--duration", "1"])
-    _one_line(capsys, code, "s.toml: simulator: drop_at_s 3 s", "duration 1 s")
+    _one_line(capsys, code, "s.toml: simulator: drop_at_s 3 s", "(--duration 1 s)")
     assert not (tmp_path / "r.h5").exists()
 
 
