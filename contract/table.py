@@ -305,7 +305,8 @@ def display_html(summary: str, frame: pd.DataFrame, max_rows: int = 30) -> str:
 def _check_names(df: pd.DataFrame, source: str) -> None:
     """Raise ContractError for a configuration, sensor or pose variable whose name is blank or holds
     a control character (checked_io.text.name_fault): 'theta\\n0' would break every one-line message
-    and table row it is printed in, and '   ' names nothing."""
+    and table row it is printed in, and '   ' names nothing; and for two pose variables whose names
+    differ only by case."""
     prefixes = (POSE_PREFIX, SHAPE_PREFIX)
     named = [(f"config {c!r}", c) for c in pd.unique(df["config"])]
     named += [(f"column {c!r}", c.split(".", 1)[1]) for c in map(str, df.columns) if c.startswith(prefixes)]
@@ -315,6 +316,12 @@ def _check_names(df: pd.DataFrame, source: str) -> None:
         fault = name_fault(name)
         if fault:
             raise ContractError(f"{source}: {what}: the name {fault}")
+    poses = [c for c in map(str, df.columns) if c.startswith(POSE_PREFIX)]
+    folded = [c.casefold() for c in poses]
+    twice = [c for c, f in zip(poses, folded, strict=True) if folded.count(f) > 1]
+    if twice:   # pose.theta_deg and pose.Theta_deg were two variables of one pose
+        raise ContractError(f"{source}: columns {twice[0]!r} and {twice[1]!r} differ only by case: one pose "
+                            "variable given twice, or two that a reader cannot tell apart (rename one)")
 
 
 def _one_pose_per_config(df: pd.DataFrame, source: str) -> None:

@@ -185,6 +185,10 @@ def window_plan(n_samples: int, sample_rate_hz: float, pose: np.ndarray, lowest_
         raise ModalError(f"tracking hop (--hop) of {hop:.3g} s is shorter than 1/{1 / MIN_HOP_FRACTION:g} of "
                          f"the {win:.3g} s window: windows overlapping by more than 98 % add work, no data; "
                          f"give at least {MIN_HOP_FRACTION * win:.3g} s")
+    if hop > win:   # was "no mode was followed over enough windows": few windows, data between them unused
+        raise ModalError(f"tracking hop (--hop) of {hop:.3g} s is longer than the {win:.3g} s window "
+                         f"(--window{'' if options.window_s else ', its default'}): the samples between "
+                         "windows would never be identified; give a hop of at most the window")
     return n_win, max(1, int(round(min(hop * fs, n_samples))))   # a hop past the end: one window
 
 
@@ -759,8 +763,10 @@ def track_input(path: str, *, pose_from: Mapping[str, str] | None = None, run_id
         names, kinds = [c.name for c in run.channels], [c.kind for c in run.channels]
         where, pose = f"{p}:{run.run_id}", dict(run.pose)
     else:
+        from flexmodal.modal.sources import uff_without_run
         from flexmodal.modal.uff import UffFrfs, read_uff
 
+        uff_without_run(p, run_id)
         data = read_uff(p)
         if isinstance(data, UffFrfs):
             raise ModalError(f"{p}: holds FRFs; tracking needs time histories (dataset 58, type 1)")
