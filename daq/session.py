@@ -362,6 +362,11 @@ def parse_session(doc: dict, source: Path) -> Session:
                            "taken from an encoder channel (kind = \"encoder\", degrees)")
         if k in pose:
             raise DaqError(f"{where}: pose variable {k!r} is given in pose and in pose_from (one of them)")
+    variables = [*pose, *pose_from]
+    twice = [v for v in variables if [w.casefold() for w in variables].count(v.casefold()) > 1]
+    if twice:   # theta_deg and Theta_deg: two pose columns of one variable in every table made from the run
+        raise DaqError(f"{where}: pose variables {twice[0]!r} and {twice[1]!r} differ only by case (one "
+                       "variable given twice, or two no reader tells apart: rename one)")
     if trigger is not None and trigger.response and kinds[trigger.response] == "force":
         raise DaqError(f"{where}: trigger: response = {trigger.response!r} is a force channel; the live "
                        "H1 of a hit is response / force (name an acceleration or strain channel)")

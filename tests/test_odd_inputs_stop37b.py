@@ -154,3 +154,9 @@ def test_dbc_units_and_scale_of_the_documented_module() -> None:
     fault = source_unit_fault(ChannelMap(a0, "canmod", "a0"), "mm/s^2")
     assert "give scale = 0.001 (mm/s^2 to m/s^2)" in fault
     assert source_unit_fault(ChannelMap(a0, "canmod", "a0"), "counts") is None   # not judged
+
+
+def test_session_pose_names_differing_only_by_case_are_refused(tmp_path: Path) -> None:
+    with pytest.raises(DaqError, match="pose variables 'theta_deg' and 'Theta_deg' differ only by case"):
+        load_session(_session(tmp_path, "serial-sim.toml", "pose = { theta_deg = 30.0 }",
+                              "pose = { theta_deg = 30.0, Theta_deg = 60.0 }"))
