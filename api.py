@@ -2154,7 +2154,7 @@ def selftest(n_cases: int, *, seed: int = 0, progress: Callable[[object], None] 
     >>> import flexmodal as fm
     >>> check = fm.selftest(1)
     >>> len(check.results), check.text.splitlines()[0]
-    (1, 'cases: 1 (1 library effects, 0 none, 0 outside the library)')
+    (1, 'cases: 1 (1 library effect, 0 none, 0 outside the library)')
     """
     from flexmodal.fixtures.blind import format_summary, run_blind, summarise
 

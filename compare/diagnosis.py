@@ -89,7 +89,7 @@ from flexmodal.compare.result import (
     Where,
 )
 from flexmodal.compare.sensor_flag import sensor_flag
-from flexmodal.compare.verdict_text import EXPLAINED_FACTOR, gap_words
+from flexmodal.compare.verdict_text import EXPLAINED_FACTOR, UNLIKELY, gap_words
 from flexmodal.contract.mac import mac_pairs
 from flexmodal.contract.table import ModalTable
 from flexmodal.models.effects import REGISTRY, get_effect
@@ -359,8 +359,9 @@ def _none_level(none_sigma: float, theory: float) -> float:
     return math.hypot(NONE_FACTOR * none_sigma, theory)
 
 
-def _scoring_scatter(noise, ranked: Sequence[dict]) -> tuple[float, float]:
-    """The scatter that ranks candidates, and its model-form floor: ``sqrt(sigma^2 + floor^2)``.
+def _scoring_scatter(noise, ranked: Sequence[dict]) -> tuple[float, float, float | None]:
+    """The scatter that ranks candidates, its model-form floor and the least scatter used in its place:
+    ``sqrt(sigma^2 + floor^2)``, raised to ``MIN_SCATTER`` (then the third value, else None).
 
     ``sigma`` is the measurement's own scatter (repeats or ``freq_std_hz``), else the fallback: the
     lowest held-out error of many candidates fitted to a few residuals underestimates the noise (it
@@ -372,10 +373,11 @@ def _scoring_scatter(noise, ranked: Sequence[dict]) -> tuple[float, float]:
     whether a pose's runs come as one row or as repeats."""
     sigma = noise.value
     if not ranked:
-        return sigma, 0.0
+        return sigma, 0.0, None
     h = min(e["heldout_rms_rel_error"] for e in ranked)
     floor = math.sqrt(max(h * h - sigma * sigma, 0.0))
-    return max(math.hypot(sigma, floor), MIN_SCATTER), floor
+    combined = math.hypot(sigma, floor)
+    return max(combined, MIN_SCATTER), floor, (MIN_SCATTER if combined < MIN_SCATTER else None)
 
 
 def _cross_validate_promising(ctx: _Context, entries: Sequence[dict], scatter: float) -> None:
@@ -572,7 +574,7 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
     meas = prepare(rig, measured)
     noise = estimate_scatter(measured, meas, fallback)
     sigma = scatter = noise.value       # the measurement's scatter; ``scatter`` ranks (+ model-form floor)
-    floor = 0.0
+    floor, least = 0.0, None
     train, scheme = folds_for(meas.configs, holdout, meas.poses)
     ctx = _Context(rig, meas, train)
 
@@ -625,7 +627,7 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
             screened += _triples(ctx, pairs[:TRIPLE_PAIRS], fitted_singles, scatter)
             _cross_validate_promising(ctx, screened, scatter)
         _cross_validate_promising(ctx, screened, scatter)     # once more at the final shape floor
-        scatter, floor = _scoring_scatter(noise, [e for e in screened if "score" in e])
+        scatter, floor, least = _scoring_scatter(noise, [e for e in screened if "score" in e])
         ctx.model_form = _model_form(noise, [e for e in screened if "score" in e],
                                       ctx.beam_form)
         _cross_validate_promising(ctx, screened, scatter)     # rescored and extended at that scatter
@@ -652,7 +654,7 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
         ranking=tuple(CandidateScore(**_public(e)) for e in ranking[:RANKING_LENGTH]),
         verdict=_typed_verdict(verdict, _per_config(rig, meas, best)), n_candidates=n_candidates,
         scatter=scatter, scatter_source=ScatterSource(source=noise.source, detail=noise.detail,
-                                                      measurement=sigma, model_form_floor=floor),
+                                                      measurement=sigma, model_form_floor=floor, least=least),
         holdout=Holdout(scheme=scheme, n_folds=int(len(train) - 1)), configs=meas.configs,
         predictions=_predictions(meas, base_f, best))
 
@@ -1232,15 +1234,17 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
     if alts:
         a0 = verdict["alternatives"][0]
         names = ", ".join(f"{e['effect']} at {e['location']}" for e in alts)
-        text += f"; ambiguous: {names} fit(s) as well within noise"
-        if a0.get("separate_at"):
-            text += (f"; measuring {a0['separate_at']} (model mode {a0['separate_mode']}) would separate "
-                     f"the first by {percent(a0['separate_rel_diff'])}")
+        text += f"; ambiguous: {names} {'fits' if len(alts) == 1 else 'fit'} as well within noise"
         if verdict["next_measurements"]:
+            if a0.get("separate_at"):
+                text += (f"; measuring {a0['separate_at']} (model mode {a0['separate_mode']}) would separate "
+                         f"the first by {percent(a0['separate_rel_diff'])}")
             nxt = verdict["next_measurements"][0]
             text += (f"; next measurement most likely to decide: {nxt['pose']} (mode {nxt['mode']}, "
                      f"{nxt['information_nats']:.1f} nats)")
-        elif nested_only:
+        elif not nested_only:
+            text += f"; {UNLIKELY}"
+        else:
             text += "; " + no_pose_decides(
                 best, alts, [_paired_noise(ctx, best, e, scatter) for e in alts],
                 math.hypot(best["_heldout_eq"], ctx.model_form) - best["_heldout_eq"],

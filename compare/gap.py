@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from flexmodal.checked_io.plural import counted
 from flexmodal.compare.errors import CompareError
 from flexmodal.contract.table import ModalTable
 from flexmodal.models.rig import Rig
@@ -40,8 +41,8 @@ def prepare(rig: Rig, table: ModalTable, min_configs: int = 3) -> Measured:
                            f"(rig {rig.source} needs {', '.join('pose.' + v for v in need) or 'none'})")
     configs = table.configs
     if len(configs) < min_configs:
-        raise CompareError(f"{src}: {len(configs)} configuration(s); held-out scoring needs at least "
-                           f"{min_configs}")
+        raise CompareError(f"{src}: {counted(len(configs), 'configuration')}; held-out scoring needs at "
+                           f"least {min_configs}")
     n = int(table.frame["mode"].max())
     poses = []
     for c in configs:
@@ -156,6 +157,17 @@ MIN_SCATTER_REL = 1e-6
 smaller one, or a subnormal ``freq_std_hz``, squares to 0 in the chi-square of the diagnosis)."""
 
 
+def _raised(value: float) -> str:
+    """What a scatter's detail adds when the data's ``value`` (fraction) is below ``MIN_SCATTER_REL``.
+
+    Examples
+    --------
+    >>> _raised(0.0), _raised(0.002)
+    ('; raised to the 1e-06 floor', '')
+    """
+    return f"; raised to the {MIN_SCATTER_REL:g} floor" if value < MIN_SCATTER_REL else ""
+
+
 def estimate_scatter(table: ModalTable, meas: Measured, fallback: float) -> Scatter:
     """Scatter from the data when it carries any, else ``fallback``; at least ``MIN_SCATTER_REL``.
 
@@ -176,12 +188,13 @@ def estimate_scatter(table: ModalTable, meas: Measured, fallback: float) -> Scat
         if dof >= 2:
             value = float(np.sqrt(np.sum(dev**2) / dof))
             return Scatter(max(value, MIN_SCATTER_REL), "repeated configurations",
-                           f"{len(reps)} pose{'s' if len(reps) > 1 else ''} measured more than once, "
-                           f"{dof} degrees of freedom")
+                           f"{counted(len(reps), 'pose')} measured more than once, "
+                           f"{dof} degrees of freedom{_raised(value)}")
     if "freq_std_hz" in table.frame.columns:
         rel = (table.frame["freq_std_hz"] / table.frame["freq_hz"]).to_numpy(float)
         rel = rel[np.isfinite(rel) & (rel > 0)]
         if rel.size:
-            return Scatter(max(float(np.sqrt(np.mean(rel**2))), MIN_SCATTER_REL), "freq_std_hz column",
-                           f"RMS of freq_std_hz / freq_hz over {rel.size} rows")
+            value = float(np.sqrt(np.mean(rel**2)))
+            return Scatter(max(value, MIN_SCATTER_REL), "freq_std_hz column",
+                           f"RMS of freq_std_hz / freq_hz over {rel.size} rows{_raised(value)}")
     return Scatter(fallback, "--scatter (fallback)", "the data carry no repeats and no freq_std_hz column")

@@ -48,6 +48,7 @@ from flexmodal.compare.fit import Target, design, evaluate, linear_cov
 from flexmodal.compare.gap import Measured
 from flexmodal.compare.parametric import ReducedFamily, lam_to_hz, solve_family
 from flexmodal.compare.result import MIN_CHANCE
+from flexmodal.contract.table import pose_unit
 from flexmodal.models.rig import Rig
 
 TRIAL_POINTS = 13
@@ -172,15 +173,15 @@ def separating_measurement(ctx: FitContext, a: dict, b: dict) -> dict:
 
 def beyond_measured(poses: Sequence[dict[str, float]], pose: dict[str, float], names: Sequence[str]
                     ) -> str | None:
-    """How far ``pose`` lies beyond the measured ``poses`` in each pose variable ``names`` (units in the
-    names), or None inside the measured range: the rig does not say how far a joint turns or what
-    mass it carries, so such a pose is for the user to check against the arm.
+    """How far ``pose`` lies beyond the measured ``poses`` in each pose variable ``names`` (units from the
+    names' suffixes, ``pose_unit``), or None inside the measured range: the rig does not say how far a
+    joint turns or what mass it carries, so such a pose is for the user to check against the arm.
 
     Examples
     --------
     >>> seen = [{"theta_deg": 0.0}, {"theta_deg": 120.0}]
     >>> beyond_measured(seen, {"theta_deg": 180.0}, ["theta_deg"])
-    'theta_deg=180 is 60 beyond the measured 0..120'
+    '60 deg beyond the measured theta_deg 0..120 deg'
     >>> beyond_measured(seen, {"theta_deg": 60.0}, ["theta_deg"]) is None
     True
     """
@@ -190,7 +191,8 @@ def beyond_measured(poses: Sequence[dict[str, float]], pose: dict[str, float], n
         lo, hi = min(vals), max(vals)
         out = max(lo - pose[v], pose[v] - hi)
         if out > 1e-9 * max(1.0, abs(lo), abs(hi)):
-            parts.append(f"{v}={pose[v]:g} is {out:g} beyond the measured {lo:g}..{hi:g}")
+            unit = "" if pose_unit(v) == "-" else f" {pose_unit(v)}"
+            parts.append(f"{out:g}{unit} beyond the measured {v} {lo:g}..{hi:g}{unit}")
     return "; ".join(parts) or None
 
 

@@ -104,12 +104,20 @@ def partner_config(measured: ModalTable, predicted: ModalTable, config: str,
 
 
 def _same_pose(measured: ModalTable, predicted: ModalTable, config: str) -> None:
-    """CompareError when ``config`` is predicted at another pose than it was measured at: a pose
-    variable both tables give whose predicted values leave the measured ones' range (one value in a
-    modal table; the windows' means of a modal map's pose bin).  Modes of two poses would otherwise be
-    paired under one name, and their differences reported as the model's error."""
+    """CompareError when ``config`` is predicted at another pose than it was measured at: other pose
+    variables (each table naming one the other lacks; a prediction may fix more variables, such as
+    a payload the measured table does not give), or a pose variable both tables give whose predicted values
+    leave the measured ones' range (one value in a modal table; the windows' means of a modal map's
+    pose bin).  Modes of two poses would otherwise be paired under one name, and their differences
+    reported as the model's error."""
     from flexmodal.compare.errors import CompareError
 
+    given = [sorted(t.pose(config)) for t in (measured, predicted)]
+    a, b = map(set, given)
+    if a and b and not (a <= b or b <= a):   # theta_deg against phi_deg was paired without a word
+        raise CompareError(f"config {config!r}: measured at pose {', '.join(given[0])} ({measured.source}) "
+                           f"but predicted at pose {', '.join(given[1])} ({predicted.source}): the pose "
+                           "variables differ, so the poses cannot be compared (predict --poses MEASURED.csv)")
     for col in [c for c in measured.pose_columns if c in predicted.pose_columns]:
         m = measured.column(config, col).astype(float)
         p = predicted.column(config, col).astype(float)

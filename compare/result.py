@@ -301,7 +301,7 @@ class NextMeasurement(_Record):
     information [nats] it brings on the choice between the verdict and its alternatives (mean
     Kullback-Leibler divergence of their predictions), and ``decide_chance`` the chance (0-1) that
     one measurement there leaves the verdict unambiguous (compare/next_measurement.py); ``beyond`` how
-    far the pose lies beyond the measured range (``theta_deg=180 is 60 beyond the measured 0..120``; None
+    far the pose lies beyond the measured range (``60 deg beyond the measured theta_deg 0..120 deg``; None
     inside it: the rig does not say whether the arm reaches it)."""
 
     pose: str
@@ -372,12 +372,15 @@ class ScatterSource(_Record):
     """Where the relative measurement scatter came from (compare/gap.py ``estimate_scatter``):
     ``repeated configurations``, ``freq_std_hz column`` or ``--scatter (fallback)``, and how;
     ``measurement`` that scatter (fraction) and ``model_form_floor`` (fraction) the held-out error of
-    the best candidate beyond it: the ranking's ``scatter`` is ``sqrt(measurement^2 + floor^2)``."""
+    the best candidate beyond it: the ranking's ``scatter`` is ``sqrt(measurement^2 + floor^2)``, or
+    ``least`` (fraction: the least scatter the ranking uses, compare/diagnosis.py ``MIN_SCATTER``) when
+    that sum is below it (else None)."""
 
     source: str
     detail: str
     measurement: float | None = None
     model_form_floor: float | None = None
+    least: float | None = None
 
 
 @dataclass(**_RECORD)

@@ -98,6 +98,10 @@ def remaining_words(result: Diagnosis) -> str:
 NO_POSE = "no pose is advised"
 """How the verdict's summary starts its reason for advising no pose (compare/next_measurement.py)."""
 
+UNLIKELY = ("no untested pose is likely to decide between the verdict and its alternatives (each has less "
+            f"than a {percent(MIN_CHANCE)} chance to)")
+"""Why no pose is advised for an ambiguous verdict whose advice found no pose with ``MIN_CHANCE``."""
+
 
 def advice_words(result: Diagnosis) -> str:
     """What to measure next, in words: the advised untested poses (model mode, expected information,
@@ -132,5 +136,4 @@ def advice_words(result: Diagnosis) -> str:
     at = summary.find(NO_POSE)
     if at >= 0:
         return summary[at:]
-    return ("none: no untested pose is likely to decide between the verdict and its alternatives (each has "
-            f"less than a {percent(MIN_CHANCE)} chance to)")
+    return f"none: {UNLIKELY}"

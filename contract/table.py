@@ -25,6 +25,7 @@ from flexmodal.contract.errors import ContractError
 REQUIRED = ("config", "mode", "freq_hz")
 POSE_PREFIX = "pose."
 SHAPE_PREFIX = "shape."
+UNIT_SUFFIXES = {"_deg": "deg", "_kg": "kg", "_m": "m", "_rad": "rad", "_n": "N"}   # pose_unit
 STD_COLUMNS = ("freq_std_hz", "damping_std")   # uncertainty of identification: >= 0, empty when unknown
 MAP_COLUMN = "n_windows"   # windows behind a row of a modal map (identify --track): its mark
 MAX_MODE = 1e6           # mode numbers are whole, 1..1e6
@@ -32,6 +33,20 @@ MAX_FREQ_HZ = 1e9        # no structural mode is above 1 GHz; (2 pi f)^2 of 1e30
 MAX_POSE = 1e12          # no pose value is larger (the diagnosis takes powers of pose spans)
 MAX_MAGNITUDE = 1e150    # shapes, uncertainties: their squares must stay finite
 TINIEST = np.finfo(float).tiny   # 2.2e-308: a nonzero value below it (subnormal) is read as 0
+
+
+def pose_unit(var: str) -> str:
+    """Unit of a pose variable from its name's suffix (``theta_deg`` -> deg), ``-`` if none.
+
+    Examples
+    --------
+    >>> pose_unit("theta_deg"), pose_unit("payload_kg"), pose_unit("slot")
+    ('deg', 'kg', '-')
+    """
+    for suffix, unit in UNIT_SUFFIXES.items():
+        if var.lower().endswith(suffix):
+            return unit
+    return "-"
 
 
 def _parse_complex(value: object) -> complex:
@@ -290,7 +305,8 @@ def display_html(summary: str, frame: pd.DataFrame, max_rows: int = 30) -> str:
 def _check_names(df: pd.DataFrame, source: str) -> None:
     """Raise ContractError for a configuration, sensor or pose variable whose name is blank or holds
     a control character (checked_io.text.name_fault): 'theta\\n0' would break every one-line message
-    and table row it is printed in, and '   ' names nothing."""
+    and table row it is printed in, and '   ' names nothing; and for two pose variables whose names
+    differ only by case."""
     prefixes = (POSE_PREFIX, SHAPE_PREFIX)
     named = [(f"config {c!r}", c) for c in pd.unique(df["config"])]
     named += [(f"column {c!r}", c.split(".", 1)[1]) for c in map(str, df.columns) if c.startswith(prefixes)]
@@ -300,6 +316,12 @@ def _check_names(df: pd.DataFrame, source: str) -> None:
         fault = name_fault(name)
         if fault:
             raise ContractError(f"{source}: {what}: the name {fault}")
+    poses = [c for c in map(str, df.columns) if c.startswith(POSE_PREFIX)]
+    folded = [c.casefold() for c in poses]
+    twice = [c for c, f in zip(poses, folded, strict=True) if folded.count(f) > 1]
+    if twice:   # pose.theta_deg and pose.Theta_deg were two variables of one pose
+        raise ContractError(f"{source}: columns {twice[0]!r} and {twice[1]!r} differ only by case: one pose "
+                            "variable given twice, or two that a reader cannot tell apart (rename one)")
 
 
 def _one_pose_per_config(df: pd.DataFrame, source: str) -> None:

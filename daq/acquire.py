@@ -312,10 +312,14 @@ def acquire(session: Session, out: str | Path, *, duration_s: float | None = Non
     out = Path(out)
     stamp = datetime.now(UTC)
     run_id = run_id or session.run_id or f"{session.source.stem}-{stamp:%Y%m%dT%H%M%S}"
+    given = "--duration" if duration_s is not None else "duration_s"
     duration_s = duration_s if duration_s is not None else session.duration_s
     if duration_s is not None and not duration_s * session.sample_rate_hz < 2.0**53:
         raise DaqError(f"--duration {duration_s:g} s at {session.sample_rate_hz:g} Hz: "
                        f"{duration_s * session.sample_rate_hz:.3g} samples, more than any run can hold")
+    if session.simulator is not None:
+        session.simulator.faults.check_within(duration_s, given, DaqError,
+                                              lambda name: f"{session.source}: simulator: {name}")
     target = None if duration_s is None else int(round(duration_s * session.sample_rate_hz))
     need = 0 if target is None else int(target * len(session.channels) * 4 * 1.02)
     _check_output(out, run_id, need)
@@ -338,7 +342,8 @@ class _Recorder:
         self.session, self.out, self.run_id, self.stamp = session, out, run_id, stamp
         self.target, self.stopper = target, stopper
         self.drivers = {d.name: make_driver(d, session.sample_rate_hz) for d in session.devices}
-        self.timeline = Timeline(session, {k: v.sources for k, v in self.drivers.items()})
+        self.timeline = Timeline(session, {k: v.sources for k, v in self.drivers.items()},
+                                 {k: v.source_units for k, v in self.drivers.items()})
         self.queue: queue.Queue = queue.Queue(maxsize=QUEUE_BLOCKS)
         self.stop = threading.Event()
         self.stats = {name: ReaderStats() for name in self.drivers}

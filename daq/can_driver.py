@@ -84,6 +84,7 @@ class CanDriver(Driver):
         self.signals = tuple((m, s) for m, lay in enumerate(self.layouts) for s in lay.signals
                              if s.name != counter)
         self.sources = tuple(s.name for _, s in self.signals)
+        self.source_units = {s.name: s.unit for _, s in self.signals if s.unit}
         dup = sorted({n for n in self.sources if self.sources.count(n) > 1})
         if dup:
             raise DaqError(f"{cfg.dbc}: signal {dup[0]!r} is in more than one of the messages")

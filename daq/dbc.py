@@ -30,6 +30,7 @@ class SignalLayout:
     mux_ids: tuple[int, ...] | None  # multiplexer values that carry this signal (None: always present)
     raw_min: int
     raw_max: int
+    unit: str = ""  # the DBC's unit of the physical value (free text, '' when none)
 
     @property
     def limits(self) -> tuple[float, float]:
@@ -52,7 +53,8 @@ def _layout(sig) -> SignalLayout:
     raw_min, raw_max = ((-(1 << (sig.length - 1)), (1 << (sig.length - 1)) - 1) if sig.is_signed
                         else (0, (1 << sig.length) - 1))
     return SignalLayout(sig.name, lsb, sig.length, big, sig.is_signed, float(sig.scale), float(sig.offset),
-                        tuple(sig.multiplexer_ids) if sig.multiplexer_ids else None, raw_min, raw_max)
+                        tuple(sig.multiplexer_ids) if sig.multiplexer_ids else None, raw_min, raw_max,
+                        str(sig.unit or "").strip())
 
 
 @dataclass(frozen=True)

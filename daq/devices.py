@@ -16,7 +16,9 @@ import queue
 import threading
 import time
 from abc import ABC, abstractmethod
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
+from types import MappingProxyType
 from typing import Any, ClassVar
 
 import numpy as np
@@ -87,13 +89,15 @@ class Driver(ABC):
     """A device protocol: parses its ``[[device]]`` table, then opens, reads blocks and closes.
 
     Subclasses set ``name`` (the device name), ``sources`` (value names in column order) and ``limits``
-    (``(low, high)`` raw arrays at which an input clips, or None) in ``__init__``.
+    (``(low, high)`` raw arrays at which an input clips, or None) in ``__init__``, and
+    ``source_units`` ({source: unit} of the values the device itself labels, e.g. a DBC's units).
     """
 
     protocol: ClassVar[str]
     name: str
     sources: tuple[str, ...]
     limits: tuple | None = None
+    source_units: Mapping[str, str] = MappingProxyType({})
 
     @classmethod
     @abstractmethod

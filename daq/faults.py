@@ -10,9 +10,10 @@ from flexmodal.daq.errors import DaqError
 
 
 def _fault(default: float | None, help: str, lo: float = 0.0, hi: float = 86400.0, *,
-           lo_open: bool = False, hi_open: bool = False) -> Any:
+           lo_open: bool = False, hi_open: bool = False, stream_time: bool = False) -> Any:
     return field(default=default, metadata={"help": help, "range": {"lo": lo, "hi": hi, "lo_open": lo_open,
-                                                                     "hi_open": hi_open}})
+                                                                     "hi_open": hi_open},
+                                            "stream_time": stream_time})
 
 
 @dataclass(frozen=True)
@@ -44,9 +45,9 @@ class Faults:
     """
 
     corrupt_rate: float = _fault(0.0, "fraction of frames corrupted (0.01 = 1 %%)", hi=1.0, hi_open=True)
-    drop_at_s: float | None = _fault(None, "drop a burst of frames starting at S seconds")
+    drop_at_s: float | None = _fault(None, "drop a burst of frames starting at S seconds", stream_time=True)
     drop_s: float = _fault(0.2, "length of the dropped burst, s", lo_open=True)
-    disconnect_after_s: float | None = _fault(None, "disconnect after S seconds")
+    disconnect_after_s: float | None = _fault(None, "disconnect after S seconds", stream_time=True)
     disconnect_s: float = _fault(0.5, "length of the disconnect, s", lo_open=True)
     double_hit_at_s: float | None = _fault(
         None, "impact test: the hit nearest S s into the record bounces back (a double hit)")
@@ -66,6 +67,37 @@ class Faults:
                     (value < r["hi"]) if r["hi_open"] else (value <= r["hi"])):
                 raise DaqError(f"fault {f.name} = {value!r} is not a number in {'(' if r['lo_open'] else '['}"
                                f"{r['lo']:g}, {r['hi']:g}{')' if r['hi_open'] else ']'}")
+
+    def check_within(self, duration_s: float | None, duration: str, error: type[Exception],
+                     flag=None) -> None:
+        """Refuse a fault timed at or after the end of the stream (``duration_s``; None: no end): it
+        would never fire, and the run would look like one that survived it.
+
+        Parameters
+        ----------
+        duration_s : float or None
+            How long the stream runs [s].
+        duration : str
+            How the caller names the duration (``--duration``, ``duration_s``).
+        error : type
+            The error family to raise.
+        flag : callable, optional
+            How the caller names a field (default: the field name itself).
+
+        Examples
+        --------
+        >>> Faults(drop_at_s=5.0).check_within(2.0, "--duration", ValueError, fault_flag)
+        Traceback (most recent call last):
+        ...
+        ValueError: --drop-at 5 s is not before the end of the stream (--duration 2 s): it would never happen
+        """
+        if duration_s is None:
+            return
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if f.metadata["stream_time"] and value is not None and value >= duration_s:
+                raise error(f"{(flag or str)(f.name)} {value:g} s is not before the end of the stream "
+                            f"({duration} {duration_s:g} s): it would never happen")
 
     @property
     def on_link(self) -> bool:

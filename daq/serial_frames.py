@@ -267,10 +267,11 @@ class FrameSpec:
     def __post_init__(self) -> None:
         if not self.header:
             raise ValueError("header must have at least one byte (frames are found by it)")
-        body = self.layout[1:] if self.layout[:1] in "<>" else self.layout
-        if not body or not re.fullmatch(rf"(\d*[{SAMPLE_CODES}])+", body):
+        body = self.layout[1:]
+        if self.layout[:1] not in ("<", ">") or not re.fullmatch(rf"(\d*[{SAMPLE_CODES}])+", body):
+            # no order given was read as '<' in silence: a big-endian device then decoded as noise
             raise ValueError(f"layout {self.layout!r} is not a byte order < or > and struct codes "
-                             f"of {SAMPLE_CODES}")
+                             f"of {SAMPLE_CODES} (e.g. '<12h')")
         n_values = sum(int(n or 1) for n, _ in re.findall(rf"(\d*)([{SAMPLE_CODES}])", body))
         if n_values > MAX_SCAN_VALUES:  # counted before a scan's codes are spelled out one by one
             raise ValueError(f"layout {self.layout!r} declares {n_values} values per scan (at most "

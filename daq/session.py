@@ -120,6 +120,40 @@ def unit_factor(from_unit: str, to_unit: str) -> float | None:
     return 1.0 if a == b else UNIT_FACTORS.get((a, b))
 
 
+SI_PREFIXES = {"": 1.0, "k": 1e3, "m": 1e-3, "µ": 1e-6, "μ": 1e-6, "u": 1e-6}
+
+
+def source_unit_fault(cm: ChannelMap, source_unit: str) -> str | None:
+    """Why the value a device labels ``source_unit`` (a DBC signal's unit) cannot feed channel map
+    ``cm`` as it stands, else None: it is the unit ``scale`` must bring to (the sensitivity's electrical
+    unit, else the channel's unit) up to an SI prefix (V against mV: 1000x), and no ``scale`` converts
+    it.  Units of other names ('counts', 'LSB') are not judged: scale and sensitivity may well apply.
+
+    Examples
+    --------
+    >>> from flexmodal.daq.store import Channel
+    >>> a1 = ChannelMap(Channel("a1", "acceleration", "m/s^2", 100.0, "mV/g"), "can", "a1")
+    >>> print(source_unit_fault(a1, "V"))
+    source 'a1' is in V (its DBC unit) but the sensitivity expects mV (100 mV/g): give scale = 1000 (V to mV)
+    >>> source_unit_fault(a1, "mV") is None, source_unit_fault(a1, "counts") is None
+    (True, True)
+    """
+    want = cm.channel.sensitivity_unit.split("/")[0].strip() if cm.channel.sensitivity_unit else \
+        cm.channel.unit
+    if cm.scale != 1.0 or source_unit == want:
+        return None
+    for p, f in SI_PREFIXES.items():
+        base = source_unit[len(p):] if source_unit.startswith(p) else ""
+        for q, g in SI_PREFIXES.items():
+            if p != q and base[:1].isalpha() and want == q + base:
+                into = ("the sensitivity expects " + want + f" ({cm.channel.sensitivity:g} "
+                        f"{cm.channel.sensitivity_unit})") if cm.channel.sensitivity_unit else \
+                    f"the channel's unit is {want}"
+                return (f"source {cm.source!r} is in {source_unit} (its DBC unit) but {into}: give scale = "
+                        f"{f / g:g} ({source_unit} to {want})")
+    return None
+
+
 class Table(Fields):
     """Typed access to one table of a session config (:class:`flexmodal.checked_io.toml_fields.Fields` with
     ``DaqError``, ``key = value`` wording and the shared whole-number ranges); ``base``: the folder
@@ -328,6 +362,11 @@ def parse_session(doc: dict, source: Path) -> Session:
                            "taken from an encoder channel (kind = \"encoder\", degrees)")
         if k in pose:
             raise DaqError(f"{where}: pose variable {k!r} is given in pose and in pose_from (one of them)")
+    variables = [*pose, *pose_from]
+    twice = [v for v in variables if [w.casefold() for w in variables].count(v.casefold()) > 1]
+    if twice:   # theta_deg and Theta_deg: two pose columns of one variable in every table made from the run
+        raise DaqError(f"{where}: pose variables {twice[0]!r} and {twice[1]!r} differ only by case (one "
+                       "variable given twice, or two no reader tells apart: rename one)")
     if trigger is not None and trigger.response and kinds[trigger.response] == "force":
         raise DaqError(f"{where}: trigger: response = {trigger.response!r} is a force channel; the live "
                        "H1 of a hit is response / force (name an acceleration or strain channel)")

@@ -17,12 +17,14 @@ silent device's buffered samples were written seconds after their time).
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from flexmodal.daq.devices import Block
 from flexmodal.daq.errors import DaqError
+from flexmodal.daq.session import source_unit_fault
 from flexmodal.daq.store import Event
 
 ANALOG_KINDS = ("acceleration", "force", "strain", "voltage")
@@ -48,7 +50,11 @@ class _Track:
 class Timeline:
     """Turns device blocks into rows of physical values [n, n_channels] and events with row indices."""
 
-    def __init__(self, session, sources: dict[str, tuple[str, ...]]) -> None:
+    def __init__(self, session, sources: dict[str, tuple[str, ...]],
+                 units: Mapping[str, Mapping[str, str]] | None = None) -> None:
+        """``sources``: each device's value names in column order; ``units``: the units a device
+        labels its values with ({device: {source: unit}}, e.g. from a DBC), checked against the
+        channels' scale and sensitivity (daq.session.source_unit_fault)."""
         self.fs = session.sample_rate_hz
         self.names = tuple(c.channel.name for c in session.channels)
         self.n_ch = len(self.names)
@@ -61,6 +67,9 @@ class Timeline:
                     known = ", ".join(have[:12]) + (", ..." if len(have) > 12 else "")
                     raise DaqError(f"{session.source}: channel {c.channel.name!r}: source {c.source!r} is "
                                    f"not a signal of device {dev.name!r} (it has: {known or 'none'})")
+                fault = source_unit_fault(c, (units or {}).get(dev.name, {}).get(c.source, ""))
+                if fault:   # a DBC signal in V read as mV under a sensitivity in mV/g: 1000x, rc 0
+                    raise DaqError(f"{session.source}: channel {c.channel.name!r}: {fault}")
             src = np.array([sources[dev.name].index(c.source) for _, c in maps])
             g = np.array([c.gain() for _, c in maps])
             self.tracks[dev.name] = _Track(

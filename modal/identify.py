@@ -18,6 +18,7 @@ from scipy.ndimage import uniform_filter1d
 
 from flexmodal.checked_io.blas import one_blas_thread
 from flexmodal.checked_io.output import atomic_path
+from flexmodal.checked_io.plural import counted
 from flexmodal.contract.mac import mac, mass_normalised, to_real, unit_max
 from flexmodal.contract.table import ModalTable
 from flexmodal.modal.damping import half_power
@@ -690,9 +691,9 @@ def _zoom(f: np.ndarray, H: np.ndarray, clusters: PoleClusters, fit: LsfdResult,
     if not added:   # the whole-band result stands as it was
         return clusters, fit, warnings, report
     report2 = ~background & np.array([not (m.size and int(m[0]) in late) for m in c2.members], bool)
-    note = (f"found {len(added)} mode(s) at {', '.join(added)} Hz where the whole-band synthesis misfits the "
-            "FRFs (one pole fitted to the residual there, or in a mode's leakage the diagram's chain stable "
-            "at too few orders)")
+    note = (f"found {counted(len(added), 'mode')} at {', '.join(added)} Hz where the whole-band synthesis "
+            "misfits the FRFs (one pole fitted to the residual there, or in a mode's leakage the diagram's "
+            "chain stable at too few orders)")
     return c2, fit2, warnings + [w for w in w2 if w not in warnings] + [note], report2
 
 
@@ -745,7 +746,7 @@ def _one_reference_basis(f: np.ndarray, H: np.ndarray, peaks_hz: np.ndarray, sea
 
     plus, minus = search(False), search(True)
     (a, a_corr), (b, b_corr) = explained(plus), explained(minus)
-    counts = (f"basis exp(+i w dt) explaining {int(a.sum())} clear CMIF peaks (FRF correlation "
+    counts = (f"basis exp(+i w dt) explaining {counted(int(a.sum()), 'clear CMIF peak')} (FRF correlation "
               f"{a_corr:.3f}), exp(-i w dt) {int(b.sum())} ({b_corr:.3f})")
     if b.sum() > a.sum() and not np.any(a & ~b) and 1 - b_corr <= BASIS_MISFIT * (1 - a_corr):
         return minus[0], f"{minus[1]}; {counts}: exp(-i w dt) used", minus[2]

@@ -44,6 +44,7 @@ import scipy.sparse
 import scipy.sparse.csgraph
 
 from flexmodal.checked_io.blas import one_blas_thread
+from flexmodal.checked_io.plural import counted
 from flexmodal.contract.mac import mac_pairs
 from flexmodal.modal.errors import ModalError
 
@@ -424,8 +425,9 @@ def _order_note(counts: list[tuple[int, int, int]], best: int, why: str, floor: 
     CMIF peaks they explain)."""
     order, n, shown = counts[best]
     history = ", ".join(f"{c} at {o}" for o, c, _ in counts)
-    peaks = f"; they explain {shown} of the {floor} clear CMIF peaks" if floor else ""
-    return f"model order {order}: {n} modes, {why} ({history}){peaks}"
+    peaks = (f"; {'it explains' if n == 1 else 'they explain'} {shown} of {counted(floor, 'clear CMIF peak')}"
+             if floor else "")
+    return f"model order {order}: {counted(n, 'mode')}, {why} ({history}){peaks}"
 
 
 def adaptive_stabilisation(freq_hz: np.ndarray, H: np.ndarray, *, max_order: int | None = None,

@@ -63,7 +63,9 @@ def _layout(setups: Sequence[OmaSetup]) -> tuple[list[list[int]], list[list[int]
     for k, s in enumerate(setups):
         missing = [r for r in refs if r not in s.channels]
         if missing or tuple(s.references) != tuple(refs):
-            raise ModalError(f"multi-setup: setup {k + 1} lacks reference sensor(s) {missing or list(refs)}")
+            names = missing or list(refs)
+            what = "reference sensor" if len(names) == 1 else "reference sensors"
+            raise ModalError(f"multi-setup: setup {k + 1} lacks {what} {', '.join(names)}")
     ref_rows = [[s.channels.index(r) for r in refs] for s in setups]
     roving = [[j for j, c in enumerate(s.channels) if c not in refs] for s in setups]
     points = tuple(refs) + tuple(s.channels[j] for s, rov in zip(setups, roving, strict=True) for j in rov)

@@ -90,8 +90,9 @@ def identify_output_only(samples: np.ndarray, sample_rate_hz: float, names: Sequ
     if references:
         unknown = [r for r in references if r not in out_names]
         if unknown:
-            raise ModalError(f"{where}: reference channel(s) {', '.join(unknown)} are not among the "
-                             f"outputs ({', '.join(out_names)})")
+            what = "reference channel {} is" if len(unknown) == 1 else "reference channels {} are"
+            raise ModalError(f"{where}: {what.format(', '.join(unknown))} not among the outputs "
+                             f"({', '.join(out_names)})")
         refs = [out_names.index(r) for r in references]
     if fmin is not None and fmin >= sample_rate_hz / 2:
         raise ModalError(f"{where}: fmin {fmin:g} Hz is at or above the Nyquist frequency, "

@@ -162,6 +162,7 @@ def identify_input(path: str | Path, *, method: str | None = None, fmin: float |
     else:
         from flexmodal.modal.uff import UffFrfs, read_uff
 
+        uff_without_run(p, run_id)
         packed = _compressed(p)
         if packed is not None:  # a gzipped or damaged run store: not "line 1: text outside any dataset"
             raise ModalError(f"{p}: neither an HDF5 file (no HDF5 signature) nor UFF text ({packed})")
@@ -185,6 +186,14 @@ def identify_input(path: str | Path, *, method: str | None = None, fmin: float |
         found[p.stem] = (modes, result.outputs)
         tables.append(modes_table(modes, result.outputs, config=p.stem).frame)
     return ModalTable.from_frame(pd.concat(tables, ignore_index=True), str(p)), found
+
+
+def uff_without_run(path: Path, run_id: str | None) -> None:
+    """ModalError when a run is chosen (``--run``) for ``path``, a UFF file: runs are the parts of an
+    HDF5 run store, and a UFF file is one record (the choice was ignored without a word)."""
+    if run_id is not None:
+        raise ModalError(f"{path}: --run {run_id}: --run applies to HDF5 run stores (RUN.h5); this is a UFF "
+                         "file, one record")
 
 
 def _compressed(path: Path) -> str | None:

@@ -44,6 +44,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from flexmodal.checked_io.plural import counted
 from flexmodal.contract.mac import mac
 from flexmodal.contract.table import POSE_PREFIX, SHAPE_PREFIX, ModalTable
 from flexmodal.modal.errors import ModalError
@@ -184,6 +185,10 @@ def window_plan(n_samples: int, sample_rate_hz: float, pose: np.ndarray, lowest_
         raise ModalError(f"tracking hop (--hop) of {hop:.3g} s is shorter than 1/{1 / MIN_HOP_FRACTION:g} of "
                          f"the {win:.3g} s window: windows overlapping by more than 98 % add work, no data; "
                          f"give at least {MIN_HOP_FRACTION * win:.3g} s")
+    if hop > win:   # was "no mode was followed over enough windows": few windows, data between them unused
+        raise ModalError(f"tracking hop (--hop) of {hop:.3g} s is longer than the {win:.3g} s window "
+                         f"(--window{'' if options.window_s else ', its default'}): the samples between "
+                         "windows would never be identified; give a hop of at most the window")
     return n_win, max(1, int(round(min(hop * fs, n_samples))))   # a hop past the end: one window
 
 
@@ -713,8 +718,9 @@ def track_modes(samples: np.ndarray, sample_rate_hz: float, names: Sequence[str]
         tracks = drop_duplicates(tracks, options)
     out_names = tuple(names[j] for j in outputs)
     table = modal_map(windows, tracks, out_names, options.bin_deg)
-    warnings = ((f"{skipped} window(s) skipped: pose spread above {options.max_spread_deg:g} deg",)
-                if skipped else ()) + ((f"{gapped} window(s) skipped: they hold lost samples (gaps)",)
+    hold = "it holds" if gapped == 1 else "they hold"
+    warnings = ((f"{counted(skipped, 'window')} skipped: pose spread above {options.max_spread_deg:g} deg",)
+                if skipped else ()) + ((f"{counted(gapped, 'window')} skipped: {hold} lost samples (gaps)",)
                                        if gapped else ())
     return TrackResult(n_win / sample_rate_hz, n_hop / sample_rate_hz, tuple(windows), skipped, tuple(tracks),
                        tuple(harmonics), orders, table, out_names, warnings, gapped)
@@ -728,7 +734,8 @@ def default_pose_from(names: Sequence[str], kinds: Sequence[str], pose: Mapping[
     variables = list(pose) or ["theta_deg"]
     if len(encoders) == 1 and len(variables) == 1:
         return {variables[0]: encoders[0]}
-    raise ModalError(f"{where}: {len(encoders)} encoder channel(s) for pose variable(s) "
+    what = "pose variable" if len(variables) == 1 else "pose variables"
+    raise ModalError(f"{where}: {counted(len(encoders), 'encoder channel')} for {what} "
                      f"{', '.join(variables)}: name them with --pose-from VAR=CHANNEL,...")
 
 
@@ -756,8 +763,10 @@ def track_input(path: str, *, pose_from: Mapping[str, str] | None = None, run_id
         names, kinds = [c.name for c in run.channels], [c.kind for c in run.channels]
         where, pose = f"{p}:{run.run_id}", dict(run.pose)
     else:
+        from flexmodal.modal.sources import uff_without_run
         from flexmodal.modal.uff import UffFrfs, read_uff
 
+        uff_without_run(p, run_id)
         data = read_uff(p)
         if isinstance(data, UffFrfs):
             raise ModalError(f"{p}: holds FRFs; tracking needs time histories (dataset 58, type 1)")

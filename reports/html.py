@@ -42,23 +42,14 @@ from flexmodal.compare.verdict_text import (
     scatter_line,
     verdict_words,
 )
-from flexmodal.contract.table import ModalTable
+from flexmodal.contract.table import ModalTable, pose_unit
 from flexmodal.reports import animate, plots
 from flexmodal.reports.errors import ReportError
 from flexmodal.reports.geometry import Geometry
 from flexmodal.reports.runs import LOW_COHERENCE, RunSummary
 from flexmodal.reports.sections import SECTIONS, ReportInputs
 
-UNIT_SUFFIXES = {"_deg": "deg", "_kg": "kg", "_m": "m", "_rad": "rad", "_n": "N"}
 KEY_LIBRARIES = ("numpy", "scipy", "pandas", "matplotlib", "h5py", "jinja2", "pyuff")
-
-
-def pose_unit(var: str) -> str:
-    """Unit of a pose variable from its name's suffix (``theta_deg`` -> deg), ``-`` if none."""
-    for suffix, unit in UNIT_SUFFIXES.items():
-        if var.lower().endswith(suffix):
-            return unit
-    return "-"
 
 
 def pose_text(pose: Mapping[str, object]) -> str:

@@ -19,6 +19,7 @@ from flexmodal.contract.table import ModalTable
 from flexmodal.fixtures.blind import (
     advice_trials,
     format_advice,
+    format_draws,
     format_summary,
     format_table,
     moved_fraction,
@@ -41,6 +42,15 @@ def _check(results) -> dict:
         if r.verdict.effect == "none":          # alternatives only on a verdict flagged ambiguous
             assert bool(r.verdict.alternatives) == bool(r.verdict.ambiguous)
     return s
+
+
+def test_a_figure_with_no_case_of_its_kind_reads_no_cases():
+    """No ``nan %`` in the summary: a category without cases (here: none at all) says so."""
+    text = format_summary(summarise([])) + "\n" + format_draws([summarise([])])
+    assert "nan" not in text
+    assert "moved sensor flagged by its shapes: no cases\n" in text
+    assert "held-out frequencies inside their 95 % prediction interval: no cases" in text
+    assert "  'none' right: no cases" in text
 
 
 @pytest.fixture(scope="module")

@@ -88,6 +88,7 @@ def test_no_applicable_effect_leaves_the_gap_unexplained(measured):
 def test_selftest_runs_blind_cases_of_the_independent_truth(capsys):
     assert main(["--quiet", "diagnose", "--selftest", "1"]) == 0
     out = capsys.readouterr().out
-    assert "cases: 1 (1 library effects" in out and "top-1 effect accuracy:" in out
+    assert "cases: 1 (1 library effect," in out and "top-1 effect accuracy:" in out
+    assert "nan" not in out and "'none' for no-effect cases: no cases" in out     # was "nan %"
     assert main(["--quiet", "diagnose", "--selftest", "0"]) == 2
     assert "--selftest" in capsys.readouterr().err

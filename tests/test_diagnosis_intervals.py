@@ -125,3 +125,25 @@ def test_an_ambiguous_verdict_advises_untested_poses_ranked_by_information(rig, 
     chance = [round(x.decide_chance, 3) for x in v.next_measurements]
     assert chance == sorted(chance, reverse=True) and all(0 <= c <= 1 for c in chance)
     assert "next measurement most likely to decide" in v.summary
+
+
+def test_the_scatter_source_says_when_a_floor_was_used(rig):
+    """Noise-free FE truth with a ``freq_std_hz`` of 1e-300 Hz: the data's scatter is raised to 1 ppm
+    (compare/gap.py ``MIN_SCATTER_REL``, said in the detail) and, the fitted effect leaving no
+    model-form error, the ranking uses the least scatter 0.1 % (compare/diagnosis.py ``MIN_SCATTER``,
+    ``scatter_source.least``); with 0.5 % noise stated per row neither floor is used."""
+    from flexmodal.compare.diagnosis import MIN_SCATTER
+
+    real = apply_effect(rig, "joint_stiffness", "elbow", {"k_Nm_per_rad": 3000.0})
+    exact = _table(real, POSES, np.random.default_rng(0), noise=0.0)
+    tiny = ModalTable.from_frame(exact.frame.assign(freq_std_hz=1e-300), "<tiny>")
+    res = diagnose(rig, tiny, effects="joint_stiffness")
+    src = res.scatter_source
+    assert src.source == "freq_std_hz column" and src.measurement == 1e-6
+    assert src.detail.endswith("; raised to the 1e-06 floor")
+    assert src.least == MIN_SCATTER == res.scatter
+    noisy = _table(real, POSES, np.random.default_rng(0))
+    stated = ModalTable.from_frame(noisy.frame.assign(freq_std_hz=0.005 * noisy.frame["freq_hz"]), "<0.5 %>")
+    res = diagnose(rig, stated, effects="joint_stiffness")
+    assert res.scatter_source.least is None and "raised" not in res.scatter_source.detail
+    assert res.scatter >= 0.005

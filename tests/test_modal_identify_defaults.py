@@ -103,7 +103,7 @@ def test_order_note_says_the_count_fell_and_keeps_the_order_that_explained_most_
     _, note, value = adaptive_stabilisation(f, H, evaluate=falling, floor=2)
     assert value == 54
     assert note == ("model order 54: 2 modes, the modes found fell from 2 to 1 (1 at 24, 2 at 36, 2 at 54, "
-                    "1 at 81); they explain 2 of the 2 clear CMIF peaks")
+                    "1 at 81); they explain 2 of 2 clear CMIF peaks")
 
 
 def test_a_mode_standing_clear_of_the_noise_in_the_cmif_is_never_dropped():

@@ -97,7 +97,7 @@ def test_the_advised_pose_separates_two_look_alikes_where_a_pose_in_the_measured
     assert apart(advised) > 3 * NOISE and apart(82.5) < NOISE
     assert v.next_measurements[0].decide_chance > 0.5
     out = advised - 90.0 if advised > 90.0 else 60.0 - advised       # the advice says how far out it is
-    assert v.next_measurements[0].beyond == f"theta_deg={advised:g} is {out:g} beyond the measured 60..90"
+    assert v.next_measurements[0].beyond == f"{out:g} deg beyond the measured theta_deg 60..90 deg"
     assert f"{v.next_measurements[0].beyond}: check that the arm reaches it" in advice_words(d)
 
     def after(theta: float):

@@ -208,7 +208,7 @@ def test_identify_track_cli_on_hdf5_and_uff(tmp_path, sweep, capsys):
     fast = ["--fmax", "400", "--window", "2", "--hop", "0.5"]
     capsys.readouterr()
     assert main(["--quiet", "identify", str(run), "--track", "--out", str(out), *fast]) == 0
-    assert "4 window(s) skipped: they hold lost samples" in capsys.readouterr().err   # at 10.5 .. 12 s
+    assert "4 windows skipped: they hold lost samples" in capsys.readouterr().err   # at 10.5 .. 12 s
     table = ModalTable.read_csv(out)
     assert sorted(set(table.frame["mode"])) == [1, 2, 3]
     harm = (tmp_path / "map.harmonics.csv").read_text().splitlines()
