@@ -37,6 +37,7 @@ import numpy as np
 
 from flexmodal.compare import diagnosis as diagnosis_module
 from flexmodal.compare import fit as fit_module
+from flexmodal.compare import parametric
 from flexmodal.compare.candidates import single_candidates
 from flexmodal.compare.parametric import (
     PoseBasis,
@@ -84,22 +85,7 @@ def reference_reduce(bases: Sequence[PoseBasis], handle_idx: Sequence[int], nomi
 def reference_solve(fam: ReducedFamily, h: np.ndarray, n_modes: int, gradients: bool = True
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``solve_family`` as it was: all points in one batch, gradients always (the reference)."""
-    dh = h - fam.nominal
-    A = fam.K0[None] + np.einsum("pch,chij->pcij", dh, fam.Kh)
-    if fam.has_mass:
-        B = fam.M0[None] + np.einsum("pch,chij->pcij", dh, fam.Mh)
-        Linv = np.linalg.inv(np.linalg.cholesky(B))
-        lam, Y = np.linalg.eigh(Linv @ A @ np.swapaxes(Linv, -1, -2))
-        Z = np.swapaxes(Linv, -1, -2) @ Y[..., :n_modes]
-    else:
-        lam, Y = np.linalg.eigh(A)
-        Z = Y[..., :n_modes]
-    lam = lam[..., :n_modes]
-    Zh = Z[:, :, None]
-    dK = np.sum(Zh * (fam.Kh[None] @ Zh), axis=-2)
-    if fam.has_mass:
-        dK = dK - lam[:, :, None, :] * np.sum(Zh * (fam.Mh[None] @ Zh), axis=-2)
-    return lam, np.swapaxes(dK, -1, -2), fam.sensors[None] @ Z
+    return parametric._solve_slice(fam, h, n_modes, True)
 
 
 def poses(rig: Rig, n_configs: int) -> list[dict[str, float]]:
