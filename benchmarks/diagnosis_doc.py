@@ -54,10 +54,10 @@ FINAL_NOTE = "run once, after the last change to the method; never used to devel
 SPARSE_CASES = 60
 SPARSE_SEED = 5
 ADVICE_SEEDS = LATEST_SEEDS + NEXT_SEEDS
-ADVICE_FINAL_SEEDS = (736, 737, 738, 739, 740)
+"""The used blind draws on which the next-measurement advice is measured (``advice_block``)."""
+ADVICE_FINAL_SEEDS = FINAL_SEEDS
 """Draws used neither for the method nor for the advice: the advice (frozen, with the 5 % rule) measured
 once on their ambiguous verdicts (block ``advice_s736``)."""
-"""The used blind draws on which the next-measurement advice is measured (``advice_block``)."""
 
 from flexmodal.compare.diagnosis import diagnose  # noqa: E402
 from flexmodal.contract.table import ModalTable  # noqa: E402
