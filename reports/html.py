@@ -48,6 +48,7 @@ from flexmodal.reports.errors import ReportError
 from flexmodal.reports.geometry import Geometry
 from flexmodal.reports.runs import LOW_COHERENCE, RunSummary
 from flexmodal.reports.sections import SECTIONS, ReportInputs
+from flexmodal.reports.stabilisation_caption import stabilisation_caption
 
 KEY_LIBRARIES = ("numpy", "scipy", "pandas", "matplotlib", "h5py", "jinja2", "pyuff")
 
@@ -180,12 +181,8 @@ def _identification_figures(r: RunSummary, unit: str) -> list[dict]:
     except ReportError as exc:
         return [{"png": None, "caption": f"{r.label}: {exc}"}]
     f = modes.band_freq_hz
-    listed = ", ".join(f"{x:.4g}" for x in modes.freq_hz)
-    order = f" Model order {modes.order_note.removeprefix('model order ')}." if modes.order_note else ""
-    figs = [_fig(diagram, f"{r.label}: pLSCF stabilisation diagram over the complex mode indicator "
-                          f"function (filled: stable in frequency, damping and shape; crosses: poles of "
-                          f"the {modes.freq_hz.size} selected modes at {listed} Hz; identification band "
-                          f"{f.min():.4g}-{f.max():.4g} Hz shaded).{order}"),
+    figs = [_fig(diagram, stabilisation_caption(r.label, modes.freq_hz, (f.min(), f.max()), unit,
+                                                len(r.frf.outputs), modes.order_note)),
             _fig(plots.plot_identification_synthesis(r.frf, modes, unit, title=f"{r.label}: synthesis"),
                  f"{r.label}: measured FRFs and the FRFs synthesised from the identified modes and "
                  "residuals (LSFD), with the FRAC of each pair")]
