@@ -47,13 +47,10 @@ from flexmodal.checked_io.blas import one_blas_thread
 from flexmodal.checked_io.plural import counted
 from flexmodal.contract.mac import mac_pairs
 from flexmodal.modal.errors import ModalError
+from flexmodal.modal.stability import STABLE_DAMPING_REL, STABLE_FREQ_REL, STABLE_MAC_MIN
 
 T = TypeVar("T")
 DEFAULT_MAX_POLES = 200   # default cap of (model order x references) of the adaptive diagram
-# a pole is stable against the nearest pole one order lower within these (the diagram's default criteria)
-STABLE_FREQ_REL = 0.01    # relative frequency change [-]
-STABLE_DAMPING_REL = 0.05  # relative damping-ratio change [-]
-STABLE_MAC_MIN = 0.98     # least MAC of the shapes [-] (two or more outputs)
 
 
 @dataclass(frozen=True)

@@ -11,8 +11,7 @@ from __future__ import annotations
 import re
 from collections.abc import Sequence
 
-from flexmodal.modal.identify import PICKED
-from flexmodal.modal.lscf import STABLE_DAMPING_REL, STABLE_FREQ_REL, STABLE_MAC_MIN
+from flexmodal.modal.stability import PICKED, STABLE_DAMPING_REL, STABLE_FREQ_REL, STABLE_MAC_MIN
 
 _NOTE = re.compile(r"model order (?P<order>\d+): (?P<modes>\d+ modes?), (?P<why>.+?) \((?P<history>\d+ at \d+"
                    r"(?:, \d+ at \d+)*)\)(?:; (?:they explain|it explains) (?P<shown>\d+) of "
