@@ -81,5 +81,7 @@ def gap_figures(inputs: ReportInputs) -> Figures:
                                                "modes, before and after")]
 
 
-MODES = Section("Modes across poses", mode_figures, anchor="modes")
-GAP = Section("Gap before and after the diagnosed effect", gap_figures, anchor="gap")
+MODES = Section("Modes across poses", mode_figures, anchor="modes",
+                needs="modes at poses that vary (--measured, --pred) or shapes (--pred, --rig)")
+GAP = Section("Gap before and after the diagnosed effect", gap_figures, anchor="gap",
+              needs="a diagnosis (--diagnosis)")

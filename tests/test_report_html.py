@@ -179,9 +179,16 @@ def test_report_cli_writes_the_same_sections(inputs, capsys):
 def test_report_without_runs_or_poses_notes_what_it_cannot_draw(inputs, tmp_path):
     measured = ModalTable.read_csv(inputs["measured"])
     no_pose = ModalTable.from_frame(measured.frame.drop(columns=["pose.theta_deg"]), "no-pose")
+    told: list[str] = []
     out = api.report(tmp_path / "r.html", measured=no_pose, rig=load_rig(inputs["rig"]),
-                     predictions=[ModalTable.read_csv(inputs["pred"])])
+                     predictions=[ModalTable.read_csv(inputs["pred"])], progress=told.append)
     html = out.read_text()
+    # a section with nothing to draw says so and what it is drawn from (it said "plotting modal map of
+    # the moving arm" for a report without a table of identify --track)
+    assert "plotting modes across poses" in told and not any("plotting modal map" in m for m in told)
+    assert "no gap before and after the diagnosed effect: it is drawn from a diagnosis (--diagnosis)" in told
+    assert ("no modal map of the moving arm: it is drawn from a measured table of identify --track "
+            "(--measured)") in told
     assert "No mode shapes drawn for theta0: the measured table gives no pose.theta_deg for the rig" in html
     assert "Stored runs" not in html and "fe Δf [%]" in html
     # nothing varies with pose, no shapes drawn: the one figure is the test-model MAC (needs no pose)
