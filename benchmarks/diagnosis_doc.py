@@ -61,8 +61,8 @@ SPARSE_SEED = 5
 ADVICE_SEEDS = LATEST_SEEDS + NEXT_SEEDS
 """The used blind draws on which the next-measurement advice is measured (``advice_block``)."""
 ADVICE_FINAL_SEEDS = S736_SEEDS
-"""Draws used neither for the method nor for the advice when the advice (frozen, with the 5 % rule) was
-measured once on their ambiguous verdicts (block ``advice_s736``); the method's last change used them."""
+"""The draws of block ``advice_s736``: never used when the frequency-only advice was measured once on
+their ambiguous verdicts; used since (the method's last change, the advice with shapes)."""
 
 from flexmodal.compare.diagnosis import diagnose  # noqa: E402
 from flexmodal.contract.table import ModalTable  # noqa: E402
