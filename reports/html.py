@@ -48,6 +48,7 @@ from flexmodal.reports.errors import ReportError
 from flexmodal.reports.geometry import Geometry
 from flexmodal.reports.runs import LOW_COHERENCE, RunSummary
 from flexmodal.reports.sections import SECTIONS, ReportInputs
+from flexmodal.reports.stabilisation_caption import stabilisation_caption
 
 KEY_LIBRARIES = ("numpy", "scipy", "pandas", "matplotlib", "h5py", "jinja2", "pyuff")
 
@@ -180,12 +181,8 @@ def _identification_figures(r: RunSummary, unit: str) -> list[dict]:
     except ReportError as exc:
         return [{"png": None, "caption": f"{r.label}: {exc}"}]
     f = modes.band_freq_hz
-    listed = ", ".join(f"{x:.4g}" for x in modes.freq_hz)
-    order = f" Model order {modes.order_note.removeprefix('model order ')}." if modes.order_note else ""
-    figs = [_fig(diagram, f"{r.label}: pLSCF stabilisation diagram over the complex mode indicator "
-                          f"function (filled: stable in frequency, damping and shape; crosses: poles of "
-                          f"the {modes.freq_hz.size} selected modes at {listed} Hz; identification band "
-                          f"{f.min():.4g}-{f.max():.4g} Hz shaded).{order}"),
+    figs = [_fig(diagram, stabilisation_caption(r.label, modes.freq_hz, (f.min(), f.max()), unit,
+                                                len(r.frf.outputs), modes.order_note)),
             _fig(plots.plot_identification_synthesis(r.frf, modes, unit, title=f"{r.label}: synthesis"),
                  f"{r.label}: measured FRFs and the FRFs synthesised from the identified modes and "
                  "residuals (LSFD), with the FRAC of each pair")]
@@ -218,10 +215,12 @@ def _run_figures(r: RunSummary) -> list[dict]:
                  f"pose {pose_text(r.run.pose)})"), *_identification_figures(r, unit)]
 
 
-def _run_sections(runs: Sequence[RunSummary]) -> list[dict]:
-    """One collapsible block per run: its anchor, a one-line summary and its figures."""
+def _run_sections(runs: Sequence[RunSummary], step: Callable[[str], None]) -> list[dict]:
+    """One collapsible block per run: its anchor, a one-line summary and its figures; ``step`` is told
+    each run before it is plotted (ten runs take 40 s)."""
     sections = []
     for k, r in enumerate(runs):
+        step(f"plotting run {k + 1}/{len(runs)}: {r.label}")
         figs = _run_figures(r)
         drawn = sum(1 for f in figs if f["png"])
         sections.append({"id": f"run-{k + 1}", "label": r.label, "figures": figs,
@@ -411,14 +410,16 @@ def write_report(out_path: str | Path, *, runs: Sequence[RunSummary] = (),
             figures = _animations(measured, predictions, shapes or {}, geometry)
             shown = bool(figures)
         elif section.block == "runs":
-            step("plotting runs")
-            run_sections = _run_sections(summaries)
+            run_sections = _run_sections(summaries, step)
             figures, shown = [f for s in run_sections for f in s["figures"]], bool(meta)
         elif section.block:
             figures, shown = [], tables[section.block]
-        else:
-            step(f"plotting {section.title.lower()}")
-            figures = [_fig(fig, caption) for fig, caption in section.figures(given)]
+        else:   # a section with nothing to draw says so in one line (it said "plotting" it)
+            drawn = list(section.figures(given))
+            step(f"plotting {section.title.lower()}" if drawn else
+                 f"no {section.title.lower()}: " + (f"it is drawn from {section.needs}" if section.needs
+                                                    else "nothing in these inputs to draw it from"))
+            figures = [_fig(fig, caption) for fig, caption in drawn]
             shown = bool(figures)
         if shown:
             sections.append({"id": section.anchor or f"section-{name}", "title": section.title,
