@@ -288,9 +288,26 @@ def _pct(value: float | None) -> str:
     return f"{100 * value:.3g}" if value is not None else ""
 
 
+# the SI unit a fitted parameter's name ends in (models.effects: k_Nm_per_rad, mass_kg, ...), longest first
+PARAM_UNITS = {"_Nm_per_rad": "N m/rad", "_N_per_m": "N/m", "_kgm2": "kg m²", "_per_rad2": "1/rad²",
+               "_per_rad": "1/rad", "_kg": "kg", "_m": "m", "_deg": "deg", "_rad": "rad", "_hz": "Hz"}
+
+
+def param_text(name: str, value: float) -> str:
+    """A fitted parameter with the unit its name ends in (none for a ratio such as ``scale``).
+
+    Examples
+    --------
+    >>> param_text("k_Nm_per_rad", 6616.2), param_text("inertia_kgm2", 0.01), param_text("scale", 0.6332)
+    ('k_Nm_per_rad = 6616 N m/rad', 'inertia_kgm2 = 0.01 kg m²', 'scale = 0.6332')
+    """
+    unit = next((u for suffix, u in PARAM_UNITS.items() if name.endswith(suffix)), "")
+    return f"{name} = {value:.4g}" + (f" {unit}" if unit else "")
+
+
 def _verdict_params(verdict) -> str:
-    """The verdict's fitted parameters with their 95 % intervals, as ``flexmodal diagnose`` prints them:
-    ``k_Nm_per_rad = 6616 (95 % interval 5359 .. 8168)``; empty for ``none``."""
+    """The verdict's fitted parameters with their units and 95 % intervals:
+    ``k_Nm_per_rad = 6616 N m/rad (95 % interval 5359 .. 8168)``; empty for ``none``."""
     intervals = verdict.param_intervals or {}
 
     def interval(name: str) -> str:
@@ -298,7 +315,7 @@ def _verdict_params(verdict) -> str:
         return f" (95 % interval {lo:.4g} .. {hi:.4g})" if lo is not None and hi is not None else ""
 
     fitted = (verdict.params or {}).items()
-    return "; ".join(f"{k} = {v:.4g}{interval(k)}" for k, v in fitted if v is not None)
+    return "; ".join(f"{param_text(k, v)}{interval(k)}" for k, v in fitted if v is not None)
 
 
 def _configs_words(d: Diagnosis) -> str:
@@ -332,7 +349,7 @@ def _diagnosis_view(d: Diagnosis) -> dict:
         "explained_text": verdict_words(d) or ("yes" if verdict.explained else
                                                "no: the gap stays above the measurement scatter"),
         "ranking": [{"effect": r.effect, "location": r.location,
-                     "params": ", ".join(f"{k} = {v:.4g}" for k, v in r.params.items() if v is not None),
+                     "params": ", ".join(param_text(k, v) for k, v in r.params.items() if v is not None),
                      "fit": _pct(r.fit_rms_rel_error), "heldout": _pct(r.heldout_rms_rel_error),
                      "n_params": r.n_params} for r in d.ranking[:8]],
         "holdout": d.holdout.scheme if d.holdout is not None else "",
