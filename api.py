@@ -1887,7 +1887,8 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     from flexmodal.reports.sections import Section, register_section, registered_sections
 
     if "modal-map" not in registered_sections():
-        register_section("modal-map", Section("Modal map of the moving arm", _tracked_map_figures))
+        register_section("modal-map", Section("Modal map of the moving arm", _tracked_map_figures,
+                                              needs="a measured table of identify --track (--measured)"))
 
     geo = None
     if geometry is not None:    # read first: a bad geometry file stops the report before any work

@@ -3,7 +3,8 @@
 1. Baseline: the nominal rig's FE modes (models/frame.py) against the measured ones, per mode and
    configuration.  When its RMS is within ``NONE_FACTOR`` times the measurement scatter, on top of the
    error the frame's beam theory is known to make (``_none_level``), the verdict is ``none`` -- the
-   scatter never taken above what the best single candidate leaves held out (``_none_scatter``).
+   scatter never taken above what the best single candidate leaves held out, or with the fallback
+   scatter above that RMS's 95 % chi-square upper limit (``_none_scatter``).
 2. ``where``: the modes and configurations that carry the gap, and the region of the arm whose handles'
    frequency sensitivities best explain the error pattern (R^2, compare/gap.py; among regions within
    ``REGION_TIE`` of the best, the verdict's), plus MAC/COMAC when shapes were measured.
@@ -49,6 +50,7 @@ from dataclasses import replace
 
 import numpy as np
 from scipy.special import stdtrit
+from scipy.stats import chi2
 from threadpoolctl import threadpool_limits
 
 from flexmodal.checked_io.percent import percent
@@ -56,8 +58,10 @@ from flexmodal.compare.candidates import Candidate, combine, components, parse_e
 from flexmodal.compare.errors import CompareError
 from flexmodal.compare.fit import Target, design, evaluate, fit_candidate, linear_cov, paired_modes
 from flexmodal.compare.gap import (
+    FALLBACK_SOURCE,
     MIN_SCATTER_REL,
     Measured,
+    Scatter,
     carriers,
     comac,
     estimate_scatter,
@@ -330,16 +334,36 @@ def _cross_validate(ctx: _Context, entry: dict, scatter: float) -> None:
     _rescore(ctx, entry, scatter)
 
 
-def _none_scatter(sigma: float, ranked: Sequence[dict]) -> float:
+def _none_scatter(noise: Scatter, ranked: Sequence[dict]) -> float:
     """The scatter against which the nominal model's gap is judged (``NONE_FACTOR``): the
-    measurement's ``sigma``, but never more than the lowest held-out frequency RMS of the
-    cross-validated candidates ``ranked``.  A candidate that predicts configurations it did not see to
-    ``h`` shows that the noise is at most about ``h``, while ``sigma`` from a few repeats (a chi-square
-    of 4-6 degrees of freedom) or the fallback can be well above the true scatter and would then
-    declare a weak effect ``none``.  Without an effect the best candidate's held-out error is the
-    scatter itself (within 1.4x in the blind draws), so a gap within twice the scatter stays
-    ``none``."""
-    return min([sigma] + [e["heldout_rms_rel_error"] for e in ranked])
+    measurement's scatter ``noise.value``, but never more than what the held-out frequency residuals
+    of the cross-validated candidates ``ranked`` allow.  A candidate that predicts configurations it
+    did not see to ``h`` shows that the noise is at most about ``h``, while a scatter from a few repeats
+    (a chi-square of 4-6 degrees of freedom) or the fallback can be well above the true scatter and
+    would then declare a weak effect ``none``.  Without an effect the best candidate's held-out error
+    is the scatter itself (within 1.4x in the blind draws), so a gap within twice the scatter stays
+    ``none``.
+
+    With a measured scatter (repeats or ``freq_std_hz``) ``h`` is a second measurement and the lower of
+    the two is taken.  With the fallback, an assumption, ``h`` is the only measurement of the noise and
+    its own uncertainty counts: an RMS of ``N`` held-out values has ``N h^2 / sigma^2 ~ chi2(N)``, so
+    ``h`` stands for the noise up to its one-sided 95 % upper confidence limit
+    ``h sqrt(N / chi2_0.05(N))`` (1.92 h for N = 6, 1.35 h for N = 20).  Blind draw 736 #14 (no
+    effect, 3 poses x 2 modes, fallback 0.5 %): a best single's 0.144 % on 6 values set the scatter
+    and a 0.384 % gap became a link stiffness; its upper limit, 0.275 %, leaves it ``none``.
+
+    Examples
+    --------
+    >>> best = [{"heldout_rms_rel_error": 0.00144, "_held_err": np.full(6, 0.00144)}]
+    >>> round(_none_scatter(Scatter(0.005, FALLBACK_SOURCE, ""), best), 5)
+    0.00276
+    >>> _none_scatter(Scatter(0.005, "repeated configurations", ""), best)
+    0.00144
+    """
+    held = [(e["heldout_rms_rel_error"], int(np.isfinite(e["_held_err"]).sum())) for e in ranked]
+    if noise.source == FALLBACK_SOURCE:
+        return min([noise.value] + [h * math.sqrt(n / chi2.ppf(0.05, n)) for h, n in held if n])
+    return min([noise.value] + [h for h, _ in held])
 
 
 def _none_level(none_sigma: float, theory: float) -> float:
@@ -601,7 +625,7 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
     if small and screened:         # the best singles say what might be there, and how low the noise is
         for e in sorted(screened, key=lambda e: e["_lower"])[:MAX_ALTERNATIVES]:
             _cross_validate(ctx, e, scatter)
-        none_sigma = _none_scatter(sigma, [e for e in screened if "score" in e])
+        none_sigma = _none_scatter(noise, [e for e in screened if "score" in e])
         small = baseline["rms_rel_error"] <= _none_level(none_sigma, ctx.beam_form)
     if small and screened:         # the verdict is ``none``
         ranking = sorted((e for e in screened if "score" in e), key=lambda e: e["score"])

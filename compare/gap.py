@@ -152,6 +152,9 @@ class Scatter:
     detail: str
 
 
+FALLBACK_SOURCE = "--scatter (fallback)"
+"""``Scatter.source`` when the data carry no scatter of their own and the assumed fallback stands in."""
+
 MIN_SCATTER_REL = 1e-6
 """No relative frequency scatter below 1 ppm is taken (far below any modal test's repeatability; a
 smaller one, or a subnormal ``freq_std_hz``, squares to 0 in the chi-square of the diagnosis)."""
@@ -197,4 +200,4 @@ def estimate_scatter(table: ModalTable, meas: Measured, fallback: float) -> Scat
             value = float(np.sqrt(np.mean(rel**2)))
             return Scatter(max(value, MIN_SCATTER_REL), "freq_std_hz column",
                            f"RMS of freq_std_hz / freq_hz over {rel.size} rows{_raised(value)}")
-    return Scatter(fallback, "--scatter (fallback)", "the data carry no repeats and no freq_std_hz column")
+    return Scatter(fallback, FALLBACK_SOURCE, "the data carry no repeats and no freq_std_hz column")

@@ -7,7 +7,9 @@ g^T C g`` (dimensionless, relative frequency squared; ``g`` the relative sensiti
 parameters there, ``C`` their linearised Gauss-Newton covariance from the measured poses: Seber & Wild
 1989 §5.1).  How well a measurement at that pose tells candidate ``a`` from ``b`` is the symmetric
 Kullback-Leibler divergence of their predictive normals (Box & Hill 1967, "Discrimination among
-mechanistic models", Technometrics 9: 57-71; Kullback 1959), in nats, summed over modes.
+mechanistic models", Technometrics 9: 57-71; Kullback 1959), in nats, summed over modes.  The chance
+that one measurement decides also counts the mode shapes the candidates predict there, when shapes were
+measured: two candidates with the same frequencies at a pose may still differ in shape.
 
 Functions (``ctx`` is the diagnosis' fit context, ``FitContext``; ``entry`` a fitted candidate of its
 ranking: ``_cand``, ``_fam``, ``_theta0``):
@@ -65,6 +67,8 @@ class FitContext(Protocol):
     meas: Measured
     target: Target
     pose_share: float                                   # distinct poses / configurations
+    shape_dof: int                                      # measured sensors - 1 (0 without shapes)
+    shape_floor: float                                  # smallest in-sample mean 1 - MAC (inf: none)
     trial: tuple[tuple[str, ...], FitContext] | None     # the trial context of ``_trial_context``
 
     def family(self, handles: Sequence[str]) -> ReducedFamily: ...
@@ -197,57 +201,88 @@ def beyond_measured(poses: Sequence[dict[str, float]], pose: dict[str, float], n
 
 
 def _predictive(ctx: FitContext, entry: dict, nctx: FitContext, scatter: float
-                ) -> tuple[np.ndarray, np.ndarray]:
-    """``entry``'s fitted candidate at the poses of ``nctx``: frequencies [P, n] Hz and the variance of
-    their relative prediction [P, n] (dimensionless) from its linearised parameter covariance (reduced
-    model)."""
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``entry``'s fitted candidate at the poses of ``nctx``: frequencies [P, n] Hz, the variance of
+    their relative prediction [P, n] (dimensionless) from its linearised parameter covariance, and its
+    mode shapes at the measured sensors [P, s, n] (reduced model; s = 0 without measured shapes)."""
     cand = entry["_cand"]
     _, df, _, _ = evaluate(entry["_fam"], design(cand, ctx.target), entry["_theta0"][None], ctx.target)
     cov = linear_cov(df[0] / ctx.meas.freq_hz[..., None], scatter)
     n = ctx.meas.freq_hz.shape[1]
     h = np.exp(design(cand, nctx.target) @ entry["_theta0"])[None]
-    lam, dlam, _ = solve_family(nctx.family(cand.handles), h, n)
+    lam, dlam, shapes = solve_family(nctx.family(cand.handles), h, n)
     f = lam_to_hz(lam[0])
     dl = dlam[0] * h[0][:, None, :]                                    # d lambda / d log h
     g = (dl @ design(cand, nctx.target)) / (8 * math.pi**2 * np.maximum(f, 1e-12) ** 2)[..., None]
-    return f, np.einsum("cnj,jk,cnk->cn", g, cov, g)
+    rows = [s.name for s in ctx.rig.sensors]
+    keep = [rows.index(s) for s in ctx.meas.sensors] if ctx.meas.shapes is not None else []
+    return f, np.einsum("cnj,jk,cnk->cn", g, cov, g), shapes[0][:, keep]
+
+
+def shape_disagreement(phi: np.ndarray) -> np.ndarray:
+    """``1 - MAC`` [K, K, P, n] between the mode shapes ``phi`` [K, P, s, n] that candidates predict at
+    each pose: for candidate ``i``'s mode ``m``, the best match among candidate ``j``'s modes (a mode
+    order swapped near a veering is not a difference the diagnosis sees: it pairs modes by MAC).
+
+    Examples
+    --------
+    >>> a = np.array([[1.0, 0.0], [0.0, 1.0]])                  # sensors x modes, one pose
+    >>> b = np.array([[0.0, 1.0], [1.0, 0.0]])                  # the same two modes, swapped
+    >>> c = np.array([[1.0, 1.0], [1.0, -1.0]])                 # both modes turned by 45 deg
+    >>> shape_disagreement(np.array([a, b, c])[:, None])[:, :, 0, 0].round(3).tolist()   # mode 1
+    [[0.0, 0.0, 0.5], [0.0, 0.0, 0.5], [0.5, 0.5, 0.0]]
+    """
+    norm = np.maximum(np.einsum("kpsn,kpsn->kpn", phi, phi), 1e-300)
+    cross = np.einsum("ipsm,jpsn->ijpmn", phi, phi) ** 2
+    mac = cross / (norm[:, None, :, :, None] * norm[None, :, :, None, :])
+    return np.clip(1.0 - mac.max(axis=-1), 0.0, 1.0)
 
 
 def _resolve_chance(f: np.ndarray, v: np.ndarray, heldout: np.ndarray, dof: np.ndarray, pose_share: float,
-                    scatter: float) -> np.ndarray:
+                    scatter: float, shape_chi: np.ndarray | None = None, shape_dof: int = 0) -> np.ndarray:
     """The chance [P] that one measurement of the ``n`` modes at each pose decides among ``K`` fitted
     candidates: their predictions ``f`` [K, P, n] Hz with predictive variances ``v`` [K, P, n] (relative,
-    scatter included), their held-out RMS errors ``heldout`` [K] (relative) over ``dof`` [K] degrees of
-    freedom.  Bayesian decision-theoretic design (the expected utility of a decisive outcome; Chaloner &
-    Verdinelli 1995, Statist. Sci. 10: 273-304; Box & Hill 1967 weigh the hypotheses alike): each
-    candidate ``i`` is the truth with the weight ``exp(-chi2_i / 2)`` of its held-out chi-square
-    ``dof_i pose_share heldout_i^2 / scatter^2`` (normalised); given ``i``, the new point adds
-    ``v_i`` to its mean squared held-out error and ``d_ij^2 + v_j`` to candidate ``j``'s
+    scatter included), their held-out RMS errors ``heldout`` [K] (relative, frequency-equivalent) over
+    ``dof`` [K] degrees of freedom.  Bayesian decision-theoretic design (the expected utility of a
+    decisive outcome; Chaloner & Verdinelli 1995, Statist. Sci. 10: 273-304; Box & Hill 1967 weigh the
+    hypotheses alike): each candidate ``i`` is the truth with the weight ``exp(-chi2_i / 2)`` of its
+    held-out chi-square ``dof_i pose_share heldout_i^2 / scatter^2`` (normalised); given ``i``, the new
+    point adds ``v_i`` to its mean squared held-out error and ``d_ij^2 + v_j`` to candidate ``j``'s
     (``d_ij = f_j / f_i - 1`` per mode), and ``j`` is ruled out when its new held-out RMS exceeds
     ``i``'s by more than the diagnosis' noise margin ``2 sqrt(2) max(h_i, scatter) / sqrt(2 N)`` with
     ``N`` the distinct held-out degrees of freedom (compare/diagnosis.py ``_noise``), with probability
     ``Phi((h_j - h_i - margin) / sd)`` (``sd`` the spread of that difference: the new residuals share
     the measurement's noise ``e``, so ``e_j^2 - e_i^2 = d^2 - 2 d e`` varies with ``4 d^2 var(e)``).
-    The chance is ``sum_i w_i prod_(j != i) P(j ruled out | i)``: a pose must rule out every
-rival of the right candidate, not only one, for the verdict to stop being ambiguous."""
+    With measured shapes (``shape_dof`` = sensors - 1 per mode) the new point's shapes count too, as the
+    diagnosis counts them (``_equivalent``: a chi-square of ``1 - MAC`` over the shape noise per degree
+    of freedom, ``shape_dof`` degrees of freedom a mode): the truth's adds its noise, ``shape_dof`` a mode;
+    candidate ``j``'s adds that plus ``shape_chi[i, j]`` [K, K, P, n], the disagreement of the two
+    predicted shapes over the shape noise (``shape_disagreement``), whose cross term with the noise
+    varies by ``4 shape_chi``.  The chance is ``sum_i w_i prod_(j != i) P(j ruled out | i)``: a pose
+    must rule out every rival of the right candidate, not only one, for the verdict to stop being
+    ambiguous."""
     K, _, n = f.shape
-    chi2 = dof * pose_share * heldout**2 / scatter**2
+    s2 = scatter**2
+    new = n * (1 + shape_dof)                           # degrees of freedom one pose adds
+    chi2 = dof * pose_share * heldout**2 / s2
     w = np.exp(-(chi2 - chi2.min()) / 2)
     w /= w.sum()
     total = np.zeros(f.shape[1])
     for i in range(K):
         if w[i] < 1e-6:
             continue
-        win2 = (dof[i] * heldout[i] ** 2 + v[i].sum(axis=1)) / (dof[i] + n)
+        win2 = (dof[i] * heldout[i] ** 2 + v[i].sum(axis=1) + s2 * n * shape_dof) / (dof[i] + new)
         win = np.sqrt(win2)
-        margin = 2 * math.sqrt(2) * np.maximum(win, scatter) / math.sqrt(2 * (dof[i] * pose_share + n))
+        margin = 2 * math.sqrt(2) * np.maximum(win, scatter) / math.sqrt(2 * (dof[i] * pose_share + new))
         decisive = np.ones(f.shape[1])
         for j in range(K):
             if j == i:
                 continue
             d = f[j] / f[i] - 1.0
-            lose = np.sqrt((dof[j] * heldout[j] ** 2 + (d**2 + v[j]).sum(axis=1)) / (dof[j] + n))
-            var = (2 * d**2 * (v[i] + v[j])).sum(axis=1) / (dof[i] + n) ** 2     # e_j^2 - e_i^2 ~ d^2 - 2 d e
+            apart = np.zeros(f.shape[1]) if shape_chi is None else shape_chi[i, j].sum(axis=1)
+            lose2 = dof[j] * heldout[j] ** 2 + (d**2 + v[j]).sum(axis=1) + s2 * (n * shape_dof + apart)
+            lose = np.sqrt(lose2 / (dof[j] + new))
+            var = ((2 * d**2 * (v[i] + v[j])).sum(axis=1) + 4 * s2**2 * apart) / (dof[i] + new) ** 2
             sd = np.maximum(np.sqrt(var) / np.maximum(win + lose, 1e-12), 1e-12)
             decisive *= ndtr((lose - win - margin) / sd)
         total += w[i] * decisive
@@ -265,7 +300,9 @@ def next_measurements(ctx: FitContext, best: dict, rivals: Sequence[dict], scatt
     its ``rivals`` is right
     (``_resolve_chance``), each candidate predicting the new point with its fitted reduced model and
     the variance ``scatter^2 + g^T C g`` (its linearised prediction variance: where a candidate is
-    loosely pinned down it can follow a new point, and a measurement there decides little); ties
+    loosely pinned down it can follow a new point, and a measurement there decides little), and, when
+    shapes were measured, its mode shapes at the measured sensors, whose disagreement between two
+    candidates counts over the shape noise as the diagnosis counts it (``shape_disagreement``); ties
     (e.g. no pose can decide) by the expected information.  ``information_nats`` is the Box & Hill
     (1967) discrimination information, the symmetric Kullback-Leibler divergence between the verdict's
     and a rival's predictive normals of each measured mode's relative frequency, ``0.5 [(v_a - v_b)^2
@@ -297,8 +334,16 @@ def next_measurements(ctx: FitContext, best: dict, rivals: Sequence[dict], scatt
         d = f[k] / f[0] - 1.0
         info += np.nan_to_num(0.5 * ((v[0] - v[k]) ** 2 / (v[0] * v[k]) + d**2 * (1 / v[0] + 1 / v[k])))
     info /= len(rivals)
+    shape_chi, shape_dof = None, 0
+    if ctx.shape_dof > 0 and math.isfinite(ctx.shape_floor) and pred[0][2].shape[1]:
+        from flexmodal.compare.diagnosis import SHAPE_SCATTER_MIN  # (diagnosis imports this module)
+
+        floor = max(ctx.shape_floor / ctx.shape_dof, SHAPE_SCATTER_MIN**2)   # as ``_equivalent``'s
+        shape_chi = shape_disagreement(np.array([p[2][keep] for p in pred])) / floor
+        shape_dof = ctx.shape_dof
     chance = _resolve_chance(f, v, np.array([e["_heldout_eq"] for e in everyone]),
-                             np.array([e["_n_eq"] for e in everyone], float), ctx.pose_share, scatter)
+                             np.array([e["_n_eq"] for e in everyone], float), ctx.pose_share, scatter,
+                             shape_chi, shape_dof)
     total = info.sum(axis=1)
     order = [i for i in np.lexsort((-total, -np.round(chance, 3)))
              if total[i] > 0 and chance[i] >= MIN_CHANCE][:MAX_ADVICE]

@@ -476,13 +476,30 @@ class Diagnosis(_Record):
                             f"{percent(self.baseline.rms_rel_error)} (candidates, best first; "
                             "<code>to_frame()</code> has all)", shown.round(4))
 
-    def per_mode_after(self) -> Mapping[str, float | None] | None:
-        """RMS relative error per mode with the best candidate (``baseline.per_mode`` is the one before):
-        of its held-out predictions, or of its fit to all configurations when none of them was held
-        out; None without a best candidate."""
+    def after_hz(self) -> Mapping[str, Hz] | None:
+        """The best candidate's frequencies the gap after it is judged on: its held-out predictions, or
+        its fit to all configurations when none of them was held out; None without a best candidate."""
         pred = self.predictions
         for table in (pred.best_heldout_hz, pred.best_fit_hz) if pred is not None else ():
-            after = pred.rms_rel_error_per_mode(table) if table else {}
-            if any(v is not None for v in after.values()):
-                return after
+            if table and any(v is not None for v in pred.rms_rel_error_per_mode(table).values()):
+                return table
         return None
+
+    def per_mode_after(self) -> Mapping[str, float | None] | None:
+        """RMS relative error per mode with the best candidate (:meth:`after_hz`; :meth:`per_mode_before`
+        is the nominal model's on the same configurations); None without a best candidate."""
+        table = self.after_hz()
+        return None if table is None else self.predictions.rms_rel_error_per_mode(table)
+
+    def per_mode_before(self) -> Mapping[str, float | None]:
+        """RMS relative error per mode of the nominal model over the configurations and modes
+        :meth:`per_mode_after` is judged on (like for like: held out against held out); over every
+        configuration (``baseline.per_mode``) without a best candidate."""
+        table = self.after_hz()
+        if table is None:
+            return self.baseline.per_mode
+        base = self.predictions.baseline_hz
+        same = {c: tuple(None if a is None or k >= len(base.get(c, ())) else base[c][k]
+                         for k, a in enumerate(after))
+                for c, after in table.items() if c in base}
+        return self.predictions.rms_rel_error_per_mode(same)

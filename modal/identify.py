@@ -37,6 +37,7 @@ from flexmodal.modal.lscf import (
 from flexmodal.modal.lsfd import LsfdResult, lsfd, refine_pole, synthesis_of
 from flexmodal.modal.peaks import clear_peaks, cmif, pick_peaks, quadrature_shapes, visible_peaks
 from flexmodal.modal.registry import METHODS, output_only
+from flexmodal.modal.stability import PICKED
 from flexmodal.modal.windows import remove_added_damping
 
 INDICATORS = ("mpc", "mpd", "synthesis_corr")   # per-mode validation columns of the modal table
@@ -45,7 +46,6 @@ VISIBLE_DB = 3.0   # a peak this prominent in some FRF or CMIF curve is a resona
 BROAD = 3.0   # a pole of this many times a close mode's half-power bandwidth, covering it, is background
 MIN_LINES_PER_BANDWIDTH = 8   # below this the Hann-window leakage bias on damping exceeds a few %
 SYNTHESIS_HEADER = b"config,output,input,synthesis_corr"   # the first line of MODES.synthesis.csv
-PICKED = "; poles picked from the stored diagram"   # the note of a pick from modal.diagrams
 ZOOM_LINES = 16      # lines per misfit window (windows overlap by half)
 ZOOM_MISFIT = 3.0    # a window misfit this many times the band's median misfit...
 ZOOM_ZETA = 0.01     # ...and fitted with one pole starting at this damping ratio at its largest residual

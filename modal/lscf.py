@@ -47,6 +47,7 @@ from flexmodal.checked_io.blas import one_blas_thread
 from flexmodal.checked_io.plural import counted
 from flexmodal.contract.mac import mac_pairs
 from flexmodal.modal.errors import ModalError
+from flexmodal.modal.stability import STABLE_DAMPING_REL, STABLE_FREQ_REL, STABLE_MAC_MIN
 
 T = TypeVar("T")
 DEFAULT_MAX_POLES = 200   # default cap of (model order x references) of the adaptive diagram
@@ -241,8 +242,8 @@ def _nearest_previous(order: np.ndarray, freq_hz: np.ndarray) -> np.ndarray:
     return previous
 
 
-def _flags(orders: list[int], found: list[tuple[np.ndarray, np.ndarray]], df: float = 0.01,
-           dz: float = 0.05, mac_min: float = 0.98) -> Stabilisation:
+def _flags(orders: list[int], found: list[tuple[np.ndarray, np.ndarray]], df: float = STABLE_FREQ_REL,
+           dz: float = STABLE_DAMPING_REL, mac_min: float = STABLE_MAC_MIN) -> Stabilisation:
     """Stability flags of every pole against the nearest pole (in frequency) of the previous order.
     With one output the shape criterion is left out (a MAC over one channel is always 1)."""
     poles = [pl for pl, _ in found]
@@ -263,8 +264,9 @@ def _flags(orders: list[int], found: list[tuple[np.ndarray, np.ndarray]], df: fl
     return Stabilisation(order, all_fn, all_zeta, all_poles, sf, sd, ss, previous)
 
 
-def stabilisation(freq_hz: np.ndarray, H: np.ndarray, orders: range | list[int], *, df: float = 0.01,
-                  dz: float = 0.05, mac_min: float = 0.98) -> Stabilisation:
+def stabilisation(freq_hz: np.ndarray, H: np.ndarray, orders: range | list[int], *,
+                  df: float = STABLE_FREQ_REL, dz: float = STABLE_DAMPING_REL,
+                  mac_min: float = STABLE_MAC_MIN) -> Stabilisation:
     """Poles of every model order in ``orders`` and their stability flags: a pole is stable in
     frequency within relative ``df``, in damping within relative ``dz`` and in shape with MAC >=
     ``mac_min`` (two or more outputs) against the nearest pole of the previous order."""

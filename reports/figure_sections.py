@@ -74,12 +74,14 @@ def gap_figures(inputs: ReportInputs) -> Figures:
     """The relative frequency error per mode of the nominal model and with the diagnosed effect."""
     if inputs.diagnosis is None:
         return []
-    return [(plots.plot_gap(inputs.diagnosis), "Left: each mode's relative frequency error, RMS over "
-                                               "configurations: of the nominal model over all of them, with "
-                                               "the diagnosed effect over those it is judged on (held out, "
-                                               "as the legend says); right: the held-out RMS error over all "
-                                               "modes, before and after")]
+    return [(plots.plot_gap(inputs.diagnosis),
+             "Left: each mode's relative frequency error, RMS over configurations, of the nominal model "
+             "and with the diagnosed effect, both over the configurations the effect is judged on (held "
+             "out, or all of them: the legend says which); right: the held-out RMS error over all modes, "
+             "before and after")]
 
 
-MODES = Section("Modes across poses", mode_figures, anchor="modes")
-GAP = Section("Gap before and after the diagnosed effect", gap_figures, anchor="gap")
+MODES = Section("Modes across poses", mode_figures, anchor="modes",
+                needs="modes at poses that vary (--measured, --pred) or shapes (--pred, --rig)")
+GAP = Section("Gap before and after the diagnosed effect", gap_figures, anchor="gap",
+              needs="a diagnosis (--diagnosis)")

@@ -48,6 +48,7 @@ from flexmodal.reports.errors import ReportError
 from flexmodal.reports.geometry import Geometry
 from flexmodal.reports.runs import LOW_COHERENCE, RunSummary
 from flexmodal.reports.sections import SECTIONS, ReportInputs
+from flexmodal.reports.stabilisation_caption import stabilisation_caption
 
 KEY_LIBRARIES = ("numpy", "scipy", "pandas", "matplotlib", "h5py", "jinja2", "pyuff")
 
@@ -180,12 +181,8 @@ def _identification_figures(r: RunSummary, unit: str) -> list[dict]:
     except ReportError as exc:
         return [{"png": None, "caption": f"{r.label}: {exc}"}]
     f = modes.band_freq_hz
-    listed = ", ".join(f"{x:.4g}" for x in modes.freq_hz)
-    order = f" Model order {modes.order_note.removeprefix('model order ')}." if modes.order_note else ""
-    figs = [_fig(diagram, f"{r.label}: pLSCF stabilisation diagram over the complex mode indicator "
-                          f"function (filled: stable in frequency, damping and shape; crosses: poles of "
-                          f"the {modes.freq_hz.size} selected modes at {listed} Hz; identification band "
-                          f"{f.min():.4g}-{f.max():.4g} Hz shaded).{order}"),
+    figs = [_fig(diagram, stabilisation_caption(r.label, modes.freq_hz, (f.min(), f.max()), unit,
+                                                len(r.frf.outputs), modes.order_note)),
             _fig(plots.plot_identification_synthesis(r.frf, modes, unit, title=f"{r.label}: synthesis"),
                  f"{r.label}: measured FRFs and the FRFs synthesised from the identified modes and "
                  "residuals (LSFD), with the FRAC of each pair")]
@@ -218,10 +215,12 @@ def _run_figures(r: RunSummary) -> list[dict]:
                  f"pose {pose_text(r.run.pose)})"), *_identification_figures(r, unit)]
 
 
-def _run_sections(runs: Sequence[RunSummary]) -> list[dict]:
-    """One collapsible block per run: its anchor, a one-line summary and its figures."""
+def _run_sections(runs: Sequence[RunSummary], step: Callable[[str], None]) -> list[dict]:
+    """One collapsible block per run: its anchor, a one-line summary and its figures; ``step`` is told
+    each run before it is plotted (ten runs take 40 s)."""
     sections = []
     for k, r in enumerate(runs):
+        step(f"plotting run {k + 1}/{len(runs)}: {r.label}")
         figs = _run_figures(r)
         drawn = sum(1 for f in figs if f["png"])
         sections.append({"id": f"run-{k + 1}", "label": r.label, "figures": figs,
@@ -289,9 +288,26 @@ def _pct(value: float | None) -> str:
     return f"{100 * value:.3g}" if value is not None else ""
 
 
+# the SI unit a fitted parameter's name ends in (models.effects: k_Nm_per_rad, mass_kg, ...), longest first
+PARAM_UNITS = {"_Nm_per_rad": "N m/rad", "_N_per_m": "N/m", "_kgm2": "kg m²", "_per_rad2": "1/rad²",
+               "_per_rad": "1/rad", "_kg": "kg", "_m": "m", "_deg": "deg", "_rad": "rad", "_hz": "Hz"}
+
+
+def param_text(name: str, value: float) -> str:
+    """A fitted parameter with the unit its name ends in (none for a ratio such as ``scale``).
+
+    Examples
+    --------
+    >>> param_text("k_Nm_per_rad", 6616.2), param_text("inertia_kgm2", 0.01), param_text("scale", 0.6332)
+    ('k_Nm_per_rad = 6616 N m/rad', 'inertia_kgm2 = 0.01 kg m²', 'scale = 0.6332')
+    """
+    unit = next((u for suffix, u in PARAM_UNITS.items() if name.endswith(suffix)), "")
+    return f"{name} = {value:.4g}" + (f" {unit}" if unit else "")
+
+
 def _verdict_params(verdict) -> str:
-    """The verdict's fitted parameters with their 95 % intervals, as ``flexmodal diagnose`` prints them:
-    ``k_Nm_per_rad = 6616 (95 % interval 5359 .. 8168)``; empty for ``none``."""
+    """The verdict's fitted parameters with their units and 95 % intervals:
+    ``k_Nm_per_rad = 6616 N m/rad (95 % interval 5359 .. 8168)``; empty for ``none``."""
     intervals = verdict.param_intervals or {}
 
     def interval(name: str) -> str:
@@ -299,7 +315,7 @@ def _verdict_params(verdict) -> str:
         return f" (95 % interval {lo:.4g} .. {hi:.4g})" if lo is not None and hi is not None else ""
 
     fitted = (verdict.params or {}).items()
-    return "; ".join(f"{k} = {v:.4g}{interval(k)}" for k, v in fitted if v is not None)
+    return "; ".join(f"{param_text(k, v)}{interval(k)}" for k, v in fitted if v is not None)
 
 
 def _configs_words(d: Diagnosis) -> str:
@@ -333,7 +349,7 @@ def _diagnosis_view(d: Diagnosis) -> dict:
         "explained_text": verdict_words(d) or ("yes" if verdict.explained else
                                                "no: the gap stays above the measurement scatter"),
         "ranking": [{"effect": r.effect, "location": r.location,
-                     "params": ", ".join(f"{k} = {v:.4g}" for k, v in r.params.items() if v is not None),
+                     "params": ", ".join(param_text(k, v) for k, v in r.params.items() if v is not None),
                      "fit": _pct(r.fit_rms_rel_error), "heldout": _pct(r.heldout_rms_rel_error),
                      "n_params": r.n_params} for r in d.ranking[:8]],
         "holdout": d.holdout.scheme if d.holdout is not None else "",
@@ -411,14 +427,16 @@ def write_report(out_path: str | Path, *, runs: Sequence[RunSummary] = (),
             figures = _animations(measured, predictions, shapes or {}, geometry)
             shown = bool(figures)
         elif section.block == "runs":
-            step("plotting runs")
-            run_sections = _run_sections(summaries)
+            run_sections = _run_sections(summaries, step)
             figures, shown = [f for s in run_sections for f in s["figures"]], bool(meta)
         elif section.block:
             figures, shown = [], tables[section.block]
-        else:
-            step(f"plotting {section.title.lower()}")
-            figures = [_fig(fig, caption) for fig, caption in section.figures(given)]
+        else:   # a section with nothing to draw says so in one line (it said "plotting" it)
+            drawn = list(section.figures(given))
+            step(f"plotting {section.title.lower()}" if drawn else
+                 f"no {section.title.lower()}: " + (f"it is drawn from {section.needs}" if section.needs
+                                                    else "nothing in these inputs to draw it from"))
+            figures = [_fig(fig, caption) for fig, caption in drawn]
             shown = bool(figures)
         if shown:
             sections.append({"id": section.anchor or f"section-{name}", "title": section.title,

@@ -492,11 +492,12 @@ def plot_mode_shapes(arm, measured: ModalTable, config: str, title: str = "") ->
 
 
 def gap_per_mode(diagnosis: Diagnosis) -> tuple[list[str], np.ndarray, np.ndarray | None]:
-    """Modes, per-mode relative error [fraction] before (``baseline.per_mode``, over every configuration)
-    and after the verdict's effect (``Diagnosis.per_mode_after``, over the held-out ones; None without a
-    best candidate), NaN where there is none."""
-    before, after = diagnosis.baseline.per_mode, diagnosis.per_mode_after()
-    modes = sorted(before, key=lambda m: (len(m), m))
+    """Modes, per-mode relative error [fraction] of the nominal model and with the verdict's effect,
+    like for like: both over the configurations the effect is judged on (``Diagnosis.per_mode_before``
+    and ``per_mode_after``: held out, or its fit to all when none was held out; before only, over every
+    configuration, without a best candidate: after None), NaN where there is none."""
+    before, after = diagnosis.per_mode_before(), diagnosis.per_mode_after()
+    modes = sorted(diagnosis.baseline.per_mode, key=lambda m: (len(m), m))
 
     def values(per_mode: Mapping[str, float | None]) -> np.ndarray:
         return np.array([np.nan if per_mode.get(m) is None else per_mode[m] for m in modes], float)
@@ -514,13 +515,13 @@ def plot_gap(diagnosis: Diagnosis, title: str = "") -> Figure:
     x = np.arange(len(modes))
     w = 0.4 if after is not None else 0.6
     shift = w / 2 if after is not None else 0.0
-    bars = [ax.bar(x - shift, 100 * before, w, color="0.6", label="nominal model")]
+    held = after is not None and diagnosis.after_hz() is diagnosis.predictions.best_heldout_hz
+    where = ("" if after is None else " (on the held-out configurations)" if held
+             else " (on every configuration)")
+    bars = [ax.bar(x - shift, 100 * before, w, color="0.6", label=f"nominal model{where}")]
     if after is not None:
-        pred = diagnosis.predictions      # as Diagnosis.per_mode_after: held out, else the fit to all
-        held = pred.rms_rel_error_per_mode(pred.best_heldout_hz) if pred and pred.best_heldout_hz else {}
-        how = "held out" if any(v is not None for v in held.values()) else "fitted to all"
         bars.append(ax.bar(x + w / 2, 100 * after, w, color=_COLOURS[0],
-                           label=text(f"with {verdict.effect} ({how})")))
+                           label=text(f"with {verdict.effect} ({'held out' if held else 'fitted to all'})")))
     for container in bars:
         ax.bar_label(container, fmt="{:.3g} %", fontsize=7)
     ax.set_xticks(x, [f"mode {m}" for m in modes])

@@ -37,12 +37,14 @@ class Section:
     shows (a None figure: the caption alone, as a note; none at all: the section is left out of that
     report); ``anchor`` its id in the page (default ``section-<name>``).  The built-in sections that are
     tables rather than figures name the ``block`` of the template that renders them (reports/templates/
-    report.html) and have no ``figures``."""
+    report.html) and have no ``figures``.  ``needs`` says what a figure section is drawn from, for the
+    report's progress line when it is left out (``"a diagnosis (--diagnosis)"``)."""
 
     title: str
     figures: Callable[[ReportInputs], Sequence[tuple[Any, str]]] | None = None
     anchor: str = ""
     block: str = ""
+    needs: str = ""
 
 
 # the built-in sections in the order of the page; those added with register_section follow them

@@ -12,16 +12,20 @@ import importlib.util
 import json
 import sys
 
+import numpy as np
 import pytest
 
 from flexmodal.compare.diagnosis import diagnose
 from flexmodal.contract.table import ModalTable
 from flexmodal.fixtures.blind import (
+    CATEGORIES,
+    KINDS,
     advice_trials,
     format_advice,
     format_draws,
     format_summary,
     format_table,
+    make_case,
     moved_fraction,
     run_blind,
     run_sparse,
@@ -92,7 +96,7 @@ def test_a_moved_sensor_sits_half_a_link_away_wherever_the_rig_puts_it():
 
 
 @pytest.mark.slow
-@pytest.mark.timeout(36000)         # 35 draws x 36 cases + 60 sparse arms + ~700 advice trials: ~3.5 h quiet
+@pytest.mark.timeout(36000)         # 40 draws x 36 cases + 60 sparse arms + ~700 advice trials: ~4 h quiet
 def test_the_draws_and_the_advice_the_docs_quote():
     """The acceptance measurement (benchmarks/diagnosis_doc.py: 36 cases in each of five draws the
     method was developed on earlier, twenty further draws whose misses earlier changes analysed, five
@@ -112,7 +116,8 @@ def test_the_draws_and_the_advice_the_docs_quote():
                                      ("latest", "ideal_latest", doc.LATEST_SEEDS, doc.LATEST_NOTE),
                                      ("next", "ideal_next", doc.NEXT_SEEDS, doc.NEXT_NOTE),
                                      ("s631", "ideal_s631", doc.S631_SEEDS, doc.S631_NOTE),
-                                     ("s736", "ideal_s736", doc.FINAL_SEEDS, doc.FINAL_NOTE)):
+                                     ("s736", "ideal_s736", doc.S736_SEEDS, doc.S736_NOTE),
+                                     ("s841", "ideal_s841", doc.FINAL_SEEDS, doc.FINAL_NOTE)):
         draws[name] = {seed: run_blind(doc.BLIND_CASES, seed=seed) for seed in seeds}
         assert doc.doc_block(name) == doc.blind_block(seeds, results=draws[name],
                                                       **({} if note is None else {"note": note}))
@@ -187,3 +192,18 @@ def test_an_ideal_fit_tells_the_truth_from_a_look_alike_only_beyond_noise():
     base = np.concatenate([frame_modes(rig, {"theta_deg": th}, 2).freq_hz for th in poses])
     exact = np.concatenate([table.freq_hz(f"theta{th}") for th in poses])
     assert nominal == pytest.approx(np.sqrt(np.mean((base / exact - 1) ** 2)), rel=1e-3)   # no fit
+
+
+def test_a_gap_within_the_upper_limit_of_the_held_out_noise_is_none():
+    """Blind draw 736 case 14 (no effect; axial rig, 3 poses x 2 modes, no repeats: fallback scatter
+    0.5 %), replayed from the generator's state before it: the best single predicted the 6 held-out
+    frequencies to 0.144 % and, taken as the noise, made the 0.384 % gap a link stiffness.  An RMS of
+    6 values bounds the noise only up to its 95 % chi-square limit, 0.275 %: the verdict is ``none``."""
+    rng = np.random.default_rng()
+    rng.bit_generator.state = {"bit_generator": "PCG64", "has_uint32": 1, "uinteger": 310024668, "state": {
+        "state": 66786972595587313164633063584206518220, "inc": 77213257748787901358264856692433969155}}
+    case = make_case(rng, CATEGORIES[14 % len(CATEGORIES)], KINDS[14 % len(KINDS)])
+    assert (case.category, case.kind, case.n_configs, case.n_modes) == ("none", "axial", 3, 2)
+    v = diagnose(case.rig, case.table).verdict
+    assert v.effect == "none" and v.grade == "explained"
+    assert "measurement scatter (0.275 %)" in v.summary

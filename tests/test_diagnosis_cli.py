@@ -49,7 +49,8 @@ def test_writes_contract_json_and_html(measured, capsys):
     assert v["params"] and v["param_intervals"]
     for name, value in v["params"].items():   # the verdict's parameters with their 95 % intervals
         lo, hi = v["param_intervals"][name]
-        assert f"{name} = {value:.4g} (95 % interval {lo:.4g} .. {hi:.4g})" in page
+        unit = " N m/rad" if name.endswith("_Nm_per_rad") else " kg" if name.endswith("_kg") else ""
+        assert f"{name} = {value:.4g}{unit} (95 % interval {lo:.4g} .. {hi:.4g})" in page
     first = next(iter(pred["measured_hz"]))
     assert "Natural frequencies [Hz]" in page and page.count("data:image/png;base64,") == 1   # the gap plot
     for key in ("measured_hz", "baseline_hz", "best_heldout_hz"):

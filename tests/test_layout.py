@@ -43,6 +43,7 @@ REPORT_IMPORTS = {"flexmodal.compare.tables", "flexmodal.contract.table", "flexm
                   "flexmodal.checked_io.uff_blocks",   # a geometry file read as whole UFF datasets
                   "flexmodal.compare.result", "flexmodal.compare.errors",
                   "flexmodal.compare.verdict_text",  # the verdict in words: text from a record, no solving
+                  "flexmodal.modal.stability",  # the stability criteria a caption quotes: constants only
                   "flexmodal.checked_io.errors", "flexmodal.checked_io.registry"}   # the diagnosis records
 
 

@@ -137,3 +137,38 @@ def test_fe_eigensolves_run_under_the_single_thread_blas_limit(rigs_dir, monkeyp
         predict(load_rig(rigs_dir / "seed003_two_link.toml"),
                 {"a": {"theta_deg": 0.0}, "b": {"theta_deg": 60.0}})
     assert seen == [1, 1]
+
+
+def test_progress_is_told_as_each_pose_is_solved(rigs_dir):
+    """A model that solves pose by pose: predict tells progress after each pose, not after all of them
+    (it listed every result first: a terminal's bar stood at 0 for 28 s, then jumped to 6/6), and a
+    model whose table fails half-way is closed (its worker process ends)."""
+    from flexmodal.models.registry import register_model, unregister_model
+
+    events, closed = [], []
+
+    def lazy(rig, poses, n_modes, options):
+        try:
+            for k, _pose in enumerate(poses):
+                events.append(f"solve {k}")
+                yield np.array([10.0 * (k + 1)]), None
+        finally:
+            closed.append(True)
+
+    register_model("lazy-toy", lazy)
+    try:
+        rig = load_rig(rigs_dir / "seed003_two_link.toml")
+        poses = {"a": {"theta_deg": 0.0}, "b": {"theta_deg": 60.0}, "c": {"theta_deg": 90.0}}
+        table = predict(rig, poses, "lazy-toy", 1, progress=lambda c: events.append(f"told {c}"))
+        assert events == ["solve 0", "told a", "solve 1", "told b", "solve 2", "told c"]
+        assert table.freq_hz("c") == pytest.approx([30.0]) and closed == [True]
+        events.clear()
+
+        def stop(config):
+            raise KeyboardInterrupt  # as Ctrl-C while the first pose is told
+
+        with pytest.raises(KeyboardInterrupt):
+            predict(rig, poses, "lazy-toy", 1, progress=stop)
+        assert events == ["solve 0"] and closed == [True, True]
+    finally:
+        unregister_model("lazy-toy")

@@ -129,32 +129,41 @@ def _gap_diagnosis(best_heldout_hz: dict, best_fit_hz: dict) -> Diagnosis:
         where=Where(modes=(2,), configs=("a",), region="joint:elbow"), ranking=(),
         verdict=Verdict(effect="joint_stiffness", location="elbow", heldout_rms_rel_error_before=0.597,
                         heldout_rms_rel_error_after=0.051, explained=True),
-        predictions=Predictions(measured_hz=measured, baseline_hz=measured, best_fit_hz=best_fit_hz,
-                                best_heldout_hz=best_heldout_hz))
+        predictions=Predictions(measured_hz=measured, baseline_hz={"a": (11.0, 30.0, 33.0),
+                                                                   "b": (10.0, 40.0, 36.0)},
+                                best_fit_hz=best_fit_hz, best_heldout_hz=best_heldout_hz))
 
 
 def test_gap_bars_are_the_diagnosis_errors_in_percent():
-    """Before: ``baseline.per_mode``; after: the RMS over configurations, per mode, of the best candidate's
-    held-out predictions against the measured frequencies (None, never held out, is left out)."""
+    """Like for like: the RMS over configurations, per mode, of the nominal model's and of the best
+    candidate's held-out predictions against the measured frequencies, over the same configurations and
+    modes (None, never held out, is left out of both; the nominal bars were over every configuration)."""
     d = _gap_diagnosis({"a": (11.0, 20.0, None), "b": (9.0, 44.0, None)},
                        {"a": (10.0, 20.0, 30.0), "b": (10.0, 40.0, 30.0)})
     modes, before, after = plots.gap_per_mode(d)
     assert modes == ["1", "2", "10"]
-    np.testing.assert_array_equal(before, [0.09, 0.57, 0.2])
+    np.testing.assert_allclose(before[:2], [np.sqrt(0.01 / 2), np.sqrt(0.25 / 2)], rtol=1e-12)
     np.testing.assert_allclose(after[:2], [0.1, np.sqrt(0.01 / 2)], rtol=1e-12)
-    assert np.isnan(after[2])                                  # no mode 10 in the predictions
+    assert np.isnan(after[2]) and np.isnan(before[2])         # no mode 10 in the predictions
     fig = plots.plot_gap(d)
     heights = [p.get_height() for p in fig.axes[0].patches]
-    np.testing.assert_allclose(heights[:5], [9.0, 57.0, 20.0, 10.0, 100 * np.sqrt(0.005)], rtol=1e-12)
+    np.testing.assert_allclose(heights[:2] + heights[3:5], [100 * np.sqrt(0.005), 100 * np.sqrt(0.125), 10.0,
+                                                            100 * np.sqrt(0.005)], rtol=1e-12)
     np.testing.assert_allclose([p.get_height() for p in fig.axes[1].patches], [59.7, 5.1])
     assert fig.axes[0].get_ylabel().endswith("[%]") and fig.axes[1].get_ylabel().endswith("[%]")
-    # nothing held out: the fit to all configurations
+    assert [t.get_text() for t in fig.legends[0].get_texts()] == [
+        "nominal model (on the held-out configurations)", "with joint_stiffness (held out)"]
+    # nothing held out: the fit to all configurations, and the nominal model on all of them
     fit = _gap_diagnosis({"a": (None,) * 3, "b": (None,) * 3},
                          {"a": (11.0, 22.0, 30.0), "b": (9.0, 44.0, 30.0)})
     np.testing.assert_allclose(plots.gap_per_mode(fit)[2][:2], [0.1, 0.1], rtol=1e-12)
-    # no best candidate (a "none" verdict): the nominal model's bars only
+    np.testing.assert_allclose(plots.gap_per_mode(fit)[1][:2], [np.sqrt(0.005), np.sqrt(0.125)], rtol=1e-12)
+    assert fig.legends[0].get_texts()[0].get_text().startswith("nominal model")
+    assert plots.plot_gap(fit).legends[0].get_texts()[0].get_text() == "nominal model (on every configuration)"
+    # no best candidate (a "none" verdict): the nominal model's bars only, over every configuration
     none = replace(d, predictions=replace(d.predictions, best_fit_hz=None, best_heldout_hz=None))
     assert plots.gap_per_mode(none)[2] is None
+    np.testing.assert_array_equal(plots.gap_per_mode(none)[1], [0.09, 0.57, 0.2])
     assert len(plots.plot_gap(none).axes[0].patches) == 3
 
 
