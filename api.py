@@ -358,6 +358,8 @@ def frf_from_arrays(freq_hz, H, *, coherence=None, quantity: str = "accelerance"
             if value is None or isinstance(value, str | bytes | Mapping):
                 raise TypeError
             arrays[name] = np.asarray(value)
+            if arrays[name].dtype.kind == "O":   # numbers held as objects (Python complex, Decimal, ...)
+                arrays[name] = arrays[name].astype(complex if name == "H" else float)
             if arrays[name].dtype.kind not in "biufc":
                 raise TypeError
         except (TypeError, ValueError):

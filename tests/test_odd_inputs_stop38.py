@@ -71,8 +71,8 @@ def test_runs_are_not_appended_to_an_hdf5_file_without_swmr(tmp_path: Path, user
         h["x"] = np.arange(3.0)
     before = path.read_bytes()
     with pytest.raises(DaqError, match="old.h5: an HDF5 file of another tool .superblock version 0"):
-        RunWriter(path, "r1", sample_rate_hz=100.0, channels=[Channel("F", "force", "N")], excitation="impact",
-                  pose={})
+        RunWriter(path, "r1", sample_rate_hz=100.0, channels=[Channel("F", "force", "N")],
+                  excitation="impact", pose={})
     assert path.read_bytes() == before   # was a RuntimeError traceback (SWMR) after adding runs/r1
 
 
@@ -198,3 +198,41 @@ def test_an_empty_option_value_is_refused(tmp_path: Path, monkeypatch, capsys, a
     line = _one_line(capsys, main(argv), *words)
     assert "'.'" not in line and ".: is a directory" not in line
     assert list(tmp_path.iterdir()) == []
+
+
+# -- links and endpoints that never answer: bounded ---------------------------------------------------
+def test_a_run_linked_to_a_fifo_in_another_file_is_never_opened(tmp_path: Path) -> None:
+    import os
+    import threading
+
+    from flexmodal.daq.store import Channel, RunWriter
+    from flexmodal.modal.batch import run_bytes
+
+    path, fifo = tmp_path / "run.h5", tmp_path / "fifo"
+    with RunWriter(path, "r1", sample_rate_hz=100.0, channels=[Channel("F", "force", "N")],
+                   excitation="impact", pose={}) as w:
+        w.append(np.zeros((8, 1)))
+    os.mkfifo(fifo)
+    with h5py.File(path, "a") as h:
+        h["runs"]["r2"] = h5py.ExternalLink(str(fifo), "/runs/r1")   # HDF5 would open() the FIFO: blocks
+    sizes: list = []
+    worker = threading.Thread(target=lambda: sizes.extend(run_bytes([(str(path), "r1"), (str(path), "r2")])),
+                              daemon=True)
+    worker.start()
+    worker.join(60)
+    if worker.is_alive():   # `frf run.h5` hung here for ever, SIGTERM included: release it, then fail
+        os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
+        pytest.fail("run_bytes followed the external link into the FIFO")
+    assert sizes[0] > 0 and sizes[1] == 0   # the job of r2 itself names the link ("not followed")
+
+
+def test_a_scheduler_that_never_answers_is_named(monkeypatch) -> None:
+    import threading
+
+    from flexmodal.modal import batch
+
+    monkeypatch.setattr(batch, "SCHEDULER_WAIT_S", 0.2)
+    silent = threading.Event()   # dask's Client(timeout=) bounds the TCP connect, not the handshake
+    with pytest.raises(ModalError, match="--scheduler 'tcp://127.0.0.1:9': cannot connect .no answer within"):
+        batch._client(lambda *args, **kwargs: silent.wait(), "tcp://127.0.0.1:9")
+    silent.set()
