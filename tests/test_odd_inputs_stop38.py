@@ -236,3 +236,13 @@ def test_a_scheduler_that_never_answers_is_named(monkeypatch) -> None:
     with pytest.raises(ModalError, match="--scheduler 'tcp://127.0.0.1:9': cannot connect .no answer within"):
         batch._client(lambda *args, **kwargs: silent.wait(), "tcp://127.0.0.1:9")
     silent.set()
+
+
+def test_an_empty_serial_port_names_the_session_key(tmp_path: Path) -> None:
+    from flexmodal.daq.session import load_session
+
+    text = (SESSIONS / "serial-sim.toml").read_text(encoding="utf-8")
+    (tmp_path / "s.toml").write_text(text.replace('port = "@simulator"', 'port = ""').replace(
+        "../rigs/", str(REPO / "examples" / "rigs") + "/"), encoding="utf-8")
+    with pytest.raises(DaqError, match=r"s.toml: device 'adc': port is empty"):   # was pyserial's line
+        load_session(tmp_path / "s.toml")
