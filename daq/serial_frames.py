@@ -136,7 +136,10 @@ class CsvDecoder:
     bytes of the line before that field's comma).
 
     Isolated wrong sequence numbers (a flipped digit no checksum caught) are repaired from their
-    neighbours (:func:`repair_counters`); a last line off the sequence waits for the next read.
+    neighbours (:func:`repair_counters`); a last line off the sequence waits for the next read.  The
+    first line after opening is taken only if the next line follows it: a port opened mid-stream
+    (pyserial flushes the input on open) may start inside a line, and a line cut inside its counter
+    still parses, as a sample with a wrong index (one invented sample and a false gap behind it).
     """
 
     def __init__(self, n_ch: int, checksum: str = "none") -> None:
@@ -145,6 +148,7 @@ class CsvDecoder:
         self._buf = b""
         self._garbage = 0
         self._joined = False  # the first (maybe partial) line after opening is not counted as corrupt
+        self._fresh = True  # the first line after opening is not judged yet (it may be a cut one)
         self._last: int | None = None  # sequence number of the last good line
         self.repaired = 0
 
@@ -186,6 +190,12 @@ class CsvDecoder:
                     except ValueError:
                         shape_ok[i] = False
         good = shape_ok & np.isfinite(table).all(axis=1) & (table[:, 0] >= 0) & (table[:, 0] % 1 == 0)
+        if self._fresh:  # the first line after opening may be the tail of a line the port's flush cut
+            if len(lines) < 2:  # (cut in its counter it parses: '764,...' read as sample 4): it is
+                self._buf = buf  # trusted only when the next line follows it
+                return []
+            good[0] &= good[1] and table[1, 0] == table[0, 0] + 1
+            self._fresh = False
         gi = np.flatnonzero(good)
         seq = table[gi, 0].astype(np.int64)
         if gi.size and gi[-1] == len(lines) - 1:  # a last line off the sequence is judged with the next read

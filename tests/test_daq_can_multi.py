@@ -71,7 +71,9 @@ def test_two_messages_without_counter_lossless_and_a_dropped_frame_detected(tmp_
     expected = _values(k).astype(float)
     expected[row, 4:] = np.nan  # the missing frame: its four signals, in its scan only
     np.testing.assert_array_equal(run.samples, expected)
-    lost = [(e.kind, e.sample_index, e.count) for e in run.events]
+    # (an `overrun` event only says the writer fell > 1 s behind real time: seen at load 10+, every sample
+    # above still stored)
+    lost = [(e.kind, e.sample_index, e.count) for e in run.events if e.kind != "overrun"]
     assert lost == [("corrupt", row, 1)]  # one part of one scan missing
 
 

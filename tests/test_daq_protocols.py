@@ -73,6 +73,24 @@ def test_csv_lines_with_bad_and_partial_lines():
     assert sum(n_bad for _, _, n_bad in runs) == 2
 
 
+def test_csv_opened_mid_line_takes_no_cut_line_as_a_sample():
+    """A port opened mid-stream (pyserial flushes the input on open) starts at any byte of a line.  Cut
+    inside its counter the line still parses ('1764,...' read as sample 764, then a 1000-sample gap:
+    seen as NaN rows in CI); whatever the cut, every sample decoded is the one its index names and
+    they follow without a gap from the first whole line on, in any read pieces."""
+    x = np.round(np.random.default_rng(3).normal(size=(60, 3)) * 100, 2)
+    data = encode_csv(1760, x)
+    second = data.index(b"\n") + 1
+    rng = np.random.default_rng(4)
+    for cut in range(second + 1):  # every byte of the first line, and the next line's start
+        runs = _decode_all(CsvDecoder(3), data[cut:], rng, 6)
+        idx = np.concatenate([seq + np.arange(v.shape[0]) for seq, v, _ in runs])
+        np.testing.assert_array_equal(idx, np.arange(idx[0], 1820))
+        assert idx[0] == (1760 if cut == 0 else 1761)  # from the first line known whole
+        np.testing.assert_array_equal(np.concatenate([v for _, v, _ in runs]), x[idx - 1760])
+        assert sum(n for *_, n in runs) == 0  # the cut line is the join, not a corrupt line
+
+
 def test_unwrap_counter():
     assert unwrap(3, 2**32 - 2, 2**32) == 2**32 + 3
     assert unwrap(10, None, 4096) == 10
