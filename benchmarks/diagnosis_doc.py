@@ -4,8 +4,8 @@
     python benchmarks/diagnosis_doc.py --coverage --blind --write   # every block, into docs/diagnosis.md
 
 Blocks sit between ``<!-- NAME:begin -->`` and ``<!-- NAME:end -->`` (NAME = seed003, coverage,
-blind, fresh, new, latest, next, s631, s736, ideal, ideal_fresh, ideal_new, ideal_latest, ideal_next,
-ideal_s631, ideal_s736, sparse, advice, advice_s736).
+blind, fresh, new, latest, next, s631, s736, s841, ideal, ideal_fresh, ideal_new, ideal_latest,
+ideal_next, ideal_s631, ideal_s736, ideal_s841, sparse, advice, advice_s736).
 The blind block is the acceptance measurement: 36 cases of each of five draws of
 fixtures/blind.py's generator (seeds ``BLIND_SEEDS``), their summaries and the mean and worst over
 draws (tests/test_blind.py re-runs it under ``-m slow``); the coverage block the Monte-Carlo coverage
@@ -48,16 +48,21 @@ S631_SEEDS = (631, 632, 633, 634, 635)
 S631_NOTE = ("first run once after an earlier change to the method; used for the last change (the none "
              "test's noise level: its none cases re-run; case 30's sensor, which the generator had not "
              "moved)")
-FINAL_SEEDS = (736, 737, 738, 739, 740)
+S736_SEEDS = (736, 737, 738, 739, 740)
+"""Draws first run once after an earlier change; used to develop the last change."""
+S736_NOTE = ("first run once after an earlier change to the method; used for the last change (the none "
+             "test's scatter with the fallback: case 14 of 736, and every case that reaches the test, "
+             "re-run)")
+FINAL_SEEDS = (841, 842, 843, 844, 845)
 """Draws never run before the last change to the method was made, measured once after it."""
 FINAL_NOTE = "run once, after the last change to the method; never used to develop it"
 SPARSE_CASES = 60
 SPARSE_SEED = 5
 ADVICE_SEEDS = LATEST_SEEDS + NEXT_SEEDS
 """The used blind draws on which the next-measurement advice is measured (``advice_block``)."""
-ADVICE_FINAL_SEEDS = FINAL_SEEDS
-"""Draws used neither for the method nor for the advice: the advice (frozen, with the 5 % rule) measured
-once on their ambiguous verdicts (block ``advice_s736``)."""
+ADVICE_FINAL_SEEDS = S736_SEEDS
+"""The draws of block ``advice_s736``: never used when the frequency-only advice was measured once on
+their ambiguous verdicts; used since (the method's last change, the advice with shapes)."""
 
 from flexmodal.compare.diagnosis import diagnose  # noqa: E402
 from flexmodal.contract.table import ModalTable  # noqa: E402
@@ -203,8 +208,10 @@ BLOCKS = {"seed003": seed003_block, "coverage": coverage_block, "blind": blind_b
           "ideal_next": lambda: ideal_block(seeds=NEXT_SEEDS),
           "s631": lambda: blind_block(S631_SEEDS, note=S631_NOTE),
           "ideal_s631": lambda: ideal_block(seeds=S631_SEEDS),
-          "s736": lambda: blind_block(FINAL_SEEDS, note=FINAL_NOTE),
-          "ideal_s736": lambda: ideal_block(seeds=FINAL_SEEDS),
+          "s736": lambda: blind_block(S736_SEEDS, note=S736_NOTE),
+          "ideal_s736": lambda: ideal_block(seeds=S736_SEEDS),
+          "s841": lambda: blind_block(FINAL_SEEDS, note=FINAL_NOTE),
+          "ideal_s841": lambda: ideal_block(seeds=FINAL_SEEDS),
           "sparse": sparse_block, "advice": advice_block,
           "advice_s736": lambda: advice_block(seeds=ADVICE_FINAL_SEEDS)}
 
@@ -224,8 +231,8 @@ def main() -> int:
             blocks["coverage"] = coverage_block()
         if args.blind:
             blocks.update((name, BLOCKS[name]())
-                          for name in ("blind", "fresh", "new", "latest", "next", "s631", "s736", "sparse",
-                                       "advice"))
+                          for name in ("blind", "fresh", "new", "latest", "next", "s631", "s736", "s841",
+                                       "sparse", "advice"))
     for name, block in blocks.items():
         if args.write:
             write_block(name, block)
