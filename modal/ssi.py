@@ -35,17 +35,16 @@ from flexmodal.modal.identify import Modes
 from flexmodal.modal.indicators import mpc, mpd
 from flexmodal.modal.lscf import Stabilisation, _flags, chain_medians, pole_clusters
 from flexmodal.modal.oma_uncertainty import MAX_DECAY_FRACTION, N_BOOTSTRAP, bootstrap_weights
+from flexmodal.modal.stability import SSI_MPC_MIN as MPC_MIN
+from flexmodal.modal.stability import SSI_MPD_MAX_DEG as MPD_MAX_DEG
+from flexmodal.modal.stability import SSI_STABLE_DAMPING_REL as DZ
+from flexmodal.modal.stability import SSI_ZETA_MAX as ZETA_MAX
+from flexmodal.modal.stability import STABLE_FREQ_REL, STABLE_MAC_MIN
 
-MPC_MIN = 0.7       # poles below this modal phase collinearity are noise (real modes have MPC ~ 1)
-MPD_MAX_DEG = 30.0  # poles whose entries scatter more than this from one phase line are noise
-ZETA_MAX = 0.2      # poles damped more than 20 % are not structural modes of an arm
 # A structural mode's SSI pole is stable from a low order on (the demo arm's modes: 90-98 % of orders
 # 2..100, an 11-storey frame's 11 modes on 5 channels: >= 60 % of orders 2..60); noise fits appear at
 # high orders with long Hankel matrices (the demo arm with 100 block rows: 40 % and, once, 66 %).
 MIN_FRACTION = 0.5
-# SSI damping estimates scatter more between orders than pLSCF's; 5 % (the input-output path's) left
-# the demo arm's third mode stable in only 62 % of the orders, 20 % keeps 90 % (pyOMA2 uses 10 %)
-DZ = 0.2
 # Longer Hankel matrices fit the covariance estimates' errors: on 60 s of the demo arm, 200 block rows
 # gave stable noise poles beside the strong modes, 100 did not
 MAX_BLOCK_ROWS = 100
@@ -116,9 +115,9 @@ def default_block_rows(max_order: int, n_refs: int, sample_rate_hz: float, fmin:
 
 def ssi_cov(y: np.ndarray, sample_rate_hz: float, *, references: Sequence[int] | None = None,
             fmin: float | None = None, fmax: float | None = None, max_order: int = 100,
-            min_order: int = 2, order_step: int = 2, block_rows: int | None = None, df: float = 0.01,
-            dz: float = DZ, mac_min: float = 0.98, mpc_min: float = MPC_MIN,
-            mpd_max_deg: float = MPD_MAX_DEG, min_fraction: float = MIN_FRACTION,
+            min_order: int = 2, order_step: int = 2, block_rows: int | None = None,
+            df: float = STABLE_FREQ_REL, dz: float = DZ, mac_min: float = STABLE_MAC_MIN,
+            mpc_min: float = MPC_MIN, mpd_max_deg: float = MPD_MAX_DEG, min_fraction: float = MIN_FRACTION,
             lowest_hz: float | None = None, uncertainty_blocks: int = 0) -> SsiResult:
     """SSI-cov of an output-only record ``y`` [n_samples, n_channels] sampled at ``sample_rate_hz``.
 

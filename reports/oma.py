@@ -13,6 +13,14 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.transforms import offset_copy
 
+from flexmodal.modal.stability import (
+    SSI_MPC_MIN,
+    SSI_MPD_MAX_DEG,
+    SSI_STABLE_DAMPING_REL,
+    SSI_ZETA_MAX,
+    STABLE_FREQ_REL,
+    STABLE_MAC_MIN,
+)
 from flexmodal.reports.plots import _COLOURS, log_axis, plot_stabilisation, text
 
 if TYPE_CHECKING:
@@ -111,8 +119,13 @@ def oma_figures(oma: OmaResults, label: str, unit: str = "(m/s²)²/Hz") -> list
         return out
     orders = f"{oma.ssi.stabilisation.order.min()}-{oma.ssi.stabilisation.order.max()}"
     out.append((plot_ssi_stabilisation(oma.ssi, oma.spectrum_hz, oma.spectrum, unit, title=label),
-                f"{label}: SSI-cov stabilisation diagram, orders {orders} (filled: stable in frequency, "
-                f"damping and shape), over the FDD singular values; modes {modes} (unscaled shapes)"))
+                f"{label}: SSI-cov stabilisation diagram, orders {orders} against frequency [Hz] (left axis: "
+                f"model order [-], right: the FDD singular values [{unit}], log scale). Filled dots: poles "
+                f"stable from one order to the next (frequency within {100 * STABLE_FREQ_REL:g} %, damping "
+                f"ratio within {100 * SSI_STABLE_DAMPING_REL:g} %, shape MAC ≥ {STABLE_MAC_MIN:g}), open "
+                f"grey dots: the other poles, all of them physical (MPC ≥ {SSI_MPC_MIN:g}, MPD ≤ "
+                f"{SSI_MPD_MAX_DEG:g} deg, damping ratio 0-{100 * SSI_ZETA_MAX:g} %); modes {modes} "
+                "(unscaled shapes)"))
     return out
 
 
