@@ -246,3 +246,31 @@ def test_an_empty_serial_port_names_the_session_key(tmp_path: Path) -> None:
         "../rigs/", str(REPO / "examples" / "rigs") + "/"), encoding="utf-8")
     with pytest.raises(DaqError, match=r"s.toml: device 'adc': port is empty"):   # was pyserial's line
         load_session(tmp_path / "s.toml")
+
+
+@settings(max_examples=80, deadline=None)
+@given(text=st.text(max_size=8))
+def test_a_nonempty_option_takes_exactly_the_texts_with_a_visible_character(text: str) -> None:
+    import argparse
+
+    from flexmodal.checked_io.options import nonempty
+
+    if text.strip():
+        assert nonempty(text) == text
+    else:
+        with pytest.raises(argparse.ArgumentTypeError, match="expected a non-empty value"):
+            nonempty(text)
+
+
+@settings(max_examples=80, deadline=None)
+@given(text=st.text(st.characters(codec="cp1252"), max_size=12), bom=st.booleans())
+def test_a_dbc_text_decodes_back_as_written(text: str, bom: bool) -> None:
+    import codecs
+
+    from flexmodal.daq.dbc import _encoding
+
+    data = (codecs.BOM_UTF8 if bom else b"") + text.encode("utf-8")
+    assert data.decode(_encoding(data)) == text   # UTF-8, with or without a byte-order mark
+    legacy = text.encode("cp1252")   # a Vector tool's file: read as cp1252 unless its bytes are UTF-8
+    chosen = _encoding(legacy)
+    assert chosen in (None, "utf-8") and (chosen is not None or legacy.decode("cp1252") == text)
