@@ -72,14 +72,14 @@ def _test_model_mac(measured, predictions: Sequence[tuple[str, Any]]) -> Figures
 
 def gap_figures(inputs: ReportInputs) -> Figures:
     """The relative frequency error per mode of the nominal model and with the diagnosed effect, as bars
-    and, when the measured table gives the configurations a varying pose, against that pose."""
+    and then, when the measured table gives the configurations a varying pose, against that pose."""
     if inputs.diagnosis is None:
         return []
-    return [*_gap_vs_pose(inputs), (plots.plot_gap(inputs.diagnosis),
+    return [(plots.plot_gap(inputs.diagnosis),
              "Left: each mode's relative frequency error, RMS over configurations, of the nominal model "
              "and with the diagnosed effect, both over the configurations the effect is judged on (held "
              "out, or all of them: the legend says which); right: the held-out RMS error over all modes, "
-             "before and after")]
+             "before and after"), *_gap_vs_pose(inputs)]
 
 
 def _gap_vs_pose(inputs: ReportInputs) -> Figures:

@@ -322,7 +322,7 @@ def plot_gap_vs_pose(diagnosis: Diagnosis, pose: Mapping[str, float], pose_label
                and table[c][k] is not None and pred.measured_hz[c][k] is not None]
         return (np.array([x for x, _ in pts], float), np.array([y for _, y in pts], float))
 
-    fig = Figure(figsize=(min(3.2 * n + 1.0, 11.0), 3.4), layout="constrained")
+    fig = Figure(figsize=(min(2.6 * n + 0.8, 9.0), 3.2), layout="constrained")   # read at 700-900 px
     axes = np.atleast_1d(fig.subplots(1, n, sharex=True))
     for k, ax in enumerate(axes):
         ax.axhline(0.0, color="k", lw=0.6)
