@@ -301,6 +301,44 @@ def plot_mac(phi_a: np.ndarray, phi_b: np.ndarray | None = None, labels_a: Seque
 
 
 
+def plot_gap_vs_pose(diagnosis: Diagnosis, pose: Mapping[str, float], pose_label: str) -> Figure | None:
+    """Each mode's relative frequency error ``f_model / f_measured - 1`` [%] against a pose variable, one
+    panel per mode: the nominal model (grey circles) and with the diagnosed effect (blue squares, on the
+    configurations :meth:`Diagnosis.after_hz` judges it on), so a reviewer sees where along the pose the
+    gap lies and what the effect leaves.  ``pose`` gives each configuration's value of the variable
+    (``pose_label`` its axis label with unit, ``theta_deg [deg]``); None when the diagnosis carries no
+    frequencies or no configuration has a pose."""
+    pred = diagnosis.predictions
+    configs = [c for c in pred.measured_hz if c in pose] if pred is not None else []
+    if not configs:
+        return None
+    n = max(len(pred.measured_hz[c]) for c in configs)
+    after = diagnosis.after_hz()
+    held = after is not None and after is pred.best_heldout_hz
+
+    def errors(table: Mapping[str, Sequence[float | None]] | None, k: int) -> tuple[np.ndarray, np.ndarray]:
+        pts = [(pose[c], 100 * (table[c][k] / pred.measured_hz[c][k] - 1)) for c in configs
+               if table is not None and c in table and k < min(len(table[c]), len(pred.measured_hz[c]))
+               and table[c][k] is not None and pred.measured_hz[c][k] is not None]
+        return (np.array([x for x, _ in pts], float), np.array([y for _, y in pts], float))
+
+    fig = Figure(figsize=(min(2.6 * n + 0.8, 9.0), 3.2), layout="constrained")   # read at 700-900 px
+    axes = np.atleast_1d(fig.subplots(1, n, sharex=True))
+    for k, ax in enumerate(axes):
+        ax.axhline(0.0, color="k", lw=0.6)
+        ax.plot(*errors(pred.baseline_hz, k), "o", color="0.55", ms=4, label="nominal model")
+        if after is not None:
+            how = "held out" if held else "fitted to all"
+            ax.plot(*errors(after, k), "s", color=_COLOURS[0], ms=4,
+                    label=text(f"with {diagnosis.verdict.effect} ({how})"))
+        ax.set_title(f"mode {k + 1}", fontsize=9)
+        ax.set_xlabel(text(pose_label))
+        ax.grid(True, alpha=0.3)
+    axes[0].set_ylabel("relative frequency error [%]")
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", fontsize=7, ncol=2)
+    return fig
+
+
 def _identified_band(frf, modes) -> np.ndarray:
     """Lines of the FRFs ``frf`` inside the band ``modes`` were identified in (above 0 Hz)."""
     if modes.stabilisation is None or modes.band_freq_hz is None:

@@ -159,7 +159,8 @@ def test_gap_bars_are_the_diagnosis_errors_in_percent():
     np.testing.assert_allclose(plots.gap_per_mode(fit)[2][:2], [0.1, 0.1], rtol=1e-12)
     np.testing.assert_allclose(plots.gap_per_mode(fit)[1][:2], [np.sqrt(0.005), np.sqrt(0.125)], rtol=1e-12)
     assert fig.legends[0].get_texts()[0].get_text().startswith("nominal model")
-    assert plots.plot_gap(fit).legends[0].get_texts()[0].get_text() == "nominal model (on every configuration)"
+    legend = plots.plot_gap(fit).legends[0]
+    assert legend.get_texts()[0].get_text() == "nominal model (on every configuration)"
     # no best candidate (a "none" verdict): the nominal model's bars only, over every configuration
     none = replace(d, predictions=replace(d.predictions, best_fit_hz=None, best_heldout_hz=None))
     assert plots.gap_per_mode(none)[2] is None
@@ -258,3 +259,21 @@ def test_mac_plot_writes_the_mac_values():
     np.testing.assert_allclose(image, [[1.0, 0.25], [0.25, 1.0]])
     with pytest.raises(Exception, match="cannot be compared"):
         plots.plot_mac(phi, phi[:2])
+
+
+def test_gap_against_pose_plots_each_configurations_error_per_mode():
+    """f_model / f_measured - 1 [%] per configuration at its pose: the nominal model's (baseline_hz) and
+    the held-out predictions' (None: no point), one panel per mode; None without poses."""
+    d = _gap_diagnosis({"a": (11.0, 20.0, None), "b": (9.0, 44.0, None)},
+                       {"a": (10.0, 20.0, 30.0), "b": (10.0, 40.0, 30.0)})
+    fig = plots.plot_gap_vs_pose(d, {"a": 0.0, "b": 60.0}, "theta_deg [deg]")
+    panels = fig.axes
+    assert [ax.get_title() for ax in panels] == ["mode 1", "mode 2", "mode 3"]
+    nominal, held = panels[0].get_lines()[1:]          # after the zero line
+    np.testing.assert_allclose(nominal.get_xydata(), [[0.0, 10.0], [60.0, 0.0]], atol=1e-12)
+    np.testing.assert_allclose(held.get_xydata(), [[0.0, 10.0], [60.0, -10.0]], atol=1e-12)
+    np.testing.assert_allclose(panels[2].get_lines()[1].get_xydata(), [[0.0, 10.0], [60.0, 20.0]], atol=1e-12)
+    assert panels[2].get_lines()[2].get_xydata().size == 0   # mode 3 never held out
+    assert panels[0].get_ylabel() == "relative frequency error [%]"
+    assert panels[1].get_xlabel() == "theta_deg [deg]"
+    assert plots.plot_gap_vs_pose(d, {}, "theta_deg [deg]") is None
