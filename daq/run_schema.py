@@ -126,6 +126,43 @@ def check_run_id(run_id: str, where: str) -> str:
     return run_id
 
 
+MAX_LINK_HOPS = 40  # soft links followed to find an external link at their end (HDF5's own limit: 16)
+
+
+def external_link_on_path(parent: h5py.Group, name: str) -> h5py.ExternalLink | None:
+    """The external link that opening ``parent[name]`` would follow, or None: ``name`` itself, or any
+    link on the way through soft links (``samples`` -> ``/ext`` -> another file).  HDF5 opens the
+    other file, and one that is a FIFO blocks the ``open()`` for ever, a Ctrl-C or SIGTERM included;
+    only link records are read here, never an external file.  Paths that do not resolve (missing,
+    a loop) return None: opening them raises, and the caller names that."""
+    hops = 0
+
+    def walk(group: h5py.Group, path: str) -> h5py.ExternalLink | None:
+        nonlocal hops
+        if path.startswith("/"):
+            group, path = group.file, path.lstrip("/")
+        parts = [p for p in path.split("/") if p not in ("", ".")]
+        for k, part in enumerate(parts):
+            if not isinstance(group, h5py.Group):
+                return None
+            link = group.get(part, getlink=True)
+            if link is None or isinstance(link, h5py.ExternalLink):
+                return link
+            if isinstance(link, h5py.SoftLink):
+                hops += 1
+                found = walk(group, link.path) if hops <= MAX_LINK_HOPS else None
+                if found is not None or hops > MAX_LINK_HOPS:
+                    return found
+            if k + 1 < len(parts):
+                group = group[part]   # safe: no external link on the way to it
+        return None
+
+    try:
+        return walk(parent, name)
+    except (KeyError, RuntimeError, OSError, ValueError):   # a broken or looping path: opening names it
+        return None
+
+
 def member(parent: h5py.Group, name: str, where: str, error: type[Exception] = DaqError) -> object | None:
     """``parent[name]``, or None when there is no such member; an external link (never followed: it
     would read another file), a dangling or looping soft link, or an object HDF5 cannot open raises
@@ -135,6 +172,10 @@ def member(parent: h5py.Group, name: str, where: str, error: type[Exception] = D
         return None
     if isinstance(link, h5py.ExternalLink):
         raise error(f"{where}: {name!r} is an external link to {link.filename}:{link.path} (not followed)")
+    far = external_link_on_path(parent, name) if isinstance(link, h5py.SoftLink) else None
+    if far is not None:
+        raise error(f"{where}: {name!r} is a soft link to {link.path}, which reaches an external link to "
+                    f"{far.filename}:{far.path} (not followed)")
     try:
         return parent[name]
     except (KeyError, RuntimeError, OSError, ValueError) as exc:

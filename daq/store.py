@@ -42,6 +42,7 @@ from flexmodal.daq.run_schema import (
     MAX_SAMPLE_RATE_HZ,
     check_run_group,
     check_run_id,
+    external_link_on_path,
     kind_unit_fault,
     member,
     sample_rate_ok,
@@ -380,7 +381,7 @@ def list_runs(path: str | Path) -> list[str]:
         ids, seen = [], set()
         for name in sorted(runs.keys()) if runs is not None else []:
             try:
-                obj = runs[name] if not isinstance(runs.get(name, getlink=True), h5py.ExternalLink) else None
+                obj = runs[name] if external_link_on_path(runs, name) is None else None   # never another file
             except (KeyError, RuntimeError, OSError, ValueError):  # a broken link: reading it names it
                 obj = None
             if obj is not None and obj.id in seen:

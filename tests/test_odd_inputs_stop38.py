@@ -274,3 +274,43 @@ def test_a_dbc_text_decodes_back_as_written(text: str, bom: bool) -> None:
     legacy = text.encode("cp1252")   # a Vector tool's file: read as cp1252 unless its bytes are UTF-8
     chosen = _encoding(legacy)
     assert chosen in (None, "utf-8") and (chosen is not None or legacy.decode("cp1252") == text)
+
+
+@pytest.mark.parametrize("where", ["samples", "channels", "run", "runs"])
+def test_a_soft_link_to_an_external_link_is_never_followed(tmp_path: Path, where: str) -> None:
+    import os
+    import threading
+
+    from flexmodal.daq.store import Channel, RunWriter
+
+    path, fifo = tmp_path / "run.h5", tmp_path / "fifo"
+    with RunWriter(path, "r1", sample_rate_hz=100.0, channels=[Channel("F", "force", "N")],
+                   excitation="impact", pose={}) as w:
+        w.append(np.zeros((8, 1)))
+    os.mkfifo(fifo)
+    with h5py.File(path, "a") as h:   # member -> /ext -> the FIFO: HDF5 follows both and blocks in open()
+        h["ext"] = h5py.ExternalLink(str(fifo), "/x")
+        if where == "runs":
+            h.move("runs", "kept")
+            h["runs"] = h5py.SoftLink("/ext")
+        elif where == "run":
+            h.move("runs/r1", "kept")
+            h["runs/r1"] = h5py.SoftLink("/ext")
+        else:
+            del h["runs/r1"][where]
+            h["runs/r1"][where] = h5py.SoftLink("/ext")
+    caught: list = []
+
+    def read() -> None:
+        try:
+            fm.read_run(path, "r1")
+        except DaqError as exc:
+            caught.append(str(exc))
+
+    worker = threading.Thread(target=read, daemon=True)
+    worker.start()
+    worker.join(60)
+    if worker.is_alive():   # hung for ever before (SIGTERM deferred): release it, then fail
+        os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
+        pytest.fail("a soft link was followed into an external link to a FIFO")
+    assert len(caught) == 1 and "is a soft link to /ext, which reaches an external link to" in caught[0]
