@@ -5,7 +5,7 @@
 
 Blocks sit between ``<!-- NAME:begin -->`` and ``<!-- NAME:end -->`` (NAME = seed003, coverage,
 blind, fresh, new, latest, next, s631, s736, s841, ideal, ideal_fresh, ideal_new, ideal_latest,
-ideal_next, ideal_s631, ideal_s736, ideal_s841, sparse, advice, advice_s736).
+ideal_next, ideal_s631, ideal_s736, ideal_s841, sparse, advice, advice_s736, advice_s841).
 The blind block is the acceptance measurement: 36 cases of each of five draws of
 fixtures/blind.py's generator (seeds ``BLIND_SEEDS``), their summaries and the mean and worst over
 draws (tests/test_blind.py re-runs it under ``-m slow``); the coverage block the Monte-Carlo coverage
@@ -60,9 +60,11 @@ SPARSE_CASES = 60
 SPARSE_SEED = 5
 ADVICE_SEEDS = LATEST_SEEDS + NEXT_SEEDS
 """The used blind draws on which the next-measurement advice is measured (``advice_block``)."""
-ADVICE_FINAL_SEEDS = S736_SEEDS
-"""The draws of block ``advice_s736``: never used when the frequency-only advice was measured once on
-their ambiguous verdicts; used since (the method's last change, the advice with shapes)."""
+ADVICE_FINAL_SEEDS = FINAL_SEEDS
+"""Draws used neither for the method nor for the advice: the advice (frozen, with shapes) measured once
+on their ambiguous verdicts (block ``advice_s841``).  Block ``advice_s736`` holds ``S736_SEEDS``: never
+used when the frequency-only advice was measured once on them; used since (the method's last change,
+the advice with shapes)."""
 
 from flexmodal.compare.diagnosis import diagnose  # noqa: E402
 from flexmodal.contract.table import ModalTable  # noqa: E402
@@ -213,7 +215,8 @@ BLOCKS = {"seed003": seed003_block, "coverage": coverage_block, "blind": blind_b
           "s841": lambda: blind_block(FINAL_SEEDS, note=FINAL_NOTE),
           "ideal_s841": lambda: ideal_block(seeds=FINAL_SEEDS),
           "sparse": sparse_block, "advice": advice_block,
-          "advice_s736": lambda: advice_block(seeds=ADVICE_FINAL_SEEDS)}
+          "advice_s736": lambda: advice_block(seeds=S736_SEEDS),
+          "advice_s841": lambda: advice_block(seeds=ADVICE_FINAL_SEEDS)}
 
 
 def main() -> int:

@@ -125,7 +125,8 @@ def test_the_draws_and_the_advice_the_docs_quote():
     assert all(summarise(r)["none_accuracy"] >= 2 / 3 for r in draws["blind"].values())
     assert doc.doc_block("sparse") == doc.sparse_block()
     assert doc.doc_block("advice") == doc.advice_block({**draws["latest"], **draws["next"]})
-    assert doc.doc_block("advice_s736") == doc.advice_block(draws["s736"], seeds=doc.ADVICE_FINAL_SEEDS)
+    assert doc.doc_block("advice_s736") == doc.advice_block(draws["s736"], seeds=doc.S736_SEEDS)
+    assert doc.doc_block("advice_s841") == doc.advice_block(draws["s841"], seeds=doc.ADVICE_FINAL_SEEDS)
 
 
 @pytest.mark.timeout(1800)          # ~15 s CPU: two truth arms, two diagnoses and three trial diagnoses
