@@ -574,18 +574,26 @@ def _summarise_warnings(found: Sequence[tuple[str, str]], named: int = 4) -> lis
 
     Examples
     --------
-    >>> for line in _summarise_warnings([("run1", "2 of 3 modes (28.9, 100 Hz) have 1.7 lines"),
-    ...                                 ("run2", "2 of 3 modes (37.5, 72.1 Hz) have 1.8 lines"),
-    ...                                 ("run2", "merged the poles at 29.01 and 29.04 Hz")]):
+    A list or range of numbers counts as one number and the singular as the plural, so "1 of 3 modes
+    (29.5 Hz) has 2.6 lines in its" is of the kind of "2 of 3 modes (28.9, 100 Hz) have 1.7-2.2 lines
+    in their".
+
+    >>> for line in _summarise_warnings([("run1", "2 of 3 modes (28.9, 100 Hz) have 1.7-2.2 lines in their"),
+    ...                                 ("run2", "2 of 3 modes (37.5, 72.1 Hz) have 1.8-3 lines in their"),
+    ...                                 ("run2", "merged the poles at 29.01 and 29.04 Hz"),
+    ...                                 ("run3", "1 of 3 modes (29.5 Hz) has 2.6 lines in its")]):
     ...     print(line)
-    2 configurations (run1, run2), e.g. run1: 2 of 3 modes (28.9, 100 Hz) have 1.7 lines
+    3 configurations (run1, run2, run3), e.g. run1: 2 of 3 modes (28.9, 100 Hz) have 1.7-2.2 lines in their
     run2: merged the poles at 29.01 and 29.04 Hz
     """
     import re
 
     kinds: dict[str, list[tuple[str, str]]] = {}
     for where, message in found:
-        kinds.setdefault(re.sub(r"\d+(?:\.\d+)?(?:e[-+]?\d+)?", "#", message), []).append((where, message))
+        key = re.sub(r"\d+(?:\.\d+)?(?:e[-+]?\d+)?", "#", message)
+        key = re.sub(r"#(?:(?:, | and |-|\.\.)#)*(?:, \.\.\.)?", "#", key)   # lists and ranges of numbers
+        key = re.sub(r"\b(?:modes?|has|have|its|their)\b", "_", key)        # singular or plural
+        kinds.setdefault(key, []).append((where, message))
     lines = []
     for same in kinds.values():
         places = list(dict.fromkeys(where for where, _ in same))
