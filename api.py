@@ -1770,7 +1770,8 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
            rig: Rig | PathLike | None = None, title: str = "flexmodal validation report",
            oma_fmin: float | None = None, oma_fmax: float | None = None,
            fmin: float | None = None, fmax: float | None = None, geometry: PathLike | None = None,
-           progress: Callable[[str], None] | None = None, pdf: bool = False) -> Path:
+           progress: Callable[[str], None] | None = None, pdf: bool = False,
+           shapes_at: Sequence[str] | None = None) -> Path:
     """Write the self-contained HTML validation report (docs/compare-and-report.md).
 
     One file, images embedded, nothing fetched from a network: run metadata, channels, data quality,
@@ -1811,6 +1812,9 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     pdf : bool
         Also print the report to ``REPORT.pdf`` beside it with headless Chromium (:func:`report_pdf`);
         a missing Chromium fails before any work.
+    shapes_at : sequence of str, optional
+        The measured configurations whose mode shapes are drawn on the arm (with ``rig``), in this
+        order; default: the first and the last of ``measured``.  Names are checked before any work.
 
     Returns
     -------
@@ -1820,7 +1824,9 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     Raises
     ------
     ReportError
-        Nothing to report, a bad band, an output that would replace an input, no Chromium for ``pdf``.
+        Nothing to report, a bad band, an output that would replace an input, no Chromium for ``pdf``,
+        ``shapes_at`` naming a configuration ``measured`` does not have (or given without ``measured``
+        and ``rig``).
 
     Examples
     --------
@@ -1864,6 +1870,8 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
         raise ReportError(f"report: fmin = {fmin:g} Hz must be below fmax = {fmax:g} Hz")
     given = [n for n, v in (("fmin", fmin), ("fmax", fmax), ("oma_fmin", oma_fmin), ("oma_fmax", oma_fmax))
              if v is not None]
+    meas = _table(measured) if measured is not None else None
+    shapes_at = _shape_configs(shapes_at, meas, rig)
     from flexmodal.daq.run_schema import check_run_file
     from flexmodal.daq.store import expand_runs, run_entries
 
@@ -1909,7 +1917,6 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
                                       [c.kind for c in run.channels], fmin=oma_fmin, fmax=oma_fmax,
                                       where=f"{path.name}::{run_id}")
         summaries.append(RunSummary(run, frf, modes, oma))
-    meas = _table(measured) if measured is not None else None
     named = _named(predictions)
     comparison = None
     if meas is not None and named:
@@ -1923,7 +1930,7 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
 
         step("solving the FE model for the mode shapes")
         configs = ordered_configs(meas)
-        for config in list(dict.fromkeys([configs[0], configs[-1]]))[:SHAPE_CONFIGS]:
+        for config in shapes_at or list(dict.fromkeys([configs[0], configs[-1]]))[:SHAPE_CONFIGS]:
             pose = meas.pose(config)
             missing = [v for v in rig.pose_variables if v not in pose]
             shapes[config] = (f"No mode shapes drawn for {config}: the measured table gives no "
@@ -2018,6 +2025,31 @@ def animate_mode(out: PathLike, measured: ModalTable | PathLike, config: str, mo
         test, model = animate.arm_pairs(arm_modes(rig, table.pose(config), sensors), table, config)[mode - 1]
         shapes = [s for s in (test, model) if s is not None]
     return animate.write_gif(shapes, target, frames=frames, fps=fps)
+
+
+def _shape_configs(shapes_at: Sequence[str] | None, meas, rig) -> list[str]:
+    """``shapes_at`` of :func:`report` checked: text names of configurations of ``meas`` (a modal table
+    or None), with a ``rig`` to draw them on, each once in the order given; [] for None (the default
+    choice).  A ReportError in one line names the first bad one and the configurations there are."""
+    from flexmodal.checked_io.plural import counted
+    from flexmodal.reports.errors import ReportError
+
+    if shapes_at is None:
+        return []
+    if isinstance(shapes_at, str) or not isinstance(shapes_at, Iterable):
+        raise TypeError(f"report: shapes_at must be a list of configuration names, got "
+                        f"{type(shapes_at).__name__} {shapes_at!r:.60}: for one write [...]")
+    if meas is None or rig is None:
+        raise ReportError("report --shapes-at: mode shapes are drawn from the measured table on the rig: "
+                          f"give {'--measured' if meas is None else '--rig'} too")
+    have = list(dict.fromkeys(meas.configs))
+    for name in shapes_at:
+        if name not in have:
+            listed = ", ".join(have[:8]) + (f" and {len(have) - 8} more" if len(have) > 8 else "")
+            raise ReportError(f"report --shapes-at {name!r}: no such configuration in "
+                              f"{Path(meas.source).name if meas.source else 'the measured table'} "
+                              f"(it has {counted(len(have), 'configuration')}: {listed})")
+    return list(dict.fromkeys(shapes_at))
 
 
 def report_pdf(html: PathLike, pdf: PathLike | None = None) -> Path:

@@ -311,3 +311,20 @@ def test_a_users_file_inside_a_clone_is_not_named_as_shipped_with_flexmodal():
     assert relative_name(package / "examples" / "rigs" / "demo_arm.toml", package / "diag") == \
         "../examples/rigs/demo_arm.toml"
     assert relative_name(package / "README.md", package / "diag") == "../README.md"
+
+
+def test_report_draws_shapes_at_the_configurations_asked_for(inputs, capsys):
+    # default: first and last configuration; --shapes-at (repeatable) picks others, in the order given
+    out = inputs["dir"] / "shapes-at.html"
+    base = ["report", "--measured", str(inputs["measured"]), "--rig", str(inputs["rig"]), "--quiet"]
+    assert main([*base, "--shapes-at", "theta60", "--out", str(out)]) == 0
+    captions = re.findall(r"(theta\d+) \([^)]*\): each measured mode animated on the arm", out.read_text())
+    assert captions == ["theta60"]
+    capsys.readouterr()
+    assert main([*base, "--shapes-at", "theta60", "--shapes-at", "theta45", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    assert "--shapes-at 'theta45': no such configuration in modes.csv (it has 3 configurations: " in err
+    assert main(["report", "--measured", str(inputs["measured"]), "--shapes-at", "theta0",
+                 "--out", str(out), "--quiet"]) == 2
+    assert "give --rig too" in capsys.readouterr().err
