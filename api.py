@@ -348,26 +348,38 @@ def frf_from_arrays(freq_hz, H, *, coherence=None, quantity: str = "accelerance"
     import numpy as np
 
     from flexmodal.modal.errors import ModalError
-    from flexmodal.modal.frf import QUANTITIES, FrfResult, check_coherence
+    from flexmodal.modal.frf import QUANTITIES, FrfResult, check_coherence, check_freq_axis
 
-    for name, value in (("freq_hz", freq_hz), ("H", H)):
-        if value is None or isinstance(value, str | bytes | Mapping):
+    arrays = {}
+    for name, value in (("freq_hz", freq_hz), ("H", H), ("coherence", coherence)):
+        if value is None and name == "coherence":
+            continue
+        try:   # a ragged list of lists, or objects: numpy's ValueError named here
+            if value is None or isinstance(value, str | bytes | Mapping):
+                raise TypeError
+            arrays[name] = np.asarray(value)
+            if arrays[name].dtype.kind == "O":   # numbers held as objects (Python complex, Decimal, ...)
+                arrays[name] = arrays[name].astype(complex if name == "H" else float)
+            if arrays[name].dtype.kind not in "biufc":
+                raise TypeError
+        except (TypeError, ValueError):
             raise TypeError(f"frf_from_arrays: {name} must be an array of numbers, got "
-                            f"{type(value).__name__} {value!r:.60}")
-    f = np.asarray(freq_hz, float)
-    if not np.iscomplexobj(H):
-        raise ModalError(f"frf_from_arrays: H of type {np.asarray(H).dtype} holds no phase: FRFs are complex "
+                            f"{type(value).__name__} {value!r:.60}") from None
+    f = arrays["freq_hz"].astype(float)
+    if not np.iscomplexobj(arrays["H"]):
+        raise ModalError(f"frf_from_arrays: H of type {arrays['H'].dtype} holds no phase: FRFs are complex "
                          "(H = X / F)")
-    h = np.asarray(H, complex)
+    h = arrays["H"].astype(complex)
     h = h[None, None, :] if h.ndim == 1 else h[:, None, :] if h.ndim == 2 else h
-    if f.ndim != 1 or f.size < 2 or not np.all(np.isfinite(f)) or f[0] < 0 or np.any(np.diff(f) <= 0):
+    if f.ndim != 1 or f.size < 2:
         raise ModalError("frf_from_arrays: freq_hz must be finite, non-negative, increasing lines [Hz]")
+    check_freq_axis(f, "frf_from_arrays")
     if h.ndim != 3 or h.shape[-1] != f.size:
         raise ModalError(f"frf_from_arrays: H {np.shape(H)} must be [n_out, n_in, n_freq], [n_out, n_freq] "
                          f"with n_freq = {f.size}")
     if quantity not in QUANTITIES:
         raise ModalError(f"frf_from_arrays: quantity {quantity!r}: use one of {', '.join(QUANTITIES)}")
-    coh = None if coherence is None else np.asarray(coherence, float)
+    coh = None if coherence is None else arrays["coherence"].astype(float)
     if coh is not None and coh.shape != (h.shape[0], f.size):
         raise ModalError(f"frf_from_arrays: coherence {coh.shape} must be [n_out, n_freq] = "
                          f"{(h.shape[0], f.size)}")

@@ -81,6 +81,15 @@ def names(text: str) -> list[str]:
     return items
 
 
+def nonempty(text: str) -> str:
+    """A text option that holds a visible character: ``--source ""`` or ``--rig ""`` (a script's unset
+    variable) was taken as the option left out, and its default used in silence."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"expected a non-empty value, got {text!r} (leave the option out "
+                                         "for its default)")
+    return text
+
+
 def given(value: object, kind: Callable[[str], float], what: str, error: type[Exception]) -> float:
     """``value`` passed from Python (the public API) checked by the option ``kind`` the command line
     uses for it, so both paths accept the same numbers: a bool, a string or another object is not a

@@ -69,7 +69,10 @@ def file_kind(mode: int) -> str:
 
 def regular_file(path: str | Path, error: ErrorType, what: str = "file") -> Path:
     """``path`` when it names an existing regular file (symlinks followed); a FIFO, a device (it
-    would block or never end), a socket or a directory raises ``error`` naming the file."""
+    would block or never end), a socket or a directory raises ``error`` naming the file.  An empty
+    path (``--rig ""``, a script's unset variable) is refused as empty, not read as the folder '.'."""
+    if isinstance(path, str) and not path.strip():
+        raise error(f"the {what} path is empty ({path!r}; an unset variable in a script?)")
     p = Path(path)
     try:
         mode = os.stat(p).st_mode

@@ -20,7 +20,7 @@ def register(sub: Subcommands) -> None:
                    help="segment length in samples for random runs (default: power of two <= 8192 "
                         "giving >= 8 segments); impact runs use one record per hit, sweep runs one "
                         "segment per sweep unless --nfft or --window is given")
-    p.add_argument("--window", default=None,
+    p.add_argument("--window", type=opt.nonempty, default=None,
                    help="window: rect|hann|flattop for random runs (default hann); impact runs "
                         "'force:W,exponential:E' (fractions; default force:0.05 and no "
                         "window on the responses; 'exponential' alone is exponential:0.01)")
@@ -151,9 +151,9 @@ def _track(args: argparse.Namespace) -> int:
     """``identify --track``: the modal map of a moving arm and its harmonics (docs/oma.md)."""
     from flexmodal.api import ModalError, track
 
-    pose_from = _pairs(args.pose_from, "--pose-from") if args.pose_from else None
+    pose_from = _pairs(args.pose_from, "--pose-from") if args.pose_from is not None else None
     try:
-        orders = [float(v) for v in opt.names(args.orders)] if args.orders else []
+        orders = [float(v) for v in opt.names(args.orders)] if args.orders is not None else []
     except (ValueError, argparse.ArgumentTypeError):
         raise ModalError(f"--orders {args.orders!r}: give orders per revolution, comma-separated") from None
     if any(not 0 < o < float("inf") for o in orders):

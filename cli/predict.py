@@ -25,7 +25,7 @@ def register(sub: Subcommands) -> None:
     p.add_argument("--out", required=True, metavar="PRED.csv", help="output modal table")
     p.add_argument("--modes", type=opt.integer(1, 1000), default=4, metavar="N",
                    help="elastic modes per pose (default 4)")
-    p.add_argument("--source", default=None, metavar="NAME",
+    p.add_argument("--source", type=opt.nonempty, default=None, metavar="NAME",
                    help="value of the output's source column (default: the model name, e.g. fe)")
     p.add_argument("--elements", type=opt.integer(1, MAX_ELEMENTS), default=None, metavar="N",
                    help="fe: elements per link and member (default: the rig's `elements`, else 10)")

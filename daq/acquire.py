@@ -320,6 +320,10 @@ def acquire(session: Session, out: str | Path, *, duration_s: float | None = Non
     run_id = run_id or session.run_id or f"{session.source.stem}-{stamp:%Y%m%dT%H%M%S}"
     given = "--duration" if duration_s is not None else "duration_s"
     duration_s = duration_s if duration_s is not None else session.duration_s
+    if duration_s is not None and duration_s * session.sample_rate_hz < 1.0:
+        where = given if given == "--duration" else f"{session.source}: duration_s ="
+        raise DaqError(f"{where} {duration_s:g} s is shorter than one sample at {session.sample_rate_hz:g} "
+                       f"Hz ({1 / session.sample_rate_hz:.3g} s): it would record nothing")
     if duration_s is not None and not duration_s * session.sample_rate_hz < 2.0**53:
         raise DaqError(f"--duration {duration_s:g} s at {session.sample_rate_hz:g} Hz: "
                        f"{duration_s * session.sample_rate_hz:.3g} samples, more than any run can hold")

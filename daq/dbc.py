@@ -10,11 +10,13 @@ byte ``start // 8``, bit ``start % 8``) sits at position ``(7 - start // 8) * 8 
 
 from __future__ import annotations
 
+import codecs
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from flexmodal.checked_io.text import one_line, read_bytes
 from flexmodal.daq.errors import DaqError
 
 
@@ -94,15 +96,41 @@ class MessageLayout:
         return value
 
 
+def _encoding(data: bytes) -> str | None:
+    """The text encoding of a CAN database's bytes: UTF-8 when they are UTF-8 (with or without a
+    byte-order mark), else None (cantools' own default, cp1252 for DBC files, as Vector tools write
+    them).  cantools read every file as cp1252: a UTF-8 unit 'µV' became 'Âµ V' (and was then not
+    recognised as micro-volts), a byte-order mark a syntax error at line 1.
+
+    Examples
+    --------
+    >>> _encoding(b"\\xef\\xbb\\xbfVERSION"), _encoding("µV".encode()), _encoding("µV".encode("cp1252"))
+    ('utf-8-sig', 'utf-8', None)
+    """
+    if data.startswith(codecs.BOM_UTF8):
+        return "utf-8-sig"
+    try:
+        data.decode("utf-8")
+    except UnicodeDecodeError:
+        return None
+    return "utf-8"
+
+
 def load_messages(dbc_path: str, names: list[str] | tuple[str, ...] = ()) -> list[MessageLayout]:
     """The sample-carrying messages of a DBC file: ``names`` in this order, else the only multiplexed
     message (or the only message).  Signal names must be unique over the messages."""
     import cantools
 
+    data = read_bytes(dbc_path, DaqError, "DBC file")   # a FIFO, a device or 1 GB of junk: one line
     try:
-        db = cantools.database.load_file(dbc_path)
+        db = cantools.database.load_file(dbc_path, encoding=_encoding(data))
     except Exception as exc:  # cantools raises several parser error types
-        raise DaqError(f"{dbc_path}: not a readable DBC file ({exc})") from exc
+        raise DaqError(f"{dbc_path}: not a readable DBC file ({one_line(exc)})") from exc
+    for what, keys in (("message name", [m.name for m in db.messages]),
+                       ("frame id", [hex(m.frame_id) for m in db.messages])):
+        twice = sorted({k for k in keys if keys.count(k) > 1})
+        if twice:   # cantools keeps both; a lookup by name or id took one of them in silence
+            raise DaqError(f"{dbc_path}: {what} {twice[0]} is given to two messages (one per message)")
     known = {m.name: m for m in db.messages}
     if names:
         missing = [n for n in names if n not in known]

@@ -166,6 +166,9 @@ class Table(Fields):
     def port(self, key: str) -> str:
         """A port path that must exist (or a URL such as loop://, or the simulator placeholder)."""
         port = self.get(key, str)
+        if not port.strip():   # pyserial's "could not open port : ... ''" named neither the file nor the key
+            raise DaqError(f"{self.where}: {key} is empty ({port!r}): name a device path such as "
+                           f"/dev/ttyUSB0, a URL such as loop://, or {SIMULATOR_PORT!r}")
         scheme, url, _ = port.partition("://")
         if url and not _serial_url_scheme(scheme):
             raise DaqError(f"{self.where}: {key} {port!r}: pyserial knows no {scheme!r}:// URL (loop://, "

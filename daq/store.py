@@ -28,7 +28,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from flexmodal.checked_io.output import signals_deferred
+from flexmodal.checked_io.output import hdf5_superblock, signals_deferred
 from flexmodal.checked_io.text import available_memory_bytes, nfc, one_line, regular_file
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.h5file import LOCKED, locked, open_read
@@ -237,6 +237,11 @@ class RunWriter:
     def _open(self) -> h5py.File:
         if self.path.exists() or self.path.is_symlink():  # a FIFO or device would block or be destroyed
             regular_file(self.path, DaqError, "run file")
+            found = hdf5_superblock(self.path)
+            if found is not None and 0 <= found[1] < 3:   # h5py's default, MATLAB, PyTables: no SWMR
+                raise DaqError(f"{self.path}: an HDF5 file of another tool (superblock version {found[1]}); "
+                               "runs are appended only to files of superblock version 3 (HDF5 1.10, as "
+                               "flexmodal writes them): choose a new --out")
         try:
             f = h5py.File(self.path, "a", libver="latest", rdcc_nbytes=CHUNK_CACHE_BYTES)
         except OSError as exc:

@@ -73,16 +73,22 @@ def idle_cpus() -> int:
 
 def run_bytes(jobs: Sequence[tuple[str, str]]) -> list[int]:
     """Bytes of samples of every (file, run_id) job, from the file metadata."""
+    import h5py
+
+    from flexmodal.daq.errors import DaqError
     from flexmodal.daq.h5file import open_read
+    from flexmodal.daq.run_schema import member
 
     sizes = []
     for path, rid in jobs:
         with open_read(path) as f:   # a truncated file fails here at once, as everywhere else
-            try:
-                ds = f.get(f"runs/{rid}/samples")
-            except (KeyError, RuntimeError, OSError):   # a broken link: the job itself names it
+            ds: object = f
+            try:   # member by member: a path 'runs/r2/samples' follows an external link (to a FIFO: hang)
+                for name in ("runs", rid, "samples"):
+                    ds = member(ds, name, path) if isinstance(ds, h5py.Group) else None
+            except DaqError:   # a link not followed, or broken: the job itself names it
                 ds = None
-            sizes.append(int(ds.size) * ds.dtype.itemsize if hasattr(ds, "dtype") else 0)
+            sizes.append(int(ds.size) * ds.dtype.itemsize if isinstance(ds, h5py.Dataset) else 0)
     return sizes
 
 
@@ -543,6 +549,35 @@ def _in_pool(jobs, options: dict, workers: int, done: Callable[[int, FrfResult],
         pool.close(kill=interrupted)
 
 
+SCHEDULER_WAIT_S = 30.0  # a dask.distributed Client's own timeout covers the TCP connect, not the handshake
+
+
+def _client(client_type, scheduler: str):
+    """A dask.distributed client of ``scheduler``, or ModalError naming the address: unreachable, not
+    an address, or silent (a server that accepts the connection and never answers, e.g. a web server
+    or a port forward to nothing, held Client() for ever: it is made in a daemon thread, waited on for
+    :data:`SCHEDULER_WAIT_S`)."""
+    box: dict[str, object] = {}
+
+    def connect() -> None:
+        try:
+            box["client"] = client_type(scheduler, timeout="10s")
+        except BaseException as exc:   # handed to the caller's thread
+            box["error"] = exc
+
+    thread = threading.Thread(target=connect, name="flexmodal-scheduler-connect", daemon=True)
+    thread.start()
+    thread.join(SCHEDULER_WAIT_S)
+    exc = box.get("error")
+    if thread.is_alive() or isinstance(exc, OSError | ValueError | TypeError):   # ValueError: not an address
+        why = f"no answer within {SCHEDULER_WAIT_S:g} s" if thread.is_alive() else one_line(exc)
+        raise ModalError(f"--scheduler {scheduler!r}: cannot connect ({why}; expected the address of a "
+                         "dask.distributed scheduler such as tcp://127.0.0.1:8786)")
+    if exc is not None:
+        raise exc
+    return box["client"]
+
+
 def _on_cluster(jobs, options: dict, scheduler: str, done: Callable[[int, FrfResult], None]) -> None:
     """Every job on the dask.distributed cluster at ``scheduler`` (its workers read the runs
     from the same paths); ``done(k, result)`` in completion order."""
@@ -551,11 +586,7 @@ def _on_cluster(jobs, options: dict, scheduler: str, done: Callable[[int, FrfRes
     except ImportError:
         raise ModalError(f"--scheduler {scheduler}: dask.distributed is not installed "
                          "(pip install 'flexmodal[cluster]')") from None
-    try:
-        client = Client(scheduler, timeout="10s")
-    except (OSError, ValueError, TypeError) as exc:  # unreachable, or not an address (ValueError)
-        raise ModalError(f"--scheduler {scheduler!r}: cannot connect ({one_line(exc)}; expected an address "
-                         "such as tcp://127.0.0.1:8786)") from None
+    client = _client(Client, scheduler)
     interrupted = False
     try:
         futures = {client.submit(frf_job, str(Path(jobs[k][0]).resolve()), jobs[k][1], options, pure=False): k

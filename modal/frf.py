@@ -39,6 +39,41 @@ def check_coherence(coherence: np.ndarray, where: str) -> None:
         raise ModalError(f"{where}: 'coherence' holds {coherence[bad].flat[0]:g}, outside [0, 1]")
 
 
+MAX_LINE_HZ = 1e9          # contract.table.MAX_FREQ_HZ: no structural mode is above 1 GHz
+MIN_LINE_SPACING_HZ = 1e-9  # the resolution of a 1e9 s record (acquire's --duration bound, 31.7 years)
+
+
+def check_freq_axis(freq_hz: np.ndarray, where: str, name: str = "freq_hz") -> None:
+    """Raise ModalError unless ``freq_hz`` [Hz] is 1-D, finite, >= 0, increasing by at least
+    :data:`MIN_LINE_SPACING_HZ` and at most :data:`MAX_LINE_HZ`: the one check of every frequency
+    axis given to flexmodal (a stored FRF group, a UFF file, :func:`flexmodal.api.frf_from_arrays`).
+    An axis in other units (lines 1e-300 Hz apart, or at 1e12 Hz) made the identification fail
+    inside (NaN in a factorisation) or name its result instead of the input.
+
+    Examples
+    --------
+    >>> check_freq_axis(np.array([0.0, 0.5, 1.0]), "x")
+    >>> check_freq_axis(np.array([0.0, 1e-300, 2e-300]), "u.uff", "abscissa")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    flexmodal.modal.errors.ModalError: u.uff: abscissa lines 1e-300 Hz apart: closer than 1e-09 Hz ...
+    """
+    f = np.asarray(freq_hz)
+    if f.ndim != 1 or f.dtype.kind not in "fiu":
+        raise ModalError(f"{where}: {name} must be a 1-D array of frequencies [Hz] (shape {f.shape}, type "
+                         f"{f.dtype})")
+    f = f.astype(float)
+    if not np.isfinite(f).all() or (f.size and f[0] < 0) or (f.size > 1 and not (np.diff(f) > 0).all()):
+        raise ModalError(f"{where}: {name} must be finite, >= 0 and increasing")
+    step = float(np.diff(f).min()) if f.size > 1 else MIN_LINE_SPACING_HZ
+    if step < MIN_LINE_SPACING_HZ:
+        raise ModalError(f"{where}: {name} lines {step:.3g} Hz apart: closer than {MIN_LINE_SPACING_HZ:g} Hz "
+                         "(a record longer than 1e9 s); is the axis in Hz?")
+    if f.size and f[-1] > MAX_LINE_HZ:
+        raise ModalError(f"{where}: {name} reaches {f[-1]:.3g} Hz, above {MAX_LINE_HZ:g} Hz; is the axis in "
+                         "Hz?")
+
+
 @dataclass(frozen=True)
 class FrfResult:
     """FRFs of one test, with the processing that produced them (what ``/runs/<id>/frf`` stores,

@@ -20,7 +20,7 @@ import numpy as np
 from flexmodal.checked_io.output import signals_deferred
 from flexmodal.checked_io.text import loads_json, nfc, one_line
 from flexmodal.modal.errors import ModalError
-from flexmodal.modal.frf import FrfResult, check_coherence
+from flexmodal.modal.frf import FrfResult, check_coherence, check_freq_axis
 
 FRF_GROUP = "frf"
 PARTIAL_PREFIX = ".frf-partial-"   # the group an FRF set is written into before it is renamed ``frf``
@@ -188,8 +188,7 @@ def _checked_arrays(data: dict[str, h5py.Dataset], where: str) -> tuple[np.ndarr
                                  (("freq_hz", float), ("H", complex), ("coherence", float)))
     except OSError as exc:  # a damaged chunk
         raise ModalError(f"{where}: cannot read ({one_line(exc)})") from None
-    if not np.isfinite(freq_hz).all() or (n > 1 and not (np.diff(freq_hz) > 0).all()) or freq_hz[0] < 0:
-        raise ModalError(f"{where}: 'freq_hz' must be finite, >= 0 and increasing")
+    check_freq_axis(freq_hz, where, "'freq_hz'")
     check_coherence(coherence, where)
     return freq_hz, H, coherence
 

@@ -24,6 +24,7 @@ import numpy as np
 from flexmodal.checked_io.output import atomic_path
 from flexmodal.checked_io.text import fits_in_memory
 from flexmodal.checked_io.uff_blocks import check_blocks
+from flexmodal.daq.run_schema import MAX_SAMPLE_RATE_HZ
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult
 from flexmodal.modal.valid_uff import check_functions, drop_line_padding
@@ -266,6 +267,9 @@ def _record(p: Path, funcs: list[dict]) -> UffRecord:
     dts = np.array([float(s.get("abscissa_inc") or np.diff(s["x"][:2])[0]) for s in funcs])
     if not np.all(dts > 0):
         raise ModalError(f"{p}: a time history has no positive sample interval ({dts.min():g} s)")
+    if dts.min() < 1 / MAX_SAMPLE_RATE_HZ:   # 1e-300 s: a rate that overflows the spectra's arithmetic
+        raise ModalError(f"{p}: time histories sampled every {dts.min():.3g} s, a rate above "
+                         f"{MAX_SAMPLE_RATE_HZ:g} Hz; is the abscissa in seconds?")
     if not np.allclose(dts, dts[0], rtol=1e-9):
         raise ModalError(f"{p}: time histories have mismatched sample rates "
                          f"({', '.join(f'{1 / d:g}' for d in sorted(set(dts)))} Hz)")

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from flexmodal.modal.errors import ModalError
+from flexmodal.modal.frf import check_freq_axis
 
 REQUIRED = ("func_type", "rsp_node", "rsp_dir", "ref_node", "ref_dir", "x", "data")
 VALUES_PER_LINE = 6   # an ASCII dataset-58 data line holds at most six numbers (format 6E13.5)
@@ -77,4 +78,6 @@ def check_functions(path: str | Path, funcs: Sequence[dict]) -> None:
             raise ModalError(f"{where}: function type {int(s['func_type'])} on an abscissa of "
                              f"{AXIS_WORDS[axis]} (abscissa data type {axis}); its axis is "
                              f"{AXIS_WORDS[35 - axis]} (data type {35 - axis})")
+        if int(s.get("func_type", 0) or 0) == 4:
+            check_freq_axis(x, where, "abscissa")
 

@@ -21,9 +21,10 @@ from flexmodal.models.errors import ModelError
 
 TABLE_ARRAYS = ("link", "joint", "member", "mass", "spring", "sensor")
 MAX_ELEMENTS = 500  # per link or member
-MAX_SIZE_M = 1e3  # a cross-section dimension, m
-MAX_E_PA = 1e13  # Young's modulus (diamond: 1.2e12 Pa)
-MAX_RHO_KG_M3 = 1e5  # density (osmium: 2.3e4 kg/m^3)
+MIN_SIZE_M, MAX_SIZE_M = 1e-6, 1e3  # a cross-section dimension or a link's length, m (1 micrometre to 1 km)
+MIN_E_PA, MAX_E_PA = 1e3, 1e13  # Young's modulus (soft gels: 1e3 Pa; diamond: 1.2e12 Pa)
+MIN_RHO_KG_M3, MAX_RHO_KG_M3 = 0.1, 1e5  # density (aerographite: 0.2 kg/m^3; osmium: 2.3e4 kg/m^3)
+# below these a typo (E_Pa = 1e-30, a length in km written as m) left "only 0 elastic modes available"
 KEYS = {  # the keys each table may hold (docs/formats.md, Rig TOML): any other is a typo, refused
     "top level": {"name", "material", "base", *TABLE_ARRAYS},
     "material": {"E_Pa", "rho_kg_m3", "nu"},
@@ -85,9 +86,16 @@ def _section(spec: Any, path: str, source: str) -> None:
     if extra:
         raise _fail(source, f"{path}.{extra[0]}", f"unknown key for shape {spec['shape']!r} (it has "
                                                   f"{', '.join(sorted(allowed))})")
-    for key, value in spec.items():
-        if key.endswith("_m") and _number(value) and abs(value) > MAX_SIZE_M:
-            raise _fail(source, f"{path}.{key}", f"{value!r} m is out of range (at most {MAX_SIZE_M:g} m)")
+    _sizes(spec, path, source)
+
+
+def _sizes(t: Mapping[str, Any], path: str, source: str) -> None:
+    """Refuse a length (a key ending in ``_m``) outside [:data:`MIN_SIZE_M`, :data:`MAX_SIZE_M`] (0 and
+    negative lengths are parse_rig's to name)."""
+    for key, value in t.items():
+        if key.endswith("_m") and _number(value) and value > 0 and not MIN_SIZE_M <= value <= MAX_SIZE_M:
+            raise _fail(source, f"{path}.{key}", f"{value!r} m is out of range ({MIN_SIZE_M:g} to "
+                                                 f"{MAX_SIZE_M:g} m)")
 
 
 def _magnitudes(node: Any, path: str, source: str) -> None:
@@ -156,9 +164,12 @@ def check_document(doc: Any, source: str) -> None:
         if not isinstance(m, Mapping):
             raise _fail(source, f"material.{name}", "must be a table with E_Pa and rho_kg_m3")
         _known(m, "material", f"material.{name}", source)
-        for key, top in (("E_Pa", MAX_E_PA), ("rho_kg_m3", MAX_RHO_KG_M3)):
+        for key, low, top in (("E_Pa", MIN_E_PA, MAX_E_PA), ("rho_kg_m3", MIN_RHO_KG_M3, MAX_RHO_KG_M3)):
             if _number(m.get(key)) and m[key] > top:
                 raise _fail(source, f"material.{name}.{key}", f"{m[key]!r} is out of range (at most {top:g})")
+            if _number(m.get(key)) and 0 < m[key] < low:
+                raise _fail(source, f"material.{name}.{key}",
+                            f"{m[key]!r} is out of range (at least {low:g}; SI units)")
     base = doc.get("base", {})
     if not isinstance(base, Mapping):
         raise _fail(source, "base", f"must be a [base] table (got {base!r:.60})")
@@ -174,6 +185,7 @@ def check_document(doc: Any, source: str) -> None:
     for i, t in enumerate(tables["link"]):
         path = f"link[{i}]"
         _elements(t, path, source)
+        _sizes(t, path, source)
         _section(t.get("section"), f"{path}.section", source)
         segments = _tables(t, "segments", f"{source}: {path}")
         for j, seg in enumerate(segments):
