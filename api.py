@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING
 # light at import: the registries whose names the command line offers, the fault options of a simulator,
 # and the error family (one type per package), so the shell needs nothing past this module
 from flexmodal.checked_io.errors import FlexmodalError
+from flexmodal.checked_io.plural import counted
 from flexmodal.compare.errors import CompareError
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.faults import Faults, fault_flag
@@ -1915,8 +1916,12 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
         geo = read_uff_geometry(geometry)
     step = progress or (lambda _msg: None)
     summaries = []
-    for path, run_id in expand_runs(runs):
-        step(f"reading and identifying {path.name}::{run_id}")
+    entries = expand_runs(runs)
+    if entries:   # one line for all runs (they are quick; the plotting, slower, says each run)
+        files = list(dict.fromkeys(path.name for path, _ in entries))
+        step(f"reading and identifying {counted(len(entries), 'run')} of {', '.join(files[:3])}"
+             + (f" and {counted(len(files) - 3, 'more file')}" if len(files) > 3 else ""))
+    for path, run_id in entries:
         run, frf = read_run(path, run_id), read_frf(path, run_id)
         modes = oma = None
         if frf is not None:
@@ -2043,9 +2048,6 @@ def _shape_configs(shapes_at: Sequence[str] | None, meas, rig) -> list[str]:
     """``shapes_at`` of :func:`report` checked: text names of configurations of ``meas`` (a modal table
     or None), with a ``rig`` to draw them on, each once in the order given; [] for None (the default
     choice).  A ReportError in one line names the first bad one and the configurations there are."""
-    from flexmodal.checked_io.plural import counted
-    from flexmodal.reports.errors import ReportError
-
     if shapes_at is None:
         return []
     if isinstance(shapes_at, str) or not isinstance(shapes_at, Iterable):

@@ -97,7 +97,16 @@ def report(inputs):
     return api.report(inputs["dir"] / "report.html", runs=[inputs["runs"]],
                       measured=ModalTable.read_csv(inputs["measured"]),
                       predictions=[ModalTable.read_csv(inputs["pred"])], diagnosis=DIAGNOSIS,
-                      rig=load_rig(inputs["rig"]), title="demo arm validation")
+                      rig=load_rig(inputs["rig"]), title="demo arm validation",
+                      progress=inputs.setdefault("told", []).append)
+
+
+def test_report_progress_is_one_line_per_run(inputs, report):
+    # it was two per run (reading and identifying each, then plotting each): 25 lines for the demo's 10
+    told = inputs["told"]
+    runs = [m for m in told if "run" in m]
+    plotted = [f"plotting run {k}/{len(RUN_IDS)}: runs.h5::{run_id}" for k, run_id in enumerate(RUN_IDS, 1)]
+    assert runs == [f"reading and identifying {len(RUN_IDS)} runs of runs.h5", *plotted], told
 
 
 def test_report_is_self_contained_and_holds_every_section(report):
