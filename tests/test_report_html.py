@@ -18,7 +18,7 @@ from pathlib import Path
 
 import h5py
 import pytest
-from browser import assert_table_and_plot_visible, page_width, render
+from browser import assert_table_and_plot_visible, evaluate, page_width, render
 from matplotlib import image as mpimg
 
 from flexmodal import api
@@ -232,6 +232,23 @@ def test_no_table_makes_the_page_scroll_sideways_in_a_narrow_window(report, tmp_
     """At 1000 px (narrower than the body's 1100 px) the data-quality table (13 columns) pushed the page
     wider than the window; now a wide table scrolls in its own box."""
     assert page_width(chromium, report, tmp_path / "profile", 1000) <= 1000
+
+
+QUALITY_JS = """(() => {
+  const t = document.querySelector('#quality').nextElementSibling;
+  const cell = t.querySelector('td[data-label]');
+  return {table: [t.scrollWidth, t.clientWidth], page: document.documentElement.scrollWidth,
+          head: getComputedStyle(t.querySelector('thead')).display,
+          label: getComputedStyle(cell, '::before').content, value: cell.textContent};
+})()"""
+
+
+def test_the_data_quality_table_is_read_whole_at_800_px(report, tmp_path, chromium):
+    # it scrolled in its own box with five of its twelve columns out of sight (a screenshot showed it cut
+    # after "gaps"): in a narrow window each run is one block of "column: value" pairs
+    seen = evaluate(chromium, report, tmp_path / "profile", 800, QUALITY_JS)
+    assert seen["table"][0] <= seen["table"][1] and seen["page"] <= 800, seen
+    assert seen["head"] == "none" and seen["label"] == '"triggers [count]: "', seen
 
 
 def test_report_cli_pdf_prints_beside_the_html_and_a_bad_geometry_is_one_line(inputs, tmp_path, capsys):
