@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING
 # light at import: the registries whose names the command line offers, the fault options of a simulator,
 # and the error family (one type per package), so the shell needs nothing past this module
 from flexmodal.checked_io.errors import FlexmodalError
+from flexmodal.checked_io.plural import counted
 from flexmodal.compare.errors import CompareError
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.faults import Faults, fault_flag
@@ -586,18 +587,26 @@ def _summarise_warnings(found: Sequence[tuple[str, str]], named: int = 4) -> lis
 
     Examples
     --------
-    >>> for line in _summarise_warnings([("run1", "2 of 3 modes (28.9, 100 Hz) have 1.7 lines"),
-    ...                                 ("run2", "2 of 3 modes (37.5, 72.1 Hz) have 1.8 lines"),
-    ...                                 ("run2", "merged the poles at 29.01 and 29.04 Hz")]):
+    A list or range of numbers counts as one number and the singular as the plural, so "1 of 3 modes
+    (29.5 Hz) has 2.6 lines in its" is of the kind of "2 of 3 modes (28.9, 100 Hz) have 1.7-2.2 lines
+    in their".
+
+    >>> for line in _summarise_warnings([("run1", "2 of 3 modes (28.9, 100 Hz) have 1.7-2.2 lines in their"),
+    ...                                 ("run2", "2 of 3 modes (37.5, 72.1 Hz) have 1.8-3 lines in their"),
+    ...                                 ("run2", "merged the poles at 29.01 and 29.04 Hz"),
+    ...                                 ("run3", "1 of 3 modes (29.5 Hz) has 2.6 lines in its")]):
     ...     print(line)
-    2 configurations (run1, run2), e.g. run1: 2 of 3 modes (28.9, 100 Hz) have 1.7 lines
+    3 configurations (run1, run2, run3), e.g. run1: 2 of 3 modes (28.9, 100 Hz) have 1.7-2.2 lines in their
     run2: merged the poles at 29.01 and 29.04 Hz
     """
     import re
 
     kinds: dict[str, list[tuple[str, str]]] = {}
     for where, message in found:
-        kinds.setdefault(re.sub(r"\d+(?:\.\d+)?(?:e[-+]?\d+)?", "#", message), []).append((where, message))
+        key = re.sub(r"\d+(?:\.\d+)?(?:e[-+]?\d+)?", "#", message)
+        key = re.sub(r"#(?:(?:, | and |-|\.\.)#)*(?:, \.\.\.)?", "#", key)   # lists and ranges of numbers
+        key = re.sub(r"\b(?:modes?|has|have|its|their)\b", "_", key)        # singular or plural
+        kinds.setdefault(key, []).append((where, message))
     lines = []
     for same in kinds.values():
         places = list(dict.fromkeys(where for where, _ in same))
@@ -1774,7 +1783,8 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
            rig: Rig | PathLike | None = None, title: str = "flexmodal validation report",
            oma_fmin: float | None = None, oma_fmax: float | None = None,
            fmin: float | None = None, fmax: float | None = None, geometry: PathLike | None = None,
-           progress: Callable[[str], None] | None = None, pdf: bool = False) -> Path:
+           progress: Callable[[str], None] | None = None, pdf: bool = False,
+           shapes_at: Sequence[str] | None = None) -> Path:
     """Write the self-contained HTML validation report (docs/compare-and-report.md).
 
     One file, images embedded, nothing fetched from a network: run metadata, channels, data quality,
@@ -1815,6 +1825,9 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     pdf : bool
         Also print the report to ``REPORT.pdf`` beside it with headless Chromium (:func:`report_pdf`);
         a missing Chromium fails before any work.
+    shapes_at : sequence of str, optional
+        The measured configurations whose mode shapes are drawn on the arm (with ``rig``), in this
+        order; default: the first and the last of ``measured``.  Names are checked before any work.
 
     Returns
     -------
@@ -1824,7 +1837,9 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     Raises
     ------
     ReportError
-        Nothing to report, a bad band, an output that would replace an input, no Chromium for ``pdf``.
+        Nothing to report, a bad band, an output that would replace an input, no Chromium for ``pdf``,
+        ``shapes_at`` naming a configuration ``measured`` does not have (or given without ``measured``
+        and ``rig``).
 
     Examples
     --------
@@ -1868,6 +1883,8 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
         raise ReportError(f"report: fmin = {fmin:g} Hz must be below fmax = {fmax:g} Hz")
     given = [n for n, v in (("fmin", fmin), ("fmax", fmax), ("oma_fmin", oma_fmin), ("oma_fmax", oma_fmax))
              if v is not None]
+    meas = _table(measured) if measured is not None else None
+    shapes_at = _shape_configs(shapes_at, meas, rig)
     from flexmodal.daq.run_schema import check_run_file
     from flexmodal.daq.store import expand_runs, run_entries
 
@@ -1899,8 +1916,12 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
         geo = read_uff_geometry(geometry)
     step = progress or (lambda _msg: None)
     summaries = []
-    for path, run_id in expand_runs(runs):
-        step(f"reading and identifying {path.name}::{run_id}")
+    entries = expand_runs(runs)
+    if entries:   # one line for all runs (they are quick; the plotting, slower, says each run)
+        files = list(dict.fromkeys(path.name for path, _ in entries))
+        step(f"reading and identifying {counted(len(entries), 'run')} of {', '.join(files[:3])}"
+             + (f" and {counted(len(files) - 3, 'more file')}" if len(files) > 3 else ""))
+    for path, run_id in entries:
         run, frf = read_run(path, run_id), read_frf(path, run_id)
         modes = oma = None
         if frf is not None:
@@ -1913,7 +1934,6 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
                                       [c.kind for c in run.channels], fmin=oma_fmin, fmax=oma_fmax,
                                       where=f"{path.name}::{run_id}")
         summaries.append(RunSummary(run, frf, modes, oma))
-    meas = _table(measured) if measured is not None else None
     named = _named(predictions)
     comparison = None
     if meas is not None and named:
@@ -1927,7 +1947,7 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
 
         step("solving the FE model for the mode shapes")
         configs = ordered_configs(meas)
-        for config in list(dict.fromkeys([configs[0], configs[-1]]))[:SHAPE_CONFIGS]:
+        for config in shapes_at or list(dict.fromkeys([configs[0], configs[-1]]))[:SHAPE_CONFIGS]:
             pose = meas.pose(config)
             missing = [v for v in rig.pose_variables if v not in pose]
             shapes[config] = (f"No mode shapes drawn for {config}: the measured table gives no "
@@ -2022,6 +2042,28 @@ def animate_mode(out: PathLike, measured: ModalTable | PathLike, config: str, mo
         test, model = animate.arm_pairs(arm_modes(rig, table.pose(config), sensors), table, config)[mode - 1]
         shapes = [s for s in (test, model) if s is not None]
     return animate.write_gif(shapes, target, frames=frames, fps=fps)
+
+
+def _shape_configs(shapes_at: Sequence[str] | None, meas, rig) -> list[str]:
+    """``shapes_at`` of :func:`report` checked: text names of configurations of ``meas`` (a modal table
+    or None), with a ``rig`` to draw them on, each once in the order given; [] for None (the default
+    choice).  A ReportError in one line names the first bad one and the configurations there are."""
+    if shapes_at is None:
+        return []
+    if isinstance(shapes_at, str) or not isinstance(shapes_at, Iterable):
+        raise TypeError(f"report: shapes_at must be a list of configuration names, got "
+                        f"{type(shapes_at).__name__} {shapes_at!r:.60}: for one write [...]")
+    if meas is None or rig is None:
+        raise ReportError("report --shapes-at: mode shapes are drawn from the measured table on the rig: "
+                          f"give {'--measured' if meas is None else '--rig'} too")
+    have = list(dict.fromkeys(meas.configs))
+    for name in shapes_at:
+        if name not in have:
+            listed = ", ".join(have[:8]) + (f" and {len(have) - 8} more" if len(have) > 8 else "")
+            raise ReportError(f"report --shapes-at {name!r}: no such configuration in "
+                              f"{Path(meas.source).name if meas.source else 'the measured table'} "
+                              f"(it has {counted(len(have), 'configuration')}: {listed})")
+    return list(dict.fromkeys(shapes_at))
 
 
 def report_pdf(html: PathLike, pdf: PathLike | None = None) -> Path:

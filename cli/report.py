@@ -24,6 +24,9 @@ def register(sub: Subcommands) -> None:
     p.add_argument("--rig", metavar="RIG.toml", help="rig description, to draw mode shapes on the arm")
     p.add_argument("--geometry", metavar="GEOMETRY.uff",
                    help="test geometry (UFF datasets 15/2411, 82, 18/2420) to animate the measured modes on")
+    p.add_argument("--shapes-at", metavar="CONFIG", action="append", default=None,
+                   help="a measured configuration whose mode shapes to draw on the rig (repeatable; "
+                        "default: the first and the last)")
     p.add_argument("--title", default="flexmodal validation report", help="report title")
     p.add_argument("--fmin", metavar="HZ", type=opt.positive_hz,
                    help="runs with FRFs: identify above this frequency (as identify --fmin)")
@@ -53,7 +56,7 @@ def _run(args: argparse.Namespace) -> int:
     out = report(args.out, runs=args.runs, measured=args.measured, repeats=args.repeat, predictions=args.pred,
                  diagnosis=args.diagnosis, rig=args.rig, title=args.title, oma_fmin=args.oma_fmin,
                  oma_fmax=args.oma_fmax, fmin=args.fmin, fmax=args.fmax, geometry=args.geometry,
-                 progress=progress, pdf=args.pdf)
+                 progress=progress, pdf=args.pdf, shapes_at=args.shapes_at)
     print(out)
     if args.pdf:
         print(out.with_suffix(".pdf"))

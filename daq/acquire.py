@@ -142,6 +142,9 @@ class StopSignals:
         self._handlers.close()
 
 
+SPARK_COLS = (16, 64)   # fewest and most columns of the live |H1| and coherence sparklines
+
+
 class Display:
     """Live status on stderr: elapsed, samples, rate, drops, faults and per-channel level / overloads."""
 
@@ -224,10 +227,13 @@ class Display:
             f, h, coh = m.h1()
             db = 20 * np.log10(np.where(h > 0, h, np.nan))
             top = np.nanmax(db[1:]) if np.isfinite(db[1:]).any() else 0.0
-            lines.append(text(f"  |H1| {self.response}  {sparkline(db[1:], 64, top - 60, top)}  "
+            # the sparklines fill what the console has left (80 columns off a terminal: rich's fallback),
+            # so the |H1| line never wraps; both lines the same width, so they stay aligned
+            n = max(SPARK_COLS[0], min(SPARK_COLS[1], self.live.console.width - 40 - len(self.response)))
+            lines.append(text(f"  |H1| {self.response}  {sparkline(db[1:], n, top - 60, top)}  "
                               f"0-{f[-1]:g} Hz, top {top:.1f} dB"))
             pad = " " * len(self.response)
-            lines.append(text(f"  coh   {pad}{sparkline(coh[1:], 64, 0, 1, np.nanmin)}  "
+            lines.append(text(f"  coh  {pad}  {sparkline(coh[1:], n, 0, 1, np.nanmin)}  "
                               f"0..1, min {np.nanmin(coh[1:]):.2f}"))
         return lines
 

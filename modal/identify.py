@@ -778,8 +778,10 @@ def _resolution(f: np.ndarray, fn: np.ndarray, zeta: np.ndarray, excitation: str
         return [], details
     at = ", ".join(f"{fn[k]:.4g}" for k in few[:4]) + (", ..." if few.size > 4 else "")
     span = (f"{lines[few].min():.1f}" if few.size == 1 else f"{lines[few].min():.1f}-{lines[few].max():.1f}")
-    return [f"{few.size} of {fn.size} modes ({at} Hz) have {span} lines in their half-power band "
-            f"(< {MIN_LINES_PER_BANDWIDTH}): {ADVICE[excitation if excitation in ADVICE else None]}"], details
+    verb, whose = ("has", "its") if few.size == 1 else ("have", "their")
+    advice = ADVICE[excitation if excitation in ADVICE else None]
+    return [f"{few.size} of {counted(fn.size, 'mode')} ({at} Hz) {verb} {span} lines in {whose} "
+            f"half-power band (< {MIN_LINES_PER_BANDWIDTH}): {advice}"], details
 
 
 @dataclass(frozen=True)

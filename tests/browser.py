@@ -164,16 +164,21 @@ def open_page(browser: Browser, page: Path, width: int = 1280) -> str:
     return session
 
 
-def page_width(exe: str, page: Path, profile: Path, width: int) -> int:
-    """The width [CSS px] ``page`` lays out to in a ``width`` px wide window (its scrollWidth): more than
-    ``width`` when something makes the whole page scroll sideways."""
+def evaluate(exe: str, page: Path, profile: Path, width: int, expression: str):
+    """The value of the JavaScript ``expression`` on ``page`` opened in a ``width`` px wide window."""
     browser = Browser(exe, profile)
     try:
         session = open_page(browser, page, width)
-        return int(browser.send("Runtime.evaluate", {"returnByValue": True, "expression":
-                                "document.documentElement.scrollWidth"}, session)["result"]["value"])
+        return browser.send("Runtime.evaluate", {"returnByValue": True, "expression": expression},
+                            session)["result"]["value"]
     finally:
         browser.close()
+
+
+def page_width(exe: str, page: Path, profile: Path, width: int) -> int:
+    """The width [CSS px] ``page`` lays out to in a ``width`` px wide window (its scrollWidth): more than
+    ``width`` when something makes the whole page scroll sideways."""
+    return int(evaluate(exe, page, profile, width, "document.documentElement.scrollWidth"))
 
 
 def render(exe: str, page: Path, profile: Path) -> Rendered:

@@ -121,3 +121,30 @@ def test_live_view_shows_rejections_with_reasons_within_a_second(tmp_path):
     frames = [f for _, f in frames]
     last = frames[-1]
     assert "|H1| a1" in last and "coh" in last and "ACCEPTED" in last
+
+
+def test_the_live_spectrum_fits_an_80_column_console():
+    # off a terminal (acquire > log 2>&1, CI) rich falls back to 80 columns: a 64-column sparkline
+    # made the |H1| line ~98 characters and it wrapped onto a second line
+    from io import StringIO
+
+    from rich.console import Console
+    from rich.live import Live
+    from rich.text import Text
+
+    from flexmodal.daq.acquire import Display
+
+    fs = 1024.0
+    f = np.zeros(4096)
+    f[1000:1003] = 50.0
+    x = np.convolve(f, np.exp(-np.arange(200) / 30) * np.sin(np.arange(200) * 0.5))[:4096]
+    m = HitMonitor(0, 1, fs, 2048, 10, 5.0, (100.0, np.inf))
+    m.add(np.column_stack([f, x]), 0, [1000])
+    m.finish()
+    for cols, spark in ((80, 38), (200, 64)):
+        d = Display(("f1", "a1"), ("N", "m/s2"), quiet=True)
+        d.monitor, d.response, d.fs = m, "a1", fs
+        d.live = Live(console=Console(file=StringIO(), width=cols), auto_refresh=False)
+        h1, coh = (str(t) for t in d._impact_lines(Text)[-2:])
+        assert h1.startswith("  |H1| a1  ") and len(h1) <= cols, (cols, h1)
+        assert len(h1.split("  ")[2]) == spark and h1.index("0-") == coh.index("0..1")   # aligned

@@ -108,7 +108,7 @@ def test_coarse_resolution_is_reported_for_lightly_damped_modes():
     modes = identify(f, H)
     assert len(modes.details) == 1 and modes.details[0].startswith("mode at 55 Hz: 5.5 lines")
     flagged = [w for w in modes.warnings if "half-power band" in w]
-    assert flagged == [f"1 of 4 modes (55 Hz) have 5.5 lines in their half-power band (< 8): {ADVICE[None]}"]
+    assert flagged == [f"1 of 4 modes (55 Hz) has 5.5 lines in its half-power band (< 8): {ADVICE[None]}"]
     impact = identify(f, H, excitation="impact").warnings
     assert [w for w in impact if "half-power band" in w][0].endswith("nfft is not the knob for impact runs")
     assert "--nfft" in [w for w in identify(f, H, excitation="random").warnings if "half-power" in w][0]

@@ -19,6 +19,14 @@ NOTEBOOK = REPO / "docs" / "python-api.ipynb"
 DOC = REPO / "docs" / "python-api.md"
 
 
+MATHTEXT_CHECK = """\
+fig.canvas.draw()
+math_px = ax.yaxis.label.get_window_extent().height      # rotated label: its length is the height
+ax.set_ylabel("zeta [%]")
+fig.canvas.draw()
+print(f"mathtext {math_px:.1f} px, plain {ax.yaxis.label.get_window_extent().height:.1f} px")"""
+
+
 def _tagged(nb, tag: str) -> list:
     return [c for c in nb.cells if c.cell_type == "code" and tag in c.metadata.get("tags", [])]
 
@@ -29,6 +37,10 @@ def executed(tmp_path_factory):
     from nbconvert.preprocessors import ExecutePreprocessor
 
     nb = nbformat.read(NOTEBOOK, as_version=4)
+    # the user figure's check runs in the same kernel right after it, in a cell only this test adds (a
+    # reader of the notebook sees the figure, not the measurement)
+    at = nb.cells.index(_tagged(nb, "user-figure")[0]) + 1
+    nb.cells.insert(at, nbformat.v4.new_code_cell(MATHTEXT_CHECK, metadata={"tags": ["check"]}))
     where = tmp_path_factory.mktemp("notebook")
     # nbclient's other waits are wall-clock too: 60 s for the kernel to start, and only 4 s after a cell's
     # reply for its outputs, after which the outputs still on their way are dropped with a warning (a
@@ -79,7 +91,9 @@ def test_results_display_as_short_reprs_and_tables_with_units(executed):
 
 def test_a_user_figure_after_flexmodals_renders_its_mathtext(executed):
     (cell,) = _tagged(executed, "user-figure")
-    text = "".join(o.text for o in cell.outputs if o.output_type == "stream")
+    (check,) = _tagged(executed, "check")
+    assert not [o for o in cell.outputs if o.output_type == "stream"]   # nothing printed for the reader
+    text = "".join(o.text for o in check.outputs if o.output_type == "stream")
     math_px, plain_px = map(float, re.search(r"mathtext ([\d.]+) px, plain ([\d.]+) px", text).groups())
     assert math_px < 0.8 * plain_px          # "$\zeta$" drawn as one glyph, not as seven characters
     assert any("image/png" in o.get("data", {}) for o in cell.outputs)

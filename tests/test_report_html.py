@@ -18,7 +18,7 @@ from pathlib import Path
 
 import h5py
 import pytest
-from browser import assert_table_and_plot_visible, page_width, render
+from browser import assert_table_and_plot_visible, evaluate, page_width, render
 from matplotlib import image as mpimg
 
 from flexmodal import api
@@ -97,7 +97,16 @@ def report(inputs):
     return api.report(inputs["dir"] / "report.html", runs=[inputs["runs"]],
                       measured=ModalTable.read_csv(inputs["measured"]),
                       predictions=[ModalTable.read_csv(inputs["pred"])], diagnosis=DIAGNOSIS,
-                      rig=load_rig(inputs["rig"]), title="demo arm validation")
+                      rig=load_rig(inputs["rig"]), title="demo arm validation",
+                      progress=inputs.setdefault("told", []).append)
+
+
+def test_report_progress_is_one_line_per_run(inputs, report):
+    # it was two per run (reading and identifying each, then plotting each): 25 lines for the demo's 10
+    told = inputs["told"]
+    runs = [m for m in told if "run" in m]
+    plotted = [f"plotting run {k}/{len(RUN_IDS)}: runs.h5::{run_id}" for k, run_id in enumerate(RUN_IDS, 1)]
+    assert runs == [f"reading and identifying {len(RUN_IDS)} runs of runs.h5", *plotted], told
 
 
 def test_report_is_self_contained_and_holds_every_section(report):
@@ -225,6 +234,23 @@ def test_no_table_makes_the_page_scroll_sideways_in_a_narrow_window(report, tmp_
     assert page_width(chromium, report, tmp_path / "profile", 1000) <= 1000
 
 
+QUALITY_JS = """(() => {
+  const t = document.querySelector('#quality').nextElementSibling;
+  const cell = t.querySelector('td[data-label]');
+  return {table: [t.scrollWidth, t.clientWidth], page: document.documentElement.scrollWidth,
+          head: getComputedStyle(t.querySelector('thead')).display,
+          label: getComputedStyle(cell, '::before').content, value: cell.textContent};
+})()"""
+
+
+def test_the_data_quality_table_is_read_whole_at_800_px(report, tmp_path, chromium):
+    # it scrolled in its own box with five of its twelve columns out of sight (a screenshot showed it cut
+    # after "gaps"): in a narrow window each run is one block of "column: value" pairs
+    seen = evaluate(chromium, report, tmp_path / "profile", 800, QUALITY_JS)
+    assert seen["table"][0] <= seen["table"][1] and seen["page"] <= 800, seen
+    assert seen["head"] == "none" and seen["label"] == '"triggers [count]: "', seen
+
+
 def test_report_cli_pdf_prints_beside_the_html_and_a_bad_geometry_is_one_line(inputs, tmp_path, capsys):
     out = tmp_path / "printed.html"
     assert main(["report", "--measured", str(inputs["measured"]), "--pred", str(inputs["pred"]),
@@ -311,3 +337,20 @@ def test_a_users_file_inside_a_clone_is_not_named_as_shipped_with_flexmodal():
     assert relative_name(package / "examples" / "rigs" / "demo_arm.toml", package / "diag") == \
         "../examples/rigs/demo_arm.toml"
     assert relative_name(package / "README.md", package / "diag") == "../README.md"
+
+
+def test_report_draws_shapes_at_the_configurations_asked_for(inputs, capsys):
+    # default: first and last configuration; --shapes-at (repeatable) picks others, in the order given
+    out = inputs["dir"] / "shapes-at.html"
+    base = ["report", "--measured", str(inputs["measured"]), "--rig", str(inputs["rig"]), "--quiet"]
+    assert main([*base, "--shapes-at", "theta60", "--out", str(out)]) == 0
+    captions = re.findall(r"(theta\d+) \([^)]*\): each measured mode animated on the arm", out.read_text())
+    assert captions == ["theta60"]
+    capsys.readouterr()
+    assert main([*base, "--shapes-at", "theta60", "--shapes-at", "theta45", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    assert "--shapes-at 'theta45': no such configuration in modes.csv (it has 3 configurations: " in err
+    assert main(["report", "--measured", str(inputs["measured"]), "--shapes-at", "theta0",
+                 "--out", str(out), "--quiet"]) == 2
+    assert "give --rig too" in capsys.readouterr().err
