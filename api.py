@@ -2056,7 +2056,9 @@ def _shape_configs(shapes_at: Sequence[str] | None, meas, rig) -> list[str]:
     if meas is None or rig is None:
         raise ReportError("report --shapes-at: mode shapes are drawn from the measured table on the rig: "
                           f"give {'--measured' if meas is None else '--rig'} too")
-    have = list(dict.fromkeys(meas.configs))
+    from flexmodal.compare.tables import ordered_configs
+
+    have = ordered_configs(meas)   # by pose, as the report shows them
     for name in shapes_at:
         if name not in have:
             listed = ", ".join(have[:8]) + (f" and {len(have) - 8} more" if len(have) > 8 else "")
