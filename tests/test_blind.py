@@ -117,7 +117,8 @@ def test_the_draws_and_the_advice_the_docs_quote():
                                      ("next", "ideal_next", doc.NEXT_SEEDS, doc.NEXT_NOTE),
                                      ("s631", "ideal_s631", doc.S631_SEEDS, doc.S631_NOTE),
                                      ("s736", "ideal_s736", doc.S736_SEEDS, doc.S736_NOTE),
-                                     ("s841", "ideal_s841", doc.FINAL_SEEDS, doc.FINAL_NOTE)):
+                                     ("s841", "ideal_s841", doc.S841_SEEDS, doc.S841_NOTE),
+                                     ("s946", "ideal_s946", doc.FINAL_SEEDS, doc.FINAL_NOTE)):
         draws[name] = {seed: run_blind(doc.BLIND_CASES, seed=seed) for seed in seeds}
         assert doc.doc_block(name) == doc.blind_block(seeds, results=draws[name],
                                                       **({} if note is None else {"note": note}))
