@@ -307,6 +307,19 @@ def compute_frf(run: Run | PathLike, *, estimator: str = "H1", nfft: int | None 
     return result
 
 
+def _numbers_of(values, complex_ok: bool):
+    """An object array (a pandas object column, Python numbers, Decimals) as the numeric array its
+    items make: complex only when an item is complex, so a real ``H`` held as objects stays real (and
+    is refused for holding no phase, as a float64 one is)."""
+    import numpy as np
+
+    inferred = np.array(values.tolist())
+    if inferred.dtype.kind == "O":   # Decimal, Fraction, None: float unless an item is complex
+        is_complex = complex_ok and any(isinstance(x, complex | np.complexfloating) for x in inferred.flat)
+        inferred = inferred.astype(complex if is_complex else float)
+    return inferred
+
+
 def frf_from_arrays(freq_hz, H, *, coherence=None, quantity: str = "accelerance",
                     outputs: Sequence[str] = (), inputs: Sequence[str] = (),
                     decay_rate_per_s: float = 0.0) -> FrfResult:
@@ -359,8 +372,8 @@ def frf_from_arrays(freq_hz, H, *, coherence=None, quantity: str = "accelerance"
             if value is None or isinstance(value, str | bytes | Mapping):
                 raise TypeError
             arrays[name] = np.asarray(value)
-            if arrays[name].dtype.kind == "O":   # numbers held as objects (Python complex, Decimal, ...)
-                arrays[name] = arrays[name].astype(complex if name == "H" else float)
+            if arrays[name].dtype.kind == "O":   # numbers held as objects: their own kind decides
+                arrays[name] = _numbers_of(arrays[name], complex_ok=name == "H")
             if arrays[name].dtype.kind not in "biufc":
                 raise TypeError
         except (TypeError, ValueError):
@@ -373,7 +386,8 @@ def frf_from_arrays(freq_hz, H, *, coherence=None, quantity: str = "accelerance"
     h = arrays["H"].astype(complex)
     h = h[None, None, :] if h.ndim == 1 else h[:, None, :] if h.ndim == 2 else h
     if f.ndim != 1 or f.size < 2:
-        raise ModalError("frf_from_arrays: freq_hz must be finite, non-negative, increasing lines [Hz]")
+        raise ModalError(f"frf_from_arrays: freq_hz of shape {f.shape} must be one axis of at least 2 "
+                         "lines [Hz]")
     check_freq_axis(f, "frf_from_arrays")
     if h.ndim != 3 or h.shape[-1] != f.size:
         raise ModalError(f"frf_from_arrays: H {np.shape(H)} must be [n_out, n_in, n_freq], [n_out, n_freq] "

@@ -6,7 +6,8 @@ mounts or ``/proc``.  Outputs are regular files only: a FIFO, a device, a socket
 ``/dev``, ``/proc`` or ``/sys`` is refused, and so is an output that is one of the command's inputs
 (same file through symlinks and hard links) or, for a table or report, an existing HDF5 file (a run
 store is never replaced by a CSV).  :func:`hdf5_output` refuses to append to an existing file that is
-not HDF5 (it would be destroyed).  Failures raise the calling package's error type naming the path.
+not HDF5 (it would be destroyed), nor to another tool's HDF5 file (a user block, superblock < 3).
+Failures raise the calling package's error type naming the path.
 
 Every output file is written through :func:`atomic_path` (a temporary file in the target's folder,
 moved onto the target with ``os.replace`` once complete, removed on any exception, Ctrl-C included),
@@ -187,11 +188,28 @@ def sidecar_file(path: str | Path, error: ErrorType, what: str, signature: bytes
 
 
 def hdf5_output(path: str | Path, error: ErrorType, what: str = "HDF5 output file") -> Path:
-    """A writable HDF5 target: new, or an existing HDF5 file (runs are appended, nothing else is lost)."""
+    """A writable HDF5 target: new, or an existing HDF5 file flexmodal can append runs to without
+    harm (nothing else in it is lost).  One rule for ``acquire --out``, ``frf --out``, ``store=True``
+    and :class:`~flexmodal.daq.store.RunWriter`: refused (``error`` naming the file) are a file that is
+    not HDF5, one whose HDF5 part follows a user block (a MATLAB v7.3 ``.mat``, an ``.h5`` inside a
+    ``.tar``: appending would write into the other format), and one of superblock version < 3 (h5py's
+    default, MATLAB, PyTables: no SWMR, and latest-format objects would be added to another tool's
+    file)."""
     p = _writable(path, error, what, ())
-    if p.exists() and not _is_hdf5(p):
+    if not p.exists():
+        return p
+    found = hdf5_superblock(p)
+    if found is None:
         raise error(f"{p}: exists and is not an HDF5 file (refusing to overwrite it; choose another "
                     "--out)")
+    offset, version = found
+    if offset > 0:
+        raise error(f"{p}: an HDF5 file after a {offset}-byte user block (a MATLAB v7.3 .mat, an "
+                    "archive?); refusing to write into it: choose a new --out")
+    if version < 3:   # h5py's default, MATLAB, PyTables: no SWMR
+        raise error(f"{p}: an HDF5 file of another tool (superblock version {version}); runs are "
+                    "appended only to files of superblock version 3 (HDF5 1.10, as flexmodal writes "
+                    "them): choose a new --out")
     return p
 
 

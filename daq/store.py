@@ -28,7 +28,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from flexmodal.checked_io.output import hdf5_superblock, signals_deferred
+from flexmodal.checked_io.output import hdf5_output, signals_deferred
 from flexmodal.checked_io.text import available_memory_bytes, nfc, one_line, regular_file
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.h5file import LOCKED, locked, open_read
@@ -238,11 +238,8 @@ class RunWriter:
     def _open(self) -> h5py.File:
         if self.path.exists() or self.path.is_symlink():  # a FIFO or device would block or be destroyed
             regular_file(self.path, DaqError, "run file")
-            found = hdf5_superblock(self.path)
-            if found is not None and 0 <= found[1] < 3:   # h5py's default, MATLAB, PyTables: no SWMR
-                raise DaqError(f"{self.path}: an HDF5 file of another tool (superblock version {found[1]}); "
-                               "runs are appended only to files of superblock version 3 (HDF5 1.10, as "
-                               "flexmodal writes them): choose a new --out")
+            if self.path.exists():
+                hdf5_output(self.path, DaqError, "run file")
         try:
             f = h5py.File(self.path, "a", libver="latest", rdcc_nbytes=CHUNK_CACHE_BYTES)
         except OSError as exc:
@@ -255,7 +252,13 @@ class RunWriter:
                                "(readable as it is; if no writer is running, `flexmodal acquire --recover` "
                                "or flexmodal.daq.h5file.recover() makes it writable)") from exc
             raise DaqError(f"{self.path}: cannot open for writing ({exc})") from exc
-        if f"runs/{self.run_id}" in f:
+        try:   # member by member: 'runs/r1' in f opens an external link at 'runs' (a FIFO: hang)
+            runs = member(f, "runs", str(self.path))
+            exists = isinstance(runs, h5py.Group) and runs.get(self.run_id, getlink=True) is not None
+        except DaqError:
+            f.close()
+            raise
+        if exists:
             f.close()
             raise DaqError(f"{self.path}: run {self.run_id!r} already exists")
         return f

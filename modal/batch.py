@@ -648,7 +648,11 @@ def _check_out_runs(out: str | Path, jobs: Sequence[tuple[str, str]]) -> None:
     samples: the FRFs of ``FILE:r1`` would be stored as that run's (replacing its own), beside samples
     they were not computed from.  A run group holding only FRFs (an earlier ``--out``) is replaced;
     ``out`` being the input file itself is writing back."""
+    import h5py
+
+    from flexmodal.daq.errors import DaqError
     from flexmodal.daq.h5file import open_read
+    from flexmodal.daq.run_schema import member
 
     if not Path(out).is_file():
         return
@@ -657,7 +661,12 @@ def _check_out_runs(out: str | Path, jobs: Sequence[tuple[str, str]]) -> None:
         return
     with open_read(out) as f:
         for path, rid in foreign:
-            if f"runs/{rid}/samples" in f:
+            try:   # member by member: 'runs/r1/samples' in f opens an external link on the way (a FIFO: hang)
+                runs = member(f, "runs", f"--out {out}")
+                run = member(runs, rid, f"--out {out}: runs") if isinstance(runs, h5py.Group) else None
+            except DaqError as exc:   # the FRFs would be written through that link: refused
+                raise ModalError(str(exc)) from None
+            if isinstance(run, h5py.Group) and run.get("samples", getlink=True) is not None:
                 raise ModalError(f"--out {out}: run {rid!r} there is another run with its own samples; the "
                                  f"FRFs of {path}:{rid} would replace its own and sit beside data they were "
                                  "not computed from (choose another --out)")

@@ -50,8 +50,24 @@ def test_an_hdf5_file_after_a_user_block_is_never_replaced(tmp_path: Path, user_
     before = mat.read_bytes()
     with pytest.raises(ValueError, match="data.mat: is an HDF5 file"):
         output_file(mat, ValueError, "table (--out)", inputs=())
-    assert hdf5_output(mat, ValueError) == mat   # runs may be appended to it, as to any HDF5 file
+    with pytest.raises(ValueError, match=f"data.mat: an HDF5 file after a {user_block}-byte user block"):
+        hdf5_output(mat, ValueError)   # was accepted: frf --out wrote latest-format objects into it
     assert mat.read_bytes() == before
+
+
+def test_frf_out_refuses_a_matlab_file_and_leaves_it_byte_identical(tmp_path: Path, capsys) -> None:
+    from flexmodal.fixtures.examples import impact_run
+
+    run = impact_run(tmp_path)
+    mat = _user_block_file(tmp_path / "data.mat", 512)
+    plain = tmp_path / "plain.h5"
+    with h5py.File(plain, "w") as h:   # h5py's default: superblock 0
+        h["x"] = np.arange(3.0)
+    for target, words in ((mat, "data.mat: an HDF5 file after a 512-byte user block"),
+                          (plain, "plain.h5: an HDF5 file of another tool (superblock version 0)")):
+        before = target.read_bytes()
+        _one_line(capsys, main(["frf", str(run), "--out", str(target)]), words)
+        assert target.read_bytes() == before
 
 
 def test_compare_refuses_a_matlab_file_as_its_table(tmp_path: Path, capsys) -> None:
@@ -70,7 +86,8 @@ def test_runs_are_not_appended_to_an_hdf5_file_without_swmr(tmp_path: Path, user
     with h5py.File(path, "w", userblock_size=user_block) as h:   # superblock 0: h5py's default, MATLAB
         h["x"] = np.arange(3.0)
     before = path.read_bytes()
-    with pytest.raises(DaqError, match="old.h5: an HDF5 file of another tool .superblock version 0"):
+    words = f"after a {user_block}-byte user block" if user_block else "of another tool .superblock version 0"
+    with pytest.raises(DaqError, match=f"old.h5: an HDF5 file {words}"):
         RunWriter(path, "r1", sample_rate_hz=100.0, channels=[Channel("F", "force", "N")],
                   excitation="impact", pose={})
     assert path.read_bytes() == before   # was a RuntimeError traceback (SWMR) after adding runs/r1
@@ -132,6 +149,24 @@ def test_ragged_lists_are_a_type_error_naming_the_argument(arg: str) -> None:
     given_[arg] = [[1.0, 2.0], [1.0]]   # numpy: "setting an array element with a sequence" (ValueError)
     with pytest.raises(TypeError, match=f"frf_from_arrays: {arg} must be an array of numbers"):
         fm.frf_from_arrays(given_["freq_hz"], given_["H"], coherence=given_["coherence"])
+
+
+@settings(max_examples=40, deadline=None)
+@given(h=st.lists(st.floats(-1e6, 1e6), min_size=3, max_size=3), as_decimal=st.booleans())
+def test_a_real_h_held_as_objects_is_refused_as_a_float_one_is(h: list, as_decimal: bool) -> None:
+    from decimal import Decimal
+
+    items = [Decimal(x) for x in h] if as_decimal else h
+    with pytest.raises(ModalError, match="holds no phase"):   # was taken with zero phase, silently
+        fm.frf_from_arrays([0.0, 1.0, 2.0], np.array(items, dtype=object))
+    frf = fm.frf_from_arrays([0.0, 1.0, 2.0], np.array([complex(x, 1.0) for x in h], dtype=object))
+    np.testing.assert_array_equal(frf.H[0, 0], np.array(h) + 1j)   # complex objects: kept exactly
+
+
+@pytest.mark.parametrize("freq_hz, shape", [([[0.0, 1.0, 2.0]], "(1, 3)"), ([5.0], "(1,)")])
+def test_a_frequency_axis_of_the_wrong_shape_names_the_shape(freq_hz: list, shape: str) -> None:
+    with pytest.raises(ModalError, match=re.escape(f"freq_hz of shape {shape} must be one axis of at least")):
+        fm.frf_from_arrays(freq_hz, np.ones(3, complex))
 
 
 # -- DBC files: their encoding, and one message per name and id --------------------------------------
@@ -314,3 +349,63 @@ def test_a_soft_link_to_an_external_link_is_never_followed(tmp_path: Path, where
         os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
         pytest.fail("a soft link was followed into an external link to a FIFO")
     assert len(caught) == 1 and "is a soft link to /ext, which reaches an external link to" in caught[0]
+
+
+def _bounded(fifo: Path, call) -> BaseException | None:
+    """What ``call()`` raised (None if nothing) within 60 s; a call that blocks opening ``fifo`` is
+    released (a writer end opened) and the test fails."""
+    import os
+    import threading
+
+    raised: list[BaseException | None] = []
+
+    def run() -> None:
+        try:
+            call()
+            raised.append(None)
+        except BaseException as exc:   # handed to the test thread
+            raised.append(exc)
+
+    worker = threading.Thread(target=run, daemon=True)
+    worker.start()
+    worker.join(60)
+    if worker.is_alive():
+        os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
+        pytest.fail("the check followed an external link into the FIFO")
+    return raised[0]
+
+
+def test_an_out_file_whose_run_links_to_a_fifo_is_refused_not_opened(tmp_path: Path) -> None:
+    import os
+
+    from flexmodal.daq.store import Channel, RunWriter
+    from flexmodal.modal.batch import _check_out_runs
+
+    src, out, fifo = tmp_path / "in.h5", tmp_path / "other.h5", tmp_path / "fifo"
+    for path in (src, out):
+        with RunWriter(path, "r0", sample_rate_hz=100.0, channels=[Channel("F", "force", "N")],
+                       excitation="impact", pose={}) as w:
+            w.append(np.zeros((8, 1)))
+    os.mkfifo(fifo)
+    with h5py.File(out, "a") as h:
+        h["runs"]["r1"] = h5py.ExternalLink(str(fifo), "/runs/r1")   # `frf in.h5 --out other.h5` hung
+    exc = _bounded(fifo, lambda: _check_out_runs(out, [(str(src), "r1")]))
+    assert isinstance(exc, ModalError) and "'r1' is an external link to" in str(exc), exc
+    assert _bounded(fifo, lambda: _check_out_runs(out, [(str(src), "r0")])) is not None   # own samples
+
+
+def test_a_run_file_whose_runs_group_links_to_a_fifo_is_refused_not_opened(tmp_path: Path) -> None:
+    import os
+
+    from flexmodal.daq.store import Channel, RunWriter
+
+    path, fifo = tmp_path / "run.h5", tmp_path / "fifo"
+    os.mkfifo(fifo)
+    with h5py.File(path, "w", libver="latest") as h:
+        h["runs"] = h5py.ExternalLink(str(fifo), "/runs")
+    before = path.read_bytes()
+    exc = _bounded(fifo, lambda: RunWriter(path, "r1", sample_rate_hz=100.0,
+                                           channels=[Channel("F", "force", "N")], excitation="impact",
+                                           pose={}))
+    assert isinstance(exc, DaqError) and "'runs' is an external link to" in str(exc), exc
+    assert path.read_bytes() == before
