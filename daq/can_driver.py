@@ -195,9 +195,10 @@ class CanDriver(Driver):
 
     def read(self) -> list[Block]:
         msgs = self._receive()
-        by_id = {lay.frame_id: m for m, lay in enumerate(self.layouts)}
-        good = [(by_id[msg.arbitration_id], msg) for msg in msgs if msg.arbitration_id in by_id
-                and len(msg.data) == self.layouts[by_id[msg.arbitration_id]].length]  # others are corrupt:
+        by_id = {(lay.frame_id, lay.is_extended_frame): m for m, lay in enumerate(self.layouts)}
+        keyed = [((msg.arbitration_id, bool(msg.is_extended_id)), msg) for msg in msgs]  # 0x100 and
+        good = [(by_id[key], msg) for key, msg in keyed if key in by_id   # extended 0x100: two frames
+                and len(msg.data) == self.layouts[by_id[key]].length]  # others are corrupt:
         if not good:  # their scan shows the missing part
             return []
         message = np.array([m for m, _ in good])

@@ -68,13 +68,15 @@ class MessageLayout:
     mux: SignalLayout | None
     signals: tuple[SignalLayout, ...]
     name: str = ""
+    is_extended_frame: bool = False
 
     @classmethod
     def from_cantools(cls, message) -> MessageLayout:
         layouts = [_layout(s) for s in message.signals]
         mux = next((lay for lay, s in zip(layouts, message.signals, strict=True) if s.is_multiplexer), None)
         return cls(message.frame_id, message.length, mux,
-                   tuple(lay for lay in layouts if lay is not mux), message.name)
+                   tuple(lay for lay in layouts if lay is not mux), message.name,
+                   bool(message.is_extended_frame))
 
     def signal(self, name: str) -> SignalLayout:
         return next(s for s in self.signals if s.name == name)
@@ -116,21 +118,30 @@ def _encoding(data: bytes) -> str | None:
     return "utf-8"
 
 
+def _one_message_each(dbc_path: str, messages, chosen) -> None:
+    """DaqError when a message the session reads shares its name, or its frame id (standard and
+    extended ids apart: 0x100 and extended 0x100 are two frames), with another message of the file:
+    cantools keeps both, and a lookup by name or id took one of them in silence.  Duplicates among
+    messages the session does not read are no concern of it (a whole vehicle's DBC)."""
+    for what, key, show in (("message name", lambda m: m.name, str),
+                            ("frame id", lambda m: (m.frame_id, bool(m.is_extended_frame)),
+                             lambda k: f"{k[0]:#x}{' (extended)' if k[1] else ''}")):
+        keys = [key(m) for m in messages]
+        twice = [key(m) for m in chosen if keys.count(key(m)) > 1]
+        if twice:
+            raise DaqError(f"{dbc_path}: {what} {show(twice[0])} is given to two messages (one per message)")
+
+
 def load_messages(dbc_path: str, names: list[str] | tuple[str, ...] = ()) -> list[MessageLayout]:
     """The sample-carrying messages of a DBC file: ``names`` in this order, else the only multiplexed
     message (or the only message).  Signal names must be unique over the messages."""
     import cantools
 
     data = read_bytes(dbc_path, DaqError, "DBC file")   # a FIFO, a device or 1 GB of junk: one line
-    try:
-        db = cantools.database.load_file(dbc_path, encoding=_encoding(data))
-    except Exception as exc:  # cantools raises several parser error types
+    try:   # read once; any file name (cantools picks the format by extension: 'x.txt' was refused)
+        db = cantools.database.load_string(data.decode(_encoding(data) or "cp1252"), database_format="dbc")
+    except Exception as exc:  # cantools raises several parser error types, and UnicodeDecodeError
         raise DaqError(f"{dbc_path}: not a readable DBC file ({one_line(exc)})") from exc
-    for what, keys in (("message name", [m.name for m in db.messages]),
-                       ("frame id", [hex(m.frame_id) for m in db.messages])):
-        twice = sorted({k for k in keys if keys.count(k) > 1})
-        if twice:   # cantools keeps both; a lookup by name or id took one of them in silence
-            raise DaqError(f"{dbc_path}: {what} {twice[0]} is given to two messages (one per message)")
     known = {m.name: m for m in db.messages}
     if names:
         missing = [n for n in names if n not in known]
@@ -142,6 +153,7 @@ def load_messages(dbc_path: str, names: list[str] | tuple[str, ...] = ()) -> lis
         if len(found) != 1:
             raise DaqError(f"{dbc_path}: name the messages carrying the samples (messages = [...]); "
                            f"messages: {', '.join(known)}")
+    _one_message_each(dbc_path, db.messages, found)
     try:
         return [MessageLayout.from_cantools(m) for m in found]
     except DaqError as exc:   # a signal's layout: name the file too

@@ -34,6 +34,7 @@ CRC_BYTES = 2
 FORMATS = {1: np.dtype("<i2"), 2: np.dtype("<i4"), 3: np.dtype("<f4")}
 FORMAT_CODES = {"int16": 1, "int32": 2, "float32": 3}
 SEQ_MODULUS = 2**32
+FRESH_LINES = 16  # CSV lines a freshly opened stream may wait for to judge its first line by a good later one
 HEADER_DTYPE = np.dtype([("sync", "<u2"), ("seq", "<u4"), ("n_ch", "u1"), ("fmt", "u1"), ("n_scans", "<u2")])
 
 
@@ -137,9 +138,10 @@ class CsvDecoder:
 
     Isolated wrong sequence numbers (a flipped digit no checksum caught) are repaired from their
     neighbours (:func:`repair_counters`); a last line off the sequence waits for the next read.  The
-    first line after opening is taken only if the next line follows it: a port opened mid-stream
-    (pyserial flushes the input on open) may start inside a line, and a line cut inside its counter
-    still parses, as a sample with a wrong index (one invented sample and a false gap behind it).
+    first line after opening is taken only if the first good line after it, k lines on, is k samples
+    on (the lines between are then counted as corrupt): a port opened mid-stream (pyserial flushes the
+    input on open) may start inside a line, and a line cut inside its counter still parses, as a
+    sample with a wrong index (one invented sample and a false gap behind it).
     """
 
     def __init__(self, n_ch: int, checksum: str = "none") -> None:
@@ -191,10 +193,12 @@ class CsvDecoder:
                         shape_ok[i] = False
         good = shape_ok & np.isfinite(table).all(axis=1) & (table[:, 0] >= 0) & (table[:, 0] % 1 == 0)
         if self._fresh:  # the first line after opening may be the tail of a line the port's flush cut
-            if len(lines) < 2:  # (cut in its counter it parses: '764,...' read as sample 4): it is
-                self._buf = buf  # trusted only when the next line follows it
-                return []
-            good[0] &= good[1] and table[1, 0] == table[0, 0] + 1
+            later = np.flatnonzero(good[1:]) + 1  # (cut in its counter it parses: '764,...' read as
+            if not later.size and len(lines) < FRESH_LINES:  # sample 4): it is trusted only when the
+                self._buf = buf  # first good line after it, k lines on, is k samples on; the lines
+                return []  # between are then counted as corrupt (a bad checksum right after opening)
+            k = int(later[0]) if later.size else 0
+            good[0] &= k > 0 and table[k, 0] == table[0, 0] + k
             self._fresh = False
         gi = np.flatnonzero(good)
         seq = table[gi, 0].astype(np.int64)

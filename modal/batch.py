@@ -7,6 +7,7 @@ same whichever path computed them."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import queue
 import signal
@@ -556,21 +557,33 @@ def _client(client_type, scheduler: str):
     """A dask.distributed client of ``scheduler``, or ModalError naming the address: unreachable, not
     an address, or silent (a server that accepts the connection and never answers, e.g. a web server
     or a port forward to nothing, held Client() for ever: it is made in a daemon thread, waited on for
-    :data:`SCHEDULER_WAIT_S`)."""
+    :data:`SCHEDULER_WAIT_S`).  A client that connects only after that wait is closed at once: it would
+    stay registered as dask's default client (global state) with nobody to close it."""
     box: dict[str, object] = {}
+    lock = threading.Lock()
 
     def connect() -> None:
         try:
-            box["client"] = client_type(scheduler, timeout="10s")
+            client = client_type(scheduler, timeout="10s")
         except BaseException as exc:   # handed to the caller's thread
             box["error"] = exc
+            return
+        with lock:
+            abandoned = bool(box.get("abandoned"))
+            box["client"] = client
+        if abandoned:
+            with contextlib.suppress(Exception):   # nobody is left to hear of it
+                client.close()
 
     thread = threading.Thread(target=connect, name="flexmodal-scheduler-connect", daemon=True)
     thread.start()
     thread.join(SCHEDULER_WAIT_S)
+    with lock:
+        silent = "client" not in box and "error" not in box
+        box["abandoned"] = silent
     exc = box.get("error")
-    if thread.is_alive() or isinstance(exc, OSError | ValueError | TypeError):   # ValueError: not an address
-        why = f"no answer within {SCHEDULER_WAIT_S:g} s" if thread.is_alive() else one_line(exc)
+    if silent or isinstance(exc, OSError | ValueError | TypeError):   # ValueError: not an address
+        why = f"no answer within {SCHEDULER_WAIT_S:g} s" if silent else one_line(exc)
         raise ModalError(f"--scheduler {scheduler!r}: cannot connect ({why}; expected the address of a "
                          "dask.distributed scheduler such as tcp://127.0.0.1:8786)")
     if exc is not None:

@@ -188,6 +188,94 @@ def test_a_dbc_giving_a_name_or_id_to_two_messages_is_refused(tmp_path: Path, ol
         load_messages(str(path), ["FlexScan"])   # cantools kept both; the lookup took one in silence
 
 
+TWO_FRAMES_0X100 = """VERSION ""
+
+BU_: N
+
+BO_ 256 Std: 2 N
+ SG_ s : 0|16@1+ (1,0) [0|65535] "" N
+
+BO_ 2147483904 Ext: 2 N
+ SG_ e : 0|16@1+ (1,0) [0|65535] "" N
+
+BO_ 512 Other: 2 N
+ SG_ o1 : 0|16@1+ (1,0) [0|65535] "" N
+
+BO_ 513 Other: 2 N
+ SG_ o2 : 0|16@1+ (1,0) [0|65535] "" N
+"""
+
+
+def test_a_standard_and_an_extended_frame_of_one_id_are_two_messages(tmp_path: Path) -> None:
+    path = tmp_path / "two.txt"   # any name: the file is read once, as DBC text
+    path.write_text(TWO_FRAMES_0X100, encoding="cp1252")
+    std, ext = load_messages(str(path), ["Std", "Ext"])   # were "frame id 0x100 is given to two messages"
+    assert [(m.frame_id, m.is_extended_frame) for m in (std, ext)] == [(256, False), (256, True)]
+    with pytest.raises(DaqError, match="two.txt: message name Other is given to two messages"):
+        load_messages(str(path), ["Other"])   # a duplicate the session reads is still refused
+    path.write_text(TWO_FRAMES_0X100.replace("BO_ 513 Other", "BO_ 256 Third"), encoding="cp1252")
+    with pytest.raises(DaqError, match=r"two.txt: frame id 0x100 is given to two messages"):
+        load_messages(str(path), ["Std"])   # another message sharing the read one's id
+
+
+def test_the_can_driver_keeps_standard_and_extended_frames_of_one_id_apart(tmp_path: Path) -> None:
+    import can
+
+    from flexmodal.daq.can_driver import CanConfig, CanDriver
+    from flexmodal.daq.devices import Device
+
+    (tmp_path / "two.dbc").write_text(TWO_FRAMES_0X100, encoding="cp1252")
+    channel = f"flexmodal-ext-{tmp_path.name}"
+    driver = CanDriver(Device("bus", "can", CanConfig("virtual", channel, str(tmp_path / "two.dbc"),
+                                                      messages=("Std",), counter="")), 100.0)
+    driver.open()
+    sender = can.Bus(interface="virtual", channel=channel)
+    try:
+        for k in range(12):   # the extended 0x100 frame was decoded as the standard one's samples
+            sender.send(can.Message(arbitration_id=0x100, data=(7).to_bytes(2, "little"), timestamp=k / 100,
+                                    is_extended_id=False))
+            sender.send(can.Message(arbitration_id=0x100, data=(9).to_bytes(2, "little"), timestamp=k / 100,
+                                    is_extended_id=True))
+        values: list = []
+        for _ in range(200):
+            values.extend(v for b in driver.read() for v in b.values[:, 0])
+            if len(values) >= 10:
+                break
+    finally:
+        sender.shutdown()
+        driver.close()
+    assert len(values) >= 10 and set(values) == {7.0}   # the newest scan may be held back (unfinished)
+
+
+# -- CSV lines: the first line after opening, judged by the first good line after it -----------------
+@settings(max_examples=60, deadline=None)
+@given(first=st.integers(0, 10**6), n=st.integers(4, 30), data=st.data())
+def test_a_whole_first_csv_line_before_a_corrupt_one_is_kept_and_the_corrupt_one_counted(
+        first: int, n: int, data) -> None:
+    from flexmodal.daq.serial_frames import CsvDecoder, encode_csv
+
+    x = np.arange(n * 2, dtype=float).reshape(n, 2)
+    lines = encode_csv(first, x, "sum8").splitlines(keepends=True)
+    bad = data.draw(st.sets(st.integers(1, n - 3), min_size=1, max_size=n - 3))
+    for i in bad:   # a bad checksum: one flipped value digit
+        lines[i] = lines[i].replace(b",", b",9", 1)
+    runs = CsvDecoder(2, "sum8").feed(b"".join(lines))
+    got = {seq + k: row.tolist() for seq, rows, _ in runs for k, row in enumerate(rows)}
+    kept = sorted(set(range(n)) - bad)
+    assert sorted(got) == [first + i for i in kept]   # line 0 was dropped when line 1 was corrupt
+    assert all(got[first + i] == x[i].tolist() for i in kept)
+    assert sum(c for _, _, c in runs) == len(bad)   # the corrupt line after it was not counted
+
+
+def test_a_cut_first_csv_line_is_still_dropped_uncounted() -> None:
+    from flexmodal.daq.serial_frames import CsvDecoder, encode_csv
+
+    x = np.arange(8.0).reshape(4, 2)
+    stream = encode_csv(760, x)[1:]   # '60,0,1' : cut inside its counter, parses as sample 60
+    runs = CsvDecoder(2).feed(stream + encode_csv(764, x[:1]))
+    assert [(seq, len(rows), c) for seq, rows, c in runs] == [(761, 4, 0)]
+
+
 # -- rig quantities within physics ------------------------------------------------------------------
 @pytest.mark.parametrize("old, new, field", [
     ("E_Pa = 75e9", "E_Pa = 1e-30", "material.aluminium.E_Pa"),
@@ -271,6 +359,27 @@ def test_a_scheduler_that_never_answers_is_named(monkeypatch) -> None:
     with pytest.raises(ModalError, match="--scheduler 'tcp://127.0.0.1:9': cannot connect .no answer within"):
         batch._client(lambda *args, **kwargs: silent.wait(), "tcp://127.0.0.1:9")
     silent.set()
+
+
+def test_a_scheduler_that_answers_after_the_wait_is_closed_not_left_as_the_default(monkeypatch) -> None:
+    import threading
+
+    from flexmodal.modal import batch
+
+    monkeypatch.setattr(batch, "SCHEDULER_WAIT_S", 0.2)
+    late, closed = threading.Event(), threading.Event()
+
+    class LateClient:   # stands in for distributed.Client: registered as the default once made
+        def __init__(self, *args, **kwargs) -> None:
+            late.wait(120)
+
+        def close(self) -> None:
+            closed.set()
+
+    with pytest.raises(ModalError, match="no answer within 0.2 s"):
+        batch._client(LateClient, "tcp://127.0.0.1:9")
+    late.set()   # it connects after all: the thread closes it
+    assert closed.wait(120)
 
 
 def test_an_empty_serial_port_names_the_session_key(tmp_path: Path) -> None:
