@@ -83,7 +83,32 @@ def names(text: str) -> list[str]:
 
 def nonempty(text: str) -> str:
     """A text option that holds a visible character: ``--source ""`` or ``--rig ""`` (a script's unset
-    variable) was taken as the option left out, and its default used in silence."""
+    variable) was taken as the option left out, and its default used in silence.
+
+    Parameters
+    ----------
+    text : str
+        The option's value as given on the command line.
+
+    Returns
+    -------
+    str
+        ``text`` unchanged.
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        When ``text`` is empty or blank (argparse names the option).
+
+    Examples
+    --------
+    >>> nonempty("rig.toml")
+    'rig.toml'
+    >>> nonempty("  ")
+    Traceback (most recent call last):
+    ...
+    argparse.ArgumentTypeError: expected a non-empty value, got '  ' (leave the option out for its default)
+    """
     if not text.strip():
         raise argparse.ArgumentTypeError(f"expected a non-empty value, got {text!r} (leave the option out "
                                          "for its default)")

@@ -30,7 +30,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from flexmodal.checked_io.signals import signal_handlers
-from flexmodal.checked_io.text import ErrorType, file_kind, one_line
+from flexmodal.checked_io.text import ErrorType, file_kind, not_empty_path, one_line
 
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 SPECIAL_ROOTS = ("/dev", "/proc", "/sys")  # device and kernel files: never an output file ...
@@ -57,8 +57,7 @@ def _same_file(a: os.stat_result, b: os.stat_result) -> bool:
 def _given(path: str | Path, error: ErrorType, what: str) -> Path:
     """``path`` as a Path, unless it is an empty text (``--out ""``, a script's unset variable), which
     Path would read as the current folder."""
-    if isinstance(path, str) and not path.strip():
-        raise error(f"the {what} path is empty ({path!r}; an unset variable in a script?)")
+    not_empty_path(path, error, what)
     if str(path) == "-":
         raise error(f"the {what} path is '-': it would be a file named '-', not standard output (name a "
                     "file; ./- if that is the name meant)")
@@ -104,7 +103,30 @@ def hdf5_superblock(path: str | Path) -> tuple[int, int] | None:
     """Where ``path`` holds the HDF5 signature and its superblock's version byte, ``(offset,
     version)``, or None when it holds none.  HDF5 looks at byte 0, then after a user block at 512,
     1024, 2048, ... bytes (a MATLAB v7.3 ``.mat`` file has a 512-byte one), as ``H5Fis_accessible``
-    does; only 9 bytes at each place are read."""
+    does; only 9 bytes at each place are read (HDF5 File Format Specification, version 3.0, II.A).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file to look into; one that cannot be read holds none.
+
+    Returns
+    -------
+    tuple of (int, int) or None
+        The signature's offset [bytes] and the superblock version (0-3; -1 when the file ends right
+        after the signature), or None.
+
+    Examples
+    --------
+    >>> import os, tempfile, h5py
+    >>> folder = tempfile.mkdtemp()
+    >>> with h5py.File(os.path.join(folder, "a.h5"), "w", libver="latest") as f:
+    ...     pass
+    >>> with h5py.File(os.path.join(folder, "b.mat"), "w", userblock_size=512) as f:
+    ...     pass
+    >>> [hdf5_superblock(os.path.join(folder, n)) for n in ("a.h5", "b.mat", "nothing")]
+    [(0, 3), (512, 0), None]
+    """
     try:
         with open(path, "rb") as fh:
             size = os.fstat(fh.fileno()).st_size

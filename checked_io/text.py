@@ -67,12 +67,36 @@ def file_kind(mode: int) -> str:
     return "not a regular file"
 
 
+def not_empty_path(path: str | Path, error: ErrorType, what: str) -> None:
+    """Raise ``error`` when ``path`` is an empty or blank text (``--rig ""``, a script's unset
+    variable), which ``Path`` would read as the current folder '.'.
+
+    Parameters
+    ----------
+    path : str or Path
+        The path as given.
+    error : type of Exception
+        The calling package's error type.
+    what : str
+        What the path names, for the message ("rig file").
+
+    Examples
+    --------
+    >>> not_empty_path("rig.toml", ValueError, "rig file")
+    >>> not_empty_path(" ", ValueError, "rig file")
+    Traceback (most recent call last):
+    ...
+    ValueError: the rig file path is empty (' '; an unset variable in a script?)
+    """
+    if isinstance(path, str) and not path.strip():
+        raise error(f"the {what} path is empty ({path!r}; an unset variable in a script?)")
+
+
 def regular_file(path: str | Path, error: ErrorType, what: str = "file") -> Path:
     """``path`` when it names an existing regular file (symlinks followed); a FIFO, a device (it
     would block or never end), a socket or a directory raises ``error`` naming the file.  An empty
     path (``--rig ""``, a script's unset variable) is refused as empty, not read as the folder '.'."""
-    if isinstance(path, str) and not path.strip():
-        raise error(f"the {what} path is empty ({path!r}; an unset variable in a script?)")
+    not_empty_path(path, error, what)
     p = Path(path)
     try:
         mode = os.stat(p).st_mode

@@ -134,7 +134,34 @@ def external_link_on_path(parent: h5py.Group, name: str) -> h5py.ExternalLink | 
     link on the way through soft links (``samples`` -> ``/ext`` -> another file).  HDF5 opens the
     other file, and one that is a FIFO blocks the ``open()`` for ever, a Ctrl-C or SIGTERM included;
     only link records are read here, never an external file.  Paths that do not resolve (missing,
-    a loop) return None: opening them raises, and the caller names that."""
+    a loop) return None: opening them raises, and the caller names that.
+
+    Parameters
+    ----------
+    parent : h5py.Group
+        The group ``name`` is looked up in.
+    name : str
+        A member name or a path (``runs/r1/samples``; absolute soft-link targets are followed from
+        the file's root, at most :data:`MAX_LINK_HOPS` soft links).
+
+    Returns
+    -------
+    h5py.ExternalLink or None
+        The first external link on the way, or None when there is none.
+
+    Examples
+    --------
+    >>> import h5py, numpy as np
+    >>> f = h5py.File("mem.h5", "w", driver="core", backing_store=False)
+    >>> f["runs/r1/samples"] = np.zeros(3)
+    >>> f["runs/r2"] = h5py.ExternalLink("/tmp/fifo", "/runs/r1")
+    >>> f["runs/r3"] = h5py.SoftLink("/runs/r2")
+    >>> external_link_on_path(f, "runs/r1/samples") is None
+    True
+    >>> [external_link_on_path(f, p).filename for p in ("runs/r2/samples", "runs/r3/samples")]
+    ['/tmp/fifo', '/tmp/fifo']
+    >>> f.close()
+    """
     hops = 0
 
     def walk(group: h5py.Group, path: str) -> h5py.ExternalLink | None:

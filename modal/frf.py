@@ -50,6 +50,25 @@ def check_freq_axis(freq_hz: np.ndarray, where: str, name: str = "freq_hz") -> N
     An axis in other units (lines 1e-300 Hz apart, or at 1e12 Hz) made the identification fail
     inside (NaN in a factorisation) or name its result instead of the input.
 
+    Parameters
+    ----------
+    freq_hz : numpy.ndarray
+        The frequency lines [Hz].
+    where : str
+        The file or function the axis came from, first in the message.
+    name : str
+        The axis' name in the message (``freq_hz``, ``abscissa``).
+
+    Returns
+    -------
+    None
+        It returns only when the axis is fit for use.
+
+    Raises
+    ------
+    flexmodal.modal.errors.ModalError
+        One line naming ``where``, ``name`` and what is wrong.
+
     Examples
     --------
     >>> check_freq_axis(np.array([0.0, 0.5, 1.0]), "x")
