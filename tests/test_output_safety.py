@@ -63,7 +63,7 @@ def test_special_files_and_run_stores_are_refused(tmp_path: Path) -> None:
     fifo = tmp_path / "fifo"
     os.mkfifo(fifo)
     run = tmp_path / "run.h5"
-    with h5py.File(run, "w") as f:
+    with h5py.File(run, "w", libver="latest") as f:   # superblock 3, as flexmodal writes run stores
         f["x"] = np.arange(3)
     text = tmp_path / "notes.txt"
     text.write_text("mine\n")
