@@ -356,6 +356,14 @@ def test_report_draws_shapes_at_the_configurations_asked_for(inputs, capsys):
     assert main(["report", "--measured", str(inputs["measured"]), "--shapes-at", "theta0",
                  "--out", str(out), "--quiet"]) == 2
     assert "give --rig too" in capsys.readouterr().err
+    # a table without shapes at two of the rig's sensors draws none: said, not silently ignored
+    no_shapes = inputs["dir"] / "no-shapes.csv"
+    ModalTable.read_csv(inputs["measured"]).frame.filter(regex="^(?!shape\\.)").to_csv(no_shapes, index=False)
+    assert main([*base[:2], str(no_shapes), *base[3:], "--shapes-at", "theta60", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    assert ("report --shapes-at: no-shapes.csv has mode shapes at none of the rig's sensors (" in err
+            and "two or more are needed to draw them" in err), err
 
 
 def test_report_tells_a_figure_section_before_drawing_it(tmp_path):
