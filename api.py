@@ -2061,7 +2061,8 @@ def animate_mode(out: PathLike, measured: ModalTable | PathLike, config: str, mo
 def _shape_configs(shapes_at: Sequence[str] | None, meas, rig) -> list[str]:
     """``shapes_at`` of :func:`report` checked: text names of configurations of ``meas`` (a modal table
     or None), with a ``rig`` to draw them on, each once in the order given; [] for None (the default
-    choice).  A ReportError in one line names the first bad one and the configurations there are."""
+    choice).  A ReportError in one line names the first bad one and the configurations there are, or
+    says the table has no shapes at two of the rig's sensors (nothing would be drawn)."""
     if shapes_at is None:
         return []
     if isinstance(shapes_at, str) or not isinstance(shapes_at, Iterable):
@@ -2079,6 +2080,15 @@ def _shape_configs(shapes_at: Sequence[str] | None, meas, rig) -> list[str]:
             raise ReportError(f"report --shapes-at {name!r}: no such configuration in "
                               f"{Path(meas.source).name if meas.source else 'the measured table'} "
                               f"(it has {counted(len(have), 'configuration')}: {listed})")
+    rig = _rig(rig)
+    common = [s.name for s in rig.sensors if s.name in meas.sensors]
+    if shapes_at and len(common) < 2:   # the shapes are drawn at two or more of the rig's sensors
+        table = Path(meas.source).name if meas.source else "the measured table"
+        at = f"only at {common[0]}" if common else "at none"
+        names = [s.name for s in rig.sensors]
+        listed = ", ".join(names[:6]) + (f" and {len(names) - 6} more" if len(names) > 6 else "")
+        raise ReportError(f"report --shapes-at: {table} has mode shapes {at} of the rig's sensors "
+                          f"({listed}); two or more are needed to draw them")
     return list(dict.fromkeys(shapes_at))
 
 

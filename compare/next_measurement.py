@@ -58,6 +58,8 @@ WIDEN = 0.5
 """Candidate poses: 13 points over the measured range of each pose variable, and on at that step up to
 half the range beyond each end (``trial_poses``)."""
 MAX_ADVICE = 3
+SHAPE_SCATTER_MIN = 1e-3
+"""No mode shape is measured better than 0.1 % of its norm per sensor (floor of the shape noise)."""
 
 
 class FitContext(Protocol):
@@ -74,6 +76,33 @@ class FitContext(Protocol):
     def family(self, handles: Sequence[str]) -> ReducedFamily: ...
 
     def at(self, poses: Sequence[dict[str, float]], n_modes: int) -> FitContext: ...
+
+
+def shape_noise_var(ctx: FitContext) -> float:
+    """Shape noise per degree of freedom, the variance each ``1 - MAC`` is divided by: the context's
+    smallest in-sample mean ``1 - MAC`` over its ``shape_dof`` degrees of freedom (the noise estimate
+    of the largest model, Mallows 1973), never below ``SHAPE_SCATTER_MIN^2``.  Defined only when
+    ``ctx.shape_dof > 0`` and ``ctx.shape_floor`` is finite.
+
+    Parameters
+    ----------
+    ctx : FitContext
+        Needs ``shape_floor`` (mean 1 - MAC, dimensionless) and ``shape_dof`` (sensors - 1).
+
+    Returns
+    -------
+    float
+        Variance of the relative per-sensor shape noise (dimensionless).
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> shape_noise_var(SimpleNamespace(shape_floor=2e-4, shape_dof=2))
+    0.0001
+    >>> shape_noise_var(SimpleNamespace(shape_floor=0.0, shape_dof=2)) == SHAPE_SCATTER_MIN**2
+    True
+    """
+    return max(ctx.shape_floor / ctx.shape_dof, SHAPE_SCATTER_MIN**2)
 
 
 def _components(entry: dict) -> set[tuple[str, str]]:
@@ -336,10 +365,7 @@ def next_measurements(ctx: FitContext, best: dict, rivals: Sequence[dict], scatt
     info /= len(rivals)
     shape_chi, shape_dof = None, 0
     if ctx.shape_dof > 0 and math.isfinite(ctx.shape_floor) and pred[0][2].shape[1]:
-        from flexmodal.compare.diagnosis import SHAPE_SCATTER_MIN  # (diagnosis imports this module)
-
-        floor = max(ctx.shape_floor / ctx.shape_dof, SHAPE_SCATTER_MIN**2)   # as ``_equivalent``'s
-        shape_chi = shape_disagreement(np.array([p[2][keep] for p in pred])) / floor
+        shape_chi = shape_disagreement(np.array([p[2][keep] for p in pred])) / shape_noise_var(ctx)
         shape_dof = ctx.shape_dof
     chance = _resolve_chance(f, v, np.array([e["_heldout_eq"] for e in everyone]),
                              np.array([e["_n_eq"] for e in everyone], float), ctx.pose_share, scatter,

@@ -478,7 +478,28 @@ class Diagnosis(_Record):
 
     def after_hz(self) -> Mapping[str, Hz] | None:
         """The best candidate's frequencies the gap after it is judged on: its held-out predictions, or
-        its fit to all configurations when none of them was held out; None without a best candidate."""
+        its fit to all configurations when none of them was held out; None without a best candidate.
+
+        Returns
+        -------
+        Mapping[str, tuple of (float or None)] or None
+            Per configuration, the natural frequency of each mode in order [Hz] (None where that
+            configuration was not predicted, e.g. one fitted rather than held out):
+            ``predictions.best_heldout_hz``, else ``predictions.best_fit_hz``; None when neither holds a
+            frequency to compare with the measured ones.
+
+        Examples
+        --------
+        >>> import flexmodal as fm
+        >>> result = fm.diagnose("examples/rigs/seed003_two_link.toml",
+        ...                      "examples/measured/seed003_table3_f1f2.csv",
+        ...                      holdout="theta30,theta90,theta150")
+        >>> after = result.after_hz()
+        >>> after is result.predictions.best_heldout_hz   # judged on what the fit did not see
+        True
+        >>> sorted(c for c, freq_hz in after.items() if freq_hz[0] is not None)
+        ['theta150', 'theta30', 'theta90']
+        """
         pred = self.predictions
         for table in (pred.best_heldout_hz, pred.best_fit_hz) if pred is not None else ():
             if table and any(v is not None for v in pred.rms_rel_error_per_mode(table).values()):
@@ -494,7 +515,32 @@ class Diagnosis(_Record):
     def per_mode_before(self) -> Mapping[str, float | None]:
         """RMS relative error per mode of the nominal model over the configurations and modes
         :meth:`per_mode_after` is judged on (like for like: held out against held out); over every
-        configuration (``baseline.per_mode``) without a best candidate."""
+        configuration (``baseline.per_mode``) without a best candidate.
+
+        Returns
+        -------
+        Mapping[str, float or None]
+            Per mode number (``"1"``, ``"2"``, ...), the RMS over those configurations of
+            ``f_nominal / f_measured - 1`` [fraction, not %]; None for a mode with no pair.
+
+        Examples
+        --------
+        The nominal model's error on the three held-out poses, against the same RMS by hand:
+
+        >>> import numpy as np
+        >>> import flexmodal as fm
+        >>> result = fm.diagnose("examples/rigs/seed003_two_link.toml",
+        ...                      "examples/measured/seed003_table3_f1f2.csv",
+        ...                      holdout="theta30,theta90,theta150")
+        >>> pred = result.predictions
+        >>> err = np.array([[pred.baseline_hz[c][k] / pred.measured_hz[c][k] - 1 for k in range(2)]
+        ...                 for c in ("theta30", "theta90", "theta150")])
+        >>> before = result.per_mode_before()
+        >>> bool(np.allclose([before["1"], before["2"]], np.sqrt((err ** 2).mean(axis=0)), rtol=1e-12))
+        True
+        >>> before == result.baseline.per_mode   # not the error over all six poses
+        False
+        """
         table = self.after_hz()
         if table is None:
             return self.baseline.per_mode

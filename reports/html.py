@@ -431,11 +431,12 @@ def write_report(out_path: str | Path, *, runs: Sequence[RunSummary] = (),
             figures, shown = [f for s in run_sections for f in s["figures"]], bool(meta)
         elif section.block:
             figures, shown = [], tables[section.block]
-        else:   # a section with nothing to draw says so in one line (it said "plotting" it)
+        else:   # told before the (slow) drawing; a section with nothing to draw then says why
+            step(f"plotting {section.title.lower()}")
             drawn = list(section.figures(given))
-            step(f"plotting {section.title.lower()}" if drawn else
-                 f"no {section.title.lower()}: " + (f"it is drawn from {section.needs}" if section.needs
-                                                    else "nothing in these inputs to draw it from"))
+            if not drawn:
+                step(f"no {section.title.lower()}: " + (f"it is drawn from {section.needs}" if section.needs
+                                                        else "nothing in these inputs to draw it from"))
             figures = [_fig(fig, caption) for fig, caption in drawn]
             shown = bool(figures)
         if shown:

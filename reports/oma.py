@@ -19,9 +19,9 @@ from flexmodal.modal.stability import (
     SSI_STABLE_DAMPING_REL,
     SSI_ZETA_MAX,
     STABLE_FREQ_REL,
-    STABLE_MAC_MIN,
 )
 from flexmodal.reports.plots import _COLOURS, log_axis, plot_stabilisation, text
+from flexmodal.reports.stabilisation_caption import shape_clause
 
 if TYPE_CHECKING:
     from flexmodal.modal.fdd import FddResult
@@ -117,12 +117,13 @@ def oma_figures(oma: OmaResults, label: str, unit: str = "(m/s²)²/Hz") -> list
         out.append((None, f"{label}: SSI-cov modes {modes} (unscaled shapes); no stabilisation diagram "
                           "drawn: no segment of the record is free of gaps for its spectrum"))
         return out
+    shape = shape_clause(oma.ssi.shapes.shape[0])   # rows: the SSI channels
     orders = f"{oma.ssi.stabilisation.order.min()}-{oma.ssi.stabilisation.order.max()}"
     out.append((plot_ssi_stabilisation(oma.ssi, oma.spectrum_hz, oma.spectrum, unit, title=label),
                 f"{label}: SSI-cov stabilisation diagram, orders {orders} against frequency [Hz] (left axis: "
                 f"model order [-], right: the FDD singular values [{unit}], log scale). Filled dots: poles "
                 f"stable from one order to the next (frequency within {100 * STABLE_FREQ_REL:g} %, damping "
-                f"ratio within {100 * SSI_STABLE_DAMPING_REL:g} %, shape MAC ≥ {STABLE_MAC_MIN:g}), open "
+                f"ratio within {100 * SSI_STABLE_DAMPING_REL:g} %{shape}), open "
                 f"grey dots: the other poles, all of them physical (MPC ≥ {SSI_MPC_MIN:g}, MPD ≤ "
                 f"{SSI_MPD_MAX_DEG:g} deg, damping ratio 0-{100 * SSI_ZETA_MAX:g} %); modes {modes} "
                 "(unscaled shapes)"))

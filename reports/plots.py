@@ -305,9 +305,40 @@ def plot_gap_vs_pose(diagnosis: Diagnosis, pose: Mapping[str, float], pose_label
     """Each mode's relative frequency error ``f_model / f_measured - 1`` [%] against a pose variable, one
     panel per mode: the nominal model (grey circles) and with the diagnosed effect (blue squares, on the
     configurations :meth:`Diagnosis.after_hz` judges it on), so a reviewer sees where along the pose the
-    gap lies and what the effect leaves.  ``pose`` gives each configuration's value of the variable
-    (``pose_label`` its axis label with unit, ``theta_deg [deg]``); None when the diagnosis carries no
-    frequencies or no configuration has a pose."""
+    gap lies and what the effect leaves.
+
+    Parameters
+    ----------
+    diagnosis : flexmodal.compare.result.Diagnosis
+        A diagnosis with its ``predictions`` (measured, nominal and best-candidate frequencies [Hz]).
+    pose : Mapping[str, float]
+        Each configuration's value of the pose variable, in the unit ``pose_label`` names (deg for
+        ``theta_deg``); configurations missing here are left out.
+    pose_label : str
+        The horizontal axis's label with its unit (``theta_deg [deg]``).
+
+    Returns
+    -------
+    matplotlib.figure.Figure or None
+        One panel per mode, vertical axis the relative frequency error [%]; None when the diagnosis
+        carries no frequencies or no configuration has a pose.
+
+    Examples
+    --------
+    >>> import flexmodal as fm
+    >>> result = fm.diagnose("examples/rigs/seed003_two_link.toml",
+    ...                      "examples/measured/seed003_table3_f1f2.csv", holdout="theta30,theta90,theta150")
+    >>> pose = {c: float(c.removeprefix("theta")) for c in result.predictions.measured_hz}
+    >>> fig = plot_gap_vs_pose(result, pose, "theta_deg [deg]")
+    >>> [ax.get_title() for ax in fig.axes]
+    ['mode 1', 'mode 2']
+    >>> x, y = fig.axes[0].get_lines()[1].get_data()   # the nominal model (after the zero line)
+    >>> pred = result.predictions
+    >>> bool(x[0] == 0.0 and abs(y[0] - 100 * (pred.baseline_hz["theta0"][0] / 25.5 - 1)) < 1e-12)
+    True
+    >>> plot_gap_vs_pose(result, {}, "theta_deg [deg]") is None   # no configuration has a pose
+    True
+    """
     pred = diagnosis.predictions
     configs = [c for c in pred.measured_hz if c in pose] if pred is not None else []
     if not configs:

@@ -92,6 +92,28 @@ def order_words(note: str) -> str:
     return words + (f" ({rest.strip('; ')})" if rest.strip("; ") else "")
 
 
+def shape_clause(n_outputs: int) -> str:
+    """The shape criterion's words in a stabilisation caption's list of stability criteria.
+
+    Parameters
+    ----------
+    n_outputs : int
+        Outputs (response channels) the poles' shapes span [count]: with one, a MAC is always 1, so
+        stability in shape is not judged (modal.lscf._flags, used by pLSCF and SSI-cov alike).
+
+    Returns
+    -------
+    str
+        ``", shape MAC ≥ …"``, or ``"; one output: shape not judged"``, to follow the damping clause.
+
+    Examples
+    --------
+    >>> shape_clause(5), shape_clause(1)
+    (', shape MAC ≥ 0.98', '; one output: shape not judged')
+    """
+    return f", shape MAC ≥ {STABLE_MAC_MIN:g}" if n_outputs > 1 else "; one output: shape not judged"
+
+
 def stabilisation_caption(label: str, freq_hz: Sequence[float], band_hz: tuple[float, float], unit: str,
                           n_outputs: int, order_note: str) -> str:
     """The caption of a run's stabilisation diagram (reports.plots.plot_identification_diagram).
@@ -125,7 +147,7 @@ def stabilisation_caption(label: str, freq_hz: Sequence[float], band_hz: tuple[f
     black crosses: the poles of the 2 selected modes, at 28.96 and 100.3 Hz (dotted lines); shaded: the
     identification band, 5-450 Hz.
     """
-    shape = f", shape MAC ≥ {STABLE_MAC_MIN:g}" if n_outputs > 1 else "; one output: shape not judged"
+    shape = shape_clause(n_outputs)
     n = len(freq_hz)
     words = (f"{label}: stabilisation diagram of the pLSCF identification. Horizontal: frequency [Hz]; "
              "left: model order [-], one row of poles per order tried; right: the CMIF (singular values "

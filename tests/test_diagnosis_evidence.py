@@ -12,7 +12,6 @@ import pytest
 from flexmodal.compare.candidates import single_candidates
 from flexmodal.compare.diagnosis import (
     LEADS,
-    SHAPE_SCATTER_MIN,
     _Context,
     _equivalent,
     _lead_pairs,
@@ -22,6 +21,7 @@ from flexmodal.compare.diagnosis import (
     folds_for,
 )
 from flexmodal.compare.gap import prepare
+from flexmodal.compare.next_measurement import SHAPE_SCATTER_MIN
 from flexmodal.contract.table import ModalTable
 from flexmodal.fixtures.blind import make_case
 from flexmodal.models.effects import apply_effect

@@ -197,12 +197,14 @@ def test_report_without_runs_or_poses_notes_what_it_cannot_draw(inputs, tmp_path
     out = api.report(tmp_path / "r.html", measured=no_pose, rig=load_rig(inputs["rig"]),
                      predictions=[ModalTable.read_csv(inputs["pred"])], progress=told.append)
     html = out.read_text()
-    # a section with nothing to draw says so and what it is drawn from (it said "plotting modal map of
-    # the moving arm" for a report without a table of identify --track)
-    assert "plotting modes across poses" in told and not any("plotting modal map" in m for m in told)
-    assert "no gap before and after the diagnosed effect: it is drawn from a diagnosis (--diagnosis)" in told
-    assert ("no modal map of the moving arm: it is drawn from a measured table of identify --track "
-            "(--measured)") in told
+    # each figure section is told before it is drawn (the slow part); one with nothing to draw then says
+    # so and what it is drawn from, on the next line
+    assert "plotting modes across poses" in told
+    for title, needs in (("gap before and after the diagnosed effect", "a diagnosis (--diagnosis)"),
+                         ("modal map of the moving arm",
+                          "a measured table of identify --track (--measured)")):
+        k = told.index(f"plotting {title}")
+        assert told[k + 1] == f"no {title}: it is drawn from {needs}", told
     assert "No mode shapes drawn for theta0: the measured table gives no pose.theta_deg for the rig" in html
     assert "Stored runs" not in html and "fe Δf [%]" in html
     # nothing varies with pose, no shapes drawn: the one figure is the test-model MAC (needs no pose)
@@ -354,3 +356,26 @@ def test_report_draws_shapes_at_the_configurations_asked_for(inputs, capsys):
     assert main(["report", "--measured", str(inputs["measured"]), "--shapes-at", "theta0",
                  "--out", str(out), "--quiet"]) == 2
     assert "give --rig too" in capsys.readouterr().err
+    # a table without shapes at two of the rig's sensors draws none: said, not silently ignored
+    no_shapes = inputs["dir"] / "no-shapes.csv"
+    ModalTable.read_csv(inputs["measured"]).frame.filter(regex="^(?!shape\\.)").to_csv(no_shapes, index=False)
+    assert main([*base[:2], str(no_shapes), *base[3:], "--shapes-at", "theta60", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    assert ("report --shapes-at: no-shapes.csv has mode shapes at none of the rig's sensors (" in err
+            and "two or more are needed to draw them" in err), err
+
+
+def test_report_tells_a_figure_section_before_drawing_it(tmp_path):
+    """The step line comes first, so a terminal shows what the report is busy with (it came after)."""
+    from flexmodal.reports.sections import Section, register_section, unregister_section
+
+    told: list[str] = []
+    register_section("probe", Section("Probe figures", lambda _inputs: told.append("drawing") or []))
+    try:
+        api.report(tmp_path / "r.html", progress=told.append,
+                   measured=Path(__file__).parents[1] / "examples" / "measured" / "seed003_table3_f1f2.csv")
+    finally:
+        unregister_section("probe")
+    k = told.index("plotting probe figures")
+    assert told[k + 1:k + 3] == ["drawing", "no probe figures: nothing in these inputs to draw it from"], told

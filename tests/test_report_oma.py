@@ -191,3 +191,13 @@ def test_fdd_peak_labels_sit_above_the_plot_clear_of_each_other_the_title_and_le
     assert ax.title.get_window_extent(renderer).y0 >= max(b.y1 for b in boxes)
     assert ax.get_legend().get_window_extent(renderer).x0 >= frame_box.x1
     assert problems(fig) == []
+
+
+def test_ssi_caption_judges_shape_only_with_two_or_more_channels(frame, oma):
+    """With one channel a MAC is always 1 (modal.lscf._flags leaves shape out): the caption says so."""
+    one = output_only_results(frame.samples[:, :1], 256.0, NAMES[:1], KINDS[:1], where="floor 1")
+    assert one.ssi.shapes.shape[0] == 1
+    caption = oma_figures(one, "floor 1")[1][1]
+    assert " %; one output: shape not judged), open grey dots" in caption
+    assert "shape MAC" not in caption
+    assert " %, shape MAC ≥ 0.98), open grey dots" in oma_figures(oma, "frame")[1][1]
