@@ -16,59 +16,71 @@ from __future__ import annotations
 
 import argparse
 import sys
+from functools import partial
 from pathlib import Path
+from typing import NamedTuple
 
 import pandas as pd
 
 REPO = Path(__file__).resolve().parents[1]
 DOC = REPO / "docs" / "diagnosis.md"
 BLIND_CASES = 36
-BLIND_SEEDS = (106, 107, 108, 109, 110)
-FRESH_SEEDS = (211, 212, 213, 214, 215)
-"""Draws run once, after the last change to the method, to show that it generalises beyond the draws
-whose misses were analysed (``BLIND_SEEDS``)."""
-FRESH_NOTE = "their misses were analysed for an earlier change to the method (issue 26's paired margin)"
-NEW_SEEDS = (316, 317, 318, 319, 320)
-"""Draws never run before the last change to the method was made, measured once after it."""
-NEW_NOTE = ("first run once after an earlier change to the method; their misses were analysed for later "
-            "changes (the beam-theory model-form level, the partners of the best singles)")
-LATEST_SEEDS = (421, 422, 423, 424, 425)
-"""Draws first run once after an earlier change; their misses were analysed for the last change."""
-LATEST_NOTE = ("first run once after an earlier change to the method; their misses were analysed for "
-               "later changes (the three best singles paired with every single, the beam-theory level in "
-               "the none test)")
-NEXT_SEEDS = (526, 527, 528, 529, 530)
-"""Draws first run once after an earlier change; their misses were analysed for the last change."""
-NEXT_NOTE = ("first run once after an earlier change to the method; their misses were analysed for the "
-             "last change (pair leads of different effects, the pair search gated by training frequencies, "
-             "the combination's own start, the nested margin between nested candidates only and in the "
-             "none test)")
-S631_SEEDS = (631, 632, 633, 634, 635)
-"""Draws first run once after an earlier change; used to develop the last change."""
-S631_NOTE = ("first run once after an earlier change to the method; used for the last change (the none "
-             "test's noise level: its none cases re-run; case 30's sensor, which the generator had not "
-             "moved)")
-S736_SEEDS = (736, 737, 738, 739, 740)
-"""Draws first run once after an earlier change; used to develop the last change."""
-S736_NOTE = ("first run once after an earlier change to the method; used for the last change (the none "
-             "test's scatter with the fallback: case 14 of 736, and every case that reaches the test, "
-             "re-run)")
-S841_SEEDS = (841, 842, 843, 844, 845)
-"""Draws first run once after an earlier change; their misses were analysed for the last change."""
-S841_NOTE = ("first run once after an earlier change to the method; their misses were analysed for the "
-             "last change (a chosen pair that leaves the scatter far behind: each component moved to the "
-             "other locations of its effect; every case it can reach re-run)")
-FINAL_SEEDS = (946, 947, 948, 949, 950)
-"""Draws never run before the last change to the method was made, measured once after it."""
-FINAL_NOTE = "run once, after the last change to the method; never used to develop it"
+class DrawSet(NamedTuple):
+    """Five draws of fixtures/blind.py's generator quoted in docs/diagnosis.md: the block ``name``, its
+    ideal-fit block ``ideal``, the ``seeds`` and the header ``note`` saying what the draws were used for."""
+
+    name: str
+    ideal: str
+    seeds: tuple[int, ...]
+    note: str
+
+
+DRAW_SETS = (
+    DrawSet("blind", "ideal", (106, 107, 108, 109, 110),
+            "their misses were analysed for earlier changes to the method"),
+    DrawSet("fresh", "ideal_fresh", (211, 212, 213, 214, 215),
+            "their misses were analysed for an earlier change to the method (issue 26's paired margin)"),
+    DrawSet("new", "ideal_new", (316, 317, 318, 319, 320),
+            "first run once after an earlier change to the method; their misses were analysed for later "
+            "changes (the beam-theory model-form level, the partners of the best singles)"),
+    DrawSet("latest", "ideal_latest", (421, 422, 423, 424, 425),
+            "first run once after an earlier change to the method; their misses were analysed for "
+            "later changes (the three best singles paired with every single, the beam-theory level in "
+            "the none test)"),
+    DrawSet("next", "ideal_next", (526, 527, 528, 529, 530),
+            "first run once after an earlier change to the method; their misses were analysed for the "
+            "last change (pair leads of different effects, the pair search gated by training frequencies, "
+            "the combination's own start, the nested margin between nested candidates only and in the "
+            "none test)"),
+    DrawSet("s631", "ideal_s631", (631, 632, 633, 634, 635),
+            "first run once after an earlier change to the method; used for the last change (the none "
+            "test's noise level: its none cases re-run; case 30's sensor, which the generator had not "
+            "moved)"),
+    DrawSet("s736", "ideal_s736", (736, 737, 738, 739, 740),
+            "first run once after an earlier change to the method; used for the last change (the none "
+            "test's scatter with the fallback: case 14 of 736, and every case that reaches the test, "
+            "re-run)"),
+    DrawSet("s841", "ideal_s841", (841, 842, 843, 844, 845),
+            "first run once after an earlier change to the method; their misses were analysed for the "
+            "last change (a chosen pair that leaves the scatter far behind: each component moved to the "
+            "other locations of its effect; every case it can reach re-run)"),
+    DrawSet("s946", "ideal_s946", (946, 947, 948, 949, 950),
+            "run once, after the last change to the method; never used to develop it"),
+)
+"""Every draw set, oldest first.  The first set's misses were analysed to build the method; each later
+set was first run once after a change to the method (the blind figure of that change) and used to
+develop later changes as its note says; the last set is the blind figure of the current method."""
+DRAWS = {d.name: d for d in DRAW_SETS}
+BLIND_SEEDS = DRAWS["blind"].seeds
+FINAL_SEEDS = DRAW_SETS[-1].seeds
 SPARSE_CASES = 60
 SPARSE_SEED = 5
-ADVICE_SEEDS = LATEST_SEEDS + NEXT_SEEDS
+ADVICE_SEEDS = DRAWS["latest"].seeds + DRAWS["next"].seeds
 """The used blind draws on which the next-measurement advice is measured (``advice_block``)."""
-ADVICE_FINAL_SEEDS = S841_SEEDS
+ADVICE_FINAL_SEEDS = DRAWS["s841"].seeds
 """Draws used neither for the method nor for the advice when the advice (frozen, with shapes) was
 measured once on their ambiguous verdicts (block ``advice_s841``); their misses were analysed for the
-method's last change since.  Block ``advice_s736`` holds ``S736_SEEDS``: never
+method's last change since.  Block ``advice_s736`` holds the ``s736`` draws: never
 used when the frequency-only advice was measured once on them; used since (the method's last change,
 the advice with shapes)."""
 
@@ -205,26 +217,12 @@ def write_block(name: str, block: str) -> None:
     DOC.write_text(f"{head}{begin}\n{block}\n{end}{tail}")
 
 
-BLOCKS = {"seed003": seed003_block, "coverage": coverage_block, "blind": blind_block,
-          "fresh": lambda: blind_block(FRESH_SEEDS, note=FRESH_NOTE), "ideal": ideal_block,
-          "ideal_fresh": lambda: ideal_block(seeds=FRESH_SEEDS),
-          "new": lambda: blind_block(NEW_SEEDS, note=NEW_NOTE),
-          "ideal_new": lambda: ideal_block(seeds=NEW_SEEDS),
-          "latest": lambda: blind_block(LATEST_SEEDS, note=LATEST_NOTE),
-          "ideal_latest": lambda: ideal_block(seeds=LATEST_SEEDS),
-          "next": lambda: blind_block(NEXT_SEEDS, note=NEXT_NOTE),
-          "ideal_next": lambda: ideal_block(seeds=NEXT_SEEDS),
-          "s631": lambda: blind_block(S631_SEEDS, note=S631_NOTE),
-          "ideal_s631": lambda: ideal_block(seeds=S631_SEEDS),
-          "s736": lambda: blind_block(S736_SEEDS, note=S736_NOTE),
-          "ideal_s736": lambda: ideal_block(seeds=S736_SEEDS),
-          "s841": lambda: blind_block(S841_SEEDS, note=S841_NOTE),
-          "ideal_s841": lambda: ideal_block(seeds=S841_SEEDS),
-          "s946": lambda: blind_block(FINAL_SEEDS, note=FINAL_NOTE),
-          "ideal_s946": lambda: ideal_block(seeds=FINAL_SEEDS),
-          "sparse": sparse_block, "advice": advice_block,
-          "advice_s736": lambda: advice_block(seeds=S736_SEEDS),
+BLOCKS = {"seed003": seed003_block, "coverage": coverage_block, "sparse": sparse_block,
+          "advice": advice_block, "advice_s736": lambda: advice_block(seeds=DRAWS["s736"].seeds),
           "advice_s841": lambda: advice_block(seeds=ADVICE_FINAL_SEEDS)}
+for _draws in DRAW_SETS:
+    BLOCKS[_draws.name] = partial(blind_block, _draws.seeds, note=_draws.note)
+    BLOCKS[_draws.ideal] = partial(ideal_block, seeds=_draws.seeds)
 
 
 def main() -> int:
@@ -242,8 +240,7 @@ def main() -> int:
             blocks["coverage"] = coverage_block()
         if args.blind:
             blocks.update((name, BLOCKS[name]())
-                          for name in ("blind", "fresh", "new", "latest", "next", "s631", "s736", "s841",
-                                       "sparse", "advice"))
+                          for name in [d.name for d in DRAW_SETS] + ["sparse", "advice"])
     for name, block in blocks.items():
         if args.write:
             write_block(name, block)

@@ -111,24 +111,15 @@ def test_the_draws_and_the_advice_the_docs_quote():
     spec = importlib.util.spec_from_file_location("diagnosis_doc", REPO / "benchmarks" / "diagnosis_doc.py")
     doc = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(doc)
-    draws = {}   # block name: (its ideal-fit block, seeds, note) -> {seed: run_blind's results}
-    for name, ideal, seeds, note in (("blind", "ideal", doc.BLIND_SEEDS, None),
-                                     ("fresh", "ideal_fresh", doc.FRESH_SEEDS, doc.FRESH_NOTE),
-                                     ("new", "ideal_new", doc.NEW_SEEDS, doc.NEW_NOTE),
-                                     ("latest", "ideal_latest", doc.LATEST_SEEDS, doc.LATEST_NOTE),
-                                     ("next", "ideal_next", doc.NEXT_SEEDS, doc.NEXT_NOTE),
-                                     ("s631", "ideal_s631", doc.S631_SEEDS, doc.S631_NOTE),
-                                     ("s736", "ideal_s736", doc.S736_SEEDS, doc.S736_NOTE),
-                                     ("s841", "ideal_s841", doc.S841_SEEDS, doc.S841_NOTE),
-                                     ("s946", "ideal_s946", doc.FINAL_SEEDS, doc.FINAL_NOTE)):
-        draws[name] = {seed: run_blind(doc.BLIND_CASES, seed=seed) for seed in seeds}
-        assert doc.doc_block(name) == doc.blind_block(seeds, results=draws[name],
-                                                      **({} if note is None else {"note": note}))
-        assert doc.doc_block(ideal) == doc.ideal_block(draws[name], seeds=seeds)
+    draws = {}   # block name -> {seed: run_blind's results}
+    for d in doc.DRAW_SETS:
+        draws[d.name] = {seed: run_blind(doc.BLIND_CASES, seed=seed) for seed in d.seeds}
+        assert doc.doc_block(d.name) == doc.blind_block(d.seeds, results=draws[d.name], note=d.note)
+        assert doc.doc_block(d.ideal) == doc.ideal_block(draws[d.name], seeds=d.seeds)
     assert all(summarise(r)["none_accuracy"] >= 2 / 3 for r in draws["blind"].values())
     assert doc.doc_block("sparse") == doc.sparse_block()
     assert doc.doc_block("advice") == doc.advice_block({**draws["latest"], **draws["next"]})
-    assert doc.doc_block("advice_s736") == doc.advice_block(draws["s736"], seeds=doc.S736_SEEDS)
+    assert doc.doc_block("advice_s736") == doc.advice_block(draws["s736"], seeds=doc.DRAWS["s736"].seeds)
     assert doc.doc_block("advice_s841") == doc.advice_block(draws["s841"], seeds=doc.ADVICE_FINAL_SEEDS)
 
 
