@@ -213,3 +213,19 @@ def test_the_demo_tells_a_log_each_step(demo_run):
     assert len(plotted) == 11 and plotted[-1].endswith("operational.h5::theta30"), stderr
     assert re.fullmatch(r"demo: done \(in \d+ s\)", report[-1]), stderr
 
+
+
+def test_every_column_the_demo_writes_is_documented_with_its_unit(demo_dir: tuple[Path, float, str]) -> None:
+    """A reader of modes.csv or fe.csv finds each header in docs/formats.md's modal table columns, with its
+    unit (``mpc``, ``mpd`` [deg], ``synthesis_corr``, ``freq_std_hz`` and ``damping_std`` were in no table
+    there); pose columns name their unit in their name (``pose.theta_deg``)."""
+    out, _, _ = demo_dir
+    formats = (REPO / "docs" / "formats.md").read_text(encoding="utf-8")
+    documented = set(re.findall(r"^\| `([^`]+)` \|", formats, re.MULTILINE))
+    for name in ("modes.csv", "fe.csv"):
+        header = (out / name).read_text().splitlines()[0].split(",")
+        generic = [re.sub(r"^pose\..*", "pose.<var>", re.sub(r"^shape\..*", "shape.<sensor>", c))
+                   for c in header]
+        assert {"mpc", "mpd", "freq_std_hz"} <= set(header) or name == "fe.csv", header
+        assert [c for c in generic if c not in documented] == [], (name, header)
+        assert all(re.search(r"_(deg|kg|m)$", c) for c in header if c.startswith("pose.")), header
