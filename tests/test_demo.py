@@ -229,3 +229,13 @@ def test_every_column_the_demo_writes_is_documented_with_its_unit(demo_dir: tupl
         assert {"mpc", "mpd", "freq_std_hz"} <= set(header) or name == "fe.csv", header
         assert [c for c in generic if c not in documented] == [], (name, header)
         assert all(re.search(r"_(deg|kg|m)$", c) for c in header if c.startswith("pose.")), header
+
+
+def test_what_the_demo_points_a_reader_to_is_in_the_docs(demo_dir: tuple[Path, float, str]) -> None:
+    """The demo named a source file (fixtures/truth_arm.py) for what its simulated arm is; it names the
+    section of docs/ that describes it, and that section exists."""
+    _, _, stdout = demo_dir
+    pointed = re.findall(r"\((docs/[\w-]+\.md), \"([^\"]+)\"\)", stdout)
+    assert pointed and "fixtures/" not in stdout, stdout
+    for doc, section in pointed:
+        assert re.search(rf"^#+ {re.escape(section)}\b", (REPO / doc).read_text(encoding="utf-8"), re.M), doc
