@@ -373,17 +373,22 @@ def _explains(f: np.ndarray, clusters: PoleClusters, peaks_hz: np.ndarray) -> np
     return np.any(_peak_within(f, clusters, peaks_hz), axis=1)
 
 
-def _candidates(f: np.ndarray, stab: Stabilisation, peaks_hz: np.ndarray) -> PoleClusters:
-    """The diagram's candidate modes (:func:`modal.lscf.stable_clusters`); a chain whose count of stable
-    orders falls short of the line by less than the count's own uncertainty is kept when a clear CMIF
-    peak ``peaks_hz`` that no kept chain explains lies within its half-power band (or two lines): what
-    the data show decides, not rounding (pyfrf_impact_frf: the chain of the clear peak at 1518.2 Hz,
-    stable since order 66, fell half an order short at order 411 with its FRF moved by 1e-9)."""
+def _candidates(f: np.ndarray, stab: Stabilisation, peaks_hz: np.ndarray, tie_above: int) -> PoleClusters:
+    """The diagram's candidate modes (:func:`modal.lscf.stable_clusters`).  In a diagram reaching above
+    order ``tie_above`` (the default cap, past which pLSCF's poles are set by rounding and the order
+    search ends), a chain whose count of stable orders falls short of the line by less than the count's
+    own uncertainty is kept when a clear CMIF peak ``peaks_hz`` that no kept chain explains lies within
+    its half-power band (or two lines): what the data show decides, not rounding (pyfrf_impact_frf:
+    the chain of the clear peak at 1518.2 Hz, stable since order 66, fell half an order short at order
+    411 with its FRF moved by 1e-9).  Below that cap the search raises the order while a clear peak is
+    unexplained, and the count decides at a higher order (a chain taken at its first orders stopped
+    the search too soon, with poles 2e-4 off on a lightly damped impact test)."""
     def tie_break(clusters: PoleClusters, kept: np.ndarray) -> np.ndarray:
         within = _peak_within(f, clusters, peaks_hz)                  # [n_peaks, n_modes]
         return np.any(within[~np.any(within[:, kept], axis=1)], axis=0)
 
-    return stable_clusters(stab, top=TOP_ORDERS, tie_break=tie_break)
+    late = stab.order.size and stab.order.max() > tie_above
+    return stable_clusters(stab, top=TOP_ORDERS, tie_break=tie_break if late else None)
 
 
 def _explained(f: np.ndarray, clusters: PoleClusters, peaks_hz: np.ndarray) -> int:
@@ -525,13 +530,15 @@ def _lscf(f: np.ndarray, H: np.ndarray, *, quantity: str, reference: int, max_or
 
 
     def search(common: bool):
-        base = None if max_order is not None else default_caps(1 if common else H.shape[1], peaks_hz.size)[0]
+        default_base = default_caps(1 if common else H.shape[1], peaks_hz.size)[0]
+        base = None if max_order is not None else default_base
 
         def evaluate(stab: Stabilisation):
             if poles_hz:
                 return stable_clusters(stab, top=TOP_ORDERS).freq_hz.size, 0, None
-            clusters, fit, warnings, background = _validate(f, H, _candidates(f, stab, peaks_hz),
-                                                            quantity, reference, limits, peaks_hz, visible_hz)
+            candidates = _candidates(f, stab, peaks_hz, default_base)
+            clusters, fit, warnings, background = _validate(f, H, candidates, quantity, reference, limits,
+                                                            peaks_hz, visible_hz)
             report, late = _late(f, stab, clusters, base, peaks_hz)
             report &= ~background
             return (int(report.sum()), _explained(f, clusters.subset(report), peaks_hz),
@@ -637,13 +644,14 @@ def _noise_rms(H: np.ndarray, lines: np.ndarray) -> float:
     return float(np.linalg.norm(d2) / np.sqrt(6 * run.size))
 
 
-def _refused_chain(stab: Stabilisation, clusters: PoleClusters, lo: float, hi: float, reach: np.ndarray,
-                   kept: np.ndarray) -> list[complex]:
+def _refused_chain(stab: Stabilisation, clusters: PoleClusters, lo: float, hi: float, reach: np.ndarray
+                   ) -> list[complex]:
     """[the pole] of the chain of the diagram ``stab`` in [lo, hi] Hz that is stable at the most orders,
-    at least min_orders 5, but was refused by :func:`_candidates` (whose frequencies [Hz] are ``kept``:
-    stable at fewer than half the orders from its first), more than one half-power bandwidth (two
-    ``reach``) from every mode of ``clusters``; [] when there is none."""
+    at least min_orders 5, but was refused by :func:`modal.lscf.stable_clusters` (stable at fewer than
+    half the orders from its first), more than one half-power bandwidth (two ``reach``) from every
+    mode of ``clusters``; [] when there is none."""
     chains = pole_clusters(stab, TOP_ORDERS)
+    kept = stable_clusters(stab, top=TOP_ORDERS).freq_hz
     apart = np.abs(chains.freq_hz[:, None] - clusters.freq_hz[None, :]) > 2 * reach[None, :]
     ok = (chains.freq_hz >= lo) & (chains.freq_hz <= hi) & (chains.n_stable >= 5) & apart.all(axis=1) \
         & ~np.isin(chains.freq_hz, kept)
@@ -684,7 +692,7 @@ def _zoom(f: np.ndarray, H: np.ndarray, clusters: PoleClusters, fit: LsfdResult,
         if inside.size < 3:   # the span lies in the modes' leakage: no residual of its own to fit
             span = np.flatnonzero((f >= lo) & (f <= hi))
             if stab is not None and span.size >= 3 and _above_noise(H, fit.synthesis, span):
-                new += _refused_chain(stab, clusters, lo, hi, reach, _candidates(f, stab, peaks_hz).freq_hz)
+                new += _refused_chain(stab, clusters, lo, hi, reach)
             continue
         if not _above_noise(H, fit.synthesis, inside):
             continue

@@ -4,10 +4,12 @@ Each real-data corpus entry (tests/data/realdata/) is identified with default op
 ``flexmodal identify`` does it (:func:`flexmodal.modal.sources.identify_input`), once as read and
 once with its FRFs or time histories perturbed far below any measurement's noise: relative (complex,
 for FRFs) normal noise of 1e-9 or of 6e-8 (the rounding of a float32 round trip), fixed seeds.  The
-modes must be the same: as many, each within 0.05 % in frequency.  A different BLAS kernel, library
-version or summation order changes the input of every decision by about this much: pyfrf_impact_frf
-gave 0 extra modes on one machine (OpenBLAS's Haswell kernels) and 2 on another (SkylakeX), because
-a chain's count of stable orders lay half an order from the line of
+modes must be the same: as many, each within 0.05 % in frequency, but for modes the independent
+reference itself leaves uncertain (pyfrf_impact_frf's 2066 Hz: its F statistic in the synthesis is
+4.2 as read, 6.9 and above 10 with the FRF moved by 1e-9, as the other poles of order 540 move).
+A different BLAS kernel, library version or summation order changes the input of every decision by
+about this much: pyfrf_impact_frf gave 0 extra modes on one machine (OpenBLAS's Haswell kernels) and
+2 on another (SkylakeX), because a chain's count of stable orders lay half an order from the line of
 :func:`flexmodal.modal.lscf.stable_clusters`.  The fast entries run in the default suite, every
 entry under ``-m slow``.
 """
@@ -46,14 +48,18 @@ def _perturbed(data, how: str):
 
 
 def _modes(entry: str, monkeypatch, how: str | None = None) -> np.ndarray:
-    """The frequencies [Hz] ``identify`` gives for ``entry``, its input perturbed ``how`` (None: not)."""
+    """The frequencies [Hz] ``identify`` gives for ``entry``, its input perturbed ``how`` (None: not),
+    but those within 0.5 % of a mode the reference leaves uncertain (``uncertain_hz``: stable at some
+    of the independent tool's orders only, as the scoreboard treats them: neither found nor extra)."""
     source = json.loads((CORPUS / entry / "source.json").read_text())
+    uncertain = np.array(json.loads((CORPUS / entry / "reference.json").read_text()).get("uncertain_hz", []))
     if how is not None:
         read = uff.read_uff
         monkeypatch.setattr(uff, "read_uff", lambda path: _perturbed(read(path), how))
     table, _ = identify_input(CORPUS / entry / source["input"])
     monkeypatch.undo()
-    return np.sort(table.frame["freq_hz"].to_numpy(float))
+    freq = np.sort(table.frame["freq_hz"].to_numpy(float))
+    return freq[~np.any(np.abs(freq[:, None] / uncertain[None, :] - 1) <= 0.005, axis=1)]
 
 
 def _check(entry: str, monkeypatch, perturbations=PERTURBATIONS) -> None:
