@@ -46,6 +46,7 @@ from flexmodal.daq.run_schema import (
     kind_unit_fault,
     member,
     sample_rate_ok,
+    sensitivity_fault,
     utf8,
 )
 
@@ -72,7 +73,7 @@ class Channel:
         if self.kind not in CHANNEL_KINDS:
             raise DaqError(f"channel {self.name!r}: kind {self.kind!r} is not one of "
                            f"{', '.join(CHANNEL_KINDS)}")
-        fault = kind_unit_fault(self.kind, self.unit)
+        fault = kind_unit_fault(self.kind, self.unit) or sensitivity_fault(self.sensitivity)
         if fault:   # a force in m/s^2 made FRFs of two accelerations, stored and shown as accelerance
             raise DaqError(f"channel {self.name!r}: {fault}")
 
