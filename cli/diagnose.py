@@ -17,24 +17,26 @@ def register(sub: Subcommands) -> None:
         description="Compare a nominal rig's FE modes with measured modes over several poses, rank every "
                     "unmodelled effect (docs/formats.md) at every location and pairs of them by their error "
                     "on held-out configurations, and write DIR/diagnosis.json and DIR/diagnosis.html.")
-    p.add_argument("--rig", help="nominal rig description (TOML, docs/formats.md)")
-    p.add_argument("--measured",
+    p.add_argument("--rig", metavar="RIG.toml", help="nominal rig description (TOML, docs/formats.md)")
+    p.add_argument("--measured", metavar="MODES.csv",
                    help="measured modes (modal table CSV, docs/formats.md) with pose.<var> columns")
-    p.add_argument("--out", help="output directory for diagnosis.json and diagnosis.html")
-    p.add_argument("--effects", default="all", help="'all' or comma-separated effect names (default all)")
-    p.add_argument("--holdout", default="auto",
+    p.add_argument("--out", metavar="DIR", help="output directory for diagnosis.json and diagnosis.html")
+    p.add_argument("--effects", default="all", metavar="all|NAME,...",
+                   help="'all' or comma-separated effect names (docs/formats.md; default all)")
+    p.add_argument("--holdout", default="auto", metavar="auto|CONFIG,...",
                    help="'auto' (leave one pose out, the configurations measured at one pose held out "
                         "together; 5-fold over poses above 10 poses) or a comma-separated list of "
                         "configurations to hold out")
     p.add_argument("--scatter", type=opt.real(1e-6, 1.0, hi_open=True, name="fraction"),
-                   default=None,
+                   default=None, metavar="FRACTION",
                    help="fallback relative measurement scatter of the frequencies (fraction; default 0.005 = "
                         "0.5 %%), used only when the table has no repeated configurations and no "
                         "freq_std_hz column")
     p.add_argument("--selftest", type=opt.integer(1, 100000), metavar="N",
                    help="blind self-check instead: N random rigs simulated by an independent truth model "
                         "(Timoshenko frame) with withheld effects; prints accuracy")
-    p.add_argument("--seed", type=opt.seed, default=0, help="random seed of --selftest (default 0)")
+    p.add_argument("--seed", type=opt.seed, default=0, metavar="N",
+                   help="random seed of --selftest (default 0)")
     p.set_defaults(func=run)
 
 

@@ -16,19 +16,20 @@ def register(sub: Subcommands) -> None:
     p.add_argument("runs", nargs="+", metavar="RUN.h5", help="HDF5 run files (docs/hdf5-format.md)")
     p.add_argument("--estimator", default="H1", choices=ESTIMATORS, metavar="NAME",
                    help="FRF estimator: %(choices)s (default H1)")
-    p.add_argument("--nfft", type=opt.integer(8, 1 << 24, name="segment length"), default=None,
+    p.add_argument("--nfft", type=opt.integer(8, 1 << 24, name="segment length"), default=None, metavar="N",
                    help="segment length in samples for random runs (default: power of two <= 8192 "
                         "giving >= 8 segments); impact runs use one record per hit, sweep runs one "
                         "segment per sweep unless --nfft or --window is given")
-    p.add_argument("--window", type=opt.nonempty, default=None,
+    p.add_argument("--window", type=opt.nonempty, default=None, metavar="WINDOW[,...]",
                    help="window: rect|hann|flattop for random runs (default hann); impact runs "
                         "'force:W,exponential:E' (fractions; default force:0.05 and no "
                         "window on the responses; 'exponential' alone is exponential:0.01)")
-    p.add_argument("--overlap", type=opt.overlap, default=0.5, help="segment overlap fraction (default 0.5)")
+    p.add_argument("--overlap", type=opt.overlap, default=0.5, metavar="FRACTION",
+                   help="segment overlap, 0..1 (default 0.5)")
     p.add_argument("--averaging", default="linear", choices=["linear", "exponential"],
                    help="averaging of impact hits (default linear)")
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--workers", type=opt.workers, default=None,
+    g.add_argument("--workers", type=opt.workers, default=None, metavar="N",
                    help="local worker processes (0 = serial here; default: chosen by cost)")
     g.add_argument("--scheduler", default=None, metavar="ADDR",
                    help="dask.distributed scheduler address (needs the extra flexmodal[cluster])")
@@ -37,15 +38,15 @@ def register(sub: Subcommands) -> None:
     q = command(sub, "identify", _identify)
     q.add_argument("input", metavar="INPUT", help="RUN.h5 or FILE.uff/.unv")
     q.add_argument("--out", required=True, metavar="MODES.csv", help="modal table to write")
-    q.add_argument("--fmin", type=opt.hertz, default=None,
+    q.add_argument("--fmin", type=opt.hertz, default=None, metavar="HZ",
                    help="lower band edge, Hz (default first line > 0)")
-    q.add_argument("--fmax", type=opt.positive_hz, default=None,
+    q.add_argument("--fmax", type=opt.positive_hz, default=None, metavar="HZ",
                    help="upper band edge, Hz (default Nyquist, or below a top stretch where the FRFs' "
                         "coherence stays under 0.9; the band fitted is printed)")
     q.add_argument("--method", default=None, choices=METHODS,
                    help="; ".join(f"{name}: {METHODS[name].caption}" for name in METHODS)
                    + ". Output-only shapes are unscaled (unit largest entry)")
-    q.add_argument("--max-order", type=opt.model_order, default=None,
+    q.add_argument("--max-order", type=opt.model_order, default=None, metavar="N",
                    help="cap of the pLSCF model order (default: the order grows until the modes found "
                         "stop growing and explain every clear CMIF peak, at most 200 / number of "
                         "references, more while clear peaks are unexplained); ssi: highest model order "

@@ -136,7 +136,7 @@ def _run_rows(runs: Sequence[RunSummary]) -> tuple[list[dict], list[dict], list[
     sets: dict[tuple, dict] = {}
     for r in runs:
         label, run = r.label, r.run
-        meta.append({"file": run.path.name, "run_id": run.run_id, "start_time": _start_time(run.start_time),
+        meta.append({"run": label, "start_time": _start_time(run.start_time),
                      "excitation": run.excitation, "pose": pose_text(run.pose),
                      "fs": f"{run.sample_rate_hz:g}", "duration": f"{r.duration_s:.2f}",
                      "n_samples": r.n_samples, "n_channels": len(run.channels)})

@@ -205,4 +205,11 @@ def test_the_demo_tells_a_log_each_step(demo_run):
     stderr = demo_run[4]
     steps = re.findall(r"^demo: step (\d)/5: [a-zA-Z +]+(?: \(at \d+ s\))?$", stderr, re.MULTILINE)
     assert steps == ["1", "2", "3", "4", "5"], stderr
+    # the report, the longest step (its 11 runs' figures), says what it is drawing: it was one line, then
+    # a minute of silence; and the log ends saying the demo is done
+    lines = stderr.splitlines()
+    report = lines[next(k for k, line in enumerate(lines) if line.startswith("demo: step 5/5: report")) + 1:]
+    plotted = [line for line in report if re.match(r"^demo: report: plotting run \d+/11: ", line)]
+    assert len(plotted) == 11 and plotted[-1].endswith("operational.h5::theta30"), stderr
+    assert re.fullmatch(r"demo: done \(in \d+ s\)", report[-1]), stderr
 

@@ -41,7 +41,10 @@ DIAGNOSIS = {
     "where": {"modes": [2], "configs": ["theta0", "theta60"], "region": "joint:elbow"},
     "ranking": [{"effect": "joint_stiffness", "location": "elbow", "params": {"k_Nm_per_rad": 1500.0},
                  "fit_rms_rel_error": 0.004, "heldout_rms_rel_error": 0.006, "n_params": 1, "score": 0.0,
-                 "per_mode": {"1": 0.003, "2": 0.005}}],
+                 "per_mode": {"1": 0.003, "2": 0.005}},
+                {"effect": "grounded_spring+joint_stiffness", "location": "link2@0.75+elbow",
+                 "params": {"k_N_per_m": 495.8, "k_Nm_per_rad": 5960.0}, "fit_rms_rel_error": 0.0041,
+                 "heldout_rms_rel_error": 0.0065, "n_params": 2, "score": 0.1}],
     "verdict": {"effect": "joint_stiffness", "location": "elbow", "heldout_rms_rel_error_before": 0.19,
                 "heldout_rms_rel_error_after": 0.006, "explained": True},
 }
@@ -172,7 +175,8 @@ def test_data_quality_counts_the_impact_hits_the_frf_processing_kept(report, inp
     rejected = [h for h in hits if not h["accepted"]]
     assert len(hits) == 4 and len(rejected) == 1  # hits at 0.1, 1.1, 2.1, 3.1 s; the clipped one rejected
     html = report.read_text()
-    row = html[html.index(f"<td>runs.h5::{RUN_IDS[2]}</td>"):]
+    quality = html[html.index('id="quality"'):]   # the run's row in the data quality table
+    row = quality[quality.index(f"<td>runs.h5::{RUN_IDS[2]}</td>"):]
     row = row[:row.index("</tr>")]
     cells = re.findall(r"<td[^>]*>(.*?)</td>", row, flags=re.S)
     assert cells[1:5] == ["4", "3 / 4", "1", rejected[0]["reason"]]
@@ -241,16 +245,21 @@ QUALITY_JS = """(() => {
   const cell = t.querySelector('td[data-label]');
   return {table: [t.scrollWidth, t.clientWidth], page: document.documentElement.scrollWidth,
           head: getComputedStyle(t.querySelector('thead')).display,
-          label: getComputedStyle(cell, '::before').content, value: cell.textContent};
+          label: getComputedStyle(cell, '::before').content, value: cell.textContent,
+          cut: [...document.querySelectorAll('table')].filter(t => t.scrollWidth > t.clientWidth)
+                 .map(t => t.querySelector('caption').textContent)};
 })()"""
 
 
-def test_the_data_quality_table_is_read_whole_at_800_px(report, tmp_path, chromium):
+def test_every_table_is_read_whole_at_800_px_the_data_quality_one_as_blocks(report, tmp_path, chromium):
     # it scrolled in its own box with five of its twelve columns out of sight (a screenshot showed it cut
     # after "gaps"): in a narrow window each run is one block of "column: value" pairs
     seen = evaluate(chromium, report, tmp_path / "profile", 800, QUALITY_JS)
     assert seen["table"][0] <= seen["table"][1] and seen["page"] <= 800, seen
     assert seen["head"] == "none" and seen["label"] == '"triggers [count]: "', seen
+    # no other table is cut either: the candidate effects scrolled with their last columns out of sight
+    # (grounded_spring+joint_stiffness at link2@0.75+elbow were one word each; a line now breaks after +)
+    assert seen["cut"] == [], seen
 
 
 def test_report_cli_pdf_prints_beside_the_html_and_a_bad_geometry_is_one_line(inputs, tmp_path, capsys):
@@ -379,3 +388,4 @@ def test_report_tells_a_figure_section_before_drawing_it(tmp_path):
         unregister_section("probe")
     k = told.index("plotting probe figures")
     assert told[k + 1:k + 3] == ["drawing", "no probe figures: nothing in these inputs to draw it from"], told
+
