@@ -376,17 +376,20 @@ def check_run_group(g: h5py.Group, where: str) -> None:
 
 
 def _check_event_places(events: h5py.Dataset, n_samples: int, where: str) -> None:
-    """Every event lies within the record: 0 <= sample_index <= n_samples (an event at the end, a stop,
-    is at n_samples) and count >= 0; a trigger 10^6 samples past the end was cut into hit records of
-    -995698 samples."""
+    """Every event has sample_index >= 0 and count >= 0, and a trigger lies within the record
+    (sample_index < n_samples): a trigger 10^6 samples past the end was cut into hit records of
+    -995698 samples.  Other events may point past the stored rows (a run stopped by a full disk
+    records where it stopped, after rows that never reached the disk): they describe, and the run
+    stays readable."""
     table = events[()]
     index, count = table["sample_index"], table["count"]
-    outside = (index < 0) | (index > n_samples)
+    trigger = np.array([_text(k) == "trigger" for k in table["kind"]], bool)   # a loop over events
+    outside = (index < 0) | (trigger & (index >= n_samples))
     bad = np.flatnonzero(outside | (count < 0))
     if bad.size:
         row = int(bad[0])
-        what = (f"sample_index = {index[row]} is outside the record (0 to {n_samples} samples)"
-                if outside[row] else f"count = {count[row]} is negative")
+        what = (f"sample_index = {index[row]} is outside the record (0 to {n_samples - 1})" if outside[row]
+                else f"count = {count[row]} is negative")
         raise DaqError(f"{where}: 'events' row {row} ({_text(table['kind'][row])}): {what}")
 
 

@@ -172,11 +172,11 @@ def test_a_channel_takes_exactly_the_sensitivities_in_range(value: float) -> Non
 
 
 # -- events lie within their record -----------------------------------------------------------------
-@pytest.mark.parametrize("index, count, words", [(2049, 1, "sample_index = 2049 is outside the record"),
+@pytest.mark.parametrize("index, count, words", [(2048, 1, "sample_index = 2048 is outside the record"),
                                                  (10**6, 1, "sample_index = 1000000 is outside"),
                                                  (-5, 1, "sample_index = -5 is outside"),
                                                  (10, -1, "count = -1 is negative")])
-def test_an_event_outside_its_record_is_named(tmp_path: Path, index: int, count: int, words: str) -> None:
+def test_a_trigger_outside_its_record_is_named(tmp_path: Path, index: int, count: int, words: str) -> None:
     path = _run(tmp_path / "r.h5")
     with h5py.File(path, "r+") as f:
         f["runs/r1/events"][0] = ("trigger", index, count, "")
@@ -184,11 +184,13 @@ def test_an_event_outside_its_record_is_named(tmp_path: Path, index: int, count:
         check_run_file(path, "r1")
 
 
-def test_an_event_at_the_records_end_is_kept(tmp_path: Path) -> None:
+@pytest.mark.parametrize("index", [2047, 2048, 2100])
+def test_a_stop_recorded_past_the_stored_rows_keeps_the_run_readable(tmp_path: Path, index: int) -> None:
+    """A run stopped by a full disk records where it stopped, after rows that never reached the disk."""
     path = _run(tmp_path / "r.h5")
     with h5py.File(path, "r+") as f:
-        f["runs/r1/events"][0] = ("stopped", 2048, 0, "")
-    assert read_run(path, "r1").events[0].sample_index == 2048
+        f["runs/r1/events"][0] = ("stopped", index, 52, "disk full; 52 samples in hand not written")
+    assert read_run(path, "r1").events[0].sample_index == index
 
 
 # -- UFF dataset 58: identification fields pyuff would read as 0 ------------------------------------
