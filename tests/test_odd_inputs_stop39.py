@@ -275,3 +275,16 @@ def test_every_alias_of_an_input_is_refused_as_an_output(tmp_path: Path, monkeyp
         with pytest.raises(ValueError, match="device or process file|is also an input"):
             output_file(target, ValueError, inputs=[source])
     assert source.read_text(encoding="utf-8") == "config,mode,freq_hz\nt0,1,30\n"
+
+
+# -- a run laid out on a full disk: its metadata is checked for room too --------------------------------
+def test_a_run_is_not_laid_out_on_a_full_disk(tmp_path: Path, monkeypatch) -> None:
+    """The layout (groups, attributes, channel table) failing inside HDF5 left its caches dirty: demo
+    --out on a 64 kB file system printed its line, then the interpreter crashed at exit (-11)."""
+    from flexmodal.daq import store
+
+    monkeypatch.setattr(store, "disk_room", lambda _path: store.WRITE_RESERVE_BYTES - 1)
+    with pytest.raises(OSError, match="No space left on device|File too large") as got:
+        RunWriter(tmp_path / "run.h5", "r1", sample_rate_hz=1024.0, excitation="impact", pose={},
+                  channels=[Channel("F", "force", "N")])
+    assert got.value.filename == str(tmp_path / "run.h5") and not (tmp_path / "run.h5").exists()
