@@ -353,7 +353,7 @@ def parse_session(doc: dict, source: Path) -> Session:
         trigger = Trigger(g.get("channel", str, check=lambda v: v in names, why="is not a channel"),
                           g.get("level", float), g.choice("slope", ("rising", "falling"), "rising"),
                           g.get("pretrigger_samples", int, 0, check=lambda v: v >= 0, why="must be >= 0"),
-                          g.number("holdoff_s", 0.5, lo=0),
+                          g.number("holdoff_s", 0.5, lo=0, hi=1e9, unit="s"),   # as --duration: 31.7 years
                           g.get("start", bool, False),
                           g.get("response", str, "", check=lambda v: v in names, why="is not a channel"),
                           g.number("window_s", 1.0, lo=0, hi=60, lo_open=True, unit="s"),

@@ -25,6 +25,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from flexmodal.checked_io.output import output_file
+from flexmodal.checked_io.text import BIDI_CONTROLS, name_fault
 from flexmodal.checked_io.toml_fields import DOTTED_PATH, KEY_EQUALS, Fields
 from flexmodal.checked_io.uff_blocks import DOF_FIELDS, check_blocks
 from flexmodal.contract.errors import ContractError
@@ -288,3 +289,32 @@ def test_a_run_is_not_laid_out_on_a_full_disk(tmp_path: Path, monkeypatch) -> No
         RunWriter(tmp_path / "run.h5", "r1", sample_rate_hz=1024.0, excitation="impact", pose={},
                   channels=[Channel("F", "force", "N")])
     assert got.value.filename == str(tmp_path / "run.h5") and not (tmp_path / "run.h5").exists()
+
+
+# -- a trigger holdoff beyond any record (was OverflowError: cannot convert float infinity) ------------
+@pytest.mark.parametrize("value", ["1e308", "2e9"])
+def test_a_holdoff_beyond_any_record_is_named(tmp_path: Path, value: str) -> None:
+    text = SESSION.read_text(encoding="utf-8").replace("pretrigger_samples = 64",
+                                                       f"pretrigger_samples = 64\nholdoff_s = {value}", 1)
+    path = tmp_path / "s.toml"
+    path.write_text(text.replace('rig = "../rigs/', f'rig = "{REPO}/examples/rigs/'), encoding="utf-8")
+    with pytest.raises(DaqError, match=r"s\.toml: trigger: holdoff_s = .* must be in \[0, 1e9\] s"):
+        load_session(path)
+
+
+# -- names: a bidirectional control shows a name's letters in another order -----------------------------
+@pytest.mark.parametrize("control", sorted(BIDI_CONTROLS))
+def test_a_name_with_a_bidirectional_control_is_refused(tmp_path: Path, control: str) -> None:
+    assert "bidirectional control" in name_fault(f"theta{control}0")
+    path = _run(tmp_path / "r.h5")
+    with h5py.File(path, "r+") as f:
+        f.move("runs/r1", f"runs/{control}r1")
+    with pytest.raises(DaqError, match=f"U\\+{ord(control):04X}"):
+        check_run_file(path, f"{control}r1")
+
+
+@given(st.text(st.characters(exclude_categories=("Cc", "Cs", "Zl", "Zp")), min_size=1, max_size=12))
+@settings(max_examples=80, deadline=None)
+def test_a_name_is_refused_exactly_for_blanks_controls_and_bidi(name: str) -> None:
+    refused = not name.strip() or any(ch in BIDI_CONTROLS for ch in name)
+    assert (name_fault(name) is not None) == refused
