@@ -162,8 +162,9 @@ class RunWriter:
         self.n_channels = len(self.channels)
         self.flush_interval_s = float(flush_interval_s)
         self._file: h5py.File | None = None
-        self._room(0)   # the run's layout is HDF5 metadata too: on a full disk it failed inside HDF5 and
-        # the interpreter crashed at exit (demo --out on a 64 kB file system: exit -11 after its one line)
+        if self.path.parent.is_dir():   # else _open names the missing folder
+            self._room(0)   # the run's layout is HDF5 metadata too: on a full disk it failed inside HDF5
+            # and the interpreter crashed at exit (demo --out on a 64 kB file system: -11 after its line)
         try:  # a Ctrl-C while the file opens or the run is laid out is held, then the file is closed
             with signals_deferred():
                 self._file = self._open()
