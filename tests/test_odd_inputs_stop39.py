@@ -343,3 +343,18 @@ def test_a_title_or_caption_with_a_control_character_is_refused(argv: list[str],
     measured = str(REPO / "examples" / "measured" / "seed003_table3_f1f2.csv")
     one_line(capsys, main([measured if a == "M" else a for a in argv]), argv[-2] if argv[0] == "compare"
              else "--title", "one line of text")
+
+
+# -- a complex shape value with one NaN part is neither a value nor an empty cell ----------------------------
+@pytest.mark.parametrize("cell, refused", [("nan+1j", True), ("1+nanj", True), ("(nan-2j)", True),
+                                           ("", False), ("nan", False), ("0.5-0.1j", False)])
+def test_a_half_nan_shape_value_is_named(tmp_path: Path, cell: str, refused: bool) -> None:
+    from flexmodal.contract.table import ModalTable
+
+    path = tmp_path / "m.csv"
+    path.write_text(f"config,mode,freq_hz,shape.a1\nt0,1,30,{cell}\nt0,2,90,0.5-0.1j\n", encoding="utf-8")
+    if refused:
+        with pytest.raises(ContractError, match=r"m\.csv: row 2: column 'shape\.a1' holds .* one part NaN"):
+            ModalTable.read_csv(path)
+    else:
+        assert ModalTable.read_csv(path).shapes("t0").shape == (1, 2)   # [sensors, modes]
