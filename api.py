@@ -2182,7 +2182,8 @@ def demo(out_dir: PathLike = "flexmodal-demo", *, rig: PathLike | None = None, q
     tables = [name for name in OUTPUTS if not name.endswith(".h5")]   # the run files are replaced whole
     output_dir(out, FixtureError, "demo folder (--out)", files=tables, inputs=[rig])
 
-    return run_demo(out, Writers(write_diagnosis, report), None if rig is None else Path(rig), quiet=quiet)
+    writers = Writers(write_diagnosis, report, format_diagnosis)
+    return run_demo(out, writers, None if rig is None else Path(rig), quiet=quiet)
 
 
 @dataclass(frozen=True)

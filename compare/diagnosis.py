@@ -13,7 +13,9 @@
    them paired with every other single (``_lead_pairs``), and, only when no pair explains the gap,
    each of the ``TRIPLE_PAIRS`` best pairs extended by its ``PARTNERS`` score-test partners
    (``_partners``).  Candidates are
-   cross-validated, best in-sample score first, while they can still win: every fold is refitted to
+   cross-validated, best in-sample score first, while they can still win, and the ``MAX_ALTERNATIVES``
+   best-fitting ones not nested in the lowest held-out one that could still equal it within noise
+   (possible alternatives, ``_cross_validate_promising``): every fold is refitted to
    convergence from starts chosen on its own training data (compare/fit.py), so held-out errors are
    honest.  Score (lower is better):
    ``sqrt(h^2 + scatter^2) * (1 + PENALTY * n_params)``: a complexity penalty, with the scatter as a
@@ -285,7 +287,7 @@ def _equivalent(ctx: _Context, freq_err: np.ndarray, shape_misfit: np.ndarray, s
 def _rescore(ctx: _Context, entry: dict, scatter: float) -> None:
     """(Re)compute ``entry``'s scores from its stored residuals with the current shape noise floor."""
     fit, _ = _equivalent(ctx, entry["_fit_err"], entry["_fit_shape"], scatter)
-    entry["_lower"] = _score(fit, entry["n_params"], scatter)
+    entry.update(_lower=_score(fit, entry["n_params"], scatter), _fit_eq=fit)
     if "_held_err" in entry:
         held, dof = _equivalent(ctx, entry["_held_err"], entry["_held_shape"], scatter)
         entry.update(score=_score(held, entry["n_params"], scatter), _heldout_eq=held, _n_eq=dof)
@@ -404,7 +406,18 @@ def _scoring_scatter(noise, ranked: Sequence[dict]) -> tuple[float, float, float
 
 def _cross_validate_promising(ctx: _Context, entries: Sequence[dict], scatter: float) -> None:
     """Cross-validate, best in-sample score first, every entry that could still beat the best held-out
-    score so far (``_lower`` below it), and at least ``MIN_CROSS_VALIDATED`` in all."""
+    score so far (``_lower`` below it), and at least ``MIN_CROSS_VALIDATED`` in all; then the
+    ``MAX_ALTERNATIVES`` entries with the lowest in-sample error (frequency-equivalent, ``_fit_eq``, a
+    lower bound of the held-out one) within the noise margin (``_noise``) of the lowest held-out
+    error, among those not nested in the candidate that has it (``_nested``).
+
+    Those could be alternatives equal within noise (``_verdict``), but the score's complexity penalty
+    can keep them from being cross-validated: blind draw 947 #7, a base joint mass with a sensor mass
+    (3 parameters), held out as well as a link-1 mass with the sensor mass (2 parameters, 0.440 %
+    against 0.446 % frequency-equivalent, noise margin 0.16 %), was never cross-validated and the
+    verdict was not flagged (947 #19, 948 #24, 950 #7 and #19 likewise: each hidden pair is now an
+    alternative).  Candidates nested in that one are judged by the nested margin (one component more
+    or less) and left to the score."""
     for e in entries:
         _rescore(ctx, e, scatter)            # the shape noise floor may have dropped since
     done = [e for e in entries if "score" in e]
@@ -413,6 +426,15 @@ def _cross_validate_promising(ctx: _Context, entries: Sequence[dict], scatter: f
             break
         _cross_validate(ctx, e, scatter)
         done.append(e)
+    if not done:
+        return
+    lead = min(done, key=lambda d: d["_heldout_eq"])
+    near = sorted((e for e in entries if not _nested(lead, e)
+                   and e["_fit_eq"] - lead["_heldout_eq"] <= _noise(lead, scatter, ctx.pose_share)),
+                  key=lambda e: e["_fit_eq"])[:MAX_ALTERNATIVES]
+    for e in near:
+        if "score" not in e:
+            _cross_validate(ctx, e, scatter)
 
 
 def _combo_starts(cand: Candidate, parts: Sequence[tuple[Candidate, np.ndarray]]) -> np.ndarray:

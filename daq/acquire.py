@@ -186,15 +186,19 @@ class Display:
             self.close()
 
     def _update(self, n_samples: int, rate_hz: float, dropped: int, events: Counter, lost) -> None:
+        from rich.console import Group
         from rich.table import Table
+        from rich.text import Text
 
         self._last = time.monotonic()
         elapsed = time.monotonic() - self.t0
-        table = Table(title=f"acquiring  {elapsed:6.1f} s   {n_samples} samples   "
-                            f"{n_samples / max(elapsed, 1e-9):,.0f} S/s (nominal {rate_hz:g})   "
-                            f"drops {dropped}   corrupt {events['corrupt']}   gaps {events['gap']}   "
-                            f"reconnects {events['reconnect']}   triggers {events['trigger']}",
-                      caption="\n".join(
+        # two lines of their own above the table, each under 80 columns: as the table's title they were
+        # wrapped to its width and centred (three ragged lines on any terminal, and in a log)
+        status = [Text(f"acquiring  {elapsed:6.1f} s   {n_samples} samples   "
+                       f"{n_samples / max(elapsed, 1e-9):,.0f} S/s (nominal {rate_hz:g})"),
+                  Text(f"  drops {dropped}   corrupt {events['corrupt']}   gaps {events['gap']}   "
+                       f"reconnects {events['reconnect']}   triggers {events['trigger']}")]
+        table = Table(caption="\n".join(
                           ([f"OVERRUN: the file lags real time by {self.behind_s:.1f} s"] if self.behind_s
                            else []) + [f"DEVICE LOST: {d}" for d in lost]) or None,
                       caption_style="bold red")
@@ -204,13 +208,8 @@ class Display:
             style = "bold red" if self.overloads[i] else None
             table.add_row(name, self.units[i], f"{self.level[i]:.4g}", f"{self.peak[i]:.4g}",
                           str(self.overloads[i]), style=style)
-        if self.monitor is None:
-            self.live.update(table, refresh=True)
-            return
-        from rich.console import Group
-        from rich.text import Text
-
-        self.live.update(Group(table, *self._impact_lines(Text)), refresh=True)
+        more = [] if self.monitor is None else self._impact_lines(Text)
+        self.live.update(Group(*status, table, *more), refresh=True)
 
     def _impact_lines(self, text) -> list:
         """The last hits with their verdicts, then |H1| (dB) and coherence at the chosen response."""

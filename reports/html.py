@@ -155,8 +155,9 @@ def _run_rows(runs: Sequence[RunSummary]) -> tuple[list[dict], list[dict], list[
         key = tuple(run.channels)
         if key not in sets:
             sets[key] = {"runs": [], "peaks": [], "channels": [
-                {"name": c.name, "kind": c.kind, "unit": c.unit,
-                 "sensitivity": _sensitivity_text(c.sensitivity, c.sensitivity_unit, c.unit),
+                {"name": c.name, "kind": c.kind, "unit": plots.unit_text(c.unit),
+                 "sensitivity": _sensitivity_text(c.sensitivity, plots.unit_text(c.sensitivity_unit),
+                                                  plots.unit_text(c.unit)),
                  "location": c.location, "direction": c.direction} for c in run.channels]}
             channel_sets.append(sets[key])
         sets[key]["runs"].append(label)

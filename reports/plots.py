@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import io
 import math
+import re
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
@@ -55,6 +56,18 @@ def frf_unit(quantity: str) -> str:
     return FRF_UNITS.get(quantity, "FRF unit")
 
 
+def unit_text(unit: str) -> str:
+    """A unit as a reader expects it, its powers as superscripts: the ``m/s^2`` a run's channels store
+    is ``m/s²`` in the report's tables as on its axes.
+
+    Examples
+    --------
+    >>> unit_text("m/s^2"), unit_text("(m/s**2)^2/Hz"), unit_text("s^-1"), unit_text("µε")
+    ('m/s²', '(m/s²)²/Hz', 's⁻¹', 'µε')
+    """
+    return re.sub(r"(?:\^|\*\*)(-?\d+)", lambda m: m.group(1).translate(_SUPERSCRIPT), unit)
+
+
 def ratio_unit(out_units: Sequence[str], in_unit: str) -> str:
     """Unit of a response per input from the channels' units: ``("g", "g"), "N"`` -> ``g/N``,
     ``("m/s²",), "N"`` -> ``(m/s²)/N``; ``mixed/N`` when the outputs' units differ.
@@ -66,7 +79,7 @@ def ratio_unit(out_units: Sequence[str], in_unit: str) -> str:
     >>> ratio_unit(["g"], "lbf")
     'g/lbf'
     """
-    units = {u.replace("^2", "²").replace("**2", "²") for u in out_units} or {"-"}
+    units = {unit_text(u) for u in out_units} or {"-"}
     out = units.pop() if len(units) == 1 else "mixed"
     return f"({out})/{in_unit}" if "/" in out else f"{out}/{in_unit}"
 

@@ -55,3 +55,18 @@ def test_every_command_has_a_help_line_and_a_description() -> None:
         if path != ("sim",):  # a group: its own help line only
             description = _description(path)
             assert description and "  " not in description and "\n" not in description, path
+
+
+def test_sim_serve_says_on_stderr_what_it_streams_and_how_to_stop_it(capsys) -> None:
+    """A user's ``sim serve`` printed its endpoint and nothing else: stdout still holds the endpoint
+    alone (sessions and scripts read it), stderr one line naming it, the test streamed and how it ends
+    (``--quiet`` and a session's own simulator, ``--exit-with-parent``, say nothing there)."""
+    from flexmodal.app import main
+
+    assert main(["sim", "serve", "--protocol", "modbus", "--duration", "0.2", "--pose", "theta_deg=60"]) == 0
+    out, err = capsys.readouterr()
+    endpoint = out.strip()
+    assert re.fullmatch(r"127\.0\.0\.1:\d+", endpoint), out
+    assert err == (f"sim serve: {endpoint}: a Modbus TCP server streaming the demo arm's impact test at 2048 "
+                   "Hz (theta_deg=60); record it with a session whose device names this endpoint "
+                   "(docs/acquisition.md); it stops after 0.2 s\n")

@@ -148,3 +148,27 @@ def test_the_live_spectrum_fits_an_80_column_console():
         h1, coh = (str(t) for t in d._impact_lines(Text)[-2:])
         assert h1.startswith("  |H1| a1  ") and len(h1) <= cols, (cols, h1)
         assert len(h1.split("  ")[2]) == spark and h1.index("0-") == coh.index("0..1")   # aligned
+
+
+def test_the_live_status_is_two_lines_of_its_own_in_80_columns():
+    # as the table's title the status (about 130 characters) was wrapped to the table's width and
+    # centred: three ragged lines on every terminal and in a log
+    from collections import Counter
+    from io import StringIO
+
+    from rich.console import Console
+    from rich.live import Live
+
+    from flexmodal.daq.acquire import Display
+
+    out = StringIO()
+    d = Display(("F", "a1"), ("N", "m/s^2"), quiet=True)
+    d.live = Live(console=Console(file=out, width=80), auto_refresh=False)
+    d.live.start()
+    d.update(123456, 2048.0, 0, Counter(trigger=3, gap=1), force=True)
+    d.close()
+    lines = out.getvalue().splitlines()
+    status = r"acquiring +[\d.]+ s   123456 samples   [\d,]+ S/s \(nominal 2048\)"
+    assert re.fullmatch(status, lines[0]), lines
+    assert lines[1] == "  drops 0   corrupt 0   gaps 1   reconnects 0   triggers 3", lines
+    assert lines[2].startswith("┏") and all(len(line) <= 80 for line in lines), lines

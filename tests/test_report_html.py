@@ -166,6 +166,10 @@ def test_report_tables_carry_units_and_numbers(report, inputs):
         force = [float(abs(f[f"runs/{r}/samples"][:, 0]).max()) for r in RUN_IDS]
     assert f"largest peak |x| of the {len(RUN_IDS)} runs [unit]" in html
     assert '<td>F</td>' in html and f'<td class="num">{max(force):.4g} N</td>' in html
+    # units as on the figures' axes (m/s²), not as the run file stores them (m/s^2): the channel table
+    # showed m/s^2 beside figures labelled m/s²
+    shown = re.sub(r"<script.*?</script>|<[^>]+>", " ", html, flags=re.S)
+    assert "<td>m/s²</td>" in html and not re.search(r"(\^|\*\*)-?\d", shown)
 
 
 def test_data_quality_counts_the_impact_hits_the_frf_processing_kept(report, inputs):
