@@ -353,6 +353,9 @@ def poses_from_csv(path: str | Path) -> dict[str, dict[str, float]]:
             if pd.isna(value) or not np.isfinite(value):
                 what = "is not a number" if pd.isna(value) else "is not finite"
                 raise ContractError(f"{p}: config {row['config']!r}: {c} {what} ({row[c]!r})")
+            if abs(value) > MAX_POSE:   # as in a modal table: it was named in the predictions, not here
+                raise ContractError(f"{p}: config {row['config']!r}: {c} = {value:g} is above "
+                                    f"{MAX_POSE:g} in magnitude")
             pose[c[len(POSE_PREFIX):]] = float(value)
         out[str(row["config"])] = pose
     if MAP_COLUMN not in df.columns:
