@@ -20,7 +20,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from conftest import REPO
+from conftest import REPO, one_line
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -318,3 +318,28 @@ def test_a_name_with_a_bidirectional_control_is_refused(tmp_path: Path, control:
 def test_a_name_is_refused_exactly_for_blanks_controls_and_bidi(name: str) -> None:
     refused = not name.strip() or any(ch in BIDI_CONTROLS for ch in name)
     assert (name_fault(name) is not None) == refused
+
+
+# -- report --pdf: the PDF beside the report never replaces a file of the user's ---------------------------
+def test_report_pdf_leaves_a_users_file_at_its_place(tmp_path: Path) -> None:
+    import flexmodal.api as fm
+    from flexmodal.reports.errors import ReportError
+
+    mine = tmp_path / "r.pdf"
+    mine.write_text("my notes, not a PDF", encoding="utf-8")
+    with pytest.raises(ReportError, match=r"r\.pdf: exists and is not a PDF file flexmodal wrote"):
+        fm.report(tmp_path / "r.html", measured=REPO / "examples" / "measured" / "seed003_table3_f1f2.csv",
+                  pdf=True)
+    assert mine.read_text(encoding="utf-8") == "my notes, not a PDF" and not (tmp_path / "r.html").exists()
+
+
+# -- free text printed in a title or a caption is one line ------------------------------------------------
+@pytest.mark.parametrize("argv", [["compare", "M", "M", "--caption", "a\nb"],
+                                  ["compare", "M", "M", "--caption", "x\x1b[2Jy"],
+                                  ["report", "--measured", "M", "--title", "a\u202eb", "--out", "r.html"]])
+def test_a_title_or_caption_with_a_control_character_is_refused(argv: list[str], capsys) -> None:
+    from flexmodal.app import main
+
+    measured = str(REPO / "examples" / "measured" / "seed003_table3_f1f2.csv")
+    one_line(capsys, main([measured if a == "M" else a for a in argv]), argv[-2] if argv[0] == "compare"
+             else "--title", "one line of text")
