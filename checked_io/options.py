@@ -5,7 +5,8 @@
 prints as one line naming the option and the value (exit 2).  A subnormal number (``5e-324``: nonzero
 but below the smallest normal double, 2.2e-308) is refused too: no quantity of flexmodal is that small,
 and it turns into 0 or infinity at the first product or quotient (a bin count, a chi-square).  ``-0``
-is 0.  Imports only the standard library, so registering the commands stays cheap.
+is 0.  Imports only the standard library (and checked_io.text, which does too), so registering the
+commands stays cheap.
 """
 
 from __future__ import annotations
@@ -15,6 +16,8 @@ import math
 import numbers
 import sys
 from collections.abc import Callable
+
+from flexmodal.checked_io.text import name_fault
 
 
 def _bounds_text(lo: float | None, hi: float | None, lo_open: bool, hi_open: bool) -> str:
@@ -112,6 +115,27 @@ def nonempty(text: str) -> str:
     if not text.strip():
         raise argparse.ArgumentTypeError(f"expected a non-empty value, got {text!r} (leave the option out "
                                          "for its default)")
+    return text
+
+
+def text_line(text: str) -> str:
+    """A free-text option printed inside a title, a caption or a table (``--title``, ``--caption``): a
+    visible character and no control character, line break or bidirectional control
+    (:func:`flexmodal.checked_io.text.name_fault`): a newline in ``--caption`` split the Markdown
+    table's caption line, an escape sequence in it reached the terminal, both with exit 0.
+
+    Examples
+    --------
+    >>> text_line("Seed 003: f1 and f2")
+    'Seed 003: f1 and f2'
+    >>> text_line("a\\nb")
+    Traceback (most recent call last):
+    ...
+    argparse.ArgumentTypeError: expected one line of text, got 'a\\nb': it holds the control character '\\n'
+    """
+    fault = name_fault(text)
+    if fault:
+        raise argparse.ArgumentTypeError(f"expected one line of text, got {text!r}: it {fault}")
     return text
 
 

@@ -172,11 +172,18 @@ def nfc(text: str) -> str:
     return text if text.isascii() else unicodedata.normalize("NFC", text)
 
 
+#: Unicode's bidirectional controls (embeddings, overrides, isolates, marks): invisible, and they show
+#: a name's characters in another order ('\u202etheta0' shows as '0ateht'), so two names that read
+#: alike are different and a table or terminal line shows what is not there
+BIDI_CONTROLS = frozenset("\u061c\u200e\u200f\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069")
+
+
 def name_fault(name: str) -> str | None:
     """Why ``name`` cannot name a thing a user picks by name (a channel, run, configuration, sensor,
     link, pose variable), or None when it can: it must hold a visible character, and no control
     character or line break (a tab, newline or NUL would split the one-line messages, tables and
-    CSV rows it is printed in, and ``'   '`` looks like no name at all).
+    CSV rows it is printed in, and ``'   '`` looks like no name at all), and no bidirectional control
+    (:data:`BIDI_CONTROLS`).
 
     Examples
     --------
@@ -190,6 +197,8 @@ def name_fault(name: str) -> str | None:
     for ch in name:
         if unicodedata.category(ch) in ("Cc", "Zl", "Zp"):
             return f"holds the control character {ch!r}"
+        if ch in BIDI_CONTROLS:
+            return f"holds the bidirectional control U+{ord(ch):04X}, which reorders how the text is shown"
     return None
 
 

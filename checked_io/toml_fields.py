@@ -25,7 +25,7 @@ from flexmodal.checked_io.text import ErrorType, name_fault
 class Wording:
     """How a package words a bad field; each template is formatted with ``key`` (the field's name),
     ``field`` (its dotted path in the document), ``value`` (its repr), ``kind`` (the expected type,
-    named by ``kinds`` or by the type's ``__name__``), ``options`` (the allowed strings) and ``why``
+    in words with its article, :data:`KINDS`), ``options`` (the allowed strings) and ``why``
     (the rule it breaks, e.g. ``must be > 0``)."""
 
     missing: str
@@ -38,17 +38,20 @@ class Wording:
     kinds: Mapping[type, str] = field(default_factory=dict)
 
 
+#: the expected type of a value in words, with its article ("is not a whole number", never "a int")
+KINDS = {float: "a number", int: "a whole number", str: "a string", bool: "true or false", list: "a list",
+         dict: "a table"}
 KEY_EQUALS = Wording(
-    missing="missing field {field!r}", wrong_type="{field} = {value} is not a {kind}",
+    missing="missing field {field!r}", wrong_type="{field} = {value} is not {kind}",
     not_finite="{field} = {value} is not a finite number", broken_rule="{field} = {value} {why}",
     not_in_set="{field} = {value} is not one of {options}", unknown="unknown field {field!r}",
-    not_table="expected a table")
+    not_table="expected a table", kinds=KINDS)
 DOTTED_PATH = Wording(
     missing="{field}: missing required field", wrong_type="{field}: must be {kind} (got {value})",
     not_finite="{field}: {why} (got {value})", broken_rule="{field}: {why} (got {value})",
     not_in_set="{field}: unknown value {value} (expected one of {options})", unknown="{field}: unknown field",
     not_table="{field}: must be a table (got {value})",
-    kinds={float: "a number", int: "a whole number", str: "a string", list: "a list", dict: "a table"})
+    kinds=KINDS)
 
 
 def _number_text(x: float) -> str:
@@ -120,7 +123,7 @@ class Fields:
         kinds = kind if isinstance(kind, tuple) else (kind,)
         numeric = bool({int, float} & set(kinds)) and bool not in kinds
         if not isinstance(value, kinds) or (isinstance(value, bool) and numeric):
-            name = "/".join(self.wording.kinds.get(k, k.__name__) for k in kinds)
+            name = " or ".join(self.wording.kinds.get(k, f"of type {k.__name__}") for k in kinds)
             raise self._bad("wrong_type", key, raw, kind=name)
         if isinstance(value, float) and not math.isfinite(value):
             raise self._bad("not_finite", key, raw, why=why)

@@ -4,7 +4,8 @@ A UFF file is a sequence of datasets, each opened and closed by a line ``    -1`
 line after the opening one naming the dataset type (e.g. ``    58`` or ``    58b``).  pyuff pairs the
 delimiters it finds and skips what it cannot pair or parse: a file cut short loses its last dataset,
 a dataset whose number line is damaged is dropped, text between datasets is ignored, all silently.
-:func:`check_blocks` finds the delimiters as pyuff does and names the file and line of each of these.
+:func:`check_blocks` finds the delimiters as pyuff does and names the file and line of each of these,
+and of a dataset 58 whose node, direction or load case field pyuff would read as 0.
 """
 
 from __future__ import annotations
@@ -15,6 +16,36 @@ from flexmodal.checked_io.text import ErrorType
 
 BOM = b"\xef\xbb\xbf"   # a UTF-8 byte-order mark some editors put first (pyuff reads past it)
 DELIMITER = b"    -1"   # the line that opens and closes every dataset (columns 1-6)
+
+
+#: the whole-number fields of a dataset 58's record 6 (its 8th line: function and DOF identification,
+#: format 2(I5,I10),2(1X,10A1,I10,I4)) as (first column, end column, name); pyuff reads a field it cannot
+#: parse there as 0, so 'abcd' in the response node became node 0, silently
+DOF_FIELDS = ((0, 5, "function type"), (5, 15, "function id"), (15, 20, "version number"),
+              (20, 30, "load case"), (41, 51, "response node"), (51, 55, "response direction"),
+              (66, 76, "reference node"), (76, 80, "reference direction"))
+DOF_LINE = 7   # record 6 is the 8th line of a dataset 58, after the delimiter, its number and 5 id lines
+
+
+def _whole_number(text: bytes) -> bool:
+    try:
+        int(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _check_dof_line(path: str | Path, head: list[bytes], line: int, error: ErrorType) -> None:
+    """``error`` naming the line and field of a dataset 58 whose record 6 holds text that is not a whole
+    number in a field of :data:`DOF_FIELDS` (a blank field is left to pyuff and the record checks)."""
+    if len(head) <= DOF_LINE:
+        return   # a header cut short: pyuff refuses it, and the caller names the dataset
+    text = head[DOF_LINE]
+    for first, end, name in DOF_FIELDS:
+        cell = text[first:end].strip()
+        if cell and not _whole_number(cell):
+            raise error(f"{path}: line {line + DOF_LINE}: the {name} of this dataset 58 (columns {first + 1}-"
+                        f"{end}) is {cell.decode('latin-1')!r}, not a whole number")
 
 
 def _delimiters(data: bytes) -> list[int]:
@@ -33,7 +64,8 @@ def check_blocks(path: str | Path, data: bytes, error: ErrorType) -> list[int]:
     """The dataset numbers of a UFF file's datasets, in order, after checking that its text is whole
     datasets: every dataset opened by a ``-1`` delimiter line is closed by one (a file cut short
     loses its last dataset silently in pyuff), the line after the opening delimiter is a dataset
-    number (else pyuff skips the dataset), and nothing but blank lines lies between datasets.
+    number (else pyuff skips the dataset), nothing but blank lines lies between datasets, and the
+    identification fields of a dataset 58 that pyuff would read as 0 hold whole numbers (:data:`DOF_FIELDS`).
     ``error`` (the caller's error type) names the file and line.
 
     Examples
@@ -63,13 +95,15 @@ def check_blocks(path: str | Path, data: bytes, error: ErrorType) -> list[int]:
     numbers, previous_end = [], 0
     for start, stop in zip(tags[::2], tags[1::2], strict=True):   # a loop over datasets
         outside(previous_end, start)
-        head = data[start:min(stop, start + 200)].splitlines()   # bytes: LF, CR or CR LF only
+        head = data[start:min(stop, start + 1200)].splitlines()   # bytes: LF, CR or CR LF only
         number = head[1][:6].lstrip(b" ") if len(head) > 1 else b""
         if not number.isdigit():
             shown = number.decode("latin-1")
             raise error(f"{path}: line {line(start) + 1}: {shown!r} is not a dataset number (the line after "
                         "an opening -1 delimiter names the dataset type, e.g. 58)")
         numbers.append(int(number))
+        if numbers[-1] == 58:
+            _check_dof_line(path, head, line(start), error)
         nl = data.find(b"\n", stop)
         previous_end = len(data) if nl < 0 else nl + 1
     outside(previous_end, len(data))

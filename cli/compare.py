@@ -24,7 +24,8 @@ def register(sub: Subcommands) -> None:
                         "sources: a row per source, a column per mode (seed 000 Table 2); default modes")
     p.add_argument("--min-mac", type=opt.fraction, default=0.5, metavar="MAC",
                    help="reject MAC pairs below this value, 0..1 (default 0.5)")
-    p.add_argument("--caption", default="Measured and predicted natural frequencies", metavar="TEXT",
+    p.add_argument("--caption", type=opt.text_line, default="Measured and predicted natural frequencies",
+                   metavar="TEXT",
                    help="table caption (tex and html; default '%(default)s')")
     p.add_argument("--out", metavar="FILE",
                    help="write the table to FILE (prints the path) instead of stdout ('-': stdout)")

@@ -27,7 +27,7 @@ def register(sub: Subcommands) -> None:
     p.add_argument("--shapes-at", metavar="CONFIG", action="append", default=None,
                    help="a measured configuration whose mode shapes to draw on the rig (repeatable; "
                         "default: the first and the last)")
-    p.add_argument("--title", default="flexmodal validation report", metavar="TEXT",
+    p.add_argument("--title", type=opt.text_line, default="flexmodal validation report", metavar="TEXT",
                    help="report title (default '%(default)s')")
     p.add_argument("--fmin", metavar="HZ", type=opt.positive_hz,
                    help="runs with FRFs: identify above this frequency (as identify --fmin)")

@@ -175,6 +175,12 @@ class ModalTable:
             if np.isinf(values).any():
                 row = int(np.flatnonzero(np.isinf(values))[0])
                 raise ContractError(f"{source}: row {row + 2}: column {col!r} holds an infinite value")
+            written = df[col].map(lambda v: isinstance(v, str)).to_numpy(bool)   # an empty cell is NaN
+            half = written & (np.isnan(values.real) != np.isnan(values.imag))   # 'nan+1j': neither
+            if half.any():
+                row = int(np.flatnonzero(half)[0])
+                raise ContractError(f"{source}: row {row + 2}: column {col!r} holds {df[col].iloc[row]!r}, a "
+                                    "complex number with one part NaN (leave the cell empty for no value)")
             if (np.abs(values) > MAX_MAGNITUDE).any():
                 row = int(np.flatnonzero(np.abs(values) > MAX_MAGNITUDE)[0])
                 shown = values[row].real if values[row].imag == 0 else values[row]
@@ -353,6 +359,9 @@ def poses_from_csv(path: str | Path) -> dict[str, dict[str, float]]:
             if pd.isna(value) or not np.isfinite(value):
                 what = "is not a number" if pd.isna(value) else "is not finite"
                 raise ContractError(f"{p}: config {row['config']!r}: {c} {what} ({row[c]!r})")
+            if abs(value) > MAX_POSE:   # as in a modal table: it was named in the predictions, not here
+                raise ContractError(f"{p}: config {row['config']!r}: {c} = {value:g} is above "
+                                    f"{MAX_POSE:g} in magnitude")
             pose[c[len(POSE_PREFIX):]] = float(value)
         out[str(row["config"])] = pose
     if MAP_COLUMN not in df.columns:

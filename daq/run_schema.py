@@ -51,6 +51,51 @@ EVENT_DETAIL_BYTES = 200
 MAX_SAMPLE_RATE_HZ = 1e9  # 1 GHz; a finite rate far above it (1e300) overflows the spectra's arithmetic
 
 
+#: a transducer sensitivity (in its sensitivity_unit: mV/g, pC/N, V/µε, counts/rev) lies in this range:
+#: 0, a negative or an infinite one is a typing mistake, not a calibration
+MIN_SENSITIVITY, MAX_SENSITIVITY = 1e-12, 1e12
+
+
+def sensitivity_fault(value: float) -> str:
+    """Why ``value`` cannot be a transducer sensitivity, or "" when it can: a finite number from
+    :data:`MIN_SENSITIVITY` to :data:`MAX_SENSITIVITY` (the sign of a sensor's axis is its
+    ``direction``; a negative sensitivity turned every FRF of the channel by 180 degrees).
+
+    Examples
+    --------
+    >>> sensitivity_fault(100.0), sensitivity_fault(4096)
+    ('', '')
+    >>> sensitivity_fault(-50.0)
+    'sensitivity = -50 is not in [1e-12, 1e+12] (a calibration value > 0)'
+    """
+    try:
+        number = float(value) if not isinstance(value, bool | np.bool_ | str | bytes) else None
+    except (TypeError, ValueError):
+        number = None
+    if number is not None and MIN_SENSITIVITY <= number <= MAX_SENSITIVITY:
+        return ""
+    shown = repr(value) if number is None else f"{number:g}"
+    return (f"sensitivity = {shown} is not in [{MIN_SENSITIVITY:g}, {MAX_SENSITIVITY:g}] (a calibration "
+            "value > 0)")
+
+
+def numeric_dtype(dtype: np.dtype, kinds: str = "fiu") -> bool:
+    """Whether values of ``dtype`` are plain numbers of the numpy ``kinds``: an HDF5 enum (labelled
+    states) reads back as integers but is refused, as are bools, strings, compounds and arrays.
+
+    Examples
+    --------
+    >>> numeric_dtype(np.dtype("f4")), numeric_dtype(h5py.enum_dtype({"a": 0}, basetype="i1"))
+    (True, False)
+    """
+    return dtype.kind in kinds and dtype.shape == () and h5py.check_enum_dtype(dtype) is None
+
+
+def dtype_words(dtype: np.dtype) -> str:
+    """``dtype`` as an error line names it: numpy's name, or 'HDF5 enum of int8' for an enum."""
+    return f"HDF5 enum of {dtype}" if h5py.check_enum_dtype(dtype) is not None else str(dtype)
+
+
 def utf8(n_bytes: int) -> np.dtype:
     """A fixed-width UTF-8 string type of ``n_bytes`` (at least 1) for HDF5 compound tables."""
     return h5py.string_dtype("utf-8", max(int(n_bytes), 1))
@@ -84,16 +129,74 @@ def sample_rate_ok(rate_hz: float) -> bool:
     return math.isfinite(rate_hz) and sys.float_info.min <= rate_hz <= MAX_SAMPLE_RATE_HZ
 
 
+NUMBER_CLASSES = (h5py.h5t.INTEGER, h5py.h5t.FLOAT)   # HDF5 classes of a number (not ENUM: bools, labels)
+
+
+def attribute_number(attrs: h5py.AttributeManager, key: str) -> int | float | None:
+    """The value of the existing attribute ``key`` when HDF5 stores it as one number, as a Python int
+    or float; None when it is stored as anything else.  The HDF5 type is judged, not the value h5py
+    returns: an enum (h5py's bool is one, as are labelled states) reads back as a plain integer
+    and was taken for a number, e.g. a sample rate of 1 Hz.  Refused too: text, compounds,
+    references, arrays (even of one value) and empty attributes.
+
+    Parameters
+    ----------
+    attrs : h5py.AttributeManager
+        The attributes of a group or dataset.
+    key : str
+        The name of an attribute of ``attrs``.
+
+    Returns
+    -------
+    int or float or None
+        The number (an int for an HDF5 integer, a float for an HDF5 float), or None.
+
+    Examples
+    --------
+    >>> import h5py, numpy as np
+    >>> f = h5py.File("mem.h5", "w", driver="core", backing_store=False)
+    >>> f.attrs["rate"], f.attrs["n"], f.attrs["on"], f.attrs["two"] = 2048.0, 3, True, [1.0, 2.0]
+    >>> f.attrs.create("state", 1, dtype=h5py.enum_dtype({"off": 0, "on": 1}, basetype="i1"))
+    >>> [attribute_number(f.attrs, k) for k in ("rate", "n", "on", "two", "state")]
+    [2048.0, 3, None, None, None]
+    >>> f.close()
+    """
+    aid = attrs.get_id(key)
+    if aid.shape != () or aid.get_type().get_class() not in NUMBER_CLASSES:
+        return None
+    value = attrs[key]
+    return int(value) if isinstance(value, np.integer) else float(value)
+
+
+_CLASS_WORDS = {h5py.h5t.TIME: "time", h5py.h5t.STRING: "string", h5py.h5t.BITFIELD: "bitfield",
+                h5py.h5t.OPAQUE: "opaque value", h5py.h5t.COMPOUND: "compound",
+                h5py.h5t.REFERENCE: "reference", h5py.h5t.ENUM: "enum (h5py's bool is one)",
+                h5py.h5t.VLEN: "variable-length sequence", h5py.h5t.ARRAY: "array type"}
+
+
+def stored_as(attrs: h5py.AttributeManager, key: str) -> str:
+    """How the existing attribute ``key`` is stored, in words for an error line, when it is not one
+    number (:func:`attribute_number`), e.g. ``" (stored as an HDF5 enum (h5py's bool is one))"``;
+    "" when it is one number."""
+    aid = attrs.get_id(key)
+    if aid.shape is None:
+        return " (stored as an empty HDF5 attribute)"
+    if aid.shape != ():
+        return f" (stored as an array of shape {aid.shape})"
+    words = _CLASS_WORDS.get(aid.get_type().get_class())
+    return f" (stored as an HDF5 {words})" if words else ""
+
+
 def _check_attrs(g: h5py.Group, where: str) -> None:
     a = g.attrs
     for key in ("sample_rate_hz", "start_time", "excitation", "pose"):
         if key not in a:
             raise DaqError(f"{where}: missing attribute {key!r}")
-    rate = a["sample_rate_hz"]
-    if np.ndim(rate) != 0 or not isinstance(rate, (int, float, np.integer, np.floating)) \
-            or isinstance(rate, bool | np.bool_) or not sample_rate_ok(float(rate)):
-        raise DaqError(f"{where}: attribute sample_rate_hz = {rate!r} is not a sample rate > 0 Hz and "
-                       f"<= {MAX_SAMPLE_RATE_HZ:g} Hz")
+    rate = attribute_number(a, "sample_rate_hz")
+    if rate is None or not sample_rate_ok(float(rate)):
+        shown = _short(a["sample_rate_hz"] if rate is None else rate)
+        raise DaqError(f"{where}: attribute sample_rate_hz = {shown!r}{stored_as(a, 'sample_rate_hz')} "
+                       f"is not a sample rate > 0 Hz and <= {MAX_SAMPLE_RATE_HZ:g} Hz")
     start = _text(a["start_time"])
     try:
         datetime.fromisoformat(start or "")
@@ -241,9 +344,9 @@ def _table(g: h5py.Group, name: str, where: str) -> h5py.Dataset:
             raise DaqError(f"{where}: {name!r} table has no field {field!r}")
         kind = d.dtype[field].kind
         want = NUMERIC_FIELDS.get(field)
-        ok = kind in ("iu" if want == "i" else "fiu") if want else kind in "SOU"
+        ok = numeric_dtype(d.dtype[field], "iu" if want == "i" else "fiu") if want else kind in "SOU"
         if not ok:
-            raise DaqError(f"{where}: {name!r} field {field!r} has type {d.dtype[field]} "
+            raise DaqError(f"{where}: {name!r} field {field!r} has type {dtype_words(d.dtype[field])} "
                            f"(expected {'a number' if want else 'text'})")
     return d
 
@@ -259,8 +362,9 @@ def check_run_group(g: h5py.Group, where: str) -> None:
     s = member(g, "samples", where)
     if not isinstance(s, h5py.Dataset):
         raise DaqError(f"{where}: has no 'samples' dataset")
-    if s.ndim != 2 or s.dtype.kind not in "fiu":
-        raise DaqError(f"{where}: 'samples' must be a 2-D numeric dataset (shape {s.shape}, type {s.dtype})")
+    if s.ndim != 2 or not numeric_dtype(s.dtype):
+        raise DaqError(f"{where}: 'samples' must be a 2-D numeric dataset (shape {s.shape}, type "
+                       f"{dtype_words(s.dtype)})")
     if s.shape[1] != channels.shape[0] or s.shape[1] == 0:
         raise DaqError(f"{where}: 'samples' has {s.shape[1]} columns but {channels.shape[0]} channels")
     for d in (channels, events, s):
@@ -268,6 +372,25 @@ def check_run_group(g: h5py.Group, where: str) -> None:
     for table in (channels, events):
         _check_texts(table, where)
     _check_names(channels, where)
+    _check_event_places(events, s.shape[0], where)
+
+
+def _check_event_places(events: h5py.Dataset, n_samples: int, where: str) -> None:
+    """Every event has sample_index >= 0 and count >= 0, and a trigger lies within the record
+    (sample_index < n_samples): a trigger 10^6 samples past the end was cut into hit records of
+    -995698 samples.  Other events may point past the stored rows (a run stopped by a full disk
+    records where it stopped, after rows that never reached the disk): they describe, and the run
+    stays readable."""
+    table = events[()]
+    index, count = table["sample_index"], table["count"]
+    trigger = np.array([_text(k) == "trigger" for k in table["kind"]], bool)   # a loop over events
+    outside = (index < 0) | (trigger & (index >= n_samples))
+    bad = np.flatnonzero(outside | (count < 0))
+    if bad.size:
+        row = int(bad[0])
+        what = (f"sample_index = {index[row]} is outside the record (0 to {n_samples - 1})" if outside[row]
+                else f"count = {count[row]} is negative")
+        raise DaqError(f"{where}: 'events' row {row} ({_text(table['kind'][row])}): {what}")
 
 
 def _check_texts(table: h5py.Dataset, where: str) -> None:

@@ -21,12 +21,19 @@ from pathlib import Path
 from typing import Any
 
 from flexmodal.checked_io.text import read_toml, regular_file
-from flexmodal.checked_io.toml_fields import Fields
+from flexmodal.checked_io.toml_fields import Fields, range_rule
 from flexmodal.daq.devices import SIMULATOR_PORT, Device
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.faults import Faults
 from flexmodal.daq.protocols import PROTOCOLS, registered_protocols
-from flexmodal.daq.run_schema import CHANNEL_KINDS, EXCITATIONS, check_run_id, kind_unit_fault
+from flexmodal.daq.run_schema import (
+    CHANNEL_KINDS,
+    EXCITATIONS,
+    MAX_SENSITIVITY,
+    MIN_SENSITIVITY,
+    check_run_id,
+    kind_unit_fault,
+)
 from flexmodal.daq.store import Channel
 
 # Whole-number fields whose range every protocol shares (a TCP port given as a number, the Modbus unit id).
@@ -235,13 +242,15 @@ def _channel(doc: dict, where: str, devices: dict[str, Device]) -> ChannelMap:
     unit = t.get("unit", str)
     if kind_unit_fault(kind, unit):
         raise DaqError(f"{where}: {kind_unit_fault(kind, unit)}")
-    sensitivity = t.get("sensitivity", float, 1.0, check=bool, why="must be finite and non-zero")
+    sensitivity = t.number("sensitivity", 1.0, lo=MIN_SENSITIVITY, hi=MAX_SENSITIVITY,
+                           why=f"{range_rule(MIN_SENSITIVITY, MAX_SENSITIVITY)} (a calibration value > 0; "
+                               "the sign of an axis is its direction)")
     sens_unit = t.get("sensitivity_unit", str, "")
     if "counts_per_rev" in t.doc:  # an encoder's resolution: counts -> angle in `unit` (deg or rad)
         if kind != "encoder" or "sensitivity" in t.doc or unit not in ("deg", "rad"):
             raise DaqError(f"{where}: counts_per_rev is for kind = \"encoder\" with unit deg or rad and no "
                            "sensitivity")
-        sensitivity = t.number("counts_per_rev", lo=0, lo_open=True)
+        sensitivity = t.number("counts_per_rev", lo=MIN_SENSITIVITY, hi=MAX_SENSITIVITY)
         sens_unit = "counts/rev"
     elif "sensitivity" in t.doc and not sens_unit:
         raise DaqError(f"{where}: sensitivity {sensitivity} has no sensitivity_unit (e.g. \"mV/g\")")
@@ -344,7 +353,7 @@ def parse_session(doc: dict, source: Path) -> Session:
         trigger = Trigger(g.get("channel", str, check=lambda v: v in names, why="is not a channel"),
                           g.get("level", float), g.choice("slope", ("rising", "falling"), "rising"),
                           g.get("pretrigger_samples", int, 0, check=lambda v: v >= 0, why="must be >= 0"),
-                          g.number("holdoff_s", 0.5, lo=0),
+                          g.number("holdoff_s", 0.5, lo=0, hi=1e9, unit="s"),   # as --duration: 31.7 years
                           g.get("start", bool, False),
                           g.get("response", str, "", check=lambda v: v in names, why="is not a channel"),
                           g.number("window_s", 1.0, lo=0, hi=60, lo_open=True, unit="s"),

@@ -46,6 +46,7 @@ from flexmodal.daq.run_schema import (
     kind_unit_fault,
     member,
     sample_rate_ok,
+    sensitivity_fault,
     utf8,
 )
 
@@ -72,7 +73,7 @@ class Channel:
         if self.kind not in CHANNEL_KINDS:
             raise DaqError(f"channel {self.name!r}: kind {self.kind!r} is not one of "
                            f"{', '.join(CHANNEL_KINDS)}")
-        fault = kind_unit_fault(self.kind, self.unit)
+        fault = kind_unit_fault(self.kind, self.unit) or sensitivity_fault(self.sensitivity)
         if fault:   # a force in m/s^2 made FRFs of two accelerations, stored and shown as accelerance
             raise DaqError(f"channel {self.name!r}: {fault}")
 
@@ -161,6 +162,9 @@ class RunWriter:
         self.n_channels = len(self.channels)
         self.flush_interval_s = float(flush_interval_s)
         self._file: h5py.File | None = None
+        if self.path.parent.is_dir():   # else _open names the missing folder
+            self._room(0)   # the run's layout is HDF5 metadata too: on a full disk it failed inside HDF5
+            # and the interpreter crashed at exit (demo --out on a 64 kB file system: -11 after its line)
         try:  # a Ctrl-C while the file opens or the run is laid out is held, then the file is closed
             with signals_deferred():
                 self._file = self._open()

@@ -158,8 +158,10 @@ def _check_names_are_channels(run: h5py.Group, outputs: tuple[str, ...], inputs:
 def _check_rate(run: h5py.Group, rate_hz: float, freq_hz: np.ndarray, where: str) -> None:
     """The group's sample rate is its run's, and its lines end at or below that rate's Nyquist frequency
     (a group from another run, or with its lines scaled, gave modes at frequencies the run cannot hold)."""
-    own = run.attrs.get("sample_rate_hz")
-    run_rate = float(own) if isinstance(own, float | int | np.floating | np.integer) else np.nan
+    from flexmodal.daq.run_schema import attribute_number
+
+    own = attribute_number(run.attrs, "sample_rate_hz") if "sample_rate_hz" in run.attrs else None
+    run_rate = np.nan if own is None else float(own)   # not a number: the run's own check names it
     if np.isfinite(rate_hz) and np.isfinite(run_rate) and not np.isclose(rate_hz, run_rate, rtol=1e-9):
         raise ModalError(f"{where}: attribute sample_rate_hz = {rate_hz:g} Hz is not its run's "
                          f"({run_rate:g} Hz)")
@@ -170,19 +172,22 @@ def _check_rate(run: h5py.Group, rate_hz: float, freq_hz: np.ndarray, where: str
 
 
 def _checked_arrays(data: dict[str, h5py.Dataset], where: str) -> tuple[np.ndarray, ...]:
-    """freq_hz [n] finite and increasing, H [n_out, n_in, n] and coherence [n_out, n], all numeric."""
+    """freq_hz [n] finite and increasing, H [n_out, n_in, n] and coherence [n_out, n], all numeric (an
+    HDF5 enum is not: daq.run_schema.numeric_dtype)."""
+    from flexmodal.daq.run_schema import dtype_words, numeric_dtype
+
     shapes = {k: d.shape for k, d in data.items()}
     kinds = {k: d.dtype.kind for k, d in data.items()}
     n = shapes["freq_hz"][0] if len(shapes["freq_hz"]) == 1 else -1
-    if n < 1 or kinds["freq_hz"] not in "fiu":
+    if n < 1 or not numeric_dtype(data["freq_hz"].dtype):
         raise ModalError(f"{where}: 'freq_hz' must be a 1-D numeric dataset (shape {shapes['freq_hz']}, "
-                         f"type {data['freq_hz'].dtype})")
+                         f"type {dtype_words(data['freq_hz'].dtype)})")
     if len(shapes["H"]) != 3 or shapes["H"][2] != n or kinds["H"] != "c" or 0 in shapes["H"]:
         raise ModalError(f"{where}: 'H' must be [outputs, inputs, {n} lines] of complex numbers (shape "
                          f"{shapes['H']}, type {data['H'].dtype})")
-    if shapes["coherence"] != (shapes["H"][0], n) or kinds["coherence"] not in "fiu":
+    if shapes["coherence"] != (shapes["H"][0], n) or not numeric_dtype(data["coherence"].dtype):
         raise ModalError(f"{where}: 'coherence' must be [{shapes['H'][0]} outputs, {n} lines] of numbers "
-                         f"(shape {shapes['coherence']}, type {data['coherence'].dtype})")
+                         f"(shape {shapes['coherence']}, type {dtype_words(data['coherence'].dtype)})")
     try:
         freq_hz, H, coherence = (np.asarray(data[k][()], t) for k, t in
                                  (("freq_hz", float), ("H", complex), ("coherence", float)))
@@ -191,6 +196,9 @@ def _checked_arrays(data: dict[str, h5py.Dataset], where: str) -> tuple[np.ndarr
     check_freq_axis(freq_hz, where, "'freq_hz'")
     check_coherence(coherence, where)
     return freq_hz, H, coherence
+
+
+_JSON_WORDS = {dict: "object", list: "array"}   # JSON's own names of the types an attribute must hold
 
 
 class _Attrs:
@@ -221,20 +229,30 @@ class _Attrs:
             raise self._bad(key, value, "a text")
         return value
 
+    def _number(self, key: str, expected: str) -> int | float:
+        """The attribute as one HDF5 number (never an enum or bool: daq.run_schema.attribute_number)."""
+        from flexmodal.daq.run_schema import attribute_number, stored_as
+
+        self._get(key, ...)
+        value = attribute_number(self.attrs, key)
+        if value is None:
+            raise self._bad(key, self.attrs[key], expected + stored_as(self.attrs, key))
+        return value
+
     def integer(self, key: str, lo: int) -> int:
-        value = self._get(key, ...)
-        if isinstance(value, bool | np.bool_) or not isinstance(value, int | np.integer) or value < lo:
-            raise self._bad(key, value, f"a whole number >= {lo}")
-        return int(value)
+        expected = f"a whole number >= {lo}"
+        value = self._number(key, expected)
+        if not isinstance(value, int) or value < lo:
+            raise self._bad(key, value, expected)
+        return value
 
     def number(self, key: str, default: float, *, positive: bool = False) -> float:
-        value = self._get(key, default)
-        ok = isinstance(value, int | float | np.integer | np.floating) \
-            and not isinstance(value, bool | np.bool_)
-        if ok and key in self.attrs and not (np.isfinite(value) and (value > 0 if positive else value >= 0)):
-            ok = False
-        if not ok:
-            raise self._bad(key, value, f"a finite number {'> 0' if positive else '>= 0'}")
+        expected = f"a finite number {'> 0' if positive else '>= 0'}"
+        if key not in self.attrs:
+            return default
+        value = self._number(key, expected)
+        if not (np.isfinite(value) and (value > 0 if positive else value >= 0)):
+            raise self._bad(key, value, expected)
         return float(value)
 
     def json(self, key: str, default: object, kind: type) -> object:
@@ -242,7 +260,7 @@ class _Attrs:
             return default
         doc = loads_json(self.text(key), f"{self.where}: attribute {key}", ModalError)
         if not isinstance(doc, kind):
-            raise self._bad(key, doc, f"a JSON {kind.__name__}")
+            raise self._bad(key, doc, f"a JSON {_JSON_WORDS.get(kind, kind.__name__)}")
         return doc
 
     def names(self, key: str, count: int) -> tuple[str, ...]:

@@ -62,8 +62,20 @@ def impact_windows(spec: str | None) -> tuple[str, str]:
     ('force:0.05', 'exponential:1')
     >>> impact_windows("force:0.1,exponential")
     ('force:0.1', 'exponential:0.01')
+    >>> impact_windows("exp:0.5")
+    ('force:0.05', 'exponential:0.5')
     """
-    parts = dict(p.split(":", 1) if ":" in p else (p, "") for p in (spec or "").split(",") if p)
+    parts: dict[str, str] = {}
+    for part in (spec or "").split(","):   # a loop over the two parts of the option
+        if not part.strip():
+            continue
+        name, _ = parse_window(part)   # an unknown name or a bad parameter names itself
+        if name not in _DEFAULTS:
+            raise ModalError(f"window {spec!r}: {name} is a window for random runs; an impact run takes "
+                             "'force:W,exponential:E' (either part optional)")
+        if name in parts:
+            raise ModalError(f"window {spec!r}: {name} is given twice")
+        parts[name] = part.partition(":")[2].strip()
     parts.setdefault("exponential", "1")
     return tuple(f"{name}:{parts.get(name) or f'{_DEFAULTS[name]:g}'}" for name in ("force", "exponential"))
 

@@ -24,6 +24,7 @@ CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--no-first-run
                   "--disable-background-networking", "--disable-component-update", "--disable-sync",
                   "--no-pdf-header-footer")
 PRINT_TIMEOUT_S = 120
+PDF_SIGNATURE = b"%PDF-"   # how every PDF file starts (ISO 32000-1, 7.5.2)
 
 
 def find_chromium() -> str | None:

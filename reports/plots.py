@@ -276,7 +276,7 @@ def plot_synthesis(freq_hz: np.ndarray, H: np.ndarray, synthesis: np.ndarray,
     log_axis(mag.yaxis)
     _phase_axis(ph)
     ph.set_xlabel("frequency [Hz]")
-    fig.legend(*mag.get_legend_handles_labels(), loc="outside lower center", fontsize=6, ncol=3)
+    fig.legend(*mag.get_legend_handles_labels(), loc="outside lower center", fontsize=7, ncol=3)
     for ax in (mag, ph):
         ax.grid(True, which="both", alpha=0.3)
     if title:
@@ -367,7 +367,7 @@ def plot_gap_vs_pose(diagnosis: Diagnosis, pose: Mapping[str, float], pose_label
         return (np.array([x for x, _ in pts], float), np.array([y for _, y in pts], float))
 
     fig = Figure(figsize=(min(2.6 * n + 0.8, 9.0), 3.2), layout="constrained")   # read at 700-900 px
-    axes = np.atleast_1d(fig.subplots(1, n, sharex=True))
+    axes = np.atleast_1d(fig.subplots(1, n, sharex=True, sharey=True))   # one [%] scale, labelled once
     for k, ax in enumerate(axes):
         ax.axhline(0.0, color="k", lw=0.6)
         ax.plot(*errors(pred.baseline_hz, k), "o", color="0.55", ms=4, label="nominal model")
@@ -379,7 +379,7 @@ def plot_gap_vs_pose(diagnosis: Diagnosis, pose: Mapping[str, float], pose_label
         ax.set_xlabel(text(pose_label))
         ax.grid(True, alpha=0.3)
     axes[0].set_ylabel("relative frequency error [%]")
-    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", fontsize=7, ncol=2)
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", fontsize=8, ncol=2)
     return fig
 
 
@@ -517,7 +517,7 @@ def plot_trends(table: ModalTable, x_var: str, group_var: str | None = None, x_u
     for ax in axes[len(modes):]:
         ax.set_visible(False)
     if group_var:
-        axes[0].legend(fontsize=7)
+        axes[0].legend(fontsize=8)
     if title:
         fig.suptitle(text(title))
     return fig
@@ -561,14 +561,14 @@ def plot_mode_shapes(arm, measured: ModalTable, config: str, title: str = "") ->
         pts = arm.sensor_xy + scale * meas[:, None] * arm.sensor_dir
         ax.plot(pts[:, 0], pts[:, 1], "o", color=_COLOURS[1], ms=5, label="measured")
         ax.set_title(f"mode {k + 1}: {freqs[k]:.2f} Hz\nFE mode {j + 1}: {arm.freq_hz[j]:.1f} Hz, "
-                     f"MAC {macs[k, j]:.2f} [-]", fontsize=8)
+                     f"MAC {macs[k, j]:.2f} [-]", fontsize=9)
         ax.set_aspect("equal", adjustable="datalim")
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")
         ax.grid(True, alpha=0.3)
     for ax in axes[n:]:
         ax.set_visible(False)
-    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", fontsize=7, ncol=3)
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", fontsize=9, ncol=3)
     fig.suptitle(text(title or f"{config}: mode shapes (displacement exaggerated)"))
     return fig
 

@@ -7,7 +7,9 @@ parsing is off, and mathtext markup is not what the report promises), any visibl
 artist whose window extent leaves the canvas (a label cut at the edge), an axis with numeric tick
 labels under a label without a ``[unit]`` (``[-]`` for a ratio), and a log axis whose labelled ticks
 leave more than a quarter of its span unlabelled at an end (at least 0.45 decade) or between two labels
-(at least 0.4 decade): a 20-1000 Hz axis labelled only at 100 Hz, where no mode can be read off.
+(at least 0.4 decade): a 20-1000 Hz axis labelled only at 100 Hz, where no mode can be read off; and
+any text under ``READ_PX`` high where the figure is shown ``SHOWN_PX`` wide (the report in an 800 px
+window shrinks a wider figure to fit: a 1020 px figure's 7 pt legend came out 6.7 px high).
 """
 
 from __future__ import annotations
@@ -20,6 +22,8 @@ from matplotlib.figure import Figure
 from matplotlib.text import Text
 
 SLACK_PX = 1.0
+SHOWN_PX = 700.0   # a figure's width in the report in an 800 px window (body margins, a run's box)
+READ_PX = 8.0      # the least height [px] a text is read at
 UNIT = re.compile(r"\[[^\]]+\]")
 NUMBER = re.compile(r"^[-−+]?(\d[\d.,]*|\.\d+)(e[-+]?\d+)?(×10[⁻⁰¹²³⁴⁵⁶⁷⁸⁹]+)?$|^10[⁻⁰¹²³⁴⁵⁶⁷⁸⁹]+$")
 
@@ -67,8 +71,8 @@ def _drawn_tick_labels(fig: Figure) -> tuple[list[Text], set[int]]:
 
 
 def problems(fig: Figure, dpi: float = 100.0) -> list[str]:
-    """One line per unreadable tick label, text artist outside the canvas, numeric axis without a unit or
-    log axis too sparsely labelled (empty: the figure is fine)."""
+    """One line per unreadable tick label, text artist outside the canvas or too small to read at 800 px,
+    numeric axis without a unit or log axis too sparsely labelled (empty: the figure is fine)."""
     fig.set_dpi(dpi)
     canvas = FigureCanvasAgg(fig)
     canvas.draw()
@@ -84,4 +88,7 @@ def problems(fig: Figure, dpi: float = 100.0) -> list[str]:
         if min(box.x0, box.y0) < -SLACK_PX or box.x1 > width + SLACK_PX or box.y1 > height + SLACK_PX:
             found.append(f"text {t.get_text()!r} at x {box.x0:.0f}..{box.x1:.0f}, "
                          f"y {box.y0:.0f}..{box.y1:.0f} leaves the {width}x{height} px canvas")
+    shown = min(1.0, SHOWN_PX / width)
+    found += [f"text {t.get_text()!r} is {px:.1f} px high where the figure is shown {SHOWN_PX:g} px wide"
+              for t in [*drawn, *others] if (px := t.get_fontsize() * dpi / 72 * shown) < READ_PX - 1e-9]
     return found + _axis_problems(fig, drawn)

@@ -92,7 +92,8 @@ def test_trends_figure_is_readable():
 
 
 def test_the_lint_catches_what_the_issue_reported():
-    """The check is not vacuous: raw mathtext ticks and a label pushed off the canvas are found."""
+    """The check is not vacuous: raw mathtext ticks, a label pushed off the canvas and a legend too small
+    to read where the report shows a 1020 px figure 700 px wide are found."""
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(4, 3))
@@ -101,6 +102,10 @@ def test_the_lint_catches_what_the_issue_reported():
     ax.set_ylabel("a very long label with a unit [(m/s²)/N]", fontsize=30)
     found = problems(fig)
     assert any("mathtext" in p for p in found) and any("leaves the" in p for p in found)
+    wide = Figure(figsize=(10.2, 3), layout="constrained")
+    wide.subplots().plot([0, 1], [0, 1], label="measured")
+    wide.legend(loc="outside lower center", fontsize=7)
+    assert "text 'measured' is 6.7 px high where the figure is shown 700 px wide" in problems(wide)
 
 
 def test_flexmodal_changes_no_global_matplotlib_state():
