@@ -333,6 +333,27 @@ def test_report_pdf_leaves_a_users_file_at_its_place(tmp_path: Path) -> None:
     assert mine.read_text(encoding="utf-8") == "my notes, not a PDF" and not (tmp_path / "r.html").exists()
 
 
+def test_report_pdf_replaces_its_own_pdf_and_refuses_a_pdf_of_another_tool(tmp_path: Path, capsys) -> None:
+    """A PDF matplotlib wrote (its default metadata) starts ``%PDF-`` like ours: it stays, exit 2."""
+    from matplotlib.figure import Figure
+
+    from flexmodal.app import main
+    from flexmodal.reports.pdf import PDF_CREATOR
+
+    measured = str(REPO / "examples" / "measured" / "seed003_table3_f1f2.csv")
+    argv = ["report", "--measured", measured, "--out", str(tmp_path / "r.html"), "--pdf", "--quiet"]
+    ours = tmp_path / "r.pdf"
+    assert main(argv) == 0 and PDF_CREATOR in ours.read_bytes()[-4096:]
+    first = ours.stat().st_ino
+    assert main(argv) == 0 and ours.stat().st_ino != first   # flexmodal's own PDF is replaced (atomically)
+    capsys.readouterr()
+    Figure().savefig(ours, format="pdf")
+    paper = ours.read_bytes()
+    assert paper.startswith(b"%PDF-") and b"Matplotlib" in paper
+    one_line(capsys, main(argv), "r.pdf: exists and is not a PDF file flexmodal wrote")
+    assert ours.read_bytes() == paper
+
+
 # -- free text printed in a title or a caption is one line ------------------------------------------------
 @pytest.mark.parametrize("argv", [["compare", "M", "M", "--caption", "a\nb"],
                                   ["compare", "M", "M", "--caption", "x\x1b[2Jy"],
