@@ -179,7 +179,7 @@ def _identify(args: argparse.Namespace) -> int:
 
     Identify modes from an HDF5 run (stored FRFs, or computed if absent) or a UFF file (dataset 58 FRFs,
     function type 4, or time histories, type 1, with a force reference) and write the modal table CSV
-    (docs/formats.md) with the validation columns mpc, mpd [deg] and synthesis_corr, and the FRAC of each
+    (docs/formats.md) with the validation columns mpc, mpd_deg and synthesis_corr, and the FRAC of each
     measured and synthesised FRF to MODES.synthesis.csv. Each run of an HDF5 file is one configuration
     (config = run id). Runs with excitation=operational or without a force channel, and UFF time
     histories without a force, are identified output-only (SSI-cov by default; docs/oma.md). A bad run

@@ -31,10 +31,10 @@ import jinja2
 import pandas as pd
 
 from flexmodal.checked_io.output import write_text
-from flexmodal.checked_io.text import read_text
+from flexmodal.checked_io.text import natural_key, read_text
 from flexmodal.compare.errors import CompareError
 from flexmodal.compare.result import Diagnosis, Predictions
-from flexmodal.compare.tables import Comparison, html_fragment, natural_key, ordered_configs
+from flexmodal.compare.tables import Comparison, html_fragment, ordered_configs
 from flexmodal.compare.verdict_text import (
     advice_words,
     alternatives_words,
