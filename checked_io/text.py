@@ -220,9 +220,10 @@ def name_fault(name: str) -> str | None:
     return None
 
 
-def read_text(path: str | Path, error: ErrorType, what: str = "text file") -> str:
-    """The UTF-8 text of ``path`` (see :func:`decode_text`)."""
-    return decode_text(read_bytes(path, error, what), path, error, what)
+def read_text(path: str | Path, error: ErrorType, what: str = "text file",
+              limit_bytes: int = MAX_TEXT_BYTES) -> str:
+    """The UTF-8 text of ``path`` of at most ``limit_bytes`` (see :func:`read_bytes`, :func:`decode_text`)."""
+    return decode_text(read_bytes(path, error, what, limit_bytes), path, error, what)
 
 
 def _depth(doc: object) -> tuple[int, int | None]:

@@ -16,7 +16,7 @@ def register(sub: Subcommands) -> None:
     p.add_argument("runs", nargs="+", metavar="RUN.h5", help="HDF5 run files (docs/hdf5-format.md)")
     p.add_argument("--estimator", default="H1", choices=ESTIMATORS, metavar="NAME",
                    help="FRF estimator: %(choices)s (default H1)")
-    p.add_argument("--nfft", type=opt.integer(8, 1 << 24, name="segment length"), default=None, metavar="N",
+    p.add_argument("--nfft", type=opt.segment_length, default=None, metavar="N",
                    help="segment length in samples for random runs (default: power of two <= 8192 "
                         "giving >= 8 segments); impact runs use one record per hit, sweep runs one "
                         "segment per sweep unless --nfft or --window is given")
