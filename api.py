@@ -1322,7 +1322,8 @@ def diagnose(rig: Rig | PathLike, measured: ModalTable | PathLike, *, effects: s
         Also write ``diagnosis.json`` and ``diagnosis.html`` into this folder (:func:`write_diagnosis`);
         the folder is checked before any work.
     progress : callable, optional
-        Called with one line once the inputs are read and checked, before the ranking.
+        Called with one line once the inputs are read and checked, then at each stage of the ranking
+        (with a transient bar of the fits on a terminal's stderr).
 
     Returns
     -------
@@ -1375,8 +1376,8 @@ def diagnose(rig: Rig | PathLike, measured: ModalTable | PathLike, *, effects: s
     parse_effects(effects if isinstance(effects, str) else ",".join(effects))  # bad input fails now
     folds_for(table.configs, holdout)
     if progress is not None:
-        progress(f"diagnosing {table.source} against {rig.source} ...")
-    result = _diagnose(rig, table, effects=effects, holdout=holdout, scatter=scatter)
+        progress(f"diagnose: {table.source} against the model of {rig.source}")
+    result = _diagnose(rig, table, effects=effects, holdout=holdout, scatter=scatter, progress=progress)
     if out_dir is not None:
         write_diagnosis(result, out_dir, inputs=[rig.source, table.source])
     return result
