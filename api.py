@@ -1881,11 +1881,11 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     output_file(out, ReportError, "report (--out)", inputs=sources)
     if pdf:
         from flexmodal.checked_io.output import sidecar_file
-        from flexmodal.reports.pdf import PDF_SIGNATURE, find_chromium
+        from flexmodal.reports.pdf import PDF_CREATOR, PDF_SIGNATURE, find_chromium
 
         beside = output_file(Path(out).with_suffix(".pdf"), ReportError, "PDF report (beside --out)",
                              inputs=(*sources, out))
-        sidecar_file(beside, ReportError, "PDF file", PDF_SIGNATURE)   # a file of the user's stays
+        sidecar_file(beside, ReportError, "PDF file", PDF_SIGNATURE, PDF_CREATOR)   # the user's PDF stays
         if find_chromium() is None:
             raise ReportError("report --pdf: no Chromium found (install chromium, or leave out --pdf)")
     if not (runs or measured is not None or predictions or diagnosis is not None):
@@ -2129,12 +2129,12 @@ def report_pdf(html: PathLike, pdf: PathLike | None = None) -> Path:
     _path_arg(html, "report_pdf: html")
     from flexmodal.checked_io.output import output_file, sidecar_file
     from flexmodal.reports.errors import ReportError
-    from flexmodal.reports.pdf import PDF_SIGNATURE, print_pdf
+    from flexmodal.reports.pdf import PDF_CREATOR, PDF_SIGNATURE, print_pdf
 
     target = output_file(Path(html).with_suffix(".pdf") if pdf is None else pdf, ReportError, "PDF report",
                          inputs=(html,))
     if pdf is None:   # the PDF beside the report replaces a PDF, never another file of the user's
-        sidecar_file(target, ReportError, "PDF file", PDF_SIGNATURE)
+        sidecar_file(target, ReportError, "PDF file", PDF_SIGNATURE, PDF_CREATOR)
     return print_pdf(html, target)
 
 

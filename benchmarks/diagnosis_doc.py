@@ -4,12 +4,12 @@
     python benchmarks/diagnosis_doc.py --coverage --blind --write   # every block, into docs/diagnosis.md
 
 Blocks sit between ``<!-- NAME:begin -->`` and ``<!-- NAME:end -->`` (NAME = seed003, coverage,
-blind, fresh, new, latest, next, s631, s736, s841, s946, ideal, ideal_fresh, ideal_new, ideal_latest,
-ideal_next, ideal_s631, ideal_s736, ideal_s841, ideal_s946, sparse, advice, advice_s736, advice_s841).
-The blind block is the acceptance measurement: 36 cases of each of five draws of
-fixtures/blind.py's generator (seeds ``BLIND_SEEDS``), their summaries and the mean and worst over
-draws (tests/test_blind.py re-runs it under ``-m slow``); the coverage block the Monte-Carlo coverage
-of the identification's intervals (tests/test_modal_uncertainty.py re-runs it under ``-m slow``).
+sparse, and per draw set of ``DRAW_SETS`` its name and ideal block, per ``ADVICE_SETS`` key an advice
+block).  The last draw set is the acceptance measurement: 36 cases of each of five draws of
+fixtures/blind.py's generator never used before (seeds ``FINAL_SEEDS``), their summaries and the mean
+and worst over draws (tests/test_blind.py re-runs every draw set under ``-m slow``); the coverage block
+the Monte-Carlo coverage of the identification's intervals (tests/test_modal_uncertainty.py re-runs it
+under ``-m slow``).
 """
 
 from __future__ import annotations
@@ -35,54 +35,26 @@ class DrawSet(NamedTuple):
     note: str
 
 
+USED_SEEDS = (106, 107, 108, 109, 110, 211, 212, 213, 214, 215, 316, 317, 318, 319, 320,
+              421, 422, 423, 424, 425, 526, 527, 528, 529, 530, 631, 632, 633, 634, 635,
+              736, 737, 738, 739, 740, 841, 842, 843, 844, 845, 946, 947, 948, 949, 950)
+"""Every draw of the generator used to develop the method so far (each first run once as the blind
+figure of a change, then analysed for a later one): a blind figure needs seeds outside these.  The
+figures of the versions that were measured on them are in docs/diagnosis.md's history table."""
+
 DRAW_SETS = (
-    DrawSet("blind", "ideal", (106, 107, 108, 109, 110),
-            "their misses were analysed for earlier changes to the method"),
-    DrawSet("fresh", "ideal_fresh", (211, 212, 213, 214, 215),
-            "their misses were analysed for an earlier change to the method (issue 26's paired margin)"),
-    DrawSet("new", "ideal_new", (316, 317, 318, 319, 320),
-            "first run once after an earlier change to the method; their misses were analysed for later "
-            "changes (the beam-theory model-form level, the partners of the best singles)"),
-    DrawSet("latest", "ideal_latest", (421, 422, 423, 424, 425),
-            "first run once after an earlier change to the method; their misses were analysed for "
-            "later changes (the three best singles paired with every single, the beam-theory level in "
-            "the none test)"),
-    DrawSet("next", "ideal_next", (526, 527, 528, 529, 530),
-            "first run once after an earlier change to the method; their misses were analysed for the "
-            "last change (pair leads of different effects, the pair search gated by training frequencies, "
-            "the combination's own start, the nested margin between nested candidates only and in the "
-            "none test)"),
-    DrawSet("s631", "ideal_s631", (631, 632, 633, 634, 635),
-            "first run once after an earlier change to the method; used for the last change (the none "
-            "test's noise level: its none cases re-run; case 30's sensor, which the generator had not "
-            "moved)"),
-    DrawSet("s736", "ideal_s736", (736, 737, 738, 739, 740),
-            "first run once after an earlier change to the method; used for the last change (the none "
-            "test's scatter with the fallback: case 14 of 736, and every case that reaches the test, "
-            "re-run)"),
-    DrawSet("s841", "ideal_s841", (841, 842, 843, 844, 845),
-            "first run once after an earlier change to the method; their misses were analysed for the "
-            "last change (a chosen pair that leaves the scatter far behind: each component moved to the "
-            "other locations of its effect; every case it can reach re-run)"),
-    DrawSet("s946", "ideal_s946", (946, 947, 948, 949, 950),
+    DrawSet("s1051", "ideal_s1051", (1051, 1052, 1053, 1054, 1055),
             "run once, after the last change to the method; never used to develop it"),
 )
-"""Every draw set, oldest first.  The first set's misses were analysed to build the method; each later
-set was first run once after a change to the method (the blind figure of that change) and used to
-develop later changes as its note says; the last set is the blind figure of the current method."""
+"""The draw sets docs/diagnosis.md quotes, run with the current method: the blind figure of the current
+method (five draws never used before its measurement)."""
 DRAWS = {d.name: d for d in DRAW_SETS}
-BLIND_SEEDS = DRAWS["blind"].seeds
 FINAL_SEEDS = DRAW_SETS[-1].seeds
 SPARSE_CASES = 60
 SPARSE_SEED = 5
-ADVICE_SEEDS = DRAWS["latest"].seeds + DRAWS["next"].seeds
-"""The used blind draws on which the next-measurement advice is measured (``advice_block``)."""
-ADVICE_FINAL_SEEDS = DRAWS["s841"].seeds
-"""Draws used neither for the method nor for the advice when the advice (frozen, with shapes) was
-measured once on their ambiguous verdicts (block ``advice_s841``); their misses were analysed for the
-method's last change since.  Block ``advice_s736`` holds the ``s736`` draws: never
-used when the frequency-only advice was measured once on them; used since (the method's last change,
-the advice with shapes)."""
+ADVICE_SETS = {"advice_s1051": FINAL_SEEDS}
+"""Blocks of the next-measurement advice measured on the ambiguous verdicts of the draw sets: the blind
+set (the advice measured once on it, never used for the advice)."""
 
 from flexmodal.compare.diagnosis import diagnose  # noqa: E402
 from flexmodal.contract.table import ModalTable  # noqa: E402
@@ -135,10 +107,9 @@ def seed003_block(data: Path = REPO / "tests" / "data") -> str:
     ])
 
 
-def blind_block(seeds: tuple[int, ...] = BLIND_SEEDS, cases: int = BLIND_CASES,
+def blind_block(seeds: tuple[int, ...] = FINAL_SEEDS, cases: int = BLIND_CASES,
                 results: dict | None = None,
-                note: str = "their misses were analysed for earlier changes to the method"
-                ) -> str:
+                note: str = DRAW_SETS[-1].note) -> str:
     """The acceptance measurement: ``cases`` blind cases of each of the draws ``seeds`` (one draw of
     fixtures/blind.py's generator each: new rigs, poses, magnitudes, scatter), each draw's summary and
     misses, then the mean and worst over draws, as a fenced block (no timing); ``results`` {seed:
@@ -157,7 +128,7 @@ def blind_block(seeds: tuple[int, ...] = BLIND_SEEDS, cases: int = BLIND_CASES,
             f"```\n{body}\n```")
 
 
-def ideal_block(results: dict | None = None, seeds: tuple[int, ...] = BLIND_SEEDS,
+def ideal_block(results: dict | None = None, seeds: tuple[int, ...] = FINAL_SEEDS,
                 cases: int = BLIND_CASES) -> str:
     """The blind count with issue 26's ideal-fit rule (fixtures/blind.py ``with_ideal_fit``): a wrong
     top-1 flagged ambiguous with the truth among its alternatives is right only where an ideal fit
@@ -181,7 +152,7 @@ def sparse_block(results: list | None = None, n: int = SPARSE_CASES, seed: int =
             f"{format_advice(advice_trials(results, seed=seed))}\n```")
 
 
-def advice_block(results: dict | None = None, seeds: tuple[int, ...] = ADVICE_SEEDS,
+def advice_block(results: dict | None = None, seeds: tuple[int, ...] = FINAL_SEEDS,
                  cases: int = BLIND_CASES) -> str:
     """Next-measurement advice on the blind draws ``seeds`` (``cases`` each): every ambiguous library
     verdict measured once more at its advised pose and at three random untested poses (fixtures/blind.py
@@ -217,12 +188,12 @@ def write_block(name: str, block: str) -> None:
     DOC.write_text(f"{head}{begin}\n{block}\n{end}{tail}")
 
 
-BLOCKS = {"seed003": seed003_block, "coverage": coverage_block, "sparse": sparse_block,
-          "advice": advice_block, "advice_s736": lambda: advice_block(seeds=DRAWS["s736"].seeds),
-          "advice_s841": lambda: advice_block(seeds=ADVICE_FINAL_SEEDS)}
+BLOCKS = {"seed003": seed003_block, "coverage": coverage_block, "sparse": sparse_block}
 for _draws in DRAW_SETS:
     BLOCKS[_draws.name] = partial(blind_block, _draws.seeds, note=_draws.note)
     BLOCKS[_draws.ideal] = partial(ideal_block, seeds=_draws.seeds)
+for _name, _seeds in ADVICE_SETS.items():
+    BLOCKS[_name] = partial(advice_block, seeds=_seeds)
 
 
 def main() -> int:
@@ -240,7 +211,7 @@ def main() -> int:
             blocks["coverage"] = coverage_block()
         if args.blind:
             blocks.update((name, BLOCKS[name]())
-                          for name in [d.name for d in DRAW_SETS] + ["sparse", "advice"])
+                          for name in [d.name for d in DRAW_SETS] + ["sparse", *ADVICE_SETS])
     for name, block in blocks.items():
         if args.write:
             write_block(name, block)

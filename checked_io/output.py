@@ -35,6 +35,7 @@ from flexmodal.checked_io.text import ErrorType, file_kind, not_empty_path, one_
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 SPECIAL_ROOTS = ("/dev", "/proc", "/sys")  # device and kernel files: never an output file ...
 WRITABLE_ROOTS = ("/dev/shm",)              # ... except shared memory, an ordinary tmpfs
+MARK_TAIL_BYTES = 4096                      # where sidecar_file looks for the mark a format ends with
 
 
 def _probe(folder: Path, target: Path, error: ErrorType) -> None:
@@ -192,19 +193,23 @@ def output_dir(path: str | Path, error: ErrorType, what: str = "output directory
     return p
 
 
-def sidecar_file(path: str | Path, error: ErrorType, what: str, signature: bytes) -> None:
+def sidecar_file(path: str | Path, error: ErrorType, what: str, signature: bytes, mark: bytes = b"") -> None:
     """A file a command writes beside its named output (``MODES.synthesis.csv`` beside ``MODES.csv``)
-    replaces only a file that starts with ``signature``, one flexmodal wrote there: a file of the
-    user's own is never replaced (``error`` naming it).  Check :func:`output_file` first."""
+    replaces only a file that starts with ``signature`` and, when ``mark`` is given, holds ``mark`` in
+    its last :data:`MARK_TAIL_BYTES` bytes (a format whose start every other tool writes too, such as
+    PDF's ``%PDF-``, is recognised by the mark flexmodal appends): one flexmodal wrote there.  A file
+    of the user's own is never replaced (``error`` naming it).  Check :func:`output_file` first."""
     p = Path(path)
     if not p.is_file():
         return
     try:
         with open(p, "rb") as f:
             head = f.read(len(signature))
+            f.seek(max(0, p.stat().st_size - MARK_TAIL_BYTES))
+            tail = f.read()
     except OSError as exc:
         raise error(f"{p}: cannot read it to check it is a {what} ({exc.strerror or exc})") from None
-    if head != signature:
+    if head != signature or mark not in tail:
         raise error(f"{p}: exists and is not a {what} flexmodal wrote; refusing to replace it (move it, or "
                     "choose another --out)")
 

@@ -175,6 +175,12 @@ class ModalTable:
             if np.isinf(values).any():
                 row = int(np.flatnonzero(np.isinf(values))[0])
                 raise ContractError(f"{source}: row {row + 2}: column {col!r} holds an infinite value")
+            written = df[col].map(lambda v: isinstance(v, str)).to_numpy(bool)   # an empty cell is NaN
+            half = written & (np.isnan(values.real) != np.isnan(values.imag))   # 'nan+1j': neither
+            if half.any():
+                row = int(np.flatnonzero(half)[0])
+                raise ContractError(f"{source}: row {row + 2}: column {col!r} holds {df[col].iloc[row]!r}, a "
+                                    "complex number with one part NaN (leave the cell empty for no value)")
             if (np.abs(values) > MAX_MAGNITUDE).any():
                 row = int(np.flatnonzero(np.abs(values) > MAX_MAGNITUDE)[0])
                 shown = values[row].real if values[row].imag == 0 else values[row]

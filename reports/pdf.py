@@ -5,6 +5,11 @@ each page) and every run's collapsed block opened (a copy of the page with ``<de
 temporary folder; the report itself is not touched).  Chromium runs headless with a throw-away profile,
 no network services, under ``timeout``; the PDF is written next to nothing else and moved into place
 whole (checked_io.output.atomic_path).  Where no Chromium is installed the error is one line saying so.
+
+The PDF is marked as flexmodal's by an incremental update (ISO 32000-1, 7.5.6) appended to Chromium's
+file: a new document information dictionary whose ``/Creator`` is :data:`PDF_CREATOR`.  Only a PDF that
+ends with that update is one ``report --pdf`` replaces beside its report (checked_io.output.sidecar_file);
+any other PDF (a manuscript, one saved again by a viewer) is the user's.
 """
 
 from __future__ import annotations
@@ -25,6 +30,8 @@ CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--no-first-run
                   "--no-pdf-header-footer")
 PRINT_TIMEOUT_S = 120
 PDF_SIGNATURE = b"%PDF-"   # how every PDF file starts (ISO 32000-1, 7.5.2)
+PDF_CREATOR = b"/Creator (flexmodal report --pdf)"   # the mark of a PDF flexmodal wrote (see above)
+_TRAILER = re.compile(rb"trailer\s*<<(?P<dict>.*?)>>\s*startxref\s+(?P<xref>\d+)\s+%%EOF\s*$", re.DOTALL)
 
 
 def find_chromium() -> str | None:
@@ -34,6 +41,46 @@ def find_chromium() -> str | None:
         if found:
             return found
     return "/usr/bin/chromium" if Path("/usr/bin/chromium").is_file() else None
+
+
+def marked_as_ours(pdf: bytes) -> bytes:
+    """``pdf`` with an incremental update whose information dictionary is the old one with ``/Creator``
+    replaced by :data:`PDF_CREATOR`; ``pdf`` unchanged when its end is not a classic cross-reference
+    table and trailer with ``/Size``, ``/Root`` and ``/Info`` (then the next ``--pdf`` refuses to
+    replace it, the safe side).
+
+    Examples
+    --------
+    >>> old = b"%PDF-1.4\\n1 0 obj\\n<</Title (T) /Creator (C)>>\\nendobj\\nxref\\n0 2\\n" \\
+    ...       b"trailer\\n<</Size 2 /Root 1 0 R /Info 1 0 R>>\\nstartxref\\n9\\n%%EOF\\n"
+    >>> new = marked_as_ours(old)
+    >>> new[len(old):].splitlines()[:2], new.endswith(b"%%EOF\\n")
+    ([b'2 0 obj', b'<</Title (T)  /Creator (flexmodal report --pdf)>>'], True)
+    >>> re.search(rb"trailer\\n(.*)\\nstartxref\\n(\\d+)", new[len(old):]).groups()
+    (b'<</Size 3 /Root 1 0 R /Info 2 0 R /Prev 9>>', b'188')
+    >>> new[188:192], new[123:130], b"0000000123 00000 n \\n" in new
+    (b'xref', b'2 0 obj', True)
+    """
+    trailer = _TRAILER.search(pdf)
+    if trailer is None:
+        return pdf
+    fields = trailer["dict"]
+    size, root, info = (re.search(rb"/%s\s+(\d+(?:\s+\d+\s+R)?)" % key, fields)
+                        for key in (b"Size", b"Root", b"Info"))
+    if size is None or root is None or info is None:
+        return pdf
+    number = info[1].split()[0]
+    old = re.search(rb"(?<!\d)%s\s+0\s+obj\s*<<(?P<body>.*?)>>\s*endobj" % number, pdf, re.DOTALL)
+    if old is None:
+        return pdf
+    body = re.sub(rb"/Creator\s*\((?:\\.|[^\\()])*\)", b"", old["body"])
+    new = int(size[1])
+    start = len(pdf) if pdf.endswith(b"\n") else len(pdf) + 1
+    obj = b"%d 0 obj\n<<%s %s>>\nendobj\n" % (new, body, PDF_CREATOR)
+    xref = b"xref\n%d 1\n%010d 00000 n \ntrailer\n<</Size %d /Root %s /Info %d 0 R /Prev %s>>\n" % (
+        new, start, new + 1, root[1], new, trailer["xref"])
+    return (pdf if pdf.endswith(b"\n") else pdf + b"\n") + obj + xref + b"startxref\n%d\n%%%%EOF\n" % (
+        start + len(obj))
 
 
 def opened_for_print(html: str) -> str:
@@ -78,5 +125,5 @@ def print_pdf(html_path: str | Path, pdf_path: str | Path, chromium: str | None 
         if done.returncode != 0 or not printed.is_file() or printed.stat().st_size == 0:
             last = (done.stderr.strip().splitlines() or ["no message"])[-1]
             raise ReportError(f"report --pdf: {exe} failed (exit {done.returncode}): {last}")
-        shutil.copyfile(printed, part)
+        part.write_bytes(marked_as_ours(printed.read_bytes()))
     return target

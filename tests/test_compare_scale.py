@@ -1,9 +1,10 @@
 """Issue 24, scale: pairing and every table operation of ``compare`` are sub-quadratic.
 
 20 000 measured rows (5 000 configurations of 4 modes with shapes at 3 sensors) against as many
-predicted ones, paired by MAC and rendered in Markdown, cost at most 25 times the CPU time pandas takes
-to join the same two tables on (pose, mode) and write the result as CSV, measured in the same run
-(4-7 times here: 1.5-2.0 s against 0.29-0.36 s; a quadratic step would be 50 times more; an absolute
+predicted ones, paired by MAC and rendered in Markdown, cost at most 20 times the CPU time pandas takes
+to join the same two tables on (pose, mode) and write the result as CSV, the least of three joins in the
+same run (4.7-6.4 times here in 7 runs, 1.16-1.40 s against 0.21-0.26 s, 4-7 times on other days: the
+limit is three times the highest ratio seen; a quadratic step would be 50 times more; an absolute
 limit of 2 s failed at 2.59 s on a loaded machine, where both slow down alike), and ten times the rows
 cost far less than the hundred times a quadratic step would."""
 
@@ -60,10 +61,11 @@ def _join_cpu_seconds(n_rows: int) -> float:
     return time.process_time() - t0
 
 
-def test_compare_20000_rows_within_25_joins_and_sub_quadratic() -> None:
+def test_compare_20000_rows_within_20_joins_and_sub_quadratic() -> None:
     (small, small_rest), (large, large_rest) = _cpu_seconds(2000), _cpu_seconds(20000)
-    join = (_join_cpu_seconds(20000) + _join_cpu_seconds(20000)) / 2
+    join = min(_join_cpu_seconds(20000) for _ in range(3))   # the least disturbed of three
     print(f"compare CPU: 2000 rows {small:.2f} s (+{small_rest:.2f} s other formats), "
-          f"20000 rows {large:.2f} s (+{large_rest:.2f} s), pandas join + CSV {join:.2f} s")
-    assert large <= 25 * join
+          f"20000 rows {large:.2f} s (+{large_rest:.2f} s), pandas join + CSV {join:.2f} s, "
+          f"ratio {large / join:.1f}")
+    assert large <= 20 * join
     assert large + large_rest < 30 * (small + small_rest + 0.05)   # quadratic steps would be 100 x

@@ -333,6 +333,27 @@ def test_report_pdf_leaves_a_users_file_at_its_place(tmp_path: Path) -> None:
     assert mine.read_text(encoding="utf-8") == "my notes, not a PDF" and not (tmp_path / "r.html").exists()
 
 
+def test_report_pdf_replaces_its_own_pdf_and_refuses_a_pdf_of_another_tool(tmp_path: Path, capsys) -> None:
+    """A PDF matplotlib wrote (its default metadata) starts ``%PDF-`` like ours: it stays, exit 2."""
+    from matplotlib.figure import Figure
+
+    from flexmodal.app import main
+    from flexmodal.reports.pdf import PDF_CREATOR
+
+    measured = str(REPO / "examples" / "measured" / "seed003_table3_f1f2.csv")
+    argv = ["report", "--measured", measured, "--out", str(tmp_path / "r.html"), "--pdf", "--quiet"]
+    ours = tmp_path / "r.pdf"
+    assert main(argv) == 0 and PDF_CREATOR in ours.read_bytes()[-4096:]
+    first = ours.stat().st_ino
+    assert main(argv) == 0 and ours.stat().st_ino != first   # flexmodal's own PDF is replaced (atomically)
+    capsys.readouterr()
+    Figure().savefig(ours, format="pdf")
+    paper = ours.read_bytes()
+    assert paper.startswith(b"%PDF-") and b"Matplotlib" in paper
+    one_line(capsys, main(argv), "r.pdf: exists and is not a PDF file flexmodal wrote")
+    assert ours.read_bytes() == paper
+
+
 # -- free text printed in a title or a caption is one line ------------------------------------------------
 @pytest.mark.parametrize("argv", [["compare", "M", "M", "--caption", "a\nb"],
                                   ["compare", "M", "M", "--caption", "x\x1b[2Jy"],
@@ -343,3 +364,18 @@ def test_a_title_or_caption_with_a_control_character_is_refused(argv: list[str],
     measured = str(REPO / "examples" / "measured" / "seed003_table3_f1f2.csv")
     one_line(capsys, main([measured if a == "M" else a for a in argv]), argv[-2] if argv[0] == "compare"
              else "--title", "one line of text")
+
+
+# -- a complex shape value with one NaN part is neither a value nor an empty cell ----------------------------
+@pytest.mark.parametrize("cell, refused", [("nan+1j", True), ("1+nanj", True), ("(nan-2j)", True),
+                                           ("", False), ("nan", False), ("0.5-0.1j", False)])
+def test_a_half_nan_shape_value_is_named(tmp_path: Path, cell: str, refused: bool) -> None:
+    from flexmodal.contract.table import ModalTable
+
+    path = tmp_path / "m.csv"
+    path.write_text(f"config,mode,freq_hz,shape.a1\nt0,1,30,{cell}\nt0,2,90,0.5-0.1j\n", encoding="utf-8")
+    if refused:
+        with pytest.raises(ContractError, match=r"m\.csv: row 2: column 'shape\.a1' holds .* one part NaN"):
+            ModalTable.read_csv(path)
+    else:
+        assert ModalTable.read_csv(path).shapes("t0").shape == (1, 2)   # [sensors, modes]
