@@ -60,3 +60,18 @@ def test_a_stored_frf_segment_length_out_of_range_is_named(tmp_path, capsys):
     assert err.count("\n") == 0 and err.endswith(
         "frf group: attribute nfft = '4611686018427387904' is not a whole number from 1 to 16777216"), err
     assert runs.read_bytes() == before and not out.exists()
+
+
+def test_an_event_count_out_of_range_is_named(tmp_path, capsys):
+    """A gap of 2^62 samples: its end (first + count) overflowed int64 and the gap was not skipped."""
+    from flexmodal.fixtures.examples import impact_run
+
+    runs = impact_run(tmp_path)
+    with h5py.File(runs, "r+") as f:
+        f["runs/theta30/events"][0] = ("gap", 10, 2**62, "")
+    before = runs.read_bytes()
+    assert main(["--quiet", "frf", str(runs)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and err.endswith(
+        "'events' row 0 (gap): count = 4611686018427387904 is not from 0 to 281474976710656 samples"), err
+    assert runs.read_bytes() == before
