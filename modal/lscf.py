@@ -464,7 +464,7 @@ def _order_note(counts: list[tuple[int, int, int]], best: int, why: str, floor: 
     """The sentence saying which order was used and why, true to the counts (order, modes found, clear
     CMIF peaks they explain)."""
     order, n, shown = counts[best]
-    history = ", ".join(f"{c} at {o}" for o, c, _ in counts)
+    history = ", ".join(f"{c} at {'order ' if k == 0 else ''}{o}" for k, (o, c, _) in enumerate(counts))
     peaks = (f"; {'it explains' if n == 1 else 'they explain'} {shown} of {counted(floor, 'clear CMIF peak')}"
              if floor else "")
     return f"model order {order}: {counted(n, 'mode')}, {why} ({history}){peaks}"

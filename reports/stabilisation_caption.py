@@ -2,7 +2,7 @@
 symbol means (with the stability criteria and units), and why the model order was chosen.
 
 The identification's order note (``modal.identify.Modes.order_note``) is written for the command line
-(``model order 54: 3 modes, the modes found stopped growing (3 at 24, 3 at 36, 3 at 54); ...``); here it
+(``model order 54: 3 modes, the modes found stopped growing (3 at order 24, 3 at 36, 3 at 54); ...``); here it
 is said as sentences.  A note of another shape is quoted as it is.
 """
 
@@ -14,8 +14,9 @@ from collections.abc import Sequence
 from flexmodal.modal.identify import BASIS_WORDS
 from flexmodal.modal.stability import PICKED, STABLE_DAMPING_REL, STABLE_FREQ_REL, STABLE_MAC_MIN
 
-_NOTE = re.compile(r"model order (?P<order>\d+): (?P<modes>\d+ modes?), (?P<why>.+?) \((?P<history>\d+ at \d+"
-                   r"(?:, \d+ at \d+)*)\)(?:; (?:they explain|it explains) (?P<shown>\d+) of "
+_NOTE = re.compile(r"model order (?P<order>\d+): (?P<modes>\d+ modes?), (?P<why>.+?) "
+                   r"\((?P<history>\d+ at order \d+(?:, \d+ at \d+)*)\)"
+                   r"(?:; (?:they explain|it explains) (?P<shown>\d+) of "
                    r"(?P<peaks>\d+) clear CMIF peaks?)?(?P<rest>.*)")
 _FIT = "|".join(re.escape(w) for w in BASIS_WORDS.values())
 _BASIS = re.compile(rf"; of the two pLSCF fits, (?P<used>{_FIT}) is used: it explains (?P<n_used>\d+) "
@@ -44,7 +45,7 @@ def order_words(note: str) -> str:
 
     Examples
     --------
-    >>> print(order_words("model order 54: 3 modes, the modes found stopped growing (3 at 24, 3 at 36, "
+    >>> print(order_words("model order 54: 3 modes, the modes found stopped growing (3 at order 24, 3 at 36, "
     ...                   "3 at 54); they explain 3 of 3 clear CMIF peaks; of the two pLSCF fits, the "
     ...                   "standard one is used: it explains 3 clear CMIF peaks at an FRF correlation of "
     ...                   "1.000; the one that puts noise poles at negative damping explains 3 at 0.998"))
@@ -52,7 +53,7 @@ def order_words(note: str) -> str:
     found stopped growing. The 3 modes explain all 3 clear CMIF peaks. Of the two pLSCF bases, z =
     exp(+iωΔt) is used (3 clear peaks explained, FRF correlation 1.000; exp(−iωΔt): 3, 0.998).
     >>> print(order_words("model order 36: 2 modes, the default cap (a higher one: --max-order) "
-    ...                   "(1 at 24, 2 at 36)"))
+    ...                   "(1 at order 24, 2 at 36)"))
     Model order 36 used; modes found: 1 at order 24, 2 at 36; the search stopped because it reached the
     default cap (--max-order sets a higher one).
     >>> print(order_words("order 4"))
@@ -61,7 +62,7 @@ def order_words(note: str) -> str:
     m = _NOTE.fullmatch(note.strip())
     if m is None:
         return f"Model order: {note.strip()}."
-    history = [tuple(int(x) for x in h.split(" at ")) for h in m["history"].split(", ")]
+    history = [tuple(int(x) for x in h.replace("order ", "").split(" at ")) for h in m["history"].split(", ")]
     orders = [o for _, o in history]
     if len({n for n, _ in history}) == 1:
         tried = f"{m['modes']} found at order{'s' if len(orders) > 1 else ''}"

@@ -81,14 +81,15 @@ def test_order_search_never_stops_with_nothing_found_and_honours_max_order():
 
     stab, note, _ = adaptive_stabilisation(f, H, max_order=40, evaluate=nothing)
     assert seen[-1] == 40 and int(stab.order.max()) == 40
-    assert note.startswith("model order 40: 0 modes, --max-order caps the order (0 at 24, 0 at 36, 0 at 40)")
+    assert note.startswith("model order 40: 0 modes, --max-order caps the order (0 at order 24, 0 at 36, "
+                           "0 at 40)")
 
     def late(stab):   # nothing below order 60, then two modes
         return (2, 0, None) if stab.order.max() >= 60 else (0, 0, None)
 
     _, note, _ = adaptive_stabilisation(f, H, evaluate=late)
     assert note == ("model order 183: 2 modes, the modes found stopped growing "
-                    "(0 at 24, 0 at 36, 0 at 54, 2 at 81, 2 at 122, 2 at 183)")
+                    "(0 at order 24, 0 at 36, 0 at 54, 2 at 81, 2 at 122, 2 at 183)")
 
 
 def test_order_note_says_the_count_fell_and_keeps_the_order_that_explained_most_peaks():
@@ -102,8 +103,8 @@ def test_order_note_says_the_count_fell_and_keeps_the_order_that_explained_most_
 
     _, note, value = adaptive_stabilisation(f, H, evaluate=falling, floor=2)
     assert value == 54
-    assert note == ("model order 54: 2 modes, the modes found fell from 2 to 1 (1 at 24, 2 at 36, 2 at 54, "
-                    "1 at 81); they explain 2 of 2 clear CMIF peaks")
+    assert note == ("model order 54: 2 modes, the modes found fell from 2 to 1 (1 at order 24, 2 at 36, "
+                    "2 at 54, 1 at 81); they explain 2 of 2 clear CMIF peaks")
 
 
 def test_a_mode_standing_clear_of_the_noise_in_the_cmif_is_never_dropped():
