@@ -1396,11 +1396,15 @@ def format_diagnosis(result: Diagnosis) -> str:
 
     Examples
     --------
+    Seed 003's arm against its Table 3, ranking the paper's joint compliance only (``effects``: one
+    candidate fitted; :func:`diagnose` shows the full ranking):
+
     >>> import flexmodal as fm
     >>> result = fm.diagnose("examples/rigs/seed003_two_link.toml",
-    ...                      "examples/measured/seed003_table3_f1f2.csv", holdout="theta30,theta90,theta150")
+    ...                      "examples/measured/seed003_table3_f1f2.csv", effects="joint_stiffness",
+    ...                      holdout="theta30,theta90,theta150")
     >>> print(fm.format_diagnosis(result).splitlines()[0])   # doctest: +ELLIPSIS
-    verdict: ...joint_stiffness at ...; held-out RMS ...% -> ...%
+    verdict: joint_stiffness at elbow; held-out RMS ...% -> ...%
     """
     from flexmodal.checked_io.percent import percent
     from flexmodal.compare.verdict_text import advice_words, alternatives_words, scatter_line, verdict_words
@@ -1467,7 +1471,8 @@ def write_diagnosis(result: Diagnosis, out_dir: PathLike,
     >>> import tempfile
     >>> import flexmodal as fm
     >>> result = fm.diagnose("examples/rigs/seed003_two_link.toml",
-    ...                      "examples/measured/seed003_table3_f1f2.csv", holdout="theta30,theta90,theta150")
+    ...                      "examples/measured/seed003_table3_f1f2.csv", effects="joint_stiffness",
+    ...                      holdout="theta30,theta90,theta150")   # one candidate
     >>> pj, ph = fm.write_diagnosis(result, tempfile.mkdtemp())
     >>> pj.name, ph.name, fm.read_diagnosis(pj).verdict.effect == result.verdict.effect
     ('diagnosis.json', 'diagnosis.html', True)
@@ -1729,7 +1734,8 @@ def plot_gap(diagnosis: Diagnosis | Mapping | PathLike, title: str = "") -> Figu
     --------
     >>> import flexmodal as fm
     >>> result = fm.diagnose("examples/rigs/seed003_two_link.toml",
-    ...                      "examples/measured/seed003_table3_f1f2.csv", holdout="theta30,theta90,theta150")
+    ...                      "examples/measured/seed003_table3_f1f2.csv", effects="joint_stiffness",
+    ...                      holdout="theta30,theta90,theta150")   # one candidate
     >>> type(fm.plot_gap(result)).__name__
     'Figure'
     """

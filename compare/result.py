@@ -492,8 +492,8 @@ class Diagnosis(_Record):
         --------
         >>> import flexmodal as fm
         >>> result = fm.diagnose("examples/rigs/seed003_two_link.toml",
-        ...                      "examples/measured/seed003_table3_f1f2.csv",
-        ...                      holdout="theta30,theta90,theta150")
+        ...                      "examples/measured/seed003_table3_f1f2.csv", effects="joint_stiffness",
+        ...                      holdout="theta30,theta90,theta150")   # one candidate: quick
         >>> after = result.after_hz()
         >>> after is result.predictions.best_heldout_hz   # judged on what the fit did not see
         True
@@ -530,8 +530,8 @@ class Diagnosis(_Record):
         >>> import numpy as np
         >>> import flexmodal as fm
         >>> result = fm.diagnose("examples/rigs/seed003_two_link.toml",
-        ...                      "examples/measured/seed003_table3_f1f2.csv",
-        ...                      holdout="theta30,theta90,theta150")
+        ...                      "examples/measured/seed003_table3_f1f2.csv", effects="joint_stiffness",
+        ...                      holdout="theta30,theta90,theta150")   # one candidate: quick
         >>> pred = result.predictions
         >>> err = np.array([[pred.baseline_hz[c][k] / pred.measured_hz[c][k] - 1 for k in range(2)]
         ...                 for c in ("theta30", "theta90", "theta150")])

@@ -340,7 +340,8 @@ def plot_gap_vs_pose(diagnosis: Diagnosis, pose: Mapping[str, float], pose_label
     --------
     >>> import flexmodal as fm
     >>> result = fm.diagnose("examples/rigs/seed003_two_link.toml",
-    ...                      "examples/measured/seed003_table3_f1f2.csv", holdout="theta30,theta90,theta150")
+    ...                      "examples/measured/seed003_table3_f1f2.csv", effects="joint_stiffness",
+    ...                      holdout="theta30,theta90,theta150")   # one candidate
     >>> pose = {c: float(c.removeprefix("theta")) for c in result.predictions.measured_hz}
     >>> fig = plot_gap_vs_pose(result, pose, "theta_deg [deg]")
     >>> [ax.get_title() for ax in fig.axes]

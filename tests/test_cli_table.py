@@ -863,9 +863,10 @@ ROWS: list[Row] = [
     row("compare-min-mac-subnormal", COMPARE + " --min-mac 5e-324", ("--min-mac", "5e-324", "subnormal")),
     row("diagnose-scatter-1e-300", DIAGNOSE + " --scatter 1e-300",
         ("--scatter", "1e-300", ">= 1e-06")),
-    row("diagnose-freq-std-1e-300", DIAGNOSE, (), {"modes.csv": "\n".join(
+    row("diagnose-freq-std-1e-300", DIAGNOSE + " --effects joint_stiffness", (), {"modes.csv": "\n".join(
         [MODES.splitlines()[0] + ",freq_std_hz"] + [line + ",1e-300" for line in MODES.splitlines()[1:]])
-        + "\n"}, code=0),   # a freq_std_hz this small is taken as 1 ppm (compare/gap.py MIN_SCATTER_REL)
+        + "\n"}, code=0),   # a freq_std_hz this small is taken as 1 ppm (compare/gap.py MIN_SCATTER_REL);
+    # one effect: 1 candidate fitted, not 91 (the floors it meets: tests/test_diagnosis_intervals.py)
     row("report-fmin-nan", "report {d}/run.h5 --out {d}/r.html --fmin nan", ("--fmin", "nan")),
     row("report-oma-fmax-subnormal", "report {d}/run.h5 --out {d}/r.html --oma-fmax 5e-324",
         ("--oma-fmax", "5e-324", "subnormal")),

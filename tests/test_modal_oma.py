@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.signal
+from free_decay import free_decay_damping
 
 from flexmodal.contract.mac import mac
 from flexmodal.fixtures.shear_frame import shear_frame_modes, shear_frame_record
@@ -145,20 +146,6 @@ def test_lowest_spectral_peak_is_the_lowest_line_above_the_drift():
     assert lowest_spectral_peak(y, fs, [0], 0.5 * f0) is None          # nothing below fmax
 
 
-def _free_decay_damping(x: np.ndarray, fs: float, fn: float, half_band_hz: float) -> float:
-    """Damping ratio of the mode near ``fn`` [Hz] from the free decay that follows a sine sweep's
-    passage through it: the log of the Hilbert envelope of the band-passed record (4th-order
-    Butterworth, zero phase), fitted by a line from where it has fallen to half its maximum down to
-    5 % of it (logarithmic decrement: slope = -zeta 2 pi fn)."""
-    sos = scipy.signal.butter(4, [fn - half_band_hz, fn + half_band_hz], btype="band", fs=fs, output="sos")
-    env = np.abs(scipy.signal.hilbert(scipy.signal.sosfiltfilt(sos, x)))
-    top = int(np.argmax(env))
-    start = top + int(np.argmax(env[top:] < 0.5 * env[top]))
-    stop = start + int(np.argmax(env[start:] < 0.05 * env[top]))
-    t = np.arange(start, stop) / fs
-    return -np.polyfit(t, np.log(env[start:stop]), 1)[0] / (2 * np.pi * fn)
-
-
 def test_ssi_damping_on_a_measured_sweep_record_matches_its_free_decay(data_dir):
     """Real data (tests/data/realdata/beam_ring_output_only: two accelerations of a very flexible
     beam-ring, two 120 s exponential sweeps laid end to end, 250 Hz): the default output-only SSI's
@@ -179,14 +166,14 @@ def test_ssi_damping_on_a_measured_sweep_record_matches_its_free_decay(data_dir)
     wd = 2 * fs * np.tan(np.pi * fn / fs)                            # prewarped: the pole maps to fn
     for zeta in (0.0012, 0.00086):                                   # a loop over two known dampings
         b, a, _ = scipy.signal.cont2discrete(([wd**2], [1, 2 * zeta * wd, wd**2]), 1 / fs, method="bilinear")
-        assert _free_decay_damping(scipy.signal.lfilter(b.ravel(), a, sweep), fs, fn, 3.0) == pytest.approx(
+        assert free_decay_damping(scipy.signal.lfilter(b.ravel(), a, sweep), fs, fn, 3.0)[0] == pytest.approx(
             zeta, rel=0.03)
 
     rec = read_uff(data_dir / "realdata" / "beam_ring_output_only" / "beam_ring_outputs.uff")
     assert rec.sample_rate_hz == fs
     half = rec.samples.shape[0] // 2                                 # the two sweeps
-    decays = np.array([_free_decay_damping(rec.samples[k * half:(k + 1) * half, c].astype(float), fs, fn, 3.0)
-                       for k in range(2) for c in range(2)])
+    decays = np.array([free_decay_damping(rec.samples[k * half:(k + 1) * half, c].astype(float), fs, fn,
+                                          3.0)[0] for k in range(2) for c in range(2)])
     assert np.ptp(decays) < 0.05 * decays.mean(), decays
     result, _ = identify_output_only(rec.samples, rec.sample_rate_hz, rec.names, rec.kinds)
     k = int(np.argmin(np.abs(result.modes.freq_hz - fn)))
