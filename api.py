@@ -98,7 +98,7 @@ def _path_arg(value: object, where: str) -> None:
 
 
 def list_runs(path: PathLike) -> list[str]:
-    """Run ids stored in an HDF5 run file (docs/hdf5-format.md), sorted.
+    """Run ids stored in an HDF5 run file (docs/hdf5-format.md), in natural order (theta30 before theta120).
 
     Parameters
     ----------
@@ -713,7 +713,7 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
     -------
     Identification
         ``table`` (modal table: ``freq_hz`` [Hz], ``damping_ratio`` [-], ``shape.<output>``, ``mpc``,
-        ``mpd`` [deg], ``synthesis_corr``), ``modes[config]`` and ``warnings``.  Output-only shapes
+        ``mpd_deg``, ``synthesis_corr``), ``modes[config]`` and ``warnings``.  Output-only shapes
         are unscaled (unit largest entry).
 
     Raises
@@ -757,6 +757,7 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
                          "table it goes with)")
     if from_diagram and not poles_hz:
         raise ModalError("identify --from-diagram: give the poles to pick (--poles F1,F2,...)")
+    from flexmodal.checked_io.text import natural_order
     from flexmodal.modal.identify import modes_table
     from flexmodal.modal.sources import by_reciprocity, identify_frf, identify_input
 
@@ -767,8 +768,9 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
     if isinstance(source, str | os.PathLike):
         table, found = identify_input(source, run_id=run_id, references=references, failed=failed,
                                       quiet=quiet, **options)
-        result = Identification(table, {c: m for c, (m, _) in found.items()},
-                                {c: tuple(o) for c, (_, o) in found.items()})
+        order = natural_order(found)   # theta30 before theta120, as in the table
+        result = Identification(table, {c: found[c][0] for c in order},
+                                {c: tuple(found[c][1]) for c in order})
     else:
         from flexmodal.modal.frf import FrfResult
 
@@ -972,7 +974,7 @@ def read_table(path: PathLike) -> ModalTable:
     >>> import flexmodal as fm
     >>> table = fm.read_table("examples/measured/seed003_table3_f1f2.csv")   # seed 003, Table 3
     >>> table.configs[:3], len(table.frame)
-    (['theta0', 'theta120', 'theta150'], 12)
+    (['theta0', 'theta30', 'theta60'], 12)
     """
     _path_arg(path, "read_table: path")
     from flexmodal.contract.table import ModalTable
@@ -1320,7 +1322,8 @@ def diagnose(rig: Rig | PathLike, measured: ModalTable | PathLike, *, effects: s
         Also write ``diagnosis.json`` and ``diagnosis.html`` into this folder (:func:`write_diagnosis`);
         the folder is checked before any work.
     progress : callable, optional
-        Called with one line once the inputs are read and checked, before the ranking.
+        Called with one line once the inputs are read and checked, then at each stage of the ranking
+        (with a transient bar of the fits on a terminal's stderr).
 
     Returns
     -------
@@ -1373,8 +1376,8 @@ def diagnose(rig: Rig | PathLike, measured: ModalTable | PathLike, *, effects: s
     parse_effects(effects if isinstance(effects, str) else ",".join(effects))  # bad input fails now
     folds_for(table.configs, holdout)
     if progress is not None:
-        progress(f"diagnosing {table.source} against {rig.source} ...")
-    result = _diagnose(rig, table, effects=effects, holdout=holdout, scatter=scatter)
+        progress(f"diagnose: {table.source} against the model of {rig.source}")
+    result = _diagnose(rig, table, effects=effects, holdout=holdout, scatter=scatter, progress=progress)
     if out_dir is not None:
         write_diagnosis(result, out_dir, inputs=[rig.source, table.source])
     return result
@@ -1415,7 +1418,7 @@ def format_diagnosis(result: Diagnosis) -> str:
              f"{percent(v.heldout_rms_rel_error_before)} -> {percent(v.heldout_rms_rel_error_after)}"]
     words = verdict_words(result)
     lines += [x for x in (words, scatter_line(result)) if x]
-    lines += [f"  {name} = {v.params[name]:.4g}  (95 % interval {lo:.4g} .. {hi:.4g})"
+    lines += [f"  {name} = {v.params[name]:.4g} (95 % interval {lo:.4g} .. {hi:.4g})"
               for name, (lo, hi) in (v.param_intervals or {}).items()]
     said = bool(v.residual_feature) and f"it shows as {v.residual_feature}" in words   # not twice
     remaining = [f"remaining: {v.residual_feature}"] if v.residual_feature and not said else []

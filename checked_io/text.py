@@ -11,10 +11,11 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import stat
 import tomllib
 import unicodedata
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -23,6 +24,23 @@ MAX_MESSAGE_CHARS = 300  # a library message quoted in an error line is cut to t
 MAX_TEXT_BYTES = 256 << 20  # a config, table or JSON file larger than this is refused unread
 MAX_NESTING = 100  # tables/arrays/objects nested deeper than this in TOML or JSON are refused
 FLOAT_MAX_BITS = 1024  # an integer of more bits exceeds the largest float (sys.float_info.max)
+
+
+def natural_key(text: str) -> list:
+    """Sort key that orders digit runs by value (``theta60`` before ``theta120``): configurations and runs
+    are listed in this order everywhere (tables, CSV files, reports, diagnosis text).
+
+    Examples
+    --------
+    >>> sorted(["theta150", "theta30", "theta0", "theta120"], key=natural_key)
+    ['theta0', 'theta30', 'theta120', 'theta150']
+    """
+    return [[int(t) if t.isdecimal() else t for t in re.split(r"(\d+)", text)], text]   # then theta01, theta1
+
+
+def natural_order(names: Iterable[str]) -> list[str]:
+    """``names`` without repeats, in natural order (:func:`natural_key`)."""
+    return sorted(set(names), key=natural_key)
 
 
 def one_line(text: object) -> str:
@@ -202,9 +220,10 @@ def name_fault(name: str) -> str | None:
     return None
 
 
-def read_text(path: str | Path, error: ErrorType, what: str = "text file") -> str:
-    """The UTF-8 text of ``path`` (see :func:`decode_text`)."""
-    return decode_text(read_bytes(path, error, what), path, error, what)
+def read_text(path: str | Path, error: ErrorType, what: str = "text file",
+              limit_bytes: int = MAX_TEXT_BYTES) -> str:
+    """The UTF-8 text of ``path`` of at most ``limit_bytes`` (see :func:`read_bytes`, :func:`decode_text`)."""
+    return decode_text(read_bytes(path, error, what, limit_bytes), path, error, what)
 
 
 def _depth(doc: object) -> tuple[int, int | None]:

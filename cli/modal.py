@@ -16,7 +16,7 @@ def register(sub: Subcommands) -> None:
     p.add_argument("runs", nargs="+", metavar="RUN.h5", help="HDF5 run files (docs/hdf5-format.md)")
     p.add_argument("--estimator", default="H1", choices=ESTIMATORS, metavar="NAME",
                    help="FRF estimator: %(choices)s (default H1)")
-    p.add_argument("--nfft", type=opt.integer(8, 1 << 24, name="segment length"), default=None, metavar="N",
+    p.add_argument("--nfft", type=opt.segment_length, default=None, metavar="N",
                    help="segment length in samples for random runs (default: power of two <= 8192 "
                         "giving >= 8 segments); impact runs use one record per hit, sweep runs one "
                         "segment per sweep unless --nfft or --window is given")
@@ -179,7 +179,7 @@ def _identify(args: argparse.Namespace) -> int:
 
     Identify modes from an HDF5 run (stored FRFs, or computed if absent) or a UFF file (dataset 58 FRFs,
     function type 4, or time histories, type 1, with a force reference) and write the modal table CSV
-    (docs/formats.md) with the validation columns mpc, mpd [deg] and synthesis_corr, and the FRAC of each
+    (docs/formats.md) with the validation columns mpc, mpd_deg and synthesis_corr, and the FRAC of each
     measured and synthesised FRF to MODES.synthesis.csv. Each run of an HDF5 file is one configuration
     (config = run id). Runs with excitation=operational or without a force channel, and UFF time
     histories without a force, are identified output-only (SSI-cov by default; docs/oma.md). A bad run

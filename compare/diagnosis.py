@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -56,6 +56,8 @@ from scipy.stats import chi2
 from threadpoolctl import threadpool_limits
 
 from flexmodal.checked_io.percent import percent
+from flexmodal.checked_io.plural import counted
+from flexmodal.checked_io.progress import progress_bar
 from flexmodal.compare.candidates import Candidate, combine, components, parse_effects, single_candidates
 from flexmodal.compare.errors import CompareError
 from flexmodal.compare.fit import Target, design, evaluate, fit_candidate, linear_cov, paired_modes
@@ -595,7 +597,8 @@ def _where(ctx: _Context, base_err: np.ndarray, base_summary: dict, scatter: flo
 
 
 def diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str] = "all",
-             holdout: str | Sequence[str] = "auto", scatter: float | None = None) -> Diagnosis:
+             holdout: str | Sequence[str] = "auto", scatter: float | None = None,
+             progress: Callable[[str], None] | None = None) -> Diagnosis:
     """Diagnose the gap between ``rig`` (nominal) and ``measured`` modes; returns the diagnosis
     (compare/result.py; ``.to_json()`` is diagnosis.json).
 
@@ -603,14 +606,30 @@ def diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str] = "all
     ``scatter``: the fallback relative measurement scatter of the frequencies (0.005 = 0.5 %; seed 003's
     Table 4 repeatability was 0.3-0.85 %), used only when the data carry no estimate of their own
     (repeated configurations or a ``freq_std_hz`` column, compare/gap.py ``estimate_scatter``); default
-    ``DEFAULT_SCATTER``.  Raises CompareError (one line) on inputs that do not fit the rig.
+    ``DEFAULT_SCATTER``.  ``progress`` is called with a line at each stage of the work (the fits of
+    single effects, of pairs, the cross-validation, the verdict), and the fits are shown as a transient
+    bar on a terminal.  Raises CompareError (one line) on inputs that do not fit the rig.
     """
     with threadpool_limits(limits=1, user_api="blas"):  # thousands of tiny eigenproblems
-        return _diagnose(rig, measured, effects, holdout, scatter)
+        return _diagnose(rig, measured, effects, holdout, scatter, progress)
+
+
+def _fitted(items: Sequence, fit: Callable[[object], dict], what: tuple[str, str],
+            progress: Callable[[str], None] | None) -> list[dict]:
+    """``fit(item)`` of every item in order, the stage said on ``progress`` first (``fitting 40 single
+    effects``; ``what``: the noun, singular and plural) and each fit counted on a terminal's bar."""
+    if progress is not None and items:
+        progress(f"diagnose: fitting {counted(len(items), *what)}")
+    with progress_bar(len(items), f"fitting {what[1]}", quiet=progress is None) as advance:
+        done = []
+        for item in items:   # a loop over candidates
+            done.append(fit(item))
+            advance()
+    return done
 
 
 def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], holdout: str | Sequence[str],
-              fallback: float | None) -> Diagnosis:
+              fallback: float | None, progress: Callable[[str], None] | None = None) -> Diagnosis:
     fallback = DEFAULT_SCATTER if fallback is None else fallback
     if not MIN_SCATTER_REL <= fallback < 1:
         raise CompareError(f"--scatter must be a fraction in [{MIN_SCATTER_REL:g}, 1) (got {fallback:g})")
@@ -640,7 +659,8 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
     n_candidates = None
     small = baseline["rms_rel_error"] <= _none_level(sigma, ctx.beam_form)
     singles = single_candidates(rig, names, {v: [p[v] for p in meas.poses] for v in rig.pose_variables})
-    screened = [_screen(ctx, c, scatter) for c in singles] if singles else []
+    screened = _fitted(singles, lambda c: _screen(ctx, c, scatter), ("single effect", "single effects"),
+                       progress)
     none_sigma = sigma
     if small and screened:         # the best singles say what might be there, and how low the noise is
         for e in sorted(screened, key=lambda e: e["_lower"])[:MAX_ALTERNATIVES]:
@@ -663,18 +683,22 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
         for e in pool:
             if "score" not in e:
                 _cross_validate(ctx, e, scatter)
-        pairs = []
-        for n, a in enumerate(pool):
-            for b in pool[n + 1:]:
-                cand = combine(a["_cand"], b["_cand"])
-                if cand is not None:
-                    pairs.append(_screen(ctx, cand, scatter, (a, b)))
-        for lead, b in _lead_pairs(ctx, pool, screened):
-            pairs.append(_screen(ctx, combine(lead["_cand"], b["_cand"]), scatter, (lead, b)))
+        def pair(parts: tuple[dict, dict]) -> dict:
+            return _screen(ctx, combine(parts[0]["_cand"], parts[1]["_cand"]), scatter, parts)
+
+        pairs = _fitted([(a, b) for n, a in enumerate(pool) for b in pool[n + 1:]
+                         if combine(a["_cand"], b["_cand"]) is not None], pair,
+                        ("pair of effects", "pairs of effects"), progress)
+        pairs += _fitted(_lead_pairs(ctx, pool, screened), pair,
+                         ("pair with a leading single", "pairs with a leading single"), progress)
         screened += pairs
+        if progress is not None:
+            progress("diagnose: cross-validating the candidates that fit best")
         _cross_validate_promising(ctx, screened, scatter)
         pairs.sort(key=lambda e: e.get("score", math.inf))
         if pairs and pairs[0].get("heldout_rms_rel_error", math.inf) > EXPLAINED_FACTOR * scatter:
+            if progress is not None:
+                progress("diagnose: fitting triples of effects (no pair explains the gap)")
             screened += _triples(ctx, pairs[:TRIPLE_PAIRS], fitted_singles, scatter)
             _cross_validate_promising(ctx, screened, scatter)
         _cross_validate_promising(ctx, screened, scatter)     # once more at the final shape floor
@@ -686,6 +710,8 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
         _refinement_guard(ranking)
         ranking.sort(key=lambda e: e["score"])
         n_candidates = CandidateCount(fitted=len(screened), cross_validated=len(ranking))
+    if progress is not None:
+        progress("diagnose: choosing the verdict")
     for e in ranking:
         _annotate(ctx, e, scatter)
     _order(ctx, ranking, scatter)

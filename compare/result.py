@@ -32,6 +32,10 @@ from flexmodal.checked_io.percent import percent
 from flexmodal.checked_io.text import loads_json
 from flexmodal.compare.errors import CompareError
 
+MAX_COUNT = 10**6
+"""Every whole number of the tree (mode numbers, ranks, counts of parameters, candidates and folds) lies
+in 0..MAX_COUNT (contract.table.MAX_MODE: modes are numbered up to 10^6)."""
+
 Hz = tuple[float | None, ...]
 """Frequencies [Hz] of modes 1..n of one configuration; None where there is no value."""
 
@@ -129,8 +133,10 @@ def _load(tp: Any, value: object, where: str) -> object:
         if isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value):
             return float(value)
         raise CompareError(f"{where}: expected a number (got {_kind(value)} {value!r})")
-    if tp is int and not (isinstance(value, int) and not isinstance(value, bool)):
-        raise CompareError(f"{where}: expected an integer (got {_kind(value)} {value!r})")
+    whole = isinstance(value, int) and not isinstance(value, bool)
+    if tp is int and not (whole and 0 <= value <= MAX_COUNT):
+        raise CompareError(f"{where}: expected an integer from 0 to {MAX_COUNT} (got {_kind(value)} "
+                           f"{value!r})")
     if tp in (str, bool) and not isinstance(value, tp):
         raise CompareError(f"{where}: expected {'text' if tp is str else 'true or false'} "
                            f"(got {_kind(value)} {value!r})")

@@ -27,6 +27,7 @@ from functools import cached_property
 
 import numpy as np
 
+from flexmodal.checked_io.text import natural_key
 from flexmodal.compare.errors import CompareError
 from flexmodal.compare.pairing import MIN_MAC, ModeRef, Pair, Pairing, pair_modes
 from flexmodal.contract.table import ModalTable
@@ -133,11 +134,6 @@ class Comparison:
                 out += [f"{p.source}: mode {r.mode} of {r.config} ({r.freq_hz:.2f} Hz) pairs with no "
                         f"measured mode" for r in lone_pred]
         return out
-
-
-def natural_key(text: str) -> list:
-    """Sort key that orders digit runs by value (``theta60`` before ``theta120``)."""
-    return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", text)]
 
 
 def ordered_configs(table: ModalTable) -> list[str]:

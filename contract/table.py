@@ -19,7 +19,7 @@ import pandas as pd
 
 from flexmodal.checked_io.csv_tables import read_table
 from flexmodal.checked_io.output import atomic_path
-from flexmodal.checked_io.text import name_fault
+from flexmodal.checked_io.text import name_fault, natural_order
 from flexmodal.contract.errors import ContractError
 
 REQUIRED = ("config", "mode", "freq_hz")
@@ -189,7 +189,9 @@ class ModalTable:
             values = np.where(np.abs(values.real) < TINIEST, 0.0, values.real) + 1j * np.where(
                 np.abs(values.imag) < TINIEST, 0.0, values.imag)   # subnormal parts are 0
             df[col] = values.real if np.all(values.imag == 0) else values
-        df = df.sort_values(["config", "mode"], kind="stable").reset_index(drop=True)
+        rank = {c: k for k, c in enumerate(natural_order(df["config"]))}   # theta30 before theta120
+        df = df.sort_values(["config", "mode"], kind="stable", key=lambda col: col.map(rank)
+                            if col.name == "config" else col).reset_index(drop=True)
         return cls(df, source)
 
     @classmethod

@@ -49,6 +49,8 @@ EXCITATIONS = ("impact", "random", "sweep", "free-decay", "operational")
 CHANNEL_FIELDS = ("name", "kind", "unit", "sensitivity", "sensitivity_unit", "location", "direction")
 EVENT_DETAIL_BYTES = 200
 MAX_SAMPLE_RATE_HZ = 1e9  # 1 GHz; a finite rate far above it (1e300) overflows the spectra's arithmetic
+MAX_EVENT_SAMPLES = 1 << 48  # an event's sample_index or count: more than any run holds (9 years at 1 MHz);
+#                              first + count of a gap 2^62 long overflowed int64 and the gap was not skipped
 
 
 #: a transducer sensitivity (in its sensitivity_unit: mV/g, pC/N, V/µε, counts/rev) lies in this range:
@@ -376,7 +378,8 @@ def check_run_group(g: h5py.Group, where: str) -> None:
 
 
 def _check_event_places(events: h5py.Dataset, n_samples: int, where: str) -> None:
-    """Every event has sample_index >= 0 and count >= 0, and a trigger lies within the record
+    """Every event has sample_index and count from 0 to MAX_EVENT_SAMPLES, and a trigger lies within the
+    record
     (sample_index < n_samples): a trigger 10^6 samples past the end was cut into hit records of
     -995698 samples.  Other events may point past the stored rows (a run stopped by a full disk
     records where it stopped, after rows that never reached the disk): they describe, and the run
@@ -384,12 +387,12 @@ def _check_event_places(events: h5py.Dataset, n_samples: int, where: str) -> Non
     table = events[()]
     index, count = table["sample_index"], table["count"]
     trigger = np.array([_text(k) == "trigger" for k in table["kind"]], bool)   # a loop over events
-    outside = (index < 0) | (trigger & (index >= n_samples))
-    bad = np.flatnonzero(outside | (count < 0))
+    outside = (index < 0) | (trigger & (index >= n_samples)) | (index > MAX_EVENT_SAMPLES)
+    bad = np.flatnonzero(outside | (count < 0) | (count > MAX_EVENT_SAMPLES))
     if bad.size:
         row = int(bad[0])
         what = (f"sample_index = {index[row]} is outside the record (0 to {n_samples - 1})" if outside[row]
-                else f"count = {count[row]} is negative")
+                else f"count = {count[row]} is not from 0 to {MAX_EVENT_SAMPLES} samples")
         raise DaqError(f"{where}: 'events' row {row} ({_text(table['kind'][row])}): {what}")
 
 

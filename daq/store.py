@@ -29,7 +29,7 @@ import h5py
 import numpy as np
 
 from flexmodal.checked_io.output import hdf5_output, signals_deferred
-from flexmodal.checked_io.text import available_memory_bytes, nfc, one_line, regular_file
+from flexmodal.checked_io.text import available_memory_bytes, natural_order, nfc, one_line, regular_file
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.h5file import LOCKED, locked, open_read
 from flexmodal.daq.run_schema import (
@@ -379,14 +379,15 @@ class RunWriter:
 
 
 def list_runs(path: str | Path) -> list[str]:
-    """Run ids stored in ``path`` (sorted).  A run group reached under several names (an HDF5 hard or
-    soft link to another run) is listed once, under its first name: it is one run, not two."""
+    """Run ids stored in ``path`` in natural order (``theta30`` before ``theta120``).  A run group
+    reached under several names (an HDF5 hard or soft link to another run) is listed once, under its
+    first name: it is one run, not two."""
     with open_read(path) as f:
         runs = member(f, "runs", str(path))
         if runs is not None and not isinstance(runs, h5py.Group):
             raise DaqError(f"{path}: '/runs' is not a group of runs")
         ids, seen = [], set()
-        for name in sorted(runs.keys()) if runs is not None else []:
+        for name in natural_order(runs.keys()) if runs is not None else []:
             try:
                 obj = runs[name] if external_link_on_path(runs, name) is None else None   # never another file
             except (KeyError, RuntimeError, OSError, ValueError):  # a broken link: reading it names it

@@ -30,6 +30,8 @@ FORMAT = "flexmodal stabilisation diagrams 1"
 KINDS = {"order": "i", "freq_hz": "f", "damping_ratio": "f", "pole": "c", "stable_freq": "b",
          "stable_damping": "b", "stable_shape": "b", "previous": "i"}
 MAX_BYTES = 1 << 28   # 256 MiB of arrays (a diagram of 10^6 poles holds ~40 MB)
+MAX_ORDER = 1 << 16   # no pLSCF is fitted at a higher order (its normal equations: (order + 1)^2 numbers
+#                       per output, 34 GB at this one; --max-order stops at 400, the default caps near it)
 
 
 @dataclass(frozen=True)
@@ -145,12 +147,12 @@ def _arrays(path: str | Path) -> dict[str, np.ndarray]:
 
 def _check_values(entry: Mapping[str, np.ndarray], k: int, path: str | Path) -> None:
     """ModalError naming diagram ``k`` when a stored value is impossible: a frequency that is not
-    finite and positive, a damping ratio or pole that is not finite, an order below 1, a ``previous``
-    index outside the diagram."""
+    finite and positive, a damping ratio or pole that is not finite, an order outside 1..MAX_ORDER, a
+    ``previous`` index outside the diagram."""
     n = entry["order"].size
     bad = {"freq_hz": ~(np.isfinite(entry["freq_hz"]) & (entry["freq_hz"] > 0)),
            "damping_ratio": ~np.isfinite(entry["damping_ratio"]), "pole": ~np.isfinite(entry["pole"]),
-           "order": entry["order"] < 1}
+           "order": (entry["order"] < 1) | (entry["order"] > MAX_ORDER)}
     if "previous" in entry:
         bad["previous"] = (entry["previous"] < -1) | (entry["previous"] >= n)
     for name, wrong in bad.items():

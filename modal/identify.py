@@ -40,7 +40,8 @@ from flexmodal.modal.registry import METHODS, output_only
 from flexmodal.modal.stability import PICKED
 from flexmodal.modal.windows import remove_added_damping
 
-INDICATORS = ("mpc", "mpd", "synthesis_corr")   # per-mode validation columns of the modal table
+INDICATORS = {"mpc": "mpc", "mpd": "mpd_deg", "synthesis_corr": "synthesis_corr"}
+"""Per-mode validation indicators (``Modes`` attribute: modal table column, its unit in its name)."""
 TOP_ORDERS = 0.75   # a mode's frequency: median over its upper quarter of stable orders (least noise)
 VISIBLE_DB = 3.0   # a peak this prominent in some FRF or CMIF curve is a resonance the data show
 BROAD = 3.0   # a pole of this many times a close mode's half-power bandwidth, covering it, is background
@@ -57,6 +58,8 @@ EDGE_SMOOTH = 0.005   # ...averaged over outputs and over about this share of th
 EDGE_SHARE = 0.25     # ...unless that stretch holds more than this share of the band (no band edge then)
 BASIS_MISFIT = 1.25  # one reference: the second basis's misfit share may be this many times the first's
 BASIS_PEAKS = 2      # ...and it explains this many more clear CMIF peaks, or one more and loses none
+BASIS_WORDS = {False: "the standard one", True: "the one that puts noise poles at negative damping"}
+"""The two pLSCF fits of one reference in the order note: basis z = exp(+i w dt) and exp(-i w dt)."""
 
 
 @dataclass(frozen=True)
@@ -96,6 +99,7 @@ class Modes:
     damping_std: np.ndarray | None = None      # 1-sigma [-]
     diagram_key: str = ""   # modal.diagrams.inputs_key of the FRFs and options behind ``stabilisation``
     band_note: str = ""     # which band [Hz] was fitted and why (identify's band_note)
+    excitation: str | None = None   # how the FRFs were made (random, impact, sweep; None unknown)
 
 
 @dataclass(frozen=True)
@@ -180,11 +184,11 @@ def band_note(f: np.ndarray, fmin: float | None, fmax: float | None, top_hz: flo
         upper = "--fmax"
     elif edge_hz is not None:
         upper = (f"the last line before the FRFs' coherence stays below {EDGE_COHERENCE:g} up to "
-                 f"{top_hz:g} Hz (an anti-aliasing filter's roll-off or the end of the excitation: --fmax "
+                 f"{top_hz:.4g} Hz (an anti-aliasing filter's roll-off or the end of the excitation: --fmax "
                  "to fit those lines)")
     else:
         upper = "the highest line"
-    return f"band {f.min():.5g}-{f.max():.5g} Hz: from {lower} to {upper}"
+    return f"band fitted {f.min():.3g}-{f.max():.4g} Hz, from {lower} to {upper}"
 
 
 def _shapes(constants: np.ndarray, driving_point: int | None) -> tuple[np.ndarray, bool]:
@@ -489,9 +493,9 @@ def _validate(f: np.ndarray, H: np.ndarray, clusters: PoleClusters, quantity: st
             clusters, (fa, fb) = (_merge(clusters, k, constants, f, H, fit, quantity),
                                   clusters.freq_hz[[k, k + 1]])
             background = np.delete(background, k + 1)
-            warnings.append(f"merged the poles at {fa:.5g} and {fb:.5g} Hz into one mode at "
-                            f"{clusters.freq_hz[k]:.5g} Hz: half-power bands overlapping, {why}, one "
-                            "resonance the model split in two")
+            warnings.append(f"merged the poles at {fa:.5g} and {fb:.5g} Hz into one mode (listed at its "
+                            f"refined frequency): half-power bands overlapping, {why}, one resonance the "
+                            "model split in two")
             continue
         phase = mpc(constants) if H.shape[0] >= 2 else None
         fails = fit.need < limits.need_min
@@ -778,12 +782,15 @@ def _one_reference_basis(f: np.ndarray, H: np.ndarray, peaks_hz: np.ndarray, sea
 
     plus, minus = search(False), search(True)
     (a, a_corr), (b, b_corr) = explained(plus), explained(minus)
-    counts = (f"basis exp(+i w dt) explaining {counted(int(a.sum()), 'clear CMIF peak')} (FRF correlation "
-              f"{a_corr:.3f}), exp(-i w dt) {int(b.sum())} ({b_corr:.3f})")
     gain = int(b.sum()) - int(a.sum())
-    if (gain >= BASIS_PEAKS or gain > 0 and not np.any(a & ~b)) and 1 - b_corr <= BASIS_MISFIT * (1 - a_corr):
-        return minus[0], f"{minus[1]}; {counts}: exp(-i w dt) used", minus[2]
-    return plus[0], f"{plus[1]}; {counts}: exp(+i w dt) used", plus[2]
+    used = bool((gain >= BASIS_PEAKS or gain > 0 and not np.any(a & ~b))
+                and 1 - b_corr <= BASIS_MISFIT * (1 - a_corr))
+    (n_used, corr_used), (n_other, corr_other) = ((b, b_corr), (a, a_corr))[::1 if used else -1]
+    words = (f"of the two pLSCF fits, {BASIS_WORDS[used]} is used: it explains "
+             f"{counted(int(n_used.sum()), 'clear CMIF peak')} at an FRF correlation of {corr_used:.3f}; "
+             f"{BASIS_WORDS[not used]} explains {int(n_other.sum())} at {corr_other:.3f}")
+    found = minus if used else plus
+    return found[0], f"{found[1]}; {words}", found[2]
 
 
 ADVICE = {   # what to change when modes have few lines in their half-power band, by how the FRFs were made
@@ -798,12 +805,14 @@ ADVICE = {   # what to change when modes have few lines in their half-power band
 }
 
 
-def _resolution(f: np.ndarray, fn: np.ndarray, zeta: np.ndarray, excitation: str | None
-                ) -> tuple[list[str], tuple[str, ...]]:
-    """One summary warning for the modes with fewer than MIN_LINES_PER_BANDWIDTH lines in their
-    half-power band, with the advice right for ``excitation`` (``random`` for Welch-averaged FRFs of
-    random or sweep runs, ``impact``, None unknown), and the per-mode lines."""
-    lines = 2 * zeta * fn / float(np.median(np.diff(f)))
+def _resolution(f: np.ndarray, fn: np.ndarray, zeta: np.ndarray, excitation: str | None,
+                decay_rate_per_s: float = 0.0) -> tuple[list[str], tuple[str, ...]]:
+    """One summary warning for the modes ``fn`` [Hz], ``zeta`` [-] with fewer than
+    MIN_LINES_PER_BANDWIDTH lines (``f`` [Hz]) in their half-power band in the FRFs (widened by an
+    exponential window of ``decay_rate_per_s`` [1/s]: sigma / pi Hz), with the advice right for
+    ``excitation`` (``random`` for Welch-averaged FRFs of random or sweep runs, ``impact``, None
+    unknown), and the per-mode lines."""
+    lines = (2 * zeta * fn + decay_rate_per_s / np.pi) / float(np.median(np.diff(f)))
     few = np.flatnonzero(lines < MIN_LINES_PER_BANDWIDTH)
     details = tuple(f"mode at {fn[k]:.4g} Hz: {lines[k]:.1f} lines in its half-power band "
                     f"(< {MIN_LINES_PER_BANDWIDTH})" for k in few)
@@ -936,8 +945,6 @@ def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: 
                                                      limits, stored))
     fn, zeta, constants, extra = found.freq_hz, found.damping_ratio, found.constants, dict(found.extra)
     warnings += found.warnings
-    coarse, details = _resolution(f, fn, zeta, excitation)
-    warnings += coarse
     keep = np.ones(fn.size, bool)
     if decay_rate_per_s:
         fn, zeta = remove_added_damping(fn, zeta, decay_rate_per_s)
@@ -949,22 +956,36 @@ def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: 
     shapes, massn = _shapes(constants[:, keep], driving_point if found.scaled else None)
     order = np.flatnonzero(keep)[np.argsort(fn[keep])]
     per_mode = {k: extra[k][order] for k in ("mpc", "mpd", "synthesis_corr", "need") if k in extra}
+    coarse, details = _resolution(f, fn[order], zeta[order], excitation, decay_rate_per_s)
+    warnings += coarse
     return Modes(fn[order], zeta[order], shapes[:, np.argsort(fn[keep])], constants[:, order], method, massn,
                  tuple(warnings), **per_mode, **{k: v for k, v in extra.items() if k not in per_mode},
                  details=details, diagram_key=key,
-                 band_note=band_note(f, fmin, fmax, float(np.max(freq_hz)), edge))
+                 band_note=band_note(f, fmin, fmax, float(np.max(freq_hz)), edge), excitation=excitation)
+
+
+def restated(before: Modes, after: Modes, freq_hz: np.ndarray, decay_rate_per_s: float = 0.0) -> Modes:
+    """``after`` (``before`` with its poles refined, :mod:`modal.uncertainty`) with the warning on lines
+    per half-power band and its per-mode details said at its own poles, the frequencies the modal
+    table lists (FRF lines ``freq_hz`` [Hz], exponential window ``decay_rate_per_s`` [1/s])."""
+    old, _ = _resolution(freq_hz, before.freq_hz, before.damping_ratio, before.excitation, decay_rate_per_s)
+    new, details = _resolution(freq_hz, after.freq_hz, after.damping_ratio, after.excitation,
+                               decay_rate_per_s)
+    return dataclasses.replace(after, warnings=tuple(w for w in after.warnings if w not in old) + tuple(new),
+                               details=details)
 
 
 def modes_table(modes: Modes, outputs: Sequence[str], *, config: str = "run",
                 pose: Mapping[str, float] | None = None, source: str = "experiment") -> ModalTable:
     """The modal table of one configuration: config, mode, freq_hz, damping_ratio, source, the
-    validation indicators ``mpc``, ``mpd`` [deg] and ``synthesis_corr`` (pLSCF), pose.*,
+    validation indicators ``mpc``, ``mpd_deg`` and ``synthesis_corr`` (pLSCF), pose.*,
     shape.<output>."""
     records = []
     for r in range(modes.freq_hz.size):
         row: dict[str, object] = {"config": config, "mode": r + 1, "freq_hz": float(modes.freq_hz[r]),
                                   "damping_ratio": float(modes.damping_ratio[r]), "source": source}
-        row.update({k: float(getattr(modes, k)[r]) for k in INDICATORS if getattr(modes, k) is not None})
+        row.update({col: float(getattr(modes, k)[r]) for k, col in INDICATORS.items()
+                    if getattr(modes, k) is not None})
         row.update({k: float(getattr(modes, k)[r]) for k in ("freq_std_hz", "damping_std")
                     if getattr(modes, k) is not None})
         row.update({f"pose.{k}": v for k, v in (pose or {}).items()})

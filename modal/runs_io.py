@@ -17,10 +17,13 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from flexmodal.checked_io.options import MAX_NFFT
 from flexmodal.checked_io.output import signals_deferred
 from flexmodal.checked_io.text import loads_json, nfc, one_line
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult, check_coherence, check_freq_axis
+
+MAX_AVERAGES = 1 << 40   # averages of a stored FRF group: more than a record of 10^12 samples gives
 
 FRF_GROUP = "frf"
 PARTIAL_PREFIX = ".frf-partial-"   # the group an FRF set is written into before it is renamed ``frf``
@@ -132,7 +135,7 @@ def read_frf(path: str | Path, run_id: str) -> FrfResult | None:
         rate = a.number("sample_rate_hz", np.nan, positive=True)
         _check_rate(run, rate, freq_hz, where)
         return FrfResult(freq_hz, H, coherence, a.text("estimator"), a.text("window"),
-                         a.integer("nfft", 1), a.integer("n_averages", 1), rate,
+                         a.integer("nfft", 1, MAX_NFFT), a.integer("n_averages", 1, MAX_AVERAGES), rate,
                          a.text("quantity", "accelerance"), outputs, inputs,
                          a.number("decay_rate_per_s", 0.0), a.json("provenance", {}, dict))
 
@@ -239,10 +242,10 @@ class _Attrs:
             raise self._bad(key, self.attrs[key], expected + stored_as(self.attrs, key))
         return value
 
-    def integer(self, key: str, lo: int) -> int:
-        expected = f"a whole number >= {lo}"
+    def integer(self, key: str, lo: int, hi: int) -> int:
+        expected = f"a whole number from {lo} to {hi}"
         value = self._number(key, expected)
-        if not isinstance(value, int) or value < lo:
+        if not isinstance(value, int) or not lo <= value <= hi:
             raise self._bad(key, value, expected)
         return value
 

@@ -96,7 +96,7 @@ import scipy.linalg
 from flexmodal.checked_io.blas import one_blas_thread
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import convert
-from flexmodal.modal.identify import MIN_LINES_PER_BANDWIDTH, Modes
+from flexmodal.modal.identify import MIN_LINES_PER_BANDWIDTH, Modes, restated
 from flexmodal.modal.windows import window
 
 HANN_50_CORRELATION = 0.167
@@ -454,7 +454,8 @@ def with_uncertainty(modes: Modes, freq_hz: np.ndarray, H: np.ndarray, coherence
                           quantity=quantity, decay_rate_per_s=decay_rate_per_s, welch=welch)
     ok = (np.abs(u.local_freq_hz - modes.freq_hz) <= modes.damping_ratio * modes.freq_hz) & \
         (u.local_damping > 0) & np.isfinite(u.freq_std_hz)
-    return replace(modes, freq_hz=np.where(ok, u.local_freq_hz, modes.freq_hz),
-                   damping_ratio=np.where(ok, u.local_damping, modes.damping_ratio),
-                   freq_std_hz=np.where(ok, u.freq_std_hz, np.nan),
-                   damping_std=np.where(ok, u.damping_std, np.nan))
+    refined = replace(modes, freq_hz=np.where(ok, u.local_freq_hz, modes.freq_hz),
+                      damping_ratio=np.where(ok, u.local_damping, modes.damping_ratio),
+                      freq_std_hz=np.where(ok, u.freq_std_hz, np.nan),
+                      damping_std=np.where(ok, u.damping_std, np.nan))
+    return restated(modes, refined, freq_hz, decay_rate_per_s)   # warnings quote the refined poles

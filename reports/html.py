@@ -31,10 +31,10 @@ import jinja2
 import pandas as pd
 
 from flexmodal.checked_io.output import write_text
-from flexmodal.checked_io.text import read_text
+from flexmodal.checked_io.text import natural_key, read_text
 from flexmodal.compare.errors import CompareError
 from flexmodal.compare.result import Diagnosis, Predictions
-from flexmodal.compare.tables import Comparison, html_fragment, natural_key, ordered_configs
+from flexmodal.compare.tables import Comparison, html_fragment, ordered_configs
 from flexmodal.compare.verdict_text import (
     advice_words,
     alternatives_words,
@@ -468,11 +468,16 @@ def write_report(out_path: str | Path, *, runs: Sequence[RunSummary] = (),
     return write_text(out, html)
 
 
+MAX_DIAGNOSIS_BYTES = 8 << 20
+"""A diagnosis.json larger than this (8 MiB; the demo's is 20 kB, a diagnosis of hundreds of poses and
+candidates well under 1 MiB) is refused unread: its reading time grows with its size (docs/formats.md)."""
+
+
 def load_diagnosis(path: str | Path) -> Diagnosis:
-    """Read a diagnosis.json (docs/formats.md); ReportError naming the file and the key when it is not
-    JSON or not a diagnosis."""
+    """Read a diagnosis.json (docs/formats.md) of at most MAX_DIAGNOSIS_BYTES; ReportError naming the
+    file and the key when it is not JSON or not a diagnosis, naming the file when it is too large."""
     p = Path(path)
     try:
-        return Diagnosis.from_json(read_text(p, ReportError, "diagnosis JSON file"))
+        return Diagnosis.from_json(read_text(p, ReportError, "diagnosis JSON file", MAX_DIAGNOSIS_BYTES))
     except CompareError as exc:
         raise ReportError(f"{p}: {exc}") from None

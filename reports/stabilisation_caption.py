@@ -11,14 +11,16 @@ from __future__ import annotations
 import re
 from collections.abc import Sequence
 
+from flexmodal.modal.identify import BASIS_WORDS
 from flexmodal.modal.stability import PICKED, STABLE_DAMPING_REL, STABLE_FREQ_REL, STABLE_MAC_MIN
 
 _NOTE = re.compile(r"model order (?P<order>\d+): (?P<modes>\d+ modes?), (?P<why>.+?) \((?P<history>\d+ at \d+"
                    r"(?:, \d+ at \d+)*)\)(?:; (?:they explain|it explains) (?P<shown>\d+) of "
                    r"(?P<peaks>\d+) clear CMIF peaks?)?(?P<rest>.*)")
-_BASIS = re.compile(r"; basis exp\(\+i w dt\) explaining (?P<a>\d+) clear CMIF peaks? \(FRF correlation "
-                    r"(?P<a_corr>[^)]+)\), exp\(-i w dt\) (?P<b>\d+) \((?P<b_corr>[^)]+)\): "
-                    r"exp\((?P<used>[+-])i w dt\) used")
+_FIT = "|".join(re.escape(w) for w in BASIS_WORDS.values())
+_BASIS = re.compile(rf"; of the two pLSCF fits, (?P<used>{_FIT}) is used: it explains (?P<n_used>\d+) "
+                    r"clear CMIF peaks? at an FRF correlation of (?P<c_used>[\d.]+); "
+                    rf"(?:{_FIT}) explains (?P<n_other>\d+) at (?P<c_other>[\d.]+)")
 
 
 _WHY = {"the default cap (a higher one: --max-order)":
@@ -43,9 +45,9 @@ def order_words(note: str) -> str:
     Examples
     --------
     >>> print(order_words("model order 54: 3 modes, the modes found stopped growing (3 at 24, 3 at 36, "
-    ...                   "3 at 54); they explain 3 of 3 clear CMIF peaks; basis exp(+i w dt) explaining "
-    ...                   "3 clear CMIF peaks (FRF correlation 1.000), exp(-i w dt) 3 (0.998): "
-    ...                   "exp(+i w dt) used"))
+    ...                   "3 at 54); they explain 3 of 3 clear CMIF peaks; of the two pLSCF fits, the "
+    ...                   "standard one is used: it explains 3 clear CMIF peaks at an FRF correlation of "
+    ...                   "1.000; the one that puts noise poles at negative damping explains 3 at 0.998"))
     Model order 54 used; 3 modes found at orders 24, 36 and 54; the search stopped because the modes
     found stopped growing. The 3 modes explain all 3 clear CMIF peaks. Of the two pLSCF bases, z =
     exp(+iωΔt) is used (3 clear peaks explained, FRF correlation 1.000; exp(−iωΔt): 3, 0.998).
@@ -80,11 +82,10 @@ def order_words(note: str) -> str:
     rest = m["rest"]
     basis = _BASIS.search(rest)
     if basis:
-        used, other = ("a", "b") if basis["used"] == "+" else ("b", "a")
-        sign = {"a": "+", "b": "−"}
-        words += (f" Of the two pLSCF bases, z = exp({sign[used]}iωΔt) is used ({basis[used]} clear peaks "
-                  f"explained, FRF correlation {basis[used + '_corr']}; exp({sign[other]}iωΔt): "
-                  f"{basis[other]}, {basis[other + '_corr']}).")
+        used, other = ("+", "−") if basis["used"] == BASIS_WORDS[False] else ("−", "+")
+        words += (f" Of the two pLSCF bases, z = exp({used}iωΔt) is used ({basis['n_used']} clear peaks "
+                  f"explained, FRF correlation {basis['c_used']}; exp({other}iωΔt): "
+                  f"{basis['n_other']}, {basis['c_other']}).")
         rest = rest[:basis.start()] + rest[basis.end():]
     if PICKED in rest:
         words += " The poles were re-picked from the stored diagram (identify --poles)."

@@ -50,13 +50,13 @@ def test_the_first_cell_runs_again_on_the_file_it_made(example, monkeypatch):
     monkeypatch.chdir(example["dir"])
     before = api.list_runs("runs.h5")
     exec(compile(first, str(DOC), "exec"), {"__name__": "__doc_example__"})
-    assert api.list_runs("runs.h5") == before == ["theta0", "theta120", "theta30", "theta60", "theta90"]
+    assert api.list_runs("runs.h5") == before == ["theta0", "theta30", "theta60", "theta90", "theta120"]
 
 
 def test_the_worked_example_finds_the_simulated_modes(example):
     """Known answer: the simulated arm's natural frequencies (with the hidden elbow spring)."""
     rig, measured = example["rig"], example["measured"]
-    ids = ["theta0", "theta120", "theta30", "theta60", "theta90"]   # as the doc's comment says
+    ids = ["theta0", "theta30", "theta60", "theta90", "theta120"]   # as the doc's comment says
     assert api.list_runs(example["dir"] / "runs.h5") == ids
     elbow = example["elbow"]
     for config, pose in example["poses"].items():

@@ -215,20 +215,34 @@ def test_the_demo_tells_a_log_each_step(demo_run):
 
 
 
+UNIT_WORDS = {"Hz": "_hz", "deg": "_deg", "degrees": "_deg", "kg": "_kg"}   # a unit stated: its name suffix
+NO_UNIT = re.compile(r"^- |fraction|whole number|mode-shape value|text|who produced")   # said to have none
+
+
 def test_every_column_the_demo_writes_is_documented_with_its_unit(demo_dir: tuple[Path, float, str]) -> None:
-    """A reader of modes.csv or fe.csv finds each header in docs/formats.md's modal table columns, with its
-    unit (``mpc``, ``mpd`` [deg], ``synthesis_corr``, ``freq_std_hz`` and ``damping_std`` were in no table
-    there); pose columns name their unit in their name (``pose.theta_deg``)."""
-    out, _, _ = demo_dir
+    """A reader of modes.csv or fe.csv finds each header in docs/formats.md's modal table columns, and there
+    its unit, or that it has none (``- (0..1)``, a fraction, a whole number); a column with a unit names
+    it in its header as freq_hz does (``mpd`` was in degrees with no unit in its name: ``mpd_deg``), pose
+    columns too (``pose.theta_deg``); and every number column of the table the demo prints has its unit
+    in brackets in its header (``fe f [Hz]``, ``experiment ζ [%]``, ``fe MAC [-]``)."""
+    out, _, stdout = demo_dir
     formats = (REPO / "docs" / "formats.md").read_text(encoding="utf-8")
-    documented = set(re.findall(r"^\| `([^`]+)` \|", formats, re.MULTILINE))
+    documented = dict(re.findall(r"^\| `([^`]+)` \| (.+) \|$", formats, re.MULTILINE))   # name: its cells
     for name in ("modes.csv", "fe.csv"):
         header = (out / name).read_text().splitlines()[0].split(",")
         generic = [re.sub(r"^pose\..*", "pose.<var>", re.sub(r"^shape\..*", "shape.<sensor>", c))
                    for c in header]
-        assert {"mpc", "mpd", "freq_std_hz"} <= set(header) or name == "fe.csv", header
+        assert {"mpc", "mpd_deg", "freq_std_hz"} <= set(header) or name == "fe.csv", header
         assert [c for c in generic if c not in documented] == [], (name, header)
+        for column in set(generic) - {"config", "pose.<var>", "shape.<sensor>"}:
+            doc = documented[column]
+            units = [u for u in UNIT_WORDS if re.search(rf"\b{u}\b", doc)]
+            assert units or NO_UNIT.search(doc), (column, doc)              # a unit, or said to have none
+            assert all(column.endswith(UNIT_WORDS[u]) for u in units), (column, doc)   # in its name
         assert all(re.search(r"_(deg|kg|m)$", c) for c in header if c.startswith("pose.")), header
+    printed = next(line for line in stdout.splitlines() if line.startswith("| config | mode |"))
+    cells = [c.strip() for c in printed.strip("|").split("|")][2:]
+    assert cells and all(re.search(r" \[(Hz|%|-)\]$", c) for c in cells), printed
 
 
 def test_what_the_demo_points_a_reader_to_is_in_the_docs(demo_dir: tuple[Path, float, str]) -> None:

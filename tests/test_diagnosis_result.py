@@ -218,7 +218,8 @@ def test_a_document_that_is_not_a_diagnosis_is_named_in_one_line(tmp_path, capsy
                                                  if k != "explained"}})
     with pytest.raises(CompareError, match=r"^baseline\.rms_rel_error: expected a number \(got str '12 %'\)"):
         Diagnosis.from_dict({**good, "baseline": {**good["baseline"], "rms_rel_error": "12 %"}})
-    with pytest.raises(CompareError, match=r"^ranking\[0\]\.n_params: expected an integer \(got bool"):
+    with pytest.raises(CompareError,
+                       match=r"^ranking\[0\]\.n_params: expected an integer from 0 to 1000000 \(got bool"):
         Diagnosis.from_dict({**good, "ranking": [{**good["ranking"][0], "n_params": True}]})
     with pytest.raises(CompareError, match=r"^where\.modes: expected a list \(got int\)$"):
         Diagnosis.from_dict({**good, "where": {**good["where"], "modes": 2}})

@@ -146,7 +146,8 @@ def test_a_file_of_the_users_own_where_the_diagram_goes_is_never_replaced(identi
 
 @pytest.mark.parametrize(("name", "value", "words"), [
     ("freq_hz", np.nan, "freq_hz[0] = nan"), ("damping_ratio", np.inf, "damping_ratio[0] = inf"),
-    ("previous", 10**6, "previous[0] = 1000000"), ("order", -3, "order[0] = -3")])
+    ("previous", 10**6, "previous[0] = 1000000"), ("order", -3, "order[0] = -3"),
+    ("order", 2**62, "order[0] = 4611686018427387904")])
 def test_impossible_stored_values_are_named(identified, tmp_path, name, value, words):
     _, folder, _ = identified
     with np.load(diagram_path(folder / "m.csv")) as npz:
@@ -155,6 +156,27 @@ def test_impossible_stored_values_are_named(identified, tmp_path, name, value, w
     np.savez(tmp_path / "d.npz", **arrays)
     with pytest.raises(fm.ModalError, match=re.escape(f"diagram 1: {words} is impossible")):
         read_diagrams(tmp_path / "d.npz")
+
+
+def test_identify_names_a_stored_order_out_of_range_and_keeps_the_file(identified, tmp_path, capsys):
+    """A stored diagram whose model order is 2^62 was read as a diagram; ``identify --poles
+    --from-diagram`` now refuses it in one line naming the file, the diagram and the value, exit 2,
+    and neither the stored diagram nor anything else is written."""
+    run, folder, auto = identified
+    with np.load(diagram_path(folder / "m.csv")) as npz:
+        arrays = {k: npz[k] for k in npz.files}
+    arrays["d0.order"][-1] = 2**62
+    out = tmp_path / "m.csv"
+    np.savez(diagram_path(out), **arrays)
+    before = diagram_path(out).read_bytes()
+    poles = ",".join(f"{f:.2f}" for f in auto.table.freq_hz(auto.table.configs[0]))
+    assert main(["identify", str(run), "--fmax", "400", "--out", str(out), "--poles", poles,
+                 "--from-diagram"]) == 2
+    err = capsys.readouterr().err.strip()
+    n = arrays["d0.order"].size - 1
+    said = f"m.diagram.npz: diagram 1: order[{n}] = 4611686018427387904 is impossible"
+    assert err.count("\n") == 0 and err.endswith(said), err
+    assert diagram_path(out).read_bytes() == before and not out.exists()
 
 
 def test_sizes_are_checked_before_reading(identified, tmp_path):

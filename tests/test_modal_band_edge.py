@@ -49,14 +49,14 @@ def test_default_band_ends_where_the_coherence_ends_and_fmax_overrides_it():
     modes = identify(F, H, coherence=COH, quantity="accelerance")
     assert modes.band_freq_hz.max() == EDGE_HZ
     assert np.allclose(modes.freq_hz, FN, rtol=1e-4)
-    assert modes.band_note.startswith("band 0.05-87.25 Hz: from the first line above 0 Hz to the last line "
-                                      "before the FRFs' coherence stays below 0.9 up to 100 Hz")
+    assert modes.band_note.startswith("band fitted 0.05-87.25 Hz, from the first line above 0 Hz to the last "
+                                      "line before the FRFs' coherence stays below 0.9 up to 100 Hz")
     manual = identify(F, H, coherence=COH, quantity="accelerance", fmin=5.0, fmax=60.0)
     assert manual.band_freq_hz.min() == 5.0 and manual.band_freq_hz.max() == 60.0
-    assert manual.band_note == "band 5-60 Hz: from --fmin to --fmax"
+    assert manual.band_note == "band fitted 5-60 Hz, from --fmin to --fmax"
     keep = F <= 80.0   # FRFs without a coherence (e.g. stored in a UFF file): every line is fitted
     stored = identify(F[keep], H[..., keep], quantity="accelerance")
-    assert stored.band_note == "band 0.05-80 Hz: from the first line above 0 Hz to the highest line"
+    assert stored.band_note == "band fitted 0.05-80 Hz, from the first line above 0 Hz to the highest line"
 
 
 def test_the_decimated_chirp_record_is_fitted_below_its_aliased_top():

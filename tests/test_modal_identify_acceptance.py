@@ -110,7 +110,7 @@ def test_selected_poles_and_synthesis_are_reported_with_the_modes():
     assert modes.frf_synthesis_corr.shape == (6, 1) and modes.frf_synthesis_corr.min() > 0.99
     assert np.all(modes.synthesis_corr > 0.99) and np.all(modes.mpc > 0.99) and np.all(modes.mpd < 3)
     table = identify_modes(f, H, fmin=40, fmax=180)
-    assert {"mpc", "mpd", "synthesis_corr"} <= set(table.frame.columns)
+    assert {"mpc", "mpd_deg", "synthesis_corr"} <= set(table.frame.columns)
 
 
 def test_a_spurious_pole_the_frfs_do_not_need_is_dropped_with_a_warning():

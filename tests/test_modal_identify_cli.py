@@ -32,7 +32,7 @@ def test_poles_option_returns_exactly_the_requested_modes_with_validation_column
     table = ModalTable.read_csv(out)
     assert np.allclose(table.freq_hz("frf"), [12.0, 55.0], rtol=1e-5)
     frame = table.frame
-    assert {"mpc", "mpd", "synthesis_corr"} <= set(frame.columns)
+    assert {"mpc", "mpd_deg", "synthesis_corr"} <= set(frame.columns)
     assert (frame["mpc"] > 0.95).all()   # the unpicked 31 Hz mode leaks into the LSFD shapes a little
     synth = pd.read_csv(tmp_path / "modes.synthesis.csv")
     assert list(synth.columns) == ["config", "output", "input", "synthesis_corr"]
@@ -41,7 +41,7 @@ def test_poles_option_returns_exactly_the_requested_modes_with_validation_column
     assert synth["synthesis_corr"].min() < 0.999
     err = capsys.readouterr().err
     assert "model order" in err
-    assert "flexmodal: frf: band 5-99.95 Hz: from --fmin to the highest line\n" in err   # and why
+    assert "flexmodal: frf: band fitted 5-99.95 Hz, from --fmin to the highest line\n" in err   # and why
 
 
 def test_default_identification_synthesises_every_frf(tmp_path):
@@ -49,7 +49,7 @@ def test_default_identification_synthesises_every_frf(tmp_path):
     assert main(["identify", str(uff), "--out", str(out), "--fmin", "5"]) == 0
     table = ModalTable.read_csv(out)
     assert np.allclose(table.freq_hz("frf"), FN, rtol=1e-5)
-    assert (table.frame["mpc"] > 0.9999).all() and (table.frame["mpd"] < 0.5).all()
+    assert (table.frame["mpc"] > 0.9999).all() and (table.frame["mpd_deg"] < 0.5).all()
     assert pd.read_csv(tmp_path / "modes.synthesis.csv")["synthesis_corr"].min() > 0.99999
 
 
@@ -112,12 +112,12 @@ def test_several_runs_give_one_warning_line_per_kind_and_verbose_gives_each_run(
     assert main(["identify", str(runs), "--out", str(out), "--fmax", "400"]) == 0
     err = capsys.readouterr().err.splitlines()
     assert len(ModalTable.read_csv(out).configs) == 3
-    assert not [line for line in err[:-1] if "model order" in line or ": band " in line]   # --verbose
+    assert not [line for line in err[:-1] if "model order" in line or ": band fitted " in line]   # --verbose
     warned = [line for line in err if line.startswith("flexmodal: warning: ")]
     kinds = {line.split(": e.g. ")[-1].split(": ", 1)[-1].split("(")[0] for line in warned}
     assert len(kinds) == len(warned)                                    # no kind twice
     assert err[-1].startswith("flexmodal: ") and " modes in 3 configurations, " in err[-1]
     assert main(["identify", str(runs), "--out", str(out), "--fmax", "400", "--verbose"]) == 0
     err = capsys.readouterr().err
-    assert all(f"flexmodal: theta{t}: band " in err and f"flexmodal: theta{t}: model order" in err
+    assert all(f"flexmodal: theta{t}: band fitted " in err and f"flexmodal: theta{t}: model order" in err
                for t in (30, 90, 120))

@@ -176,7 +176,9 @@ def test_a_channel_takes_exactly_the_sensitivities_in_range(value: float) -> Non
 @pytest.mark.parametrize("index, count, words", [(2048, 1, "sample_index = 2048 is outside the record"),
                                                  (10**6, 1, "sample_index = 1000000 is outside"),
                                                  (-5, 1, "sample_index = -5 is outside"),
-                                                 (10, -1, "count = -1 is negative")])
+                                                 (10, -1, "count = -1 is not from 0 to 281474976710656 "
+                                                           "samples"),
+                                                 (10, 2**62, "count = 4611686018427387904 is not from 0")])
 def test_a_trigger_outside_its_record_is_named(tmp_path: Path, index: int, count: int, words: str) -> None:
     path = _run(tmp_path / "r.h5")
     with h5py.File(path, "r+") as f:

@@ -52,10 +52,10 @@ TOLERANCES = (
     (r"^/diagnosis\.json/verdict/(params|param_intervals)/", 5e-4, 1e-12),
     (r"^/(diagnosis\.json|stdout)", 1e-4, 1e-12),
     (r"^/runs\.h5 frf", 2e-5, 1e-12),
-    (r"^/oma/mpd\[", 0.0, 5e-2),
+    (r"^/oma/mpd_deg\[", 0.0, 5e-2),
     (r"^/oma/shape\.", 2e-3, 1e-12),
     (r"^/(modes\.csv|lscf|peak|oma)/freq_hz\[", 1e-6, 1e-12),
-    (r"^/(modes\.csv|lscf|peak)/mpd\[", 0.0, 5e-3),
+    (r"^/(modes\.csv|lscf|peak)/mpd_deg\[", 0.0, 5e-3),
     (r"^/(modes\.csv|lscf|peak|oma)/(freq_std_hz|damping_std)\[", 1e-3, 1e-12),
     (r"^/(modes\.csv|lscf|peak|oma)/synthesis_corr\[", 1e-5, 1e-12),
     (r"^/(modes\.csv|lscf|peak|oma)/shape\.", 3e-4, 1e-12),
@@ -300,7 +300,7 @@ def test_numbers_are_compared_to_the_tolerance_of_their_kind_also_inside_text():
     def verdict(k: float, k_low: float, mpd_deg: float, mpc: float) -> dict:
         return {"diagnosis.json": {"verdict": {"params": {"k_N_per_m": k},
                                                "param_intervals": {"k_N_per_m": [k_low, 2273.0]}}},
-                "modes.csv": {"mpd": [mpd_deg], "mpc": [mpc]}}
+                "modes.csv": {"mpd_deg": [mpd_deg], "mpc": [mpc]}}
 
     assert _differences(verdict(1443.5, 488.1, 0.007, 0.99005), verdict(1443.1, 488.0, 0.003, 0.99)) == []
     assert len(_differences(verdict(1444.6, 488.5, 0.009, 0.9902), verdict(1443.1, 488.0, 0.003, 0.99))) == 4
