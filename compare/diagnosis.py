@@ -665,8 +665,15 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
     if small and screened:         # the best singles say what might be there, and how low the noise is
         for e in sorted(screened, key=lambda e: e["_lower"])[:MAX_ALTERNATIVES]:
             _cross_validate(ctx, e, scatter)
-        none_sigma = _none_scatter(noise, [e for e in screened if "score" in e])
-        small = baseline["rms_rel_error"] <= _none_level(none_sigma, ctx.beam_form)
+        tried = [e for e in screened if "score" in e]
+        none_sigma = _none_scatter(noise, tried)
+        for e in tried:
+            _annotate(ctx, e, scatter)
+        nominal = _equivalent(ctx, base_err[held_mask].ravel(), base_shape, scatter)[0]
+        # a gap within the noise needs no effect -- unless a candidate predicts unseen poses better
+        # than the nominal model beyond noise: then the full search and the held-out test decide
+        small = baseline["rms_rel_error"] <= _none_level(none_sigma, ctx.beam_form) \
+            and not _beating_nominal(ctx, tried, nominal, scatter)
     if small and screened:         # the verdict is ``none``
         ranking = sorted((e for e in screened if "score" in e), key=lambda e: e["score"])
         n_candidates = CandidateCount(fitted=len(screened), cross_validated=len(ranking))
@@ -712,11 +719,18 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
     if best is not None and len(best["_cand"].effects) > 1 \
             and best["heldout_rms_rel_error"] > EXPLAINED_FACTOR * sigma:
         leads = [best, *(e for e in ranking[:LEADS] if e is not best)]
+        shape_floor = ctx.shape_floor
         moved = [m for e in leads for m in _relocated(ctx, e, screened, scatter)]
         n_candidates = CandidateCount(fitted=n_candidates.fitted + len(moved),   # each moved one is
                                       cross_validated=n_candidates.cross_validated + len(moved))  # both
-        if any(e["score"] < best["score"] for e in moved):
-            ranking += [e for e in moved if e not in ranking]
+        lowered = ctx.shape_floor < shape_floor
+        if lowered:                 # a moved fit lowered the shape noise floor: re-score all at it
+            for e in ranking + moved:
+                _rescore(ctx, e, scatter)
+            _refinement_guard(ranking + moved)
+        if lowered or any(e["score"] < best["score"] for e in moved):
+            if any(e["score"] < best["score"] for e in moved):
+                ranking += [e for e in moved if e not in ranking]
             ranking.sort(key=lambda e: e["score"])
             _order(ctx, ranking, scatter)
             best, notes = _choose(ctx, ranking, screened, scatter)
@@ -724,7 +738,8 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
         ranking.append(best)
         _order(ctx, ranking, scatter)
     nominal = _equivalent(ctx, base_err[held_mask].ravel(), base_shape, scatter)[0]
-    verdict = _verdict(ctx, best, ranking, baseline, before, nominal, scatter, sigma, none_sigma, notes)
+    verdict = _verdict(ctx, best, ranking, baseline, before, nominal, scatter, sigma, none_sigma, small,
+                       notes)
     if verdict["effect"] != "none":
         _confirm_region(where, rig, verdict["effect"], verdict["location"])
     else:                  # the candidates of a ``none`` verdict are alternatives, not its model
@@ -1245,19 +1260,20 @@ def _paired_shapes(ctx: _Context, fam) -> np.ndarray:
 
 
 def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: dict, before: float,
-             nominal: float, scatter: float, sigma: float, none_sigma: float, notes: Sequence[str] = ()
-             ) -> dict:
+             nominal: float, scatter: float, sigma: float, none_sigma: float, small: bool,
+             notes: Sequence[str] = ()) -> dict:
     """The verdict block; ``before`` is the nominal model's held-out frequency RMS, ``nominal`` its
     frequency-equivalent held-out RMS with shapes (``_equivalent``); ``scatter`` ranks candidates (the
     measurement's ``sigma`` plus the model-form floor), ``sigma`` judges what remains, ``none_sigma``
-    (``_none_scatter``) whether the nominal model's gap needs an effect at all; ``notes`` say why the
-    verdict is not the top of the ranking (``_choose``)."""
+    (``_none_scatter``) whether the nominal model's gap is within the noise; ``small`` that it needs no
+    effect (within the noise, and no candidate held out better than the nominal model beyond noise);
+    ``notes`` say why the verdict is not the top of the ranking (``_choose``)."""
     meas = ctx.meas
     none = {"effect": "none", "location": "", "heldout_rms_rel_error_before": before,
             "heldout_rms_rel_error_after": before,
             "explained": bool(before <= EXPLAINED_FACTOR * sigma), "alternatives": [],
             "gap_removed": 0.0, "remaining_over_scatter": before / sigma}
-    if baseline["rms_rel_error"] <= _none_level(none_sigma, ctx.beam_form):
+    if small:
         return _flag_none(ctx, _none_with_alternatives(ctx, {**none, "grade": "explained", "summary": (
             f"baseline RMS gap {percent(baseline['rms_rel_error'])} is within {NONE_FACTOR:g}x the "
             f"measurement scatter ({percent(none_sigma)}) on top of the beam theory's known error "
@@ -1374,11 +1390,7 @@ def _none_with_alternatives(ctx: _Context, verdict: dict, ranking: list[dict], n
     """A ``none`` verdict with the candidates that fit better held out than the nominal model by more
     than the noise margin (at most ``MAX_ALTERNATIVES``, best score first) as alternatives: nothing
     is needed, but the data cannot exclude them (``ambiguous``)."""
-    if not ranking:
-        return verdict
-    margin = _noise({"_heldout_eq": nominal, "_n_eq": ranking[0]["_n_eq"]}, scatter, ctx.pose_share)
-    alts = sorted((e for e in ranking if not e["_out_of_range"] and not e["_idle"]
-                   and e["_heldout_eq"] < nominal - margin), key=lambda e: e["score"])[:MAX_ALTERNATIVES]
+    alts = _beating_nominal(ctx, ranking, nominal, scatter)[:MAX_ALTERNATIVES]
     if not alts:
         return verdict
     names = ", ".join(f"{e['effect']} at {e['location']} ({percent(e['heldout_rms_rel_error'])})"
@@ -1388,6 +1400,17 @@ def _none_with_alternatives(ctx: _Context, verdict: dict, ranking: list[dict], n
                               "heldout_rms_rel_error": e["heldout_rms_rel_error"]} for e in alts],
             "summary": f"{verdict['summary']}; but the data cannot exclude, held out better than the nominal "
                        f"model ({percent(verdict['heldout_rms_rel_error_before'])}): {names}"}
+
+
+def _beating_nominal(ctx: _Context, ranking: Sequence[dict], nominal: float, scatter: float) -> list[dict]:
+    """The annotated candidates of ``ranking`` held out better than the nominal model (its
+    frequency-equivalent held-out RMS ``nominal``) by more than the noise margin (``_noise`` at the
+    nominal model's level), best score first."""
+    if not ranking:
+        return []
+    margin = _noise({"_heldout_eq": nominal, "_n_eq": ranking[0]["_n_eq"]}, scatter, ctx.pose_share)
+    return sorted((e for e in ranking if not e["_out_of_range"] and not e["_idle"]
+                   and e["_heldout_eq"] < nominal - margin), key=lambda e: e["score"])
 
 
 def _flag_none(ctx: _Context, verdict: dict) -> dict:

@@ -118,24 +118,28 @@ class LogTicks(Formatter):
     reading 10⁻³, 0.01, 0.1 mixes two notations)."""
 
     _ticks: tuple[float, ...] = ()
+    _powers: tuple = ((), False)   # (view interval and ticks, whether a labelled tick needs a power)
 
     def set_locs(self, locs) -> None:
         """Keep the tick values being labelled (the notation is chosen over all of them)."""
         self._ticks = tuple(float(v) for v in locs)
 
-    def _labelled(self, x: float) -> bool:
-        lo, hi = sorted(self.axis.get_view_interval())
+    @staticmethod
+    def _labelled(x: float, lo: float, hi: float) -> bool:
         mantissa = x / 10.0 ** math.floor(math.log10(x) + 1e-9) if x > 0 else 0.0
         span = math.log10(hi / lo) if lo > 0 else math.inf
         shown = (1.0, 2.0, 3.0, 5.0) if span <= 2.0 else (1.0, 2.0, 5.0) if span <= 4.0 else (1.0,)
         return any(abs(mantissa - m) < 1e-6 * m for m in shown)
 
     def __call__(self, x: float, pos: int | None = None) -> str:
-        if not self._labelled(x):
-            return ""
         lo, hi = sorted(self.axis.get_view_interval())
-        labelled = [v for v in (*self._ticks, x) if lo <= v <= hi and self._labelled(v)]
-        return tick_text(x, powers=any(not 0.01 <= v < 1e4 for v in labelled))
+        if not self._labelled(x, lo, hi):
+            return ""
+        key = (lo, hi, self._ticks)
+        if self._powers[0] != key:   # once per axis view and set of ticks, not once per tick
+            self._powers = (key, any(not 0.01 <= v < 1e4 for v in self._ticks
+                                     if lo <= v <= hi and self._labelled(v, lo, hi)))
+        return tick_text(x, powers=self._powers[1] or (lo <= x <= hi and not 0.01 <= x < 1e4))
 
 
 def log_axis(axis: Axis) -> None:
