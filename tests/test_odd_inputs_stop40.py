@@ -1,11 +1,12 @@
 """Odd inputs of a ninth adversarial pass (stop 40, 27 Nov).  A config or run id holding a run of more
 than 4300 digits stopped every modal-table read and every run listing with a traceback, exit 1 (the
-natural order converted each digit run to an int, and Python refuses to convert more than 4300 digits).
+natural order converted each digit run to an int, and Python refuses to convert more than 4300 digits);
+so did a sensor of 5000 digits before '+z' in report --geometry and in a UFF export (read as a node).
 An FRF group with ``nfft`` above frf --nfft's 2^24 (an impact record or a sweep segment is one FFT as
 long as the hit or the sweep) was written by ``frf`` and then refused by ``identify``; the refusal quoted
 the number as text ('16777218').  Now the natural order compares digit runs without converting them,
 one bound (the longest record) is checked when the group is written and when it is read, and stored
-numbers are shown as numbers.  Small files, in-process CLI, about a second in all."""
+numbers are shown as numbers.  Small files, in-process CLI, about 4 s in all."""
 
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ from pathlib import Path
 
 import h5py
 import pytest
-from conftest import one_line
+from conftest import REPO, one_line
 from hypothesis import given
 from hypothesis import strategies as st
 from test_odd_inputs_stop39 import _run
@@ -108,3 +109,29 @@ def test_a_stored_number_is_shown_as_a_number_and_text_as_text(tmp_path: Path, s
         f["runs/r1"].attrs["sample_rate_hz"] = stored
     with pytest.raises(DaqError, match="attribute sample_rate_hz = " + said):
         check_run_file(path, "r1")
+
+
+# -- the same class where a sensor name is read as a UFF node number --------------------------------------
+def test_a_sensor_of_5000_digits_names_no_node_of_the_geometry(tmp_path: Path, capsys) -> None:
+    path = tmp_path / "m.csv"
+    path.write_text(f"config,mode,freq_hz,shape.{ONES}+z\nt0,1,30,0.5\n", encoding="utf-8")
+    geometry = REPO / "tests" / "data" / "uff" / "massif_geometry.uff"
+    code = main(["--quiet", "report", "--measured", str(path), "--geometry", str(geometry),
+                 "--out", str(tmp_path / "r.html")])
+    one_line(capsys, code, "massif_geometry.uff: sensor '1111", "no node 111111111111... (5000 digits)")
+    assert not (tmp_path / "r.html").exists()
+
+
+def test_a_channel_that_names_no_uff_node_gets_its_default_node(tmp_path: Path) -> None:
+    """'3+z' is node 3, +z; a superscript two or 5000 digits are no node number (int() refused both with
+    a traceback): the channel takes its place's node, as any other name does."""
+    import numpy as np
+
+    from flexmodal.modal.frf import FrfResult
+    from flexmodal.modal.uff import read_uff, write_frfs
+
+    freq_hz = np.linspace(0.0, 512.0, 65)
+    outputs = ("\u00b2+z", f"{ONES}+z", "0003-x")
+    write_frfs(tmp_path / "f.uff", FrfResult(freq_hz, np.ones((3, 1, 65), complex), np.ones((3, 65)), "H1",
+                                             "hann", 128, 16, 1024.0, "accelerance", outputs, ("F",)))
+    assert read_uff(tmp_path / "f.uff").outputs == ("1+z", "2+z", "3-x")
