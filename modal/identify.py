@@ -35,6 +35,7 @@ from flexmodal.modal.lscf import (
     stable_clusters,
 )
 from flexmodal.modal.lsfd import LsfdResult, lsfd, refine_pole, synthesis_of
+from flexmodal.modal.order_note import BASIS_WORDS
 from flexmodal.modal.peaks import clear_peaks, cmif, pick_peaks, quadrature_shapes, visible_peaks
 from flexmodal.modal.registry import METHODS, output_only
 from flexmodal.modal.stability import PICKED
@@ -58,10 +59,6 @@ EDGE_SMOOTH = 0.005   # ...averaged over outputs and over about this share of th
 EDGE_SHARE = 0.25     # ...unless that stretch holds more than this share of the band (no band edge then)
 BASIS_MISFIT = 1.25  # one reference: the second basis's misfit share may be this many times the first's
 BASIS_PEAKS = 2      # ...and it explains this many more clear CMIF peaks, or one more and loses none
-BASIS_WORDS = {False: "the standard one", True: "the one that puts noise poles at negative damping"}
-"""The two pLSCF fits of one reference in the order note: basis z = exp(+i w dt) and exp(-i w dt)."""
-
-
 @dataclass(frozen=True)
 class Modes:
     """Identified modes: ``freq_hz``, ``damping_ratio`` [n_modes]; ``shapes`` [n_out, n_modes] real

@@ -11,7 +11,7 @@ from __future__ import annotations
 import re
 from collections.abc import Sequence
 
-from flexmodal.modal.identify import BASIS_WORDS
+from flexmodal.modal.order_note import BASIS_WORDS
 from flexmodal.modal.stability import PICKED, STABLE_DAMPING_REL, STABLE_FREQ_REL, STABLE_MAC_MIN
 
 _NOTE = re.compile(r"model order (?P<order>\d+): (?P<modes>\d+ modes?), (?P<why>.+?) "

@@ -1,5 +1,6 @@
 """A gap within the noise is not ``none`` when a single predicts unseen poses better than no effect
-beyond noise (compare/diagnosis.py ``_beating_nominal``): blind draw 1052 case 9, stored."""
+beyond noise and beyond the beam theory's known error (compare/diagnosis.py ``_beating_nominal``):
+blind draw 1052 case 9 (a weak effect found) and 316 case 14 (no effect, stays ``none``), stored."""
 
 from __future__ import annotations
 
@@ -28,3 +29,20 @@ def test_a_weak_effect_that_predicts_held_out_poses_is_not_none():
     assert truth == ("joint_stiffness", "elbow")
     d = diagnose(parse_rig(doc["rig"], "<draw 1052 case 9>"), ModalTable.read_csv(CASE.with_suffix(".csv")))
     assert (d.verdict.effect, d.verdict.location) == truth, d.verdict.summary
+
+
+NONE_CASE = Path(__file__).parent / "data" / "blind_cases" / "draw316_case14"
+
+
+def test_a_single_that_only_absorbs_the_beam_theory_error_leaves_none():
+    """Blind draw 316 #14 (axial-sensor arm, no effect hidden, 9 configurations x 4 modes, 0.25 % scatter
+    of repeated configurations): the baseline gap, 0.68 %, is mostly the model's known Euler-Bernoulli
+    error (0.54 %), and a link-1 mass (scale ~1.03) absorbs it, held out at 0.34 %: beyond the noise
+    margin of the nominal model, not beyond the beam theory's error.  Such a single is no evidence of
+    an effect, so the gap test stands.  Asserted: ``none`` (with the rule above counting noise only,
+    the full search gave ``link_mass at link1``)."""
+    doc = json.loads(NONE_CASE.with_suffix(".json").read_text())
+    assert doc["truth"]["effect"] == "none"
+    rig = parse_rig(doc["rig"], "<draw 316 case 14>")
+    d = diagnose(rig, ModalTable.read_csv(NONE_CASE.with_suffix(".csv")))
+    assert d.verdict.effect == "none", d.verdict.summary

@@ -44,6 +44,7 @@ REPORT_IMPORTS = {"flexmodal.compare.tables", "flexmodal.contract.table", "flexm
                   "flexmodal.compare.result", "flexmodal.compare.errors",
                   "flexmodal.compare.verdict_text",  # the verdict in words: text from a record, no solving
                   "flexmodal.modal.stability",  # the stability criteria a caption quotes: constants only
+                  "flexmodal.modal.order_note",  # the order note's words a caption reads back: constants only
                   "flexmodal.checked_io.errors", "flexmodal.checked_io.registry"}   # the diagnosis records
 
 

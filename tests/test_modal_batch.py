@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from flexmodal.app import main
+from flexmodal.checked_io.text import natural_order
 from flexmodal.daq.store import Channel, RunWriter, expand_runs
 from flexmodal.fixtures.modal_sim import modal_response
 from flexmodal.modal import batch
@@ -52,7 +53,7 @@ def test_default_frf_on_the_demo_runs_file_writes_every_run_serially(tmp_path, c
 
     monkeypatch.setattr(batch, "_in_pool", no_pool)
     assert main(["--quiet", "frf", str(path)]) == 0
-    ids = sorted(run.run_id for run in runs)
+    ids = natural_order(run.run_id for run in runs)   # theta30 before theta120, as every listing
     assert len(ids) == 10 and capsys.readouterr().out.split() == [f"{path}:{rid}" for rid in ids]
     for rid in ids:
         frf = read_frf(path, rid)
