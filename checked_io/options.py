@@ -166,5 +166,5 @@ probability = real(0.0, 1.0, hi_open=True, name="fraction")
 finite = real()
 positive_hz = real(0.0, lo_open=True, name="frequency in Hz")
 model_order = integer(2, 400, name="model order")
-MAX_NFFT = 1 << 24   # FRF segment length [samples]: frf --nfft's bound, and a stored FRF group's
+MAX_NFFT = 1 << 24   # FRF segment length [samples] of frf --nfft (stored groups: runs_io.WHOLE_NUMBERS)
 segment_length = integer(8, MAX_NFFT, name="segment length")

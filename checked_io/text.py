@@ -10,6 +10,7 @@ The module imports nothing from the flexmodal packages, so every package may use
 from __future__ import annotations
 
 import json
+import numbers
 import os
 import re
 import stat
@@ -26,16 +27,32 @@ MAX_NESTING = 100  # tables/arrays/objects nested deeper than this in TOML or JS
 FLOAT_MAX_BITS = 1024  # an integer of more bits exceeds the largest float (sys.float_info.max)
 
 
+def _digit_run_key(digits: str) -> tuple[int, str]:
+    """Sort key of a run of decimal digits by its value, without converting it to an int (a run of more
+    than 4300 digits exceeds Python's int conversion limit): its length without leading zeros, then
+    its digits (any script's decimal digits read as ASCII: Arabic-Indic U+0663 is 3)."""
+    ascii_digits = digits if digits.isascii() else "".join(str(unicodedata.decimal(ch)) for ch in digits)
+    value = ascii_digits.lstrip("0")
+    return len(value), value
+
+
 def natural_key(text: str) -> list:
     """Sort key that orders digit runs by value (``theta60`` before ``theta120``): configurations and runs
-    are listed in this order everywhere (tables, CSV files, reports, diagnosis text).
+    are listed in this order everywhere (tables, CSV files, reports, diagnosis text).  Names whose digit
+    runs have equal values are then ordered as text (``theta01`` before ``theta1``).  A digit run of any
+    length is compared (no int conversion: a name of 5000 digits sorts too).
 
     Examples
     --------
     >>> sorted(["theta150", "theta30", "theta0", "theta120"], key=natural_key)
     ['theta0', 'theta30', 'theta120', 'theta150']
+    >>> sorted(["theta1a", "theta1", "theta001b", "theta01"], key=natural_key)
+    ['theta01', 'theta1', 'theta1a', 'theta001b']
+    >>> [len(n) for n in sorted(["c" + "9" * 5000, "c" + "1" * 5001, "c7"], key=natural_key)]
+    [2, 5001, 5002]
     """
-    return [[int(t) if t.isdecimal() else t for t in re.split(r"(\d+)", text)], text]   # then theta01, theta1
+    parts = re.split(r"(\d+)", text)   # text at even places, digit runs at odd places
+    return [[_digit_run_key(t) if k % 2 else t for k, t in enumerate(parts)], text]
 
 
 def natural_order(names: Iterable[str]) -> list[str]:
@@ -43,11 +60,23 @@ def natural_order(names: Iterable[str]) -> list[str]:
     return sorted(set(names), key=natural_key)
 
 
-def one_line(text: object) -> str:
+def one_line(text: object, limit: int = MAX_MESSAGE_CHARS) -> str:
     """``text`` with every run of whitespace (newlines included) collapsed to one space, at most
-    :data:`MAX_MESSAGE_CHARS` characters: library messages quoted inside a one-line error."""
+    ``limit`` characters: library messages quoted inside a one-line error."""
     flat = " ".join(str(text).split())
-    return flat if len(flat) <= MAX_MESSAGE_CHARS else flat[:MAX_MESSAGE_CHARS - 3] + "..."
+    return flat if len(flat) <= limit else flat[:limit - 3] + "..."
+
+
+def shown_value(value: object, limit: int = MAX_MESSAGE_CHARS) -> str:
+    """``value`` as an error line quotes it (``attribute nfft = 16777218``): a number as written, any
+    other value as one line of text (:func:`one_line`) cut to ``limit`` characters, in quotes.
+
+    Examples
+    --------
+    >>> shown_value(16777218), shown_value(2.5), shown_value("16777218"), shown_value("a\\n  b")
+    ('16777218', '2.5', "'16777218'", "'a b'")
+    """
+    return str(value) if isinstance(value, numbers.Number) else repr(one_line(value, limit))
 
 
 @contextmanager

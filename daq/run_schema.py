@@ -17,7 +17,14 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from flexmodal.checked_io.text import available_memory_bytes, loads_json, name_fault, nfc, one_line
+from flexmodal.checked_io.text import (
+    available_memory_bytes,
+    loads_json,
+    name_fault,
+    nfc,
+    one_line,
+    shown_value,
+)
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.h5file import open_read
 
@@ -48,6 +55,7 @@ EVENT_KINDS = ("trigger", "gap", "overload", "corrupt", "reconnect", "note", "de
 EXCITATIONS = ("impact", "random", "sweep", "free-decay", "operational")
 CHANNEL_FIELDS = ("name", "kind", "unit", "sensitivity", "sensitivity_unit", "location", "direction")
 EVENT_DETAIL_BYTES = 200
+SHORT_CHARS = 80  # a stored value quoted in an error line is cut to this length
 MAX_SAMPLE_RATE_HZ = 1e9  # 1 GHz; a finite rate far above it (1e300) overflows the spectra's arithmetic
 MAX_EVENT_SAMPLES = 1 << 48  # an event's sample_index or count: more than any run holds (9 years at 1 MHz);
 #                              first + count of a gap 2^62 long overflowed int64 and the gap was not skipped
@@ -196,23 +204,23 @@ def _check_attrs(g: h5py.Group, where: str) -> None:
             raise DaqError(f"{where}: missing attribute {key!r}")
     rate = attribute_number(a, "sample_rate_hz")
     if rate is None or not sample_rate_ok(float(rate)):
-        shown = _short(a["sample_rate_hz"] if rate is None else rate)
-        raise DaqError(f"{where}: attribute sample_rate_hz = {shown!r}{stored_as(a, 'sample_rate_hz')} "
+        shown = _shown(a["sample_rate_hz"] if rate is None else rate)
+        raise DaqError(f"{where}: attribute sample_rate_hz = {shown}{stored_as(a, 'sample_rate_hz')} "
                        f"is not a sample rate > 0 Hz and <= {MAX_SAMPLE_RATE_HZ:g} Hz")
     start = _text(a["start_time"])
     try:
         datetime.fromisoformat(start or "")
     except ValueError:
-        raise DaqError(f"{where}: attribute start_time = {_short(a['start_time'])!r} is not an ISO 8601 "
+        raise DaqError(f"{where}: attribute start_time = {_shown(a['start_time'])} is not an ISO 8601 "
                        "date and time (e.g. 2026-11-26T21:00:00+00:00)") from None
     excitation = _text(a["excitation"])
     if excitation not in EXCITATIONS:
-        raise DaqError(f"{where}: attribute excitation = {a['excitation']!r} is not one of "
+        raise DaqError(f"{where}: attribute excitation = {_shown(a['excitation'])} is not one of "
                        f"{', '.join(EXCITATIONS)}")
     pose_text = _text(a["pose"])
     pose = loads_json(pose_text, f"{where}: attribute pose", DaqError) if pose_text is not None else None
     if not isinstance(pose, dict):
-        raise DaqError(f"{where}: attribute pose = {_short(a['pose'])!r} is not a JSON object string")
+        raise DaqError(f"{where}: attribute pose = {_shown(a['pose'])} is not a JSON object string")
     for name, value in pose.items():
         if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
             raise DaqError(f"{where}: attribute pose: {_short(name)} = {_short(value)} is not a finite "
@@ -329,9 +337,13 @@ def check_filters(d: h5py.Dataset, where: str, error: type[Exception] = DaqError
 
 
 def _short(value: object) -> str:
-    """A value or message quoted in an error line: one line, at most 80 characters."""
-    text = one_line(value)
-    return text if len(text) <= 80 else text[:77] + "..."
+    """A value or message quoted in an error line: one line, at most :data:`SHORT_CHARS` characters."""
+    return one_line(value, SHORT_CHARS)
+
+
+def _shown(value: object) -> str:
+    """A stored attribute's value in an error line: a number as written, else quoted text (:func:`_short`)."""
+    return shown_value(value, SHORT_CHARS)
 
 
 def _table(g: h5py.Group, name: str, where: str) -> h5py.Dataset:

@@ -17,13 +17,17 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from flexmodal.checked_io.options import MAX_NFFT
 from flexmodal.checked_io.output import signals_deferred
-from flexmodal.checked_io.text import loads_json, nfc, one_line
+from flexmodal.checked_io.text import loads_json, nfc, one_line, shown_value
+from flexmodal.daq.run_schema import MAX_EVENT_SAMPLES
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult, check_coherence, check_freq_axis
 
 MAX_AVERAGES = 1 << 40   # averages of a stored FRF group: more than a record of 10^12 samples gives
+#: the whole-number attributes of a stored FRF group and their ranges, checked on write and on read (one
+#: bound for both sides).  ``nfft`` is bounded by the record length, not by frf --nfft's MAX_NFFT: an
+#: impact record or a sweep segment is one FFT as long as the hit or the sweep (modal.compute)
+WHOLE_NUMBERS = {"nfft": (1, MAX_EVENT_SAMPLES), "n_averages": (1, MAX_AVERAGES)}
 
 FRF_GROUP = "frf"
 PARTIAL_PREFIX = ".frf-partial-"   # the group an FRF set is written into before it is renamed ``frf``
@@ -41,6 +45,11 @@ def write_frf(path: str | Path, run_id: str, result: FrfResult) -> None:
     freq_hz = np.asarray(result.freq_hz, float)
     coherence = np.asarray(result.coherence, float)
     where = f"{path}: run {run_id!r}"
+    for key, (lo, hi) in WHOLE_NUMBERS.items():
+        value = getattr(result, key)
+        if isinstance(value, bool) or not isinstance(value, int | np.integer) or not lo <= value <= hi:
+            raise ModalError(f"{where}: frf group: attribute {key} = {shown_value(value, 60)} is not "
+                             f"{_whole(lo, hi)}; nothing written")
     need = H.nbytes + freq_hz.nbytes + coherence.nbytes + METADATA_BYTES
     target = Path(os.path.realpath(path))
     free = shutil.disk_usage(target.parent if target.parent.is_dir() else Path(".")).free
@@ -135,7 +144,8 @@ def read_frf(path: str | Path, run_id: str) -> FrfResult | None:
         rate = a.number("sample_rate_hz", np.nan, positive=True)
         _check_rate(run, rate, freq_hz, where)
         return FrfResult(freq_hz, H, coherence, a.text("estimator"), a.text("window"),
-                         a.integer("nfft", 1, MAX_NFFT), a.integer("n_averages", 1, MAX_AVERAGES), rate,
+                         a.integer("nfft", *WHOLE_NUMBERS["nfft"]),
+                         a.integer("n_averages", *WHOLE_NUMBERS["n_averages"]), rate,
                          a.text("quantity", "accelerance"), outputs, inputs,
                          a.number("decay_rate_per_s", 0.0), a.json("provenance", {}, dict))
 
@@ -201,6 +211,11 @@ def _checked_arrays(data: dict[str, h5py.Dataset], where: str) -> tuple[np.ndarr
     return freq_hz, H, coherence
 
 
+def _whole(lo: int, hi: int) -> str:
+    """What a whole-number attribute must be, in words for an error line."""
+    return f"a whole number from {lo} to {hi}"
+
+
 _JSON_WORDS = {dict: "object", list: "array"}   # JSON's own names of the types an attribute must hold
 
 
@@ -218,8 +233,7 @@ class _Attrs:
         return default
 
     def _bad(self, key: str, value: object, expected: str) -> ModalError:
-        shown = one_line(value)
-        return ModalError(f"{self.where}: attribute {key} = {shown[:60]!r} is not {expected}")
+        return ModalError(f"{self.where}: attribute {key} = {shown_value(value, 60)} is not {expected}")
 
     def text(self, key: str, default: object = ...) -> str:
         value = self._get(key, default)
@@ -243,7 +257,7 @@ class _Attrs:
         return value
 
     def integer(self, key: str, lo: int, hi: int) -> int:
-        expected = f"a whole number from {lo} to {hi}"
+        expected = _whole(lo, hi)
         value = self._number(key, expected)
         if not isinstance(value, int) or not lo <= value <= hi:
             raise self._bad(key, value, expected)

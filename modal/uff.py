@@ -43,8 +43,12 @@ def channel_name(node: int, direction: int) -> str:
 
 
 def _node_dir(name: str, default_node: int) -> tuple[int, int]:
-    if len(name) >= 3 and name[-2] in "+-" and name[-1] in _AXES and name[:-2].isdigit():
-        return int(name[:-2]), (1 if name[-2] == "+" else -1) * (_AXES.index(name[-1]) + 1)
+    """(node, direction) of a channel named ``<node><+|-><x|y|z>`` whose node fits a UFF node field
+    (ASCII digits below 2^31: a superscript or 5000 digits name no node); else ``default_node``, +z."""
+    node = name[:-2].lstrip("0") or "0"
+    if len(name) >= 3 and name[-2] in "+-" and name[-1] in _AXES and node.isascii() and node.isdigit() \
+            and len(node) <= 10 and int(node) < 2**31:
+        return int(node), (1 if name[-2] == "+" else -1) * (_AXES.index(name[-1]) + 1)
     return default_node, 3
 
 

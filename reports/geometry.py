@@ -20,9 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
+from flexmodal.checked_io.text import shown_value
 from flexmodal.reports.errors import ReportError
 
 _DOF = re.compile(r"^(\d+)([+-])([xyz])$")
+NODE_DIGITS = 10   # a UFF node number is an I10 field: a sensor naming a longer one names no node
 
 
 @dataclass(frozen=True)
@@ -43,9 +45,12 @@ class Geometry:
         m = _DOF.match(dof)
         if not m:
             raise ReportError(f"{self.source}: sensor {dof!r} is not named <node><+|-><x|y|z> (e.g. 3+z)")
-        node, sign, axis = int(m.group(1)), m.group(2), "xyz".index(m.group(3))
+        digits, sign, axis = m.group(1).lstrip("0") or "0", m.group(2), "xyz".index(m.group(3))
+        node = int(digits) if len(digits) <= NODE_DIGITS else None   # 5000 digits: no int, and no node
         if node not in self.nodes:
-            raise ReportError(f"{self.source}: sensor {dof!r}: no node {node} in the geometry")
+            shown = node if node is not None else f"{digits[:12]}... ({len(digits)} digits)"
+            raise ReportError(f"{self.source}: sensor {shown_value(dof, 60)}: no node {shown} in the "
+                              "geometry")
         k = self.nodes.index(node)
         return k, (1.0 if sign == "+" else -1.0) * self.axes[k, axis]
 

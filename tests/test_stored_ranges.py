@@ -58,7 +58,8 @@ def test_a_stored_frf_segment_length_out_of_range_is_named(tmp_path, capsys):
     assert main(["--quiet", "identify", str(runs), "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and err.endswith(
-        "frf group: attribute nfft = '4611686018427387904' is not a whole number from 1 to 16777216"), err
+        "frf group: attribute nfft = 4611686018427387904 is not a whole number from 1 to "
+        "281474976710656"), err
     assert runs.read_bytes() == before and not out.exists()
 
 
