@@ -29,7 +29,7 @@ from dataclasses import dataclass, field, fields
 from typing import Any, Self
 
 from flexmodal.checked_io.percent import percent
-from flexmodal.checked_io.text import loads_json
+from flexmodal.checked_io.text import loads_json, shown_value
 from flexmodal.compare.errors import CompareError
 
 MAX_COUNT = 10**6
@@ -227,9 +227,9 @@ class Baseline(_Record):
             if value is not None and value < 0:
                 raise CompareError(f"{_key(where, key)}: {value!r} is negative (an error fraction is >= 0)")
         for mode in self.per_mode:
-            if not (mode.isascii() and mode.isdigit() and int(mode) >= 1):
-                raise CompareError(f"{_key(where, 'per_mode')}: key {mode!r} is not a mode number "
-                                   "(1, 2, ...)")
+            if not (mode.isascii() and mode.isdigit() and len(mode) <= 7 and 1 <= int(mode) <= MAX_COUNT):
+                raise CompareError(f"{_key(where, 'per_mode')}: key {shown_value(mode, 40)} is not a mode "
+                                   f"number (1, 2, ... {MAX_COUNT})")
 
 
 @dataclass(**_RECORD)

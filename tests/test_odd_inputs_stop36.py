@@ -108,6 +108,8 @@ def _mutated(key_path: tuple[str, ...], raw: str) -> str:
     (("verdict", "heldout_rms_rel_error_before"), "null", "verdict.heldout_rms_rel_error_before"),
     (("baseline", "max_rel_error"), "-5", "is negative"),                                 # silently drawn
     (("baseline", "per_mode"), '{"one": 0.1}', "key 'one' is not a mode number"),
+    (("baseline", "per_mode"), '{"' + "1" * 5000 + '": 0.1}', "...' is not a mode number"),  # no int()
+    (("baseline", "per_mode"), '{"0": 0.1}', "key '0' is not a mode number"),
 ])
 def test_a_diagnosis_document_with_impossible_numbers(tmp_path: Path, capsys, key_path, raw, words) -> None:
     with pytest.raises(CompareError, match=words):
