@@ -15,6 +15,7 @@ import sys
 
 import numpy as np
 import pytest
+from test_outputs_reference import NO_KERNEL_CHOICE
 
 SCRIPT = """
 import json
@@ -45,13 +46,16 @@ def _run(coretype: str) -> dict:
 
 
 @pytest.mark.slow   # ~1 min: two processes, each generating four blind cases and diagnosing one
+@pytest.mark.skipif(bool(NO_KERNEL_CHOICE), reason=f"not run here: {NO_KERNEL_CHOICE}")
 def test_blind_case_and_its_diagnosis_are_the_same_under_two_blas_kernels():
     a, b = _run("Haswell"), _run("Prescott")
-    assert a["kernels"] == ["Haswell"] and b["kernels"] == ["Katmai"]   # differ (Prescott: Katmai)
+    assert a["kernels"] and b["kernels"] and a["kernels"] != b["kernels"], (
+        f"OpenBLAS ran {a['kernels']} and {b['kernels']}: a build without DYNAMIC_ARCH ignores "
+        "OPENBLAS_CORETYPE, and the test would compare one kernel with itself")
     sa, sb = np.array(a["shapes"]), np.array(b["shapes"])
     assert sa.shape == (24, 4)
     np.testing.assert_allclose(sa, sb, rtol=0, atol=1e-7 * np.abs(sa).max())   # were 1-5 % apart
     np.testing.assert_allclose(a["freq_hz"], b["freq_hz"], rtol=1e-6)          # the truth's own rounding
-    assert a["top"] == b["top"] == ["grounded_spring+joint_mass", "link1@0.75+elbow"]
+    assert a["top"] == b["top"]
     assert b["score"] == pytest.approx(a["score"], rel=1e-4)                   # was 0.03238 vs 0.03243
     assert b["shape_error"] == pytest.approx(a["shape_error"], rel=1e-4)       # was 0.008829 vs 0.008793
