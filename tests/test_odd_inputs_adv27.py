@@ -5,13 +5,17 @@ to integer"; ``track(max_spread_deg=nan)``, ``plot_stabilisation(max_order=nan)`
 ``plot_mode_shapes(n_fe_modes=inf)`` and ``identify(pose={'theta_deg': nan})`` ran; True passed as 1
 for min_mac, report's band edges and the track options; ``compute_frf(window=5)`` was an
 AttributeError.  Each is now checked by the option kind the command line uses for it
-(:func:`flexmodal.checked_io.options.given`).  In-process, no run files: about 1 s."""
+(:func:`flexmodal.checked_io.options.given`).  A refused output said "choose another --out" of
+--fault-log, --uff and store=True targets too; it now names no option it did not come from.
+In-process, no run files: about 3 s."""
 
 from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 
+import h5py
 import numpy as np
 import pytest
 from conftest import REPO
@@ -100,3 +104,22 @@ def test_a_float32_band_edge_is_a_number_for_the_report() -> None:
     with pytest.raises(fm.ReportError, match="fmin sets the band of the runs' identification"):
         fm.report("never-written.html", measured=MEASURED, fmin=np.float32(5.0))
 
+
+# -- an output refused names the option it came from -----------------------------------------------------
+@pytest.mark.parametrize("what", ["fault log (--fault-log)", "UFF file (--uff)", "run file (store=True)"])
+def test_a_refused_output_is_not_sent_to_an_out_option_it_did_not_come_from(tmp_path: Path, what: str
+                                                                             ) -> None:
+    """'choose another --out' was said of --fault-log, --uff and store=True targets too."""
+    from flexmodal.checked_io.output import hdf5_output, output_file
+
+    store, text = tmp_path / "runs.h5", tmp_path / "notes.txt"
+    with h5py.File(store, "w", libver="latest"):
+        pass
+    text.write_text("my notes\n", encoding="utf-8")
+    for check, target in ((output_file, store), (hdf5_output, text)):
+        kwargs = {"inputs": ()} if check is output_file else {}
+        with pytest.raises(fm.DaqError) as refused:
+            check(target, fm.DaqError, what, **kwargs)
+        message = str(refused.value)
+        assert what in message and "--out" not in message.replace(what, ""), message
+    assert text.read_text(encoding="utf-8") == "my notes\n"
