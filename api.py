@@ -1315,6 +1315,21 @@ def write_comparison(comparison: Comparison, out: PathLike, fmt: str = "md", lay
 
 
 DIAGNOSIS_FILES = ("diagnosis.json", "diagnosis.html")   # what write_diagnosis writes into its folder
+# how each starts, and the mark near its end (the page's footer), when flexmodal wrote it
+DIAGNOSIS_MARKS = ((b'{\n  "baseline"', b""), (b"<!DOCTYPE html>", b"<p>Versions: flexmodal "))
+
+
+def _diagnosis_folder(out_dir: PathLike, inputs: Sequence[PathLike]) -> Path:
+    """``out_dir`` checked as the folder of :data:`DIAGNOSIS_FILES`: each may replace only a file
+    flexmodal wrote there (the user named the folder, not the files: a diagnosis.json or .html of
+    their own was replaced in silence)."""
+    from flexmodal.checked_io.output import output_dir, sidecar_file
+
+    out = output_dir(out_dir, CompareError, "diagnosis folder (--out)", files=DIAGNOSIS_FILES,
+                     inputs=inputs)
+    for name, (signature, mark) in zip(DIAGNOSIS_FILES, DIAGNOSIS_MARKS, strict=True):
+        sidecar_file(out / name, CompareError, name, signature, mark)
+    return out
 
 
 def diagnose(rig: Rig | PathLike, measured: ModalTable | PathLike, *, effects: str | Sequence[str] = "all",
@@ -1377,13 +1392,8 @@ def diagnose(rig: Rig | PathLike, measured: ModalTable | PathLike, *, effects: s
     >>> result.verdict.heldout_rms_rel_error_after < 0.05 < result.verdict.heldout_rms_rel_error_before
     True
     """
-    from flexmodal.compare.errors import CompareError
-
     if out_dir is not None:
-        from flexmodal.checked_io.output import output_dir
-
-        output_dir(out_dir, CompareError, "diagnosis folder (--out)", files=DIAGNOSIS_FILES,
-                   inputs=_paths([rig, measured]))   # before the heavy imports
+        _diagnosis_folder(out_dir, _paths([rig, measured]))   # before the heavy imports
     rig, table = _rig(rig), _table(measured)
     from flexmodal.compare.candidates import parse_effects
     from flexmodal.compare.diagnosis import diagnose as _diagnose
@@ -1502,12 +1512,11 @@ def write_diagnosis(result: Diagnosis, out_dir: PathLike,
     >>> pj.name, ph.name, fm.read_diagnosis(pj).verdict.effect == result.verdict.effect
     ('diagnosis.json', 'diagnosis.html', True)
     """
-    from flexmodal.checked_io.output import atomic_group, output_dir, write_text
-    from flexmodal.compare.errors import CompareError
+    from flexmodal.checked_io.output import atomic_group, write_text
     from flexmodal.reports.html import write_report
 
     result = _diagnosis(result)
-    out = output_dir(out_dir, CompareError, "diagnosis folder (--out)", files=DIAGNOSIS_FILES, inputs=inputs)
+    out = _diagnosis_folder(out_dir, inputs)
     out.mkdir(parents=True, exist_ok=True)
     with atomic_group():   # diagnosis.json and .html: both, or neither
         pj = write_text(out / DIAGNOSIS_FILES[0], result.to_json())

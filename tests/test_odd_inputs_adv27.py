@@ -7,6 +7,8 @@ for min_mac, report's band edges and the track options; ``compute_frf(window=5)`
 AttributeError.  Each is now checked by the option kind the command line uses for it
 (:func:`flexmodal.checked_io.options.given`).  A refused output said "choose another --out" of
 --fault-log, --uff and store=True targets too; it now names no option it did not come from.
+``diagnose --out DIR`` replaced a diagnosis.json or diagnosis.html of the user's own in DIR (the user
+named the folder, not the files); now only files flexmodal wrote are replaced.
 In-process, no run files: about 3 s."""
 
 from __future__ import annotations
@@ -123,3 +125,23 @@ def test_a_refused_output_is_not_sent_to_an_out_option_it_did_not_come_from(tmp_
         message = str(refused.value)
         assert what in message and "--out" not in message.replace(what, ""), message
     assert text.read_text(encoding="utf-8") == "my notes\n"
+
+
+# -- diagnose --out DIR: the files it names itself replace only its own ------------------------------------
+@pytest.mark.parametrize("name", ["diagnosis.json", "diagnosis.html"])
+def test_a_diagnosis_file_of_the_users_own_in_the_folder_is_kept(tmp_path: Path, name: str, capsys) -> None:
+    """The user named the folder, not the files: their diagnosis.json or .html there was replaced."""
+    from flexmodal.app import main
+
+    result = fm.read_diagnosis(REPO / "tests" / "data" / "diagnosis" / "seed003_holdout.json")
+    fm.write_diagnosis(result, tmp_path / "ours")
+    fm.write_diagnosis(result, tmp_path / "ours")   # its own files: replaced
+    theirs = tmp_path / "theirs"
+    theirs.mkdir()
+    (theirs / name).write_text("<p>my notes</p>\n", encoding="utf-8")
+    with pytest.raises(fm.CompareError, match=f"{name}: exists and is not a {name} flexmodal wrote"):
+        fm.write_diagnosis(result, theirs)
+    assert main(["diagnose", "--rig", str(RIG), "--measured", str(MEASURED), "--out", str(theirs)]) == 2
+    assert f"{name}: exists and is not a {name} flexmodal wrote" in capsys.readouterr().err
+    assert sorted(p.name for p in theirs.iterdir()) == [name]
+    assert (theirs / name).read_text(encoding="utf-8") == "<p>my notes</p>\n"
