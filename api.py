@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING
 
 # light at import: the registries whose names the command line offers, the fault options of a simulator,
 # and the error family (one type per package), so the shell needs nothing past this module
+from flexmodal.checked_io import options as opt
 from flexmodal.checked_io.errors import FlexmodalError
 from flexmodal.checked_io.plural import counted
 from flexmodal.compare.errors import CompareError
@@ -291,6 +292,7 @@ def compute_frf(run: Run | PathLike, *, estimator: str = "H1", nfft: int | None 
     """
     from flexmodal.modal.compute import compute_frf as _compute
 
+    _check_window(window)
     if isinstance(run, str | Path):
         run = read_run(run)
     if store:
@@ -404,8 +406,9 @@ def frf_from_arrays(freq_hz, H, *, coherence=None, quantity: str = "accelerance"
     ins = tuple(inputs) or tuple(f"in {k + 1}" for k in range(h.shape[1]))
     if len(outs) != h.shape[0] or len(ins) != h.shape[1]:
         raise ModalError(f"frf_from_arrays: {len(outs)} output and {len(ins)} input names for H {h.shape}")
-    return FrfResult(f, h, coh, "given", "", 2 * (f.size - 1), 0, float("nan"), quantity, outs, ins,
-                     float(decay_rate_per_s), {"source": "frf_from_arrays"})
+    decay = opt.given(decay_rate_per_s, opt.nonnegative, "frf_from_arrays: decay_rate_per_s", ModalError)
+    return FrfResult(f, h, coh, "given", "", 2 * (f.size - 1), 0, float("nan"), quantity, outs, ins, decay,
+                     {"source": "frf_from_arrays"})
 
 
 def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: str = "H1",
@@ -481,6 +484,7 @@ def compute_frfs(runs: Sequence[PathLike | tuple[PathLike, str]], *, estimator: 
     """
     from flexmodal.modal.batch import frf_batch
 
+    _check_window(window)
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, numbers.Integral)
                                 or workers < 0):
         raise TypeError(f"workers must be None or a whole number >= 0 (got {workers!r})")
@@ -638,6 +642,14 @@ WORKER_BYTES = 250 << 20   # memory of one pool worker: its interpreter, numpy/s
 WORKERS_PER_CPU = 4        # processes beyond this per usable CPU only wait for one (the FFTs are CPU-bound)
 
 
+def _check_window(window: object) -> None:
+    """TypeError unless ``window`` is None or a text (``frf --window``): a number reached the window
+    parser as an AttributeError ('int' object has no attribute 'strip')."""
+    if window is not None and not isinstance(window, str):
+        raise TypeError(f"window must be a window text such as 'hann' or 'force:0.05,exponential:0.01', "
+                        f"got {window!r}")
+
+
 def _check_workers(workers: int) -> None:
     """ModalError when ``workers`` pool processes exceed what this machine can run: more than
     :data:`WORKERS_PER_CPU` per usable CPU, or more than the available memory holds at
@@ -749,6 +761,10 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
 
     _check_band(fmin, fmax)
     _check_identify_options(max_order, poles_hz, references)
+    if decay_rate_per_s is not None:
+        opt.given(decay_rate_per_s, opt.nonnegative, "identify: decay_rate_per_s", ModalError)
+    if pose is not None:
+        pose = _pose_numbers(config, pose, "identify", ModalError)
     poles_hz = None if poles_hz is None else list(poles_hz)   # a set or a generator: the methods index it
     if out is not None:
         _identification_outputs(out, uff, source)
@@ -894,16 +910,21 @@ def track(source: PathLike, *, pose_from: Mapping[str, str] | None = None, run_i
             isinstance(k, str) and isinstance(v, str) for k, v in pose_from.items())):
         raise TypeError(f"track: pose_from must map pose variables to encoder channel names, e.g. "
                         f"{{'theta_deg': 'enc_elbow'}}, got {pose_from!r}")
-    if not 0 < bin_deg < float("inf") or not all(0 < o < float("inf") for o in orders):
-        raise ModalError(f"track: bin_deg {bin_deg!r} and orders {tuple(orders)!r} must be positive and "
-                         "finite")
+    for what, value in (("window_s", window_s), ("hop_s", hop_s)):
+        if value is not None:
+            opt.given(value, opt.seconds, f"track: {what}", ModalError)
+    opt.given(bin_deg, opt.positive, "track: bin_deg", ModalError)
+    opt.given(max_spread_deg, opt.nonnegative, "track: max_spread_deg", ModalError)
+    if isinstance(orders, str | bytes) or not isinstance(orders, Iterable):
+        raise TypeError(f"track: orders must be a list of orders per revolution, got {orders!r}")
+    for order in orders:
+        opt.given(order, opt.positive, "track: orders", ModalError)
     if out is not None:
         from flexmodal.checked_io.output import output_file, sidecar_file
 
         output_file(out, ModalError, "modal table (--out)", inputs=(source,))
         output_file(_harmonics_path(out), ModalError, "harmonics table", inputs=(source, out))
         sidecar_file(_harmonics_path(out), ModalError, "harmonics table", b"t_s,freq_hz,joint,order")
-    from flexmodal.checked_io import options as opt
     from flexmodal.modal.track import TrackOptions, track_input
 
     opt.given(max_order, opt.model_order, "track: max_order", ModalError)
@@ -930,8 +951,6 @@ def _check_identify_options(max_order: object, poles_hz: object, references: obj
     """``max_order``, ``poles_hz`` and ``references`` as ``identify --max-order/--poles/--references``
     take them (from the API: 1.5 said "lines are too few for a model", 'a' among the poles was a
     ValueError, NaN ran, and a string of references was taken letter by letter)."""
-    from flexmodal.checked_io import options as opt
-
     if max_order is not None:
         opt.given(max_order, opt.model_order, "identify: max_order", ModalError)
     if poles_hz is not None:
@@ -1140,15 +1159,16 @@ def predict(rig: Rig | PathLike, poses: Mapping[str, Mapping[str, float]] | Moda
     return table
 
 
-def _pose_numbers(config: object, pose: object) -> dict[str, float]:
-    """A pose {variable: value} of finite numbers (degrees, kg), else ModelError naming the value."""
+def _pose_numbers(config: object, pose: object, where: str = "predict",
+                  error: type[FlexmodalError] = ModelError) -> dict[str, float]:
+    """A pose {variable: value} of finite numbers (degrees, kg), else ``error`` naming the value."""
     if not isinstance(pose, Mapping):
-        raise ModelError(f"predict: config {config!r}: the pose must be a mapping {{variable: value}}, got "
-                         f"{type(pose).__name__}")
+        raise error(f"{where}: config {config!r}: the pose must be a mapping {{variable: value}}, got "
+                    f"{type(pose).__name__}")
     out = {}
     for name, value in pose.items():
         if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
-            raise ModelError(f"predict: config {config!r}: pose {name} = {value!r} is not a finite number")
+            raise error(f"{where}: config {config!r}: pose {name} = {value!r} is not a finite number")
         out[str(name)] = float(value)
     return out
 
@@ -1213,8 +1233,8 @@ def compare_modes(measured: ModalTable | PathLike,
     from flexmodal.compare.errors import CompareError
     from flexmodal.compare.tables import compare_tables, table_name
 
-    if not 0.0 <= min_mac <= 1.0:
-        raise CompareError(f"--min-mac: must lie in [0, 1] (got {min_mac})")
+    if isinstance(min_mac, bool) or not isinstance(min_mac, numbers.Real) or not 0.0 <= min_mac <= 1.0:
+        raise CompareError(f"--min-mac: must lie in [0, 1] (got {min_mac!r})")
     meas = _table(measured)
     return compare_tables(meas, _named(predicted), measured_name=table_name(meas, "experiment"),
                           min_mac=min_mac)
@@ -1295,6 +1315,21 @@ def write_comparison(comparison: Comparison, out: PathLike, fmt: str = "md", lay
 
 
 DIAGNOSIS_FILES = ("diagnosis.json", "diagnosis.html")   # what write_diagnosis writes into its folder
+# how each starts, and the mark near its end (the page's footer), when flexmodal wrote it
+DIAGNOSIS_MARKS = ((b'{\n  "baseline"', b""), (b"<!DOCTYPE html>", b"<p>Versions: flexmodal "))
+
+
+def _diagnosis_folder(out_dir: PathLike, inputs: Sequence[PathLike]) -> Path:
+    """``out_dir`` checked as the folder of :data:`DIAGNOSIS_FILES`: each may replace only a file
+    flexmodal wrote there (the user named the folder, not the files: a diagnosis.json or .html of
+    their own was replaced in silence)."""
+    from flexmodal.checked_io.output import output_dir, sidecar_file
+
+    out = output_dir(out_dir, CompareError, "diagnosis folder (--out)", files=DIAGNOSIS_FILES,
+                     inputs=inputs)
+    for name, (signature, mark) in zip(DIAGNOSIS_FILES, DIAGNOSIS_MARKS, strict=True):
+        sidecar_file(out / name, CompareError, name, signature, mark)
+    return out
 
 
 def diagnose(rig: Rig | PathLike, measured: ModalTable | PathLike, *, effects: str | Sequence[str] = "all",
@@ -1357,13 +1392,8 @@ def diagnose(rig: Rig | PathLike, measured: ModalTable | PathLike, *, effects: s
     >>> result.verdict.heldout_rms_rel_error_after < 0.05 < result.verdict.heldout_rms_rel_error_before
     True
     """
-    from flexmodal.compare.errors import CompareError
-
     if out_dir is not None:
-        from flexmodal.checked_io.output import output_dir
-
-        output_dir(out_dir, CompareError, "diagnosis folder (--out)", files=DIAGNOSIS_FILES,
-                   inputs=_paths([rig, measured]))   # before the heavy imports
+        _diagnosis_folder(out_dir, _paths([rig, measured]))   # before the heavy imports
     rig, table = _rig(rig), _table(measured)
     from flexmodal.compare.candidates import parse_effects
     from flexmodal.compare.diagnosis import diagnose as _diagnose
@@ -1374,6 +1404,8 @@ def diagnose(rig: Rig | PathLike, measured: ModalTable | PathLike, *, effects: s
         raise TypeError(f"diagnose: effects must be 'all', a comma list or a list of effect names, got "
                         f"{effects!r}")
     parse_effects(effects if isinstance(effects, str) else ",".join(effects))  # bad input fails now
+    if scatter is not None and (isinstance(scatter, bool) or not isinstance(scatter, numbers.Real)):
+        raise TypeError(f"diagnose: scatter must be a fraction (0.005 = 0.5 %) or None, got {scatter!r}")
     folds_for(table.configs, holdout)
     if progress is not None:
         progress(f"diagnose: {table.source} against the model of {rig.source}")
@@ -1480,12 +1512,11 @@ def write_diagnosis(result: Diagnosis, out_dir: PathLike,
     >>> pj.name, ph.name, fm.read_diagnosis(pj).verdict.effect == result.verdict.effect
     ('diagnosis.json', 'diagnosis.html', True)
     """
-    from flexmodal.checked_io.output import atomic_group, output_dir, write_text
-    from flexmodal.compare.errors import CompareError
+    from flexmodal.checked_io.output import atomic_group, write_text
     from flexmodal.reports.html import write_report
 
     result = _diagnosis(result)
-    out = output_dir(out_dir, CompareError, "diagnosis folder (--out)", files=DIAGNOSIS_FILES, inputs=inputs)
+    out = _diagnosis_folder(out_dir, inputs)
     out.mkdir(parents=True, exist_ok=True)
     with atomic_group():   # diagnosis.json and .html: both, or neither
         pj = write_text(out / DIAGNOSIS_FILES[0], result.to_json())
@@ -1616,6 +1647,8 @@ def plot_stabilisation(frf: FrfResult, modes: Modes | None = None, *, fmin: floa
 
     frf = _frf_result(frf)
     _check_band(fmin, fmax)
+    if max_order is not None:
+        opt.given(max_order, opt.model_order, "plot_stabilisation: max_order", ModalError)
     if modes is None:
         modes = identify_frf(frf, fmin=fmin, fmax=fmax, max_order=max_order)
     return plots.plot_identification_diagram(frf, modes, plots.frf_unit(frf.quantity), title=title)
@@ -1662,6 +1695,7 @@ def plot_mode_shapes(rig: Rig | PathLike, measured: ModalTable | PathLike, confi
     from flexmodal.models.arm_shapes import arm_modes
     from flexmodal.reports import plots
 
+    opt.given(n_fe_modes, opt.count, "plot_mode_shapes: n_fe_modes", ReportError)
     rig, measured = _rig(rig), _table(measured)
     _config_of(measured, config, ReportError)
     sensors = [s.name for s in rig.sensors if s.name in measured.sensors]
@@ -1900,7 +1934,8 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     if not (runs or measured is not None or predictions or diagnosis is not None):
         raise ReportError("report: nothing to report (give RUN.h5 files, --measured, --pred or --diagnosis)")
     for name, value in (("oma_fmin", oma_fmin), ("oma_fmax", oma_fmax), ("fmin", fmin), ("fmax", fmax)):
-        if value is not None and not (isinstance(value, int | float) and 0 < value < float("inf")):
+        if value is not None and (isinstance(value, bool) or not isinstance(value, numbers.Real)
+                                  or not 0 < value < float("inf")):
             raise ReportError(f"report: {name} = {value!r} must be a positive number of Hz")
     if oma_fmin is not None and oma_fmax is not None and oma_fmin >= oma_fmax:
         raise ReportError(f"report: oma_fmin = {oma_fmin:g} Hz must be below oma_fmax = {oma_fmax:g} Hz")
@@ -2256,8 +2291,6 @@ def selftest(n_cases: int, *, seed: int = 0, progress: Callable[[object], None] 
     if isinstance(n_cases, bool) or not isinstance(n_cases, numbers.Integral) or n_cases < 1:
         raise FixtureError(f"selftest: n_cases = {n_cases!r} is not a whole number >= 1 (accuracies of no "
                            "case are not numbers)")
-    from flexmodal.checked_io import options as opt
-
     opt.given(seed, opt.seed, "selftest: seed", FixtureError)   # -1 was numpy's ValueError
     results = run_blind(int(n_cases), seed=seed, progress=progress)
     summary = summarise(results)

@@ -169,7 +169,7 @@ def output_file(path: str | Path, error: ErrorType, what: str = "output file", *
     p = _writable(path, error, what, inputs)
     if p.exists() and _is_hdf5(p):
         raise error(f"{p}: is an HDF5 file (a run store?); refusing to replace it with the {what}; "
-                    "choose another --out")
+                    "choose another path")
     return p
 
 
@@ -227,16 +227,16 @@ def hdf5_output(path: str | Path, error: ErrorType, what: str = "HDF5 output fil
         return p
     found = hdf5_superblock(p)
     if found is None:
-        raise error(f"{p}: exists and is not an HDF5 file (refusing to overwrite it; choose another "
-                    "--out)")
+        raise error(f"{p}: exists and is not an HDF5 file (refusing to overwrite it with the {what}; "
+                    "choose another path)")
     offset, version = found
     if offset > 0:
         raise error(f"{p}: an HDF5 file after a {offset}-byte user block (a MATLAB v7.3 .mat, an "
-                    "archive?); refusing to write into it: choose a new --out")
+                    "archive?); refusing to write into it: choose a new path")
     if version < 3:   # h5py's default, MATLAB, PyTables: no SWMR
         raise error(f"{p}: an HDF5 file of another tool (superblock version {version}); runs are "
                     "appended only to files of superblock version 3 (HDF5 1.10, as flexmodal writes "
-                    "them): choose a new --out")
+                    "them): choose a new path")
     return p
 
 

@@ -27,32 +27,67 @@ MAX_NESTING = 100  # tables/arrays/objects nested deeper than this in TOML or JS
 FLOAT_MAX_BITS = 1024  # an integer of more bits exceeds the largest float (sys.float_info.max)
 
 
-def _digit_run_key(digits: str) -> tuple[int, str]:
-    """Sort key of a run of decimal digits by its value, without converting it to an int (a run of more
-    than 4300 digits exceeds Python's int conversion limit): its length without leading zeros, then
-    its digits (any script's decimal digits read as ASCII: Arabic-Indic U+0663 is 3)."""
-    ascii_digits = digits if digits.isascii() else "".join(str(unicodedata.decimal(ch)) for ch in digits)
-    value = ascii_digits.lstrip("0")
-    return len(value), value
+NUMBER = re.compile(r"((?:(?<![^\W_])-)?\d+(?:\.\d+)?)")
+"""A number in a name (:func:`natural_key`): a digit run with an optional decimal part, and a minus sign
+when the ``-`` directly before it opens the name or follows a character that is neither a letter nor a
+digit (``=``, ``_``, a space, another ``-``)."""
+
+
+def _ascii_digits(digits: str) -> str:
+    """``digits`` (decimal digits of any script; Arabic-Indic U+0663 is 3) as ASCII digits."""
+    return digits if digits.isascii() else "".join(str(unicodedata.decimal(ch)) for ch in digits)
+
+
+def _number_key(number: str) -> tuple:
+    """Sort key of a signed decimal ``number`` (as :data:`NUMBER` matches it) by its value, without
+    converting it to an int or a float (a run of more than 4300 digits exceeds Python's int conversion
+    limit): the sign, then for a magnitude its integer digits' count and digits, then its decimal digits
+    (trailing zeros dropped) -- each reversed for a negative value (digit ``d`` as ``9 - d``, and a
+    decimal part that stops ranks above one that goes on).  Equal values get equal keys (``-0``, ``0``
+    and ``0.00``; ``7.5`` and ``7.50``)."""
+    negative = number.startswith("-")
+    whole, _, decimals = number.lstrip("-").partition(".")
+    whole, decimals = _ascii_digits(whole).lstrip("0"), _ascii_digits(decimals).rstrip("0")
+    if not negative or not (whole or decimals):
+        return 1, len(whole), whole, decimals
+    flip = str.maketrans("0123456789", "9876543210")
+    return 0, -len(whole), whole.translate(flip), decimals.translate(flip) + ":"   # ':' sorts after '9'
 
 
 def natural_key(text: str) -> list:
-    """Sort key that orders digit runs by value (``theta60`` before ``theta120``): configurations and runs
-    are listed in this order everywhere (tables, CSV files, reports, diagnosis text).  Names whose digit
-    runs have equal values are then ordered as text (``theta01`` before ``theta1``).  A digit run of any
-    length is compared (no int conversion: a name of 5000 digits sorts too).
+    """Sort key that orders the numbers in names by value (``theta60`` before ``theta120``,
+    ``theta=-30`` before ``theta=-15`` before ``theta=0``, ``theta7.25`` before ``theta7.5``):
+    configurations and runs are listed in this order everywhere (tables, CSV files, reports, diagnosis
+    text).  Names whose numbers have equal values are then ordered as text (``theta01`` before
+    ``theta1``).  A number of any length is compared (no int or float conversion: a name of 5000 digits
+    sorts too).
+
+    A number is a run of decimal digits with an optional decimal part (``7.25``; a second point ends it:
+    ``1.2.3`` is 1.2, ``.``, 3, so version-like names sort as decimals, ``v1.10`` before ``v1.9``), and
+    is negative when a ``-`` directly before it opens the name or follows a character that is neither a
+    letter nor a digit: ``theta=-15`` (the names ``identify --track`` gives), ``theta_-30``, ``-30``.
+    After a letter or a digit a ``-`` is a hyphen, as in ``run-3``, ``theta30-impact`` or ``theta0-90``:
+    ``run-1``, ``run-2``, ``run-3`` keep their order, and ``theta-30`` reads as a hyphen and 30.
+    Exponents are not read (``1e-05`` is 1, ``e-``, 5).
 
     Examples
     --------
     >>> sorted(["theta150", "theta30", "theta0", "theta120"], key=natural_key)
     ['theta0', 'theta30', 'theta120', 'theta150']
-    >>> sorted(["theta1a", "theta1", "theta001b", "theta01"], key=natural_key)
-    ['theta01', 'theta1', 'theta1a', 'theta001b']
+    >>> sorted(["theta=30", "theta=7.5", "theta=-15", "theta=2.5", "theta=-30", "theta=0", "theta=7.25"],
+    ...        key=natural_key)
+    ['theta=-30', 'theta=-15', 'theta=0', 'theta=2.5', 'theta=7.25', 'theta=7.5', 'theta=30']
+    >>> sorted(["run-3", "run-10", "run-1", "theta30-impact", "theta0-impact"], key=natural_key)
+    ['run-1', 'run-3', 'run-10', 'theta0-impact', 'theta30-impact']
+    >>> sorted(["theta1a", "theta1", "theta001b", "theta01", "theta1.0"], key=natural_key)
+    ['theta01', 'theta1', 'theta1.0', 'theta1a', 'theta001b']
     >>> [len(n) for n in sorted(["c" + "9" * 5000, "c" + "1" * 5001, "c7"], key=natural_key)]
     [2, 5001, 5002]
+    >>> [len(n) for n in sorted(["9" * 5000, "-" + "9" * 5000, "7", "-" + "1" * 5001], key=natural_key)]
+    [5002, 5001, 1, 5000]
     """
-    parts = re.split(r"(\d+)", text)   # text at even places, digit runs at odd places
-    return [[_digit_run_key(t) if k % 2 else t for k, t in enumerate(parts)], text]
+    parts = NUMBER.split(text)   # text at even places, numbers at odd places
+    return [[_number_key(t) if k % 2 else t for k, t in enumerate(parts)], text]
 
 
 def natural_order(names: Iterable[str]) -> list[str]:

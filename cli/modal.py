@@ -59,13 +59,13 @@ def register(sub: Subcommands) -> None:
                         "beside --out (MODES.diagram.npz; an error when it was computed from another input "
                         "or options). Without it a matching stored diagram is used too, else the "
                         "stabilisation runs again")
-    q.add_argument("--need-min", type=opt.real(0.0), default=None, metavar="F",
+    q.add_argument("--need-min", type=opt.nonnegative, default=None, metavar="F",
                    help="drop a mode whose F statistic in the FRF synthesis is below F (the FRFs do not "
                         "need it; default 10)")
     q.add_argument("--mpc-min", type=opt.fraction, default=None, metavar="MPC",
                    help="with 3+ outputs, drop a mode whose modal phase collinearity is below MPC "
                         "(0..1, default 0.5)")
-    q.add_argument("--exp-window-decay", type=opt.real(0.0), default=None, metavar="RATE",
+    q.add_argument("--exp-window-decay", type=opt.nonnegative, default=None, metavar="RATE",
                    help="decay rate, 1/s, of an exponential window the FRFs were measured with "
                         "(w(t) = exp(-RATE t)); its added damping is removed (default: the rate the "
                         "FRFs record, 0 for UFF files)")
@@ -85,9 +85,9 @@ def register(sub: Subcommands) -> None:
                    help="window length, s (default: 80 periods of the slowest mode)")
     t.add_argument("--hop", type=opt.seconds, default=None, metavar="S",
                    help="window step, s (default: a quarter pose bin at the 90th percentile pose rate)")
-    t.add_argument("--bin", type=opt.real(0.0, lo_open=True), default=5.0, metavar="DEG",
+    t.add_argument("--bin", type=opt.positive, default=5.0, metavar="DEG",
                    help="pose bin width (default 5)")
-    t.add_argument("--max-spread", type=opt.real(0.0), default=5.0, metavar="DEG",
+    t.add_argument("--max-spread", type=opt.nonnegative, default=5.0, metavar="DEG",
                    help="skip windows whose pose standard deviation exceeds DEG (default 5)")
     t.add_argument("--orders", default=None, metavar="O1,O2,...",
                    help="harmonic orders per joint revolution (default: found from the data)")

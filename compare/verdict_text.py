@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 from flexmodal.checked_io.percent import percent
+from flexmodal.compare.gap import FALLBACK_SOURCE
 from flexmodal.compare.result import MIN_CHANCE, Diagnosis
 
 EXPLAINED_FACTOR = 3.0
@@ -65,7 +66,9 @@ def verdict_words(result: Diagnosis) -> str:
 def scatter_line(result: Diagnosis) -> str:
     """One line: the scatter the ranking used and where it came from: the measurement scatter and the
     model-form floor added in quadrature (``scatter = sqrt(measurement^2 + floor^2)``), or the least
-    scatter the ranking uses (compare.diagnosis.MIN_SCATTER) when that sum is below it."""
+    scatter the ranking uses (compare.diagnosis.MIN_SCATTER) when that sum is below it.  The measurement
+    scatter's source is named as stored (``repeated configurations``, ``freq_std_hz column``), the stored
+    ``--scatter (fallback)`` as ``the --scatter fallback``."""
     src = result.scatter_source
     if src is None or result.scatter is None:
         return ""
@@ -76,7 +79,8 @@ def scatter_line(result: Diagnosis) -> str:
             if math.isclose(result.scatter, combined, rel_tol=1e-6) else
             f"scatter: {percent(result.scatter)}, the least the ranking uses (sqrt(m^2 + f^2) = "
             f"{percent(combined)} is below it)")
-    return (f"{head}; measurement scatter m = {percent(meas)} ({src.source}: {src.detail}), model-form "
+    source = "the --scatter fallback" if src.source == FALLBACK_SOURCE else src.source
+    return (f"{head}; measurement scatter m = {percent(meas)} ({source}: {src.detail}), model-form "
             f"floor f = {percent(floor)} (held-out error of the best candidate beyond the measurement); what "
             f"remains is judged against m = {percent(meas)}")
 

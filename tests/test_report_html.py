@@ -393,3 +393,21 @@ def test_report_tells_a_figure_section_before_drawing_it(tmp_path):
     k = told.index("plotting probe figures")
     assert told[k + 1:k + 3] == ["drawing", "no probe figures: nothing in these inputs to draw it from"], told
 
+
+
+def test_the_fallback_scatter_reads_as_words_and_is_stored_as_before(tmp_path):
+    """The stored source ``--scatter (fallback)`` (docs/formats.md) was printed as is, ``(--scatter
+    (fallback): the data carry ...``; the line now names it ``the --scatter fallback``, and the file
+    keeps the stored value (read back from a diagnosis.json written before the change)."""
+    from flexmodal.compare.gap import FALLBACK_SOURCE
+    from flexmodal.compare.verdict_text import scatter_line
+
+    stored = Path(__file__).parent / "data" / "diagnosis" / "seed003_holdout.json"
+    result = api.read_diagnosis(stored)
+    assert result.scatter_source.source == FALLBACK_SOURCE == "--scatter (fallback)"
+    line = scatter_line(result)
+    assert "(the --scatter fallback: the data carry no repeats and no freq_std_hz column)" in line, line
+    assert "(--scatter (fallback)" not in line
+    js, page = api.write_diagnosis(result, tmp_path)
+    assert json.loads(js.read_text())["scatter_source"]["source"] == FALLBACK_SOURCE
+    assert "(the --scatter fallback: " in page.read_text(encoding="utf-8")      # the page says it alike
