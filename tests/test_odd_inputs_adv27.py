@@ -10,13 +10,16 @@ AttributeError.  Each is now checked by the option kind the command line uses fo
 ``diagnose --out DIR`` replaced a diagnosis.json or diagnosis.html of the user's own in DIR (the user
 named the folder, not the files); now only files flexmodal wrote are replaced.  A run whose responses
 were stored in different units (a2 in g, the others in m/s^2) was identified with its mode shapes
-mixing the units (a2 9.81 times too small, exit 0); they are now brought to m/s^2 first.
+mixing the units (a2 9.81 times too small, exit 0); they are now brought to m/s^2 first.  identify
+ignored options its source has no use for (config and pose with a run file, run_id and references
+with FRFs in memory); each is now named.
 In-process, no run files: about 3 s."""
 
 from __future__ import annotations
 
 import argparse
 import math
+import re
 import shutil
 from pathlib import Path
 
@@ -189,3 +192,20 @@ def test_responses_in_units_with_no_factor_to_m_s2_are_named(tmp_path: Path) -> 
     with pytest.raises(fm.ModalError, match=r"runs.h5:theta30: the response channels are in different "
                                             r"units \(a1 \(m/s\^2\), a2 \(m/s\^2\), a3 \(ft/s\^2\)"):
         fm.identify(path, fmax=400.0)
+
+
+# -- identify options the source has no use for -------------------------------------------------------------
+@pytest.mark.parametrize(("source", "option"), [
+    ("file", {"config": "mine"}), ("file", {"pose": {"theta_deg": 45.0}}),
+    ("memory", {"run_id": "theta30"}), ("memory", {"references": ["tip"]})])
+def test_an_identify_option_the_source_has_no_use_for_is_named(tmp_path: Path, source: str,
+                                                                option: dict) -> None:
+    """identify('runs.h5', config='mine', pose={'theta_deg': 45}) wrote the run id and the stored pose
+    (0 deg), and an FrfResult took run_id and references: all ignored in silence, exit 0."""
+    from flexmodal.fixtures.examples import impact_run
+
+    given = impact_run(tmp_path) if source == "file" else _frf()
+    (name, value), = option.items()
+    with pytest.raises(fm.ModalError, match=rf"identify: {name} = {re.escape(repr(value))} has no use with"):
+        fm.identify(given, **option)
+    assert fm.identify(_frf(), config="c40", pose={"theta_deg": 40.0}).table.configs == ["c40"]
