@@ -31,9 +31,9 @@ def register(sub: Subcommands) -> None:
                    help="fe: elements per link and member (default: the rig's `elements`, else 10)")
     p.add_argument("--lumped-mass-matrix", action="store_true",
                    help="fe: diagonal (HRZ-lumped) mass matrix instead of the consistent one")
-    p.add_argument("--masses-per-link", type=opt.integer(1, 1000), default=4, metavar="N",
+    p.add_argument("--masses-per-link", type=opt.integer(1, 1000), default=None, metavar="N",
                    help="lumped-mass: lumped masses per link (default 4, as in seed 003)")
-    p.add_argument("--coordinates", choices=("planar", "transverse"), default="planar",
+    p.add_argument("--coordinates", choices=("planar", "transverse"), default=None,
                    help="lumped-mass: both in-plane translations per mass (default) or only the one "
                         "normal to its link (seed 003's choice)")
 

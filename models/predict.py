@@ -72,8 +72,9 @@ def _assumed(rig: Rig, pose: Mapping[str, float], n_modes: int, options: Mapping
 def _lumped(rig: Rig, pose: Mapping[str, float], n_modes: int, options: Mapping) -> Result:
     from flexmodal.models.lumped_mass import lumped_mass_modes
 
-    modes = lumped_mass_modes(rig, pose, n_modes, int(options.get("masses_per_link", 4)),
-                              str(options.get("coordinates", "planar")))
+    masses, coordinates = options.get("masses_per_link"), options.get("coordinates")
+    modes = lumped_mass_modes(rig, pose, n_modes, 4 if masses is None else int(masses),
+                              "planar" if coordinates is None else str(coordinates))
     return modes.freq_hz, modes.sensor_shapes
 
 
@@ -96,12 +97,16 @@ solve_blevins = _one_by_one(_blevins)
 
 
 BUILT_IN_MODELS = ("fe", "assumed-modes", "lumped-mass", "blevins")
+#: the built-in model each option belongs to; given (not None or False) to another built-in model it was
+#: ignored in silence (predict --model fe --masses-per-link 3, --model lumped-mass --elements 5)
+OPTION_MODELS = {"elements_per_link": "fe", "lumped_mass": "fe", "masses_per_link": "lumped-mass",
+                 "coordinates": "lumped-mass"}
 
 
-def _check_options(options: Mapping[str, object], builtin: bool) -> None:
+def _check_options(options: Mapping[str, object], model: str, builtin: bool) -> None:
     """The model options as ``flexmodal predict`` takes them (an unknown name, elements 0 or a count that
-    is not whole ran in silence from the API): ModelError naming the option.  A plug-in model (not
-    ``builtin``) may read options of its own names."""
+    is not whole ran in silence from the API, and so did an option of another model): ModelError naming
+    the option.  A plug-in model (not ``builtin``) may read options of its own names."""
     from flexmodal.checked_io import options as opt
     from flexmodal.models.rig_schema import MAX_ELEMENTS
 
@@ -111,11 +116,15 @@ def _check_options(options: Mapping[str, object], builtin: bool) -> None:
             if value is not None:
                 opt.given(value, kinds[name], f"predict: {name}", ModelError)
         elif name == "coordinates":
-            if value not in ("planar", "transverse"):
+            if value not in (None, "planar", "transverse"):
                 raise ModelError(f"predict: coordinates = {value!r} is not planar or transverse")
         elif name != "lumped_mass" and builtin:
             raise ModelError(f"predict: unknown option {name!r} (options: elements_per_link, lumped_mass, "
                              "masses_per_link, coordinates)")
+        owner = OPTION_MODELS.get(name, model)
+        if builtin and owner != model and value is not None and value is not False:
+            raise ModelError(f"predict: {name} = {value!r} is an option of model '{owner}'; model "
+                             f"'{model}' does not use it (leave it out)")
 
 
 def predict(rig: Rig, poses: Mapping[str, Mapping[str, float]], model: str = "fe", n_modes: int = 4, *,
@@ -130,7 +139,7 @@ def predict(rig: Rig, poses: Mapping[str, Mapping[str, float]], model: str = "fe
     if isinstance(n_modes, bool | np.bool_) or not isinstance(n_modes, numbers.Integral) or n_modes < 1:
         raise ModelError(f"number of modes must be a whole number >= 1 (got {n_modes!r})")
     n_modes = int(n_modes)   # numpy's whole numbers too (np.int64(2) was refused as "not a whole number")
-    _check_options(options, builtin=solve in {MODELS.entry(m) for m in BUILT_IN_MODELS})
+    _check_options(options, model, builtin=solve in {MODELS.entry(m) for m in BUILT_IN_MODELS})
     records = []
     # a model may solve lazily, pose by pose: progress is told as each pose comes (a list of all results
     # first told it only at the end: a bar stood at 0 for 28 s, then jumped to 6/6); a generator is

@@ -12,7 +12,8 @@ named the folder, not the files); now only files flexmodal wrote are replaced.  
 were stored in different units (a2 in g, the others in m/s^2) was identified with its mode shapes
 mixing the units (a2 9.81 times too small, exit 0); they are now brought to m/s^2 first.  identify
 ignored options its source has no use for (config and pose with a run file, run_id and references
-with FRFs in memory); each is now named.
+with FRFs in memory); each is now named, and so is an option of another model given to predict
+(--model fe --masses-per-link 3 was the fe prediction, exit 0).
 In-process, no run files: about 3 s."""
 
 from __future__ import annotations
@@ -209,3 +210,27 @@ def test_an_identify_option_the_source_has_no_use_for_is_named(tmp_path: Path, s
     with pytest.raises(fm.ModalError, match=rf"identify: {name} = {re.escape(repr(value))} has no use with"):
         fm.identify(given, **option)
     assert fm.identify(_frf(), config="c40", pose={"theta_deg": 40.0}).table.configs == ["c40"]
+
+
+# -- predict: an option of another model -----------------------------------------------------------------
+SEED003 = REPO / "examples" / "rigs" / "seed003_two_link.toml"
+
+
+@pytest.mark.parametrize(("model", "option", "words"), [
+    ("fe", ["--masses-per-link", "3"], "masses_per_link = 3 is an option of model 'lumped-mass'"),
+    ("fe", ["--coordinates", "transverse"], "coordinates = 'transverse' is an option of model 'lumped-mass'"),
+    ("lumped-mass", ["--elements", "5"], "elements_per_link = 5 is an option of model 'fe'"),
+    ("lumped-mass", ["--lumped-mass-matrix"], "lumped_mass = True is an option of model 'fe'")])
+def test_an_option_of_another_model_is_named_not_ignored(tmp_path: Path, capsys, model: str,
+                                                         option: list[str], words: str) -> None:
+    """predict --model fe --masses-per-link 3 (and the like) wrote the fe prediction, exit 0."""
+    from flexmodal.app import main
+
+    out = tmp_path / "p.csv"
+    argv = ["predict", str(SEED003), "--model", model, "--poses", str(MEASURED), "--out", str(out),
+            "--modes", "2"]
+    assert main([*argv, *option]) == 2
+    assert f"{words}; model '{model}' does not use it" in capsys.readouterr().err and not out.exists()
+    assert main(argv) == 0   # the model's own options, or none, still predict
+    lumped = fm.predict(SEED003, MEASURED, "lumped-mass", 2, masses_per_link=3, coordinates="transverse")
+    assert lumped.configs == fm.read_table(MEASURED).configs
