@@ -668,7 +668,7 @@ def _check_workers(workers: int) -> None:
 
 def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: float | None = None,
              fmax: float | None = None, max_order: int | None = None, run_id: str | None = None,
-             config: str = "run", pose: Mapping[str, float] | None = None,
+             config: str | None = None, pose: Mapping[str, float] | None = None,
              poles_hz: Sequence[float] | None = None, thresholds: Thresholds | None = None,
              decay_rate_per_s: float | None = None, references: Sequence[str] | None = None,
              out: PathLike | None = None, uff: PathLike | None = None,
@@ -693,10 +693,10 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
         Cap of the pLSCF model order (default: it adapts to the data); ssi: highest model order.
     run_id : str, optional
         Only this run of an HDF5 file.
-    config : str
-        Configuration name of FRFs given in memory.
+    config : str, optional
+        Configuration name of FRFs given in memory (default ``run``; a file's are its run ids).
     pose : mapping, optional
-        Their pose {variable: value} (degrees, kg).
+        Their pose {variable: value} (degrees, kg; a file's runs store their own).
     poles_hz : sequence of float, optional
         Pick the stable poles nearest these frequencies [Hz] (exactly these modes, no automatic
         selection).  With ``out``, they are picked from the stabilisation diagram an earlier
@@ -761,6 +761,7 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
 
     _check_band(fmin, fmax)
     _check_identify_options(max_order, poles_hz, references)
+    _check_source_options(source, run_id=run_id, references=references, config=config, pose=pose)
     if decay_rate_per_s is not None:
         opt.given(decay_rate_per_s, opt.nonnegative, "identify: decay_rate_per_s", ModalError)
     if pose is not None:
@@ -795,6 +796,7 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
                             f"{type(source).__name__}")
         source = by_reciprocity(source)   # a roving-hammer set: the hammer points are the shapes' points
         modes = identify_frf(source, **{**options, "method": method or "lscf"})
+        config = "run" if config is None else config
         table = modes_table(modes, source.outputs, config=config, pose=pose)
         result = Identification(table, {config: modes}, {config: tuple(source.outputs)})
     if out is not None:
@@ -961,6 +963,20 @@ def _check_identify_options(max_order: object, poles_hz: object, references: obj
     if isinstance(references, str | bytes):
         raise TypeError(f"identify: references must be a list of channel names, got {references!r}: "
                         f"for one channel write [{references!r}]")
+
+
+def _check_source_options(source: object, **given: object) -> None:
+    """ModalError naming an option ``source`` has no use for, which was ignored in silence: ``run_id``
+    and ``references`` pick a run of a file and the outputs of its output-only identification (FRFs in
+    memory are one record, identified from their inputs); ``config`` and ``pose`` name FRFs in memory
+    (a file's configurations are its run ids, each with the pose it stores)."""
+    if isinstance(source, str | os.PathLike):
+        unused, why = ("config", "pose"), f"{source}: its runs are named by their ids, with their poses"
+    else:
+        unused, why = ("run_id", "references"), "FRFs given in memory, one record identified from its inputs"
+    for name in unused:
+        if given[name] is not None:
+            raise ModalError(f"identify: {name} = {given[name]!r} has no use with {why} (leave it out)")
 
 
 def _check_band(fmin: float | None, fmax: float | None) -> None:

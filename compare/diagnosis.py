@@ -669,7 +669,7 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
         none_sigma = _none_scatter(noise, tried)
         for e in tried:
             _annotate(ctx, e, scatter)
-        nominal = _equivalent(ctx, base_err[held_mask].ravel(), base_shape, scatter)[0]
+        nominal = _held_entry(*_equivalent(ctx, base_err[held_mask].ravel(), base_shape, scatter))
         # a gap within the noise needs no effect -- unless a candidate predicts unseen poses better
         # than the nominal model beyond noise and beyond the beam theory's known error (a single that
         # only absorbs that error, blind 316 #14, is no evidence): then the full search and the
@@ -740,7 +740,7 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
     if best is not None and best not in ranking:           # a pruned candidate validated by _choose
         ranking.append(best)
         _order(ctx, ranking, scatter)
-    nominal = _equivalent(ctx, base_err[held_mask].ravel(), base_shape, scatter)[0]
+    nominal = _held_entry(*_equivalent(ctx, base_err[held_mask].ravel(), base_shape, scatter))
     verdict = _verdict(ctx, best, ranking, baseline, before, nominal, scatter, sigma, none_sigma, small,
                        notes)
     if verdict["effect"] != "none":
@@ -1263,14 +1263,15 @@ def _paired_shapes(ctx: _Context, fam) -> np.ndarray:
 
 
 def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: dict, before: float,
-             nominal: float, scatter: float, sigma: float, none_sigma: float, small: bool,
+             nominal: dict, scatter: float, sigma: float, none_sigma: float, small: bool,
              notes: Sequence[str] = ()) -> dict:
     """The verdict block; ``before`` is the nominal model's held-out frequency RMS, ``nominal`` its
-    frequency-equivalent held-out RMS with shapes (``_equivalent``); ``scatter`` ranks candidates (the
-    measurement's ``sigma`` plus the model-form floor), ``sigma`` judges what remains, ``none_sigma``
-    (``_none_scatter``) whether the nominal model's gap is within the noise; ``small`` that it needs no
-    effect (within the noise, and no candidate held out better than the nominal model beyond noise);
-    ``notes`` say why the verdict is not the top of the ranking (``_choose``)."""
+    frequency-equivalent held-out RMS with shapes and its degrees of freedom (``_held_entry``);
+    ``scatter`` ranks candidates (the measurement's ``sigma`` plus the model-form floor), ``sigma``
+    judges what remains, ``none_sigma`` (``_none_scatter``) whether the nominal model's gap is within
+    the noise; ``small`` that it needs no effect (within the noise, and no candidate held out better
+    than the nominal model beyond noise); ``notes`` say why the verdict is not the top of the ranking
+    (``_choose``)."""
     meas = ctx.meas
     none = {"effect": "none", "location": "", "heldout_rms_rel_error_before": before,
             "heldout_rms_rel_error_after": before,
@@ -1388,7 +1389,7 @@ def _verdict(ctx: _Context, best: dict | None, ranking: list[dict], baseline: di
     return verdict
 
 
-def _none_with_alternatives(ctx: _Context, verdict: dict, ranking: list[dict], nominal: float,
+def _none_with_alternatives(ctx: _Context, verdict: dict, ranking: list[dict], nominal: dict,
                             scatter: float) -> dict:
     """A ``none`` verdict with the candidates that fit better held out than the nominal model by more
     than the noise margin (at most ``MAX_ALTERNATIVES``, best score first) as alternatives: nothing
@@ -1405,18 +1406,21 @@ def _none_with_alternatives(ctx: _Context, verdict: dict, ranking: list[dict], n
                        f"model ({percent(verdict['heldout_rms_rel_error_before'])}): {names}"}
 
 
-def _beating_nominal(ctx: _Context, ranking: Sequence[dict], nominal: float, scatter: float,
+def _held_entry(heldout_eq: float, n_eq: int) -> dict:
+    """A model's frequency-equivalent held-out RMS and its degrees of freedom (``_equivalent``) as the
+    entry ``_noise`` reads."""
+    return {"_heldout_eq": heldout_eq, "_n_eq": n_eq}
+
+
+def _beating_nominal(ctx: _Context, ranking: Sequence[dict], nominal: dict, scatter: float,
                      form: float = 0.0) -> list[dict]:
-    """The annotated candidates of ``ranking`` held out better than the nominal model (its
-    frequency-equivalent held-out RMS ``nominal``) by more than the noise margin (``_noise`` at the
-    nominal model's level) and by more than ``form`` (a known model-form error a candidate may absorb
-    without being there), best score first."""
-    if not ranking:
-        return []
-    margin = max(_noise({"_heldout_eq": nominal, "_n_eq": ranking[0]["_n_eq"]}, scatter, ctx.pose_share),
-                 form)
+    """The annotated candidates of ``ranking`` held out better than the nominal model (``nominal``, its
+    frequency-equivalent held-out RMS and degrees of freedom, ``_held_entry``) by more than the noise
+    margin (``_noise`` at the nominal model's level and degrees of freedom) and by more than ``form`` (a
+    known model-form error a candidate may absorb without being there), best score first."""
+    margin = max(_noise(nominal, scatter, ctx.pose_share), form)
     return sorted((e for e in ranking if not e["_out_of_range"] and not e["_idle"]
-                   and e["_heldout_eq"] < nominal - margin), key=lambda e: e["score"])
+                   and e["_heldout_eq"] < nominal["_heldout_eq"] - margin), key=lambda e: e["score"])
 
 
 def _flag_none(ctx: _Context, verdict: dict) -> dict:

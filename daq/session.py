@@ -46,7 +46,8 @@ EFFECT_PATTERN = rf"\w+@[\w.@-]+:\w+={NUMBER}(,\w+={NUMBER})*"
 MIN_GAIN, MAX_GAIN = 1e-15, 1e15  # physical units per device unit (an ADC count, a mV, ...)
 # factor converting one unit of the first name to the second (sensitivity denominator -> channel unit)
 UNIT_FACTORS = {
-    ("g", "m/s^2"): G_M_PER_S2, ("m/s^2", "g"): 1 / G_M_PER_S2, ("kN", "N"): 1e3, ("N", "kN"): 1e-3,
+    ("g", "m/s^2"): G_M_PER_S2, ("m/s^2", "g"): 1 / G_M_PER_S2, ("mm/s^2", "m/s^2"): 1e-3,
+    ("m/s^2", "mm/s^2"): 1e3, ("kN", "N"): 1e3, ("N", "kN"): 1e-3,
     ("lbf", "N"): 4.4482216152605, ("rev", "deg"): 360.0, ("rev", "rad"): 2 * math.pi,
     ("deg", "rad"): math.pi / 180, ("rad", "deg"): 180 / math.pi, ("ε", "µε"): 1e6, ("µε", "ε"): 1e-6,
     ("ue", "µε"): 1.0, ("με", "µε"): 1.0,

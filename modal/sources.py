@@ -18,7 +18,7 @@ from flexmodal.modal.compute import compute_frf, frf_of_record
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult
 from flexmodal.modal.identify import Modes, identify, modes_table
-from flexmodal.modal.oma import default_method, identify_output_only
+from flexmodal.modal.oma import default_method, identify_output_only, output_channels
 from flexmodal.modal.registry import output_only
 from flexmodal.modal.runs_io import read_frf
 from flexmodal.modal.sweep import sweep_plan
@@ -219,17 +219,48 @@ def _skip(failed: list | None, bad: list, name: str, exc: FlexmodalError, advanc
     advance()
 
 
+def _si_factors(channels: Sequence, where: str) -> np.ndarray | None:
+    """Factors [n] taking the response ``channels`` to m/s^2 when they are stored in different units,
+    None when they share one (FRFs and shapes then stay in it, docs/hdf5-format.md): an output in g
+    beside outputs in m/s^2 gave mode shapes of mixed units, off by 9.81 at that sensor, with exit 0.
+    ModalError when the units differ and one has no factor to m/s^2."""
+    from flexmodal.daq.session import unit_factor
+
+    units = [c.unit for c in channels]
+    if all(unit_factor(u, units[0]) == 1.0 for u in units):
+        return None
+    factors = [unit_factor(u, "m/s^2") for u in units]
+    if None in factors:
+        named = ", ".join(f"{c.name} ({c.unit or 'no unit'})" for c in channels)
+        raise ModalError(f"{where}: the response channels are in different units ({named}), not all of "
+                         "them accelerations in m/s^2, mm/s^2 or g: the mode shapes would mix the units "
+                         "(store the responses in one unit)")
+    return np.array(factors)
+
+
 def _identify_run(p: Path, run, chosen: str, options: dict, oma: dict) -> tuple[Modes, tuple[str, ...]]:
-    """The modes of one run of ``p`` by method ``chosen`` and the outputs their shapes are given at."""
+    """The modes of one run of ``p`` by method ``chosen`` and the outputs their shapes are given at
+    (responses stored in different units brought to m/s^2 first, :func:`_si_factors`)."""
     names, kinds = [c.name for c in run.channels], [c.kind for c in run.channels]
+    where = f"{p}:{run.run_id}"
     if output_only(chosen):
-        res, outputs = identify_output_only(run.samples, run.sample_rate_hz, names, kinds,
-                                            method=chosen, where=f"{p}:{run.run_id}", **oma)
-        return res.modes, outputs
+        samples, outputs = run.samples, output_channels(kinds)
+        factors = _si_factors([run.channels[j] for j in outputs], where)
+        if factors is not None:
+            samples = np.array(samples[()], float)
+            samples[:, outputs] *= factors
+        res, outs = identify_output_only(samples, run.sample_rate_hz, names, kinds, method=chosen,
+                                         where=where, **oma)
+        return res.modes, outs
     stored = read_frf(p, run.run_id) or compute_frf(run)
+    by_name = {c.name: c for c in run.channels}
+    if all(o in by_name for o in stored.outputs):
+        factors = _si_factors([by_name[o] for o in stored.outputs], where)
+        if factors is not None:
+            stored = dataclasses.replace(stored, H=stored.H * factors[:, None, None])
     result = by_reciprocity(stored)
     point = _driving_point(run, result) if result is stored else None
-    with naming(f"{p}:{run.run_id}", ModalError):
+    with naming(where, ModalError):
         modes = identify_frf(result, driving_point=point, method=chosen, **options)
     return modes, result.outputs
 

@@ -3,7 +3,9 @@
 
 from __future__ import annotations
 
+import json
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,10 +13,10 @@ from scipy.stats import f as fisher
 
 from flexmodal.compare.diagnosis import diagnose
 from flexmodal.compare.gap import comac
-from flexmodal.compare.sensor_flag import SENSOR_P, sensor_check
+from flexmodal.compare.sensor_flag import SENSOR_MODE_FACTOR, SENSOR_P, sensor_check, sensor_flag
 from flexmodal.contract.table import ModalTable
 from flexmodal.models.frame import frame_modes
-from flexmodal.models.rig import load_rig
+from flexmodal.models.rig import load_rig, parse_rig
 
 POSES = (0.0, 30.0, 60.0, 90.0, 120.0, 150.0)
 SHAPES = np.array([[0.02, 0.5, 0.8, 1.0], [-0.03, 0.9, -0.4, -1.0], [0.01, -0.7, 1.0, 0.3]]).T   # [s, n]
@@ -55,6 +57,26 @@ def test_a_sensor_near_a_node_is_not_flagged_a_moved_one_is():
     assert check.flagged and check.sensor == 2 and check.p_value < 1e-10
 
 
+def test_a_mode_the_model_does_not_follow_hides_no_moved_sensor():
+    """The model follows modes 1-2 but not mode 3 at any sensor (a wrong or missing effect): that mode's
+    misfit is in the pooled noise of the other sensors and, alone, flags nothing.  Sensor 2 then reads
+    mode 1 off by 0.3 (unit-scaled shapes, 30x the noise): pooled over modes its ratio stays near 4,
+    below ``SENSOR_FACTOR`` -- blind 1159 #10's miss -- while in mode 1 it is hundreds of times that
+    mode's noise at the other sensors: flagged, named, with the mode."""
+    rng = np.random.default_rng(5)
+    true, meas = _noisy(rng)
+    model = true.copy()
+    model[:, :, 2] = [0.6, 0.1, -0.5, 0.9]
+    assert not sensor_check(meas, model).flagged
+    moved = meas.copy()
+    moved[:, 2, 0] += 0.3
+    check = sensor_check(moved, model)
+    assert check.flagged and (check.sensor, check.mode) == (2, 0) and check.ratio >= SENSOR_MODE_FACTOR
+    assert check.p_value <= SENSOR_P
+    sensor, text = sensor_flag(moved, model, ["a1", "a2", "a3", "a4"])
+    assert sensor == "a3" and "in mode 1" in text
+
+
 def test_fewer_than_three_sensors_or_no_complete_configuration_is_no_check():
     true, meas = _noisy(np.random.default_rng(4))
     assert sensor_check(meas[:, :2], true[:, :2]) is None
@@ -93,3 +115,20 @@ def test_a_moved_sensor_flags_a_none_verdict(rig):
     assert bad.verdict.effect == "none" and not bad.verdict.explained
     assert bad.verdict.flags and rig.sensors[1].name in bad.verdict.flags[0]
     assert "flagged" in bad.verdict.summary
+
+
+MOVED = Path(__file__).parent / "data" / "blind_cases" / "draw1159_case10"
+
+
+@pytest.mark.slow   # ~8 s CPU: a whole diagnosis with shapes
+def test_a_moved_sensor_flags_a_verdict_whose_model_misses_a_mode():
+    """Blind draw 1159 #10 (two-link arm, masses at the sensors, sensor a1 mounted at the other half
+    of link 1 than the rig says; 5 configurations x 3 modes with shapes): no library effect follows
+    mode 3, so the verdict's model (``link_stiffness at link2`` at main 475ac0b) leaves a large shape
+    misfit at every sensor in that mode, and a1's pooled ratio was 8 (< 15): not flagged.  Asserted:
+    the verdict is flagged at a1 whatever effect it fits."""
+    doc = json.loads(MOVED.with_suffix(".json").read_text())
+    assert doc["truth"]["moved_sensor"] == "a1"
+    d = diagnose(parse_rig(doc["rig"], "<draw 1159 case 10>"), ModalTable.read_csv(MOVED.with_suffix(".csv")))
+    assert d.verdict.flags and "at sensor a1 " in d.verdict.flags[0], d.verdict.summary
+    assert not d.verdict.explained

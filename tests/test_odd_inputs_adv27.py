@@ -8,13 +8,19 @@ AttributeError.  Each is now checked by the option kind the command line uses fo
 (:func:`flexmodal.checked_io.options.given`).  A refused output said "choose another --out" of
 --fault-log, --uff and store=True targets too; it now names no option it did not come from.
 ``diagnose --out DIR`` replaced a diagnosis.json or diagnosis.html of the user's own in DIR (the user
-named the folder, not the files); now only files flexmodal wrote are replaced.
+named the folder, not the files); now only files flexmodal wrote are replaced.  A run whose responses
+were stored in different units (a2 in g, the others in m/s^2) was identified with its mode shapes
+mixing the units (a2 9.81 times too small, exit 0); they are now brought to m/s^2 first.  identify
+ignored options its source has no use for (config and pose with a run file, run_id and references
+with FRFs in memory); each is now named.
 In-process, no run files: about 3 s."""
 
 from __future__ import annotations
 
 import argparse
 import math
+import re
+import shutil
 from pathlib import Path
 
 import h5py
@@ -145,3 +151,61 @@ def test_a_diagnosis_file_of_the_users_own_in_the_folder_is_kept(tmp_path: Path,
     assert f"{name}: exists and is not a {name} flexmodal wrote" in capsys.readouterr().err
     assert sorted(p.name for p in theirs.iterdir()) == [name]
     assert (theirs / name).read_text(encoding="utf-8") == "<p>my notes</p>\n"
+
+
+# -- responses stored in different units -------------------------------------------------------------------
+def _restated(path: Path, channel: str, unit: str, per_si: float) -> None:
+    """Channel ``channel`` of the one run of ``path`` restated in ``unit`` (``per_si`` units per m/s^2)."""
+    with h5py.File(path, "a") as f:
+        run = f["runs"][next(iter(f["runs"]))]
+        table = run["channels"][()]
+        j = [n.decode() for n in table["name"]].index(channel)
+        table["unit"][j] = unit.encode()
+        del run["channels"]
+        run.create_dataset("channels", data=table)
+        run["samples"][:, j] = run["samples"][:, j] * per_si
+
+
+@pytest.mark.parametrize("method", ["lscf", "ssi"])
+def test_responses_in_g_and_m_s2_give_the_shapes_of_the_same_test_in_si(tmp_path: Path, method: str) -> None:
+    """a2 stored in g beside a1, a3-a5 in m/s^2 had its mode-shape entry 9.81 times too small (exit 0):
+    the shapes (and so MAC pairing and the diagnosis) mixed units.  The reference is the same test
+    stored in SI."""
+    from flexmodal.fixtures.examples import impact_run
+
+    si, mixed = impact_run(tmp_path), tmp_path / "mixed.h5"
+    shutil.copyfile(si, mixed)
+    _restated(mixed, "a2", "g", 1 / 9.80665)
+    want = fm.identify(si, method=method, fmax=400.0).table
+    got = fm.identify(mixed, method=method, fmax=400.0).table
+    assert got.frame["freq_hz"].to_numpy() == pytest.approx(want.frame["freq_hz"].to_numpy(), rel=1e-6)
+    for sensor in ("a1", "a2", "a5"):
+        shape = f"shape.{sensor}"
+        assert got.frame[shape].to_numpy() == pytest.approx(want.frame[shape].to_numpy(), rel=1e-4, abs=1e-6)
+
+
+def test_responses_in_units_with_no_factor_to_m_s2_are_named(tmp_path: Path) -> None:
+    from flexmodal.fixtures.examples import impact_run
+
+    path = impact_run(tmp_path)
+    _restated(path, "a3", "ft/s^2", 1.0)
+    with pytest.raises(fm.ModalError, match=r"runs.h5:theta30: the response channels are in different "
+                                            r"units \(a1 \(m/s\^2\), a2 \(m/s\^2\), a3 \(ft/s\^2\)"):
+        fm.identify(path, fmax=400.0)
+
+
+# -- identify options the source has no use for -------------------------------------------------------------
+@pytest.mark.parametrize(("source", "option"), [
+    ("file", {"config": "mine"}), ("file", {"pose": {"theta_deg": 45.0}}),
+    ("memory", {"run_id": "theta30"}), ("memory", {"references": ["tip"]})])
+def test_an_identify_option_the_source_has_no_use_for_is_named(tmp_path: Path, source: str,
+                                                                option: dict) -> None:
+    """identify('runs.h5', config='mine', pose={'theta_deg': 45}) wrote the run id and the stored pose
+    (0 deg), and an FrfResult took run_id and references: all ignored in silence, exit 0."""
+    from flexmodal.fixtures.examples import impact_run
+
+    given = impact_run(tmp_path) if source == "file" else _frf()
+    (name, value), = option.items()
+    with pytest.raises(fm.ModalError, match=rf"identify: {name} = {re.escape(repr(value))} has no use with"):
+        fm.identify(given, **option)
+    assert fm.identify(_frf(), config="c40", pose={"theta_deg": 40.0}).table.configs == ["c40"]
