@@ -726,9 +726,10 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
         n_candidates = CandidateCount(fitted=n_candidates.fitted + len(moved),   # each moved one is
                                       cross_validated=n_candidates.cross_validated + len(moved))  # both
         lowered = ctx.shape_floor < shape_floor
-        if lowered:                 # a moved fit lowered the shape noise floor: re-score all at it
-            for e in ranking + moved:
-                _rescore(ctx, e, scatter)
+        if lowered:                 # a moved fit lowered the shape noise floor: re-score all at it,
+            for e in screened:      # the ranking, the moved fits and the sub-candidates _choose validated
+                if "score" in e:
+                    _rescore(ctx, e, scatter)
             _refinement_guard(ranking + moved)
         if lowered or any(e["score"] < best["score"] for e in moved):
             if any(e["score"] < best["score"] for e in moved):
@@ -1202,8 +1203,8 @@ def _relocated(ctx: _Context, best: dict, screened: list[dict], scatter: float) 
     845 #3: a joint mass 16th of the singles, its grounded spring one slot from a lead's) is never
     formed, and the nearest pair it did form leaves 9 times the scatter.
 
-    With shapes, fitting a moved combination may lower ``ctx.shape_floor``; the entries ranked before
-    are not re-scored at the lowered floor (a known limitation, docs/diagnosis.md)."""
+    With shapes, fitting a moved combination may lower ``ctx.shape_floor``; the caller then re-scores
+    every cross-validated entry of ``screened`` at the lowered floor (docs/diagnosis.md)."""
     singles = {(e["effect"], e["location"]): e for e in screened if len(e["_cand"].effects) == 1}
     parts = [singles.get((eff, loc)) for eff, loc, _ in components(best["_cand"])]
     if any(p is None for p in parts):

@@ -1,7 +1,8 @@
 """A relocated combination (compare/diagnosis.py ``_relocated``) whose fit lowers the shape-noise floor
-makes every ranked candidate be scored again at the lowered floor before the verdict is chosen (main
-62751cc; before it the moved fits were compared with scores of the older, higher floor): blind draw
-1053 #7, stored."""
+makes every cross-validated candidate (the ranking, the moved fits and the sub-candidates the pruning
+validated) be scored again at the lowered floor before the verdict is chosen again (main 62751cc
+re-scored the ranking and the moved fits; before it the moved fits were compared with scores of the
+older, higher floor): blind draw 1053 #7, stored."""
 
 from __future__ import annotations
 
@@ -34,10 +35,6 @@ def _score_at(floor: float, entry: dict, shape_dof: int, scatter: float) -> floa
 
 
 @pytest.mark.slow   # ~3.5 s CPU (the full search and the relocations): above the ~3 s of a default test
-@pytest.mark.xfail(strict=True, reason=(
-    "compare/diagnosis.py re-scores the ranking and the moved fits only: the sub-candidates the first "
-    "_choose cross-validated while pruning (here joint_mass+tip_mass, end_restraint+tip_mass) keep the "
-    "old floor's score, and the second _choose prunes to joint_mass+tip_mass on that stale score"))
 def test_a_relocation_that_lowers_the_shape_floor_rescores_every_candidate(monkeypatch):
     """Blind draw 1053 #7 (pusher rig, an end restraint at the pusher and a sensor mass hidden, 5
     configurations x 2 modes with shapes at 4 sensors, 0.75 % scatter): the chosen pair leaves more than
@@ -49,8 +46,8 @@ def test_a_relocation_that_lowers_the_shape_floor_rescores_every_candidate(monke
     Against the hidden truth: the verdict keeps the true end restraint at the pusher.
 
     Measured (27 Nov): with every candidate at the final floor the verdict is end_restraint+joint_mass+
-    tip_mass at pusher+base+tip (held out 1.88 %), as without any re-scoring; main re-scores the ranking
-    and the moved fits only, and prunes that verdict to joint_mass+tip_mass at base+tip (4.37 %) by
+    tip_mass at pusher+base+tip (held out 1.88 %), as without any re-scoring; main f7b862e re-scored the
+    ranking and the moved fits only, and pruned that verdict to joint_mass+tip_mass at base+tip (4.37 %) by
     comparing its held-out error at the new floor with the sub-candidate's at the old one (score 5.64 %
     where the final floor gives 5.82 %): the only verdict the re-scoring changed on the paired draws
     1051-1054, away from the truth."""
