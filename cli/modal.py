@@ -85,9 +85,9 @@ def register(sub: Subcommands) -> None:
                    help="window length, s (default: 80 periods of the slowest mode)")
     t.add_argument("--hop", type=opt.seconds, default=None, metavar="S",
                    help="window step, s (default: a quarter pose bin at the 90th percentile pose rate)")
-    t.add_argument("--bin", type=opt.positive, default=5.0, metavar="DEG",
+    t.add_argument("--bin", type=opt.positive, default=None, metavar="DEG",
                    help="pose bin width (default 5)")
-    t.add_argument("--max-spread", type=opt.nonnegative, default=5.0, metavar="DEG",
+    t.add_argument("--max-spread", type=opt.nonnegative, default=None, metavar="DEG",
                    help="skip windows whose pose standard deviation exceeds DEG (default 5)")
     t.add_argument("--orders", default=None, metavar="O1,O2,...",
                    help="harmonic orders per joint revolution (default: found from the data)")
@@ -148,6 +148,30 @@ def _pairs(text: str, what: str) -> dict[str, str]:
     return found
 
 
+#: options only identify --track reads, and options only identify without it reads: each was ignored in
+#: silence by the other (identify --window 2 without --track ran the whole record; --track --uff M.uff
+#: wrote no UFF file), exit 0
+TRACK_ONLY = ("pose_from", "window", "hop", "bin", "max_spread", "orders")
+IDENTIFY_ONLY = ("poles", "from_diagram", "need_min", "mpc_min", "exp_window_decay", "references", "uff")
+
+
+def _check_mode_options(args: argparse.Namespace) -> None:
+    """ModalError naming the first option given that the chosen mode (``--track`` or not) does not read;
+    --method is read by --track only as ssi (SSI-cov in every window)."""
+    from flexmodal.api import ModalError
+
+    names = IDENTIFY_ONLY if args.track else TRACK_ONLY
+    unused = [n for n in names if getattr(args, n) not in (None, False)]
+    if args.track and args.method not in (None, "ssi"):
+        unused.insert(0, "method")
+    if not unused:
+        return
+    flag = "--" + unused[0].replace("_", "-")
+    if args.track:
+        raise ModalError(f"identify --track does not read {flag} (SSI-cov in sliding windows; leave it out)")
+    raise ModalError(f"identify: {flag} is an option of identify --track (add --track, or leave it out)")
+
+
 def _track(args: argparse.Namespace) -> int:
     """``identify --track``: the modal map of a moving arm and its harmonics (docs/oma.md)."""
     from flexmodal.api import ModalError, track
@@ -159,9 +183,10 @@ def _track(args: argparse.Namespace) -> int:
         raise ModalError(f"--orders {args.orders!r}: give orders per revolution, comma-separated") from None
     if any(not 0 < o < float("inf") for o in orders):
         raise ModalError(f"--orders {args.orders!r}: orders must be positive and finite")
+    binning = {k: v for k, v in (("bin_deg", args.bin), ("max_spread_deg", args.max_spread)) if v is not None}
     result = track(args.input, pose_from=pose_from, run_id=args.run, fmin=args.fmin, fmax=args.fmax,
-                   window_s=args.window, hop_s=args.hop, bin_deg=args.bin, max_spread_deg=args.max_spread,
-                   orders=orders, max_order=args.max_order or 40, out=args.out)
+                   window_s=args.window, hop_s=args.hop, orders=orders, max_order=args.max_order or 40,
+                   out=args.out, **binning)
     if not getattr(args, "quiet", False):
         found = "; ".join(f"{v}: {', '.join(f'{o:.6g}' for o in ords) or 'none'}"
                           for v, ords in result.orders.items())
@@ -189,6 +214,7 @@ def _identify(args: argparse.Namespace) -> int:
     """
     from flexmodal.api import ModalError, RunsFailed, Thresholds, identify
 
+    _check_mode_options(args)
     if args.track:
         return _track(args)
     poles = None

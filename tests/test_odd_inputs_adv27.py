@@ -13,7 +13,8 @@ were stored in different units (a2 in g, the others in m/s^2) was identified wit
 mixing the units (a2 9.81 times too small, exit 0); they are now brought to m/s^2 first.  identify
 ignored options its source has no use for (config and pose with a run file, run_id and references
 with FRFs in memory); each is now named, and so is an option of another model given to predict
-(--model fe --masses-per-link 3 was the fe prediction, exit 0).
+(--model fe --masses-per-link 3 was the fe prediction, exit 0), and an option of identify --track
+given without --track (or one of plain identify given with it).
 In-process, no run files: about 3 s."""
 
 from __future__ import annotations
@@ -234,3 +235,26 @@ def test_an_option_of_another_model_is_named_not_ignored(tmp_path: Path, capsys,
     assert main(argv) == 0   # the model's own options, or none, still predict
     lumped = fm.predict(SEED003, MEASURED, "lumped-mass", 2, masses_per_link=3, coordinates="transverse")
     assert lumped.configs == fm.read_table(MEASURED).configs
+
+
+# -- identify: options of the other mode (--track or not) ----------------------------------------------
+@pytest.mark.parametrize("option", [["--window", "2"], ["--hop", "1"], ["--bin", "5"], ["--max-spread", "3"],
+                                    ["--orders", "2"], ["--pose-from", "theta_deg=enc"]])
+def test_a_track_option_without_track_is_named(tmp_path: Path, capsys, option: list[str]) -> None:
+    """identify RUN.h5 --window 2 (--track forgotten) identified the whole record, exit 0."""
+    from flexmodal.app import main
+
+    assert main(["identify", str(tmp_path / "run.h5"), "--out", str(tmp_path / "m.csv"), *option]) == 2
+    assert f"identify: {option[0]} is an option of identify --track" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("option", [["--poles", "30"], ["--uff", "m.uff"], ["--need-min", "5"],
+                                    ["--mpc-min", "0.9"], ["--method", "lscf"], ["--references", "a1"],
+                                    ["--exp-window-decay", "2"], ["--from-diagram"]])
+def test_an_identify_option_with_track_is_named(tmp_path: Path, capsys, option: list[str]) -> None:
+    """identify --track --uff M.uff wrote no UFF file, and the other options changed nothing, exit 0."""
+    from flexmodal.app import main
+
+    argv = ["identify", str(tmp_path / "run.h5"), "--track", "--out", str(tmp_path / "m.csv"), *option]
+    assert main(argv) == 2
+    assert f"identify --track does not read {option[0]}" in capsys.readouterr().err
