@@ -20,7 +20,7 @@ from flexmodal.modal.stability import (
     SSI_ZETA_MAX,
     STABLE_FREQ_REL,
 )
-from flexmodal.reports.plots import _COLOURS, log_axis, plot_stabilisation, text
+from flexmodal.reports.plots import _COLOURS, log_scale_if_positive, plot_stabilisation, text
 from flexmodal.reports.stabilisation_caption import shape_clause
 
 if TYPE_CHECKING:
@@ -36,14 +36,14 @@ def plot_fdd(result: FddResult, unit: str = "(m/s²)²/Hz", title: str = "") -> 
     beside it."""
     fig = Figure(figsize=(8, 3.8), layout="constrained")
     ax = fig.subplots()
+    log_scale_if_positive(ax, np.asarray(result.singular_values)[:, 1:])
     for k, sv in enumerate(result.singular_values):
-        ax.semilogy(result.freq_hz[1:], sv[1:], color=_COLOURS[k % len(_COLOURS)], lw=1.0 if k == 0 else 0.6,
-                    label=f"s{k + 1}")
+        ax.plot(result.freq_hz[1:], sv[1:], color=_COLOURS[k % len(_COLOURS)], lw=1.0 if k == 0 else 0.6,
+                label=f"s{k + 1}")
     for f in result.modes.freq_hz:
         ax.axvline(f, color="0.4", lw=0.6, ls="--")
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel(f"singular values of G_yy [{text(unit)}]")
-    log_axis(ax.yaxis)
     ax.set_xlim(float(result.freq_hz[1]), float(result.freq_hz[-1]))
     height_pt = label_peaks(ax, result.modes.freq_hz, axes_width_in=0.78 * fig.get_figwidth())
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=7,

@@ -150,6 +150,19 @@ def log_axis(axis: Axis) -> None:
     axis.set_minor_formatter(NullFormatter())
 
 
+def log_scale_if_positive(ax, values: np.ndarray) -> bool:
+    """Put ``ax``'s y axis on a log scale (readable ticks, :func:`log_axis`) when ``values`` [any shape]
+    hold a positive finite number, else leave it linear: an FRF or a spectrum that is zero everywhere
+    made matplotlib print "Data has no positive values, and therefore cannot be log-scaled" with a
+    source line on stderr, under --quiet too.  Returns whether the axis is logarithmic."""
+    v = np.asarray(values, float)
+    log = bool((np.isfinite(v) & (v > 0)).any())
+    if log:
+        ax.set_yscale("log")
+        log_axis(ax.yaxis)
+    return log
+
+
 def wrapped_phase_deg(H: np.ndarray) -> np.ndarray:
     """Phase of H [deg] wrapped to ±180, NaN at each line where it wraps, so a line drawn through it
     breaks instead of jumping across the axis (the jump reads as corrupt data)."""
@@ -183,14 +196,14 @@ def plot_frf(freq_hz: np.ndarray, H: np.ndarray, coherence: np.ndarray | None = 
     fig = Figure(figsize=(8, 2.2 * rows + 0.9), layout="constrained")
     axes = fig.subplots(rows, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1, 1][:rows]})
     phase = wrapped_phase_deg(H)
+    log_scale_if_positive(axes[0], np.abs(H))
     for i, label in enumerate(labels):
         c = _COLOURS[i % len(_COLOURS)]
-        axes[0].semilogy(freq_hz, np.abs(H[i]), color=c, lw=0.9, label=text(label))
+        axes[0].plot(freq_hz, np.abs(H[i]), color=c, lw=0.9, label=text(label))
         axes[1].plot(freq_hz, phase[i], color=c, lw=0.7)
         if coherence is not None:
             axes[2].plot(freq_hz, np.asarray(coherence)[i], color=c, lw=0.7)
     axes[0].set_ylabel(f"|H| [{text(unit)}]")
-    log_axis(axes[0].yaxis)
     _phase_axis(axes[1])
     if coherence is not None:
         axes[2].set_ylabel("coherence [-]")
@@ -237,13 +250,14 @@ def plot_stabilisation(freq_hz: np.ndarray, H: np.ndarray, poles, unit: str = "(
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel("model order [-]")
     mif_ax = ax.twinx()
-    for k, sv in enumerate(cmif(H)):
-        mif_ax.semilogy(freq_hz, sv, color=_COLOURS[0], lw=1.0 if k == 0 else 0.6,
+    singular = cmif(H)
+    log_scale_if_positive(mif_ax, singular)
+    for k, sv in enumerate(singular):
+        mif_ax.plot(freq_hz, sv, color=_COLOURS[0], lw=1.0 if k == 0 else 0.6,
                         alpha=1.0 if k == 0 else 0.5,
                         label=(spectrum_name if "singular values" in spectrum_name
                                else f"{spectrum_name} (singular values)") if k == 0 else None)
     mif_ax.set_ylabel(f"{spectrum_name} [{text(unit)}]", color=_COLOURS[0])
-    log_axis(mif_ax.yaxis)
     ax.set_xlim(float(np.min(freq_hz)), float(np.max(freq_hz)))
     handles, names = ax.get_legend_handles_labels()
     more, more_names = mif_ax.get_legend_handles_labels()
@@ -269,15 +283,15 @@ def plot_synthesis(freq_hz: np.ndarray, H: np.ndarray, synthesis: np.ndarray,
     mag, ph = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
     shown = min(max_frfs, H.shape[0])
     ph_meas, ph_syn = wrapped_phase_deg(H[:shown]), wrapped_phase_deg(S[:shown])
+    log_scale_if_positive(mag, np.abs(np.concatenate([H[:shown], S[:shown]])))
     for i in range(shown):
         c = _COLOURS[i % len(_COLOURS)]
         corr = f" (FRAC {float(np.asarray(correlation)[i, 0]):.3f})" if correlation is not None else ""
-        mag.semilogy(freq_hz, np.abs(H[i]), color=c, lw=0.9, label=f"{text(labels[i])} measured{corr}")
-        mag.semilogy(freq_hz, np.abs(S[i]), color=c, lw=1.1, ls="--", label=f"{text(labels[i])} synthesised")
+        mag.plot(freq_hz, np.abs(H[i]), color=c, lw=0.9, label=f"{text(labels[i])} measured{corr}")
+        mag.plot(freq_hz, np.abs(S[i]), color=c, lw=1.1, ls="--", label=f"{text(labels[i])} synthesised")
         ph.plot(freq_hz, ph_meas[i], color=c, lw=0.7)
         ph.plot(freq_hz, ph_syn[i], color=c, lw=0.9, ls="--")
     mag.set_ylabel(f"|H| [{text(unit)}]")
-    log_axis(mag.yaxis)
     _phase_axis(ph)
     ph.set_xlabel("frequency [Hz]")
     fig.legend(*mag.get_legend_handles_labels(), loc="outside lower center", fontsize=7, ncol=3)

@@ -14,7 +14,8 @@ mixing the units (a2 9.81 times too small, exit 0); they are now brought to m/s^
 ignored options its source has no use for (config and pose with a run file, run_id and references
 with FRFs in memory); each is now named, and so is an option of another model given to predict
 (--model fe --masses-per-link 3 was the fe prediction, exit 0), and an option of identify --track
-given without --track (or one of plain identify given with it).
+given without --track (or one of plain identify given with it).  A stored FRF that is zero everywhere
+put matplotlib's log-scale warning on stderr under --quiet; such an axis is now linear.
 In-process, no run files: about 3 s."""
 
 from __future__ import annotations
@@ -258,3 +259,22 @@ def test_an_identify_option_with_track_is_named(tmp_path: Path, capsys, option: 
     argv = ["identify", str(tmp_path / "run.h5"), "--track", "--out", str(tmp_path / "m.csv"), *option]
     assert main(argv) == 2
     assert f"identify --track does not read {option[0]}" in capsys.readouterr().err
+
+
+# -- log axes of data that is zero everywhere --------------------------------------------------------------
+def test_an_frf_of_zeros_is_drawn_without_a_warning_on_stderr() -> None:
+    """report on a stored FRF that is zero everywhere printed matplotlib's 'Data has no positive values,
+    and therefore cannot be log-scaled' and a source line on stderr (under --quiet too); its axis is now
+    linear, and an FRF with positive values keeps the log axis and its tick labels."""
+    import warnings
+
+    from flexmodal.reports import plots
+
+    f = np.linspace(0.0, 100.0, 11)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        zero = plots.plot_frf(f, np.zeros((2, 1, 11), complex), np.ones((2, 11)))
+        plots.figure_png(zero)
+    some = plots.plot_frf(f, np.ones((2, 1, 11), complex), np.ones((2, 11)))
+    assert zero.axes[0].get_yscale() == "linear" and some.axes[0].get_yscale() == "log"
+    assert isinstance(some.axes[0].yaxis.get_major_formatter(), plots.LogTicks)
