@@ -12,10 +12,26 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from flexmodal.checked_io.output import HDF5_SIGNATURE
 from flexmodal.checked_io.text import ErrorType
 
 BOM = b"\xef\xbb\xbf"   # a UTF-8 byte-order mark some editors put first (pyuff reads past it)
 DELIMITER = b"    -1"   # the line that opens and closes every dataset (columns 1-6)
+#: the leading bytes of packed files (no UFF, not even binary dataset 58b, starts so)
+PACKED = ((b"\x1f\x8b", "gzip"), (b"BZh", "bzip2"), (b"\xfd7zXZ", "xz"), (b"PK\x03\x04", "zip"),
+          (b"(\xb5/\xfd", "zstd"))
+
+
+def packed_format(head: bytes) -> str | None:
+    r"""The packed format (gzip, bzip2, xz, zip, zstd) of a file whose first bytes are ``head``, else
+    None.
+
+    Examples
+    --------
+    >>> packed_format(b"\x1f\x8b\x08\x08"), packed_format(b"    -1\n")
+    ('gzip', None)
+    """
+    return next((name for magic, name in PACKED if head.startswith(magic)), None)
 
 
 #: the whole-number fields of a dataset 58's record 6 (its 8th line: function and DOF identification,
@@ -79,6 +95,11 @@ def check_blocks(path: str | Path, data: bytes, error: ErrorType) -> list[int]:
     """
     def line(offset: int) -> int:
         return data.count(b"\n", 0, offset) + 1
+
+    packed = packed_format(data[:8])   # its bytes were quoted as "line 1: text outside any dataset"
+    if packed is not None or data.startswith(HDF5_SIGNATURE):
+        what = f"{packed}-compressed: unpack it first" if packed else "an HDF5 file"
+        raise error(f"{path}: not Universal File text ({what})")
 
     def outside(a: int, b: int) -> None:
         text = data[a:b].removeprefix(BOM) if a == 0 else data[a:b]

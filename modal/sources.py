@@ -197,17 +197,15 @@ def uff_without_run(path: Path, run_id: str | None) -> None:
 
 
 def _compressed(path: Path) -> str | None:
-    """What ``path`` is when it is a compressed file (no UFF, not even binary dataset 58b, starts so),
+    """What ``path`` is when it is a packed file (:func:`~flexmodal.checked_io.uff_blocks.packed_format`),
     else None."""
+    from flexmodal.checked_io.uff_blocks import packed_format
+
     with open(path, "rb") as fh:
-        head = fh.read(8)
-    for magic, name in ((b"\x1f\x8b", "gzip"), (b"BZh", "bzip2"), (b"\xfd7zXZ", "xz"), (b"PK\x03\x04", "zip"),
-                        (b"(\xb5/\xfd", "zstd")):
-        if head.startswith(magic):
-            if name == "zip" and path.suffix.lower() == ".npz":   # not "unpack it": identify's own sidecar
-                return "a NumPy .npz archive such as identify's stabilisation diagrams, not a record"
-            return f"{name}-compressed: unpack it first"
-    return None
+        name = packed_format(fh.read(8))
+    if name == "zip" and path.suffix.lower() == ".npz":   # not "unpack it": identify's own sidecar
+        return "a NumPy .npz archive such as identify's stabilisation diagrams, not a record"
+    return None if name is None else f"{name}-compressed: unpack it first"
 
 
 def _skip(failed: list | None, bad: list, name: str, exc: FlexmodalError, advance) -> None:

@@ -15,7 +15,8 @@ ignored options its source has no use for (config and pose with a run file, run_
 with FRFs in memory); each is now named, and so is an option of another model given to predict
 (--model fe --masses-per-link 3 was the fe prediction, exit 0), and an option of identify --track
 given without --track (or one of plain identify given with it).  A stored FRF that is zero everywhere
-put matplotlib's log-scale warning on stderr under --quiet; such an axis is now linear.
+put matplotlib's log-scale warning on stderr under --quiet; such an axis is now linear.  A packed or
+HDF5 file given as report --geometry was quoted byte by byte; it is now named.
 In-process, no run files: about 3 s."""
 
 from __future__ import annotations
@@ -278,3 +279,30 @@ def test_an_frf_of_zeros_is_drawn_without_a_warning_on_stderr() -> None:
     some = plots.plot_frf(f, np.ones((2, 1, 11), complex), np.ones((2, 11)))
     assert zero.axes[0].get_yscale() == "linear" and some.axes[0].get_yscale() == "log"
     assert isinstance(some.axes[0].yaxis.get_major_formatter(), plots.LogTicks)
+
+
+# -- a packed or HDF5 file where Universal File text is expected ------------------------------------------
+@pytest.mark.parametrize(("packing", "words"), [("gzip", "gzip-compressed: unpack it first"),
+                                                ("zip", "zip-compressed: unpack it first"),
+                                                ("hdf5", "an HDF5 file")])
+def test_a_packed_or_hdf5_geometry_file_is_named_not_quoted(tmp_path: Path, packing: str, words: str) -> None:
+    """report --geometry geo.uff.gz quoted the gzip bytes as 'line 1: text outside any dataset
+    ('\\x1f\\x8b\\x08...')'; identify said what it was, the geometry reader now does too."""
+    import gzip
+    import zipfile
+
+    from flexmodal.reports.geometry import read_uff_geometry
+
+    text = (REPO / "tests" / "data" / "uff" / "massif_geometry.uff").read_bytes()
+    path = tmp_path / "geo.uff"
+    if packing == "gzip":
+        path.write_bytes(gzip.compress(text))
+    elif packing == "zip":
+        with zipfile.ZipFile(path, "w") as z:
+            z.writestr("geo.uff", text)
+    else:
+        with h5py.File(path, "w", libver="latest"):
+            pass
+    with pytest.raises(fm.ReportError) as refused:
+        read_uff_geometry(path)
+    assert str(refused.value) == f"{path}: not Universal File text ({words})"
