@@ -236,17 +236,24 @@ def _si_factors(channels: Sequence, where: str) -> np.ndarray | None:
     return np.array(factors)
 
 
+def si_samples(samples, channels: Sequence, outputs: Sequence[int], where: str):
+    """``samples`` [n_samples, n_channels] with the ``outputs`` columns brought to m/s^2 when those
+    ``channels`` are stored in different units (:func:`_si_factors`; a copy in memory), else as given."""
+    factors = _si_factors([channels[j] for j in outputs], where)
+    if factors is None:
+        return samples
+    scaled = np.array(samples[()], float)
+    scaled[:, list(outputs)] *= factors
+    return scaled
+
+
 def _identify_run(p: Path, run, chosen: str, options: dict, oma: dict) -> tuple[Modes, tuple[str, ...]]:
     """The modes of one run of ``p`` by method ``chosen`` and the outputs their shapes are given at
     (responses stored in different units brought to m/s^2 first, :func:`_si_factors`)."""
     names, kinds = [c.name for c in run.channels], [c.kind for c in run.channels]
     where = f"{p}:{run.run_id}"
     if output_only(chosen):
-        samples, outputs = run.samples, output_channels(kinds)
-        factors = _si_factors([run.channels[j] for j in outputs], where)
-        if factors is not None:
-            samples = np.array(samples[()], float)
-            samples[:, outputs] *= factors
+        samples = si_samples(run.samples, run.channels, output_channels(kinds), where)
         res, outs = identify_output_only(samples, run.sample_rate_hz, names, kinds, method=chosen,
                                          where=where, **oma)
         return res.modes, outs

@@ -759,7 +759,7 @@ def track_input(path: str, *, pose_from: Mapping[str, str] | None = None, run_id
             raise ModalError(f"{p}: holds {len(runs)} runs; choose one with --run "
                              f"({', '.join(r.run_id for r in runs)})")
         run = runs[0]
-        samples, fs = run.samples, run.sample_rate_hz
+        samples, fs, channels = run.samples, run.sample_rate_hz, run.channels
         names, kinds = [c.name for c in run.channels], [c.kind for c in run.channels]
         where, pose = f"{p}:{run.run_id}", dict(run.pose)
     else:
@@ -771,7 +771,7 @@ def track_input(path: str, *, pose_from: Mapping[str, str] | None = None, run_id
         if isinstance(data, UffFrfs):
             raise ModalError(f"{p}: holds FRFs; tracking needs time histories (dataset 58, type 1)")
         samples, fs, names, kinds = data.samples, data.sample_rate_hz, list(data.names), list(data.kinds)
-        where, pose = str(p), {}
+        where, pose, channels = str(p), {}, None
     if pose_from is None:
         pose_from = default_pose_from(names, kinds, pose, where)
     unknown = [v for v in pose_from if pose and v not in pose]
@@ -779,6 +779,11 @@ def track_input(path: str, *, pose_from: Mapping[str, str] | None = None, run_id
         raise ModalError(f"{where}: --pose-from {unknown[0]}: not a pose variable of the run (its pose "
                          f"variables: {', '.join(pose)})")
     kinds = ["encoder" if n in pose_from.values() else k for n, k in zip(names, kinds, strict=True)]
+    if channels is not None:   # responses stored in different units: in m/s^2, as identify takes them
+        from flexmodal.modal.oma import output_channels
+        from flexmodal.modal.sources import si_samples
+
+        samples = si_samples(samples, channels, output_channels(kinds), where)
     return track_modes(samples, fs, names, kinds, pose_from, options, where)
 
 

@@ -10,7 +10,8 @@ AttributeError.  Each is now checked by the option kind the command line uses fo
 ``diagnose --out DIR`` replaced a diagnosis.json or diagnosis.html of the user's own in DIR (the user
 named the folder, not the files); now only files flexmodal wrote are replaced.  A run whose responses
 were stored in different units (a2 in g, the others in m/s^2) was identified with its mode shapes
-mixing the units (a2 9.81 times too small, exit 0); they are now brought to m/s^2 first.  identify
+mixing the units (a2 9.81 times too small, exit 0); they are now brought to m/s^2 first (identify
+--track too).  identify
 ignored options its source has no use for (config and pose with a run file, run_id and references
 with FRFs in memory); each is now named, and so is an option of another model given to predict
 (--model fe --masses-per-link 3 was the fe prediction, exit 0), and an option of identify --track
@@ -306,3 +307,18 @@ def test_a_packed_or_hdf5_geometry_file_is_named_not_quoted(tmp_path: Path, pack
     with pytest.raises(fm.ReportError) as refused:
         read_uff_geometry(path)
     assert str(refused.value) == f"{path}: not Universal File text ({words})"
+
+
+def test_track_takes_responses_in_g_and_m_s2_as_the_same_test_in_si(tmp_path: Path) -> None:
+    """identify --track mixed the units as identify did (class E): the moving arm's map against the same
+    record stored in SI.  SSI in 2 s windows moves by up to 0.21 % when a2 is rounded differently (stored
+    in float32 as a2 / 9.80665), its shape entries by up to 1.8 %: the tolerances are 1 % and 5 %, the
+    mixed units were off by a factor 9.81 at a2."""
+    from flexmodal.fixtures.examples import moving_run
+
+    si, mixed = moving_run(tmp_path), tmp_path / "mixed.h5"
+    shutil.copyfile(si, mixed)
+    _restated(mixed, "a2", "g", 1 / 9.80665)
+    want, got = (fm.track(p, fmax=400.0, window_s=2.0, hop_s=1.0).table.frame for p in (si, mixed))
+    assert got["freq_hz"].to_numpy() == pytest.approx(want["freq_hz"].to_numpy(), rel=1e-2)
+    assert got["shape.a2"].to_numpy() == pytest.approx(want["shape.a2"].to_numpy(), rel=0.05, abs=0.01)
