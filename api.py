@@ -1975,8 +1975,8 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
         read_frf(path, run_id)
     from flexmodal.compare.tables import compare_tables, ordered_configs, table_name
     from flexmodal.modal.errors import ModalError
-    from flexmodal.modal.oma import default_method, output_only_results
-    from flexmodal.modal.sources import identify_frf
+    from flexmodal.modal.oma import OmaResults, default_method, output_channels, output_only_results
+    from flexmodal.modal.sources import identify_frf, si_frf, si_samples
     from flexmodal.reports.html import write_report
     from flexmodal.reports.runs import RunSummary
     from flexmodal.reports.sections import Section, register_section, registered_sections
@@ -1997,18 +1997,25 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
         files = list(dict.fromkeys(path.name for path, _ in entries))
         step(f"reading and identifying {counted(len(entries), 'run')} of {', '.join(files[:3])}"
              + (f" and {counted(len(files) - 3, 'more file')}" if len(files) > 3 else ""))
-    for path, run_id in entries:
+    for path, run_id in entries:   # responses stored in different units: in m/s^2, as identify takes them
         run, frf = read_run(path, run_id), read_frf(path, run_id)
+        names, kinds = [c.name for c in run.channels], [c.kind for c in run.channels]
+        where = f"{path.name}::{run_id}"
         modes = oma = None
         if frf is not None:
             try:
+                frf = si_frf(frf, run.channels, where)
                 modes = identify_frf(frf, fmin=fmin, fmax=fmax)
             except ModalError as exc:
                 modes = str(exc)
-        elif default_method([c.kind for c in run.channels], run.excitation) == "ssi":
-            oma = output_only_results(run.samples, run.sample_rate_hz, [c.name for c in run.channels],
-                                      [c.kind for c in run.channels], fmin=oma_fmin, fmax=oma_fmax,
-                                      where=f"{path.name}::{run_id}")
+        elif default_method(kinds, run.excitation) == "ssi":
+            try:
+                samples = si_samples(run.samples, run.channels, output_channels(kinds), where)
+            except ModalError as exc:
+                oma = OmaResults(tuple(names[j] for j in output_channels(kinds)), str(exc), str(exc))
+            else:
+                oma = output_only_results(samples, run.sample_rate_hz, names, kinds, fmin=oma_fmin,
+                                          fmax=oma_fmax, where=where)
         summaries.append(RunSummary(run, frf, modes, oma))
     named = _named(predictions)
     comparison = None

@@ -11,7 +11,7 @@ AttributeError.  Each is now checked by the option kind the command line uses fo
 named the folder, not the files); now only files flexmodal wrote are replaced.  A run whose responses
 were stored in different units (a2 in g, the others in m/s^2) was identified with its mode shapes
 mixing the units (a2 9.81 times too small, exit 0); they are now brought to m/s^2 first (identify
---track too).  identify
+--track and report too).  identify
 ignored options its source has no use for (config and pose with a run file, run_id and references
 with FRFs in memory); each is now named, and so is an option of another model given to predict
 (--model fe --masses-per-link 3 was the fe prediction, exit 0), and an option of identify --track
@@ -322,3 +322,40 @@ def test_track_takes_responses_in_g_and_m_s2_as_the_same_test_in_si(tmp_path: Pa
     want, got = (fm.track(p, fmax=400.0, window_s=2.0, hop_s=1.0).table.frame for p in (si, mixed))
     assert got["freq_hz"].to_numpy() == pytest.approx(want["freq_hz"].to_numpy(), rel=1e-2)
     assert got["shape.a2"].to_numpy() == pytest.approx(want["shape.a2"].to_numpy(), rel=0.05, abs=0.01)
+
+
+@pytest.mark.parametrize("record", ["impact", "moving"])
+def test_report_takes_responses_in_g_and_m_s2_as_the_same_test_in_si(tmp_path: Path, monkeypatch,
+                                                                    record: str) -> None:
+    """report identified a run's stored FRFs (and an output-only run's samples) in the units stored: with
+    a2 in g beside m/s^2 its shapes were off by 9.81 at a2 (exit 0), as identify's were (class E).  The
+    references are the same records stored in SI: the impact test's stored FRFs (lscf, shapes within
+    1e-4 as identify's) and the moving arm's record (SSI of the whole record; a2 rounded differently in
+    float32, tolerances 1 % and 5 % as track's)."""
+    import flexmodal.reports.html as html
+    from flexmodal.fixtures.examples import impact_run, moving_run
+
+    drawn = []
+
+    def keep(out, *, runs, **kw):
+        drawn.extend(runs)
+        return write_report(out, runs=runs, **kw)
+
+    write_report = html.write_report
+    monkeypatch.setattr(html, "write_report", keep)
+    si = impact_run(tmp_path) if record == "impact" else moving_run(tmp_path, duration_s=4.0)
+    mixed = tmp_path / "mixed.h5"
+    shutil.copyfile(si, mixed)
+    _restated(mixed, "a2", "g", 1 / 9.80665)
+    if record == "impact":
+        fm.compute_frfs([si, mixed])
+    fm.report(tmp_path / "r.html", runs=[si, mixed], fmax=400.0, oma_fmax=400.0)
+    want, got = drawn
+    if record == "impact":
+        assert got.frf_unit == want.frf_unit == "(m/s²)/N"
+        assert got.modes.freq_hz == pytest.approx(want.modes.freq_hz, rel=1e-6)
+        assert got.modes.shapes == pytest.approx(want.modes.shapes, rel=1e-4, abs=1e-6)
+    else:
+        assert got.oma.ssi.modes.freq_hz == pytest.approx(want.oma.ssi.modes.freq_hz, rel=1e-2)
+        assert np.abs(got.oma.ssi.modes.shapes) == pytest.approx(np.abs(want.oma.ssi.modes.shapes), rel=0.05,
+                                                                 abs=0.01)
