@@ -263,6 +263,36 @@ def test_an_identify_option_with_track_is_named(tmp_path: Path, capsys, option: 
     assert f"identify --track does not read {option[0]}" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(("track", "option", "words"), [
+    (False, ["--max-spread", "0"], "identify: --max-spread is an option of identify --track"),
+    (False, ["--orders", ""], "identify: --orders is an option of identify --track"),
+    (False, ["--pose-from", ""], "identify: --pose-from is an option of identify --track"),
+    (False, ["--window", "0"], "argument --window: expected a finite duration in seconds > 0"),
+    (False, ["--hop", "0"], "argument --hop: expected a finite duration in seconds > 0"),
+    (False, ["--bin", "0"], "argument --bin: expected a finite number > 0"),
+    (True, ["--poles", ""], "identify --track does not read --poles"),
+    (True, ["--uff", ""], "identify --track does not read --uff"),
+    (True, ["--need-min", "0"], "identify --track does not read --need-min"),
+    (True, ["--mpc-min", "0"], "identify --track does not read --mpc-min"),
+    (True, ["--exp-window-decay", "0"], "identify --track does not read --exp-window-decay"),
+    (True, ["--references", ""], "argument --references: expected NAME[,NAME...] with no empty name")])
+def test_a_zero_or_empty_value_of_the_other_modes_option_is_named(tmp_path: Path, capsys, track: bool,
+                                                                 option: list[str], words: str) -> None:
+    """A zero was taken for "not given" (0 == False): identify --max-spread 0 without --track, and
+    --track --need-min 0, --mpc-min 0 or --exp-window-decay 0 were ignored in silence.  Every option of
+    both lists (cli/modal.py TRACK_ONLY, IDENTIFY_ONLY; --from-diagram, a flag, has no falsy value) with
+    a zero or empty value: named, or refused by its own type."""
+    from flexmodal.app import main
+    from flexmodal.cli.modal import IDENTIFY_ONLY, TRACK_ONLY
+
+    listed = IDENTIFY_ONLY if track else TRACK_ONLY
+    assert option[0][2:].replace("-", "_") in listed
+    argv = ["identify", str(tmp_path / "run.h5"), *(["--track"] if track else []), "--out",
+            str(tmp_path / "m.csv"), *option]
+    assert main(argv) == 2
+    assert words in capsys.readouterr().err
+
+
 # -- log axes of data that is zero everywhere --------------------------------------------------------------
 def test_an_frf_of_zeros_is_drawn_without_a_warning_on_stderr() -> None:
     """report on a stored FRF that is zero everywhere printed matplotlib's 'Data has no positive values,
