@@ -762,6 +762,7 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
     _check_band(fmin, fmax)
     _check_identify_options(max_order, poles_hz, references)
     _check_source_options(source, run_id=run_id, references=references, config=config, pose=pose)
+    config = "run" if config is None else config   # an FrfResult's (a file's configurations are its runs)
     if decay_rate_per_s is not None:
         opt.given(decay_rate_per_s, opt.nonnegative, "identify: decay_rate_per_s", ModalError)
     if pose is not None:
@@ -796,7 +797,6 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
                             f"{type(source).__name__}")
         source = by_reciprocity(source)   # a roving-hammer set: the hammer points are the shapes' points
         modes = identify_frf(source, **{**options, "method": method or "lscf"})
-        config = "run" if config is None else config
         table = modes_table(modes, source.outputs, config=config, pose=pose)
         result = Identification(table, {config: modes}, {config: tuple(source.outputs)})
     if out is not None:

@@ -77,6 +77,15 @@ def test_an_api_number_the_cli_refuses_is_refused_naming_it(what: str, value: ob
     assert what in message and repr(value) in message and "\n" not in message, message
 
 
+@pytest.mark.parametrize(("config", "named"), [(None, "run"), ("c40", "c40")])
+def test_a_bad_pose_names_the_config_its_modes_get(config: str | None, named: str) -> None:
+    """identify(frf, pose={'theta_deg': nan}) said "config None": the default name, run, came later."""
+    with pytest.raises(fm.ModalError) as refused:
+        fm.identify(_frf(), config=config, pose={"theta_deg": math.nan})
+    assert str(refused.value) == f"identify: config {named!r}: pose theta_deg = nan is not a finite number"
+    assert fm.identify(_frf(), pose={"theta_deg": 40.0}).table.configs == ["run"]
+
+
 @given(st.floats(allow_nan=True, allow_infinity=True) | st.integers(-10, 10))
 def test_frf_from_arrays_takes_exactly_the_decay_rates_the_cli_takes(value: float) -> None:
     """The same numbers pass as on identify --exp-window-decay, and the one stored is the one given."""
