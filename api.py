@@ -14,6 +14,7 @@ import html
 import math
 import numbers
 import os
+import re
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -1333,6 +1334,12 @@ def write_comparison(comparison: Comparison, out: PathLike, fmt: str = "md", lay
 DIAGNOSIS_FILES = ("diagnosis.json", "diagnosis.html")   # what write_diagnosis writes into its folder
 # how each starts, and the mark near its end (the page's footer), when flexmodal wrote it
 DIAGNOSIS_MARKS = ((b'{\n  "baseline"', b""), (b"<!DOCTYPE html>", b"<p>Versions: flexmodal "))
+# the start of a diagnosis.html written before the footer (67daf75, 26 Nov): the report template's
+# "Generated ... by flexmodal" line under the title (since 7d23b90), or compare.diagnosis.render_html's page
+OLDER_DIAGNOSIS_PAGES = (
+    re.compile(rb'<!DOCTYPE html>\n<html lang="en">\n.*?<p class="meta">Generated [^<]*? by flexmodal ',
+               re.S),
+    re.compile(rb'<!DOCTYPE html><html><head><meta charset="utf-8"><title>Sim-to-real gap diagnosis</title>'))
 
 
 def _diagnosis_folder(out_dir: PathLike, inputs: Sequence[PathLike]) -> Path:
@@ -1343,8 +1350,9 @@ def _diagnosis_folder(out_dir: PathLike, inputs: Sequence[PathLike]) -> Path:
 
     out = output_dir(out_dir, CompareError, "diagnosis folder (--out)", files=DIAGNOSIS_FILES,
                      inputs=inputs)
-    for name, (signature, mark) in zip(DIAGNOSIS_FILES, DIAGNOSIS_MARKS, strict=True):
-        sidecar_file(out / name, CompareError, name, signature, mark)
+    for name, (signature, mark), older in zip(DIAGNOSIS_FILES, DIAGNOSIS_MARKS, ((), OLDER_DIAGNOSIS_PAGES),
+                                              strict=True):
+        sidecar_file(out / name, CompareError, name, signature, mark, older)
     return out
 
 

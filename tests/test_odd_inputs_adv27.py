@@ -167,6 +167,35 @@ def test_a_diagnosis_file_of_the_users_own_in_the_folder_is_kept(tmp_path: Path,
     assert (theirs / name).read_text(encoding="utf-8") == "<p>my notes</p>\n"
 
 
+OLDER = REPO / "tests" / "data" / "diagnosis" / "older"
+
+
+@pytest.mark.parametrize("page", ["diagnosis_report_template.html", "diagnosis_render_html.html"])
+def test_a_diagnosis_page_an_older_flexmodal_wrote_is_replaced(tmp_path: Path, page: str) -> None:
+    """diagnose --out into the folder of an earlier run was refused ("not a diagnosis.html flexmodal
+    wrote") when the page predates the versions footer (67daf75).  The pages are what flexmodal wrote
+    before it, on demo.json: the report template of 67daf75^ (its figures' PNG data cut out) and
+    compare.diagnosis.render_html of 7d23b90^."""
+    result = fm.read_diagnosis(REPO / "tests" / "data" / "diagnosis" / "demo.json")
+    shutil.copyfile(OLDER / page, tmp_path / "diagnosis.html")
+    fm.write_diagnosis(result, tmp_path)
+    assert "<p>Versions: flexmodal " in (tmp_path / "diagnosis.html").read_text(encoding="utf-8")
+
+
+@pytest.mark.parametrize("edit", [("by flexmodal ", "by hand "),
+                                  ("Sim-to-real gap diagnosis</title>", "</title>")])
+def test_a_page_like_an_older_diagnosis_page_but_not_flexmodals_is_kept(tmp_path: Path, edit) -> None:
+    """A page of the user's own that starts as the older pages do (the report template's head without
+    "by flexmodal", a render_html-like page with another title) is not replaced."""
+    page = "diagnosis_report_template.html" if "flexmodal" in edit[0] else "diagnosis_render_html.html"
+    theirs = (OLDER / page).read_text(encoding="utf-8").replace(*edit)
+    (tmp_path / "diagnosis.html").write_text(theirs, encoding="utf-8")
+    result = fm.read_diagnosis(REPO / "tests" / "data" / "diagnosis" / "demo.json")
+    with pytest.raises(fm.CompareError, match="diagnosis.html: exists and is not a diagnosis.html flexmodal"):
+        fm.write_diagnosis(result, tmp_path)
+    assert (tmp_path / "diagnosis.html").read_text(encoding="utf-8") == theirs
+
+
 # -- responses stored in different units -------------------------------------------------------------------
 def _restated(path: Path, channel: str, unit: str, per_si: float) -> None:
     """Channel ``channel`` of the one run of ``path`` restated in ``unit`` (``per_si`` units per m/s^2)."""
