@@ -14,6 +14,7 @@ import html
 import math
 import numbers
 import os
+import re
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -762,6 +763,7 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
     _check_band(fmin, fmax)
     _check_identify_options(max_order, poles_hz, references)
     _check_source_options(source, run_id=run_id, references=references, config=config, pose=pose)
+    config = "run" if config is None else config   # an FrfResult's (a file's configurations are its runs)
     if decay_rate_per_s is not None:
         opt.given(decay_rate_per_s, opt.nonnegative, "identify: decay_rate_per_s", ModalError)
     if pose is not None:
@@ -796,7 +798,6 @@ def identify(source: PathLike | FrfResult, *, method: str | None = None, fmin: f
                             f"{type(source).__name__}")
         source = by_reciprocity(source)   # a roving-hammer set: the hammer points are the shapes' points
         modes = identify_frf(source, **{**options, "method": method or "lscf"})
-        config = "run" if config is None else config
         table = modes_table(modes, source.outputs, config=config, pose=pose)
         result = Identification(table, {config: modes}, {config: tuple(source.outputs)})
     if out is not None:
@@ -1333,6 +1334,12 @@ def write_comparison(comparison: Comparison, out: PathLike, fmt: str = "md", lay
 DIAGNOSIS_FILES = ("diagnosis.json", "diagnosis.html")   # what write_diagnosis writes into its folder
 # how each starts, and the mark near its end (the page's footer), when flexmodal wrote it
 DIAGNOSIS_MARKS = ((b'{\n  "baseline"', b""), (b"<!DOCTYPE html>", b"<p>Versions: flexmodal "))
+# the start of a diagnosis.html written before the footer (67daf75, 26 Nov): the report template's
+# "Generated ... by flexmodal" line under the title (since 7d23b90), or compare.diagnosis.render_html's page
+OLDER_DIAGNOSIS_PAGES = (
+    re.compile(rb'<!DOCTYPE html>\n<html lang="en">\n.*?<p class="meta">Generated [^<]*? by flexmodal ',
+               re.S),
+    re.compile(rb'<!DOCTYPE html><html><head><meta charset="utf-8"><title>Sim-to-real gap diagnosis</title>'))
 
 
 def _diagnosis_folder(out_dir: PathLike, inputs: Sequence[PathLike]) -> Path:
@@ -1343,8 +1350,9 @@ def _diagnosis_folder(out_dir: PathLike, inputs: Sequence[PathLike]) -> Path:
 
     out = output_dir(out_dir, CompareError, "diagnosis folder (--out)", files=DIAGNOSIS_FILES,
                      inputs=inputs)
-    for name, (signature, mark) in zip(DIAGNOSIS_FILES, DIAGNOSIS_MARKS, strict=True):
-        sidecar_file(out / name, CompareError, name, signature, mark)
+    for name, (signature, mark), older in zip(DIAGNOSIS_FILES, DIAGNOSIS_MARKS, ((), OLDER_DIAGNOSIS_PAGES),
+                                              strict=True):
+        sidecar_file(out / name, CompareError, name, signature, mark, older)
     return out
 
 
@@ -1975,8 +1983,8 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
         read_frf(path, run_id)
     from flexmodal.compare.tables import compare_tables, ordered_configs, table_name
     from flexmodal.modal.errors import ModalError
-    from flexmodal.modal.oma import default_method, output_only_results
-    from flexmodal.modal.sources import identify_frf
+    from flexmodal.modal.oma import OmaResults, default_method, output_channels, output_only_results
+    from flexmodal.modal.sources import identify_frf, si_frf, si_samples
     from flexmodal.reports.html import write_report
     from flexmodal.reports.runs import RunSummary
     from flexmodal.reports.sections import Section, register_section, registered_sections
@@ -1997,18 +2005,25 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
         files = list(dict.fromkeys(path.name for path, _ in entries))
         step(f"reading and identifying {counted(len(entries), 'run')} of {', '.join(files[:3])}"
              + (f" and {counted(len(files) - 3, 'more file')}" if len(files) > 3 else ""))
-    for path, run_id in entries:
+    for path, run_id in entries:   # responses stored in different units: in m/s^2, as identify takes them
         run, frf = read_run(path, run_id), read_frf(path, run_id)
+        names, kinds = [c.name for c in run.channels], [c.kind for c in run.channels]
+        where = f"{path.name}::{run_id}"
         modes = oma = None
         if frf is not None:
             try:
+                frf = si_frf(frf, run.channels, where)
                 modes = identify_frf(frf, fmin=fmin, fmax=fmax)
             except ModalError as exc:
                 modes = str(exc)
-        elif default_method([c.kind for c in run.channels], run.excitation) == "ssi":
-            oma = output_only_results(run.samples, run.sample_rate_hz, [c.name for c in run.channels],
-                                      [c.kind for c in run.channels], fmin=oma_fmin, fmax=oma_fmax,
-                                      where=f"{path.name}::{run_id}")
+        elif default_method(kinds, run.excitation) == "ssi":
+            try:
+                samples = si_samples(run.samples, run.channels, output_channels(kinds), where)
+            except ModalError as exc:
+                oma = OmaResults(tuple(names[j] for j in output_channels(kinds)), str(exc), str(exc))
+            else:
+                oma = output_only_results(samples, run.sample_rate_hz, names, kinds, fmin=oma_fmin,
+                                          fmax=oma_fmax, where=where)
         summaries.append(RunSummary(run, frf, modes, oma))
     named = _named(predictions)
     comparison = None

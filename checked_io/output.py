@@ -21,6 +21,7 @@ from __future__ import annotations
 import contextvars
 import errno
 import os
+import re
 import secrets
 import signal
 import stat
@@ -193,23 +194,28 @@ def output_dir(path: str | Path, error: ErrorType, what: str = "output directory
     return p
 
 
-def sidecar_file(path: str | Path, error: ErrorType, what: str, signature: bytes, mark: bytes = b"") -> None:
+def sidecar_file(path: str | Path, error: ErrorType, what: str, signature: bytes, mark: bytes = b"",
+                 older: Iterable[re.Pattern[bytes]] = ()) -> None:
     """A file a command writes beside its named output (``MODES.synthesis.csv`` beside ``MODES.csv``)
     replaces only a file that starts with ``signature`` and, when ``mark`` is given, holds ``mark`` in
     its last :data:`MARK_TAIL_BYTES` bytes (a format whose start every other tool writes too, such as
-    PDF's ``%PDF-``, is recognised by the mark flexmodal appends): one flexmodal wrote there.  A file
-    of the user's own is never replaced (``error`` naming it).  Check :func:`output_file` first."""
+    PDF's ``%PDF-``, is recognised by the mark flexmodal appends), or whose first
+    :data:`MARK_TAIL_BYTES` bytes match one of the patterns ``older`` (what older flexmodal versions
+    wrote before the mark): one flexmodal wrote there.  A file of the user's own is never replaced
+    (``error`` naming it).  Check :func:`output_file` first."""
     p = Path(path)
     if not p.is_file():
         return
     try:
         with open(p, "rb") as f:
-            head = f.read(len(signature))
+            head = f.read(max(len(signature), MARK_TAIL_BYTES))
             f.seek(max(0, p.stat().st_size - MARK_TAIL_BYTES))
             tail = f.read()
     except OSError as exc:
         raise error(f"{p}: cannot read it to check it is a {what} ({exc.strerror or exc})") from None
-    if head != signature or mark not in tail:
+    if any(pattern.match(head) for pattern in older):
+        return
+    if not head.startswith(signature) or mark not in tail:
         raise error(f"{p}: exists and is not a {what} flexmodal wrote; refusing to replace it (move it, or "
                     "choose another --out)")
 

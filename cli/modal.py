@@ -161,7 +161,7 @@ def _check_mode_options(args: argparse.Namespace) -> None:
     from flexmodal.api import ModalError
 
     names = IDENTIFY_ONLY if args.track else TRACK_ONLY
-    unused = [n for n in names if getattr(args, n) not in (None, False)]
+    unused = [n for n in names if getattr(args, n) is not None and getattr(args, n) is not False]  # 0 given
     if args.track and args.method not in (None, "ssi"):
         unused.insert(0, "method")
     if not unused:

@@ -217,23 +217,38 @@ def _skip(failed: list | None, bad: list, name: str, exc: FlexmodalError, advanc
     advance()
 
 
-def _si_factors(channels: Sequence, where: str) -> np.ndarray | None:
-    """Factors [n] taking the response ``channels`` to m/s^2 when they are stored in different units,
-    None when they share one (FRFs and shapes then stay in it, docs/hdf5-format.md): an output in g
-    beside outputs in m/s^2 gave mode shapes of mixed units, off by 9.81 at that sensor, with exit 0.
-    ModalError when the units differ and one has no factor to m/s^2."""
+def si_factors(units: Sequence[str]) -> np.ndarray | None:
+    """Factors [n] taking responses stored in ``units`` to m/s^2 (nan for a unit with no factor to it)
+    when the units differ; None when they share one (FRFs and shapes then stay in it,
+    docs/hdf5-format.md)."""
     from flexmodal.daq.session import unit_factor
 
-    units = [c.unit for c in channels]
     if all(unit_factor(u, units[0]) == 1.0 for u in units):
         return None
-    factors = [unit_factor(u, "m/s^2") for u in units]
-    if None in factors:
+    return np.array([np.nan if (k := unit_factor(u, "m/s^2")) is None else k for u in units], float)
+
+
+def _si_factors(channels: Sequence, where: str) -> np.ndarray | None:
+    """:func:`si_factors` of the response ``channels``: an output in g beside outputs in m/s^2 gave mode
+    shapes of mixed units, off by 9.81 at that sensor, with exit 0.  ModalError when the units differ
+    and one has no factor to m/s^2."""
+    factors = si_factors([c.unit for c in channels])
+    if factors is not None and np.isnan(factors).any():
         named = ", ".join(f"{c.name} ({c.unit or 'no unit'})" for c in channels)
         raise ModalError(f"{where}: the response channels are in different units ({named}), not all of "
                          "them accelerations in m/s^2, mm/s^2 or g: the mode shapes would mix the units "
                          "(store the responses in one unit)")
-    return np.array(factors)
+    return factors
+
+
+def si_frf(frf: FrfResult, channels: Sequence, where: str) -> FrfResult:
+    """``frf`` with its rows brought to m/s^2 when its outputs, named among the run's ``channels``, are
+    stored in different units (:func:`_si_factors`), else as given."""
+    by_name = {c.name: c for c in channels}
+    if not all(o in by_name for o in frf.outputs):
+        return frf
+    factors = _si_factors([by_name[o] for o in frf.outputs], where)
+    return frf if factors is None else dataclasses.replace(frf, H=frf.H * factors[:, None, None])
 
 
 def si_samples(samples, channels: Sequence, outputs: Sequence[int], where: str):
@@ -257,12 +272,7 @@ def _identify_run(p: Path, run, chosen: str, options: dict, oma: dict) -> tuple[
         res, outs = identify_output_only(samples, run.sample_rate_hz, names, kinds, method=chosen,
                                          where=where, **oma)
         return res.modes, outs
-    stored = read_frf(p, run.run_id) or compute_frf(run)
-    by_name = {c.name: c for c in run.channels}
-    if all(o in by_name for o in stored.outputs):
-        factors = _si_factors([by_name[o] for o in stored.outputs], where)
-        if factors is not None:
-            stored = dataclasses.replace(stored, H=stored.H * factors[:, None, None])
+    stored = si_frf(read_frf(p, run.run_id) or compute_frf(run), run.channels, where)
     result = by_reciprocity(stored)
     point = _driving_point(run, result) if result is stored else None
     with naming(where, ModalError):

@@ -11,7 +11,7 @@ AttributeError.  Each is now checked by the option kind the command line uses fo
 named the folder, not the files); now only files flexmodal wrote are replaced.  A run whose responses
 were stored in different units (a2 in g, the others in m/s^2) was identified with its mode shapes
 mixing the units (a2 9.81 times too small, exit 0); they are now brought to m/s^2 first (identify
---track too).  identify
+--track and report too).  identify
 ignored options its source has no use for (config and pose with a run file, run_id and references
 with FRFs in memory); each is now named, and so is an option of another model given to predict
 (--model fe --masses-per-link 3 was the fe prediction, exit 0), and an option of identify --track
@@ -75,6 +75,15 @@ def test_an_api_number_the_cli_refuses_is_refused_naming_it(what: str, value: ob
         CALLS[what](value)
     message = str(refused.value)
     assert what in message and repr(value) in message and "\n" not in message, message
+
+
+@pytest.mark.parametrize(("config", "named"), [(None, "run"), ("c40", "c40")])
+def test_a_bad_pose_names_the_config_its_modes_get(config: str | None, named: str) -> None:
+    """identify(frf, pose={'theta_deg': nan}) said "config None": the default name, run, came later."""
+    with pytest.raises(fm.ModalError) as refused:
+        fm.identify(_frf(), config=config, pose={"theta_deg": math.nan})
+    assert str(refused.value) == f"identify: config {named!r}: pose theta_deg = nan is not a finite number"
+    assert fm.identify(_frf(), pose={"theta_deg": 40.0}).table.configs == ["run"]
 
 
 @given(st.floats(allow_nan=True, allow_infinity=True) | st.integers(-10, 10))
@@ -156,6 +165,35 @@ def test_a_diagnosis_file_of_the_users_own_in_the_folder_is_kept(tmp_path: Path,
     assert f"{name}: exists and is not a {name} flexmodal wrote" in capsys.readouterr().err
     assert sorted(p.name for p in theirs.iterdir()) == [name]
     assert (theirs / name).read_text(encoding="utf-8") == "<p>my notes</p>\n"
+
+
+OLDER = REPO / "tests" / "data" / "diagnosis" / "older"
+
+
+@pytest.mark.parametrize("page", ["diagnosis_report_template.html", "diagnosis_render_html.html"])
+def test_a_diagnosis_page_an_older_flexmodal_wrote_is_replaced(tmp_path: Path, page: str) -> None:
+    """diagnose --out into the folder of an earlier run was refused ("not a diagnosis.html flexmodal
+    wrote") when the page predates the versions footer (67daf75).  The pages are what flexmodal wrote
+    before it, on demo.json: the report template of 67daf75^ (its figures' PNG data cut out) and
+    compare.diagnosis.render_html of 7d23b90^."""
+    result = fm.read_diagnosis(REPO / "tests" / "data" / "diagnosis" / "demo.json")
+    shutil.copyfile(OLDER / page, tmp_path / "diagnosis.html")
+    fm.write_diagnosis(result, tmp_path)
+    assert "<p>Versions: flexmodal " in (tmp_path / "diagnosis.html").read_text(encoding="utf-8")
+
+
+@pytest.mark.parametrize("edit", [("by flexmodal ", "by hand "),
+                                  ("Sim-to-real gap diagnosis</title>", "</title>")])
+def test_a_page_like_an_older_diagnosis_page_but_not_flexmodals_is_kept(tmp_path: Path, edit) -> None:
+    """A page of the user's own that starts as the older pages do (the report template's head without
+    "by flexmodal", a render_html-like page with another title) is not replaced."""
+    page = "diagnosis_report_template.html" if "flexmodal" in edit[0] else "diagnosis_render_html.html"
+    theirs = (OLDER / page).read_text(encoding="utf-8").replace(*edit)
+    (tmp_path / "diagnosis.html").write_text(theirs, encoding="utf-8")
+    result = fm.read_diagnosis(REPO / "tests" / "data" / "diagnosis" / "demo.json")
+    with pytest.raises(fm.CompareError, match="diagnosis.html: exists and is not a diagnosis.html flexmodal"):
+        fm.write_diagnosis(result, tmp_path)
+    assert (tmp_path / "diagnosis.html").read_text(encoding="utf-8") == theirs
 
 
 # -- responses stored in different units -------------------------------------------------------------------
@@ -263,6 +301,36 @@ def test_an_identify_option_with_track_is_named(tmp_path: Path, capsys, option: 
     assert f"identify --track does not read {option[0]}" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(("track", "option", "words"), [
+    (False, ["--max-spread", "0"], "identify: --max-spread is an option of identify --track"),
+    (False, ["--orders", ""], "identify: --orders is an option of identify --track"),
+    (False, ["--pose-from", ""], "identify: --pose-from is an option of identify --track"),
+    (False, ["--window", "0"], "argument --window: expected a finite duration in seconds > 0"),
+    (False, ["--hop", "0"], "argument --hop: expected a finite duration in seconds > 0"),
+    (False, ["--bin", "0"], "argument --bin: expected a finite number > 0"),
+    (True, ["--poles", ""], "identify --track does not read --poles"),
+    (True, ["--uff", ""], "identify --track does not read --uff"),
+    (True, ["--need-min", "0"], "identify --track does not read --need-min"),
+    (True, ["--mpc-min", "0"], "identify --track does not read --mpc-min"),
+    (True, ["--exp-window-decay", "0"], "identify --track does not read --exp-window-decay"),
+    (True, ["--references", ""], "argument --references: expected NAME[,NAME...] with no empty name")])
+def test_a_zero_or_empty_value_of_the_other_modes_option_is_named(tmp_path: Path, capsys, track: bool,
+                                                                 option: list[str], words: str) -> None:
+    """A zero was taken for "not given" (0 == False): identify --max-spread 0 without --track, and
+    --track --need-min 0, --mpc-min 0 or --exp-window-decay 0 were ignored in silence.  Every option of
+    both lists (cli/modal.py TRACK_ONLY, IDENTIFY_ONLY; --from-diagram, a flag, has no falsy value) with
+    a zero or empty value: named, or refused by its own type."""
+    from flexmodal.app import main
+    from flexmodal.cli.modal import IDENTIFY_ONLY, TRACK_ONLY
+
+    listed = IDENTIFY_ONLY if track else TRACK_ONLY
+    assert option[0][2:].replace("-", "_") in listed
+    argv = ["identify", str(tmp_path / "run.h5"), *(["--track"] if track else []), "--out",
+            str(tmp_path / "m.csv"), *option]
+    assert main(argv) == 2
+    assert words in capsys.readouterr().err
+
+
 # -- log axes of data that is zero everywhere --------------------------------------------------------------
 def test_an_frf_of_zeros_is_drawn_without_a_warning_on_stderr() -> None:
     """report on a stored FRF that is zero everywhere printed matplotlib's 'Data has no positive values,
@@ -322,3 +390,40 @@ def test_track_takes_responses_in_g_and_m_s2_as_the_same_test_in_si(tmp_path: Pa
     want, got = (fm.track(p, fmax=400.0, window_s=2.0, hop_s=1.0).table.frame for p in (si, mixed))
     assert got["freq_hz"].to_numpy() == pytest.approx(want["freq_hz"].to_numpy(), rel=1e-2)
     assert got["shape.a2"].to_numpy() == pytest.approx(want["shape.a2"].to_numpy(), rel=0.05, abs=0.01)
+
+
+@pytest.mark.parametrize("record", ["impact", "moving"])
+def test_report_takes_responses_in_g_and_m_s2_as_the_same_test_in_si(tmp_path: Path, monkeypatch,
+                                                                    record: str) -> None:
+    """report identified a run's stored FRFs (and an output-only run's samples) in the units stored: with
+    a2 in g beside m/s^2 its shapes were off by 9.81 at a2 (exit 0), as identify's were (class E).  The
+    references are the same records stored in SI: the impact test's stored FRFs (lscf, shapes within
+    1e-4 as identify's) and the moving arm's record (SSI of the whole record; a2 rounded differently in
+    float32, tolerances 1 % and 5 % as track's)."""
+    import flexmodal.reports.html as html
+    from flexmodal.fixtures.examples import impact_run, moving_run
+
+    drawn = []
+
+    def keep(out, *, runs, **kw):
+        drawn.extend(runs)
+        return write_report(out, runs=runs, **kw)
+
+    write_report = html.write_report
+    monkeypatch.setattr(html, "write_report", keep)
+    si = impact_run(tmp_path) if record == "impact" else moving_run(tmp_path, duration_s=4.0)
+    mixed = tmp_path / "mixed.h5"
+    shutil.copyfile(si, mixed)
+    _restated(mixed, "a2", "g", 1 / 9.80665)
+    if record == "impact":
+        fm.compute_frfs([si, mixed])
+    fm.report(tmp_path / "r.html", runs=[si, mixed], fmax=400.0, oma_fmax=400.0)
+    want, got = drawn
+    if record == "impact":
+        assert got.frf_unit == want.frf_unit == "(m/s²)/N"
+        assert got.modes.freq_hz == pytest.approx(want.modes.freq_hz, rel=1e-6)
+        assert got.modes.shapes == pytest.approx(want.modes.shapes, rel=1e-4, abs=1e-6)
+    else:
+        assert got.oma.ssi.modes.freq_hz == pytest.approx(want.oma.ssi.modes.freq_hz, rel=1e-2)
+        assert np.abs(got.oma.ssi.modes.shapes) == pytest.approx(np.abs(want.oma.ssi.modes.shapes), rel=0.05,
+                                                                 abs=0.01)
