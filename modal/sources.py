@@ -26,21 +26,24 @@ from flexmodal.modal.sweep import sweep_plan
 
 def _driving_point(run, result: FrfResult) -> int | None:
     """Output row measured where (location and direction, without case or surrounding spaces) the
-    first force acts, if any, and only when the force is stored in N and that response in m/s^2: mass
+    first force acts, if any, and only when the forces are given in N and the responses in m/s^2
+    (:func:`given_unit`, the units :func:`si_frf` brings them to): mass
     normalisation takes the accelerance as (m/s^2)/N, so a run stored in g or kN would get shapes off
     by sqrt(9.81) or sqrt(1000) in silence (they are scaled to unit maximum instead, as without a
     driving point)."""
     from flexmodal.daq.session import unit_factor
 
     by_name = {c.name: c for c in run.channels}
-    force = by_name.get(result.inputs[0]) if result.inputs else None
-    if force is None or not force.location or unit_factor(force.unit, "N") != 1.0:
+    if not all(n in by_name for n in (*result.outputs, *result.inputs)) or not result.inputs:
+        return None
+    force = by_name[result.inputs[0]]
+    given = [given_unit([by_name[n].unit for n in names]) for names in (result.inputs, result.outputs)]
+    if not force.location or None in given or unit_factor(given[0], "N") != 1.0:
         return None
     place = lambda c: (c.location.strip().casefold(), c.direction.strip().casefold())   # 'Transverse'
     for j, name in enumerate(result.outputs):
-        c = by_name.get(name)
-        if c is not None and place(c) == place(force):
-            return j if unit_factor(c.unit, "m/s^2") == 1.0 else None
+        if place(by_name[name]) == place(force):
+            return j if unit_factor(given[1], "m/s^2") == 1.0 else None
     return None
 
 
@@ -217,38 +220,76 @@ def _skip(failed: list | None, bad: list, name: str, exc: FlexmodalError, advanc
     advance()
 
 
+#: the unit channels of one quantity stored in different units are brought to (modal.sources.si_factors)
+SI_UNITS = {"acceleration": "m/s^2", "velocity": "m/s", "strain": "µε", "force": "N"}
+
+
+def quantity_of(unit: str) -> str | None:
+    """The quantity (a key of :data:`SI_UNITS`) ``unit`` has a known factor to, None when none.
+
+    Examples
+    --------
+    >>> quantity_of("g"), quantity_of("microstrain"), quantity_of("lbf"), quantity_of("ft/s^2")
+    ('acceleration', 'strain', 'force', None)
+    """
+    from flexmodal.daq.session import unit_factor
+
+    return next((q for q, si in SI_UNITS.items() if unit_factor(unit, si) is not None), None)
+
+
+def given_unit(units: Sequence[str]) -> str | None:
+    """The one unit channels stored in ``units`` are given in: theirs when they share one (FRFs and shapes
+    then stay in it, docs/hdf5-format.md), else the SI unit of their quantity (:data:`SI_UNITS`) when
+    every unit has a known factor to it, else None (units of different or unknown quantities)."""
+    from flexmodal.daq.session import unit_factor
+
+    if all(unit_factor(u, units[0]) == 1.0 for u in units):
+        return units[0]
+    quantities = {quantity_of(u) for u in units}
+    return SI_UNITS[quantities.pop()] if len(quantities) == 1 and None not in quantities else None
+
+
 def si_factors(units: Sequence[str]) -> np.ndarray | None:
-    """Factors [n] taking responses stored in ``units`` to m/s^2 (nan for a unit with no factor to it)
-    when the units differ; None when they share one (FRFs and shapes then stay in it,
-    docs/hdf5-format.md)."""
+    """Factors [n] taking channels stored in ``units`` to their :func:`given_unit` when the units differ
+    (all nan when there is none); None when they share one."""
     from flexmodal.daq.session import unit_factor
 
     if all(unit_factor(u, units[0]) == 1.0 for u in units):
         return None
-    return np.array([np.nan if (k := unit_factor(u, "m/s^2")) is None else k for u in units], float)
+    to = given_unit(units)
+    return np.array([np.nan if to is None else unit_factor(u, to) for u in units], float)
 
 
-def _si_factors(channels: Sequence, where: str) -> np.ndarray | None:
-    """:func:`si_factors` of the response ``channels``: an output in g beside outputs in m/s^2 gave mode
-    shapes of mixed units, off by 9.81 at that sensor, with exit 0.  ModalError when the units differ
-    and one has no factor to m/s^2."""
+def _si_factors(channels: Sequence, where: str, role: str = "response") -> np.ndarray | None:
+    """:func:`si_factors` of the ``role`` (response or force) ``channels``: an output in g beside outputs
+    in m/s^2 gave mode shapes of mixed units, off by 9.81 at that sensor, and a force in kN beside one in N
+    FRFs off by 1000 for that input, with exit 0.  ModalError naming each channel's unit and quantity when
+    the units differ and are not all of one quantity with known factors."""
     factors = si_factors([c.unit for c in channels])
     if factors is not None and np.isnan(factors).any():
-        named = ", ".join(f"{c.name} ({c.unit or 'no unit'})" for c in channels)
-        raise ModalError(f"{where}: the response channels are in different units ({named}), not all of "
-                         "them accelerations in m/s^2, mm/s^2 or g: the mode shapes would mix the units "
-                         "(store the responses in one unit)")
+        named = ", ".join(f"{c.name} ({c.unit or 'no unit'}: "
+                          f"{quantity_of(c.unit) or 'no known factor to ' + ', '.join(SI_UNITS.values())})"
+                          for c in channels)
+        raise ModalError(f"{where}: the {role} channels are in different units ({named}), not all of one "
+                         "quantity with known factors: the "
+                         + ("mode shapes" if role == "response" else "FRFs of the inputs")
+                         + " would mix the units (store them in one unit)")
     return factors
 
 
 def si_frf(frf: FrfResult, channels: Sequence, where: str) -> FrfResult:
-    """``frf`` with its rows brought to m/s^2 when its outputs, named among the run's ``channels``, are
-    stored in different units (:func:`_si_factors`), else as given."""
+    """``frf`` with its rows (outputs) and columns (inputs), named among the run's ``channels``, brought
+    to the SI unit of their quantity (m/s^2, N, ...) when the outputs or the inputs are stored in
+    different units (:func:`_si_factors`), else as given."""
     by_name = {c.name: c for c in channels}
-    if not all(o in by_name for o in frf.outputs):
+    if not all(o in by_name for o in (*frf.outputs, *frf.inputs)):
         return frf
-    factors = _si_factors([by_name[o] for o in frf.outputs], where)
-    return frf if factors is None else dataclasses.replace(frf, H=frf.H * factors[:, None, None])
+    outs = _si_factors([by_name[o] for o in frf.outputs], where)
+    ins = _si_factors([by_name[i] for i in frf.inputs], where, "force") if frf.inputs else None
+    if outs is None and ins is None:
+        return frf
+    H = frf.H * (1.0 if outs is None else outs[:, None, None]) / (1.0 if ins is None else ins[None, :, None])
+    return dataclasses.replace(frf, H=H)
 
 
 def si_samples(samples, channels: Sequence, outputs: Sequence[int], where: str):

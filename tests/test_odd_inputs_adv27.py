@@ -233,7 +233,8 @@ def test_responses_in_units_with_no_factor_to_m_s2_are_named(tmp_path: Path) -> 
     path = impact_run(tmp_path)
     _restated(path, "a3", "ft/s^2", 1.0)
     with pytest.raises(fm.ModalError, match=r"runs.h5:theta30: the response channels are in different "
-                                            r"units \(a1 \(m/s\^2\), a2 \(m/s\^2\), a3 \(ft/s\^2\)"):
+                                            r"units \(a1 \(m/s\^2: acceleration\), "
+                                            r"a2 \(m/s\^2: acceleration\), a3 \(ft/s\^2: no known "):
         fm.identify(path, fmax=400.0)
 
 
