@@ -299,8 +299,8 @@ def _cells(cols: list[_Col], rows: list[list[object]], fmt: str) -> list[list[st
 
 
 _TEX = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "_": r"\_", "#": r"\#", "$": r"\$", "{": r"\{",
-        "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}", "ζ": r"$\zeta$", "Δ": r"$\Delta$",
-        "\n": " ", "\r": " "}
+        "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}", "<": r"\textless{}",
+        ">": r"\textgreater{}", "|": r"\textbar{}", "ζ": r"$\zeta$", "Δ": r"$\Delta$", "\n": " ", "\r": " "}
 _TEX_SPECIAL = re.compile("|".join(re.escape(k) for k in _TEX))
 
 
@@ -312,19 +312,37 @@ def _tex_escape(text: str) -> str:
     --------
     >>> print(_tex_escape("x_1 & $5 {a}~^ 50% #2 \\ Δf"))
     x\_1 \& \$5 \{a\}\textasciitilde{}\textasciicircum{} 50\% \#2 \textbackslash{} $\Delta$f
+    >>> print(_tex_escape("<b>|"))
+    \textless{}b\textgreater{}\textbar{}
+
+    (``<``, ``>`` and ``|`` are other glyphs, ¡ ¿ —, in LaTeX's default OT1 text font.)
     """
     return _TEX_SPECIAL.sub(lambda m: _TEX[m.group(0)], text)
 
 
-def _md_escape(text: str) -> str:
-    r"""``text`` safe in a Markdown table cell: ``|`` escaped, a line break a space.
+_MD_SPECIAL = re.compile(r"[\\`*_<>&~|]|\](?=[(:\[])")
+_MD_LINE_START = re.compile(r"^([-+=#>]|\d+(?=[.)]))")
+
+
+def _md_escape(text: str, line_start: bool = False) -> str:
+    r"""``text`` shown as it is in a Markdown table cell or list item (CommonMark): each character that
+    could start markup (emphasis, code, an HTML tag or entity, a cell border; the ``]`` that would close
+    a link or a link definition) backslash-escaped, a line break a space; text that starts a line or a
+    list item (``line_start``) has a leading list, heading or quote marker escaped too.
 
     Examples
     --------
-    >>> print(_md_escape("a|b\nc"))
-    a\|b c
+    >>> print(_md_escape("a|b\nc <b>x_1</b> [l](u) &amp;"))
+    a\|b c \<b\>x\_1\</b\> [l\](u) \&amp;
+    >>> print(_md_escape("- 1. f [Hz]", line_start=True), _md_escape("12) #2", line_start=True))
+    \- 1. f [Hz] 12\) #2
     """
-    return text.replace("|", r"\|").replace("\r\n", " ").replace("\n", " ").replace("\r", " ")
+    flat = _MD_SPECIAL.sub(lambda m: "\\" + m.group(0), text.replace("\r\n", " ").replace("\n", " ")
+                           .replace("\r", " "))
+    if not line_start:
+        return flat
+    marker = lambda m: m.group(0) + "\\" if m.group(0)[0].isdigit() else "\\" + m.group(0)   # 1\. and \-
+    return _MD_LINE_START.sub(marker, flat)
 
 
 def _escape(fmt: str):
@@ -337,7 +355,7 @@ def _render_md(head: list[str], body: list[list[str]], notes: list[str]) -> str:
     align = ["---" if i == 0 else "---:" for i in range(len(head))]
     lines = ["| " + " | ".join(map(_md_escape, r)) + " |" for r in [head, align, *body]]
     if notes:
-        lines += [""] + [f"- {n}" for n in notes]
+        lines += [""] + [f"- {_md_escape(n, line_start=True)}" for n in notes]
     return "\n".join(lines) + "\n"
 
 
