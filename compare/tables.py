@@ -320,7 +320,7 @@ def _tex_escape(text: str) -> str:
     return _TEX_SPECIAL.sub(lambda m: _TEX[m.group(0)], text)
 
 
-_MD_SPECIAL = re.compile(r"[\\`*_<>&~|]|\](?=[(:\[])")
+_MD_SPECIAL = re.compile(r"[\\`*<>&~|]|\](?=[(:\[])|(?<![^\W_])_|_(?![^\W_])")   # theta_deg: no emphasis
 _MD_LINE_START = re.compile(r"^([-+=#>]|\d+(?=[.)]))")
 
 
@@ -332,8 +332,8 @@ def _md_escape(text: str, line_start: bool = False) -> str:
 
     Examples
     --------
-    >>> print(_md_escape("a|b\nc <b>x_1</b> [l](u) &amp;"))
-    a\|b c \<b\>x\_1\</b\> [l\](u) \&amp;
+    >>> print(_md_escape("a|b\nc <b>x_1</b> [l](u) &amp; _e_"))
+    a\|b c \<b\>x_1\</b\> [l\](u) \&amp; \_e\_
     >>> print(_md_escape("- 1. f [Hz]", line_start=True), _md_escape("12) #2", line_start=True))
     \- 1. f [Hz] 12\) #2
     """
