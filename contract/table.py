@@ -141,12 +141,16 @@ class ModalTable:
             raise ContractError(f"{source}: row {row + 2}: mode = {df['mode'].iloc[row]:g} is not a whole "
                                 f"number from 1 to {MAX_MODE:g}")
         df["mode"] = df["mode"].astype(int)
-        if (df["freq_hz"] < 0).any():
-            raise ContractError(f"{source}: column 'freq_hz' has a negative frequency")
+        if (df["freq_hz"] <= 0).any():
+            row = int(np.flatnonzero((df["freq_hz"] <= 0).to_numpy())[0])
+            raise ContractError(f"{source}: row {row + 2}: freq_hz = {df['freq_hz'].iloc[row]:g} is not "
+                                "above 0 Hz (a rigid-body mode: leave it out)")
         dup = df.duplicated(["config", "mode"])
         if dup.any():
             r = df[dup].iloc[0]
             raise ContractError(f"{source}: config {r['config']!r} lists mode {int(r['mode'])} twice")
+        if MAP_COLUMN not in df.columns:   # a modal map follows each mode along the pose, across others
+            _rising_frequencies(df, source)
         numeric = ("damping_ratio", *STD_COLUMNS)
         for col in [c for c in df.columns if c in numeric or c.startswith(POSE_PREFIX)]:
             limit = MAX_POSE if col.startswith(POSE_PREFIX) else MAX_MAGNITUDE
@@ -157,10 +161,10 @@ class ModalTable:
             row = int(np.flatnonzero((df[col] < 0).to_numpy())[0])
             raise ContractError(f"{source}: row {row + 2}: {col} = {df[col].iloc[row]:g} is negative (a "
                                 "standard deviation)")
-        if "damping_ratio" in df.columns and (df["damping_ratio"] <= -1).any():
-            row = int(np.flatnonzero((df["damping_ratio"] <= -1).to_numpy())[0])
+        if "damping_ratio" in df.columns and (df["damping_ratio"] < 0).any():
+            row = int(np.flatnonzero((df["damping_ratio"] < 0).to_numpy())[0])
             raise ContractError(f"{source}: row {row + 2}: damping_ratio = {df['damping_ratio'].iloc[row]:g} "
-                                "is not above -1 (a fraction; negative: a growing mode)")
+                                "is negative (a growing mode: identify drops such poles as not structural)")
         if "damping_ratio" in df.columns and (df["damping_ratio"] >= 1).any():
             row = int(np.flatnonzero((df["damping_ratio"] >= 1).to_numpy())[0])
             value = df["damping_ratio"].iloc[row]
@@ -330,6 +334,21 @@ def _check_names(df: pd.DataFrame, source: str) -> None:
     if twice:   # pose.theta_deg and pose.Theta_deg were two variables of one pose
         raise ContractError(f"{source}: columns {twice[0]!r} and {twice[1]!r} differ only by case: one pose "
                             "variable given twice, or two that a reader cannot tell apart (rename one)")
+
+
+def _rising_frequencies(df: pd.DataFrame, source: str) -> None:
+    """Raise ContractError naming the first row whose mode has a lower ``freq_hz`` than the mode numbered
+    before it in its configuration (docs/formats.md: modes are numbered in order of rising frequency;
+    equal frequencies, a repeated mode, pass).  Rows are counted as in the CSV (header line 1)."""
+    order = np.lexsort((df["mode"].to_numpy(), pd.factorize(df["config"])[0]))
+    config, mode, freq = (df[c].to_numpy()[order] for c in ("config", "mode", "freq_hz"))
+    falls = (config[1:] == config[:-1]) & (freq[1:] < freq[:-1])
+    if falls.any():
+        k = int(np.argmax(falls))
+        row, before = order[k + 1] + 2, order[k] + 2
+        raise ContractError(f"{source}: row {row}: freq_hz = {freq[k + 1]:g} of mode {mode[k + 1]} is below "
+                            f"the {freq[k]:g} Hz of mode {mode[k]} (row {before}) in config {config[k]!r}: "
+                            "modes are numbered in order of rising frequency")
 
 
 def _one_pose_per_config(df: pd.DataFrame, source: str) -> None:

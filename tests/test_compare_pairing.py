@@ -39,14 +39,17 @@ def test_shuffled_measured_modes_with_a_spurious_mode_are_paired_by_mac():
     predicted = table({"theta0": {k + 1: (f_true[k], phi[:, k]) for k in range(5)}}, sensors, "fe")
 
     # measured: frequencies off by up to 25 % (so frequency order would pair wrongly), noisy shapes,
-    # mode numbers shuffled, plus a spurious mode whose shape is orthogonal to every true one
+    # numbered by rising measured frequency (docs/formats.md), so the 2nd and 3rd true modes swap numbers,
+    # plus a spurious mode between them whose shape is orthogonal to every true one
     f_meas = f_true * np.array([1.02, 1.25, 0.80, 1.05, 0.97])
     shapes_meas = phi * rng.choice([-1.0, 1.0], 5) + 0.03 * np.abs(phi).max() * rng.standard_normal(phi.shape)
     q, _ = np.linalg.qr(np.column_stack([phi, rng.standard_normal(8)]))
     spurious = q[:, -1]
-    order = rng.permutation(6)  # measured mode number of each of the 5 true modes and the spurious one
+    f_spurious = 0.5 * (f_true[1] + f_true[2])
+    order = np.argsort(np.argsort(np.append(f_meas, f_spurious)))  # measured mode number - 1 of each
+
     modes = {int(order[k]) + 1: (f_meas[k], shapes_meas[:, k]) for k in range(5)}
-    modes[int(order[5]) + 1] = (0.5 * (f_true[1] + f_true[2]), spurious)
+    modes[int(order[5]) + 1] = (f_spurious, spurious)
     measured = table({"theta0": modes}, sensors, "experiment")
 
     pairing = pair_modes(measured, predicted, "fe")
