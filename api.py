@@ -1333,7 +1333,8 @@ def write_comparison(comparison: Comparison, out: PathLike, fmt: str = "md", lay
 
 DIAGNOSIS_FILES = ("diagnosis.json", "diagnosis.html")   # what write_diagnosis writes into its folder
 # how each starts, and the mark near its end (the page's footer), when flexmodal wrote it
-DIAGNOSIS_MARKS = ((b'{\n  "baseline"', b""), (b"<!DOCTYPE html>", b"<p>Versions: flexmodal "))
+DIAGNOSIS_MARKS = ((b'{\n' + 2 * b' ' + b'"baseline"', b""),   # json.dumps(indent=2)'s first key
+                   (b"<!DOCTYPE html>", b"<p>Versions: flexmodal "))
 # the start of a diagnosis.html written before the footer (67daf75, 26 Nov): the report template's
 # "Generated ... by flexmodal" line under the title (since 7d23b90), or compare.diagnosis.render_html's page
 OLDER_DIAGNOSIS_PAGES = (
@@ -2010,6 +2011,7 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
         names, kinds = [c.name for c in run.channels], [c.kind for c in run.channels]
         where = f"{path.name}::{run_id}"
         modes = oma = None
+        stored = frf
         if frf is not None:
             try:
                 frf = si_frf(frf, run.channels, where)
@@ -2024,7 +2026,7 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
             else:
                 oma = output_only_results(samples, run.sample_rate_hz, names, kinds, fmin=oma_fmin,
                                           fmax=oma_fmax, where=where)
-        summaries.append(RunSummary(run, frf, modes, oma))
+        summaries.append(RunSummary(run, frf, modes, oma, frf_in_si=frf is not stored))
     named = _named(predictions)
     comparison = None
     if meas is not None and named:

@@ -27,14 +27,16 @@ LOW_COHERENCE = 0.8
 @dataclass(frozen=True, eq=False)
 class RunSummary:
     """A run for the report: ``run`` as read, its ``frf`` (None when not computed; in m/s^2 when its
-    outputs are stored in different units, :func:`flexmodal.modal.sources.si_frf`), the ``modes``
-    identified from those FRFs (``modal.identify.Modes``) or the reason there are none (a string), and
-    for an output-only run without FRFs its FDD and SSI results (``oma``, ``modal.oma.OmaResults``)."""
+    outputs are stored in different units, :func:`flexmodal.modal.sources.si_frf`, and then
+    ``frf_in_si``), the ``modes`` identified from those FRFs (``modal.identify.Modes``) or the reason
+    there are none (a string), and for an output-only run without FRFs its FDD and SSI results (``oma``,
+    ``modal.oma.OmaResults``)."""
 
     run: Run
     frf: FrfResult | None = None
     modes: Modes | str | None = None
     oma: OmaResults | None = None
+    frf_in_si: bool = False
 
     @property
     def label(self) -> str:
@@ -43,7 +45,6 @@ class RunSummary:
     @property
     def frf_unit(self) -> str:
         """Unit of the run's FRFs from its channels' units (outputs per input: ``g/N``, ``(m/s²)/N``)."""
-        from flexmodal.modal.sources import si_factors
         from flexmodal.reports.plots import frf_unit, ratio_unit
 
         if self.frf is None:
@@ -51,10 +52,8 @@ class RunSummary:
         units = {c.name: c.unit for c in self.run.channels}
         if not all(n in units for n in (*self.frf.outputs, *self.frf.inputs[:1])) or not self.frf.inputs:
             return frf_unit(self.frf.quantity)
-        outs = [units[n] for n in self.frf.outputs]
-        factors = si_factors(outs)   # outputs in different units: the caller brought them to m/s^2
-        si = factors is not None and not np.isnan(factors).any()
-        return ratio_unit(["m/s^2"] if si else outs, units[self.frf.inputs[0]])
+        outs = ["m/s^2"] if self.frf_in_si else [units[n] for n in self.frf.outputs]
+        return ratio_unit(outs, units[self.frf.inputs[0]])
 
     @property
     def n_samples(self) -> int:
