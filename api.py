@@ -1333,7 +1333,8 @@ def write_comparison(comparison: Comparison, out: PathLike, fmt: str = "md", lay
 
 DIAGNOSIS_FILES = ("diagnosis.json", "diagnosis.html")   # what write_diagnosis writes into its folder
 # how each starts, and the mark near its end (the page's footer), when flexmodal wrote it
-DIAGNOSIS_MARKS = ((b'{\n  "baseline"', b""), (b"<!DOCTYPE html>", b"<p>Versions: flexmodal "))
+DIAGNOSIS_MARKS = ((b'{\n' + 2 * b' ' + b'"baseline"', b""),   # json.dumps(indent=2)'s first key
+                   (b"<!DOCTYPE html>", b"<p>Versions: flexmodal "))
 # the start of a diagnosis.html written before the footer (67daf75, 26 Nov): the report template's
 # "Generated ... by flexmodal" line under the title (since 7d23b90), or compare.diagnosis.render_html's page
 OLDER_DIAGNOSIS_PAGES = (
@@ -1984,7 +1985,7 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
     from flexmodal.compare.tables import compare_tables, ordered_configs, table_name
     from flexmodal.modal.errors import ModalError
     from flexmodal.modal.oma import OmaResults, default_method, output_channels, output_only_results
-    from flexmodal.modal.sources import identify_frf, si_frf, si_samples
+    from flexmodal.modal.sources import given_unit, identify_frf, si_frf, si_samples
     from flexmodal.reports.html import write_report
     from flexmodal.reports.runs import RunSummary
     from flexmodal.reports.sections import Section, register_section, registered_sections
@@ -2010,6 +2011,7 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
         names, kinds = [c.name for c in run.channels], [c.kind for c in run.channels]
         where = f"{path.name}::{run_id}"
         modes = oma = None
+        stored = frf
         if frf is not None:
             try:
                 frf = si_frf(frf, run.channels, where)
@@ -2024,7 +2026,9 @@ def report(out: PathLike, *, runs: Sequence[PathLike | tuple[PathLike, str]] = (
             else:
                 oma = output_only_results(samples, run.sample_rate_hz, names, kinds, fmin=oma_fmin,
                                           fmax=oma_fmax, where=where)
-        summaries.append(RunSummary(run, frf, modes, oma))
+        units = None if frf is stored else tuple(given_unit([c.unit for c in run.channels if c.name in side])
+                                                 for side in (frf.outputs, frf.inputs))
+        summaries.append(RunSummary(run, frf, modes, oma, frf_units=units))
     named = _named(predictions)
     comparison = None
     if meas is not None and named:

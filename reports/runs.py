@@ -26,16 +26,17 @@ LOW_COHERENCE = 0.8
 
 @dataclass(frozen=True, eq=False)
 class RunSummary:
-    """A run for the report: ``run`` as read, its ``frf`` (None when not computed; in SI units when
-    its outputs or inputs are stored in different units, :func:`flexmodal.modal.sources.si_frf`), the
-    ``modes``
-    identified from those FRFs (``modal.identify.Modes``) or the reason there are none (a string), and
-    for an output-only run without FRFs its FDD and SSI results (``oma``, ``modal.oma.OmaResults``)."""
+    """A run for the report: ``run`` as read, its ``frf`` (None when not computed; in SI units when its
+    outputs or its inputs are stored in different units, :func:`flexmodal.modal.sources.si_frf`, and
+    then ``frf_units`` names them), the ``modes`` identified from those FRFs (``modal.identify.Modes``)
+    or the reason there are none (a string), and for an output-only run without FRFs its FDD and SSI
+    results (``oma``, ``modal.oma.OmaResults``)."""
 
     run: Run
     frf: FrfResult | None = None
     modes: Modes | str | None = None
     oma: OmaResults | None = None
+    frf_units: tuple[str, str] | None = None   # (outputs', inputs') unit after si_frf, when it rescaled
 
     @property
     def label(self) -> str:
@@ -44,17 +45,16 @@ class RunSummary:
     @property
     def frf_unit(self) -> str:
         """Unit of the run's FRFs from its channels' units (outputs per input: ``g/N``, ``(m/s²)/N``)."""
-        from flexmodal.modal.sources import given_unit
         from flexmodal.reports.plots import frf_unit, ratio_unit
 
         if self.frf is None:
             return ""
         units = {c.name: c.unit for c in self.run.channels}
-        if not all(n in units for n in (*self.frf.outputs, *self.frf.inputs)) or not self.frf.inputs:
+        if not all(n in units for n in (*self.frf.outputs, *self.frf.inputs[:1])) or not self.frf.inputs:
             return frf_unit(self.frf.quantity)
-        outs, ins = [units[n] for n in self.frf.outputs], [units[n] for n in self.frf.inputs]
-        out, into = given_unit(outs), given_unit(ins)   # different units: the caller brought them to SI
-        return ratio_unit(outs if out is None else [out], ins[0] if into is None else into)
+        if self.frf_units is not None:
+            return ratio_unit([self.frf_units[0]], self.frf_units[1])
+        return ratio_unit([units[n] for n in self.frf.outputs], units[self.frf.inputs[0]])
 
     @property
     def n_samples(self) -> int:
