@@ -161,10 +161,10 @@ class ModalTable:
             row = int(np.flatnonzero((df[col] < 0).to_numpy())[0])
             raise ContractError(f"{source}: row {row + 2}: {col} = {df[col].iloc[row]:g} is negative (a "
                                 "standard deviation)")
-        if "damping_ratio" in df.columns and (df["damping_ratio"] < 0).any():
-            row = int(np.flatnonzero((df["damping_ratio"] < 0).to_numpy())[0])
+        if "damping_ratio" in df.columns and (df["damping_ratio"] <= -1).any():
+            row = int(np.flatnonzero((df["damping_ratio"] <= -1).to_numpy())[0])
             raise ContractError(f"{source}: row {row + 2}: damping_ratio = {df['damping_ratio'].iloc[row]:g} "
-                                "is negative (a growing mode: identify drops such poles as not structural)")
+                                "is not above -1 (a fraction; negative: a growing mode)")
         if "damping_ratio" in df.columns and (df["damping_ratio"] >= 1).any():
             row = int(np.flatnonzero((df["damping_ratio"] >= 1).to_numpy())[0])
             value = df["damping_ratio"].iloc[row]
