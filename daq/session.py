@@ -182,14 +182,23 @@ class Table(Fields):
         if url and not _serial_url_scheme(scheme):
             raise DaqError(f"{self.where}: {key} {port!r}: pyserial knows no {scheme!r}:// URL (loop://, "
                            "socket://, rfc2217://, spy://, ... or a device path such as /dev/ttyUSB0)")
-        if not (url or port == SIMULATOR_PORT or Path(port).exists()):
+        if not (url or port == SIMULATOR_PORT or self._exists(port, key)):
             raise DaqError(f"{self.where}: {key} {port!r} does not exist")
         return port
+
+    def _exists(self, path: str, what: str) -> bool:
+        """Whether ``path`` exists; DaqError naming ``what`` when the system cannot even look (a name
+        too long for the file system: pathlib raises OSError there, not False)."""
+        try:
+            return Path(path).exists()
+        except OSError as exc:
+            raise DaqError(f"{self.where}: {what} {path[:60]!r}... cannot be looked up ({exc.strerror}, "
+                           f"{len(path)} characters)") from None
 
     def file(self, key: str, what: str) -> str:
         """A file path relative to ``base`` that must exist (absolute after this)."""
         path = _resolve(self.base, self.get(key, str))
-        if not Path(path).exists():
+        if not self._exists(path, what):
             raise DaqError(f"{self.where}: {what} {path!r} does not exist")
         regular_file(path, lambda text: DaqError(f"{self.where}: {text}"), what)  # a FIFO would block
         return path
