@@ -80,7 +80,8 @@ class Pairing:
 def common_sensors(measured: ModalTable, predicted: ModalTable, config: str,
                    pred_config: str | None = None) -> list[str]:
     """Sensors where both tables give a finite shape for every mode of ``config`` (``pred_config``)."""
-    both = [s for s in measured.sensors if s in set(predicted.sensors)]
+    predicted_sensors = set(predicted.sensors)
+    both = [s for s in measured.sensors if s in predicted_sensors]
     if not both:
         return []
     a = np.isfinite(measured.shapes(config, both)).all(axis=1)

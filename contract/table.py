@@ -101,6 +101,36 @@ def _numbers(column: pd.Series, name: str, source: str, limit: float = MAX_MAGNI
     return values
 
 
+def _shape_values(col: str, cells: np.ndarray, source: str) -> np.ndarray:
+    """The values of shape column ``col`` (its cells: numbers, or text such as ``0.1+0.2j``) as floats,
+    or complex numbers when one has an imaginary part; NaN where empty, subnormal parts 0.  Text that is
+    no number, an infinite value, a complex number with one NaN part and a magnitude above
+    :data:`MAX_MAGNITUDE` raise ContractError naming the row (header = row 1)."""
+    try:
+        values = (cells.astype(complex) if cells.dtype.kind in "fiuc"   # numbers: at once
+                  else np.array([_parse_complex(v) for v in cells], dtype=complex))
+    except (TypeError, ValueError):
+        raise ContractError(f"{source}: column {col!r} holds a value that is not a number") from None
+    if np.isinf(values).any():
+        row = int(np.flatnonzero(np.isinf(values))[0])
+        raise ContractError(f"{source}: row {row + 2}: column {col!r} holds an infinite value")
+    written = np.array([isinstance(v, str) for v in cells], bool) if cells.dtype == object \
+        else np.zeros(cells.size, bool)   # an empty cell is NaN
+    half = written & (np.isnan(values.real) != np.isnan(values.imag))   # 'nan+1j': neither
+    if half.any():
+        row = int(np.flatnonzero(half)[0])
+        raise ContractError(f"{source}: row {row + 2}: column {col!r} holds {cells[row]!r}, a "
+                            "complex number with one part NaN (leave the cell empty for no value)")
+    if (np.abs(values) > MAX_MAGNITUDE).any():
+        row = int(np.flatnonzero(np.abs(values) > MAX_MAGNITUDE)[0])
+        shown = values[row].real if values[row].imag == 0 else values[row]
+        raise ContractError(f"{source}: row {row + 2}: column {col!r} holds {shown:g}, above "
+                            f"{MAX_MAGNITUDE:g} in magnitude")
+    values = np.where(np.abs(values.real) < TINIEST, 0.0, values.real) + 1j * np.where(
+        np.abs(values.imag) < TINIEST, 0.0, values.imag)   # subnormal parts are 0
+    return values.real if np.all(values.imag == 0) else values
+
+
 @dataclass(frozen=True)
 class ModalTable:
     """A validated modal table; ``frame`` is sorted by config then mode and must not be mutated."""
@@ -170,29 +200,11 @@ class ModalTable:
             value = df["damping_ratio"].iloc[row]
             raise ContractError(f"{source}: row {row + 2}: damping_ratio = {value:g} is not below 1 (a "
                                 f"fraction: {value:g} % is {value / 100:g})")
-        for col in [c for c in df.columns if c.startswith(SHAPE_PREFIX)]:
-            try:
-                values = (df[col].to_numpy(complex) if df[col].dtype.kind in "fiuc"   # numbers: at once
-                          else np.array([_parse_complex(v) for v in df[col]], dtype=complex))
-            except ValueError:
-                raise ContractError(f"{source}: column {col!r} holds a value that is not a number") from None
-            if np.isinf(values).any():
-                row = int(np.flatnonzero(np.isinf(values))[0])
-                raise ContractError(f"{source}: row {row + 2}: column {col!r} holds an infinite value")
-            written = df[col].map(lambda v: isinstance(v, str)).to_numpy(bool)   # an empty cell is NaN
-            half = written & (np.isnan(values.real) != np.isnan(values.imag))   # 'nan+1j': neither
-            if half.any():
-                row = int(np.flatnonzero(half)[0])
-                raise ContractError(f"{source}: row {row + 2}: column {col!r} holds {df[col].iloc[row]!r}, a "
-                                    "complex number with one part NaN (leave the cell empty for no value)")
-            if (np.abs(values) > MAX_MAGNITUDE).any():
-                row = int(np.flatnonzero(np.abs(values) > MAX_MAGNITUDE)[0])
-                shown = values[row].real if values[row].imag == 0 else values[row]
-                raise ContractError(f"{source}: row {row + 2}: column {col!r} holds {shown:g}, above "
-                                    f"{MAX_MAGNITUDE:g} in magnitude")
-            values = np.where(np.abs(values.real) < TINIEST, 0.0, values.real) + 1j * np.where(
-                np.abs(values.imag) < TINIEST, 0.0, values.imag)   # subnormal parts are 0
-            df[col] = values.real if np.all(values.imag == 0) else values
+        columns = [c for c in df.columns if c.startswith(SHAPE_PREFIX)]
+        if columns:   # taken out and put back at once: pandas copies its block at every column set
+            shapes = {col: _shape_values(col, df[col].to_numpy(), source) for col in columns}
+            df = pd.concat([df.drop(columns=columns), pd.DataFrame(shapes, index=df.index)],
+                           axis=1)[list(df.columns)]
         rank = {c: k for k, c in enumerate(natural_order(df["config"]))}   # theta30 before theta120
         df = df.sort_values(["config", "mode"], kind="stable", key=lambda col: col.map(rank)
                             if col.name == "config" else col).reset_index(drop=True)
@@ -240,17 +252,23 @@ class ModalTable:
         """Configuration ids in order of first appearance."""
         return list(self._rows_of)
 
+    @cached_property
+    def _prefixed(self) -> dict[str, tuple[str, ...]]:
+        """The pose and the shape columns (by prefix), in table order: found once, not at every call."""
+        columns = self.frame.columns
+        return {p: tuple(c for c in columns if c.startswith(p)) for p in (POSE_PREFIX, SHAPE_PREFIX)}
+
     @property
     def pose_columns(self) -> list[str]:
-        return [c for c in self.frame.columns if c.startswith(POSE_PREFIX)]
+        return list(self._prefixed[POSE_PREFIX])
 
     @property
     def shape_columns(self) -> list[str]:
-        return [c for c in self.frame.columns if c.startswith(SHAPE_PREFIX)]
+        return list(self._prefixed[SHAPE_PREFIX])
 
     @property
     def sensors(self) -> list[str]:
-        return [c[len(SHAPE_PREFIX):] for c in self.shape_columns]
+        return [c[len(SHAPE_PREFIX):] for c in self._prefixed[SHAPE_PREFIX]]
 
     def has_config(self, config: str) -> bool:
         return config in self._rows_of

@@ -8,6 +8,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from flexmodal.checked_io.data_range import MAX_DATA, range_fault
 from flexmodal.checked_io.text import naming
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import FrfResult, coherence, estimate, estimator_name
@@ -30,12 +31,18 @@ def welch_window(spec: str, excitation: str, where: str) -> None:
 
 def check_samples(samples: np.ndarray, names: Sequence[str], where: str, allow_nan: bool = False) -> None:
     """Raise ModalError naming the first channel with NaN/inf samples (only inf with ``allow_nan``:
-    NaN rows of lost frames that the caller handles) or a constant value."""
+    NaN rows of lost frames that the caller handles), values out of the range of
+    checked_io.data_range, or a constant value."""
     _check_shape(samples, names, where)
     bad = np.isinf(samples) if allow_nan else ~np.isfinite(samples)
     if bad.any():
         i, c = np.argwhere(bad)[0]
         raise ModalError(f"{where}: channel {names[c]!r} holds {samples[i, c]} at sample {i}")
+    for c, name in enumerate(names):   # a loop over channels
+        fault = range_fault(np.nan_to_num(samples[:, c], nan=0.0))
+        if fault:
+            at, words = fault
+            raise ModalError(f"{where}: channel {name!r}{f' at sample {at[0]}' if at else ''} {words}")
     with np.errstate(invalid="ignore"):
         flat = np.nanmax(samples, axis=0) == np.nanmin(samples, axis=0)
     if flat.any():
@@ -58,11 +65,13 @@ def min_segments(n_segments: int) -> int:
 
 
 def _first_nonfinite(samples, chans: Sequence[int]) -> tuple[int, int, float] | None:
-    """(sample, channel, value) of the first NaN/inf among channels ``chans``, read block by block."""
+    """(sample, channel, value) of the first NaN/inf, or value above checked_io.data_range.MAX_DATA in
+    magnitude, among channels ``chans``, read block by block."""
     step = 1 << 16
     for r in range(0, samples.shape[0], step):
         block = np.asarray(samples[r:r + step])[:, chans]
-        bad = np.argwhere(~np.isfinite(block))
+        with np.errstate(invalid="ignore"):
+            bad = np.argwhere(~(np.abs(block, dtype=float) <= MAX_DATA))   # float32: 1e100 is no float32
         if bad.size:
             i, c = bad[0]
             return r + int(i), int(chans[c]), float(block[i, c])
@@ -78,7 +87,8 @@ def _check_welch(spectra: Spectra, samples, names: Sequence[str], chans: Sequenc
     need = min_segments(n_seg)
     if spectra.n_averages < need:
         bad = _first_nonfinite(samples, chans)
-        cause = [f"channel {names[bad[1]]!r} holds {bad[2]} at sample {bad[0]}"] if bad else []
+        beyond = f", above {MAX_DATA:g} in magnitude" if bad and np.isfinite(bad[2]) else ""
+        cause = [f"channel {names[bad[1]]!r} holds {bad[2]:g} at sample {bad[0]}{beyond}"] if bad else []
         cause += [f"{n_skip_events} gap/corrupt events"] if n_skip_events else []
         raise ModalError(f"{where}: only {spectra.n_averages} of {n_seg} segments usable, {need} needed "
                          f"({'; '.join(cause) or 'no cause found'})")
@@ -88,7 +98,12 @@ def _check_welch(spectra: Spectra, samples, names: Sequence[str], chans: Sequenc
     flat = np.sqrt(power) <= tol * np.abs(spectra.mean)
     if flat.any():
         k = int(np.argmax(flat))
-        raise ModalError(f"{where}: channel {names[chans[k]]!r} is constant ({spectra.mean[k]:g} throughout)")
+        step = 1 << 16   # a channel of values below MIN_PEAK looks constant: its squares underflow to 0
+        peak = max(float(np.max(np.abs(np.asarray(samples[r:r + step])[:, chans[k]])))
+                   for r in range(0, samples.shape[0], step))
+        fault = range_fault(np.array([peak]))
+        raise ModalError(f"{where}: channel {names[chans[k]]!r} " + (fault[1] if fault else
+                         f"is constant ({spectra.mean[k]:g} throughout)"))
 
 
 def _sweeps_of(samples, inputs: Sequence[int]) -> np.ndarray | None:

@@ -17,6 +17,7 @@ import pandas as pd
 from scipy.ndimage import uniform_filter1d
 
 from flexmodal.checked_io.blas import one_blas_thread
+from flexmodal.checked_io.data_range import range_fault
 from flexmodal.checked_io.output import atomic_path
 from flexmodal.checked_io.plural import counted
 from flexmodal.contract.mac import mac, mass_normalised, to_real, unit_max
@@ -921,6 +922,9 @@ def identify(freq_hz: np.ndarray, H: np.ndarray, *, method: str = "lscf", fmin: 
         raise ModalError(f"identify: FRFs of shape {H.shape} do not match {len(freq_hz)} lines")
     if not np.all(np.isfinite(H[..., np.asarray(freq_hz) > 0])):
         raise ModalError("identify: the FRFs contain NaN or infinite values")
+    fault = range_fault(H[..., np.asarray(freq_hz) > 0])
+    if fault:
+        raise ModalError(f"identify: H{list(fault[0]) or ''} {fault[1]}")   # H[output, input, line]
     if decay_rate_per_s < 0 or not np.isfinite(decay_rate_per_s):
         raise ModalError(f"identify: exponential window decay {decay_rate_per_s:g} 1/s must be >= 0")
     band = _band(freq_hz, fmin, fmax)

@@ -17,6 +17,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from flexmodal.checked_io.data_range import range_fault
 from flexmodal.checked_io.output import signals_deferred
 from flexmodal.checked_io.text import loads_json, nfc, one_line, shown_value
 from flexmodal.daq.run_schema import MAX_EVENT_SAMPLES
@@ -186,7 +187,7 @@ def _check_rate(run: h5py.Group, rate_hz: float, freq_hz: np.ndarray, where: str
 
 def _checked_arrays(data: dict[str, h5py.Dataset], where: str) -> tuple[np.ndarray, ...]:
     """freq_hz [n] finite and increasing, H [n_out, n_in, n] and coherence [n_out, n], all numeric (an
-    HDF5 enum is not: daq.run_schema.numeric_dtype)."""
+    HDF5 enum is not: daq.run_schema.numeric_dtype), H within the range of checked_io.data_range."""
     from flexmodal.daq.run_schema import dtype_words, numeric_dtype
 
     shapes = {k: d.shape for k, d in data.items()}
@@ -208,6 +209,11 @@ def _checked_arrays(data: dict[str, h5py.Dataset], where: str) -> tuple[np.ndarr
         raise ModalError(f"{where}: cannot read ({one_line(exc)})") from None
     check_freq_axis(freq_hz, where, "'freq_hz'")
     check_coherence(coherence, where)
+    fault = range_fault(np.where(np.isfinite(H), H, 0))   # NaN, inf: identify names them
+    if fault:
+        at, words = fault
+        place = f" [{at[0]}, {at[1]}] at {freq_hz[at[2]]:g} Hz" if at else ""
+        raise ModalError(f"{where}: 'H'{place} {words}")
     return freq_hz, H, coherence
 
 

@@ -38,6 +38,7 @@ from flexmodal.modal.windows import window
 _BLOCK_BYTES = 4 << 20      # windowed segments per block (with its spectra, stays in the L3 cache)
 _READ_BYTES = 16 << 20      # samples read per block from a dataset on disk (rounded to whole chunks)
 DEFAULT_NFFT_MAX = 8192
+MAX_SEGMENT_ENERGY = 1e280  # a segment's sum of |X|^2 above this: its spectral products overflow
 MIN_STEP_FRACTION = 1 / 64  # Welch segments closer than nfft/64 (overlap > 98.4 %) add no new data, only work
 
 
@@ -233,8 +234,9 @@ class _Plan:
         transpose; the offset kept out of single-precision transforms), their sums (the means, and
         the check for non-finite samples), the window, one real FFT along the sample axis, each
         segment's mean times the window's spectrum taken out of the transform (the FFT is linear:
-        the same as removing it before windowing), segments holding a non-finite sample or marked
-        skipped zeroed and not counted."""
+        the same as removing it before windowing), segments holding a non-finite sample, whose
+        spectral energy in a used channel exceeds :data:`MAX_SEGMENT_ENERGY` (their products would
+        overflow: values near 1e300) or marked skipped zeroed and not counted."""
         n_cols = rows.shape[1]
         isz = rows.itemsize
         seg = work.seg[:b]
@@ -250,7 +252,11 @@ class _Plan:
             spec = scipy.fft.rfft(seg.reshape(b, self.nfft, n_cols)[:, :, self.cols], axis=1,
                                   workers=self.fft_workers)                         # [b, f, cols]
         means = means[:, self.cols]
-        bad = self.skipped[first:first + b] | ~np.isfinite(means[:, self.used]).all(axis=1)
+        parts = spec.view(spec.real.dtype)                          # [b, f, re/im of each column]
+        squares = np.einsum("sfk,sfk->sk", parts, parts, dtype=float)   # inf, not a warning, on overflow
+        energy = (squares[:, 0::2] + squares[:, 1::2])[:, self.used].max(axis=1)
+        bad = self.skipped[first:first + b] | ~np.isfinite(means[:, self.used]).all(axis=1) \
+            | ~(energy <= MAX_SEGMENT_ENERGY)   # NaN/inf, or values whose products overflow
         if bad.any():
             means[bad] = 0
             spec[bad] = 0
@@ -345,7 +351,8 @@ def welch_spectra(samples, sample_rate_hz: float, inputs: Sequence[int],
     mean (``detrend``) and is multiplied by its window (``input_window_spec`` on the inputs if given);
     a window is a spec string (:mod:`modal.windows`) or an array of ``nfft`` samples.  A column may be
     both an input and an output (FDD's references).  Segments holding a NaN/inf sample in any used
-    channel, or touching one of the ``skip`` sample intervals (first sample, count), are left out of
+    channel (or values whose spectral products overflow, :data:`MAX_SEGMENT_ENERGY`), or touching one
+    of the ``skip`` sample intervals (first sample, count), are left out of
     the average (``n_skipped``); fewer than ``min_segments`` left is an error.  Segments are processed
     in blocks at fixed segment indices, shared out to ``workers`` threads (as in scipy.fft: None one,
     -1 every CPU); the block sums are added in segment order, so the result is the same for any thread

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from flexmodal.checked_io.data_range import range_fault
 from flexmodal.modal.errors import ModalError
 from flexmodal.modal.frf import check_freq_axis
 
@@ -52,7 +53,7 @@ AXIS_WORDS = {17: "time", 18: "frequency"}   # UFF specific data types of an abs
 
 def check_functions(path: str | Path, funcs: Sequence[dict]) -> None:
     """Raise ModalError unless every dataset-58 record has its fields, ``num_pts`` values on a finite,
-    increasing abscissa, and finite data."""
+    increasing abscissa, and finite data within the range of checked_io.data_range."""
     for k, s in enumerate(funcs, start=1):
         where = f"{path}: dataset 58 record {k}"
         for key in REQUIRED:
@@ -70,6 +71,11 @@ def check_functions(path: str | Path, funcs: Sequence[dict]) -> None:
             raise ModalError(f"{where}: needs at least 2 points (num_pts = {n})")
         if not (np.isfinite(x).all() and np.isfinite(data).all()):
             raise ModalError(f"{where}: abscissa or data hold NaN or infinite values")
+        fault = range_fault(data)
+        if fault:
+            at, words = fault
+            raise ModalError(f"{where}: data {words}" if not at else f"{where}: data point {at[0] + 1} "
+                             f"(at {x[at[0]]:g} on the abscissa) {words}")
         if not (np.diff(x) > 0).all():
             raise ModalError(f"{where}: the abscissa does not increase")
         axis = int(s.get("abscissa_spec_data_type", 0) or 0)

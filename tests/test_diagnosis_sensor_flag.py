@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import json
+import re
 from dataclasses import replace
 from pathlib import Path
 
@@ -132,3 +133,43 @@ def test_a_moved_sensor_flags_a_verdict_whose_model_misses_a_mode():
     d = diagnose(parse_rig(doc["rig"], "<draw 1159 case 10>"), ModalTable.read_csv(MOVED.with_suffix(".csv")))
     assert d.verdict.flags and "at sensor a1 " in d.verdict.flags[0], d.verdict.summary
     assert not d.verdict.explained
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("k", range(5))   # one draw each: ~4 min at load 5 (36 cases diagnosed)
+def test_the_mode_ratios_the_docs_quote(k):
+    """docs/diagnosis.md's block ``sensor_modes`` (the ratios of the mode-by-mode test on the draws it
+    was developed on, that ``SENSOR_MODE_FACTOR`` cites): draw ``k``'s line is what
+    benchmarks/sensor_mode_ratios.py computes now."""
+    import importlib.util
+
+    from conftest import REPO
+
+    spec = importlib.util.spec_from_file_location("sensor_mode_ratios",
+                                                  REPO / "benchmarks" / "sensor_mode_ratios.py")
+    ratios = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(ratios)
+    from diagnosis_doc import doc_block  # benchmarks/, on the path the script sets
+
+    seed = ratios.SEEDS[k]
+    quoted = doc_block("sensor_modes").splitlines()
+    assert len(quoted) == len(ratios.SEEDS) + 2                      # the fences and one line a draw
+    assert ratios.draw_line(seed, ratios.draw_ratios(seed)) == quoted[k + 1]
+
+
+def test_the_words_about_the_mode_ratios_are_what_their_block_says():
+    """What docs/diagnosis.md and compare/sensor_flag.py say of the block ``sensor_modes`` (re-run by the
+    slow test above): blind 1159 #10 at pooled ratio 8 and 153x in mode 1, flagged by the mode-by-mode
+    test alone; no ``none`` or in-library case of 1156-1160 flagged."""
+    from conftest import REPO
+
+    doc = (REPO / "docs" / "diagnosis.md").read_text()
+    lines = doc.partition("<!-- sensor_modes:begin -->\n```\n")[2].partition("\n```")[0].splitlines()
+    assert [x.split(":")[0] for x in lines] == [f"draw {s}" for s in range(1156, 1161)]
+    assert all(re.search(r"none or in-library: 0 of \d+ flagged;", x) for x in lines)
+    assert "moved sensor #10 153 in mode 1 (pooled 8.1), flagged in mode 1," in lines[3]
+    words = " ".join(doc.split())
+    assert "a moved sensor at pooled ratio 8)" in words and "misfit in mode 1 is 153×" in words
+    assert "no `none` or in-library verdict of 1156–1160 is flagged (block `sensor_modes`" in words
+    module = " ".join((REPO / "compare" / "sensor_flag.py").read_text().split())
+    assert "pooled ratio 8, at 153x the noise of mode 1" in module
