@@ -7,14 +7,12 @@ from __future__ import annotations
 
 import importlib.util
 import json
-import os
 import re
-import subprocess
 import sys
 from pathlib import Path
 
 import pytest
-from test_outputs_reference import NO_KERNEL_CHOICE
+from docs_kernel import run_under_docs_kernel
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -31,34 +29,13 @@ def _in_docs(rows):
     return [r for r in rows if r not in docs]
 
 
-# The figures of docs/oma.md are OpenBLAS's Haswell kernel on one thread (``KERNEL``): a share or an
-# error at its rounding edge moves with the kernel (under SkylakeX, AVX-512, the two-joint path's mode 4
-# is within 1 % in 91 % of the windows and its map damping's median error is 6 %, against Haswell's 92 %
-# and 7 %; the crossing's mode 6 has a largest error of 0.6 % against 0.8 %), so each part runs in a
-# process with that kernel forced, on every x86-64 machine alike.
-KERNEL = {"OPENBLAS_CORETYPE": "Haswell", "OPENBLAS_NUM_THREADS": "1"}
-
 _PART = """
 import importlib.util, json, sys
-from threadpoolctl import threadpool_info
 spec = importlib.util.spec_from_file_location("track_bench", sys.argv[1])
 module = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(module)
-rows = getattr(module, sys.argv[2])()
-print(json.dumps({"kernels": sorted({i.get("architecture") or "" for i in threadpool_info()
-                                     if i["internal_api"] == "openblas"}), "rows": rows}))
+print(json.dumps(getattr(module, sys.argv[2])()))
 """
-
-
-def _rows_under_the_docs_kernel(part: str) -> list[str]:
-    """The rows of one part of benchmarks/track.py, computed in a process under ``KERNEL``."""
-    assert not NO_KERNEL_CHOICE, f"docs/oma.md's figures need OpenBLAS's Haswell kernel: {NO_KERNEL_CHOICE}"
-    out = subprocess.run([sys.executable, "-c", _PART, str(REPO / "benchmarks" / "track.py"), part],
-                         env={**os.environ, **KERNEL}, capture_output=True, text=True, check=True,
-                         timeout=3000).stdout
-    result = json.loads(out.splitlines()[-1])
-    assert result["kernels"] == ["Haswell"], f"OpenBLAS ran {result['kernels']}: OPENBLAS_CORETYPE ignored"
-    return result["rows"]
 
 
 # One slow test per table of docs/oma.md: each re-runs one part of the benchmark, 30-70 s of CPU
@@ -70,7 +47,9 @@ def _rows_under_the_docs_kernel(part: str) -> list[str]:
 @pytest.mark.parametrize("part", ["accuracy_rows", "two_joint_rows", "veering_rows", "crossing_rows",
                                   "diagnosis_rows"])
 def test_every_tracking_figure_of_docs_oma_is_reproduced(part):
-    missing = _in_docs(_rows_under_the_docs_kernel(part))
+    out = run_under_docs_kernel([sys.executable, "-c", _PART, str(REPO / "benchmarks" / "track.py"), part],
+                                timeout_s=3000)
+    missing = _in_docs(json.loads(out.splitlines()[-1]))
     assert not missing, missing
 
 
