@@ -17,7 +17,8 @@
 
 Prints markdown table rows; tests/test_track_docs.py checks that every row of parts 1-2 stands in
 docs/oma.md (one slow test per table: about 30-70 s of CPU each, so tens of minutes at a load of 10+).
-Usage: ``python benchmarks/track.py [--speed [MINUTES]]``.
+Usage: ``OPENBLAS_CORETYPE=Haswell OPENBLAS_NUM_THREADS=1 python benchmarks/track.py [--speed [MINUTES]]``
+(docs/oma.md's kernel: under another kernel a figure at its rounding edge may move).
 """
 
 from __future__ import annotations

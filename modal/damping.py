@@ -53,6 +53,9 @@ def half_power(freq_hz: np.ndarray, receptance_mag: np.ndarray, peak_index: int)
     while 1 <= k - 1 and k + 1 < m.size - 1 and max(m[k - 1], m[k + 1]) > m[k]:   # climb to the top
         k += 1 if m[k + 1] > m[k - 1] else -1
     y0, y1, y2 = m[k - 1], m[k], m[k + 1]
+    if y1 < max(y0, y2):   # still climbing at the band's edge: the parabola's top lay lines away (< 0 Hz)
+        raise ModalError(f"half-power at {f[k]:.4g} Hz: the peak lies at the band edge (no -3 dB point on "
+                         f"its {'lower' if y0 > y1 else 'upper'} side)")
     den = y0 - 2 * y1 + y2
     shift = 0.5 * (y0 - y2) / den if den < 0 else 0.0
     df = f[1] - f[0]

@@ -9,11 +9,14 @@ by load case id, record number or order) are assembled into hits of equal length
 named ``<node><sign><axis>`` (e.g. ``3+z``) from
 the node and direction codes; sensors sharing a node and direction (direction code 0: skewed or
 tri-axial sensors) are told apart by their ID line, else by their order within a load case
-(``5:0#1``, ``5:0#2``).  Write: FRFs as dataset 58 type 4, modes as dataset 55 (real, three
-components per node, the shape value in the channel's direction)."""
+(``5:0#1``, ``5:0#2``).  Records of one quantity whose unit labels differ (g beside m/s^2, kN
+beside N) are brought to the SI unit of that quantity, as a run's channels are (docs/formats.md).  Write: FRFs
+as dataset 58 type 4, modes as dataset 55 (real, three components per node, the shape value in the
+channel's direction)."""
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -152,9 +155,15 @@ def _frfs(p: Path, funcs: list[dict]) -> UffFrfs:
         i = channel_name(s["ref_node"], s["ref_dir"])
         outs += [o] if o not in outs else []
         ins += [i] if i not in ins else []
+    units = [_ordinate_units(s) for s in funcs]
+    scale = _family_factors([u for u, _ in units])
+    per_force = _family_factors([u for _, u in units])
+    if per_force is not None:
+        scale = (1.0 if scale is None else scale) / per_force
     H = np.full((len(outs), len(ins), x.size), np.nan, complex)
-    for o, s in zip(names, funcs, strict=True):   # a loop over FRFs
-        H[outs.index(o), ins.index(channel_name(s["ref_node"], s["ref_dir"]))] = np.asarray(s["data"])
+    for k, (o, s) in enumerate(zip(names, funcs, strict=True)):   # a loop over FRFs
+        H[outs.index(o), ins.index(channel_name(s["ref_node"], s["ref_dir"]))] = \
+            np.asarray(s["data"]) * (1.0 if scale is None else scale[k])
     if np.isnan(H).any():
         j, i = np.argwhere(np.isnan(H[..., 0]))[0]
         raise ModalError(f"{p}: the FRF matrix is incomplete: no FRF for response {outs[j]} and reference "
@@ -163,6 +172,47 @@ def _frfs(p: Path, funcs: list[dict]) -> UffFrfs:
     found = {float(m.group(1)) for s in funcs for k in ("id2", "id3", "id4", "id5")
              if (m := _DECAY.search(str(s.get(k) or "")))}
     return UffFrfs(x, H, tuple(outs), tuple(ins), quantity, found.pop() if len(found) == 1 else 0.0)
+
+
+_TYPE_UNITS = {8: "m", 11: "m/s", 12: "m/s^2", 13: "N"}   # SI unit of a UFF specific data type
+
+
+def _label(record: dict, field: str) -> str | None:
+    """A unit label of a record, None when it gives none (empty or pyuff's 'NONE')."""
+    text = str(record.get(field) or "").strip()
+    return None if text.upper() in ("", "NONE") else text
+
+
+def _ordinate_units(record: dict) -> tuple[str, str]:
+    """(numerator, denominator) unit of a dataset-58 record: its axis unit labels (a ratio label such as
+    ``g/N`` or ``(m/s^2)/N`` split), else the SI unit of its data types (UFF data are SI unless a
+    dataset 164 says otherwise, which :func:`_check_units` refuses): m/s^2 over N for an FRF."""
+    from flexmodal.modal.sources import quantity_of
+
+    num, den = _label(record, "ordinate_axis_units_lab"), _label(record, "orddenom_axis_units_lab")
+    if num and den is None and "/" in num:
+        head, _, tail = num.rpartition("/")
+        if quantity_of(tail.strip()) == "force":
+            num, den = head.strip().removeprefix("(").removesuffix(")").strip(), tail.strip()
+    code = int(record.get("ordinate_spec_data_type", 12) or 12)
+    return num or _TYPE_UNITS.get(code, "m/s^2"), den or "N"
+
+
+def _family_factors(units: Sequence[str]) -> np.ndarray | None:
+    """Factors [n] bringing records given in ``units`` to the SI unit of their quantity where the records
+    of one quantity differ in unit (g beside m/s^2, kN beside N: modal.sources.si_factors, as for a
+    run's channels); None when no quantity's records differ.  Records of different quantities (laser
+    velocities beside reference accelerations in an output-only record, a real case) or of a unit with
+    no known factor are kept as given."""
+    from flexmodal.modal.sources import quantity_of, si_factors
+
+    quantities = [quantity_of(u) for u in units]
+    factors = np.ones(len(units))
+    for quantity in set(quantities) - {None}:
+        members = [k for k, q in enumerate(quantities) if q == quantity]
+        scale = si_factors([units[k] for k in members])
+        factors[members] = 1.0 if scale is None else scale
+    return None if np.all(factors == 1.0) else factors
 
 
 def _check_units(p: Path, units: list[dict]) -> None:
@@ -286,13 +336,16 @@ def _record(p: Path, funcs: list[dict]) -> UffRecord:
     if len(set(counts.values())) != 1:
         raise ModalError(f"{p}: channels hold different numbers of records ("
                          + ", ".join(f"{n}: {c}" for n, c in counts.items()) + ")")
+    scale = _family_factors([_ordinate_units(recs[0])[0] for recs in channels.values()])
+    factors = np.ones(len(names)) if scale is None else scale
     if counts[names[0]] == 1:
         lengths = {len(r[0]["data"]) for r in channels.values()}
         if len(lengths) != 1:
             raise ModalError(f"{p}: time histories have different lengths {sorted(lengths)}")
         samples = np.column_stack([np.asarray(r[0]["data"], float) for r in channels.values()])
-        return UffRecord(samples, 1.0 / dts[0], names, kinds)
-    return _hits(p, channels, names, kinds, 1.0 / dts[0])
+        return UffRecord(samples * factors, 1.0 / dts[0], names, kinds)
+    hits = _hits(p, channels, names, kinds, 1.0 / dts[0])
+    return hits if np.all(factors == 1.0) else dataclasses.replace(hits, samples=hits.samples * factors)
 
 
 def _hits(p: Path, channels: dict[str, list[dict]], names: tuple[str, ...], kinds: tuple[str, ...],

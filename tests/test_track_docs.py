@@ -6,10 +6,13 @@ suite."""
 from __future__ import annotations
 
 import importlib.util
+import json
 import re
+import sys
 from pathlib import Path
 
 import pytest
+from docs_kernel import run_under_docs_kernel
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -26,6 +29,15 @@ def _in_docs(rows):
     return [r for r in rows if r not in docs]
 
 
+_PART = """
+import importlib.util, json, sys
+spec = importlib.util.spec_from_file_location("track_bench", sys.argv[1])
+module = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(module)
+print(json.dumps(getattr(module, sys.argv[2])()))
+"""
+
+
 # One slow test per table of docs/oma.md: each re-runs one part of the benchmark, 30-70 s of CPU
 # (a sweep simulated, tracked in ~300 windows with two refinement passes, the truth model solved along
 # it; the diagnosis part also a frozen-pose campaign and two diagnoses), so a few minutes each at a
@@ -35,7 +47,9 @@ def _in_docs(rows):
 @pytest.mark.parametrize("part", ["accuracy_rows", "two_joint_rows", "veering_rows", "crossing_rows",
                                   "diagnosis_rows"])
 def test_every_tracking_figure_of_docs_oma_is_reproduced(part):
-    missing = _in_docs(getattr(_benchmark(), part)())
+    out = run_under_docs_kernel([sys.executable, "-c", _PART, str(REPO / "benchmarks" / "track.py"), part],
+                                timeout_s=3000)
+    missing = _in_docs(json.loads(out.splitlines()[-1]))
     assert not missing, missing
 
 
