@@ -135,15 +135,22 @@ def test_docs_quote_the_monte_carlo_coverage_the_script_measures():
     interval covers less than 92 % (the target's floor; where they cover more than 98 %
     docs/diagnosis.md says so), no SSI damping interval less than 90 % (one covers 91.9 %, 137 of
     149, within a binomial standard error of 92 %; docs/diagnosis.md says so); no FDD frequency interval
-    less than 92 %, no FDD damping interval less than 90 % (two cover 91.5 and 91.9 %)."""
+    less than 92 %, no FDD damping interval less than 90 % (two cover 91.5 and 91.9 %).  The block is
+    measured under the docs' BLAS kernel (tests/docs_kernel.py): under an AVX-512 host's own kernel
+    (SkylakeX) shares at a rounding edge move (27 Nov: the first EMA setting's frequency 94.2 % -> 94.5 %,
+    its unrefined 50 % -> 51.5 %), under Haswell the block is reproduced."""
     import importlib.util
+    import sys
 
     from conftest import REPO
+    from docs_kernel import run_under_docs_kernel
 
-    spec = importlib.util.spec_from_file_location("diagnosis_doc", REPO / "benchmarks" / "diagnosis_doc.py")
+    script = REPO / "benchmarks" / "diagnosis_doc.py"
+    spec = importlib.util.spec_from_file_location("diagnosis_doc", script)
     doc = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(doc)
-    block = doc.coverage_block()
+    argv = [sys.executable, str(script), "--only", "coverage"]
+    block = run_under_docs_kernel(argv, timeout_s=2900).rstrip("\n")
     assert doc.doc_block("coverage") == block
     for line in block.splitlines()[1:-1]:
         if line.startswith(("EMA", "SSI")):
