@@ -42,6 +42,8 @@ def _run(args: argparse.Namespace) -> int:
     from flexmodal.api import compare_modes, format_comparison, write_comparison
 
     comp = compare_modes(args.measured, *args.predicted, min_mac=args.min_mac)
+    for warning in comp.warnings():
+        print(f"flexmodal: warning: {warning}", file=sys.stderr)
     if args.out not in (None, "-"):   # "" (an unset variable) is refused by the path check, not stdout
         print(write_comparison(comp, args.out, args.format, args.layout, args.caption))
     else:

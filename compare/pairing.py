@@ -4,7 +4,10 @@ Where both tables hold mode shapes at two or more common sensors, modes are pair
 assignment (Hungarian method, ``scipy.optimize.linear_sum_assignment``) on the cost ``1 - MAC`` plus a
 small frequency term ``freq_weight * |ln(f_pred / f_meas)|`` that breaks ties between shapes the sensors
 cannot tell apart; a pair whose MAC is below ``min_mac`` is rejected and both modes are listed as
-unpaired.  Without usable shapes the modes are paired in ascending frequency order (1st with 1st, ...).
+unpaired.  Without usable shapes the modes are paired in ascending frequency order (1st with 1st, ...);
+where both tables give shape columns, the pairing records why they could not be used (names apart, no
+values, or every mode shape of one side zero: MAC undefined), and the comparison says so in its notes and
+in one warning per predicted table.
 The Modal Assurance Criterion (Allemang & Brown 1982) is ``contract.mac.mac``.
 
 Configurations are matched by name; a measured configuration with no namesake is matched to the one
@@ -30,6 +33,13 @@ from flexmodal.contract.table import ModalTable
 MIN_MAC = 0.5
 FREQ_WEIGHT = 1e-3
 POSE_TOL = 1e-9  # pose values equal within this match a measured configuration to a predicted one
+#: why a configuration whose tables both give shape columns is paired by frequency order, not by MAC
+WHY_NOT_MAC = {
+    "apart": "both tables give mode shapes, but at fewer than two sensors of the same name",
+    "empty": "fewer than two common sensors hold a shape value (not empty, not NaN) for every mode",
+    "zero measured": "every measured mode shape is zero at the common sensors (MAC undefined)",
+    "zero predicted": "every predicted mode shape is zero at the common sensors (MAC undefined)",
+}
 
 
 @dataclass(frozen=True)
@@ -65,9 +75,9 @@ class Pairing:
     pairs: tuple[Pair, ...]
     unpaired_measured: tuple[ModeRef, ...]  # measured modes the source has no partner for
     unpaired_predicted: tuple[ModeRef, ...]  # predicted modes matching no measured one (spurious/extra)
-    # configurations where both tables give shapes but at fewer than two common sensors (names that
-    # differ, ``A1`` against ``a1``): paired by frequency order instead of MAC, and the notes say so
-    shapes_apart: tuple[str, ...] = ()
+    # configurations where both tables give shape columns but no MAC can pair them, each with the reason
+    # (:data:`WHY_NOT_MAC`): paired by frequency order instead, and the notes and warnings say so
+    shapes_unused: tuple[tuple[str, str], ...] = ()
 
     def pair_of(self, config: str, measured_mode: int) -> Pair | None:
         return self._by_measured.get((config, measured_mode))
@@ -179,6 +189,22 @@ def _pair_by_mac(meas: list[ModeRef], pred: list[ModeRef], macs: np.ndarray, min
             for i, j in zip(rows, cols, strict=True) if macs[i, j] >= min_mac]
 
 
+def _why_not_mac(named: int, sensors: list[str], shapes: tuple[np.ndarray, np.ndarray]) -> str | None:
+    """None when a configuration's modes can be paired by MAC: ``shapes`` (measured, predicted)
+    [n_sensors, n_modes] finite at two or more common ``sensors``, each side with a mode that moves them
+    (a zero shape has no direction; one such mode alone is left unpaired by the MAC pairing).  Else
+    the key of :data:`WHY_NOT_MAC`, or "" when a table gives no shapes at all (nothing to say).
+    ``named``: how many sensors both tables name, -1 when one names none."""
+    if named < 0:
+        return ""
+    if len(sensors) < 2:
+        return "apart" if named < 2 else "empty"
+    for side, phi in zip(("measured", "predicted"), shapes, strict=True):
+        if not np.any(phi):
+            return f"zero {side}"
+    return None
+
+
 def _pair_by_frequency(meas: list[ModeRef], pred: list[ModeRef]) -> list[Pair]:
     ms = sorted(meas, key=lambda r: r.freq_hz)
     ps = sorted(pred, key=lambda r: r.freq_hz)
@@ -198,7 +224,9 @@ def pair_modes(measured: ModalTable, predicted: ModalTable, source: str = "predi
     lone_pred: list[ModeRef] = []
     used_configs: set[str] = set()
     poses = PoseIndex(predicted)
-    apart: list[str] = []
+    unused: list[tuple[str, str]] = []
+    both_named = measured.sensors and predicted.sensors
+    named = len(set(measured.sensors) & set(predicted.sensors)) if both_named else -1
     for config in measured.configs:
         meas = _refs(measured, config)
         pconfig = partner_config(measured, predicted, config, poses)
@@ -208,13 +236,14 @@ def pair_modes(measured: ModalTable, predicted: ModalTable, source: str = "predi
         used_configs.add(pconfig)
         pred = _refs(predicted, pconfig, label=config)
         sensors = common_sensors(measured, predicted, config, pconfig)
-        if len(sensors) >= 2:
-            macs = mac(measured.shapes(config, sensors), predicted.shapes(pconfig, sensors))
-            found = _pair_by_mac(meas, pred, macs, min_mac, freq_weight)
+        shapes = (measured.shapes(config, sensors), predicted.shapes(pconfig, sensors))
+        why = _why_not_mac(named, sensors, shapes)
+        if why is None:
+            found = _pair_by_mac(meas, pred, mac(*shapes), min_mac, freq_weight)
         else:
             found = _pair_by_frequency(meas, pred)
-            if measured.sensors and predicted.sensors:
-                apart.append(config)
+            if why:
+                unused.append((config, why))
         pairs += found
         used_m = {p.measured.mode for p in found}
         used_p = {p.predicted.mode for p in found}
@@ -225,4 +254,4 @@ def pair_modes(measured: ModalTable, predicted: ModalTable, source: str = "predi
             lone_pred += _refs(predicted, config)
     position = {c: i for i, c in enumerate(measured.configs)}
     pairs.sort(key=lambda p: (position[p.measured.config], p.measured.mode))
-    return Pairing(source, tuple(pairs), tuple(lone_meas), tuple(lone_pred), tuple(apart))
+    return Pairing(source, tuple(pairs), tuple(lone_meas), tuple(lone_pred), tuple(unused))

@@ -27,9 +27,10 @@ from functools import cached_property
 
 import numpy as np
 
+from flexmodal.checked_io.plural import counted
 from flexmodal.checked_io.text import natural_key
 from flexmodal.compare.errors import CompareError
-from flexmodal.compare.pairing import MIN_MAC, ModeRef, Pair, Pairing, pair_modes
+from flexmodal.compare.pairing import MIN_MAC, WHY_NOT_MAC, ModeRef, Pair, Pairing, pair_modes
 from flexmodal.contract.table import ModalTable
 
 FORMATS = ("md", "csv", "tex", "html", "json")
@@ -121,19 +122,46 @@ class Comparison:
 
     def notes(self) -> list[str]:
         """One line per unpaired mode, naming source, configuration, mode and frequency [Hz], and one per
-        configuration whose shapes could not be compared (no two sensors in common)."""
+        configuration whose shapes could not be compared (compare.pairing.WHY_NOT_MAC says why)."""
         out = []
+        unused = [dict(p.shapes_unused) for p in self.pairings]
         for config in self.configs:
             for k, p in enumerate(self.pairings):
-                if config in p.shapes_apart:
-                    out.append(f"{p.source}: {config}: both tables give mode shapes, but at fewer than two "
-                               "sensors of the same name: paired by frequency order, not by MAC")
+                if config in unused[k]:
+                    out.append(f"{p.source}: {config}: {WHY_NOT_MAC[unused[k][config]]}: paired by frequency "
+                               "order, not by MAC")
                 lone_meas, lone_pred, _ = self._of(k, config)
                 out += [f"{p.source}: no predicted mode pairs with measured mode {r.mode} of "
                         f"{r.config} ({r.freq_hz:.2f} Hz)" for r in lone_meas]
                 out += [f"{p.source}: mode {r.mode} of {r.config} ({r.freq_hz:.2f} Hz) pairs with no "
                         f"measured mode" for r in lone_pred]
         return out
+
+
+    def warnings(self) -> list[str]:
+        """One line per predicted source and reason why shapes both tables give could not pair modes by
+        MAC (compare.pairing.WHY_NOT_MAC), naming the file(s), their shape columns and the configurations:
+        the modes were paired by frequency order instead, which the CSV and JSON formats do not show."""
+        out = []
+        for (_, table), p in zip(self.predictions, self.pairings, strict=True):
+            configs: dict[str, list[str]] = {}
+            for config, why in p.shapes_unused:
+                configs.setdefault(why, []).append(config)
+            sides = {"zero measured": [self.measured], "zero predicted": [table]}
+            for why, where in configs.items():
+                named = " and ".join(f"{t.source} ({_shape_columns(t)})"
+                                     for t in sides.get(why, [self.measured, table]))
+                shown = ", ".join(where[:3]) + (f" and {len(where) - 3} more" if len(where) > 3 else "")
+                out.append(f"{p.source}: {WHY_NOT_MAC[why]} in {counted(len(where), 'configuration')} "
+                           f"({shown}) of {named}: paired by frequency order, not by MAC")
+        return out
+
+
+def _shape_columns(table: ModalTable) -> str:
+    """The shape columns of ``table`` for a message: all of up to three, else the first, the last and
+    their count."""
+    cols = table.shape_columns
+    return ", ".join(cols) if len(cols) <= 3 else f"{cols[0]} .. {cols[-1]}, {len(cols)} columns"
 
 
 def ordered_configs(table: ModalTable) -> list[str]:

@@ -23,11 +23,15 @@ def mac(phi_a: np.ndarray, phi_b: np.ndarray) -> np.ndarray:
     array([[1. , 0.5, nan],
            [0.5, 1. , nan],
            [nan, nan, nan]])
+    >>> mac(phi * 1e-200, phi * 1e150).round(3)[:2, :2]   # any scale: the squares neither under- nor overflow
+    array([[1. , 0.5],
+           [0.5, 1. ]])
     """
     a = np.atleast_2d(np.asarray(phi_a))
     b = np.atleast_2d(np.asarray(phi_b))
     if a.shape[0] != b.shape[0]:
         a, b = a.T, b.T
+    a, b = _binary_scaled(a), _binary_scaled(b)
     num = np.abs(a.conj().T @ b) ** 2
     den = np.outer(np.sum(np.abs(a) ** 2, axis=0), np.sum(np.abs(b) ** 2, axis=0))
     return _defined_ratio(num, den)
@@ -43,9 +47,27 @@ def mac_pairs(phi_a: np.ndarray, phi_b: np.ndarray) -> np.ndarray:
     >>> mac_pairs(np.array([[1.0, 1.0], [0.0, 0.0]]), np.array([[1.0, 0.0], [1.0, 0.0]]))
     array([0.5, nan])
     """
+    phi_a, phi_b = _binary_scaled(np.asarray(phi_a)), _binary_scaled(np.asarray(phi_b))
     num = np.abs(np.einsum("ir,ir->r", phi_a.conj(), phi_b)) ** 2
     den = np.einsum("ir,ir->r", phi_a.conj(), phi_a).real * np.einsum("ir,ir->r", phi_b.conj(), phi_b).real
     return _defined_ratio(num, den)
+
+
+def _binary_scaled(phi: np.ndarray) -> np.ndarray:
+    """``phi`` [n_points, n_modes] with each column multiplied by the power of two that brings its
+    largest magnitude into [0.5, 1): exact (only the exponents change), so the MAC of ordinary shapes
+    is unchanged to the last bit, while the fourth powers of a column of 1e-100 (or 1e100), which
+    underflowed to 0 (or overflowed), stay finite.  An all-zero or non-finite column is left as it is.
+
+    Examples
+    --------
+    >>> _binary_scaled(np.array([[3.0, 0.0], [-1.0, 0.0]]))
+    array([[ 0.75,  0.  ],
+           [-0.25,  0.  ]])
+    """
+    exponent = np.frexp(np.max(np.abs(phi), axis=0, initial=0.0))[1]   # 0 for 0, NaN and inf
+    return np.ldexp(phi.real, -exponent) + 1j * np.ldexp(phi.imag, -exponent) if np.iscomplexobj(phi) \
+        else np.ldexp(phi.astype(float, copy=False), -exponent)
 
 
 def _defined_ratio(num: np.ndarray, den: np.ndarray) -> np.ndarray:

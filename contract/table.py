@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from flexmodal.checked_io.csv_tables import read_table
+from flexmodal.checked_io.data_range import MIN_PEAK
 from flexmodal.checked_io.output import atomic_path
 from flexmodal.checked_io.text import name_fault, natural_order
 from flexmodal.contract.errors import ContractError
@@ -131,6 +132,24 @@ def _shape_values(col: str, cells: np.ndarray, source: str) -> np.ndarray:
     return values.real if np.all(values.imag == 0) else values
 
 
+def _shapes_in_range(shapes: Mapping[str, np.ndarray], source: str) -> None:
+    """Raise ContractError naming the first row (header = row 1) whose mode shape, over the ``shapes``
+    columns (column -> values per row), is not all zero but at most :data:`MIN_PEAK` in magnitude: as
+    for measured data (checked_io.data_range), its squares underflow to 0, and every shape comparison
+    (MAC, COMAC, the diagnosis' shape misfit) would read it as a shape without motion."""
+    peak = np.zeros(len(next(iter(shapes.values()))))
+    for values in shapes.values():   # a loop over columns, each row at once
+        peak = np.fmax(peak, np.abs(values))
+    tiny = (peak > 0) & (peak < MIN_PEAK)
+    if tiny.any():
+        row = int(np.flatnonzero(tiny)[0])
+        names = list(shapes)
+        columns = ", ".join(names) if len(names) <= 3 else f"{names[0]} .. {names[-1]}"
+        raise ContractError(f"{source}: row {row + 2}: the mode shape ({columns}) is at most {peak[row]:.4g} "
+                            f"in magnitude, below {MIN_PEAK:g} (its squares underflow to 0: is the unit "
+                            "right?)")
+
+
 @dataclass(frozen=True)
 class ModalTable:
     """A validated modal table; ``frame`` is sorted by config then mode and must not be mutated."""
@@ -203,6 +222,7 @@ class ModalTable:
         columns = [c for c in df.columns if c.startswith(SHAPE_PREFIX)]
         if columns:   # taken out and put back at once: pandas copies its block at every column set
             shapes = {col: _shape_values(col, df[col].to_numpy(), source) for col in columns}
+            _shapes_in_range(shapes, source)
             df = pd.concat([df.drop(columns=columns), pd.DataFrame(shapes, index=df.index)],
                            axis=1)[list(df.columns)]
         rank = {c: k for k, c in enumerate(natural_order(df["config"]))}   # theta30 before theta120

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import inspect
 import json
+import re
 from pathlib import Path
 
 import pytest
@@ -92,7 +93,7 @@ def test_a_gate_that_fires_on_no_effect_still_leaves_none(monkeypatch):
 def test_the_gate_fires_on_no_fresh_case_without_an_effect(k):
     """The count ``test_a_gate_that_fires_on_no_effect_still_leaves_none`` quotes, re-run
     (benchmarks/none_gate.py ``RUNS``): on fresh cases without an effect the gate never overrules the
-    gap test."""
+    gap test; and the ``none`` verdicts on those cases are those docs/diagnosis.md's Limits quote."""
     import importlib.util
 
     from conftest import REPO
@@ -106,3 +107,6 @@ def test_the_gate_fires_on_no_fresh_case_without_an_effect(k):
     seed, cases = gate.RUNS[k]
     count = gate.gate_count(seed, cases)
     assert (count.cases, count.fired) == (cases, ()), gate.line(seed, count)
+    limits = " ".join((REPO / "docs" / "diagnosis.md").read_text().split())
+    quoted = re.search(r"the verdict is `none` on (\d+) and (\d+) of them", limits).groups()
+    assert count.none == int(quoted[k]), gate.line(seed, count)

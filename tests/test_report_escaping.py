@@ -5,14 +5,21 @@ The check is independent of how the report escapes: the same report is written t
 names and once with hostile ones (``<script>``, ``<img onerror>``, quotes, ``&``, accents); parsed
 (html.parser), both pages must hold the same elements and attributes in the same numbers, and the hostile
 page's text must hold each hostile name as written.
+
+The two slow tests draw every figure (7 s and 23 s); the default one renders the same page layer with
+the figures replaced by a stand-in image (their captions, the animated SVG shapes and every table are the
+real ones), and adds the names a report shows besides: a stored run's id and its channels' names, units
+and locations, a pose variable, the configurations of a diagnosis and the rig file's name.
 """
 
 from __future__ import annotations
 
 import collections
+import json
 from html.parser import HTMLParser
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -25,6 +32,7 @@ from flexmodal.models.frame import frame_modes
 from flexmodal.models.rig import load_rig
 
 POSES = (0.0, 60.0)
+REPO = Path(__file__).resolve().parents[1]
 HOSTILE = ("<script>alert(1)</script>\"'&é", "<img src=x onerror=alert(2)>")
 
 
@@ -92,3 +100,69 @@ def test_any_names_reach_the_report_as_text(rig, tmp_path, first, second, source
     if first == second:
         second += "2"
     _same_markup(tmp_path, rig, (first, second), source, title)
+
+
+def _renamed(doc: object, names: dict[str, str]) -> object:
+    """``doc`` (parsed JSON) with every key and string value equal to a key of ``names`` renamed."""
+    if isinstance(doc, dict):
+        return {names.get(k, k): _renamed(v, names) for k, v in doc.items()}
+    if isinstance(doc, list):
+        return [_renamed(v, names) for v in doc]
+    return names.get(doc, doc) if isinstance(doc, str) else doc
+
+
+def _page_layer(tmp: Path, rigs_dir: Path, names: tuple[str, str], extra: dict[str, str],
+                monkeypatch) -> _Page:
+    """api.report on a stored run (no FRF: nothing identified), measured and predicted tables with two
+    varying pose variables, the demo's diagnosis and the demo rig (FE shapes animated), every matplotlib
+    figure replaced by a stand-in (its caption is built as always)."""
+    from flexmodal.daq.store import Channel, RunWriter
+    from flexmodal.reports import plots
+
+    for name in [n for n in dir(plots) if n.startswith("plot_")]:
+        monkeypatch.setattr(plots, name, lambda *args, **kwargs: object())
+    monkeypatch.setattr(plots, "figure_png", lambda fig: b"\x89PNG stand-in")
+    tmp.mkdir()
+    rig_path = tmp / f"{extra['rig']}.toml"
+    rig_path.write_text((rigs_dir / "demo_arm.toml").read_text(encoding="utf-8"), encoding="utf-8")
+    chans = [Channel("F", "force", "N"),
+             Channel(extra["channel"], "acceleration", extra["unit"], location=extra["location"])]
+    with RunWriter(tmp / "runs.h5", extra["run"], sample_rate_hz=512.0, channels=chans, excitation="impact",
+                   pose={extra["payload"]: 0.5}) as w:
+        w.append(np.linspace(-1.0, 1.0, 64)[:, None] * np.array([1.0, 2.0]))
+    sensors = ("a1", "a2", "a3", "a4", "a5")
+    measured, predicted = [], []
+    for k, (name, theta) in enumerate(zip(names, POSES, strict=True)):
+        for m in range(3):
+            shape = {f"shape.{s}": float(np.sin((m + 1) * (i + 1) * np.pi / 6))
+                     for i, s in enumerate(sensors)}
+            row = {"config": name, "mode": m + 1, "pose.theta_deg": theta,
+                   f"pose.{extra['payload']}": 0.5 * k, **shape}
+            measured.append({**row, "freq_hz": 30.0 * (m + 1) ** 2, "damping_ratio": 0.01})
+            predicted.append({**row, "freq_hz": 33.0 * (m + 1) ** 2, "source": extra["source"]})
+    rename = dict(zip(("theta0", "theta60"), names, strict=True))
+    demo = (REPO / "tests" / "data" / "diagnosis" / "demo.json").read_text(encoding="utf-8")
+    diagnosis = _renamed(json.loads(demo), rename)
+    out = tmp / "report.html"
+    api.report(out, runs=[tmp / "runs.h5"], measured=ModalTable.from_records(measured, str(tmp / "m.csv")),
+               predictions=[ModalTable.from_records(predicted, str(tmp / "fe.csv"))], rig=rig_path,
+               diagnosis=diagnosis, title=extra["title"], shapes_at=list(names))
+    return _Page(out.read_text(encoding="utf-8"))
+
+
+PLAIN = {"title": "report", "source": "fe", "rig": "arm", "run": "r1", "channel": "a9", "unit": "m/s^2",
+         "location": "tip", "payload": "payload_kg"}
+NASTY = {"title": "<svg onload=alert(3)>", "source": "fe<b>x</b>&\"", "rig": "<i>arm&é",
+         "run": "<b onmouseover='x'>r1&amp;", "channel": "<img src=y onerror=z>", "unit": "<s>m</s>",
+         "location": "<a href=x>tip", "payload": "pay<u>load\"&_kg"}
+
+
+def test_hostile_names_reach_the_page_layer_as_text(tmp_path, rigs_dir, monkeypatch) -> None:
+    """Every place a name reaches the page, without drawing a figure: same markup, names as written."""
+    plain = _page_layer(tmp_path / "plain", rigs_dir, ("theta0", "theta60"), PLAIN, monkeypatch)
+    hostile = _page_layer(tmp_path / "hostile", rigs_dir, HOSTILE, NASTY, monkeypatch)
+    assert hostile.markup == plain.markup
+    assert plain.markup["img"] >= 4 and plain.markup["svg"] >= 2     # figures and animated shapes were there
+    text = "".join(hostile.text)
+    for name in (*HOSTILE, *NASTY.values()):
+        assert name in text, name
