@@ -1,13 +1,14 @@
 """The BLAS kernel the figures of docs/oma.md and docs/diagnosis.md's coverage block were measured under, and
 a process that runs under it.
 
-A share or an error at its rounding edge moves with OpenBLAS's kernel: on an AVX-512 host (SkylakeX)
-the tracking two-joint path's mode 4 is within 1 % in 91 % of the windows against Haswell's 92 % (its
-map damping's median error 6 % against 7 %), and the crossing's mode 6 has a largest error of 0.6 %
-against 0.8 %.  tests/test_track_docs.py runs benchmarks/track.py in a process with the kernel forced,
-and tests/test_modal_uncertainty.py runs benchmarks/diagnosis_doc.py's coverage block so (there the
-first EMA setting's frequency coverage is 94.5 % under SkylakeX against the docs' 94.2 %), so every x86-64
-machine gives the same figures.
+A share or an error at its rounding edge moves with OpenBLAS's kernel: for example (measured at main
+afaeb46, before the gear-order refinement changed these figures), on an AVX-512 host (SkylakeX) the
+tracking two-joint path's mode 4 is within 1 % in 91 % of the windows against Haswell's 92 % (its map
+damping's median error 6 % against 7 %), and the crossing's mode 6 has a largest error of 0.6 % against
+0.8 %. tests/test_track_docs.py runs benchmarks/track.py in a process with the kernel forced, and
+tests/test_modal_uncertainty.py runs benchmarks/diagnosis_doc.py's coverage block so (there the first EMA
+setting's frequency coverage is 94.5 % under SkylakeX against the docs' 94.2 %), so every x86-64 machine
+gives the same figures.
 """
 
 from __future__ import annotations
