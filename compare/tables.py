@@ -137,7 +137,6 @@ class Comparison:
                         f"measured mode" for r in lone_pred]
         return out
 
-
     def warnings(self) -> list[str]:
         """One line per predicted source and reason why shapes both tables give could not pair modes by
         MAC (compare.pairing.WHY_NOT_MAC), naming the file(s), their shape columns and the configurations:
