@@ -35,7 +35,10 @@
    applies to candidates of which one contains the other, the paired noise margin between different
    effects (``_order``); ``none`` when the verdict's candidate does not beat the nominal model (no
    parameters, nested in every candidate) beyond the nested margin, its noise part never judged at a
-   level above ``NONE_NOISE_FACTOR`` times the measurement scatter (``_none_margin``).  ``explained``
+   level above ``NONE_NOISE_FACTOR`` times the measurement scatter (``_none_margin``).  When that
+   choice is ambiguous, every ranked candidate with an added mass is refitted with its masses as point
+   masses (no rotary inertia, one parameter fewer each, ``_point_masses``) and the verdict chosen
+   again.  ``explained``
    is false when the held-out RMS is above ``EXPLAINED_FACTOR`` times the scatter or the held-out
    residuals are structured; parameters at bounds and parameters the data cannot identify are
    flagged; candidates equal within noise, and candidates with one component more within the
@@ -1508,7 +1511,8 @@ def _alternatives(ctx: _Context, best: dict, ranking: list[dict], scatter: float
     containing ``best`` that are held out equal to it within noise (``_noise``), simplest first (as the
     one-standard-error rule orders them), at most ``MAX_ALTERNATIVES``; then, at most
     ``MAX_SUPERSETS``, those with one component more that fit better held out, but by less than the
-    nested margin (``_nested_margin``): the data cannot say whether that component is there too."""
+    nested margin (``_nested_margin``): the data cannot say whether that component is there too.  A
+    name is listed once (the first: a point mass before the same mass with its inertia)."""
     mine = set(zip(best["_cand"].effects, best["_cand"].locations, strict=True))
     usable = [e for e in ranking if e is not best and not e["_out_of_range"] and not e["_idle"]]
 
@@ -1521,7 +1525,10 @@ def _alternatives(ctx: _Context, best: dict, ranking: list[dict], scatter: float
     supersets = (e for e in usable if len(e["_cand"].effects) == len(best["_cand"].effects) + 1
                  and mine < parts(e)
                  and 0 < best["_heldout_eq"] - e["_heldout_eq"] <= _nested_margin(ctx, best, e, scatter))
-    return alts + sorted(supersets, key=lambda e: e["_heldout_eq"])[:MAX_SUPERSETS]
+    named: dict[tuple[str, str], dict] = {}       # a point mass and its full mass: listed once
+    for e in alts + sorted(supersets, key=lambda e: e["_heldout_eq"])[:MAX_SUPERSETS]:
+        named.setdefault((e["effect"], e["location"]), e)
+    return list(named.values())
 
 
 def _none_with_alternatives(ctx: _Context, verdict: dict, ranking: list[dict], nominal: dict,
