@@ -739,7 +739,13 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
             ranking.sort(key=lambda e: e["score"])
             _order(ctx, ranking, scatter)
             best, notes = _choose(ctx, ranking, screened, scatter)
-    if not small and best is not None and _alternatives(ctx, best, ranking, scatter):
+    nominal = _nominal_entry(ctx)
+    _rescore(ctx, nominal, scatter)
+    # an ambiguous choice of an effect (not ``none``: that test stays the nominal model's against the
+    # candidates as ranked) is made again with the added masses as point masses
+    if not small and best is not None and _alternatives(ctx, best, ranking, scatter) \
+            and nominal["_heldout_eq"] - best["_heldout_eq"] > _none_margin(ctx, best, nominal, scatter,
+                                                                             sigma):
         shape_floor, n_screened = ctx.shape_floor, len(screened)
         points = _point_masses(ctx, ranking, screened, scatter)
         if points:
@@ -753,8 +759,7 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
     if best is not None and best not in ranking:           # a pruned candidate validated by _choose
         ranking.append(best)
         _order(ctx, ranking, scatter)
-    nominal = _nominal_entry(ctx)
-    _rescore(ctx, nominal, scatter)
+    _rescore(ctx, nominal, scatter)      # the shape noise floor may have dropped since
     verdict = _verdict(ctx, best, ranking, baseline, before, nominal, scatter, sigma, none_sigma, small,
                        notes)
     if verdict["effect"] != "none":
@@ -1336,7 +1341,8 @@ def _point_mass(cand: Candidate) -> Candidate:
 def _point_masses(ctx: _Context, ranking: list[dict], screened: list[dict], scatter: float) -> list[dict]:
     """The candidates of ``ranking`` with an added mass (joint, hub or tip) refitted with every such
     mass a point mass (``_point_mass``), one parameter fewer each, cross-validated and annotated (added to
-    ``screened``; the ones not fitted before returned).  Asked when the verdict is ambiguous: there the
+    ``screened``; the ones not fitted before returned).  Asked when the verdict is an ambiguous effect
+    (not ``none``, which stays the nominal model's test against the candidates as ranked): there the
     one-standard-error rule (``_order``) puts the simplest of the candidates equal within noise first,
     and the rotary inertia of a small added mass is a parameter the data seldom identify -- it counts
     against the mass and, fitted per fold, worsens its held-out error.  Blind 1576 case 9 (from 0): a
