@@ -1339,10 +1339,13 @@ def _point_mass(cand: Candidate) -> Candidate:
 
 
 def _point_masses(ctx: _Context, ranking: list[dict], screened: list[dict], scatter: float) -> list[dict]:
-    """The candidates of ``ranking`` with an added mass (joint, hub or tip) refitted with every such
-    mass a point mass (``_point_mass``), one parameter fewer each, cross-validated and annotated (added to
-    ``screened``; the ones not fitted before returned).  Asked when the verdict is an ambiguous effect
-    (not ``none``, which stays the nominal model's test against the candidates as ranked): there the
+    """The single candidates of ``ranking`` that are an added mass (joint, hub or tip) refitted as a point
+    mass (``_point_mass``), one parameter fewer, cross-validated and annotated (added to ``screened``; the
+    ones not fitted before returned).  Singles only: a combination with its masses as point masses
+    counts no more parameters than the single mass with its inertia and then ranks with it (blind 1051
+    case 20, a strong elbow mass, became an elbow point mass with a link-1 mass scale).  Asked when the
+    verdict is an ambiguous effect (not ``none``, which stays the nominal model's test against the
+    candidates as ranked): there the
     one-standard-error rule (``_order``) puts the simplest of the candidates equal within noise first,
     and the rotary inertia of a small added mass is a parameter the data seldom identify -- it counts
     against the mass and, fitted per fold, worsens its held-out error.  Blind 1576 case 9 (from 0): a
@@ -1352,6 +1355,8 @@ def _point_masses(ctx: _Context, ranking: list[dict], screened: list[dict], scat
     known = {e["_cand"] for e in screened}
     points = []
     for e in ranking:
+        if len(e["_cand"].effects) > 1:
+            continue
         cand = _point_mass(e["_cand"])
         if cand in known:
             continue
