@@ -36,9 +36,9 @@
    effects (``_order``); ``none`` when the verdict's candidate does not beat the nominal model (no
    parameters, nested in every candidate) beyond the nested margin, its noise part never judged at a
    level above ``NONE_NOISE_FACTOR`` times the measurement scatter (``_none_margin``).  When that
-   choice is ambiguous, every ranked candidate with an added mass is refitted with its masses as point
-   masses (no rotary inertia, one parameter fewer each, ``_point_masses``) and the verdict chosen
-   again.  ``explained``
+   choice is an ambiguous effect, every ranked single that is an added mass is refitted as a point mass
+   (no rotary inertia, one parameter fewer, ``_point_masses``) and the verdict chosen again.
+   ``explained``
    is false when the held-out RMS is above ``EXPLAINED_FACTOR`` times the scatter or the held-out
    residuals are structured; parameters at bounds and parameters the data cannot identify are
    flagged; candidates equal within noise, and candidates with one component more within the
