@@ -34,7 +34,8 @@ def read_table(path: str | Path, error: ErrorType, *, required: Sequence[str] = 
     ``text_columns`` are kept as strings (e.g. ``config``) without white space around them."""
     text = read_text(path, error, what)
     try:
-        rows = [(n, r) for n, r in _numbered_rows(text, path, error, what) if any(cell.strip() for cell in r)]
+        rows = [(n, r) for n, r in _numbered_rows(text, path, error, what)   # the first cell decides most
+                if (r and r[0].strip()) or any(cell.strip() for cell in r)]
     except csv.Error as exc:
         raise error(f"{path}: not a readable CSV ({one_line(exc)})") from None
     if not rows:
@@ -71,7 +72,9 @@ def read_table(path: str | Path, error: ErrorType, *, required: Sequence[str] = 
         frame[frame.columns[k]] = words[col].str.strip()
     _refuse_huge_integers(frame, path, rows, error)
     for col in required:
-        empty = frame[col].isna().to_numpy() | (frame[col].astype(str).str.strip() == "").to_numpy()
+        empty = frame[col].isna().to_numpy()
+        if not pd.api.types.is_numeric_dtype(frame[col]):   # a blank text cell is empty (numbers: no scan)
+            empty = empty | (frame[col].astype(str).str.strip() == "").to_numpy()
         if empty.any():
             i = int(empty.argmax())  # pandas keeps some lines csv drops (only a form feed, say)
             where = f"line {rows[1 + i][0]}" if 1 + i < len(rows) else f"data row {i + 1}"

@@ -65,6 +65,8 @@ def run(args: argparse.Namespace) -> int:
     result = diagnose(args.rig, args.measured, effects=args.effects, holdout=args.holdout,
                       scatter=args.scatter, out_dir=args.out,
                       progress=None if quiet else lambda line: print(line, file=sys.stderr))
+    for warning in result.warnings or ():
+        print(f"flexmodal: warning: {warning}", file=sys.stderr)
     print(format_diagnosis(result))
     for name in DIAGNOSIS_FILES:
         print(Path(args.out) / name)

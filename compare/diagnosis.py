@@ -12,8 +12,8 @@
    ``PAIR_POOL`` best singles and their pairs, the best of each of the ``LEADS`` best effects among
    them paired with every other single (``_lead_pairs``), and, only when no pair explains the gap,
    each of the ``TRIPLE_PAIRS`` best pairs extended by its ``PARTNERS`` score-test partners
-   (``_partners``); a chosen combination with each component replaced by every other single
-   (``_swapped``).  Candidates are
+   (``_partners``); a chosen combination with each component replaced by every other single, and a
+   chosen pair with every pair of a pooled single (``_swapped``).  Candidates are
    cross-validated, best in-sample score first, while they can still win, and the ``MAX_ALTERNATIVES``
    best-fitting ones not nested in the lowest held-out one that could still equal it within noise
    (possible alternatives, ``_cross_validate_promising``): every fold is refitted to
@@ -530,10 +530,16 @@ def _lead_pairs(ctx: _Context, pool: Sequence[dict], singles: Sequence[dict]) ->
         best_of.setdefault(e["effect"], e)
     leads = ranked[:LEADS] + [e for e in list(best_of.values())[:LEADS] if e not in ranked[:LEADS]]
     rest = [e for e in singles if e not in pool and len(e["_cand"].effects) == 1]
-    poses = len({tuple(sorted(p.items())) for p in ctx.meas.poses})
-    if (poses - 1) * ctx.meas.freq_hz.shape[1] < LEAD_TRAIN:
+    if _few_poses(ctx):
         return [(leads[0], b) for b in _partners(ctx, leads[0], rest, LEAD_PARTNERS)] if leads else []
     return [(a, b) for a in leads for b in rest if combine(a["_cand"], b["_cand"]) is not None]
+
+
+def _few_poses(ctx: _Context) -> bool:
+    """Whether a fold that holds one pose out trains on fewer than ``LEAD_TRAIN`` frequencies
+    ((distinct poses - 1) x modes): too few to tell many look-alike pairs apart (``_lead_pairs``)."""
+    poses = len({tuple(sorted(p.items())) for p in ctx.meas.poses})
+    return (poses - 1) * ctx.meas.freq_hz.shape[1] < LEAD_TRAIN
 
 
 def _triples(ctx: _Context, pairs: Sequence[dict], singles: Sequence[dict], scatter: float) -> list[dict]:
@@ -729,7 +735,7 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
         if best["heldout_rms_rel_error"] > EXPLAINED_FACTOR * sigma:
             leads = [best, *(e for e in ranking[:LEADS] if e is not best)]
             moved = [m for e in leads for m in _relocated(ctx, e, screened, scatter)]
-        moved += _swapped(ctx, best, screened, scatter)
+        moved += _swapped(ctx, best, screened, scatter, pool)
         n_candidates = CandidateCount(fitted=n_candidates.fitted + len(screened) - n_screened,
                                       cross_validated=n_candidates.cross_validated + len(moved))
         lowered = _rescored(ctx, screened, ranking + moved, shape_floor, scatter)
@@ -1283,30 +1289,38 @@ def _relocated(ctx: _Context, best: dict, screened: list[dict], scatter: float) 
     return moved
 
 
-def _swapped(ctx: _Context, best: dict, screened: list[dict], scatter: float) -> list[dict]:
+def _swapped(ctx: _Context, best: dict, screened: list[dict], scatter: float,
+             pool: Sequence[dict] = ()) -> list[dict]:
     """The combinations of ``best`` with one component replaced by any other single (any effect, any
-    location) not fitted yet, fitted (added to ``screened``); cross-validated and annotated, best
-    in-sample score first, while their in-sample score (``_lower``) is below ``best``'s score, the
-    ones returned.  Asked whenever a combination is chosen: the pair search pairs the pool's singles and
-    a few leads only, so a pair of which one part is chosen and the other is neither pooled nor a lead
-    is never formed (blind 1475 case 34 from 0: a link-1 stiffness, best single, with an elbow
-    stiffness, 15th of 18 singles; the chosen grounded spring plus elbow stiffness held out 2.74 %, the
-    truth 0.50 %)."""
+    location) and, when ``best`` is a pair and a fold trains on enough frequencies (``_few_poses``),
+    every pair of a single of ``pool`` (the pair search's pool) with any single, those not fitted yet,
+    fitted (added to ``screened``); cross-validated and annotated, best in-sample score first, while
+    their in-sample score (``_lower``) is below ``best``'s score, the ones returned.  Asked whenever a
+    combination is chosen: the pair search pairs the pool's singles and a few leads only, so a pair of
+    which one part is chosen and the other is neither pooled nor a lead is never formed (blind 1475
+    case 34 from 0: a link-1 stiffness, best single, with an elbow stiffness, 15th of 18 singles; the
+    chosen grounded spring plus elbow stiffness held out 2.74 %, the truth 0.50 %), nor one whose pooled
+    part is no lead and whose other part is not pooled, when the chosen pair shares neither (blind 1579
+    case 24: a link-2 stiffness, 5th of the pool, with the base stiffness, 9th single, held out 1.04 %
+    against the chosen link-1 plus sensor mass's 1.41 %; 1579 case 34: a tip mass, 4th of the pool,
+    with a grounded spring, 12th single, 1.6 % against a spring elsewhere plus an elbow stiffness's
+    5.4 %)."""
     singles = [e for e in screened if len(e["_cand"].effects) == 1]
     found = {(e["effect"], e["location"]): e for e in singles}
     parts = [found.get((eff, loc)) for eff, loc, _ in components(best["_cand"])]
     if any(p is None for p in parts):
         return []
+    tries = [[*parts[:i], other, *parts[i + 1:]] for i in range(len(parts)) for other in singles]
+    if len(parts) == 2 and not _few_poses(ctx):
+        tries += [[a, b] for a in pool for b in singles]
     known = {e["_cand"] for e in screened}
     new = []
-    for i in range(len(parts)):
-        for other in singles:
-            new_parts = [*parts[:i], other, *parts[i + 1:]]
-            cand = combine(*(p["_cand"] for p in new_parts))
-            if cand is None or cand in known:
-                continue
-            known.add(cand)
-            new.append(_screen(ctx, cand, scatter, new_parts))
+    for new_parts in tries:
+        cand = combine(*(p["_cand"] for p in new_parts))
+        if cand is None or cand in known:
+            continue
+        known.add(cand)
+        new.append(_screen(ctx, cand, scatter, new_parts))
     screened += new
     done = []
     for e in sorted(new, key=lambda e: e["_lower"]):

@@ -26,6 +26,9 @@ class Measured:
     freq_hz: np.ndarray
     shapes: np.ndarray | None
     sensors: tuple[str, ...]        # rig sensors with measured shapes (order of ``shapes``)
+    # configurations whose measured shapes cannot pair modes by MAC (the fit pairs them by frequency
+    # order), each with the key of compare.pairing.WHY_NOT_MAC (:func:`unused_shapes`)
+    shapes_unused: tuple[tuple[str, str], ...] = ()
 
 
 def prepare(rig: Rig, table: ModalTable, min_configs: int = 3) -> Measured:
@@ -61,12 +64,39 @@ def prepare(rig: Rig, table: ModalTable, min_configs: int = 3) -> Measured:
     freq = np.array([table.freq_hz(c) for c in configs])
     rig_sensors = [s.name for s in rig.sensors]
     sensors = tuple(s for s in table.sensors if s in rig_sensors)
-    shapes = None
+    shapes, unused = None, ()
     if sensors:
         shapes = np.array([table.shapes(c, sensors) for c in configs])
+        why = [unused_shapes(phi) for phi in shapes]
+        unused = tuple((c, w) for c, w in zip(configs, why, strict=True) if w)
+        shapes[np.array(why) == "zero measured"] = np.nan   # no shape (MAC 0/0), not one unlike every mode
         if np.isnan(shapes).all():
             shapes, sensors = None, ()
-    return Measured(tuple(configs), tuple(poses), freq, shapes, sensors)
+    return Measured(tuple(configs), tuple(poses), freq, shapes, sensors, unused)
+
+
+def unused_shapes(phi: np.ndarray) -> str | None:
+    """Why the fit (compare.fit) pairs a configuration's modes by frequency order rather than by MAC,
+    from its measured shapes ``phi`` [n_sensors, n_modes] at the rig's sensors: the key of
+    compare.pairing.WHY_NOT_MAC ("zero measured": every value given is 0, the MAC 0/0 is undefined;
+    "empty": fewer than two sensors hold a value for every mode; "incomplete": a value is missing at
+    some other sensor), or None when every value is given and some mode moves the sensors.
+
+    Examples
+    --------
+    >>> phi = np.array([[0.5, 1.0], [1.0, -0.5]])
+    >>> unused_shapes(phi), unused_shapes(0 * phi), unused_shapes(np.full((2, 2), np.nan))
+    (None, 'zero measured', 'empty')
+    >>> unused_shapes(np.vstack([phi, [[np.nan, 0.2]]])), unused_shapes(np.array([[0.0, np.nan]] * 3))
+    ('incomplete', 'zero measured')
+    """
+    given = np.isfinite(phi)
+    if given.any() and not np.any(phi[given]):
+        return "zero measured"
+    complete = int(np.sum(given.all(axis=1)))
+    if complete < len(phi):
+        return "empty" if complete < 2 else "incomplete"
+    return None
 
 
 def rms(x: np.ndarray) -> float:

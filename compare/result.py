@@ -430,7 +430,8 @@ class Predictions(_Record):
 class Diagnosis(_Record):
     """A sim-to-real gap diagnosis (docs/diagnosis.md): the baseline gap, where it lies, the ranking of
     candidates (best first), the verdict, and the data it was judged on: the relative measurement
-    ``scatter`` (fraction) and its source, the hold-out scheme, the configurations and the frequencies."""
+    ``scatter`` (fraction) and its source, the hold-out scheme, the configurations and the frequencies;
+    ``warnings`` about measured shapes it could not use."""
 
     baseline: Baseline
     where: Where
@@ -442,6 +443,9 @@ class Diagnosis(_Record):
     holdout: Holdout | None = None
     configs: tuple[str, ...] | None = None
     predictions: Predictions | None = None
+    # a line per reason why the measured shapes of some configurations paired no modes by MAC (paired by
+    # frequency order: compare.tables.shape_warnings, a zero shape its MAC 0/0); None when there is none
+    warnings: tuple[str, ...] | None = None
 
     # -- notebook display (reports engineer's block: to_frame, __repr__, _repr_html_) -----------------
     def to_frame(self):

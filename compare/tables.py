@@ -139,21 +139,38 @@ class Comparison:
 
     def warnings(self) -> list[str]:
         """One line per predicted source and reason why shapes both tables give could not pair modes by
-        MAC (compare.pairing.WHY_NOT_MAC), naming the file(s), their shape columns and the configurations:
-        the modes were paired by frequency order instead, which the CSV and JSON formats do not show."""
-        out = []
-        for (_, table), p in zip(self.predictions, self.pairings, strict=True):
-            configs: dict[str, list[str]] = {}
-            for config, why in p.shapes_unused:
-                configs.setdefault(why, []).append(config)
-            sides = {"zero measured": [self.measured], "zero predicted": [table]}
-            for why, where in configs.items():
-                named = " and ".join(f"{t.source} ({_shape_columns(t)})"
-                                     for t in sides.get(why, [self.measured, table]))
-                shown = ", ".join(where[:3]) + (f" and {len(where) - 3} more" if len(where) > 3 else "")
-                out.append(f"{p.source}: {WHY_NOT_MAC[why]} in {counted(len(where), 'configuration')} "
-                           f"({shown}) of {named}: paired by frequency order, not by MAC")
-        return out
+        MAC (:func:`shape_warnings`): the modes were paired by frequency order instead, which the CSV and
+        JSON formats do not show."""
+        return [line for (_, table), p in zip(self.predictions, self.pairings, strict=True)
+                for line in shape_warnings(p.source, p.shapes_unused, (self.measured, table))]
+
+
+def shape_warnings(source: str, unused: Sequence[tuple[str, str]],
+                   tables: Sequence[ModalTable]) -> list[str]:
+    """One line per reason in ``unused`` ((configuration, key of compare.pairing.WHY_NOT_MAC) whose modes
+    were paired by frequency order, not by MAC), starting with ``source`` (the predicted table's, or the
+    rig's for a diagnosis), naming the configurations and the file(s) and shape columns to blame:
+    ``tables`` (measured, predicted) or (measured,); a zero side names its own table, other reasons all.
+
+    Examples
+    --------
+    >>> table = ModalTable.from_records([{"config": c, "mode": 1, "freq_hz": 9.0, "shape.a1": 0.0,
+    ...                                   "shape.a2": 0.0} for c in "pqrst"], "modes.csv")
+    >>> print(*shape_warnings("rig.toml", [(c, "zero measured") for c in table.configs], [table]))
+    rig.toml: every measured mode shape is zero at the common sensors (MAC undefined) in 5 configurations
+    (p, q, r and 2 more) of modes.csv (shape.a1, shape.a2): paired by frequency order, not by MAC
+    """
+    configs: dict[str, list[str]] = {}
+    for config, why in unused:
+        configs.setdefault(why, []).append(config)
+    sides = {"zero measured": tables[:1], "zero predicted": tables[-1:]}
+    out = []
+    for why, where in configs.items():
+        named = " and ".join(f"{t.source} ({_shape_columns(t)})" for t in sides.get(why, tables))
+        shown = ", ".join(where[:3]) + (f" and {len(where) - 3} more" if len(where) > 3 else "")
+        out.append(f"{source}: {WHY_NOT_MAC[why]} in {counted(len(where), 'configuration')} ({shown}) of "
+                   f"{named}: paired by frequency order, not by MAC")
+    return out
 
 
 def _shape_columns(table: ModalTable) -> str:

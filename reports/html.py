@@ -356,6 +356,7 @@ def _diagnosis_view(d: Diagnosis) -> dict:
         "holdout": d.holdout.scheme if d.holdout is not None else "",
         "scatter": scatter_line(d).removeprefix("scatter: ").replace("sqrt(m^2 + f^2)", "√(m² + f²)"),
         "frequencies": _diagnosis_frequencies(d.predictions) if d.predictions is not None else [],
+        "warnings": list(d.warnings or ()),
     }
 
 

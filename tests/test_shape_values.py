@@ -140,3 +140,36 @@ def test_large_shapes_pair_by_mac_exactly(tmp_path, capsys, side) -> None:
     both = _write(tmp_path / "fe.csv", CELLS["large"], 1.0)
     assert main(["--quiet", "compare", str(both), str(both), "--format", "csv"]) == 0
     np.testing.assert_allclose([float(r["fe_mac"]) for r in _rows(capsys.readouterr().out)], 1.0, rtol=1e-14)
+
+
+@pytest.mark.parametrize(("cells", "fault"), [
+    # a column of numbers (read at once, as a block) after a text column: the text column's fault first
+    ({"a1": "0.1+0.2j", "a2": "x", "a3": "inf"}, "column 'shape.a2' holds a value that is not a number"),
+    ({"a1": "1", "a2": "inf", "a3": "x"}, "row 2: column 'shape.a2' holds an infinite value"),
+    ({"a1": "1e151", "a2": "0.5", "a3": "nan+1j"}, "row 2: column 'shape.a1' holds 1e+151, above 1e+150 in "
+                                                   "magnitude"),
+    ({"a1": "1", "a2": "0.1+0.2j", "a3": "-1e151"}, "row 2: column 'shape.a3' holds -1e+151, above 1e+150 "
+                                                    "in magnitude"),
+])
+def test_the_first_faulty_shape_column_in_table_order_is_named(tmp_path, capsys, cells, fault) -> None:
+    """Shape columns of numbers are checked as one block and text columns (complex values) one by one;
+    either way the message names the first faulty column of the table, as when each was read alone."""
+    path = tmp_path / "m.csv"
+    rows = [cells, {"a1": "1", "a2": "0.5", "a3": "2"}]
+    lines = [f"t,{k + 1},{10 * (k + 1)},{r['a1']},{r['a2']},{r['a3']}\n" for k, r in enumerate(rows)]
+    path.write_text("config,mode,freq_hz,shape.a1,shape.a2,shape.a3\n" + "".join(lines), encoding="utf-8")
+    assert main(["--quiet", "compare", str(path), str(path)]) == 2
+    assert capsys.readouterr().err == f"flexmodal: error: {path}: {fault}\n"
+
+
+def test_shape_columns_of_numbers_and_of_text_read_back_in_table_order(tmp_path) -> None:
+    """Numbers, complex text and an empty cell in one table: values, dtypes and column order kept."""
+    from flexmodal.contract.table import ModalTable
+
+    path = tmp_path / "m.csv"
+    path.write_text("config,mode,shape.b,freq_hz,shape.a,shape.c\nt,1,0.5,10,1e-320,0.1+0.2j\n"
+                    "t,2,,20,-3,2\n", encoding="utf-8")
+    table = ModalTable.read_csv(path)
+    assert list(table.frame.columns) == ["config", "mode", "shape.b", "freq_hz", "shape.a", "shape.c"]
+    np.testing.assert_array_equal(table.shapes("t"), [[0.5, np.nan], [0.0, -3.0], [0.1 + 0.2j, 2.0]])
+    assert [table.frame[c].dtype.kind for c in table.shape_columns] == ["f", "f", "c"]
