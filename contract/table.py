@@ -51,6 +51,8 @@ def pose_unit(var: str) -> str:
 
 
 def _parse_complex(value: object) -> complex:
+    if isinstance(value, bool | np.bool_):   # True is not 1: ValueError, as for text that is no number
+        raise ValueError(f"{value!r} is not a number")
     if isinstance(value, int | float | complex | np.number):
         return complex(value)
     text = str(value).strip().replace(" ", "").replace("i", "j")
@@ -62,8 +64,9 @@ def _parse_complex(value: object) -> complex:
 def _floats(column: pd.Series) -> pd.Series:
     """``column`` as floats, NaN where a value is none: text, or a whole number too large for a float
     (thousands of digits, which pandas cannot convert at once)."""
-    if column.dtype == bool or (not pd.api.types.is_numeric_dtype(column)   # numbers hold no True: no scan
-                                and column.map(lambda v: isinstance(v, bool | np.bool_)).any()):
+    if pd.api.types.is_bool_dtype(column.dtype) or (   # bool and pandas' nullable boolean (a numeric dtype)
+            not pd.api.types.is_numeric_dtype(column)   # other numbers hold no True: no scan
+            and column.map(lambda v: isinstance(v, bool | np.bool_)).any()):
         column = column.map(lambda v: None if isinstance(v, bool | np.bool_) else v)   # True is not 1
     try:
         return pd.to_numeric(column, errors="coerce").astype(float)
@@ -165,7 +168,7 @@ def _shape_frame(df: pd.DataFrame, columns: list[str], source: str) -> pd.DataFr
     position = {c: k for k, c in enumerate(columns)}
     kinds = df.dtypes[columns].map(lambda t: t.kind).to_numpy()
     real = [c for c, kind in zip(columns, kinds, strict=True) if kind in "fiu"]
-    block, fault = _real_shapes(real, df[real].to_numpy(), source)
+    block, fault = _real_shapes(real, df[real].to_numpy(dtype=float, na_value=np.nan), source)   # NA: NaN
     first_bad = position[real[fault[0]]] if fault else len(columns)
     others = {}
     for col in [c for c, kind in zip(columns, kinds, strict=True) if kind not in "fiu"]:   # text columns
@@ -224,8 +227,10 @@ class ModalTable:
             if bad.any():
                 row = int(np.flatnonzero(bad.to_numpy())[0])
                 shown = df[col].iloc[row]
-                if not isinstance(shown, str):
-                    shown = bool(shown) if isinstance(shown, bool | np.bool_) else float(shown)
+                if isinstance(shown, bool | np.bool_):
+                    shown = bool(shown)
+                elif not isinstance(shown, str):   # pandas' NA (a nullable Int64 or Float64 column) as NaN
+                    shown = float(shown) if pd.notna(shown) else float("nan")
                 raise ContractError(f"{source}: row {row + 2}: column {col!r} is not a number ({shown!r})")
             df[col] = values
         df["freq_hz"] = _numbers(df["freq_hz"], "freq_hz", source, MAX_FREQ_HZ)
