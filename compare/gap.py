@@ -69,9 +69,12 @@ def prepare(rig: Rig, table: ModalTable, min_configs: int = 3) -> Measured:
         shapes = np.array([table.shapes(c, sensors) for c in configs])
         why = [unused_shapes(phi) for phi in shapes]
         unused = tuple((c, w) for c, w in zip(configs, why, strict=True) if w)
-        shapes[np.array(why) == "zero measured"] = np.nan   # no shape (MAC 0/0), not one unlike every mode
-        if np.isnan(shapes).all():
+        still = ~np.any(np.nan_to_num(shapes) != 0, axis=1)   # [C, n]: a mode zero wherever it is given
+        shapes = np.where(still[:, None, :], np.nan, shapes)   # no shape (MAC 0/0), not one unlike every mode
+        if len(sensors) < 2 or np.isnan(shapes).all():   # one sensor: every MAC is 1, it pairs nothing
             shapes, sensors = None, ()
+    elif table.sensors:   # shape columns, none at a sensor of the rig (renamed?): compare's "apart"
+        unused = tuple((c, "apart") for c in configs)
     return Measured(tuple(configs), tuple(poses), freq, shapes, sensors, unused)
 
 
@@ -79,8 +82,9 @@ def unused_shapes(phi: np.ndarray) -> str | None:
     """Why the fit (compare.fit) pairs a configuration's modes by frequency order rather than by MAC,
     from its measured shapes ``phi`` [n_sensors, n_modes] at the rig's sensors: the key of
     compare.pairing.WHY_NOT_MAC ("zero measured": every value given is 0, the MAC 0/0 is undefined;
-    "empty": fewer than two sensors hold a value for every mode; "incomplete": a value is missing at
-    some other sensor), or None when every value is given and some mode moves the sensors.
+    "empty": fewer than two sensors hold a value for every mode, one sensor alone included (its MAC is
+    1 for any pair); "zero mode": one mode is 0 at every sensor that gives it; "incomplete": a value is
+    missing at some other sensor), or None when every value is given and every mode moves the sensors.
 
     Examples
     --------
@@ -89,14 +93,18 @@ def unused_shapes(phi: np.ndarray) -> str | None:
     (None, 'zero measured', 'empty')
     >>> unused_shapes(np.vstack([phi, [[np.nan, 0.2]]])), unused_shapes(np.array([[0.0, np.nan]] * 3))
     ('incomplete', 'zero measured')
+    >>> unused_shapes(phi[:1]), unused_shapes(phi * [1.0, 0.0])
+    ('empty', 'zero mode')
     """
     given = np.isfinite(phi)
     if given.any() and not np.any(phi[given]):
         return "zero measured"
     complete = int(np.sum(given.all(axis=1)))
-    if complete < len(phi):
-        return "empty" if complete < 2 else "incomplete"
-    return None
+    if complete < 2:
+        return "empty"
+    if not np.all(np.any(np.nan_to_num(phi) != 0, axis=0)):
+        return "zero mode"
+    return "incomplete" if complete < len(phi) else None
 
 
 def rms(x: np.ndarray) -> float:

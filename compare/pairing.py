@@ -39,7 +39,9 @@ WHY_NOT_MAC = {
     "empty": "fewer than two common sensors hold a shape value (not empty, not NaN) for every mode",
     "zero measured": "every measured mode shape is zero at the common sensors (MAC undefined)",
     "zero predicted": "every predicted mode shape is zero at the common sensors (MAC undefined)",
-    # the diagnosis' only (compare leaves such a sensor out): its fit pairs complete shapes by MAC
+    # the diagnosis' only (compare leaves such a sensor out, and pairs a zero mode by frequency alone):
+    # its fit pairs complete shapes by MAC
+    "zero mode": "a measured mode shape is zero at every sensor that gives it (MAC undefined)",
     "incomplete": "a measured mode shape is empty or NaN at one or more sensors (the diagnosis pairs "
                   "by MAC only shapes given at every sensor)",
 }

@@ -34,6 +34,8 @@ EFFECTS = "joint_stiffness"   # one candidate: a diagnosis in 0.2 s
 ZERO = "every measured mode shape is zero at the common sensors (MAC undefined)"
 EMPTY = "fewer than two common sensors hold a shape value (not empty, not NaN) for every mode"
 INCOMPLETE = "a measured mode shape is empty or NaN at one or more sensors"
+ZERO_MODE = "a measured mode shape is zero at every sensor that gives it (MAC undefined)"
+APART = "both tables give mode shapes, but at fewer than two sensors of the same name"
 
 
 @pytest.fixture(scope="module")
@@ -103,6 +105,49 @@ def test_a_zero_configuration_is_an_empty_one(tmp_path, capsys, measured) -> Non
     assert [doc["where"]["mac_per_mode"][str(k + 1)] for k in range(N_MODES)] == pytest.approx(
         macs.mean(axis=0), rel=1e-7)   # the reduced model: FE to 1e-8
     assert doc["ranking"][0]["mac_mean"] == pytest.approx(macs.mean(), abs=2e-4)   # 0.83 before
+
+
+def test_a_zero_mode_is_an_empty_one(tmp_path, capsys, measured) -> None:
+    """Mode 2 of c2 zero at every sensor, its other modes as measured: the diagnosis is the one with that
+    mode's cells empty, one warning names c2, and the MAC of mode 2 is the mean over the other five
+    configurations (before: no warning, MAC 0 in the mean, mean MAC 0.944)."""
+    df, model = measured
+    cols = ["shape.a1", "shape.a2", "shape.a3"]
+    zero, empty = df.copy(), df.copy()
+    zero.loc[(df.config == "c2") & (df["mode"] == 2), cols] = 0.0
+    empty.loc[(df.config == "c2") & (df["mode"] == 2), cols] = np.nan
+    doc, err = _diagnose_cli(tmp_path, zero, capsys)
+    assert err == [f"flexmodal: warning: {RIG}: {ZERO_MODE} in 1 configuration (c2) of "
+                   f"{tmp_path / 'modes.csv'} (shape.a1, shape.a2, shape.a3): paired by frequency order, "
+                   "not by MAC"]
+    reference, err_empty = _diagnose_cli(tmp_path, empty, capsys, "empty.csv")
+    assert len(err_empty) == 1 and f"{EMPTY} in 1 configuration (c2) of " in err_empty[0]
+    doc.pop("warnings"), reference.pop("warnings")
+    assert doc == reference
+    phi = df[cols].to_numpy().reshape(len(POSES_DEG), N_MODES, 3)
+    macs = np.array([mac_pairs(phi[c].T, model[c]) for c in (0, 1, 3, 4, 5)])   # independent of compare/
+    assert doc["where"]["mac_per_mode"]["2"] == pytest.approx(macs[:, 1].mean(), rel=1e-7)
+
+
+@pytest.mark.parametrize("columns, why", [
+    ({"shape.a2": None, "shape.a3": None}, EMPTY),                          # one rig sensor: every MAC is 1
+    ({"shape.a1": "shape.x1", "shape.a2": "shape.x2", "shape.a3": "shape.x3"}, APART),   # renamed
+], ids=["one_sensor", "renamed"])
+def test_shapes_at_fewer_than_two_rig_sensors_are_a_table_without_shapes(tmp_path, capsys, measured, columns,
+                                                                        why) -> None:
+    """Shape columns at one rig sensor, or at none (names the rig does not know): one warning naming the
+    columns, and the diagnosis of the table without shape columns (before: no warning; one sensor: mean
+    MAC 1.0 from single-value "shapes")."""
+    df, _ = measured
+    table = df.drop(columns=[c for c, new in columns.items() if new is None]).rename(
+        columns={c: new for c, new in columns.items() if new})
+    doc, err = _diagnose_cli(tmp_path, table, capsys)
+    named = ", ".join(c for c in table.columns if c.startswith("shape."))
+    assert err == [f"flexmodal: warning: {RIG}: {why} in 6 configurations (c0, c1, c2 and 3 more) of "
+                   f"{tmp_path / 'modes.csv'} ({named}): paired by frequency order, not by MAC"]
+    assert doc.pop("warnings") == [err[0].removeprefix("flexmodal: warning: ")]
+    reference = _reference(tmp_path, df.drop(columns=["shape.a1", "shape.a2", "shape.a3"]))
+    assert doc == json.loads(json.dumps(reference))
 
 
 def test_one_warning_per_reason_and_none_for_usable_shapes(tmp_path, capsys, measured) -> None:
