@@ -16,7 +16,7 @@ import numbers
 import os
 import re
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -1425,8 +1425,6 @@ def diagnose(rig: Rig | PathLike, measured: ModalTable | PathLike, *, effects: s
     from flexmodal.compare.candidates import parse_effects
     from flexmodal.compare.diagnosis import diagnose as _diagnose
     from flexmodal.compare.diagnosis import folds_for
-    from flexmodal.compare.gap import prepare
-    from flexmodal.compare.tables import shape_warnings
 
     if not isinstance(effects, str) and not (isinstance(effects, Iterable)
                                             and all(isinstance(e, str) for e in effects)):
@@ -1436,12 +1434,9 @@ def diagnose(rig: Rig | PathLike, measured: ModalTable | PathLike, *, effects: s
     if scatter is not None and (isinstance(scatter, bool) or not isinstance(scatter, numbers.Real)):
         raise TypeError(f"diagnose: scatter must be a fraction (0.005 = 0.5 %) or None, got {scatter!r}")
     folds_for(table.configs, holdout)
-    unused = prepare(rig, table).shapes_unused   # one line each, as compare's (its class of shapes)
     if progress is not None:
         progress(f"diagnose: {table.source} against the model of {rig.source}")
     result = _diagnose(rig, table, effects=effects, holdout=holdout, scatter=scatter, progress=progress)
-    if unused:
-        result = replace(result, warnings=tuple(shape_warnings(rig.source, unused, [table])))
     if out_dir is not None:
         write_diagnosis(result, out_dir, inputs=[rig.source, table.source])
     return result

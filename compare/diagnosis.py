@@ -102,6 +102,7 @@ from flexmodal.compare.result import (
     Where,
 )
 from flexmodal.compare.sensor_flag import sensor_flag
+from flexmodal.compare.tables import shape_warnings
 from flexmodal.compare.verdict_text import EXPLAINED_FACTOR, UNLIKELY, gap_words
 from flexmodal.contract.mac import mac_pairs
 from flexmodal.contract.table import ModalTable
@@ -618,7 +619,9 @@ def diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str] = "all
     (repeated configurations or a ``freq_std_hz`` column, compare/gap.py ``estimate_scatter``); default
     ``DEFAULT_SCATTER``.  ``progress`` is called with a line at each stage of the work (the fits of
     single effects, of pairs, the cross-validation, the verdict), and the fits are shown as a transient
-    bar on a terminal.  Raises CompareError (one line) on inputs that do not fit the rig.
+    bar on a terminal.  ``warnings`` of the result: one line per reason why the measured shapes of some
+    configurations pair no modes by MAC (compare.tables.shape_warnings), None when there is none.
+    Raises CompareError (one line) on inputs that do not fit the rig.
     """
     with threadpool_limits(limits=1, user_api="blas"):  # thousands of tiny eigenproblems
         return _diagnose(rig, measured, effects, holdout, scatter, progress)
@@ -780,7 +783,8 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
         scatter=scatter, scatter_source=ScatterSource(source=noise.source, detail=noise.detail,
                                                       measurement=sigma, model_form_floor=floor, least=least),
         holdout=Holdout(scheme=scheme, n_folds=int(len(train) - 1)), configs=meas.configs,
-        predictions=_predictions(meas, base_f, best))
+        predictions=_predictions(meas, base_f, best),
+        warnings=tuple(shape_warnings(rig.source, meas.shapes_unused, [measured])) or None)
 
 
 def heldout_errors(rig: Rig, measured: ModalTable, names: Sequence[tuple[str, str]], scatter: float,

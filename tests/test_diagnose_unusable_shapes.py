@@ -170,6 +170,10 @@ def test_the_api_carries_the_warning_through_diagnosis_json(tmp_path, measured) 
     result = diagnose(RIG, path, effects=EFFECTS)
     assert result.warnings == (f"{RIG}: {ZERO} in 2 configurations (c0, c5) of {path} (shape.a1, shape.a2, "
                                "shape.a3): paired by frequency order, not by MAC",)
+    from flexmodal.compare.diagnosis import diagnose as library_diagnose
+    from flexmodal.contract.table import ModalTable
+
+    assert library_diagnose(load_rig(RIG), ModalTable.read_csv(path), effects=EFFECTS) == result   # not api's
     write_diagnosis(result, tmp_path / "out")
     assert read_diagnosis(tmp_path / "out" / "diagnosis.json").warnings == result.warnings
     page = (tmp_path / "out" / "diagnosis.html").read_text()
