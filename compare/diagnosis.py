@@ -1373,8 +1373,8 @@ def _point_masses(ctx: _Context, ranking: list[dict], screened: list[dict], scat
     known = {e["_cand"] for e in screened}
     points = []
     for e in ranking:
-        if len(e["_cand"].effects) > 1:
-            continue
+        if len(e["_cand"].effects) > 1 or all(p.name != "inertia_kgm2" for p in e["_cand"].params):
+            continue   # a combination, or a single with no rotary inertia (no added mass, or a point one)
         cand = _point_mass(e["_cand"])
         if cand in known:
             continue
