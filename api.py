@@ -1434,8 +1434,6 @@ def diagnose(rig: Rig | PathLike, measured: ModalTable | PathLike, *, effects: s
     if scatter is not None and (isinstance(scatter, bool) or not isinstance(scatter, numbers.Real)):
         raise TypeError(f"diagnose: scatter must be a fraction (0.005 = 0.5 %) or None, got {scatter!r}")
     folds_for(table.configs, holdout)
-    if progress is not None:
-        progress(f"diagnose: {table.source} against the model of {rig.source}")
     result = _diagnose(rig, table, effects=effects, holdout=holdout, scatter=scatter, progress=progress)
     if out_dir is not None:
         write_diagnosis(result, out_dir, inputs=[rig.source, table.source])

@@ -652,6 +652,8 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
     sigma = scatter = noise.value       # the measurement's scatter; ``scatter`` ranks (+ model-form floor)
     floor, least = 0.0, None
     train, scheme = folds_for(meas.configs, holdout, meas.poses)
+    if progress is not None:   # the inputs fit the rig: a bad one is the only line said
+        progress(f"diagnose: {measured.source} against the model of {rig.source}")
     ctx = _Context(rig, meas, train)
 
     base_fam = ctx.family([])
