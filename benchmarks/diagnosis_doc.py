@@ -86,7 +86,7 @@ def seed003_block(data: Path = REPO / "tests" / "data") -> str:
 
     def verdict(res) -> str:
         v = res.verdict
-        entry = next(e for e in res.ranking if (e.effect, e.location) == (v.effect, v.location))
+        entry = res.verdict_score()
         params = ", ".join(f"{k} = {x:.4g} [{v.param_intervals[k][0]:.4g}, {v.param_intervals[k][1]:.4g}]"
                            for k, x in v.params.items())
         alts = "; ".join(f"{a.effect} at {a.location} ({_pct(a.heldout_rms_rel_error)})"

@@ -866,8 +866,9 @@ def prediction_band(rig: Rig, measured: ModalTable, result: Diagnosis, poses: Se
     compare.modal_map.PredictionBand over ``pose_var`` (default: the rig's only pose variable).
 
     The verdict's candidate is rebuilt from ``result`` (its effect, location and fitted parameters,
-    unidentified ones included, from ``result.ranking``), its linearised parameter covariance
-    ``scatter^2 (J^T J)^+`` computed on ``measured`` at ``result.scatter``, and at each new pose the
+    unidentified ones included, from its entry of ``result.ranking``: ``Diagnosis.verdict_score``), its
+    linearised parameter covariance ``scatter^2 (J^T J)^+`` computed on ``measured`` at
+    ``result.scatter``, and at each new pose the
     interval is ``f (1 +- 1.96 sqrt(g^T C g + scatter^2))`` with ``g`` the relative sensitivities there
     (the interval of a new observation, Seber & Wild 1989 §5.1).  Modes are by ascending order, as many
     as measured.  ``result`` with a ``none`` verdict gives the nominal model with ``+- 1.96 scatter``.
@@ -881,8 +882,7 @@ def prediction_band(rig: Rig, measured: ModalTable, result: Diagnosis, poses: Se
                            f"{', '.join(variables) or 'none'})")
     meas = prepare(rig, measured)
     v = result.verdict
-    entry = next((e for e in result.ranking if (e.effect, e.location) == (v.effect, v.location)
-                  and all(e.params.get(k) == x for k, x in (v.params or {}).items())), None)
+    entry = result.verdict_score()
     cand = _rebuild(rig, meas, v.effect, v.location) if entry is not None else None
     if cand is not None and entry.n_params < cand.n_params:      # a point mass (``_point_masses``)
         cand = _point_mass(cand)

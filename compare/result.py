@@ -447,6 +447,13 @@ class Diagnosis(_Record):
     # frequency order: compare.tables.shape_warnings, a zero shape its MAC 0/0); None when there is none
     warnings: tuple[str, ...] | None = None
 
+    def verdict_score(self) -> CandidateScore | None:
+        """The verdict's entry of ``ranking`` (its fitted parameters, unidentified ones included, and its
+        errors): the one at the verdict's place ``verdict.ranked`` (1 = first); None for a ``none``
+        verdict, or one ranked below the entries kept."""
+        rank = self.verdict.ranked
+        return self.ranking[rank - 1] if rank is not None and 1 <= rank <= len(self.ranking) else None
+
     # -- notebook display (reports engineer's block: to_frame, __repr__, _repr_html_) -----------------
     def to_frame(self):
         """The ranking of candidate effects as a pandas DataFrame, best first: ``rank``, ``effect``,

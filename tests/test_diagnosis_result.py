@@ -280,3 +280,20 @@ def test_a_pose_law_verdict_lists_its_stiffness_per_configuration(rigs_dir):
         assert k == pytest.approx(k0 * math.exp(a1 * q + a2 * q * q), rel=1e-12)
         assert k == pytest.approx(3000.0 * math.exp(0.5 * q), rel=0.03)   # measured: within 2.4 %
     assert _strict(d.to_json())["verdict"]["k_Nm_per_rad_per_config"] == per_config
+
+
+def test_the_verdicts_entry_is_the_ranking_entry_at_its_place(live):
+    """``verdict_score``: the ranking entry at ``verdict.ranked`` (1 = first), found by place, not by
+    equal parameters (two entries of one effect and place, a point mass and a distributed one, may share
+    them); None for a ``none`` verdict and for a place below the entries kept."""
+    d, none = live
+    assert none.verdict.effect == "none" and none.verdict.ranked is None and none.verdict_score() is None
+    v = d.verdict
+    entry = d.verdict_score()
+    assert entry is d.ranking[v.ranked - 1] and (entry.effect, entry.location) == (v.effect, v.location)
+    twin = dataclasses.replace(entry, n_params=entry.n_params + 1)   # same effect, place and parameters
+    moved = dataclasses.replace(d, ranking=(twin, *d.ranking),
+                                verdict=dataclasses.replace(v, ranked=v.ranked + 1))
+    assert moved.verdict_score() is entry
+    below = dataclasses.replace(d, verdict=dataclasses.replace(v, ranked=len(d.ranking) + 1))
+    assert below.verdict_score() is None
