@@ -733,7 +733,7 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
     for e in ranking:
         _annotate(ctx, e, scatter)
     _order(ctx, ranking, scatter)
-    best, notes = _choose(ctx, ranking, screened if ranking else [], scatter)
+    best, notes = _chosen(ctx, ranking, screened if ranking else [], scatter)
     if best is not None and len(best["_cand"].effects) > 1:
         shape_floor, n_screened = ctx.shape_floor, len(screened)
         moved = []
@@ -749,7 +749,7 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
                 ranking += [e for e in moved if e not in ranking]
             ranking.sort(key=lambda e: e["score"])
             _order(ctx, ranking, scatter)
-            best, notes = _choose(ctx, ranking, screened, scatter)
+            best, notes = _chosen(ctx, ranking, screened, scatter)
     nominal = _nominal_entry(ctx)
     _rescore(ctx, nominal, scatter)
     # an ambiguous choice of an effect (not ``none``: that test stays the nominal model's against the
@@ -766,7 +766,7 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
             _rescored(ctx, screened, ranking, shape_floor, scatter)
             ranking.sort(key=lambda e: e["score"])
             _order(ctx, ranking, scatter)
-            best, notes = _choose(ctx, ranking, screened, scatter)
+            best, notes = _chosen(ctx, ranking, screened, scatter)
     if best is not None and best not in ranking:           # a pruned candidate validated by _choose
         ranking.append(best)
         _order(ctx, ranking, scatter)
@@ -1351,6 +1351,20 @@ def _rescored(ctx: _Context, screened: list[dict], ranking: list[dict], shape_fl
             _rescore(ctx, e, scatter)
     _refinement_guard(ranking)
     return True
+
+
+def _chosen(ctx: _Context, ranking: list[dict], screened: list[dict], scatter: float) -> tuple:
+    """``_choose``, made again while the sub-candidates it validates lower the shape noise floor: every
+    cross-validated entry is then re-scored at the new floor (``_rescored``) and ordered again, so the
+    verdict is chosen from scores at one floor (a floor only falls, by new fits, so this ends)."""
+    floor = ctx.shape_floor
+    best, notes = _choose(ctx, ranking, screened, scatter)
+    while _rescored(ctx, screened, ranking, floor, scatter):
+        ranking.sort(key=lambda e: e["score"])
+        _order(ctx, ranking, scatter)
+        floor = ctx.shape_floor
+        best, notes = _choose(ctx, ranking, screened, scatter)
+    return best, notes
 
 
 def _point_mass(cand: Candidate) -> Candidate:
