@@ -3,11 +3,14 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 from threadpoolctl import threadpool_limits
 
-from flexmodal.compare.diagnosis import diagnose, prediction_band
+from flexmodal.compare.candidates import Candidate
+from flexmodal.compare.diagnosis import _alternatives, _noise, diagnose, prediction_band
 from flexmodal.fixtures.blind import CATEGORIES, KINDS, make_case
 
 
@@ -34,3 +37,22 @@ def test_a_weak_joint_mass_is_found_as_a_point_mass():
              for _, row in case.table.frame.drop_duplicates("config").iterrows()]
     band = prediction_band(case.rig, case.table, d, poses)
     assert np.all(np.isfinite(band.freq_hz)) and np.all(band.lower_hz < band.freq_hz)
+
+
+def test_a_mass_with_and_without_its_inertia_takes_one_alternative_slot():
+    """The alternatives are cut to ``MAX_ALTERNATIVES`` names, not entries: a point mass and the same
+    mass with its rotary inertia (``_point_masses``), both held out equal to the verdict within noise,
+    are one name, and the next candidate within noise still gets its slot (cut before the names were
+    made unique, the tip mass took two of the three slots and the link-1 stiffness was left out)."""
+    def entry(effect: str, location: str, n_params: int, heldout: float) -> dict:
+        return {"_cand": Candidate((effect,), (location,), ()), "effect": effect, "location": location,
+                "n_params": n_params, "score": heldout, "_heldout_eq": heldout, "_n_eq": 50,
+                "_out_of_range": False, "_idle": []}
+
+    best = entry("link_mass", "link2", 1, 0.0050)
+    ranking = [best, entry("tip_mass", "tip", 1, 0.0051), entry("tip_mass", "tip", 2, 0.0051),
+               entry("joint_mass", "elbow", 2, 0.0052), entry("link_stiffness", "link1", 2, 0.0053)]
+    assert _noise(best, 0.005) > 0.0053 - 0.0050            # every one of them within noise
+    alts = _alternatives(SimpleNamespace(pose_share=1.0), best, ranking, 0.005)
+    assert [(a["effect"], a["n_params"]) for a in alts] == [
+        ("tip_mass", 1), ("joint_mass", 2), ("link_stiffness", 2)]

@@ -11,6 +11,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+import flexmodal.compare.diagnosis as diagnosis
 import flexmodal.compare.next_measurement as nm
 from flexmodal.compare.candidates import Candidate
 from flexmodal.compare.diagnosis import diagnose
@@ -136,10 +137,10 @@ def test_the_advised_pose_decide_chance_matches_the_rate_one_more_measurement_de
     measured once more at the advised pose with fresh noise, 60 times, is decided (right and no longer
     ambiguous) at a rate whose 99 % Clopper-Pearson interval holds the stated chance; at a pose inside
     the measured range (82.5 deg, where the two candidates differ by under the noise) it is decided far
-    less often.  At main 470a041 (an alternative tip mass fitted as a point mass, 1 parameter) the chance
-    is 0.46 and 38 of 60 draws decide (99 % interval 0.46-0.79; 35 of another 60 with other noise): the
-    estimate sits at the interval's lower edge, where 170306a's 0.70 (its alternative with an inertia)
-    sat inside it."""
+    less often.  At main 470a041 the tip mass came twice among the rivals (as a point mass and with its
+    inertia), each to be ruled out given the other is the truth, which one measurement cannot do: the
+    chance was 0.46 with 38 of 60 draws decided (99 % interval 0.46-0.79; 35 of another 60 with other
+    noise), at the interval's lower edge; counted once (``_once_per_name``) it is 0.67."""
     from scipy.stats import beta
 
     real = apply_effect(rig, "link_mass", "link2", {"scale": 1.4})
@@ -164,6 +165,27 @@ def test_the_advised_pose_decide_chance_matches_the_rate_one_more_measurement_de
     high = beta.ppf(0.995, k + 1, n - k) if k < n else 1.0
     assert low <= advice.decide_chance <= high, (k, n, advice.decide_chance)
     assert decided(82.5, 20) / 20 < k / n / 2
+
+
+def test_a_mass_ranked_with_and_without_its_inertia_is_one_rival(rig, monkeypatch):
+    """The look-alike case above ranks the tip mass twice, as a point mass (1 parameter, compare/diagnosis.py
+    ``_point_masses``) and with its rotary inertia (2), held out equal: the advice weighs it as one rival.
+    Counted twice, each form had to be ruled out given the other is the truth, which no measurement does
+    (they predict the same frequencies there), and the chance to decide fell from 0.67 to 0.46 against
+    the 38 of 60 draws the slow test above sees decided."""
+    passed = []
+    advise = diagnosis.next_measurements
+
+    def spy(ctx, best, rivals, scatter):
+        passed.append([(e["effect"], e["location"]) for e in rivals])
+        return advise(ctx, best, rivals, scatter)
+
+    monkeypatch.setattr(diagnosis, "next_measurements", spy)
+    real = apply_effect(rig, "link_mass", "link2", {"scale": 1.4})
+    d = diagnose(rig, _table(real, MEASURED, 0), effects=EFFECTS)
+    assert sorted(c.n_params for c in d.ranking if (c.effect, c.location) == ("tip_mass", "tip")) == [1, 2]
+    assert passed == [[("tip_mass", "tip")]]
+    assert [(a.effect, a.location) for a in d.verdict.alternatives] == [("tip_mass", "tip")]
 
 
 def test_a_rival_that_only_adds_a_component_gets_no_advice():
