@@ -1580,10 +1580,10 @@ def _alternatives(ctx: _Context, best: dict, ranking: list[dict], scatter: float
 def _once_per_name(entries: Sequence[dict]) -> list[dict]:
     """``entries`` with each name (effect and location) once, the first kept: a point mass and the same
     mass with its rotary inertia (``_point_masses``) are one candidate to the reader and one rival to the
-    advice.  Cut after this, not before: blind 1681-1685 (main 470a041) listed a point mass and its full
-    mass in two of the three alternative slots, and the advice counted them as two rivals, each to be
-    ruled out given the other is the truth -- which one measurement cannot do (the next-measurement
-    case of tests/test_next_measurement.py: decide chance 0.46, measured rate 38 of 60; once: 0.67)."""
+    advice.  Cut after this, not before: cut before, the two forms of one mass could take two of the
+    three alternative slots; and counted as two rivals, each had to be ruled out given the other is the
+    truth, which no measurement does (the look-alike case of tests/test_next_measurement.py: decide
+    chance 0.46 against 38 of 60 draws decided; once, 0.67)."""
     named: dict[tuple[str, str], dict] = {}
     for e in entries:
         named.setdefault((e["effect"], e["location"]), e)
