@@ -1,30 +1,32 @@
 """The moved-sensor test's ratios mode by mode on blind draws (compare/sensor_flag.py ``SENSOR_MODE_FACTOR``).
 
-    python benchmarks/sensor_mode_ratios.py                # print the block: draws 1156-1160, ~4 min each
+    python benchmarks/sensor_mode_ratios.py                # print the block: draws 1156-1160, ~2 min each
     python benchmarks/sensor_mode_ratios.py --write        # and put it into docs/diagnosis.md
+    python benchmarks/sensor_mode_ratios.py --fresh --write  # the block of draws 1681-1685
     python benchmarks/sensor_mode_ratios.py --seeds 1261   # other draws, printed only
 
-Each case of ``run_blind`` (fixtures/blind.py, 36 per draw) whose diagnosis checks its measured shapes
+Each case of a blind draw (fixtures/blind.py, 36 per draw) whose diagnosis checks its measured shapes
 (three sensors or more: ``sensor_flag`` is called once, with the verdict's fitted model, or the nominal
 model for ``none``) gives its largest ratio in one mode -- a sensor's misfit mean square in that mode
 over that mode's shape noise at the other sensors, ``sensor_check`` of that mode alone -- and whether
 the test flags the verdict, pooled over modes or in one mode.  One line per draw: the moved sensors
 (category ``sensor``), and the ``none`` and in-library cases (``single``, ``weak``, ``pair``) flagged
 and the largest ratio among them; cases outside the library are left out (a flag there is right).
-docs/diagnosis.md quotes the block ``sensor_modes``; tests/test_diagnosis_sensor_flag.py re-runs every
-draw under ``-m slow`` and compares its line.
+docs/diagnosis.md quotes the blocks ``sensor_modes`` (the draws the test was developed on) and
+``sensor_modes_fresh`` (draws 1681-1685, none of which chose it); tests/test_diagnosis_sensor_flag.py
+re-runs every draw under ``-m slow`` and compares its line.
 """
 
 from __future__ import annotations
 
 import argparse
-import itertools
 import sys
 from pathlib import Path
 from typing import NamedTuple
 from unittest import mock
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "benchmarks"))
@@ -33,11 +35,15 @@ from diagnosis_doc import BLIND_CASES, write_block  # noqa: E402
 
 import flexmodal.compare.diagnosis as diagnosis  # noqa: E402
 import flexmodal.compare.sensor_flag as sensor_flag_module  # noqa: E402
+from flexmodal.compare.diagnosis import diagnose  # noqa: E402
 from flexmodal.compare.sensor_flag import sensor_check, sensor_flag  # noqa: E402
-from flexmodal.fixtures.blind import run_blind  # noqa: E402
+from flexmodal.fixtures.blind import CATEGORIES, KINDS, make_case  # noqa: E402
 
 SEEDS = (1156, 1157, 1158, 1159, 1160)
 """The draws the mode-by-mode test was developed on (blind 1159 #10), run with the current method."""
+FRESH = (1681, 1682, 1683, 1684, 1685)
+"""Draws no part of the sensor test was chosen on (block ``sensor_modes_fresh``)."""
+BLOCKS = {SEEDS: "sensor_modes", FRESH: "sensor_modes_fresh"}
 CLEAN = ("none", "single", "weak", "pair")
 """Categories whose verdict a sensor flag would wrongly mark: nothing moved, every effect in the library."""
 
@@ -72,23 +78,28 @@ def mode_ratio(measured: np.ndarray, model: np.ndarray) -> tuple[float, int, str
 
 
 def draw_ratios(seed: int, cases: int = BLIND_CASES) -> list[CaseRatio]:
-    """The shape check of every case of draw ``seed`` whose diagnosis makes one."""
+    """The shape check of every case of draw ``seed`` whose diagnosis makes one (the cases of
+    ``run_blind``; those with shapes at fewer than three sensors, which no check reaches, are not
+    diagnosed)."""
     checks: list = []
     rows: list[CaseRatio] = []
-    index = itertools.count()
 
     def recording(measured, model, names):
         checks.append(mode_ratio(measured, model))
         return sensor_flag(measured, model, names)
 
-    def done(result) -> None:
-        i, found = next(index), [c for c in checks if c is not None]
+    rng = np.random.default_rng(seed)
+    for i in range(cases):
+        with threadpool_limits(limits=1, user_api="blas"):          # as run_blind makes them
+            case = make_case(rng, CATEGORIES[i % len(CATEGORIES)], KINDS[i % len(KINDS)])
+        if sum(c.startswith("shape.") for c in case.table.frame.columns) < 3:
+            continue
+        with mock.patch.object(diagnosis, "sensor_flag", recording):
+            diagnose(case.rig, case.table)
+        found = [c for c in checks if c is not None]
         checks.clear()
         if found:
-            rows.append(CaseRatio(i, result.case.category, *found[-1]))
-
-    with mock.patch.object(diagnosis, "sensor_flag", recording):
-        run_blind(cases, seed=seed, progress=done)
+            rows.append(CaseRatio(i, case.category, *found[-1]))
     return rows
 
 
@@ -119,13 +130,16 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=lambda t: tuple(int(x) for x in t.split(",")), default=SEEDS,
                     help="comma-separated draws (default 1156-1160)")
+    ap.add_argument("--fresh", action="store_const", const=FRESH, dest="seeds",
+                    help="the draws 1681-1685 (block sensor_modes_fresh)")
     ap.add_argument("--write", action="store_true", help="replace its block in docs/diagnosis.md")
     args = ap.parse_args()
-    if args.write and args.seeds != SEEDS:
-        ap.error("--write puts the draws 1156-1160 into docs/diagnosis.md: leave --seeds out")
+    if args.write and args.seeds not in BLOCKS:
+        ap.error("--write puts the draws 1156-1160 or 1681-1685 (--fresh) into docs/diagnosis.md: "
+                 "leave --seeds out")
     text = block(args.seeds)
     if args.write:
-        write_block("sensor_modes", text)
+        write_block(BLOCKS[args.seeds], text)
     print(text)
     return 0
 
