@@ -1,9 +1,11 @@
-"""Planar Euler-Bernoulli frame finite elements for a rig (docs/formats.md) at a pose.
+"""Planar Euler-Bernoulli (opt-in: Timoshenko) frame finite elements for a rig (docs/formats.md) at a pose.
 
 Each link (and each extra member) is a chain of two-node frame elements with three DOFs per node
 (global ``x``, ``y`` translation in m and rotation in rad): axial bar plus Hermite-cubic bending,
 consistent mass with rotary inertia (Przemieniecki 1968, ch. 11; Cook et al. 2002 §11.3) or an
 HRZ-lumped diagonal mass (translations mL/2, rotations mL^3/78 + rho*I*L/2, Hinton-Rock-Zienkiewicz 1976).
+Shear deformation is off by default; ``shear=Shear(kappa, nu)`` makes every element a Timoshenko beam
+(Friedman & Kosmatka 1993), for thick or thin-walled links whose shear flexibility matters.
 
 Connections are made by sharing DOFs (exact elimination, never penalties): a rigid joint shares all
 three DOFs; a pin or spring joint shares the translations and gives the child its own rotation, a
@@ -52,14 +54,59 @@ _AX, _BD = np.array([0, 3]), np.array([1, 2, 4, 5])
 _KB = np.array([[12, 6, -12, 6], [6, 4, -6, 2], [-12, -6, 12, -6], [6, 2, -6, 4]], float)
 _MB = np.array([[156, 22, 54, -13], [22, 4, 13, -3], [54, 13, 156, -22], [-13, -3, -22, 4]], float)
 _MR = np.array([[36, 3, -36, 3], [3, 4, -3, -1], [-36, -3, 36, -3], [3, -1, -3, 4]], float)
+# Timoshenko terms in phi = 12 EI / (kappa G A L^2) (Friedman & Kosmatka 1993, eqs. 17-19): stiffness
+# EI/(L^3 (1+phi)) (_KB + phi _KS); translational mass mL/(420 (1+phi)^2) (_MB + phi _MB1 + phi^2 _MB2);
+# rotary mass rho I/(30 L (1+phi)^2) (_MR + phi _MR1 + phi^2 _MR2)
+_KS = np.array([[0, 0, 0, 0], [0, 1, 0, -1], [0, 0, 0, 0], [0, -1, 0, 1]], float)
+_MB1 = np.array([[294, 38.5, 126, -31.5], [38.5, 7, 31.5, -7], [126, 31.5, 294, -38.5],
+                 [-31.5, -7, -38.5, 7]])
+_MB2 = np.array([[140, 17.5, 70, -17.5], [17.5, 3.5, 17.5, -3.5], [70, 17.5, 140, -17.5],
+                 [-17.5, -3.5, -17.5, 3.5]])
+_MR1 = np.array([[0, -15, 0, -15], [-15, 5, 15, -5], [0, 15, 0, 15], [-15, -5, 15, 5]], float)
+_MR2 = np.array([[0, 0, 0, 0], [0, 10, 0, 5], [0, 0, 0, 0], [0, 5, 0, 10]], float)
 _BAR_K, _BAR_M = np.array([[1.0, -1.0], [-1.0, 1.0]]), np.array([[2.0, 1.0], [1.0, 2.0]])
 
 
+@dataclass(frozen=True)
+class Shear:
+    """Opt-in shear deformation of every frame element (Timoshenko beam instead of Euler-Bernoulli).
+
+    Parameters
+    ----------
+    shear_coefficient : float
+        Timoshenko shear coefficient kappa [-] (dimensionless, > 0): 5/6 for a solid rectangle, about
+        0.5 for a thin-walled round or square tube bending in its plane (Cowper 1966).
+    poisson_ratio : float
+        Poisson's ratio nu [-] (dimensionless, in (-1, 0.5)); the shear modulus is G = E / (2 (1 + nu)),
+        so the shear rigidity is ``kappa G A = kappa EA / (2 (1 + nu))`` from each section's ``EA_N``.
+    """
+
+    shear_coefficient: float = 5.0 / 6.0
+    poisson_ratio: float = 0.3
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.shear_coefficient) and self.shear_coefficient > 0):
+            raise ModelError(f"shear coefficient kappa = {self.shear_coefficient} must be finite and > 0")
+        if not -1.0 < self.poisson_ratio < 0.5:
+            raise ModelError(f"Poisson's ratio = {self.poisson_ratio} must lie in (-1, 0.5)")
+
+    def rigidity_N(self, EA_N: np.ndarray) -> np.ndarray:
+        """Shear rigidity kappa G A [N] of sections with axial rigidity ``EA_N`` [N]."""
+        return self.shear_coefficient * np.asarray(EA_N, float) / (2.0 * (1.0 + self.poisson_ratio))
+
+
 def element_matrices(length_m: np.ndarray, EA_N: np.ndarray, EI_Nm2: np.ndarray, mass_per_m_kg: np.ndarray,
-                     rotary_per_m_kgm: np.ndarray, lumped: bool = False) -> tuple[np.ndarray, np.ndarray]:
+                     rotary_per_m_kgm: np.ndarray, lumped: bool = False, shear: Shear | None = None
+                     ) -> tuple[np.ndarray, np.ndarray]:
     """Local stiffness and mass matrices [n_el, 6, 6] of planar frame elements.
 
     DOF order per element: (u1, v1, theta1, u2, v2, theta2), u axial and v transverse [m], theta [rad].
+    Without ``shear`` (the default) the bending part is the Euler-Bernoulli Hermite element with consistent
+    translational and rotary mass (Przemieniecki 1968, ch. 5 and 11).  With ``shear`` it is the two-node
+    Timoshenko element built on the exact static interpolation (Przemieniecki 1968 §5.6; Friedman & Kosmatka
+    1993, Comput. Struct. 47(3), 473-481): shear-flexible stiffness with phi = 12 EI / (kappa G A L^2) and the
+    matching consistent mass, translational and rotary; theta is then the section rotation.  phi = 0 gives
+    the Euler-Bernoulli matrices exactly (same arithmetic).  The HRZ-lumped mass (``lumped``) ignores phi.
     """
     L = np.asarray(length_m, float)
     n = L.size
@@ -67,14 +114,17 @@ def element_matrices(length_m: np.ndarray, EA_N: np.ndarray, EI_Nm2: np.ndarray,
     m = np.zeros((n, 6, 6))
     powers = L[:, None] ** np.array([0, 1, 0, 1])
     Lp = powers[:, :, None] * powers[:, None, :]
+    phi = np.zeros(n) if shear is None else 12.0 * np.asarray(EI_Nm2, float) / (shear.rigidity_N(EA_N) * L**2)
+    ph, ph2 = phi[:, None, None], (phi**2)[:, None, None]
     k[:, _AX[:, None], _AX] = (EA_N / L)[:, None, None] * _BAR_K
-    k[:, _BD[:, None], _BD] = (EI_Nm2 / L**3)[:, None, None] * _KB * Lp
+    k[:, _BD[:, None], _BD] = (EI_Nm2 / L**3 / (1.0 + phi))[:, None, None] * (_KB + ph * _KS) * Lp
     mu, rot = np.asarray(mass_per_m_kg, float), np.asarray(rotary_per_m_kgm, float)
     if lumped:
         m[:, range(6), range(6)] = np.stack([mu * L / 2, mu * L / 2, mu * L**3 / 78 + rot * L / 2] * 2, -1)
         return k, m
     m[:, _AX[:, None], _AX] = (mu * L / 6)[:, None, None] * _BAR_M
-    bending = (mu * L / 420)[:, None, None] * _MB + (rot / (30 * L))[:, None, None] * _MR
+    bending = ((mu * L / 420 / (1.0 + phi) ** 2)[:, None, None] * (_MB + ph * _MB1 + ph2 * _MB2)
+               + (rot / (30 * L) / (1.0 + phi) ** 2)[:, None, None] * (_MR + ph * _MR1 + ph2 * _MR2))
     m[:, _BD[:, None], _BD] = bending * Lp
     return k, m
 
@@ -152,6 +202,7 @@ class _Topology:
     rot_springs: np.ndarray       # [n, 2] (reference, relative) rotation DOFs; relative = n_dof: to ground
     rot_spring_k: np.ndarray      # [n] N m/rad
     lumped: bool
+    shear: Shear | None
     k_loc: np.ndarray             # [n_el, 6, 6] local matrices (member rows are redone per pose)
     m_loc: np.ndarray
     elem_is_member: np.ndarray    # [n_el] bool
@@ -195,7 +246,7 @@ def _scaled(section: Section, stiffness_scale: float, mass_scale: float) -> tupl
 
 
 @lru_cache(maxsize=64)
-def _topology(rig: Rig, elements: int | None, lumped: bool) -> _Topology:
+def _topology(rig: Rig, elements: int | None, lumped: bool, shear: Shear | None = None) -> _Topology:
     counter = iter(range(1 << 30))
     FIXED = -1  # replaced by n_dof at the end
     joints = {j.child: j for j in rig.joints}
@@ -270,7 +321,7 @@ def _topology(rig: Rig, elements: int | None, lumped: bool) -> _Topology:
     is_member = np.array([bodies[b].is_member for b in el_body])
     length = np.array([1.0 if m else rig.links[b].length_m for b, m in zip(el_body, is_member, strict=True)])
     EA, EI, mu, rot = p.T
-    k_loc, m_loc = element_matrices((el_frac[:, 1] - el_frac[:, 0]) * length, EA, EI, mu, rot, lumped)
+    k_loc, m_loc = element_matrices((el_frac[:, 1] - el_frac[:, 0]) * length, EA, EI, mu, rot, lumped, shear)
     spring_k = np.array([k for *_, k in springs], float)
     pieces = [(k, bodies[link_order[sn.at.link]].first_element + e, v)
               for k, sn in enumerate(rig.sensors)
@@ -280,8 +331,8 @@ def _topology(rig: Rig, elements: int | None, lumped: bool) -> _Topology:
     piece_elem = np.array([e for _, e, _ in pieces], int)
     piece_vecs = np.array([v for *_, v in pieces]).reshape(-1, 6)
     return _Topology(n_dof, tuple(bodies), el_body, rn(np.array(el_dofs)), el_frac, EA, EI, mu, rot,
-                     rn(spring_dofs), spring_k, lumped, k_loc, m_loc, is_member, piece_elem, piece_vecs,
-                     piece_sensor)
+                     rn(spring_dofs), spring_k, lumped, shear, k_loc, m_loc, is_member, piece_elem,
+                     piece_vecs, piece_sensor)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -370,8 +421,8 @@ class FrameSystem:
         ``at``: ``<link>@<fraction>``, ``<member>@<fraction>``, ``tip`` or a joint name.  ``quantity``:
         ``transverse``/``axial`` (m, along the body's local normal/axis), ``x``/``y`` (m, global),
         ``rotation`` (rad) or ``curvature`` (1/m; bending strain = curvature * depth/2).  Values come from
-        the element's own shape functions (Hermite cubic bending, linear axial); curvature at a node
-        between two elements is their average.
+        the element's own shape functions (Hermite cubic bending, linear axial; the same with ``shear``:
+        transverse and rotation exact at nodes); curvature at a node between two elements is their average.
         """
         if quantity not in QUANTITIES:
             raise ModelError(f"unknown quantity {quantity!r} (expected one of {', '.join(QUANTITIES)})")
@@ -430,18 +481,19 @@ def _mass_value(rig: Rig, value: float | str, pose: Mapping[str, float]) -> floa
 
 
 def assemble(rig: Rig, pose: Mapping[str, float], elements_per_link: int | None = None,
-             lumped_mass: bool = False) -> FrameSystem:
+             lumped_mass: bool = False, shear: Shear | None = None) -> FrameSystem:
     """Assemble K and M of ``rig`` at ``pose`` (joint angles in degrees, pose masses in kg).
 
     ``elements_per_link`` overrides the rig's ``elements`` (default 10 per link and per member).
+    ``shear`` (default None: Euler-Bernoulli) makes every link and member a Timoshenko beam, see ``Shear``.
     """
-    return assemble_many(rig, [pose], elements_per_link, lumped_mass)[0]
+    return assemble_many(rig, [pose], elements_per_link, lumped_mass, shear)[0]
 
 
 def assemble_many(rig: Rig, poses: Sequence[Mapping[str, float]], elements_per_link: int | None = None,
-                  lumped_mass: bool = False) -> list[FrameSystem]:
+                  lumped_mass: bool = False, shear: Shear | None = None) -> list[FrameSystem]:
     """``assemble`` for several poses at once: element transforms and scatter vectorised over the poses."""
-    topo = _topology(rig, elements_per_link, bool(lumped_mass))
+    topo = _topology(rig, elements_per_link, bool(lumped_mass), shear)
     if not poses:
         return []
     per_pose = DENSE_COPIES * (topo.n_dof + 1) ** 2 * 8   # bytes of K, M and their temporaries
@@ -452,8 +504,8 @@ def assemble_many(rig: Rig, poses: Sequence[Mapping[str, float]], elements_per_l
                          "memory available (fewer links, members or elements)")
     if len(poses) > 1 and len(poses) * per_pose > room:   # assembled a few poses at a time instead
         half = len(poses) // 2
-        return (assemble_many(rig, poses[:half], elements_per_link, lumped_mass)
-                + assemble_many(rig, poses[half:], elements_per_link, lumped_mass))
+        return (assemble_many(rig, poses[:half], elements_per_link, lumped_mass, shear)
+                + assemble_many(rig, poses[half:], elements_per_link, lumped_mass, shear))
     for pose in poses:
         rig.check_pose(pose)
     geometry = [_body_geometry(rig, pose) for pose in poses]
@@ -466,7 +518,7 @@ def assemble_many(rig: Rig, poses: Sequence[Mapping[str, float]], elements_per_l
         k_loc, m_loc, mem = k_loc.copy(), m_loc.copy(), topo.elem_is_member
         le = (topo.elem_frac[mem, 1] - topo.elem_frac[mem, 0]) * b_len[:, topo.elem_body[mem]]
         props = (np.tile(x[mem], P) for x in (topo.EA, topo.EI, topo.mu, topo.rot))
-        km, mm = element_matrices(le.ravel(), *props, lumped=topo.lumped)
+        km, mm = element_matrices(le.ravel(), *props, lumped=topo.lumped, shear=topo.shear)
         k_loc[:, mem], m_loc[:, mem] = km.reshape(P, -1, 6, 6), mm.reshape(P, -1, 6, 6)
     T = _rotations(b_ang[:, topo.elem_body].ravel()).reshape(P, -1, 6, 6)
     Tt = T.transpose(0, 1, 3, 2)
@@ -562,15 +614,15 @@ def solve_modes(system: FrameSystem, n_modes: int = 4) -> FrameModes:
 
 
 def frame_modes(rig: Rig, pose: Mapping[str, float], n_modes: int = 4, elements_per_link: int | None = None,
-                lumped_mass: bool = False) -> FrameModes:
+                lumped_mass: bool = False, shear: Shear | None = None) -> FrameModes:
     """Assemble and solve in one call (see ``assemble`` and ``solve_modes``)."""
-    return solve_modes(assemble(rig, pose, elements_per_link, lumped_mass), n_modes)
+    return solve_modes(assemble(rig, pose, elements_per_link, lumped_mass, shear), n_modes)
 
 
 def frame_modes_many(rig: Rig, poses: Iterable[Mapping[str, float]], n_modes: int = 4,
                      elements_per_link: int | None = None, lumped_mass: bool = False,
-                     chunk: int = 256) -> list[FrameModes]:
+                     chunk: int = 256, shear: Shear | None = None) -> list[FrameModes]:
     """``frame_modes`` for each pose: assembly vectorised over chunks of poses, one eigensolve per pose."""
     poses = list(poses)
     return [solve_modes(system, n_modes) for i in range(0, len(poses), chunk)
-            for system in assemble_many(rig, poses[i:i + chunk], elements_per_link, lumped_mass)]
+            for system in assemble_many(rig, poses[i:i + chunk], elements_per_link, lumped_mass, shear)]
