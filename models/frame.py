@@ -54,7 +54,7 @@ _AX, _BD = np.array([0, 3]), np.array([1, 2, 4, 5])
 _KB = np.array([[12, 6, -12, 6], [6, 4, -6, 2], [-12, -6, 12, -6], [6, 2, -6, 4]], float)
 _MB = np.array([[156, 22, 54, -13], [22, 4, 13, -3], [54, 13, 156, -22], [-13, -3, -22, 4]], float)
 _MR = np.array([[36, 3, -36, 3], [3, 4, -3, -1], [-36, -3, 36, -3], [3, -1, -3, 4]], float)
-# Timoshenko terms in phi = 12 EI / (kappa G A L^2) (Friedman & Kosmatka 1993, eqs. 17-19): stiffness
+# Timoshenko terms in phi = 12 EI / (kappa G A L^2) (Friedman & Kosmatka 1993): stiffness
 # EI/(L^3 (1+phi)) (_KB + phi _KS); translational mass mL/(420 (1+phi)^2) (_MB + phi _MB1 + phi^2 _MB2);
 # rotary mass rho I/(30 L (1+phi)^2) (_MR + phi _MR1 + phi^2 _MR2)
 _KS = np.array([[0, 0, 0, 0], [0, 1, 0, -1], [0, 0, 0, 0], [0, -1, 0, 1]], float)
@@ -103,10 +103,10 @@ def element_matrices(length_m: np.ndarray, EA_N: np.ndarray, EI_Nm2: np.ndarray,
     DOF order per element: (u1, v1, theta1, u2, v2, theta2), u axial and v transverse [m], theta [rad].
     Without ``shear`` (the default) the bending part is the Euler-Bernoulli Hermite element with consistent
     translational and rotary mass (Przemieniecki 1968, ch. 5 and 11).  With ``shear`` it is the two-node
-    Timoshenko element built on the exact static interpolation (Przemieniecki 1968 §5.6; Friedman & Kosmatka
-    1993, Comput. Struct. 47(3), 473-481): shear-flexible stiffness with phi = 12 EI / (kappa G A L^2) and the
-    matching consistent mass, translational and rotary; theta is then the section rotation.  phi = 0 gives
-    the Euler-Bernoulli matrices exactly (same arithmetic).  The HRZ-lumped mass (``lumped``) ignores phi.
+    Timoshenko element built on the exact static interpolation (Przemieniecki 1968 ch. 5 and 11; Friedman &
+    Kosmatka 1993, Comput. Struct. 47(3), 473-481): shear-flexible stiffness, phi = 12 EI / (kappa G A L^2),
+    and the matching consistent mass, translational and rotary; theta is then the section rotation.  phi = 0
+    gives the Euler-Bernoulli matrices exactly (same arithmetic).  HRZ-lumped mass (``lumped``) ignores phi.
     """
     L = np.asarray(length_m, float)
     n = L.size

@@ -27,7 +27,7 @@ def simply_supported(depth_m: float) -> dict:
 
 def timoshenko_ss_hz(depth_m: float, n: int, shear: bool = True) -> float:
     """Lowest root of the simply-supported Timoshenko beam's frequency equation for wavenumber k = n pi / L
-    (Han, Benaroya & Wei 1999, J. Sound Vib. 225(5), eq. 52): w = W sin kx, psi = Psi cos kx in
+    (Han, Benaroya & Wei 1999, J. Sound Vib. 225(5), 935-988): w = W sin kx, psi = Psi cos kx in
     kGA (w'' - psi') = rho A w_tt, EI psi'' + kGA (w' - psi) = rho I psi_tt.  ``shear=False`` is the
     Rayleigh beam (rotary inertia only, kGA -> infinity)."""
     area, inertia = B * depth_m, B * depth_m**3 / 12
