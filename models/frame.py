@@ -30,6 +30,7 @@ import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
+from numbers import Real
 
 import numpy as np
 from scipy.linalg import LinAlgError, eigh
@@ -67,6 +68,12 @@ _MR2 = np.array([[0, 0, 0, 0], [0, 10, 0, 5], [0, 0, 0, 0], [0, 5, 0, 10]], floa
 _BAR_K, _BAR_M = np.array([[1.0, -1.0], [-1.0, 1.0]]), np.array([[2.0, 1.0], [1.0, 2.0]])
 
 
+KAPPA_MIN = 1e-3
+"""The smallest shear coefficient ``Shear`` accepts [-]: real sections lie between about 0.1 and 1.2
+(Cowper 1966); far below, phi overflows the element matrices (kappa near 1e-154 gives NaN masses).  A
+large kappa is harmless (phi -> 0: the Euler-Bernoulli element)."""
+
+
 @dataclass(frozen=True)
 class Shear:
     """Opt-in shear deformation of every frame element (Timoshenko beam instead of Euler-Bernoulli).
@@ -85,14 +92,34 @@ class Shear:
     poisson_ratio: float = 0.3
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.shear_coefficient) and self.shear_coefficient > 0):
-            raise ModelError(f"shear coefficient kappa = {self.shear_coefficient} must be finite and > 0")
+        for name, value in (("shear coefficient kappa", self.shear_coefficient),
+                            ("Poisson's ratio", self.poisson_ratio)):
+            if isinstance(value, bool) or not isinstance(value, Real):
+                raise ModelError(f"{name} = {value!r} must be a number")
+        if not (math.isfinite(self.shear_coefficient) and self.shear_coefficient >= KAPPA_MIN):
+            raise ModelError(f"shear coefficient kappa = {self.shear_coefficient} must be finite and at "
+                             f"least {KAPPA_MIN:g} (real sections: about 0.1 to 1.2)")
         if not -1.0 < self.poisson_ratio < 0.5:
             raise ModelError(f"Poisson's ratio = {self.poisson_ratio} must lie in (-1, 0.5)")
 
     def rigidity_N(self, EA_N: np.ndarray) -> np.ndarray:
         """Shear rigidity kappa G A [N] of sections with axial rigidity ``EA_N`` [N]."""
         return self.shear_coefficient * np.asarray(EA_N, float) / (2.0 * (1.0 + self.poisson_ratio))
+
+
+def shear_phi(shear: Shear | None, EA_N: np.ndarray, EI_Nm2: np.ndarray, length_m: np.ndarray) -> np.ndarray:
+    """Timoshenko shear parameter phi = 12 EI / (kappa G A L^2) [-] of elements of length ``length_m`` [m]
+    (Friedman & Kosmatka 1993); zeros without ``shear`` (Euler-Bernoulli).
+
+    Examples
+    --------
+    >>> float(shear_phi(Shear(0.5, 0.25), np.array([2.0]), np.array([1.0]), np.array([1.0]))[0])
+    30.0
+    """
+    L = np.asarray(length_m, float)
+    if shear is None:
+        return np.zeros(L.shape)
+    return 12.0 * np.asarray(EI_Nm2, float) / (shear.rigidity_N(EA_N) * L**2)
 
 
 def element_matrices(length_m: np.ndarray, EA_N: np.ndarray, EI_Nm2: np.ndarray, mass_per_m_kg: np.ndarray,
@@ -114,7 +141,7 @@ def element_matrices(length_m: np.ndarray, EA_N: np.ndarray, EI_Nm2: np.ndarray,
     m = np.zeros((n, 6, 6))
     powers = L[:, None] ** np.array([0, 1, 0, 1])
     Lp = powers[:, :, None] * powers[:, None, :]
-    phi = np.zeros(n) if shear is None else 12.0 * np.asarray(EI_Nm2, float) / (shear.rigidity_N(EA_N) * L**2)
+    phi = shear_phi(shear, EA_N, EI_Nm2, L) * np.ones(n)
     ph, ph2 = phi[:, None, None], (phi**2)[:, None, None]
     k[:, _AX[:, None], _AX] = (EA_N / L)[:, None, None] * _BAR_K
     k[:, _BD[:, None], _BD] = (EI_Nm2 / L**3 / (1.0 + phi))[:, None, None] * (_KB + ph * _KS) * Lp
@@ -129,12 +156,15 @@ def element_matrices(length_m: np.ndarray, EA_N: np.ndarray, EI_Nm2: np.ndarray,
     return k, m
 
 
-def _local_rows(stations: np.ndarray, frac: float, quantity: str, length_m: float
-                ) -> list[tuple[int, np.ndarray]]:
+def _local_rows(stations: np.ndarray, frac: float, quantity: str, length_m: float,
+                phi: np.ndarray | None = None) -> list[tuple[int, np.ndarray]]:
     """(element within the body, local 6-vector) pairs interpolating a local quantity at ``frac``.
 
-    Hermite cubics for transverse/rotation/curvature, linear for axial (Cook et al. 2002 §2.4); at a node
-    between two elements the curvature is the average of both sides.
+    Hermite cubics for transverse/rotation/curvature, linear for axial (Cook et al. 2002 §2.4); with the
+    elements' Timoshenko parameters ``phi`` [-] (one per element of the body) the interdependent
+    interpolation of the shear-flexible element (Friedman & Kosmatka 1993), whose rotation is the
+    section's and whose curvature is the rotation's derivative; both reduce to the Hermite cubics at
+    phi = 0.  At a node between two elements the curvature is the average of both sides.
     """
     lo = max(int(np.searchsorted(stations, frac - 1e-12)) - 1, 0)
     hits = [e for e in (lo, lo + 1)
@@ -149,13 +179,16 @@ def _local_rows(stations: np.ndarray, frac: float, quantity: str, length_m: floa
         if quantity == "axial":
             out.append((e, np.array([1 - x, 0, 0, x, 0, 0])))
             continue
+        f = 0.0 if phi is None else float(phi[e])
         if quantity == "transverse":
-            h = [1 - 3 * x2 + 2 * x3, le * (x - 2 * x2 + x3), 3 * x2 - 2 * x3, le * (x3 - x2)]
+            h = [1 - 3 * x2 + 2 * x3 + f * (1 - x), le * (x - 2 * x2 + x3 + f * (x - x2) / 2),
+                 3 * x2 - 2 * x3 + f * x, le * (x3 - x2 - f * (x - x2) / 2)]
         elif quantity == "rotation":
-            h = [(-6 * x + 6 * x2) / le, 1 - 4 * x + 3 * x2, (6 * x - 6 * x2) / le, 3 * x2 - 2 * x]
+            h = [(-6 * x + 6 * x2) / le, 1 - 4 * x + 3 * x2 + f * (1 - x), (6 * x - 6 * x2) / le,
+                 3 * x2 - 2 * x + f * x]
         else:
-            h = [(-6 + 12 * x) / le**2, (-4 + 6 * x) / le, (6 - 12 * x) / le**2, (-2 + 6 * x) / le]
-        out.append((e, np.array([0, h[0], h[1], 0, h[2], h[3]]) / len(hits)))
+            h = [(-6 + 12 * x) / le**2, (-4 + 6 * x - f) / le, (6 - 12 * x) / le**2, (-2 + 6 * x + f) / le]
+        out.append((e, np.array([0, h[0], h[1], 0, h[2], h[3]]) / ((1 + f) * len(hits))))
     return out
 
 
@@ -323,10 +356,12 @@ def _topology(rig: Rig, elements: int | None, lumped: bool, shear: Shear | None 
     EA, EI, mu, rot = p.T
     k_loc, m_loc = element_matrices((el_frac[:, 1] - el_frac[:, 0]) * length, EA, EI, mu, rot, lumped, shear)
     spring_k = np.array([k for *_, k in springs], float)
+    phi = shear_phi(shear, EA, EI, (el_frac[:, 1] - el_frac[:, 0]) * length)
     pieces = [(k, bodies[link_order[sn.at.link]].first_element + e, v)
               for k, sn in enumerate(rig.sensors)
               for e, v in _local_rows(bodies[link_order[sn.at.link]].stations, sn.at.fraction, sn.direction,
-                                      rig.links[link_order[sn.at.link]].length_m)]
+                                      rig.links[link_order[sn.at.link]].length_m,
+                                      phi[bodies[link_order[sn.at.link]].first_element:])]
     piece_sensor = np.array([k for k, _, _ in pieces], int)
     piece_elem = np.array([e for _, e, _ in pieces], int)
     piece_vecs = np.array([v for *_, v in pieces]).reshape(-1, 6)
@@ -421,8 +456,9 @@ class FrameSystem:
         ``at``: ``<link>@<fraction>``, ``<member>@<fraction>``, ``tip`` or a joint name.  ``quantity``:
         ``transverse``/``axial`` (m, along the body's local normal/axis), ``x``/``y`` (m, global),
         ``rotation`` (rad) or ``curvature`` (1/m; bending strain = curvature * depth/2).  Values come from
-        the element's own shape functions (Hermite cubic bending, linear axial; the same with ``shear``:
-        transverse and rotation exact at nodes); curvature at a node between two elements is their average.
+        the element's own shape functions (Hermite cubic bending, linear axial; with ``shear`` the
+        Timoshenko element's interdependent interpolation, rotation = the section's); curvature at a node
+        between two elements is their average.
         """
         if quantity not in QUANTITIES:
             raise ModelError(f"unknown quantity {quantity!r} (expected one of {', '.join(QUANTITIES)})")
@@ -434,12 +470,16 @@ class FrameSystem:
         c, s = math.cos(angle), math.sin(angle)
         T = _rotations(np.array([angle]))[0]
         row = np.zeros(self.n_dof + 1)
+        els = slice(body.first_element, body.first_element + len(body.stations) - 1)
+        le = np.diff(body.stations) * self._body_length[bi]
+        phi = shear_phi(topo.shear, topo.EA[els], topo.EI[els], le)
         if quantity in ("x", "y"):
             pieces = [(e, (c * a - s * t) if quantity == "x" else (s * a + c * t)) for (e, a), (_, t) in
                       zip(_local_rows(body.stations, frac, "axial", self._body_length[bi]),
-                          _local_rows(body.stations, frac, "transverse", self._body_length[bi]), strict=True)]
+                          _local_rows(body.stations, frac, "transverse", self._body_length[bi], phi),
+                          strict=True)]
         else:
-            pieces = _local_rows(body.stations, frac, quantity, self._body_length[bi])
+            pieces = _local_rows(body.stations, frac, quantity, self._body_length[bi], phi)
         for e, local in pieces:
             np.add.at(row, topo.elem_dofs[body.first_element + e], local @ T)
         return self._relative(row)[:-1]
