@@ -26,7 +26,6 @@ from typing import NamedTuple
 from unittest import mock
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "benchmarks"))
@@ -37,7 +36,7 @@ import flexmodal.compare.diagnosis as diagnosis  # noqa: E402
 import flexmodal.compare.sensor_flag as sensor_flag_module  # noqa: E402
 from flexmodal.compare.diagnosis import diagnose  # noqa: E402
 from flexmodal.compare.sensor_flag import sensor_check, sensor_flag  # noqa: E402
-from flexmodal.fixtures.blind import CATEGORIES, KINDS, make_case  # noqa: E402
+from flexmodal.fixtures.blind import draw_cases  # noqa: E402
 
 SEEDS = (1156, 1157, 1158, 1159, 1160)
 """The draws the mode-by-mode test was developed on (blind 1159 #10), run with the current method."""
@@ -88,10 +87,7 @@ def draw_ratios(seed: int, cases: int = BLIND_CASES) -> list[CaseRatio]:
         checks.append(mode_ratio(measured, model))
         return sensor_flag(measured, model, names)
 
-    rng = np.random.default_rng(seed)
-    for i in range(cases):
-        with threadpool_limits(limits=1, user_api="blas"):          # as run_blind makes them
-            case = make_case(rng, CATEGORIES[i % len(CATEGORIES)], KINDS[i % len(KINDS)])
+    for i, case in enumerate(draw_cases(cases, seed)):
         if sum(c.startswith("shape.") for c in case.table.frame.columns) < 3:
             continue
         with mock.patch.object(diagnosis, "sensor_flag", recording):

@@ -141,7 +141,7 @@ def element_matrices(length_m: np.ndarray, EA_N: np.ndarray, EI_Nm2: np.ndarray,
     m = np.zeros((n, 6, 6))
     powers = L[:, None] ** np.array([0, 1, 0, 1])
     Lp = powers[:, :, None] * powers[:, None, :]
-    phi = shear_phi(shear, EA_N, EI_Nm2, L) * np.ones(n)
+    phi = shear_phi(shear, EA_N, EI_Nm2, L)
     ph, ph2 = phi[:, None, None], (phi**2)[:, None, None]
     k[:, _AX[:, None], _AX] = (EA_N / L)[:, None, None] * _BAR_K
     k[:, _BD[:, None], _BD] = (EI_Nm2 / L**3 / (1.0 + phi))[:, None, None] * (_KB + ph * _KS) * Lp
