@@ -6,7 +6,8 @@ the log-parameters), all evaluated together in one batch per iteration, with the
 the eigenvalue sensitivities (``d f / d lambda = 1 / (8 pi^2 f)``).  Starts: the best points of a
 coarse grid evaluated in one batch (a multi-start without repeated solver calls), chosen per fold on its
 training configurations only, refined to convergence and the best kept per fold, so held-out scores
-come from honest refits.
+come from honest refits; a fold left in a local minimum (another fold's optimum costs less on its
+training configurations) is refined again from that optimum (``_stuck_folds``).
 
 Mode pairing: model modes below 1e-3 of the lowest measured frequency are rigid-body modes and skipped,
 and so are modes the rig's sensors cannot see (e.g. axial modes of a straight arm under transverse
