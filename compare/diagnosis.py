@@ -1095,8 +1095,11 @@ def _beam_theory_form(rig: Rig, freq_hz: np.ndarray, nu: float = POISSON) -> flo
     correction, Han, Benaroya & Wei 1999, J. Sound Vib. 225(5) eq. 81; Rao, *Vibration of Continuous
     Systems* 2007 §11.8), with ``(k r)^2 = omega sqrt(mu EI) / EA``, ``E / G = 2 (1 + nu)`` and the
     shear coefficient ``kappa`` 0.5 for thin-walled tubes, 5/6 for solid sections (Cowper 1966); the
-    links' values averaged by length.  A level, not a correction: where a mode's strain energy sits,
-    and so which link's section counts, is not known before a fit.
+    links' values averaged by length.  A link whose section sets shear deformation (rig
+    ``shear_coefficient``, ``models.rig.Shear``) is modelled with it, so its shear term ``E / (kappa G)``
+    is left out and only the rotary-inertia term counts for it.  A level, not a correction: where a mode's
+    strain energy sits, and so which link's section counts, is not known before a fit.  The ``none`` gate
+    built on this level was calibrated on Euler-Bernoulli rigs only.
 
     Examples
     --------
@@ -1112,13 +1115,24 @@ def _beam_theory_form(rig: Rig, freq_hz: np.ndarray, nu: float = POISSON) -> flo
     >>> c, r = math.sqrt(70e9 / 2700), 0.01 / math.sqrt(12)
     >>> bool(abs(e - 0.5 * 2 * math.pi * 100 * r / c * (1 + 2 * 1.3 / (5 / 6))) < 1e-12)
     True
+
+    The same bar with its shear modelled (``shear_coefficient``; the material needs ``nu``) keeps only
+    the rotary-inertia term:
+
+    >>> rig = parse_rig({"name": "bar", "material": {"al": {"E_Pa": 70e9, "rho_kg_m3": 2700, "nu": 0.33}},
+    ...                  "link": [{"name": "l", "length_m": 1.0, "material": "al",
+    ...                            "section": {"shape": "solid_rect", "width_m": 0.01, "height_m": 0.01,
+    ...                                        "shear_coefficient": 0.85}}]}, "<doc>")
+    >>> e = _beam_theory_form(rig, np.array([[100.0]]))
+    >>> bool(abs(e - 0.5 * 2 * math.pi * 100 * r / c) < 1e-12)
+    True
     """
     per_rad_s, lengths = [], []
     for link in rig.links:
         sec = link.section
         kappa = 0.5 if "tube" in sec.shape else 5.0 / 6.0
-        per_rad_s.append(0.5 * math.sqrt(sec.mass_per_m_kg * sec.EI_Nm2) / sec.EA_N
-                         * (1.0 + 2.0 * (1.0 + nu) / kappa))
+        shear_term = 2.0 * (1.0 + nu) / kappa if sec.shear is None else 0.0
+        per_rad_s.append(0.5 * math.sqrt(sec.mass_per_m_kg * sec.EI_Nm2) / sec.EA_N * (1.0 + shear_term))
         lengths.append(link.length_m)
     if not lengths:
         return 0.0
