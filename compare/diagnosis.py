@@ -1734,7 +1734,7 @@ def _unpaired_flag(ctx: _Context, model: np.ndarray, singles: Sequence[Candidate
         fam = ctx.family(cand.handles)
         res = fit_candidate(fam, cand, target, ctx.train[:1])
         fits.append((rms(res.freq_hz[0] / meas.freq_hz - 1.0), cand, fam, res.theta[:1]))
-    error, cand, fam, theta = min(fits, key=lambda t: t[0], default=(math.inf, None, None, None))
+    error, cand, fam, theta = min(fits, key=lambda t: t[0])
     if error > fit_error:
         return "", ""
     h = evaluate(fam, design(cand, target), theta, target, gradients=False)[3]
