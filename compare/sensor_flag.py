@@ -17,6 +17,11 @@ moved sensor at pooled ratio 8, at 153x the noise of mode 1; docs/diagnosis.md's
 One mode alone does not flag: a model whose form is wrong at one sensor in one mode (a node a few
 per cent off, the end of a real beam) looks the same there, while a sensor mounted elsewhere misreads
 every mode whose shape differs between the two points (docs/diagnosis.md's block ``sensor_beam``).
+
+A moved sensor also misleads the pairing of model and measured modes by MAC, so that the true effect
+fits badly and a wrong verdict absorbs the sensor's misfit (blind 1788 #10); compare/diagnosis.py's
+``_unpaired_flag`` then makes the same check against the single candidate that fits the frequencies
+best with that sensor left out of the pairing (``flag_text`` names that model).
 """
 
 from __future__ import annotations
@@ -136,17 +141,25 @@ def sensor_check(measured: np.ndarray, model: np.ndarray) -> SensorCheck | None:
 
 
 def sensor_flag(measured: np.ndarray, model: np.ndarray, names: Sequence[str]) -> tuple[str, str]:
-    """The name of one disagreeing sensor (``sensor_check``) and the flag text, with the COMAC of every
-    sensor (Lieven & Ewins 1988); empty strings when no sensor disagrees."""
-    from flexmodal.compare.gap import comac
-
+    """The name of one disagreeing sensor (``sensor_check``) and the flag text (``flag_text``); empty
+    strings when no sensor disagrees."""
     check = sensor_check(measured, model)
     if check is None or not check.flagged:
         return "", ""
+    return names[check.sensor], flag_text(measured, model, names, check)
+
+
+def flag_text(measured: np.ndarray, model: np.ndarray, names: Sequence[str], check: SensorCheck,
+              against: str = "") -> str:
+    """The flag of ``check`` (a flagged ``sensor_check`` of ``measured`` against ``model`` [C, s, n]),
+    with the COMAC of every sensor (Lieven & Ewins 1988); ``against`` names the model when it is not
+    the verdict's."""
+    from flexmodal.compare.gap import comac
+
     full = ~(np.isnan(measured).any(axis=(1, 2)) | np.isnan(model).any(axis=(1, 2)))
     values = comac(measured[full], model[full])
     others = np.delete(values, check.sensor)
     where = "" if check.mode is None else f" in mode {check.mode + 1}"
-    return names[check.sensor], (f"the measured shapes disagree at sensor {names[check.sensor]} (COMAC "
+    return (f"the measured shapes disagree at sensor {names[check.sensor]}{against} (COMAC "
             f"{values[check.sensor]:.2f}, the other sensors {others.min():.2f}-{others.max():.2f}; its "
             f"misfit{where} is {check.ratio:.0f}x the shape noise of the others)")

@@ -4,8 +4,9 @@ Each link (and each extra member) is a chain of two-node frame elements with thr
 (global ``x``, ``y`` translation in m and rotation in rad): axial bar plus Hermite-cubic bending,
 consistent mass with rotary inertia (Przemieniecki 1968, ch. 11; Cook et al. 2002 §11.3) or an
 HRZ-lumped diagonal mass (translations mL/2, rotations mL^3/78 + rho*I*L/2, Hinton-Rock-Zienkiewicz 1976).
-Shear deformation is off by default; ``shear=Shear(kappa, nu)`` makes every element a Timoshenko beam
-(Friedman & Kosmatka 1993), for thick or thin-walled links whose shear flexibility matters.
+Shear deformation is off by default: a section with ``shear`` (the rig's ``shear_coefficient``) makes its
+elements Timoshenko beams (Friedman & Kosmatka 1993), for thick or thin-walled links whose shear
+flexibility matters; the keyword ``shear=Shear(kappa, nu)`` does so for every element at once.
 
 Connections are made by sharing DOFs (exact elimination, never penalties): a rigid joint shares all
 three DOFs; a pin or spring joint shares the translations and gives the child its own rotation, a
@@ -30,7 +31,6 @@ import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
-from numbers import Real
 
 import numpy as np
 from scipy.linalg import LinAlgError, eigh
@@ -38,7 +38,7 @@ from scipy.linalg import LinAlgError, eigh
 from flexmodal.checked_io.text import available_memory_bytes
 from flexmodal.contract.mac import largest_positive
 from flexmodal.models.errors import ModelError
-from flexmodal.models.rig import Point, Rig, Section
+from flexmodal.models.rig import Point, Rig, Section, Shear
 
 DEFAULT_ELEMENTS = 10
 DENSE_COPIES = 6  # dense n x n float arrays alive per pose while assembling and solving (K, M, sums, eigh)
@@ -68,68 +68,31 @@ _MR2 = np.array([[0, 0, 0, 0], [0, 10, 0, 5], [0, 0, 0, 0], [0, 5, 0, 10]], floa
 _BAR_K, _BAR_M = np.array([[1.0, -1.0], [-1.0, 1.0]]), np.array([[2.0, 1.0], [1.0, 2.0]])
 
 
-KAPPA_MIN = 1e-3
-"""The smallest shear coefficient ``Shear`` accepts [-]: real sections lie between about 0.1 and 1.2
-(Cowper 1966); far below, phi overflows the element matrices (kappa near 1e-154 gives NaN masses).  A
-large kappa is harmless (phi -> 0: the Euler-Bernoulli element)."""
-
-
-@dataclass(frozen=True)
-class Shear:
-    """Opt-in shear deformation of every frame element (Timoshenko beam instead of Euler-Bernoulli).
-
-    Parameters
-    ----------
-    shear_coefficient : float
-        Timoshenko shear coefficient kappa [-] (dimensionless, > 0): 5/6 for a solid rectangle, about
-        0.5 for a thin-walled round or square tube bending in its plane (Cowper 1966).
-    poisson_ratio : float
-        Poisson's ratio nu [-] (dimensionless, in (-1, 0.5)); the shear modulus is G = E / (2 (1 + nu)),
-        so the shear rigidity is ``kappa G A = kappa EA / (2 (1 + nu))`` from each section's ``EA_N``.
-    """
-
-    shear_coefficient: float = 5.0 / 6.0
-    poisson_ratio: float = 0.3
-
-    def __post_init__(self) -> None:
-        for name, value in (("shear coefficient kappa", self.shear_coefficient),
-                            ("Poisson's ratio", self.poisson_ratio)):
-            if isinstance(value, bool) or not isinstance(value, Real):
-                raise ModelError(f"{name} = {value!r} must be a number")
-        if not (math.isfinite(self.shear_coefficient) and self.shear_coefficient >= KAPPA_MIN):
-            raise ModelError(f"shear coefficient kappa = {self.shear_coefficient} must be finite and at "
-                             f"least {KAPPA_MIN:g} (real sections: about 0.1 to 1.2)")
-        if not -1.0 < self.poisson_ratio < 0.5:
-            raise ModelError(f"Poisson's ratio = {self.poisson_ratio} must lie in (-1, 0.5)")
-
-    def rigidity_N(self, EA_N: np.ndarray) -> np.ndarray:
-        """Shear rigidity kappa G A [N] of sections with axial rigidity ``EA_N`` [N]."""
-        return self.shear_coefficient * np.asarray(EA_N, float) / (2.0 * (1.0 + self.poisson_ratio))
-
-
-def shear_phi(shear: Shear | None, EA_N: np.ndarray, EI_Nm2: np.ndarray, length_m: np.ndarray) -> np.ndarray:
+def shear_phi(shear_rigidity_N: np.ndarray, EI_Nm2: np.ndarray, length_m: np.ndarray) -> np.ndarray:
     """Timoshenko shear parameter phi = 12 EI / (kappa G A L^2) [-] of elements of length ``length_m`` [m]
-    (Friedman & Kosmatka 1993); zeros without ``shear`` (Euler-Bernoulli).
+    and shear rigidity kappa G A ``shear_rigidity_N`` [N] (Friedman & Kosmatka 1993); an infinite
+    rigidity gives exactly 0 (the Euler-Bernoulli element).
 
     Examples
     --------
-    >>> float(shear_phi(Shear(0.5, 0.25), np.array([2.0]), np.array([1.0]), np.array([1.0]))[0])
+    >>> float(shear_phi(Shear(0.5, 0.25).rigidity_N(np.array([2.0])), np.array([1.0]), np.array([1.0]))[0])
     30.0
+    >>> float(shear_phi(np.array([np.inf]), np.array([1.0]), np.array([1.0]))[0])
+    0.0
     """
     L = np.asarray(length_m, float)
-    if shear is None:
-        return np.zeros(L.shape)
-    return 12.0 * np.asarray(EI_Nm2, float) / (shear.rigidity_N(EA_N) * L**2)
+    return 12.0 * np.asarray(EI_Nm2, float) / (np.asarray(shear_rigidity_N, float) * L**2)
 
 
 def element_matrices(length_m: np.ndarray, EA_N: np.ndarray, EI_Nm2: np.ndarray, mass_per_m_kg: np.ndarray,
-                     rotary_per_m_kgm: np.ndarray, lumped: bool = False, shear: Shear | None = None
-                     ) -> tuple[np.ndarray, np.ndarray]:
+                     rotary_per_m_kgm: np.ndarray, lumped: bool = False, *,
+                     shear_rigidity_N: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Local stiffness and mass matrices [n_el, 6, 6] of planar frame elements.
 
     DOF order per element: (u1, v1, theta1, u2, v2, theta2), u axial and v transverse [m], theta [rad].
-    Without ``shear`` (the default) the bending part is the Euler-Bernoulli Hermite element with consistent
-    translational and rotary mass (Przemieniecki 1968, ch. 5 and 11).  With ``shear`` it is the two-node
+    Without ``shear_rigidity_N`` (kappa G A [N] per element; the default None and an infinite value alike)
+    the bending part is the Euler-Bernoulli Hermite element with consistent translational and rotary
+    mass (Przemieniecki 1968, ch. 5 and 11).  With a finite one it is the two-node
     Timoshenko element built on the exact static interpolation (Przemieniecki 1968 ch. 5 and 11; Friedman &
     Kosmatka 1993, Comput. Struct. 47(3), 473-481): shear-flexible stiffness, phi = 12 EI / (kappa G A L^2),
     and the matching consistent mass, translational and rotary; theta is then the section rotation.  phi = 0
@@ -141,7 +104,7 @@ def element_matrices(length_m: np.ndarray, EA_N: np.ndarray, EI_Nm2: np.ndarray,
     m = np.zeros((n, 6, 6))
     powers = L[:, None] ** np.array([0, 1, 0, 1])
     Lp = powers[:, :, None] * powers[:, None, :]
-    phi = shear_phi(shear, EA_N, EI_Nm2, L)
+    phi = np.zeros(L.shape) if shear_rigidity_N is None else shear_phi(shear_rigidity_N, EI_Nm2, L)
     ph, ph2 = phi[:, None, None], (phi**2)[:, None, None]
     k[:, _AX[:, None], _AX] = (EA_N / L)[:, None, None] * _BAR_K
     k[:, _BD[:, None], _BD] = (EI_Nm2 / L**3 / (1.0 + phi))[:, None, None] * (_KB + ph * _KS) * Lp
@@ -232,10 +195,10 @@ class _Topology:
     EI: np.ndarray
     mu: np.ndarray
     rot: np.ndarray
+    GA: np.ndarray                # [n_el] shear rigidity kappa G A [N]; inf: Euler-Bernoulli
     rot_springs: np.ndarray       # [n, 2] (reference, relative) rotation DOFs; relative = n_dof: to ground
     rot_spring_k: np.ndarray      # [n] N m/rad
     lumped: bool
-    shear: Shear | None
     k_loc: np.ndarray             # [n_el, 6, 6] local matrices (member rows are redone per pose)
     m_loc: np.ndarray
     elem_is_member: np.ndarray    # [n_el] bool
@@ -273,9 +236,14 @@ def _required_fractions(rig: Rig) -> dict[str, list[float]]:
     return req
 
 
-def _scaled(section: Section, stiffness_scale: float, mass_scale: float) -> tuple[float, float, float, float]:
-    return (section.EA_N * stiffness_scale, section.EI_Nm2 * stiffness_scale,
-            section.mass_per_m_kg * mass_scale, section.rotary_inertia_per_m_kgm * mass_scale)
+def _scaled(section: Section, stiffness_scale: float, mass_scale: float
+            ) -> tuple[float, float, float, float, float]:
+    """EA [N], EI [N m^2], mass [kg/m], rotary inertia [kg m] and shear rigidity kappa G A [N] (infinite:
+    Euler-Bernoulli) of ``section`` under a link's scales (kappa G A scales with E, as EA does)."""
+    EA = section.EA_N * stiffness_scale
+    GA = math.inf if section.shear is None else float(section.shear.rigidity_N(EA))
+    return (EA, section.EI_Nm2 * stiffness_scale, section.mass_per_m_kg * mass_scale,
+            section.rotary_inertia_per_m_kgm * mass_scale, GA)
 
 
 @lru_cache(maxsize=64)
@@ -353,10 +321,13 @@ def _topology(rig: Rig, elements: int | None, lumped: bool, shear: Shear | None 
     el_body, el_frac = np.array(el_body), np.array(el_frac)
     is_member = np.array([bodies[b].is_member for b in el_body])
     length = np.array([1.0 if m else rig.links[b].length_m for b, m in zip(el_body, is_member, strict=True)])
-    EA, EI, mu, rot = p.T
-    k_loc, m_loc = element_matrices((el_frac[:, 1] - el_frac[:, 0]) * length, EA, EI, mu, rot, lumped, shear)
+    EA, EI, mu, rot, GA = p.T
+    if shear is not None:   # one kappa and nu for every element, in place of the sections' own
+        GA = shear.rigidity_N(EA)
+    k_loc, m_loc = element_matrices((el_frac[:, 1] - el_frac[:, 0]) * length, EA, EI, mu, rot, lumped,
+                                    shear_rigidity_N=GA)
     spring_k = np.array([k for *_, k in springs], float)
-    phi = shear_phi(shear, EA, EI, (el_frac[:, 1] - el_frac[:, 0]) * length)
+    phi = shear_phi(GA, EI, (el_frac[:, 1] - el_frac[:, 0]) * length)
     pieces = [(k, bodies[link_order[sn.at.link]].first_element + e, v)
               for k, sn in enumerate(rig.sensors)
               for e, v in _local_rows(bodies[link_order[sn.at.link]].stations, sn.at.fraction, sn.direction,
@@ -366,7 +337,7 @@ def _topology(rig: Rig, elements: int | None, lumped: bool, shear: Shear | None 
     piece_elem = np.array([e for _, e, _ in pieces], int)
     piece_vecs = np.array([v for *_, v in pieces]).reshape(-1, 6)
     return _Topology(n_dof, tuple(bodies), el_body, rn(np.array(el_dofs)), el_frac, EA, EI, mu, rot,
-                     rn(spring_dofs), spring_k, lumped, shear, k_loc, m_loc, is_member, piece_elem,
+                     GA, rn(spring_dofs), spring_k, lumped, k_loc, m_loc, is_member, piece_elem,
                      piece_vecs, piece_sensor)
 
 
@@ -472,7 +443,7 @@ class FrameSystem:
         row = np.zeros(self.n_dof + 1)
         els = slice(body.first_element, body.first_element + len(body.stations) - 1)
         le = np.diff(body.stations) * self._body_length[bi]
-        phi = shear_phi(topo.shear, topo.EA[els], topo.EI[els], le)
+        phi = shear_phi(topo.GA[els], topo.EI[els], le)
         if quantity in ("x", "y"):
             pieces = [(e, (c * a - s * t) if quantity == "x" else (s * a + c * t)) for (e, a), (_, t) in
                       zip(_local_rows(body.stations, frac, "axial", self._body_length[bi]),
@@ -521,17 +492,19 @@ def _mass_value(rig: Rig, value: float | str, pose: Mapping[str, float]) -> floa
 
 
 def assemble(rig: Rig, pose: Mapping[str, float], elements_per_link: int | None = None,
-             lumped_mass: bool = False, shear: Shear | None = None) -> FrameSystem:
+             lumped_mass: bool = False, *, shear: Shear | None = None) -> FrameSystem:
     """Assemble K and M of ``rig`` at ``pose`` (joint angles in degrees, pose masses in kg).
 
     ``elements_per_link`` overrides the rig's ``elements`` (default 10 per link and per member).
-    ``shear`` (default None: Euler-Bernoulli) makes every link and member a Timoshenko beam, see ``Shear``.
+    Shear deformation: each section's own (``Section.shear``, from the rig's ``shear_coefficient``;
+    Euler-Bernoulli where it has none); ``shear`` (keyword, default None) makes every link and member a
+    Timoshenko beam with one kappa and nu instead, see ``Shear``.
     """
-    return assemble_many(rig, [pose], elements_per_link, lumped_mass, shear)[0]
+    return assemble_many(rig, [pose], elements_per_link, lumped_mass, shear=shear)[0]
 
 
 def assemble_many(rig: Rig, poses: Sequence[Mapping[str, float]], elements_per_link: int | None = None,
-                  lumped_mass: bool = False, shear: Shear | None = None) -> list[FrameSystem]:
+                  lumped_mass: bool = False, *, shear: Shear | None = None) -> list[FrameSystem]:
     """``assemble`` for several poses at once: element transforms and scatter vectorised over the poses."""
     topo = _topology(rig, elements_per_link, bool(lumped_mass), shear)
     if not poses:
@@ -544,8 +517,8 @@ def assemble_many(rig: Rig, poses: Sequence[Mapping[str, float]], elements_per_l
                          "memory available (fewer links, members or elements)")
     if len(poses) > 1 and len(poses) * per_pose > room:   # assembled a few poses at a time instead
         half = len(poses) // 2
-        return (assemble_many(rig, poses[:half], elements_per_link, lumped_mass, shear)
-                + assemble_many(rig, poses[half:], elements_per_link, lumped_mass, shear))
+        return (assemble_many(rig, poses[:half], elements_per_link, lumped_mass, shear=shear)
+                + assemble_many(rig, poses[half:], elements_per_link, lumped_mass, shear=shear))
     for pose in poses:
         rig.check_pose(pose)
     geometry = [_body_geometry(rig, pose) for pose in poses]
@@ -557,8 +530,8 @@ def assemble_many(rig: Rig, poses: Sequence[Mapping[str, float]], elements_per_l
     if rig.members:
         k_loc, m_loc, mem = k_loc.copy(), m_loc.copy(), topo.elem_is_member
         le = (topo.elem_frac[mem, 1] - topo.elem_frac[mem, 0]) * b_len[:, topo.elem_body[mem]]
-        props = (np.tile(x[mem], P) for x in (topo.EA, topo.EI, topo.mu, topo.rot))
-        km, mm = element_matrices(le.ravel(), *props, lumped=topo.lumped, shear=topo.shear)
+        EA, EI, mu, rot, GA = (np.tile(x[mem], P) for x in (topo.EA, topo.EI, topo.mu, topo.rot, topo.GA))
+        km, mm = element_matrices(le.ravel(), EA, EI, mu, rot, lumped=topo.lumped, shear_rigidity_N=GA)
         k_loc[:, mem], m_loc[:, mem] = km.reshape(P, -1, 6, 6), mm.reshape(P, -1, 6, 6)
     T = _rotations(b_ang[:, topo.elem_body].ravel()).reshape(P, -1, 6, 6)
     Tt = T.transpose(0, 1, 3, 2)
@@ -654,15 +627,16 @@ def solve_modes(system: FrameSystem, n_modes: int = 4) -> FrameModes:
 
 
 def frame_modes(rig: Rig, pose: Mapping[str, float], n_modes: int = 4, elements_per_link: int | None = None,
-                lumped_mass: bool = False, shear: Shear | None = None) -> FrameModes:
+                lumped_mass: bool = False, *, shear: Shear | None = None) -> FrameModes:
     """Assemble and solve in one call (see ``assemble`` and ``solve_modes``)."""
-    return solve_modes(assemble(rig, pose, elements_per_link, lumped_mass, shear), n_modes)
+    return solve_modes(assemble(rig, pose, elements_per_link, lumped_mass, shear=shear), n_modes)
 
 
 def frame_modes_many(rig: Rig, poses: Iterable[Mapping[str, float]], n_modes: int = 4,
                      elements_per_link: int | None = None, lumped_mass: bool = False,
-                     chunk: int = 256, shear: Shear | None = None) -> list[FrameModes]:
+                     *, chunk: int = 256, shear: Shear | None = None) -> list[FrameModes]:
     """``frame_modes`` for each pose: assembly vectorised over chunks of poses, one eigensolve per pose."""
     poses = list(poses)
     return [solve_modes(system, n_modes) for i in range(0, len(poses), chunk)
-            for system in assemble_many(rig, poses[i:i + chunk], elements_per_link, lumped_mass, shear)]
+            for system in assemble_many(rig, poses[i:i + chunk], elements_per_link, lumped_mass,
+                                        shear=shear)]

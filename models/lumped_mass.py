@@ -57,6 +57,7 @@ def _check(rig: Rig) -> None:
     if rig.springs:
         raise ModelError(f"{where} cannot represent a grounded spring at {rig.springs[0].at} "
                          "(use --model fe)")
+    rig.check_euler_bernoulli(where)
 
 
 def lumped_mass_modes(rig: Rig, pose: Mapping[str, float], n_modes: int = 4, masses_per_link: int = 4,

@@ -11,6 +11,10 @@ normal to that plane, so ``height_m`` is the in-plane depth (I = w h^3 / 12).  `
 Fields beyond the contract that the sim-to-real effects use (models/effects.py): ``base.k_Nm_per_rad``
 with ``support = "spring"``; ``link.stiffness_scale`` and ``link.mass_scale``; ``member.end_k_Nm_per_rad``
 (rotational restraint at pinned member ends); ``sensor.mass_kg``; ``[[spring]]`` grounded springs.
+
+Shear deformation (optional, per section): ``section.shear_coefficient`` (kappa) with the material's
+``nu`` makes that section's elements Timoshenko beams in models/frame.py (:class:`Shear`); without it a
+section is Euler-Bernoulli, as before the key existed.
 """
 
 from __future__ import annotations
@@ -18,8 +22,11 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from numbers import Real
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from flexmodal.checked_io.text import read_toml
 from flexmodal.checked_io.toml_fields import DOTTED_PATH, Fields
@@ -35,9 +42,49 @@ SPRING_DIRECTIONS = ("transverse", "axial", "x", "y")
 MAX_GROUND_M = 1e3  # a member end on the ground lies within a kilometre of the base
 
 
+KAPPA_MIN = 1e-3
+"""The smallest shear coefficient ``Shear`` accepts [-]: real sections lie between about 0.1 and 1.2
+(Cowper 1966); far below, phi overflows the element matrices (kappa near 1e-154 gives NaN masses).  A
+large kappa is harmless (phi -> 0: the Euler-Bernoulli element)."""
+
+
+@dataclass(frozen=True)
+class Shear:
+    """Shear deformation of a section (Timoshenko beam instead of Euler-Bernoulli, models/frame.py).
+
+    Parameters
+    ----------
+    shear_coefficient : float
+        Timoshenko shear coefficient kappa [-] (dimensionless, >= ``KAPPA_MIN``): 5/6 for a solid
+        rectangle, about 0.5 for a thin-walled round or square tube bending in its plane (Cowper 1966).
+    poisson_ratio : float
+        Poisson's ratio nu [-] (dimensionless, in (-1, 0.5)); the shear modulus is G = E / (2 (1 + nu)),
+        so the shear rigidity is ``kappa G A = kappa EA / (2 (1 + nu))`` from the section's ``EA_N``.
+    """
+
+    shear_coefficient: float = 5.0 / 6.0
+    poisson_ratio: float = 0.3
+
+    def __post_init__(self) -> None:
+        for name, value in (("shear coefficient kappa", self.shear_coefficient),
+                            ("Poisson's ratio nu", self.poisson_ratio)):
+            if isinstance(value, bool) or not isinstance(value, Real):
+                raise ModelError(f"{name} = {value!r} must be a number")
+        if not (math.isfinite(self.shear_coefficient) and self.shear_coefficient >= KAPPA_MIN):
+            raise ModelError(f"shear coefficient kappa = {self.shear_coefficient} must be finite and at "
+                             f"least {KAPPA_MIN:g} (real sections: about 0.1 to 1.2)")
+        if not -1.0 < self.poisson_ratio < 0.5:
+            raise ModelError(f"Poisson's ratio nu = {self.poisson_ratio} must lie in (-1, 0.5)")
+
+    def rigidity_N(self, EA_N: np.ndarray) -> np.ndarray:
+        """Shear rigidity kappa G A [N] of sections with axial rigidity ``EA_N`` [N]."""
+        return self.shear_coefficient * np.asarray(EA_N, float) / (2.0 * (1.0 + self.poisson_ratio))
+
+
 @dataclass(frozen=True)
 class Section:
-    """Cross-section properties per unit length: EA [N], EI [N m^2], mass [kg/m], rotary [kg m]."""
+    """Cross-section properties per unit length: EA [N], EI [N m^2], mass [kg/m], rotary [kg m]; ``shear``
+    (None: Euler-Bernoulli) from ``shear_coefficient`` and the material's ``nu``."""
 
     shape: str
     EA_N: float
@@ -45,6 +92,7 @@ class Section:
     mass_per_m_kg: float
     rotary_inertia_per_m_kgm: float
     depth_m: float  # in-plane depth: distance between the extreme fibres (for bending strain)
+    shear: Shear | None = None
 
 
 @dataclass(frozen=True)
@@ -182,6 +230,14 @@ class Rig:
             if name not in pose:
                 raise ModelError(f"{self.source}: pose has no value for {name!r} (have {sorted(pose)})")
 
+    def check_euler_bernoulli(self, where: str) -> None:
+        """Raise ModelError (``where``: the file and model) naming the first link whose section or segment
+        sets shear deformation, for a model that is an Euler-Bernoulli beam (shear is the frame's)."""
+        for lk in self.links:
+            if any(sec.shear for sec in (lk.section, *(seg.section for seg in lk.segments))):
+                raise ModelError(f"{where} has no shear deformation but link {lk.name!r} sets "
+                                 "shear_coefficient (use --model fe)")
+
     def point_of(self, where: str) -> Point:
         """Resolve ``<link>@<fraction>``, ``ground@x,y``, a joint name (its child's start), ``tip``."""
         return _parse_point(where, self, "at")
@@ -211,10 +267,11 @@ def _elements(t: Fields) -> int | None:
     return t.get("elements", int, None, check=lambda n: n >= 1, why="must be a whole number >= 1")
 
 
-def section_properties(spec: Any, material: Mapping[str, float] | None, path: str,
+def section_properties(spec: Any, material: Mapping[str, Any] | None, path: str,
                        source: str = "<rig>") -> Section:
-    """Section properties from a section table and a material {E_Pa, rho_kg_m3} (Euler-Bernoulli:
-    EA, EI about the axis normal to the arm's plane, mass and rotary inertia per metre)."""
+    """Section properties from a section table and a material {E_Pa, rho_kg_m3, [nu]}: EA, EI about the
+    axis normal to the arm's plane, mass and rotary inertia per metre, and shear deformation when the
+    table has ``shear_coefficient`` (else Euler-Bernoulli)."""
     if not isinstance(spec, Mapping):
         raise ModelError(f"{source}: {path}: must be a table such as {{ shape = \"square_tube\", ... }}")
     t = _fields(spec, source, path)
@@ -222,7 +279,8 @@ def section_properties(spec: Any, material: Mapping[str, float] | None, path: st
     if shape == "custom":
         EA, EI, mpl = (_positive(t, key) for key in ("EA_N", "EI_Nm2", "mass_per_m_kg"))
         rot = _positive(t, "rotary_inertia_per_m_kgm", mpl * EI / EA, allow_zero=True)
-        return Section(shape, EA, EI, mpl, rot, _positive(t, "depth_m", 2.0 * math.sqrt(EI / EA)))
+        return Section(shape, EA, EI, mpl, rot, _positive(t, "depth_m", 2.0 * math.sqrt(EI / EA)),
+                       _shear(t, material))
     if material is None:
         raise t.fail("", f"shape {shape!r} needs a material")
     if shape == "square_tube":
@@ -247,10 +305,29 @@ def section_properties(spec: Any, material: Mapping[str, float] | None, path: st
         w, h = _positive(t, "width_m"), _positive(t, "height_m")
         area, inertia, depth = w * h, w * h**3 / 12.0, h
     E, rho = material["E_Pa"], material["rho_kg_m3"]
-    return Section(shape, E * area, E * inertia, rho * area, rho * inertia, depth)
+    return Section(shape, E * area, E * inertia, rho * area, rho * inertia, depth, _shear(t, material))
 
 
-def _material(doc: Mapping[str, Any], t: Fields) -> Mapping[str, float] | None:
+def _shear(t: Fields, material: Mapping[str, Any] | None) -> Shear | None:
+    """The section's shear deformation: ``shear_coefficient`` (kappa [-]) with its material's ``nu``
+    [-]; None (Euler-Bernoulli) when the section has no ``shear_coefficient``."""
+    if "shear_coefficient" not in t.doc:
+        return None
+    if material is None or "nu" not in material:
+        raise t.fail("shear_coefficient", "needs Poisson's ratio: give the section's material a nu "
+                                          "(G = E / (2 (1 + nu)))")
+    kappa = t.doc["shear_coefficient"]
+    try:
+        Shear(kappa)
+    except ModelError as e:
+        raise t.fail("shear_coefficient", str(e)) from None
+    try:
+        return Shear(kappa, material["nu"])
+    except ModelError as e:
+        raise t.fail("shear_coefficient", f"{e} (the nu of the section's material)") from None
+
+
+def _material(doc: Mapping[str, Any], t: Fields) -> Mapping[str, Any] | None:
     """The material a table names (``material = "steel"`` or an inline table); None when it names none."""
     spec, path = t.doc.get("material"), t.field("material")
     if spec is None:
@@ -263,10 +340,11 @@ def _material(doc: Mapping[str, Any], t: Fields) -> Mapping[str, float] | None:
     if not isinstance(spec, Mapping):
         raise t.fail("material", "must name a [material.<name>] table")
     m = _fields(spec, t.where, path)
-    return {"E_Pa": _positive(m, "E_Pa"), "rho_kg_m3": _positive(m, "rho_kg_m3")}
+    nu = {"nu": spec["nu"]} if "nu" in spec else {}   # Poisson's ratio: read by a section's shear only
+    return {"E_Pa": _positive(m, "E_Pa"), "rho_kg_m3": _positive(m, "rho_kg_m3"), **nu}
 
 
-def _section(t: Fields, material: Mapping[str, float] | None) -> Section:
+def _section(t: Fields, material: Mapping[str, Any] | None) -> Section:
     """The ``section`` of a link, segment or member table, made of ``material``."""
     return section_properties(t.get("section", object), material, t.field("section"), t.where)
 

@@ -50,6 +50,7 @@ MAX_BY_UNIT = (  # largest magnitude of a field by the unit its name ends with (
 SECTION_KEYS = {"square_tube": {"outer_m", "wall_m"}, "rect_tube": {"width_m", "height_m", "wall_m"},
                 "round_tube": {"outer_m", "wall_m"}, "solid_rect": {"width_m", "height_m"},
                 "custom": {"EA_N", "EI_Nm2", "mass_per_m_kg", "rotary_inertia_per_m_kgm", "depth_m"}}
+SECTION_COMMON_KEYS = {"shape", "shear_coefficient"}  # keys of a section of any shape
 
 
 def _fail(source: str, path: str, what: str) -> ModelError:
@@ -82,10 +83,11 @@ def _section(spec: Any, path: str, source: str) -> None:
         return  # parse_rig names a missing or non-table section
     shape = spec.get("shape")
     allowed = SECTION_KEYS.get(shape) if isinstance(shape, str) else None  # other shapes: parse_rig
-    extra = sorted(set(spec) - {"shape"} - allowed) if allowed is not None else []
+    extra = sorted(set(spec) - SECTION_COMMON_KEYS - allowed) if allowed is not None else []
     if extra:
+        has = sorted(allowed | SECTION_COMMON_KEYS - {"shape"})
         raise _fail(source, f"{path}.{extra[0]}", f"unknown key for shape {spec['shape']!r} (it has "
-                                                  f"{', '.join(sorted(allowed))})")
+                                                  f"{', '.join(has)})")
     _sizes(spec, path, source)
 
 

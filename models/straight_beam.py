@@ -59,6 +59,7 @@ def straight_beam(rig: Rig, pose: Mapping[str, float], model: str) -> StraightBe
     if rig.springs:
         raise ModelError(f"{where} cannot represent a grounded spring at {rig.springs[0].at} "
                          "(use --model fe)")
+    rig.check_euler_bernoulli(where)
     lengths = [lk.length_m for lk in rig.links]
     offsets = [sum(lengths[:i]) for i in range(len(lengths))]
     total = sum(lengths)
