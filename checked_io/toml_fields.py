@@ -119,7 +119,10 @@ class Fields:
             return default
         value = raw = self.doc[key]  # messages quote the value as written (-1, not -1.0)
         if kind is float and isinstance(value, int) and not isinstance(value, bool):
-            value = float(value)
+            try:
+                value = float(value)
+            except OverflowError:   # a TOML integer beyond a float's range (10**400)
+                raise self._bad("not_finite", key, raw, why=why) from None
         kinds = kind if isinstance(kind, tuple) else (kind,)
         numeric = bool({int, float} & set(kinds)) and bool not in kinds
         if not isinstance(value, kinds) or (isinstance(value, bool) and numeric):

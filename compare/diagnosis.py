@@ -1735,7 +1735,7 @@ def _unpaired_flag(ctx: _Context, model: np.ndarray, singles: Sequence[Candidate
         res = fit_candidate(fam, cand, target, ctx.train[:1])
         fits.append((rms(res.freq_hz[0] / meas.freq_hz - 1.0), cand, fam, res.theta[:1]))
     error, cand, fam, theta = min(fits, key=lambda t: t[0])
-    if error > fit_error:
+    if not error <= fit_error:   # NaN (a failed fit) is not 'no worse'
         return "", ""
     h = evaluate(fam, design(cand, target), theta, target, gradients=False)[3]
     other = paired_modes(fam, h, target, gradients=False)[2][0]

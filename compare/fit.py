@@ -6,8 +6,9 @@ the log-parameters), all evaluated together in one batch per iteration, with the
 the eigenvalue sensitivities (``d f / d lambda = 1 / (8 pi^2 f)``).  Starts: the best points of a
 coarse grid evaluated in one batch (a multi-start without repeated solver calls), chosen per fold on its
 training configurations only, refined to convergence and the best kept per fold, so held-out scores
-come from honest refits; a fold left in a local minimum (another fold's optimum costs less on its
-training configurations) is refined again from that optimum (``_stuck_folds``).
+come from refits on the training configurations; a fold left in a local minimum (another fold's
+optimum costs more than 1 % less on its training configurations) is refined again from that optimum
+(``_stuck_folds``), which has seen the fold's held-out configurations (see there).
 
 Mode pairing: model modes below 1e-3 of the lowest measured frequency are rigid-body modes and skipped,
 and so are modes the rig's sensors cannot see (e.g. axial modes of a straight arm under transverse
@@ -225,7 +226,9 @@ def _stuck_folds(f: np.ndarray, fm: np.ndarray, train: np.ndarray, reg: np.ndarr
     The donor's optimum was fitted on configurations that include this fold's held-out ones, but it
     is used only as a start: what is kept is decided by the fold's training cost alone, so the fold's
     result is a lower minimum of the same training problem -- closer to the global minimum that an
-    honest cross-validation refit stands for, whichever start reached it.  Without another fold the
+    honest cross-validation refit stands for, whichever start reached it.  Where the training cost is
+    flat in a direction, though, the refit may stop near the donor's values, so the held-out
+    configurations can still lean on the result there (Review 47 M2; not measured).  Without another fold the
     result is unchanged (the fit on all configurations, ``F = 1``).
 
     Examples

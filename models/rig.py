@@ -20,6 +20,7 @@ section is Euler-Bernoulli, as before the key existed.
 from __future__ import annotations
 
 import math
+import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from numbers import Real
@@ -70,6 +71,9 @@ class Shear:
                             ("Poisson's ratio nu", self.poisson_ratio)):
             if isinstance(value, bool) or not isinstance(value, Real):
                 raise ModelError(f"{name} = {value!r} must be a number")
+            if isinstance(value, int) and abs(value) > sys.float_info.max:
+                raise ModelError(f"{name}: an integer of {len(str(abs(value)))} digits is beyond a "
+                                 "float's range (about 1.8e308)")
         if not (math.isfinite(self.shear_coefficient) and self.shear_coefficient >= KAPPA_MIN):
             raise ModelError(f"shear coefficient kappa = {self.shear_coefficient} must be finite and at "
                              f"least {KAPPA_MIN:g} (real sections: about 0.1 to 1.2)")

@@ -58,7 +58,14 @@ def _fail(source: str, path: str, what: str) -> ModelError:
 
 
 def _number(value: Any) -> bool:
-    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+    """A finite number: an int or float, not a bool, not inf or NaN, and an int no larger than a float
+    holds (TOML integers have no size limit; ``math.isfinite(10**400)`` raises OverflowError)."""
+    if not isinstance(value, int | float) or isinstance(value, bool):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:
+        return False
 
 
 def _tables(doc: Mapping[str, Any], key: str, source: str) -> list[Mapping[str, Any]]:
