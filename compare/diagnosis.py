@@ -1717,7 +1717,8 @@ def _unpaired_flag(ctx: _Context, model: np.ndarray, singles: Sequence[Candidate
     """The sensor ``j`` that disagrees most with ``model`` (``sensor_check``) and its flag when, with
     ``j``'s measured shapes left out of the mode pairing (set to zero: the MAC's numerator and measured
     norm then use the other sensors, but its model norm still counts the model's amplitude at ``j``, so
-    ``j`` is only partly out of the pairing: Review 47 M1), the single candidate of ``singles`` that fits the frequencies of all configurations best
+    ``j`` is only partly out of the pairing: Review 47 M1), the single candidate of ``singles`` that
+    fits the frequencies of all configurations best
     fits them no worse than the verdict's model (in-sample frequency RMS ``fit_error``) and ``j``'s
     shapes disagree with it (``sensor_check`` flags ``j``); empty strings otherwise.  No margin is
     chosen: with every sensor in the pairing the verdict's model is the better fit, so a candidate
