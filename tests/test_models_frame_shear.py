@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from flexmodal.models.errors import ModelError
-from flexmodal.models.frame import Shear, frame_modes
+from flexmodal.models.frame import Shear, element_matrices, frame_modes
 from flexmodal.models.rig import load_rig, parse_rig
 
 E, RHO, NU, KAPPA = 70e9, 2700.0, 0.3, 5.0 / 6.0   # Pa, kg/m^3, -, - (aluminium, solid rectangle)
@@ -261,3 +261,18 @@ def test_lumped_mass_with_shear_converges_to_the_timoshenko_frequencies(tmp_path
         f = predict(load_rig(tmp_path / "thick.toml"), {"c": {}}, "fe", 3, lumped_mass=True).freq_hz("c")
         errors.append(np.max(np.abs(f / exact - 1)))
     assert errors[0] < 1.5e-3 and errors[1] < errors[0] / 3
+
+
+@pytest.mark.parametrize("lumped", [False, True], ids=["consistent", "lumped"])
+def test_an_infinite_shear_rigidity_is_the_euler_bernoulli_element_bit_for_bit(lumped: bool):
+    """The default (no shear) and an infinite kappa G A run the same arithmetic (phi = 0 exactly), so a
+    rig without ``shear_coefficient`` keeps the Euler-Bernoulli matrices bit for bit (Review 47 L6)."""
+    rng = np.random.default_rng(47)
+    n = 50
+    props = (rng.uniform(0.01, 0.5, n), rng.uniform(1e5, 1e8, n), rng.uniform(1.0, 1e4, n),
+             rng.uniform(0.1, 5.0, n), rng.uniform(1e-6, 1e-3, n))
+    K0, M0 = element_matrices(*props, lumped)
+    K1, M1 = element_matrices(*props, lumped, shear_rigidity_N=np.full(n, np.inf))
+    assert np.array_equal(K0, K1) and np.array_equal(M0, M1)
+    K2, _ = element_matrices(*props, lumped, shear_rigidity_N=np.full(n, 1e3))   # a finite one does act
+    assert not np.array_equal(K0, K2)
