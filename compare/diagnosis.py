@@ -103,7 +103,7 @@ from flexmodal.compare.result import (
 )
 from flexmodal.compare.sensor_flag import flag_text, sensor_check, sensor_flag
 from flexmodal.compare.tables import shape_warnings
-from flexmodal.compare.verdict_text import EXPLAINED_FACTOR, UNLIKELY, gap_words
+from flexmodal.compare.verdict_text import EXPLAINED_FACTOR, SHEAR_UNCALIBRATED, UNLIKELY, gap_words
 from flexmodal.contract.mac import mac_pairs
 from flexmodal.contract.table import ModalTable
 from flexmodal.models.effects import REGISTRY, get_effect
@@ -620,7 +620,8 @@ def diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str] = "all
     ``DEFAULT_SCATTER``.  ``progress`` is called with a line at each stage of the work (the fits of
     single effects, of pairs, the cross-validation, the verdict), and the fits are shown as a transient
     bar on a terminal.  ``warnings`` of the result: one line per reason why the measured shapes of some
-    configurations pair no modes by MAC (compare.tables.shape_warnings), None when there is none.
+    configurations pair no modes by MAC (compare.tables.shape_warnings), and one when a section of the
+    rig sets shear (``SHEAR_UNCALIBRATED``); None when there is none.
     Raises CompareError (one line) on inputs that do not fit the rig.
     """
     with threadpool_limits(limits=1, user_api="blas"):  # thousands of tiny eigenproblems
@@ -786,7 +787,17 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
                                                       measurement=sigma, model_form_floor=floor, least=least),
         holdout=Holdout(scheme=scheme, n_folds=int(len(train) - 1)), configs=meas.configs,
         predictions=_predictions(meas, base_f, best),
-        warnings=tuple(shape_warnings(rig.source, meas.shapes_unused, [measured])) or None)
+        warnings=tuple(shape_warnings(rig.source, meas.shapes_unused, [measured]) + _shear_warnings(rig))
+        or None)
+
+
+def _shear_warnings(rig: Rig) -> list[str]:
+    """``SHEAR_UNCALIBRATED`` after the rig's file when a section of it (a link's, a segment's or a
+    member's) sets shear deformation: the ``none`` gate and ``_beam_theory_form`` were calibrated on
+    Euler-Bernoulli rigs only."""
+    sections = [s for lk in rig.links for s in (lk.section, *(seg.section for seg in lk.segments))]
+    sections += [mb.section for mb in rig.members]
+    return [f"{rig.source}: {SHEAR_UNCALIBRATED}"] if any(s.shear is not None for s in sections) else []
 
 
 def heldout_errors(rig: Rig, measured: ModalTable, names: Sequence[tuple[str, str]], scatter: float,

@@ -2,17 +2,23 @@
 
 from __future__ import annotations
 
+import html
+import json
 import math
 
 import numpy as np
 import pytest
+from conftest import REPO, RIGS
 
+from flexmodal.app import main
 from flexmodal.compare.diagnosis import POISSON, _beam_theory_form
+from flexmodal.compare.verdict_text import SHEAR_UNCALIBRATED
 from flexmodal.models.rig import parse_rig
 
 E, RHO, H = 70e9, 2700.0, 0.01      # Pa, kg/m^3, m: a solid 10 mm x 10 mm aluminium bar
 SOLID = {"shape": "solid_rect", "width_m": H, "height_m": H}
 SHEARED = {**SOLID, "shear_coefficient": 0.85}
+MEASURED = REPO / "examples" / "measured" / "seed003_table3_f1f2.csv"
 
 
 def _bar(section: dict, segments: list[tuple[float, float, dict]]) -> object:
@@ -50,3 +56,28 @@ def test_segments_without_shear_leave_the_level_bit_for_bit():
         assert _beam_theory_form(_bar(section, [(0.1, 0.3, section), (0.3, 0.35, section)]), freq) == alone
     plain = _beam_theory_form(_bar(SOLID, []), freq)
     assert _beam_theory_form(_bar(SOLID, [(0.0, 0.5, other)]), freq) == plain
+
+
+@pytest.mark.parametrize("shear", [True, False], ids=["segment with shear", "none"])
+def test_the_cli_says_once_that_the_none_gate_was_not_calibrated_with_shear(tmp_path, capsys, shear):
+    """``flexmodal diagnose`` on seed 003's rig whose second link has a segment with
+    ``shear_coefficient``: one warning line on stderr, the same line in diagnosis.json's ``warnings``
+    and in the report (docs/formats.md's wording: the ``none`` gate and beam-theory allowance were
+    calibrated on Euler-Bernoulli frames); without shear, no warning."""
+    text = (RIGS / "seed003_two_link.toml").read_text()
+    if shear:
+        text = text.replace("rho_kg_m3 = 2700", "rho_kg_m3 = 2700\nnu = 0.33").replace(
+            'name = "link2"', 'name = "link2"\nsegments = [{ from = 0.0, to = 0.3, section = { shape = '
+            '"square_tube", outer_m = 0.040, wall_m = 0.0011, shear_coefficient = 0.5 } }]')
+    rig = tmp_path / "rig.toml"
+    rig.write_text(text)
+    code = main(["--quiet", "diagnose", "--rig", str(rig), "--measured", str(MEASURED), "--out",
+                 str(tmp_path / "out"), "--effects", "joint_stiffness", "--holdout",
+                 "theta30,theta90,theta150"])
+    line = f"{rig}: {SHEAR_UNCALIBRATED}"
+    err = capsys.readouterr().err.splitlines()
+    assert code == 0 and err == ([f"flexmodal: warning: {line}"] if shear else [])
+    warnings = json.loads((tmp_path / "out" / "diagnosis.json").read_text()).get("warnings")
+    assert warnings == ([line] if shear else None)
+    page = (tmp_path / "out" / "diagnosis.html").read_text()
+    assert (f'<th>not calibrated with shear</th><td class="warn">{html.escape(line)}</td>' in page) == shear
