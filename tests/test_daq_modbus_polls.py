@@ -28,7 +28,7 @@ from flexmodal.fixtures.sim_source import SimChannel, SimSource
 
 RATE_HZ = 200.0
 DURATION_S = 1.2
-STALL_AT_S, STALL_S = 0.2, 0.5  # stream time of the stall and how long it may last (< the answer timeout)
+STALL_AT_S, STALL_S = 0.2, 0.6  # stream time of the stall and how long it may last (< the answer timeout)
 FIFO_S = 0.05  # the device buffers 10 samples: a stall longer than that loses samples
 
 
