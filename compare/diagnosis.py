@@ -103,11 +103,11 @@ from flexmodal.compare.result import (
 )
 from flexmodal.compare.sensor_flag import flag_text, sensor_check, sensor_flag
 from flexmodal.compare.tables import shape_warnings
-from flexmodal.compare.verdict_text import EXPLAINED_FACTOR, UNLIKELY, gap_words
+from flexmodal.compare.verdict_text import EXPLAINED_FACTOR, SHEAR_UNCALIBRATED, UNLIKELY, gap_words
 from flexmodal.contract.mac import mac_pairs
 from flexmodal.contract.table import ModalTable
 from flexmodal.models.effects import REGISTRY, get_effect
-from flexmodal.models.rig import Rig
+from flexmodal.models.rig import Link, Rig
 
 DEFAULT_SCATTER = 0.005
 MIN_SCATTER = 1e-3
@@ -620,7 +620,8 @@ def diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str] = "all
     ``DEFAULT_SCATTER``.  ``progress`` is called with a line at each stage of the work (the fits of
     single effects, of pairs, the cross-validation, the verdict), and the fits are shown as a transient
     bar on a terminal.  ``warnings`` of the result: one line per reason why the measured shapes of some
-    configurations pair no modes by MAC (compare.tables.shape_warnings), None when there is none.
+    configurations pair no modes by MAC (compare.tables.shape_warnings), and one when a section of the
+    rig sets shear (``SHEAR_UNCALIBRATED``); None when there is none.
     Raises CompareError (one line) on inputs that do not fit the rig.
     """
     with threadpool_limits(limits=1, user_api="blas"):  # thousands of tiny eigenproblems
@@ -786,7 +787,17 @@ def _diagnose(rig: Rig, measured: ModalTable, effects: str | Sequence[str], hold
                                                       measurement=sigma, model_form_floor=floor, least=least),
         holdout=Holdout(scheme=scheme, n_folds=int(len(train) - 1)), configs=meas.configs,
         predictions=_predictions(meas, base_f, best),
-        warnings=tuple(shape_warnings(rig.source, meas.shapes_unused, [measured])) or None)
+        warnings=tuple(shape_warnings(rig.source, meas.shapes_unused, [measured]) + _shear_warnings(rig))
+        or None)
+
+
+def _shear_warnings(rig: Rig) -> list[str]:
+    """``SHEAR_UNCALIBRATED`` after the rig's file when a section of it (a link's, a segment's or a
+    member's) sets shear deformation: the ``none`` gate and ``_beam_theory_form`` were calibrated on
+    Euler-Bernoulli rigs only."""
+    sections = [s for lk in rig.links for s in (lk.section, *(seg.section for seg in lk.segments))]
+    sections += [mb.section for mb in rig.members]
+    return [f"{rig.source}: {SHEAR_UNCALIBRATED}"] if any(s.shear is not None for s in sections) else []
 
 
 def heldout_errors(rig: Rig, measured: ModalTable, names: Sequence[tuple[str, str]], scatter: float,
@@ -1095,11 +1106,14 @@ def _beam_theory_form(rig: Rig, freq_hz: np.ndarray, nu: float = POISSON) -> flo
     correction, Han, Benaroya & Wei 1999, J. Sound Vib. 225(5) eq. 81; Rao, *Vibration of Continuous
     Systems* 2007 §11.8), with ``(k r)^2 = omega sqrt(mu EI) / EA``, ``E / G = 2 (1 + nu)`` and the
     shear coefficient ``kappa`` 0.5 for thin-walled tubes, 5/6 for solid sections (Cowper 1966); the
-    links' values averaged by length.  A link whose section sets shear deformation (rig
-    ``shear_coefficient``, ``models.rig.Shear``) is modelled with it, so its shear term ``E / (kappa G)``
-    is left out and only the rotary-inertia term counts for it.  A level, not a correction: where a mode's
-    strain energy sits, and so which link's section counts, is not known before a fit.  The ``none`` gate
-    built on this level was calibrated on Euler-Bernoulli rigs only.
+    links' values averaged by length.  Where a link's section sets shear deformation (rig
+    ``shear_coefficient``, ``models.rig.Shear``) the frame models it, so the shear term ``E / (kappa G)``
+    counts only on the part of the link without it: the term times the fraction of the link's length
+    whose section (a segment's where segments override the link section, ``Link.section_at``, as the
+    frame takes it at each element's middle) has no shear.  The other properties, and kappa, are the
+    link section's.  A level, not a correction: where a mode's strain energy sits, and so which link's
+    section counts, is not known before a fit.  The ``none`` gate built on this level was calibrated on
+    Euler-Bernoulli rigs only.
 
     Examples
     --------
@@ -1131,13 +1145,37 @@ def _beam_theory_form(rig: Rig, freq_hz: np.ndarray, nu: float = POISSON) -> flo
     for link in rig.links:
         sec = link.section
         kappa = 0.5 if "tube" in sec.shape else 5.0 / 6.0
-        shear_term = 2.0 * (1.0 + nu) / kappa if sec.shear is None else 0.0
+        shear_term = 2.0 * (1.0 + nu) / kappa * _unsheared_share(link)
         per_rad_s.append(0.5 * math.sqrt(sec.mass_per_m_kg * sec.EI_Nm2) / sec.EA_N * (1.0 + shear_term))
         lengths.append(link.length_m)
     if not lengths:
         return 0.0
     freq = np.asarray(freq_hz, float)
     return rms(2 * math.pi * freq[np.isfinite(freq)] * float(np.average(per_rad_s, weights=lengths)))
+
+
+def _unsheared_share(link: Link) -> float:
+    """Share [-] of ``link``'s length whose section sets no shear deformation: its stretches between the
+    segment ends, each with the section at its middle (``Link.section_at``: segments override the link
+    section); exactly 1 where no section sets shear and 0 where all do.
+
+    Examples
+    --------
+    >>> from flexmodal.models.rig import parse_rig
+    >>> sec = {"shape": "solid_rect", "width_m": 0.01, "height_m": 0.01}
+    >>> rig = parse_rig({"name": "bar", "material": {"al": {"E_Pa": 70e9, "rho_kg_m3": 2700, "nu": 0.33}},
+    ...                  "link": [{"name": "l", "length_m": 1.0, "material": "al", "section": sec,
+    ...                            "segments": [{"from": 0.2, "to": 0.5,
+    ...                                          "section": {**sec, "shear_coefficient": 0.85}}]}]}, "<doc>")
+    >>> round(_unsheared_share(rig.links[0]), 12)
+    0.7
+    """
+    ends = sorted({0.0, link.length_m} | {min(x, link.length_m) for seg in link.segments
+                                          for x in (seg.from_m, seg.to_m)})
+    length_m = {True: 0.0, False: 0.0}
+    for a, b in itertools.pairwise(ends):
+        length_m[link.section_at(0.5 * (a + b)).shear is None] += b - a
+    return length_m[True] / (length_m[True] + length_m[False])
 
 
 def _chi2_terms(ctx: _Context, entry: dict, scatter: float) -> np.ndarray:

@@ -444,7 +444,8 @@ class Diagnosis(_Record):
     configs: tuple[str, ...] | None = None
     predictions: Predictions | None = None
     # a line per reason why the measured shapes of some configurations paired no modes by MAC (paired by
-    # frequency order: compare.tables.shape_warnings, a zero shape its MAC 0/0); None when there is none
+    # frequency order: compare.tables.shape_warnings, a zero shape its MAC 0/0), and one when the rig sets
+    # shear (compare.verdict_text.SHEAR_UNCALIBRATED); None when there is none
     warnings: tuple[str, ...] | None = None
 
     def verdict_score(self) -> CandidateScore | None:

@@ -99,6 +99,11 @@ def remaining_words(result: Diagnosis) -> str:
                      for r in result.verdict.remaining or () if r.heldout_rel_error is not None)
 
 
+SHEAR_UNCALIBRATED = ("a section sets shear_coefficient, but the `none` gate and beam-theory allowance of "
+                      "the diagnosis were calibrated on Euler-Bernoulli frames (no blind figure was measured "
+                      "with shear on; docs/models.md, Limitations)")
+"""The warning of a diagnosis on a rig that sets shear deformation (models/rig.py ``Shear``)."""
+
 NO_POSE = "no pose is advised"
 """How the verdict's summary starts its reason for advising no pose (compare/next_measurement.py)."""
 

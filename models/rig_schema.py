@@ -153,10 +153,11 @@ def _names(doc: Mapping[str, Any], tables: Mapping[str, list], source: str) -> N
 
 
 def _poisson(materials: Mapping[str, Any], source: str) -> None:
-    """``nu`` (optional) is Poisson's ratio of an isotropic material: a finite number in (-1, 0.5]."""
+    """``nu`` (optional) is Poisson's ratio of an isotropic material: a finite number in (-1, 0.5), the
+    range ``models.rig.Shear`` takes (0.5 is an incompressible solid, no metal)."""
     for name, m in materials.items():
-        if "nu" in m and not (_number(m["nu"]) and -1.0 < m["nu"] <= 0.5):
-            raise _fail(source, f"material.{name}.nu", f"must be Poisson's ratio, a number in (-1, 0.5] "
+        if "nu" in m and not (_number(m["nu"]) and -1.0 < m["nu"] < 0.5):
+            raise _fail(source, f"material.{name}.nu", f"must be Poisson's ratio, a number in (-1, 0.5) "
                                                        f"(got {m['nu']!r:.60})")
 
 

@@ -36,6 +36,7 @@ from flexmodal.compare.errors import CompareError
 from flexmodal.compare.result import Diagnosis, Predictions
 from flexmodal.compare.tables import Comparison, html_fragment, ordered_configs
 from flexmodal.compare.verdict_text import (
+    SHEAR_UNCALIBRATED,
     advice_words,
     alternatives_words,
     remaining_words,
@@ -356,7 +357,8 @@ def _diagnosis_view(d: Diagnosis) -> dict:
         "holdout": d.holdout.scheme if d.holdout is not None else "",
         "scatter": scatter_line(d).removeprefix("scatter: ").replace("sqrt(m^2 + f^2)", "√(m² + f²)"),
         "frequencies": _diagnosis_frequencies(d.predictions) if d.predictions is not None else [],
-        "warnings": list(d.warnings or ()),
+        "warnings": [{"what": "not calibrated with shear" if SHEAR_UNCALIBRATED in w
+                      else "measured shapes not used", "text": w} for w in d.warnings or ()],
     }
 
 

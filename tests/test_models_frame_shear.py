@@ -201,6 +201,21 @@ def test_a_bad_shear_value_gives_one_line_naming_file_and_field_and_exit_2(tmp_p
     assert not (tmp_path / "p.csv").exists()
 
 
+def test_nu_one_half_is_refused_at_the_material_field(tmp_path, capsys):
+    """The rig schema and ``Shear`` take the same range of nu, (-1, 0.5): nu = 0.5 is one line naming
+    ``material.al.nu`` and the range, exit 2 (before, the schema took 0.5 and ``Shear`` refused it
+    at ``link[0].section.shear_coefficient``)."""
+    from conftest import one_line
+
+    from flexmodal.app import main
+
+    (tmp_path / "bad.toml").write_text(thick_rig_toml(L / 8, nu="0.5"), encoding="utf-8")
+    (tmp_path / "poses.csv").write_text("config\nc\n", encoding="utf-8")
+    code = main(["predict", str(tmp_path / "bad.toml"), "--model", "fe", "--poses",
+                 str(tmp_path / "poses.csv"), "--out", str(tmp_path / "p.csv")])
+    one_line(capsys, code, "bad.toml: material.al.nu: ", "(-1, 0.5)", "(got 0.5)")
+
+
 @pytest.mark.parametrize("model", ["blevins", "assumed-modes", "lumped-mass"])
 def test_the_beam_models_refuse_a_rig_with_shear(tmp_path, model):
     """Euler-Bernoulli beam models cannot represent shear deformation: they say so (the fe model can)."""

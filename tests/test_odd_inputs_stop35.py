@@ -111,7 +111,7 @@ def test_poisson_ratio_out_of_its_range(tmp_path: Path, capsys, nu: str) -> None
     (tmp_path / "poses.csv").write_text(POSES)
     code = main(["predict", str(tmp_path / "rig.toml"), "--model", "fe", "--poses",
                  str(tmp_path / "poses.csv"), "--out", str(tmp_path / "o.csv")])
-    _one_line(capsys, code, "rig.toml", ".nu", "(-1, 0.5]")
+    _one_line(capsys, code, "rig.toml", ".nu", "(-1, 0.5)")
 
 
 # -- FRFs of another tool: real H, coherence outside [0, 1] -------------------------------------------
