@@ -40,6 +40,8 @@ def _acquire(args: argparse.Namespace) -> int:
         sys.stdout.flush()
         os._exit(2)
     print(summary.line(), flush=True)
+    if summary.polls_line():
+        print(summary.polls_line(), file=sys.stderr, flush=True)
     if summary.error:
         raise DaqError(summary.error)
     return summary.exit_code

@@ -7,8 +7,10 @@ the eigenvalue sensitivities (``d f / d lambda = 1 / (8 pi^2 f)``).  Starts: the
 coarse grid evaluated in one batch (a multi-start without repeated solver calls), chosen per fold on its
 training configurations only, refined to convergence and the best kept per fold, so held-out scores
 come from refits on the training configurations; a fold left in a local minimum (another fold's
-optimum costs more than 1 % less on its training configurations) is refined again from that optimum
-(``_stuck_folds``), which has seen the fold's held-out configurations (see there).
+optimum costs more than 1 % less on its training configurations, ``STUCK_GAIN``; the cost with the
+regularisation rows) is refined again from that optimum on its training configurations and keeps the
+result where it ends lower (``_stuck_folds``); that optimum has seen the fold's held-out configurations
+(see there).
 
 Mode pairing: model modes below 1e-3 of the lowest measured frequency are rigid-body modes and skipped,
 and so are modes the rig's sensors cannot see (e.g. axial modes of a straight arm under transverse

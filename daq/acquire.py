@@ -87,6 +87,7 @@ class Summary:
     signal: int = 0
     error: str = ""
     bounded: bool = False  # the session had a duration (a signal then stopped it early)
+    polls: dict = dataclasses.field(default_factory=dict)  # polled devices: {name: {polls, missed}}
 
     @property
     def exit_code(self) -> int:
@@ -98,6 +99,13 @@ class Summary:
         ev = ", ".join(f"{k} {v}" for k, v in sorted(self.events.items())) or "none"
         return (f"{self.path}\t{self.run_id}\t{self.n_samples} samples x {self.n_channels} channels at "
                 f"{self.sample_rate_hz:g} Hz ({self.n_samples / self.sample_rate_hz:.2f} s)\tevents: {ev}")
+
+    def polls_line(self) -> str:
+        """One line naming the polled devices that missed samples (polls too late or too few: their rows
+        are gaps), empty when none did."""
+        lost = [f"{d} {c['missed']} samples missed in {c['polls']} polls" for d, c in self.polls.items()
+                if c["missed"]]
+        return f"polls: {'; '.join(lost)} (too late to read them: recorded as gaps)" if lost else ""
 
 
 def _with_endpoint(session: Session, endpoint: str | None) -> Session:
@@ -490,8 +498,8 @@ class _Recorder:
         if self.writer is None and rows.shape[0]:
             first = {k: v + self.start_row for k, v in self.timeline.first_index.items()}
             self.writer = _open_writer(session, self.out, self.run_id, self.stamp, rows, self.names, first)
-        keep = [dataclasses.replace(e, sample_index=e.sample_index - self.start_row) for e in self.pending
-                if e.sample_index >= self.start_row
+        keep = [_within(dataclasses.replace(e, sample_index=e.sample_index - self.start_row), target)
+                for e in self.pending if e.sample_index >= self.start_row
                 and (target is None or e.sample_index - self.start_row < target)]
         if self.writer is None:  # nothing to store yet
             return
@@ -595,9 +603,17 @@ class _Recorder:
             if self.writer is not None:
                 writer, self.writer = self.writer, None
                 self.guarded_close(writer)
-        if self.pose_cols and self.written:
-            _store_pose(self.out, self.run_id, {**self.session.pose, **self.pose()[0]}, self.pose()[1])
+        extra = {"polls": self.polls()} if self.polls() else {}
+        if self.pose_cols:
+            mean, spread = self.pose()
+            extra |= {"pose": {**self.session.pose, **mean}, "pose_spread": spread}
+        if extra and self.written:
+            _store_attrs(self.out, self.run_id, extra)
         return self.summary()
+
+    def polls(self) -> dict:
+        """{device: {polls, missed}} of the devices whose drivers count their polls."""
+        return {name: counts for name, drv in self.drivers.items() if (counts := drv.poll_counts())}
 
     def finish(self, threads: list[threading.Thread]) -> None:
         """Stop the readers, store what they delivered, close open gaps, record why the run stopped."""
@@ -617,9 +633,9 @@ class _Recorder:
             self.pending.append(Event("stopped", self.timeline.released, unwritten,
                                       f"{why[:150]}; {unwritten} samples in hand not written"))
         if self.writer is not None:
-            keep = [dataclasses.replace(e, sample_index=max(e.sample_index - self.start_row, 0))
-                    for e in self.pending if self.target is None or e.sample_index - self.start_row
-                    < self.target]
+            keep = [_within(dataclasses.replace(e, sample_index=max(e.sample_index - self.start_row, 0)),
+                            self.target) for e in self.pending
+                    if self.target is None or e.sample_index - self.start_row < self.target]
             self.pending.clear()
             self.guarded(lambda: self.writer.add_events(keep))
             self.counts.update(e.kind for e in keep)
@@ -649,17 +665,25 @@ class _Recorder:
                                          f"{', '.join(self.drivers)}")
         return Summary(self.out, self.run_id, self.written, len(self.names), self.session.sample_rate_hz,
                        self.counts, sum(s.dropped_blocks for s in self.stats.values()), self.stopper.signum,
-                       self.error, self.target is not None)
+                       self.error, self.target is not None, self.polls())
 
-def _store_pose(out: Path, run_id: str, pose: dict, spread: dict) -> None:
-    """Replace the run's ``pose`` by the encoder means and add ``pose_spread`` (JSON: per variable std,
-    min, max and number of samples), once the writer has closed the file."""
+def _within(event: Event, target: int | None) -> Event:
+    """``event`` with a gap's count cut at the run's last row ``target`` (rows beyond are not stored)."""
+    if target is None or event.kind != "gap":
+        return event
+    return dataclasses.replace(event, count=min(event.count, target - event.sample_index))
+
+
+def _store_attrs(out: Path, run_id: str, attrs: dict) -> None:
+    """Set the run's attributes ``attrs`` (each as JSON) once the writer has closed the file: the pose
+    (encoder means) and ``pose_spread`` (per variable std, min, max and number of samples), or the
+    ``polls`` a driver counted."""
     import h5py
 
     with signals_deferred(), h5py.File(out, "r+") as f:  # opened and closed whole, Ctrl-C or not
-        attrs = f[f"runs/{run_id}"].attrs
-        attrs["pose"] = json.dumps(pose)
-        attrs["pose_spread"] = json.dumps(spread)
+        group = f[f"runs/{run_id}"].attrs
+        for key, value in attrs.items():
+            group[key] = json.dumps(value)
 
 
 def device_attrs(session: Session) -> dict[str, str]:

@@ -125,6 +125,11 @@ class Driver(ABC):
     def close(self) -> None:
         """Disconnect (never raises)."""
 
+    def poll_counts(self) -> dict[str, int]:
+        """What a polling driver counted of its polls (Modbus: ``missed``, ``repeated``); {} for a
+        streamed protocol."""
+        return {}
+
 
 def with_endpoint(config, endpoint: str):
     """A device's ``config`` with the ``"@simulator"`` placeholder replaced by the simulator's endpoint:

@@ -1,14 +1,24 @@
 """Modbus driver (pymodbus >= 3.10, TCP or RTU): registers polled at the session rate on a fixed schedule.
 
-Poll ``k`` is due at ``t0 + k / sample_rate_hz`` (t0 = first connection) and its values become device
-sample ``k``; late polls catch up (back to back) unless they are more than ``MAX_LATE_S`` late; after a
-reconnect polling resumes at the current slot.  Skipped slots are missing samples, so the timeline
-shows the gap where it happened.  A loaded host can stall a poll for a few hundred ms, and at 200 Hz over
-RTU a round trip takes 2-5 ms of the 5 ms period, so catching such a stall up takes as long again:
-``MAX_LATE_S`` and the answer timeout leave room for that, so a healthy link loses no sample.
-An exception response counts as a corrupt frame.  Each table's registers are read in one request per
-poll (``device_id=`` keyword API) and decoded for all polls of a read at once (int16/uint16/int32/
-uint32/float32, big or little word order, then value * scale + offset).
+Poll ``k`` is due at ``t0 + k / sample_rate_hz`` (t0 = first connection) and its value becomes sample
+``k``.  A register holds the device's latest value, so a poll sent late reads a later value than its
+slot's: a poll that cannot be sent within half a period of its due time is not made (never caught up
+back to back: each such read would be a later value passed off as the slot's); polling resumes at the
+current slot and the slots skipped are missing samples (counted in ``missed``; the timeline records them
+as a ``gap`` at their rows).  After a reconnect polling likewise resumes at the current slot.
+
+With ``counter`` naming a register that holds the device's own sample counter, polls are due
+``OVERSAMPLE`` times per sample period (a late one is sent at once; none is caught up) and at once
+after an answer with a new sample (a buffering device may hold more), and each answer is stored at the
+sample its counter names: an answer repeating the last counter (no new sample yet) is dropped, counter
+values never read are missing samples (``missed``), so no value is stored twice or at another sample's
+row whatever the host's delays.
+
+An exception response counts as a corrupt frame where samples are missing after it (always without a
+counter; with one, where the counter jumped across it: a device that serves the same sample again lost
+nothing).  Each table's registers are read in one request per poll (``device_id=`` keyword API) and
+decoded for all polls of a read at once (int16/uint16/int32/uint32/float32, big or little word order,
+then value * scale + offset).
 """
 
 from __future__ import annotations
@@ -19,11 +29,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from flexmodal.daq.devices import SIMULATOR_PORT, Block, Device, DeviceLost, Driver
+from flexmodal.daq.devices import SIMULATOR_PORT, Block, Device, DeviceLost, Driver, unwrap
 from flexmodal.daq.errors import DaqError
 
 READ_WINDOW_S = 0.05
-MAX_LATE_S = 3.0  # a poll later than this is skipped (its sample is missing) instead of caught up
+LATE_PERIODS = 0.5  # a poll not sent within this many poll periods of its due time is skipped
+OVERSAMPLE = 2  # polls per sample period when a counter register says which sample each answer holds
 ANSWER_TIMEOUT_S = 1.0  # no answer within this: the device is lost (TCP notices a closed link at once)
 MAX_REGISTERS_PER_READ = 125
 RAW_RANGE = {"int16": (-(2**15), 2**15 - 1), "uint16": (0, 2**16 - 1), "int32": (-(2**31), 2**31 - 1),
@@ -85,6 +96,17 @@ def _refuse_overlaps(registers, where: str) -> None:
                                f"overlaps register {q.name!r} ({q.type} at address {q.address})")
 
 
+def _check_counter(registers, name: str, where: str) -> None:
+    """DaqError unless ``name`` is one of ``registers``, an unsigned integer read as is (the counter's
+    words are the sample index, unwrapped modulo 2**16 or 2**32)."""
+    reg = next((r for r in registers if r.name == name), None)
+    if reg is None:
+        raise DaqError(f"{where}: counter {name!r} is not one of its registers")
+    if reg.type not in ("uint16", "uint32") or (reg.scale, reg.offset) != (1.0, 0.0):
+        raise DaqError(f"{where}: counter register {name!r} must be uint16 or uint32 with scale 1 and "
+                       "offset 0 (it is the device's sample index)")
+
+
 def _register(doc: dict, where: str):
     from flexmodal.daq.session import Table
 
@@ -102,7 +124,8 @@ def _register(doc: dict, where: str):
 @dataclass(frozen=True)
 class ModbusConfig:
     """A Modbus device's ``[[device]]`` fields (docs/acquisition.md): ``transport`` tcp (``host``,
-    ``tcp_port``) or rtu (``port``, ``baud``), the unit ``device_id`` and the ``registers`` polled."""
+    ``tcp_port``) or rtu (``port``, ``baud``), the unit ``device_id``, the ``registers`` polled and the
+    ``counter`` register (the device's sample counter, an integer register read unscaled; "" none)."""
 
     transport: str
     registers: tuple[Register, ...]
@@ -111,6 +134,7 @@ class ModbusConfig:
     tcp_port: int = 502
     port: str = ""  # rtu: the serial port; tcp: the "@simulator" placeholder until the simulator starts
     baud: int = 19200
+    counter: str = ""  # the register holding the device's own sample counter ("": none, place by slot)
 
     @property
     def sources(self) -> tuple[str, ...]:
@@ -134,7 +158,7 @@ class ModbusDriver(Driver):
     @classmethod
     def parse_device(cls, t, name):
         """``transport`` tcp (``host``, ``port``) or rtu (``port``, ``baud``), ``device_id``, registers."""
-        t.reject_unknown({"transport", "host", "port", "baud", "device_id", "register"})
+        t.reject_unknown({"transport", "host", "port", "baud", "device_id", "register", "counter"})
         transport = t.choice("transport", ("tcp", "rtu"), "tcp")
         regs = t.get("register", list, check=bool, why="must list at least one register")
         registers = tuple(_register(r, f"{t.where}: register {i + 1}") for i, r in enumerate(regs))
@@ -144,15 +168,18 @@ class ModbusDriver(Driver):
             raise DaqError(f"{t.where}: duplicate register name {dup[0]!r}")
         _refuse_overlaps(registers, t.where)
         unit = t.get("device_id", int, 1)
+        counter = t.get("counter", str, "")
+        if counter:
+            _check_counter(registers, counter, t.where)
         if transport == "tcp":
             port = t.get("port", (int, str), 502)
             if isinstance(port, str) and port != SIMULATOR_PORT:
                 raise DaqError(f"{t.where}: port {port!r} is not a TCP port number")
             return Device(name, cls.protocol, ModbusConfig(
                 transport, registers, unit, host=t.get("host", str, "127.0.0.1"),
-                tcp_port=port if isinstance(port, int) else 0, port=str(port)))
+                tcp_port=port if isinstance(port, int) else 0, port=str(port), counter=counter))
         return Device(name, cls.protocol, ModbusConfig(transport, registers, unit, port=t.port("port"),
-                                                       baud=t.get("baud", int, 19200)))
+                                                       baud=t.get("baud", int, 19200), counter=counter))
 
     def __init__(self, device, sample_rate_hz: float) -> None:
         self.name = device.name
@@ -165,11 +192,19 @@ class ModbusDriver(Driver):
         lims = np.array([sorted((lo * r.scale + r.offset, hi * r.scale + r.offset))
                          for r in cfg.registers for lo, hi in [RAW_RANGE[r.type]]])
         self.limits = (lims[:, 0], lims[:, 1])
+        self._counter = next(((c, r) for c, r in zip(self.columns, cfg.registers, strict=True)
+                              if r.name == cfg.counter), None)
+        self._period_s = 1 / (sample_rate_hz * (OVERSAMPLE if self._counter else 1))
         self._client = None
         self._t0: float | None = None
         self._slot = 0
+        self._last: int | None = None  # the sample index of the last answer kept (counter mode)
+        self._fresh = False  # (counter mode) the last answer held a new sample
         self._lost: str | None = None
-        self._bad: list[int] = []  # slots answered with an exception, not yet reported
+        self._bad = 0  # polls answered with an exception since the last answer kept
+        self._polls = 0  # polls sent
+        self._exceptions = 0  # polls answered with an exception
+        self._missed = 0  # samples never read: slots skipped, or (counter) counter values not seen
         self._pymodbus_level: int | None = None  # pymodbus's log level before open, put back by close
 
     def open(self) -> None:
@@ -193,7 +228,7 @@ class ModbusDriver(Driver):
         if self._t0 is None:
             self._t0 = time.monotonic()
         else:  # after a reconnect, polling resumes at the current slot: the missed ones are a gap
-            self._slot = int((time.monotonic() - self._t0) * self.fs)
+            self._skip_to(int((time.monotonic() - self._t0) / self._period_s))
 
     def close(self) -> None:
         if self._client is not None:
@@ -215,48 +250,87 @@ class ModbusDriver(Driver):
             words += rr.registers
         return words
 
+    def poll_counts(self) -> dict[str, int]:
+        """``polls`` sent, of them answered with an ``exceptions``, and samples ``missed`` (never read:
+        their rows are gaps)."""
+        return {"polls": self._polls, "exceptions": self._exceptions, "missed": self._missed}
+
+    def _skip_to(self, slot: int) -> None:
+        """Go on at ``slot``; the slots skipped are samples missed (counter mode: counted by the counter)."""
+        if slot > self._slot:
+            self._missed += 0 if self._counter else slot - self._slot
+            self._slot = slot
+
     def read(self) -> list[Block]:
         from pymodbus.exceptions import ModbusException
 
         if self._lost:
             raise DeviceLost(self._lost)
-        slots, rows, stamps, bad = [], [], [], self._bad
+        index, rows, stamps, bad = [], [], [], []
         end = time.monotonic() + READ_WINDOW_S
         while time.monotonic() < end:
-            due = self._t0 + self._slot / self.fs
+            due = self._t0 + self._slot * self._period_s
             now = time.monotonic()
-            if now < due:
+            if self._fresh:  # the last answer was a new sample: the device may hold more, ask at once
+                pass
+            elif now < due:
                 time.sleep(due - now)
-            elif now > due + MAX_LATE_S:  # fell far behind (a stall, a reconnect): those slots are missing
-                self._slot = int((now - self._t0) * self.fs)
+            elif not self._counter and now > due + LATE_PERIODS * self._period_s:  # too late for its value
+                self._skip_to(int(np.ceil((now - self._t0) / self._period_s - LATE_PERIODS)))
+                continue
             try:
+                self._polls += 1
                 words = self._poll()
             except (ModbusException, OSError) as exc:
                 self._lost = f"Modbus poll failed: {exc}"
                 break
+            # counter mode: the next poll at the next due time, none caught up (it would read a repeat)
+            self._slot = int((time.monotonic() - self._t0) / self._period_s) + 1 if self._counter else \
+                self._slot + 1
             if words is None:
-                bad.append(self._slot)
-            else:
-                slots.append(self._slot)
-                rows.append(words)
-                stamps.append(time.time())
-            self._slot += 1
-        blocks = self._blocks(np.array(slots, np.int64), np.array(rows, np.uint16), np.array(stamps),
+                self._bad += 1
+                self._exceptions += 1
+                continue
+            prev = self._last
+            at = self._sample_index(words)
+            if at is None:
+                continue
+            index.append(at)
+            rows.append(words)
+            stamps.append(time.time())
+            # exception answers cost samples only where the index jumps (a device that keeps its sample
+            # for the next read, as its counter shows, lost nothing)
+            bad.append(self._bad if prev is None or at != prev + 1 or not self._counter else 0)
+            self._bad = 0
+        blocks = self._blocks(np.array(index, np.int64), np.array(rows, np.uint16), np.array(stamps),
                               np.array(bad, np.int64))
-        self._bad = [s for s in bad if not slots or s > slots[-1]]
         if not blocks and self._lost:
             raise DeviceLost(self._lost)
         return blocks
 
-    def _blocks(self, slots, words, stamps, bad) -> list[Block]:
-        if not slots.size:
+    def _sample_index(self, words: list[int]) -> int | None:
+        """The sample an answer holds: its slot, or (counter mode) the device counter, unwrapped; None for
+        an answer repeating the last one kept (the device had no new sample)."""
+        if self._counter is None:
+            return self._slot - 1
+        col, reg = self._counter
+        raw = int(decode_registers(np.array([words], np.uint16), col, reg)[0])
+        at = unwrap(raw, self._last, 1 << (16 * _words(reg)))
+        self._fresh = self._last is None or at != self._last
+        if not self._fresh:
+            return None
+        if self._last is not None and at > self._last:
+            self._missed += at - self._last - 1
+        self._last = at
+        return at
+
+    def _blocks(self, index, words, stamps, bad) -> list[Block]:
+        """Runs of consecutive samples; a run also ends before an answer that follows exception answers
+        (those are its block's ``corrupt`` count)."""
+        if not index.size:
             return []
         values = np.column_stack([decode_registers(words, c, r)
                                   for c, r in zip(self.columns, self.config.registers, strict=True)])
-        split = np.flatnonzero(np.diff(slots) != 1) + 1
-        out = []
-        for a, b in zip(np.r_[0, split], np.r_[split, slots.size], strict=True):  # runs of consecutive polls
-            prev = slots[a - 1] if a else -1
-            n_bad = int(((bad > prev) & (bad < slots[a])).sum())
-            out.append(Block(self.name, int(slots[a]), values[a:b], float(stamps[a]), corrupt=n_bad))
-        return out
+        split = np.flatnonzero((np.diff(index) != 1) | (bad[1:] > 0)) + 1
+        return [Block(self.name, int(index[a]), values[a:b], float(stamps[a]), corrupt=int(bad[a]))
+                for a, b in zip(np.r_[0, split], np.r_[split, index.size], strict=True)]

@@ -55,9 +55,9 @@ try:
                        excitation="random", pose={}) as w:
             w.append(np.zeros((10, 1)))
     else:
-        from flexmodal.daq.acquire import _store_pose
+        from flexmodal.daq.acquire import _store_attrs
 
-        _store_pose(out, "r0", {"theta_deg": 1.0}, {})
+        _store_attrs(out, "r0", {"pose": {"theta_deg": 1.0}, "pose_spread": {}})
 except KeyboardInterrupt:
     sys.stdout.flush()
     os._exit(130)  # as the CLI ends after a Ctrl-C: no interpreter tear-down, no garbage collection
