@@ -1763,12 +1763,11 @@ def _shape_flags(ctx: _Context, model: np.ndarray, singles: Sequence[Candidate] 
 def _unpaired_flag(ctx: _Context, model: np.ndarray, singles: Sequence[Candidate], fit_error: float
                    ) -> tuple[str, str]:
     """The sensor ``j`` that disagrees most with ``model`` (``sensor_check``) and its flag when, with
-    ``j``'s measured shapes left out of the mode pairing (set to zero: the MAC's numerator and measured
-    norm then use the other sensors, but its model norm still counts the model's amplitude at ``j``, so
-    ``j`` is only partly out of the pairing: Review 47 M1), the single candidate of ``singles`` that
-    fits the frequencies of all configurations best
-    fits them no worse than the verdict's model (in-sample frequency RMS ``fit_error``) and ``j``'s
-    shapes disagree with it (``sensor_check`` flags ``j``); empty strings otherwise.  No margin is
+    ``j`` left out of the mode pairing (``Target.pairing_sensors``: the MAC's numerator and both its
+    norms sum over the other sensors only), the single candidate of ``singles`` that fits the
+    frequencies of all configurations best fits them no worse than the verdict's model (in-sample
+    frequency RMS ``fit_error``) and ``j``'s shapes disagree with it (``sensor_check`` flags ``j``);
+    empty strings otherwise.  No margin is
     chosen: with every sensor in the pairing the verdict's model is the better fit, so a candidate
     that fits better once one sensor no longer pairs the modes, and disagrees at that sensor, says the
     sensor misled the pairing."""
@@ -1776,9 +1775,7 @@ def _unpaired_flag(ctx: _Context, model: np.ndarray, singles: Sequence[Candidate
     check = sensor_check(meas.shapes, model)
     if check is None:
         return "", ""
-    shapes = meas.shapes.copy()
-    shapes[:, check.sensor] = 0.0
-    target = replace(ctx.target, shapes=shapes)
+    target = replace(ctx.target, pairing_sensors=np.delete(np.arange(len(meas.sensors)), check.sensor))
     fits = []
     for cand in singles:
         fam = ctx.family(cand.handles)

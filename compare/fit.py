@@ -55,11 +55,13 @@ more than 1 % lower than the fold's own (``_stuck_folds``): a relative gap far a
 
 @dataclass(frozen=True)
 class Target:
-    """Measured data: frequencies [C, n] Hz, optional shapes [C, n_sensors, n] at the family's sensors."""
+    """Measured data: frequencies [C, n] Hz, optional shapes [C, n_sensors, n] at the family's sensors,
+    and the indices of the sensors the MAC of the mode pairing uses (``pairing_sensors``, None: all)."""
 
     freq_hz: np.ndarray
     shapes: np.ndarray | None
     joint_angle_rad: dict[str, np.ndarray]   # per joint: its angle at each configuration
+    pairing_sensors: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -86,7 +88,11 @@ def design(cand: Candidate, target: Target) -> np.ndarray:
 
 def _pair(f_all: np.ndarray, shapes: np.ndarray, target: Target) -> tuple[np.ndarray, np.ndarray | None]:
     """Indices [B, C, n] of the model modes paired with the measured ones (see module docstring), and the
-    MAC [B, C, n, n_all] of every measured mode with every model mode (None without measured shapes)."""
+    MAC [B, C, n, n_all] of every measured mode with every model mode (None without measured shapes).
+
+    The MAC sums over ``target.pairing_sensors`` only (its numerator and both norms), so a sensor left
+    out plays no part in it; whether a model mode is observable at all is judged at every sensor.
+    """
     n = target.freq_hz.shape[1]
     valid = f_all > 1e-3 * target.freq_hz.min(axis=1)[None, :, None]
     seen = np.sum(shapes * shapes, axis=-2)                               # [B, C, n_all]
@@ -95,9 +101,12 @@ def _pair(f_all: np.ndarray, shapes: np.ndarray, target: Target) -> tuple[np.nda
     idx = np.argsort(~valid, axis=-1, kind="stable")[..., :n]
     if target.shapes is None:
         return idx, None
-    meas = target.shapes
-    num = np.abs(np.swapaxes(meas, -1, -2).conj() @ shapes) ** 2           # [B, C, n, n_all]
-    mac = num / np.maximum(np.sum(np.abs(meas) ** 2, axis=-2)[None, :, :, None] * seen[:, :, None, :], 1e-300)
+    meas, kept, norm = target.shapes, shapes, seen
+    if target.pairing_sensors is not None:                                # sensors left out of the MAC
+        meas, kept = meas[:, target.pairing_sensors], shapes[..., target.pairing_sensors, :]
+        norm = np.sum(kept * kept, axis=-2)
+    num = np.abs(np.swapaxes(meas, -1, -2).conj() @ kept) ** 2            # [B, C, n, n_all]
+    mac = num / np.maximum(np.sum(np.abs(meas) ** 2, axis=-2)[None, :, :, None] * norm[:, :, None, :], 1e-300)
     near = np.exp(-np.abs(np.log(np.maximum(f_all[:, :, None, :], 1e-300) / target.freq_hz[None, :, :, None]))
                   / PAIRING_LOG_WIDTH)
     score = np.where(valid[:, :, None, :], mac * near, -1.0)

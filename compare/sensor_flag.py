@@ -21,7 +21,8 @@ every mode whose shape differs between the two points (docs/diagnosis.md's block
 A moved sensor also misleads the pairing of model and measured modes by MAC, so that the true effect
 fits badly and a wrong verdict absorbs the sensor's misfit (blind 1788 #10); compare/diagnosis.py's
 ``_unpaired_flag`` then makes the same check against the single candidate that fits the frequencies
-best with that sensor left out of the pairing (``flag_text`` names that model).
+best with that sensor left out of the pairing (the MAC sums over the other sensors only, numerator and
+both norms: compare/fit.py's ``Target.pairing_sensors``; ``flag_text`` names that model).
 """
 
 from __future__ import annotations

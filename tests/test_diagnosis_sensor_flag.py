@@ -16,6 +16,7 @@ from scipy.stats import f as fisher
 import flexmodal.compare.diagnosis as diagnosis_module
 import flexmodal.compare.sensor_flag as sensor_flag_module
 from flexmodal.compare.diagnosis import diagnose
+from flexmodal.compare.fit import Target, _pair
 from flexmodal.compare.gap import comac
 from flexmodal.compare.sensor_flag import SENSOR_MODE_FACTOR, SENSOR_P, sensor_check, sensor_flag
 from flexmodal.contract.table import ModalTable
@@ -195,6 +196,44 @@ def test_a_sensor_that_misleads_the_mode_pairing_flags_the_verdict():
     assert (ok.effect, ok.location, ok.flags) == ("tip_mass", "tip", ())
     assert len(bad.flags) == 1 and not bad.explained
     assert "at sensor a2 when it is left out of the mode pairing: against tip_mass at tip" in bad.flags[0]
+    with mock.patch.object(diagnosis_module, "_unpaired_flag", lambda *a: ("", "")):
+        bare = diagnose(rig, _table(moved, np.random.default_rng(0), 4), effects="link_mass,tip_mass").verdict
+    assert (bare.effect, bare.location, bare.flags) == (bad.effect, bad.location, ())   # that path flags it
+
+
+def _mac(m: np.ndarray, a: np.ndarray) -> float:
+    """MAC of two real shape vectors (Allemang & Brown 1982)."""
+    return float(np.dot(m, a) ** 2 / (np.dot(m, m) * np.dot(a, a)))
+
+
+def test_a_sensor_left_out_of_the_pairing_is_out_of_the_mac():
+    """``Target.pairing_sensors``: the MAC of the mode pairing sums over the kept sensors only, numerator
+    and both norms.  Model shape a = [1, 1, 1, 5], measured m = [1, 1, 1, 0] with sensor 3 out: the
+    shapes agree at sensors 0-2, MAC 1 (with sensor 3's model amplitude in the norm, as the zeroed row
+    alone gave: 9 / (3 * 28) = 0.107).  Random shapes: the MAC over the kept sensors.  Without a mask
+    ``_pair``'s MAC is, bit for bit, the all-sensor expression of main 870b790 (before the mask)."""
+    a = np.array([1.0, 1.0, 1.0, 5.0])[None, None, :, None]
+    m = np.array([1.0, 1.0, 1.0, 0.0])[None, :, None]
+    t = Target(np.ones((1, 1)), m, {}, np.arange(3))
+    assert _pair(np.ones((1, 1, 1)), a, t)[1][0, 0, 0, 0] == pytest.approx(1.0, abs=1e-15)
+    zeroed = _pair(np.ones((1, 1, 1)), a, replace(t, pairing_sensors=None))[1]
+    assert zeroed[0, 0, 0, 0] == pytest.approx(9 / 84, rel=1e-14)
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        s, n, n_all = rng.integers(3, 7), rng.integers(1, 4), 5
+        f_all = np.sort(rng.uniform(1.0, 50.0, (2, 3, n_all)), axis=-1)
+        shapes = rng.standard_normal((2, 3, s, n_all))
+        t = Target(np.sort(rng.uniform(1.0, 50.0, (3, n)), axis=-1), rng.standard_normal((3, s, n)), {})
+        kept = np.delete(np.arange(s), rng.integers(s))
+        mac = _pair(f_all, shapes, replace(t, pairing_sensors=kept))[1]
+        b, c, k, i = (rng.integers(x) for x in (2, 3, n, n_all))
+        assert mac[b, c, k, i] == pytest.approx(_mac(t.shapes[c, kept, k], shapes[b, c, kept, i]), rel=1e-12)
+        meas = t.shapes
+        seen = np.sum(shapes * shapes, axis=-2)
+        num = np.abs(np.swapaxes(meas, -1, -2).conj() @ shapes) ** 2
+        before = num / np.maximum(np.sum(np.abs(meas) ** 2, axis=-2)[None, :, :, None] * seen[:, :, None, :],
+                                  1e-300)
+        assert np.array_equal(_pair(f_all, shapes, t)[1], before)
 
 
 @pytest.mark.slow   # ~4 s CPU: a whole diagnosis with shapes
