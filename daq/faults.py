@@ -40,8 +40,11 @@ class Faults:
     overload_at_s : float or None
         Impact test: the hit nearest this time [s] into the record overloads the ADC.
     overrun_after_s : float
-        Serial, slcan and Modbus: what the reader leaves unread this long [s] is dropped (the device's
+        Serial and slcan: what the reader leaves unread this long [s] is dropped (the device's
         buffer overruns).
+    modbus_fifo_s : float
+        Modbus: 0 (default) the registers hold the latest sample, as a PLC's; > 0 the device is a logger
+        whose FIFO holds this many seconds of samples, each read handing out the oldest one not read yet.
     """
 
     corrupt_rate: float = _fault(0.0, "fraction of frames corrupted (0.01 = 1 %%)", hi=1.0, hi_open=True)
@@ -53,8 +56,10 @@ class Faults:
         None, "impact test: the hit nearest S s into the record bounces back (a double hit)")
     overload_at_s: float | None = _fault(None, "impact test: the hit nearest S s into the record overloads "
                                                "the ADC")
-    overrun_after_s: float = _fault(1.0, "serial/slcan/Modbus: what the reader leaves unread this long, s, "
+    overrun_after_s: float = _fault(1.0, "serial/slcan: what the reader leaves unread this long, s, "
                                          "is dropped (the device's buffer overruns)", lo_open=True)
+    modbus_fifo_s: float = _fault(0.0, "Modbus: a logger whose FIFO holds S s of samples, each read "
+                                       "handing out the oldest (0: the registers hold the latest sample)")
 
     def __post_init__(self) -> None:
         """Refuse a fault outside its range (the Python API reaches here without the option types)."""

@@ -5,14 +5,24 @@ Poll ``k`` is due at ``t0 + k / sample_rate_hz`` (t0 = first connection) and its
 slot's: a poll that cannot be sent within half a period of its due time is not made (never caught up
 back to back: each such read would be a later value passed off as the slot's); polling resumes at the
 current slot and the slots skipped are missing samples (counted in ``missed``; the timeline records them
-as a ``gap`` at their rows).  After a reconnect polling likewise resumes at the current slot.
+as a ``gap`` at their rows).  An answer arriving later than half a period plus a round-trip allowance
+(``max(one period, RTT_FACTOR x the median of the last round trips)``) after its due time is dropped
+likewise (its value is the device's at some moment between the poll and the answer: kept, it is the
+slot's within that bound).  After a reconnect polling likewise resumes at the current slot.
 
 With ``counter`` naming a register that holds the device's own sample counter, polls are due
 ``OVERSAMPLE`` times per sample period (a late one is sent at once; none is caught up) and at once
 after an answer with a new sample (a buffering device may hold more), and each answer is stored at the
 sample its counter names: an answer repeating the last counter (no new sample yet) is dropped, counter
 values never read are missing samples (``missed``), so no value is stored twice or at another sample's
-row whatever the host's delays.
+row whatever the host's delays.  The counter is unwrapped (modulo 2**16 or 2**32) to the largest value
+not beyond the device's newest sample as the elapsed time predicts it (plus RESTART_LAG_S / 2); a
+counter that went back, or jumped ahead to a sample lagging that newest one by more than
+``RESTART_LAG_S`` plus the most the device has lagged so far (a FIFO's backlog), is a restart of the
+device: its sample is placed at the wall-clock slot and counting goes on from there (the samples between
+are a gap; a logger whose FIFO, deeper than that, overran is taken for a restart too).  A counter that
+runs faster than ``sample_rate_hz`` (by more than ``RATE_TOLERANCE`` after ``RATE_CHECK_S``) is refused:
+its samples would stretch the time axis.
 
 An exception response counts as a corrupt frame where samples are missing after it (always without a
 counter; with one, where the counter jumped across it: a device that serves the same sample again lost
@@ -24,18 +34,25 @@ then value * scale + offset).
 from __future__ import annotations
 
 import logging
+import statistics
 import time
+from collections import deque
 from dataclasses import dataclass, replace
 
 import numpy as np
 
-from flexmodal.daq.devices import SIMULATOR_PORT, Block, Device, DeviceLost, Driver, unwrap
+from flexmodal.daq.devices import SIMULATOR_PORT, Block, Device, DeviceLost, Driver
 from flexmodal.daq.errors import DaqError
 
 READ_WINDOW_S = 0.05
 LATE_PERIODS = 0.5  # a poll not sent within this many poll periods of its due time is skipped
 OVERSAMPLE = 2  # polls per sample period when a counter register says which sample each answer holds
 ANSWER_TIMEOUT_S = 1.0  # no answer within this: the device is lost (TCP notices a closed link at once)
+RTT_FACTOR = 3.0  # (no counter) an answer may come this many median round trips (at least a period) late
+RTT_HISTORY = 63  # round trips the median is taken over
+RESTART_LAG_S = 1.0  # (counter) a counter lagging the device's newest sample by more than this, plus its
+# largest lag so far, is a restart
+RATE_CHECK_S, RATE_TOLERANCE = 2.0, 0.02  # (counter) a counter faster than the rate by this is refused
 MAX_REGISTERS_PER_READ = 125
 RAW_RANGE = {"int16": (-(2**15), 2**15 - 1), "uint16": (0, 2**16 - 1), "int32": (-(2**31), 2**31 - 1),
              "uint32": (0, 2**32 - 1), "float32": (-np.inf, np.inf)}
@@ -199,6 +216,11 @@ class ModbusDriver(Driver):
         self._t0: float | None = None
         self._slot = 0
         self._last: int | None = None  # the sample index of the last answer kept (counter mode)
+        self._shift = 0  # (counter mode) sample index - counter, modulo the counter's range (restarts)
+        self._phase = -np.inf  # (counter mode) max of index - t * fs: the newest sample is t * fs + this
+        self._lag = 0.0  # (counter mode) the most the device's answers lagged its newest sample [samples]
+        self._first: tuple[float, int] | None = None  # (counter mode) (time, index) since the last restart
+        self._rtts: deque[float] = deque(maxlen=RTT_HISTORY)  # round trips of the last polls [s]
         self._fresh = False  # (counter mode) the last answer held a new sample
         self._lost: str | None = None
         self._bad = 0  # polls answered with an exception since the last answer kept
@@ -280,10 +302,13 @@ class ModbusDriver(Driver):
                 continue
             try:
                 self._polls += 1
+                sent = time.monotonic()
                 words = self._poll()
             except (ModbusException, OSError) as exc:
                 self._lost = f"Modbus poll failed: {exc}"
                 break
+            answered = time.monotonic()
+            self._rtts.append(answered - sent)
             # counter mode: the next poll at the next due time, none caught up (it would read a repeat)
             self._slot = int((time.monotonic() - self._t0) / self._period_s) + 1 if self._counter else \
                 self._slot + 1
@@ -291,8 +316,11 @@ class ModbusDriver(Driver):
                 self._bad += 1
                 self._exceptions += 1
                 continue
+            if not self._counter and answered - due > LATE_PERIODS * self._period_s + self._rtt_allowance_s():
+                self._missed += 1  # too late to be the slot's value: its row is part of the gap
+                continue
             prev = self._last
-            at = self._sample_index(words)
+            at = self._sample_index(words, answered)
             if at is None:
                 continue
             index.append(at)
@@ -308,21 +336,52 @@ class ModbusDriver(Driver):
             raise DeviceLost(self._lost)
         return blocks
 
-    def _sample_index(self, words: list[int]) -> int | None:
-        """The sample an answer holds: its slot, or (counter mode) the device counter, unwrapped; None for
-        an answer repeating the last one kept (the device had no new sample)."""
+    def _rtt_allowance_s(self) -> float:
+        """How late after half a period an answer may still come: a period, or RTT_FACTOR median round
+        trips if longer (a slow link such as RTU, 2-5 ms a poll, keeps its samples)."""
+        return max(self._period_s, RTT_FACTOR * statistics.median(self._rtts))
+
+    def _sample_index(self, words: list[int], now: float) -> int | None:
+        """The sample an answer received at ``now`` (monotonic, s) holds: its slot, or (counter mode) the
+        device counter, unwrapped (module docstring); None for an answer repeating the last one kept (the
+        device had no new sample)."""
         if self._counter is None:
             return self._slot - 1
         col, reg = self._counter
+        modulus = 1 << (16 * _words(reg))
         raw = int(decode_registers(np.array([words], np.uint16), col, reg)[0])
-        at = unwrap(raw, self._last, 1 << (16 * _words(reg)))
-        self._fresh = self._last is None or at != self._last
-        if not self._fresh:
-            return None
-        if self._last is not None and at > self._last:
+        if self._last is None:
+            at = raw
+        else:
+            newest = now * self.fs + self._phase  # the device's newest sample, by elapsed time
+            top = int(np.floor(newest + self.fs * RESTART_LAG_S / 2))
+            at = top - (top - raw - self._shift) % modulus  # the largest index <= top with this counter
+            if at == self._last:
+                self._fresh = False
+                return None
+            if at < self._last or (at > self._last + 1 and newest - at > self.fs * RESTART_LAG_S + self._lag):
+                at = max(int(round(newest)), self._last + 1)
+                self._first = None
             self._missed += at - self._last - 1
+        self._shift = (at - raw) % modulus
+        self._fresh = True
         self._last = at
+        self._phase = max(self._phase, at - now * self.fs) if self._first else at - now * self.fs
+        self._lag = max(self._lag, now * self.fs + self._phase - at)
+        self._check_rate(now, at)
         return at
+
+    def _check_rate(self, now: float, at: int) -> None:
+        """DaqError when the counter has run faster than ``sample_rate_hz`` (since its first sample or
+        restart, by more than RATE_TOLERANCE and a second of samples, after RATE_CHECK_S)."""
+        if self._first is None:
+            self._first = (now, at)
+            return
+        t, first = self._first
+        if now - t >= RATE_CHECK_S and at - first > (now - t) * self.fs * (1 + RATE_TOLERANCE) + self.fs:
+            raise DaqError(f"{self.name}: counter {self.config.counter!r} advanced {at - first} samples in "
+                           f"{now - t:.1f} s, {(at - first) / (now - t):.0f} Hz, not the session's "
+                           f"{self.fs:g} Hz (sample_rate_hz must be the device's sampling rate)")
 
     def _blocks(self, index, words, stamps, bad) -> list[Block]:
         """Runs of consecutive samples; a run also ends before an answer that follows exception answers

@@ -41,6 +41,8 @@ def _session(tmp_path: Path, protocol: str, sim: dict | None = None, rate: float
     text = text.replace('rig = "../rigs/', f'rig = "{REPO}/examples/rigs/')
     text = text.replace('dbc = "../../fixtures/', f'dbc = "{REPO}/fixtures/')
     sim = {"overrun_after_s": 600.0, **(sim or {})}  # a starved reader loses nothing (test_daq_shutdown)
+    if protocol == "modbus":  # a logger whose FIFO holds 10 min (its default holds the latest sample only)
+        sim = {"modbus_fifo_s": 600.0, **sim}
     extra = "".join(f"{k} = {json.dumps(v)}\n" for k, v in sim.items())
     text = text.replace('test = "impact"\n', f'test = "impact"\n{extra}', 1)
     if rate:

@@ -1,12 +1,14 @@
-"""Polls that come late never invent a sample: `acquire` polls the pymodbus simulator on 127.0.0.1 (a
-logger with a FIFO, fixtures/sim_modbus.py) into a real HDF5 run while the device stalls.
+"""Polls that come late never invent a sample: `acquire` polls the pymodbus simulator on 127.0.0.1
+(fixtures/sim_modbus.py) into a real HDF5 run while the device stalls.
 
 The stall is injected deterministically (``drop_at_s``/``drop_s``: the device answers a read arriving in
-that window only when it ends), not by loading the machine.  With its ``counter`` register each answer
-is stored at the sample it names: every stored row is the sample of its row, once, and the rows missing
-are exactly the samples the device's FIFO dropped during the stall (its fault log).  Without a counter
-the poller cannot catch the stall up without passing later values off as the missed slots': every slot
-due while it waited is one gap instead, counted in the run's ``polls`` attribute.
+that window only when it ends), not by loading the machine, and the driver's answer timeout is raised
+above it.  A logger with a FIFO polled by its ``counter`` register: each answer is stored at the sample
+it names, every stored row is the sample of its row, once, and the rows missing are exactly the samples
+the device's FIFO dropped during the stall (its fault log).  A device whose registers hold the latest
+sample (the simulator's default) polled without a counter: the stalled answer comes too late to be its
+slot's value and is dropped, so it and every slot due while the poller waited are one gap, counted in the
+run's ``polls`` attribute, and no row holds the value the device had when the stall ended.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import threading
 import numpy as np
 import pytest
 
+from flexmodal.daq import modbus_driver
 from flexmodal.daq.acquire import acquire
 from flexmodal.daq.errors import DaqError
 from flexmodal.daq.faults import Faults
@@ -29,6 +32,7 @@ from flexmodal.fixtures.sim_source import SimChannel, SimSource
 RATE_HZ = 200.0
 DURATION_S = 1.2
 STALL_AT_S, STALL_S = 0.2, 0.6  # stream time of the stall and how long it may last (< the answer timeout)
+ANSWER_TIMEOUT_S = 5.0  # the driver's, raised: a stalled answer is never taken for a lost device
 FIFO_S = 0.05  # the device buffers 10 samples: a stall longer than that loses samples
 
 
@@ -49,10 +53,12 @@ def _session(port: int, counter: bool, tmp_path):
     return parse_session(doc, tmp_path / "session.toml")
 
 
-def _record(tmp_path, counter: bool):
-    """The run, the device's fault log and the summary of a run through a stall of the device."""
+def _record(tmp_path, monkeypatch, counter: bool):
+    """The run, the device's fault log and the summary of a run through a stall of the device (a logger
+    with a FIFO when polled by its counter, else a latest-value device)."""
+    monkeypatch.setattr(modbus_driver, "ANSWER_TIMEOUT_S", ANSWER_TIMEOUT_S)
     log_path = tmp_path / "faults.jsonl"
-    faults = FaultPlan(Faults(drop_at_s=STALL_AT_S, drop_s=STALL_S, overrun_after_s=FIFO_S))
+    faults = FaultPlan(Faults(drop_at_s=STALL_AT_S, drop_s=STALL_S, modbus_fifo_s=FIFO_S if counter else 0.0))
     port, stop, ready = free_port(), threading.Event(), threading.Event()
     server = threading.Thread(target=serve, args=(_source(),), daemon=True, kwargs={
         "port": port, "faults": faults, "log": FaultLog(log_path), "stop": stop,
@@ -79,8 +85,8 @@ def _gap_rows(run) -> np.ndarray:
     return mask
 
 
-def test_a_stalled_device_polled_by_its_counter_loses_only_what_it_dropped(tmp_path):
-    run, log, summary = _record(tmp_path, counter=True)
+def test_a_stalled_device_polled_by_its_counter_loses_only_what_it_dropped(tmp_path, monkeypatch):
+    run, log, summary = _record(tmp_path, monkeypatch, counter=True)
     n = run.samples.shape[0]
     assert n == DURATION_S * RATE_HZ and not [e for e in run.events if e.kind == "corrupt"]
     counter = run.samples[:, 0]
@@ -105,18 +111,19 @@ def test_a_stalled_device_polled_by_its_counter_loses_only_what_it_dropped(tmp_p
     assert summary.polls_line().startswith(f"polls: plc {polls['missed']} samples missed in ")
 
 
-def test_without_a_counter_the_polls_a_stall_delays_are_gaps_not_caught_up(tmp_path):
-    run, log, summary = _record(tmp_path, counter=False)
+def test_without_a_counter_the_polls_a_stall_delays_are_gaps_not_caught_up(tmp_path, monkeypatch):
+    run, log, summary = _record(tmp_path, monkeypatch, counter=False)
     counter = run.samples[:, 0]
     good = np.isfinite(counter)
     np.testing.assert_array_equal(~good, _gap_rows(run))
     stall = next(f for f in log if f["fault"] == "stall")
-    # the poller waited for the stalled answer: every slot due meanwhile is one gap, none polled late
-    assert max(e.count for e in run.events if e.kind == "gap") >= stall["n_samples"] - 1
+    # the poller waited for the stalled answer: it and every slot due meanwhile are one gap, none polled
+    # late, and no row holds the value the device answered with when the stall ended (a row's value is
+    # its slot's within half a period plus a round trip allowance: far less than the stall)
+    assert max(e.count for e in run.events if e.kind == "gap") >= stall["n_samples"]
+    assert np.abs(counter[good] - np.flatnonzero(good)).max() < stall["n_samples"] / 2
     assert json.loads(run.attrs["polls"])["plc"]["missed"] >= (~good).sum()
     assert summary.polls_line()
-    # (this device hands out its oldest sample, so rows placed by their slots are not its samples' rows:
-    # a buffering device is declared with its counter, as in the test above)
 
 
 @pytest.mark.parametrize(("register", "why"), [

@@ -38,7 +38,8 @@ def _session(tmp_path: Path, name: str) -> Path:
     # the simulated adapter holds what a CPU-starved acquisition leaves unread for 10 min instead of 1 s
     # (at a load of 20 so many batches overran that no window was whole and nothing could be tracked):
     # the map is judged on the stream, not on the machine's load; gaps are tested in test_daq_*
-    text = text.replace("[simulator]\n", "[simulator]\noverrun_after_s = 600.0\n", 1)
+    fifo = "modbus_fifo_s = 600.0\n" if name.startswith("modbus") else ""  # Modbus: a logger's FIFO
+    text = text.replace("[simulator]\n", f"[simulator]\noverrun_after_s = 600.0\n{fifo}", 1)
     path = tmp_path / name
     path.write_text(text)
     return path
