@@ -219,7 +219,7 @@ class ModbusDriver(Driver):
         self._shift = 0  # (counter mode) sample index - counter, modulo the counter's range (restarts)
         self._phase = -np.inf  # (counter mode) max of index - t * fs: the newest sample is t * fs + this
         self._lag = 0.0  # (counter mode) the most the device's answers lagged its newest sample [samples]
-        self._first: tuple[float, int] | None = None  # (counter mode) (time, index) since the last restart
+        self._rate_from: tuple[float, int] | None = None  # (counter mode) (time, index) of the first repeat
         self._rtts: deque[float] = deque(maxlen=RTT_HISTORY)  # round trips of the last polls [s]
         self._fresh = False  # (counter mode) the last answer held a new sample
         self._lost: str | None = None
@@ -356,28 +356,29 @@ class ModbusDriver(Driver):
             newest = now * self.fs + self._phase  # the device's newest sample, by elapsed time
             top = int(np.floor(newest + self.fs * RESTART_LAG_S / 2))
             at = top - (top - raw - self._shift) % modulus  # the largest index <= top with this counter
-            if at == self._last:
+            if at == self._last:  # no new sample: the device holds no backlog, its rate is measured from here
+                self._rate_from = self._rate_from or (now, at)
                 self._fresh = False
                 return None
             if at < self._last or (at > self._last + 1 and newest - at > self.fs * RESTART_LAG_S + self._lag):
                 at = max(int(round(newest)), self._last + 1)
-                self._first = None
+                self._phase, self._rate_from = -np.inf, None
             self._missed += at - self._last - 1
         self._shift = (at - raw) % modulus
         self._fresh = True
         self._last = at
-        self._phase = max(self._phase, at - now * self.fs) if self._first else at - now * self.fs
+        self._phase = max(self._phase, at - now * self.fs)
         self._lag = max(self._lag, now * self.fs + self._phase - at)
         self._check_rate(now, at)
         return at
 
     def _check_rate(self, now: float, at: int) -> None:
-        """DaqError when the counter has run faster than ``sample_rate_hz`` (since its first sample or
-        restart, by more than RATE_TOLERANCE and a second of samples, after RATE_CHECK_S)."""
-        if self._first is None:
-            self._first = (now, at)
+        """DaqError when the counter has run faster than ``sample_rate_hz`` (by more than RATE_TOLERANCE
+        and a second of samples, RATE_CHECK_S after its first repeated answer since the start or a
+        restart: a logger draining a backlog runs ahead of the clock only until then)."""
+        if self._rate_from is None:
             return
-        t, first = self._first
+        t, first = self._rate_from
         if now - t >= RATE_CHECK_S and at - first > (now - t) * self.fs * (1 + RATE_TOLERANCE) + self.fs:
             raise DaqError(f"{self.name}: counter {self.config.counter!r} advanced {at - first} samples in "
                            f"{now - t:.1f} s, {(at - first) / (now - t):.0f} Hz, not the session's "

@@ -117,7 +117,18 @@ def test_a_fifo_backlog_after_a_silence_is_not_a_restart():
 
 
 def test_a_counter_faster_than_the_session_rate_is_refused():
-    d = _driver(200.0, counter=True)
+    d = _driver(200.0, counter=True)   # polled at 800 Hz, counting at 400 Hz
     with pytest.raises(DaqError, match=r"'value' advanced .* 400 Hz, not the session's 200 Hz"):
-        for k in range(2000):
-            d._sample_index([(2 * k) & 0xFFFF], k / 200.0)
+        for k in range(8000):
+            d._sample_index([(k // 2) & 0xFFFF], k / 800.0)
+
+
+def test_a_logger_draining_a_backlog_is_not_taken_for_a_fast_counter():
+    """A FIFO holding 3 s at the start, drained at 400 polls/s, then polled at 400 polls/s for 10 s."""
+    fs = 200.0
+    d = _driver(fs, counter=True)
+    t = np.arange(5200) / 400.0
+    held = np.minimum(np.arange(5200), (t * fs).astype(int) + 600)   # the oldest sample not read yet
+    placed = [d._sample_index([int(c) & 0xFFFF], float(s)) for s, c in zip(t, held, strict=True)]
+    kept = [p for p in placed if p is not None]
+    assert kept == list(range(held[-1] + 1)) and d.poll_counts()["missed"] == 0

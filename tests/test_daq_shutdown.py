@@ -44,6 +44,7 @@ pytestmark = pytest.mark.timeout(1200)
 PATIENT = "reconnect_timeout_s = 120.0\n"
 # and a serial/slcan simulator drops what its reader leaves unread for overrun_after_s (1 s by default): a
 # reader starved that long lost samples (forced: acquire frozen 2.5 s, a 32-row gap); these runs must not
+# (the Modbus simulator is made a logger whose FIFO holds 600 s: by default it holds the latest sample)
 PATIENT_SIM = "overrun_after_s = 600.0\n"
 
 
@@ -53,6 +54,8 @@ def session_file(tmp_path: Path, protocol: str, extra: str = PATIENT, sim: str =
     text = (SESSIONS / f"{protocol}-sim.toml").read_text()
     text = text.replace('rig = "../rigs/', f'rig = "{REPO}/examples/rigs/')
     text = text.replace('dbc = "../../fixtures/', f'dbc = "{REPO}/fixtures/')
+    if protocol == "modbus" and sim == PATIENT_SIM:  # a logger with a FIFO, not the latest-value default
+        sim += "modbus_fifo_s = 600.0\n"
     text = text.replace("[simulator]\n", f"[simulator]\n{sim}", 1)
     path = tmp_path / f"{protocol}.toml"
     path.write_text(extra + text)
