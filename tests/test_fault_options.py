@@ -15,7 +15,7 @@ from flexmodal.fixtures import sim_serve
 REPO = Path(__file__).resolve().parents[1]
 CHOSEN = {"corrupt_rate": 0.01, "drop_at_s": 1.5, "drop_s": 0.3, "disconnect_after_s": 2.0,
           "disconnect_s": 0.25, "double_hit_at_s": 2.1, "overload_at_s": 4.1,
-          "overrun_after_s": 30.0}
+          "overrun_after_s": 30.0, "modbus_fifo_s": 2.5}
 
 
 def test_the_fields_are_the_session_keys_and_the_sim_serve_options(tmp_path, monkeypatch):
