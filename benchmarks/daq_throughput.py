@@ -212,8 +212,8 @@ def bench_overrun(protocol: str, rate_hz: float, seconds: float, out_dir: Path) 
     doc = tomllib.loads(path.read_text())
     doc["sample_rate_hz"] = rate_hz
     doc.pop("trigger")  # record from the start
-    if protocol == "modbus":  # a logger with a 1 s FIFO: a poller slower than its counter falls behind
-        doc["simulator"]["modbus_fifo_s"] = 1.0
+    if protocol == "modbus":  # a logger whose 2 s FIFO lets a poller slower than its counter fall behind
+        doc["simulator"]["modbus_fifo_s"] = 2.0  # (more than the 1 s that makes an overrun)
     out = out_dir / f"overrun-{protocol}-{rate_hz:g}.h5"
     out.unlink(missing_ok=True)
     summary = acquire(parse_session(doc, path), out, duration_s=seconds, quiet=True)
