@@ -1,9 +1,10 @@
 """Checks of a run polled from the Modbus simulator (its column 0 is the device's sample counter) that hold
 on a loaded machine too.
 
-The simulator is a logger with a FIFO and the sessions name its counter register, so each answer is
-stored at the sample its counter names (daq/modbus_driver.py).  A poller starved of CPU longer than the
-FIFO holds loses samples (the device drops them; a device silent for the answer timeout is reconnected).
+The simulator runs as a logger with a FIFO (``modbus_fifo_s``) and the sessions name its counter
+register, so each answer is stored at the sample its counter names (daq/modbus_driver.py).  A poller
+starved of CPU longer than the FIFO holds loses samples (the device drops them; a device silent for the
+answer timeout is reconnected).
 Then exactly the rows missed are NaN, each reported as a gap event, and every other row is the emitted
 sample of that row: that is what these checks demand.
 """
