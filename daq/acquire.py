@@ -88,6 +88,7 @@ class Summary:
     error: str = ""
     bounded: bool = False  # the session had a duration (a signal then stopped it early)
     polls: dict = dataclasses.field(default_factory=dict)  # polled devices: {name: {polls, missed}}
+    by_slot: tuple[str, ...] = ()  # polled devices without a counter register (answers placed by slot)
 
     @property
     def exit_code(self) -> int:
@@ -102,10 +103,16 @@ class Summary:
 
     def polls_line(self) -> str:
         """One line naming the polled devices that missed samples (polls too late or too few: their rows
-        are gaps), empty when none did."""
-        lost = [f"{d} {c['missed']} samples missed in {c['polls']} polls" for d, c in self.polls.items()
-                if c["missed"]]
-        return f"polls: {'; '.join(lost)} (too late to read them: recorded as gaps)" if lost else ""
+        are gaps), with a hint for those without a ``counter`` register; empty when none missed any."""
+        missed = [d for d, c in self.polls.items() if c["missed"]]
+        if not missed:
+            return ""
+        lost = "; ".join(f"{d} {self.polls[d]['missed']} samples missed in {self.polls[d]['polls']} polls"
+                         for d in missed)
+        uncounted = ", ".join(d for d in missed if d in self.by_slot)
+        hint = (f"; a counter = \"<register>\" field (the device's sample counter) in [[device]] {uncounted} "
+                "lets the poller place late answers") if uncounted else ""
+        return f"polls: {lost} (too late to read them: recorded as gaps){hint}"
 
 
 def _with_endpoint(session: Session, endpoint: str | None) -> Session:
@@ -665,7 +672,8 @@ class _Recorder:
                                          f"{', '.join(self.drivers)}")
         return Summary(self.out, self.run_id, self.written, len(self.names), self.session.sample_rate_hz,
                        self.counts, sum(s.dropped_blocks for s in self.stats.values()), self.stopper.signum,
-                       self.error, self.target is not None, self.polls())
+                       self.error, self.target is not None, self.polls(),
+                       tuple(d for d in self.polls() if not getattr(self.drivers[d].config, "counter", "")))
 
 def _within(event: Event, target: int | None) -> Event:
     """``event`` with a gap's count cut at the run's last row ``target`` (rows beyond are not stored)."""

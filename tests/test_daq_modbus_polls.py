@@ -109,6 +109,7 @@ def test_a_stalled_device_polled_by_its_counter_loses_only_what_it_dropped(tmp_p
     polls = json.loads(run.attrs["polls"])["plc"]
     assert polls["missed"] >= (~good).sum() and summary.polls == {"plc": polls}
     assert summary.polls_line().startswith(f"polls: plc {polls['missed']} samples missed in ")
+    assert "counter" not in summary.polls_line()   # placed by its counter already: no hint
 
 
 def test_without_a_counter_the_polls_a_stall_delays_are_gaps_not_caught_up(tmp_path, monkeypatch):
@@ -122,8 +123,13 @@ def test_without_a_counter_the_polls_a_stall_delays_are_gaps_not_caught_up(tmp_p
     # its slot's within half a period plus a round trip allowance: far less than the stall)
     assert max(e.count for e in run.events if e.kind == "gap") >= stall["n_samples"]
     assert np.abs(counter[good] - np.flatnonzero(good)).max() < stall["n_samples"] / 2
-    assert json.loads(run.attrs["polls"])["plc"]["missed"] >= (~good).sum()
-    assert summary.polls_line()
+    polls = json.loads(run.attrs["polls"])["plc"]
+    assert polls["missed"] >= (~good).sum()
+    # one line, with the session file's field that would have placed the late answers
+    assert summary.polls_line() == (f"polls: plc {polls['missed']} samples missed in {polls['polls']} polls "
+                                    "(too late to read them: recorded as gaps); a counter = \"<register>\" "
+                                    "field (the device's sample counter) in [[device]] plc lets the poller "
+                                    "place late answers")
 
 
 @pytest.mark.parametrize(("register", "why"), [
