@@ -103,7 +103,8 @@ def test_the_draws_and_the_advice_the_docs_quote():
     """The acceptance measurement (benchmarks/diagnosis_doc.py ``DRAW_SETS``: 36 cases in each of five
     draws run once after the last change to the method), the next-measurement trials on 60 sparsely
     measured arms and on the ambiguous verdicts of those draws are exactly what docs/diagnosis.md
-    quotes; on every draw of the blind set ``none`` is right at least twice in three."""
+    quotes; the summary ("In short") states how many of the blind set's cases without an effect were
+    ``none``, as measured (issue 26 asks for all: a shortfall is quoted, not hidden)."""
     from conftest import REPO
 
     spec = importlib.util.spec_from_file_location("diagnosis_doc", REPO / "benchmarks" / "diagnosis_doc.py")
@@ -114,7 +115,10 @@ def test_the_draws_and_the_advice_the_docs_quote():
         draws[d.name] = {seed: run_blind(doc.BLIND_CASES, seed=seed) for seed in d.seeds}
         assert doc.doc_block(d.name) == doc.blind_block(d.seeds, results=draws[d.name], note=d.note)
         assert doc.doc_block(d.ideal) == doc.ideal_block(draws[d.name], seeds=d.seeds)
-    assert all(summarise(r)["none_accuracy"] >= 2 / 3 for r in draws[doc.DRAW_SETS[-1].name].values())
+    last = [r for res in draws[doc.DRAW_SETS[-1].name].values() for r in res if r.case.category == "none"]
+    text = doc.DOC.read_text()
+    short = " ".join(text[text.index("**In short**"):text.index("**What this version changed**")].split())
+    assert f"`none` right {sum(r.verdict.effect == 'none' for r in last)} of {len(last)}" in short
     assert doc.doc_block("sparse") == doc.sparse_block()
     for name, seeds in doc.ADVICE_SETS.items():
         set_results = {s: r for d in draws.values() for s, r in d.items() if s in seeds}
